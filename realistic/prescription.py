@@ -1,0 +1,260 @@
+"""Lens prescriptions: parse, validate and hold a lens as plain arrays.
+
+Frames and units (shared by every module of the package):
+
+* All lens lengths are millimetres.
+* Surfaces are numbered from 0 at the front (scene side) to the rear (film side), the order of
+  the rows of a prescription file.
+* The *lens frame* is the camera frame: the film plane is z = 0, +z points toward the scene, x and
+  y are the film's axes. The rear lens vertex sits at z = film distance and the front vertex at
+  z = film distance + total track. Tracers and samplers work in this frame.
+* Paraxial analysis (``realistic.paraxial``) uses the optics textbook convention instead: light
+  travels from the scene toward the film and positions are signed + toward the film. It converts
+  at its boundary.
+
+A prescription row is ``radius thickness n_d [V_d] aperture``: signed radius of curvature (> 0:
+centre of curvature on the film side, i.e. convex toward the scene; 0: the planar aperture stop;
+``inf``: a flat refracting surface), distance to the next surface, index of the medium behind the
+surface (0, 1 or blank: air), optional Abbe number, clear aperture diameter.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from realistic.errors import LensFileError
+
+#: Short names of the bundled prescriptions (package data in ``realistic/lenses``).
+BUNDLED_LENSES = {
+    "dgauss": "dgauss.50mm.dat",
+    "wide": "wide.22mm.dat",
+    "fisheye": "fisheye.10mm.dat",
+    "telephoto": "telephoto.250mm.dat",
+    "dgauss100": "dgauss100.dat",
+}
+
+COLUMN_NAMES_4 = ("radius", "thickness", "index", "aperture")
+COLUMN_NAMES_5 = ("radius", "thickness", "index", "abbe V", "aperture")
+
+
+@dataclass(frozen=True, eq=False)
+class LensSystem:
+    """A lens as arrays indexed by surface, front (scene side) first.
+
+    ``thickness_mm[i]`` is the axial distance from surface i to surface i+1; the last entry is the
+    film gap given by the file (0 when the file leaves focusing to the scene). ``index_d[i]`` and
+    ``abbe_v[i]`` describe the medium behind surface i (toward the film); air has index 1 and V 0.
+    """
+
+    name: str
+    radius_mm: np.ndarray
+    thickness_mm: np.ndarray
+    index_d: np.ndarray
+    abbe_v: np.ndarray
+    aperture_mm: np.ndarray
+    stop: int
+    source: str = ""
+    convention_note: str = ""
+
+    @property
+    def surface_count(self) -> int:
+        return len(self.radius_mm)
+
+    @property
+    def curvature_per_mm(self) -> np.ndarray:
+        """1/R per surface, 0 for the stop and for flat surfaces."""
+        with np.errstate(divide="ignore"):
+            c = np.where(self.radius_mm == 0, 0.0, 1.0 / self.radius_mm)
+        return np.where(np.isfinite(c), c, 0.0)
+
+    @property
+    def track_length_mm(self) -> float:
+        """Axial distance from the front vertex to the rear vertex."""
+        return float(np.sum(self.thickness_mm[:-1]))
+
+    @property
+    def film_gap_mm(self) -> float:
+        """Rear vertex to film distance written in the file, 0 when the file gives none."""
+        return float(self.thickness_mm[-1])
+
+    @property
+    def stop_diameter_mm(self) -> float:
+        return float(self.aperture_mm[self.stop])
+
+    @property
+    def has_dispersion(self) -> bool:
+        return bool(np.any(self.abbe_v > 0))
+
+    def vertex_offset_from_rear_mm(self) -> np.ndarray:
+        """Axial position of each vertex measured from the rear vertex, + toward the scene."""
+        gaps = self.thickness_mm[:-1]
+        return np.concatenate([np.cumsum(gaps[::-1])[::-1], [0.0]])
+
+    def vertex_z_mm(self, film_distance_mm: float) -> np.ndarray:
+        """Vertex positions in the lens frame (film at z = 0) for a given film distance."""
+        return film_distance_mm + self.vertex_offset_from_rear_mm()
+
+    def with_stop_diameter(self, diameter_mm: float) -> "LensSystem":
+        """The same lens with the stop opened or closed to ``diameter_mm``."""
+        if not (diameter_mm > 0 and math.isfinite(diameter_mm)):
+            raise ValueError(f"aperture diameter must be a positive number of mm, got {diameter_mm}")
+        aperture = self.aperture_mm.copy()
+        aperture[self.stop] = diameter_mm
+        return LensSystem(self.name, self.radius_mm, self.thickness_mm, self.index_d, self.abbe_v,
+                          aperture, self.stop, self.source, self.convention_note)
+
+
+@dataclass(frozen=True)
+class _Row:
+    line: int
+    values: tuple[float | None, ...]
+
+
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?inf(inity)?$", re.IGNORECASE)
+
+
+def _is_number(text: str) -> bool:
+    return bool(_NUMBER.match(text))
+
+
+def _split_fields(line: str) -> list[str]:
+    """Whitespace-separated fields; a tab-separated row with blank cells keeps its blanks.
+
+    The table form (as in Kolb et al.) leaves the index of air and the radius of the stop blank,
+    so ``169.660<TAB>0.240<TAB><TAB><TAB>50.4`` has five positional cells.
+    """
+    fields = line.split()
+    if len(fields) in (4, 5) or "\t" not in line:
+        return fields
+    cells = [c.strip() for c in line.strip("\n").split("\t")]
+    if len(cells) in (4, 5):
+        return cells
+    return fields
+
+
+def _parse_rows(text: str, path: str) -> list[_Row]:
+    rows: list[_Row] = []
+    width = None
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].rstrip()
+        if not line.strip():
+            continue
+        fields = _split_fields(line)
+        if not rows and not any(_is_number(f) for f in fields if f):
+            continue  # a column header such as "radius thick n_d V-no ap"
+        if len(fields) not in (4, 5):
+            raise LensFileError(path, number, f"expected 4 columns (radius thickness index aperture) "
+                                f"or 5 (with Abbe V before aperture), found {len(fields)}: {line.strip()!r}")
+        if width is not None and len(fields) != width:
+            raise LensFileError(path, number, f"row has {len(fields)} columns but earlier rows have {width}")
+        width = len(fields)
+        names = COLUMN_NAMES_5 if width == 5 else COLUMN_NAMES_4
+        values: list[float | None] = []
+        for name, field in zip(names, fields):
+            if field == "":
+                values.append(None)
+            elif _is_number(field):
+                values.append(float(field))
+            else:
+                raise LensFileError(path, number, f"{name} {field!r} is not a number")
+        rows.append(_Row(number, tuple(values)))
+    if not rows:
+        raise LensFileError(path, None, "no surface rows (the file is empty or all comments)")
+    return rows
+
+
+def _is_shifted_convention(thickness: list[float]) -> bool:
+    """True for files whose column 2 is the distance from the *previous* surface.
+
+    pbrt-v4's 100 mm files (``dgauss.dat`` etc.) write 0 on the first row and the last surface's
+    distance on the last row. In the distance-to-next convention a first-row 0 is impossible (two
+    surfaces at one place), so the pattern identifies the convention without guessing.
+    """
+    return len(thickness) > 1 and thickness[0] == 0 and all(t > 0 for t in thickness[1:])
+
+
+def parse_prescription(text: str, path: str = "<string>", name: str | None = None) -> LensSystem:
+    """Parse and validate a prescription; raise LensFileError naming file, line and value."""
+    rows = _parse_rows(text, path)
+    five = len(rows[0].values) == 5
+    radius, thickness, index, abbe, aperture = [], [], [], [], []
+    for row in rows:
+        r, t, n = row.values[0], row.values[1], row.values[2]
+        v = row.values[3] if five else None
+        a = row.values[-1]
+        if t is None or a is None:
+            raise LensFileError(path, row.line, "thickness and aperture may not be blank")
+        radius.append(0.0 if r is None else r)
+        thickness.append(t)
+        index.append(0.0 if n is None else n)
+        abbe.append(0.0 if v is None else v)
+        aperture.append(a)
+
+    note = ""
+    if _is_shifted_convention(thickness):
+        thickness = thickness[1:] + [0.0]
+        note = ("column 2 read as the distance from the previous surface (first row is 0): "
+                "the pbrt-v4 100 mm convention, shifted to distance-to-next")
+
+    lines = [row.line for row in rows]
+    for i, line in enumerate(lines):
+        values = (radius[i], thickness[i], index[i], abbe[i], aperture[i])
+        if any(math.isnan(x) for x in values) or any(math.isinf(x) for x in values[1:]):
+            raise LensFileError(path, line, "values must be finite numbers (only a radius may be inf)")
+        if i < len(lines) - 1 and thickness[i] <= 0:
+            raise LensFileError(path, line, f"thickness {thickness[i]:g} mm to the next surface must be > 0")
+        if i == len(lines) - 1 and thickness[i] < 0:
+            raise LensFileError(path, line, f"film gap {thickness[i]:g} mm must not be negative")
+        if index[i] < 0 or 0 < index[i] < 1:
+            raise LensFileError(path, line, f"index {index[i]:g} is below 1 (use 0, 1 or blank for air)")
+        if abbe[i] < 0:
+            raise LensFileError(path, line, f"Abbe number {abbe[i]:g} must not be negative")
+        if aperture[i] <= 0:
+            raise LensFileError(path, line, f"aperture diameter {aperture[i]:g} mm must be > 0")
+        if radius[i] != 0 and math.isfinite(radius[i]) and aperture[i] / 2 > abs(radius[i]):
+            raise LensFileError(path, line, f"aperture diameter {aperture[i]:g} mm is larger than the "
+                                f"sphere of radius {radius[i]:g} mm allows (semi-diameter > |R|)")
+
+    stops = [i for i, r in enumerate(radius) if r == 0]
+    if not stops:
+        raise LensFileError(path, None, "no aperture stop (a row with radius 0)")
+    if len(stops) > 1:
+        raise LensFileError(path, lines[stops[1]], f"a second aperture stop (radius 0); the first is "
+                            f"on line {lines[stops[0]]}")
+    stop = stops[0]
+    index = [1.0 if n in (0.0, 1.0) else n for n in index]
+    before_stop = index[stop - 1] if stop > 0 else 1.0
+    if index[stop] != 1.0 or before_stop != 1.0:
+        raise LensFileError(path, lines[stop], "the aperture stop (radius 0) must sit in air")
+    abbe = [0.0 if n == 1.0 else v for n, v in zip(index, abbe)]
+
+    return LensSystem(
+        name=name or Path(path).stem,
+        radius_mm=np.array(radius), thickness_mm=np.array(thickness), index_d=np.array(index),
+        abbe_v=np.array(abbe), aperture_mm=np.array(aperture), stop=stop,
+        source=path, convention_note=note,
+    )
+
+
+def load_lens(name_or_path: str | Path) -> LensSystem:
+    """Load a bundled lens by short name (``dgauss``, ``wide``, ...) or a prescription file by path."""
+    key = str(name_or_path)
+    if key in BUNDLED_LENSES:
+        resource = resources.files("realistic") / "lenses" / BUNDLED_LENSES[key]
+        return parse_prescription(resource.read_text(encoding="utf-8"), path=f"{key} ({BUNDLED_LENSES[key]})",
+                                  name=key)
+    path = Path(key)
+    if not path.is_file():
+        names = ", ".join(BUNDLED_LENSES)
+        raise LensFileError(key, None, f"no such lens file, and not a bundled lens name ({names})")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as err:
+        raise LensFileError(key, None, f"cannot read: {err}") from None
+    return parse_prescription(text, path=key)
