@@ -1,0 +1,455 @@
+"""The pbrt scene language read into plain records: directives, transforms and graphics state.
+
+This module knows pbrt's grammar and state rules (CTM, attribute and transform stacks, named
+coordinate systems, object instancing, textures, materials, area lights) but nothing of how we
+render; ``realistic.pbrt_import`` turns the records into our scene and camera. What it cannot
+honour it reports once with file and line and carries on; a syntax error stops with file, line
+and what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from realistic.errors import UserError
+from realistic.pbrt_lexer import PbrtSyntaxError, Token, read_scene_text, tokenize
+
+PARAM_TYPES = {"integer", "float", "point", "point2", "point3", "vector", "vector2", "vector3", "normal",
+               "normal3", "color", "rgb", "spectrum", "xyz", "blackbody", "string", "bool", "texture"}
+
+
+@dataclass(frozen=True)
+class Param:
+    type: str
+    name: str
+    values: tuple
+    where: str
+
+
+@dataclass
+class Params:
+    """A directive's parameter list with typed getters (unknown names stay available for reporting)."""
+
+    items: dict[str, Param] = field(default_factory=dict)
+
+    def has(self, name: str) -> bool:
+        return name in self.items
+
+    def floats(self, name: str, default: list[float] | None = None) -> list[float] | None:
+        p = self.items.get(name)
+        if p is None:
+            return default
+        if not all(isinstance(v, float) for v in p.values):
+            raise PbrtSyntaxError(*_split_where(p.where), f'"{p.name}" expects numbers')
+        return list(p.values)
+
+    def float(self, name: str, default: float | None = None) -> float | None:
+        values = self.floats(name)
+        return default if not values else values[0]
+
+    def string(self, name: str, default: str | None = None) -> str | None:
+        p = self.items.get(name)
+        if p is None or not p.values:
+            return default
+        if not isinstance(p.values[0], str):
+            raise PbrtSyntaxError(*_split_where(p.where), f'"{p.name}" expects a string')
+        return p.values[0]
+
+
+def _split_where(where: str) -> tuple[str, int]:
+    path, line = where.rsplit(":", 1)
+    return path, int(line)
+
+
+@dataclass(frozen=True)
+class Material:
+    type: str
+    params: Params
+    where: str
+
+
+@dataclass(frozen=True)
+class TextureDef:
+    name: str
+    kind: str  # "float" or "color"/"spectrum"
+    cls: str  # "imagemap", "scale", "checkerboard", "constant", ...
+    params: Params
+    directory: Path  # where relative file names are looked up
+    where: str
+
+
+@dataclass(frozen=True)
+class AreaLight:
+    type: str
+    params: Params
+    where: str
+
+
+@dataclass(frozen=True)
+class ShapeRecord:
+    type: str
+    params: Params
+    transform: np.ndarray  # object to world (to the instance's space inside ObjectBegin)
+    material: Material
+    area_light: AreaLight | None
+    reverse_orientation: bool
+    directory: Path
+    where: str
+
+
+@dataclass(frozen=True)
+class LightRecord:
+    type: str
+    params: Params
+    transform: np.ndarray
+    where: str
+
+
+@dataclass(frozen=True)
+class Directive:
+    """A camera, film or sampler directive: type, parameters and the CTM when it was given."""
+
+    type: str
+    params: Params
+    transform: np.ndarray
+    where: str
+
+
+@dataclass
+class PbrtScene:
+    path: Path
+    film: Directive | None = None
+    sampler: Directive | None = None
+    camera: Directive | None = None
+    shapes: list[ShapeRecord] = field(default_factory=list)
+    objects: dict[str, list[ShapeRecord]] = field(default_factory=dict)
+    instances: list[tuple[str, np.ndarray, str]] = field(default_factory=list)
+    lights: list[LightRecord] = field(default_factory=list)
+    textures: dict[str, TextureDef] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def warn(self, where: str, message: str) -> None:
+        """Report something not honoured, once per distinct message."""
+        text = f"{where}: unsupported: {message}"
+        if not any(w.split(": unsupported: ", 1)[1] == message for w in self.warnings):
+            self.warnings.append(text)
+
+
+def translate(x: float, y: float, z: float) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def scale(x: float, y: float, z: float) -> np.ndarray:
+    return np.diag([x, y, z, 1.0])
+
+
+def rotate(angle_deg: float, x: float, y: float, z: float) -> np.ndarray:
+    """Rotation by ``angle_deg`` about the axis (x, y, z), right-handed about the axis as pbrt."""
+    axis = np.array([x, y, z], dtype=np.float64)
+    length = np.linalg.norm(axis)
+    if length == 0:
+        raise ValueError("zero rotation axis")
+    a = axis / length
+    s, c = math.sin(math.radians(angle_deg)), math.cos(math.radians(angle_deg))
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    m = np.eye(4)
+    m[:3, :3] = c * np.eye(3) + s * k + (1 - c) * np.outer(a, a)
+    return m
+
+
+def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """pbrt's LookAt: the world-to-camera matrix (camera looks down +z, x = up x dir)."""
+    direction = target - eye
+    if np.linalg.norm(direction) == 0:
+        raise ValueError("LookAt eye and target coincide")
+    direction = direction / np.linalg.norm(direction)
+    right = np.cross(up / np.linalg.norm(up), direction)
+    if np.linalg.norm(right) == 0:
+        raise ValueError("LookAt up vector is parallel to the viewing direction")
+    right /= np.linalg.norm(right)
+    new_up = np.cross(direction, right)
+    camera_to_world = np.eye(4)
+    camera_to_world[:3, 0], camera_to_world[:3, 1], camera_to_world[:3, 2] = right, new_up, direction
+    camera_to_world[:3, 3] = eye
+    return np.linalg.inv(camera_to_world)
+
+
+@dataclass
+class _State:
+    ctm: np.ndarray
+    material: Material
+    area_light: AreaLight | None = None
+    reverse_orientation: bool = False
+
+    def copy(self) -> "_State":
+        return _State(self.ctm.copy(), self.material, self.area_light, self.reverse_orientation)
+
+
+DEFAULT_MATERIAL = Material("matte", Params(), "<default>")
+
+
+class _Parser:
+    def __init__(self, path: Path):
+        self.scene = PbrtScene(path)
+        self.state = _State(np.eye(4), DEFAULT_MATERIAL)
+        self.stack: list[tuple[str, _State]] = []
+        self.named_frames: dict[str, np.ndarray] = {}
+        self.current_object: str | None = None
+        self.named_materials: dict[str, Material] = {}
+        self.tokens: list[Token] = []
+        self.pos = 0
+
+    # ---- token access -------------------------------------------------------------------------
+    def _load(self, path: Path) -> list[Token]:
+        return list(tokenize(read_scene_text(path), path))
+
+    def peek(self) -> Token | None:
+        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
+
+    def next(self, expected: str) -> Token:
+        token = self.peek()
+        if token is None:
+            last = self.tokens[-1] if self.tokens else None
+            raise PbrtSyntaxError(last.path if last else self.scene.path, last.line if last else 1,
+                                  f"unexpected end of file, expected {expected}")
+        self.pos += 1
+        return token
+
+    def number(self, directive: Token) -> float:
+        token = self.next(f"a number after {directive.text}")
+        if token.kind != "number":
+            raise PbrtSyntaxError(token.path, token.line, f"expected a number after {directive.text}, "
+                                  f"found {token.text}")
+        return float(token.value)
+
+    def numbers(self, directive: Token, count: int) -> list[float]:
+        """``count`` numbers, bare or inside one pair of brackets."""
+        bracketed = self.peek() is not None and self.peek().kind == "["
+        if bracketed:
+            self.pos += 1
+        values = [self.number(directive) for _ in range(count)]
+        if bracketed:
+            close = self.next("]")
+            if close.kind != "]":
+                raise PbrtSyntaxError(close.path, close.line, f"expected ] after {count} numbers of "
+                                      f"{directive.text}, found {close.text}")
+        return values
+
+    def string(self, directive: Token) -> str:
+        token = self.next(f"a quoted string after {directive.text}")
+        if token.kind != "string":
+            raise PbrtSyntaxError(token.path, token.line, f"expected a quoted string after {directive.text}, "
+                                  f"found {token.text}")
+        return str(token.value)
+
+    def params(self) -> Params:
+        params = Params()
+        while (token := self.peek()) is not None and token.kind == "string":
+            self.pos += 1
+            parts = str(token.value).split()
+            if len(parts) != 2 or parts[0] not in PARAM_TYPES:
+                raise PbrtSyntaxError(token.path, token.line, f'expected a parameter "type name", found {token.text}')
+            values = self.param_values(token)
+            params.items[parts[1]] = Param(parts[0], parts[1], tuple(values), token.where())
+        return params
+
+    def param_values(self, declaration: Token) -> list:
+        first = self.next(f"a value for {declaration.text}")
+        if first.kind in ("string", "number"):
+            return [first.value]
+        if first.kind != "[":
+            raise PbrtSyntaxError(first.path, first.line, f"expected a value or [ for {declaration.text}, "
+                                  f"found {first.text}")
+        values = []
+        while (token := self.next(f"] closing the values of {declaration.text}")).kind != "]":
+            if token.kind not in ("string", "number"):
+                raise PbrtSyntaxError(token.path, token.line, f"expected ] closing the values of "
+                                      f"{declaration.text}, found {token.text}")
+            values.append(token.value)
+        return [v in ("true", True) if declaration.value.startswith("bool") else v for v in values]
+
+    # ---- directives ---------------------------------------------------------------------------
+    def run(self) -> PbrtScene:
+        self.tokens = self._load(self.scene.path)
+        while (token := self.peek()) is not None:
+            self.pos += 1
+            if token.kind != "word":
+                raise PbrtSyntaxError(token.path, token.line, f"expected a directive, found {token.text}")
+            handler = getattr(self, f"d_{token.text}", None)
+            if handler is None:
+                self.skip_unknown(token)
+            else:
+                try:
+                    handler(token)
+                except ValueError as err:
+                    raise PbrtSyntaxError(token.path, token.line, f"{token.text}: {err}") from None
+        return self.scene
+
+    def skip_unknown(self, token: Token) -> None:
+        """An unknown directive: report it and skip its arguments up to the next directive."""
+        self.scene.warn(token.where(), f"directive {token.text} (ignored)")
+        while (nxt := self.peek()) is not None and nxt.kind != "word":
+            self.pos += 1
+
+    def apply(self, m: np.ndarray) -> None:
+        self.state.ctm = self.state.ctm @ m
+
+    def d_Include(self, t: Token) -> None:
+        name = self.string(t)
+        path = (t.path.parent / name)
+        if not path.is_file():
+            self.scene.warn(t.where(), f'Include "{name}": no such file {path} (skipped)')
+            return
+        self.tokens[self.pos:self.pos] = self._load(path)
+
+    d_Import = d_Include
+
+    def d_Identity(self, t: Token) -> None:
+        self.state.ctm = np.eye(4)
+
+    def d_Translate(self, t: Token) -> None:
+        self.apply(translate(*self.numbers(t, 3)))
+
+    def d_Scale(self, t: Token) -> None:
+        self.apply(scale(*self.numbers(t, 3)))
+
+    def d_Rotate(self, t: Token) -> None:
+        self.apply(rotate(*self.numbers(t, 4)))
+
+    def d_LookAt(self, t: Token) -> None:
+        v = np.array(self.numbers(t, 9))
+        self.apply(look_at(v[0:3], v[3:6], v[6:9]))
+
+    def d_Transform(self, t: Token) -> None:
+        self.state.ctm = np.array(self.numbers(t, 16)).reshape(4, 4).T  # pbrt lists column-major
+
+    def d_ConcatTransform(self, t: Token) -> None:
+        self.apply(np.array(self.numbers(t, 16)).reshape(4, 4).T)
+
+    def d_CoordinateSystem(self, t: Token) -> None:
+        self.named_frames[self.string(t)] = self.state.ctm.copy()
+
+    def d_CoordSysTransform(self, t: Token) -> None:
+        name = self.string(t)
+        if name not in self.named_frames:
+            raise PbrtSyntaxError(t.path, t.line, f'CoordSysTransform "{name}": no coordinate system of that name')
+        self.state.ctm = self.named_frames[name].copy()
+
+    def _directive(self, t: Token) -> Directive:
+        kind = self.string(t)
+        return Directive(kind, self.params(), self.state.ctm.copy(), t.where())
+
+    def d_Film(self, t: Token) -> None:
+        self.scene.film = self._directive(t)
+
+    def d_Sampler(self, t: Token) -> None:
+        self.scene.sampler = self._directive(t)
+
+    def d_Camera(self, t: Token) -> None:
+        self.scene.camera = self._directive(t)
+        self.named_frames["camera"] = np.linalg.inv(self.state.ctm)
+
+    def _ignored(self, t: Token) -> None:
+        kind = self.string(t)
+        self.params()
+        self.scene.warn(t.where(), f'{t.text} "{kind}" (ignored)')
+
+    d_PixelFilter = d_SurfaceIntegrator = d_VolumeIntegrator = d_Integrator = d_Accelerator = _ignored
+    d_Renderer = d_ColorSpace = d_MakeNamedMedium = _ignored
+
+    def d_WorldBegin(self, t: Token) -> None:
+        self.named_frames["world"] = np.eye(4)
+        self.state.ctm = np.eye(4)
+
+    def d_WorldEnd(self, t: Token) -> None:
+        pass
+
+    def _push(self, kind: str) -> None:
+        self.stack.append((kind, self.state.copy()))
+
+    def _pop(self, t: Token, kind: str) -> _State:
+        if not self.stack:
+            raise PbrtSyntaxError(t.path, t.line, f"{t.text} without a matching {kind}Begin")
+        opened, saved = self.stack.pop()
+        if opened != kind:
+            raise PbrtSyntaxError(t.path, t.line, f"{t.text} closes a {opened}Begin")
+        return saved
+
+    def d_AttributeBegin(self, t: Token) -> None:
+        self._push("Attribute")
+
+    def d_AttributeEnd(self, t: Token) -> None:
+        self.state = self._pop(t, "Attribute")
+
+    def d_TransformBegin(self, t: Token) -> None:
+        self._push("Transform")
+
+    def d_TransformEnd(self, t: Token) -> None:
+        self.state.ctm = self._pop(t, "Transform").ctm
+
+    def d_ReverseOrientation(self, t: Token) -> None:
+        self.state.reverse_orientation = not self.state.reverse_orientation
+
+    def d_ObjectBegin(self, t: Token) -> None:
+        name = self.string(t)
+        self._push("Object")
+        self.current_object = name
+        self.scene.objects[name] = []
+
+    def d_ObjectEnd(self, t: Token) -> None:
+        self.state = self._pop(t, "Object")
+        self.current_object = None
+
+    def d_ObjectInstance(self, t: Token) -> None:
+        name = self.string(t)
+        if name not in self.scene.objects:
+            raise PbrtSyntaxError(t.path, t.line, f'ObjectInstance "{name}": no object of that name')
+        self.scene.instances.append((name, self.state.ctm.copy(), t.where()))
+
+    def d_Texture(self, t: Token) -> None:
+        name, kind, cls = self.string(t), self.string(t), self.string(t)
+        self.scene.textures[name] = TextureDef(name, kind, cls, self.params(), t.path.parent, t.where())
+
+    def d_Material(self, t: Token) -> None:
+        self.state.material = Material(self.string(t), self.params(), t.where())
+
+    def d_MakeNamedMaterial(self, t: Token) -> None:
+        name = self.string(t)
+        params = self.params()
+        self.named_materials[name] = Material(params.string("type", "matte"), params, t.where())
+
+    def d_NamedMaterial(self, t: Token) -> None:
+        name = self.string(t)
+        if name not in self.named_materials:
+            raise PbrtSyntaxError(t.path, t.line, f'NamedMaterial "{name}": no material of that name')
+        self.state.material = self.named_materials[name]
+
+    def d_AreaLightSource(self, t: Token) -> None:
+        self.state.area_light = AreaLight(self.string(t), self.params(), t.where())
+
+    def d_LightSource(self, t: Token) -> None:
+        kind = self.string(t)
+        self.scene.lights.append(LightRecord(kind, self.params(), self.state.ctm.copy(), t.where()))
+
+    def d_Shape(self, t: Token) -> None:
+        kind = self.string(t)
+        record = ShapeRecord(kind, self.params(), self.state.ctm.copy(), self.state.material,
+                             self.state.area_light, self.state.reverse_orientation, t.path.parent, t.where())
+        if self.current_object is not None:
+            self.scene.objects[self.current_object].append(record)
+        else:
+            self.scene.shapes.append(record)
+
+
+def parse_pbrt(path: str | Path) -> PbrtScene:
+    """Read a pbrt scene file (with its Includes) into records."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: no such scene file")
+    return _Parser(path).run()
