@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from realistic.cli_render import add_render_command
 from realistic.dispersion import D_LINE_NM
 from realistic.errors import UserError
 from realistic.prescription import BUNDLED_LENSES, load_lens
@@ -50,6 +51,43 @@ def cmd_lens_trace(args: argparse.Namespace) -> int:
         print(text)
     else:
         _write_text_atomically(Path(args.output), text + "\n")
+    return 0
+
+
+def _film_distance(args: argparse.Namespace, lens) -> float:
+    """Film distance for ``--focus`` (mm from the film; default infinity)."""
+    from realistic.paraxial import film_distance_for_focus
+
+    return film_distance_for_focus(lens, args.focus if args.focus else float("inf"), args.wavelength)
+
+
+def cmd_lens_plot(args: argparse.Namespace) -> int:
+    from realistic.lens_plot import plot_cross_section
+
+    lens = _load_lens_with_stop(args)
+    out = Path(args.out or f"{lens.name}.png")
+    plot_cross_section(lens, _film_distance(args, lens), out, args.film_diagonal)
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_lens_curves(args: argparse.Namespace) -> int:
+    from realistic.lens_curves import field_curves
+    from realistic.lens_plot import plot_field_curves
+
+    lens = _load_lens_with_stop(args)
+    rows = field_curves(lens, args.film_diagonal, _film_distance(args, lens))
+    out = Path(args.out or f"{lens.name}-curves.png")
+    plot_field_curves(lens.name, rows, out)
+    if args.json:
+        _write_text_atomically(Path(args.json), json.dumps({"lens": lens.name, "curves": rows}, indent=1) + "\n")
+    print("film radius mm  field angle deg  rel. illumination  vignetting  distortion %")
+    for r in rows:
+        angle = "-" if r["field_angle_deg"] is None else f"{r['field_angle_deg']:.2f}"
+        distortion = "-" if r["distortion_percent"] is None else f"{r['distortion_percent']:.3f}"
+        print(f"{r['film_radius_mm']:14.3f}  {angle:>15}  {r['relative_illumination']:17.4f}  "
+              f"{r['vignetting']:10.4f}  {distortion:>12}")
+    print(f"wrote {out}" + (f" and {args.json}" if args.json else ""))
     return 0
 
 
@@ -99,6 +137,25 @@ def build_parser() -> argparse.ArgumentParser:
     trace.add_argument("--input", required=True, metavar="RAYS.json", help="rays to trace")
     trace.add_argument("--output", metavar="OUT.json", help="where to write the result (default: stdout)")
     trace.set_defaults(run=cmd_lens_trace)
+
+    def field_arguments(p: argparse.ArgumentParser) -> None:
+        lens_arguments(p)
+        p.add_argument("--focus", type=positive_float, metavar="MM",
+                       help="object distance in focus, mm from the film (default: infinity)")
+        p.add_argument("--film-diagonal", type=positive_float, default=43.27, metavar="MM",
+                       help="film diagonal in mm (default: %(default)s, full frame)")
+
+    plot = lens_commands.add_parser("plot", help="draw the lens cross-section with ray fans (PNG)")
+    field_arguments(plot)
+    plot.add_argument("--out", metavar="PNG", help="output image (default: LENS.png)")
+    plot.set_defaults(run=cmd_lens_plot)
+
+    curves = lens_commands.add_parser("curves", help="relative illumination and distortion against field height")
+    field_arguments(curves)
+    curves.add_argument("--out", metavar="PNG", help="plot of the curves (default: LENS-curves.png)")
+    curves.add_argument("--json", metavar="JSON", help="also write the curves as JSON")
+    curves.set_defaults(run=cmd_lens_curves)
+    add_render_command(commands)
     return parser
 
 

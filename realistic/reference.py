@@ -84,8 +84,12 @@ def refract(d: tuple, normal: tuple, eta: float) -> tuple[tuple, np.ndarray]:
 
 
 def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarray, directions: np.ndarray,
-                    wavelength_nm: float = D_LINE_NM) -> TraceResult:
-    """Trace rays starting at or behind the rear element through the lens, rear surface first."""
+                    wavelength_nm: float = D_LINE_NM, path: list[np.ndarray] | None = None) -> TraceResult:
+    """Trace rays starting at or behind the rear element through the lens, rear surface first.
+
+    With ``path`` given, the hit point (N, 3) on each surface is appended to it, rear surface
+    first (for drawing ray fans).
+    """
     origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     length = np.sqrt(np.sum(directions * directions, axis=1))
@@ -106,6 +110,8 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
         for i in range(lens.surface_count - 1, -1, -1):
             o, normal, miss = intersect_surface(o, d, vertex_z[i], lens.radius_mm[i])
             block(miss, i, MISS)
+            if path is not None:
+                path.append(np.stack(o, axis=1))
             r2 = o[0] * o[0] + o[1] * o[1]
             block(~(r2 <= (lens.aperture_mm[i] / 2) ** 2), i, STOP if i == lens.stop else APERTURE)
             if i != lens.stop:
