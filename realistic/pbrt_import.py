@@ -1,0 +1,286 @@
+"""pbrt scenes (v1/v2/v3 subset) turned into our Scene and camera.
+
+Cameras: ``realistic`` with the classic homework parameters (``specfile``, ``filmdistance``,
+``aperture_diameter``, ``filmdiag``; camera space in mm with its origin at the front lens vertex)
+or pbrt-v3's (``lensfile``, ``aperturediameter``, ``focusdistance``; camera space in metres with
+its origin at the film centre), and ``perspective`` (pinhole or thin lens). Everything the renderer
+cannot honour is reported once with file and line, and the render goes on.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from realistic.camera import Camera, build_camera
+from realistic.errors import UserError
+from realistic.meshes import load_mesh_file
+from realistic.paraxial import film_distance_for_focus
+from realistic.pbrt_parser import Material as PbrtMaterial
+from realistic.pbrt_parser import Params, PbrtScene, ShapeRecord, parse_pbrt
+from realistic.prescription import BUNDLED_LENSES, load_lens
+from realistic.scene import (AreaLight, CheckerTexture, ImageTexture, Material, Mesh, Scene, cone, disk, sphere,
+                             translate)
+from realistic.textures import read_texture_image
+from realistic.thin_lens import ThinLensCamera, build_thin_lens_camera
+
+GREY = (0.5, 0.5, 0.5)
+
+
+@dataclass
+class ImportedScene:
+    """What a pbrt file describes, ready to render."""
+
+    scene: Scene
+    camera: Camera | ThinLensCamera
+    output_name: str | None
+    light_samples: int
+    warnings: list[str] = field(default_factory=list)
+
+
+def _rgb(params: Params, name: str, default: tuple | None) -> tuple | None:
+    p = params.items.get(name)
+    if p is None:
+        return default
+    if p.type in ("spectrum", "blackbody", "xyz") or len(p.values) not in (1, 3):
+        return None
+    values = [float(v) for v in p.values]
+    return tuple(values * 3 if len(values) == 1 else values)
+
+
+class _Importer:
+    def __init__(self, parsed: PbrtScene):
+        self.parsed = parsed
+        self.scene = Scene()
+        self.materials: dict[int, Material] = {}
+        self.stored: dict[int, list[tuple[int, np.ndarray]]] = {}  # shape record -> (mesh index, local)
+        self.light_samples = 1
+
+    def warn(self, where: str, message: str) -> None:
+        self.parsed.warn(where, message)
+
+    # ---- materials and textures ---------------------------------------------------------------
+    def material(self, m: PbrtMaterial) -> Material:
+        key = id(m)
+        if key not in self.materials:
+            self.materials[key] = self._material(m)
+        return self.materials[key]
+
+    def _material(self, m: PbrtMaterial) -> Material:
+        if m.type not in ("matte", "plastic", "uber", "substrate", "translucent"):
+            self.warn(m.where, f'Material "{m.type}", rendered as matte grey')
+            return Material(GREY)
+        if m.type != "matte":
+            self.warn(m.where, f'Material "{m.type}", rendered as matte with its Kd')
+        kd = m.params.items.get("Kd")
+        if kd is not None and kd.type == "texture":
+            return self.texture_material(str(kd.values[0]), m.where)
+        colour = _rgb(m.params, "Kd", GREY)
+        if colour is None:
+            self.warn(m.where, f"a spectral Kd in {m.type}, rendered grey")
+            colour = GREY
+        return Material(colour)
+
+    def texture_material(self, name: str, where: str) -> Material:
+        """A Kd texture as colour x texture (pbrt's scale of an image by a constant included)."""
+        tex = self.parsed.textures.get(name)
+        if tex is None:
+            raise UserError(f'{where}: texture "{name}" is not defined')
+        p = tex.params
+        if tex.cls == "constant":
+            return Material(_rgb(p, "value", (1.0, 1.0, 1.0)) or GREY)
+        if tex.cls == "imagemap":
+            filename = p.string("filename")
+            if not filename:
+                raise UserError(f'{tex.where}: imagemap texture "{name}" has no filename')
+            pixels = read_texture_image(tex.directory / filename)
+            if p.has("udelta") or p.has("vdelta") or p.string("mapping", "uv") != "uv":
+                self.warn(tex.where, "imagemap mapping other than plain uv scaling (ignored)")
+            return Material((1.0, 1.0, 1.0), ImageTexture(pixels, (p.float("uscale", 1.0), p.float("vscale", 1.0))))
+        if tex.cls == "checkerboard":
+            if p.float("uscale", 1.0) != p.float("vscale", 1.0):
+                self.warn(tex.where, "checkerboard with different uscale and vscale (uscale used)")
+            even, odd = (self._constant_of(p, k, tex.where) for k in ("tex1", "tex2"))
+            return Material((1.0, 1.0, 1.0), CheckerTexture(even, odd, p.float("uscale", 1.0)))
+        if tex.cls == "scale":
+            parts = [p.items.get(k) for k in ("tex1", "tex2")]
+            textures = [q for q in parts if q is not None and q.type == "texture"]
+            constants = [(_rgb(p, q.name, None) or GREY) for q in parts if q is not None and q.type != "texture"]
+            if len(textures) > 1:
+                self.warn(tex.where, "scale texture of two textures (the second is ignored)")
+            base = self.texture_material(str(textures[0].values[0]), tex.where) if textures else Material((1, 1, 1))
+            colour = np.prod([base.diffuse] + constants, axis=0)
+            return Material(tuple(float(c) for c in colour), base.texture)
+        self.warn(tex.where, f'Texture "{tex.cls}", rendered as grey')
+        return Material(GREY)
+
+    def _constant_of(self, p: Params, key: str, where: str) -> tuple:
+        q = p.items.get(key)
+        if q is not None and q.type == "texture":
+            self.warn(where, f"checkerboard {key} given as a texture (grey used)")
+            return GREY
+        return _rgb(p, key, (1.0, 1.0, 1.0) if key == "tex1" else (0.0, 0.0, 0.0)) or GREY
+
+    # ---- shapes -------------------------------------------------------------------------------
+    def meshes(self, s: ShapeRecord) -> list[tuple[Mesh, np.ndarray]]:
+        """The shape tessellated, with the transform from its object space to the record's space."""
+        p = s.params
+        if s.type == "trianglemesh":
+            return [(self.triangle_mesh(s), np.eye(4))]
+        if s.type == "plymesh":
+            filename = p.string("filename")
+            if not filename:
+                raise UserError(f"{s.where}: plymesh has no filename")
+            return [(obj.mesh, obj.transform) for obj in load_mesh_file(s.directory / filename)]
+        if s.type == "disk":
+            if p.float("innerradius", 0.0):
+                self.warn(s.where, "disk innerradius (rendered as a full disk)")
+            return [(disk(p.float("radius", 1.0)), translate(0, 0, p.float("height", 0.0)))]
+        if s.type == "sphere":
+            if p.has("zmin") or p.has("zmax") or p.float("phimax", 360.0) != 360.0:
+                self.warn(s.where, "partial sphere (zmin, zmax, phimax; rendered whole)")
+            return [(sphere(p.float("radius", 1.0)), np.eye(4))]
+        if s.type == "cone":
+            if p.float("phimax", 360.0) != 360.0:
+                self.warn(s.where, "partial cone (phimax; rendered whole)")
+            return [(cone(p.float("radius", 1.0), p.float("height", 1.0)), np.eye(4))]
+        if s.type == "cylinder":
+            return [(self.cylinder(p), np.eye(4))]
+        self.warn(s.where, f'Shape "{s.type}" (skipped)')
+        return []
+
+    def triangle_mesh(self, s: ShapeRecord) -> Mesh:
+        p = s.params
+        points = np.asarray(p.floats("P", []), dtype=np.float64)
+        indices = np.asarray(p.floats("indices", []), dtype=np.float64)
+        if len(points) == 0 or len(points) % 3 or len(indices) == 0 or len(indices) % 3:
+            raise UserError(f'{s.where}: trianglemesh needs "point P" (3 values per point) and '
+                            f'"integer indices" (3 per triangle)')
+        vertices = points.reshape(-1, 3)
+        faces = indices.astype(np.int64).reshape(-1, 3)
+        if faces.min() < 0 or faces.max() >= len(vertices) or not np.all(np.isfinite(vertices)):
+            raise UserError(f"{s.where}: trianglemesh indices out of range or non-finite points")
+        uv = p.floats("uv") or p.floats("st")
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2) if uv else None
+        if uv is not None and len(uv) != len(vertices):
+            self.warn(s.where, "trianglemesh uv count differs from point count (uv ignored)")
+            uv = None
+        normals = p.floats("N")
+        normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3) if normals else None
+        if normals is not None:
+            normals = normals / np.linalg.norm(normals, axis=1, keepdims=True) if len(normals) == len(vertices) else None
+        return Mesh(vertices, faces, normals, uv, "trianglemesh")
+
+    def cylinder(self, p: Params, segments: int = 256) -> Mesh:
+        radius, z0, z1 = p.float("radius", 1.0), p.float("zmin", -1.0), p.float("zmax", 1.0)
+        phi = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+        ring = np.column_stack([np.cos(phi), np.sin(phi)])
+        vertices = np.vstack([np.column_stack([ring * radius, np.full(segments, z)]) for z in (z0, z1)])
+        normals = np.vstack([np.column_stack([ring, np.zeros(segments)])] * 2)
+        i = np.arange(segments)
+        j = (i + 1) % segments
+        faces = np.concatenate([np.column_stack([i, j, j + segments]), np.column_stack([i, j + segments, i + segments])])
+        return Mesh(vertices, faces, normals, None, "cylinder")
+
+    def add_shape(self, s: ShapeRecord, world: np.ndarray) -> None:
+        if s.area_light is not None and self.add_area_light(s, world):
+            return
+        material = self.material(s.material)
+        if id(s) not in self.stored:  # tessellate or load once, however often it is instanced
+            self.stored[id(s)] = [(self.scene.add_mesh(mesh), local) for mesh, local in self.meshes(s)]
+        for index, local in self.stored[id(s)]:
+            self.scene.add(index, world @ s.transform @ local, material)
+
+    def add_area_light(self, s: ShapeRecord, world: np.ndarray) -> bool:
+        light = s.area_light
+        if light.type not in ("area", "diffuse"):
+            self.warn(light.where, f'AreaLightSource "{light.type}" (shape rendered unlit)')
+            return False
+        radiance = _rgb(light.params, "L", (1.0, 1.0, 1.0))
+        if radiance is None:
+            self.warn(light.where, "spectral area light L (rendered white)")
+            radiance = (1.0, 1.0, 1.0)
+        scale = _rgb(light.params, "scale", (1.0, 1.0, 1.0)) or (1.0, 1.0, 1.0)
+        radiance = tuple(a * b for a, b in zip(radiance, scale))
+        self.light_samples = max(self.light_samples, int(light.params.float("nsamples", 1) or 1))
+        if s.type != "disk":
+            self.warn(light.where, f'area light on a "{s.type}" (only disks emit; shape rendered unlit)')
+            return False
+        transform = world @ s.transform @ translate(0, 0, s.params.float("height", 0.0))
+        two_sided = bool(light.params.items.get("twosided", None) and light.params.items["twosided"].values[0])
+        self.scene.lights.append(AreaLight("disk", (s.params.float("radius", 1.0),) * 2, radiance, transform,
+                                           s.reverse_orientation, two_sided))
+        return True
+
+    def run(self) -> Scene:
+        for s in self.parsed.shapes:
+            self.add_shape(s, np.eye(4))
+        for name, world, _ in self.parsed.instances:
+            for s in self.parsed.objects[name]:
+                self.add_shape(s, world)
+        for light in self.parsed.lights:
+            self.warn(light.where, f'LightSource "{light.type}" (not lit; only area lights are)')
+        return self.scene
+
+
+def find_lens_file(name: str, scene_dir: Path, where: str) -> str:
+    """A lens named by a scene: next to the scene, else a bundled lens of that file name."""
+    if (scene_dir / name).is_file():
+        return str(scene_dir / name)
+    for short, filename in BUNDLED_LENSES.items():
+        if filename == Path(name).name:
+            return short
+    raise UserError(f'{where}: lens file "{name}" not found next to the scene ({scene_dir}) nor among the '
+                    f'bundled lenses ({", ".join(BUNDLED_LENSES.values())})')
+
+
+def import_camera(parsed: PbrtScene, width: int, height: int, spp: int,
+                  lens_sampling: str = "pupil") -> Camera | ThinLensCamera:
+    """The scene's camera at the given resolution and sample count."""
+    directive = parsed.camera
+    if directive is None:
+        raise UserError(f"{parsed.path}: no Camera directive")
+    world_from_camera = np.linalg.inv(directive.transform)
+    p = directive.params
+    if directive.type == "perspective":
+        return build_thin_lens_camera(p.float("fov", 90.0), p.float("lensradius", 0.0),
+                                      p.float("focaldistance", 1e6), width, height, spp, world_from_camera)
+    if directive.type != "realistic":
+        raise UserError(f'{directive.where}: Camera "{directive.type}" is not supported (use realistic or perspective)')
+    if p.has("specfile"):  # the classic homework: camera space in mm, origin at the front lens vertex
+        lens = load_lens(find_lens_file(p.string("specfile"), parsed.path.parent, directive.where))
+        film_distance = p.float("filmdistance")
+        if film_distance is None:
+            raise UserError(f'{directive.where}: Camera "realistic" needs "float filmdistance"')
+        if p.has("aperture_diameter"):
+            lens = lens.with_stop_diameter(p.float("aperture_diameter"))
+        origin_mm = film_distance + lens.track_length_mm
+    elif p.has("lensfile"):  # pbrt-v3: camera space in metres, origin at the film centre
+        lens = load_lens(find_lens_file(p.string("lensfile"), parsed.path.parent, directive.where))
+        lens = lens.with_stop_diameter(p.float("aperturediameter", 1.0))
+        film_distance = film_distance_for_focus(lens, p.float("focusdistance", 10.0) * 1000.0)
+        world_from_camera = world_from_camera @ np.diag([1e-3, 1e-3, 1e-3, 1.0])
+        origin_mm = 0.0
+    else:
+        raise UserError(f'{directive.where}: Camera "realistic" needs "string specfile" or "string lensfile"')
+    return build_camera(lens, film_distance, p.float("filmdiag", 35.0), width, height, spp, world_from_camera,
+                        origin_mm, lens_sampling)
+
+
+def import_pbrt(path: str | Path, width: int | None = None, height: int | None = None, spp: int | None = None,
+                lens_sampling: str = "pupil") -> ImportedScene:
+    """Read a pbrt scene; resolution and samples default to the file's (``Film`` and ``Sampler``)."""
+    parsed = parse_pbrt(path)
+    film = parsed.film.params if parsed.film else Params()
+    if parsed.film and parsed.film.params.has("cropwindow"):
+        parsed.warn(parsed.film.where, "Film cropwindow (the whole image is rendered)")
+    width = width or int(film.float("xresolution", 640))
+    height = height or int(film.float("yresolution", 480))
+    spp = spp or int(parsed.sampler.params.float("pixelsamples", 16) if parsed.sampler else 16)
+    camera = import_camera(parsed, width, height, spp, lens_sampling)
+    importer = _Importer(parsed)
+    scene = importer.run()
+    return ImportedScene(scene, camera, film.string("filename"), importer.light_samples, parsed.warnings)
