@@ -1,0 +1,39 @@
+"""The film: per-pixel sums of weight x radiance over the samples taken so far (box filter)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_count: int) -> np.ndarray:
+    """Sums (pixel_count, 3) of ``value`` rows per pixel, pixels first_pixel .. + pixel_count - 1."""
+    local = pixel - first_pixel
+    return np.column_stack([np.bincount(local, weights=value[:, c], minlength=pixel_count)
+                            for c in range(3)])
+
+
+class Film:
+    """Accumulates contributions of sample-id ranges; pixel value = sum / samples taken (box filter).
+
+    Every sample counts, vignetted ones included (their contribution is 0), so a pixel's value is
+    the film irradiance estimate E = mean(weight * radiance).
+    """
+
+    def __init__(self, width: int, height: int, spp: int):
+        self.width, self.height, self.spp = width, height, spp
+        self.sums = np.zeros((width * height, 3), np.float64)
+        self.samples = np.zeros(width * height, np.int64)
+
+    def add(self, first_sample: int, count: int, first_pixel: int, sums: np.ndarray) -> None:
+        """Add the sums of a pass (from ``pass_sums``) covering sample ids first_sample .. + count - 1."""
+        self.sums[first_pixel:first_pixel + len(sums)] += sums
+        end = first_sample + count
+        pixels = np.arange(first_sample // self.spp, (end - 1) // self.spp + 1)
+        self.samples[pixels] += (np.minimum(end, (pixels + 1) * self.spp)
+                                 - np.maximum(first_sample, pixels * self.spp))
+
+    def image(self) -> np.ndarray:
+        """(height, width, 3) float32 film values; pixels with no samples yet are 0."""
+        value = np.divide(self.sums, self.samples[:, None], out=np.zeros_like(self.sums),
+                          where=self.samples[:, None] > 0)
+        return value.reshape(self.height, self.width, 3).astype(np.float32)

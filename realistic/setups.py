@@ -1,0 +1,110 @@
+"""Ready-made scenes and camera framing: a mesh on a grid floor under a disk light, and the default scene.
+
+World units are metres in these setups (``MM_PER_UNIT`` = 1000): a loaded mesh is scaled so its
+largest bounding-box side is ``MESH_SIZE`` m, set on the floor y = 0, +y up. The camera frame is
+in millimetres; ``camera_for_view`` builds the world-from-camera transform and focuses the lens
+(thick-lens model) at a distance measured from the film plane.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from realistic.camera import Camera, build_camera
+from realistic.errors import UserError
+from realistic.meshes import MeshObject
+from realistic.paraxial import film_distance_for_focus, nearest_focus_mm, thick_lens
+from realistic.prescription import LensSystem
+from realistic.scene import (AreaLight, GridTexture, Material, Scene, cone, look_at, quad, rotate, scale,
+                             sphere, transform_points, translate)
+
+MM_PER_UNIT = 1000.0
+MESH_SIZE = 1.0
+MESH_COLOUR = (0.75, 0.35, 0.22)
+GRID_SPACING = 0.1  # m between floor grid lines
+VIEW_DIRECTION = np.array([0.55, 0.35, -1.0])  # from the target toward the eye
+
+
+@dataclass
+class Setup:
+    """A scene and where to look: ``target`` is aimed at and focused on; ``radius`` bounds the subject."""
+
+    scene: Scene
+    target: np.ndarray
+    radius: float
+    eye: np.ndarray | None = None  # None: placed so the subject fills the frame
+
+
+def _stage(scene: Scene, floor_size: float, light_height: float, light_radius: float, radiance: float) -> None:
+    """Grid floor (y = 0, lines every GRID_SPACING) and a disk light facing down."""
+    grid = GridTexture(base=(0.75, 0.75, 0.75), line=(0.08, 0.08, 0.08), cells=floor_size / GRID_SPACING)
+    scene.add(quad(floor_size, floor_size), rotate(-90, (1, 0, 0)), Material((1.0, 1.0, 1.0), grid))
+    scene.lights.append(AreaLight("disk", (light_radius, light_radius), (radiance,) * 3,
+                                  translate(0, light_height, 0) @ rotate(90, (1, 0, 0))))
+
+
+def mesh_setup(objects: list[MeshObject]) -> Setup:
+    """The objects of a mesh file normalised to MESH_SIZE, resting on a grid floor, lit from above."""
+    points = np.concatenate([transform_points(o.transform, o.mesh.vertices) for o in objects])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    size = float(np.max(hi - lo))
+    if not size > 0:
+        raise UserError("the mesh has zero size (all its vertices at one point)")
+    k = MESH_SIZE / size
+    centre = (lo + hi) / 2
+    place = scale(k) @ translate(-centre[0], -lo[1], -centre[2])
+    scene = Scene(background=(0.02, 0.02, 0.03))
+    for obj in objects:
+        material = Material(obj.colour if obj.colour is not None else MESH_COLOUR)
+        scene.add(obj.mesh, place @ obj.transform, material)
+    _stage(scene, 40.0, 4.0, 1.5, 40.0)
+    extent = (hi - lo) * k
+    return Setup(scene, np.array([0.0, extent[1] / 2, 0.0]), float(np.linalg.norm(extent)) / 2)
+
+
+def default_setup() -> Setup:
+    """A row of spheres and cones receding in depth on a grid floor, seen at a grazing angle."""
+    scene = Scene(background=(0.02, 0.02, 0.03))
+    ball, spike = scene.add_mesh(sphere(0.09)), scene.add_mesh(cone(0.07, 0.24))
+    red, blue = Material((0.75, 0.15, 0.12)), Material((0.15, 0.2, 0.6))
+    for i, x in enumerate(np.linspace(-1.6, 1.6, 9)):
+        if i % 2 == 0:
+            scene.add(ball, translate(x, 0.09, 0.0), red)
+        else:
+            scene.add(spike, translate(x, 0.0, 0.0) @ rotate(-90, (1, 0, 0)), blue)
+    _stage(scene, 12.0, 5.0, 2.5, 25.0)
+    return Setup(scene, np.array([0.0, 0.05, 0.0]), 0.3, eye=np.array([2.6, 0.35, -0.8]))
+
+
+def auto_eye(setup: Setup, lens: LensSystem, film_short_side_mm: float) -> np.ndarray:
+    """An eye position from which the subject's bounding sphere about fills the frame."""
+    direction = VIEW_DIRECTION / np.linalg.norm(VIEW_DIRECTION)
+    image_mm = thick_lens(lens).focal_length_mm
+    distance = setup.radius
+    for _ in range(2):  # refine the image distance for the focus at that distance
+        half_angle = math.atan(film_short_side_mm / 2 / image_mm)
+        distance = max(0.85 * setup.radius / math.sin(half_angle), 1.5 * nearest_focus_mm(lens) / MM_PER_UNIT)
+        t = thick_lens(lens)
+        image_mm = film_distance_for_focus(lens, distance * MM_PER_UNIT) + t.rear_principal_from_rear_vertex_mm
+    return setup.target + direction * distance
+
+
+def camera_for_view(lens: LensSystem, eye: np.ndarray, target: np.ndarray, focus_units: float | None,
+                    film_diagonal_mm: float, width: int, height: int, spp: int,
+                    lens_sampling: str = "pupil") -> Camera:
+    """Camera with its film centre at ``eye`` looking at ``target``, focused ``focus_units`` from the film.
+
+    ``focus_units`` None focuses on the target (its distance along the view axis).
+    """
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    if np.allclose(eye, target):
+        raise UserError("the camera position and the target coincide")
+    if focus_units is None:
+        focus_units = float(np.linalg.norm(target - eye))
+    film_distance = film_distance_for_focus(lens, focus_units * MM_PER_UNIT)
+    world_from_camera = look_at(eye, target) @ scale(1.0 / MM_PER_UNIT)
+    return build_camera(lens, film_distance, film_diagonal_mm, width, height, spp, world_from_camera,
+                        0.0, lens_sampling)
