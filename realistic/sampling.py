@@ -168,8 +168,23 @@ def _passing_box(lens: LensSystem, film_distance_mm: float, plane_z: float, film
     return boxes, x_step, y_step
 
 
+_TABLES: dict[tuple, "ExitPupilTable"] = {}
+
+
 def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float,
                      intervals: int = PUPIL_INTERVALS, film_points: int = 6, grid: int = 80) -> ExitPupilTable:
+    """Bound the exit pupil per radial film interval (cached per lens, focus and film)."""
+    key = (lens.radius_mm.tobytes(), lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
+           lens.abbe_v.tobytes(), lens.aperture_mm.tobytes(), film_distance_mm, film_diagonal_mm,
+           intervals, film_points, grid)
+    if key not in _TABLES:
+        _TABLES[key] = _build_exit_pupil_table(lens, film_distance_mm, film_diagonal_mm, intervals,
+                                               film_points, grid)
+    return _TABLES[key]
+
+
+def _build_exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float,
+                            intervals: int, film_points: int, grid: int) -> ExitPupilTable:
     """Bound the exit pupil per radial film interval, as pbrt does, by tracing a dense grid.
 
     A coarse grid over the region the rear element can occupy finds each interval's box; a fine
