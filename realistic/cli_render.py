@@ -113,7 +113,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     camera = camera_for_view(lens, eye, target, args.focus, args.film_diagonal, width, height, args.spp,
                              args.lens_sampling)
     result = render_passes(setup.scene, camera, args.backend, args.seed, args.cl_device, args.light_samples,
-                           progress=sys.stderr.isatty())
+                           progress=True)
     focus_mm = focus_distance_for_film(lens, camera.film_distance_mm)
     metadata = {
         "lens": lens.name, "lensSource": lens.source, "apertureDiameterMm": float(lens.stop_diameter_mm),

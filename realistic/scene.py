@@ -246,4 +246,5 @@ def cone(radius: float, height: float, segments: int = DEFAULT_SEGMENTS) -> Mesh
     slope = radius / height
     n = np.stack(np.broadcast_arrays(np.cos(phi), np.sin(phi), slope * np.ones_like(s)), axis=-1).reshape(-1, 3)
     uv = np.stack(np.broadcast_arrays(phi / (2 * np.pi), s), axis=-1).reshape(-1, 2)
-    return Mesh(vertices, _grid_faces(stacks, segments), n / np.linalg.norm(n, axis=1, keepdims=True), uv, "cone")
+    faces = _grid_faces(stacks, segments)[:, ::-1]  # rows run base to apex: reverse to wind outward
+    return Mesh(vertices, faces, n / np.linalg.norm(n, axis=1, keepdims=True), uv, "cone")

@@ -1,0 +1,89 @@
+"""Film accumulation, EXR and PNG output, atomic writes."""
+
+import os
+
+import numpy as np
+import pytest
+
+from realistic.errors import UserError
+from realistic.film import Film, pass_sums
+from realistic.image_io import auto_exposure, check_writable, read_exr, srgb_encode, write_atomically, write_exr, write_png
+
+
+def test_film_averages_over_the_samples_taken_including_partial_pixels():
+    film = Film(width=3, height=1, spp=4)
+    # pass 1: sample ids 0..5 (pixel 0 complete, pixel 1 half done)
+    pixel = np.array([0, 0, 0, 1, 1])  # id 2 was vignetted: no row, but it still counts
+    value = np.array([[4.0, 0, 0], [4.0, 0, 0], [4.0, 0, 0], [2.0, 0, 0], [2.0, 0, 0]])
+    film.add(0, 6, 0, pass_sums(pixel, value, 0, 2))
+    image = film.image()
+    assert image[0, 0, 0] == pytest.approx(3.0)  # 12 / 4 samples
+    assert image[0, 1, 0] == pytest.approx(2.0)  # 4 / 2 samples so far
+    assert image[0, 2, 0] == 0.0  # no samples yet
+    film.add(6, 6, 1, pass_sums(np.array([1, 2]), np.array([[8.0, 0, 0], [4.0, 1, 0]]), 1, 2))
+    image = film.image()
+    assert image[0, 1, 0] == pytest.approx(3.0)  # 12 / 4
+    assert image[0, 2, 0] == pytest.approx(1.0) and image[0, 2, 1] == pytest.approx(0.25)
+    np.testing.assert_array_equal(film.samples, [4, 4, 4])
+
+
+def test_exr_round_trip_keeps_pixels_and_metadata(tmp_path):
+    rng = np.random.default_rng(0)
+    image = rng.random((5, 7, 3)).astype(np.float32) * 100
+    meta = {"lens": "dgauss", "fNumber": 2.03, "focusDistanceMm": 1234.5, "spp": 16, "seed": 7,
+            "renderSeconds": 1.25}
+    path = tmp_path / "out.exr"
+    write_exr(path, image, meta)
+    pixels, header = read_exr(path)
+    np.testing.assert_array_equal(pixels, image)
+    for key, value in meta.items():
+        assert header[key] == pytest.approx(value) if isinstance(value, float) else header[key] == value
+    assert [p.name for p in tmp_path.iterdir()] == ["out.exr"]
+
+
+def test_png_preview_is_srgb_encoded_with_exposure(tmp_path):
+    from PIL import Image
+
+    image = np.full((2, 2, 3), 0.25, np.float32)
+    write_png(tmp_path / "a.png", image, exposure_stops=1.0)  # 0.25 * 2 = 0.5 linear
+    pixels = np.asarray(Image.open(tmp_path / "a.png"))
+    assert pixels.shape == (2, 2, 3)
+    assert pixels[0, 0, 0] == round(float(srgb_encode(np.float32(0.5))) * 255) == 188
+
+
+def test_auto_exposure_maps_bright_pixels_below_white():
+    image = np.zeros((10, 10, 3), np.float32)
+    image[:, :5] = 3.0
+    stops = auto_exposure(image)
+    assert 3.0 * 2**stops == pytest.approx(0.8, rel=1e-3)
+    assert auto_exposure(np.zeros((2, 2, 3), np.float32)) == 0.0
+
+
+def test_failed_write_leaves_no_file(tmp_path):
+    def broken(name: str) -> None:
+        with open(name, "wb") as f:
+            f.write(b"partial")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        write_atomically(tmp_path / "x.exr", broken)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unwritable_destinations_are_reported_before_rendering(tmp_path):
+    with pytest.raises(UserError, match="does not exist"):
+        check_writable(tmp_path / "nope" / "a.exr")
+    with pytest.raises(UserError, match="directory"):
+        check_writable(tmp_path)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root can write anywhere")
+def test_read_only_directory_is_reported(tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        with pytest.raises(UserError, match="permission denied"):
+            check_writable(locked / "a.exr")
+    finally:
+        locked.chmod(0o700)
