@@ -1,7 +1,9 @@
 """Choosing how camera rays are made: the OpenCL kernel or the numpy reference.
 
 A ray generator is a callable ``(first_sample, count) -> RayBatch`` bound to one camera and seed.
-The numpy backend is an explicit choice (``--backend numpy``), never a silent fallback.
+The numpy backend is an explicit choice (``--backend numpy``), never a silent fallback. The OpenCL
+backend returns float32 arrays (origin and direction as (N, 3) views of structure-of-arrays
+buffers, pixel as int32); the numpy backend float64 and int64.
 """
 
 from __future__ import annotations
@@ -21,5 +23,8 @@ def ray_generator(camera: Camera, backend: str = "opencl", seed: int = 0, cl_dev
     if backend == "numpy":
         return lambda first, count: generate_rays(camera, first, count, seed)
     if backend == "opencl":
-        raise UserError("the OpenCL backend is not built yet: use --backend numpy")
+        from realistic.opencl_host import LensKernel  # imports pyopencl, so only when chosen
+
+        kernel = LensKernel(camera, cl_device)
+        return lambda first, count: kernel.generate(first, count, seed)
     raise UserError(f"unknown backend {backend!r} (choose {', '.join(BACKENDS)})")

@@ -1,0 +1,263 @@
+/* Camera ray generation through a real lens: sample id -> world-space ray, weight, pixel.
+ *
+ * OpenCL 1.2 C, float32, one work item per sample id. The float64 numpy reference is
+ * realistic.camera.generate_rays; this kernel follows the same rules (realistic/reference.py):
+ * root chosen by direction, far hemisphere = miss, clear-aperture and stop clipping, Heckbert
+ * refraction, total internal reflection blocks.
+ *
+ * Written so that PoCL's work-group vectoriser turns the work-item loop into SIMD code
+ * (../shared/DESIGN.md, "Facts measured on this machine"): no calls to OpenCL builtin math
+ * functions (PoCL does not inline them and a call stops the vectoriser), plain float arithmetic
+ * instead of float3 helpers, ternaries instead of fmax/select, an `alive` mask instead of early
+ * exits, and the surfaces unrolled with their constants known at compile time.
+ *
+ * The host (realistic/opencl_host.py) prepends a generated header that defines, per camera:
+ *   WIDTH, HEIGHT, SPP            resolution and samples per pixel (integer constants)
+ *   FILM_W_MM, FILM_H_MM          film size (mm)
+ *   PLANE_Z_MM                    z of the sampling plane (lens frame: film at z = 0, +z to scene)
+ *   FRONT_VERTEX_Z_MM             z of the front vertex
+ *   REAR_W_MM                     -film distance: z of the film relative to the rear vertex
+ *   LENS_SAMPLING_PUPIL           1: exit-pupil boxes, 0: rear-element disk
+ *   REAR_CLEAR_MM, REAR_T_FAR     rear-element disk parameters (realistic.sampling)
+ *   PUPIL_INTERVALS, FILM_RADIUS_MM and program-scope tables PUPIL[4k..4k+3] = (x0, x1, y0, y1),
+ *                                 PUPIL_AREA[k] (mm^2), when LENS_SAMPLING_PUPIL is 1
+ *   TRACE_SURFACES(r)             the surfaces, rear first, as calls to sphere()/plane()
+ *                                 with literal constants
+ */
+
+#define PI_F 3.14159265358979f
+#define QUARTER_PI_F 0.785398163397448f
+
+/* ------------------------------------------------------------------ random numbers
+ * Bit-identical to realistic/rng.py: lowbias32 hash, key chaining, 4-D Kronecker sequence (R4)
+ * over the pixel's sample index in 32-bit fixed point, shifted by a per-pixel hashed offset
+ * (Cranley-Patterson rotation). That is the stratification within a pixel. uint arithmetic wraps
+ * modulo 2^32 as numpy's uint32 does.
+ */
+#define GOLDEN 0x9E3779B9u
+#define R4_0 0xDB4F0B91u
+#define R4_1 0xBBE05633u
+#define R4_2 0xA0F2EC76u
+#define R4_3 0x89E18285u
+
+inline uint hash32(uint x) {
+    x ^= x >> 16;
+    x *= 0x7FEB352Du;
+    x ^= x >> 15;
+    x *= 0x846CA68Bu;
+    x ^= x >> 16;
+    return x;
+}
+
+/* Top 24 bits as a float in [0, 1). */
+inline float to_unit(uint bits) { return (float)(bits >> 8) * (1.0f / 16777216.0f); }
+
+/* Pixel and sample index within the pixel of work item gid. The host splits the launch's
+ * first sample id into (first_pixel, first_sample) with first_sample < SPP, so the uint sum
+ * below cannot wrap for any launch the host allows. */
+inline void sample_address(uint first_pixel, uint first_sample, uint gid, uint *pixel, uint *sample) {
+    uint s = first_sample + gid;
+    uint q = s / SPP;
+    *pixel = first_pixel + q;
+    *sample = s - q * SPP;
+}
+
+/* The four stratified uint32 values (film x, film y, lens u, lens v) of one sample. */
+inline void stratified4(uint pixel, uint sample, uint seed, uint *b0, uint *b1, uint *b2, uint *b3) {
+    uint h = hash32(hash32(seed + GOLDEN) ^ pixel);
+    h = hash32(h ^ 0xFFFFFFFFu);  /* the per-pixel key: sample index 0xFFFFFFFF */
+    *b0 = sample * R4_0 + hash32(h ^ 0u);
+    *b1 = sample * R4_1 + hash32(h ^ 1u);
+    *b2 = sample * R4_2 + hash32(h ^ 2u);
+    *b3 = sample * R4_3 + hash32(h ^ 3u);
+}
+
+/* ------------------------------------------------------------------ tracing
+ * The ray state in the frame of the surface about to be met: (ox, oy) transverse position, w the
+ * axial position relative to that surface's vertex (+ toward the scene). Keeping w local keeps
+ * float32 precision at the scale of the surface sag instead of the lens-frame z.
+ */
+typedef struct {
+    float ox, oy, w;
+    float dx, dy, dz;
+    int alive;
+} Ray;
+
+/* Heckbert refraction of the unit direction at the unit normal (nx, ny, nz), which faces it. */
+inline __attribute__((always_inline)) void refract(Ray *r, float nx, float ny, float nz, const float eta) {
+    float c1 = -(r->dx * nx + r->dy * ny + r->dz * nz);
+    float c2sq = 1.0f - eta * eta * (1.0f - c1 * c1);
+    r->alive = r->alive & (c2sq >= 0.0f);
+    float k = eta * c1 - __builtin_sqrtf(c2sq > 0.0f ? c2sq : 0.0f);
+    r->dx = eta * r->dx + k * nx;
+    r->dy = eta * r->dy + k * ny;
+    r->dz = eta * r->dz + k * nz;
+}
+
+/* A spherical surface of radius R (vertex at w = 0, centre at w = -R), clear semi-aperture
+ * squared AP2, index ratio ETA (incident over transmitted), then GAP mm on to the next surface.
+ * The quadratic t^2 + 2 b t + c = 0 is written about the vertex, c = |o|^2 + 2 R w, so that c
+ * does not cancel R^2, and its roots are taken in the cancellation-free form q, c / q. */
+inline __attribute__((always_inline)) void sphere(Ray *r, const float R, const float AP2, const float ETA,
+                                                 const float GAP) {
+    float b = r->ox * r->dx + r->oy * r->dy + (r->w + R) * r->dz;
+    float c = r->ox * r->ox + r->oy * r->oy + r->w * (r->w + 2.0f * R);
+    float disc = b * b - c;
+    float root = __builtin_sqrtf(disc > 0.0f ? disc : 0.0f);
+    /* Near root for a ray travelling +z when R < 0, far root when R > 0 (the vertex cap). */
+    int use_near = (r->dz > 0.0f) == (R < 0.0f);
+    float t = use_near ? -b - root : -b + root;
+    float hx = r->ox + t * r->dx;
+    float hy = r->oy + t * r->dy;
+    float hw = r->w + t * r->dz;
+    float cz = hw + R;  /* hit minus centre, axial */
+    r->alive = r->alive & (disc >= 0.0f) & (t > 0.0f) & (cz * R > 0.0f) & (hx * hx + hy * hy <= AP2);
+    float s = (hx * r->dx + hy * r->dy + cz * r->dz > 0.0f ? -1.0f : 1.0f) * (1.0f / (R < 0.0f ? -R : R));
+    if (ETA != 1.0f) refract(r, hx * s, hy * s, cz * s, ETA);
+    r->ox = hx;
+    r->oy = hy;
+    r->w = hw - GAP;
+}
+
+/* A plane at the vertex: the aperture stop (REFRACTS = 0) or a flat refracting surface. */
+inline __attribute__((always_inline)) void plane(Ray *r, const float AP2, const float ETA, const int REFRACTS,
+                                                const float GAP) {
+    float t = -r->w / r->dz;
+    float hx = r->ox + t * r->dx;
+    float hy = r->oy + t * r->dy;
+    r->alive = r->alive & (t > 0.0f) & (hx * hx + hy * hy <= AP2);
+    if (REFRACTS) refract(r, 0.0f, 0.0f, r->dz > 0.0f ? -1.0f : (r->dz < 0.0f ? 1.0f : 0.0f), ETA);
+    r->ox = hx;
+    r->oy = hy;
+    r->w = -GAP;
+}
+
+/* ------------------------------------------------------------------ sampling */
+
+/* sin and cos of |x| <= pi/4 by Taylor polynomials (error below 3e-9, under float32 rounding). */
+inline void sincos_quarter(float x, float *s, float *c) {
+    float x2 = x * x;
+    *s = x * (1.0f + x2 * (-1.0f / 6 + x2 * (1.0f / 120 + x2 * (-1.0f / 5040 + x2 * (1.0f / 362880)))));
+    *c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24 + x2 * (-1.0f / 720 + x2 * (1.0f / 40320 + x2 * (-1.0f / 3628800)))));
+}
+
+/* Shirley-Chiu concentric map of [0,1)^2 onto the unit disk, as realistic.sampling.concentric_disk.
+ * |a| and |b| are computed by different instruction sequences on purpose: two isomorphic chains
+ * from u1 and u2 into one comparison let LLVM's SLP vectoriser pack them (back to the hashes) into
+ * 2-wide vectors before PoCL's work-group vectoriser runs, and that stops the latter (LLVM 14
+ * cannot widen instructions that already have a vector type). */
+inline void concentric_disk(float u1, float u2, float *x, float *y) {
+    float a = 2.0f * u1 - 1.0f;
+    float b = 2.0f * u2 - 1.0f;
+    float abs_a = a < 0.0f ? -a : a;
+    float abs_b = as_float(as_uint(b) & 0x7FFFFFFFu);
+    int first = abs_a > abs_b;
+    float num = first ? b : a;
+    float den = first ? a : b;
+    float ratio = den != 0.0f ? num / den : 0.0f;
+    float s, c;
+    sincos_quarter(QUARTER_PI_F * ratio, &s, &c);
+    /* first: phi = pi/4 b/a, (cos, sin); else phi = pi/2 - pi/4 a/b, (cos, sin) = (sin, cos) */
+    *x = den * (first ? c : s);
+    *y = den * (first ? s : c);
+}
+
+#if LENS_SAMPLING_PUPIL
+/* Exit-pupil box of the film point's radial interval, rotated to its polar angle. */
+inline void sample_plane(float fx, float fy, float u, float v, float *px, float *py, float *area) {
+    float rho2 = fx * fx + fy * fy;
+    float rho = __builtin_sqrtf(rho2);
+    int k = (int)(rho * ((float)PUPIL_INTERVALS / FILM_RADIUS_MM));
+    k = k < PUPIL_INTERVALS - 1 ? k : PUPIL_INTERVALS - 1;
+    float x0 = PUPIL[4 * k], x1 = PUPIL[4 * k + 1], y0 = PUPIL[4 * k + 2], y1 = PUPIL[4 * k + 3];
+    float x = x0 + u * (x1 - x0);
+    float y = y0 + v * (y1 - y0);
+    float inv = rho > 0.0f ? 1.0f / rho : 0.0f;
+    float cos_phi = rho > 0.0f ? fx * inv : 1.0f;
+    float sin_phi = fy * inv;
+    *px = x * cos_phi - y * sin_phi;
+    *py = x * sin_phi + y * cos_phi;
+    *area = PUPIL_AREA[k];
+}
+#else
+/* Rear-element disk whose radius covers the element's real extent from this film point. */
+inline void sample_plane(float fx, float fy, float u, float v, float *px, float *py, float *area) {
+    float rho = __builtin_sqrtf(fx * fx + fy * fy);
+    float radius = rho * (1.0f - REAR_T_FAR) + REAR_CLEAR_MM * REAR_T_FAR;
+    radius = radius > REAR_CLEAR_MM ? radius : REAR_CLEAR_MM;
+    float dx, dy;
+    concentric_disk(u, v, &dx, &dy);
+    *px = dx * radius;
+    *py = dy * radius;
+    *area = PI_F * radius * radius;
+}
+#endif
+
+/* ------------------------------------------------------------------ kernels */
+
+/* Rays for sample ids first .. first + global size - 1, where first = first_pixel * SPP +
+ * first_sample. out holds 7 rows of `stride` floats: origin x, y, z, direction x, y, z, weight
+ * (world space; a blocked ray has weight 0 and zero origin and direction). world is the
+ * camera-to-world matrix, rows of (m0 m1 m2 t). */
+__kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __constant float *world,
+                            uint stride, __global float *out, __global int *pixel_out) {
+    uint gid = get_global_id(0);
+    uint pixel, sample;
+    sample_address(first_pixel, first_sample, gid, &pixel, &sample);
+    uint b0, b1, b2, b3;
+    stratified4(pixel, sample, seed, &b0, &b1, &b2, &b3);
+
+    uint py_i = pixel / WIDTH;
+    uint px_i = pixel - py_i * WIDTH;
+    float fx = -(((float)px_i + to_unit(b0)) * (1.0f / WIDTH) - 0.5f) * FILM_W_MM;
+    float fy = (((float)py_i + to_unit(b1)) * (1.0f / HEIGHT) - 0.5f) * FILM_H_MM;
+
+    float tx, ty, area;
+    sample_plane(fx, fy, to_unit(b2), to_unit(b3), &tx, &ty, &area);
+    float ddx = tx - fx, ddy = ty - fy;
+    float len2 = ddx * ddx + ddy * ddy + PLANE_Z_MM * PLANE_Z_MM;
+    float inv_len = 1.0f / __builtin_sqrtf(len2);
+    /* cos^4(theta) A / Z^2 with cos(theta) = Z / |delta|. */
+    float weight = area * (PLANE_Z_MM * PLANE_Z_MM) / (len2 * len2);
+
+    Ray r;
+    r.ox = fx;
+    r.oy = fy;
+    r.w = REAR_W_MM;
+    r.dx = ddx * inv_len;
+    r.dy = ddy * inv_len;
+    r.dz = PLANE_Z_MM * inv_len;
+    r.alive = 1;
+    TRACE_SURFACES(&r);
+
+    float oz = r.w + FRONT_VERTEX_Z_MM;
+    float wx = world[0] * r.ox + world[1] * r.oy + world[2] * oz + world[3];
+    float wy = world[4] * r.ox + world[5] * r.oy + world[6] * oz + world[7];
+    float wz = world[8] * r.ox + world[9] * r.oy + world[10] * oz + world[11];
+    float vx = world[0] * r.dx + world[1] * r.dy + world[2] * r.dz;
+    float vy = world[4] * r.dx + world[5] * r.dy + world[6] * r.dz;
+    float vz = world[8] * r.dx + world[9] * r.dy + world[10] * r.dz;
+    float scale = 1.0f / __builtin_sqrtf(vx * vx + vy * vy + vz * vz);
+    out[gid] = r.alive ? wx : 0.0f;
+    out[stride + gid] = r.alive ? wy : 0.0f;
+    out[2 * stride + gid] = r.alive ? wz : 0.0f;
+    out[3 * stride + gid] = r.alive ? vx * scale : 0.0f;
+    out[4 * stride + gid] = r.alive ? vy * scale : 0.0f;
+    out[5 * stride + gid] = r.alive ? vz * scale : 0.0f;
+    out[6 * stride + gid] = r.alive ? weight : 0.0f;
+    pixel_out[gid] = (int)pixel;
+}
+
+/* Debug: the four stratified uint32 values of each sample, 4 rows of `stride`, so the tests can
+ * check them against realistic.rng bit for bit. */
+__kernel void sample_bits(uint first_pixel, uint first_sample, uint seed, uint stride, __global uint *out) {
+    uint gid = get_global_id(0);
+    uint pixel, sample;
+    sample_address(first_pixel, first_sample, gid, &pixel, &sample);
+    uint b0, b1, b2, b3;
+    stratified4(pixel, sample, seed, &b0, &b1, &b2, &b3);
+    out[gid] = b0;
+    out[stride + gid] = b1;
+    out[2 * stride + gid] = b2;
+    out[3 * stride + gid] = b3;
+}
