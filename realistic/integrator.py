@@ -27,8 +27,18 @@ from realistic.textures import albedo
 SHADOW_OFFSET = 1e-4  # relative to the hit point's magnitude (float32 precision of embree)
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of (N, 3) arrays (column arithmetic: several times faster than einsum)."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """a[index] for row gathers; np.take is about 3x faster than fancy indexing on (N, 3) arrays."""
+    return np.take(a, index, axis=0)
+
+
 def _normalise(v: np.ndarray) -> np.ndarray:
-    length = np.sqrt(np.einsum("ij,ij->i", v, v))[:, None]
+    length = np.sqrt(_dot(v, v))[:, None]
     return np.divide(v, length, out=np.zeros_like(v), where=length > 0)
 
 
@@ -95,23 +105,24 @@ class DirectLighting:
             seen = np.flatnonzero(light_id >= 0)
             if len(seen):
                 j = light_id[seen]
-                front = (np.einsum("ij,ij->i", direction[seen], self._light_normal[j]) < 0) | self._light_two_sided[j]
-                out[seen] = self._light_radiance[j] * front[:, None]
+                front = (_dot(_rows(direction, seen), _rows(self._light_normal, j)) < 0) | self._light_two_sided[j]
+                out[seen] = _rows(self._light_radiance, j) * front[:, None]
             surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0))
             out[surface] = 0.0
             if len(surface) == 0 or len(self._light_area) == 0 or self._light_cdf[-1] <= 0:
                 return out, 0
-            o = np.asarray(origin[surface], np.float32)
-            d = np.asarray(direction[surface], np.float32)
+            o = _rows(np.asarray(origin, np.float32), surface)
+            d = _rows(np.asarray(direction, np.float32), surface)
             geom, prim = hits.geom[surface], hits.prim[surface]
             point = o + hits.t[surface, None] * d
-            ng = _normalise(hits.normal[surface].astype(np.float32))
-            ng *= np.where(np.einsum("ij,ij->i", ng, d) > 0, -1.0, 1.0).astype(np.float32)[:, None]
-            face = self._faces[self._geom_face_offset[geom] + prim]
+            ng = _normalise(_rows(hits.normal, surface).astype(np.float32))
+            ng *= np.where(_dot(ng, d) > 0, -1.0, 1.0).astype(np.float32)[:, None]
+            face = _rows(self._faces, self._geom_face_offset[geom] + prim)
             bary = np.column_stack([1.0 - hits.u[surface] - hits.v[surface], hits.u[surface], hits.v[surface]])
             shading = self._shading_normal(face, bary, geom, ng)
             rho = self._albedo(face, bary, geom)
-            eps = SHADOW_OFFSET * (np.abs(point).max(axis=1) + 1e-2 * self.intersector.extent)
+            magnitude = np.maximum(np.maximum(np.abs(point[:, 0]), np.abs(point[:, 1])), np.abs(point[:, 2]))
+            eps = SHADOW_OFFSET * (magnitude + 1e-2 * self.intersector.extent)
             shadow_origin = point + ng * eps[:, None].astype(np.float32)
         total = np.zeros((len(surface), 3), np.float32)
         shadow_rays = 0
@@ -120,7 +131,7 @@ class DirectLighting:
                 contribution, to_light, live = self._light_sample(point, shadow_origin, shading, ng, rho,
                                                                   pixel[surface], sample[surface], k)
             with timed("embree"):
-                blocked = self.intersector.occluded(shadow_origin[live], to_light,
+                blocked = self.intersector.occluded(_rows(shadow_origin, live), to_light,
                                                     np.full(len(live), 1.0 - 1e-4, np.float32))
             shadow_rays += len(live)
             with timed("shading"):
@@ -134,12 +145,12 @@ class DirectLighting:
         smooth = np.flatnonzero(self._geom_smooth[geom])
         if len(smooth):
             f, b = face[smooth], bary[smooth]
-            n = (self._normals[f[:, 0]] * b[:, :1] + self._normals[f[:, 1]] * b[:, 1:2]
-                 + self._normals[f[:, 2]] * b[:, 2:])
+            n = (_rows(self._normals, f[:, 0]) * b[:, :1] + _rows(self._normals, f[:, 1]) * b[:, 1:2]
+                 + _rows(self._normals, f[:, 2]) * b[:, 2:])
             n = _normalise(np.einsum("nij,nj->ni", self._geom_normal_matrix[geom[smooth]], n))
-            flip = np.einsum("ij,ij->i", n, ng[smooth]) < 0
+            flip = _dot(n, ng[smooth]) < 0
             n[flip] *= -1
-            good = np.einsum("ij,ij->i", n, n) > 0.5
+            good = _dot(n, n) > 0.5
             shading[smooth[good]] = n[good]
         return shading
 
@@ -153,7 +164,8 @@ class DirectLighting:
             uv = None
             if material.texture is not None:
                 f, b = face[rows], bary[rows]
-                uv = self._uv[f[:, 0]] * b[:, :1] + self._uv[f[:, 1]] * b[:, 1:2] + self._uv[f[:, 2]] * b[:, 2:]
+                uv = (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
+                      + _rows(self._uv, f[:, 2]) * b[:, 2:])
             rho[rows] = albedo(material, uv, len(rows))
         return rho
 
@@ -169,16 +181,16 @@ class DirectLighting:
         disk = self._light_disk[j]
         x = np.where(disk, dx, 2.0 * u1 - 1.0).astype(np.float32)[:, None]
         y = np.where(disk, dy, 2.0 * u2 - 1.0).astype(np.float32)[:, None]
-        q = self._light_centre[j] + self._light_a[j] * x + self._light_b[j] * y
+        q = _rows(self._light_centre, j) + _rows(self._light_a, j) * x + _rows(self._light_b, j) * y
         to_light = q - point
-        dist2 = np.einsum("ij,ij->i", to_light, to_light)
+        dist2 = _dot(to_light, to_light)
         wi = to_light / np.sqrt(dist2)[:, None]
-        cos_p = np.einsum("ij,ij->i", wi, shading)
-        cos_q = -np.einsum("ij,ij->i", wi, self._light_normal[j])
+        cos_p = _dot(wi, shading)
+        cos_q = -_dot(wi, _rows(self._light_normal, j))
         cos_q = np.where(self._light_two_sided[j], np.abs(cos_q), cos_q)
-        live = np.flatnonzero((cos_p > 0) & (cos_q > 0) & (np.einsum("ij,ij->i", wi, ng) > 0) & (dist2 > 0))
+        live = np.flatnonzero((cos_p > 0) & (cos_q > 0) & (_dot(wi, ng) > 0) & (dist2 > 0))
         jl = j[live]
         scale = (cos_p[live] * cos_q[live] / dist2[live]
                  * (self._light_area[jl] / self._light_probability[jl] / np.pi)).astype(np.float32)
-        contribution = rho[live] * self._light_radiance[jl] * scale[:, None]
-        return contribution, (q[live] - shadow_origin[live]), live
+        contribution = _rows(rho, live) * _rows(self._light_radiance, jl) * scale[:, None]
+        return contribution, _rows(q, live) - _rows(shadow_origin, live), live

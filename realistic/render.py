@@ -25,7 +25,7 @@ from realistic.raygen import ray_generator
 from realistic.scene import Scene
 from realistic.stages import StageClock
 
-DEFAULT_PASS_SAMPLES = 1 << 19
+DEFAULT_PASS_SAMPLES = 1 << 17
 
 
 @dataclass
@@ -100,7 +100,8 @@ def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: i
     """Render and return the image with statistics; ``on_pass`` is called after each pass is added."""
     start = time.perf_counter()
     clock = StageClock()
-    runner = _PassRunner(scene, camera, backend, seed, cl_device, light_samples, morton, clock)
+    with clock("setup"):  # ray generator, BVH build, shading tables
+        runner = _PassRunner(scene, camera, backend, seed, cl_device, light_samples, morton, clock)
     film = Film(camera.width, camera.height, camera.spp)
     total = camera.sample_count
     starts = list(range(0, total, pass_samples))

@@ -8,7 +8,7 @@ from collections import defaultdict
 from contextlib import contextmanager
 from typing import Iterator
 
-STAGES = ("ray generation", "embree", "shading", "accumulation")
+STAGES = ("setup", "ray generation", "embree", "shading", "accumulation")
 
 
 class StageClock:

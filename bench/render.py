@@ -1,0 +1,155 @@
+"""Render benchmark: where the time goes, against embreex's own ceiling on the same scene.
+
+    .venv/bin/python bench/render.py [--res 512x512] [--spp 64] [--backend opencl|numpy]
+
+Renders the dragon (../shared/meshes/dragon.ply, else a procedural mesh of similar size) on the
+grid floor under a disk light, twice: samples in raster order and sorted along a Morton curve per
+pass. Prints per-stage thread-seconds (two workers, so they can add up to twice the wall time),
+rays per second, and the ceiling: the same primary and shadow rays of one pass traced by embreex
+alone on two threads. Writes bench/results/render.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from realistic import load_lens  # noqa: E402
+from realistic.integrator import DirectLighting  # noqa: E402
+from realistic.intersect import Intersector  # noqa: E402
+from realistic.meshes import MeshObject, load_mesh_file  # noqa: E402
+from realistic.raygen import ray_generator  # noqa: E402
+from realistic.render import DEFAULT_PASS_SAMPLES, render_passes  # noqa: E402
+from realistic.scene import Mesh, sphere  # noqa: E402
+from realistic.setups import auto_eye, camera_for_view, mesh_setup  # noqa: E402
+from realistic.stages import STAGES  # noqa: E402
+
+DRAGON = ROOT.parent / "shared" / "meshes" / "dragon.ply"
+
+
+def subject() -> tuple[list[MeshObject], str]:
+    if DRAGON.is_file():
+        return load_mesh_file(DRAGON), str(DRAGON)
+    ball = sphere(1.0, 448)  # about 200k triangles, bumped so it is not trivially convex
+    bumps = 1 + 0.08 * np.sin(9 * ball.vertices[:, 0]) * np.sin(7 * ball.vertices[:, 1] + 3 * ball.vertices[:, 2])
+    mesh = Mesh(ball.vertices * bumps[:, None], ball.faces, None, None, "procedural")
+    return [MeshObject(mesh, np.eye(4), None)], f"procedural ({len(mesh.faces)} triangles)"
+
+
+class RecordingIntersector(Intersector):
+    """Keeps the rays it is asked to trace (for the ceiling measurement)."""
+
+    def __init__(self, scene):
+        super().__init__(scene)
+        self.primary, self.shadow = [], []
+
+    def closest(self, origin, direction):
+        self.primary.append((origin.copy(), direction.copy()))
+        return super().closest(origin, direction)
+
+    def occluded(self, origin, direction, distance):
+        self.shadow.append((origin.copy(), direction.copy(), np.array(distance)))
+        return super().occluded(origin, direction, distance)
+
+
+def traced_in_two_threads(jobs: list) -> float:
+    """Seconds to run the jobs (callables) on two threads, alternating chunks."""
+    halves = [jobs[0::2], jobs[1::2]]
+    threads = [threading.Thread(target=lambda part=part: [job() for job in part]) for part in halves]
+    start = time.perf_counter()
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return time.perf_counter() - start
+
+
+def ceiling(setup, camera, backend: str, samples: int) -> dict:
+    """embreex alone on one pass's primary and shadow rays, two threads over 64k-ray chunks."""
+    recorder = RecordingIntersector(setup.scene)
+    integrator = DirectLighting(setup.scene, recorder)
+    first = camera.sample_count // 2 - samples // 2
+    rays = ray_generator(camera, backend)(first, samples)
+    alive = np.flatnonzero(rays.weight > 0)
+    integrator.radiance(rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32),
+                        rays.pixel[alive], (first + alive) % camera.spp)
+    (po, pd), (so, sd, sdist) = recorder.primary[0], recorder.shadow[0]
+    chunk = 1 << 16
+    base = Intersector(setup.scene)
+    primary_jobs = [lambda s=s: base.closest(po[s:s + chunk], pd[s:s + chunk]) for s in range(0, len(po), chunk)]
+    shadow_jobs = [lambda s=s: base.occluded(so[s:s + chunk], sd[s:s + chunk], sdist[s:s + chunk])
+                   for s in range(0, len(so), chunk)]
+    t_primary = min(traced_in_two_threads(primary_jobs) for _ in range(3))
+    t_shadow = min(traced_in_two_threads(shadow_jobs) for _ in range(3))
+    return {"samples": samples, "primary_rays": len(po), "shadow_rays": len(so),
+            "primary_rays_per_s": len(po) / t_primary, "shadow_rays_per_s": len(so) / t_shadow,
+            "samples_per_s": samples / (t_primary + t_shadow)}
+
+
+def run(setup, camera, backend: str, morton: bool) -> dict:
+    result = render_passes(setup.scene, camera, backend, 0, morton=morton)
+    rays = result.primary_rays + result.shadow_rays
+    return {"morton": morton, "seconds": result.seconds, "samples": result.samples_done,
+            "primary_rays": result.primary_rays, "shadow_rays": result.shadow_rays,
+            "samples_per_s": result.samples_done / result.seconds, "rays_per_s": rays / result.seconds,
+            "stage_thread_seconds": {s: result.stage_seconds.get(s, 0.0) for s in STAGES}}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--res", default="512x512")
+    parser.add_argument("--spp", type=int, default=64)
+    parser.add_argument("--backend", default="opencl", choices=("opencl", "numpy"))
+    parser.add_argument("--lens", default="dgauss")
+    args = parser.parse_args()
+    width, height = (int(v) for v in args.res.split("x"))
+    objects, source = subject()
+    setup = mesh_setup(objects)
+    lens = load_lens(args.lens)
+    film_short = 43.27 * min(width, height) / np.hypot(width, height)
+    eye = auto_eye(setup, lens, film_short)
+    camera = camera_for_view(lens, eye, setup.target, None, 43.27, width, height, args.spp)
+    triangles = sum(len(setup.scene.meshes[i.mesh].faces) for i in setup.scene.instances)
+    print(f"scene: {source}, {triangles} triangles; {width}x{height}, {args.spp} spp, lens {args.lens}, "
+          f"backend {args.backend}, passes of {DEFAULT_PASS_SAMPLES} samples on 2 threads")
+    render_passes(setup.scene, camera_for_view(lens, eye, setup.target, None, 43.27, 16, 16, 1),
+                  args.backend)  # warm-up: kernel build and caches
+    runs = [run(setup, camera, args.backend, morton) for morton in (False, True)]
+    top = ceiling(setup, camera, args.backend, DEFAULT_PASS_SAMPLES)
+    print(f"\n{'stage':<16}{'raster s':>10}{'share':>8}{'morton s':>10}{'share':>8}")
+    for stage in STAGES:
+        cells = []
+        for r in runs:
+            seconds = r["stage_thread_seconds"][stage]
+            cells.append(f"{seconds:>10.2f}{100 * seconds / sum(r['stage_thread_seconds'].values()):>7.1f}%")
+        print(f"{stage:<16}{''.join(cells)}")
+    print(f"{'wall':<16}{runs[0]['seconds']:>10.2f}{'':>8}{runs[1]['seconds']:>10.2f}")
+    for r in runs:
+        label = "morton" if r["morton"] else "raster"
+        print(f"{label}: {r['samples_per_s'] / 1e6:.2f} M samples/s, {r['rays_per_s'] / 1e6:.2f} M rays/s "
+              f"({r['primary_rays']} primary + {r['shadow_rays']} shadow rays)")
+    print(f"morton gain: {runs[0]['seconds'] / runs[1]['seconds']:.3f}x")
+    print(f"embreex ceiling (same rays, 2 threads, nothing else): primary {top['primary_rays_per_s'] / 1e6:.2f} M/s, "
+          f"shadow {top['shadow_rays_per_s'] / 1e6:.2f} M/s, {top['samples_per_s'] / 1e6:.2f} M samples/s")
+    best = max(r["samples_per_s"] for r in runs)
+    print(f"end to end / ceiling: {100 * best / top['samples_per_s']:.1f} %")
+    report = {"scene": source, "triangles": triangles, "resolution": [width, height], "spp": args.spp,
+              "backend": args.backend, "lens": args.lens, "pass_samples": DEFAULT_PASS_SAMPLES, "runs": runs,
+              "ceiling": top, "fraction_of_ceiling": best / top["samples_per_s"]}
+    out = ROOT / "bench" / "results" / "render.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(report, indent=2) + "\n")
+    print(json.dumps(report))
+
+
+if __name__ == "__main__":
+    main()
