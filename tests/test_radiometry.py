@@ -174,3 +174,16 @@ def test_render_is_independent_of_pass_size_and_thread_count():
     b = render_passes(lit_plane(), camera, "numpy", seed=9, pass_samples=1000, threads=1).image
     np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-9)
     assert a.max() > 0
+
+
+def test_opencl_and_numpy_backends_render_the_same_image():
+    from realistic.errors import UserError
+
+    _, camera = camera_looking_down("dgauss", 6.0, 40, 30, 16, 20.0)
+    reference = render(lit_plane(), camera, "numpy", seed=5, pass_samples=4096)
+    try:
+        for _ in range(2):  # passes run on two threads: the generator must not mix them up
+            image = render(lit_plane(), camera, "opencl", seed=5, pass_samples=4096)
+            np.testing.assert_allclose(image, reference, rtol=1e-3, atol=1e-6)
+    except UserError as err:
+        pytest.skip(f"OpenCL backend unavailable: {err}")
