@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import site
 import sys
+import threading
 import time
 from functools import lru_cache
 from pathlib import Path
@@ -176,7 +177,11 @@ def _program(ctx: "cl.Context", source: str) -> tuple["cl.Program", float]:
 
 
 class LensKernel:
-    """``lens.cl`` built for one camera, with device buffers reused across launches."""
+    """``lens.cl`` built for one camera, with device buffers reused across launches.
+
+    Safe to call from several threads: launches are serialised on one lock (the kernel object's
+    arguments and the reused buffers are shared; PoCL spreads one launch over every core anyway).
+    """
 
     def __init__(self, camera: Camera, device: str | None = None):
         self.camera = camera
@@ -191,6 +196,7 @@ class LensKernel:
         self._world = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=world)
         self._capacity = 0
         self._out = self._pixels = None
+        self._lock = threading.Lock()
 
     def _launch_layout(self, first: int, count: int) -> tuple[np.uint32, np.uint32, int]:
         """(first pixel, first sample within it, padded launch size), checking the uint32 limits."""
@@ -213,14 +219,15 @@ class LensKernel:
     def generate(self, first: int, count: int, seed: int = 0) -> RayBatch:
         """Rays of sample ids first .. first + count - 1, as realistic.camera.generate_rays (float32)."""
         first_pixel, first_sample, padded = self._launch_layout(first, count)
-        self._buffers(padded)
-        self._generate(self.queue, (padded,), (LOCAL_SIZE,), first_pixel, first_sample,
-                       np.uint32(seed & 0xFFFFFFFF), self._world, np.uint32(padded), self._out, self._pixels)
         out = np.empty((ROWS, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
-        cl.enqueue_copy(self.queue, out, self._out)
-        cl.enqueue_copy(self.queue, pixels, self._pixels)
-        self.queue.finish()
+        with self._lock:
+            self._buffers(padded)
+            self._generate(self.queue, (padded,), (LOCAL_SIZE,), first_pixel, first_sample,
+                           np.uint32(seed & 0xFFFFFFFF), self._world, np.uint32(padded), self._out, self._pixels)
+            cl.enqueue_copy(self.queue, out, self._out)
+            cl.enqueue_copy(self.queue, pixels, self._pixels)
+            self.queue.finish()
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count])
 
@@ -228,8 +235,9 @@ class LensKernel:
         """The kernel's four stratified uint32 values per sample, shape (4, count) (for tests)."""
         first_pixel, first_sample, padded = self._launch_layout(first, count)
         bits = cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, 4 * padded * 4)
-        self._bits(self.queue, (padded,), (LOCAL_SIZE,), first_pixel, first_sample,
-                   np.uint32(seed & 0xFFFFFFFF), np.uint32(padded), bits)
         host = np.empty((4, padded), dtype=np.uint32)
-        cl.enqueue_copy(self.queue, host, bits)
+        with self._lock:
+            self._bits(self.queue, (padded,), (LOCAL_SIZE,), first_pixel, first_sample,
+                       np.uint32(seed & 0xFFFFFFFF), np.uint32(padded), bits)
+            cl.enqueue_copy(self.queue, host, bits)
         return host[:, :count]

@@ -10,10 +10,8 @@ returns what has accumulated (``RenderResult.interrupted``).
 
 from __future__ import annotations
 
-import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
-from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -72,13 +70,11 @@ class _PassRunner:
                  light_samples: int, morton: bool, clock: StageClock):
         self.camera, self.morton, self.clock = camera, morton, clock
         self.generate = ray_generator(camera, backend, seed, cl_device)
-        # The OpenCL generator shares buffers between calls: concurrent calls mix up passes.
-        self._generate_lock = threading.Lock() if backend == "opencl" else nullcontext()
         self.integrator = DirectLighting(scene, Intersector(scene), light_samples, seed)
 
     def __call__(self, first: int, count: int) -> _PassResult:
         spp = self.camera.spp
-        with self.clock("ray generation"), self._generate_lock:
+        with self.clock("ray generation"):
             rays = self.generate(first, count)
         with self.clock("shading"):
             alive = np.flatnonzero(rays.weight > 0)

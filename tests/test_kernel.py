@@ -126,6 +126,18 @@ def test_batch_size_does_not_change_rays(sampling):
         assert np.array_equal(getattr(whole, field), joined), field
 
 
+def test_concurrent_launches_from_two_threads_keep_their_own_rays():
+    from concurrent.futures import ThreadPoolExecutor
+
+    kernel = opencl_host.LensKernel(_camera("dgauss", "pupil"))
+    starts = [i * 20_000 for i in range(12)]
+    serial = [kernel.generate(s, 20_000, seed=2) for s in starts]
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        parallel = list(pool.map(lambda s: kernel.generate(s, 20_000, seed=2), starts))
+    for a, b in zip(serial, parallel):
+        assert np.array_equal(a.origin, b.origin) and np.array_equal(a.pixel, b.pixel)
+
+
 def test_kernel_random_numbers_equal_numpy_bit_for_bit():
     camera = dataclasses.replace(_camera("dgauss", "pupil"), spp=7)
     kernel = opencl_host.LensKernel(camera)
