@@ -1,9 +1,15 @@
-"""The ``render`` subcommand: ``python -m realistic render [MESH]`` (a thin layer over ``realistic.render``)."""
+"""The ``render`` subcommand, and the scene arguments it shares with ``bench``.
+
+``python -m realistic render [SCENE]`` renders a pbrt scene file, a mesh file (OBJ, PLY, STL,
+GLB/GLTF, OFF) set on a grid floor, or, without SCENE, the default scene. A thin layer over
+``realistic.render``.
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -12,44 +18,75 @@ from realistic.errors import UserError
 from realistic.prescription import BUNDLED_LENSES
 
 DESCRIPTION = """\
-Render a mesh file (OBJ, PLY, STL, GLB/GLTF, OFF) standing on a grid floor under a disk light, or,
-without MESH, the default scene (a row of spheres and cones receding in depth). Scene units are
-metres: the mesh is scaled so its largest side is 1 m. The camera frame's origin is the film
-centre (pbrt-v3 convention); --focus is the distance in metres from the film plane to the plane
-in focus (thick-lens focusing), by default the distance to the target. The EXR holds the film
-irradiance (float32 RGB, metadata in the header); the PNG preview beside it is sRGB.
+SCENE is a pbrt scene file (.pbrt: the classic dof-dragons homework scenes and common simple pbrt
+scenes), or a mesh file (OBJ, PLY, STL, GLB/GLTF, OFF) that is set on a grid floor under a disk
+light, or nothing for the default scene (a row of spheres and cones receding in depth).
+
+For a mesh or the default scene, scene units are metres: the mesh is scaled so its largest side
+is 1 m, the camera frame's origin is the film centre (pbrt-v3 convention), and --focus is the
+distance in metres from the film plane to the plane in focus (thick-lens focusing), by default
+the distance to the target. A pbrt scene brings its own camera, resolution and samples: --res,
+--spp, --aperture, --focus (scene units from the film) and --light-samples override it.
+
+The EXR holds the film irradiance (float32 RGB, metadata in the header); the PNG preview beside
+it is sRGB.
 """
 
+MESH_DEFAULT_RES = (300, 300)
+MESH_DEFAULT_SPP = 16
+MESH_ONLY = ("lens", "camera_pos", "target", "film_diagonal")
 
-def add_render_command(commands: argparse._SubParsersAction) -> None:
-    """Register ``render`` on the CLI's subcommand parser."""
+
+@dataclass
+class RenderInputs:
+    """A scene and camera ready to render, and what the EXR header says about them."""
+
+    scene: object
+    camera: object
+    light_samples: int
+    default_out: str
+    metadata: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+
+def add_scene_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments that choose what to render (shared by ``render`` and ``bench``)."""
     from realistic.raygen import BACKENDS
 
-    p = commands.add_parser("render", help="render a mesh (or the default scene) through a lens",
-                            description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("mesh", nargs="?", metavar="MESH", help="mesh file; omit for the default scene")
-    p.add_argument("--lens", default="dgauss",
-                   help=f"bundled lens ({', '.join(BUNDLED_LENSES)}) or prescription file (default: %(default)s)")
-    p.add_argument("--aperture", type=float, metavar="MM", help="stop diameter in mm (default: the lens file's)")
-    p.add_argument("--focus", type=float, metavar="M",
-                   help="focus distance in scene units (m) from the film plane (default: the target's distance)")
-    p.add_argument("--camera-pos", metavar="X,Y,Z", help="film centre position in scene units (default: framed)")
-    p.add_argument("--target", metavar="X,Y,Z", help="point looked at (default: the subject's centre)")
-    p.add_argument("--res", default="300x300", metavar="WxH", help="resolution (default: %(default)s)")
-    p.add_argument("--spp", type=int, default=16, help="samples per pixel (default: %(default)s)")
-    p.add_argument("--film-diagonal", type=float, default=43.27, metavar="MM",
-                   help="film diagonal in mm (default: %(default)s, full frame)")
-    p.add_argument("--out", default="render.exr", metavar="FILE.exr",
-                   help="output EXR; the PNG preview is written beside it (default: %(default)s)")
+    p.add_argument("scene", nargs="?", metavar="SCENE", help="pbrt scene or mesh file; omit for the default scene")
+    p.add_argument("--lens", help=f"mesh scenes: bundled lens ({', '.join(BUNDLED_LENSES)}) or prescription file "
+                                  "(default: dgauss)")
+    p.add_argument("--aperture", type=float, metavar="MM", help="stop diameter in mm (default: the scene's or lens's)")
+    p.add_argument("--focus", type=float, metavar="DIST",
+                   help="focus distance in scene units from the film plane (default: the target's or the scene's)")
+    p.add_argument("--camera-pos", metavar="X,Y,Z", help="mesh scenes: film centre position (default: framed)")
+    p.add_argument("--target", metavar="X,Y,Z", help="mesh scenes: point looked at (default: the subject's centre)")
+    p.add_argument("--res", metavar="WxH", help="resolution (default: the scene's, else 300x300)")
+    p.add_argument("--film-diagonal", type=float, metavar="MM",
+                   help="mesh scenes: film diagonal in mm (default: 43.27, full frame)")
+    p.add_argument("--search-path", action="append", default=[], metavar="DIR",
+                   help="pbrt scenes: where else to look for files the scene names (meshes, textures, "
+                        "Includes, lenses), after the scene's own folder; repeatable")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    p.add_argument("--exposure", type=float, metavar="EV",
-                   help="PNG preview exposure in stops (default: automatic); the EXR is never scaled")
     p.add_argument("--backend", choices=BACKENDS, default="opencl",
                    help="camera ray generation: OpenCL kernel or numpy reference (default: %(default)s)")
     p.add_argument("--lens-sampling", choices=("pupil", "rear"), default="pupil",
                    help="aim camera rays at the exit-pupil bounds or the rear element (default: %(default)s)")
-    p.add_argument("--cl-device", metavar="NAME", help="OpenCL device (substring of its name)")
-    p.add_argument("--light-samples", type=int, default=1, help="light samples per hit (default: %(default)s)")
+    p.add_argument("--cl-device", metavar="NAME", help="OpenCL device (substring of its name, or an index)")
+    p.add_argument("--light-samples", type=int, help="light samples per hit (default: the scene's, else 1)")
+
+
+def add_render_command(commands: argparse._SubParsersAction) -> None:
+    """Register ``render`` on the CLI's subcommand parser."""
+    p = commands.add_parser("render", help="render a pbrt scene, a mesh, or the default scene through a lens",
+                            description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_scene_arguments(p)
+    p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's, else 16)")
+    p.add_argument("--out", metavar="FILE.exr",
+                   help="output EXR; the PNG preview is written beside it (default: the scene's film "
+                        "file name, else render.exr)")
+    p.add_argument("--exposure", type=float, metavar="EV",
+                   help="PNG preview exposure in stops (default: automatic); the EXR is never scaled")
     p.set_defaults(run=cmd_render)
 
 
@@ -75,66 +112,115 @@ def _vector(text: str | None, name: str) -> np.ndarray | None:
     return values
 
 
-def _check_options(args: argparse.Namespace) -> None:
-    if args.spp < 1:
-        raise UserError(f"samples per pixel must be at least 1, got {args.spp}")
-    if args.light_samples < 1:
+def check_scene_options(args: argparse.Namespace, spp: int | None) -> None:
+    if spp is not None and spp < 1:
+        raise UserError(f"samples per pixel must be at least 1, got {spp}")
+    if args.light_samples is not None and args.light_samples < 1:
         raise UserError(f"light samples must be at least 1, got {args.light_samples}")
     for name, value in (("aperture", args.aperture), ("focus", args.focus), ("film diagonal", args.film_diagonal)):
         if value is not None and not (value > 0 and np.isfinite(value)):
             raise UserError(f"{name} must be a positive finite number, got {value:g}")
-    if Path(args.out).suffix.lower() != ".exr":
-        raise UserError(f"{args.out}: the output must be an .exr file (the PNG preview goes beside it)")
+    if args.scene and args.scene.lower().endswith(".pbrt"):
+        given = [f"--{name.replace('_', '-')}" for name in MESH_ONLY if getattr(args, name) is not None]
+        if given:
+            raise UserError(f"{', '.join(given)} apply to mesh scenes; {args.scene} sets its own camera")
+    elif args.search_path:
+        raise UserError("--search-path applies to pbrt scenes")
+
+
+def _lens_metadata(camera) -> dict:
+    from realistic.camera import Camera
+    from realistic.paraxial import focus_distance_for_film, paraxial_data
+
+    if not isinstance(camera, Camera):
+        return {"lens": "thin lens (pbrt perspective)", "fovDegrees": float(camera.fov_deg),
+                "lensRadius": float(camera.lens_radius), "focusDistanceSceneUnits": float(camera.focal_distance)}
+    lens = camera.lens
+    return {"lens": lens.name, "lensSource": lens.source, "apertureDiameterMm": float(lens.stop_diameter_mm),
+            "fNumber": float(paraxial_data(lens).f_number),
+            "focusDistanceMm": float(focus_distance_for_film(lens, camera.film_distance_mm)),
+            "filmDistanceMm": float(camera.film_distance_mm), "filmDiagonalMm": float(camera.film_diagonal_mm),
+            "lensSampling": camera.lens_sampling}
+
+
+def _pbrt_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
+    from realistic.pbrt_import import import_pbrt
+
+    width, height = _resolution(args.res) if args.res else (None, None)
+    imported = import_pbrt(args.scene, width, height, spp, args.lens_sampling, aperture_mm=args.aperture,
+                           focus_scene_units=args.focus, search_paths=[Path(p) for p in args.search_path])
+    out = Path(imported.output_name).name if imported.output_name else "render.exr"
+    if Path(out).suffix.lower() != ".exr":
+        out = str(Path(out).with_suffix(".exr"))
+    return RenderInputs(imported.scene, imported.camera, args.light_samples or imported.light_samples, out,
+                        {"scene": str(args.scene)}, imported.warnings)
+
+
+def _mesh_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
+    from realistic.meshes import load_mesh_file
+    from realistic.prescription import load_lens
+    from realistic.setups import MM_PER_UNIT, auto_eye, camera_for_view, default_setup, mesh_setup
+
+    width, height = _resolution(args.res) if args.res else MESH_DEFAULT_RES
+    film_diagonal = args.film_diagonal or 43.27
+    eye, target = _vector(args.camera_pos, "camera position"), _vector(args.target, "target")
+    lens = load_lens(args.lens or "dgauss")
+    if args.aperture:
+        lens = lens.with_stop_diameter(args.aperture)
+    setup = mesh_setup(load_mesh_file(args.scene)) if args.scene else default_setup()
+    target = setup.target if target is None else target
+    if eye is None:
+        film_short_mm = film_diagonal * min(width, height) / np.hypot(width, height)
+        eye = setup.eye if setup.eye is not None and args.target is None else auto_eye(setup, lens, film_short_mm)
+    camera = camera_for_view(lens, eye, target, args.focus, film_diagonal, width, height,
+                             spp or MESH_DEFAULT_SPP, args.lens_sampling)
+    metadata = {"scene": str(args.scene or "default"), "mmPerSceneUnit": MM_PER_UNIT,
+                "cameraPosition": ",".join(f"{v:g}" for v in eye),
+                "cameraTarget": ",".join(f"{v:g}" for v in target)}
+    return RenderInputs(setup.scene, camera, args.light_samples or 1, "render.exr", metadata)
+
+
+def load_render_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
+    """The scene and camera the arguments describe; ``spp`` None keeps the scene's own."""
+    check_scene_options(args, spp)
+    if args.scene and args.scene.lower().endswith(".pbrt"):
+        return _pbrt_inputs(args, spp)
+    return _mesh_inputs(args, spp)
+
+
+def report_warnings(warnings: list[str]) -> None:
+    for warning in warnings:
+        print(f"realistic: {warning}", file=sys.stderr)
 
 
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.image_io import auto_exposure, check_writable, write_exr, write_png
-    from realistic.meshes import load_mesh_file
-    from realistic.paraxial import focus_distance_for_film, paraxial_data
-    from realistic.prescription import load_lens
     from realistic.render import render_passes
-    from realistic.setups import MM_PER_UNIT, auto_eye, camera_for_view, default_setup, mesh_setup
 
-    _check_options(args)
-    width, height = _resolution(args.res)
-    eye, target = _vector(args.camera_pos, "camera position"), _vector(args.target, "target")
-    out = Path(args.out)
+    if args.out is not None and Path(args.out).suffix.lower() != ".exr":
+        raise UserError(f"{args.out}: the output must be an .exr file (the PNG preview goes beside it)")
+    inputs = load_render_inputs(args, args.spp)
+    report_warnings(inputs.warnings)
+    out = Path(args.out or inputs.default_out)
     png = out.with_suffix(".png")
     check_writable(out)
     check_writable(png)
-    lens = load_lens(args.lens)
-    if args.aperture:
-        lens = lens.with_stop_diameter(args.aperture)
-    setup = mesh_setup(load_mesh_file(args.mesh)) if args.mesh else default_setup()
-    target = setup.target if target is None else target
-    if eye is None:
-        film_short_mm = args.film_diagonal * min(width, height) / np.hypot(width, height)
-        eye = setup.eye if setup.eye is not None and args.target is None else auto_eye(setup, lens, film_short_mm)
-    camera = camera_for_view(lens, eye, target, args.focus, args.film_diagonal, width, height, args.spp,
-                             args.lens_sampling)
-    result = render_passes(setup.scene, camera, args.backend, args.seed, args.cl_device, args.light_samples,
+    camera = inputs.camera
+    result = render_passes(inputs.scene, camera, args.backend, args.seed, args.cl_device, inputs.light_samples,
                            progress=True)
-    focus_mm = focus_distance_for_film(lens, camera.film_distance_mm)
-    metadata = {
-        "lens": lens.name, "lensSource": lens.source, "apertureDiameterMm": float(lens.stop_diameter_mm),
-        "fNumber": float(paraxial_data(lens).f_number), "focusDistanceMm": float(focus_mm),
-        "focusDistanceSceneUnits": float(focus_mm / MM_PER_UNIT), "mmPerSceneUnit": MM_PER_UNIT,
-        "filmDistanceMm": float(camera.film_distance_mm), "filmDiagonalMm": float(args.film_diagonal),
-        "spp": int(args.spp), "seed": int(args.seed), "lightSamples": int(args.light_samples),
-        "backend": args.backend, "lensSampling": args.lens_sampling, "renderSeconds": float(result.seconds),
-        "samplesDone": int(result.samples_done), "samplesTotal": int(result.samples_total),
-        "interrupted": int(result.interrupted), "scene": str(args.mesh or "default"),
-        "cameraPosition": ",".join(f"{v:g}" for v in eye), "cameraTarget": ",".join(f"{v:g}" for v in target),
-    }
+    metadata = {**_lens_metadata(camera), **inputs.metadata,
+                "spp": int(camera.spp), "seed": int(args.seed), "lightSamples": int(inputs.light_samples),
+                "backend": args.backend, "renderSeconds": float(result.seconds),
+                "samplesDone": int(result.samples_done), "samplesTotal": int(result.samples_total),
+                "interrupted": int(result.interrupted)}
     write_exr(out, result.image, metadata)
     exposure = auto_exposure(result.image) if args.exposure is None else args.exposure
     write_png(png, result.image, exposure)
     rays = result.primary_rays + result.shadow_rays
-    summary = (f"{out} and {png}: {width}x{height}, {args.spp} spp, {result.seconds:.1f} s, "
-               f"{rays / max(result.seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {exposure:+.2f} EV")
     if result.interrupted:
         print(f"realistic: interrupted: wrote the {result.samples_done} of {result.samples_total} samples "
               f"taken to {out}", file=sys.stderr)
         return 130
-    print(summary)
+    print(f"{out} and {png}: {camera.width}x{camera.height}, {camera.spp} spp, {result.seconds:.1f} s, "
+          f"{rays / max(result.seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {exposure:+.2f} EV")
     return 0

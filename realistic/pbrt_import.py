@@ -20,7 +20,7 @@ from realistic.errors import UserError
 from realistic.meshes import load_mesh_file
 from realistic.paraxial import film_distance_for_focus
 from realistic.pbrt_parser import Material as PbrtMaterial
-from realistic.pbrt_parser import Params, PbrtScene, ShapeRecord, parse_pbrt
+from realistic.pbrt_parser import Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.prescription import BUNDLED_LENSES, load_lens
 from realistic.scene import (AreaLight, CheckerTexture, ImageTexture, Material, Mesh, Scene, cone, disk, sphere,
                              translate)
@@ -52,8 +52,9 @@ def _rgb(params: Params, name: str, default: tuple | None) -> tuple | None:
 
 
 class _Importer:
-    def __init__(self, parsed: PbrtScene):
+    def __init__(self, parsed: PbrtScene, search_paths: list[Path]):
         self.parsed = parsed
+        self.search_paths = search_paths
         self.scene = Scene()
         self.materials: dict[int, Material] = {}
         self.stored: dict[int, list[tuple[int, np.ndarray]]] = {}  # shape record -> (mesh index, local)
@@ -61,6 +62,13 @@ class _Importer:
 
     def warn(self, where: str, message: str) -> None:
         self.parsed.warn(where, message)
+
+    def find(self, name: str, directory: Path, where: str, what: str) -> Path:
+        path = resolve_file(name, directory, self.search_paths)
+        if path is None:
+            raise UserError(f'{where}: {what} "{name}" not found in {directory} or the search paths '
+                            f"(add one with --search-path)")
+        return path
 
     # ---- materials and textures ---------------------------------------------------------------
     def material(self, m: PbrtMaterial) -> Material:
@@ -96,7 +104,7 @@ class _Importer:
             filename = p.string("filename")
             if not filename:
                 raise UserError(f'{tex.where}: imagemap texture "{name}" has no filename')
-            pixels = read_texture_image(tex.directory / filename)
+            pixels = read_texture_image(self.find(filename, tex.directory, tex.where, "texture file"))
             if p.has("udelta") or p.has("vdelta") or p.string("mapping", "uv") != "uv":
                 self.warn(tex.where, "imagemap mapping other than plain uv scaling (ignored)")
             return Material((1.0, 1.0, 1.0), ImageTexture(pixels, (p.float("uscale", 1.0), p.float("vscale", 1.0))))
@@ -134,7 +142,8 @@ class _Importer:
             filename = p.string("filename")
             if not filename:
                 raise UserError(f"{s.where}: plymesh has no filename")
-            return [(obj.mesh, obj.transform) for obj in load_mesh_file(s.directory / filename)]
+            path = self.find(filename, s.directory, s.where, "plymesh file")
+            return [(obj.mesh, obj.transform) for obj in load_mesh_file(path)]
         if s.type == "disk":
             if p.float("innerradius", 0.0):
                 self.warn(s.where, "disk innerradius (rendered as a full disk)")
@@ -226,10 +235,11 @@ class _Importer:
         return self.scene
 
 
-def find_lens_file(name: str, scene_dir: Path, where: str) -> str:
-    """A lens named by a scene: next to the scene, else a bundled lens of that file name."""
-    if (scene_dir / name).is_file():
-        return str(scene_dir / name)
+def find_lens_file(name: str, scene_dir: Path, search_paths: list[Path], where: str) -> str:
+    """A lens named by a scene: next to the scene or in a search path, else a bundled lens of that name."""
+    path = resolve_file(name, scene_dir, search_paths)
+    if path is not None:
+        return str(path)
     for short, filename in BUNDLED_LENSES.items():
         if filename == Path(name).name:
             return short
@@ -237,21 +247,30 @@ def find_lens_file(name: str, scene_dir: Path, where: str) -> str:
                     f'bundled lenses ({", ".join(BUNDLED_LENSES.values())})')
 
 
-def import_camera(parsed: PbrtScene, width: int, height: int, spp: int,
-                  lens_sampling: str = "pupil") -> Camera | ThinLensCamera:
-    """The scene's camera at the given resolution and sample count."""
+def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sampling: str = "pupil",
+                  aperture_mm: float | None = None, focus_scene_units: float | None = None,
+                  search_paths: list[Path] | None = None) -> Camera | ThinLensCamera:
+    """The scene's camera at the given resolution and sample count, with optional overrides.
+
+    ``focus_scene_units`` refocuses a realistic camera (thick-lens model) on the plane that far
+    from the film; ``aperture_mm`` sets its stop diameter.
+    """
+    search_paths = list(search_paths or [])
     directive = parsed.camera
     if directive is None:
         raise UserError(f"{parsed.path}: no Camera directive")
     world_from_camera = np.linalg.inv(directive.transform)
     p = directive.params
     if directive.type == "perspective":
+        if aperture_mm is not None or focus_scene_units is not None:
+            raise UserError(f"{directive.where}: --aperture and --focus apply to realistic cameras, not "
+                            f'Camera "perspective"')
         return build_thin_lens_camera(p.float("fov", 90.0), p.float("lensradius", 0.0),
                                       p.float("focaldistance", 1e6), width, height, spp, world_from_camera)
     if directive.type != "realistic":
         raise UserError(f'{directive.where}: Camera "{directive.type}" is not supported (use realistic or perspective)')
     if p.has("specfile"):  # the classic homework: camera space in mm, origin at the front lens vertex
-        lens = load_lens(find_lens_file(p.string("specfile"), parsed.path.parent, directive.where))
+        lens = load_lens(find_lens_file(p.string("specfile"), parsed.path.parent, search_paths, directive.where))
         film_distance = p.float("filmdistance")
         if film_distance is None:
             raise UserError(f'{directive.where}: Camera "realistic" needs "float filmdistance"')
@@ -259,28 +278,37 @@ def import_camera(parsed: PbrtScene, width: int, height: int, spp: int,
             lens = lens.with_stop_diameter(p.float("aperture_diameter"))
         origin_mm = film_distance + lens.track_length_mm
     elif p.has("lensfile"):  # pbrt-v3: camera space in metres, origin at the film centre
-        lens = load_lens(find_lens_file(p.string("lensfile"), parsed.path.parent, directive.where))
+        lens = load_lens(find_lens_file(p.string("lensfile"), parsed.path.parent, search_paths, directive.where))
         lens = lens.with_stop_diameter(p.float("aperturediameter", 1.0))
         film_distance = film_distance_for_focus(lens, p.float("focusdistance", 10.0) * 1000.0)
         world_from_camera = world_from_camera @ np.diag([1e-3, 1e-3, 1e-3, 1.0])
         origin_mm = 0.0
     else:
         raise UserError(f'{directive.where}: Camera "realistic" needs "string specfile" or "string lensfile"')
+    if aperture_mm is not None:
+        lens = lens.with_stop_diameter(aperture_mm)
+    if focus_scene_units is not None:
+        mm_per_unit = 1.0 / np.linalg.norm(world_from_camera[:3, 0])
+        film_distance = film_distance_for_focus(lens, focus_scene_units * mm_per_unit)
+        if p.has("specfile"):
+            origin_mm = film_distance + lens.track_length_mm
     return build_camera(lens, film_distance, p.float("filmdiag", 35.0), width, height, spp, world_from_camera,
                         origin_mm, lens_sampling)
 
 
 def import_pbrt(path: str | Path, width: int | None = None, height: int | None = None, spp: int | None = None,
-                lens_sampling: str = "pupil") -> ImportedScene:
+                lens_sampling: str = "pupil", aperture_mm: float | None = None,
+                focus_scene_units: float | None = None, search_paths: list[Path] | None = None) -> ImportedScene:
     """Read a pbrt scene; resolution and samples default to the file's (``Film`` and ``Sampler``)."""
-    parsed = parse_pbrt(path)
+    search_paths = list(search_paths or [])
+    parsed = parse_pbrt(path, search_paths)
     film = parsed.film.params if parsed.film else Params()
     if parsed.film and parsed.film.params.has("cropwindow"):
         parsed.warn(parsed.film.where, "Film cropwindow (the whole image is rendered)")
     width = width or int(film.float("xresolution", 640))
     height = height or int(film.float("yresolution", 480))
     spp = spp or int(parsed.sampler.params.float("pixelsamples", 16) if parsed.sampler else 16)
-    camera = import_camera(parsed, width, height, spp, lens_sampling)
-    importer = _Importer(parsed)
+    camera = import_camera(parsed, width, height, spp, lens_sampling, aperture_mm, focus_scene_units, search_paths)
+    importer = _Importer(parsed, search_paths)
     scene = importer.run()
     return ImportedScene(scene, camera, film.string("filename"), importer.light_samples, parsed.warnings)

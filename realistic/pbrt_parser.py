@@ -194,8 +194,18 @@ class _State:
 DEFAULT_MATERIAL = Material("matte", Params(), "<default>")
 
 
+def resolve_file(name: str, directory: Path, search_paths: list[Path]) -> Path | None:
+    """A file a scene names: relative to the naming file's folder, else in a search path."""
+    for folder in [directory, *search_paths]:
+        candidate = folder / name
+        if candidate.is_file():
+            return candidate
+    return None
+
+
 class _Parser:
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, search_paths: list[Path]):
+        self.search_paths = search_paths
         self.scene = PbrtScene(path)
         self.state = _State(np.eye(4), DEFAULT_MATERIAL)
         self.stack: list[tuple[str, _State]] = []
@@ -302,9 +312,10 @@ class _Parser:
 
     def d_Include(self, t: Token) -> None:
         name = self.string(t)
-        path = (t.path.parent / name)
-        if not path.is_file():
-            self.scene.warn(t.where(), f'Include "{name}": no such file {path} (skipped)')
+        path = resolve_file(name, t.path.parent, self.search_paths)
+        if path is None:
+            self.scene.warn(t.where(), f'Include "{name}": no such file in {t.path.parent} or the search '
+                                       f'paths (skipped)')
             return
         self.tokens[self.pos:self.pos] = self._load(path)
 
@@ -447,9 +458,9 @@ class _Parser:
             self.scene.shapes.append(record)
 
 
-def parse_pbrt(path: str | Path) -> PbrtScene:
+def parse_pbrt(path: str | Path, search_paths: list[Path] | None = None) -> PbrtScene:
     """Read a pbrt scene file (with its Includes) into records."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no such scene file")
-    return _Parser(path).run()
+    return _Parser(path, list(search_paths or [])).run()

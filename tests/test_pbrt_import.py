@@ -76,7 +76,7 @@ def test_perspective_camera_and_film_settings(tmp_path):
 def test_missing_lens_and_texture_are_clear_errors(tmp_path):
     with pytest.raises(UserError, match='lens file "nope.dat" not found'):
         import_pbrt(write(tmp_path, 'Camera "realistic" "string specfile" "nope.dat" "float filmdistance" 30\n'))
-    with pytest.raises(UserError, match="x.exr: no such texture file"):
+    with pytest.raises(UserError, match="texture file \"x.exr\" not found"):
         import_pbrt(write(tmp_path, CAMERA + 'WorldBegin\nTexture "t" "color" "imagemap" "string filename" "x.exr"\n'
                           'Material "matte" "texture Kd" "t"\nShape "sphere"\n'))
 

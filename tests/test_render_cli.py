@@ -107,14 +107,6 @@ def test_bad_input_is_one_line_and_status_2(tmp_path, capsys, case):
     assert set(tmp_path.iterdir()) == before  # no output, no temporary file
 
 
-def test_opencl_backend_missing_is_one_line(tmp_path, capsys):
-    status, _, err = run_cli(["--res", "8x8", "--spp", "1", "--out", str(tmp_path / "x.exr")], capsys)
-    if status == 0:
-        pytest.skip("the OpenCL backend is built")
-    assert status == 2 and err.count("\n") == 1 and "OpenCL" in err
-    assert list(tmp_path.iterdir()) == []
-
-
 def test_subprocess_error_has_no_traceback(tmp_path):
     result = subprocess.run([sys.executable, "-m", "realistic", "render", str(tmp_path / "none.stl"),
                              "--backend", "numpy", "--out", str(tmp_path / "x.exr")],
@@ -159,3 +151,31 @@ def test_ctrl_c_writes_what_has_accumulated(tmp_path):
     image, header = read_exr(out)
     assert header["interrupted"] == 1 and 0 < header["samplesDone"] < header["samplesTotal"]
     assert image.max() > 0
+
+
+def test_renders_a_pbrt_homework_scene_with_overrides(tmp_path, capsys, monkeypatch):
+    scene = shared_file("scenes/pbrt/dof-dragons.telephoto.pbrt")
+    monkeypatch.chdir(tmp_path)
+    status, out, err = run_cli([str(scene), *FAST, "--aperture", "20", "--focus", "1.2"], capsys)
+    assert status == 0, err
+    image, header = read_exr(tmp_path / "dof-dragons.telephoto.exr")  # the scene's Film filename
+    assert image.shape == (16, 24, 3) and image.max() > 0
+    assert float(header["apertureDiameterMm"]) == 20
+    assert float(header["focusDistanceMm"]) == pytest.approx(1.2 * 5000)  # Scale 5000: 1 unit = 5 m
+    assert (tmp_path / "dof-dragons.telephoto.png").exists()
+
+
+def test_pbrt_scene_rejects_mesh_only_options(tmp_path, capsys):
+    scene = shared_file("scenes/pbrt/dof-dragons.dgauss.pbrt")
+    status, _, err = run_cli([str(scene), *FAST, "--lens", "wide", "--out", str(tmp_path / "x.exr")], capsys)
+    assert status == 2 and "--lens apply to mesh scenes" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unsupported_pbrt_features_are_reported_and_rendered(tmp_path, capsys):
+    scene = tmp_path / "s.pbrt"
+    scene.write_text('Film "image" "integer xresolution" 8 "integer yresolution" 8\nCamera "perspective"\n'
+                     'WorldBegin\nMaterial "glass"\nShape "sphere"\n')
+    status, _, err = run_cli([str(scene), "--spp", "1", "--out", str(tmp_path / "x.exr")], capsys)
+    assert status == 0
+    assert f'{scene}:4: unsupported: Material "glass", rendered as matte grey' in err
