@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from realistic.cli_bench import add_bench_command
 from realistic.cli_render import add_render_command
 from realistic.dispersion import D_LINE_NM
 from realistic.errors import UserError
@@ -92,13 +93,10 @@ def cmd_lens_curves(args: argparse.Namespace) -> int:
 
 
 def _write_text_atomically(path: Path, text: str) -> None:
-    temporary = path.with_name(f".{path.name}.tmp")
-    try:
-        temporary.write_text(text, encoding="utf-8")
-        temporary.replace(path)
-    except OSError as err:
-        temporary.unlink(missing_ok=True)
-        raise UserError(f"{path}: cannot write: {err.strerror}") from None
+    from realistic.image_io import check_writable, write_atomically
+
+    check_writable(path)
+    write_atomically(path, lambda temporary: Path(temporary).write_text(text, encoding="utf-8"))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -156,6 +154,7 @@ def build_parser() -> argparse.ArgumentParser:
     curves.add_argument("--json", metavar="JSON", help="also write the curves as JSON")
     curves.set_defaults(run=cmd_lens_curves)
     add_render_command(commands)
+    add_bench_command(commands)
     return parser
 
 
