@@ -19,7 +19,7 @@ from realistic.camera import Camera, build_camera
 from realistic.errors import UserError
 from realistic.meshes import load_mesh_file
 from realistic.paraxial import film_distance_for_focus
-from realistic.pbrt_parser import Material as PbrtMaterial
+from realistic.pbrt_parser import Declaration
 from realistic.pbrt_parser import Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.prescription import BUNDLED_LENSES, load_lens
 from realistic.scene import (AreaLight, CheckerTexture, ImageTexture, Material, Mesh, Scene, cone, disk, sphere,
@@ -71,13 +71,13 @@ class _Importer:
         return path
 
     # ---- materials and textures ---------------------------------------------------------------
-    def material(self, m: PbrtMaterial) -> Material:
+    def material(self, m: Declaration) -> Material:
         key = id(m)
         if key not in self.materials:
             self.materials[key] = self._material(m)
         return self.materials[key]
 
-    def _material(self, m: PbrtMaterial) -> Material:
+    def _material(self, m: Declaration) -> Material:
         if m.type not in ("matte", "plastic", "uber", "substrate", "translucent"):
             self.warn(m.where, f'Material "{m.type}", rendered as matte grey')
             return Material(GREY)

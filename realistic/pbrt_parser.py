@@ -66,7 +66,9 @@ def _split_where(where: str) -> tuple[str, int]:
 
 
 @dataclass(frozen=True)
-class Material:
+class Declaration:
+    """A typed directive that is state rather than geometry: Material, AreaLightSource."""
+
     type: str
     params: Params
     where: str
@@ -83,35 +85,20 @@ class TextureDef:
 
 
 @dataclass(frozen=True)
-class AreaLight:
-    type: str
-    params: Params
-    where: str
-
-
-@dataclass(frozen=True)
 class ShapeRecord:
     type: str
     params: Params
     transform: np.ndarray  # object to world (to the instance's space inside ObjectBegin)
-    material: Material
-    area_light: AreaLight | None
+    material: Declaration
+    area_light: Declaration | None
     reverse_orientation: bool
     directory: Path
     where: str
 
 
 @dataclass(frozen=True)
-class LightRecord:
-    type: str
-    params: Params
-    transform: np.ndarray
-    where: str
-
-
-@dataclass(frozen=True)
 class Directive:
-    """A camera, film or sampler directive: type, parameters and the CTM when it was given."""
+    """Camera, Film, Sampler or LightSource: type, parameters and the CTM when it was given."""
 
     type: str
     params: Params
@@ -128,7 +115,7 @@ class PbrtScene:
     shapes: list[ShapeRecord] = field(default_factory=list)
     objects: dict[str, list[ShapeRecord]] = field(default_factory=dict)
     instances: list[tuple[str, np.ndarray, str]] = field(default_factory=list)
-    lights: list[LightRecord] = field(default_factory=list)
+    lights: list[Directive] = field(default_factory=list)
     textures: dict[str, TextureDef] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
@@ -183,15 +170,15 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
 @dataclass
 class _State:
     ctm: np.ndarray
-    material: Material
-    area_light: AreaLight | None = None
+    material: Declaration
+    area_light: Declaration | None = None
     reverse_orientation: bool = False
 
     def copy(self) -> "_State":
         return _State(self.ctm.copy(), self.material, self.area_light, self.reverse_orientation)
 
 
-DEFAULT_MATERIAL = Material("matte", Params(), "<default>")
+DEFAULT_MATERIAL = Declaration("matte", Params(), "<default>")
 
 
 def resolve_file(name: str, directory: Path, search_paths: list[Path]) -> Path | None:
@@ -211,7 +198,7 @@ class _Parser:
         self.stack: list[tuple[str, _State]] = []
         self.named_frames: dict[str, np.ndarray] = {}
         self.current_object: str | None = None
-        self.named_materials: dict[str, Material] = {}
+        self.named_materials: dict[str, Declaration] = {}
         self.tokens: list[Token] = []
         self.pos = 0
 
@@ -231,12 +218,16 @@ class _Parser:
         self.pos += 1
         return token
 
-    def number(self, directive: Token) -> float:
-        token = self.next(f"a number after {directive.text}")
-        if token.kind != "number":
-            raise PbrtSyntaxError(token.path, token.line, f"expected a number after {directive.text}, "
+    def expect(self, kind: str, what: str, directive: Token) -> Token:
+        """The next token, which must be of ``kind`` (described as ``what`` in the error)."""
+        token = self.next(f"{what} after {directive.text}")
+        if token.kind != kind:
+            raise PbrtSyntaxError(token.path, token.line, f"expected {what} after {directive.text}, "
                                   f"found {token.text}")
-        return float(token.value)
+        return token
+
+    def number(self, directive: Token) -> float:
+        return float(self.expect("number", "a number", directive).value)
 
     def numbers(self, directive: Token, count: int) -> list[float]:
         """``count`` numbers, bare or inside one pair of brackets."""
@@ -252,11 +243,7 @@ class _Parser:
         return values
 
     def string(self, directive: Token) -> str:
-        token = self.next(f"a quoted string after {directive.text}")
-        if token.kind != "string":
-            raise PbrtSyntaxError(token.path, token.line, f"expected a quoted string after {directive.text}, "
-                                  f"found {token.text}")
-        return str(token.value)
+        return str(self.expect("string", "a quoted string", directive).value)
 
     def params(self) -> Params:
         params = Params()
@@ -428,12 +415,12 @@ class _Parser:
         self.scene.textures[name] = TextureDef(name, kind, cls, self.params(), t.path.parent, t.where())
 
     def d_Material(self, t: Token) -> None:
-        self.state.material = Material(self.string(t), self.params(), t.where())
+        self.state.material = Declaration(self.string(t), self.params(), t.where())
 
     def d_MakeNamedMaterial(self, t: Token) -> None:
         name = self.string(t)
         params = self.params()
-        self.named_materials[name] = Material(params.string("type", "matte"), params, t.where())
+        self.named_materials[name] = Declaration(params.string("type", "matte"), params, t.where())
 
     def d_NamedMaterial(self, t: Token) -> None:
         name = self.string(t)
@@ -442,11 +429,11 @@ class _Parser:
         self.state.material = self.named_materials[name]
 
     def d_AreaLightSource(self, t: Token) -> None:
-        self.state.area_light = AreaLight(self.string(t), self.params(), t.where())
+        self.state.area_light = Declaration(self.string(t), self.params(), t.where())
 
     def d_LightSource(self, t: Token) -> None:
         kind = self.string(t)
-        self.scene.lights.append(LightRecord(kind, self.params(), self.state.ctm.copy(), t.where()))
+        self.scene.lights.append(Directive(kind, self.params(), self.state.ctm.copy(), t.where()))
 
     def d_Shape(self, t: Token) -> None:
         kind = self.string(t)
