@@ -1,0 +1,68 @@
+"""Render the gallery of docs/gallery.md: the four homework scenes and their dragon versions.
+
+Each scene is rendered at 4 and at 512 samples per pixel through the real CLI (OpenCL backend,
+PNG previews at a fixed exposure of 0 EV, as the scenes' light levels are set per lens); the
+table of render times is read back from the EXR headers. Needs ../shared (the homework scenes,
+the dragon mesh and the floor texture).
+
+    python docs/make_gallery.py [--spp 4,512] [--out docs/gallery] [--shared ../shared]
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+LENSES = ("dgauss", "fisheye", "telephoto", "wide")
+
+
+def scenes(shared: Path) -> list[tuple[str, Path, list[str]]]:
+    """(name, scene file, extra arguments) for the eight gallery scenes."""
+    homework = [(f"{lens}", shared / "scenes" / "pbrt" / f"dof-dragons.{lens}.pbrt", []) for lens in LENSES]
+    search = ["--search-path", str(shared / "meshes"), "--search-path", str(shared / "scenes" / "pbrt")]
+    dragons = [(f"{lens}-dragons", ROOT / "scenes" / "dof-dragons" / f"{lens}.pbrt", search) for lens in LENSES]
+    return homework + dragons
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--spp", default="4,512", help="sample counts (default: %(default)s)")
+    parser.add_argument("--out", default=str(ROOT / "docs" / "gallery"), help="folder for the images")
+    parser.add_argument("--shared", default=str(ROOT.parent / "shared"), help="the shared data folder")
+    args = parser.parse_args()
+    shared = Path(args.shared)
+    if not shared.is_dir():
+        sys.exit(f"{shared}: the shared data (homework scenes, dragon) is needed for the gallery")
+    sys.path.insert(0, str(ROOT))
+    from realistic.image_io import read_exr
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for name, scene, extra in scenes(shared):
+        times = {}
+        for spp in [int(s) for s in args.spp.split(",")]:
+            exr = out / f"{name}-{spp}spp.exr"
+            command = [sys.executable, "-m", "realistic", "render", str(scene), "--spp", str(spp),
+                       "--exposure", "0", "--out", str(exr), *extra]
+            subprocess.run(command, check=True, cwd=ROOT)
+            times[spp] = float(read_exr(exr)[1]["renderSeconds"])
+            exr.unlink()  # the PNG preview is what the page shows
+            print(f"{name} {spp} spp: {times[spp]:.1f} s", flush=True)
+        rows.append((name, scene, times))
+    spp_list = sorted(rows[0][2])
+    lines = ["| scene | " + " | ".join(f"{s} spp (s)" for s in spp_list) + " |",
+             "|---|" + "---|" * len(spp_list)]
+    for name, scene, times in rows:
+        lines.append(f"| {name} (`{scene.name}`) | "
+                     + " | ".join(f"{times[s]:.1f}" for s in spp_list) + " |")
+    (out / "times.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
