@@ -201,8 +201,17 @@ def parse_prescription(text: str, path: str = "<string>", name: str | None = Non
         thickness = thickness[1:] + [0.0]
         note = ("column 2 read as the distance from the previous surface (first row is 0): "
                 "the pbrt-v4 100 mm convention, shifted to distance-to-next")
+    return build_lens(path, [row.line for row in rows], radius, thickness, index, abbe, aperture,
+                      name=name, note=note)
 
-    lines = [row.line for row in rows]
+
+def build_lens(path: str, lines: list[int], radius: list[float], thickness: list[float], index: list[float],
+               abbe: list[float], aperture: list[float], name: str | None = None, note: str = "") -> LensSystem:
+    """Validate per-surface values (prescription conventions) into a LensSystem.
+
+    ``lines[i]`` is the file line that errors about surface i name; every parser feeds this one
+    constructor so that all lens files obey the same rules.
+    """
     for i, line in enumerate(lines):
         values = (radius[i], thickness[i], index[i], abbe[i], aperture[i])
         if any(math.isnan(x) for x in values) or any(math.isinf(x) for x in values[1:]):
@@ -243,7 +252,10 @@ def parse_prescription(text: str, path: str = "<string>", name: str | None = Non
 
 
 def load_lens(name_or_path: str | Path) -> LensSystem:
-    """Load a bundled lens by short name (``dgauss``, ``wide``, ...) or a prescription file by path."""
+    """Load a bundled lens by short name (``dgauss``, ``wide``, ...) or a prescription file by path.
+
+    A path ending in ``.zmx`` is read as a Zemax sequential file (``realistic.zemax``).
+    """
     key = str(name_or_path)
     if key in BUNDLED_LENSES:
         resource = resources.files("realistic") / "lenses" / BUNDLED_LENSES[key]
@@ -254,7 +266,11 @@ def load_lens(name_or_path: str | Path) -> LensSystem:
         names = ", ".join(BUNDLED_LENSES)
         raise LensFileError(key, None, f"no such lens file, and not a bundled lens name ({names})")
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        data = path.read_bytes()
+        if path.suffix.lower() == ".zmx":
+            from realistic.zemax import decode_zmx, parse_zmx
+            return parse_zmx(decode_zmx(data, key), key)
+        text = data.decode("utf-8-sig")
     except (OSError, UnicodeDecodeError) as err:
         raise LensFileError(key, None, f"cannot read: {err}") from None
     return parse_prescription(text, path=key)
