@@ -9,7 +9,6 @@ cannot honour is reported once with file and line, and the render goes on.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -296,12 +295,20 @@ def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sam
                         origin_mm, lens_sampling)
 
 
+def import_world(path: str | Path, search_paths: list[Path] | None = None) -> tuple[Scene, PbrtScene, int]:
+    """A pbrt file's world, its parsed records (camera, film, warnings) and the light samples it asks for."""
+    search_paths = list(search_paths or [])
+    parsed = parse_pbrt(path, search_paths)
+    importer = _Importer(parsed, search_paths)
+    return importer.run(), parsed, importer.light_samples
+
+
 def import_pbrt(path: str | Path, width: int | None = None, height: int | None = None, spp: int | None = None,
                 lens_sampling: str = "pupil", aperture_mm: float | None = None,
                 focus_scene_units: float | None = None, search_paths: list[Path] | None = None) -> ImportedScene:
     """Read a pbrt scene; resolution and samples default to the file's (``Film`` and ``Sampler``)."""
     search_paths = list(search_paths or [])
-    parsed = parse_pbrt(path, search_paths)
+    scene, parsed, light_samples = import_world(path, search_paths)
     film = parsed.film.params if parsed.film else Params()
     if parsed.film and parsed.film.params.has("cropwindow"):
         parsed.warn(parsed.film.where, "Film cropwindow (the whole image is rendered)")
@@ -309,6 +316,4 @@ def import_pbrt(path: str | Path, width: int | None = None, height: int | None =
     height = height or int(film.float("yresolution", 480))
     spp = spp or int(parsed.sampler.params.float("pixelsamples", 16) if parsed.sampler else 16)
     camera = import_camera(parsed, width, height, spp, lens_sampling, aperture_mm, focus_scene_units, search_paths)
-    importer = _Importer(parsed, search_paths)
-    scene = importer.run()
-    return ImportedScene(scene, camera, film.string("filename"), importer.light_samples, parsed.warnings)
+    return ImportedScene(scene, camera, film.string("filename"), light_samples, parsed.warnings)

@@ -14,12 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.camera import Camera, build_camera
+from realistic.data_files import data_file
 from realistic.errors import UserError
 from realistic.meshes import MeshObject
 from realistic.paraxial import film_distance_for_focus, nearest_focus_mm, thick_lens
 from realistic.prescription import LensSystem
-from realistic.scene import (AreaLight, GridTexture, Material, Scene, cone, look_at, quad, rotate, scale,
-                             sphere, transform_points, translate)
+from realistic.scene import (AreaLight, GridTexture, Material, Scene, look_at, quad, rotate, scale,
+                             transform_points, translate)
 
 MM_PER_UNIT = 1000.0
 MESH_SIZE = 1.0
@@ -66,17 +67,16 @@ def mesh_setup(objects: list[MeshObject]) -> Setup:
 
 
 def default_setup() -> Setup:
-    """A row of spheres and cones receding in depth on a grid floor, seen at a grazing angle."""
-    scene = Scene(background=(0.02, 0.02, 0.03))
-    ball, spike = scene.add_mesh(sphere(0.09)), scene.add_mesh(cone(0.07, 0.24))
-    red, blue = Material((0.75, 0.15, 0.12)), Material((0.15, 0.2, 0.6))
-    for i, x in enumerate(np.linspace(-1.6, 1.6, 9)):
-        if i % 2 == 0:
-            scene.add(ball, translate(x, 0.09, 0.0), red)
-        else:
-            scene.add(spike, translate(x, 0.0, 0.0) @ rotate(-90, (1, 0, 0)), blue)
-    _stage(scene, 12.0, 5.0, 2.5, 25.0)
-    return Setup(scene, np.array([0.0, 0.05, 0.0]), 0.3, eye=np.array([2.6, 0.35, -0.8]))
+    """The default scene, ``scenes/default.pbrt``: its world, and its camera's eye and focus target."""
+    from realistic.pbrt_import import import_world
+
+    scene, parsed, _ = import_world(data_file("scenes/default.pbrt"))
+    scene.background = (0.02, 0.02, 0.03)  # a dim sky (pbrt files have no background) so the horizon reads
+    world_from_camera = np.linalg.inv(parsed.camera.transform)
+    eye = world_from_camera[:3, 3]
+    forward = world_from_camera[:3, 2] / np.linalg.norm(world_from_camera[:3, 2])
+    target = eye + forward * parsed.camera.params.float("focusdistance")
+    return Setup(scene, target, 0.3, eye=eye)
 
 
 def auto_eye(setup: Setup, lens: LensSystem, film_short_side_mm: float) -> np.ndarray:
