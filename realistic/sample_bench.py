@@ -30,7 +30,12 @@ def rmse(image: np.ndarray, reference: np.ndarray) -> float:
 def measure_sample_counts(scene: Scene, camera, spp_list: list[int], backend: str = "opencl", seed: int = 0,
                           light_samples: int = 1, reference: np.ndarray | None = None,
                           cl_device: str | None = None, progress: bool = True) -> tuple[list[dict], np.ndarray]:
-    """Rows of seconds, camera rays/s, vignetted fraction and RMSE per spp, and the last image."""
+    """Rows of seconds, camera rays/s, vignetted fraction and RMSE per spp, and the last image.
+
+    An untimed 1 spp render first pays the one-time costs (kernel build, exit-pupil table), so each
+    row times rendering alone.
+    """
+    render_passes(scene, dataclasses.replace(camera, spp=1), backend, seed, cl_device, light_samples)
     rows, images = [], []
     for spp in spp_list:
         result = render_passes(scene, dataclasses.replace(camera, spp=spp), backend, seed, cl_device,
