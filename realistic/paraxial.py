@@ -170,3 +170,19 @@ def focus_distance_for_film(lens: LensSystem, film_distance_mm: float,
                         f"({f - t.rear_principal_from_rear_vertex_mm:.6g} mm): nothing is in focus")
     object_distance = 1.0 / (1.0 / f - 1.0 / image_distance)
     return object_distance + t.front_principal_from_rear_vertex_mm + film_distance_mm
+
+
+def stop_diameter_for_f_number(lens: LensSystem, f_number: float, wavelength_nm: float = D_LINE_NM) -> float:
+    """Stop diameter (mm) that gives the paraxial ``f_number`` (EFL over entrance pupil diameter).
+
+    The entrance pupil is the stop's paraxial image, so its diameter scales linearly with the
+    stop's. A number faster than the lens file's own stop allows is an error: the other elements'
+    apertures were designed around that stop.
+    """
+    if not (f_number > 0 and math.isfinite(f_number)):
+        raise UserError(f"f-number must be a positive number, got {f_number:g}")
+    widest = paraxial_data(lens, wavelength_nm).f_number
+    if f_number < widest * (1 - 1e-9):
+        raise UserError(f"f/{f_number:g} is faster than {lens.name} opens (f/{widest:.3g} at its stop of "
+                        f"{lens.stop_diameter_mm:g} mm)")
+    return lens.stop_diameter_mm * widest / f_number

@@ -8,6 +8,7 @@ import pytest
 from realistic import UserError, load_lens, parse_prescription
 from realistic.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM, refractive_index
 from realistic.paraxial import (film_distance_for_focus, focus_distance_for_film, nearest_focus_mm,
+                                stop_diameter_for_f_number,
                                 paraxial_data)
 
 
@@ -121,3 +122,13 @@ def test_focus_too_close_is_a_clear_error():
         film_distance_for_focus(lens, 100.0)
     with pytest.raises(UserError, match="nothing is in focus"):
         focus_distance_for_film(lens, 30.0)
+
+
+@pytest.mark.parametrize("name", ["dgauss", "telephoto", "wide"])
+def test_stop_for_an_f_number_gives_that_f_number(name):
+    lens = load_lens(name)
+    for n in (5.6, 8.0, 16.0):
+        stopped = lens.with_stop_diameter(stop_diameter_for_f_number(lens, n))
+        assert paraxial_data(stopped).f_number == pytest.approx(n, rel=1e-12)
+    with pytest.raises(UserError, match="faster than"):
+        stop_diameter_for_f_number(lens, paraxial_data(lens).f_number * 0.9)

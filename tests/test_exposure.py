@@ -1,0 +1,65 @@
+"""Exposure: the meter equation, and renders whose brightness follows the exposure value."""
+
+import math
+
+import numpy as np
+import pytest
+
+from realistic import UserError, load_lens
+from realistic.exposure import exposure_scale, exposure_value, parse_shutter
+from realistic.paraxial import film_distance_for_focus, paraxial_data, stop_diameter_for_f_number, thick_lens
+from realistic.render import render_passes
+from realistic.scene import AreaLight, Scene, rotate, translate
+from realistic.setups import camera_for_view
+
+
+def test_a_metered_uniform_field_comes_out_middle_grey():
+    # N^2 / t = L S / K meters the field: E = pi L / (4 N^2) then maps to 0.18
+    n, iso, luminance = 8.0, 200.0, 1000.0
+    t = n * n * 12.5 / (luminance * iso)
+    irradiance = math.pi * luminance / (4 * n * n)
+    assert irradiance * exposure_scale(t, iso) == pytest.approx(0.18)
+    assert exposure_value(n, t) == pytest.approx(math.log2(n * n / t))
+
+
+def test_shutter_parsing():
+    assert parse_shutter("1/125") == pytest.approx(0.008)
+    assert parse_shutter("0.5") == 0.5
+    for bad in ("0", "-1", "1/0", "fast"):
+        with pytest.raises(UserError):
+            parse_shutter(bad)
+
+
+def glowing_wall() -> Scene:
+    """A large uniform emitter filling the view (radiance 1), so the film sees a flat field."""
+    scene = Scene()
+    scene.lights.append(AreaLight("quad", (40.0, 40.0), (1.0, 1.0, 1.0), translate(0, 0, 10) @ rotate(180, (0, 1, 0))))
+    return scene
+
+
+@pytest.mark.parametrize("name", ["dgauss", "telephoto"])
+def test_centre_brightness_follows_the_f_number(name):
+    lens = load_lens(name)
+    slow = 2 * lens_f_number(lens)
+    values = []
+    for n in (slow, slow * math.sqrt(2), slow * 2):
+        stopped = lens.with_stop_diameter(stop_diameter_for_f_number(lens, n))
+        camera = camera_for_view(stopped, np.zeros(3), np.array([0, 0, 10.0]), 10.0, 43.27, 8, 8, 256)
+        image = render_passes(glowing_wall(), camera, "numpy").image
+        values.append(image[3:5, 3:5].mean())
+    # one stop per factor sqrt(2) of N: the centre irradiance halves, as pi L / (4 N^2) says
+    assert values[0] / values[1] == pytest.approx(2.0, rel=0.03)
+    assert values[0] / values[2] == pytest.approx(4.0, rel=0.03)
+    # absolute level: pi L / (4 N_w^2) with the working f-number N_w = N (1 + m / p) for a lens focused
+    # at magnification m with pupil magnification p (exit over entrance pupil diameter)
+    n = slow * 2
+    stopped = lens.with_stop_diameter(stop_diameter_for_f_number(lens, n))
+    p = paraxial_data(stopped)
+    image_distance = film_distance_for_focus(stopped, 10_000.0) + thick_lens(stopped).rear_principal_from_rear_vertex_mm
+    m = image_distance / p.efl_mm - 1
+    working = n * (1 + m / (p.exit_pupil_diameter_mm / p.entrance_pupil_diameter_mm))
+    assert values[2] == pytest.approx(math.pi / (4 * working**2), rel=0.02)
+
+
+def lens_f_number(lens):
+    return paraxial_data(lens).f_number
