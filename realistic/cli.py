@@ -82,14 +82,35 @@ def cmd_lens_curves(args: argparse.Namespace) -> int:
     plot_field_curves(lens.name, rows, out)
     if args.json:
         _write_text_atomically(Path(args.json), json.dumps({"lens": lens.name, "curves": rows}, indent=1) + "\n")
+    if args.vignetting_map:
+        _write_vignetting_map(Path(args.vignetting_map), lens, rows, args.film_diagonal, args.map_res)
     print("film radius mm  field angle deg  rel. illumination  vignetting  distortion %")
     for r in rows:
         angle = "-" if r["field_angle_deg"] is None else f"{r['field_angle_deg']:.2f}"
         distortion = "-" if r["distortion_percent"] is None else f"{r['distortion_percent']:.3f}"
         print(f"{r['film_radius_mm']:14.3f}  {angle:>15}  {r['relative_illumination']:17.4f}  "
               f"{r['vignetting']:10.4f}  {distortion:>12}")
-    print(f"wrote {out}" + (f" and {args.json}" if args.json else ""))
+    print("wrote " + ", ".join(str(p) for p in (out, args.json, args.vignetting_map) if p))
     return 0
+
+
+def _write_vignetting_map(path: Path, lens, rows: list[dict], film_diagonal_mm: float, res: str) -> None:
+    """The relative illumination over the film as an EXR (the same value in R, G and B)."""
+    import numpy as np
+
+    from realistic.image_io import check_writable, write_exr
+    from realistic.lens_curves import vignetting_map
+
+    try:
+        width, height = (int(v) for v in res.lower().split("x"))
+    except ValueError:
+        raise UserError(f"--map-res {res!r} is not WIDTHxHEIGHT") from None
+    if width < 1 or height < 1:
+        raise UserError(f"--map-res must be at least 1x1, got {res}")
+    check_writable(path)
+    image = np.repeat(vignetting_map(rows, width, height, film_diagonal_mm)[:, :, None], 3, axis=2)
+    write_exr(path, image, {"lens": lens.name, "filmDiagonalMm": float(film_diagonal_mm),
+                            "content": "relative illumination (vignetting x cos^4), 1 at the film centre"})
 
 
 def _write_text_atomically(path: Path, text: str) -> None:
@@ -152,6 +173,9 @@ def build_parser() -> argparse.ArgumentParser:
     field_arguments(curves)
     curves.add_argument("--out", metavar="PNG", help="plot of the curves (default: LENS-curves.png)")
     curves.add_argument("--json", metavar="JSON", help="also write the curves as JSON")
+    curves.add_argument("--vignetting-map", metavar="EXR", help="also write the film's relative illumination as EXR")
+    curves.add_argument("--map-res", default="512x512", metavar="WxH",
+                        help="resolution of the vignetting map (default: %(default)s)")
     curves.set_defaults(run=cmd_lens_curves)
     add_render_command(commands)
     add_bench_command(commands)

@@ -9,6 +9,7 @@ import pytest
 from PIL import Image
 
 from realistic import load_lens
+from realistic.image_io import read_exr
 from realistic.lens_curves import field_curves, vignetting_map
 from realistic.paraxial import film_distance_for_focus, paraxial_data
 
@@ -45,10 +46,15 @@ def test_vignetting_map_is_radial_and_one_at_the_centre():
 
 def test_plot_and_curves_commands_write_their_files(tmp_path):
     png, curves, data = tmp_path / "lens.png", tmp_path / "curves.png", tmp_path / "curves.json"
+    exr = tmp_path / "map.exr"
     for args in (["plot", "dgauss", "--out", str(png)],
-                 ["curves", "wide", "--out", str(curves), "--json", str(data)]):
+                 ["curves", "wide", "--out", str(curves), "--json", str(data), "--vignetting-map", str(exr),
+                  "--map-res", "48x32"]):
         run = subprocess.run([sys.executable, "-m", "realistic", "lens", *args], capture_output=True, text=True)
         assert run.returncode == 0, run.stderr
     assert Image.open(png).size[0] > 500 and Image.open(curves).size[0] > 500
     rows = json.loads(data.read_text())["curves"]
     assert rows[0]["relative_illumination"] == 1.0 and len(rows) > 10
+    image, header = read_exr(exr)
+    assert image.shape == (32, 48, 3) and header["lens"] == "wide"
+    assert image[16, 24, 0] > 0.95 and image[0, 0, 0] < image[16, 24, 0]  # bright centre, dim corner
