@@ -21,8 +21,12 @@
  *   REAR_CLEAR_MM, REAR_T_FAR     rear-element disk parameters (realistic.sampling)
  *   PUPIL_INTERVALS, FILM_RADIUS_MM and program-scope tables PUPIL[4k..4k+3] = (x0, x1, y0, y1),
  *                                 PUPIL_AREA[k] (mm^2), when LENS_SAMPLING_PUPIL is 1
- *   TRACE_SURFACES(r)             the surfaces, rear first, as calls to sphere()/plane()
- *                                 with literal constants
+ *   SPECTRAL                      1: each sample carries a wavelength (output row 7)
+ *   TRACE_SURFACES(r, il2)        the surfaces, rear first, as calls to sphere()/plane()
+ *                                 with literal constants; when SPECTRAL, it first computes each
+ *                                 dispersive glass's index A + B il2 (il2 = 1 / lambda^2 in
+ *                                 um^-2, A and B literal Cauchy coefficients) and passes index
+ *                                 ratios to those calls
  */
 
 #define PI_F 3.14159265358979f
@@ -39,6 +43,10 @@
 #define R4_1 0xBBE05633u
 #define R4_2 0xA0F2EC76u
 #define R4_3 0x89E18285u
+#define KRONECKER_1D 0x9E3779B9u
+#define WAVELENGTH_DIM 0x7FFFFFFFu
+#define LAMBDA_MIN_NM 380.0f
+#define LAMBDA_RANGE_NM 400.0f
 
 inline uint hash32(uint x) {
     x ^= x >> 16;
@@ -72,6 +80,14 @@ inline void stratified4(uint pixel, uint sample, uint seed, uint *b0, uint *b1, 
     *b3 = sample * R4_3 + hash32(h ^ 3u);
 }
 
+/* The wavelength's uint32 value: golden-ratio Kronecker step plus a per-pixel hashed offset on a
+ * dimension of its own (realistic.rng.wavelength_bits). */
+inline uint wavelength_bits(uint pixel, uint sample, uint seed) {
+    uint h = hash32(hash32(seed + GOLDEN) ^ pixel);
+    h = hash32(h ^ 0xFFFFFFFFu);
+    return sample * KRONECKER_1D + hash32(h ^ WAVELENGTH_DIM);
+}
+
 /* ------------------------------------------------------------------ tracing
  * The ray state in the frame of the surface about to be met: (ox, oy) transverse position, w the
  * axial position relative to that surface's vertex (+ toward the scene). Keeping w local keeps
@@ -95,11 +111,12 @@ inline __attribute__((always_inline)) void refract(Ray *r, float nx, float ny, f
 }
 
 /* A spherical surface of radius R (vertex at w = 0, centre at w = -R), clear semi-aperture
- * squared AP2, index ratio ETA (incident over transmitted), then GAP mm on to the next surface.
+ * squared AP2, index ratio ETA (incident over transmitted; a literal, or per ray when SPECTRAL),
+ * REFRACTS 0 when the ratio is exactly 1, then GAP mm on to the next surface.
  * The quadratic t^2 + 2 b t + c = 0 is written about the vertex, c = |o|^2 + 2 R w, so that c
  * does not cancel R^2, and its roots are taken in the cancellation-free form q, c / q. */
 inline __attribute__((always_inline)) void sphere(Ray *r, const float R, const float AP2, const float ETA,
-                                                 const float GAP) {
+                                                 const int REFRACTS, const float GAP) {
     float b = r->ox * r->dx + r->oy * r->dy + (r->w + R) * r->dz;
     float c = r->ox * r->ox + r->oy * r->oy + r->w * (r->w + 2.0f * R);
     float disc = b * b - c;
@@ -113,7 +130,7 @@ inline __attribute__((always_inline)) void sphere(Ray *r, const float R, const f
     float cz = hw + R;  /* hit minus centre, axial */
     r->alive = r->alive & (disc >= 0.0f) & (t > 0.0f) & (cz * R > 0.0f) & (hx * hx + hy * hy <= AP2);
     float s = (hx * r->dx + hy * r->dy + cz * r->dz > 0.0f ? -1.0f : 1.0f) * (1.0f / (R < 0.0f ? -R : R));
-    if (ETA != 1.0f) refract(r, hx * s, hy * s, cz * s, ETA);
+    if (REFRACTS) refract(r, hx * s, hy * s, cz * s, ETA);
     r->ox = hx;
     r->oy = hy;
     r->w = hw - GAP;
@@ -197,8 +214,8 @@ inline void sample_plane(float fx, float fy, float u, float v, float *px, float 
 
 /* Rays for sample ids first .. first + global size - 1, where first = first_pixel * SPP +
  * first_sample. out holds 7 rows of `stride` floats: origin x, y, z, direction x, y, z, weight
- * (world space; a blocked ray has weight 0 and zero origin and direction). world is the
- * camera-to-world matrix, rows of (m0 m1 m2 t). */
+ * (world space; a blocked ray has weight 0 and zero origin and direction), and when SPECTRAL an
+ * eighth: the wavelength in nm. world is the camera-to-world matrix, rows of (m0 m1 m2 t). */
 __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __constant float *world,
                             uint stride, __global float *out, __global int *pixel_out) {
     uint gid = get_global_id(0);
@@ -228,7 +245,13 @@ __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __co
     r.dy = ddy * inv_len;
     r.dz = PLANE_Z_MM * inv_len;
     r.alive = 1;
-    TRACE_SURFACES(&r);
+#if SPECTRAL
+    float lambda_nm = LAMBDA_MIN_NM + LAMBDA_RANGE_NM * to_unit(wavelength_bits(pixel, sample, seed));
+    float il2 = 1.0e6f / (lambda_nm * lambda_nm);
+#else
+    float il2 = 0.0f;  /* unused: the indices are literals */
+#endif
+    TRACE_SURFACES(&r, il2);
 
     float oz = r.w + FRONT_VERTEX_Z_MM;
     float wx = world[0] * r.ox + world[1] * r.oy + world[2] * oz + world[3];
@@ -245,11 +268,14 @@ __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __co
     out[4 * stride + gid] = r.alive ? vy * scale : 0.0f;
     out[5 * stride + gid] = r.alive ? vz * scale : 0.0f;
     out[6 * stride + gid] = r.alive ? weight : 0.0f;
+#if SPECTRAL
+    out[7 * stride + gid] = lambda_nm;
+#endif
     pixel_out[gid] = (int)pixel;
 }
 
-/* Debug: the four stratified uint32 values of each sample, 4 rows of `stride`, so the tests can
- * check them against realistic.rng bit for bit. */
+/* Debug: the four stratified uint32 values of each sample, 4 rows of `stride` (and the wavelength
+ * bits as a fifth when SPECTRAL), so the tests can check them against realistic.rng bit for bit. */
 __kernel void sample_bits(uint first_pixel, uint first_sample, uint seed, uint stride, __global uint *out) {
     uint gid = get_global_id(0);
     uint pixel, sample;
@@ -260,4 +286,7 @@ __kernel void sample_bits(uint first_pixel, uint first_sample, uint seed, uint s
     out[stride + gid] = b1;
     out[2 * stride + gid] = b2;
     out[3 * stride + gid] = b3;
+#if SPECTRAL
+    out[4 * stride + gid] = wavelength_bits(pixel, sample, seed);
+#endif
 }

@@ -8,20 +8,27 @@ random numbers (``realistic.rng``), same film mapping, same samplers, same traci
 Film mapping (lens frame, film at z = 0): the film is the resolution's aspect ratio with the given
 diagonal; raster (x right, y down) maps to film x = -(x / W - 1/2) w, film y = (y / H - 1/2) h.
 The lens inverts the image, so this flip makes it come out upright and unmirrored.
+
+A *spectral* camera gives each sample a wavelength (``realistic.spectrum``: uniform over 380-780
+nm, stratified within the pixel) and traces it with the glasses' indices at that wavelength, so
+the lens's chromatic aberration reaches the image. A non-spectral camera traces at the d line.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from realistic import rng
+from realistic.dispersion import D_LINE_NM
 from realistic.errors import UserError
 from realistic.prescription import LensSystem
 from realistic.reference import trace_from_film
 from realistic.sampling import ExitPupilTable, camera_weight, exit_pupil_table, rear_element_sampler
+from realistic.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, wavelengths_nm
 
 LENS_SAMPLINGS = ("pupil", "rear")
 
@@ -39,6 +46,7 @@ class Camera:
     world_from_lens: np.ndarray  # (4, 4)
     lens_sampling: str
     pupil: ExitPupilTable
+    spectral: bool = False
 
     @property
     def film_size_mm(self) -> tuple[float, float]:
@@ -52,7 +60,7 @@ class Camera:
 
 def build_camera(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float, width: int, height: int,
                  spp: int = 1, world_from_camera: np.ndarray | None = None, camera_origin_mm: float = 0.0,
-                 lens_sampling: str = "pupil") -> Camera:
+                 lens_sampling: str = "pupil", spectral: bool = False) -> Camera:
     """A camera whose camera-space origin sits ``camera_origin_mm`` from the film toward the scene.
 
     pbrt-v3 puts the camera origin at the film centre (0); the classic homework puts it at the
@@ -69,9 +77,19 @@ def build_camera(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: fl
     shift = np.eye(4)
     shift[2, 3] = -camera_origin_mm
     world = np.eye(4) if world_from_camera is None else np.asarray(world_from_camera, dtype=np.float64)
-    pupil = exit_pupil_table(lens, film_distance_mm, film_diagonal_mm)
-    return Camera(lens, film_distance_mm, film_diagonal_mm, width, height, spp, world @ shift,
-                  lens_sampling, pupil)
+    return with_spectral(Camera(lens, film_distance_mm, film_diagonal_mm, width, height, spp, world @ shift,
+                                lens_sampling, exit_pupil_table(lens, film_distance_mm, film_diagonal_mm)), spectral)
+
+
+def with_spectral(camera: Camera, spectral: bool) -> Camera:
+    """The camera with spectral sampling on or off; a spectral camera's exit-pupil boxes hold what
+    passes at either end of the wavelength range as well as at the d line."""
+    if spectral == camera.spectral:
+        return camera
+    wavelengths = (LAMBDA_MIN_NM, D_LINE_NM, LAMBDA_MAX_NM) if spectral else (D_LINE_NM,)
+    pupil = exit_pupil_table(camera.lens, camera.film_distance_mm, camera.film_diagonal_mm,
+                             wavelengths_nm=wavelengths)
+    return dataclasses.replace(camera, spectral=spectral, pupil=pupil)
 
 
 @dataclass(frozen=True)
@@ -82,6 +100,7 @@ class RayBatch:
     direction: np.ndarray  # (N, 3) unit
     weight: np.ndarray  # (N,) cos^4(theta) A / Z^2 in mm^0 (area over distance squared)
     pixel: np.ndarray  # (N,) raster index y * width + x
+    wavelength_nm: np.ndarray | None = None  # (N,) for a spectral camera, else None
 
 
 def film_points(camera: Camera, pixel: np.ndarray, u_x: np.ndarray, u_y: np.ndarray) -> np.ndarray:
@@ -105,11 +124,15 @@ def generate_rays(camera: Camera, first_sample: int, count: int, seed: int = 0) 
         sampler = rear_element_sampler(camera.lens, camera.film_distance_mm)
     targets, area = sampler.sample(film_xy, u_lens.astype(np.float64), v_lens.astype(np.float64))
     film = np.column_stack([film_xy, np.zeros(count)])
-    traced = trace_from_film(camera.lens, camera.film_distance_mm, film, targets - film)
+    wavelength = None
+    if camera.spectral:
+        wavelength = wavelengths_nm(rng.to_unit_float(rng.wavelength_bits(pixel, sample, seed)))
+    traced = trace_from_film(camera.lens, camera.film_distance_mm, film, targets - film,
+                             D_LINE_NM if wavelength is None else wavelength.astype(np.float64))
     weight = np.where(traced.passed, camera_weight(film, targets, area, sampler.plane_z_mm), 0.0)
     m = camera.world_from_lens
     origin = np.where(traced.passed[:, None], traced.origin @ m[:3, :3].T + m[:3, 3], 0.0)
     direction = np.where(traced.passed[:, None], traced.direction @ m[:3, :3].T, 0.0)
     length = np.linalg.norm(direction, axis=1, keepdims=True)
     direction = np.divide(direction, length, out=np.zeros_like(direction), where=length > 0)
-    return RayBatch(origin, direction, weight, pixel)
+    return RayBatch(origin, direction, weight, pixel, wavelength)

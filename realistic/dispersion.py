@@ -24,8 +24,10 @@ def cauchy_coefficients(n_d: np.ndarray, abbe_v: np.ndarray) -> tuple[np.ndarray
     return n_d - b / LAMBDA_D_UM**2, b
 
 
-def refractive_index(n_d: np.ndarray, abbe_v: np.ndarray, wavelength_nm: float) -> np.ndarray:
-    """Index of each medium at ``wavelength_nm``."""
+def refractive_index(n_d: np.ndarray, abbe_v: np.ndarray, wavelength_nm: float | np.ndarray) -> np.ndarray:
+    """Index of each medium at ``wavelength_nm``: shape (media,) for a scalar wavelength,
+    (media, N) for an array of N wavelengths (one per ray)."""
     a, b = cauchy_coefficients(n_d, abbe_v)
-    lam_um = wavelength_nm / 1000.0
-    return a + b / lam_um**2
+    lam_um = np.asarray(wavelength_nm, dtype=np.float64) / 1000.0
+    extra = (1,) * lam_um.ndim
+    return a.reshape(a.shape + extra) + b.reshape(b.shape + extra) / lam_um**2

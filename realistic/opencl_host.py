@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from realistic.camera import Camera, RayBatch
-from realistic.dispersion import D_LINE_NM, refractive_index
+from realistic.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
 from realistic.errors import UserError
 from realistic.sampling import rear_element_sampler
 
@@ -38,7 +38,7 @@ NO_PLATFORM = ('no OpenCL platform found: install one with pip install "pyopencl
 KERNEL_FILE = "lens.cl"
 #: Work-group size; launches are padded to a multiple of it so every group runs the same code.
 LOCAL_SIZE = 256
-#: Output rows of ``generate_rays``: origin xyz, direction xyz, weight.
+#: Output rows of ``generate_rays``: origin xyz, direction xyz, weight (and wavelength when spectral).
 ROWS = 7
 
 
@@ -109,25 +109,54 @@ def _f(x: float) -> str:
     return repr(float(np.float32(x))) + "f"
 
 
+def _index_ratios(camera: Camera) -> tuple[list[str], list[str]]:
+    """Per surface, rear first, the index ratio (incident over transmitted) as a C expression, and
+    the statements that compute the dispersive glasses' indices from ``il2`` (1 / lambda^2, um^-2).
+
+    A ratio between media of constant index (no V number, or a non-spectral camera) is a literal
+    computed in float64, as at the d line; otherwise it is n_i * (1 / n_(i-1)) per ray.
+    """
+    lens = camera.lens
+    index = refractive_index(lens.index_d, lens.abbe_v, D_LINE_NM)
+    a, b = cauchy_coefficients(lens.index_d, lens.abbe_v)
+    dispersive = (b != 0) & camera.spectral
+    prologue = [f"const float n{k} = {_f(a[k])} + {_f(b[k])} * il2; const float inv{k} = 1.0f / n{k};"
+                for k in np.flatnonzero(dispersive)]
+
+    def n(k: int) -> str:
+        return "1.0f" if k < 0 else (f"n{k}" if dispersive[k] else _f(index[k]))
+
+    def inv(k: int) -> str:
+        return f"inv{k}" if k >= 0 and dispersive[k] else _f(1.0 / (index[k] if k >= 0 else 1.0))
+
+    ratios = []
+    for i in range(lens.surface_count - 1, -1, -1):
+        if dispersive[i] or (i > 0 and dispersive[i - 1]):
+            ratios.append(f"{n(i)} * {inv(i - 1)}")
+        else:
+            ratios.append(_f(index[i] / (index[i - 1] if i > 0 else 1.0)))
+    return ratios, prologue
+
+
 def camera_header(camera: Camera) -> str:
     """The generated ``#define`` block that specialises ``lens.cl`` to one camera (see its header)."""
     lens = camera.lens
-    index = refractive_index(lens.index_d, lens.abbe_v, D_LINE_NM)
     vertex_z = lens.vertex_z_mm(camera.film_distance_mm)
     w_mm, h_mm = camera.film_size_mm
-    calls = []
-    for i in range(lens.surface_count - 1, -1, -1):
+    ratios, calls = _index_ratios(camera)
+    for eta, i in zip(ratios, range(lens.surface_count - 1, -1, -1)):
         gap = lens.thickness_mm[i - 1] if i > 0 else 0.0
-        eta = index[i] / (index[i - 1] if i > 0 else 1.0)
         ap2 = (lens.aperture_mm[i] / 2) ** 2
         radius = lens.radius_mm[i]
+        refracts = int(eta != "1.0f")
         if i == lens.stop:
             calls.append(f"plane(r, {_f(ap2)}, 1.0f, 0, {_f(gap)});")
         elif radius == 0 or not np.isfinite(radius):
-            calls.append(f"plane(r, {_f(ap2)}, {_f(eta)}, 1, {_f(gap)});")
+            calls.append(f"plane(r, {_f(ap2)}, {eta}, 1, {_f(gap)});")
         else:
-            calls.append(f"sphere(r, {_f(radius)}, {_f(ap2)}, {_f(eta)}, {_f(gap)});")
+            calls.append(f"sphere(r, {_f(radius)}, {_f(ap2)}, {eta}, {refracts}, {_f(gap)});")
     lines = [
+        f"#define SPECTRAL {int(camera.spectral)}",
         f"#define WIDTH {camera.width}u",
         f"#define HEIGHT {camera.height}u",
         f"#define SPP {camera.spp}u",
@@ -135,7 +164,7 @@ def camera_header(camera: Camera) -> str:
         f"#define FILM_H_MM {_f(h_mm)}",
         f"#define FRONT_VERTEX_Z_MM {_f(vertex_z[0])}",
         f"#define REAR_W_MM {_f(-camera.film_distance_mm)}",
-        "#define TRACE_SURFACES(r) " + " ".join(calls),
+        "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
     ]
     if camera.lens_sampling == "pupil":
         table = camera.pupil
@@ -197,6 +226,7 @@ class LensKernel:
         self._capacity = 0
         self._out = self._pixels = None
         self._lock = threading.Lock()
+        self._rows = ROWS + int(camera.spectral)
 
     def _launch_layout(self, first: int, count: int) -> tuple[np.uint32, np.uint32, int]:
         """(first pixel, first sample within it, padded launch size), checking the uint32 limits."""
@@ -212,14 +242,14 @@ class LensKernel:
     def _buffers(self, padded: int) -> None:
         if padded > self._capacity:
             mf = cl.mem_flags
-            self._out = cl.Buffer(self.context, mf.WRITE_ONLY, ROWS * padded * 4)
+            self._out = cl.Buffer(self.context, mf.WRITE_ONLY, self._rows * padded * 4)
             self._pixels = cl.Buffer(self.context, mf.WRITE_ONLY, padded * 4)
             self._capacity = padded
 
     def generate(self, first: int, count: int, seed: int = 0) -> RayBatch:
         """Rays of sample ids first .. first + count - 1, as realistic.camera.generate_rays (float32)."""
         first_pixel, first_sample, padded = self._launch_layout(first, count)
-        out = np.empty((ROWS, padded), dtype=np.float32)
+        out = np.empty((self._rows, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
         with self._lock:
             self._buffers(padded)
@@ -229,13 +259,15 @@ class LensKernel:
             cl.enqueue_copy(self.queue, pixels, self._pixels)
             self.queue.finish()
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
-                        pixel=pixels[:count])
+                        pixel=pixels[:count], wavelength_nm=out[7, :count] if self.camera.spectral else None)
 
     def sample_bits(self, first: int, count: int, seed: int = 0) -> np.ndarray:
-        """The kernel's four stratified uint32 values per sample, shape (4, count) (for tests)."""
+        """The kernel's four stratified uint32 values per sample, and the wavelength's as a fifth
+        row for a spectral camera: shape (4 or 5, count) (for tests)."""
         first_pixel, first_sample, padded = self._launch_layout(first, count)
-        bits = cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, 4 * padded * 4)
-        host = np.empty((4, padded), dtype=np.uint32)
+        rows = 4 + int(self.camera.spectral)
+        bits = cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, rows * padded * 4)
+        host = np.empty((rows, padded), dtype=np.uint32)
         with self._lock:
             self._bits(self.queue, (padded,), (LOCAL_SIZE,), first_pixel, first_sample,
                        np.uint32(seed & 0xFFFFFFFF), np.uint32(padded), bits)

@@ -70,7 +70,7 @@ def intersect_surface(o: tuple, d: tuple, vertex_z: float, radius: float) -> tup
     return (hx, hy, hz), normal, miss
 
 
-def refract(d: tuple, normal: tuple, eta: float) -> tuple[tuple, np.ndarray]:
+def refract(d: tuple, normal: tuple, eta: float | np.ndarray) -> tuple[tuple, np.ndarray]:
     """Heckbert refraction of unit ``d`` at unit ``normal`` (facing it); returns (T, tir mask)."""
     dx, dy, dz = d
     nx, ny, nz = normal
@@ -84,8 +84,12 @@ def refract(d: tuple, normal: tuple, eta: float) -> tuple[tuple, np.ndarray]:
 
 
 def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarray, directions: np.ndarray,
-                    wavelength_nm: float = D_LINE_NM, path: list[np.ndarray] | None = None) -> TraceResult:
+                    wavelength_nm: float | np.ndarray = D_LINE_NM, path: list[np.ndarray] | None = None
+                    ) -> TraceResult:
     """Trace rays starting at or behind the rear element through the lens, rear surface first.
+
+    ``wavelength_nm`` is one wavelength for all rays or one per ray (N,); each glass's index
+    follows it (``realistic.dispersion``), media without a V number keep n_d.
 
     With ``path`` given, the hit point (N, 3) on each surface is appended to it, rear surface
     first (for drawing ray fans).

@@ -7,8 +7,10 @@ kernel's samples exactly. All arithmetic is on uint32 and wraps modulo 2^32 in b
 Stratification within a pixel: the first four dimensions (film x, film y, lens u, lens v) are the
 4-D Kronecker sequence R4 (generalised golden ratio; Roberts 2018) over the pixel's sample index,
 computed in 32-bit fixed point and shifted by a per-pixel random toroidal offset (Cranley-Patterson
-rotation). Any sample count is well stratified, jointly in the four dimensions. Further
-dimensions (light samples, wavelengths) are plain hashes.
+rotation). Any sample count is well stratified, jointly in the four dimensions. The wavelength of
+a spectral sample is stratified the same way in one dimension: the golden-ratio Kronecker
+sequence over the sample index plus a per-pixel hashed offset, on dimension ``WAVELENGTH_DIM``,
+which no other sampler uses. Further dimensions (light samples) are plain hashes.
 """
 
 from __future__ import annotations
@@ -18,6 +20,10 @@ import numpy as np
 #: frac(phi_4^-k) * 2^32, k = 1..4, phi_4 the real root of x^5 = x + 1.
 KRONECKER_R4 = (0xDB4F0B91, 0xBBE05633, 0xA0F2EC76, 0x89E18285)
 _GOLDEN = 0x9E3779B9
+#: frac(golden ratio) * 2^32: the 1-D Kronecker step of the wavelength dimension.
+KRONECKER_1D = 0x9E3779B9
+#: Dimension of the per-pixel wavelength offset (far above the light sampler's 4 + 3k .. 6 + 3k).
+WAVELENGTH_DIM = 0x7FFFFFFF
 _TO_UNIT = np.float32(1.0 / (1 << 24))
 
 
@@ -60,3 +66,10 @@ def stratified4(pixel: np.ndarray, sample: np.ndarray, seed: int) -> list[np.nda
             offset = hash_key(pixel, np.uint32(0xFFFFFFFF), dim, seed)
             out.append(to_unit_float(sample * np.uint32(step) + offset))
     return out
+
+
+def wavelength_bits(pixel: np.ndarray, sample: np.ndarray, seed: int) -> np.ndarray:
+    """The uint32 wavelength value of each sample: 1-D Kronecker step plus a per-pixel offset."""
+    with np.errstate(over="ignore"):
+        offset = hash_key(pixel, np.uint32(0xFFFFFFFF), WAVELENGTH_DIM, seed)
+        return np.asarray(sample, dtype=np.uint32) * np.uint32(KRONECKER_1D) + offset

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from realistic.dispersion import D_LINE_NM
 from realistic.prescription import LensSystem
 from realistic.reference import trace_from_film
 
@@ -136,11 +137,13 @@ class ExitPupilTable:
 
 
 def _passing_box(lens: LensSystem, film_distance_mm: float, plane_z: float, film_radii: np.ndarray,
-                 x_range: np.ndarray, y_max: np.ndarray, grid: int) -> tuple[np.ndarray, float, float]:
+                 x_range: np.ndarray, y_max: np.ndarray, grid: int, wavelengths_nm: tuple[float, ...]
+                 ) -> tuple[np.ndarray, float, float]:
     """Bounding boxes (K, 4) of passing grid points, per interval, and the grid steps used.
 
     Interval k traces from each of ``film_radii[k]`` on the +x axis to a grid of ``grid`` x
     ``grid/2`` points over x in x_range[k], y in [0, y_max[k]] (the pupil is symmetric in y).
+    A grid point passes when it passes at any of ``wavelengths_nm``.
     """
     intervals, per = film_radii.shape
     gx = np.linspace(0.0, 1.0, grid)
@@ -152,7 +155,9 @@ def _passing_box(lens: LensSystem, film_distance_mm: float, plane_z: float, film
     fx = np.broadcast_to(film_radii[:, :, None, None], px.shape)
     origins = np.stack([fx.ravel(), np.zeros(fx.size), np.zeros(fx.size)], axis=1)
     dirs = np.stack([px.ravel() - fx.ravel(), py.ravel(), np.full(fx.size, plane_z)], axis=1)
-    passed = trace_from_film(lens, film_distance_mm, origins, dirs).passed.reshape(px.shape)
+    passed = np.zeros(px.shape, dtype=bool)
+    for wavelength in wavelengths_nm:
+        passed |= trace_from_film(lens, film_distance_mm, origins, dirs, wavelength).passed.reshape(px.shape)
     any_pass = passed.any(axis=(1, 3))  # (K, G) over x
     any_pass_y = passed.any(axis=(1, 2))  # (K, G/2) over y
     boxes = np.empty((intervals, 4))
@@ -172,19 +177,25 @@ _TABLES: dict[tuple, "ExitPupilTable"] = {}
 
 
 def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float,
-                     intervals: int = PUPIL_INTERVALS, film_points: int = 6, grid: int = 80) -> ExitPupilTable:
-    """Bound the exit pupil per radial film interval (cached per lens, focus and film)."""
+                     intervals: int = PUPIL_INTERVALS, film_points: int = 6, grid: int = 80,
+                     wavelengths_nm: tuple[float, ...] = (D_LINE_NM,)) -> ExitPupilTable:
+    """Bound the exit pupil per radial film interval (cached per lens, focus and film).
+
+    The boxes hold what passes at any of ``wavelengths_nm``: a spectral camera passes the ends of
+    its wavelength range and the d line, so no wavelength's pupil is cut off.
+    """
     key = (lens.radius_mm.tobytes(), lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
            lens.abbe_v.tobytes(), lens.aperture_mm.tobytes(), film_distance_mm, film_diagonal_mm,
-           intervals, film_points, grid)
+           intervals, film_points, grid, wavelengths_nm)
     if key not in _TABLES:
         _TABLES[key] = _build_exit_pupil_table(lens, film_distance_mm, film_diagonal_mm, intervals,
-                                               film_points, grid)
+                                               film_points, grid, wavelengths_nm)
     return _TABLES[key]
 
 
 def _build_exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float,
-                            intervals: int, film_points: int, grid: int) -> ExitPupilTable:
+                            intervals: int, film_points: int, grid: int,
+                            wavelengths_nm: tuple[float, ...]) -> ExitPupilTable:
     """Bound the exit pupil per radial film interval, as pbrt does, by tracing a dense grid.
 
     A coarse grid over the region the rear element can occupy finds each interval's box; a fine
@@ -197,11 +208,11 @@ def _build_exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diag
     radii = np.linspace(edges[:-1], edges[1:], film_points, axis=1)
     reach = rear.radius_mm(edges[1:])
     coarse, cx, cy = _passing_box(lens, film_distance_mm, rear.plane_z_mm, radii,
-                                  np.stack([-reach, reach], axis=1), reach, grid)
+                                  np.stack([-reach, reach], axis=1), reach, grid, wavelengths_nm)
     found = coarse[:, 0] <= coarse[:, 1]
     x_range = np.stack([np.maximum(coarse[:, 0] - 2 * cx, -reach), np.minimum(coarse[:, 1] + 2 * cx, reach)], axis=1)
     y_max = np.minimum(coarse[:, 3] + 2 * cy, reach)
-    fine, fx, fy = _passing_box(lens, film_distance_mm, rear.plane_z_mm, radii, x_range, y_max, grid)
+    fine, fx, fy = _passing_box(lens, film_distance_mm, rear.plane_z_mm, radii, x_range, y_max, grid, wavelengths_nm)
     refined = found & (fine[:, 0] <= fine[:, 1])
     grow_fine = np.stack([-fx, fx, -fy, fy], axis=1)
     grow_coarse = np.stack([-cx, cx, -cy, cy], axis=1)
