@@ -28,6 +28,11 @@ distance in metres from the film plane to the plane in focus (thick-lens focusin
 the distance to the target. A pbrt scene brings its own camera, resolution and samples: --res,
 --spp, --aperture, --focus (scene units from the film) and --light-samples override it.
 
+With --dispersion on (the default for a lens whose prescription has Abbe numbers), each camera
+sample carries a wavelength, the glasses' indices follow it, and the film integrates through the
+CIE 1931 colour matching functions to linear sRGB: the lens's chromatic aberration shows. Off
+traces at the d line in RGB.
+
 The EXR holds the film irradiance (float32 RGB, metadata in the header); the PNG preview beside
 it is sRGB.
 """
@@ -74,6 +79,9 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
                    help="aim camera rays at the exit-pupil bounds or the rear element (default: %(default)s)")
     p.add_argument("--cl-device", metavar="NAME", help="OpenCL device (substring of its name, or an index)")
     p.add_argument("--light-samples", type=int, help="light samples per hit (default: the scene's, else 1)")
+    p.add_argument("--dispersion", choices=("on", "off"),
+                   help="spectral rendering with the glasses' dispersion (default: on when the lens has "
+                        "Abbe numbers)")
 
 
 def add_render_command(commands: argparse._SubParsersAction) -> None:
@@ -184,8 +192,24 @@ def load_render_inputs(args: argparse.Namespace, spp: int | None) -> RenderInput
     """The scene and camera the arguments describe; ``spp`` None keeps the scene's own."""
     check_scene_options(args, spp)
     if args.scene and args.scene.lower().endswith(".pbrt"):
-        return _pbrt_inputs(args, spp)
-    return _mesh_inputs(args, spp)
+        inputs = _pbrt_inputs(args, spp)
+    else:
+        inputs = _mesh_inputs(args, spp)
+    return _with_dispersion(inputs, args.dispersion)
+
+
+def _with_dispersion(inputs: RenderInputs, choice: str | None) -> RenderInputs:
+    """Make the camera spectral as ``--dispersion`` says (``None``: when the lens has V numbers)."""
+    from realistic.camera import Camera, with_spectral
+
+    if not isinstance(inputs.camera, Camera):
+        if choice == "on":
+            raise UserError("--dispersion on needs a lens camera; this scene's camera is pbrt's perspective")
+        return inputs
+    spectral = inputs.camera.lens.has_dispersion if choice is None else choice == "on"
+    inputs.camera = with_spectral(inputs.camera, spectral)
+    inputs.metadata["dispersion"] = "on" if spectral else "off"
+    return inputs
 
 
 def report_warnings(warnings: list[str]) -> None:

@@ -9,6 +9,10 @@ the area-sampling estimator (pdf in solid angle A_j^-1 |q - p|^2 / cos(theta_q))
 ``light_samples`` samples. Camera rays that hit an emitter's front side see its radiance; rays
 that miss everything see the background colour. Random numbers: dimensions 4 + 3k .. 6 + 3k of
 ``realistic.rng.uniform`` for light sample k, so a render does not depend on pass size.
+
+Spectral rays (one wavelength each) evaluate every RGB albedo, light radiance and background as a
+spectrum at the ray's wavelength (``realistic.spectrum.rgb_basis``), multiply spectra, and return
+the spectral radiance in all three columns; the film then weights it by ``rgb_response``.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from realistic import rng
 from realistic.intersect import Intersector
 from realistic.sampling import concentric_disk
 from realistic.scene import Scene
+from realistic.spectrum import rgb_basis, spectral_value
 from realistic.stages import StageClock
 from realistic.textures import albedo
 
@@ -93,20 +98,33 @@ class DirectLighting:
         self._light_cdf = np.cumsum(self._light_probability)
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
-                 clock: StageClock | None = None) -> tuple[np.ndarray, int]:
-        """RGB radiance (N, 3) float32 along unit-direction rays, and the number of shadow rays traced."""
+                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, int]:
+        """RGB radiance (N, 3) float32 along unit-direction rays, and the number of shadow rays traced.
+
+        With ``wavelength_nm`` (N,), the spectral radiance at each ray's wavelength, in all three columns.
+        """
         timed = clock or (lambda _stage: nullcontext())
         with timed("embree"):
             hits = self.intersector.closest(origin, direction)
         with timed("shading"):
+            basis = None if wavelength_nm is None else rgb_basis(wavelength_nm)
+
+            def colour(rgb: np.ndarray, rows: np.ndarray) -> np.ndarray:
+                """RGB rows as they are, or as spectral values (n, 1) at the rays ``rows``' wavelengths."""
+                return rgb if basis is None else spectral_value(rgb, _rows(basis, rows))[:, None]
+
             out = np.empty((len(origin), 3), np.float32)
-            out[:] = self.background
+            if basis is None:
+                out[:] = self.background
+            else:
+                out[:] = spectral_value(np.broadcast_to(self.background, (len(origin), 3)), basis)[:, None]
             light_id = hits.geom - self.instance_count
             seen = np.flatnonzero(light_id >= 0)
             if len(seen):
                 j = light_id[seen]
                 front = (_dot(_rows(direction, seen), _rows(self._light_normal, j)) < 0) | self._light_two_sided[j]
-                out[seen] = _rows(self._light_radiance, j) * front[:, None]
+                out[seen] = colour(_rows(self._light_radiance, j), seen) * front[:, None]
             surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0))
             out[surface] = 0.0
             if len(surface) == 0 or len(self._light_area) == 0 or self._light_cdf[-1] <= 0:
@@ -120,16 +138,17 @@ class DirectLighting:
             face = _rows(self._faces, self._geom_face_offset[geom] + prim)
             bary = np.column_stack([1.0 - hits.u[surface] - hits.v[surface], hits.u[surface], hits.v[surface]])
             shading = self._shading_normal(face, bary, geom, ng)
-            rho = self._albedo(face, bary, geom)
+            rho = colour(self._albedo(face, bary, geom), surface)
             magnitude = np.maximum(np.maximum(np.abs(point[:, 0]), np.abs(point[:, 1])), np.abs(point[:, 2]))
             eps = SHADOW_OFFSET * (magnitude + 1e-2 * self.intersector.extent)
             shadow_origin = point + ng * eps[:, None].astype(np.float32)
-        total = np.zeros((len(surface), 3), np.float32)
+        total = np.zeros((len(surface), 3 if basis is None else 1), np.float32)
         shadow_rays = 0
         for k in range(self.light_samples):
             with timed("shading"):
                 contribution, to_light, live = self._light_sample(point, shadow_origin, shading, ng, rho,
-                                                                  pixel[surface], sample[surface], k)
+                                                                  pixel[surface], sample[surface], k,
+                                                                  None if basis is None else _rows(basis, surface))
             with timed("embree"):
                 blocked = self.intersector.occluded(_rows(shadow_origin, live), to_light,
                                                     np.full(len(live), 1.0 - 1e-4, np.float32))
@@ -170,9 +189,12 @@ class DirectLighting:
         return rho
 
     def _light_sample(self, point: np.ndarray, shadow_origin: np.ndarray, shading: np.ndarray, ng: np.ndarray,
-                      rho: np.ndarray, pixel: np.ndarray, sample: np.ndarray, k: int
+                      rho: np.ndarray, pixel: np.ndarray, sample: np.ndarray, k: int, basis: np.ndarray | None
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One light sample per point: (contribution of the unoccluded ones, shadow ray vector, their rows)."""
+        """One light sample per point: (contribution of the unoccluded ones, shadow ray vector, their rows).
+
+        ``basis`` (rows of ``rgb_basis`` per point) makes the light's radiance spectral, as ``rho`` is then.
+        """
         u_pick = rng.uniform(pixel, sample, 4 + 3 * k, self.seed)
         u1 = rng.uniform(pixel, sample, 5 + 3 * k, self.seed)
         u2 = rng.uniform(pixel, sample, 6 + 3 * k, self.seed)
@@ -192,5 +214,8 @@ class DirectLighting:
         jl = j[live]
         scale = (cos_p[live] * cos_q[live] / dist2[live]
                  * (self._light_area[jl] / self._light_probability[jl] / np.pi)).astype(np.float32)
-        contribution = _rows(rho, live) * _rows(self._light_radiance, jl) * scale[:, None]
+        emitted = _rows(self._light_radiance, jl)
+        if basis is not None:
+            emitted = spectral_value(emitted, _rows(basis, live))[:, None]
+        contribution = _rows(rho, live) * emitted * scale[:, None]
         return contribution, _rows(q, live) - _rows(shadow_origin, live), live

@@ -23,6 +23,7 @@ from realistic.integrator import DirectLighting
 from realistic.intersect import Intersector
 from realistic.raygen import ray_generator
 from realistic.scene import Scene
+from realistic.spectrum import rgb_response
 from realistic.stages import StageClock
 
 DEFAULT_PASS_SAMPLES = 1 << 17
@@ -83,12 +84,15 @@ class _PassRunner:
             pixel = rays.pixel[alive]
             origin = rays.origin[alive].astype(np.float32)
             direction = rays.direction[alive].astype(np.float32)
+            wavelength = None if rays.wavelength_nm is None else rays.wavelength_nm[alive]
         radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, (first + alive) % spp,
-                                                         self.clock)
+                                                         self.clock, wavelength)
         with self.clock("accumulation"):
             first_pixel = first // spp
             pixel_count = (first + count - 1) // spp - first_pixel + 1
             value = radiance * rays.weight[alive, None].astype(np.float32)
+            if wavelength is not None:
+                value *= rgb_response(wavelength)
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
         return _PassResult(first, count, first_pixel, sums, len(alive), shadow_rays)
 
@@ -135,7 +139,11 @@ def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: i
 
 
 def render(scene: Scene, camera: Camera, backend: str = "opencl", seed: int = 0, **options) -> np.ndarray:
-    """The film image (H, W, 3) float32: film irradiance per pixel in units of scene radiance."""
+    """The film image (H, W, 3) float32: film irradiance per pixel in units of scene radiance.
+
+    A spectral camera (``Camera.spectral``) renders through the colour matching functions to
+    linear sRGB (``realistic.spectrum``); others render RGB directly.
+    """
     return render_passes(scene, camera, backend, seed, **options).image
 
 

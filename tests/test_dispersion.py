@@ -1,0 +1,320 @@
+"""Spectral rendering with dispersion: glass indices, wavelength sampling, kernel against reference,
+the colour pipeline's white point, and lateral colour in a rendered image."""
+
+import dataclasses
+import os
+import shutil
+import subprocess
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from realistic import load_lens, rng
+from realistic.camera import Camera, build_camera, film_points, generate_rays
+from realistic.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM, refractive_index
+from realistic.errors import UserError
+from realistic.paraxial import film_distance_for_focus
+from realistic.reference import trace_from_film
+from realistic.render import render
+from realistic.sampling import rear_element_sampler
+from realistic.scene import AreaLight, Material, Scene, quad, rotate, scale, translate
+from realistic.spectrum import (LAMBDA_MAX_NM, LAMBDA_MIN_NM, cie_xyz, cie_xyz_integral, rgb_basis, rgb_response,
+                                wavelengths_nm)
+
+REPO = Path(__file__).resolve().parents[1]
+EDGE_MM = 1e-4
+
+
+def _opencl():
+    host = pytest.importorskip("realistic.opencl_host")
+    try:
+        host.context()
+    except UserError as err:
+        pytest.skip(f"no OpenCL platform: {err}")
+    return host
+
+
+# ------------------------------------------------------------------ glass indices
+
+def test_cauchy_index_reproduces_nd_and_abbe_number_of_every_glass():
+    lens = load_lens("dgauss100")
+    glass = lens.abbe_v > 0
+    assert glass.sum() >= 5
+    n_d, n_f, n_c = (refractive_index(lens.index_d, lens.abbe_v, um * 1000) for um in
+                     (LAMBDA_D_UM, LAMBDA_F_UM, LAMBDA_C_UM))
+    np.testing.assert_allclose(n_d, lens.index_d, rtol=0, atol=1e-12)
+    np.testing.assert_allclose((n_d[glass] - 1) / (n_f[glass] - n_c[glass]), lens.abbe_v[glass], rtol=1e-10)
+    assert np.all(n_f[glass] > n_d[glass]) and np.all(n_d[glass] > n_c[glass])  # normal dispersion
+    np.testing.assert_array_equal(n_f[~glass], n_d[~glass])  # air and V = 0: constant
+
+
+def test_per_ray_wavelengths_trace_as_each_wavelength_alone():
+    lens = load_lens("dgauss100")
+    film = film_distance_for_focus(lens, 5000.0)
+    gen = np.random.default_rng(4)
+    count = 3000
+    origins = np.column_stack([gen.uniform(-15, 15, (count, 2)), np.zeros(count)])
+    directions = np.column_stack([gen.uniform(-0.3, 0.3, (count, 2)), np.ones(count)])
+    wavelengths = np.array([400.0, 550.0, 700.0])[gen.integers(0, 3, count)]
+    mixed = trace_from_film(lens, film, origins, directions, wavelengths)
+    assert 0.2 < mixed.passed.mean() < 0.9
+    for wavelength in (400.0, 550.0, 700.0):
+        rows = wavelengths == wavelength
+        alone = trace_from_film(lens, film, origins[rows], directions[rows], wavelength)
+        np.testing.assert_array_equal(mixed.blocked_reason[rows], alone.blocked_reason)
+        np.testing.assert_array_equal(mixed.direction[rows], alone.direction)
+
+
+# ------------------------------------------------------------------ wavelength sampling
+
+def test_wavelengths_are_stratified_within_each_pixel():
+    spp = 64
+    pixel = np.repeat(np.arange(500), spp)
+    sample = np.tile(np.arange(spp), 500)
+    lam = wavelengths_nm(rng.to_unit_float(rng.wavelength_bits(pixel, sample, seed=3))).reshape(500, spp)
+    assert lam.min() >= LAMBDA_MIN_NM and lam.max() < LAMBDA_MAX_NM
+    # the golden-ratio sequence leaves no cyclic gap wider than 2.62 / N of the range (three-gap theorem)
+    ordered = np.sort(lam, axis=1)
+    gaps = np.diff(np.concatenate([ordered, ordered[:, :1] + 400.0], axis=1), axis=1)
+    assert gaps.max() < 2.62 * 400.0 / spp
+    # and pixels are shifted independently: the first samples cover the range uniformly
+    hist = np.histogram(lam[:, 0], bins=10, range=(380, 780))[0]
+    assert hist.min() > 25
+
+
+def test_kernel_wavelength_bits_equal_numpy_bit_for_bit():
+    host = _opencl()
+    camera = _camera("dgauss100", "pupil")
+    first, count, seed = 5_001, 20_000, 0xFFFFFFFF
+    bits = host.LensKernel(camera).sample_bits(first, count, seed)
+    ids = np.arange(first, first + count)
+    expected = rng.wavelength_bits(ids // camera.spp, ids % camera.spp, seed)
+    np.testing.assert_array_equal(bits[4], expected)
+
+
+# ------------------------------------------------------------------ kernel against reference
+
+@lru_cache(maxsize=None)
+def _camera(name: str, sampling: str) -> Camera:
+    """A spectral camera, 64 x 48 pixels x 33 samples over a 43.27 mm film, seen through a rigid transform."""
+    if sampling != "pupil":
+        return dataclasses.replace(_camera(name, "pupil"), lens_sampling=sampling)
+    lens = load_lens(name)
+    film = film_distance_for_focus(lens, 5000.0)
+    world = rotate(35, (1, -2, 0.5)) @ translate(120.0, -35.0, 410.0)
+    return build_camera(lens, film, 43.27, 64, 48, spp=33, world_from_camera=world,
+                        camera_origin_mm=film + lens.track_length_mm, spectral=True)
+
+
+def _edge_rays(camera: Camera, count: int, seed: int) -> np.ndarray:
+    """Rays whose verdict at their own wavelength flips when every clear aperture grows or shrinks by
+    EDGE_MM, or whose film point sits within EDGE_MM of a pupil interval edge (float32 vs float64)."""
+    ids = np.arange(count)
+    pixel, sample = ids // camera.spp, ids % camera.spp
+    u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
+    lam = wavelengths_nm(rng.to_unit_float(rng.wavelength_bits(pixel, sample, seed))).astype(np.float64)
+    film_xy = film_points(camera, pixel, u_x, u_y)
+    film = np.column_stack([film_xy, np.zeros(count)])
+    near_interval_edge = np.zeros(count, dtype=bool)
+    if camera.lens_sampling == "pupil":
+        sampler = camera.pupil
+        step = sampler.film_radius_mm / len(sampler.bounds)
+        radius = np.hypot(film_xy[:, 0], film_xy[:, 1]) / step
+        near_interval_edge = np.abs(radius - np.round(radius)) * step < EDGE_MM
+    else:
+        sampler = rear_element_sampler(camera.lens, camera.film_distance_mm)
+    targets, _ = sampler.sample(film_xy, u_lens.astype(np.float64), v_lens.astype(np.float64))
+    verdicts = [trace_from_film(dataclasses.replace(camera.lens, aperture_mm=camera.lens.aperture_mm + 2 * d),
+                                camera.film_distance_mm, film, targets - film, lam).passed
+                for d in (-EDGE_MM, EDGE_MM)]
+    return (verdicts[0] != verdicts[1]) | near_interval_edge
+
+
+@pytest.mark.parametrize("name, sampling", [("dgauss100", "pupil"), ("dgauss", "rear")])
+def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, sampling):
+    host = _opencl()
+    camera = _camera(name, sampling)
+    count, seed = camera.sample_count, 11
+    kernel = host.LensKernel(camera).generate(0, count, seed)
+    ref = generate_rays(camera, 0, count, seed)
+    np.testing.assert_array_equal(kernel.pixel, ref.pixel)
+    np.testing.assert_allclose(kernel.wavelength_nm, ref.wavelength_nm, rtol=0, atol=1e-4)
+
+    k_pass, r_pass = kernel.weight > 0, ref.weight > 0
+    edge = _edge_rays(camera, count, seed)
+    assert edge.mean() < 0.01
+    assert not ((k_pass != r_pass) & ~edge).any()
+    both = k_pass & r_pass
+    assert both.mean() > 0.3
+    np.testing.assert_allclose(kernel.direction[both], ref.direction[both], rtol=0, atol=1e-5)
+    np.testing.assert_allclose(kernel.origin[both], ref.origin[both], rtol=0, atol=1e-3)
+    np.testing.assert_allclose(kernel.weight[both], ref.weight[both], rtol=1e-4, atol=0)
+
+    # the wavelength matters far beyond that tolerance: the same rays traced at the d line differ
+    d_line = generate_rays(dataclasses.replace(camera, spectral=False), 0, count, seed)
+    same = both & (d_line.weight > 0)
+    moved = np.abs(d_line.direction[same] - ref.direction[same]).max(axis=1)
+    far_from_d = np.abs(ref.wavelength_nm[same] - 587.6) > 100
+    assert np.median(moved[far_from_d]) > 5 * 1e-5
+
+
+def test_spectral_kernel_is_batch_size_independent():
+    host = _opencl()
+    kernel = host.LensKernel(_camera("dgauss100", "pupil"))
+    first, total = 1234, 40_000
+    whole = kernel.generate(first, total, seed=5)
+    sizes = [1, 255, 257, 9_999]
+    sizes.append(total - sum(sizes))
+    starts = first + np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    parts = [kernel.generate(int(s), n, seed=5) for s, n in zip(starts, sizes)]
+    for field in ("origin", "direction", "weight", "pixel", "wavelength_nm"):
+        assert np.array_equal(getattr(whole, field), np.concatenate([getattr(p, field) for p in parts])), field
+
+
+@pytest.mark.skipif(shutil.which("objdump") is None, reason="needs objdump")
+def test_spectral_kernel_still_vectorises(tmp_path):
+    _opencl()
+    script = ("from realistic import load_lens\nfrom realistic.camera import build_camera\n"
+              "from realistic.opencl_host import LensKernel\n"
+              "camera = build_camera(load_lens('dgauss100'), 75.0, 43.27, 64, 48, spp=4, spectral=True)\n"
+              "LensKernel(camera).generate(0, 4096, 0)\n")
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
+    subprocess.run([sys.executable, "-c", script], check=True, env=env, cwd=REPO, timeout=120)
+    (so,) = tmp_path.glob("pocl/kcache/**/generate_rays/**/*.so")
+    code = subprocess.run(["objdump", "-d", str(so)], capture_output=True, text=True, check=True).stdout
+    assert code.count("%ymm") + code.count("%zmm") > 500, "the work-group loop is not vectorised"
+    assert "call" not in code, "a builtin call stops PoCL's vectoriser"
+
+
+# ------------------------------------------------------------------ colour
+
+def test_colour_matching_fit_has_the_cie_areas_and_exact_integrals():
+    lam = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, 400_001)
+    numeric = np.trapezoid(cie_xyz(lam), lam, axis=0)
+    np.testing.assert_allclose(cie_xyz_integral(), numeric, rtol=1e-9)
+    # CIE 1931: the three functions have equal areas, about 106.86 nm over the visible range
+    np.testing.assert_allclose(numeric, 106.86, rtol=2e-3)
+    assert cie_xyz(np.array([555.0]))[0, 1] == pytest.approx(1.0, abs=0.01)  # peak of V(lambda)
+
+
+def test_constant_spectrum_is_white_and_grey_rgb_stays_grey():
+    lam = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, 400_001)
+    response = rgb_response(lam).astype(np.float64)
+    basis = rgb_basis(lam).astype(np.float64)
+    # the expected film value of a constant spectrum 1 under uniform wavelengths is (1, 1, 1)
+    np.testing.assert_allclose(np.trapezoid(response, lam, axis=0) / 400.0, 1.0, atol=2e-6)
+    np.testing.assert_allclose(basis.sum(axis=1), 1.0, atol=1e-6)  # (1,1,1) -> constant 1, grey c -> constant c
+    assert basis.min() >= 0
+    for grey in (0.18, 0.5, 1.0):
+        spectrum = basis @ np.array([grey, grey, grey])
+        rgb = np.trapezoid(response * spectrum[:, None], lam, axis=0) / 400.0
+        np.testing.assert_allclose(rgb, grey, rtol=1e-5)
+    # a saturated colour comes back close to itself: the round trip of the basis is near the identity
+    round_trip = np.trapezoid(response[:, :, None] * basis[:, None, :], lam, axis=0) / 400.0
+    np.testing.assert_allclose(round_trip, np.eye(3), atol=0.06)
+
+
+def _looking_down(lens_name: str, spectral: bool, width: int, height: int, spp: int, constant_index: bool = False):
+    lens = load_lens(lens_name)
+    if constant_index:
+        lens = dataclasses.replace(lens, abbe_v=np.zeros_like(lens.abbe_v))
+    film = film_distance_for_focus(lens, 1000.0)
+    world = translate(0, 0, 1.0) @ rotate(180, (1, 0, 0)) @ scale(1e-3)
+    return build_camera(lens, film, 43.27, width, height, spp, world, spectral=spectral)
+
+
+def test_spectral_path_without_dispersion_matches_rgb_path_within_noise():
+    _opencl()
+    scene = Scene()
+    scene.add(quad(4.0, 4.0), material=Material((0.6, 0.6, 0.6)))
+    scene.add(quad(0.2, 0.2), translate(0.05, 0.03, 0.3), Material((0.3, 0.3, 0.3)))
+    scene.lights.append(AreaLight("disk", (0.4, 0.4), (8.0, 8.0, 8.0), translate(-0.3, 0.2, 1.2) @ rotate(180, (1, 0, 0))))
+    images = {}
+    for spectral in (False, True):
+        camera = _looking_down("dgauss", spectral, 32, 32, 32, constant_index=True)
+        images[spectral] = [render(scene, camera, "opencl", seed=seed) for seed in (1, 2)]
+    assert images[False][0].min() > 0  # lit everywhere
+
+    def blocks(image):  # 4 x 4 regions, channels apart
+        return image.reshape(4, 8, 4, 8, 3).mean(axis=(1, 3))
+
+    rgb, spec = [np.stack([blocks(i) for i in images[s]]) for s in (False, True)]
+    # noise of a region's mean from the two seeds: var(a1 - a2) = 2 var(a)
+    sigma = np.sqrt(np.mean((rgb[0] - rgb[1]) ** 2 + (spec[0] - spec[1]) ** 2) / 2 / 2)
+    difference = spec.mean(axis=0) - rgb.mean(axis=0)
+    assert sigma < 0.06 * rgb.mean()  # regions resolved to a few per cent
+    assert np.abs(difference).max() < 4 * sigma
+    whole_sigma = sigma / 4  # 16 regions
+    np.testing.assert_allclose(spec.mean(axis=(0, 1, 2)), rgb.mean(axis=(0, 1, 2)), rtol=0, atol=4 * whole_sigma)
+
+
+# ------------------------------------------------------------------ lateral colour
+
+def _edge_offsets(camera: Camera, seed: int = 1) -> list[tuple[float, float]]:
+    """(field height mm, red minus blue edge position in pixels, + outward) for both edges of a white bar
+    that spans film heights of about 9.5 to 20 mm along the film's long axis.
+
+    An edge's position per channel is the area under its profile normalised by the bar's level in that
+    channel (a linear estimator: noise does not bias it, unlike a centroid of |gradient|).
+    """
+    depth_m = 2.0
+    magnification = 0.0526  # dgauss100 focused at 2 m: film mm per object mm
+    x0, x1 = 9.0 / magnification / 1000, 19.0 / magnification / 1000
+    scene = Scene()
+    scene.lights.append(AreaLight("quad", (x1 - x0, 0.3), (1.0, 1.0, 1.0),
+                                  translate((x0 + x1) / 2, 0, depth_m) @ rotate(180, (1, 0, 0))))
+    profile = render(scene, camera, "opencl", seed=seed).mean(axis=0).astype(np.float64)  # (W, 3)
+    lit = np.flatnonzero(profile.mean(axis=1) > 0.5 * profile.mean(axis=1).max())
+    first, last = lit[0], lit[-1]  # the bar's first and last bright pixels
+    level = profile[first + 20:last - 20].mean(axis=0)  # the bar's level per channel
+    centre = camera.width / 2
+    pixel_mm = camera.film_size_mm[0] / camera.width
+    half = 20
+    result = []
+    for edge, rising in ((first, True), (last + 1, False)):  # the boundary lies before pixel `edge`
+        window = slice(edge - half, edge + half)
+        covered = (profile[window] / level).sum(axis=0)  # bright pixels' worth in the window, per channel
+        position = edge + half - covered if rising else edge - half + covered
+        outward = np.sign(edge - centre)
+        result.append((abs(edge - centre) * pixel_mm, float((position[0] - position[2]) * outward)))
+    return result
+
+
+def test_lateral_colour_grows_with_field_height_and_vanishes_without_dispersion():
+    _opencl()
+    lens = load_lens("dgauss100")
+    film = film_distance_for_focus(lens, 2000.0)
+
+    def strip(spectral: bool, constant_index: bool = False) -> Camera:
+        glass = dataclasses.replace(lens, abbe_v=np.zeros_like(lens.abbe_v)) if constant_index else lens
+        return build_camera(glass, film, 43.27, 1600, 32, spp=64, world_from_camera=scale(1e-3), spectral=spectral)
+
+    # Same seed, same rays: the spectral render with constant indices carries the same colour noise
+    # as the dispersive one, so their difference isolates what the glasses' dispersion does.
+    dispersive = _edge_offsets(strip(True))
+    constant = _edge_offsets(strip(True, constant_index=True))
+    (h_mid, _), (h_corner, _) = dispersive
+    assert 8 < h_mid < 11 and 19 < h_corner < 21.5
+    mid, corner = (d - c for (_, d), (_, c) in zip(dispersive, constant))
+    # a red/blue offset (a pixel is 27 um) the same way round at both heights, larger near the corner
+    assert np.sign(mid) == np.sign(corner) and abs(mid) > 0.1 and abs(corner) > 1.1 * abs(mid), (mid, corner)
+    # --dispersion off renders RGB at the d line: no offset at all
+    assert all(abs(offset) < 0.01 for _, offset in _edge_offsets(strip(False)))
+
+
+# ------------------------------------------------------------------ command line
+
+def test_dispersion_option_defaults_to_the_lens_and_can_be_forced():
+    from realistic.cli import build_parser
+    from realistic.cli_render import load_render_inputs
+
+    def camera(*args: str) -> Camera:
+        parsed = build_parser().parse_args(["render", "--res", "8x8", *args])
+        return load_render_inputs(parsed, 1).camera
+
+    assert load_lens("dgauss").has_dispersion and camera().spectral  # V numbers: on by default
+    assert not camera("--dispersion", "off").spectral
+    assert camera("--lens", "dgauss100", "--dispersion", "on").spectral
