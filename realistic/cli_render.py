@@ -61,9 +61,16 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", metavar="SCENE", help="pbrt scene or mesh file; omit for the default scene")
     p.add_argument("--lens", help=f"mesh scenes: bundled lens ({', '.join(BUNDLED_LENSES)}) or prescription file "
                                   "(default: dgauss)")
-    p.add_argument("--aperture", type=float, metavar="MM", help="stop diameter in mm (default: the scene's or lens's)")
-    p.add_argument("--focus", type=float, metavar="DIST",
-                   help="focus distance in scene units from the film plane (default: the target's or the scene's)")
+    stop = p.add_mutually_exclusive_group()
+    stop.add_argument("--aperture", type=float, metavar="MM", help="stop diameter in mm (default: the scene's or lens's)")
+    stop.add_argument("--fstop", type=float, metavar="N",
+                      help="f-number: sizes the stop for this paraxial f-number (EFL / entrance pupil)")
+    focus = p.add_mutually_exclusive_group()
+    focus.add_argument("--focus", type=float, metavar="DIST",
+                       help="focus distance in scene units from the film plane (default: the target's or the scene's)")
+    focus.add_argument("--focus-on", metavar="X,Y",
+                       help="autofocus on what the pixel (X, Y) sees: its depth, then a real-ray search for "
+                            "the sharpest film distance")
     p.add_argument("--camera-pos", metavar="X,Y,Z", help="mesh scenes: film centre position (default: framed)")
     p.add_argument("--target", metavar="X,Y,Z", help="mesh scenes: point looked at (default: the subject's centre)")
     p.add_argument("--res", metavar="WxH", help="resolution (default: the scene's, else 300x300)")
@@ -94,7 +101,11 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
                    help="output EXR; the PNG preview is written beside it (default: the scene's film "
                         "file name, else render.exr)")
     p.add_argument("--exposure", type=float, metavar="EV",
-                   help="PNG preview exposure in stops (default: automatic); the EXR is never scaled")
+                   help="PNG preview exposure in stops (default: automatic, or 0 with --shutter/--iso)")
+    p.add_argument("--shutter", metavar="SECONDS",
+                   help="shutter time (e.g. 1/125): with --iso, the EXR holds a photographic exposure, "
+                        "calibrated so a metered middle grey reads 0.18, instead of film irradiance")
+    p.add_argument("--iso", type=float, help="ISO speed (default with --shutter: 100)")
     p.set_defaults(run=cmd_render)
 
 
@@ -125,7 +136,8 @@ def check_scene_options(args: argparse.Namespace, spp: int | None) -> None:
         raise UserError(f"samples per pixel must be at least 1, got {spp}")
     if args.light_samples is not None and args.light_samples < 1:
         raise UserError(f"light samples must be at least 1, got {args.light_samples}")
-    for name, value in (("aperture", args.aperture), ("focus", args.focus), ("film diagonal", args.film_diagonal)):
+    for name, value in (("aperture", args.aperture), ("focus", args.focus), ("film diagonal", args.film_diagonal),
+                        ("f-number", args.fstop)):
         if value is not None and not (value > 0 and np.isfinite(value)):
             raise UserError(f"{name} must be a positive finite number, got {value:g}")
     if args.scene and args.scene.lower().endswith(".pbrt"):
@@ -156,7 +168,8 @@ def _pbrt_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
 
     width, height = _resolution(args.res) if args.res else (None, None)
     imported = import_pbrt(args.scene, width, height, spp, args.lens_sampling, aperture_mm=args.aperture,
-                           focus_scene_units=args.focus, search_paths=[Path(p) for p in args.search_path])
+                           focus_scene_units=args.focus, search_paths=[Path(p) for p in args.search_path],
+                           f_number=args.fstop)
     out = Path(imported.output_name).name if imported.output_name else "render.exr"
     if Path(out).suffix.lower() != ".exr":
         out = str(Path(out).with_suffix(".exr"))
@@ -166,6 +179,7 @@ def _pbrt_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
 
 def _mesh_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
     from realistic.meshes import load_mesh_file
+    from realistic.paraxial import stop_diameter_for_f_number
     from realistic.prescription import load_lens
     from realistic.setups import MM_PER_UNIT, auto_eye, camera_for_view, default_setup, mesh_setup
 
@@ -175,6 +189,8 @@ def _mesh_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
     lens = load_lens(args.lens or "dgauss")
     if args.aperture:
         lens = lens.with_stop_diameter(args.aperture)
+    if args.fstop:
+        lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, args.fstop))
     setup = mesh_setup(load_mesh_file(args.scene)) if args.scene else default_setup()
     target = setup.target if target is None else target
     if eye is None:
@@ -191,11 +207,40 @@ def _mesh_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
 def load_render_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
     """The scene and camera the arguments describe; ``spp`` None keeps the scene's own."""
     check_scene_options(args, spp)
-    if args.scene and args.scene.lower().endswith(".pbrt"):
-        inputs = _pbrt_inputs(args, spp)
-    else:
-        inputs = _mesh_inputs(args, spp)
+    inputs = _scene_inputs(args, spp)
+    if args.focus_on:
+        inputs = _autofocused(args, spp, inputs)
     return _with_dispersion(inputs, args.dispersion)
+
+
+def _scene_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
+    if args.scene and args.scene.lower().endswith(".pbrt"):
+        return _pbrt_inputs(args, spp)
+    return _mesh_inputs(args, spp)
+
+
+def _autofocused(args: argparse.Namespace, spp: int | None, inputs: RenderInputs) -> RenderInputs:
+    """The inputs again, focused where ``--focus-on`` points (``realistic.autofocus``)."""
+    from realistic.autofocus import autofocus_distance_mm
+    from realistic.camera import Camera
+
+    x, y = _pixel(args.focus_on)
+    if not isinstance(inputs.camera, Camera):
+        raise UserError("--focus-on needs a lens camera; this scene's camera is pbrt's perspective")
+    focus_mm = autofocus_distance_mm(inputs.scene, inputs.camera, x, y)
+    mm_per_unit = 1.0 / float(np.linalg.norm(inputs.camera.world_from_lens[:3, 0]))
+    focused = argparse.Namespace(**{**vars(args), "focus": focus_mm / mm_per_unit, "focus_on": None})
+    refocused = _scene_inputs(focused, spp)
+    refocused.metadata["focusOn"] = args.focus_on
+    return refocused
+
+
+def _pixel(text: str) -> tuple[float, float]:
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise UserError(f"--focus-on {text!r} is not a pixel X,Y (e.g. 150,120)") from None
+    return x, y
 
 
 def _with_dispersion(inputs: RenderInputs, choice: str | None) -> RenderInputs:
@@ -215,6 +260,21 @@ def _with_dispersion(inputs: RenderInputs, choice: str | None) -> RenderInputs:
 def report_warnings(warnings: list[str]) -> None:
     for warning in warnings:
         print(f"realistic: {warning}", file=sys.stderr)
+
+
+def _photographic(image: np.ndarray, camera, args: argparse.Namespace) -> tuple[np.ndarray, dict]:
+    """The film irradiance exposed for ``--shutter`` at ``--iso``, and what the header says of it."""
+    from realistic.camera import Camera
+    from realistic.exposure import exposure_scale, exposure_value, parse_shutter
+    from realistic.paraxial import paraxial_data
+
+    shutter = parse_shutter(args.shutter or "1/60")
+    iso = args.iso if args.iso is not None else 100.0
+    scale = exposure_scale(shutter, iso)
+    header = {"shutterSeconds": shutter, "iso": iso, "exposureScale": scale}
+    if isinstance(camera, Camera):
+        header["exposureValue"] = exposure_value(paraxial_data(camera.lens).f_number, shutter)
+    return (image * np.float32(scale)).astype(np.float32), header
 
 
 def cmd_render(args: argparse.Namespace) -> int:
@@ -237,9 +297,14 @@ def cmd_render(args: argparse.Namespace) -> int:
                 "backend": args.backend, "renderSeconds": float(result.seconds),
                 "samplesDone": int(result.samples_done), "samplesTotal": int(result.samples_total),
                 "interrupted": int(result.interrupted)}
-    write_exr(out, result.image, metadata)
-    exposure = auto_exposure(result.image) if args.exposure is None else args.exposure
-    write_png(png, result.image, exposure)
+    image = result.image
+    if args.shutter or args.iso:
+        image, photographic = _photographic(image, camera, args)
+        metadata.update(photographic)
+    write_exr(out, image, metadata)
+    exposure = args.exposure if args.exposure is not None else (0.0 if args.shutter or args.iso
+                                                                   else auto_exposure(image))
+    write_png(png, image, exposure)
     rays = result.primary_rays + result.shadow_rays
     if result.interrupted:
         print(f"realistic: interrupted: wrote the {result.samples_done} of {result.samples_total} samples "

@@ -67,3 +67,16 @@ def test_autofocus_errors_are_clear():
         autofocus_distance_mm(scene, far, 500, 10)
     with pytest.raises(UserError, match="nothing at the focus pixel"):
         autofocus_distance_mm(scene, far, 380, 32)  # right of the edge: nothing there
+
+
+def test_focus_on_through_the_cli(tmp_path):
+    from realistic.cli import main
+    from realistic.image_io import read_exr
+
+    out = tmp_path / "af.exr"
+    # the default scene's middle object sits at the image centre, 2.74 m from the camera
+    assert main(["render", "--backend", "numpy", "--res", "60x60", "--spp", "1", "--focus-on", "30,30",
+                 "--dispersion", "off", "--out", str(out)]) == 0
+    header = read_exr(out)[1]
+    assert header["focusOn"] == "30,30"
+    assert float(header["focusDistanceMm"]) == pytest.approx(2737, rel=0.05)

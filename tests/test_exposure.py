@@ -63,3 +63,35 @@ def test_centre_brightness_follows_the_f_number(name):
 
 def lens_f_number(lens):
     return paraxial_data(lens).f_number
+
+
+def centre_mean(path):
+    from realistic.image_io import read_exr
+
+    image, header = read_exr(path)
+    h, w, _ = image.shape
+    return image[h // 4: 3 * h // 4, w // 4: 3 * w // 4].mean(), header
+
+
+def test_render_brightness_follows_the_exposure_value(tmp_path):
+    from realistic.cli import main
+
+    common = ["render", "--backend", "numpy", "--res", "48x32", "--spp", "64", "--dispersion", "off", "--iso", "200"]
+    runs = {"a": ["--fstop", "4", "--shutter", "1/60"], "b": ["--fstop", str(4 * math.sqrt(2)), "--shutter", "1/30"],
+            "c": ["--fstop", "4", "--shutter", "1/30"]}
+    values = {}
+    for name, args in runs.items():
+        assert main([*common, *args, "--out", str(tmp_path / f"{name}.exr")]) == 0
+        values[name], header = centre_mean(tmp_path / f"{name}.exr")
+        assert float(header["iso"]) == 200
+    assert values["b"] == pytest.approx(values["a"], rel=0.04)  # same EV: same brightness
+    assert values["c"] == pytest.approx(2 * values["a"], rel=1e-5)  # one EV less: twice the light
+
+
+def test_fstop_faster_than_the_lens_is_one_line(tmp_path, capsys):
+    from realistic.cli import main
+
+    assert main(["render", "--backend", "numpy", "--fstop", "1.4", "--out", str(tmp_path / "x.exr")]) == 2
+    err = capsys.readouterr().err
+    assert "faster than dgauss opens" in err and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
