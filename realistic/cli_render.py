@@ -65,6 +65,14 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
     stop.add_argument("--aperture", type=float, metavar="MM", help="stop diameter in mm (default: the scene's or lens's)")
     stop.add_argument("--fstop", type=float, metavar="N",
                       help="f-number: sizes the stop for this paraxial f-number (EFL / entrance pupil)")
+    p.add_argument("--blades", type=int, metavar="N",
+                   help="shape the stop as N diaphragm blades (a regular N-gon inscribed in the stop's circle)")
+    p.add_argument("--blade-rotation", type=float, default=0.0, metavar="DEG",
+                   help="turn the blades (default: 0, a corner on +x)")
+    p.add_argument("--blade-curvature", type=float, default=0.0, metavar="C",
+                   help="bow the blades: 0 straight (default) to 1 round")
+    p.add_argument("--aperture-mask", metavar="IMAGE",
+                   help="shape the stop by an image (PNG, EXR...) spanning its diameter; level >= 0.5 is open")
     focus = p.add_mutually_exclusive_group()
     focus.add_argument("--focus", type=float, metavar="DIST",
                        help="focus distance in scene units from the film plane (default: the target's or the scene's)")
@@ -160,16 +168,38 @@ def _lens_metadata(camera) -> dict:
             "fNumber": float(paraxial_data(lens).f_number),
             "focusDistanceMm": float(focus_distance_for_film(lens, camera.film_distance_mm)),
             "filmDistanceMm": float(camera.film_distance_mm), "filmDiagonalMm": float(camera.film_diagonal_mm),
-            "lensSampling": camera.lens_sampling}
+            "lensSampling": camera.lens_sampling,
+            "stopShape": lens.stop_shape.describe() if lens.stop_shape else "circle"}
+
+
+def _stop_edit(args: argparse.Namespace):
+    """The change to the lens's stop that --aperture, --fstop, --blades... ask for (None: none)."""
+    from realistic.aperture import bladed_stop, mask_stop
+    from realistic.paraxial import stop_diameter_for_f_number
+
+    if args.blades and args.aperture_mask:
+        raise UserError("--blades and --aperture-mask both shape the stop: give one")
+    shape = (bladed_stop(args.blades, args.blade_rotation, args.blade_curvature) if args.blades
+             else mask_stop(args.aperture_mask) if args.aperture_mask else None)
+    if args.aperture is None and args.fstop is None and shape is None:
+        return None
+
+    def edit(lens):
+        if args.aperture is not None:
+            lens = lens.with_stop_diameter(args.aperture)
+        if args.fstop is not None:
+            lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, args.fstop))
+        return lens.with_stop_shape(shape) if shape is not None else lens
+
+    return edit
 
 
 def _pbrt_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
     from realistic.pbrt_import import import_pbrt
 
     width, height = _resolution(args.res) if args.res else (None, None)
-    imported = import_pbrt(args.scene, width, height, spp, args.lens_sampling, aperture_mm=args.aperture,
-                           focus_scene_units=args.focus, search_paths=[Path(p) for p in args.search_path],
-                           f_number=args.fstop)
+    imported = import_pbrt(args.scene, width, height, spp, args.lens_sampling, lens_edit=_stop_edit(args),
+                           focus_scene_units=args.focus, search_paths=[Path(p) for p in args.search_path])
     out = Path(imported.output_name).name if imported.output_name else "render.exr"
     if Path(out).suffix.lower() != ".exr":
         out = str(Path(out).with_suffix(".exr"))
@@ -179,7 +209,6 @@ def _pbrt_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
 
 def _mesh_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
     from realistic.meshes import load_mesh_file
-    from realistic.paraxial import stop_diameter_for_f_number
     from realistic.prescription import load_lens
     from realistic.setups import MM_PER_UNIT, auto_eye, camera_for_view, default_setup, mesh_setup
 
@@ -187,10 +216,9 @@ def _mesh_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
     film_diagonal = args.film_diagonal or 43.27
     eye, target = _vector(args.camera_pos, "camera position"), _vector(args.target, "target")
     lens = load_lens(args.lens or "dgauss")
-    if args.aperture:
-        lens = lens.with_stop_diameter(args.aperture)
-    if args.fstop:
-        lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, args.fstop))
+    edit = _stop_edit(args)
+    if edit is not None:
+        lens = edit(lens)
     setup = mesh_setup(load_mesh_file(args.scene)) if args.scene else default_setup()
     target = setup.target if target is None else target
     if eye is None:

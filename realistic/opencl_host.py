@@ -138,6 +138,29 @@ def _index_ratios(camera: Camera) -> tuple[list[str], list[str]]:
     return ratios, prologue
 
 
+def _stop_lines(lens) -> list[str]:
+    """``STOP_INSIDE(x, y)`` (and a mask table) for the lens's stop, as realistic.aperture defines it."""
+    diameter = float(lens.aperture_mm[lens.stop])
+    shape = lens.stop_shape
+    if shape is None:
+        return [f"#define STOP_INSIDE(x, y) ((x) * (x) + (y) * (y) <= {_f((diameter / 2) ** 2)})",
+                "#define STOP_MASKED 0"]
+    if shape.mask is not None:
+        rows, cols = shape.mask.shape
+        table = ", ".join("1" if v else "0" for v in shape.mask.ravel())
+        return ["#define STOP_MASKED 1", f"#define STOP_MASK_W {cols}", f"#define STOP_MASK_H {rows}",
+                f"#define STOP_DIAMETER_MM {_f(diameter)}", f"__constant uchar STOP_MASK[{rows * cols}] = {{{table}}};",
+                "#define STOP_INSIDE(x, y) stop_mask((x), (y))"]
+    terms = []
+    for nx, ny, a, rho in shape.edges(diameter):
+        if rho == 0:  # a straight side: the half-plane x nx + y ny <= a
+            terms.append(f"((x) * {_f(nx)} + (y) * {_f(ny)} <= {_f(a)})")
+        else:  # an arc: |p - a n|^2 <= rho^2, written so float32 keeps precision when rho is huge
+            terms.append(f"((x) * (x) + (y) * (y) - {_f(2 * a * nx)} * (x) - {_f(2 * a * ny)} * (y) <= "
+                         f"{_f((rho - a) * (rho + a))})")
+    return ["#define STOP_MASKED 0", "#define STOP_INSIDE(x, y) (" + " & ".join(terms) + ")"]
+
+
 def camera_header(camera: Camera) -> str:
     """The generated ``#define`` block that specialises ``lens.cl`` to one camera (see its header)."""
     lens = camera.lens
@@ -150,7 +173,7 @@ def camera_header(camera: Camera) -> str:
         radius = lens.radius_mm[i]
         refracts = int(eta != "1.0f")
         if i == lens.stop:
-            calls.append(f"plane(r, {_f(ap2)}, 1.0f, 0, {_f(gap)});")
+            calls.append(f"stop(r, {_f(gap)});")
         elif radius == 0 or not np.isfinite(radius):
             calls.append(f"plane(r, {_f(ap2)}, {eta}, 1, {_f(gap)});")
         else:
@@ -165,6 +188,7 @@ def camera_header(camera: Camera) -> str:
         f"#define FRONT_VERTEX_Z_MM {_f(vertex_z[0])}",
         f"#define REAR_W_MM {_f(-camera.film_distance_mm)}",
         "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
+        *_stop_lines(lens),
     ]
     if camera.lens_sampling == "pupil":
         table = camera.pupil

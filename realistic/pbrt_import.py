@@ -11,16 +11,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from realistic.camera import Camera, build_camera
 from realistic.errors import UserError
 from realistic.meshes import load_mesh_file
-from realistic.paraxial import film_distance_for_focus, stop_diameter_for_f_number
+from realistic.paraxial import film_distance_for_focus
 from realistic.pbrt_parser import Declaration
 from realistic.pbrt_parser import Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
-from realistic.prescription import BUNDLED_LENSES, load_lens
+from realistic.prescription import BUNDLED_LENSES, LensSystem, load_lens
 from realistic.scene import (AreaLight, CheckerTexture, ImageTexture, Material, Mesh, Scene, cone, disk, sphere,
                              translate)
 from realistic.textures import read_texture_image
@@ -247,13 +248,13 @@ def find_lens_file(name: str, scene_dir: Path, search_paths: list[Path], where: 
 
 
 def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sampling: str = "pupil",
-                  aperture_mm: float | None = None, focus_scene_units: float | None = None,
-                  f_number: float | None = None,
+                  lens_edit: Callable[[LensSystem], LensSystem] | None = None,
+                  focus_scene_units: float | None = None,
                   search_paths: list[Path] | None = None) -> Camera | ThinLensCamera:
     """The scene's camera at the given resolution and sample count, with optional overrides.
 
     ``focus_scene_units`` refocuses a realistic camera (thick-lens model) on the plane that far
-    from the film; ``aperture_mm`` sets its stop diameter, ``f_number`` sizes it for that f-number.
+    from the film; ``lens_edit`` changes the scene's lens (its stop's size or shape) before focusing.
     """
     search_paths = list(search_paths or [])
     directive = parsed.camera
@@ -262,8 +263,8 @@ def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sam
     world_from_camera = np.linalg.inv(directive.transform)
     p = directive.params
     if directive.type == "perspective":
-        if aperture_mm is not None or focus_scene_units is not None or f_number is not None:
-            raise UserError(f"{directive.where}: --aperture, --fstop and --focus apply to realistic cameras, not "
+        if lens_edit is not None or focus_scene_units is not None:
+            raise UserError(f"{directive.where}: the stop and focus options apply to realistic cameras, not "
                             f'Camera "perspective"')
         return build_thin_lens_camera(p.float("fov", 90.0), p.float("lensradius", 0.0),
                                       p.float("focaldistance", 1e6), width, height, spp, world_from_camera)
@@ -285,10 +286,8 @@ def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sam
         origin_mm = 0.0
     else:
         raise UserError(f'{directive.where}: Camera "realistic" needs "string specfile" or "string lensfile"')
-    if aperture_mm is not None:
-        lens = lens.with_stop_diameter(aperture_mm)
-    if f_number is not None:
-        lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, f_number))
+    if lens_edit is not None:
+        lens = lens_edit(lens)
     if focus_scene_units is not None:
         mm_per_unit = 1.0 / np.linalg.norm(world_from_camera[:3, 0])
         film_distance = film_distance_for_focus(lens, focus_scene_units * mm_per_unit)
@@ -307,9 +306,8 @@ def import_world(path: str | Path, search_paths: list[Path] | None = None) -> tu
 
 
 def import_pbrt(path: str | Path, width: int | None = None, height: int | None = None, spp: int | None = None,
-                lens_sampling: str = "pupil", aperture_mm: float | None = None,
-                focus_scene_units: float | None = None, search_paths: list[Path] | None = None,
-                f_number: float | None = None) -> ImportedScene:
+                lens_sampling: str = "pupil", lens_edit: Callable[[LensSystem], LensSystem] | None = None,
+                focus_scene_units: float | None = None, search_paths: list[Path] | None = None) -> ImportedScene:
     """Read a pbrt scene; resolution and samples default to the file's (``Film`` and ``Sampler``)."""
     search_paths = list(search_paths or [])
     scene, parsed, light_samples = import_world(path, search_paths)
@@ -319,6 +317,5 @@ def import_pbrt(path: str | Path, width: int | None = None, height: int | None =
     width = width or int(film.float("xresolution", 640))
     height = height or int(film.float("yresolution", 480))
     spp = spp or int(parsed.sampler.params.float("pixelsamples", 16) if parsed.sampler else 16)
-    camera = import_camera(parsed, width, height, spp, lens_sampling, aperture_mm, focus_scene_units, f_number,
-                           search_paths)
+    camera = import_camera(parsed, width, height, spp, lens_sampling, lens_edit, focus_scene_units, search_paths)
     return ImportedScene(scene, camera, film.string("filename"), light_samples, parsed.warnings)

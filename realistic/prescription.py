@@ -22,12 +22,14 @@ from __future__ import annotations
 
 import math
 import re
+import dataclasses
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
+from realistic.aperture import StopShape
 from realistic.errors import LensFileError
 
 #: Short names of the bundled prescriptions (package data in ``realistic/lenses``).
@@ -61,6 +63,7 @@ class LensSystem:
     stop: int
     source: str = ""
     convention_note: str = ""
+    stop_shape: StopShape | None = None  # None: the stop is the circle of its aperture diameter
 
     @property
     def surface_count(self) -> int:
@@ -106,8 +109,11 @@ class LensSystem:
             raise ValueError(f"aperture diameter must be a positive number of mm, got {diameter_mm}")
         aperture = self.aperture_mm.copy()
         aperture[self.stop] = diameter_mm
-        return LensSystem(self.name, self.radius_mm, self.thickness_mm, self.index_d, self.abbe_v,
-                          aperture, self.stop, self.source, self.convention_note)
+        return dataclasses.replace(self, aperture_mm=aperture)
+
+    def with_stop_shape(self, shape: StopShape | None) -> "LensSystem":
+        """The same lens with its stop cut to ``shape`` (``realistic.aperture``), scaled to its diameter."""
+        return dataclasses.replace(self, stop_shape=shape)
 
 
 @dataclass(frozen=True)

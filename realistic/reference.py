@@ -10,7 +10,8 @@ Rules (the kernel follows the same ones):
   when R < 0. A hit on the far hemisphere of the sphere is a miss.
 * The stop and flat surfaces are planes z = vertex.
 * A hit farther from the axis than half the clear aperture blocks the ray (``stop`` at the stop,
-  ``aperture`` elsewhere).
+  ``aperture`` elsewhere); a shaped stop (``realistic.aperture``) blocks what falls outside its
+  opening.
 * Refraction in Heckbert's form T = eta I + (eta c1 - c2) N, N facing the incoming ray,
   c1 = -I.N, c2 = sqrt(1 - eta^2 (1 - c1^2)); a negative radicand is total internal reflection.
 """
@@ -116,8 +117,11 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
             block(miss, i, MISS)
             if path is not None:
                 path.append(np.stack(o, axis=1))
-            r2 = o[0] * o[0] + o[1] * o[1]
-            block(~(r2 <= (lens.aperture_mm[i] / 2) ** 2), i, STOP if i == lens.stop else APERTURE)
+            if i == lens.stop and lens.stop_shape is not None:
+                block(~lens.stop_shape.inside(o[0], o[1], lens.aperture_mm[i]), i, STOP)
+            else:
+                r2 = o[0] * o[0] + o[1] * o[1]
+                block(~(r2 <= (lens.aperture_mm[i] / 2) ** 2), i, STOP if i == lens.stop else APERTURE)
             if i != lens.stop:
                 n_front = index[i - 1] if i > 0 else 1.0
                 d, tir = refract(d, normal, index[i] / n_front)

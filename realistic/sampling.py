@@ -184,6 +184,12 @@ def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm
     The boxes hold what passes at any of ``wavelengths_nm``: a spectral camera passes the ends of
     its wavelength range and the d line, so no wavelength's pupil is cut off.
     """
+    if lens.stop_shape is not None:
+        # The pupil bounds are found for film points on +x and turned to each film point's angle,
+        # which assumes a round stop. A shaped opening lies inside the circle of its reach, so that
+        # circular stop's bounds hold every ray the shape passes; rays the shape blocks get weight 0.
+        reach = lens.stop_shape.reach_mm(lens.stop_diameter_mm)
+        lens = lens.with_stop_shape(None).with_stop_diameter(2 * reach)
     key = (lens.radius_mm.tobytes(), lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
            lens.abbe_v.tobytes(), lens.aperture_mm.tobytes(), film_distance_mm, film_diagonal_mm,
            intervals, film_points, grid, wavelengths_nm)

@@ -85,7 +85,35 @@ def _edge_rays(camera: Camera, count: int, seed: int) -> np.ndarray:
 @pytest.mark.parametrize("sampling", SAMPLINGS)
 @pytest.mark.parametrize("name", LENSES)
 def test_kernel_matches_reference(name, sampling):
-    camera = _camera(name, sampling)
+    _check_against_reference(_camera(name, sampling))
+
+
+def _cross_mask(tmp_path) -> str:
+    """A PNG stop mask: a plus sign, with a hole, to exercise the mask's lookup."""
+    from PIL import Image
+
+    pixels = np.zeros((64, 64), np.uint8)
+    pixels[24:40, :] = pixels[:, 24:40] = 255
+    pixels[30:34, 30:34] = 0
+    path = tmp_path / "cross.png"
+    Image.fromarray(pixels).save(path)
+    return str(path)
+
+
+@pytest.mark.parametrize("shape", ["hexagon", "curved", "mask"])
+def test_kernel_matches_reference_with_shaped_stops(shape, tmp_path):
+    from realistic.aperture import bladed_stop, mask_stop
+
+    stops = {"hexagon": lambda: bladed_stop(6, 10.0), "curved": lambda: bladed_stop(7, 25.0, 0.4),
+             "mask": lambda: mask_stop(_cross_mask(tmp_path))}
+    base = _camera("dgauss", "pupil")
+    lens = base.lens.with_stop_shape(stops[shape]())
+    camera = build_camera(lens, base.film_distance_mm, 43.27, 64, 48, spp=33, world_from_camera=_world_from_camera(),
+                          camera_origin_mm=base.film_distance_mm + lens.track_length_mm)
+    _check_against_reference(camera)
+
+
+def _check_against_reference(camera: Camera) -> None:
     count, seed = camera.sample_count, 11
     assert count >= 100_000
     kernel = ray_generator(camera, "opencl", seed)(0, count)

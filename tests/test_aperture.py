@@ -1,0 +1,142 @@
+"""Shaped stops: geometry, light in proportion to the open area, and the shape of the defocus blur."""
+
+import math
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from realistic import UserError, load_lens
+from realistic.aperture import bladed_stop, mask_stop
+from realistic.camera import build_camera, generate_rays
+from realistic.paraxial import film_distance_for_focus, stop_diameter_for_f_number
+from realistic.render import render_passes
+from realistic.scene import AreaLight, Scene, rotate, translate
+from realistic.setups import camera_for_view
+
+
+@pytest.mark.parametrize("blades", [3, 5, 6, 9])
+def test_straight_blades_make_the_inscribed_polygon(blades):
+    diameter = 2.0
+    stop = bladed_stop(blades, rotation_deg=17.0)
+    # area of the regular N-gon with circumradius 1: N/2 sin(2 pi / N)
+    assert stop.open_area_mm2(diameter) == pytest.approx(blades / 2 * math.sin(2 * math.pi / blades), rel=2e-3)
+    corner = math.radians(17.0)
+    inside = stop.inside(np.array([0.999 * math.cos(corner)]), np.array([0.999 * math.sin(corner)]), diameter)
+    middle = math.radians(17.0) + math.pi / blades  # the middle of a side, at the apothem
+    apothem = math.cos(math.pi / blades)
+    just_in = stop.inside(np.array([0.999 * apothem * math.cos(middle)]), np.array([0.999 * apothem * math.sin(middle)]),
+                          diameter)
+    just_out = stop.inside(np.array([1.001 * apothem * math.cos(middle)]), np.array([1.001 * apothem * math.sin(middle)]),
+                           diameter)
+    assert inside[0] and just_in[0] and not just_out[0]
+
+
+def test_curved_blades_go_from_polygon_to_circle():
+    areas = [bladed_stop(5, curvature=c).open_area_mm2(2.0) for c in (0.0, 0.3, 0.7, 1.0)]
+    assert all(a < b for a, b in zip(areas, areas[1:]))
+    assert areas[-1] == pytest.approx(math.pi, rel=2e-3)
+
+
+def test_bad_shapes_are_user_errors(tmp_path):
+    with pytest.raises(UserError):
+        bladed_stop(2)
+    with pytest.raises(UserError):
+        bladed_stop(6, curvature=1.5)
+    dark = tmp_path / "dark.png"
+    Image.fromarray(np.zeros((8, 8), np.uint8)).save(dark)
+    with pytest.raises(UserError, match="no open pixel"):
+        mask_stop(dark)
+
+
+def glowing_wall() -> Scene:
+    scene = Scene()
+    scene.lights.append(AreaLight("quad", (40.0, 40.0), (1.0, 1.0, 1.0), translate(0, 0, 10) @ rotate(180, (0, 1, 0))))
+    return scene
+
+
+def centre_brightness(lens) -> float:
+    camera = camera_for_view(lens, np.zeros(3), np.array([0, 0, 10.0]), 10.0, 43.27, 8, 8, 512)
+    return float(render_passes(glowing_wall(), camera, "numpy").image[3:5, 3:5].mean())
+
+
+def test_brightness_follows_the_open_area(tmp_path):
+    lens = load_lens("dgauss")
+    lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, 4.0))  # the stop alone limits the axis
+    diameter = lens.stop_diameter_mm
+    circle = centre_brightness(lens)
+    hexagon = centre_brightness(lens.with_stop_shape(bladed_stop(6)))
+    assert hexagon / circle == pytest.approx(3 * math.sqrt(3) / (2 * math.pi), rel=0.02)
+    # a square mask with the circle's open area gives the circle's brightness
+    side = round(128 * math.sqrt(math.pi) / 2)
+    pixels = np.zeros((128, 128), np.uint8)
+    start = (128 - side) // 2
+    pixels[start:start + side, start:start + side] = 255
+    path = tmp_path / "square.png"
+    Image.fromarray(pixels).save(path)
+    square = mask_stop(path)
+    assert square.open_area_mm2(diameter) == pytest.approx(math.pi * diameter**2 / 4, rel=0.01)
+    assert centre_brightness(lens.with_stop_shape(square)) == pytest.approx(circle, rel=0.02)
+
+
+def blur_outline(shape, seed=0) -> tuple[np.ndarray, np.ndarray]:
+    """Angles and outline radii of the defocus blur of an on-axis point 8 m away, the lens focused at 1 m.
+
+    The rays from the film centre, where they cross the plane of the out-of-focus point, cover the
+    blur's footprint: the point lights every film position whose footprint holds it, so the
+    footprint's shape is the bokeh's (mirrored).
+    """
+    lens = load_lens("dgauss")
+    lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, 2.8)).with_stop_shape(shape)
+    film = film_distance_for_focus(lens, 1000.0)
+    camera = build_camera(lens, film, 1e-3, 1, 1, 200_000)
+    rays = generate_rays(camera, 0, camera.sample_count, seed)
+    ok = rays.weight > 0
+    o, d = rays.origin[ok], rays.direction[ok]
+    at = o[:, :2] + d[:, :2] * ((8000.0 - o[:, 2:3]) / d[:, 2:3])
+    at -= at.mean(axis=0)
+    angle = np.arctan2(at[:, 1], at[:, 0])
+    bins = np.digitize(angle, np.linspace(-np.pi, np.pi, 73)) - 1
+    radius = np.array([np.hypot(*at[bins == b].T).max() for b in range(72)])
+    return np.linspace(-np.pi, np.pi, 73)[:-1] + np.pi / 72, radius
+
+
+def test_bokeh_takes_the_shape_of_the_blades():
+    _, circle = blur_outline(None)
+    assert circle.min() / circle.max() > 0.98
+    angle, hexagon = blur_outline(bladed_stop(6))
+    assert hexagon.min() / hexagon.max() == pytest.approx(math.cos(math.pi / 6), abs=0.02)
+    # six corners: the outline's sixfold harmonic is strong, and turning the blades by 30 degrees
+    # turns it by half a period
+    harmonic = np.sum(hexagon * np.exp(-6j * angle)) / np.sum(hexagon)
+    _, turned = blur_outline(bladed_stop(6, rotation_deg=30.0))
+    harmonic_turned = np.sum(turned * np.exp(-6j * angle)) / np.sum(turned)
+    assert abs(harmonic) > 0.02 and abs(harmonic_turned) == pytest.approx(abs(harmonic), rel=0.15)
+    assert abs(abs(np.angle(harmonic_turned / harmonic)) - math.pi) < 0.2
+
+
+@pytest.mark.parametrize("kind", ["hexagon", "square mask"])
+def test_pupil_bounds_hold_every_ray_a_shaped_stop_passes(kind, tmp_path):
+    from realistic.reference import trace_from_film
+    from realistic.sampling import exit_pupil_table, rear_element_sampler
+
+    if kind == "hexagon":
+        shape = bladed_stop(6, rotation_deg=10.0)
+    else:  # a square whose corners reach beyond the stop's circle, not symmetric under rotation
+        pixels = np.zeros((64, 64), np.uint8)
+        pixels[4:60, 4:60] = 255
+        path = tmp_path / "square.png"
+        Image.fromarray(pixels).save(path)
+        shape = mask_stop(path)
+    lens = load_lens("dgauss").with_stop_shape(shape)
+    film = film_distance_for_focus(lens, math.inf)
+    table = exit_pupil_table(lens, film, 35.0)
+    rng = np.random.default_rng(4)
+    count = 200_000
+    radius, angle = 17.5 * np.sqrt(rng.random(count)), rng.uniform(0, 2 * np.pi, count)
+    film_xy = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
+    points, _ = rear_element_sampler(lens, film).sample(film_xy, rng.random(count), rng.random(count))
+    origins = np.column_stack([film_xy, np.zeros(count)])
+    passed = trace_from_film(lens, film, origins, points - origins).passed
+    assert passed.sum() > 1000
+    assert not np.any(passed & ~table.contains(film_xy, points[:, :2]))
