@@ -71,7 +71,10 @@ class DirectLighting:
                                    for m in scene.meshes] or [np.zeros((0, 2))]).astype(np.float32)
         mesh_of = np.array([inst.mesh for inst in scene.instances], dtype=np.int64)
         self._geom_face_offset = face_offset[mesh_of] if len(mesh_of) else np.zeros(0, np.int64)
-        self._geom_smooth = np.array([scene.meshes[i].normals is not None for i in mesh_of], dtype=bool)
+        # Smooth shading only where the vertex normals differ: a flat mesh (a floor quad, a disk) gets
+        # the same normal from its faces without the per-hit interpolation.
+        smooth = [m.normals is not None and bool(np.ptp(m.normals, axis=0).max() > 1e-6) for m in scene.meshes]
+        self._geom_smooth = np.array([smooth[i] for i in mesh_of], dtype=bool)
         self._geom_normal_matrix = np.array([np.linalg.inv(inst.transform[:3, :3]).T for inst in scene.instances],
                                             dtype=np.float32).reshape(-1, 3, 3)
         self._materials = []
