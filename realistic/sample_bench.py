@@ -64,6 +64,7 @@ def format_table(rows: list[dict], against: str) -> str:
 def plot_convergence(rows: list[dict], out: Path, title: str) -> None:
     """Log-log RMSE against spp and against seconds, with a 1/sqrt(spp) guide."""
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -83,6 +84,7 @@ def plot_convergence(rows: list[dict], out: Path, title: str) -> None:
     by_time.set_xlabel("seconds")
     for ax in (by_spp, by_time):
         ax.grid(True, which="both", alpha=0.3)
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())  # decade labels only
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(out, dpi=120)
