@@ -25,6 +25,12 @@ def check_writable(path: Path) -> None:
         raise UserError(f"{path}: cannot write the image: permission denied")
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def write_atomically(path: Path, write: Callable[[str], None]) -> None:
     """Call ``write(temporary_path)`` next to ``path``, then rename; no partial file is left on error."""
     path = Path(path)
@@ -33,6 +39,7 @@ def write_atomically(path: Path, write: Callable[[str], None]) -> None:
     os.close(handle)
     try:
         write(temporary)
+        os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes 0600: give the file ordinary permissions
         os.replace(temporary, path)
     except BaseException as err:
         Path(temporary).unlink(missing_ok=True)

@@ -1,6 +1,7 @@
 """Film accumulation, EXR and PNG output, atomic writes."""
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -87,3 +88,13 @@ def test_read_only_directory_is_reported(tmp_path):
             check_writable(locked / "a.exr")
     finally:
         locked.chmod(0o700)
+
+
+def test_written_files_get_ordinary_permissions(tmp_path):
+    import stat
+
+    path = tmp_path / "out.txt"
+    write_atomically(path, lambda temporary: Path(temporary).write_text("x"))
+    mask = os.umask(0)
+    os.umask(mask)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~mask
