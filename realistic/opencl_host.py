@@ -14,8 +14,6 @@ otherwise the first PoCL device, otherwise the first device found.
 from __future__ import annotations
 
 import os
-import site
-import sys
 import threading
 import time
 from functools import lru_cache
@@ -24,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from realistic.camera import Camera, RayBatch
+from realistic.data_files import data_file
 from realistic.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
 from realistic.errors import UserError
 from realistic.sampling import rear_element_sampler
@@ -44,14 +43,7 @@ ROWS = 7
 
 def kernel_source_path() -> Path:
     """``kernels/lens.cl`` in a checkout, else where a wheel installs it (``<prefix>/share/realistic``)."""
-    candidates = [Path(__file__).resolve().parents[1] / "kernels" / KERNEL_FILE]
-    for prefix in (sys.prefix, site.USER_BASE):
-        candidates.append(Path(prefix) / "share" / "realistic" / "kernels" / KERNEL_FILE)
-    for path in candidates:
-        if path.is_file():
-            return path
-    raise UserError(f"OpenCL kernel {KERNEL_FILE} not found (looked in {', '.join(map(str, candidates))}); "
-                    "reinstall the package or use --backend numpy")
+    return data_file(f"kernels/{KERNEL_FILE}")
 
 
 def _all_devices() -> list[tuple[int, int, "cl.Platform", "cl.Device"]]:
