@@ -1,6 +1,5 @@
 """pbrt scenes into our scene and camera: materials, textures, shapes, lights, camera conventions."""
 
-
 import numpy as np
 import pytest
 
