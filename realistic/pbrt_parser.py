@@ -9,7 +9,6 @@ and what was expected.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,6 +16,7 @@ import numpy as np
 
 from realistic.errors import UserError
 from realistic.pbrt_lexer import PbrtSyntaxError, Token, read_scene_text, tokenize
+from realistic.scene import look_at, rotate, scale, translate
 
 PARAM_TYPES = {"integer", "float", "point", "point2", "point3", "vector", "vector2", "vector3", "normal",
                "normal3", "color", "rgb", "spectrum", "xyz", "blackbody", "string", "bool", "texture"}
@@ -124,47 +124,6 @@ class PbrtScene:
         text = f"{where}: unsupported: {message}"
         if not any(w.split(": unsupported: ", 1)[1] == message for w in self.warnings):
             self.warnings.append(text)
-
-
-def translate(x: float, y: float, z: float) -> np.ndarray:
-    m = np.eye(4)
-    m[:3, 3] = (x, y, z)
-    return m
-
-
-def scale(x: float, y: float, z: float) -> np.ndarray:
-    return np.diag([x, y, z, 1.0])
-
-
-def rotate(angle_deg: float, x: float, y: float, z: float) -> np.ndarray:
-    """Rotation by ``angle_deg`` about the axis (x, y, z), right-handed about the axis as pbrt."""
-    axis = np.array([x, y, z], dtype=np.float64)
-    length = np.linalg.norm(axis)
-    if length == 0:
-        raise ValueError("zero rotation axis")
-    a = axis / length
-    s, c = math.sin(math.radians(angle_deg)), math.cos(math.radians(angle_deg))
-    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    m = np.eye(4)
-    m[:3, :3] = c * np.eye(3) + s * k + (1 - c) * np.outer(a, a)
-    return m
-
-
-def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
-    """pbrt's LookAt: the world-to-camera matrix (camera looks down +z, x = up x dir)."""
-    direction = target - eye
-    if np.linalg.norm(direction) == 0:
-        raise ValueError("LookAt eye and target coincide")
-    direction = direction / np.linalg.norm(direction)
-    right = np.cross(up / np.linalg.norm(up), direction)
-    if np.linalg.norm(right) == 0:
-        raise ValueError("LookAt up vector is parallel to the viewing direction")
-    right /= np.linalg.norm(right)
-    new_up = np.cross(direction, right)
-    camera_to_world = np.eye(4)
-    camera_to_world[:3, 0], camera_to_world[:3, 1], camera_to_world[:3, 2] = right, new_up, direction
-    camera_to_world[:3, 3] = eye
-    return np.linalg.inv(camera_to_world)
 
 
 @dataclass
@@ -318,11 +277,19 @@ class _Parser:
         self.apply(scale(*self.numbers(t, 3)))
 
     def d_Rotate(self, t: Token) -> None:
-        self.apply(rotate(*self.numbers(t, 4)))
+        angle, *axis = self.numbers(t, 4)
+        if not any(axis):
+            raise ValueError("zero rotation axis")
+        self.apply(rotate(angle, axis))
 
     def d_LookAt(self, t: Token) -> None:
         v = np.array(self.numbers(t, 9))
-        self.apply(look_at(v[0:3], v[3:6], v[6:9]))
+        eye, target, up = v[0:3], v[3:6], v[6:9]
+        if np.array_equal(eye, target):
+            raise ValueError("LookAt eye and target coincide")
+        if not np.any(np.cross(up, target - eye)):
+            raise ValueError("LookAt up vector is parallel to the viewing direction")
+        self.apply(np.linalg.inv(look_at(eye, target, up)))  # pbrt's LookAt gives world to camera
 
     def d_Transform(self, t: Token) -> None:
         self.state.ctm = np.array(self.numbers(t, 16)).reshape(4, 4).T  # pbrt lists column-major

@@ -5,7 +5,7 @@ import pytest
 
 from conftest import shared_file
 from realistic.errors import UserError
-from realistic.pbrt_parser import look_at, parse_pbrt, rotate
+from realistic.pbrt_parser import parse_pbrt
 
 
 def write(tmp_path, text, name="scene.pbrt"):
@@ -14,16 +14,19 @@ def write(tmp_path, text, name="scene.pbrt"):
     return path
 
 
-def test_rotation_turns_x_into_y_about_z():
-    np.testing.assert_allclose(rotate(90, 0, 0, 1) @ [1, 0, 0, 1], [0, 1, 0, 1], atol=1e-15)
-    np.testing.assert_allclose(rotate(90, 1, 0, 0) @ [0, 1, 0, 1], [0, 0, 1, 1], atol=1e-15)
+def test_rotate_turns_x_into_y_about_z(tmp_path):
+    path = write(tmp_path, 'WorldBegin\nAttributeBegin\nRotate 90 0 0 1\nShape "sphere"\nAttributeEnd\n'
+                           'Rotate 90 1 0 0\nShape "sphere"\n')
+    about_z, about_x = parse_pbrt(path).shapes
+    np.testing.assert_allclose(about_z.transform @ [1, 0, 0, 1], [0, 1, 0, 1], atol=1e-15)
+    np.testing.assert_allclose(about_x.transform @ [0, 1, 0, 1], [0, 0, 1, 1], atol=1e-15)
 
 
-def test_look_at_places_the_eye_at_the_origin_and_the_target_on_plus_z():
-    eye, target = np.array([1.0, 2.0, 3.0]), np.array([4.0, 6.0, 3.0])
-    m = look_at(eye, target, np.array([0.0, 0.0, 1.0]))
-    np.testing.assert_allclose(m @ [*eye, 1], [0, 0, 0, 1], atol=1e-12)
-    np.testing.assert_allclose(m @ [*target, 1], [0, 0, 5, 1], atol=1e-12)
+def test_look_at_places_the_eye_at_the_origin_and_the_target_on_plus_z(tmp_path):
+    path = write(tmp_path, 'LookAt 1 2 3  4 6 3  0 0 1\nCamera "perspective"\n')
+    m = parse_pbrt(path).camera.transform  # world to camera
+    np.testing.assert_allclose(m @ [1, 2, 3, 1], [0, 0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(m @ [4, 6, 3, 1], [0, 0, 5, 1], atol=1e-12)
     np.testing.assert_allclose(m @ [1, 2, 4, 1], [0, 1, 0, 1], atol=1e-12)  # up stays up
 
 
@@ -75,6 +78,9 @@ def test_named_coordinate_systems(tmp_path):
     ('Shape "sphere" "floaty radius" [2]\n', 1, 'expected a parameter "type name"'),
     ('Shape "sphere" "float radius" [2\n', 1, "unexpected end of file"),
     ('WorldBegin\nObjectInstance "nope"\n', 2, 'no object of that name'),
+    ('Rotate 30 0 0 0\n', 1, "zero rotation axis"),
+    ('LookAt 1 2 3  1 2 3  0 1 0\n', 1, "eye and target coincide"),
+    ('LookAt 0 0 0  0 5 0  0 1 0\n', 1, "parallel to the viewing direction"),
     ('Camera "perspective"\n[ 1 2 ]\n', 2, "expected a directive"),
 ])
 def test_syntax_errors_name_file_line_and_expectation(tmp_path, text, line, fragment):
