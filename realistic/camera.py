@@ -45,8 +45,15 @@ class Camera:
     spp: int
     world_from_lens: np.ndarray  # (4, 4)
     lens_sampling: str
-    pupil: ExitPupilTable
     spectral: bool = False
+
+    @property
+    def pupil(self) -> ExitPupilTable:
+        """Exit-pupil bounds for this lens, focus and film, built on first use (then cached); a
+        spectral camera's boxes hold what passes at either end of the wavelength range as well as
+        at the d line."""
+        wavelengths = (LAMBDA_MIN_NM, D_LINE_NM, LAMBDA_MAX_NM) if self.spectral else (D_LINE_NM,)
+        return exit_pupil_table(self.lens, self.film_distance_mm, self.film_diagonal_mm, wavelengths_nm=wavelengths)
 
     @property
     def film_size_mm(self) -> tuple[float, float]:
@@ -77,19 +84,13 @@ def build_camera(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: fl
     shift = np.eye(4)
     shift[2, 3] = -camera_origin_mm
     world = np.eye(4) if world_from_camera is None else np.asarray(world_from_camera, dtype=np.float64)
-    return with_spectral(Camera(lens, film_distance_mm, film_diagonal_mm, width, height, spp, world @ shift,
-                                lens_sampling, exit_pupil_table(lens, film_distance_mm, film_diagonal_mm)), spectral)
+    return Camera(lens, film_distance_mm, film_diagonal_mm, width, height, spp, world @ shift, lens_sampling,
+                  spectral)
 
 
 def with_spectral(camera: Camera, spectral: bool) -> Camera:
-    """The camera with spectral sampling on or off; a spectral camera's exit-pupil boxes hold what
-    passes at either end of the wavelength range as well as at the d line."""
-    if spectral == camera.spectral:
-        return camera
-    wavelengths = (LAMBDA_MIN_NM, D_LINE_NM, LAMBDA_MAX_NM) if spectral else (D_LINE_NM,)
-    pupil = exit_pupil_table(camera.lens, camera.film_distance_mm, camera.film_diagonal_mm,
-                             wavelengths_nm=wavelengths)
-    return dataclasses.replace(camera, spectral=spectral, pupil=pupil)
+    """The camera with spectral sampling on or off (its exit-pupil bounds follow)."""
+    return dataclasses.replace(camera, spectral=spectral)
 
 
 @dataclass(frozen=True)
