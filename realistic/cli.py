@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from realistic.cli_bench import add_bench_command
-from realistic.cli_render import add_render_command
+from realistic.cli_render import add_render_command, parse_resolution
 from realistic.dispersion import D_LINE_NM
 from realistic.errors import UserError
 from realistic.prescription import BUNDLED_LENSES, load_lens
@@ -101,12 +101,7 @@ def _write_vignetting_map(path: Path, lens, rows: list[dict], film_diagonal_mm: 
     from realistic.image_io import check_writable, write_exr
     from realistic.lens_curves import vignetting_map
 
-    try:
-        width, height = (int(v) for v in res.lower().split("x"))
-    except ValueError:
-        raise UserError(f"--map-res {res!r} is not WIDTHxHEIGHT") from None
-    if width < 1 or height < 1:
-        raise UserError(f"--map-res must be at least 1x1, got {res}")
+    width, height = parse_resolution(res)
     check_writable(path)
     image = np.repeat(vignetting_map(rows, width, height, film_diagonal_mm)[:, :, None], 3, axis=2)
     write_exr(path, image, {"lens": lens.name, "filmDiagonalMm": float(film_diagonal_mm),

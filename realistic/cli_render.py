@@ -117,7 +117,7 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     p.set_defaults(run=cmd_render)
 
 
-def _resolution(text: str) -> tuple[int, int]:
+def parse_resolution(text: str) -> tuple[int, int]:
     parts = text.lower().split("x")
     if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
         raise UserError(f"resolution {text!r} is not WIDTHxHEIGHT (e.g. 640x480)")
@@ -197,7 +197,7 @@ def _stop_edit(args: argparse.Namespace):
 def _pbrt_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
     from realistic.pbrt_import import import_pbrt
 
-    width, height = _resolution(args.res) if args.res else (None, None)
+    width, height = parse_resolution(args.res) if args.res else (None, None)
     imported = import_pbrt(args.scene, width, height, spp, args.lens_sampling, lens_edit=_stop_edit(args),
                            focus_scene_units=args.focus, search_paths=[Path(p) for p in args.search_path])
     out = Path(imported.output_name).name if imported.output_name else "render.exr"
@@ -212,7 +212,7 @@ def _mesh_inputs(args: argparse.Namespace, spp: int | None) -> RenderInputs:
     from realistic.prescription import load_lens
     from realistic.setups import MM_PER_UNIT, auto_eye, camera_for_view, default_setup, mesh_setup
 
-    width, height = _resolution(args.res) if args.res else MESH_DEFAULT_RES
+    width, height = parse_resolution(args.res) if args.res else MESH_DEFAULT_RES
     film_diagonal = args.film_diagonal or 43.27
     eye, target = _vector(args.camera_pos, "camera position"), _vector(args.target, "target")
     lens = load_lens(args.lens or "dgauss")
