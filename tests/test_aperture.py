@@ -6,13 +6,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from conftest import flat_field_brightness
 from realistic import UserError, load_lens
 from realistic.aperture import bladed_stop, mask_stop
 from realistic.camera import build_camera, generate_rays
 from realistic.paraxial import film_distance_for_focus, stop_diameter_for_f_number
-from realistic.render import render_passes
-from realistic.scene import AreaLight, Scene, rotate, translate
-from realistic.setups import camera_for_view
 
 
 @pytest.mark.parametrize("blades", [3, 5, 6, 9])
@@ -49,15 +47,8 @@ def test_bad_shapes_are_user_errors(tmp_path):
         mask_stop(dark)
 
 
-def glowing_wall() -> Scene:
-    scene = Scene()
-    scene.lights.append(AreaLight("quad", (40.0, 40.0), (1.0, 1.0, 1.0), translate(0, 0, 10) @ rotate(180, (0, 1, 0))))
-    return scene
-
-
 def centre_brightness(lens) -> float:
-    camera = camera_for_view(lens, np.zeros(3), np.array([0, 0, 10.0]), 10.0, 43.27, 8, 8, 512)
-    return float(render_passes(glowing_wall(), camera, "numpy").image[3:5, 3:5].mean())
+    return flat_field_brightness(lens, spp=512)
 
 
 def test_brightness_follows_the_open_area(tmp_path):

@@ -2,15 +2,12 @@
 
 import math
 
-import numpy as np
 import pytest
 
+from conftest import flat_field_brightness
 from realistic import UserError, load_lens
 from realistic.exposure import exposure_scale, exposure_value, parse_shutter
 from realistic.paraxial import film_distance_for_focus, paraxial_data, stop_diameter_for_f_number, thick_lens
-from realistic.render import render_passes
-from realistic.scene import AreaLight, Scene, rotate, translate
-from realistic.setups import camera_for_view
 
 
 def test_a_metered_uniform_field_comes_out_middle_grey():
@@ -30,23 +27,13 @@ def test_shutter_parsing():
             parse_shutter(bad)
 
 
-def glowing_wall() -> Scene:
-    """A large uniform emitter filling the view (radiance 1), so the film sees a flat field."""
-    scene = Scene()
-    scene.lights.append(AreaLight("quad", (40.0, 40.0), (1.0, 1.0, 1.0), translate(0, 0, 10) @ rotate(180, (0, 1, 0))))
-    return scene
-
-
 @pytest.mark.parametrize("name", ["dgauss", "telephoto"])
 def test_centre_brightness_follows_the_f_number(name):
     lens = load_lens(name)
     slow = 2 * lens_f_number(lens)
     values = []
     for n in (slow, slow * math.sqrt(2), slow * 2):
-        stopped = lens.with_stop_diameter(stop_diameter_for_f_number(lens, n))
-        camera = camera_for_view(stopped, np.zeros(3), np.array([0, 0, 10.0]), 10.0, 43.27, 8, 8, 256)
-        image = render_passes(glowing_wall(), camera, "numpy").image
-        values.append(image[3:5, 3:5].mean())
+        values.append(flat_field_brightness(lens.with_stop_diameter(stop_diameter_for_f_number(lens, n))))
     # one stop per factor sqrt(2) of N: the centre irradiance halves, as pi L / (4 N^2) says
     assert values[0] / values[1] == pytest.approx(2.0, rel=0.03)
     assert values[0] / values[2] == pytest.approx(4.0, rel=0.03)
