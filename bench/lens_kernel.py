@@ -2,8 +2,8 @@
 
 For each bundled lens and both lens samplers it prints kernel rays/s at 1M and 16M rays per launch
 (copy back to host included, the one-time build reported separately), the float64 numpy reference
-(realistic.camera.generate_rays) and a float32 numpy version of the same mathematics (below, written
-for this benchmark), and the fraction of rays that pass the lens. numpy runs on one core in chunks
+(``LensCamera.generate_rays``) and a float32 numpy version of the same mathematics (below, written for
+this benchmark), and the fraction of rays that pass the lens. numpy runs on one core in chunks
 of at most 1M rays and is measured on fewer rays than the kernel (``--numpy-rays``) and
 extrapolated as a rate: its cost per ray does not depend on the launch size.
 
@@ -24,13 +24,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from realistic import load_lens, rng  # noqa: E402
-from realistic.camera import Camera, build_camera, generate_rays  # noqa: E402
-from realistic.dispersion import D_LINE_NM, refractive_index  # noqa: E402
-from realistic.opencl_host import LensKernel  # noqa: E402
-from realistic.paraxial import film_distance_for_focus  # noqa: E402
-from realistic.prescription import BUNDLED_LENSES  # noqa: E402
-from realistic.sampling import rear_element_sampler  # noqa: E402
+from realistic import load_lens  # noqa: E402
+from realistic.camera.base import split_sample_ids  # noqa: E402
+from realistic.camera.lens_camera import LensCamera  # noqa: E402
+from realistic.camera.opencl_host import LensKernel  # noqa: E402
+from realistic.core import rng  # noqa: E402
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM  # noqa: E402
+from realistic.optics.dispersion import D_LINE_NM, refractive_index  # noqa: E402
+from realistic.optics.formats import BUNDLED_LENSES  # noqa: E402
+from realistic.optics.paraxial import film_distance_for_focus  # noqa: E402
+from realistic.optics.sampling import rear_element_sampler  # noqa: E402
 
 F32 = np.float32
 CHUNK = 1 << 20
@@ -71,11 +74,10 @@ def _surface_f32(o, d, vertex_z: float, radius: float, eta: float, refracts: boo
     return hit, d, dead
 
 
-def generate_rays_f32(camera: Camera, first: int, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def generate_rays_f32(camera: LensCamera, first: int, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """generate_rays in float32 numpy (world transform left out); returns (direction (3, N), weight)."""
     lens = camera.lens
-    ids = np.arange(first, first + count, dtype=np.int64)
-    pixel, sample = ids // camera.spp, ids % camera.spp
+    pixel, sample = split_sample_ids(first, count, camera.spp)
     u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
     w_mm, h_mm = camera.film_size_mm
     fx = -(((pixel % camera.width).astype(F32) + u_x) / F32(camera.width) - F32(0.5)) * F32(w_mm)
@@ -134,15 +136,15 @@ def _rate(run, rays: int, repeats: int) -> float:
     return rays / best
 
 
-def _chunked(fn, camera: Camera, count: int):
+def _chunked(fn, camera: LensCamera, count: int):
     return lambda: [fn(camera, s, min(CHUNK, count - s), 0) for s in range(0, count, CHUNK)]
 
 
 def bench_one(name: str, sampling: str, sizes: list[int], numpy_rays: int, repeats: int) -> dict:
     lens = load_lens(name)
     film = film_distance_for_focus(lens, 5000.0)
-    camera = build_camera(lens, film, 43.27, 1920, 1080, spp=max(1, -(-2 * max(sizes) // (1920 * 1080))),
-                          lens_sampling=sampling)
+    camera = LensCamera(lens, film, FULL_FRAME_DIAGONAL_MM, 1920, 1080,
+                        spp=max(1, -(-2 * max(sizes) // (1920 * 1080))), lens_sampling=sampling)
     start = time.perf_counter()
     kernel = LensKernel(camera)
     kernel.generate(0, 256, 0)  # PoCL compiles the work-group function at the first launch
@@ -150,10 +152,10 @@ def bench_one(name: str, sampling: str, sizes: list[int], numpy_rays: int, repea
     row = {"lens": name, "sampling": sampling, "build_s": build_s, "kernel_rays_per_s": {}, "pass_fraction": None}
     for size in sizes:
         kernel.generate(size, size, 0)  # warm: buffers of this size
-        row["kernel_rays_per_s"][str(size)] = _rate(lambda: kernel.generate(0, size, 0), size, repeats)
+        row["kernel_rays_per_s"][str(size)] = _rate(lambda size=size: kernel.generate(0, size, 0), size, repeats)
     batch = kernel.generate(0, max(sizes), 0)
     row["pass_fraction"] = float(np.mean(np.any(batch.direction != 0, axis=1)))
-    row["numpy_f64_rays_per_s"] = _rate(_chunked(generate_rays, camera, numpy_rays), numpy_rays, 1)
+    row["numpy_f64_rays_per_s"] = _rate(_chunked(LensCamera.generate_rays, camera, numpy_rays), numpy_rays, 1)
     row["numpy_f32_rays_per_s"] = _rate(_chunked(generate_rays_f32, camera, numpy_rays), numpy_rays, 2)
     row["numpy_rays_measured"] = numpy_rays
     return row

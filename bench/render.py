@@ -24,14 +24,16 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from realistic import load_lens  # noqa: E402
-from realistic.integrator import DirectLighting  # noqa: E402
-from realistic.intersect import Intersector  # noqa: E402
-from realistic.meshes import MeshObject, load_mesh_file  # noqa: E402
-from realistic.raygen import ray_generator  # noqa: E402
-from realistic.render import DEFAULT_PASS_SAMPLES, render_passes  # noqa: E402
-from realistic.scene import Mesh, sphere  # noqa: E402
-from realistic.setups import auto_eye, camera_for_view, mesh_setup  # noqa: E402
-from realistic.stages import STAGES  # noqa: E402
+from realistic.camera.lens_camera import LensCamera  # noqa: E402
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm  # noqa: E402
+from realistic.renderer.integrator import DirectLighting  # noqa: E402
+from realistic.renderer.passes import DEFAULT_PASS_SAMPLES, render_passes  # noqa: E402
+from realistic.renderer.timing import STAGES  # noqa: E402
+from realistic.scene.intersect import Intersector  # noqa: E402
+from realistic.scene.meshes import MeshObject, load_mesh_file  # noqa: E402
+from realistic.scene.model import Mesh  # noqa: E402
+from realistic.scene.shapes import sphere  # noqa: E402
+from realistic.scene.staging import auto_eye, mesh_setup  # noqa: E402
 
 DRAGON = ROOT.parent / "shared" / "meshes" / "dragon.ply"
 
@@ -78,7 +80,7 @@ def ceiling(setup, camera, backend: str, samples: int) -> dict:
     recorder = RecordingIntersector(setup.scene)
     integrator = DirectLighting(setup.scene, recorder)
     first = camera.sample_count // 2 - samples // 2
-    rays = ray_generator(camera, backend)(first, samples)
+    rays = camera.ray_generator(backend)(first, samples)
     alive = np.flatnonzero(rays.weight > 0)
     integrator.radiance(rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32),
                         rays.pixel[alive], (first + alive) % camera.spp)
@@ -115,13 +117,14 @@ def main() -> None:
     objects, source = subject()
     setup = mesh_setup(objects)
     lens = load_lens(args.lens)
-    film_short = 43.27 * min(width, height) / np.hypot(width, height)
+    film_short = min(film_size_mm(FULL_FRAME_DIAGONAL_MM, width, height))
     eye = auto_eye(setup, lens, film_short)
-    camera = camera_for_view(lens, eye, setup.target, None, 43.27, width, height, args.spp)
+    camera = LensCamera.looking_at(lens, eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, width, height,
+                                   args.spp)
     triangles = sum(len(setup.scene.meshes[i.mesh].faces) for i in setup.scene.instances)
     print(f"scene: {source}, {triangles} triangles; {width}x{height}, {args.spp} spp, lens {args.lens}, "
           f"backend {args.backend}, passes of {DEFAULT_PASS_SAMPLES} samples on 2 threads")
-    render_passes(setup.scene, camera_for_view(lens, eye, setup.target, None, 43.27, 16, 16, 1),
+    render_passes(setup.scene, LensCamera.looking_at(lens, eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, 16, 16, 1),
                   args.backend)  # warm-up: kernel build and caches
     runs = [run(setup, camera, args.backend, morton) for morton in (False, True)]
     top = ceiling(setup, camera, args.backend, DEFAULT_PASS_SAMPLES)

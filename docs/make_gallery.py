@@ -37,7 +37,7 @@ def main() -> int:
     if not shared.is_dir():
         sys.exit(f"{shared}: the shared data (homework scenes, dragon) is needed for the gallery")
     sys.path.insert(0, str(ROOT))
-    from realistic.image_io import read_exr
+    from realistic.core.image_files import read_exr
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -18,7 +18,7 @@
  *   FRONT_VERTEX_Z_MM             z of the front vertex
  *   REAR_W_MM                     -film distance: z of the film relative to the rear vertex
  *   LENS_SAMPLING_PUPIL           1: exit-pupil boxes, 0: rear-element disk
- *   REAR_CLEAR_MM, REAR_T_FAR     rear-element disk parameters (realistic.sampling)
+ *   REAR_CLEAR_MM, REAR_T_FAR     rear-element disk parameters (realistic.optics.sampling)
  *   PUPIL_INTERVALS, FILM_RADIUS_MM and program-scope tables PUPIL[4k..4k+3] = (x0, x1, y0, y1),
  *                                 PUPIL_AREA[k] (mm^2), when LENS_SAMPLING_PUPIL is 1
  *   SPECTRAL                      1: each sample carries a wavelength (output row 7)
@@ -299,7 +299,7 @@ __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __co
 }
 
 /* Debug: the four stratified uint32 values of each sample, 4 rows of `stride` (and the wavelength
- * bits as a fifth when SPECTRAL), so the tests can check them against realistic.rng bit for bit. */
+ * bits as a fifth when SPECTRAL), so the tests can check them against realistic.core.rng bit for bit. */
 __kernel void sample_bits(uint first_pixel, uint first_sample, uint seed, uint stride, __global uint *out) {
     uint gid = get_global_id(0);
     uint pixel, sample;

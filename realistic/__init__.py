@@ -1,7 +1,89 @@
-"""realistic: a physically based renderer whose camera is a real multi-element lens."""
+"""realistic: a physically based renderer whose camera is a real multi-element lens.
+
+The Python API, in the order a script uses it::
+
+    import realistic as rl
+
+    scene = rl.load_scene("dragon.ply")     # a mesh on a grid floor, lit, framed by scene.camera
+    image = rl.render(scene, spp=16)        # (H, W, 3) float32 film irradiance
+    camera = rl.LensCamera.looking_at(rl.load_lens("telephoto"), eye=(4, 1, 4), target=(0, 0.3, 0),
+                                      width=320, height=240)
+    rl.write_exr("dragon.exr", rl.render(scene, camera, spp=16))
+
+- ``load_lens(name_or_path)``: a bundled prescription (``BUNDLED_LENSES``) or a lens file.
+- ``load_scene(path=None, **options)``: a pbrt scene (with its camera), a mesh file, or (None) the
+  default scene; ``options`` are ``RenderOptions`` fields (``lens``, ``aperture_mm``, ``spp``...).
+- ``LensCamera`` (a real lens) and ``ThinLensCamera`` (pbrt's perspective) implement ``Camera``.
+- ``render(scene, camera=None, spp=None, ...)``: the image; ``render_passes`` adds statistics.
+- ``write_exr(path, image, metadata=None)``, ``read_exr(path)``.
+
+Subpackages, lowest layer first (each may import only those above it): ``core`` (random numbers,
+transforms, spectra, files), ``optics`` (the lens and its analysis), ``camera``, ``scene`` (model,
+meshes, embree, pbrt import), ``renderer`` (passes, shading, film), ``cli``. Names are loaded on first
+use, so ``import realistic`` stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+import warnings
+from typing import TYPE_CHECKING, Any
 
 from realistic.errors import LensFileError, UserError
-from realistic.prescription import BUNDLED_LENSES, LensSystem, load_lens, parse_prescription
 
-__all__ = ["BUNDLED_LENSES", "LensFileError", "LensSystem", "UserError", "load_lens", "parse_prescription"]
 __version__ = "0.1.0"
+
+#: Public name -> module that defines it (imported on first use).
+_EXPORTS = {
+    "BUNDLED_LENSES": "realistic.optics.formats",
+    "load_lens": "realistic.optics.formats",
+    "parse_prescription": "realistic.optics.formats.pbrt_dat",
+    "LensSystem": "realistic.optics.lens",
+    "Camera": "realistic.camera.base",
+    "LensCamera": "realistic.camera.lens_camera",
+    "ThinLensCamera": "realistic.camera.thin_lens",
+    "Scene": "realistic.scene.model",
+    "RenderOptions": "realistic.renderer.inputs",
+    "render": "realistic.renderer.passes",
+    "render_passes": "realistic.renderer.passes",
+    "write_exr": "realistic.core.image_files",
+    "read_exr": "realistic.core.image_files",
+}
+
+__all__ = ["BUNDLED_LENSES", "Camera", "LensCamera", "LensFileError", "LensSystem", "RenderOptions", "Scene",
+           "ThinLensCamera", "UserError", "load_lens", "load_scene", "parse_prescription", "read_exr", "render",
+           "render_passes", "write_exr"]
+
+if TYPE_CHECKING:
+    from realistic.camera.base import Camera
+    from realistic.camera.lens_camera import LensCamera
+    from realistic.camera.thin_lens import ThinLensCamera
+    from realistic.core.image_files import read_exr, write_exr
+    from realistic.optics.formats import BUNDLED_LENSES, load_lens
+    from realistic.optics.formats.pbrt_dat import parse_prescription
+    from realistic.optics.lens import LensSystem
+    from realistic.renderer.inputs import RenderOptions
+    from realistic.renderer.passes import render, render_passes
+    from realistic.scene.model import Scene
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'realistic' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def load_scene(path: str | None = None, **options: Any) -> Scene:
+    """The scene at ``path`` (pbrt file or mesh; None: the default scene), with ``Scene.camera`` and
+    ``Scene.light_samples`` set as the file and ``options`` (``RenderOptions`` fields) say.
+
+    What a pbrt file asks for that cannot be honoured is reported once each as a ``UserWarning``.
+    """
+    from realistic.renderer.inputs import RenderOptions, build_render_inputs
+
+    inputs = build_render_inputs(RenderOptions(scene=None if path is None else str(path), **options))
+    for message in inputs.warnings:
+        warnings.warn(message, stacklevel=2)
+    return inputs.scene

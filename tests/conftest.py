@@ -20,11 +20,12 @@ def flat_field_brightness(lens, spp: int = 256) -> float:
     away, the lens focused on it (8 x 8 pixels, numpy backend)."""
     import numpy as np
 
-    from realistic.render import render_passes
-    from realistic.scene import AreaLight, Scene, rotate, translate
-    from realistic.setups import camera_for_view
+    from realistic.camera.lens_camera import LensCamera
+    from realistic.core.transforms import rotate, translate
+    from realistic.renderer.passes import render_passes
+    from realistic.scene.model import AreaLight, Scene
 
     wall = Scene()
     wall.lights.append(AreaLight("quad", (40.0, 40.0), (1.0, 1.0, 1.0), translate(0, 0, 10) @ rotate(180, (0, 1, 0))))
-    camera = camera_for_view(lens, np.zeros(3), np.array([0, 0, 10.0]), 10.0, 43.27, 8, 8, spp)
+    camera = LensCamera.looking_at(lens, np.zeros(3), np.array([0, 0, 10.0]), 10.0, 43.27, 8, 8, spp)
     return float(render_passes(wall, camera, "numpy").image[3:5, 3:5].mean())

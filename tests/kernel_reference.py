@@ -7,17 +7,19 @@ an aperture edge or a pupil-interval edge, and on its geometry within the issue'
 from __future__ import annotations
 
 import dataclasses
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
-from realistic import load_lens, rng
-from realistic.camera import Camera, RayBatch, build_camera, film_points
-from realistic.dispersion import D_LINE_NM
-from realistic.paraxial import film_distance_for_focus
-from realistic.reference import trace_from_film
-from realistic.sampling import rear_element_sampler
-from realistic.spectrum import wavelengths_nm
+from realistic import load_lens
+from realistic.camera.base import RayBatch
+from realistic.camera.lens_camera import LensCamera
+from realistic.core import rng
+from realistic.core.spectrum import wavelengths_nm
+from realistic.optics.dispersion import D_LINE_NM
+from realistic.optics.paraxial import film_distance_for_focus
+from realistic.optics.sampling import rear_element_sampler
+from realistic.optics.tracer import trace_from_film
 
 EDGE_MM = 1e-4
 
@@ -33,20 +35,20 @@ def world_from_camera() -> np.ndarray:
     return m
 
 
-def camera_for_lens(lens, spectral: bool = False) -> Camera:
+def camera_for_lens(lens, spectral: bool = False) -> LensCamera:
     """64 x 48 pixels x 33 samples (101,376) over a 43.27 mm film, focused at 5 m: centre to corners."""
     film = film_distance_for_focus(lens, 5000.0)
-    return build_camera(lens, film, 43.27, 64, 48, spp=33, world_from_camera=world_from_camera(),
-                        camera_origin_mm=film + lens.track_length_mm, spectral=spectral)
+    return LensCamera(lens, film, 43.27, 64, 48, spp=33, world_from_camera=world_from_camera(),
+                      origin="front_vertex", spectral=spectral)
 
 
-@lru_cache(maxsize=None)
-def reference_camera(name: str, sampling: str, spectral: bool = False) -> Camera:
+@cache
+def reference_camera(name: str, sampling: str, spectral: bool = False) -> LensCamera:
     camera = camera_for_lens(load_lens(name), spectral)
     return camera if sampling == "pupil" else dataclasses.replace(camera, lens_sampling=sampling)
 
 
-def edge_rays(camera: Camera, count: int, seed: int) -> np.ndarray:
+def edge_rays(camera: LensCamera, count: int, seed: int) -> np.ndarray:
     """Rays whose verdict (at their own wavelength) flips when every clear aperture grows or shrinks
     by EDGE_MM, and, for pupil sampling, rays whose film point lies within EDGE_MM of a radial
     interval edge (float32 and float64 may pick neighbouring exit-pupil boxes there)."""
@@ -55,7 +57,7 @@ def edge_rays(camera: Camera, count: int, seed: int) -> np.ndarray:
     u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
     wavelength = (wavelengths_nm(rng.to_unit_float(rng.wavelength_bits(pixel, sample, seed))).astype(np.float64)
                   if camera.spectral else D_LINE_NM)
-    film_xy = film_points(camera, pixel, u_x, u_y)
+    film_xy = camera.film_points(pixel, u_x, u_y)
     film = np.column_stack([film_xy, np.zeros(count)])
     near_interval_edge = np.zeros(count, dtype=bool)
     if camera.lens_sampling == "pupil":
@@ -72,7 +74,7 @@ def edge_rays(camera: Camera, count: int, seed: int) -> np.ndarray:
     return (verdicts[0] != verdicts[1]) | near_interval_edge
 
 
-def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: Camera, seed: int) -> np.ndarray:
+def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: LensCamera, seed: int) -> np.ndarray:
     """The tolerances of the kernel check; returns the mask of rays both pass."""
     np.testing.assert_array_equal(kernel.pixel, ref.pixel)
     k_pass, r_pass = kernel.weight > 0, ref.weight > 0

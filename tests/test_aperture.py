@@ -8,9 +8,9 @@ from PIL import Image
 
 from conftest import flat_field_brightness
 from realistic import UserError, load_lens
-from realistic.aperture import bladed_stop, mask_stop
-from realistic.camera import build_camera, generate_rays
-from realistic.paraxial import film_distance_for_focus, stop_diameter_for_f_number
+from realistic.camera.lens_camera import LensCamera
+from realistic.optics.paraxial import film_distance_for_focus, stop_diameter_for_f_number
+from realistic.optics.stop_shape import bladed_stop, mask_stop
 
 
 @pytest.mark.parametrize("blades", [3, 5, 6, 9])
@@ -23,10 +23,9 @@ def test_straight_blades_make_the_inscribed_polygon(blades):
     inside = stop.inside(np.array([0.999 * math.cos(corner)]), np.array([0.999 * math.sin(corner)]), diameter)
     middle = math.radians(17.0) + math.pi / blades  # the middle of a side, at the apothem
     apothem = math.cos(math.pi / blades)
-    just_in = stop.inside(np.array([0.999 * apothem * math.cos(middle)]), np.array([0.999 * apothem * math.sin(middle)]),
-                          diameter)
-    just_out = stop.inside(np.array([1.001 * apothem * math.cos(middle)]), np.array([1.001 * apothem * math.sin(middle)]),
-                           diameter)
+    side_x, side_y = apothem * math.cos(middle), apothem * math.sin(middle)
+    just_in = stop.inside(np.array([0.999 * side_x]), np.array([0.999 * side_y]), diameter)
+    just_out = stop.inside(np.array([1.001 * side_x]), np.array([1.001 * side_y]), diameter)
     assert inside[0] and just_in[0] and not just_out[0]
 
 
@@ -80,8 +79,8 @@ def blur_outline(shape, seed=0) -> tuple[np.ndarray, np.ndarray]:
     lens = load_lens("dgauss")
     lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, 2.8)).with_stop_shape(shape)
     film = film_distance_for_focus(lens, 1000.0)
-    camera = build_camera(lens, film, 1e-3, 1, 1, 200_000)
-    rays = generate_rays(camera, 0, camera.sample_count, seed)
+    camera = LensCamera(lens, film, 1e-3, 1, 1, 200_000)
+    rays = camera.generate_rays(0, camera.sample_count, seed)
     ok = rays.weight > 0
     o, d = rays.origin[ok], rays.direction[ok]
     at = o[:, :2] + d[:, :2] * ((8000.0 - o[:, 2:3]) / d[:, 2:3])
@@ -108,8 +107,8 @@ def test_bokeh_takes_the_shape_of_the_blades():
 
 @pytest.mark.parametrize("kind", ["hexagon", "square mask"])
 def test_pupil_bounds_hold_every_ray_a_shaped_stop_passes(kind, tmp_path):
-    from realistic.reference import trace_from_film
-    from realistic.sampling import exit_pupil_table, rear_element_sampler
+    from realistic.optics.sampling import exit_pupil_table, rear_element_sampler
+    from realistic.optics.tracer import trace_from_film
 
     if kind == "hexagon":
         shape = bladed_stop(6, rotation_deg=10.0)

@@ -4,10 +4,12 @@ import numpy as np
 import pytest
 
 from realistic import UserError, load_lens
-from realistic.autofocus import autofocus_distance_mm
-from realistic.render import render_passes
-from realistic.scene import AreaLight, Scene, rotate, translate
-from realistic.setups import camera_for_view
+from realistic.camera.autofocus import autofocus_distance_mm
+from realistic.camera.lens_camera import LensCamera
+from realistic.core.transforms import rotate, translate
+from realistic.renderer.passes import render_passes
+from realistic.scene.intersect import Intersector
+from realistic.scene.model import AreaLight, Scene
 
 DEPTH = 1.5  # m from the camera (the film centre) to the edge
 
@@ -22,8 +24,8 @@ def edge_scene() -> Scene:
 
 def camera(focus_m):
     # a wide strip of small pixels (0.11 mm): the blur of the edge spans several of them
-    return camera_for_view(load_lens("dgauss"), np.zeros(3), np.array([0.0, 0.0, DEPTH]), focus_m, 43.27,
-                           384, 64, 32)
+    return LensCamera.looking_at(load_lens("dgauss"), np.zeros(3), np.array([0.0, 0.0, DEPTH]), focus_m, 43.27,
+                                 384, 64, 32)
 
 
 def edge_width_px(image: np.ndarray) -> tuple[float, float]:
@@ -49,7 +51,7 @@ def test_autofocus_makes_the_edge_sharp():
     scene = edge_scene()
     far = camera(6.0)  # focused well behind the edge: f/2 blurs it over several pixels
     blurred, edge_x = edge_width_px(render_passes(scene, far, "numpy").image)
-    focus_mm = autofocus_distance_mm(scene, far, edge_x - 3, 32)
+    focus_mm = autofocus_distance_mm(far, edge_x - 3, 32, Intersector(scene).hit_distance)
     # within a few % of the thick-lens distance: the real-ray best focus of an f/2 double Gauss sits
     # about 0.06 mm in front of the paraxial one (spherical aberration), a few % in object space
     assert focus_mm == pytest.approx(DEPTH * 1000, rel=0.05)
@@ -64,14 +66,14 @@ def test_autofocus_errors_are_clear():
     scene = edge_scene()
     far = camera(6.0)
     with pytest.raises(UserError, match="outside the 384x64 image"):
-        autofocus_distance_mm(scene, far, 500, 10)
+        autofocus_distance_mm(far, 500, 10, Intersector(scene).hit_distance)
     with pytest.raises(UserError, match="nothing at the focus pixel"):
-        autofocus_distance_mm(scene, far, 380, 32)  # right of the edge: nothing there
+        autofocus_distance_mm(far, 380, 32, Intersector(scene).hit_distance)  # right of the edge: nothing there
 
 
 def test_focus_on_through_the_cli(tmp_path):
     from realistic.cli import main
-    from realistic.image_io import read_exr
+    from realistic.core.image_files import read_exr
 
     out = tmp_path / "af.exr"
     # the default scene's middle object sits at the image centre, 2.74 m from the camera

@@ -6,8 +6,8 @@ import sys
 
 import pytest
 
-from realistic.paraxial import paraxial_data
-from realistic.prescription import BUNDLED_LENSES, load_lens
+from realistic.optics.formats import BUNDLED_LENSES, load_lens
+from realistic.optics.paraxial import paraxial_data
 
 KEYS = ["efl_mm", "bfl_mm", "ffd_mm", "entrance_pupil_mm", "entrance_pupil_diameter_mm", "exit_pupil_mm",
         "exit_pupil_diameter_mm", "f_number"]

@@ -11,23 +11,33 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from realistic import load_lens, rng
-from realistic.camera import Camera, build_camera, generate_rays
-from realistic.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM, refractive_index
-from realistic.errors import UserError
-from realistic.paraxial import film_distance_for_focus
-from realistic.reference import trace_from_film
-from realistic.render import render
 from kernel_reference import assert_kernel_matches, reference_camera
-from realistic.scene import AreaLight, Material, Scene, quad, rotate, scale, translate
-from realistic.spectrum import (LAMBDA_MAX_NM, LAMBDA_MIN_NM, cie_xyz, cie_xyz_integral, rgb_basis, rgb_response,
-                                wavelengths_nm)
+from realistic import load_lens
+from realistic.camera.lens_camera import LensCamera
+from realistic.core import rng
+from realistic.core.spectrum import (
+    LAMBDA_MAX_NM,
+    LAMBDA_MIN_NM,
+    cie_xyz,
+    cie_xyz_integral,
+    rgb_basis,
+    rgb_response,
+    wavelengths_nm,
+)
+from realistic.core.transforms import rotate, scale, translate
+from realistic.errors import UserError
+from realistic.optics.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM, refractive_index
+from realistic.optics.paraxial import film_distance_for_focus
+from realistic.optics.tracer import trace_from_film
+from realistic.renderer.passes import render
+from realistic.scene.model import AreaLight, Material, Scene
+from realistic.scene.shapes import quad
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 def _opencl():
-    host = pytest.importorskip("realistic.opencl_host")
+    host = pytest.importorskip("realistic.camera.opencl_host")
     try:
         host.context()
     except UserError as err:
@@ -101,13 +111,13 @@ def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, samplin
     camera = reference_camera(name, sampling, spectral=True)
     count, seed = camera.sample_count, 11
     kernel = host.LensKernel(camera).generate(0, count, seed)
-    ref = generate_rays(camera, 0, count, seed)
+    ref = camera.generate_rays(0, count, seed)
     np.testing.assert_allclose(kernel.wavelength_nm, ref.wavelength_nm, rtol=0, atol=1e-4)
     both = assert_kernel_matches(kernel, ref, camera, seed)
     assert both.mean() > 0.3
 
     # the wavelength matters far beyond that tolerance: the same rays traced at the d line differ
-    d_line = generate_rays(dataclasses.replace(camera, spectral=False), 0, count, seed)
+    d_line = dataclasses.replace(camera, spectral=False).generate_rays(0, count, seed)
     same = both & (d_line.weight > 0)
     moved = np.abs(d_line.direction[same] - ref.direction[same]).max(axis=1)
     far_from_d = np.abs(ref.wavelength_nm[same] - 587.6) > 100
@@ -130,9 +140,9 @@ def test_spectral_kernel_is_batch_size_independent():
 @pytest.mark.skipif(shutil.which("objdump") is None, reason="needs objdump")
 def test_spectral_kernel_still_vectorises(tmp_path):
     _opencl()
-    script = ("from realistic import load_lens\nfrom realistic.camera import build_camera\n"
-              "from realistic.opencl_host import LensKernel\n"
-              "camera = build_camera(load_lens('dgauss100'), 75.0, 43.27, 64, 48, spp=4, spectral=True)\n"
+    script = ("from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
+              "from realistic.camera.opencl_host import LensKernel\n"
+              "camera = LensCamera(load_lens('dgauss100'), 75.0, 43.27, 64, 48, spp=4, spectral=True)\n"
               "LensKernel(camera).generate(0, 4096, 0)\n")
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
     subprocess.run([sys.executable, "-c", script], check=True, env=env, cwd=REPO, timeout=120)
@@ -176,7 +186,7 @@ def _looking_down(lens_name: str, spectral: bool, width: int, height: int, spp: 
         lens = dataclasses.replace(lens, abbe_v=np.zeros_like(lens.abbe_v))
     film = film_distance_for_focus(lens, 1000.0)
     world = translate(0, 0, 1.0) @ rotate(180, (1, 0, 0)) @ scale(1e-3)
-    return build_camera(lens, film, 43.27, width, height, spp, world, spectral=spectral)
+    return LensCamera(lens, film, 43.27, width, height, spp, world, spectral=spectral)
 
 
 def test_spectral_path_without_dispersion_matches_rgb_path_within_noise():
@@ -184,7 +194,8 @@ def test_spectral_path_without_dispersion_matches_rgb_path_within_noise():
     scene = Scene()
     scene.add(quad(4.0, 4.0), material=Material((0.6, 0.6, 0.6)))
     scene.add(quad(0.2, 0.2), translate(0.05, 0.03, 0.3), Material((0.3, 0.3, 0.3)))
-    scene.lights.append(AreaLight("disk", (0.4, 0.4), (8.0, 8.0, 8.0), translate(-0.3, 0.2, 1.2) @ rotate(180, (1, 0, 0))))
+    scene.lights.append(AreaLight("disk", (0.4, 0.4), (8.0, 8.0, 8.0),
+                                  translate(-0.3, 0.2, 1.2) @ rotate(180, (1, 0, 0))))
     images = {}
     for spectral in (False, True):
         camera = _looking_down("dgauss", spectral, 32, 32, 32, constant_index=True)
@@ -206,7 +217,7 @@ def test_spectral_path_without_dispersion_matches_rgb_path_within_noise():
 
 # ------------------------------------------------------------------ lateral colour
 
-def _edge_offsets(camera: Camera, seed: int = 1) -> list[tuple[float, float]]:
+def _edge_offsets(camera: LensCamera, seed: int = 1) -> list[tuple[float, float]]:
     """(field height mm, red minus blue edge position in pixels, + outward) for both edges of a white bar
     that spans film heights of about 9.5 to 20 mm along the film's long axis.
 
@@ -241,9 +252,9 @@ def test_lateral_colour_grows_with_field_height_and_vanishes_without_dispersion(
     lens = load_lens("dgauss100")
     film = film_distance_for_focus(lens, 2000.0)
 
-    def strip(spectral: bool, constant_index: bool = False) -> Camera:
+    def strip(spectral: bool, constant_index: bool = False) -> LensCamera:
         glass = dataclasses.replace(lens, abbe_v=np.zeros_like(lens.abbe_v)) if constant_index else lens
-        return build_camera(glass, film, 43.27, 1600, 32, spp=64, world_from_camera=scale(1e-3), spectral=spectral)
+        return LensCamera(glass, film, 43.27, 1600, 32, spp=64, world_from_camera=scale(1e-3), spectral=spectral)
 
     # Same seed, same rays: the spectral render with constant indices carries the same colour noise
     # as the dispersive one, so their difference isolates what the glasses' dispersion does.
@@ -262,11 +273,12 @@ def test_lateral_colour_grows_with_field_height_and_vanishes_without_dispersion(
 
 def test_dispersion_option_defaults_to_the_lens_and_can_be_forced():
     from realistic.cli import build_parser
-    from realistic.cli_render import load_render_inputs
+    from realistic.cli.scene_arguments import options_from_args
+    from realistic.renderer.inputs import build_render_inputs
 
-    def camera(*args: str) -> Camera:
+    def camera(*args: str) -> LensCamera:
         parsed = build_parser().parse_args(["render", "--res", "8x8", *args])
-        return load_render_inputs(parsed, 1).camera
+        return build_render_inputs(options_from_args(parsed, 1)).camera
 
     assert load_lens("dgauss").has_dispersion and camera().spectral  # V numbers: on by default
     assert not camera("--dispersion", "off").spectral

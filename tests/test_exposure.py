@@ -6,8 +6,8 @@ import pytest
 
 from conftest import flat_field_brightness
 from realistic import UserError, load_lens
-from realistic.exposure import exposure_scale, exposure_value, parse_shutter
-from realistic.paraxial import film_distance_for_focus, paraxial_data, stop_diameter_for_f_number, thick_lens
+from realistic.camera.exposure import exposure_scale, exposure_value, parse_shutter
+from realistic.optics.paraxial import film_distance_for_focus, paraxial_data, stop_diameter_for_f_number, thick_lens
 
 
 def test_a_metered_uniform_field_comes_out_middle_grey():
@@ -53,7 +53,7 @@ def lens_f_number(lens):
 
 
 def centre_mean(path):
-    from realistic.image_io import read_exr
+    from realistic.core.image_files import read_exr
 
     image, header = read_exr(path)
     h, w, _ = image.shape

@@ -6,9 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from realistic.core.atomic_files import check_writable, write_atomically
+from realistic.core.image_files import auto_exposure, read_exr, srgb_encode, write_exr, write_png
 from realistic.errors import UserError
-from realistic.film import Film, pass_sums
-from realistic.image_io import auto_exposure, check_writable, read_exr, srgb_encode, write_atomically, write_exr, write_png
+from realistic.renderer.film import Film, pass_sums
 
 
 def test_film_averages_over_the_samples_taken_including_partial_pixels():

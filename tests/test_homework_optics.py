@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from conftest import shared_file
-from realistic.camera import build_camera, generate_rays
-from realistic.paraxial import focus_distance_for_film, paraxial_data, thick_lens
-from realistic.pbrt_import import import_pbrt
+from realistic.camera.lens_camera import LensCamera
+from realistic.optics.paraxial import focus_distance_for_film, paraxial_data, thick_lens
+from realistic.scene.pbrt.importer import import_pbrt
 
 HOMEWORK = ["dgauss", "fisheye", "telephoto", "wide"]
 
@@ -23,7 +23,7 @@ def homework_camera(lens, width=8, height=8, spp=1):
 
 
 def pixel_mean_weight(camera):
-    rays = generate_rays(camera, 0, camera.sample_count, seed=1)
+    rays = camera.generate_rays(0, camera.sample_count, seed=1)
     return np.bincount(rays.pixel, rays.weight, camera.width * camera.height).reshape(camera.height, camera.width) \
         / camera.spp
 
@@ -38,13 +38,13 @@ def pixel_radius_mm(camera):
 @pytest.mark.parametrize("lens", HOMEWORK)
 def test_sharpest_cone_is_the_one_the_lens_core_puts_in_focus(lens):
     imported = homework_camera(lens)
-    camera = imported.camera
+    camera = imported.scene.camera
     to_lens = np.linalg.inv(camera.world_from_lens)
     cones = imported.scene.instances[1:]
     depth = np.array([(to_lens @ [*(c.transform[:3, 3] + [0, 0.075, 0]), 1])[2] for c in cones])  # mm from film
     # the bundle of rays through one point at the film centre: its width at each cone's depth
-    point = build_camera(camera.lens, camera.film_distance_mm, 1e-3, 1, 1, 20_000)
-    rays = generate_rays(point, 0, point.sample_count, seed=2)
+    point = LensCamera(camera.lens, camera.film_distance_mm, 1e-3, 1, 1, 20_000)
+    rays = point.generate_rays(0, point.sample_count, seed=2)
     o, d = rays.origin[rays.weight > 0], rays.direction[rays.weight > 0]
     width = [np.sqrt(np.mean(np.sum((o[:, :2] + d[:, :2] * ((z - o[:, 2:3]) / d[:, 2:3])) ** 2, axis=1)))
              for z in depth]
@@ -53,7 +53,7 @@ def test_sharpest_cone_is_the_one_the_lens_core_puts_in_focus(lens):
 
 
 def test_fisheye_image_is_a_circle():
-    camera = homework_camera("fisheye", 48, 48, 16).camera
+    camera = homework_camera("fisheye", 48, 48, 16).scene.camera
     lit = pixel_mean_weight(camera) > 0
     radius = pixel_radius_mm(camera)
     table = camera.pupil  # the lens's image circle: beyond it no ray of a dense grid passes
@@ -66,7 +66,7 @@ def test_fisheye_image_is_a_circle():
 
 def chief_angle_deg(camera, column):
     """Angle to the axis of the mean ray through the middle row's pixel ``column``."""
-    rays = generate_rays(camera, 0, camera.sample_count, seed=3)
+    rays = camera.generate_rays(0, camera.sample_count, seed=3)
     pick = (rays.pixel == (camera.height // 2) * camera.width + column) & (rays.weight > 0)
     to_lens = np.linalg.inv(camera.world_from_lens[:3, :3])
     d = (rays.direction[pick] @ to_lens.T).mean(axis=0)
@@ -74,8 +74,8 @@ def chief_angle_deg(camera, column):
 
 
 def test_telephoto_sees_a_narrow_field_and_the_dgauss_a_wide_one():
-    tele = homework_camera("telephoto", 31, 31, 64).camera
-    normal = homework_camera("dgauss", 31, 31, 64).camera
+    tele = homework_camera("telephoto", 31, 31, 64).scene.camera
+    normal = homework_camera("dgauss", 31, 31, 64).scene.camera
     for camera, lo, hi in ((tele, 4, 7), (normal, 20, 30)):
         # Gaussian optics (no distortion): a pixel h from the centre images an object point
         # Y = h s_o / s_i off the axis in the plane in focus, and the chief ray reaches it from the
@@ -95,7 +95,7 @@ def test_telephoto_sees_a_narrow_field_and_the_dgauss_a_wide_one():
 
 @pytest.mark.parametrize("lens", ["dgauss", "wide", "telephoto"])
 def test_brightness_falls_off_toward_the_corners(lens):
-    camera = homework_camera(lens, 24, 24, 64).camera
+    camera = homework_camera(lens, 24, 24, 64).scene.camera
     weight = pixel_mean_weight(camera)
     radius = pixel_radius_mm(camera)
     rings = np.digitize(radius, np.linspace(0, radius.max() + 1e-9, 7)) - 1

@@ -8,13 +8,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from realistic import load_lens, rng
-from realistic.camera import Camera, generate_rays
-from realistic.errors import UserError
-from realistic.raygen import ray_generator
 from kernel_reference import assert_kernel_matches, camera_for_lens, reference_camera
+from realistic import load_lens
+from realistic.camera.lens_camera import LensCamera
+from realistic.core import rng
+from realistic.errors import UserError
 
-opencl_host = pytest.importorskip("realistic.opencl_host")
+opencl_host = pytest.importorskip("realistic.camera.opencl_host")
 
 LENSES = ["dgauss", "wide", "fisheye", "telephoto", "dgauss100"]
 SAMPLINGS = ["pupil", "rear"]
@@ -48,18 +48,18 @@ def _cross_mask(tmp_path) -> str:
 
 @pytest.mark.parametrize("shape", ["hexagon", "curved", "mask"])
 def test_kernel_matches_reference_with_shaped_stops(shape, tmp_path):
-    from realistic.aperture import bladed_stop, mask_stop
+    from realistic.optics.stop_shape import bladed_stop, mask_stop
 
     stops = {"hexagon": lambda: bladed_stop(6, 10.0), "curved": lambda: bladed_stop(7, 25.0, 0.4),
              "mask": lambda: mask_stop(_cross_mask(tmp_path))}
     _check_against_reference(camera_for_lens(load_lens("dgauss").with_stop_shape(stops[shape]())))
 
 
-def _check_against_reference(camera: Camera) -> None:
+def _check_against_reference(camera: LensCamera) -> None:
     count, seed = camera.sample_count, 11
     assert count >= 100_000
-    kernel = ray_generator(camera, "opencl", seed)(0, count)
-    assert_kernel_matches(kernel, generate_rays(camera, 0, count, seed), camera, seed)
+    kernel = camera.ray_generator("opencl", seed)(0, count)
+    assert_kernel_matches(kernel, camera.generate_rays(0, count, seed), camera, seed)
 
 
 @pytest.mark.parametrize("sampling", SAMPLINGS)

@@ -9,9 +9,9 @@ import pytest
 from PIL import Image
 
 from realistic import load_lens
-from realistic.image_io import read_exr
-from realistic.lens_curves import field_curves, vignetting_map
-from realistic.paraxial import film_distance_for_focus, paraxial_data
+from realistic.core.image_files import read_exr
+from realistic.optics.field_curves import field_curves, vignetting_map
+from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
 
 
 @pytest.mark.parametrize("name", ["telephoto", "dgauss"])

@@ -6,10 +6,14 @@ import numpy as np
 import pytest
 
 from realistic import UserError, load_lens, parse_prescription
-from realistic.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM, refractive_index
-from realistic.paraxial import (film_distance_for_focus, focus_distance_for_film, nearest_focus_mm,
-                                stop_diameter_for_f_number,
-                                paraxial_data)
+from realistic.optics.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM, refractive_index
+from realistic.optics.paraxial import (
+    film_distance_for_focus,
+    focus_distance_for_film,
+    nearest_focus_mm,
+    paraxial_data,
+    stop_diameter_for_f_number,
+)
 
 
 def system_matrix(surfaces):

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from conftest import shared_file
-from realistic.camera import Camera, generate_rays
+from realistic.camera.lens_camera import LensCamera
+from realistic.camera.thin_lens import ThinLensCamera
 from realistic.errors import UserError
-from realistic.paraxial import focus_distance_for_film
-from realistic.pbrt_import import import_pbrt
-from realistic.scene import CheckerTexture, ImageTexture
-from realistic.thin_lens import ThinLensCamera
+from realistic.optics.paraxial import focus_distance_for_film
+from realistic.scene.model import CheckerTexture, ImageTexture
+from realistic.scene.pbrt.importer import import_pbrt
 
 HOMEWORK = ["dgauss", "fisheye", "telephoto", "wide"]
 
@@ -25,7 +25,8 @@ CAMERA = 'Film "image" "integer xresolution" [32] "integer yresolution" [16]\nCa
 
 def test_materials_textures_and_unsupported_reports(tmp_path):
     path = write(tmp_path, CAMERA + 'WorldBegin\n'
-                 'Texture "c" "color" "checkerboard" "float uscale" 4 "float vscale" 4 "rgb tex1" [1 1 1] "rgb tex2" [0 0 0]\n'
+                 'Texture "c" "color" "checkerboard" "float uscale" 4 "float vscale" 4 '
+                 '"rgb tex1" [1 1 1] "rgb tex2" [0 0 0]\n'
                  'Texture "s" "color" "scale" "texture tex1" "c" "color tex2" [.5 .5 .5]\n'
                  'Material "matte" "texture Kd" "s"\nShape "sphere"\n'
                  'Material "measured" "string filename" "x.brdf"\nShape "sphere"\n'
@@ -48,14 +49,15 @@ def test_shapes_instances_and_area_light(tmp_path):
                  '"integer nsamples" [4]\nTranslate 0 5 0\nRotate 90 1 0 0\nShape "disk" "float radius" 2\n'
                  'AttributeEnd\nObjectBegin "o"\nShape "cone" "float radius" 1 "float height" 2\nObjectEnd\n'
                  'Translate 1 0 0\nObjectInstance "o"\nTranslate 1 0 0\nObjectInstance "o"\n'
-                 'Shape "trianglemesh" "point P" [0 0 0 1 0 0 0 1 0] "integer indices" [0 1 2] "float uv" [0 0 1 0 0 1]\n')
+                 'Shape "trianglemesh" "point P" [0 0 0 1 0 0 0 1 0] "integer indices" [0 1 2] '
+                 '"float uv" [0 0 1 0 0 1]\n')
     imported = import_pbrt(path)
     scene = imported.scene
     (light,) = scene.lights
     centre, _, _, normal = light.frame()
     np.testing.assert_allclose(centre, [0, 5, 0], atol=1e-12)
     np.testing.assert_allclose(normal, [0, -1, 0], atol=1e-12)  # pbrt's disk faces +z: rotated to face down
-    assert light.radiance == (2, 3, 4) and imported.light_samples == 4
+    assert light.radiance == (2, 3, 4) and imported.scene.light_samples == 4
     cones = [inst for inst in scene.instances if scene.meshes[inst.mesh].name == "cone"]
     assert len(cones) == 2 and cones[0].mesh == cones[1].mesh  # an instanced mesh is stored once
     assert [c.transform[0, 3] for c in cones] == [1, 2]
@@ -65,10 +67,10 @@ def test_shapes_instances_and_area_light(tmp_path):
 
 def test_perspective_camera_and_film_settings(tmp_path):
     imported = import_pbrt(write(tmp_path, CAMERA + 'Sampler "random" "integer pixelsamples" 3\nWorldBegin\n'))
-    assert isinstance(imported.camera, ThinLensCamera)
-    assert (imported.camera.width, imported.camera.height, imported.camera.spp) == (32, 16, 3)
+    assert isinstance(imported.scene.camera, ThinLensCamera)
+    assert (imported.scene.camera.width, imported.scene.camera.height, imported.scene.camera.spp) == (32, 16, 3)
     overridden = import_pbrt(write(tmp_path, CAMERA + 'WorldBegin\n'), width=8, height=4, spp=2)
-    assert (overridden.camera.width, overridden.camera.height, overridden.camera.spp) == (8, 4, 2)
+    assert (overridden.scene.camera.width, overridden.scene.camera.height, overridden.scene.camera.spp) == (8, 4, 2)
 
 
 def test_missing_lens_and_texture_are_clear_errors(tmp_path):
@@ -83,12 +85,12 @@ def test_missing_lens_and_texture_are_clear_errors(tmp_path):
 def test_homework_scene_imports_without_warnings(lens):
     imported = import_pbrt(shared_file(f"scenes/pbrt/dof-dragons.{lens}.pbrt"), 16, 16, 1)
     assert imported.warnings == []
-    assert isinstance(imported.camera, Camera)
+    assert isinstance(imported.scene.camera, LensCamera)
     assert len(imported.scene.instances) == 12 and len(imported.scene.lights) == 1  # floor + 11 cones
     floor = imported.scene.instances[0].material
     assert isinstance(floor.texture, ImageTexture) and floor.diffuse == pytest.approx((0.5, 0.5, 0.5))
     # the homework camera's origin is the front lens vertex: the front of the lens sits at the eye
-    camera = imported.camera
+    camera = imported.scene.camera
     m = camera.world_from_lens
     front = m @ [0, 0, camera.film_distance_mm + camera.lens.track_length_mm, 1]
     np.testing.assert_allclose(front[:3], [2.3, 0.05, -0.5], atol=1e-12)
@@ -98,10 +100,10 @@ def test_pbrt_v3_realistic_camera_works_in_metres(tmp_path):
     path = write(tmp_path, 'Film "image" "integer xresolution" 8 "integer yresolution" 8\n'
                  'Camera "realistic" "string lensfile" "dgauss.50mm.dat" "float aperturediameter" 10 '
                  '"float focusdistance" 2\nWorldBegin\n')
-    camera = import_pbrt(path).camera
+    camera = import_pbrt(path).scene.camera
     assert camera.lens.stop_diameter_mm == 10
     assert focus_distance_for_film(camera.lens, camera.film_distance_mm) == pytest.approx(2000.0)
     np.testing.assert_allclose(camera.world_from_lens[:3, :3], np.eye(3) * 1e-3)
-    rays = generate_rays(camera, 0, 64, 0)
+    rays = camera.generate_rays(0, 64, 0)
     ok = rays.weight > 0
     assert ok.any() and np.all(np.abs(rays.origin[ok]) < 0.2)  # within the lens, in metres

@@ -5,7 +5,7 @@ import pytest
 
 from conftest import shared_file
 from realistic.errors import UserError
-from realistic.pbrt_parser import parse_pbrt
+from realistic.scene.pbrt.parser import parse_pbrt
 
 
 def write(tmp_path, text, name="scene.pbrt"):
@@ -35,10 +35,10 @@ def test_parameters_comments_and_include(tmp_path):
     path = write(tmp_path, 'Film "image" "integer xresolution" [64] "string filename" "a.exr"\n'
                            'WorldBegin\nInclude "inc.pbrt"\nShape "disk" "float radius" [ 3 ] "bool x" "true"\n')
     scene = parse_pbrt(path)
-    assert scene.film.params.float("xresolution") == 64
-    assert scene.film.params.string("filename") == "a.exr"
+    assert scene.film.params.get_float("xresolution") == 64
+    assert scene.film.params.get_string("filename") == "a.exr"
     assert [s.type for s in scene.shapes] == ["sphere", "disk"]
-    assert scene.shapes[0].params.float("radius") == 2
+    assert scene.shapes[0].params.get_float("radius") == 2
     assert scene.shapes[0].where == f"{tmp_path / 'inc.pbrt'}:1"
 
 
@@ -101,8 +101,8 @@ def test_unknown_directive_is_reported_once_and_skipped(tmp_path):
 def test_homework_scene_camera_and_instances():
     scene = parse_pbrt(shared_file("scenes/pbrt/dof-dragons.dgauss.pbrt"))
     assert scene.camera.type == "realistic"
-    assert scene.camera.params.string("specfile") == "dgauss.50mm.dat"
-    assert scene.camera.params.float("filmdistance") == pytest.approx(36.77)
+    assert scene.camera.params.get_string("specfile") == "dgauss.50mm.dat"
+    assert scene.camera.params.get_float("filmdistance") == pytest.approx(36.77)
     world_from_camera = np.linalg.inv(scene.camera.transform)
     # camera position and viewing direction as given in shared/scenes/pbrt/README.md
     np.testing.assert_allclose(world_from_camera @ [0, 0, 0, 1], [2.3, 0.05, -0.5, 1], atol=1e-12)

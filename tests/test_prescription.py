@@ -2,13 +2,14 @@
 
 import subprocess
 import sys
+from importlib import resources
 
 import numpy as np
 import pytest
 
 from conftest import shared_file
 from realistic import LensFileError, load_lens, parse_prescription
-from realistic.paraxial import paraxial_data
+from realistic.optics.paraxial import paraxial_data
 
 KOLB_RADII = [58.950, 169.660, 38.550, 81.540, 25.500, 0, -28.990, 81.540, -40.770, 874.130, -79.460]
 KOLB_V = [47.1, 0, 47.1, 30.1, 0, 0, 38.0, 57.3, 0, 48.0, 0]
@@ -42,8 +43,7 @@ def test_dgauss50_is_the_kolb_table_halved_with_its_glasses():
 @pytest.mark.parametrize("name", ["dgauss.50mm", "wide.22mm", "fisheye.10mm", "telephoto.250mm"])
 def test_bundled_copies_match_shared_files(name):
     shared = load_lens(str(shared_file(f"lenses/{name}.dat")))
-    bundled = load_lens(str(__import__("realistic").prescription.resources.files("realistic")
-                            / "lenses" / f"{name}.dat"))
+    bundled = load_lens(str(resources.files("realistic.optics.formats") / "lenses" / f"{name}.dat"))
     for field in ("radius_mm", "thickness_mm", "index_d", "aperture_mm"):
         np.testing.assert_array_equal(getattr(shared, field), getattr(bundled, field))
 

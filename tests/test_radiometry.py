@@ -6,14 +6,16 @@ import numpy as np
 import pytest
 
 from realistic import load_lens
-from realistic.camera import build_camera
-from realistic.integrator import DirectLighting
-from realistic.intersect import Intersector
-from realistic.paraxial import film_distance_for_focus, paraxial_data
-from realistic.reference import trace_from_film
-from realistic.render import render, render_passes
-from realistic.sampling import rear_surface_depths_mm
-from realistic.scene import AreaLight, Material, Scene, quad, rotate, scale, translate
+from realistic.camera.lens_camera import LensCamera
+from realistic.core.transforms import rotate, scale, translate
+from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
+from realistic.optics.sampling import rear_surface_depths_mm
+from realistic.optics.tracer import trace_from_film
+from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.passes import render, render_passes
+from realistic.scene.intersect import Intersector
+from realistic.scene.model import AreaLight, Material, Scene
+from realistic.scene.shapes import quad
 
 RHO, L, R, H = 0.6, 10.0, 2.0, 1.5  # albedo, light radiance, disk radius, disk height
 
@@ -102,7 +104,7 @@ def camera_looking_down(lens_name: str, stop_mm: float, width: int, height: int,
     lens = load_lens(lens_name).with_stop_diameter(stop_mm)
     film = film_distance_for_focus(lens, eye_height * 1000.0)
     world = translate(0, 0, eye_height) @ rotate(180, (1, 0, 0)) @ scale(1e-3)  # camera +z -> world -z
-    return lens, build_camera(lens, film, diagonal_mm, width, height, spp, world)
+    return lens, LensCamera(lens, film, diagonal_mm, width, height, spp, world)
 
 
 def test_tiny_aperture_film_irradiance_is_radiance_times_exit_pupil_solid_angle():
@@ -157,7 +159,7 @@ def test_wide_aperture_film_irradiance_matches_quadrature(sampling):
     lens = load_lens("dgauss")
     film = film_distance_for_focus(lens, 1000.0)
     world = translate(0, 0, 1.0) @ rotate(180, (1, 0, 0)) @ scale(1e-3)
-    camera = build_camera(lens, film, 40.0, width, 1, 2048, world, lens_sampling=sampling)
+    camera = LensCamera(lens, film, 40.0, width, 1, 2048, world, lens_sampling=sampling)
     image = render(uniform_emitter_scene(), camera, "numpy", seed=4, pass_samples=1 << 17)[0, :, 0]
     pixel_mm = camera.film_size_mm[0] / width
     centre = width // 2

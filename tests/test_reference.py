@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from realistic import LensSystem, load_lens, parse_prescription
-from realistic.paraxial import film_distance_for_focus
-from realistic.reference import APERTURE, MISS, PASSED, STOP, TIR, trace_from_film
+from realistic.optics.paraxial import film_distance_for_focus
+from realistic.optics.tracer import APERTURE, MISS, PASSED, STOP, TIR, trace_from_film
 
 LENSES = ["dgauss", "wide", "fisheye", "telephoto", "dgauss100"]
 

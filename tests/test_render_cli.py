@@ -12,11 +12,12 @@ import pytest
 import trimesh
 
 from conftest import shared_file
-from realistic.cli import main
-from realistic.image_io import read_exr
-from realistic.render import render_passes
-from realistic.setups import camera_for_view, default_setup
 from realistic import load_lens
+from realistic.camera.lens_camera import LensCamera
+from realistic.cli import main
+from realistic.core.image_files import read_exr
+from realistic.renderer.passes import render_passes
+from realistic.scene.staging import default_setup
 
 REPO = Path(__file__).resolve().parents[1]
 FAST = ["--backend", "numpy", "--res", "24x16", "--spp", "2"]
@@ -117,7 +118,7 @@ def test_subprocess_error_has_no_traceback(tmp_path):
 
 def test_interrupt_keeps_the_passes_done():
     setup = default_setup()
-    camera = camera_for_view(load_lens("dgauss"), setup.eye, setup.target, None, 43.27, 32, 32, 4)
+    camera = LensCamera.looking_at(load_lens("dgauss"), setup.eye, setup.target, None, 43.27, 32, 32, 4)
     calls = []
 
     def interrupt(result):

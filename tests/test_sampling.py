@@ -4,10 +4,16 @@ import numpy as np
 import pytest
 
 from realistic import load_lens
-from realistic.paraxial import film_distance_for_focus, paraxial_data
-from realistic.reference import trace_from_film
-from realistic.sampling import (camera_weight, concentric_disk, exit_pupil_table, pass_fractions,
-                                rear_element_sampler, rear_surface_depths_mm)
+from realistic.core.warp import concentric_disk
+from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
+from realistic.optics.sampling import (
+    camera_weight,
+    exit_pupil_table,
+    pass_fractions,
+    rear_element_sampler,
+    rear_surface_depths_mm,
+)
+from realistic.optics.tracer import trace_from_film
 
 LENSES = ["dgauss", "wide", "fisheye", "telephoto", "dgauss100"]
 

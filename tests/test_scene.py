@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 import trimesh
 
+from realistic.core.image_files import read_linear_rgb
+from realistic.core.transforms import rotate, scale, translate
 from realistic.errors import UserError
-from realistic.intersect import Intersector
-from realistic.meshes import load_mesh_file
-from realistic.scene import (AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene, cone, disk,
-                             quad, rotate, scale, sphere, translate)
-from realistic.setups import MESH_SIZE, mesh_setup
-from realistic.textures import albedo, evaluate, read_texture_image
+from realistic.scene.intersect import Intersector
+from realistic.scene.meshes import load_mesh_file
+from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene
+from realistic.scene.shapes import cone, disk, quad, sphere
+from realistic.scene.staging import MESH_SIZE, mesh_setup
+from realistic.scene.textures import albedo, evaluate
 
 
 def face_normals(mesh):
@@ -89,11 +91,11 @@ def test_texture_files_are_read_linear(tmp_path):
 
     path = tmp_path / "t.png"
     Image.fromarray(np.full((2, 3, 3), 188, np.uint8)).save(path)
-    pixels = read_texture_image(path)
+    pixels = read_linear_rgb(path)
     assert pixels.shape == (2, 3, 3)
     assert pixels[0, 0, 0] == pytest.approx(0.5, abs=0.01)  # sRGB 188 is linear 0.5
     with pytest.raises(UserError, match="no such texture"):
-        read_texture_image(tmp_path / "missing.png")
+        read_linear_rgb(tmp_path / "missing.png")
 
 
 # Mesh files ----------------------------------------------------------------------------------

@@ -5,14 +5,14 @@ import math
 import numpy as np
 import pytest
 
+from realistic.camera.thin_lens import ThinLensCamera
 from realistic.errors import UserError
-from realistic.thin_lens import build_thin_lens_camera, generate_thin_lens_rays
 
 
 def test_pinhole_rays_project_like_pbrt():
     # 200 x 100 image, fov 40 degrees across the shorter (vertical) side
-    camera = build_thin_lens_camera(40, 0, 1, 200, 100, 1, np.eye(4))
-    rays = generate_thin_lens_rays(camera, 0, camera.sample_count, seed=3)
+    camera = ThinLensCamera(40, 0, 1, 200, 100, 1, np.eye(4))
+    rays = camera.generate_rays(0, camera.sample_count, seed=3)
     tan_half = math.tan(math.radians(20))
     # the point each ray reaches at z = 10, projected back the textbook way
     points = rays.origin + rays.direction * (10 / rays.direction[:, 2:3])
@@ -25,10 +25,10 @@ def test_pinhole_rays_project_like_pbrt():
 def test_thin_lens_rays_meet_the_pinhole_ray_on_the_focal_plane():
     world = np.eye(4)
     world[:3, 3] = (1, 2, 3)
-    pinhole = build_thin_lens_camera(30, 0, 1, 16, 16, 8, world)
-    lens = build_thin_lens_camera(30, 0.2, 4.0, 16, 16, 8, world)
-    a = generate_thin_lens_rays(pinhole, 0, pinhole.sample_count, seed=1)
-    b = generate_thin_lens_rays(lens, 0, lens.sample_count, seed=1)
+    pinhole = ThinLensCamera(30, 0, 1, 16, 16, 8, world)
+    lens = ThinLensCamera(30, 0.2, 4.0, 16, 16, 8, world)
+    a = pinhole.generate_rays(0, pinhole.sample_count, seed=1)
+    b = lens.generate_rays(0, lens.sample_count, seed=1)
     assert np.ptp(b.origin[:, 0]) > 0.2  # the lens really spreads the origins
     on_plane_a = a.origin + a.direction * ((4.0 + 3 - a.origin[:, 2:3]) / a.direction[:, 2:3])
     on_plane_b = b.origin + b.direction * ((4.0 + 3 - b.origin[:, 2:3]) / b.direction[:, 2:3])
@@ -38,4 +38,4 @@ def test_thin_lens_rays_meet_the_pinhole_ray_on_the_focal_plane():
 @pytest.mark.parametrize("args", [(0, 0, 1), (180, 0, 1), (30, 0.1, 0), (30, -1, 1)])
 def test_bad_parameters_are_user_errors(args):
     with pytest.raises(UserError):
-        build_thin_lens_camera(*args, 8, 8, 1, np.eye(4))
+        ThinLensCamera(*args, 8, 8, 1, np.eye(4))

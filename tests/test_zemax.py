@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from realistic import LensFileError, load_lens
-from realistic.paraxial import paraxial_data
-from realistic.zemax import parse_zmx
+from realistic.optics.formats.zemax import parse_zmx
+from realistic.optics.paraxial import paraxial_data
 
 UNITS = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "METER": 1000.0}
 
@@ -29,7 +29,8 @@ def zmx_text(lens, unit: str = "MM") -> str:
                   "  MIRR 2 0", f"  DISZ {thickness / scale!r}"]
         if index != 1:
             lines.append(f"  GLAS ___BLANK 1 0 {index!r} {abbe!r} 0 0 0 0 0 0")
-        lines += [f'  DIAM {float(lens.aperture_mm[i]) / 2 / scale!r} 1 0 0 1 ""', "  CONI 0", "  POPS 0 0 0 0 0 0 0 0 1 1"]
+        semi_diameter = float(lens.aperture_mm[i]) / 2 / scale
+        lines += [f'  DIAM {semi_diameter!r} 1 0 0 1 ""', "  CONI 0", "  POPS 0 0 0 0 0 0 0 0 1 1"]
     lines += [f"SURF {lens.surface_count + 1}", "  TYPE STANDARD", '  CURV 0.0 0 0 0 0 ""', "  DISZ 0",
               '  DIAM 2.1E+1 0 0 0 1 ""', "BLNK ", "MNUM 1 1"]
     return "\n".join(lines) + "\n"
@@ -113,7 +114,8 @@ UNSUPPORTED = {
     "second stop": (8, "TYPE", "  STOP", "a second STOP"),
     "stop on image": (12, "TYPE", "  STOP", "not the object or image"),
     "curved image": (12, "CURV", "  CURV 1.0E-2", "curved image surface"),
-    "glass before image": (11, "CONI", "  GLAS ___BLANK 1 0 1.5 60 0 0 0 0 0 0", "before the image surface must be air"),
+    "glass before image": (11, "CONI", "  GLAS ___BLANK 1 0 1.5 60 0 0 0 0 0 0",
+                           "before the image surface must be air"),
     "glass object space": (0, "DIAM", "  GLAS ___BLANK 1 0 1.5 60 0 0 0 0 0 0", "object space must be air"),
     "bad number": (3, "DISZ", "  DISZ abc", "DISZ 'abc' is not a number"),
     "missing diameter": (3, "DIAM", "  HIDE 0", "has no DIAM"),

@@ -1,0 +1,192 @@
+"""The realistic camera: a real lens between the film and the scene, traced surface by surface.
+
+``LensCamera.generate_rays`` is the float64 numpy reference of the OpenCL kernel's ray generation
+(``realistic.camera.opencl_host``): same random numbers (``realistic.core.rng``), same film
+mapping, same samplers, same tracing rules.
+
+Film mapping (lens frame, film at z = 0): the film is the resolution's aspect ratio with the given
+diagonal; raster (x right, y down) maps to film x = -(x / W - 1/2) w, film y = (y / H - 1/2) h.
+The lens inverts the image, so this flip makes it come out upright and unmirrored.
+
+Camera space is the lens frame, in mm, with its origin moved along the axis to where the scene
+format puts it (``origin``): the film centre (pbrt-v3, meshes) or the front lens vertex (the
+classic homework). ``world_from_camera`` carries the scene's unit; refocusing moves the film and,
+with the front-vertex convention, the whole camera frame with it.
+
+A *spectral* camera gives each sample a wavelength (``realistic.core.spectrum``: uniform over
+380-780 nm, stratified within the pixel) and traces it with the glasses' indices at that
+wavelength, so the lens's chromatic aberration reaches the image. A non-spectral camera traces at
+the d line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from realistic.camera.autofocus import autofocus_distance_mm
+from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, check_backend, split_sample_ids
+from realistic.core import rng
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm
+from realistic.core.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, wavelengths_nm
+from realistic.core.transforms import look_at, scale, transform_points, transform_vectors
+from realistic.errors import UserError
+from realistic.optics.dispersion import D_LINE_NM
+from realistic.optics.lens import LensSystem
+from realistic.optics.paraxial import film_distance_for_focus, focus_distance_for_film, paraxial_data
+from realistic.optics.sampling import ExitPupilTable, camera_weight, exit_pupil_table, rear_element_sampler
+from realistic.optics.tracer import trace_from_film
+
+LENS_SAMPLINGS = ("pupil", "rear")
+#: Where camera space's origin sits on the axis: the film centre, or the front lens vertex.
+ORIGINS = ("film", "front_vertex")
+#: World units of the mesh scenes and the Python API's default: metres.
+MM_PER_METRE = 1000.0
+
+
+@dataclass(frozen=True, eq=False)
+class LensCamera:
+    """Everything ray generation needs; validated on construction.
+
+    ``world_from_camera`` maps camera space (mm, origin as ``origin`` says, +z toward the scene)
+    to world units.
+    """
+
+    lens: LensSystem
+    film_distance_mm: float
+    film_diagonal_mm: float = FULL_FRAME_DIAGONAL_MM
+    width: int = 300
+    height: int = 300
+    spp: int = 16
+    world_from_camera: np.ndarray = field(default_factory=lambda: np.eye(4))
+    origin: str = "film"
+    lens_sampling: str = "pupil"
+    spectral: bool = False
+
+    def __post_init__(self) -> None:
+        if self.width < 1 or self.height < 1:
+            raise UserError(f"resolution must be at least 1x1, got {self.width}x{self.height}")
+        if self.spp < 1:
+            raise UserError(f"samples per pixel must be at least 1, got {self.spp}")
+        if self.lens_sampling not in LENS_SAMPLINGS:
+            raise UserError(f"lens sampling must be one of {', '.join(LENS_SAMPLINGS)}, got {self.lens_sampling!r}")
+        if self.origin not in ORIGINS:
+            raise UserError(f"camera origin must be one of {', '.join(ORIGINS)}, got {self.origin!r}")
+        if not self.film_distance_mm > 0:
+            raise UserError(f"film distance must be positive, got {self.film_distance_mm:g} mm")
+        object.__setattr__(self, "world_from_camera", np.asarray(self.world_from_camera, dtype=np.float64))
+
+    @classmethod
+    def looking_at(cls, lens: LensSystem, eye: np.ndarray, target: np.ndarray, focus_distance: float | None = None,
+                   film_diagonal_mm: float = FULL_FRAME_DIAGONAL_MM, width: int = 300, height: int = 300,
+                   spp: int = 16, lens_sampling: str = "pupil", mm_per_unit: float = MM_PER_METRE) -> LensCamera:
+        """A camera with its film centre at ``eye`` looking at ``target`` (world units, +y up),
+        focused ``focus_distance`` world units from the film (None: on the target's distance)."""
+        eye, target = np.asarray(eye, float), np.asarray(target, float)
+        if np.allclose(eye, target):
+            raise UserError("the camera position and the target coincide")
+        if focus_distance is None:
+            focus_distance = float(np.linalg.norm(target - eye))
+        film_distance = film_distance_for_focus(lens, focus_distance * mm_per_unit)
+        return cls(lens, film_distance, film_diagonal_mm, width, height, spp,
+                   look_at(eye, target) @ scale(1.0 / mm_per_unit), "film", lens_sampling)
+
+    @property
+    def camera_origin_mm(self) -> float:
+        """Distance from the film to camera space's origin, toward the scene."""
+        return self.film_distance_mm + self.lens.track_length_mm if self.origin == "front_vertex" else 0.0
+
+    @property
+    def world_from_lens(self) -> np.ndarray:
+        """(4, 4) from the lens frame (film at z = 0, mm) to world units."""
+        shift = np.eye(4)
+        shift[2, 3] = -self.camera_origin_mm
+        return self.world_from_camera @ shift
+
+    @property
+    def mm_per_unit(self) -> float:
+        """Millimetres of camera space per world unit."""
+        return 1.0 / float(np.linalg.norm(self.world_from_camera[:3, 0]))
+
+    @property
+    def pupil(self) -> ExitPupilTable:
+        """Exit-pupil bounds for this lens, focus and film, built on first use (then cached); a
+        spectral camera's boxes hold what passes at either end of the wavelength range as well as
+        at the d line."""
+        wavelengths = (LAMBDA_MIN_NM, D_LINE_NM, LAMBDA_MAX_NM) if self.spectral else (D_LINE_NM,)
+        return exit_pupil_table(self.lens, self.film_distance_mm, self.film_diagonal_mm, wavelengths_nm=wavelengths)
+
+    @property
+    def film_size_mm(self) -> tuple[float, float]:
+        return film_size_mm(self.film_diagonal_mm, self.width, self.height)
+
+    @property
+    def sample_count(self) -> int:
+        return self.width * self.height * self.spp
+
+    def film_points(self, pixel: np.ndarray, u_x: np.ndarray, u_y: np.ndarray) -> np.ndarray:
+        """Film points (N, 2) in mm for pixels and in-pixel offsets in [0, 1)."""
+        w_mm, h_mm = self.film_size_mm
+        x = (pixel % self.width) + u_x.astype(np.float64)
+        y = (pixel // self.width) + u_y.astype(np.float64)
+        return np.column_stack([-(x / self.width - 0.5) * w_mm, (y / self.height - 0.5) * h_mm])
+
+    def generate_rays(self, first_sample: int, count: int, seed: int = 0) -> RayBatch:
+        """Camera rays for sample ids first_sample .. first_sample + count - 1 (reference implementation)."""
+        pixel, sample = split_sample_ids(first_sample, count, self.spp)
+        u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
+        film_xy = self.film_points(pixel, u_x, u_y)
+        sampler = self.pupil if self.lens_sampling == "pupil" else rear_element_sampler(self.lens,
+                                                                                         self.film_distance_mm)
+        targets, area = sampler.sample(film_xy, u_lens.astype(np.float64), v_lens.astype(np.float64))
+        film = np.column_stack([film_xy, np.zeros(count)])
+        wavelength = None
+        if self.spectral:
+            wavelength = wavelengths_nm(rng.to_unit_float(rng.wavelength_bits(pixel, sample, seed)))
+        traced = trace_from_film(self.lens, self.film_distance_mm, film, targets - film,
+                                 D_LINE_NM if wavelength is None else wavelength.astype(np.float64))
+        weight = np.where(traced.passed, camera_weight(film, targets, area, sampler.plane_z_mm), 0.0)
+        to_world = self.world_from_lens
+        passed = traced.passed[:, None]
+        origin = np.where(passed, transform_points(to_world, traced.origin), 0.0)
+        direction = np.where(passed, transform_vectors(to_world, traced.direction), 0.0)
+        length = np.linalg.norm(direction, axis=1, keepdims=True)
+        direction = np.divide(direction, length, out=np.zeros_like(direction), where=length > 0)
+        return RayBatch(origin, direction, weight, pixel, wavelength)
+
+    def ray_generator(self, backend: str = "opencl", seed: int = 0, cl_device: str | None = None) -> RayGenerator:
+        """The OpenCL kernel's rays (float32) or the numpy reference's (float64) for this camera."""
+        check_backend(backend)
+        if backend == "numpy":
+            return lambda first, count: self.generate_rays(first, count, seed)
+        from realistic.camera.opencl_host import LensKernel  # imports pyopencl, so only when chosen
+
+        kernel = LensKernel(self, cl_device)
+        return lambda first, count: kernel.generate(first, count, seed)
+
+    def metadata(self) -> Metadata:
+        lens = self.lens
+        return {"lens": lens.name, "lensSource": lens.source, "apertureDiameterMm": float(lens.stop_diameter_mm),
+                "fNumber": float(paraxial_data(lens).f_number),
+                "focusDistanceMm": float(focus_distance_for_film(lens, self.film_distance_mm)),
+                "filmDistanceMm": float(self.film_distance_mm), "filmDiagonalMm": float(self.film_diagonal_mm),
+                "lensSampling": self.lens_sampling,
+                "stopShape": lens.stop_shape.describe() if lens.stop_shape else "circle",
+                "dispersion": "on" if self.spectral else "off"}
+
+    def with_dispersion(self, spectral: bool | None) -> LensCamera:
+        """Spectral sampling on or off; None: on when the lens has Abbe numbers (its exit-pupil
+        bounds follow)."""
+        return dataclasses.replace(self, spectral=self.lens.has_dispersion if spectral is None else spectral)
+
+    def refocused(self, focus_distance_mm: float) -> LensCamera:
+        """The camera with its film moved (thick-lens model) to focus ``focus_distance_mm`` from the film."""
+        return dataclasses.replace(self, film_distance_mm=film_distance_for_focus(self.lens, focus_distance_mm))
+
+    def autofocused(self, x: float, y: float, hit_distance: HitDistance) -> LensCamera:
+        """Refocused on what raster point (x, y) sees; ``hit_distance(origin, direction)`` (world
+        space) gives the distance to the scene along a ray, None for a miss."""
+        return self.refocused(autofocus_distance_mm(self, x, y, hit_distance))
+

@@ -1,0 +1,294 @@
+"""OpenCL host side of ray generation: the only module that imports pyopencl.
+
+It picks a device without prompting, builds ``kernels/lens.cl`` once per process for each camera
+configuration (the lens surfaces, film geometry and sampler are compiled in as constants so PoCL
+vectorises the kernel), reuses its device buffers across launches and copies the rays back into
+numpy arrays.
+
+Device choice, first match wins: the ``device`` argument (``--cl-device``), then the
+``PYOPENCL_CTX`` environment variable, both either ``P`` / ``P:D`` (platform and device indices,
+as pyopencl reads ``PYOPENCL_CTX``) or a case-insensitive part of the platform or device name;
+otherwise the first PoCL device, otherwise the first device found.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from functools import cache, lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from realistic.camera.base import RayBatch
+from realistic.camera.lens_camera import LensCamera
+from realistic.core.data_files import data_file
+from realistic.errors import UserError
+from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
+from realistic.optics.sampling import rear_element_sampler
+
+try:
+    import pyopencl as cl
+except ImportError:  # reported as a UserError when a context is asked for
+    cl = None
+
+NO_PLATFORM = ('no OpenCL platform found: install one with pip install "pyopencl[pocl]" '
+               "(PoCL, OpenCL on the CPU), or use --backend numpy to run the numpy reference")
+KERNEL_FILE = "lens.cl"
+#: Work-group size; launches are padded to a multiple of it so every group runs the same code.
+LOCAL_SIZE = 256
+#: Output rows of ``generate_rays``: origin xyz, direction xyz, weight (and wavelength when spectral).
+ROWS = 7
+
+
+def kernel_source_path() -> Path:
+    """``kernels/lens.cl`` in a checkout, else where a wheel installs it (``<prefix>/share/realistic``)."""
+    return data_file(f"kernels/{KERNEL_FILE}")
+
+
+def _all_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
+    if cl is None:
+        raise UserError(NO_PLATFORM)
+    try:
+        platforms = cl.get_platforms()
+    except cl.Error:  # PLATFORM_NOT_FOUND_KHR when the ICD loader finds nothing
+        platforms = []
+    found = [(p, d, platform, device) for p, platform in enumerate(platforms)
+             for d, device in enumerate(platform.get_devices())]
+    if not found:
+        raise UserError(NO_PLATFORM)
+    return found
+
+
+def _match(spec: str, found: list, origin: str):
+    """The device named by ``spec`` (``P``, ``P:D`` or part of a name)."""
+    parts = spec.split(":")
+    if all(part.strip().isdigit() for part in parts) and len(parts) <= 2:
+        p = int(parts[0])
+        d = int(parts[1]) if len(parts) == 2 else 0
+        hits = [entry for entry in found if entry[0] == p and entry[1] == d]
+    else:
+        needle = spec.lower()
+        hits = [entry for entry in found
+                if needle in entry[2].name.lower() or needle in entry[3].name.lower()]
+    if not hits:
+        listing = "; ".join(f"{p}:{d} {platform.name} / {device.name.strip()}" for p, d, platform, device in found)
+        raise UserError(f"no OpenCL device matches {origin} {spec!r} (available: {listing})")
+    return hits[0][3]
+
+
+@cache  # one context per device asked for: lives as long as the process
+def _context_for(spec: str | None, origin: str) -> cl.Context:
+    found = _all_devices()
+    if spec:
+        device = _match(spec, found, origin)
+    else:
+        pocl = [entry for entry in found if "portable computing language" in entry[2].name.lower()]
+        device = (pocl or found)[0][3]
+    return cl.Context([device])
+
+
+def context(device: str | None = None) -> cl.Context:
+    """The OpenCL context for ``device`` (see the module docstring), created once per process."""
+    if device:
+        return _context_for(device, "--cl-device")
+    env = os.environ.get("PYOPENCL_CTX", "").strip()
+    return _context_for(env or None, "PYOPENCL_CTX")
+
+
+def _c_float(value: float) -> str:
+    """A float32 C literal holding exactly np.float32(value)."""
+    return repr(float(np.float32(value))) + "f"
+
+
+def _index_ratios(camera: LensCamera) -> tuple[list[str], list[str]]:
+    """Per surface, rear first, the index ratio (incident over transmitted) as a C expression, and
+    the statements that compute the dispersive glasses' indices from ``il2`` (1 / lambda^2, um^-2).
+
+    A ratio between media of constant index (no V number, or a non-spectral camera) is a literal
+    computed in float64, as at the d line; otherwise it is n_i * (1 / n_(i-1)) per ray.
+    """
+    lens = camera.lens
+    index = refractive_index(lens.index_d, lens.abbe_v, D_LINE_NM)
+    a, b = cauchy_coefficients(lens.index_d, lens.abbe_v)
+    dispersive = (b != 0) & camera.spectral
+    prologue = [f"const float n{k} = {_c_float(a[k])} + {_c_float(b[k])} * il2; const float inv{k} = 1.0f / n{k};"
+                for k in np.flatnonzero(dispersive)]
+
+    def n(k: int) -> str:
+        return "1.0f" if k < 0 else (f"n{k}" if dispersive[k] else _c_float(index[k]))
+
+    def inv(k: int) -> str:
+        return f"inv{k}" if k >= 0 and dispersive[k] else _c_float(1.0 / (index[k] if k >= 0 else 1.0))
+
+    ratios = []
+    for i in range(lens.surface_count - 1, -1, -1):
+        if dispersive[i] or (i > 0 and dispersive[i - 1]):
+            ratios.append(f"{n(i)} * {inv(i - 1)}")
+        else:
+            ratios.append(_c_float(index[i] / (index[i - 1] if i > 0 else 1.0)))
+    return ratios, prologue
+
+
+def _stop_lines(lens) -> list[str]:
+    """``STOP_INSIDE(x, y)`` (and a mask table) for the lens's stop, as realistic.optics.stop_shape defines it."""
+    diameter = float(lens.aperture_mm[lens.stop])
+    shape = lens.stop_shape
+    if shape is None:
+        return [f"#define STOP_INSIDE(x, y) ((x) * (x) + (y) * (y) <= {_c_float((diameter / 2) ** 2)})",
+                "#define STOP_MASKED 0"]
+    if shape.mask is not None:
+        rows, cols = shape.mask.shape
+        table = ", ".join("1" if v else "0" for v in shape.mask.ravel())
+        return ["#define STOP_MASKED 1", f"#define STOP_MASK_W {cols}", f"#define STOP_MASK_H {rows}",
+                f"#define STOP_DIAMETER_MM {_c_float(diameter)}",
+                f"__constant uchar STOP_MASK[{rows * cols}] = {{{table}}};",
+                "#define STOP_INSIDE(x, y) stop_mask((x), (y))"]
+    terms = []
+    for nx, ny, a, rho in shape.edges(diameter):
+        if rho == 0:  # a straight side: the half-plane x nx + y ny <= a
+            terms.append(f"((x) * {_c_float(nx)} + (y) * {_c_float(ny)} <= {_c_float(a)})")
+        else:  # an arc: |p - a n|^2 <= rho^2, written so float32 keeps precision when rho is huge
+            terms.append(f"((x) * (x) + (y) * (y) - {_c_float(2 * a * nx)} * (x) - {_c_float(2 * a * ny)} * (y) <= "
+                         f"{_c_float((rho - a) * (rho + a))})")
+    return ["#define STOP_MASKED 0", "#define STOP_INSIDE(x, y) (" + " & ".join(terms) + ")"]
+
+
+def camera_header(camera: LensCamera) -> str:
+    """The generated ``#define`` block that specialises ``lens.cl`` to one camera (see its header)."""
+    lens = camera.lens
+    vertex_z = lens.vertex_z_mm(camera.film_distance_mm)
+    w_mm, h_mm = camera.film_size_mm
+    ratios, calls = _index_ratios(camera)
+    for eta, i in zip(ratios, range(lens.surface_count - 1, -1, -1)):
+        gap = lens.thickness_mm[i - 1] if i > 0 else 0.0
+        ap2 = (lens.aperture_mm[i] / 2) ** 2
+        radius = lens.radius_mm[i]
+        refracts = int(eta != "1.0f")
+        if i == lens.stop:
+            calls.append(f"stop(r, {_c_float(gap)});")
+        elif radius == 0 or not np.isfinite(radius):
+            calls.append(f"plane(r, {_c_float(ap2)}, {eta}, 1, {_c_float(gap)});")
+        else:
+            calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
+    lines = [
+        f"#define SPECTRAL {int(camera.spectral)}",
+        f"#define WIDTH {camera.width}u",
+        f"#define HEIGHT {camera.height}u",
+        f"#define SPP {camera.spp}u",
+        f"#define FILM_W_MM {_c_float(w_mm)}",
+        f"#define FILM_H_MM {_c_float(h_mm)}",
+        f"#define FRONT_VERTEX_Z_MM {_c_float(vertex_z[0])}",
+        f"#define REAR_W_MM {_c_float(-camera.film_distance_mm)}",
+        "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
+        *_stop_lines(lens),
+    ]
+    if camera.lens_sampling == "pupil":
+        table = camera.pupil
+        boxes = ", ".join(_c_float(v) for v in table.bounds.ravel())
+        areas = ", ".join(_c_float(v) for v in table.area_mm2())
+        lines += [
+            "#define LENS_SAMPLING_PUPIL 1",
+            f"#define PLANE_Z_MM {_c_float(table.plane_z_mm)}",
+            f"#define PUPIL_INTERVALS {len(table.bounds)}",
+            f"#define FILM_RADIUS_MM {_c_float(table.film_radius_mm)}",
+            f"__constant float PUPIL[{table.bounds.size}] = {{{boxes}}};",
+            f"__constant float PUPIL_AREA[{len(table.bounds)}] = {{{areas}}};",
+        ]
+    else:
+        rear = rear_element_sampler(lens, camera.film_distance_mm)
+        lines += [
+            "#define LENS_SAMPLING_PUPIL 0",
+            f"#define PLANE_Z_MM {_c_float(rear.plane_z_mm)}",
+            f"#define REAR_CLEAR_MM {_c_float(rear.clear_radius_mm)}",
+            f"#define REAR_T_FAR {_c_float(rear.plane_z_mm / rear.far_z_mm)}",
+        ]
+    return "\n".join(lines) + "\n"
+
+
+#: Programs kept built, per context and source (one source per camera configuration): enough for a
+#: render, its autofocus and a bench's sample counts; older ones are dropped (PoCL's disk cache
+#: makes rebuilding one about 0.03 s).
+PROGRAM_CACHE_SIZE = 16
+
+
+@lru_cache(maxsize=PROGRAM_CACHE_SIZE)
+def _program(ctx: cl.Context, source: str) -> tuple[cl.Program, float]:
+    """Build ``source`` for ``ctx``; returns the program and its build seconds."""
+    start = time.perf_counter()
+    try:
+        program = cl.Program(ctx, source).build()
+    except cl.RuntimeError as err:
+        raise RuntimeError(f"building {KERNEL_FILE} failed:\n{err}") from None
+    return program, time.perf_counter() - start
+
+
+class LensKernel:
+    """``lens.cl`` built for one camera, with device buffers reused across launches.
+
+    Safe to call from several threads: launches are serialised on one lock (the kernel object's
+    arguments and the reused buffers are shared; PoCL spreads one launch over every core anyway).
+    """
+
+    def __init__(self, camera: LensCamera, device: str | None = None):
+        self.camera = camera
+        self.context = context(device)
+        self.queue = cl.CommandQueue(self.context)
+        self.source = camera_header(camera) + kernel_source_path().read_text(encoding="utf-8")
+        self.program, self.build_seconds = _program(self.context, self.source)
+        self._generate = cl.Kernel(self.program, "generate_rays")
+        self._bits = cl.Kernel(self.program, "sample_bits")
+        world = np.ascontiguousarray(camera.world_from_lens[:3, :4], dtype=np.float32)
+        mf = cl.mem_flags
+        self._world = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=world)
+        self._capacity = 0
+        self._out = self._pixels = None
+        self._lock = threading.Lock()
+        self._rows = ROWS + int(camera.spectral)
+
+    def _launch_layout(self, first: int, count: int) -> tuple[np.uint32, np.uint32, int]:
+        """(first pixel, first sample within it, padded launch size), checking the uint32 limits."""
+        spp = self.camera.spp
+        if first < 0 or count < 1:
+            raise ValueError(f"need first >= 0 and count >= 1, got first={first}, count={count}")
+        padded = -(-count // LOCAL_SIZE) * LOCAL_SIZE
+        first_pixel, first_sample = divmod(first, spp)
+        if first_sample + padded >= 2**32 or first_pixel + (first_sample + padded) // spp >= 2**31:
+            raise ValueError(f"sample ids {first} + {count} exceed the kernel's 32-bit pixel indices")
+        return np.uint32(first_pixel), np.uint32(first_sample), padded
+
+    def _buffers(self, padded: int) -> None:
+        if padded > self._capacity:
+            mf = cl.mem_flags
+            self._out = cl.Buffer(self.context, mf.WRITE_ONLY, self._rows * padded * 4)
+            self._pixels = cl.Buffer(self.context, mf.WRITE_ONLY, padded * 4)
+            self._capacity = padded
+
+    def generate(self, first: int, count: int, seed: int = 0) -> RayBatch:
+        """Rays of sample ids first .. first + count - 1, as realistic.camera.generate_rays (float32)."""
+        first_pixel, first_sample, padded = self._launch_layout(first, count)
+        out = np.empty((self._rows, padded), dtype=np.float32)
+        pixels = np.empty(padded, dtype=np.int32)
+        with self._lock:
+            self._buffers(padded)
+            self._generate(self.queue, (padded,), (LOCAL_SIZE,), first_pixel, first_sample,
+                           np.uint32(seed & 0xFFFFFFFF), self._world, np.uint32(padded), self._out, self._pixels)
+            cl.enqueue_copy(self.queue, out, self._out)
+            cl.enqueue_copy(self.queue, pixels, self._pixels)
+            self.queue.finish()
+        return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
+                        pixel=pixels[:count], wavelength_nm=out[7, :count] if self.camera.spectral else None)
+
+    def sample_bits(self, first: int, count: int, seed: int = 0) -> np.ndarray:
+        """The kernel's four stratified uint32 values per sample, and the wavelength's as a fifth
+        row for a spectral camera: shape (4 or 5, count) (for tests)."""
+        first_pixel, first_sample, padded = self._launch_layout(first, count)
+        rows = 4 + int(self.camera.spectral)
+        bits = cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, rows * padded * 4)
+        host = np.empty((rows, padded), dtype=np.uint32)
+        with self._lock:
+            self._bits(self.queue, (padded,), (LOCAL_SIZE,), first_pixel, first_sample,
+                       np.uint32(seed & 0xFFFFFFFF), np.uint32(padded), bits)
+            cl.enqueue_copy(self.queue, host, bits)
+        return host[:, :count]

@@ -1,0 +1,96 @@
+"""pbrt's ``perspective`` camera: a pinhole, or an ideal thin lens when it has a lens radius.
+
+Used for pbrt scenes that ask for it (and as a comparison for the real lenses). Rays come in the
+same ``RayBatch`` as the realistic camera's, from the same counter-based samples, with weight 1.
+It has no lens to trace: its rays are a few arithmetic operations per sample and come from numpy
+whatever the backend.
+
+pbrt's screen window: the shorter image side spans [-1, 1], the longer [-aspect, aspect]; ``fov``
+is the angle across the shorter side. Camera space looks down +z, +x is image right, +y image up.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, check_backend, split_sample_ids
+from realistic.core import rng
+from realistic.core.transforms import transform_points, transform_vectors
+from realistic.core.warp import concentric_disk
+from realistic.errors import UserError
+
+NOT_A_LENS = "needs a lens camera; this scene's camera is pbrt's perspective"
+
+
+@dataclass(frozen=True, eq=False)
+class ThinLensCamera:
+    """pbrt's perspective camera; validated on construction."""
+
+    fov_deg: float
+    lens_radius: float  # scene units; 0 = pinhole
+    focal_distance: float  # scene units along the camera's z
+    width: int
+    height: int
+    spp: int
+    world_from_camera: np.ndarray
+
+    def __post_init__(self) -> None:
+        if not 0 < self.fov_deg < 180:
+            raise UserError(f"perspective camera fov must be between 0 and 180 degrees, got {self.fov_deg:g}")
+        if self.lens_radius < 0 or (self.lens_radius > 0 and not self.focal_distance > 0):
+            raise UserError(f"thin lens needs lensradius >= 0 and focaldistance > 0, got {self.lens_radius:g}, "
+                            f"{self.focal_distance:g}")
+        if self.width < 1 or self.height < 1 or self.spp < 1:
+            raise UserError(f"resolution and samples must be positive, got {self.width}x{self.height}, "
+                            f"{self.spp} spp")
+        object.__setattr__(self, "world_from_camera", np.asarray(self.world_from_camera, dtype=np.float64))
+
+    @property
+    def sample_count(self) -> int:
+        return self.width * self.height * self.spp
+
+    def screen_window(self) -> tuple[float, float]:
+        """Half extents (x, y) of the screen window."""
+        aspect = self.width / self.height
+        return (aspect, 1.0) if aspect > 1 else (1.0, 1.0 / aspect)
+
+    def generate_rays(self, first_sample: int, count: int, seed: int = 0) -> RayBatch:
+        """Rays for sample ids first_sample .. first_sample + count - 1."""
+        pixel, sample = split_sample_ids(first_sample, count, self.spp)
+        u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
+        half_x, half_y = self.screen_window()
+        x = (pixel % self.width + u_x) / self.width
+        y = (pixel // self.width + u_y) / self.height
+        tan_half = math.tan(math.radians(self.fov_deg) / 2)
+        direction = np.column_stack([(2 * x - 1) * half_x * tan_half, (1 - 2 * y) * half_y * tan_half,
+                                     np.ones(count)])
+        origin = np.zeros((count, 3))
+        if self.lens_radius > 0:
+            lens_x, lens_y = concentric_disk(u_lens, v_lens)
+            origin[:, 0], origin[:, 1] = lens_x * self.lens_radius, lens_y * self.lens_radius
+            focus = direction * self.focal_distance  # direction has z = 1
+            direction = focus - origin
+        world_direction = transform_vectors(self.world_from_camera, direction)
+        world_direction /= np.linalg.norm(world_direction, axis=1, keepdims=True)
+        return RayBatch(transform_points(self.world_from_camera, origin), world_direction, np.ones(count), pixel)
+
+    def ray_generator(self, backend: str = "opencl", seed: int = 0, cl_device: str | None = None) -> RayGenerator:
+        """numpy rays whatever the backend (there is no lens for a kernel to trace)."""
+        check_backend(backend)
+        return lambda first, count: self.generate_rays(first, count, seed)
+
+    def metadata(self) -> Metadata:
+        return {"lens": "thin lens (pbrt perspective)", "fovDegrees": float(self.fov_deg),
+                "lensRadius": float(self.lens_radius), "focusDistanceSceneUnits": float(self.focal_distance)}
+
+    def with_dispersion(self, spectral: bool | None) -> ThinLensCamera:
+        """The camera itself: a thin lens has no glass to disperse (asking for dispersion is an error)."""
+        if spectral:
+            raise UserError(f"--dispersion on {NOT_A_LENS}")
+        return self
+
+    def autofocused(self, x: float, y: float, hit_distance: HitDistance) -> ThinLensCamera:
+        raise UserError(f"--focus-on {NOT_A_LENS}")

@@ -1,0 +1,163 @@
+"""The ``lens`` subcommands: ``info``, ``trace``, ``plot`` and ``curves`` of a prescription.
+
+Argument definitions and output; the numbers come from ``realistic.optics``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from realistic.cli.values import parse_resolution, positive_float
+from realistic.core.atomic_files import check_writable, write_text_atomically
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.optics.dispersion import D_LINE_NM
+from realistic.optics.formats import BUNDLED_LENSES, load_lens
+from realistic.optics.lens import LensSystem
+
+LENS_HELP = f"bundled lens name ({', '.join(BUNDLED_LENSES)}) or path to a prescription file"
+
+
+def _write_checked(path: Path, text: str) -> None:
+    check_writable(path)
+    write_text_atomically(path, text)
+
+
+def _load_lens_with_stop(args: argparse.Namespace) -> LensSystem:
+    lens = load_lens(args.lens)
+    return lens.with_stop_diameter(args.aperture) if args.aperture else lens
+
+
+def cmd_lens_info(args: argparse.Namespace) -> int:
+    from realistic.optics.report import format_summary, lens_summary
+
+    summary = lens_summary(_load_lens_with_stop(args), args.wavelength, args.film_distance, args.sampling)
+    print(json.dumps(summary, indent=2) if args.json else format_summary(summary))
+    return 0
+
+
+def cmd_lens_trace(args: argparse.Namespace) -> int:
+    from realistic.optics.ray_json import rays_to_json, read_rays
+    from realistic.optics.tracer import trace_from_film
+
+    lens = _load_lens_with_stop(args)
+    origins, directions = read_rays(args.input)
+    result = trace_from_film(lens, args.film_distance, origins, directions, args.wavelength)
+    rays = rays_to_json(result)["rays"]
+    text = '{"rays": [\n' + ",\n".join(json.dumps(ray) for ray in rays) + "\n]}"
+    if args.output in (None, "-"):
+        print(text)
+    else:
+        _write_checked(Path(args.output), text + "\n")
+    return 0
+
+
+def _film_distance(args: argparse.Namespace, lens: LensSystem) -> float:
+    """Film distance for ``--focus`` (mm from the film; default infinity)."""
+    from realistic.optics.paraxial import film_distance_for_focus
+
+    return film_distance_for_focus(lens, args.focus if args.focus else float("inf"), args.wavelength)
+
+
+def cmd_lens_plot(args: argparse.Namespace) -> int:
+    from realistic.optics.drawing import plot_cross_section
+
+    lens = _load_lens_with_stop(args)
+    out = Path(args.out or f"{lens.name}.png")
+    plot_cross_section(lens, _film_distance(args, lens), out, args.film_diagonal)
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_lens_curves(args: argparse.Namespace) -> int:
+    from realistic.optics.drawing import plot_field_curves
+    from realistic.optics.field_curves import field_curves
+
+    lens = _load_lens_with_stop(args)
+    rows = field_curves(lens, args.film_diagonal, _film_distance(args, lens))
+    out = Path(args.out or f"{lens.name}-curves.png")
+    plot_field_curves(lens.name, rows, out)
+    if args.json:
+        _write_checked(Path(args.json), json.dumps({"lens": lens.name, "curves": rows}, indent=1) + "\n")
+    if args.vignetting_map:
+        _write_vignetting_map(Path(args.vignetting_map), lens, rows, args.film_diagonal, args.map_res)
+    print("film radius mm  field angle deg  rel. illumination  vignetting  distortion %")
+    for r in rows:
+        angle = "-" if r["field_angle_deg"] is None else f"{r['field_angle_deg']:.2f}"
+        distortion = "-" if r["distortion_percent"] is None else f"{r['distortion_percent']:.3f}"
+        print(f"{r['film_radius_mm']:14.3f}  {angle:>15}  {r['relative_illumination']:17.4f}  "
+              f"{r['vignetting']:10.4f}  {distortion:>12}")
+    print("wrote " + ", ".join(str(p) for p in (out, args.json, args.vignetting_map) if p))
+    return 0
+
+
+def _write_vignetting_map(path: Path, lens: LensSystem, rows: list[dict], film_diagonal_mm: float, res: str) -> None:
+    """The relative illumination over the film as an EXR (the same value in R, G and B)."""
+    from realistic.core.image_files import write_exr
+    from realistic.optics.field_curves import vignetting_map
+
+    width, height = parse_resolution(res)
+    check_writable(path)
+    image = np.repeat(vignetting_map(rows, width, height, film_diagonal_mm)[:, :, None], 3, axis=2)
+    write_exr(path, image, {"lens": lens.name, "filmDiagonalMm": float(film_diagonal_mm),
+                            "content": "relative illumination (vignetting x cos^4), 1 at the film centre"})
+
+
+def add_lens_commands(commands: argparse._SubParsersAction) -> None:
+    """Register ``lens`` and its subcommands on the CLI's subcommand parser."""
+    lens = commands.add_parser("lens", help="analyse and trace lens prescriptions")
+    lens_commands = lens.add_subparsers(dest="lens_command", required=True, metavar="LENS_COMMAND")
+
+    def lens_arguments(parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("lens", metavar="LENS", help=LENS_HELP)
+        parser.add_argument("--aperture", type=positive_float, metavar="MM",
+                            help="stop diameter in mm (default: the file's)")
+        parser.add_argument("--wavelength", type=positive_float, default=D_LINE_NM, metavar="NM",
+                            help="wavelength in nm (default: the d line, %(default).2f)")
+
+    info = lens_commands.add_parser("info", help="surface table, paraxial data, pupils and focusing")
+    lens_arguments(info)
+    info.add_argument("--json", action="store_true", help="print one JSON object")
+    info.add_argument("--film-distance", type=positive_float, metavar="MM",
+                      help="rear vertex to film distance: also report the object distance in focus")
+    info.add_argument("--sampling", type=positive_float, metavar="FILM_DIAGONAL_MM", nargs="?", const=35.0,
+                      help="also report the fraction of rays that pass with rear-element and exit-pupil "
+                           "sampling at the centre, middle and corner of a film of this diagonal (default 35)")
+    info.set_defaults(run=cmd_lens_info)
+
+    trace = lens_commands.add_parser(
+        "trace", help="trace rays from the film through the lens (float64 reference)",
+        description="Frame: film plane z = 0, +z toward the scene, rear lens vertex at z = film distance. "
+                    'Input {"rays": [{"origin": [x,y,z], "direction": [dx,dy,dz]}, ...]}; output the ray '
+                    'leaving the front surface or {"blocked_by": {"surface": i, "reason": ...}} per ray, '
+                    "surfaces counted from 0 at the front.")
+    lens_arguments(trace)
+    trace.add_argument("--film-distance", type=positive_float, required=True, metavar="MM",
+                       help="rear vertex to film distance in mm")
+    trace.add_argument("--input", required=True, metavar="RAYS.json", help="rays to trace")
+    trace.add_argument("--output", metavar="OUT.json", help="where to write the result (default: stdout)")
+    trace.set_defaults(run=cmd_lens_trace)
+
+    def field_arguments(parser: argparse.ArgumentParser) -> None:
+        lens_arguments(parser)
+        parser.add_argument("--focus", type=positive_float, metavar="MM",
+                            help="object distance in focus, mm from the film (default: infinity)")
+        parser.add_argument("--film-diagonal", type=positive_float, default=FULL_FRAME_DIAGONAL_MM, metavar="MM",
+                            help="film diagonal in mm (default: %(default)s, full frame)")
+
+    plot = lens_commands.add_parser("plot", help="draw the lens cross-section with ray fans (PNG)")
+    field_arguments(plot)
+    plot.add_argument("--out", metavar="PNG", help="output image (default: LENS.png)")
+    plot.set_defaults(run=cmd_lens_plot)
+
+    curves = lens_commands.add_parser("curves", help="relative illumination and distortion against field height")
+    field_arguments(curves)
+    curves.add_argument("--out", metavar="PNG", help="plot of the curves (default: LENS-curves.png)")
+    curves.add_argument("--json", metavar="JSON", help="also write the curves as JSON")
+    curves.add_argument("--vignetting-map", metavar="EXR", help="also write the film's relative illumination as EXR")
+    curves.add_argument("--map-res", default="512x512", metavar="WxH",
+                        help="resolution of the vignetting map (default: %(default)s)")
+    curves.set_defaults(run=cmd_lens_curves)

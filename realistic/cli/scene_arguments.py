@@ -1,0 +1,79 @@
+"""The arguments that choose what to render, shared by ``render`` and ``bench``, and their
+conversion into the library's ``RenderOptions`` (the CLI builds no scene itself)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from realistic.camera.base import BACKENDS
+from realistic.camera.lens_camera import LENS_SAMPLINGS
+from realistic.cli.values import parse_pixel, parse_resolution, parse_vector
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.optics.formats import BUNDLED_LENSES
+
+if TYPE_CHECKING:
+    from realistic.renderer.inputs import RenderOptions
+
+
+def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    """The arguments that choose what to render (shared by ``render`` and ``bench``)."""
+    parser.add_argument("scene", nargs="?", metavar="SCENE", help="pbrt scene or mesh file; omit for the default scene")
+    parser.add_argument("--lens", help=f"mesh scenes: bundled lens ({', '.join(BUNDLED_LENSES)}) or prescription file "
+                                       "(default: dgauss)")
+    stop = parser.add_mutually_exclusive_group()
+    stop.add_argument("--aperture", type=float, metavar="MM",
+                      help="stop diameter in mm (default: the scene's or lens's)")
+    stop.add_argument("--fstop", type=float, metavar="N",
+                      help="f-number: sizes the stop for this paraxial f-number (EFL / entrance pupil)")
+    parser.add_argument("--blades", type=int, metavar="N",
+                        help="shape the stop as N diaphragm blades (a regular N-gon inscribed in the stop's circle)")
+    parser.add_argument("--blade-rotation", type=float, default=0.0, metavar="DEG",
+                        help="turn the blades (default: 0, a corner on +x)")
+    parser.add_argument("--blade-curvature", type=float, default=0.0, metavar="C",
+                        help="bow the blades: 0 straight (default) to 1 round")
+    parser.add_argument("--aperture-mask", metavar="IMAGE",
+                        help="shape the stop by an image (PNG, EXR...) spanning its diameter; level >= 0.5 is open")
+    focus = parser.add_mutually_exclusive_group()
+    focus.add_argument("--focus", type=float, metavar="DIST",
+                       help="focus distance in scene units from the film plane (default: the target's or the scene's)")
+    focus.add_argument("--focus-on", metavar="X,Y",
+                       help="autofocus on what the pixel (X, Y) sees: its depth, then a real-ray search for "
+                            "the sharpest film distance")
+    parser.add_argument("--camera-pos", metavar="X,Y,Z", help="mesh scenes: film centre position (default: framed)")
+    parser.add_argument("--target", metavar="X,Y,Z",
+                        help="mesh scenes: point looked at (default: the subject's centre)")
+    parser.add_argument("--res", metavar="WxH", help="resolution (default: the scene's, else 300x300)")
+    parser.add_argument("--film-diagonal", type=float, metavar="MM",
+                        help=f"mesh scenes: film diagonal in mm (default: {FULL_FRAME_DIAGONAL_MM}, full frame)")
+    parser.add_argument("--search-path", action="append", default=[], metavar="DIR",
+                        help="pbrt scenes: where else to look for files the scene names (meshes, textures, "
+                             "Includes, lenses), after the scene's own folder; repeatable")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    parser.add_argument("--backend", choices=BACKENDS, default="opencl",
+                        help="camera ray generation: OpenCL kernel or numpy reference (default: %(default)s)")
+    parser.add_argument("--lens-sampling", choices=LENS_SAMPLINGS, default="pupil",
+                        help="aim camera rays at the exit-pupil bounds or the rear element (default: %(default)s)")
+    parser.add_argument("--cl-device", metavar="NAME", help="OpenCL device (substring of its name, or an index)")
+    parser.add_argument("--light-samples", type=int, help="light samples per hit (default: the scene's, else 1)")
+    parser.add_argument("--dispersion", choices=("on", "off"),
+                        help="spectral rendering with the glasses' dispersion (default: on when the lens has "
+                             "Abbe numbers)")
+
+
+def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOptions:
+    """The parsed command line as ``RenderOptions``; ``spp`` None keeps the scene's own."""
+    from realistic.renderer.inputs import RenderOptions  # the renderer loads only when a command runs
+
+    return RenderOptions(
+        scene=args.scene, lens=args.lens, aperture_mm=args.aperture, f_number=args.fstop, blades=args.blades,
+        blade_rotation_deg=args.blade_rotation, blade_curvature=args.blade_curvature,
+        aperture_mask=args.aperture_mask, focus_distance=args.focus,
+        focus_on=parse_pixel(args.focus_on) if args.focus_on else None,
+        camera_position=parse_vector(args.camera_pos, "camera position") if args.camera_pos else None,
+        target=parse_vector(args.target, "target") if args.target else None,
+        resolution=parse_resolution(args.res) if args.res else None, film_diagonal_mm=args.film_diagonal,
+        spp=spp, light_samples=args.light_samples, lens_sampling=args.lens_sampling,
+        dispersion=None if args.dispersion is None else args.dispersion == "on",
+        search_paths=[Path(p) for p in args.search_path])

@@ -1,0 +1,62 @@
+"""Command-line values: text to numbers, tuples and vectors, with one-line errors naming the value."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from realistic.errors import UserError
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a positive finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive finite number")
+    return value
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    """``"640x480"`` -> (640, 480)."""
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise UserError(f"resolution {text!r} is not WIDTHxHEIGHT (e.g. 640x480)")
+    width, height = int(parts[0]), int(parts[1])
+    if width < 1 or height < 1:
+        raise UserError(f"resolution must be at least 1x1, got {text}")
+    return width, height
+
+
+def parse_vector(text: str, name: str) -> np.ndarray:
+    """``"X,Y,Z"`` -> array of three finite numbers; ``name`` is what the error calls it."""
+    try:
+        values = np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        values = np.array([])
+    if values.shape != (3,) or not np.all(np.isfinite(values)):
+        raise UserError(f"{name} {text!r} is not three finite numbers X,Y,Z")
+    return values
+
+
+def parse_pixel(text: str) -> tuple[float, float]:
+    """``"X,Y"`` -> a raster position for ``--focus-on``."""
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise UserError(f"--focus-on {text!r} is not a pixel X,Y (e.g. 150,120)") from None
+    return x, y
+
+
+def parse_spp_list(text: str) -> list[int]:
+    """``"1,4,16"`` -> [1, 4, 16]; each a positive integer."""
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        values = []
+    if not values or any(v < 1 for v in values):
+        raise UserError(f"--spp {text!r} is not a comma-separated list of positive integers")
+    return values

@@ -1,0 +1,11 @@
+"""Foundations every other part uses; imports nothing from the rest of the package but ``errors``.
+
+- ``rng``: counter-based random numbers, bit-identical in numpy and ``kernels/lens.cl``.
+- ``warp``: maps from the unit square (the concentric disk).
+- ``transforms``: 4x4 matrices (translate, scale, rotate, look-at) and applying them to points.
+- ``film_geometry``: film size from diagonal and resolution; the full-frame diagonal.
+- ``spectrum``: wavelengths per sample, RGB to spectrum, spectrum to linear sRGB.
+- ``atomic_files``: writability checks and atomic writes.
+- ``image_files``: EXR and PNG out, EXR and other images in.
+- ``data_files``: the kernel and default scene, in a checkout or an installation.
+"""

@@ -1,0 +1,112 @@
+"""Spectral colour: wavelengths per camera sample, RGB to spectrum, spectrum to linear sRGB.
+
+Wavelength sampling: uniform over [380, 780] nm (pdf 1/400 per nm), stratified within a pixel by
+``realistic.core.rng.wavelength_bits`` (a 1-D Kronecker sequence over the sample index). Uniform keeps
+the kernel free of table lookups; the colour noise it costs is small next to the lens's own.
+
+RGB to spectrum: s(lambda) = r b_R(lambda) + g b_G(lambda) + b b_B(lambda) with three smooth,
+non-negative basis functions that sum to 1 at every wavelength (a partition of unity made of two
+logistic steps at 490 and 590 nm, 12 nm wide). So (1, 1, 1) is the constant spectrum 1 exactly,
+any grey c is the constant c, and a reflectance in [0, 1]^3 stays within [0, 1] at every
+wavelength (energy is conserved). Greys and white round-trip exactly; a saturated colour comes
+back within about 5 % per channel (the round-trip matrix of the three basis spectra through the
+colour matching functions is the identity to within 0.05).
+
+Spectrum to RGB: the CIE 1931 2-degree colour matching functions in the multi-lobe analytic fit
+of Wyman, Sloan and Shirley (JCGT 2013), integrated over [380, 780] nm to XYZ, adapted from the
+equal-energy white E to D65 with the Bradford transform, converted to linear sRGB, and scaled per
+channel so that the constant spectrum 1 gives exactly (1, 1, 1): a white object stays white.
+``rgb_response(lambda)`` folds all of that and the 1/pdf of uniform sampling into one (N, 3)
+weight, so a film sample adds weight x L(lambda) x rgb_response(lambda).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+LAMBDA_MIN_NM = 380.0
+LAMBDA_MAX_NM = 780.0
+LAMBDA_RANGE_NM = LAMBDA_MAX_NM - LAMBDA_MIN_NM
+
+#: (weight, mean nm, sigma below the mean, sigma above) per lobe; Wyman, Sloan, Shirley 2013, eq. 2.
+CMF_LOBES = (
+    ((1.056, 599.8, 37.9, 31.0), (0.362, 442.0, 16.0, 26.7), (-0.065, 501.1, 20.4, 26.2)),  # x
+    ((0.821, 568.8, 46.9, 40.5), (0.286, 530.9, 16.3, 31.1)),  # y
+    ((1.217, 437.0, 11.8, 36.0), (0.681, 459.0, 26.0, 13.8)),  # z
+)
+#: Linear sRGB from CIE XYZ (IEC 61966-2-1, D65 white).
+SRGB_FROM_XYZ = np.array([[3.2404542, -1.5371385, -0.4985314],
+                          [-0.9692660, 1.8760108, 0.0415560],
+                          [0.0556434, -0.2040259, 1.0572252]])
+#: Bradford cone response matrix (chromatic adaptation).
+BRADFORD = np.array([[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367], [0.0389, -0.0685, 1.0296]])
+D65_XYZ = np.array([0.95047, 1.0, 1.08883])
+#: Logistic steps of the RGB basis: blue/green and green/red boundaries and width (nm).
+BASIS_STEPS_NM = (490.0, 590.0)
+BASIS_WIDTH_NM = 12.0
+
+
+def wavelengths_nm(u: np.ndarray) -> np.ndarray:
+    """Wavelengths (float32 nm) from uniform numbers in [0, 1), as the kernel computes them."""
+    return np.float32(LAMBDA_MIN_NM) + np.float32(LAMBDA_RANGE_NM) * np.asarray(u, dtype=np.float32)
+
+
+def cie_xyz(wavelength_nm: np.ndarray) -> np.ndarray:
+    """CIE 1931 colour matching functions (N, 3) at ``wavelength_nm`` (analytic multi-lobe fit)."""
+    lam = np.asarray(wavelength_nm, dtype=np.float64)
+    out = np.zeros(lam.shape + (3,))
+    for c, lobes in enumerate(CMF_LOBES):
+        for weight, mean, below, above in lobes:
+            t = (lam - mean) / np.where(lam < mean, below, above)
+            out[..., c] += weight * np.exp(-0.5 * t * t)
+    return out
+
+
+def cie_xyz_integral(lo_nm: float = LAMBDA_MIN_NM, hi_nm: float = LAMBDA_MAX_NM) -> np.ndarray:
+    """Exact integral over [lo, hi] nm of each colour matching function (closed form with erf)."""
+    def half_gaussian(a: float, b: float, mean: float, sigma: float) -> float:
+        scale = sigma * math.sqrt(math.pi / 2)
+        return scale * (math.erf((b - mean) / (sigma * math.sqrt(2))) - math.erf((a - mean) / (sigma * math.sqrt(2))))
+
+    total = np.zeros(3)
+    for c, lobes in enumerate(CMF_LOBES):
+        for weight, mean, below, above in lobes:
+            left = half_gaussian(lo_nm, min(hi_nm, mean), mean, below) if lo_nm < mean else 0.0
+            right = half_gaussian(max(lo_nm, mean), hi_nm, mean, above) if hi_nm > mean else 0.0
+            total[c] += weight * (left + right)
+    return total
+
+
+def _rgb_from_xyz() -> np.ndarray:
+    """White-balanced linear sRGB from XYZ: Bradford E -> D65, sRGB, then (1, 1, 1) for the constant 1."""
+    white_e = cie_xyz_integral()
+    cone_ratio = (BRADFORD @ D65_XYZ) / (BRADFORD @ (white_e / white_e[1]))
+    adapt = np.linalg.inv(BRADFORD) @ np.diag(cone_ratio) @ BRADFORD
+    m = SRGB_FROM_XYZ @ adapt
+    return m / (m @ white_e)[:, None]
+
+
+RGB_FROM_XYZ = _rgb_from_xyz()
+
+
+def rgb_response(wavelength_nm: np.ndarray) -> np.ndarray:
+    """Per-sample film weight (N, 3): linear sRGB of a unit spectral sample at ``wavelength_nm``
+    divided by the uniform pdf, so its mean over uniform wavelengths of a constant 1 is (1, 1, 1)."""
+    return (cie_xyz(wavelength_nm) @ RGB_FROM_XYZ.T * LAMBDA_RANGE_NM).astype(np.float32)
+
+
+def rgb_basis(wavelength_nm: np.ndarray) -> np.ndarray:
+    """The RGB-to-spectrum basis (N, 3) = (b_R, b_G, b_B) at ``wavelength_nm``; rows sum to 1."""
+    lam = np.asarray(wavelength_nm, dtype=np.float64)
+    blue_green, green_red = BASIS_STEPS_NM
+    s1 = 1.0 / (1.0 + np.exp(-(lam - blue_green) / BASIS_WIDTH_NM))
+    s2 = 1.0 / (1.0 + np.exp(-(lam - green_red) / BASIS_WIDTH_NM))
+    return np.stack([s2, s1 - s2, 1.0 - s1], axis=-1).astype(np.float32)
+
+
+def spectral_value(rgb: np.ndarray, basis: np.ndarray) -> np.ndarray:
+    """The spectrum of each RGB row (N, 3) at its wavelength, given that wavelength's basis row (N, 3)."""
+    rgb = np.asarray(rgb, dtype=np.float32)
+    return rgb[:, 0] * basis[:, 0] + rgb[:, 1] * basis[:, 1] + rgb[:, 2] * basis[:, 2]

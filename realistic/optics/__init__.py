@@ -1,0 +1,19 @@
+"""The lens: its model, analysis and real-ray tracing. Imports only ``core`` and ``errors``.
+
+Frames and units are set out in ``lens``: millimetres, surfaces numbered from the front, the lens
+frame with the film at z = 0 and +z toward the scene.
+
+- ``lens``: ``LensSystem`` (surfaces as arrays) and ``build_lens``, the one validation of a lens.
+- ``formats/``: file readers (pbrt ``.dat``, Zemax ``.zmx``) and the bundled prescriptions;
+  ``load_lens`` dispatches there. Readers import the model, never the reverse.
+- ``stop_shape``: the aperture stop's shape (circle, blades, image mask).
+- ``dispersion``: refractive index against wavelength from n_d and V_d.
+- ``paraxial``: first-order data (EFL, BFL, pupils, f-number) and thick-lens focusing.
+- ``tracer``: the float64 real-ray tracer (film to scene), the production tracer and the kernel's
+  oracle.
+- ``sampling``: where camera rays are aimed (exit-pupil table, rear element) and their weight.
+- ``field_curves``: relative illumination, vignetting and distortion against field.
+- ``report``: what ``lens info`` reports.
+- ``ray_json``: the JSON rays of ``lens trace``.
+- ``drawing``: matplotlib drawings (cross-section with ray fans, field curves); drawing only.
+"""

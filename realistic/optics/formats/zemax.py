@@ -1,0 +1,212 @@
+"""Zemax ``.zmx`` sequential files as lens prescriptions.
+
+Supported: ``MODE SEQ`` files of ``TYPE STANDARD`` spherical surfaces (``CURV`` in 1/unit,
+``DISZ`` thickness to the next surface, ``DIAM`` semi-diameter, or ``CLAP 0 max`` whose hard
+circular aperture takes precedence over DIAM), in ``UNIT`` MM, CM, IN or METER, with model
+glasses ``GLAS ___BLANK code pickup n_d V_d ...``. A
+catalogue glass (``GLAS N-BK7 ...``) cannot be looked up here: it is read from the n_d and V_d the
+line carries in the same fields (the lens notes which glasses were read so), and rejected when the
+line has none. Files are UTF-16 (Zemax's default, with or without BOM) or ASCII/UTF-8.
+
+Mapping: SURF 0 (object) and the last SURF (image) are not lens surfaces; SURF 1 .. N-1 become the
+prescription rows in order, and the last lens surface's ``DISZ`` becomes the film gap. Zemax's
+``GLAS`` and ``DISZ`` of a surface describe the space after it, as our columns do. The ``STOP``
+surface must be flat with air on both sides: it becomes the radius-0 stop. A curved or glass stop
+surface is rejected rather than approximated: our stop is its own flat surface and thicknesses must
+be > 0, so splitting it off would change the lens (put the stop on a flat dummy air surface in
+Zemax). Semi-diameters are kept as the file gives them.
+
+Rejected with the line that holds them: other surface types (EVENASPH, TOROIDAL, COORDBRK, PARAXIAL,
+...), non-zero ``CONI``, mirrors, tilts and decentres (``SCBD``/``SCAD``, ``OBDC``), obscurations and
+non-circular apertures, glass in object or image space, a curved image surface, non-sequential mode.
+Everything else (fields, wavelengths, solves, tolerances, display settings) is ignored.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from realistic.errors import LensFileError
+from realistic.optics.lens import LensSystem, build_lens
+
+#: Lens units Zemax writes on the ``UNIT`` line, in millimetres.
+UNIT_MM = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "M": 1000.0, "METER": 1000.0}
+
+#: Surface keywords for apertures we cannot model (only circular apertures are supported).
+UNSUPPORTED_APERTURES = {"OBSC": "circular obscuration", "SQAP": "rectangular aperture",
+                         "ELAP": "elliptical aperture", "UDAP": "user-defined aperture",
+                         "SPID": "spider obscuration"}
+
+
+@dataclass
+class _Surface:
+    """One ``SURF`` block in file units, with the lines that gave its values."""
+
+    number: int
+    line: int
+    curvature: float = 0.0
+    curvature_line: int = 0
+    thickness: float = 0.0
+    index: float = 1.0
+    abbe: float = 0.0
+    glass_line: int = 0
+    semi_diameter: float | None = None
+    clear_semi_diameter: float | None = None
+    stop_line: int = 0
+    catalogue: list[str] = field(default_factory=list)
+
+
+def decode_zmx(data: bytes, path: str) -> str:
+    """Text of a .zmx file: UTF-16 (with BOM, or detected by its NUL bytes) or ASCII/UTF-8."""
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        encoding = "utf-16"
+    elif len(data) >= 2 and data[1] == 0 and data[0] != 0:
+        encoding = "utf-16-le"
+    elif len(data) >= 2 and data[0] == 0 and data[1] != 0:
+        encoding = "utf-16-be"
+    else:
+        try:
+            return data.decode("utf-8-sig")
+        except UnicodeDecodeError:
+            return data.decode("latin-1")  # older Zemax ASCII files (Windows code page) in comments
+    try:
+        return data.decode(encoding)
+    except UnicodeDecodeError as err:
+        raise LensFileError(path, None, f"cannot read as {encoding}: {err}") from None
+
+
+def _number(token: str | None, path: str, line: int, what: str) -> float:
+    try:
+        value = float(token) if token is not None else math.nan
+    except ValueError:
+        value = math.nan
+    if math.isnan(value):
+        raise LensFileError(path, line, f"{what} {token!r} is not a number")
+    return value
+
+
+def _glass(tokens: list[str], surface: _Surface, path: str, line: int) -> None:
+    """Apply a ``GLAS name code pickup n_d V_d ...`` line to the space after the surface."""
+    name = tokens[1] if len(tokens) > 1 else ""
+    if name.upper() == "MIRROR":
+        raise LensFileError(path, line, "mirror surfaces (GLAS MIRROR) are not supported")
+    surface.glass_line = line
+    if name.upper() == "AIR":
+        surface.index, surface.abbe = 1.0, 0.0
+        return
+    has_model = len(tokens) >= 6 and _number(tokens[4], path, line, "n_d") > 0
+    if not has_model:
+        what = "model glass ___BLANK has" if name == "___BLANK" else f"catalogue glass {name!r} has"
+        raise LensFileError(path, line, f"{what} no n_d and V_d on the line, and glass catalogues are not "
+                            f"supported: give it as a model glass (GLAS ___BLANK 1 0 n_d V_d ...)")
+    nd, vd = _number(tokens[4], path, line, "n_d"), _number(tokens[5], path, line, "V_d")
+    if nd < 1 or vd < 0 or not (math.isfinite(nd) and math.isfinite(vd)):
+        raise LensFileError(path, line, f"glass n_d {nd:g} must be >= 1 and V_d {vd:g} >= 0")
+    surface.index, surface.abbe = nd, vd
+    if name != "___BLANK":
+        surface.catalogue.append(f"{name} (line {line})")
+
+
+def _surface_keyword(tokens: list[str], surface: _Surface, path: str, line: int) -> None:
+    """Apply one keyword line inside a ``SURF`` block."""
+    keyword, args = tokens[0], tokens[1:]
+    first = args[0] if args else None
+    if keyword == "TYPE" and first != "STANDARD":
+        raise LensFileError(path, line, f"surface type {first} is not supported (only TYPE STANDARD spheres)")
+    if keyword == "CURV":
+        surface.curvature, surface.curvature_line = _number(first, path, line, "CURV"), line
+    elif keyword == "DISZ":
+        surface.thickness = _number(first, path, line, "DISZ")
+    elif keyword == "GLAS":
+        _glass(tokens, surface, path, line)
+    elif keyword == "DIAM":
+        surface.semi_diameter = _number(first, path, line, "DIAM")
+    elif keyword == "CLAP":
+        low, high = _number(first, path, line, "CLAP minimum"), _number(args[1] if len(args) > 1 else None,
+                                                                         path, line, "CLAP maximum")
+        if low != 0:
+            raise LensFileError(path, line, f"annular aperture (CLAP minimum radius {low:g}) is not supported")
+        surface.clear_semi_diameter = high
+    elif keyword == "STOP":
+        surface.stop_line = line
+    elif keyword == "CONI" and _number(first, path, line, "CONI") != 0:
+        raise LensFileError(path, line, f"conic constant {first} is not supported (only spheres, CONI 0)")
+    elif keyword in ("SCBD", "SCAD", "OBDC") and any(_number(a, path, line, keyword) != 0 for a in
+                                                    args[1 if keyword != "OBDC" else 0:]):
+        raise LensFileError(path, line, f"tilted or decentred surfaces and apertures ({keyword}) are not supported")
+    elif keyword in UNSUPPORTED_APERTURES:
+        raise LensFileError(path, line, f"{UNSUPPORTED_APERTURES[keyword]} ({keyword}) is not supported "
+                            f"(only circular DIAM or CLAP apertures)")
+
+
+def _read_surfaces(text: str, path: str) -> tuple[list[_Surface], float]:
+    """The SURF blocks in file order and the lens unit in millimetres."""
+    surfaces: list[_Surface] = []
+    unit_mm = 1.0
+    for number, raw in enumerate(text.splitlines(), start=1):
+        tokens = raw.split()
+        if not tokens:
+            continue
+        keyword = tokens[0]
+        if keyword == "UNIT":
+            unit = tokens[1].upper() if len(tokens) > 1 else ""
+            if unit not in UNIT_MM:
+                raise LensFileError(path, number, f"lens unit {unit!r} is not supported (MM, CM, IN or METER)")
+            unit_mm = UNIT_MM[unit]
+        elif keyword == "MODE" and tokens[1:2] != ["SEQ"]:
+            raise LensFileError(path, number, f"MODE {' '.join(tokens[1:])} is not supported (sequential only)")
+        elif keyword == "SURF":
+            index = _number(tokens[1] if len(tokens) > 1 else None, path, number, "surface number")
+            if index != len(surfaces):
+                raise LensFileError(path, number, f"SURF {tokens[1]} out of order (expected SURF {len(surfaces)})")
+            surfaces.append(_Surface(len(surfaces), number))
+        elif surfaces:
+            _surface_keyword(tokens, surfaces[-1], path, number)
+    return surfaces, unit_mm
+
+
+def parse_zmx(text: str, path: str = "<string>") -> LensSystem:
+    """Parse a Zemax sequential file into a validated LensSystem; raise LensFileError with file:line."""
+    surfaces, unit_mm = _read_surfaces(text, path)
+    if len(surfaces) < 3:
+        raise LensFileError(path, None, f"{len(surfaces)} SURF blocks: need an object surface, at least "
+                            f"one lens surface and an image surface")
+    obj, lens, image = surfaces[0], surfaces[1:-1], surfaces[-1]
+    if obj.index != 1.0:
+        raise LensFileError(path, obj.glass_line, "object space must be air")
+    if lens[-1].index != 1.0:
+        raise LensFileError(path, lens[-1].glass_line, "the space before the image surface must be air")
+    if image.curvature != 0:
+        raise LensFileError(path, image.curvature_line, "a curved image surface is not supported")
+    for end in (obj, image):
+        if end.stop_line:
+            raise LensFileError(path, end.stop_line, "the stop must be a lens surface, not the object or image")
+
+    stops = [s for s in lens if s.stop_line]
+    if not stops:
+        raise LensFileError(path, None, "no STOP surface")
+    if len(stops) > 1:
+        raise LensFileError(path, stops[1].stop_line, f"a second STOP; the first is on line {stops[0].stop_line}")
+    stop = stops[0]
+    if stop.curvature != 0:
+        raise LensFileError(path, stop.curvature_line, "the STOP surface is curved: only a flat stop surface "
+                            "in air is supported (put the stop on a flat dummy air surface)")
+    before = surfaces[stop.number - 1].index
+    if stop.index != 1.0 or before != 1.0:
+        raise LensFileError(path, stop.stop_line, "the STOP surface has glass on one side: only a flat stop "
+                            "surface in air is supported (put the stop on a flat dummy air surface)")
+    apertures = []
+    for s in lens:
+        semi = s.clear_semi_diameter if s.clear_semi_diameter is not None else s.semi_diameter
+        if semi is None:
+            raise LensFileError(path, s.line, f"SURF {s.number} has no DIAM (semi-diameter)")
+        apertures.append(2 * semi * unit_mm)
+
+    radius = [0.0 if s is stop else math.inf if s.curvature == 0 else unit_mm / s.curvature for s in lens]
+    catalogue = [name for s in lens for name in s.catalogue]
+    note = (f"catalogue glasses read from the n_d/V_d on their GLAS lines: {', '.join(catalogue)}"
+            if catalogue else "")
+    return build_lens(path, [s.line for s in lens], radius, [s.thickness * unit_mm for s in lens],
+                      [s.index for s in lens], [s.abbe for s in lens],
+                      apertures, note=note)

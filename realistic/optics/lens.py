@@ -1,0 +1,150 @@
+"""The lens model: a prescription held as plain arrays, and its validation.
+
+It knows no file format: readers in ``realistic.optics.formats`` parse files and feed ``build_lens``.
+
+Frames and units (shared by every module of the package):
+
+* All lens lengths are millimetres.
+* Surfaces are numbered from 0 at the front (scene side) to the rear (film side), the order of
+  the rows of a prescription file.
+* The *lens frame* is the camera frame: the film plane is z = 0, +z points toward the scene, x and
+  y are the film's axes. The rear lens vertex sits at z = film distance and the front vertex at
+  z = film distance + total track. Tracers and samplers work in this frame.
+* Paraxial analysis (``realistic.optics.paraxial``) uses the optics textbook convention instead: light
+  travels from the scene toward the film and positions are signed + toward the film. It converts
+  at its boundary.
+
+A prescription row is ``radius thickness n_d [V_d] aperture``: signed radius of curvature (> 0:
+centre of curvature on the film side, i.e. convex toward the scene; 0: the planar aperture stop;
+``inf``: a flat refracting surface), distance to the next surface, index of the medium behind the
+surface (0, 1 or blank: air), optional Abbe number, clear aperture diameter.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from realistic.errors import LensFileError
+from realistic.optics.stop_shape import StopShape
+
+
+@dataclass(frozen=True, eq=False)
+class LensSystem:
+    """A lens as arrays indexed by surface, front (scene side) first.
+
+    ``thickness_mm[i]`` is the axial distance from surface i to surface i+1; the last entry is the
+    film gap given by the file (0 when the file leaves focusing to the scene). ``index_d[i]`` and
+    ``abbe_v[i]`` describe the medium behind surface i (toward the film); air has index 1 and V 0.
+    """
+
+    name: str
+    radius_mm: np.ndarray
+    thickness_mm: np.ndarray
+    index_d: np.ndarray
+    abbe_v: np.ndarray
+    aperture_mm: np.ndarray
+    stop: int
+    source: str = ""
+    convention_note: str = ""
+    stop_shape: StopShape | None = None  # None: the stop is the circle of its aperture diameter
+
+    @property
+    def surface_count(self) -> int:
+        return len(self.radius_mm)
+
+    @property
+    def curvature_per_mm(self) -> np.ndarray:
+        """1/R per surface, 0 for the stop and for flat surfaces."""
+        with np.errstate(divide="ignore"):
+            c = np.where(self.radius_mm == 0, 0.0, 1.0 / self.radius_mm)
+        return np.where(np.isfinite(c), c, 0.0)
+
+    @property
+    def track_length_mm(self) -> float:
+        """Axial distance from the front vertex to the rear vertex."""
+        return float(np.sum(self.thickness_mm[:-1]))
+
+    @property
+    def film_gap_mm(self) -> float:
+        """Rear vertex to film distance written in the file, 0 when the file gives none."""
+        return float(self.thickness_mm[-1])
+
+    @property
+    def stop_diameter_mm(self) -> float:
+        return float(self.aperture_mm[self.stop])
+
+    @property
+    def has_dispersion(self) -> bool:
+        return bool(np.any(self.abbe_v > 0))
+
+    def vertex_offset_from_rear_mm(self) -> np.ndarray:
+        """Axial position of each vertex measured from the rear vertex, + toward the scene."""
+        gaps = self.thickness_mm[:-1]
+        return np.concatenate([np.cumsum(gaps[::-1])[::-1], [0.0]])
+
+    def vertex_z_mm(self, film_distance_mm: float) -> np.ndarray:
+        """Vertex positions in the lens frame (film at z = 0) for a given film distance."""
+        return film_distance_mm + self.vertex_offset_from_rear_mm()
+
+    def with_stop_diameter(self, diameter_mm: float) -> LensSystem:
+        """The same lens with the stop opened or closed to ``diameter_mm``."""
+        if not (diameter_mm > 0 and math.isfinite(diameter_mm)):
+            raise ValueError(f"aperture diameter must be a positive number of mm, got {diameter_mm}")
+        aperture = self.aperture_mm.copy()
+        aperture[self.stop] = diameter_mm
+        return dataclasses.replace(self, aperture_mm=aperture)
+
+    def with_stop_shape(self, shape: StopShape | None) -> LensSystem:
+        """The same lens with its stop cut to ``shape`` (``realistic.optics.stop_shape``), scaled to its diameter."""
+        return dataclasses.replace(self, stop_shape=shape)
+
+
+def build_lens(path: str, lines: list[int], radius: list[float], thickness: list[float], index: list[float],
+               abbe: list[float], aperture: list[float], name: str | None = None, note: str = "") -> LensSystem:
+    """Validate per-surface values (prescription conventions) into a LensSystem.
+
+    ``lines[i]`` is the file line that errors about surface i name; every parser feeds this one
+    constructor so that all lens files obey the same rules.
+    """
+    for i, line in enumerate(lines):
+        values = (radius[i], thickness[i], index[i], abbe[i], aperture[i])
+        if any(math.isnan(x) for x in values) or any(math.isinf(x) for x in values[1:]):
+            raise LensFileError(path, line, "values must be finite numbers (only a radius may be inf)")
+        if i < len(lines) - 1 and thickness[i] <= 0:
+            raise LensFileError(path, line, f"thickness {thickness[i]:g} mm to the next surface must be > 0")
+        if i == len(lines) - 1 and thickness[i] < 0:
+            raise LensFileError(path, line, f"film gap {thickness[i]:g} mm must not be negative")
+        if index[i] < 0 or 0 < index[i] < 1:
+            raise LensFileError(path, line, f"index {index[i]:g} is below 1 (use 0, 1 or blank for air)")
+        if abbe[i] < 0:
+            raise LensFileError(path, line, f"Abbe number {abbe[i]:g} must not be negative")
+        if aperture[i] <= 0:
+            raise LensFileError(path, line, f"aperture diameter {aperture[i]:g} mm must be > 0")
+        if radius[i] != 0 and math.isfinite(radius[i]) and aperture[i] / 2 > abs(radius[i]):
+            raise LensFileError(path, line, f"aperture diameter {aperture[i]:g} mm is larger than the "
+                                f"sphere of radius {radius[i]:g} mm allows (semi-diameter > |R|)")
+
+    stops = [i for i, r in enumerate(radius) if r == 0]
+    if not stops:
+        raise LensFileError(path, None, "no aperture stop (a row with radius 0)")
+    if len(stops) > 1:
+        raise LensFileError(path, lines[stops[1]], f"a second aperture stop (radius 0); the first is "
+                            f"on line {lines[stops[0]]}")
+    stop = stops[0]
+    index = [1.0 if n in (0.0, 1.0) else n for n in index]
+    before_stop = index[stop - 1] if stop > 0 else 1.0
+    if index[stop] != 1.0 or before_stop != 1.0:
+        raise LensFileError(path, lines[stop], "the aperture stop (radius 0) must sit in air")
+    abbe = [0.0 if n == 1.0 else v for n, v in zip(index, abbe)]
+
+    return LensSystem(
+        name=name or Path(path).stem,
+        radius_mm=np.array(radius), thickness_mm=np.array(thickness), index_d=np.array(index),
+        abbe_v=np.array(abbe), aperture_mm=np.array(aperture), stop=stop,
+        source=path, convention_note=note,
+    )

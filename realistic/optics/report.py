@@ -1,0 +1,85 @@
+"""What ``realistic lens info`` reports: one dictionary, printed as text or JSON."""
+
+from __future__ import annotations
+
+import math
+
+from realistic.optics.dispersion import D_LINE_NM
+from realistic.optics.lens import LensSystem
+from realistic.optics.paraxial import film_distance_for_focus, focus_distance_for_film, nearest_focus_mm, paraxial_data
+from realistic.optics.sampling import exit_pupil_table, pass_fractions
+
+
+def lens_summary(lens: LensSystem, wavelength_nm: float = D_LINE_NM, film_distance_mm: float | None = None,
+                 sampling_film_diagonal_mm: float | None = None) -> dict:
+    """Surfaces, paraxial data, focusing and (optionally) sampler pass fractions of ``lens``."""
+    summary = {"name": lens.name, "source": lens.source}
+    if lens.convention_note:
+        summary["convention_note"] = lens.convention_note
+    summary.update(paraxial_data(lens, wavelength_nm).as_dict())
+    summary["film_distance_infinity_mm"] = film_distance_for_focus(lens, math.inf, wavelength_nm)
+    summary["nearest_focus_from_film_mm"] = nearest_focus_mm(lens, wavelength_nm)
+    summary["has_dispersion"] = lens.has_dispersion
+    if film_distance_mm is not None:
+        summary["film_distance_mm"] = film_distance_mm
+        summary["focus_distance_from_film_mm"] = focus_distance_for_film(lens, film_distance_mm, wavelength_nm)
+    summary["surfaces"] = [
+        {"radius_mm": float(r), "thickness_mm": float(t), "index_d": float(n), "abbe_v": float(v),
+         "aperture_mm": float(a), "stop": i == lens.stop}
+        for i, (r, t, n, v, a) in enumerate(zip(lens.radius_mm, lens.thickness_mm, lens.index_d,
+                                                lens.abbe_v, lens.aperture_mm))
+    ]
+    if sampling_film_diagonal_mm:
+        distance = film_distance_mm if film_distance_mm is not None else summary["film_distance_infinity_mm"]
+        table = exit_pupil_table(lens, distance, sampling_film_diagonal_mm)
+        half = sampling_film_diagonal_mm / 2
+        summary["pass_fraction"] = {
+            "film_diagonal_mm": sampling_film_diagonal_mm,
+            "at": {f"{frac:g}": pass_fractions(lens, distance, table, frac * half) for frac in (0.0, 0.5, 0.999)},
+        }
+    return summary
+
+
+def format_summary(summary: dict) -> str:
+    """Human-readable text for ``lens info``."""
+    lines = [f"lens {summary['name']}  ({summary['source']})"]
+    if "convention_note" in summary:
+        lines.append(f"note: {summary['convention_note']}")
+    lines.append("")
+    lines.append("  #      radius   thickness     n_d      V_d   aperture")
+    for i, s in enumerate(summary["surfaces"]):
+        radius = "stop" if s["stop"] else f"{s['radius_mm']:.4f}"
+        abbe = f"{s['abbe_v']:.1f}" if s["abbe_v"] else "-"
+        lines.append(f"{i:3d} {radius:>11} {s['thickness_mm']:11.4f} {s['index_d']:7.4f} {abbe:>8} "
+                     f"{s['aperture_mm']:10.3f}")
+    rows = [
+        ("wavelength", summary["wavelength_nm"], "nm"),
+        ("effective focal length", summary["efl_mm"], "mm"),
+        ("back focal distance (last vertex -> F')", summary["bfl_mm"], "mm"),
+        ("front focal distance (front vertex -> F)", summary["ffd_mm"], "mm"),
+        ("front principal plane (from front vertex)", summary["front_principal_plane_mm"], "mm"),
+        ("rear principal plane (from last vertex)", summary["rear_principal_plane_mm"], "mm"),
+        ("entrance pupil (from front vertex)", summary["entrance_pupil_mm"], "mm"),
+        ("entrance pupil diameter", summary["entrance_pupil_diameter_mm"], "mm"),
+        ("exit pupil (from last vertex)", summary["exit_pupil_mm"], "mm"),
+        ("exit pupil diameter", summary["exit_pupil_diameter_mm"], "mm"),
+        ("f-number", summary["f_number"], ""),
+        ("track length", summary["track_length_mm"], "mm"),
+        ("film distance for infinity", summary["film_distance_infinity_mm"], "mm"),
+        ("nearest focus (from film)", summary["nearest_focus_from_film_mm"], "mm"),
+    ]
+    if "film_distance_mm" in summary:
+        rows.append((f"in focus at film distance {summary['film_distance_mm']:g} mm",
+                     summary["focus_distance_from_film_mm"], "mm from film"))
+    lines.append("")
+    lines.append("paraxial data (positions signed + toward the film):")
+    width = max(len(r[0]) for r in rows)
+    lines += [f"  {label:<{width}}  {value:12.4f} {unit}" for label, value, unit in rows]
+    if "pass_fraction" in summary:
+        pf = summary["pass_fraction"]
+        lines.append("")
+        lines.append(f"fraction of sampled rays that pass (film diagonal {pf['film_diagonal_mm']:g} mm):")
+        lines.append("  film radius / half diagonal   rear element   exit pupil")
+        for at, fr in pf["at"].items():
+            lines.append(f"  {float(at):27.3f}   {fr['rear']:12.3f}   {fr['pupil']:10.3f}")
+    return "\n".join(lines)

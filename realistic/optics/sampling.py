@@ -1,0 +1,246 @@
+"""Film-side sampling: where a camera ray from a film point is aimed, and its radiometric weight.
+
+Two samplers aim rays at a plane z = ``plane_z_mm`` just behind the lens (lens frame, film at
+z = 0), both covering every direction in which the rear element can be reached:
+
+* ``RearElementSampler``: a disk on the axis whose radius covers the rear element's real extent
+  (its curved cap, not only a flat disk at the vertex) as seen from the film point.
+* ``ExitPupilTable``: per radial film interval, the bounding box of the directions that pass the
+  whole lens (found by tracing a grid), sampled in the box rotated to the film point's polar
+  angle. Fewer samples are wasted on rays the lens blocks.
+
+Both sample their region uniformly, so the Kolb et al. weight cos^4(theta) * A / Z^2 (A: area of
+the region, Z: film-to-plane distance) is exact per sample.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from realistic.core.warp import concentric_disk
+from realistic.optics.dispersion import D_LINE_NM
+from realistic.optics.lens import LensSystem
+from realistic.optics.tracer import trace_from_film
+
+PUPIL_INTERVALS = 64
+
+
+def rear_surface_depths_mm(lens: LensSystem, film_distance_mm: float) -> tuple[float, float]:
+    """(nearest, farthest) z of the rear element's clear cap in the lens frame."""
+    vertex = film_distance_mm
+    radius = lens.radius_mm[-1]
+    half = lens.aperture_mm[-1] / 2
+    rim = vertex
+    if radius != 0 and np.isfinite(radius):
+        rim = vertex - radius + np.sign(radius) * np.sqrt(radius * radius - half * half)
+    return min(vertex, rim), max(vertex, rim)
+
+
+def camera_weight(film_points: np.ndarray, plane_points: np.ndarray, area_mm2: np.ndarray,
+                  plane_z_mm: float) -> np.ndarray:
+    """cos^4(theta) * A / Z^2 for rays from film points to uniformly sampled plane points."""
+    delta = plane_points - film_points
+    cos_theta = delta[:, 2] / np.linalg.norm(delta, axis=1)
+    return cos_theta**4 * area_mm2 / (plane_z_mm * plane_z_mm)
+
+
+@dataclass(frozen=True)
+class RearElementSampler:
+    """Uniform disk on the plane z = plane_z_mm covering the rear element from each film point.
+
+    Every point of the rear cap lies between the planes z_near and z_far within the clear radius
+    a. Seen from a film point at radius rho and projected onto the plane z_near, such a point lands
+    within rho (1 - t) + a t of the axis, t = z_near / z in [z_near / z_far, 1]; the maximum over
+    t is the disk radius.
+    """
+
+    plane_z_mm: float
+    far_z_mm: float
+    clear_radius_mm: float
+
+    def radius_mm(self, film_radius_mm: np.ndarray) -> np.ndarray:
+        t_far = self.plane_z_mm / self.far_z_mm
+        return np.maximum(self.clear_radius_mm,
+                          film_radius_mm * (1 - t_far) + self.clear_radius_mm * t_far)
+
+    def sample(self, film_xy: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Plane points (N, 3) and the sampled area (N,) for film points (N, 2)."""
+        radius = self.radius_mm(np.hypot(film_xy[:, 0], film_xy[:, 1]))
+        dx, dy = concentric_disk(u1, u2)
+        points = np.stack([dx * radius, dy * radius, np.full_like(radius, self.plane_z_mm)], axis=1)
+        return points, np.pi * radius * radius
+
+
+def rear_element_sampler(lens: LensSystem, film_distance_mm: float) -> RearElementSampler:
+    near, far = rear_surface_depths_mm(lens, film_distance_mm)
+    return RearElementSampler(near, far, lens.aperture_mm[-1] / 2)
+
+
+@dataclass(frozen=True)
+class ExitPupilTable:
+    """Bounds of the passing directions on the plane z = plane_z_mm, per radial film interval.
+
+    ``bounds[k] = (x0, x1, y0, y1)`` for film points on the +x axis with radius in
+    [k, k+1) * film_radius_mm / len(bounds); an interval no ray passes has x0 > x1 (area 0).
+    """
+
+    plane_z_mm: float
+    film_radius_mm: float
+    bounds: np.ndarray
+    grid_step_mm: np.ndarray  # (K, 2) x and y spacing of the grid that found each box (its padding)
+
+    def interval(self, film_radius_mm: np.ndarray) -> np.ndarray:
+        k = np.floor(film_radius_mm / self.film_radius_mm * len(self.bounds)).astype(np.int64)
+        return np.clip(k, 0, len(self.bounds) - 1)
+
+    def area_mm2(self) -> np.ndarray:
+        width = self.bounds[:, 1] - self.bounds[:, 0]
+        height = self.bounds[:, 3] - self.bounds[:, 2]
+        return np.where((width > 0) & (height > 0), width * height, 0.0)
+
+    def sample(self, film_xy: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Plane points (N, 3) and the sampled box area (N,) for film points (N, 2)."""
+        radius = np.hypot(film_xy[:, 0], film_xy[:, 1])
+        box = self.bounds[self.interval(radius)]
+        x = box[:, 0] + u1 * (box[:, 1] - box[:, 0])
+        y = box[:, 2] + u2 * (box[:, 3] - box[:, 2])
+        safe = np.where(radius > 0, radius, 1.0)
+        cos_phi = np.where(radius > 0, film_xy[:, 0] / safe, 1.0)
+        sin_phi = np.where(radius > 0, film_xy[:, 1] / safe, 0.0)
+        points = np.stack([x * cos_phi - y * sin_phi, x * sin_phi + y * cos_phi,
+                           np.full_like(x, self.plane_z_mm)], axis=1)
+        return points, self.area_mm2()[self.interval(radius)]
+
+    def contains(self, film_xy: np.ndarray, plane_xy: np.ndarray) -> np.ndarray:
+        """Whether each plane point lies in the bounds of its film point's interval."""
+        radius = np.hypot(film_xy[:, 0], film_xy[:, 1])
+        safe = np.where(radius > 0, radius, 1.0)
+        cos_phi = np.where(radius > 0, film_xy[:, 0] / safe, 1.0)
+        sin_phi = np.where(radius > 0, film_xy[:, 1] / safe, 0.0)
+        x = plane_xy[:, 0] * cos_phi + plane_xy[:, 1] * sin_phi
+        y = -plane_xy[:, 0] * sin_phi + plane_xy[:, 1] * cos_phi
+        box = self.bounds[self.interval(radius)]
+        return (x >= box[:, 0]) & (x <= box[:, 1]) & (y >= box[:, 2]) & (y <= box[:, 3])
+
+
+def _passing_box(lens: LensSystem, film_distance_mm: float, plane_z: float, film_radii: np.ndarray,
+                 x_range: np.ndarray, y_max: np.ndarray, grid: int, wavelengths_nm: tuple[float, ...]
+                 ) -> tuple[np.ndarray, float, float]:
+    """Bounding boxes (K, 4) of passing grid points, per interval, and the grid steps used.
+
+    Interval k traces from each of ``film_radii[k]`` on the +x axis to a grid of ``grid`` x
+    ``grid/2`` points over x in x_range[k], y in [0, y_max[k]] (the pupil is symmetric in y).
+    A grid point passes when it passes at any of ``wavelengths_nm``.
+    """
+    intervals, per = film_radii.shape
+    gx = np.linspace(0.0, 1.0, grid)
+    gy = np.linspace(0.0, 1.0, grid // 2)
+    xs = x_range[:, :1] + gx[None, :] * (x_range[:, 1:] - x_range[:, :1])  # (K, G)
+    ys = gy[None, :] * y_max[:, None]  # (K, G/2)
+    px = np.broadcast_to(xs[:, None, :, None], (intervals, per, grid, grid // 2))
+    py = np.broadcast_to(ys[:, None, None, :], (intervals, per, grid, grid // 2))
+    fx = np.broadcast_to(film_radii[:, :, None, None], px.shape)
+    origins = np.stack([fx.ravel(), np.zeros(fx.size), np.zeros(fx.size)], axis=1)
+    dirs = np.stack([px.ravel() - fx.ravel(), py.ravel(), np.full(fx.size, plane_z)], axis=1)
+    passed = np.zeros(px.shape, dtype=bool)
+    for wavelength in wavelengths_nm:
+        passed |= trace_from_film(lens, film_distance_mm, origins, dirs, wavelength).passed.reshape(px.shape)
+    any_pass = passed.any(axis=(1, 3))  # (K, G) over x
+    any_pass_y = passed.any(axis=(1, 2))  # (K, G/2) over y
+    boxes = np.empty((intervals, 4))
+    for k in range(intervals):
+        xi = np.flatnonzero(any_pass[k])
+        yi = np.flatnonzero(any_pass_y[k])
+        if len(xi) == 0:
+            boxes[k] = (1.0, -1.0, 1.0, -1.0)
+            continue
+        boxes[k] = (xs[k, xi[0]], xs[k, xi[-1]], -ys[k, yi[-1]], ys[k, yi[-1]])
+    x_step = (x_range[:, 1] - x_range[:, 0]) / (grid - 1)
+    y_step = y_max / (grid // 2 - 1)
+    return boxes, x_step, y_step
+
+
+#: Exit-pupil tables kept per lens, focus, film and wavelength set: a render needs one, a bench or
+#: a focus search a few; older ones are dropped.
+PUPIL_CACHE_SIZE = 32
+
+
+@dataclass(frozen=True)
+class _PupilRequest:
+    """The key of a cached table (``key``) with the lens it was computed from (not compared)."""
+
+    key: tuple
+    lens: LensSystem = field(compare=False, hash=False)
+
+
+def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float,
+                     intervals: int = PUPIL_INTERVALS, film_points: int = 6, grid: int = 80,
+                     wavelengths_nm: tuple[float, ...] = (D_LINE_NM,)) -> ExitPupilTable:
+    """Bound the exit pupil per radial film interval (cached per lens, focus and film).
+
+    The boxes hold what passes at any of ``wavelengths_nm``: a spectral camera passes the ends of
+    its wavelength range and the d line, so no wavelength's pupil is cut off.
+    """
+    if lens.stop_shape is not None:
+        # The pupil bounds are found for film points on +x and turned to each film point's angle,
+        # which assumes a round stop. A shaped opening lies inside the circle of its reach, so that
+        # circular stop's bounds hold every ray the shape passes; rays the shape blocks get weight 0.
+        reach = lens.stop_shape.reach_mm(lens.stop_diameter_mm)
+        lens = lens.with_stop_shape(None).with_stop_diameter(2 * reach)
+    key = (lens.radius_mm.tobytes(), lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
+           lens.abbe_v.tobytes(), lens.aperture_mm.tobytes(), film_distance_mm, film_diagonal_mm,
+           intervals, film_points, grid, wavelengths_nm)
+    return _cached_table(_PupilRequest(key, lens))
+
+
+@lru_cache(maxsize=PUPIL_CACHE_SIZE)
+def _cached_table(request: _PupilRequest) -> ExitPupilTable:
+    film_distance_mm, film_diagonal_mm, intervals, film_points, grid, wavelengths_nm = request.key[5:]
+    return _build_exit_pupil_table(request.lens, film_distance_mm, film_diagonal_mm, intervals, film_points,
+                                   grid, wavelengths_nm)
+
+
+def _build_exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float,
+                            intervals: int, film_points: int, grid: int,
+                            wavelengths_nm: tuple[float, ...]) -> ExitPupilTable:
+    """Bound the exit pupil per radial film interval, as pbrt does, by tracing a dense grid.
+
+    A coarse grid over the region the rear element can occupy finds each interval's box; a fine
+    grid over that box (grown by two coarse cells) sharpens it; the result is grown by one fine
+    cell so a passing direction between grid points is not lost.
+    """
+    rear = rear_element_sampler(lens, film_distance_mm)
+    film_radius = film_diagonal_mm / 2
+    edges = np.linspace(0.0, film_radius, intervals + 1)
+    radii = np.linspace(edges[:-1], edges[1:], film_points, axis=1)
+    reach = rear.radius_mm(edges[1:])
+    coarse, cx, cy = _passing_box(lens, film_distance_mm, rear.plane_z_mm, radii,
+                                  np.stack([-reach, reach], axis=1), reach, grid, wavelengths_nm)
+    found = coarse[:, 0] <= coarse[:, 1]
+    x_range = np.stack([np.maximum(coarse[:, 0] - 2 * cx, -reach), np.minimum(coarse[:, 1] + 2 * cx, reach)], axis=1)
+    y_max = np.minimum(coarse[:, 3] + 2 * cy, reach)
+    fine, fx, fy = _passing_box(lens, film_distance_mm, rear.plane_z_mm, radii, x_range, y_max, grid, wavelengths_nm)
+    refined = found & (fine[:, 0] <= fine[:, 1])
+    grow_fine = np.stack([-fx, fx, -fy, fy], axis=1)
+    grow_coarse = np.stack([-cx, cx, -cy, cy], axis=1)
+    bounds = np.where(refined[:, None], fine + grow_fine, np.where(found[:, None], coarse + grow_coarse, coarse))
+    step = np.where(refined[:, None], np.stack([fx, fy], axis=1), np.stack([cx, cy], axis=1))
+    return ExitPupilTable(rear.plane_z_mm, film_radius, bounds, step)
+
+
+def pass_fractions(lens: LensSystem, film_distance_mm: float, table: ExitPupilTable, film_radius_mm: float,
+                   samples: int = 100_000, seed: int = 0) -> dict[str, float]:
+    """Fraction of rays that pass the lens from a film point at ``film_radius_mm``, per sampler."""
+    rng = np.random.default_rng(seed)
+    angle = np.pi / 4  # along the diagonal, toward a film corner
+    film_xy = np.tile([film_radius_mm * np.cos(angle), film_radius_mm * np.sin(angle)], (samples, 1))
+    film = np.column_stack([film_xy, np.zeros(samples)])
+    u1, u2 = rng.random(samples), rng.random(samples)
+    result = {}
+    for name, sampler in (("rear", rear_element_sampler(lens, film_distance_mm)), ("pupil", table)):
+        points, _ = sampler.sample(film_xy, u1, u2)
+        result[name] = float(trace_from_film(lens, film_distance_mm, film, points - film).passed.mean())
+    return result

@@ -1,0 +1,134 @@
+"""Float64 numpy reference tracer: rays from the film through every surface into the scene.
+
+Written for clarity; it is the oracle the OpenCL kernel is tested against, and the ``numpy``
+backend. Lens frame as in ``realistic.optics.lens``: film at z = 0, +z toward the scene.
+
+Rules (the kernel follows the same ones):
+
+* Spherical surface: the ray-sphere root is chosen by direction, as the surface's vertex cap is
+  met: for a ray travelling +z, the far root when R > 0 (centre on the film side), the near root
+  when R < 0. A hit on the far hemisphere of the sphere is a miss.
+* The stop and flat surfaces are planes z = vertex.
+* A hit farther from the axis than half the clear aperture blocks the ray (``stop`` at the stop,
+  ``aperture`` elsewhere); a shaped stop (``realistic.optics.stop_shape``) blocks what falls outside its
+  opening.
+* Refraction in Heckbert's form T = eta I + (eta c1 - c2) N, N facing the incoming ray,
+  c1 = -I.N, c2 = sqrt(1 - eta^2 (1 - c1^2)); a negative radicand is total internal reflection.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from realistic.optics.dispersion import D_LINE_NM, refractive_index
+from realistic.optics.lens import LensSystem
+
+PASSED, MISS, APERTURE, STOP, TIR = 0, 1, 2, 3, 4
+REASONS = {MISS: "miss", APERTURE: "aperture", STOP: "stop", TIR: "tir"}
+
+
+@dataclass(frozen=True)
+class TraceResult:
+    """Per ray: the ray leaving the front surface (NaN when blocked) or where and why it stopped."""
+
+    origin: np.ndarray  # (N, 3) hit on the front surface
+    direction: np.ndarray  # (N, 3) unit direction into the scene
+    blocked_surface: np.ndarray  # (N,) surface index from 0 at the front, -1 when the ray passed
+    blocked_reason: np.ndarray  # (N,) PASSED, MISS, APERTURE, STOP or TIR
+
+    @property
+    def passed(self) -> np.ndarray:
+        return self.blocked_reason == PASSED
+
+
+def intersect_surface(o: tuple, d: tuple, vertex_z: float, radius: float) -> tuple[tuple, tuple, np.ndarray]:
+    """Hit point, unit normal facing the incoming ray, and a miss mask for one surface.
+
+    ``o`` and ``d`` are (x, y, z) tuples of arrays (structure of arrays, as in the kernel).
+    """
+    ox, oy, oz = o
+    dx, dy, dz = d
+    if radius == 0 or not np.isfinite(radius):
+        t = (vertex_z - oz) / dz
+        miss = ~(t > 0)
+        hit = (ox + t * dx, oy + t * dy, oz + t * dz)
+        return hit, (np.zeros_like(dz), np.zeros_like(dz), -np.sign(dz)), miss
+    centre_z = vertex_z - radius
+    ocz = oz - centre_z
+    b = ox * dx + oy * dy + ocz * dz
+    c = ox * ox + oy * oy + ocz * ocz - radius * radius
+    disc = b * b - c
+    root = np.sqrt(np.maximum(disc, 0.0))
+    use_near = (dz > 0) == (radius < 0)
+    t = np.where(use_near, -b - root, -b + root)
+    hx, hy, hz = ox + t * dx, oy + t * dy, oz + t * dz
+    miss = (disc < 0) | ~(t > 0) | ((hz - centre_z) * radius <= 0)
+    # (hit - centre) / |R| is the outward unit normal; flip it to face the incoming ray.
+    scale = np.where(hx * dx + hy * dy + (hz - centre_z) * dz > 0, -1.0, 1.0) / abs(radius)
+    normal = (hx * scale, hy * scale, (hz - centre_z) * scale)
+    return (hx, hy, hz), normal, miss
+
+
+def refract(d: tuple, normal: tuple, eta: float | np.ndarray) -> tuple[tuple, np.ndarray]:
+    """Heckbert refraction of unit ``d`` at unit ``normal`` (facing it); returns (T, tir mask)."""
+    dx, dy, dz = d
+    nx, ny, nz = normal
+    c1 = -(dx * nx + dy * ny + dz * nz)
+    c2sq = 1.0 - eta * eta * (1.0 - c1 * c1)
+    tir = c2sq < 0
+    k = eta * c1 - np.sqrt(np.maximum(c2sq, 0.0))
+    tx, ty, tz = eta * dx + k * nx, eta * dy + k * ny, eta * dz + k * nz
+    inv = 1.0 / np.sqrt(tx * tx + ty * ty + tz * tz)
+    return (tx * inv, ty * inv, tz * inv), tir
+
+
+def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarray, directions: np.ndarray,
+                    wavelength_nm: float | np.ndarray = D_LINE_NM, path: list[np.ndarray] | None = None
+                    ) -> TraceResult:
+    """Trace rays starting at or behind the rear element through the lens, rear surface first.
+
+    ``wavelength_nm`` is one wavelength for all rays or one per ray (N,); each glass's index
+    follows it (``realistic.optics.dispersion``), media without a V number keep n_d.
+
+    With ``path`` given, the hit point (N, 3) on each surface is appended to it, rear surface
+    first (for drawing ray fans).
+    """
+    origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+    directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    length = np.sqrt(np.sum(directions * directions, axis=1))
+    o = tuple(origins[:, k].copy() for k in range(3))
+    d = tuple(directions[:, k] / length for k in range(3))
+    count = len(origins)
+    surface = np.full(count, -1, dtype=np.int64)
+    reason = np.zeros(count, dtype=np.int8)
+    vertex_z = lens.vertex_z_mm(film_distance_mm)
+    index = refractive_index(lens.index_d, lens.abbe_v, wavelength_nm)
+
+    def block(mask: np.ndarray, i: int, why: int) -> None:
+        fresh = mask & (reason == PASSED)
+        surface[fresh] = i
+        reason[fresh] = why
+
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for i in range(lens.surface_count - 1, -1, -1):
+            o, normal, miss = intersect_surface(o, d, vertex_z[i], lens.radius_mm[i])
+            block(miss, i, MISS)
+            if path is not None:
+                path.append(np.stack(o, axis=1))
+            if i == lens.stop and lens.stop_shape is not None:
+                block(~lens.stop_shape.inside(o[0], o[1], lens.aperture_mm[i]), i, STOP)
+            else:
+                r2 = o[0] * o[0] + o[1] * o[1]
+                block(~(r2 <= (lens.aperture_mm[i] / 2) ** 2), i, STOP if i == lens.stop else APERTURE)
+            if i != lens.stop:
+                n_front = index[i - 1] if i > 0 else 1.0
+                d, tir = refract(d, normal, index[i] / n_front)
+                block(tir, i, TIR)
+    dead = reason != PASSED
+    origin = np.stack(o, axis=1)
+    direction = np.stack(d, axis=1)
+    origin[dead] = np.nan
+    direction[dead] = np.nan
+    return TraceResult(origin, direction, surface, reason)

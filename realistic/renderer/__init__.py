@@ -1,0 +1,10 @@
+"""Rendering: scene and camera in, film image out. Imports every layer below it.
+
+- ``inputs``: ``RenderOptions`` (typed) to a ``Scene`` with its camera, for the CLI and the API.
+- ``passes``: ``render`` and ``render_passes``: sample-id passes on worker threads.
+- ``integrator``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces).
+- ``film``: per-pixel accumulation of pass sums.
+- ``timing``: per-stage thread-seconds.
+- ``convergence``: render at several sample counts and measure the error (``bench`` command);
+  ``convergence_plot`` draws it.
+"""

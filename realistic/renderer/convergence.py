@@ -1,0 +1,62 @@
+"""Convergence in sample count: render one scene at several spp, time each, measure the error.
+
+RMSE is against a reference image when one is given, else against the render with the most
+samples (whose own row then reads 0). ``measure_sample_counts`` returns rows; the ``bench``
+command prints them and ``realistic.renderer.convergence_plot`` draws them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from realistic.camera.base import Camera
+from realistic.errors import UserError
+from realistic.renderer.passes import render_passes
+from realistic.scene.model import Scene
+
+
+def rmse(image: np.ndarray, reference: np.ndarray) -> float:
+    """Root-mean-square difference over all pixels and channels."""
+    if image.shape != reference.shape:
+        raise UserError(f"the reference image is {reference.shape[1]}x{reference.shape[0]}, "
+                        f"the render {image.shape[1]}x{image.shape[0]}: they must match")
+    return float(np.sqrt(np.mean((image.astype(np.float64) - reference.astype(np.float64)) ** 2)))
+
+
+def measure_sample_counts(scene: Scene, camera: Camera, spp_list: list[int], backend: str = "opencl", seed: int = 0,
+                          light_samples: int = 1, reference: np.ndarray | None = None,
+                          cl_device: str | None = None, progress: bool = True) -> tuple[list[dict], np.ndarray]:
+    """Rows of seconds, camera rays/s, vignetted fraction and RMSE per spp, and the last image.
+
+    An untimed 1 spp render first pays the one-time costs (kernel build, exit-pupil table), so each
+    row times rendering alone.
+    """
+    render_passes(scene, dataclasses.replace(camera, spp=1), backend, seed, cl_device, light_samples)
+    rows, images = [], []
+    for spp in spp_list:
+        result = render_passes(scene, dataclasses.replace(camera, spp=spp), backend, seed, cl_device,
+                               light_samples, progress=progress)
+        if result.interrupted:
+            raise UserError(f"interrupted during the {spp} spp render")
+        seconds = max(result.seconds, 1e-9)
+        rows.append({"spp": spp, "seconds": result.seconds, "camera_rays_per_second": result.samples_done / seconds,
+                     "vignetted_fraction": 1.0 - result.primary_rays / max(result.samples_done, 1),
+                     "shadow_rays": result.shadow_rays})
+        images.append(result.image)
+    target = reference if reference is not None else images[int(np.argmax(spp_list))]
+    for row, image in zip(rows, images):
+        row["rmse"] = rmse(image, target)
+    return rows, images[-1]
+
+
+def convergence_slope(rows: list[dict]) -> float:
+    """Least-squares slope of log RMSE against log spp (about -0.5 for Monte Carlo)."""
+    shown = [r for r in rows if r["rmse"] > 0]
+    if len(shown) < 2:
+        return math.nan
+    x = np.log([r["spp"] for r in shown])
+    y = np.log([r["rmse"] for r in shown])
+    return float(np.polyfit(x, y, 1)[0])

@@ -1,0 +1,174 @@
+"""What to render: a scene and its camera assembled from typed options (the CLI's and the API's).
+
+``RenderOptions`` holds parsed values (numbers, tuples, paths), never command-line strings;
+``build_render_inputs`` turns them into a ``Scene`` whose ``camera`` and ``light_samples`` are
+ready to render, with what the image header should say about them. SCENE is a pbrt file (it
+brings its own camera, which the options override), a mesh file set on a grid floor
+(``realistic.scene.staging``), or None for the default scene.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from realistic.camera.base import Camera
+from realistic.camera.lens_camera import MM_PER_METRE, LensCamera
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm
+from realistic.errors import UserError
+from realistic.optics.formats import load_lens
+from realistic.optics.lens import LensSystem
+from realistic.optics.paraxial import stop_diameter_for_f_number
+from realistic.optics.stop_shape import bladed_stop, mask_stop
+from realistic.scene.intersect import Intersector
+from realistic.scene.meshes import load_mesh_file
+from realistic.scene.model import Scene
+from realistic.scene.pbrt.importer import import_pbrt
+from realistic.scene.staging import auto_eye, default_setup, mesh_setup
+
+MESH_DEFAULT_RES = (300, 300)
+MESH_DEFAULT_SPP = 16
+DEFAULT_LENS = "dgauss"
+#: Options that only a mesh or the default scene can use (a pbrt scene sets its own camera).
+MESH_ONLY = {"lens": "--lens", "camera_position": "--camera-pos", "target": "--target",
+             "film_diagonal_mm": "--film-diagonal"}
+
+
+@dataclass
+class RenderOptions:
+    """What the user asked for; None keeps the scene's own value (or the mesh scenes' default).
+
+    Lengths: ``aperture_mm`` and ``film_diagonal_mm`` in mm; ``focus_distance``, ``camera_position``
+    and ``target`` in scene units (metres for meshes and the default scene), the focus measured
+    from the film plane.
+    """
+
+    scene: str | None = None
+    lens: str | None = None
+    aperture_mm: float | None = None
+    f_number: float | None = None
+    blades: int | None = None
+    blade_rotation_deg: float = 0.0
+    blade_curvature: float = 0.0
+    aperture_mask: str | None = None
+    focus_distance: float | None = None
+    focus_on: tuple[float, float] | None = None
+    camera_position: np.ndarray | None = None
+    target: np.ndarray | None = None
+    resolution: tuple[int, int] | None = None
+    film_diagonal_mm: float | None = None
+    spp: int | None = None
+    light_samples: int | None = None
+    lens_sampling: str = "pupil"
+    dispersion: bool | None = None  # None: on when the lens has Abbe numbers
+    search_paths: list[Path] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if self.spp is not None and self.spp < 1:
+            raise UserError(f"samples per pixel must be at least 1, got {self.spp}")
+        if self.light_samples is not None and self.light_samples < 1:
+            raise UserError(f"light samples must be at least 1, got {self.light_samples}")
+        for name, value in (("aperture", self.aperture_mm), ("focus", self.focus_distance),
+                            ("film diagonal", self.film_diagonal_mm), ("f-number", self.f_number)):
+            if value is not None and not (value > 0 and np.isfinite(value)):
+                raise UserError(f"{name} must be a positive finite number, got {value:g}")
+        if self.aperture_mm is not None and self.f_number is not None:
+            raise UserError("--aperture and --fstop both size the stop: give one")
+        if self.focus_distance is not None and self.focus_on is not None:
+            raise UserError("--focus and --focus-on both set the focus: give one")
+        if self.is_pbrt:
+            given = [flag for name, flag in MESH_ONLY.items() if getattr(self, name) is not None]
+            if given:
+                raise UserError(f"{', '.join(given)} apply to mesh scenes; {self.scene} sets its own camera")
+        elif self.search_paths:
+            raise UserError("--search-path applies to pbrt scenes")
+
+    @property
+    def is_pbrt(self) -> bool:
+        return bool(self.scene) and self.scene.lower().endswith(".pbrt")
+
+    def stop_edit(self) -> Callable[[LensSystem], LensSystem] | None:
+        """The change to the lens's stop that the aperture, f-number and shape options ask for (None: none)."""
+        if self.blades and self.aperture_mask:
+            raise UserError("--blades and --aperture-mask both shape the stop: give one")
+        shape = (bladed_stop(self.blades, self.blade_rotation_deg, self.blade_curvature) if self.blades
+                 else mask_stop(self.aperture_mask) if self.aperture_mask else None)
+        if self.aperture_mm is None and self.f_number is None and shape is None:
+            return None
+
+        def edit(lens: LensSystem) -> LensSystem:
+            if self.aperture_mm is not None:
+                lens = lens.with_stop_diameter(self.aperture_mm)
+            if self.f_number is not None:
+                lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, self.f_number))
+            return lens.with_stop_shape(shape) if shape is not None else lens
+
+        return edit
+
+
+@dataclass
+class RenderInputs:
+    """A scene whose ``camera`` and ``light_samples`` are ready to render, the output name the
+    scene suggests, what the EXR header says about them, and what the scene could not honour."""
+
+    scene: Scene
+    default_out: str
+    metadata: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def camera(self) -> Camera:
+        return self.scene.camera
+
+    @property
+    def light_samples(self) -> int:
+        return self.scene.light_samples
+
+
+def build_render_inputs(options: RenderOptions) -> RenderInputs:
+    """The scene and camera ``options`` describe, focused and made spectral as they ask."""
+    inputs = _pbrt_inputs(options) if options.is_pbrt else _mesh_inputs(options)
+    scene = inputs.scene
+    if options.light_samples is not None:
+        scene.light_samples = options.light_samples
+    if options.focus_on is not None:
+        x, y = options.focus_on
+        scene.camera = scene.camera.autofocused(x, y, Intersector(scene).hit_distance)
+        inputs.metadata["focusOn"] = f"{x:g},{y:g}"
+    scene.camera = scene.camera.with_dispersion(options.dispersion)
+    return inputs
+
+
+def _pbrt_inputs(options: RenderOptions) -> RenderInputs:
+    width, height = options.resolution or (None, None)
+    imported = import_pbrt(options.scene, width, height, options.spp, options.lens_sampling,
+                           lens_edit=options.stop_edit(), focus_scene_units=options.focus_distance,
+                           search_paths=options.search_paths)
+    out = Path(imported.output_name).name if imported.output_name else "render.exr"
+    if Path(out).suffix.lower() != ".exr":
+        out = str(Path(out).with_suffix(".exr"))
+    return RenderInputs(imported.scene, out, {"scene": str(options.scene)}, imported.warnings)
+
+
+def _mesh_inputs(options: RenderOptions) -> RenderInputs:
+    width, height = options.resolution or MESH_DEFAULT_RES
+    film_diagonal = options.film_diagonal_mm or FULL_FRAME_DIAGONAL_MM
+    lens = load_lens(options.lens or DEFAULT_LENS)
+    edit = options.stop_edit()
+    if edit is not None:
+        lens = edit(lens)
+    setup = mesh_setup(load_mesh_file(options.scene)) if options.scene else default_setup()
+    target = setup.target if options.target is None else options.target
+    eye = options.camera_position
+    if eye is None:
+        film_short_mm = min(film_size_mm(film_diagonal, width, height))
+        eye = setup.eye if setup.eye is not None and options.target is None else auto_eye(setup, lens, film_short_mm)
+    setup.scene.camera = LensCamera.looking_at(lens, eye, target, options.focus_distance, film_diagonal, width,
+                                               height, options.spp or MESH_DEFAULT_SPP, options.lens_sampling)
+    metadata = {"scene": str(options.scene or "default"), "mmPerSceneUnit": MM_PER_METRE,
+                "cameraPosition": ",".join(f"{v:g}" for v in eye),
+                "cameraTarget": ",".join(f"{v:g}" for v in target)}
+    return RenderInputs(setup.scene, "render.exr", metadata)

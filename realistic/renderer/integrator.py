@@ -1,0 +1,224 @@
+"""Direct lighting in numpy: closest hits, area-light samples, shadow rays, Lambertian reflection.
+
+For a hit point p with albedo rho and shading normal n, one light sample picks light j with
+probability P_j (proportional to its power), a point q uniformly on its area A_j, and gives
+
+    L = rho / pi * L_j * cos(theta_p) * cos(theta_q) / |q - p|^2 * A_j / P_j * V(p, q),
+
+the area-sampling estimator (pdf in solid angle A_j^-1 |q - p|^2 / cos(theta_q)), averaged over
+``light_samples`` samples. Camera rays that hit an emitter's front side see its radiance; rays
+that miss everything see the background colour. Random numbers: dimensions 4 + 3k .. 6 + 3k of
+``realistic.core.rng.uniform`` for light sample k, so a render does not depend on pass size.
+
+Spectral rays (one wavelength each) evaluate every RGB albedo, light radiance and background as a
+spectrum at the ray's wavelength (``realistic.core.spectrum.rgb_basis``), multiply spectra, and return
+the spectral radiance in all three columns; the film then weights it by ``rgb_response``.
+"""
+
+from __future__ import annotations
+
+from contextlib import nullcontext
+
+import numpy as np
+
+from realistic.core import rng
+from realistic.core.spectrum import rgb_basis, spectral_value
+from realistic.core.warp import concentric_disk
+from realistic.renderer.timing import StageClock
+from realistic.scene.intersect import Intersector
+from realistic.scene.model import Scene
+from realistic.scene.textures import albedo
+
+SHADOW_OFFSET = 1e-4  # relative to the hit point's magnitude (float32 precision of embree)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of (N, 3) arrays (column arithmetic: several times faster than einsum)."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """a[index] for row gathers; np.take is about 3x faster than fancy indexing on (N, 3) arrays."""
+    return np.take(a, index, axis=0)
+
+
+def _normalise(v: np.ndarray) -> np.ndarray:
+    length = np.sqrt(_dot(v, v))[:, None]
+    return np.divide(v, length, out=np.zeros_like(v), where=length > 0)
+
+
+class DirectLighting:
+    """Radiance arriving along camera rays, with direct illumination from the scene's area lights."""
+
+    def __init__(self, scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0):
+        if light_samples < 1:
+            raise ValueError("light_samples must be at least 1")
+        self.intersector, self.light_samples, self.seed = intersector, light_samples, seed
+        self.background = np.asarray(scene.background, dtype=np.float32)
+        self.instance_count = len(scene.instances)
+        self._build_surfaces(scene)
+        self._build_lights(scene)
+
+    def _build_surfaces(self, scene: Scene) -> None:
+        """Per-mesh data concatenated once, and per-instance (geometry id) lookups into it."""
+        vertex_offset = np.cumsum([0] + [len(m.vertices) for m in scene.meshes])
+        face_offset = np.cumsum([0] + [len(m.faces) for m in scene.meshes])
+        self._faces = np.concatenate([m.faces + o for m, o in zip(scene.meshes, vertex_offset)] or
+                                     [np.zeros((0, 3), np.int64)])
+        self._normals = np.concatenate([np.zeros((len(m.vertices), 3)) if m.normals is None else m.normals
+                                        for m in scene.meshes] or [np.zeros((0, 3))]).astype(np.float32)
+        self._uv = np.concatenate([np.zeros((len(m.vertices), 2)) if m.uv is None else m.uv
+                                   for m in scene.meshes] or [np.zeros((0, 2))]).astype(np.float32)
+        mesh_of = np.array([inst.mesh for inst in scene.instances], dtype=np.int64)
+        self._geom_face_offset = face_offset[mesh_of] if len(mesh_of) else np.zeros(0, np.int64)
+        # Smooth shading only where the vertex normals differ: a flat mesh (a floor quad, a disk) gets
+        # the same normal from its faces without the per-hit interpolation.
+        smooth = [m.normals is not None and bool(np.ptp(m.normals, axis=0).max() > 1e-6) for m in scene.meshes]
+        self._geom_smooth = np.array([smooth[i] for i in mesh_of], dtype=bool)
+        self._geom_normal_matrix = np.array([np.linalg.inv(inst.transform[:3, :3]).T for inst in scene.instances],
+                                            dtype=np.float32).reshape(-1, 3, 3)
+        self._materials = []
+        material_index = {}
+        for inst in scene.instances:
+            if id(inst.material) not in material_index:
+                material_index[id(inst.material)] = len(self._materials)
+                self._materials.append(inst.material)
+        self._geom_material = np.array([material_index[id(inst.material)] for inst in scene.instances], np.int64)
+
+    def _build_lights(self, scene: Scene) -> None:
+        frames = [light.frame() for light in scene.lights]
+        self._light_centre = np.array([f[0] for f in frames], np.float32).reshape(-1, 3)
+        self._light_a = np.array([f[1] for f in frames], np.float32).reshape(-1, 3)
+        self._light_b = np.array([f[2] for f in frames], np.float32).reshape(-1, 3)
+        self._light_normal = np.array([f[3] for f in frames], np.float32).reshape(-1, 3)
+        self._light_disk = np.array([light.shape == "disk" for light in scene.lights], bool)
+        self._light_two_sided = np.array([light.two_sided for light in scene.lights], bool)
+        self._light_area = np.array([light.area() for light in scene.lights], np.float64)
+        self._light_radiance = np.array([light.radiance for light in scene.lights], np.float32).reshape(-1, 3)
+        sides = np.where(self._light_two_sided, 2.0, 1.0)
+        power = self._light_area * sides * self._light_radiance.astype(np.float64).mean(axis=1)
+        self._light_probability = power / power.sum() if power.sum() > 0 else power
+        self._light_cdf = np.cumsum(self._light_probability)
+
+    def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
+                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, int]:
+        """RGB radiance (N, 3) float32 along unit-direction rays, and the number of shadow rays traced.
+
+        With ``wavelength_nm`` (N,), the spectral radiance at each ray's wavelength, in all three columns.
+        """
+        timed = clock or (lambda _stage: nullcontext())
+        with timed("embree"):
+            hits = self.intersector.closest(origin, direction)
+        with timed("shading"):
+            basis = None if wavelength_nm is None else rgb_basis(wavelength_nm)
+
+            def colour(rgb: np.ndarray, rows: np.ndarray) -> np.ndarray:
+                """RGB rows as they are, or as spectral values (n, 1) at the rays ``rows``' wavelengths."""
+                return rgb if basis is None else spectral_value(rgb, _rows(basis, rows))[:, None]
+
+            out = np.empty((len(origin), 3), np.float32)
+            if basis is None:
+                out[:] = self.background
+            else:
+                out[:] = spectral_value(np.broadcast_to(self.background, (len(origin), 3)), basis)[:, None]
+            light_id = hits.geom - self.instance_count
+            seen = np.flatnonzero(light_id >= 0)
+            if len(seen):
+                j = light_id[seen]
+                front = (_dot(_rows(direction, seen), _rows(self._light_normal, j)) < 0) | self._light_two_sided[j]
+                out[seen] = colour(_rows(self._light_radiance, j), seen) * front[:, None]
+            surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0))
+            out[surface] = 0.0
+            if len(surface) == 0 or len(self._light_area) == 0 or self._light_cdf[-1] <= 0:
+                return out, 0
+            o = _rows(np.asarray(origin, np.float32), surface)
+            d = _rows(np.asarray(direction, np.float32), surface)
+            geom, prim = hits.geom[surface], hits.prim[surface]
+            point = o + hits.t[surface, None] * d
+            ng = _normalise(_rows(hits.normal, surface).astype(np.float32))
+            ng *= np.where(_dot(ng, d) > 0, -1.0, 1.0).astype(np.float32)[:, None]
+            face = _rows(self._faces, self._geom_face_offset[geom] + prim)
+            bary = np.column_stack([1.0 - hits.u[surface] - hits.v[surface], hits.u[surface], hits.v[surface]])
+            shading = self._shading_normal(face, bary, geom, ng)
+            rho = colour(self._albedo(face, bary, geom), surface)
+            magnitude = np.maximum(np.maximum(np.abs(point[:, 0]), np.abs(point[:, 1])), np.abs(point[:, 2]))
+            eps = SHADOW_OFFSET * (magnitude + 1e-2 * self.intersector.extent)
+            shadow_origin = point + ng * eps[:, None].astype(np.float32)
+        total = np.zeros((len(surface), 3 if basis is None else 1), np.float32)
+        shadow_rays = 0
+        for k in range(self.light_samples):
+            with timed("shading"):
+                contribution, to_light, live = self._light_sample(point, shadow_origin, shading, ng, rho,
+                                                                  pixel[surface], sample[surface], k,
+                                                                  None if basis is None else _rows(basis, surface))
+            with timed("embree"):
+                blocked = self.intersector.occluded(_rows(shadow_origin, live), to_light,
+                                                    np.full(len(live), 1.0 - 1e-4, np.float32))
+            shadow_rays += len(live)
+            with timed("shading"):
+                total[live[~blocked]] += contribution[~blocked]
+        with timed("shading"):
+            out[surface] = total / np.float32(self.light_samples)
+        return out, shadow_rays
+
+    def _shading_normal(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray, ng: np.ndarray) -> np.ndarray:
+        shading = ng.copy()
+        smooth = np.flatnonzero(self._geom_smooth[geom])
+        if len(smooth):
+            f, b = face[smooth], bary[smooth]
+            n = (_rows(self._normals, f[:, 0]) * b[:, :1] + _rows(self._normals, f[:, 1]) * b[:, 1:2]
+                 + _rows(self._normals, f[:, 2]) * b[:, 2:])
+            n = _normalise(np.einsum("nij,nj->ni", self._geom_normal_matrix[geom[smooth]], n))
+            flip = _dot(n, ng[smooth]) < 0
+            n[flip] *= -1
+            good = _dot(n, n) > 0.5
+            shading[smooth[good]] = n[good]
+        return shading
+
+    def _albedo(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray) -> np.ndarray:
+        rho = np.empty((len(face), 3), np.float32)
+        material_of = self._geom_material[geom]
+        for index, material in enumerate(self._materials):
+            rows = np.flatnonzero(material_of == index)
+            if len(rows) == 0:
+                continue
+            uv = None
+            if material.texture is not None:
+                f, b = face[rows], bary[rows]
+                uv = (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
+                      + _rows(self._uv, f[:, 2]) * b[:, 2:])
+            rho[rows] = albedo(material, uv, len(rows))
+        return rho
+
+    def _light_sample(self, point: np.ndarray, shadow_origin: np.ndarray, shading: np.ndarray, ng: np.ndarray,
+                      rho: np.ndarray, pixel: np.ndarray, sample: np.ndarray, k: int, basis: np.ndarray | None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One light sample per point: (contribution of the unoccluded ones, shadow ray vector, their rows).
+
+        ``basis`` (rows of ``rgb_basis`` per point) makes the light's radiance spectral, as ``rho`` is then.
+        """
+        u_pick = rng.uniform(pixel, sample, 4 + 3 * k, self.seed)
+        u1 = rng.uniform(pixel, sample, 5 + 3 * k, self.seed)
+        u2 = rng.uniform(pixel, sample, 6 + 3 * k, self.seed)
+        j = np.minimum(np.searchsorted(self._light_cdf, u_pick, side="right"), len(self._light_cdf) - 1)
+        dx, dy = concentric_disk(u1, u2)
+        disk = self._light_disk[j]
+        x = np.where(disk, dx, 2.0 * u1 - 1.0).astype(np.float32)[:, None]
+        y = np.where(disk, dy, 2.0 * u2 - 1.0).astype(np.float32)[:, None]
+        q = _rows(self._light_centre, j) + _rows(self._light_a, j) * x + _rows(self._light_b, j) * y
+        to_light = q - point
+        dist2 = _dot(to_light, to_light)
+        wi = to_light / np.sqrt(dist2)[:, None]
+        cos_p = _dot(wi, shading)
+        cos_q = -_dot(wi, _rows(self._light_normal, j))
+        cos_q = np.where(self._light_two_sided[j], np.abs(cos_q), cos_q)
+        live = np.flatnonzero((cos_p > 0) & (cos_q > 0) & (_dot(wi, ng) > 0) & (dist2 > 0))
+        jl = j[live]
+        scale = (cos_p[live] * cos_q[live] / dist2[live]
+                 * (self._light_area[jl] / self._light_probability[jl] / np.pi)).astype(np.float32)
+        emitted = _rows(self._light_radiance, jl)
+        if basis is not None:
+            emitted = spectral_value(emitted, _rows(basis, live))[:, None]
+        contribution = _rows(rho, live) * emitted * scale[:, None]
+        return contribution, _rows(q, live) - _rows(shadow_origin, live), live

@@ -1,0 +1,11 @@
+"""Scenes: what the camera looks at. Imports ``camera``, ``optics``, ``core`` and ``errors``.
+
+- ``model``: ``Scene`` and its plain parts (meshes, instances, materials, textures, area lights).
+- ``shapes``: analytic shapes tessellated into meshes.
+- ``meshes``: mesh files through trimesh (OBJ, PLY, STL, GLB/GLTF, OFF).
+- ``textures``: materials' albedo at surface points, batched.
+- ``intersect``: the embree scene built from a ``Scene``; closest-hit and occlusion queries.
+- ``staging``: a mesh on a grid floor under a light, the default scene, framing a subject.
+- ``pbrt/``: the pbrt scene language: ``lexer`` (tokens), ``parser`` (records and graphics
+  state), ``importer`` (records to ``Scene`` and camera).
+"""

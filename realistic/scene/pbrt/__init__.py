@@ -1,0 +1,8 @@
+"""The pbrt scene language (v1/v2/v3 subset), read in three steps.
+
+- ``lexer``: tokens with the file and line they came from.
+- ``parser``: directives into plain records (graphics state, transforms, instancing); knows
+  pbrt's grammar but nothing of how we render.
+- ``importer``: records into our ``Scene`` and camera; reports once, with file and line, what it
+  cannot honour.
+"""

@@ -1,0 +1,73 @@
+"""Tokens of the pbrt scene language (v1, v2, v3), each with the file and line it came from."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from realistic.errors import UserError
+
+_TOKEN = re.compile(r'''
+    (?P<space>[ \t\r]+) | (?P<newline>\n) | (?P<comment>\#[^\n]*)
+  | (?P<string>"[^"\n]*") | (?P<open>\[) | (?P<close>\])
+  | (?P<number>[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?(?![A-Za-z_]))
+  | (?P<word>[A-Za-z_][A-Za-z0-9_]*)
+  | (?P<bad>.)
+''', re.VERBOSE)
+
+
+class PbrtSyntaxError(UserError):
+    """A scene file that cannot be read: the message names the file, the line and what was expected."""
+
+    def __init__(self, path: str | Path, line: int, message: str):
+        super().__init__(f"{path}:{line}: {message}")
+
+
+@dataclass(frozen=True)
+class Token:
+    kind: str  # "string", "number", "word", "[" or "]"
+    text: str
+    path: Path
+    line: int
+
+    @property
+    def value(self) -> str | float:
+        if self.kind == "string":
+            return self.text[1:-1]
+        if self.kind == "number":
+            return float(self.text)
+        return self.text
+
+    def where(self) -> str:
+        return f"{self.path}:{self.line}"
+
+
+def read_scene_text(path: Path) -> str:
+    """The text of a scene file, or a UserError naming it."""
+    try:
+        return path.read_text(encoding="utf-8", errors="replace")
+    except OSError as err:
+        raise UserError(f"{path}: cannot read scene file: {err.strerror}") from None
+
+
+def tokenize(text: str, path: Path) -> Iterator[Token]:
+    """Tokens of ``text``; a stray character is a syntax error at its line."""
+    line = 1
+    for match in _TOKEN.finditer(text):
+        kind = match.lastgroup
+        if kind == "newline":
+            line += 1
+        elif kind in ("space", "comment"):
+            continue
+        elif kind == "bad":
+            if match.group() == '"':
+                raise PbrtSyntaxError(path, line, "unterminated string")
+            raise PbrtSyntaxError(path, line, f"unexpected character {match.group()!r}")
+        elif kind == "open":
+            yield Token("[", "[", path, line)
+        elif kind == "close":
+            yield Token("]", "]", path, line)
+        else:
+            yield Token(kind, match.group(), path, line)

@@ -1,0 +1,421 @@
+"""The pbrt scene language read into plain records: directives, transforms and graphics state.
+
+This module knows pbrt's grammar and state rules (CTM, attribute and transform stacks, named
+coordinate systems, object instancing, textures, materials, area lights) but nothing of how we
+render; ``realistic.scene.pbrt.importer`` turns the records into our scene and camera. What it cannot
+honour it reports once with file and line and carries on; a syntax error stops with file, line
+and what was expected.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from realistic.core.transforms import look_at, rotate, scale, translate
+from realistic.errors import UserError
+from realistic.scene.pbrt.lexer import PbrtSyntaxError, Token, read_scene_text, tokenize
+
+PARAM_TYPES = {"integer", "float", "point", "point2", "point3", "vector", "vector2", "vector3", "normal",
+               "normal3", "color", "rgb", "spectrum", "xyz", "blackbody", "string", "bool", "texture"}
+
+
+@dataclass(frozen=True)
+class Param:
+    type: str
+    name: str
+    values: tuple
+    where: str
+
+
+@dataclass
+class Params:
+    """A directive's parameter list with typed getters (unknown names stay available for reporting)."""
+
+    items: dict[str, Param] = field(default_factory=dict)
+
+    def has(self, name: str) -> bool:
+        return name in self.items
+
+    def get_floats(self, name: str, default: list[float] | None = None) -> list[float] | None:
+        p = self.items.get(name)
+        if p is None:
+            return default
+        if not all(isinstance(v, float) for v in p.values):
+            raise PbrtSyntaxError(*_split_where(p.where), f'"{p.name}" expects numbers')
+        return list(p.values)
+
+    def get_float(self, name: str, default: float | None = None) -> float | None:
+        values = self.get_floats(name)
+        return default if not values else values[0]
+
+    def get_string(self, name: str, default: str | None = None) -> str | None:
+        p = self.items.get(name)
+        if p is None or not p.values:
+            return default
+        if not isinstance(p.values[0], str):
+            raise PbrtSyntaxError(*_split_where(p.where), f'"{p.name}" expects a string')
+        return p.values[0]
+
+
+def _split_where(where: str) -> tuple[str, int]:
+    path, line = where.rsplit(":", 1)
+    return path, int(line)
+
+
+@dataclass(frozen=True)
+class Declaration:
+    """A typed directive that is state rather than geometry: Material, AreaLightSource."""
+
+    type: str
+    params: Params
+    where: str
+
+
+@dataclass(frozen=True)
+class TextureDef:
+    name: str
+    kind: str  # "float" or "color"/"spectrum"
+    cls: str  # "imagemap", "scale", "checkerboard", "constant", ...
+    params: Params
+    directory: Path  # where relative file names are looked up
+    where: str
+
+
+@dataclass(frozen=True)
+class ShapeRecord:
+    type: str
+    params: Params
+    transform: np.ndarray  # object to world (to the instance's space inside ObjectBegin)
+    material: Declaration
+    area_light: Declaration | None
+    reverse_orientation: bool
+    directory: Path
+    where: str
+
+
+@dataclass(frozen=True)
+class Directive:
+    """Camera, Film, Sampler or LightSource: type, parameters and the CTM when it was given."""
+
+    type: str
+    params: Params
+    transform: np.ndarray
+    where: str
+
+
+@dataclass
+class PbrtScene:
+    path: Path
+    film: Directive | None = None
+    sampler: Directive | None = None
+    camera: Directive | None = None
+    shapes: list[ShapeRecord] = field(default_factory=list)
+    objects: dict[str, list[ShapeRecord]] = field(default_factory=dict)
+    instances: list[tuple[str, np.ndarray, str]] = field(default_factory=list)
+    lights: list[Directive] = field(default_factory=list)
+    textures: dict[str, TextureDef] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def warn(self, where: str, message: str) -> None:
+        """Report something not honoured, once per distinct message."""
+        text = f"{where}: unsupported: {message}"
+        if not any(w.split(": unsupported: ", 1)[1] == message for w in self.warnings):
+            self.warnings.append(text)
+
+
+@dataclass
+class _State:
+    ctm: np.ndarray
+    material: Declaration
+    area_light: Declaration | None = None
+    reverse_orientation: bool = False
+
+    def copy(self) -> _State:
+        return _State(self.ctm.copy(), self.material, self.area_light, self.reverse_orientation)
+
+
+DEFAULT_MATERIAL = Declaration("matte", Params(), "<default>")
+
+
+def resolve_file(name: str, directory: Path, search_paths: list[Path]) -> Path | None:
+    """A file a scene names: relative to the naming file's folder, else in a search path."""
+    for folder in [directory, *search_paths]:
+        candidate = folder / name
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+class _Parser:
+    def __init__(self, path: Path, search_paths: list[Path]):
+        self.search_paths = search_paths
+        self.scene = PbrtScene(path)
+        self.state = _State(np.eye(4), DEFAULT_MATERIAL)
+        self.stack: list[tuple[str, _State]] = []
+        self.named_frames: dict[str, np.ndarray] = {}
+        self.current_object: str | None = None
+        self.named_materials: dict[str, Declaration] = {}
+        self.tokens: list[Token] = []
+        self.pos = 0
+
+    # ---- token access -------------------------------------------------------------------------
+    def _load(self, path: Path) -> list[Token]:
+        return list(tokenize(read_scene_text(path), path))
+
+    def peek(self) -> Token | None:
+        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
+
+    def next(self, expected: str) -> Token:
+        token = self.peek()
+        if token is None:
+            last = self.tokens[-1] if self.tokens else None
+            raise PbrtSyntaxError(last.path if last else self.scene.path, last.line if last else 1,
+                                  f"unexpected end of file, expected {expected}")
+        self.pos += 1
+        return token
+
+    def expect(self, kind: str, what: str, directive: Token) -> Token:
+        """The next token, which must be of ``kind`` (described as ``what`` in the error)."""
+        token = self.next(f"{what} after {directive.text}")
+        if token.kind != kind:
+            raise PbrtSyntaxError(token.path, token.line, f"expected {what} after {directive.text}, "
+                                  f"found {token.text}")
+        return token
+
+    def number(self, directive: Token) -> float:
+        return float(self.expect("number", "a number", directive).value)
+
+    def numbers(self, directive: Token, count: int) -> list[float]:
+        """``count`` numbers, bare or inside one pair of brackets."""
+        bracketed = self.peek() is not None and self.peek().kind == "["
+        if bracketed:
+            self.pos += 1
+        values = [self.number(directive) for _ in range(count)]
+        if bracketed:
+            close = self.next("]")
+            if close.kind != "]":
+                raise PbrtSyntaxError(close.path, close.line, f"expected ] after {count} numbers of "
+                                      f"{directive.text}, found {close.text}")
+        return values
+
+    def string(self, directive: Token) -> str:
+        return str(self.expect("string", "a quoted string", directive).value)
+
+    def params(self) -> Params:
+        params = Params()
+        while (token := self.peek()) is not None and token.kind == "string":
+            self.pos += 1
+            parts = str(token.value).split()
+            if len(parts) != 2 or parts[0] not in PARAM_TYPES:
+                raise PbrtSyntaxError(token.path, token.line, f'expected a parameter "type name", found {token.text}')
+            values = self.param_values(token)
+            params.items[parts[1]] = Param(parts[0], parts[1], tuple(values), token.where())
+        return params
+
+    def param_values(self, declaration: Token) -> list:
+        first = self.next(f"a value for {declaration.text}")
+        if first.kind in ("string", "number"):
+            return [first.value]
+        if first.kind != "[":
+            raise PbrtSyntaxError(first.path, first.line, f"expected a value or [ for {declaration.text}, "
+                                  f"found {first.text}")
+        values = []
+        while (token := self.next(f"] closing the values of {declaration.text}")).kind != "]":
+            if token.kind not in ("string", "number"):
+                raise PbrtSyntaxError(token.path, token.line, f"expected ] closing the values of "
+                                      f"{declaration.text}, found {token.text}")
+            values.append(token.value)
+        return [v in ("true", True) if declaration.value.startswith("bool") else v for v in values]
+
+    # ---- directives ---------------------------------------------------------------------------
+    def run(self) -> PbrtScene:
+        self.tokens = self._load(self.scene.path)
+        while (token := self.peek()) is not None:
+            self.pos += 1
+            if token.kind != "word":
+                raise PbrtSyntaxError(token.path, token.line, f"expected a directive, found {token.text}")
+            handler = getattr(self, f"d_{token.text}", None)
+            if handler is None:
+                self.skip_unknown(token)
+            else:
+                try:
+                    handler(token)
+                except ValueError as err:
+                    raise PbrtSyntaxError(token.path, token.line, f"{token.text}: {err}") from None
+        return self.scene
+
+    def skip_unknown(self, token: Token) -> None:
+        """An unknown directive: report it and skip its arguments up to the next directive."""
+        self.scene.warn(token.where(), f"directive {token.text} (ignored)")
+        while (nxt := self.peek()) is not None and nxt.kind != "word":
+            self.pos += 1
+
+    def apply(self, matrix: np.ndarray) -> None:
+        self.state.ctm = self.state.ctm @ matrix
+
+    def d_Include(self, token: Token) -> None:
+        name = self.string(token)
+        path = resolve_file(name, token.path.parent, self.search_paths)
+        if path is None:
+            self.scene.warn(token.where(), f'Include "{name}": no such file in {token.path.parent} or the search '
+                                       f'paths (skipped)')
+            return
+        self.tokens[self.pos:self.pos] = self._load(path)
+
+    d_Import = d_Include
+
+    def d_Identity(self, token: Token) -> None:
+        self.state.ctm = np.eye(4)
+
+    def d_Translate(self, token: Token) -> None:
+        self.apply(translate(*self.numbers(token, 3)))
+
+    def d_Scale(self, token: Token) -> None:
+        self.apply(scale(*self.numbers(token, 3)))
+
+    def d_Rotate(self, token: Token) -> None:
+        angle, *axis = self.numbers(token, 4)
+        if not any(axis):
+            raise ValueError("zero rotation axis")
+        self.apply(rotate(angle, axis))
+
+    def d_LookAt(self, token: Token) -> None:
+        v = np.array(self.numbers(token, 9))
+        eye, target, up = v[0:3], v[3:6], v[6:9]
+        if np.array_equal(eye, target):
+            raise ValueError("LookAt eye and target coincide")
+        if not np.any(np.cross(up, target - eye)):
+            raise ValueError("LookAt up vector is parallel to the viewing direction")
+        self.apply(np.linalg.inv(look_at(eye, target, up)))  # pbrt's LookAt gives world to camera
+
+    def d_Transform(self, token: Token) -> None:
+        self.state.ctm = np.array(self.numbers(token, 16)).reshape(4, 4).T  # pbrt lists column-major
+
+    def d_ConcatTransform(self, token: Token) -> None:
+        self.apply(np.array(self.numbers(token, 16)).reshape(4, 4).T)
+
+    def d_CoordinateSystem(self, token: Token) -> None:
+        self.named_frames[self.string(token)] = self.state.ctm.copy()
+
+    def d_CoordSysTransform(self, token: Token) -> None:
+        name = self.string(token)
+        if name not in self.named_frames:
+            raise PbrtSyntaxError(token.path, token.line,
+                                  f'CoordSysTransform "{name}": no coordinate system of that name')
+        self.state.ctm = self.named_frames[name].copy()
+
+    def _directive(self, token: Token) -> Directive:
+        kind = self.string(token)
+        return Directive(kind, self.params(), self.state.ctm.copy(), token.where())
+
+    def d_Film(self, token: Token) -> None:
+        self.scene.film = self._directive(token)
+
+    def d_Sampler(self, token: Token) -> None:
+        self.scene.sampler = self._directive(token)
+
+    def d_Camera(self, token: Token) -> None:
+        self.scene.camera = self._directive(token)
+        self.named_frames["camera"] = np.linalg.inv(self.state.ctm)
+
+    def _ignored(self, token: Token) -> None:
+        kind = self.string(token)
+        self.params()
+        self.scene.warn(token.where(), f'{token.text} "{kind}" (ignored)')
+
+    d_PixelFilter = d_SurfaceIntegrator = d_VolumeIntegrator = d_Integrator = d_Accelerator = _ignored
+    d_Renderer = d_ColorSpace = d_MakeNamedMedium = _ignored
+
+    def d_WorldBegin(self, token: Token) -> None:
+        self.named_frames["world"] = np.eye(4)
+        self.state.ctm = np.eye(4)
+
+    def d_WorldEnd(self, token: Token) -> None:
+        pass
+
+    def _push(self, kind: str) -> None:
+        self.stack.append((kind, self.state.copy()))
+
+    def _pop(self, token: Token, kind: str) -> _State:
+        if not self.stack:
+            raise PbrtSyntaxError(token.path, token.line, f"{token.text} without a matching {kind}Begin")
+        opened, saved = self.stack.pop()
+        if opened != kind:
+            raise PbrtSyntaxError(token.path, token.line, f"{token.text} closes a {opened}Begin")
+        return saved
+
+    def d_AttributeBegin(self, token: Token) -> None:
+        self._push("Attribute")
+
+    def d_AttributeEnd(self, token: Token) -> None:
+        self.state = self._pop(token, "Attribute")
+
+    def d_TransformBegin(self, token: Token) -> None:
+        self._push("Transform")
+
+    def d_TransformEnd(self, token: Token) -> None:
+        self.state.ctm = self._pop(token, "Transform").ctm
+
+    def d_ReverseOrientation(self, token: Token) -> None:
+        self.state.reverse_orientation = not self.state.reverse_orientation
+
+    def d_ObjectBegin(self, token: Token) -> None:
+        name = self.string(token)
+        self._push("Object")
+        self.current_object = name
+        self.scene.objects[name] = []
+
+    def d_ObjectEnd(self, token: Token) -> None:
+        self.state = self._pop(token, "Object")
+        self.current_object = None
+
+    def d_ObjectInstance(self, token: Token) -> None:
+        name = self.string(token)
+        if name not in self.scene.objects:
+            raise PbrtSyntaxError(token.path, token.line, f'ObjectInstance "{name}": no object of that name')
+        self.scene.instances.append((name, self.state.ctm.copy(), token.where()))
+
+    def d_Texture(self, token: Token) -> None:
+        name, kind, cls = self.string(token), self.string(token), self.string(token)
+        self.scene.textures[name] = TextureDef(name, kind, cls, self.params(), token.path.parent, token.where())
+
+    def d_Material(self, token: Token) -> None:
+        self.state.material = Declaration(self.string(token), self.params(), token.where())
+
+    def d_MakeNamedMaterial(self, token: Token) -> None:
+        name = self.string(token)
+        params = self.params()
+        self.named_materials[name] = Declaration(params.get_string("type", "matte"), params, token.where())
+
+    def d_NamedMaterial(self, token: Token) -> None:
+        name = self.string(token)
+        if name not in self.named_materials:
+            raise PbrtSyntaxError(token.path, token.line, f'NamedMaterial "{name}": no material of that name')
+        self.state.material = self.named_materials[name]
+
+    def d_AreaLightSource(self, token: Token) -> None:
+        self.state.area_light = Declaration(self.string(token), self.params(), token.where())
+
+    def d_LightSource(self, token: Token) -> None:
+        kind = self.string(token)
+        self.scene.lights.append(Directive(kind, self.params(), self.state.ctm.copy(), token.where()))
+
+    def d_Shape(self, token: Token) -> None:
+        kind = self.string(token)
+        record = ShapeRecord(kind, self.params(), self.state.ctm.copy(), self.state.material,
+                             self.state.area_light, self.state.reverse_orientation, token.path.parent, token.where())
+        if self.current_object is not None:
+            self.scene.objects[self.current_object].append(record)
+        else:
+            self.scene.shapes.append(record)
+
+
+def parse_pbrt(path: str | Path, search_paths: list[Path] | None = None) -> PbrtScene:
+    """Read a pbrt scene file (with its Includes) into records."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: no such scene file")
+    return _Parser(path, list(search_paths or [])).run()
