@@ -1,8 +1,19 @@
 """Shared fixtures: where the project's shared reference data lives (skips when it is absent)."""
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
+
+#: Property-based tests: a fixed, derandomised profile keeps CI's fuzzing short and repeatable;
+#: ``pytest --hypothesis-profile=long`` explores far more inputs by hand (docs/robustness.md).
+#: The fuzz tests read ``capsys`` afresh per example and make their own folders per example, so
+#: function-scoped fixtures are safe there.
+_QUIET = [HealthCheck.too_slow, HealthCheck.function_scoped_fixture]
+settings.register_profile("ci", max_examples=60, deadline=None, derandomize=True, suppress_health_check=_QUIET)
+settings.register_profile("long", max_examples=5000, deadline=None, suppress_health_check=_QUIET)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from realistic.camera.autofocus import autofocus_distance_mm
 from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, check_backend, split_sample_ids
-from realistic.core import rng
+from realistic.core import rng, validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm
 from realistic.core.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, wavelengths_nm
 from realistic.core.transforms import look_at, scale, transform_points, transform_vectors
@@ -66,16 +66,14 @@ class LensCamera:
     spectral: bool = False
 
     def __post_init__(self) -> None:
-        if self.width < 1 or self.height < 1:
-            raise UserError(f"resolution must be at least 1x1, got {self.width}x{self.height}")
-        if self.spp < 1:
-            raise UserError(f"samples per pixel must be at least 1, got {self.spp}")
+        validation.resolution(self.width, self.height)
+        validation.samples_per_pixel(self.spp)
+        validation.film_diagonal_mm(self.film_diagonal_mm)
+        validation.positive_length(self.film_distance_mm, "film distance (mm)")
         if self.lens_sampling not in LENS_SAMPLINGS:
             raise UserError(f"lens sampling must be one of {', '.join(LENS_SAMPLINGS)}, got {self.lens_sampling!r}")
         if self.origin not in ORIGINS:
             raise UserError(f"camera origin must be one of {', '.join(ORIGINS)}, got {self.origin!r}")
-        if not self.film_distance_mm > 0:
-            raise UserError(f"film distance must be positive, got {self.film_distance_mm:g} mm")
         object.__setattr__(self, "world_from_camera", np.asarray(self.world_from_camera, dtype=np.float64))
 
     @classmethod

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, check_backend, split_sample_ids
-from realistic.core import rng
+from realistic.core import rng, validation
 from realistic.core.transforms import transform_points, transform_vectors
 from realistic.core.warp import concentric_disk
 from realistic.errors import UserError
@@ -43,9 +43,8 @@ class ThinLensCamera:
         if self.lens_radius < 0 or (self.lens_radius > 0 and not self.focal_distance > 0):
             raise UserError(f"thin lens needs lensradius >= 0 and focaldistance > 0, got {self.lens_radius:g}, "
                             f"{self.focal_distance:g}")
-        if self.width < 1 or self.height < 1 or self.spp < 1:
-            raise UserError(f"resolution and samples must be positive, got {self.width}x{self.height}, "
-                            f"{self.spp} spp")
+        validation.resolution(self.width, self.height)
+        validation.samples_per_pixel(self.spp)
         object.__setattr__(self, "world_from_camera", np.asarray(self.world_from_camera, dtype=np.float64))
 
     @property

@@ -12,7 +12,11 @@ One module per command group, each holding argument definitions and output only:
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
+import threading
+from typing import NoReturn
 
 from realistic.cli.bench import add_bench_command
 from realistic.cli.lens import add_lens_commands
@@ -20,8 +24,15 @@ from realistic.cli.render import add_render_command
 from realistic.errors import UserError
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse that reports a bad command line as one UserError line (no usage dump)."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UserError(f"{message} (see {self.prog} --help)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="realistic", description="Render through real multi-element lenses.")
+    parser = OneLineParser(prog="realistic", description="Render through real multi-element lenses.")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add_lens_commands(commands)
     add_render_command(commands)
@@ -29,13 +40,44 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Options whose value may look like an option (``--res -64x48``, ``--target -1,0,2``): such a value
+#: is joined to its option so that the value's own check, not argparse, says what is wrong.
+VALUE_OPTIONS = ("--res", "--map-res", "--camera-pos", "--target", "--focus-on")
+#: Signals that stop a render the way Ctrl-C does: finish the passes in flight, write what is done.
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+def _join_dash_values(argv: list[str]) -> list[str]:
+    joined: list[str] = []
+    for token in argv:
+        if joined and joined[-1] in VALUE_OPTIONS and token[:1] == "-" and token[1:2].isdigit():
+            joined[-1] = f"{joined[-1]}={token}"
+        else:
+            joined.append(token)
+    return joined
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run one command; a user error is one line and exit status 2, an interrupt exit status 130."""
+    argv = _join_dash_values(sys.argv[1:] if argv is None else list(argv))
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = {number: signal.signal(number, _interrupt) for number in STOP_SIGNALS} if in_main_thread else {}
     try:
+        args = build_parser().parse_args(argv)
         return args.run(args)
     except UserError as err:
         print(f"realistic: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("realistic: interrupted", file=sys.stderr)
+        if threading.active_count() > 1:  # interrupted again while passes finish: stop at once
+            print("\nrealistic: stopped at once: nothing written", file=sys.stderr, flush=True)
+            os._exit(130)
+        print("realistic: interrupted before the image was written: nothing written", file=sys.stderr)
         return 130
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)

@@ -55,7 +55,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     inputs = build_render_inputs(options_from_args(args, spp_list[0]))
     report_warnings(inputs.warnings)
     rows, _ = measure_sample_counts(inputs.scene, inputs.camera, spp_list, args.backend, args.seed,
-                                    inputs.light_samples, reference, args.cl_device)
+                                    inputs.light_samples, reference, args.cl_device,
+                                    max_memory_bytes=args.max_memory)
     against = "reference" if reference is not None else f"{max(spp_list)} spp"
     camera = inputs.camera
     print(f"{args.scene or 'default scene'}: {camera.width}x{camera.height}, backend {args.backend}")

@@ -7,7 +7,10 @@ The renderer is imported when the command runs, so ``--help`` and the lens comma
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import tempfile
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +18,8 @@ import numpy as np
 from realistic.camera.base import Camera
 from realistic.camera.exposure import exposure_scale, exposure_value, parse_shutter
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
+from realistic.cli.values import checked
+from realistic.core import validation
 from realistic.core.atomic_files import check_writable
 from realistic.core.image_files import auto_exposure, write_exr, write_png
 from realistic.errors import UserError
@@ -45,16 +50,18 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("render", help="render a pbrt scene, a mesh, or the default scene through a lens",
                                  description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_scene_arguments(parser)
-    parser.add_argument("--spp", type=int, help="samples per pixel (default: the scene's, else 16)")
+    parser.add_argument("--spp", type=checked(int, validation.samples_per_pixel), metavar="N",
+                        help=f"samples per pixel, 1 to {validation.MAX_SPP} (default: the scene's, else 16)")
     parser.add_argument("--out", metavar="FILE.exr",
                         help="output EXR; the PNG preview is written beside it (default: the scene's film "
                              "file name, else render.exr)")
-    parser.add_argument("--exposure", type=float, metavar="EV",
+    parser.add_argument("--exposure", type=checked(float, partial(validation.finite, name="exposure")), metavar="EV",
                         help="PNG preview exposure in stops (default: automatic, or 0 with --shutter/--iso)")
     parser.add_argument("--shutter", metavar="SECONDS",
                         help="shutter time (e.g. 1/125): with --iso, the EXR holds a photographic exposure, "
                              "calibrated so a metered middle grey reads 0.18, instead of film irradiance")
-    parser.add_argument("--iso", type=float, help="ISO speed (default with --shutter: 100)")
+    parser.add_argument("--iso", type=checked(float, partial(validation.positive_length, name="ISO speed")),
+                        help="ISO speed (default with --shutter: 100)")
     parser.set_defaults(run=cmd_render)
 
 
@@ -75,6 +82,23 @@ def _photographic(image: np.ndarray, camera: Camera, args: argparse.Namespace) -
     return (image * np.float32(scale)).astype(np.float32), header
 
 
+def _write_images(out: Path, image: np.ndarray, metadata: dict, exposure: float) -> tuple[Path, Path]:
+    """Write the EXR and its PNG preview; if ``out`` cannot be written now (its folder was removed
+    during the render, the disk filled), save them in the temporary folder instead, so a finished
+    render is never lost, and say where. Returns where they went."""
+    try:
+        write_exr(out, image, metadata)
+        write_png(out.with_suffix(".png"), image, exposure)
+        return out, out.with_suffix(".png")
+    except UserError as err:
+        handle, rescue = tempfile.mkstemp(prefix=f"realistic-{out.stem}-", suffix=".exr")
+        os.close(handle)
+        rescue = Path(rescue)
+        write_exr(rescue, image, metadata)
+        write_png(rescue.with_suffix(".png"), image, exposure)
+        raise UserError(f"{err}; the render was saved as {rescue} (and its .png) instead") from None
+
+
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.inputs import build_render_inputs
     from realistic.renderer.passes import render_passes
@@ -89,7 +113,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     check_writable(png)
     camera = inputs.camera
     result = render_passes(inputs.scene, camera, args.backend, args.seed, args.cl_device, inputs.light_samples,
-                           progress=True)
+                           progress=True, max_memory_bytes=args.max_memory)
     metadata = {**camera.metadata(), **inputs.metadata,
                 "spp": int(camera.spp), "seed": int(args.seed), "lightSamples": int(inputs.light_samples),
                 "backend": args.backend, "renderSeconds": float(result.seconds),
@@ -99,10 +123,9 @@ def cmd_render(args: argparse.Namespace) -> int:
     if args.shutter or args.iso:
         image, photographic = _photographic(image, camera, args)
         metadata.update(photographic)
-    write_exr(out, image, metadata)
     exposure = args.exposure if args.exposure is not None else (0.0 if args.shutter or args.iso
                                                                    else auto_exposure(image))
-    write_png(png, image, exposure)
+    out, png = _write_images(out, image, metadata, exposure)
     rays = result.primary_rays + result.shadow_rays
     if result.interrupted:
         print(f"realistic: interrupted: wrote the {result.samples_done} of {result.samples_total} samples "

@@ -4,14 +4,18 @@ conversion into the library's ``RenderOptions`` (the CLI builds no scene itself)
 from __future__ import annotations
 
 import argparse
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from realistic.camera.base import BACKENDS
 from realistic.camera.lens_camera import LENS_SAMPLINGS
-from realistic.cli.values import parse_pixel, parse_resolution, parse_vector
+from realistic.cli.values import checked, parse_pixel, parse_resolution, parse_vector
+from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.validation import finite, positive_length
 from realistic.optics.formats import BUNDLED_LENSES
+from realistic.renderer.memory import parse_size
 
 if TYPE_CHECKING:
     from realistic.renderer.inputs import RenderOptions
@@ -23,20 +27,22 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lens", help=f"mesh scenes: bundled lens ({', '.join(BUNDLED_LENSES)}) or prescription file "
                                        "(default: dgauss)")
     stop = parser.add_mutually_exclusive_group()
-    stop.add_argument("--aperture", type=float, metavar="MM",
+    stop.add_argument("--aperture", type=checked(float, partial(positive_length, name="aperture (mm)")), metavar="MM",
                       help="stop diameter in mm (default: the scene's or lens's)")
-    stop.add_argument("--fstop", type=float, metavar="N",
+    stop.add_argument("--fstop", type=checked(float, partial(positive_length, name="f-number")), metavar="N",
                       help="f-number: sizes the stop for this paraxial f-number (EFL / entrance pupil)")
-    parser.add_argument("--blades", type=int, metavar="N",
-                        help="shape the stop as N diaphragm blades (a regular N-gon inscribed in the stop's circle)")
-    parser.add_argument("--blade-rotation", type=float, default=0.0, metavar="DEG",
+    parser.add_argument("--blades", type=checked(int, validation.blades), metavar="N",
+                        help="shape the stop as N diaphragm blades (a regular N-gon inscribed in the stop's circle; "
+                             f"{validation.MIN_BLADES} to {validation.MAX_BLADES})")
+    parser.add_argument("--blade-rotation", type=checked(float, partial(finite, name="blade rotation")), default=0.0,
+                        metavar="DEG",
                         help="turn the blades (default: 0, a corner on +x)")
     parser.add_argument("--blade-curvature", type=float, default=0.0, metavar="C",
                         help="bow the blades: 0 straight (default) to 1 round")
     parser.add_argument("--aperture-mask", metavar="IMAGE",
                         help="shape the stop by an image (PNG, EXR...) spanning its diameter; level >= 0.5 is open")
     focus = parser.add_mutually_exclusive_group()
-    focus.add_argument("--focus", type=float, metavar="DIST",
+    focus.add_argument("--focus", type=checked(float, partial(positive_length, name="focus distance")), metavar="DIST",
                        help="focus distance in scene units from the film plane (default: the target's or the scene's)")
     focus.add_argument("--focus-on", metavar="X,Y",
                        help="autofocus on what the pixel (X, Y) sees: its depth, then a real-ray search for "
@@ -44,19 +50,27 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--camera-pos", metavar="X,Y,Z", help="mesh scenes: film centre position (default: framed)")
     parser.add_argument("--target", metavar="X,Y,Z",
                         help="mesh scenes: point looked at (default: the subject's centre)")
-    parser.add_argument("--res", metavar="WxH", help="resolution (default: the scene's, else 300x300)")
-    parser.add_argument("--film-diagonal", type=float, metavar="MM",
+    parser.add_argument("--res", metavar="WxH",
+                        help=f"resolution, each side 1 to {validation.MAX_IMAGE_SIDE} "
+                             "(default: the scene's, else 300x300)")
+    parser.add_argument("--film-diagonal", type=checked(float, validation.film_diagonal_mm), metavar="MM",
                         help=f"mesh scenes: film diagonal in mm (default: {FULL_FRAME_DIAGONAL_MM}, full frame)")
     parser.add_argument("--search-path", action="append", default=[], metavar="DIR",
                         help="pbrt scenes: where else to look for files the scene names (meshes, textures, "
                              "Includes, lenses), after the scene's own folder; repeatable")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    parser.add_argument("--seed", type=checked(int, validation.seed), default=0,
+                        help=f"random seed, 0 to {validation.MAX_SEED} (default: %(default)s)")
     parser.add_argument("--backend", choices=BACKENDS, default="opencl",
                         help="camera ray generation: OpenCL kernel or numpy reference (default: %(default)s)")
     parser.add_argument("--lens-sampling", choices=LENS_SAMPLINGS, default="pupil",
                         help="aim camera rays at the exit-pupil bounds or the rear element (default: %(default)s)")
     parser.add_argument("--cl-device", metavar="NAME", help="OpenCL device (substring of its name, or an index)")
-    parser.add_argument("--light-samples", type=int, help="light samples per hit (default: the scene's, else 1)")
+    parser.add_argument("--light-samples", type=checked(int, validation.light_samples), metavar="N",
+                        help=f"light samples per hit, 1 to {validation.MAX_LIGHT_SAMPLES} "
+                             "(default: the scene's, else 1)")
+    parser.add_argument("--max-memory", type=checked(str, parse_size), metavar="SIZE",
+                        help="refuse renders estimated to need more memory than this, e.g. 8G or 512M "
+                             "(default: the memory the system has available)")
     parser.add_argument("--dispersion", choices=("on", "off"),
                         help="spectral rendering with the glasses' dispersion (default: on when the lens has "
                              "Abbe numbers)")

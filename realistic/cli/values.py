@@ -3,10 +3,30 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 
+from realistic.core import validation
 from realistic.errors import UserError
+
+Value = TypeVar("Value")
+
+
+def checked(convert: Callable[[str], Value], check: Callable[[Value], Value]) -> Callable[[str], Value]:
+    """An argparse type: ``convert`` the text, then apply the library's own check of the quantity
+    (``realistic.core.validation``), so the CLI refuses exactly what the library would."""
+    def parse(text: str) -> Value:
+        try:
+            value = convert(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole ' if convert is int else ''}number") from None
+        try:
+            return check(value)
+        except UserError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
+    return parse
 
 
 def positive_float(text: str) -> float:
@@ -21,14 +41,11 @@ def positive_float(text: str) -> float:
 
 
 def parse_resolution(text: str) -> tuple[int, int]:
-    """``"640x480"`` -> (640, 480)."""
+    """``"640x480"`` -> (640, 480), within ``validation.resolution``'s limits."""
     parts = text.lower().split("x")
     if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
         raise UserError(f"resolution {text!r} is not WIDTHxHEIGHT (e.g. 640x480)")
-    width, height = int(parts[0]), int(parts[1])
-    if width < 1 or height < 1:
-        raise UserError(f"resolution must be at least 1x1, got {text}")
-    return width, height
+    return validation.resolution(int(parts[0]), int(parts[1]))
 
 
 def parse_vector(text: str, name: str) -> np.ndarray:
@@ -59,4 +76,4 @@ def parse_spp_list(text: str) -> list[int]:
         values = []
     if not values or any(v < 1 for v in values):
         raise UserError(f"--spp {text!r} is not a comma-separated list of positive integers")
-    return values
+    return [validation.samples_per_pixel(v) for v in values]

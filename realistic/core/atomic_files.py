@@ -1,8 +1,15 @@
-"""Writing output files so that a failure leaves no partial file, and checking writability first."""
+"""Writing output files so that a failure leaves no partial file, and checking writability first.
+
+A file is written as a hidden temporary beside it, ``.NAME.PID.XXXX.tmp.EXT``, then renamed into
+place. A process killed mid-write (SIGKILL, power loss) can strand its temporary; the next write
+of the same name removes temporaries whose process is gone.
+"""
 
 from __future__ import annotations
 
+import glob
 import os
+import re
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -11,14 +18,51 @@ from realistic.errors import UserError
 
 
 def check_writable(path: Path) -> None:
-    """Raise UserError now, before any work, if ``path`` cannot be written."""
-    folder = path.parent if str(path.parent) else Path(".")
+    """Raise UserError now, before any work, if ``path`` cannot be written (a file is created and
+    removed beside it, so places that refuse files whatever their permissions say, such as /proc,
+    are caught too)."""
+    folder = _folder(path)
     if path.is_dir():
         raise UserError(f"{path}: cannot write the image: it is a directory")
     if not folder.is_dir():
         raise UserError(f"{path}: cannot write the image: directory {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise UserError(f"{path}: cannot write the image: permission denied")
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=_temporary_prefix(path), suffix=".probe"):
+            pass
+    except OSError as err:
+        raise UserError(f"{path}: cannot write the image: {err.strerror or err}") from None
+
+
+def _folder(path: Path) -> Path:
+    return path.parent if str(path.parent) else Path(".")
+
+
+def _temporary_prefix(path: Path) -> str:
+    return f".{path.name}.{os.getpid()}."
+
+
+def _process_is_gone(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:  # exists, but belongs to someone else
+        return False
+    return False
+
+
+def remove_stale_temporaries(path: Path) -> list[Path]:
+    """Remove ``.NAME.PID.*.tmp*`` temporaries of ``path`` left by processes that no longer run."""
+    removed = []
+    pattern = re.compile(rf"^\.{re.escape(path.name)}\.(\d+)\..+\.(tmp\b.*|probe)$")
+    for candidate in _folder(path).glob(f".{glob.escape(path.name)}.*"):
+        match = pattern.match(candidate.name)
+        if match and _process_is_gone(int(match.group(1))):
+            candidate.unlink(missing_ok=True)
+            removed.append(candidate)
+    return removed
 
 
 def _umask() -> int:
@@ -30,8 +74,12 @@ def _umask() -> int:
 def write_atomically(path: Path, write: Callable[[str], None]) -> None:
     """Call ``write(temporary_path)`` next to ``path``, then rename; no partial file is left on error."""
     path = Path(path)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + path.suffix,
-                                         dir=path.parent if str(path.parent) else ".")
+    remove_stale_temporaries(path)
+    try:
+        handle, temporary = tempfile.mkstemp(prefix=_temporary_prefix(path), suffix=".tmp" + path.suffix,
+                                             dir=_folder(path))
+    except OSError as err:
+        raise UserError(f"{path}: cannot write: {err.strerror or err}") from None
     os.close(handle)
     try:
         write(temporary)

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from realistic.core import validation
 from realistic.errors import UserError
 
 MASK_MAX_SIDE = 128  # larger masks are resampled (the kernel holds the mask as a constant table)
@@ -102,8 +103,9 @@ class StopShape:
 
 
 def bladed_stop(blades: int, rotation_deg: float = 0.0, curvature: float = 0.0) -> StopShape:
-    if blades < 3:
-        raise UserError(f"a bladed stop needs at least 3 blades, got {blades}")
+    """N straight or curved blades (``realistic.core.validation`` bounds N), turned by ``rotation_deg``."""
+    blades = validation.blades(blades)
+    rotation_deg = validation.finite(rotation_deg, "blade rotation (degrees)")
     if not 0 <= curvature <= 1:
         raise UserError(f"blade curvature must be between 0 (straight) and 1 (round), got {curvature:g}")
     return StopShape(blades=blades, rotation_deg=rotation_deg, curvature=curvature)

@@ -17,6 +17,7 @@ import numpy as np
 
 from realistic.camera.base import Camera
 from realistic.camera.lens_camera import MM_PER_METRE, LensCamera
+from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm
 from realistic.errors import UserError
 from realistic.optics.formats import load_lens
@@ -67,14 +68,21 @@ class RenderOptions:
     search_paths: list[Path] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        if self.spp is not None and self.spp < 1:
-            raise UserError(f"samples per pixel must be at least 1, got {self.spp}")
-        if self.light_samples is not None and self.light_samples < 1:
-            raise UserError(f"light samples must be at least 1, got {self.light_samples}")
-        for name, value in (("aperture", self.aperture_mm), ("focus", self.focus_distance),
-                            ("film diagonal", self.film_diagonal_mm), ("f-number", self.f_number)):
-            if value is not None and not (value > 0 and np.isfinite(value)):
-                raise UserError(f"{name} must be a positive finite number, got {value:g}")
+        """Each value through its one check (``realistic.core.validation``), as the CLI's are."""
+        if self.spp is not None:
+            validation.samples_per_pixel(self.spp)
+        if self.light_samples is not None:
+            validation.light_samples(self.light_samples)
+        if self.resolution is not None:
+            validation.resolution(*self.resolution)
+        if self.film_diagonal_mm is not None:
+            validation.film_diagonal_mm(self.film_diagonal_mm)
+        if self.blades is not None:
+            validation.blades(self.blades)
+        for name, value in (("aperture (mm)", self.aperture_mm), ("focus distance", self.focus_distance),
+                            ("f-number", self.f_number)):
+            if value is not None:
+                validation.positive_length(value, name)
         if self.aperture_mm is not None and self.f_number is not None:
             raise UserError("--aperture and --fstop both size the stop: give one")
         if self.focus_distance is not None and self.focus_on is not None:
@@ -92,9 +100,9 @@ class RenderOptions:
 
     def stop_edit(self) -> Callable[[LensSystem], LensSystem] | None:
         """The change to the lens's stop that the aperture, f-number and shape options ask for (None: none)."""
-        if self.blades and self.aperture_mask:
+        if self.blades is not None and self.aperture_mask:
             raise UserError("--blades and --aperture-mask both shape the stop: give one")
-        shape = (bladed_stop(self.blades, self.blade_rotation_deg, self.blade_curvature) if self.blades
+        shape = (bladed_stop(self.blades, self.blade_rotation_deg, self.blade_curvature) if self.blades is not None
                  else mask_stop(self.aperture_mask) if self.aperture_mask else None)
         if self.aperture_mm is None and self.f_number is None and shape is None:
             return None

@@ -11,6 +11,7 @@ returns what has accumulated (``RenderResult.interrupted``).
 from __future__ import annotations
 
 import dataclasses
+import sys
 import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
@@ -19,10 +20,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from realistic.camera.base import Camera
+from realistic.core import validation
 from realistic.core.spectrum import rgb_response
 from realistic.errors import UserError
 from realistic.renderer.film import Film, pass_sums
 from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.memory import check_memory
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import Scene
@@ -101,8 +104,17 @@ class _PassRunner:
 def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: int = 0,
                   cl_device: str | None = None, light_samples: int = 1,
                   pass_samples: int = DEFAULT_PASS_SAMPLES, threads: int = 2, morton: bool = False,
-                  progress: bool = False, on_pass: Callable[[RenderResult], None] | None = None) -> RenderResult:
-    """Render and return the image with statistics; ``on_pass`` is called after each pass is added."""
+                  progress: bool = False, on_pass: Callable[[RenderResult], None] | None = None,
+                  max_memory_bytes: int | None = None) -> RenderResult:
+    """Render and return the image with statistics; ``on_pass`` is called after each pass is added.
+
+    Before any work, a render whose estimated peak memory exceeds ``max_memory_bytes`` (None: what
+    the system has available) is refused with a UserError (``realistic.renderer.memory``). A first
+    KeyboardInterrupt finishes the passes in flight and returns what has accumulated
+    (``RenderResult.interrupted``); a second one while they finish propagates at once.
+    """
+    validation.seed(seed)
+    check_memory(scene, camera, pass_samples, threads, max_memory_bytes)
     start = time.perf_counter()
     clock = StageClock()
     with clock("setup"):  # ray generator, BVH build, shading tables
@@ -128,6 +140,9 @@ def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: i
                         on_pass(result)
         except KeyboardInterrupt:
             result.interrupted = True
+            if progress:
+                print(f"\nrealistic: interrupted: finishing the {len(pending)} passes in flight, then writing what "
+                      "is done (interrupt again to stop at once and keep nothing)", file=sys.stderr)
             for future in pending:
                 if not future.cancel():
                     _add(film, result, future.result(), bar, start)

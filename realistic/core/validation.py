@@ -1,0 +1,89 @@
+"""One check per quantity, used wherever that quantity enters: the CLI, the pbrt importer and the
+Python API all reach these through the constructors that take the value (``LensCamera``,
+``ThinLensCamera``, ``RenderOptions``, ``bladed_stop``), so a value is judged the same way
+whichever door it came in by. Each check returns the value (converted where that is exact) or
+raises ``UserError`` with one line naming the quantity, the value and the allowed range.
+
+The limits are what the arithmetic represents exactly (sample ids and random-number counters are
+32-bit in the OpenCL kernel) or what no real camera comes near; docs/robustness.md lists them.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+from realistic.errors import UserError
+
+#: Longest image side in pixels, and most pixels in an image (the kernel's pixel index is int32).
+MAX_IMAGE_SIDE = 65_536
+MAX_PIXELS = 2**31 - 1
+#: Samples per pixel: the kernel counts a pixel's samples in uint32; far below that, 2^24 already
+#: means days of rendering per megapixel.
+MAX_SPP = 2**24
+#: Seeds are 32-bit keys of the counter-based generator.
+MAX_SEED = 2**32 - 1
+MAX_LIGHT_SAMPLES = 1024
+#: Film diagonals from a phone sensor's fraction of a millimetre to beyond large format (8x10 in
+#: is 325 mm).
+MAX_FILM_DIAGONAL_MM = 1000.0
+#: Diaphragm blades: real lenses have 5 to 18; the kernel unrolls one test per blade.
+MIN_BLADES, MAX_BLADES = 3, 64
+
+
+def _integer(value: object, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise UserError(f"{name} must be a whole number, got {value!r}")
+    return int(value)
+
+
+def _in_range(value: int, name: str, low: int, high: int) -> int:
+    if not low <= value <= high:
+        raise UserError(f"{name} must be between {low} and {high}, got {value}")
+    return value
+
+
+def positive_length(value: float, name: str, maximum: float = math.inf) -> float:
+    """A finite length > 0 (and <= ``maximum``)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise UserError(f"{name} must be a number, got {value!r}")
+    if not (value > 0 and math.isfinite(value)):
+        raise UserError(f"{name} must be a positive finite number, got {value:g}")
+    if value > maximum:
+        raise UserError(f"{name} must be at most {maximum:g}, got {value:g}")
+    return float(value)
+
+
+def resolution(width: int, height: int) -> tuple[int, int]:
+    width = _in_range(_integer(width, "resolution width"), "resolution width", 1, MAX_IMAGE_SIDE)
+    height = _in_range(_integer(height, "resolution height"), "resolution height", 1, MAX_IMAGE_SIDE)
+    if width * height > MAX_PIXELS:
+        raise UserError(f"resolution {width}x{height} has more than {MAX_PIXELS} pixels")
+    return width, height
+
+
+def samples_per_pixel(spp: int) -> int:
+    return _in_range(_integer(spp, "samples per pixel"), "samples per pixel", 1, MAX_SPP)
+
+
+def seed(value: int) -> int:
+    return _in_range(_integer(value, "seed"), "seed", 0, MAX_SEED)
+
+
+def light_samples(count: int) -> int:
+    return _in_range(_integer(count, "light samples"), "light samples", 1, MAX_LIGHT_SAMPLES)
+
+
+def blades(count: int) -> int:
+    return _in_range(_integer(count, "blade count"), "blade count", MIN_BLADES, MAX_BLADES)
+
+
+def film_diagonal_mm(value: float) -> float:
+    return positive_length(value, "film diagonal (mm)", MAX_FILM_DIAGONAL_MM)
+
+
+def finite(value: float, name: str) -> float:
+    """Any finite number (an exposure in stops, a rotation in degrees)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise UserError(f"{name} must be a finite number, got {value!r}")
+    return float(value)

@@ -1,0 +1,185 @@
+"""Robustness of the command line: every bad value is one line and exit 2 with nothing written;
+resource guards refuse before work; signals keep what was rendered; files are never lost or
+stranded. Each case is a reproducible report from trying the CLI as a new user would."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import shared_file
+from realistic.cli import main
+from realistic.core.atomic_files import remove_stale_temporaries
+from realistic.core.image_files import read_exr, write_exr
+
+REPO = Path(__file__).resolve().parents[1]
+#: A render whose set-up is quick: numpy rays aimed at the rear element (no exit-pupil table).
+QUICK = ["--backend", "numpy", "--lens-sampling", "rear", "--dispersion", "off"]
+
+
+def refused(args: list[str], tmp_path: Path, capsys) -> str:
+    """Run ``realistic ARGS``; assert exit 2, one error line and no file written; return the line."""
+    before = set(tmp_path.iterdir())
+    status = main(args)
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert err.startswith("realistic: error:") and err.count("\n") == 1 and "Traceback" not in err, err
+    assert set(tmp_path.iterdir()) == before
+    return err
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--seed", "-1"], "seed must be between 0 and 4294967295"),
+    (["--seed", "9223372036854775808"], "seed must be between"),
+    (["--seed", "4294967296"], "seed must be between"),
+    (["--seed", "1.5"], "not a whole number"),
+    (["--blades", "0"], "blade count must be between 3 and 64"),
+    (["--blades", "100000"], "blade count must be between 3 and 64"),
+    (["--blades", "10000"], "blade count"),
+    (["--exposure", "nan"], "exposure must be a finite number"),
+    (["--exposure", "inf"], "exposure must be a finite number"),
+    (["--res", "-64x48"], "is not WIDTHxHEIGHT"),
+    (["--res", "100000x100000"], "resolution width must be between 1 and 65536"),
+    (["--spp", "10000000000"], "samples per pixel must be between 1 and"),
+    (["--film-diagonal", "-70"], "film diagonal"),
+    (["--film-diagonal", "1e9"], "film diagonal (mm) must be at most 1000"),
+    (["--light-samples", "0"], "light samples"),
+    (["--aperture", "nan"], "aperture (mm) must be a positive finite number"),
+    (["--iso", "-100"], "ISO speed"),
+    (["--max-memory", "lots"], "is not a positive size"),
+    (["--target", "-1,0"], "is not three finite numbers"),
+    (["--nonsense"], "unrecognized arguments"),
+])
+def test_bad_values_are_one_line_before_any_work(tmp_path, capsys, args, message):
+    err = refused(["render", *QUICK, "--res", "8x8", *args, "--out", str(tmp_path / "x.exr")], tmp_path, capsys)
+    assert message in err
+
+
+def test_memory_guard_refuses_before_work(tmp_path, capsys):
+    start = time.perf_counter()
+    err = refused(["render", *QUICK, "--res", "20000x20000", "--spp", "1", "--out", str(tmp_path / "x.exr")],
+                  tmp_path, capsys)
+    assert "needs about" in err and "GiB" in err and "available" in err
+    assert time.perf_counter() - start < 30  # refused up front, not after filling memory
+    err = refused(["render", *QUICK, "--res", "8x8", "--max-memory", "1M", "--out", str(tmp_path / "x.exr")],
+                  tmp_path, capsys)
+    assert "allowed by --max-memory" in err
+
+
+@pytest.mark.parametrize("diagonal", ["0", "-70", "1e9"])
+def test_pbrt_film_diagonal_is_checked_like_the_option(tmp_path, capsys, diagonal):
+    scene = tmp_path / "s.pbrt"
+    scene.write_text('Camera "realistic" "string lensfile" "dgauss.50mm.dat" "float aperturediameter" 10\n'
+                     f'    "float focusdistance" 2 "float filmdiag" {diagonal}\nWorldBegin\nShape "sphere"\n')
+    err = refused(["render", str(scene), *QUICK, "--res", "8x8", "--out", str(tmp_path / "x.exr")], tmp_path, capsys)
+    assert "film diagonal (mm)" in err
+
+
+def test_unwritable_place_is_refused_before_rendering(tmp_path, capsys):
+    err = refused(["render", *QUICK, "--res", "8x8", "--out", "/proc/r.exr"], tmp_path, capsys)
+    assert "/proc/r.exr: cannot write the image" in err
+
+
+def test_a_finished_render_is_kept_when_its_folder_vanishes(tmp_path, capsys, monkeypatch):
+    import realistic.renderer.passes as passes
+
+    folder = tmp_path / "out"
+    folder.mkdir()
+    render_passes = passes.render_passes
+
+    def render_then_remove_the_folder(*args, **kwargs):
+        result = render_passes(*args, **kwargs)
+        folder.rmdir()
+        return result
+
+    monkeypatch.setattr(passes, "render_passes", render_then_remove_the_folder)
+    status = main(["render", *QUICK, "--res", "8x6", "--spp", "1", "--out", str(folder / "x.exr")])
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert status == 2 and "the render was saved as" in err, err
+    rescued = Path(err.split("the render was saved as ")[1].split(" (and")[0])
+    image, header = read_exr(rescued)
+    assert image.shape == (6, 8, 3) and header["samplesDone"] == 48
+    assert rescued.with_suffix(".png").is_file()
+    rescued.unlink()
+    rescued.with_suffix(".png").unlink()
+
+
+def test_stale_temporaries_of_dead_writers_are_removed(tmp_path):
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = tmp_path / f".x.exr.{dead.pid}.k3j2.tmp.exr"
+    alive = tmp_path / f".x.exr.{os.getpid()}.a9b8.tmp.exr"
+    other = tmp_path / f".y.exr.{dead.pid}.k3j2.tmp.exr"
+    for path in (stale, alive, other):
+        path.write_bytes(b"partial")
+    write_exr(tmp_path / "x.exr", _tiny_image())
+    assert not stale.exists() and alive.exists() and other.exists()
+    assert remove_stale_temporaries(tmp_path / "y.exr") == [other]
+
+
+def _tiny_image():
+    import numpy as np
+
+    return np.ones((2, 3, 3), np.float32)
+
+
+def _render_process(out: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "realistic", "render", *QUICK, "--res", "160x160",
+                             "--spp", "512", "--out", str(out), *extra],
+                            cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.PIPE)
+
+
+def _wait_for_a_pass(process: subprocess.Popen) -> bytes:
+    seen = b""
+    deadline = time.monotonic() + 90
+    while b"1/" not in seen and time.monotonic() < deadline:  # the progress bar shows a pass done
+        seen += os.read(process.stderr.fileno(), 256)
+    return seen
+
+
+@pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
+@pytest.mark.parametrize("stop", ["SIGTERM", "SIGHUP"])
+def test_sigterm_and_sighup_act_like_ctrl_c(tmp_path, stop):
+    out = tmp_path / "r.exr"
+    process = _render_process(out)
+    seen = _wait_for_a_pass(process)
+    process.send_signal(getattr(signal, stop))
+    _, rest = process.communicate(timeout=90)
+    err = (seen + rest).decode()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and f"samples taken to {out}" in err
+    image, header = read_exr(out)
+    assert header["interrupted"] == 1 and 0 < header["samplesDone"] < header["samplesTotal"]
+    assert image.max() > 0
+
+
+@pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
+def test_a_second_interrupt_stops_at_once_and_writes_nothing(tmp_path):
+    out = tmp_path / "r.exr"
+    process = _render_process(out, "--light-samples", "64")  # long passes: the second signal lands in one
+    seen = _wait_for_a_pass(process)
+    process.send_signal(signal.SIGINT)
+    time.sleep(0.3)
+    process.send_signal(signal.SIGINT)
+    _, rest = process.communicate(timeout=90)
+    err = (seen + rest).decode()
+    assert process.returncode == 130, err
+    assert "stopped at once: nothing written" in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
+def test_interrupt_during_set_up_says_nothing_was_written(tmp_path):
+    homework = shared_file("scenes/pbrt/dof-dragons.wide.pbrt")  # its exit-pupil table takes seconds
+    process = subprocess.Popen([sys.executable, "-m", "realistic", "render", str(homework), "--res", "64x64",
+                                "--out", str(tmp_path / "r.exr")], cwd=REPO, stderr=subprocess.PIPE)
+    time.sleep(4)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130
+    assert b"nothing written" in err and b"Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
