@@ -78,6 +78,16 @@ def blades(count: int) -> int:
     return _in_range(_integer(count, "blade count"), "blade count", MIN_BLADES, MAX_BLADES)
 
 
+def stop_diameter_mm(value: float) -> float:
+    """A stop diameter: a positive finite number of mm (``LensSystem.with_stop_diameter`` also
+    bounds it by the lens's widest element)."""
+    is_number = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if not (is_number and value > 0 and math.isfinite(value)):
+        shown = f"{value:g}" if is_number else repr(value)
+        raise UserError(f"aperture diameter must be a positive number of mm, got {shown}")
+    return float(value)
+
+
 def film_diagonal_mm(value: float) -> float:
     return positive_length(value, "film diagonal (mm)", MAX_FILM_DIAGONAL_MM)
 

@@ -18,6 +18,10 @@ A prescription row is ``radius thickness n_d [V_d] aperture``: signed radius of 
 centre of curvature on the film side, i.e. convex toward the scene; 0: the planar aperture stop;
 ``inf``: a flat refracting surface), distance to the next surface, index of the medium behind the
 surface (0, 1 or blank: air), optional Abbe number, clear aperture diameter.
+
+A lens has at most ``MAX_SURFACES`` surfaces: real photographic lenses have well under 50, and the
+tracer's cost grows with the count, so a file with thousands of rows is refused (the readers stop
+at the first row past the limit, so even a huge file is refused quickly).
 """
 
 from __future__ import annotations
@@ -29,8 +33,18 @@ from pathlib import Path
 
 import numpy as np
 
-from realistic.errors import LensFileError
+from realistic.core import validation
+from realistic.errors import LensFileError, UserError
 from realistic.optics.stop_shape import StopShape
+
+#: Most surfaces a prescription may have (stop included); real lenses have well under 50.
+MAX_SURFACES = 256
+
+
+def too_many_surfaces(count: int, at_least: bool = False) -> str:
+    """The message for a lens of ``count`` surfaces (``at_least``: a reader that stopped counting there)."""
+    counted = f"at least {count}" if at_least else str(count)
+    return f"{counted} surfaces exceed the limit of {MAX_SURFACES} (real lenses have well under 50)"
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,9 +106,14 @@ class LensSystem:
         return film_distance_mm + self.vertex_offset_from_rear_mm()
 
     def with_stop_diameter(self, diameter_mm: float) -> LensSystem:
-        """The same lens with the stop opened or closed to ``diameter_mm``."""
-        if not (diameter_mm > 0 and math.isfinite(diameter_mm)):
-            raise ValueError(f"aperture diameter must be a positive number of mm, got {diameter_mm}")
+        """The same lens with the stop opened or closed to ``diameter_mm``: the one check of a stop
+        diameter from the CLI, a pbrt file or the API. A stop wider than every element of the lens
+        would stop nothing (and report an f-number the lens cannot have), so it is refused."""
+        diameter_mm = validation.stop_diameter_mm(diameter_mm)
+        widest = float(self.aperture_mm.max())
+        if diameter_mm > widest:
+            raise UserError(f"aperture diameter {diameter_mm:g} mm is wider than {self.name}'s widest element "
+                            f"({widest:g} mm)")
         aperture = self.aperture_mm.copy()
         aperture[self.stop] = diameter_mm
         return dataclasses.replace(self, aperture_mm=aperture)
@@ -111,6 +130,8 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
     ``lines[i]`` is the file line that errors about surface i name; every parser feeds this one
     constructor so that all lens files obey the same rules.
     """
+    if len(lines) > MAX_SURFACES:
+        raise LensFileError(path, lines[MAX_SURFACES], too_many_surfaces(len(lines)))
     for i, line in enumerate(lines):
         values = (radius[i], thickness[i], index[i], abbe[i], aperture[i])
         if any(math.isnan(x) for x in values) or any(math.isinf(x) for x in values[1:]):
@@ -141,6 +162,11 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
     if index[stop] != 1.0 or before_stop != 1.0:
         raise LensFileError(path, lines[stop], "the aperture stop (radius 0) must sit in air")
     abbe = [0.0 if n == 1.0 else v for n, v in zip(index, abbe)]
+    refracting = [i for i, r in enumerate(radius)
+                  if r != 0 and index[i] != (index[i - 1] if i > 0 else 1.0)]
+    if not refracting:
+        raise LensFileError(path, None, "no refracting surface (every row is the stop or has air on both sides): "
+                            "the lens would not form an image")
 
     return LensSystem(
         name=name or Path(path).stem,

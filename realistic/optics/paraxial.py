@@ -77,38 +77,54 @@ def _trace(surfaces: _Surfaces, y: float, nu: float) -> tuple[np.ndarray, float,
     return heights, y, nu / surfaces.n_after[-1]
 
 
-def _focal_lengths(surfaces: _Surfaces) -> tuple[float, float]:
+def lens_label(lens: LensSystem) -> str:
+    """How messages name a lens: its file (or bundled name and file), else its name."""
+    return lens.source or lens.name
+
+
+def _focal_lengths(surfaces: _Surfaces, label: str) -> tuple[float, float]:
     """(EFL, back focal distance) from a ray parallel to the axis."""
     _, y_last, u_last = _trace(surfaces, 1.0, 0.0)
     if u_last == 0:
-        raise UserError("the lens is afocal (a ray parallel to the axis leaves parallel)")
+        raise UserError(f"{label}: the lens is afocal (a ray parallel to the axis leaves parallel), so it has "
+                        f"no focal length")
     return -1.0 / u_last, -y_last / u_last
 
 
-def _entrance_pupil(surfaces: _Surfaces) -> tuple[float, float]:
+def _entrance_pupil(surfaces: _Surfaces, label: str) -> tuple[float, float]:
     """(position from surface 0, diameter) of the stop's image through the surfaces before it."""
     marginal, _, _ = _trace(surfaces, 1.0, 0.0)
     slope, _, _ = _trace(surfaces, 0.0, 1.0)
     ya, yb = marginal[surfaces.stop], slope[surfaces.stop]
+    if ya == 0:
+        raise UserError(f"{label}: the elements on one side of the stop focus a parallel beam onto it, so the "
+                        f"stop has no pupil image")
     return yb / ya, 2 * surfaces.stop_radius / abs(ya)
 
 
 def paraxial_data(lens: LensSystem, wavelength_nm: float = D_LINE_NM) -> ParaxialData:
     """EFL, BFL, FFD, principal planes, pupils and F-number of ``lens`` at ``wavelength_nm``."""
+    label = lens_label(lens)
     fwd = _surfaces(lens, wavelength_nm)
     rev = fwd.reversed()
-    efl, bfl = _focal_lengths(fwd)
-    _, bfl_reversed = _focal_lengths(rev)
-    ffd = -bfl_reversed
-    ep, epd = _entrance_pupil(fwd)
-    xp_reversed, xpd = _entrance_pupil(rev)
-    return ParaxialData(
-        wavelength_nm=wavelength_nm, efl_mm=efl, bfl_mm=bfl, ffd_mm=ffd,
-        front_principal_plane_mm=ffd + efl, rear_principal_plane_mm=bfl - efl,
-        entrance_pupil_mm=ep, entrance_pupil_diameter_mm=epd,
-        exit_pupil_mm=-xp_reversed, exit_pupil_diameter_mm=xpd,
-        f_number=efl / epd, track_length_mm=lens.track_length_mm,
-    )
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # judged below, as a whole
+        efl, bfl = _focal_lengths(fwd, label)
+        _, bfl_reversed = _focal_lengths(rev, label)
+        ffd = -bfl_reversed
+        ep, epd = _entrance_pupil(fwd, label)
+        xp_reversed, xpd = _entrance_pupil(rev, label)
+        data = ParaxialData(
+            wavelength_nm=wavelength_nm, efl_mm=float(efl), bfl_mm=float(bfl), ffd_mm=float(ffd),
+            front_principal_plane_mm=float(ffd + efl), rear_principal_plane_mm=float(bfl - efl),
+            entrance_pupil_mm=float(ep), entrance_pupil_diameter_mm=float(epd),
+            exit_pupil_mm=float(-xp_reversed), exit_pupil_diameter_mm=float(xpd),
+            f_number=float(efl / epd), track_length_mm=lens.track_length_mm,
+        )
+    bad = [name for name, value in data.as_dict().items() if not math.isfinite(value)]
+    if bad:
+        raise UserError(f"{label}: the paraxial trace overflows ({', '.join(bad)} not finite): the lens's "
+                        f"lengths or powers are out of any usable range")
+    return data
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,15 @@ def load_lens(name_or_path: str | Path) -> LensSystem:
         return parse_prescription(resource.read_text(encoding="utf-8"), path=f"{key} ({BUNDLED_LENSES[key]})",
                                   name=key)
     path = Path(key)
-    if not path.is_file():
+    try:
+        is_dir, is_file, exists = path.is_dir(), path.is_file(), path.exists()
+    except (OSError, ValueError) as err:  # a name too long for the system, say
+        raise LensFileError(key, None, f"cannot read: {getattr(err, 'strerror', None) or err}") from None
+    if is_dir:
+        raise LensFileError(key, None, "is a directory, not a lens file")
+    if exists and not is_file:
+        raise LensFileError(key, None, "is not a regular file (a lens file is a .dat or .zmx prescription)")
+    if not is_file:
         names = ", ".join(BUNDLED_LENSES)
         raise LensFileError(key, None, f"no such lens file, and not a bundled lens name ({names})")
     try:

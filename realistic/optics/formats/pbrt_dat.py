@@ -8,10 +8,11 @@ pbrt-v4's 100 mm files whose column 2 is the distance from the *previous* surfac
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 from realistic.errors import LensFileError
-from realistic.optics.lens import LensSystem, build_lens
+from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
 
 COLUMN_NAMES_4 = ("radius", "thickness", "index", "aperture")
 COLUMN_NAMES_5 = ("radius", "thickness", "index", "abbe V", "aperture")
@@ -45,16 +46,34 @@ def _split_fields(line: str) -> list[str]:
     return fields
 
 
+_LINE_END = re.compile(r"\r\n|\r|\n")
+
+
+def text_lines(text: str) -> Iterator[str]:
+    """The lines of ``text`` one at a time (CR, LF or CRLF ends), without their line ends.
+
+    Lazy, so that a reader which stops early (``MAX_SURFACES``) does not split a huge file.
+    """
+    start = 0
+    for end in _LINE_END.finditer(text):
+        yield text[start:end.start()]
+        start = end.end()
+    if start < len(text):
+        yield text[start:]
+
+
 def _parse_rows(text: str, path: str) -> list[_Row]:
     rows: list[_Row] = []
     width = None
-    for number, raw in enumerate(text.splitlines(), start=1):
+    for number, raw in enumerate(text_lines(text), start=1):
         line = raw.split("#", 1)[0].rstrip()
         if not line.strip():
             continue
         fields = _split_fields(line)
         if not rows and not any(_is_number(f) for f in fields if f):
             continue  # a column header such as "radius thick n_d V-no ap"
+        if len(rows) == MAX_SURFACES:
+            raise LensFileError(path, number, too_many_surfaces(MAX_SURFACES + 1, at_least=True))
         if len(fields) not in (4, 5):
             raise LensFileError(path, number, f"expected 4 columns (radius thickness index aperture) "
                                 f"or 5 (with Abbe V before aperture), found {len(fields)}: {line.strip()!r}")

@@ -28,7 +28,8 @@ import math
 from dataclasses import dataclass, field
 
 from realistic.errors import LensFileError
-from realistic.optics.lens import LensSystem, build_lens
+from realistic.optics.formats.pbrt_dat import text_lines
+from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
 
 #: Lens units Zemax writes on the ``UNIT`` line, in millimetres.
 UNIT_MM = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "M": 1000.0, "METER": 1000.0}
@@ -77,8 +78,10 @@ def decode_zmx(data: bytes, path: str) -> str:
 
 
 def _number(token: str | None, path: str, line: int, what: str) -> float:
+    if token is None:
+        raise LensFileError(path, line, f"{what} has no value")
     try:
-        value = float(token) if token is not None else math.nan
+        value = float(token)
     except ValueError:
         value = math.nan
     if math.isnan(value):
@@ -116,6 +119,8 @@ def _surface_keyword(tokens: list[str], surface: _Surface, path: str, line: int)
         raise LensFileError(path, line, f"surface type {first} is not supported (only TYPE STANDARD spheres)")
     if keyword == "CURV":
         surface.curvature, surface.curvature_line = _number(first, path, line, "CURV"), line
+        if not math.isfinite(surface.curvature):
+            raise LensFileError(path, line, f"CURV {first} is not a finite curvature (a flat surface is CURV 0)")
     elif keyword == "DISZ":
         surface.thickness = _number(first, path, line, "DISZ")
     elif keyword == "GLAS":
@@ -144,7 +149,7 @@ def _read_surfaces(text: str, path: str) -> tuple[list[_Surface], float]:
     """The SURF blocks in file order and the lens unit in millimetres."""
     surfaces: list[_Surface] = []
     unit_mm = 1.0
-    for number, raw in enumerate(text.splitlines(), start=1):
+    for number, raw in enumerate(text_lines(text), start=1):
         tokens = raw.split()
         if not tokens:
             continue
@@ -160,6 +165,8 @@ def _read_surfaces(text: str, path: str) -> tuple[list[_Surface], float]:
             index = _number(tokens[1] if len(tokens) > 1 else None, path, number, "surface number")
             if index != len(surfaces):
                 raise LensFileError(path, number, f"SURF {tokens[1]} out of order (expected SURF {len(surfaces)})")
+            if len(surfaces) == MAX_SURFACES + 2:  # the object and image surfaces are not lens surfaces
+                raise LensFileError(path, number, too_many_surfaces(MAX_SURFACES + 1, at_least=True))
             surfaces.append(_Surface(len(surfaces), number))
         elif surfaces:
             _surface_keyword(tokens, surfaces[-1], path, number)

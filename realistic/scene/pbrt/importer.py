@@ -10,6 +10,7 @@ cannot honour is reported once with file and line, and the render goes on.
 from __future__ import annotations
 
 from collections.abc import Callable
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,18 +18,46 @@ import numpy as np
 
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
+from realistic.core import validation
 from realistic.core.image_files import read_linear_rgb
 from realistic.core.transforms import scale, translate
-from realistic.errors import UserError
+from realistic.core.validation import MAX_LIGHT_SAMPLES
+from realistic.errors import LensFileError, UserError
 from realistic.optics.formats import BUNDLED_LENSES, load_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import AreaLight, CheckerTexture, ImageTexture, Material, Mesh, Scene
+from realistic.scene.pbrt.lexer import PbrtSyntaxError
 from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.scene.shapes import cone, disk, sphere
 
 GREY = (0.5, 0.5, 0.5)
+#: Farthest a shape or the camera may reach from the world origin: the renderer intersects in single
+#: precision, where products of larger coordinates overflow (float32 holds up to 3.4e38).
+MAX_WORLD_COORDINATE = 1e18
+
+
+def _corners(vertices: np.ndarray) -> np.ndarray:
+    """The 8 corners of the bounding box of (N, 3) points, as (8, 4) homogeneous points."""
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    return np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
+def _sound(mesh: Mesh) -> bool:
+    """Whether a tessellated or loaded mesh has finite points, faces, unit normals and finite uv."""
+    if not (len(mesh.vertices) and len(mesh.faces) and np.all(np.isfinite(mesh.vertices))):
+        return False
+    if mesh.normals is not None and not np.allclose(np.linalg.norm(mesh.normals, axis=1), 1.0):
+        return False
+    return mesh.uv is None or bool(np.all(np.isfinite(mesh.uv)))
+
+
+def _reach(transform: np.ndarray, corners: np.ndarray) -> float:
+    """How far from the origin a box (its corners) reaches once transformed; inf on overflow."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = float(np.max(np.abs(corners @ transform.T)[:, :3]))
+    return reach if np.isfinite(reach) else np.inf
 
 
 @dataclass
@@ -42,13 +71,44 @@ class ImportedScene:
 
 
 def _rgb(params: Params, name: str, default: tuple | None) -> tuple | None:
+    """An RGB triple (one value: grey); None for what we cannot read as RGB (spectra, other counts)."""
     p = params.items.get(name)
     if p is None:
         return default
     if p.type in ("spectrum", "blackbody", "xyz") or len(p.values) not in (1, 3):
         return None
-    values = [float(v) for v in p.values]
+    values = params.get_floats(name)  # a syntax error naming the parameter when they are not numbers
     return tuple(values * 3 if len(values) == 1 else values)
+
+
+def _texture_name(params: Params, name: str, where: str) -> str:
+    """The texture a ``"texture name"`` parameter names."""
+    value = params.get_string(name)
+    if not value:
+        raise UserError(f'{where}: "texture {name}" needs the name of a texture')
+    return value
+
+
+def _whole_number(params: Params, name: str, default: float, where: str) -> int:
+    """An integer parameter, which must hold a whole number."""
+    value = params.get_float(name, default)
+    if value != int(value):
+        raise UserError(f'{where}: "{name}" must be a whole number, got {value:g}')
+    return int(value)
+
+
+@contextmanager
+def _located(where: str):
+    """Prefix ``where`` (a scene file:line) to a UserError that does not already name a file and line."""
+    try:
+        yield
+    except (LensFileError, PbrtSyntaxError):
+        raise
+    except UserError as err:
+        message = str(err)
+        if message.startswith(f"{where}:"):
+            raise
+        raise UserError(f"{where}: {message}") from None
 
 
 class _Importer:
@@ -57,7 +117,8 @@ class _Importer:
         self.search_paths = search_paths
         self.scene = Scene()
         self.materials: dict[int, Material] = {}
-        self.stored: dict[int, list[tuple[int, np.ndarray]]] = {}  # shape record -> (mesh index, local)
+        # shape record -> (mesh index, local transform, object-space box corners)
+        self.stored: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
 
     def warn(self, where: str, message: str) -> None:
         self.parsed.warn(where, message)
@@ -84,18 +145,21 @@ class _Importer:
             self.warn(declaration.where, f'Material "{declaration.type}", rendered as matte with its Kd')
         kd = declaration.params.items.get("Kd")
         if kd is not None and kd.type == "texture":
-            return self.texture_material(str(kd.values[0]), declaration.where)
+            return self.texture_material(_texture_name(declaration.params, "Kd", kd.where), declaration.where)
         colour = _rgb(declaration.params, "Kd", GREY)
         if colour is None:
             self.warn(declaration.where, f"a spectral Kd in {declaration.type}, rendered grey")
             colour = GREY
         return Material(colour)
 
-    def texture_material(self, name: str, where: str) -> Material:
+    def texture_material(self, name: str, where: str, using: tuple[str, ...] = ()) -> Material:
         """A Kd texture as colour x texture (pbrt's scale of an image by a constant included)."""
         tex = self.parsed.textures.get(name)
         if tex is None:
             raise UserError(f'{where}: texture "{name}" is not defined')
+        if name in using:
+            chain = " -> ".join(f'"{n}"' for n in (*using[using.index(name):], name))
+            raise UserError(f'{where}: texture "{name}" is made of itself ({chain})')
         p = tex.params
         if tex.cls == "constant":
             return Material(_rgb(p, "value", (1.0, 1.0, 1.0)) or GREY)
@@ -119,7 +183,8 @@ class _Importer:
             constants = [(_rgb(p, q.name, None) or GREY) for q in parts if q is not None and q.type != "texture"]
             if len(textures) > 1:
                 self.warn(tex.where, "scale texture of two textures (the second is ignored)")
-            base = self.texture_material(str(textures[0].values[0]), tex.where) if textures else Material((1, 1, 1))
+            base = (self.texture_material(_texture_name(p, textures[0].name, textures[0].where), tex.where,
+                                          (*using, name)) if textures else Material((1, 1, 1)))
             colour = np.prod([base.diffuse] + constants, axis=0)
             return Material(tuple(float(c) for c in colour), base.texture)
         self.warn(tex.where, f'Texture "{tex.cls}", rendered as grey')
@@ -133,6 +198,23 @@ class _Importer:
         return _rgb(params, key, (1.0, 1.0, 1.0) if key == "tex1" else (0.0, 0.0, 0.0)) or GREY
 
     # ---- shapes -------------------------------------------------------------------------------
+    def usable(self, shape: ShapeRecord) -> bool:
+        """False (with a warning) for an analytic shape whose sizes leave nothing we can render."""
+        p = shape.params
+        sizes = {"sphere": ["radius"], "disk": ["radius"], "cone": ["radius", "height"],
+                 "cylinder": ["radius"]}.get(shape.type, [])
+        defaults = {"radius": 1.0, "height": 1.0}
+        for name in sizes:
+            value = p.get_float(name, defaults[name])
+            if not value > 0:
+                self.warn(shape.where, f'{shape.type} {name} {value:g} (only positive sizes are rendered; '
+                                       f"shape skipped)")
+                return False
+        if shape.type == "cylinder" and p.get_float("zmin", -1.0) == p.get_float("zmax", 1.0):
+            self.warn(shape.where, "cylinder with zmin = zmax (no height; shape skipped)")
+            return False
+        return True
+
     def meshes(self, shape: ShapeRecord) -> list[tuple[Mesh, np.ndarray]]:
         """The shape tessellated, with the transform from its object space to the record's space."""
         p = shape.params
@@ -162,30 +244,54 @@ class _Importer:
         return []
 
     def triangle_mesh(self, shape: ShapeRecord) -> Mesh:
-        p = shape.params
+        """pbrt's trianglemesh: bad points or indices are errors; uv or N that do not fit are dropped
+        with a warning, as pbrt does."""
+        p, where = shape.params, shape.where
         points = np.asarray(p.get_floats("P", []), dtype=np.float64)
-        indices = np.asarray(p.get_floats("indices", []), dtype=np.float64)
-        if len(points) == 0 or len(points) % 3 or len(indices) == 0 or len(indices) % 3:
-            raise UserError(f'{shape.where}: trianglemesh needs "point P" (3 values per point) and '
-                            f'"integer indices" (3 per triangle)')
+        if len(points) == 0 or len(points) % 3:
+            raise UserError(f'{where}: trianglemesh "point P" needs 3 values per point, got {len(points)} values')
         vertices = points.reshape(-1, 3)
+        if not np.all(np.isfinite(vertices)):
+            raise UserError(f'{where}: trianglemesh "point P" has a value that is not a finite number')
+        indices = p.get_floats("indices", [0.0, 1.0, 2.0] if len(vertices) == 3 else [])  # pbrt's default
+        if len(indices) == 0 or len(indices) % 3:
+            raise UserError(f'{where}: trianglemesh "integer indices" needs 3 per triangle, got {len(indices)} '
+                            f"values")
+        indices = np.asarray(indices, dtype=np.float64)
+        bad = (indices != np.floor(indices)) | (indices < 0) | (indices >= len(vertices))
+        if np.any(bad):
+            raise UserError(f"{where}: trianglemesh index {indices[np.argmax(bad)]:g} is not a point number (0 to "
+                            f'{len(vertices) - 1} for the {len(vertices)} points of "P")')
         faces = indices.astype(np.int64).reshape(-1, 3)
-        if faces.min() < 0 or faces.max() >= len(vertices) or not np.all(np.isfinite(vertices)):
-            raise UserError(f"{shape.where}: trianglemesh indices out of range or non-finite points")
-        uv = p.get_floats("uv") or p.get_floats("st")
-        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2) if uv else None
-        if uv is not None and len(uv) != len(vertices):
-            self.warn(shape.where, "trianglemesh uv count differs from point count (uv ignored)")
-            uv = None
-        normals = p.get_floats("N")
-        normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3) if normals else None
+        uv = self._per_point(shape, ("uv", "st"), 2, len(vertices))
+        normals = self._per_point(shape, ("N",), 3, len(vertices))
         if normals is not None:
-            unit = normals / np.linalg.norm(normals, axis=1, keepdims=True)
-            normals = unit if len(normals) == len(vertices) else None
+            length = np.linalg.norm(normals, axis=1, keepdims=True)
+            if np.all(length > 0):
+                normals = normals / length
+            else:
+                self.warn(where, 'trianglemesh "N" with a zero-length normal (normals ignored)')
+                normals = None
         return Mesh(vertices, faces, normals, uv, "trianglemesh")
+
+    def _per_point(self, shape: ShapeRecord, names: tuple[str, ...], width: int, points: int) -> np.ndarray | None:
+        """A per-point array (uv or normals) of a trianglemesh, or None (with a warning when it does
+        not fit the points: pbrt discards it too)."""
+        for name in names:
+            values = shape.params.get_floats(name)
+            if values:
+                break
+        else:
+            return None
+        if len(values) != width * points:
+            self.warn(shape.where, f'trianglemesh "{name}" has {len(values)} values, not {width} for each of '
+                                   f"the {points} points ({name} ignored)")
+            return None
+        return np.asarray(values, dtype=np.float64).reshape(-1, width)
 
     def cylinder(self, params: Params, segments: int = 256) -> Mesh:
         radius, z0, z1 = params.get_float("radius", 1.0), params.get_float("zmin", -1.0), params.get_float("zmax", 1.0)
+        z0, z1 = min(z0, z1), max(z0, z1)  # as pbrt
         phi = np.linspace(0, 2 * np.pi, segments, endpoint=False)
         ring = np.column_stack([np.cos(phi), np.sin(phi)])
         vertices = np.vstack([np.column_stack([ring * radius, np.full(segments, z)]) for z in (z0, z1)])
@@ -197,33 +303,69 @@ class _Importer:
         return Mesh(vertices, faces, normals, None, "cylinder")
 
     def add_shape(self, shape: ShapeRecord, world: np.ndarray) -> None:
+        if not self.usable(shape):
+            return
         if shape.area_light is not None and self.add_area_light(shape, world):
             return
         material = self.material(shape.material)
         if id(shape) not in self.stored:  # tessellate or load once, however often it is instanced
-            self.stored[id(shape)] = [(self.scene.add_mesh(mesh), local) for mesh, local in self.meshes(shape)]
-        for index, local in self.stored[id(shape)]:
-            self.scene.add(index, world @ shape.transform @ local, material)
+            with np.errstate(all="ignore"):  # extreme sizes: judged by _sound
+                meshes = self.meshes(shape)
+            if not all(_sound(mesh) for mesh, _ in meshes):
+                self.warn(shape.where, f'Shape "{shape.type}" whose sizes are too extreme for its triangles, '
+                                       f"normals or uv to be computed (skipped)")
+                meshes = []
+            self.stored[id(shape)] = [(self.scene.add_mesh(mesh), local, _corners(mesh.vertices))
+                                      for mesh, local in meshes]
+        for index, local, corners in self.stored[id(shape)]:
+            transform = world @ shape.transform @ local
+            reach = _reach(transform, corners)
+            if reach > MAX_WORLD_COORDINATE:
+                self.warn(shape.where, f'Shape "{shape.type}" reaching {reach:.3g} from the origin, beyond the '
+                                       f"{MAX_WORLD_COORDINATE:g} the renderer's single precision holds (skipped)")
+                continue
+            self.scene.add(index, transform, material)
 
     def add_area_light(self, shape: ShapeRecord, world: np.ndarray) -> bool:
-        light = shape.area_light
-        if light.type not in ("area", "diffuse"):
-            self.warn(light.where, f'AreaLightSource "{light.type}" (shape rendered unlit)')
+        """Add the shape's area light; False when the shape is to be drawn as an ordinary shape instead."""
+        declaration = shape.area_light
+        where = declaration.where
+        if declaration.type not in ("area", "diffuse"):
+            self.warn(where, f'AreaLightSource "{declaration.type}" (shape rendered unlit)')
             return False
-        radiance = _rgb(light.params, "L", (1.0, 1.0, 1.0))
+        radiance = _rgb(declaration.params, "L", (1.0, 1.0, 1.0))
         if radiance is None:
-            self.warn(light.where, "spectral area light L (rendered white)")
+            self.warn(where, "spectral area light L (rendered white)")
             radiance = (1.0, 1.0, 1.0)
-        light_scale = _rgb(light.params, "scale", (1.0, 1.0, 1.0)) or (1.0, 1.0, 1.0)
+        light_scale = _rgb(declaration.params, "scale", (1.0, 1.0, 1.0)) or (1.0, 1.0, 1.0)
         radiance = tuple(a * b for a, b in zip(radiance, light_scale))
-        self.scene.light_samples = max(self.scene.light_samples, int(light.params.get_float("nsamples", 1) or 1))
+        samples = _whole_number(declaration.params, "nsamples", 1, where)
+        if samples > MAX_LIGHT_SAMPLES:
+            self.warn(where, f"nsamples {samples} (at most {MAX_LIGHT_SAMPLES} are taken)")
+            samples = MAX_LIGHT_SAMPLES
+        self.scene.light_samples = max(self.scene.light_samples, samples)
         if shape.type != "disk":
-            self.warn(light.where, f'area light on a "{shape.type}" (only disks emit; shape rendered unlit)')
+            self.warn(where, f'area light on a "{shape.type}" (only disks emit; shape rendered unlit)')
             return False
         transform = world @ shape.transform @ translate(0, 0, shape.params.get_float("height", 0.0))
-        two_sided = bool(light.params.items.get("twosided", None) and light.params.items["twosided"].values[0])
-        self.scene.lights.append(AreaLight("disk", (shape.params.get_float("radius", 1.0),) * 2, radiance, transform,
-                                           shape.reverse_orientation, two_sided))
+        if not (np.all(np.isfinite(transform)) and abs(np.linalg.det(transform[:3, :3])) > 0):
+            self.warn(where, "area light whose transform flattens it (a Scale by 0, say; skipped)")
+            return True
+        radius = shape.params.get_float("radius", 1.0)
+        if _reach(transform, _corners(np.array([[-radius, -radius, 0.0], [radius, radius, 0.0]]))) > \
+                MAX_WORLD_COORDINATE:
+            self.warn(where, f"area light reaching beyond {MAX_WORLD_COORDINATE:g} from the origin, more than the "
+                             f"renderer's single precision holds (skipped)")
+            return True
+        twosided = declaration.params.items.get("twosided")
+        two_sided = bool(twosided and twosided.values and twosided.values[0] is True)
+        light = AreaLight("disk", (radius, radius), radiance, transform, shape.reverse_orientation, two_sided)
+        with np.errstate(all="ignore"):
+            area, normal = light.area(), light.frame()[3]
+        if not (0 < area < np.inf and np.all(np.isfinite(normal))):
+            self.warn(where, f"area light of area {area:.3g} (too small or too large to sample; skipped)")
+            return True
+        self.scene.lights.append(light)
         return True
 
     def run(self) -> Scene:
@@ -263,40 +405,57 @@ def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sam
     if directive is None:
         raise UserError(f"{parsed.path}: no Camera directive")
     world_from_camera = np.linalg.inv(directive.transform)
+    if not np.max(np.abs(world_from_camera[:3, 3])) <= MAX_WORLD_COORDINATE:
+        raise UserError(f"{directive.where}: the camera sits beyond {MAX_WORLD_COORDINATE:g} from the origin, more "
+                        f"than the renderer's single precision holds")
     params = directive.params
     if directive.type == "perspective":
         if lens_edit is not None or focus_scene_units is not None:
             raise UserError(f"{directive.where}: the stop and focus options apply to realistic cameras, not "
                             f'Camera "perspective"')
-        return ThinLensCamera(params.get_float("fov", 90.0), params.get_float("lensradius", 0.0),
-                              params.get_float("focaldistance", 1e6), width, height, spp, world_from_camera)
+        with _located(directive.where):
+            return ThinLensCamera(params.get_float("fov", 90.0), params.get_float("lensradius", 0.0),
+                                  params.get_float("focaldistance", 1e6), width, height, spp, world_from_camera)
     if directive.type != "realistic":
         raise UserError(f'{directive.where}: Camera "{directive.type}" is not supported (use realistic or perspective)')
-    if params.has("specfile"):  # the classic homework: camera space in mm, origin at the front lens vertex
-        lens = load_lens(find_lens_file(params.get_string("specfile"), parsed.path.parent, search_paths,
-                                        directive.where))
-        film_distance = params.get_float("filmdistance")
-        if film_distance is None:
-            raise UserError(f'{directive.where}: Camera "realistic" needs "float filmdistance"')
-        if params.has("aperture_diameter"):
-            lens = lens.with_stop_diameter(params.get_float("aperture_diameter"))
-        origin = "front_vertex"
-    elif params.has("lensfile"):  # pbrt-v3: camera space in metres, origin at the film centre
-        lens = load_lens(find_lens_file(params.get_string("lensfile"), parsed.path.parent, search_paths,
-                                        directive.where))
-        lens = lens.with_stop_diameter(params.get_float("aperturediameter", 1.0))
-        film_distance = film_distance_for_focus(lens, params.get_float("focusdistance", 10.0) * 1000.0)
-        world_from_camera = world_from_camera @ scale(1e-3)
-        origin = "film"
-    else:
-        raise UserError(f'{directive.where}: Camera "realistic" needs "string specfile" or "string lensfile"')
+    with _located(directive.where):  # errors about the camera's parameters name its line
+        if params.has("specfile"):  # the classic homework: camera space in mm, origin at the front lens vertex
+            lens = load_lens(find_lens_file(_lens_name(params, "specfile"), parsed.path.parent, search_paths,
+                                            directive.where))
+            film_distance = params.get_float("filmdistance")
+            if film_distance is None:
+                raise UserError('Camera "realistic" needs "float filmdistance"')
+            if params.has("aperture_diameter"):
+                lens = lens.with_stop_diameter(params.get_float("aperture_diameter"))
+            origin = "front_vertex"
+        elif params.has("lensfile"):  # pbrt-v3: camera space in metres, origin at the film centre
+            lens = load_lens(find_lens_file(_lens_name(params, "lensfile"), parsed.path.parent, search_paths,
+                                            directive.where))
+            lens = lens.with_stop_diameter(params.get_float("aperturediameter", 1.0))
+            focus = params.get_float("focusdistance", 10.0)
+            if not focus > 0:
+                raise UserError(f"focusdistance must be a positive number of metres, got {focus:g}")
+            film_distance = film_distance_for_focus(lens, focus * 1000.0)
+            world_from_camera = world_from_camera @ scale(1e-3)
+            origin = "film"
+        else:
+            raise UserError('Camera "realistic" needs "string specfile" or "string lensfile"')
+        film_diagonal = params.get_float("filmdiag", 35.0)
     if lens_edit is not None:
         lens = lens_edit(lens)
-    camera = LensCamera(lens, film_distance, params.get_float("filmdiag", 35.0), width, height, spp,
-                        world_from_camera, origin, lens_sampling)
+    with _located(directive.where):
+        camera = LensCamera(lens, film_distance, film_diagonal, width, height, spp, world_from_camera, origin,
+                            lens_sampling)
     if focus_scene_units is not None:
         camera = camera.refocused(focus_scene_units * camera.mm_per_unit)
     return camera
+
+
+def _lens_name(params: Params, name: str) -> str:
+    value = params.get_string(name)
+    if not value:
+        raise UserError(f'"string {name}" needs a lens file name')
+    return value
 
 
 def import_world(path: str | Path, search_paths: list[Path] | None = None) -> tuple[Scene, PbrtScene]:
@@ -304,6 +463,9 @@ def import_world(path: str | Path, search_paths: list[Path] | None = None) -> tu
     (camera, film, warnings)."""
     search_paths = list(search_paths or [])
     parsed = parse_pbrt(path, search_paths)
+    if parsed.world_begin is not None and parsed.world_end is None:
+        parsed.warn(str(parsed.path), f"no WorldEnd after the WorldBegin at {parsed.world_begin} (pbrt-v3 would "
+                    f"render nothing; the world is rendered as read, but the file may be cut short)")
     return _Importer(parsed, search_paths).run(), parsed
 
 
@@ -315,11 +477,18 @@ def import_pbrt(path: str | Path, width: int | None = None, height: int | None =
     search_paths = list(search_paths or [])
     scene, parsed = import_world(path, search_paths)
     film = parsed.film.params if parsed.film else Params()
+    film_where = parsed.film.where if parsed.film else str(parsed.path)
     if parsed.film and parsed.film.params.has("cropwindow"):
         parsed.warn(parsed.film.where, "Film cropwindow (the whole image is rendered)")
-    width = width or int(film.get_float("xresolution", 640))
-    height = height or int(film.get_float("yresolution", 480))
-    spp = spp or int(parsed.sampler.params.get_float("pixelsamples", 16) if parsed.sampler else 16)
+    if not (width and height):  # the file's resolution is used
+        with _located(film_where):
+            width, height = validation.resolution(width or _whole_number(film, "xresolution", 640, film_where),
+                                                  height or _whole_number(film, "yresolution", 480, film_where))
+    if not spp and parsed.sampler:
+        with _located(parsed.sampler.where):
+            spp = validation.samples_per_pixel(_whole_number(parsed.sampler.params, "pixelsamples", 16,
+                                                             parsed.sampler.where))
+    spp = spp or 16
     scene.camera = import_camera(parsed, width, height, spp, lens_sampling, lens_edit, focus_scene_units,
                                  search_paths)
     return ImportedScene(scene, film.get_string("filename"), parsed.warnings)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -53,7 +54,7 @@ def read_scene_text(path: Path) -> str:
 
 
 def tokenize(text: str, path: Path) -> Iterator[Token]:
-    """Tokens of ``text``; a stray character is a syntax error at its line."""
+    """Tokens of ``text``; a stray character or a number beyond a double's range is a syntax error at its line."""
     line = 1
     for match in _TOKEN.finditer(text):
         kind = match.lastgroup
@@ -70,4 +71,6 @@ def tokenize(text: str, path: Path) -> Iterator[Token]:
         elif kind == "close":
             yield Token("]", "]", path, line)
         else:
+            if kind == "number" and not math.isfinite(float(match.group())):
+                raise PbrtSyntaxError(path, line, f"number {match.group()} is too large for a double")
             yield Token(kind, match.group(), path, line)

@@ -18,6 +18,9 @@ from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.errors import UserError
 from realistic.scene.pbrt.lexer import PbrtSyntaxError, Token, read_scene_text, tokenize
 
+#: Deepest chain of Include/Import (a file including a file ...); a cycle is reported as soon as it closes.
+MAX_INCLUDE_DEPTH = 64
+
 PARAM_TYPES = {"integer", "float", "point", "point2", "point3", "vector", "vector2", "vector3", "normal",
                "normal3", "color", "rgb", "spectrum", "xyz", "blackbody", "string", "bool", "texture"}
 
@@ -118,6 +121,8 @@ class PbrtScene:
     lights: list[Directive] = field(default_factory=list)
     textures: dict[str, TextureDef] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    world_begin: str | None = None  # where WorldBegin was, if anywhere
+    world_end: str | None = None  # where WorldEnd was, if anywhere
 
     def warn(self, where: str, message: str) -> None:
         """Report something not honoured, once per distinct message."""
@@ -140,13 +145,39 @@ class _State:
 DEFAULT_MATERIAL = Declaration("matte", Params(), "<default>")
 
 
+def _is_file(path: Path) -> bool:
+    """``path.is_file()``, False for names the system cannot even look up (too long, say)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
+
+
 def resolve_file(name: str, directory: Path, search_paths: list[Path]) -> Path | None:
     """A file a scene names: relative to the naming file's folder, else in a search path."""
     for folder in [directory, *search_paths]:
         candidate = folder / name
-        if candidate.is_file():
+        if _is_file(candidate):
             return candidate
     return None
+
+
+def _identity(path: Path) -> str:
+    """One name per file however it is reached (relative, through links), for finding Include cycles."""
+    try:
+        return str(path.resolve())
+    except (OSError, RuntimeError):
+        return str(path.absolute())
+
+
+@dataclass
+class _Frame:
+    """The tokens of one file being read; the frames below it are the files that included it."""
+
+    tokens: list[Token]
+    label: str  # the file as the scene named it (the top file: as given)
+    identity: str
+    pos: int = 0
 
 
 class _Parser:
@@ -154,27 +185,41 @@ class _Parser:
         self.search_paths = search_paths
         self.scene = PbrtScene(path)
         self.state = _State(np.eye(4), DEFAULT_MATERIAL)
-        self.stack: list[tuple[str, _State]] = []
+        self.stack: list[tuple[str, _State, str]] = []  # (block kind, saved state, where it began)
         self.named_frames: dict[str, np.ndarray] = {}
         self.current_object: str | None = None
         self.named_materials: dict[str, Declaration] = {}
-        self.tokens: list[Token] = []
-        self.pos = 0
+        self.frames: list[_Frame] = []
+        self.last: Token | None = None
 
     # ---- token access -------------------------------------------------------------------------
     def _load(self, path: Path) -> list[Token]:
         return list(tokenize(read_scene_text(path), path))
 
     def peek(self) -> Token | None:
-        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
+        """The next token, read on into the including file when an included one is used up."""
+        while self.frames:
+            frame = self.frames[-1]
+            if frame.pos < len(frame.tokens):
+                return frame.tokens[frame.pos]
+            if len(self.frames) == 1:
+                return None
+            self.frames.pop()
+        return None
+
+    def advance(self) -> None:
+        """Step past the token ``peek`` returned."""
+        frame = self.frames[-1]
+        self.last = frame.tokens[frame.pos]
+        frame.pos += 1
 
     def next(self, expected: str) -> Token:
         token = self.peek()
         if token is None:
-            last = self.tokens[-1] if self.tokens else None
+            last = self.last
             raise PbrtSyntaxError(last.path if last else self.scene.path, last.line if last else 1,
                                   f"unexpected end of file, expected {expected}")
-        self.pos += 1
+        self.advance()
         return token
 
     def expect(self, kind: str, what: str, directive: Token) -> Token:
@@ -192,7 +237,7 @@ class _Parser:
         """``count`` numbers, bare or inside one pair of brackets."""
         bracketed = self.peek() is not None and self.peek().kind == "["
         if bracketed:
-            self.pos += 1
+            self.advance()
         values = [self.number(directive) for _ in range(count)]
         if bracketed:
             close = self.next("]")
@@ -207,7 +252,7 @@ class _Parser:
     def params(self) -> Params:
         params = Params()
         while (token := self.peek()) is not None and token.kind == "string":
-            self.pos += 1
+            self.advance()
             parts = str(token.value).split()
             if len(parts) != 2 or parts[0] not in PARAM_TYPES:
                 raise PbrtSyntaxError(token.path, token.line, f'expected a parameter "type name", found {token.text}')
@@ -218,23 +263,35 @@ class _Parser:
     def param_values(self, declaration: Token) -> list:
         first = self.next(f"a value for {declaration.text}")
         if first.kind in ("string", "number"):
-            return [first.value]
-        if first.kind != "[":
+            values = [first.value]
+        elif first.kind != "[":
             raise PbrtSyntaxError(first.path, first.line, f"expected a value or [ for {declaration.text}, "
                                   f"found {first.text}")
-        values = []
-        while (token := self.next(f"] closing the values of {declaration.text}")).kind != "]":
-            if token.kind not in ("string", "number"):
-                raise PbrtSyntaxError(token.path, token.line, f"expected ] closing the values of "
-                                      f"{declaration.text}, found {token.text}")
-            values.append(token.value)
-        return [v in ("true", True) if declaration.value.startswith("bool") else v for v in values]
+        else:
+            values = []
+            while (token := self.next(f"] closing the values of {declaration.text}")).kind != "]":
+                if token.kind not in ("string", "number"):
+                    raise PbrtSyntaxError(token.path, token.line, f"expected ] closing the values of "
+                                          f"{declaration.text}, found {token.text}")
+                values.append(token.value)
+        if str(declaration.value).split()[0] == "bool":
+            return self._booleans(declaration, values)
+        return values
+
+    @staticmethod
+    def _booleans(declaration: Token, values: list) -> list[bool]:
+        for value in values:
+            if value not in ("true", "false"):
+                shown = f'"{value}"' if isinstance(value, str) else f"{value:g}"
+                raise PbrtSyntaxError(declaration.path, declaration.line, f'{declaration.text} expects "true" or '
+                                      f'"false", found {shown}')
+        return [value == "true" for value in values]
 
     # ---- directives ---------------------------------------------------------------------------
     def run(self) -> PbrtScene:
-        self.tokens = self._load(self.scene.path)
+        self.frames = [_Frame(self._load(self.scene.path), str(self.scene.path), _identity(self.scene.path))]
         while (token := self.peek()) is not None:
-            self.pos += 1
+            self.advance()
             if token.kind != "word":
                 raise PbrtSyntaxError(token.path, token.line, f"expected a directive, found {token.text}")
             handler = getattr(self, f"d_{token.text}", None)
@@ -245,30 +302,55 @@ class _Parser:
                     handler(token)
                 except ValueError as err:
                     raise PbrtSyntaxError(token.path, token.line, f"{token.text}: {err}") from None
+        self.close_open_blocks("by the end of the file")
         return self.scene
+
+    def close_open_blocks(self, when: str) -> None:
+        """Blocks still open at WorldEnd or the end of the file: pbrt complains and closes them; so do we."""
+        while self.stack:
+            kind, saved, where = self.stack.pop()
+            self.scene.warn(where, f"{kind}Begin without a matching {kind}End {when} (closed there)")
+            self.state = saved
+            if kind == "Object":
+                self.current_object = None
 
     def skip_unknown(self, token: Token) -> None:
         """An unknown directive: report it and skip its arguments up to the next directive."""
         self.scene.warn(token.where(), f"directive {token.text} (ignored)")
         while (nxt := self.peek()) is not None and nxt.kind != "word":
-            self.pos += 1
+            self.advance()
+
+    def set_ctm(self, matrix: np.ndarray) -> None:
+        if not np.all(np.isfinite(matrix)):
+            raise ValueError("the transform overflows (values beyond a double's range)")
+        self.state.ctm = matrix
 
     def apply(self, matrix: np.ndarray) -> None:
-        self.state.ctm = self.state.ctm @ matrix
+        with np.errstate(over="ignore", invalid="ignore"):  # judged by set_ctm
+            self.set_ctm(self.state.ctm @ matrix)
 
     def d_Include(self, token: Token) -> None:
         name = self.string(token)
         path = resolve_file(name, token.path.parent, self.search_paths)
         if path is None:
-            self.scene.warn(token.where(), f'Include "{name}": no such file in {token.path.parent} or the search '
-                                       f'paths (skipped)')
+            self.scene.warn(token.where(), f'{token.text} "{name}": no such file in {token.path.parent} or the '
+                                       f'search paths (skipped)')
             return
-        self.tokens[self.pos:self.pos] = self._load(path)
+        identity = _identity(path)
+        chain = [frame.identity for frame in self.frames]
+        if identity in chain:
+            labels = [frame.label for frame in self.frames[chain.index(identity):]] + [name]
+            raise PbrtSyntaxError(token.path, token.line, f'{token.text} "{name}" makes a cycle: '
+                                  f'{" -> ".join(labels)}')
+        if len(self.frames) > MAX_INCLUDE_DEPTH:
+            raise PbrtSyntaxError(token.path, token.line, f'{token.text} "{name}" nests files more than '
+                                  f"{MAX_INCLUDE_DEPTH} deep (the limit)")
+        self.frames.append(_Frame(self._load(path), name, identity))
 
     d_Import = d_Include
 
     def d_Identity(self, token: Token) -> None:
-        self.state.ctm = np.eye(4)
+        self.set_ctm(np.eye(4))
 
     def d_Translate(self, token: Token) -> None:
         self.apply(translate(*self.numbers(token, 3)))
@@ -280,6 +362,7 @@ class _Parser:
         angle, *axis = self.numbers(token, 4)
         if not any(axis):
             raise ValueError("zero rotation axis")
+        axis = np.array(axis) / np.max(np.abs(axis))  # so that its length cannot overflow
         self.apply(rotate(angle, axis))
 
     def d_LookAt(self, token: Token) -> None:
@@ -289,10 +372,11 @@ class _Parser:
             raise ValueError("LookAt eye and target coincide")
         if not np.any(np.cross(up, target - eye)):
             raise ValueError("LookAt up vector is parallel to the viewing direction")
-        self.apply(np.linalg.inv(look_at(eye, target, up)))  # pbrt's LookAt gives world to camera
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # judged by apply
+            self.apply(np.linalg.inv(look_at(eye, target, up)))  # pbrt's LookAt gives world to camera
 
     def d_Transform(self, token: Token) -> None:
-        self.state.ctm = np.array(self.numbers(token, 16)).reshape(4, 4).T  # pbrt lists column-major
+        self.set_ctm(np.array(self.numbers(token, 16)).reshape(4, 4).T)  # pbrt lists column-major
 
     def d_ConcatTransform(self, token: Token) -> None:
         self.apply(np.array(self.numbers(token, 16)).reshape(4, 4).T)
@@ -305,7 +389,7 @@ class _Parser:
         if name not in self.named_frames:
             raise PbrtSyntaxError(token.path, token.line,
                                   f'CoordSysTransform "{name}": no coordinate system of that name')
-        self.state.ctm = self.named_frames[name].copy()
+        self.set_ctm(self.named_frames[name].copy())
 
     def _directive(self, token: Token) -> Directive:
         kind = self.string(token)
@@ -318,8 +402,16 @@ class _Parser:
         self.scene.sampler = self._directive(token)
 
     def d_Camera(self, token: Token) -> None:
-        self.scene.camera = self._directive(token)
-        self.named_frames["camera"] = np.linalg.inv(self.state.ctm)
+        camera = self._directive(token)
+        try:
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                world_from_camera = np.linalg.inv(self.state.ctm)
+        except np.linalg.LinAlgError:
+            world_from_camera = None
+        if world_from_camera is None or not np.all(np.isfinite(world_from_camera)):
+            raise ValueError("the camera transform is singular (a Scale by 0, say), so the camera has no position")
+        self.scene.camera = camera
+        self.named_frames["camera"] = world_from_camera
 
     def _ignored(self, token: Token) -> None:
         kind = self.string(token)
@@ -332,29 +424,31 @@ class _Parser:
     def d_WorldBegin(self, token: Token) -> None:
         self.named_frames["world"] = np.eye(4)
         self.state.ctm = np.eye(4)
+        self.scene.world_begin = self.scene.world_begin or token.where()
 
     def d_WorldEnd(self, token: Token) -> None:
-        pass
+        self.close_open_blocks("before WorldEnd")
+        self.scene.world_end = token.where()
 
-    def _push(self, kind: str) -> None:
-        self.stack.append((kind, self.state.copy()))
+    def _push(self, kind: str, token: Token) -> None:
+        self.stack.append((kind, self.state.copy(), token.where()))
 
     def _pop(self, token: Token, kind: str) -> _State:
         if not self.stack:
             raise PbrtSyntaxError(token.path, token.line, f"{token.text} without a matching {kind}Begin")
-        opened, saved = self.stack.pop()
+        opened, saved, where = self.stack.pop()
         if opened != kind:
-            raise PbrtSyntaxError(token.path, token.line, f"{token.text} closes a {opened}Begin")
+            raise PbrtSyntaxError(token.path, token.line, f"{token.text} closes the {opened}Begin at {where}")
         return saved
 
     def d_AttributeBegin(self, token: Token) -> None:
-        self._push("Attribute")
+        self._push("Attribute", token)
 
     def d_AttributeEnd(self, token: Token) -> None:
         self.state = self._pop(token, "Attribute")
 
     def d_TransformBegin(self, token: Token) -> None:
-        self._push("Transform")
+        self._push("Transform", token)
 
     def d_TransformEnd(self, token: Token) -> None:
         self.state.ctm = self._pop(token, "Transform").ctm
@@ -364,8 +458,18 @@ class _Parser:
 
     def d_ObjectBegin(self, token: Token) -> None:
         name = self.string(token)
-        self._push("Object")
+        if self.current_object is not None:
+            self.scene.warn(token.where(), f'ObjectBegin inside the definition of object "{self.current_object}" '
+                                           f"(its shapes go to the inner object)")
+        self._push("Object", token)
         self.current_object = name
+        if name in self.scene.objects:
+            # pbrt: instances made so far keep the old definition; keep it for them under another name
+            kept = f"{name} (defined before {token.where()})"
+            self.scene.objects[kept] = self.scene.objects[name]
+            self.scene.instances = [(kept if n == name else n, m, w) for n, m, w in self.scene.instances]
+            self.scene.warn(token.where(), f'ObjectBegin "{name}" redefines an object (later instances use the '
+                                           f"new definition)")
         self.scene.objects[name] = []
 
     def d_ObjectEnd(self, token: Token) -> None:
@@ -376,6 +480,9 @@ class _Parser:
         name = self.string(token)
         if name not in self.scene.objects:
             raise PbrtSyntaxError(token.path, token.line, f'ObjectInstance "{name}": no object of that name')
+        if self.current_object is not None:
+            self.scene.warn(token.where(), "ObjectInstance inside an object definition (ignored, as pbrt does)")
+            return
         self.scene.instances.append((name, self.state.ctm.copy(), token.where()))
 
     def d_Texture(self, token: Token) -> None:
@@ -416,6 +523,10 @@ class _Parser:
 def parse_pbrt(path: str | Path, search_paths: list[Path] | None = None) -> PbrtScene:
     """Read a pbrt scene file (with its Includes) into records."""
     path = Path(path)
-    if not path.is_file():
-        raise UserError(f"{path}: no such scene file")
+    if not _is_file(path):
+        try:
+            what = "is a directory, not a scene file" if path.is_dir() else "no such scene file"
+        except (OSError, ValueError) as err:
+            what = f"cannot read scene file: {getattr(err, 'strerror', None) or err}"
+        raise UserError(f"{path}: {what}")
     return _Parser(path, list(search_paths or [])).run()
