@@ -2,7 +2,9 @@
 
 - ``model``: ``Scene`` and its plain parts (meshes, instances, materials, textures, area lights).
 - ``shapes``: analytic shapes tessellated into meshes.
-- ``meshes``: mesh files through trimesh (OBJ, PLY, STL, GLB/GLTF, OFF).
+- ``meshes``: mesh files through trimesh (OBJ, PLY, STL, GLB/GLTF, OFF), refusing what would render wrong;
+  ``mesh_text_checks`` reads the text trimesh would misread, ``mesh_diagnosis`` says why a file is
+  unreadable.
 - ``textures``: materials' albedo at surface points, batched.
 - ``intersect``: the embree scene built from a ``Scene``; closest-hit and occlusion queries.
 - ``staging``: a mesh on a grid floor under a light, the default scene, framing a subject.

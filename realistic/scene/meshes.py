@@ -1,17 +1,41 @@
-"""Loading mesh files with trimesh (OBJ, PLY, STL, GLB/GLTF, OFF), one ``MeshObject`` per object."""
+"""Loading mesh files with trimesh (OBJ, PLY, STL, GLB/GLTF, OFF), one ``MeshObject`` per object.
+
+Bad files raise a one-line ``UserError`` naming the file and what is wrong with it, never trimesh's or
+numpy's internal error text (an ``IndexError``, a missing optional module) and never a raw warning:
+when trimesh cannot read a file, ``realistic.scene.mesh_diagnosis`` looks at the file itself to say what
+is wrong, and where (header line, face line, byte counts). A file trimesh reads is still refused when it
+would render wrong (``realistic.scene.mesh_text_checks`` reads the text trimesh would misread):
+
+- an OBJ face index 0 (OBJ counts from 1; trimesh would silently take it as the first vertex), and OBJ
+  statements trimesh skips without a word (indented, or a tab after the keyword);
+- an ASCII STL facet without exactly 3 vertex lines of 3 numbers (trimesh would shift later vertices);
+- vertices that are not three finite numbers, face indices outside the vertex list;
+- a coordinate, or a file transform placing one, beyond ``MAX_COORDINATE`` file units; a non-finite or
+  singular transform;
+- no triangle with a non-zero area (every face degenerate: repeated or collinear vertices).
+"""
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from realistic.errors import UserError
+from realistic.scene.mesh_diagnosis import no_triangles_message, unreadable_message
+from realistic.scene.mesh_text_checks import check_ascii_stl, check_obj_text
 from realistic.scene.model import RGB, Mesh
 
 FORMATS = ("obj", "ply", "stl", "glb", "gltf", "off")
+#: Largest |coordinate| accepted, in file units, as given and as placed by the file's transforms. Real
+#: models stay far below it; beyond it a file is almost surely corrupt (a stray 1e30), and a staged or
+#: rendered scene (float32 hit points, about 7 significant digits) could not resolve its detail anyway.
+MAX_COORDINATE = 1e12
+MAX_CONDITION = 1e12  # a file transform's 3x3 part must be invertible to about float64 precision
 _NO_COLOUR = (102, 102, 102)  # trimesh's default colour: the file gave none
 
 
@@ -22,6 +46,7 @@ class MeshObject:
     mesh: Mesh
     transform: np.ndarray  # (4, 4) object to file frame
     colour: RGB | None
+    source: str = ""  # the file it came from, for messages
 
 
 def _colour(geometry) -> RGB | None:
@@ -48,7 +73,17 @@ def _mesh(geometry, name: str) -> Mesh:
         normals = None
     uv = getattr(geometry.visual, "uv", None)
     uv = np.asarray(uv, dtype=np.float64) if uv is not None and len(uv) == len(vertices) else None
+    if uv is not None and (uv.shape != (len(vertices), 2) or not np.all(np.isfinite(uv))):
+        uv = None
     return Mesh(vertices, faces, normals, uv, name)
+
+
+@contextlib.contextmanager
+def _quiet():
+    """No numpy floating-point warnings or other warnings from trimesh reach the user; checks follow."""
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        yield
 
 
 def load_mesh_file(path: str | Path) -> list[MeshObject]:
@@ -56,30 +91,87 @@ def load_mesh_file(path: str | Path) -> list[MeshObject]:
     import trimesh
 
     path = Path(path)
-    if not path.is_file():
+    _check_path(path)
+    extension = path.suffix.lower().lstrip(".")
+    if extension == "obj":
+        check_obj_text(path)
+    logging.getLogger("trimesh").setLevel(logging.ERROR)
+    try:
+        with _quiet():
+            loaded = trimesh.load(str(path), force="scene", process=False)
+            objects = []
+            for node in loaded.graph.nodes_geometry:
+                transform, name = loaded.graph[node]
+                geometry = loaded.geometry[name]
+                if not isinstance(geometry, trimesh.Trimesh) or len(geometry.faces) == 0:
+                    continue
+                mesh = _mesh(geometry, str(name))
+                transform = np.asarray(transform, dtype=np.float64)
+                _check_object(path, name, mesh, transform)
+                objects.append(MeshObject(mesh, transform, _colour(geometry), str(path)))
+            if extension == "stl" and objects:
+                check_ascii_stl(path)
+    except UserError:
+        raise
+    except Exception as err:  # trimesh raises many types for malformed files
+        raise UserError(unreadable_message(path, extension, err)) from None
+    if not objects:
+        raise UserError(no_triangles_message(path, extension))
+    with _quiet():
+        if not any(_has_area(o.mesh) for o in objects):
+            raise UserError(f"{path}: no triangle has a non-zero area (every face has repeated or collinear "
+                            "vertices)")
+    return objects
+
+
+def _check_path(path: Path) -> None:
+    if path.is_dir():
+        raise UserError(f"{path}: is a directory, not a mesh file")
+    if not path.exists():
         raise UserError(f"{path}: no such mesh file")
+    if not path.is_file():
+        raise UserError(f"{path}: not a regular file")
     if path.stat().st_size == 0:
         raise UserError(f"{path}: the mesh file is empty")
     extension = path.suffix.lower().lstrip(".")
     if extension not in FORMATS:
         raise UserError(f"{path}: unsupported mesh format {path.suffix!r} (supported: {', '.join(FORMATS)})")
-    logging.getLogger("trimesh").setLevel(logging.ERROR)
-    try:
-        loaded = trimesh.load(str(path), force="scene", process=False)
-    except Exception as err:  # trimesh raises many types for malformed files
-        raise UserError(f"{path}: not a readable {extension.upper()} mesh ({err})") from None
-    objects = []
-    for node in loaded.graph.nodes_geometry:
-        transform, name = loaded.graph[node]
-        geometry = loaded.geometry[name]
-        if not isinstance(geometry, trimesh.Trimesh) or len(geometry.faces) == 0:
-            continue
-        mesh = _mesh(geometry, str(name))
-        if not np.all(np.isfinite(mesh.vertices)):
-            raise UserError(f"{path}: object {name!r} has non-finite vertex coordinates")
-        if mesh.faces.min() < 0 or mesh.faces.max() >= len(mesh.vertices):
-            raise UserError(f"{path}: object {name!r} has face indices outside its vertex list")
-        objects.append(MeshObject(mesh, np.asarray(transform, dtype=np.float64), _colour(geometry)))
-    if not objects:
-        raise UserError(f"{path}: the file holds no triangles")
-    return objects
+
+
+def _check_object(path: Path, name, mesh: Mesh, transform: np.ndarray) -> None:
+    vertices, faces = mesh.vertices, mesh.faces
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        count = vertices.shape[1] if vertices.ndim == 2 else 0
+        raise UserError(f"{path}: object {name!r} has vertices of {count} coordinates, not 3")
+    if not np.all(np.isfinite(vertices)):
+        raise UserError(f"{path}: object {name!r} has non-finite vertex coordinates")
+    peak = float(np.abs(vertices).max()) if len(vertices) else 0.0
+    if peak > MAX_COORDINATE:
+        raise UserError(f"{path}: object {name!r} has a vertex coordinate of {peak:.3g}, beyond the "
+                        f"±{MAX_COORDINATE:.0e} accepted")
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
+        raise UserError(f"{path}: object {name!r} has face indices outside its vertex list")
+    if transform.shape != (4, 4) or not np.all(np.isfinite(transform)):
+        raise UserError(f"{path}: object {name!r} is placed by a non-finite transform")
+    if not np.linalg.cond(transform[:3, :3]) <= MAX_CONDITION:
+        raise UserError(f"{path}: object {name!r} is placed by a singular transform (a zero scale)")
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    corners = np.array([[(lo, hi)[(i >> axis) & 1][axis] for axis in range(3)] for i in range(8)])
+    placed = corners @ transform[:3, :3].T + transform[:3, 3]
+    if not np.abs(placed).max() <= MAX_COORDINATE:
+        raise UserError(f"{path}: object {name!r} is placed by the file's transforms beyond the "
+                        f"±{MAX_COORDINATE:.0e} accepted")
+
+
+def _has_area(mesh: Mesh, chunk: int = 1 << 16) -> bool:
+    """Whether any triangle has a non-zero area (relative to the object's size, so tiny objects count)."""
+    vertices = mesh.vertices
+    size = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 0.0
+    if not size > 0:
+        return False
+    for start in range(0, len(mesh.faces), chunk):
+        triangles = vertices[mesh.faces[start:start + chunk]] / size
+        cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+        if np.any(cross != 0):
+            return True
+    return False
