@@ -48,7 +48,8 @@ def refused(args: list[str], tmp_path: Path, capsys) -> str:
     (["--film-diagonal", "-70"], "film diagonal"),
     (["--film-diagonal", "1e9"], "film diagonal (mm) must be at most 1000"),
     (["--light-samples", "0"], "light samples"),
-    (["--aperture", "nan"], "aperture (mm) must be a positive finite number"),
+    (["--aperture", "nan"], "aperture diameter must be a positive number of mm"),
+    (["--aperture", "1000"], "aperture diameter 1000 mm is wider than dgauss's widest element (25.2 mm)"),
     (["--iso", "-100"], "ISO speed"),
     (["--max-memory", "lots"], "is not a positive size"),
     (["--target", "-1,0"], "is not three finite numbers"),
@@ -183,3 +184,20 @@ def test_interrupt_during_set_up_says_nothing_was_written(tmp_path):
     assert process.returncode == 130
     assert b"nothing written" in err and b"Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_api_scene_beyond_single_precision_is_a_user_error():
+    import numpy as np
+
+    from realistic.camera.lens_camera import LensCamera
+    from realistic.errors import UserError
+    from realistic.optics.formats import load_lens
+    from realistic.renderer.passes import render_passes
+    from realistic.scene.model import Scene
+    from realistic.scene.shapes import sphere
+
+    scene = Scene()
+    scene.add(sphere(1e200, 16))
+    camera = LensCamera.looking_at(load_lens("dgauss"), np.zeros(3), np.array([0, 0, 5.0]), width=4, height=4, spp=1)
+    with pytest.raises(UserError, match="not finite in single precision"):
+        render_passes(scene, camera, "numpy")

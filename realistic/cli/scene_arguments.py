@@ -27,7 +27,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lens", help=f"mesh scenes: bundled lens ({', '.join(BUNDLED_LENSES)}) or prescription file "
                                        "(default: dgauss)")
     stop = parser.add_mutually_exclusive_group()
-    stop.add_argument("--aperture", type=checked(float, partial(positive_length, name="aperture (mm)")), metavar="MM",
+    stop.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                       help="stop diameter in mm (default: the scene's or lens's)")
     stop.add_argument("--fstop", type=checked(float, partial(positive_length, name="f-number")), metavar="N",
                       help="f-number: sizes the stop for this paraxial f-number (EFL / entrance pupil)")

@@ -15,6 +15,7 @@ the region, Z: film-to-plane distance) is exact per sample.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -189,7 +190,9 @@ def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm
         # which assumes a round stop. A shaped opening lies inside the circle of its reach, so that
         # circular stop's bounds hold every ray the shape passes; rays the shape blocks get weight 0.
         reach = lens.stop_shape.reach_mm(lens.stop_diameter_mm)
-        lens = lens.with_stop_shape(None).with_stop_diameter(2 * reach)
+        circle = lens.aperture_mm.copy()
+        circle[lens.stop] = 2 * reach  # may exceed the widest element: only the bounds use it
+        lens = dataclasses.replace(lens, stop_shape=None, aperture_mm=circle)
     key = (lens.radius_mm.tobytes(), lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
            lens.abbe_v.tobytes(), lens.aperture_mm.tobytes(), film_distance_mm, film_diagonal_mm,
            intervals, film_points, grid, wavelengths_nm)

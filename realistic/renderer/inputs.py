@@ -79,8 +79,9 @@ class RenderOptions:
             validation.film_diagonal_mm(self.film_diagonal_mm)
         if self.blades is not None:
             validation.blades(self.blades)
-        for name, value in (("aperture (mm)", self.aperture_mm), ("focus distance", self.focus_distance),
-                            ("f-number", self.f_number)):
+        if self.aperture_mm is not None:
+            validation.stop_diameter_mm(self.aperture_mm)
+        for name, value in (("focus distance", self.focus_distance), ("f-number", self.f_number)):
             if value is not None:
                 validation.positive_length(value, name)
         if self.aperture_mm is not None and self.f_number is not None:

@@ -126,7 +126,9 @@ def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: i
     bar = _progress_bar(len(starts)) if progress else None
     pending: set[Future] = set()
     next_pass = 0
-    with ThreadPoolExecutor(max_workers=threads) as pool:
+    pool = ThreadPoolExecutor(max_workers=threads)
+    finished = False
+    try:
         try:
             while next_pass < len(starts) or pending:
                 while next_pass < len(starts) and len(pending) < threads:
@@ -146,6 +148,9 @@ def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: i
             for future in pending:
                 if not future.cancel():
                     _add(film, result, future.result(), bar, start)
+        finished = True
+    finally:  # a second interrupt while passes finish leaves them running: the caller stops at once
+        pool.shutdown(wait=finished, cancel_futures=not finished)
     if bar is not None:
         bar.close()
     result.image = film.image()

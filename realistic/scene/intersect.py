@@ -42,19 +42,23 @@ class Intersector:
         self.instance_count = len(scene.instances)
         # Embree keeps pointers to the buffers: hold them for the scene's lifetime.
         self._meshes = []
-        for inst in scene.instances:
+        for index, inst in enumerate(scene.instances):
             mesh = scene.meshes[inst.mesh]
-            self._add(transform_points(inst.transform, mesh.vertices), mesh.faces)
-        for light in scene.lights:
+            self._add(transform_points(inst.transform, mesh.vertices), mesh.faces, f"instance {index} ({mesh.name})")
+        for index, light in enumerate(scene.lights):
             mesh = light_mesh(light)
-            self._add(transform_points(light.transform, mesh.vertices), mesh.faces)
+            self._add(transform_points(light.transform, mesh.vertices), mesh.faces, f"area light {index}")
         lo, hi = _bounds(scene)
         self.extent = float(np.max(hi - lo)) if np.all(np.isfinite(hi - lo)) else 1.0
         one = np.zeros((1, 3), np.float32)
         self._embree.run(one, one + np.float32(1))  # builds the BVH before any thread uses it
 
-    def _add(self, vertices: np.ndarray, faces: np.ndarray) -> None:
-        vertices = np.ascontiguousarray(vertices, dtype=np.float32)
+    def _add(self, vertices: np.ndarray, faces: np.ndarray, what: str) -> None:
+        with np.errstate(over="ignore", invalid="ignore"):
+            vertices = np.ascontiguousarray(vertices, dtype=np.float32)
+        if not np.all(np.isfinite(vertices)):
+            raise UserError(f"the scene's {what} has world coordinates that are not finite in single precision "
+                            "(embree's), beyond about 3.4e38")
         faces = np.ascontiguousarray(faces, dtype=np.int32)
         self._meshes.append((vertices, faces, TriangleMesh(self._embree, vertices, faces)))
 
