@@ -201,3 +201,27 @@ def test_api_scene_beyond_single_precision_is_a_user_error():
     camera = LensCamera.looking_at(load_lens("dgauss"), np.zeros(3), np.array([0, 0, 5.0]), width=4, height=4, spp=1)
     with pytest.raises(UserError, match="not finite in single precision"):
         render_passes(scene, camera, "numpy")
+
+
+@pytest.mark.parametrize("aspect", [1e-300, 1e-8, 1.0, 1e8, 1e300])
+def test_cone_normals_are_unit_and_outward_at_any_aspect(aspect):
+    import numpy as np
+
+    from realistic.scene.shapes import cone
+
+    mesh = cone(1.0, aspect, segments=16)
+    assert np.all(np.isfinite(mesh.normals)) and np.allclose(np.linalg.norm(mesh.normals, axis=1), 1.0)
+    # the side normal leans out from the axis by atan(height / radius) from the z axis
+    expected_z = 1.0 / np.hypot(1.0, aspect)
+    assert np.allclose(mesh.normals[:, 2], expected_z)
+
+
+@pytest.mark.parametrize("make", ["disk", "sphere", "cone", "quad"])
+@pytest.mark.parametrize("size", [0.0, -1.0, float("nan"), float("inf")])
+def test_shapes_refuse_sizes_that_are_not_positive_lengths(make, size):
+    from realistic.errors import UserError
+    from realistic.scene import shapes
+
+    args = {"disk": (size,), "sphere": (size,), "cone": (size, 1.0), "quad": (1.0, size)}[make]
+    with pytest.raises(UserError, match="must be a positive finite number"):
+        getattr(shapes, make)(*args)

@@ -327,8 +327,7 @@ def test_a_one_sided_light_given_as_bool_false_stays_one_sided(tmp_path):
     ('Scale 1e10 1e10 1e10 Shape "sphere" "float radius" 1e10', "beyond the 1e+18"),
     ('AreaLightSource "diffuse" Shape "disk" "float radius" 0', "disk radius 0"),
     ('AreaLightSource "diffuse" Scale 1 0 1 Shape "disk"', "area light whose transform flattens it"),
-    ('Shape "cone" "float height" 1e-300', 'Shape "cone" whose sizes are too extreme'),
-    ('Shape "cone" "float radius" 1e300 "float height" 1', 'Shape "cone" whose sizes are too extreme'),
+    ('Shape "cone" "float radius" 1e300 "float height" 1', "beyond the 1e+18"),
     ('AreaLightSource "diffuse" Shape "disk" "float radius" 1e-300', "area light of area 0 (too small"),
 ])
 def test_degenerate_or_out_of_range_shapes_are_skipped_with_a_warning(tmp_path, shape, fragment):
