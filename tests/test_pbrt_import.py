@@ -83,8 +83,12 @@ def test_missing_lens_and_texture_are_clear_errors(tmp_path):
 
 @pytest.mark.parametrize("lens", HOMEWORK)
 def test_homework_scene_imports_without_warnings(lens):
-    imported = import_pbrt(shared_file(f"scenes/pbrt/dof-dragons.{lens}.pbrt"), 16, 16, 1)
+    # the lens files live in ../shared/lenses, not beside the scenes: found on the search path
+    imported = import_pbrt(shared_file(f"scenes/pbrt/dof-dragons.{lens}.pbrt"), 16, 16, 1,
+                           search_paths=[shared_file("lenses")])
     assert imported.warnings == []
+    assert imported.dialect.name == "v2" and "specfile" in imported.dialect.reason
+    assert imported.scene.instances[0].material.texture.v_origin == "top"  # pbrt-v2 looks the floor up so
     assert isinstance(imported.scene.camera, LensCamera)
     assert len(imported.scene.instances) == 12 and len(imported.scene.lights) == 1  # floor + 11 cones
     floor = imported.scene.instances[0].material

@@ -35,7 +35,8 @@ distance in metres from the film plane to the plane in focus (thick-lens focusin
 the distance to the target. A pbrt scene brings its own camera, resolution and samples: --res,
 --spp, --aperture, --focus (scene units from the film) and --light-samples override it.
 
-With --dispersion on (the default for a lens whose prescription has Abbe numbers), each camera
+With --dispersion on (the default for a mesh or the default scene through a lens whose prescription
+has Abbe numbers; pbrt scenes render without it unless asked, as pbrt does), each camera
 sample carries a wavelength, the glasses' indices follow it, and the film integrates through the
 CIE 1931 colour matching functions to linear sRGB: the lens's chromatic aberration shows. Off
 traces at the d line in RGB.
@@ -107,6 +108,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise UserError(f"{args.out}: the output must be an .exr file (the PNG preview goes beside it)")
     inputs = build_render_inputs(options_from_args(args, args.spp))
     report_warnings(inputs.warnings)
+    if "pbrtDialect" in inputs.metadata:
+        print(f"realistic: {args.scene}: read as {inputs.metadata['pbrtDialect']}", file=sys.stderr)
     out = Path(args.out or inputs.default_out)
     png = out.with_suffix(".png")
     check_writable(out)

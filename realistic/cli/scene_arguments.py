@@ -16,6 +16,7 @@ from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.validation import finite, positive_length
 from realistic.optics.formats import BUNDLED_LENSES
 from realistic.renderer.memory import parse_size
+from realistic.scene.pbrt.dialect import DIALECTS
 
 if TYPE_CHECKING:
     from realistic.renderer.inputs import RenderOptions
@@ -68,12 +69,15 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--light-samples", type=checked(int, validation.light_samples), metavar="N",
                         help=f"light samples per hit, 1 to {validation.MAX_LIGHT_SAMPLES} "
                              "(default: the scene's, else 1)")
+    parser.add_argument("--pbrt-dialect", choices=DIALECTS, default="auto",
+                        help="pbrt scenes: read with this pbrt version's conventions (texture orientation); auto "
+                             "decides from the directives and parameters the file uses (default: %(default)s)")
     parser.add_argument("--max-memory", type=checked(str, parse_size), metavar="SIZE",
                         help="refuse renders estimated to need more memory than this, e.g. 8G or 512M "
                              "(default: the memory the system has available)")
     parser.add_argument("--dispersion", choices=("on", "off"),
-                        help="spectral rendering with the glasses' dispersion (default: on when the lens has "
-                             "Abbe numbers)")
+                        help="spectral rendering with the glasses' dispersion (default: off for pbrt scenes, as "
+                             "pbrt renders them; otherwise on when the lens has Abbe numbers)")
 
 
 def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOptions:
@@ -90,4 +94,4 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
         resolution=parse_resolution(args.res) if args.res else None, film_diagonal_mm=args.film_diagonal,
         spp=spp, light_samples=args.light_samples, lens_sampling=args.lens_sampling,
         dispersion=None if args.dispersion is None else args.dispersion == "on",
-        search_paths=[Path(p) for p in args.search_path])
+        search_paths=[Path(p) for p in args.search_path], pbrt_dialect=args.pbrt_dialect)

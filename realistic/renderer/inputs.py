@@ -64,7 +64,8 @@ class RenderOptions:
     spp: int | None = None
     light_samples: int | None = None
     lens_sampling: str = "pupil"
-    dispersion: bool | None = None  # None: on when the lens has Abbe numbers
+    dispersion: bool | None = None  # None: off for pbrt scenes, else on when the lens has Abbe numbers
+    pbrt_dialect: str = "auto"  # pbrt scenes: which pbrt's conventions (realistic.scene.pbrt.dialect)
     search_paths: list[Path] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -94,6 +95,8 @@ class RenderOptions:
                 raise UserError(f"{', '.join(given)} apply to mesh scenes; {self.scene} sets its own camera")
         elif self.search_paths:
             raise UserError("--search-path applies to pbrt scenes")
+        elif self.pbrt_dialect != "auto":
+            raise UserError("--pbrt-dialect applies to pbrt scenes")
 
     @property
     def is_pbrt(self) -> bool:
@@ -147,7 +150,10 @@ def build_render_inputs(options: RenderOptions) -> RenderInputs:
         x, y = options.focus_on
         scene.camera = scene.camera.autofocused(x, y, Intersector(scene).hit_distance)
         inputs.metadata["focusOn"] = f"{x:g},{y:g}"
-    scene.camera = scene.camera.with_dispersion(options.dispersion)
+    # a pbrt scene renders as pbrt would: dispersion only when asked for, even where a bundled lens
+    # with Abbe numbers stands in for the scene's lens file
+    dispersion = False if options.dispersion is None and options.is_pbrt else options.dispersion
+    scene.camera = scene.camera.with_dispersion(dispersion)
     return inputs
 
 
@@ -155,11 +161,12 @@ def _pbrt_inputs(options: RenderOptions) -> RenderInputs:
     width, height = options.resolution or (None, None)
     imported = import_pbrt(options.scene, width, height, options.spp, options.lens_sampling,
                            lens_edit=options.stop_edit(), focus_scene_units=options.focus_distance,
-                           search_paths=options.search_paths)
+                           search_paths=options.search_paths, dialect=options.pbrt_dialect)
     out = Path(imported.output_name).name if imported.output_name else "render.exr"
     if Path(out).suffix.lower() != ".exr":
         out = str(Path(out).with_suffix(".exr"))
-    return RenderInputs(imported.scene, out, {"scene": str(options.scene)}, imported.warnings)
+    metadata = {"scene": str(options.scene), "pbrtDialect": imported.dialect.describe()}
+    return RenderInputs(imported.scene, out, metadata, imported.warnings)
 
 
 def _mesh_inputs(options: RenderOptions) -> RenderInputs:

@@ -37,10 +37,15 @@ class Mesh:
 
 @dataclass(frozen=True)
 class ImageTexture:
-    """An RGB image (linear, rows top to bottom) repeated over uv; v = 0 is the image's bottom row."""
+    """An RGB image (linear, rows top to bottom) repeated over uv.
+
+    ``v_origin`` says which row v = 0 is: "bottom" (pbrt-v3 and v4 flip images on load) or "top"
+    (pbrt-v1 and v2 look up the file's first row at v = 0); the pbrt dialect decides.
+    """
 
     pixels: np.ndarray  # (H, W, 3) float32, linear
     scale: tuple[float, float] = (1.0, 1.0)  # repetitions of the image per unit of u, v
+    v_origin: str = "bottom"
 
 
 @dataclass(frozen=True)

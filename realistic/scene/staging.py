@@ -115,7 +115,7 @@ def _resolvable(mesh, transform: np.ndarray, chunk: int = 1 << 16) -> bool:
 
 def default_setup() -> Setup:
     """The default scene, ``scenes/default.pbrt``: its world, and its camera's eye and focus target."""
-    scene, parsed = import_world(data_file("scenes/default.pbrt"))
+    scene, parsed, _ = import_world(data_file("scenes/default.pbrt"))
     scene.background = (0.02, 0.02, 0.03)  # a dim sky (pbrt files have no background) so the horizon reads
     world_from_camera = np.linalg.inv(parsed.camera.transform)
     eye = world_from_camera[:3, 3]

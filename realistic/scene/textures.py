@@ -23,10 +23,11 @@ def evaluate(texture: Texture, uv: np.ndarray) -> np.ndarray:
 
 
 def _bilinear(texture: ImageTexture, uv: np.ndarray) -> np.ndarray:
-    """Bilinear lookup with wrap-around; u right, v up (v = 0 is the bottom row of the image)."""
+    """Bilinear lookup with wrap-around; u to the right, v = 0 at the row ``texture.v_origin`` names."""
     height, width = texture.pixels.shape[:2]
     x = (uv[:, 0] * texture.scale[0]) % 1.0 * width - 0.5
-    y = (1.0 - (uv[:, 1] * texture.scale[1]) % 1.0) * height - 0.5
+    v = (uv[:, 1] * texture.scale[1]) % 1.0
+    y = (v if texture.v_origin == "top" else 1.0 - v) * height - 0.5
     x0, y0 = np.floor(x), np.floor(y)
     fx, fy = (x - x0)[:, None], (y - y0)[:, None]
     x0, y0 = x0.astype(np.int64) % width, y0.astype(np.int64) % height

@@ -28,6 +28,7 @@ from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import AreaLight, CheckerTexture, ImageTexture, Material, Mesh, Scene
+from realistic.scene.pbrt.dialect import Dialect, choose_dialect
 from realistic.scene.pbrt.lexer import PbrtSyntaxError
 from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.scene.shapes import cone, disk, sphere
@@ -68,6 +69,7 @@ class ImportedScene:
     scene: Scene
     output_name: str | None
     warnings: list[str] = field(default_factory=list)
+    dialect: Dialect | None = None  # the pbrt version the file was read as, and why
 
 
 def _rgb(params: Params, name: str, default: tuple | None) -> tuple | None:
@@ -112,9 +114,10 @@ def _located(where: str):
 
 
 class _Importer:
-    def __init__(self, parsed: PbrtScene, search_paths: list[Path]):
+    def __init__(self, parsed: PbrtScene, search_paths: list[Path], dialect: Dialect):
         self.parsed = parsed
         self.search_paths = search_paths
+        self.dialect = dialect
         self.scene = Scene()
         self.materials: dict[int, Material] = {}
         # shape record -> (mesh index, local transform, object-space box corners)
@@ -171,7 +174,7 @@ class _Importer:
             if p.has("udelta") or p.has("vdelta") or p.get_string("mapping", "uv") != "uv":
                 self.warn(tex.where, "imagemap mapping other than plain uv scaling (ignored)")
             repeats = (p.get_float("uscale", 1.0), p.get_float("vscale", 1.0))
-            return Material((1.0, 1.0, 1.0), ImageTexture(pixels, repeats))
+            return Material((1.0, 1.0, 1.0), ImageTexture(pixels, repeats, self.dialect.texture_v_origin))
         if tex.cls == "checkerboard":
             if p.get_float("uscale", 1.0) != p.get_float("vscale", 1.0):
                 self.warn(tex.where, "checkerboard with different uscale and vscale (uscale used)")
@@ -409,6 +412,17 @@ def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sam
         raise UserError(f"{directive.where}: the camera sits beyond {MAX_WORLD_COORDINATE:g} from the origin, more "
                         f"than the renderer's single precision holds")
     params = directive.params
+
+    def scene_lens(parameter: str) -> LensSystem:
+        """The lens file the camera names; a bundled prescription of that file name stands in, with a
+        note, when the file is neither beside the scene nor on the search path."""
+        name = _lens_name(params, parameter)
+        found = find_lens_file(name, parsed.path.parent, search_paths, directive.where)
+        if found in BUNDLED_LENSES:
+            parsed.warn(directive.where, f'lens file "{name}" is not beside the scene or on the search path '
+                                         f'(the bundled "{found}" prescription stands in for it)')
+        return load_lens(found)
+
     if directive.type == "perspective":
         if lens_edit is not None or focus_scene_units is not None:
             raise UserError(f"{directive.where}: the stop and focus options apply to realistic cameras, not "
@@ -420,8 +434,7 @@ def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sam
         raise UserError(f'{directive.where}: Camera "{directive.type}" is not supported (use realistic or perspective)')
     with _located(directive.where):  # errors about the camera's parameters name its line
         if params.has("specfile"):  # the classic homework: camera space in mm, origin at the front lens vertex
-            lens = load_lens(find_lens_file(_lens_name(params, "specfile"), parsed.path.parent, search_paths,
-                                            directive.where))
+            lens = scene_lens("specfile")
             film_distance = params.get_float("filmdistance")
             if film_distance is None:
                 raise UserError('Camera "realistic" needs "float filmdistance"')
@@ -429,8 +442,7 @@ def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sam
                 lens = lens.with_stop_diameter(params.get_float("aperture_diameter"))
             origin = "front_vertex"
         elif params.has("lensfile"):  # pbrt-v3: camera space in metres, origin at the film centre
-            lens = load_lens(find_lens_file(_lens_name(params, "lensfile"), parsed.path.parent, search_paths,
-                                            directive.where))
+            lens = scene_lens("lensfile")
             lens = lens.with_stop_diameter(params.get_float("aperturediameter", 1.0))
             focus = params.get_float("focusdistance", 10.0)
             if not focus > 0:
@@ -458,24 +470,27 @@ def _lens_name(params: Params, name: str) -> str:
     return value
 
 
-def import_world(path: str | Path, search_paths: list[Path] | None = None) -> tuple[Scene, PbrtScene]:
-    """A pbrt file's world (its light samples in ``Scene.light_samples``) and its parsed records
-    (camera, film, warnings)."""
+def import_world(path: str | Path, search_paths: list[Path] | None = None,
+                 dialect: str = "auto") -> tuple[Scene, PbrtScene, Dialect]:
+    """A pbrt file's world (its light samples in ``Scene.light_samples``), its parsed records
+    (camera, film, warnings) and the pbrt dialect it was read in (``dialect``: "auto" or v1-v4)."""
     search_paths = list(search_paths or [])
     parsed = parse_pbrt(path, search_paths)
+    chosen = choose_dialect(parsed, dialect)
     if parsed.world_begin is not None and parsed.world_end is None:
         parsed.warn(str(parsed.path), f"no WorldEnd after the WorldBegin at {parsed.world_begin} (pbrt-v3 would "
                     f"render nothing; the world is rendered as read, but the file may be cut short)")
-    return _Importer(parsed, search_paths).run(), parsed
+    return _Importer(parsed, search_paths, chosen).run(), parsed, chosen
 
 
 def import_pbrt(path: str | Path, width: int | None = None, height: int | None = None, spp: int | None = None,
                 lens_sampling: str = "pupil", lens_edit: Callable[[LensSystem], LensSystem] | None = None,
-                focus_scene_units: float | None = None, search_paths: list[Path] | None = None) -> ImportedScene:
+                focus_scene_units: float | None = None, search_paths: list[Path] | None = None,
+                dialect: str = "auto") -> ImportedScene:
     """Read a pbrt scene and its camera (``Scene.camera``); resolution and samples default to the
-    file's (``Film`` and ``Sampler``)."""
+    file's (``Film`` and ``Sampler``); ``dialect`` as ``realistic.scene.pbrt.dialect`` explains."""
     search_paths = list(search_paths or [])
-    scene, parsed = import_world(path, search_paths)
+    scene, parsed, chosen = import_world(path, search_paths, dialect)
     film = parsed.film.params if parsed.film else Params()
     film_where = parsed.film.where if parsed.film else str(parsed.path)
     if parsed.film and parsed.film.params.has("cropwindow"):
@@ -491,4 +506,4 @@ def import_pbrt(path: str | Path, width: int | None = None, height: int | None =
     spp = spp or 16
     scene.camera = import_camera(parsed, width, height, spp, lens_sampling, lens_edit, focus_scene_units,
                                  search_paths)
-    return ImportedScene(scene, film.get_string("filename"), parsed.warnings)
+    return ImportedScene(scene, film.get_string("filename"), parsed.warnings, chosen)

@@ -122,6 +122,7 @@ class PbrtScene:
     textures: dict[str, TextureDef] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     world_begin: str | None = None  # where WorldBegin was, if anywhere
+    directives: dict[str, str] = field(default_factory=dict)  # each directive name -> where it first appeared
     world_end: str | None = None  # where WorldEnd was, if anywhere
 
     def warn(self, where: str, message: str) -> None:
@@ -294,6 +295,7 @@ class _Parser:
             self.advance()
             if token.kind != "word":
                 raise PbrtSyntaxError(token.path, token.line, f"expected a directive, found {token.text}")
+            self.scene.directives.setdefault(token.text, token.where())
             handler = getattr(self, f"d_{token.text}", None)
             if handler is None:
                 self.skip_unknown(token)
