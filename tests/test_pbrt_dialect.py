@@ -104,6 +104,6 @@ def test_a_scene_renders_without_dispersion_unless_asked_and_says_which_lens_sta
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         scene = rl.load_scene(path, resolution=(8, 8), spp=1)
-    assert not scene.camera.spectral  # pbrt would not disperse
+        asked = rl.load_scene(path, resolution=(8, 8), spp=1, dispersion=True)
+    assert not scene.camera.spectral and asked.camera.spectral  # pbrt would not disperse unless asked
     assert any('the bundled "dgauss" prescription stands in' in str(w.message) for w in caught)
-    assert rl.load_scene(path, resolution=(8, 8), spp=1, dispersion=True).camera.spectral
