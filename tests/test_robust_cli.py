@@ -225,3 +225,31 @@ def test_shapes_refuse_sizes_that_are_not_positive_lengths(make, size):
     args = {"disk": (size,), "sphere": (size,), "cone": (size, 1.0), "quad": (1.0, size)}[make]
     with pytest.raises(UserError, match="must be a positive finite number"):
         getattr(shapes, make)(*args)
+
+
+@pytest.mark.parametrize("args,message", [
+    (["lens", "plot", "dgauss", "--film-diagonal", "1e9"], "film diagonal (mm) must be at most 1000"),
+    (["lens", "info", "dgauss", "--aperture", "0"], "aperture diameter must be a positive number of mm"),
+    (["lens", "info", "dgauss", "--aperture", "1000"], "wider than dgauss's widest element"),
+    (["lens", "info", "dgauss", "--wavelength", "-5"], "wavelength (nm) must be a positive finite number"),
+])
+def test_lens_commands_check_quantities_as_render_does(tmp_path, capsys, args, message):
+    assert message in refused(args, tmp_path, capsys)
+
+
+def test_bench_warm_up_honours_max_memory(monkeypatch):
+    import numpy as np
+
+    import realistic.renderer.memory as memory
+    from realistic.camera.lens_camera import LensCamera
+    from realistic.optics.formats import load_lens
+    from realistic.renderer.convergence import measure_sample_counts
+    from realistic.scene.staging import default_setup
+
+    monkeypatch.setattr(memory, "available_bytes", lambda: 1)  # the system says nothing fits
+    setup = default_setup()
+    camera = LensCamera.looking_at(load_lens("dgauss"), setup.eye, setup.target, width=4, height=4, spp=1,
+                                   lens_sampling="rear")
+    rows, image = measure_sample_counts(setup.scene, camera, [1, 2], "numpy", progress=False,
+                                        max_memory_bytes=1 << 40)  # ... but the user allows it
+    assert [row["spp"] for row in rows] == [1, 2] and np.all(np.isfinite(image))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+from realistic.core import validation
 from realistic.errors import UserError
 
 METER_CALIBRATION_K = 12.5
@@ -37,8 +38,7 @@ def parse_shutter(text: str) -> float:
 
 def exposure_scale(shutter_s: float, iso: float) -> float:
     """Factor from film irradiance to image value for shutter time ``shutter_s`` at ISO ``iso``."""
-    if not (iso > 0 and math.isfinite(iso)):
-        raise UserError(f"ISO must be a positive number, got {iso:g}")
+    iso = validation.positive_length(iso, "ISO speed")
     return shutter_s * iso * MIDDLE_GREY * 4.0 / (math.pi * METER_CALIBRATION_K)
 
 

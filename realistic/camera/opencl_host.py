@@ -266,7 +266,7 @@ class LensKernel:
             self._capacity = padded
 
     def generate(self, first: int, count: int, seed: int = 0) -> RayBatch:
-        """Rays of sample ids first .. first + count - 1, as realistic.camera.generate_rays (float32)."""
+        """Rays of sample ids first .. first + count - 1, as ``LensCamera.generate_rays`` makes them (float32)."""
         first_pixel, first_sample, padded = self._launch_layout(first, count)
         out = np.empty((self._rows, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)

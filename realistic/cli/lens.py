@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from realistic.cli.values import parse_resolution, positive_float
+from realistic.cli.values import checked, parse_resolution, positive
+from realistic.core import validation
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.optics.dispersion import D_LINE_NM
@@ -113,17 +114,18 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
 
     def lens_arguments(parser: argparse.ArgumentParser) -> None:
         parser.add_argument("lens", metavar="LENS", help=LENS_HELP)
-        parser.add_argument("--aperture", type=positive_float, metavar="MM",
+        parser.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                             help="stop diameter in mm (default: the file's)")
-        parser.add_argument("--wavelength", type=positive_float, default=D_LINE_NM, metavar="NM",
+        parser.add_argument("--wavelength", type=positive("wavelength (nm)"), default=D_LINE_NM, metavar="NM",
                             help="wavelength in nm (default: the d line, %(default).2f)")
 
     info = lens_commands.add_parser("info", help="surface table, paraxial data, pupils and focusing")
     lens_arguments(info)
     info.add_argument("--json", action="store_true", help="print one JSON object")
-    info.add_argument("--film-distance", type=positive_float, metavar="MM",
+    info.add_argument("--film-distance", type=positive("film distance (mm)"), metavar="MM",
                       help="rear vertex to film distance: also report the object distance in focus")
-    info.add_argument("--sampling", type=positive_float, metavar="FILM_DIAGONAL_MM", nargs="?", const=35.0,
+    info.add_argument("--sampling", type=checked(float, validation.film_diagonal_mm), metavar="FILM_DIAGONAL_MM",
+                      nargs="?", const=35.0,
                       help="also report the fraction of rays that pass with rear-element and exit-pupil "
                            "sampling at the centre, middle and corner of a film of this diagonal (default 35)")
     info.set_defaults(run=cmd_lens_info)
@@ -135,7 +137,7 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
                     'leaving the front surface or {"blocked_by": {"surface": i, "reason": ...}} per ray, '
                     "surfaces counted from 0 at the front.")
     lens_arguments(trace)
-    trace.add_argument("--film-distance", type=positive_float, required=True, metavar="MM",
+    trace.add_argument("--film-distance", type=positive("film distance (mm)"), required=True, metavar="MM",
                        help="rear vertex to film distance in mm")
     trace.add_argument("--input", required=True, metavar="RAYS.json", help="rays to trace")
     trace.add_argument("--output", metavar="OUT.json", help="where to write the result (default: stdout)")
@@ -143,9 +145,10 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
 
     def field_arguments(parser: argparse.ArgumentParser) -> None:
         lens_arguments(parser)
-        parser.add_argument("--focus", type=positive_float, metavar="MM",
+        parser.add_argument("--focus", type=positive("focus distance (mm)"), metavar="MM",
                             help="object distance in focus, mm from the film (default: infinity)")
-        parser.add_argument("--film-diagonal", type=positive_float, default=FULL_FRAME_DIAGONAL_MM, metavar="MM",
+        parser.add_argument("--film-diagonal", type=checked(float, validation.film_diagonal_mm),
+                            default=FULL_FRAME_DIAGONAL_MM, metavar="MM",
                             help="film diagonal in mm (default: %(default)s, full frame)")
 
     plot = lens_commands.add_parser("plot", help="draw the lens cross-section with ray fans (PNG)")

@@ -18,7 +18,7 @@ import numpy as np
 from realistic.camera.base import Camera
 from realistic.camera.exposure import exposure_scale, exposure_value, parse_shutter
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
-from realistic.cli.values import checked
+from realistic.cli.values import checked, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable
 from realistic.core.image_files import auto_exposure, write_exr, write_png
@@ -61,7 +61,7 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--shutter", metavar="SECONDS",
                         help="shutter time (e.g. 1/125): with --iso, the EXR holds a photographic exposure, "
                              "calibrated so a metered middle grey reads 0.18, instead of film irradiance")
-    parser.add_argument("--iso", type=checked(float, partial(validation.positive_length, name="ISO speed")),
+    parser.add_argument("--iso", type=positive("ISO speed"),
                         help="ISO speed (default with --shutter: 100)")
     parser.set_defaults(run=cmd_render)
 
@@ -83,14 +83,13 @@ def _photographic(image: np.ndarray, camera: Camera, args: argparse.Namespace) -
     return (image * np.float32(scale)).astype(np.float32), header
 
 
-def _write_images(out: Path, image: np.ndarray, metadata: dict, exposure: float) -> tuple[Path, Path]:
+def _write_images(out: Path, image: np.ndarray, metadata: dict, exposure: float) -> None:
     """Write the EXR and its PNG preview; if ``out`` cannot be written now (its folder was removed
     during the render, the disk filled), save them in the temporary folder instead, so a finished
-    render is never lost, and say where. Returns where they went."""
+    render is never lost, and raise the error saying where they went."""
     try:
         write_exr(out, image, metadata)
         write_png(out.with_suffix(".png"), image, exposure)
-        return out, out.with_suffix(".png")
     except UserError as err:
         handle, rescue = tempfile.mkstemp(prefix=f"realistic-{out.stem}-", suffix=".exr")
         os.close(handle)
@@ -128,7 +127,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         metadata.update(photographic)
     exposure = args.exposure if args.exposure is not None else (0.0 if args.shutter or args.iso
                                                                    else auto_exposure(image))
-    out, png = _write_images(out, image, metadata, exposure)
+    _write_images(out, image, metadata, exposure)
     rays = result.primary_rays + result.shadow_rays
     if result.interrupted:
         print(f"realistic: interrupted: wrote the {result.samples_done} of {result.samples_total} samples "

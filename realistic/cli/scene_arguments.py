@@ -10,10 +10,10 @@ from typing import TYPE_CHECKING
 
 from realistic.camera.base import BACKENDS
 from realistic.camera.lens_camera import LENS_SAMPLINGS
-from realistic.cli.values import checked, parse_pixel, parse_resolution, parse_vector
+from realistic.cli.values import checked, parse_pixel, parse_resolution, parse_vector, positive
 from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
-from realistic.core.validation import finite, positive_length
+from realistic.core.validation import finite
 from realistic.optics.formats import BUNDLED_LENSES
 from realistic.renderer.memory import parse_size
 from realistic.scene.pbrt.dialect import DIALECTS
@@ -30,7 +30,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     stop = parser.add_mutually_exclusive_group()
     stop.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                       help="stop diameter in mm (default: the scene's or lens's)")
-    stop.add_argument("--fstop", type=checked(float, partial(positive_length, name="f-number")), metavar="N",
+    stop.add_argument("--fstop", type=positive("f-number"), metavar="N",
                       help="f-number: sizes the stop for this paraxial f-number (EFL / entrance pupil)")
     parser.add_argument("--blades", type=checked(int, validation.blades), metavar="N",
                         help="shape the stop as N diaphragm blades (a regular N-gon inscribed in the stop's circle; "
@@ -43,7 +43,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--aperture-mask", metavar="IMAGE",
                         help="shape the stop by an image (PNG, EXR...) spanning its diameter; level >= 0.5 is open")
     focus = parser.add_mutually_exclusive_group()
-    focus.add_argument("--focus", type=checked(float, partial(positive_length, name="focus distance")), metavar="DIST",
+    focus.add_argument("--focus", type=positive("focus distance"), metavar="DIST",
                        help="focus distance in scene units from the film plane (default: the target's or the scene's)")
     focus.add_argument("--focus-on", metavar="X,Y",
                        help="autofocus on what the pixel (X, Y) sees: its depth, then a real-ray search for "

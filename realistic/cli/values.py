@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from functools import partial
 from typing import TypeVar
 
 import numpy as np
@@ -29,15 +30,9 @@ def checked(convert: Callable[[str], Value], check: Callable[[Value], Value]) ->
     return parse
 
 
-def positive_float(text: str) -> float:
-    """argparse type: a positive finite number."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not value > 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"{text!r} must be a positive finite number")
-    return value
+def positive(name: str) -> Callable[[str], float]:
+    """An argparse type for a positive finite length or quantity called ``name``."""
+    return checked(float, partial(validation.positive_length, name=name))
 
 
 def parse_resolution(text: str) -> tuple[int, int]:

@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from realistic.core import validation
 from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM, refractive_index
 from realistic.optics.lens import LensSystem
@@ -195,8 +196,7 @@ def stop_diameter_for_f_number(lens: LensSystem, f_number: float, wavelength_nm:
     stop's. A number faster than the lens file's own stop allows is an error: the other elements'
     apertures were designed around that stop.
     """
-    if not (f_number > 0 and math.isfinite(f_number)):
-        raise UserError(f"f-number must be a positive number, got {f_number:g}")
+    f_number = validation.positive_length(f_number, "f-number")
     widest = paraxial_data(lens, wavelength_nm).f_number
     if f_number < widest * (1 - 1e-9):
         raise UserError(f"f/{f_number:g} is faster than {lens.name} opens (f/{widest:.3g} at its stop of "

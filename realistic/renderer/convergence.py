@@ -35,7 +35,8 @@ def measure_sample_counts(scene: Scene, camera: Camera, spp_list: list[int], bac
     An untimed 1 spp render first pays the one-time costs (kernel build, exit-pupil table), so each
     row times rendering alone.
     """
-    render_passes(scene, dataclasses.replace(camera, spp=1), backend, seed, cl_device, light_samples)
+    render_passes(scene, dataclasses.replace(camera, spp=1), backend, seed, cl_device, light_samples,
+                  max_memory_bytes=max_memory_bytes)
     rows, images = [], []
     for spp in spp_list:
         result = render_passes(scene, dataclasses.replace(camera, spp=spp), backend, seed, cl_device,
