@@ -118,7 +118,7 @@ def load_mesh_file(path: str | Path) -> list[MeshObject]:
     if not objects:
         raise UserError(no_triangles_message(path, extension))
     with _quiet():
-        if not any(_has_area(o.mesh) for o in objects):
+        if not any(faces_with_area(o.mesh).any() for o in objects):
             raise UserError(f"{path}: no triangle has a non-zero area (every face has repeated or collinear "
                             "vertices)")
     return objects
@@ -163,15 +163,16 @@ def _check_object(path: Path, name, mesh: Mesh, transform: np.ndarray) -> None:
                         f"±{MAX_COORDINATE:.0e} accepted")
 
 
-def _has_area(mesh: Mesh, chunk: int = 1 << 16) -> bool:
-    """Whether any triangle has a non-zero area (relative to the object's size, so tiny objects count)."""
+def faces_with_area(mesh: Mesh, chunk: int = 1 << 16) -> np.ndarray:
+    """Per face, whether the triangle has a non-zero area (relative to the object's size, so tiny
+    objects count); in chunks, so a large mesh needs no large temporaries."""
     vertices = mesh.vertices
+    has_area = np.zeros(len(mesh.faces), dtype=bool)
     size = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 0.0
     if not size > 0:
-        return False
+        return has_area
     for start in range(0, len(mesh.faces), chunk):
         triangles = vertices[mesh.faces[start:start + chunk]] / size
         cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-        if np.any(cross != 0):
-            return True
-    return False
+        has_area[start:start + chunk] = np.any(cross != 0, axis=1)
+    return has_area

@@ -19,8 +19,8 @@ from realistic.core.transforms import rotate, scale, transform_points, translate
 from realistic.errors import UserError
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus, nearest_focus_mm, thick_lens
-from realistic.scene.meshes import MAX_COORDINATE, MeshObject
-from realistic.scene.model import AreaLight, GridTexture, Material, Scene
+from realistic.scene.meshes import MAX_COORDINATE, MeshObject, faces_with_area
+from realistic.scene.model import AreaLight, GridTexture, Material, Mesh, Scene
 from realistic.scene.pbrt.importer import import_world
 from realistic.scene.shapes import quad
 
@@ -87,18 +87,10 @@ def mesh_setup(objects: list[MeshObject]) -> Setup:
     return Setup(scene, np.array([0.0, extent[1] / 2, 0.0]), float(np.linalg.norm(extent)) / 2)
 
 
-def _visible(mesh, chunk: int = 1 << 16) -> np.ndarray:
+def _visible(mesh: Mesh) -> np.ndarray:
     """Which vertices belong to a triangle with a non-zero area (in the mesh's own units)."""
-    vertices = mesh.vertices
-    visible = np.zeros(len(vertices), dtype=bool)
-    size = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 0.0
-    if not size > 0:
-        return visible
-    for start in range(0, len(mesh.faces), chunk):
-        faces = mesh.faces[start:start + chunk]
-        triangles = vertices[faces] / size  # relative, so that tiny meshes do not underflow
-        cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-        visible[faces[np.any(cross != 0, axis=1)].ravel()] = True
+    visible = np.zeros(len(mesh.vertices), dtype=bool)
+    visible[mesh.faces[faces_with_area(mesh)].ravel()] = True
     return visible
 
 
