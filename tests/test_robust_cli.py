@@ -134,12 +134,19 @@ def _render_process(out: Path, *extra: str) -> subprocess.Popen:
                             cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.PIPE)
 
 
-def _wait_for_a_pass(process: subprocess.Popen) -> bytes:
-    seen = b""
+def _wait_for(process: subprocess.Popen, text: bytes, seen: bytes = b"") -> bytes:
+    """Read the process's stderr until ``text`` shows (or 90 s pass); return all read so far."""
     deadline = time.monotonic() + 90
-    while b"1/" not in seen and time.monotonic() < deadline:  # the progress bar shows a pass done
-        seen += os.read(process.stderr.fileno(), 256)
+    while text not in seen and time.monotonic() < deadline:
+        chunk = os.read(process.stderr.fileno(), 256)
+        if not chunk:
+            break
+        seen += chunk
     return seen
+
+
+def _wait_for_a_pass(process: subprocess.Popen) -> bytes:
+    return _wait_for(process, b"1/")  # the progress bar shows a pass done
 
 
 @pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
@@ -161,10 +168,11 @@ def test_sigterm_and_sighup_act_like_ctrl_c(tmp_path, stop):
 @pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
 def test_a_second_interrupt_stops_at_once_and_writes_nothing(tmp_path):
     out = tmp_path / "r.exr"
-    process = _render_process(out, "--light-samples", "64")  # long passes: the second signal lands in one
+    # passes of seconds each: the second signal lands while the first interrupt waits for them to finish
+    process = _render_process(out, "--light-samples", "1024")
     seen = _wait_for_a_pass(process)
     process.send_signal(signal.SIGINT)
-    time.sleep(0.3)
+    seen = _wait_for(process, b"interrupt again", seen)
     process.send_signal(signal.SIGINT)
     _, rest = process.communicate(timeout=90)
     err = (seen + rest).decode()
