@@ -105,7 +105,7 @@ def test_pupil_box_on_axis_matches_paraxial_exit_pupil(pupil_setup):
     # The box is the passing grid points' bounds grown by one grid step; in y it does not depend on
     # how far the film point moves within the first interval.
     y_half = table.bounds[0, 3]
-    step = table.grid_step_mm[0, 1]
+    step = table.padding_mm[0, 1]
     assert expected_half_width * 0.99 <= y_half <= expected_half_width * 1.01 + step
 
 
@@ -122,3 +122,23 @@ def test_pupil_sampling_passes_twice_the_rays_at_the_film_corner(pupil_setup):
         table = exit_pupil_table(lens, film, 70.0)
     fractions = pass_fractions(lens, film, table, corner, samples=50_000)
     assert fractions["pupil"] >= 2 * fractions["rear"] > 0
+
+
+@pytest.mark.parametrize("name", LENSES)
+def test_pupil_bounds_hold_at_a_small_stop(name):
+    """A pupil far smaller than the search's coarse grid cells is still found and bounded."""
+    lens = load_lens(name)
+    lens = lens.with_stop_diameter(lens.stop_diameter_mm / 8)
+    film = film_distance_for_focus(lens, np.inf)
+    table = exit_pupil_table(lens, film, 35.0)
+    assert table.area_mm2()[0] > 0
+    rng = np.random.default_rng(3)
+    count = 300_000
+    radius = 17.5 * np.sqrt(rng.random(count))
+    angle = rng.uniform(0, 2 * np.pi, count)
+    film_xy = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
+    points, _ = rear_element_sampler(lens, film).sample(film_xy, rng.random(count), rng.random(count))
+    origins = np.column_stack([film_xy, np.zeros(count)])
+    passed = trace_from_film(lens, film, origins, points - origins).passed
+    assert passed.sum() > 100
+    assert not np.any(passed & ~table.contains(film_xy, points[:, :2]))

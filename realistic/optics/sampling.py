@@ -21,9 +21,11 @@ from functools import lru_cache
 
 import numpy as np
 
+from realistic.core.disk_cache import cache_key, load_arrays, store_arrays
 from realistic.core.warp import concentric_disk
 from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
+from realistic.optics.pupil_search import SEARCH_VERSION, pupil_boxes
 from realistic.optics.tracer import trace_from_film
 
 PUPIL_INTERVALS = 64
@@ -91,7 +93,7 @@ class ExitPupilTable:
     plane_z_mm: float
     film_radius_mm: float
     bounds: np.ndarray
-    grid_step_mm: np.ndarray  # (K, 2) x and y spacing of the grid that found each box (its padding)
+    padding_mm: np.ndarray  # (K, 2) how far each box was grown beyond the passing directions found, x and y
 
     def interval(self, film_radius_mm: np.ndarray) -> np.ndarray:
         k = np.floor(film_radius_mm / self.film_radius_mm * len(self.bounds)).astype(np.int64)
@@ -127,43 +129,6 @@ class ExitPupilTable:
         return (x >= box[:, 0]) & (x <= box[:, 1]) & (y >= box[:, 2]) & (y <= box[:, 3])
 
 
-def _passing_box(lens: LensSystem, film_distance_mm: float, plane_z: float, film_radii: np.ndarray,
-                 x_range: np.ndarray, y_max: np.ndarray, grid: int, wavelengths_nm: tuple[float, ...]
-                 ) -> tuple[np.ndarray, float, float]:
-    """Bounding boxes (K, 4) of passing grid points, per interval, and the grid steps used.
-
-    Interval k traces from each of ``film_radii[k]`` on the +x axis to a grid of ``grid`` x
-    ``grid/2`` points over x in x_range[k], y in [0, y_max[k]] (the pupil is symmetric in y).
-    A grid point passes when it passes at any of ``wavelengths_nm``.
-    """
-    intervals, per = film_radii.shape
-    gx = np.linspace(0.0, 1.0, grid)
-    gy = np.linspace(0.0, 1.0, grid // 2)
-    xs = x_range[:, :1] + gx[None, :] * (x_range[:, 1:] - x_range[:, :1])  # (K, G)
-    ys = gy[None, :] * y_max[:, None]  # (K, G/2)
-    px = np.broadcast_to(xs[:, None, :, None], (intervals, per, grid, grid // 2))
-    py = np.broadcast_to(ys[:, None, None, :], (intervals, per, grid, grid // 2))
-    fx = np.broadcast_to(film_radii[:, :, None, None], px.shape)
-    origins = np.stack([fx.ravel(), np.zeros(fx.size), np.zeros(fx.size)], axis=1)
-    dirs = np.stack([px.ravel() - fx.ravel(), py.ravel(), np.full(fx.size, plane_z)], axis=1)
-    passed = np.zeros(px.shape, dtype=bool)
-    for wavelength in wavelengths_nm:
-        passed |= trace_from_film(lens, film_distance_mm, origins, dirs, wavelength).passed.reshape(px.shape)
-    any_pass = passed.any(axis=(1, 3))  # (K, G) over x
-    any_pass_y = passed.any(axis=(1, 2))  # (K, G/2) over y
-    boxes = np.empty((intervals, 4))
-    for k in range(intervals):
-        xi = np.flatnonzero(any_pass[k])
-        yi = np.flatnonzero(any_pass_y[k])
-        if len(xi) == 0:
-            boxes[k] = (1.0, -1.0, 1.0, -1.0)
-            continue
-        boxes[k] = (xs[k, xi[0]], xs[k, xi[-1]], -ys[k, yi[-1]], ys[k, yi[-1]])
-    x_step = (x_range[:, 1] - x_range[:, 0]) / (grid - 1)
-    y_step = y_max / (grid // 2 - 1)
-    return boxes, x_step, y_step
-
-
 #: Exit-pupil tables kept per lens, focus, film and wavelength set: a render needs one, a bench or
 #: a focus search a few; older ones are dropped.
 PUPIL_CACHE_SIZE = 32
@@ -178,7 +143,7 @@ class _PupilRequest:
 
 
 def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float,
-                     intervals: int = PUPIL_INTERVALS, film_points: int = 6, grid: int = 80,
+                     intervals: int = PUPIL_INTERVALS,
                      wavelengths_nm: tuple[float, ...] = (D_LINE_NM,)) -> ExitPupilTable:
     """Bound the exit pupil per radial film interval (cached per lens, focus and film).
 
@@ -195,43 +160,49 @@ def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm
         lens = dataclasses.replace(lens, stop_shape=None, aperture_mm=circle)
     key = (lens.radius_mm.tobytes(), lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
            lens.abbe_v.tobytes(), lens.aperture_mm.tobytes(), film_distance_mm, film_diagonal_mm,
-           intervals, film_points, grid, wavelengths_nm)
+           intervals, wavelengths_nm)
     return _cached_table(_PupilRequest(key, lens))
 
 
 @lru_cache(maxsize=PUPIL_CACHE_SIZE)
 def _cached_table(request: _PupilRequest) -> ExitPupilTable:
-    film_distance_mm, film_diagonal_mm, intervals, film_points, grid, wavelengths_nm = request.key[5:]
-    return _build_exit_pupil_table(request.lens, film_distance_mm, film_diagonal_mm, intervals, film_points,
-                                   grid, wavelengths_nm)
+    """The table from memory, else from the disk cache (``realistic.core.disk_cache``), else built."""
+    key = cache_key("exit-pupil", SEARCH_VERSION, *request.key)
+    stored = load_arrays(key)
+    if stored is not None and {"plane_z_mm", "film_radius_mm", "bounds", "padding_mm"} <= stored.keys():
+        return ExitPupilTable(float(stored["plane_z_mm"]), float(stored["film_radius_mm"]), stored["bounds"],
+                              stored["padding_mm"])
+    film_distance_mm, film_diagonal_mm, intervals, wavelengths_nm = request.key[5:]
+    table = _build_exit_pupil_table(request.lens, film_distance_mm, film_diagonal_mm, intervals, wavelengths_nm)
+    store_arrays(key, {"plane_z_mm": np.asarray(table.plane_z_mm), "film_radius_mm": np.asarray(table.film_radius_mm),
+                       "bounds": table.bounds, "padding_mm": table.padding_mm})
+    return table
 
 
 def _build_exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float,
-                            intervals: int, film_points: int, grid: int,
-                            wavelengths_nm: tuple[float, ...]) -> ExitPupilTable:
-    """Bound the exit pupil per radial film interval, as pbrt does, by tracing a dense grid.
+                            intervals: int, wavelengths_nm: tuple[float, ...]) -> ExitPupilTable:
+    """Bound the exit pupil per radial film interval from the boxes found at the intervals' ends.
 
-    A coarse grid over the region the rear element can occupy finds each interval's box; a fine
-    grid over that box (grown by two coarse cells) sharpens it; the result is grown by one fine
-    cell so a passing direction between grid points is not lost.
+    An interval's box holds both ends' boxes, grown by the ends' padding and by half their
+    difference (an extreme between two sampled radii exceeds the nearer one by at most that;
+    ``realistic.optics.pupil_search``).
     """
     rear = rear_element_sampler(lens, film_distance_mm)
     film_radius = film_diagonal_mm / 2
     edges = np.linspace(0.0, film_radius, intervals + 1)
-    radii = np.linspace(edges[:-1], edges[1:], film_points, axis=1)
-    reach = rear.radius_mm(edges[1:])
-    coarse, cx, cy = _passing_box(lens, film_distance_mm, rear.plane_z_mm, radii,
-                                  np.stack([-reach, reach], axis=1), reach, grid, wavelengths_nm)
-    found = coarse[:, 0] <= coarse[:, 1]
-    x_range = np.stack([np.maximum(coarse[:, 0] - 2 * cx, -reach), np.minimum(coarse[:, 1] + 2 * cx, reach)], axis=1)
-    y_max = np.minimum(coarse[:, 3] + 2 * cy, reach)
-    fine, fx, fy = _passing_box(lens, film_distance_mm, rear.plane_z_mm, radii, x_range, y_max, grid, wavelengths_nm)
-    refined = found & (fine[:, 0] <= fine[:, 1])
-    grow_fine = np.stack([-fx, fx, -fy, fy], axis=1)
-    grow_coarse = np.stack([-cx, cx, -cy, cy], axis=1)
-    bounds = np.where(refined[:, None], fine + grow_fine, np.where(found[:, None], coarse + grow_coarse, coarse))
-    step = np.where(refined[:, None], np.stack([fx, fy], axis=1), np.stack([cx, cy], axis=1))
-    return ExitPupilTable(rear.plane_z_mm, film_radius, bounds, step)
+    boxes, pad = pupil_boxes(lens, film_distance_mm, rear.plane_z_mm, edges, rear.radius_mm(edges), wavelengths_nm)
+    inner, outer = boxes[:-1], boxes[1:]
+    lo = np.fmin(inner, outer)
+    hi = np.fmax(inner, outer)
+    spread = np.where(np.isnan(hi - lo), 0.0, 0.5 * (hi - lo))
+    grow = np.fmax(pad[:-1], pad[1:]) + spread
+    x0 = lo[:, 0] - grow[:, 0]
+    x1 = hi[:, 1] + grow[:, 1]
+    y1 = hi[:, 2] + grow[:, 2]
+    none = np.isnan(x0) | np.isnan(x1) | np.isnan(y1)
+    bounds = np.where(none[:, None], [1.0, -1.0, 1.0, -1.0], np.stack([x0, x1, -y1, y1], axis=1))
+    padding = np.where(none[:, None], 0.0, np.stack([np.maximum(grow[:, 0], grow[:, 1]), grow[:, 2]], axis=1))
+    return ExitPupilTable(rear.plane_z_mm, film_radius, bounds, padding)
 
 
 def pass_fractions(lens: LensSystem, film_distance_mm: float, table: ExitPupilTable, film_radius_mm: float,
