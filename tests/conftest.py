@@ -18,6 +18,19 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 
 
+@pytest.fixture(autouse=True, scope="session")
+def fresh_disk_cache(tmp_path_factory):
+    """Tests (and the CLI processes they start) cache exit-pupil tables in a folder of this session's
+    own, so a run neither reads tables an older build cached nor fills the user's cache."""
+    previous = os.environ.get("REALISTIC_CACHE_DIR")
+    os.environ["REALISTIC_CACHE_DIR"] = str(tmp_path_factory.mktemp("cache"))
+    yield
+    if previous is None:
+        del os.environ["REALISTIC_CACHE_DIR"]
+    else:
+        os.environ["REALISTIC_CACHE_DIR"] = previous
+
+
 def shared_file(relative: str) -> Path:
     """Path of a file in ../shared, or skip the test with the reason."""
     path = SHARED / relative
