@@ -59,6 +59,10 @@ class Camera(Protocol):
     def generate_rays(self, first_sample: int, count: int, seed: int = 0) -> RayBatch:
         """Rays of sample ids first_sample .. first_sample + count - 1, by the numpy reference."""
 
+    def prepare(self) -> None:
+        """Build ahead what ray generation needs (a lens camera's exit-pupil table), so that a
+        render can time it as a stage of its own; ``ray_generator`` builds it otherwise."""
+
     def ray_generator(self, backend: str = "opencl", seed: int = 0, cl_device: str | None = None) -> RayGenerator:
         """The rays of any range of sample ids from ``backend`` (see ``BACKENDS``) with ``seed``."""
 

@@ -116,6 +116,11 @@ class LensCamera:
         wavelengths = (LAMBDA_MIN_NM, D_LINE_NM, LAMBDA_MAX_NM) if self.spectral else (D_LINE_NM,)
         return exit_pupil_table(self.lens, self.film_distance_mm, self.film_diagonal_mm, wavelengths_nm=wavelengths)
 
+    def prepare(self) -> None:
+        """Build the exit-pupil table when this camera samples the pupil (memory, disk or traced)."""
+        if self.lens_sampling == "pupil":
+            self.pupil  # noqa: B018 (built and cached by the property)
+
     @property
     def film_size_mm(self) -> tuple[float, float]:
         return film_size_mm(self.film_diagonal_mm, self.width, self.height)

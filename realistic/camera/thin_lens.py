@@ -81,6 +81,9 @@ class ThinLensCamera:
         check_backend(backend)
         return lambda first, count: self.generate_rays(first, count, seed)
 
+    def prepare(self) -> None:
+        """Nothing to build ahead: a thin lens samples its aperture disk directly."""
+
     def metadata(self) -> Metadata:
         return {"lens": "thin lens (pbrt perspective)", "fovDegrees": float(self.fov_deg),
                 "lensRadius": float(self.lens_radius), "focusDistanceSceneUnits": float(self.focal_distance)}

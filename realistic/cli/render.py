@@ -119,6 +119,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     metadata = {**camera.metadata(), **inputs.metadata,
                 "spp": int(camera.spp), "seed": int(args.seed), "lightSamples": int(inputs.light_samples),
                 "backend": args.backend, "renderSeconds": float(result.seconds),
+                "exitPupilSeconds": float(result.stage_seconds.get("exit pupil", 0.0)),
                 "samplesDone": int(result.samples_done), "samplesTotal": int(result.samples_total),
                 "interrupted": int(result.interrupted)}
     image = result.image
@@ -133,6 +134,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         print(f"realistic: interrupted: wrote the {result.samples_done} of {result.samples_total} samples "
               f"taken to {out}", file=sys.stderr)
         return 130
-    print(f"{out} and {png}: {camera.width}x{camera.height}, {camera.spp} spp, {result.seconds:.1f} s, "
+    print(f"{out} and {png}: {camera.width}x{camera.height}, {camera.spp} spp, {result.seconds:.1f} s "
+          f"(exit pupil {result.stage_seconds.get('exit pupil', 0.0):.2f} s), "
           f"{rays / max(result.seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {exposure:+.2f} EV")
     return 0

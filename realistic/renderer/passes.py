@@ -117,6 +117,8 @@ def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: i
     check_memory(scene, camera, pass_samples, threads, max_memory_bytes)
     start = time.perf_counter()
     clock = StageClock()
+    with clock("exit pupil"):  # the lens's sampling table (``Camera.prepare``)
+        camera.prepare()
     with clock("setup"):  # ray generator, BVH build, shading tables
         runner = _PassRunner(scene, camera, backend, seed, cl_device, light_samples, morton, clock)
     film = Film(camera.width, camera.height, camera.spp)

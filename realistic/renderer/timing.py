@@ -8,7 +8,7 @@ from collections import defaultdict
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-STAGES = ("setup", "ray generation", "embree", "shading", "accumulation")
+STAGES = ("setup", "exit pupil", "ray generation", "embree", "shading", "accumulation")
 
 
 class StageClock:
