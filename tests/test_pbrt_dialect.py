@@ -13,6 +13,7 @@ import pytest
 import realistic as rl
 from realistic.core.image_files import write_exr
 from realistic.scene.pbrt.dialect import choose_dialect
+from realistic.scene.pbrt.importer import import_pbrt
 from realistic.scene.pbrt.parser import parse_pbrt
 
 RED, BLUE = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
@@ -107,3 +108,48 @@ def test_a_scene_renders_without_dispersion_unless_asked_and_says_which_lens_sta
         asked = rl.load_scene(path, resolution=(8, 8), spp=1, dispersion=True)
     assert not scene.camera.spectral and asked.camera.spectral  # pbrt would not disperse unless asked
     assert any('the bundled "dgauss" prescription stands in' in str(w.message) for w in caught)
+
+
+def _camera_scene(tmp_path, camera: str, header: str = "", film: str = "") -> str:
+    path = tmp_path / "camera.pbrt"
+    path.write_text(f'{header}Film "image" "integer xresolution" 30 "integer yresolution" 20 {film}\n'
+                    f'{camera}\nWorldBegin\nShape "sphere"\nWorldEnd\n')
+    return str(path)
+
+
+CLASSIC = 'Camera "realistic" "string specfile" "dgauss.50mm.dat" "float filmdistance" 36.77 "float filmdiag" 70'
+PBRT3 = 'Camera "realistic" "string lensfile" "dgauss.50mm.dat" "float focusdistance" 3'
+
+
+def test_the_classic_camera_is_in_mm_from_the_front_vertex_with_its_own_film_diagonal(tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the bundled lens stands in for the file
+        camera = rl.load_scene(_camera_scene(tmp_path, CLASSIC, film='"float diagonal" 50')).camera
+    assert camera.origin == "front_vertex" and camera.mm_per_unit == pytest.approx(1.0)
+    assert camera.film_diagonal_mm == 70.0 and camera.film_distance_mm == 36.77
+
+
+@pytest.mark.parametrize("header", ["", 'ColorSpace "srgb"\n'])
+def test_pbrt3_and_pbrt4_cameras_are_in_metres_from_the_film_with_the_films_diagonal(tmp_path, header):
+    """pbrt-v3 src/core/film.cpp: Film "diagonal" (mm, default 35) sizes the film of every camera."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sized = rl.load_scene(_camera_scene(tmp_path, PBRT3, header, film='"float diagonal" 50')).camera
+        default = rl.load_scene(_camera_scene(tmp_path, PBRT3, header)).camera
+    assert sized.origin == "film" and sized.mm_per_unit == pytest.approx(1000.0)
+    assert sized.film_diagonal_mm == 50.0 and default.film_diagonal_mm == 35.0
+
+
+def test_a_parameter_of_another_versions_camera_is_reported_as_ignored(tmp_path):
+    path = _camera_scene(tmp_path, PBRT3 + ' "float filmdiag" 70')
+    imported = import_pbrt(path)
+    assert imported.scene.camera.film_diagonal_mm == 35.0
+    assert any('"filmdiag" is not a realistic-camera parameter in pbrt-v3' in w for w in imported.warnings)
+
+
+def test_a_camera_read_in_the_wrong_dialect_names_what_it_lacks(tmp_path):
+    path = _camera_scene(tmp_path, CLASSIC)
+    with pytest.raises(rl.UserError) as error:
+        rl.load_scene(path, pbrt_dialect="v3")
+    message = str(error.value)
+    assert message.startswith(f"{path}:2: ") and '"string lensfile"' in message and "--pbrt-dialect" in message

@@ -252,7 +252,6 @@ def test_a_directory_given_as_a_scene_says_so(tmp_path):
     (HOMEWORK_LENS + '"float filmdistance" -36', "film distance"),
     (HOMEWORK_LENS + '"float filmdistance" 36 "float filmdiag" 0', "film diagonal"),
     (HOMEWORK_LENS + '"float filmdistance" 36 "float filmdiag" -35', "film diagonal"),
-    (V3_LENS + '"float filmdiag" 0', "film diagonal"),
     (V3_LENS + '"float focusdistance" -2', "focusdistance must be a positive number of metres, got -2"),
     (V3_LENS + '"float focusdistance" 0.01', "closer than"),
     (HOMEWORK_LENS, 'needs "float filmdistance"'),
@@ -275,6 +274,13 @@ def test_bad_film_settings_name_the_film_line(tmp_path, film, fragment):
     path = write(tmp_path, "s.pbrt", f'{CAMERA}Film "image" {film}\nWorldBegin\nWorldEnd\n')
     message = error_of(import_pbrt, path)
     assert message.startswith(f"{path}:2: ") and fragment in message
+
+
+@pytest.mark.parametrize("diagonal", ["0", "-35", "1e9"])
+def test_a_bad_pbrt3_film_diagonal_names_the_film_line(tmp_path, diagonal):
+    path = write(tmp_path, "s.pbrt", f'{V3_LENS}\nFilm "image" "float diagonal" {diagonal}\nWorldBegin\nWorldEnd\n')
+    message = error_of(import_pbrt, path)
+    assert message.startswith(f"{path}:2: ") and "film diagonal" in message
 
 
 def test_cli_reports_a_bad_camera_parameter_in_one_line_with_status_2(tmp_path):

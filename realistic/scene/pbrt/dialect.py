@@ -1,7 +1,9 @@
 """Which pbrt a scene file was written for, and the conventions that differ between versions.
 
 Every convention that depends on the pbrt version is decided here, once per scene, and read by the
-importer; nowhere else asks which version a file is. Today that is the image-texture orientation:
+importer; nowhere else asks which version a file is: the image-texture orientation, and the
+realistic camera's parameter names, units, frame and film size (``RealisticCameraConvention``).
+The texture orientation:
 
 - pbrt-v1 and pbrt-v2 look textures up with v = 0 at the first (top) row of the image file
   (pbrt-v2 ``src/textures/imagemap.cpp`` builds its MIPMap from ``ReadImage`` as read);
@@ -35,6 +37,50 @@ _V3_CAMERA = ("lensfile", "aperturediameter", "focusdistance")
 
 
 @dataclass(frozen=True)
+class RealisticCameraConvention:
+    """How one pbrt version's ``Camera "realistic"`` is written and what its camera space is.
+
+    The classic assignment (pbrt-v1/v2 era, Stanford CS348B) names ``specfile``, ``filmdistance``
+    (mm from the rear vertex), ``aperture_diameter`` and ``filmdiag`` on the camera; its camera
+    space is in millimetres with the front lens vertex at the origin (the seed report). pbrt-v3
+    (``src/cameras/realistic.cpp``: ``lensfile``, ``aperturediameter`` default 1, ``focusdistance``
+    default 10) and pbrt-v4 (``src/pbrt/cameras.cpp``, the same names) focus by distance, put the
+    film centre at the origin of a camera space in metres (lens lengths are scaled by 0.001), and
+    take the film's diagonal from ``Film "diagonal"`` (mm, default 35: pbrt-v3
+    ``src/core/film.cpp``).
+    """
+
+    lens_file: str
+    stop_diameter: str
+    film_distance: str | None  # mm from the rear vertex (classic), or None: focused by focus_distance
+    focus_distance: str | None  # metres (pbrt-v3/v4)
+    film_diagonal_on_camera: str | None  # the camera's parameter, or None: Film "diagonal"
+    origin: str  # "front_vertex" or "film" (LensCamera.origin)
+    camera_units_mm: float  # millimetres per camera-space unit
+
+    @property
+    def required(self) -> tuple[str, ...]:
+        """The parameters a file must give, as pbrt declares them ("string specfile")."""
+        return (f"string {self.lens_file}",) + ((f"float {self.film_distance}",) if self.film_distance else ())
+
+    @property
+    def names(self) -> frozenset[str]:
+        return frozenset(name for name in (self.lens_file, self.stop_diameter, self.film_distance,
+                                           self.focus_distance, self.film_diagonal_on_camera) if name)
+
+
+CLASSIC_REALISTIC = RealisticCameraConvention("specfile", "aperture_diameter", "filmdistance", None, "filmdiag",
+                                              "front_vertex", 1.0)
+PBRT3_REALISTIC = RealisticCameraConvention("lensfile", "aperturediameter", None, "focusdistance", None, "film",
+                                            1000.0)
+#: pbrt-v3's default aperture diameter (mm) and focus distance (m), src/cameras/realistic.cpp.
+PBRT3_DEFAULT_APERTURE_MM, PBRT3_DEFAULT_FOCUS_M = 1.0, 10.0
+#: The film diagonal (mm) when a file gives none: pbrt-v3 ``src/core/film.cpp``; the classic camera's
+#: ``filmdiag`` takes the same default.
+DEFAULT_FILM_DIAGONAL_MM = 35.0
+
+
+@dataclass(frozen=True)
 class Dialect:
     """A pbrt version and its conventions; ``reason`` says why it was chosen."""
 
@@ -45,6 +91,16 @@ class Dialect:
     def texture_v_origin(self) -> str:
         """The image row at v = 0: "top" for pbrt-v1/v2, "bottom" for pbrt-v3/v4."""
         return "top" if self.name in ("v1", "v2") else "bottom"
+
+    @property
+    def realistic_camera(self) -> RealisticCameraConvention:
+        """The realistic camera's parameter names, units and frame in this version."""
+        return CLASSIC_REALISTIC if self.name in ("v1", "v2") else PBRT3_REALISTIC
+
+    @property
+    def foreign_camera_parameters(self) -> frozenset[str]:
+        """Realistic-camera parameters of the other versions that this one ignores."""
+        return (CLASSIC_REALISTIC.names | PBRT3_REALISTIC.names) - self.realistic_camera.names
 
     def describe(self) -> str:
         return f"pbrt-{self.name} ({self.reason})"

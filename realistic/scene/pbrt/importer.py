@@ -1,10 +1,10 @@
 """pbrt scenes (v1/v2/v3 subset) turned into our Scene and camera.
 
-Cameras: ``realistic`` with the classic homework parameters (``specfile``, ``filmdistance``,
-``aperture_diameter``, ``filmdiag``; camera space in mm with its origin at the front lens vertex)
-or pbrt-v3's (``lensfile``, ``aperturediameter``, ``focusdistance``; camera space in metres with
-its origin at the film centre), and ``perspective`` (pinhole or thin lens). Everything the renderer
-cannot honour is reported once with file and line, and the render goes on.
+Cameras: ``realistic`` as the file's dialect writes it (``dialect.RealisticCameraConvention``: the
+classic homework's ``specfile``, ``filmdistance``, ``aperture_diameter``, ``filmdiag`` in mm from
+the front lens vertex, or pbrt-v3/v4's ``lensfile``, ``aperturediameter``, ``focusdistance`` in
+metres from the film centre with ``Film "diagonal"``), and ``perspective`` (pinhole or thin lens).
+Everything the renderer cannot honour is reported once with file and line, and the render goes on.
 """
 
 from __future__ import annotations
@@ -28,7 +28,13 @@ from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import AreaLight, CheckerTexture, ImageTexture, Material, Mesh, Scene
-from realistic.scene.pbrt.dialect import Dialect, choose_dialect
+from realistic.scene.pbrt.dialect import (
+    DEFAULT_FILM_DIAGONAL_MM,
+    PBRT3_DEFAULT_APERTURE_MM,
+    PBRT3_DEFAULT_FOCUS_M,
+    Dialect,
+    choose_dialect,
+)
 from realistic.scene.pbrt.lexer import PbrtSyntaxError
 from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.scene.shapes import cone, disk, sphere
@@ -394,7 +400,8 @@ def find_lens_file(name: str, scene_dir: Path, search_paths: list[Path], where: 
                     f'bundled lenses ({", ".join(BUNDLED_LENSES.values())})')
 
 
-def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sampling: str = "pupil",
+def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, spp: int,
+                  lens_sampling: str = "pupil",
                   lens_edit: Callable[[LensSystem], LensSystem] | None = None,
                   focus_scene_units: float | None = None,
                   search_paths: list[Path] | None = None) -> LensCamera | ThinLensCamera:
@@ -432,32 +439,44 @@ def import_camera(parsed: PbrtScene, width: int, height: int, spp: int, lens_sam
                                   params.get_float("focaldistance", 1e6), width, height, spp, world_from_camera)
     if directive.type != "realistic":
         raise UserError(f'{directive.where}: Camera "{directive.type}" is not supported (use realistic or perspective)')
+    convention = dialect.realistic_camera
     with _located(directive.where):  # errors about the camera's parameters name its line
-        if params.has("specfile"):  # the classic homework: camera space in mm, origin at the front lens vertex
-            lens = scene_lens("specfile")
-            film_distance = params.get_float("filmdistance")
-            if film_distance is None:
-                raise UserError('Camera "realistic" needs "float filmdistance"')
-            if params.has("aperture_diameter"):
-                lens = lens.with_stop_diameter(params.get_float("aperture_diameter"))
-            origin = "front_vertex"
-        elif params.has("lensfile"):  # pbrt-v3: camera space in metres, origin at the film centre
-            lens = scene_lens("lensfile")
-            lens = lens.with_stop_diameter(params.get_float("aperturediameter", 1.0))
-            focus = params.get_float("focusdistance", 10.0)
+        missing = [declared for declared in convention.required if not params.has(declared.split()[1])]
+        if missing:
+            quoted = " and ".join(f'"{declared}"' for declared in missing)
+            raise UserError(f'Camera "realistic" read as {dialect.describe()} needs {quoted} '
+                            f"(--pbrt-dialect reads another version's parameter names)")
+        for name in sorted(dialect.foreign_camera_parameters):
+            if params.has(name):
+                parsed.warn(directive.where, f'"{name}" is not a realistic-camera parameter in pbrt-{dialect.name} '
+                                             f"(ignored)")
+        lens = scene_lens(convention.lens_file)
+        if convention.film_distance is None:  # pbrt-v3/v4: focused by distance, with their default stop
+            lens = lens.with_stop_diameter(params.get_float(convention.stop_diameter, PBRT3_DEFAULT_APERTURE_MM))
+            focus = params.get_float(convention.focus_distance, PBRT3_DEFAULT_FOCUS_M)
             if not focus > 0:
-                raise UserError(f"focusdistance must be a positive number of metres, got {focus:g}")
-            film_distance = film_distance_for_focus(lens, focus * 1000.0)
-            world_from_camera = world_from_camera @ scale(1e-3)
-            origin = "film"
-        else:
-            raise UserError('Camera "realistic" needs "string specfile" or "string lensfile"')
-        film_diagonal = params.get_float("filmdiag", 35.0)
+                raise UserError(f"{convention.focus_distance} must be a positive number of metres, got {focus:g}")
+            film_distance = film_distance_for_focus(lens, focus * convention.camera_units_mm)
+        else:  # the classic camera: the film where the file puts it, the lens's own stop unless given
+            film_distance = params.get_float(convention.film_distance)
+            if params.has(convention.stop_diameter):
+                lens = lens.with_stop_diameter(params.get_float(convention.stop_diameter))
+        world_from_camera = world_from_camera @ scale(1.0 / convention.camera_units_mm)
+    if convention.film_diagonal_on_camera is not None:
+        film_diagonal_where, film_diagonal_params = directive.where, params
+        film_diagonal_name = convention.film_diagonal_on_camera
+    else:
+        film_diagonal_where = parsed.film.where if parsed.film else directive.where
+        film_diagonal_params = parsed.film.params if parsed.film else Params()
+        film_diagonal_name = "diagonal"
+    with _located(film_diagonal_where):
+        film_diagonal = validation.film_diagonal_mm(film_diagonal_params.get_float(film_diagonal_name,
+                                                                                   DEFAULT_FILM_DIAGONAL_MM))
     if lens_edit is not None:
         lens = lens_edit(lens)
     with _located(directive.where):
-        camera = LensCamera(lens, film_distance, film_diagonal, width, height, spp, world_from_camera, origin,
-                            lens_sampling)
+        camera = LensCamera(lens, film_distance, film_diagonal, width, height, spp, world_from_camera,
+                            convention.origin, lens_sampling)
     if focus_scene_units is not None:
         camera = camera.refocused(focus_scene_units * camera.mm_per_unit)
     return camera
@@ -504,6 +523,6 @@ def import_pbrt(path: str | Path, width: int | None = None, height: int | None =
             spp = validation.samples_per_pixel(_whole_number(parsed.sampler.params, "pixelsamples", 16,
                                                              parsed.sampler.where))
     spp = spp or 16
-    scene.camera = import_camera(parsed, width, height, spp, lens_sampling, lens_edit, focus_scene_units,
+    scene.camera = import_camera(parsed, chosen, width, height, spp, lens_sampling, lens_edit, focus_scene_units,
                                  search_paths)
     return ImportedScene(scene, film.get_string("filename"), parsed.warnings, chosen)
