@@ -177,20 +177,31 @@ class MipMap:
         start = 0
         while start < len(rows):
             stop = max(start + 1, int(np.searchsorted(ends, ends[start] - taps[start] + _TAPS_PER_CHUNK, "right")))
-            self._ewa_taps(np.arange(start, stop), taps, ns, s0, t0, s, t, a, b, c, level, sums, weights)
+            self._ewa_taps(np.arange(start, stop), nt, t0, s, t, a, b, c, level, sums, weights)
             start = stop
         out[rows] = sums / np.maximum(weights, 1e-300)[:, None]
         return out
 
-    def _ewa_taps(self, points: np.ndarray, taps: np.ndarray, ns: np.ndarray, s0: np.ndarray, t0: np.ndarray,
-                  s: np.ndarray, t: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, level: np.ndarray,
-                  sums: np.ndarray, weights: np.ndarray) -> None:
-        """Add the weighted texels of ``points``' ellipse boxes into ``sums`` and ``weights``."""
-        count = taps[points]
-        owner = np.repeat(points, count)
-        local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-        width = ns[owner]
-        x, y = s0[owner] + local % width, t0[owner] + local // width
+    def _ewa_taps(self, points: np.ndarray, nt: np.ndarray, t0: np.ndarray, s: np.ndarray, t: np.ndarray,
+                  a: np.ndarray, b: np.ndarray, c: np.ndarray, level: np.ndarray, sums: np.ndarray,
+                  weights: np.ndarray) -> None:
+        """Add the weighted texels inside ``points``' ellipses into ``sums`` and ``weights``.
+
+        Row by row of each ellipse's box, only the texels between the ellipse's two crossings of
+        the row are visited (pbrt visits the whole box and rejects those outside).
+        """
+        rows_per_point = nt[points]
+        owner = np.repeat(points, rows_per_point)
+        y = t0[owner] + np.arange(int(rows_per_point.sum())) - np.repeat(np.cumsum(rows_per_point) - rows_per_point,
+                                                                          rows_per_point)
+        dt = y - t[owner]
+        aa, bb = a[owner], b[owner] * dt
+        root = np.sqrt(np.maximum(bb * bb - 4 * aa * (c[owner] * dt * dt - 1), 0.0))
+        x0 = np.ceil(s[owner] + (-bb - root) / (2 * aa)).astype(np.int64)
+        count = np.maximum(np.floor(s[owner] + (-bb + root) / (2 * aa)).astype(np.int64) - x0 + 1, 0)
+        row = np.repeat(np.arange(len(owner)), count)
+        x = x0[row] + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+        owner, y = owner[row], y[row]
         ds, dt = x - s[owner], y - t[owner]
         r2 = a[owner] * ds * ds + b[owner] * ds * dt + c[owner] * dt * dt
         keep = r2 < 1
