@@ -123,13 +123,10 @@ class MipMap:
     def trilinear(self, st: np.ndarray, width: np.ndarray) -> np.ndarray:
         """Blend of bilinear lookups on the two levels around L - 1 + log2(width) (N, 3)."""
         level = np.clip(self._level_of(width), 0.0, self.level_count - 1)
-        lower = np.minimum(np.floor(level).astype(np.int64), self.level_count - 2) if self.level_count > 1 \
-            else np.zeros(len(st), np.int64)
+        lower = np.floor(level).astype(np.int64)
+        upper = np.minimum(lower + 1, self.level_count - 1)
         delta = (level - lower)[:, None]
-        fine = self.bilinear(st, lower)
-        if self.level_count == 1:
-            return fine
-        return fine * (1 - delta) + self.bilinear(st, lower + 1) * delta
+        return self.bilinear(st, lower) * (1 - delta) + self.bilinear(st, upper) * delta
 
     def ewa(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
         """Elliptically weighted average (N, 3) over the ellipse with axes ``axis0``, ``axis1`` (N, 2)."""
@@ -168,10 +165,9 @@ class MipMap:
         a, b, c = a * inv_f, b * inv_f, c * inv_f
         det = 4 * a * c - b * b
         half_s, half_t = 2 * np.sqrt(det * c) / det, 2 * np.sqrt(a * det) / det
-        s0, s1 = np.ceil(s - half_s).astype(np.int64), np.floor(s + half_s).astype(np.int64)
         t0, t1 = np.ceil(t - half_t).astype(np.int64), np.floor(t + half_t).astype(np.int64)
-        ns, nt = np.maximum(s1 - s0 + 1, 0), np.maximum(t1 - t0 + 1, 0)
-        taps = ns * nt
+        nt = np.maximum(t1 - t0 + 1, 0)
+        taps = nt * np.floor(2 * half_s + 1).astype(np.int64)  # the box's texels: a bound on the ellipse's
         sums, weights = np.zeros((len(rows), 3)), np.zeros(len(rows))
         ends = np.cumsum(taps)
         start = 0
