@@ -69,6 +69,10 @@ class Camera(Protocol):
     def metadata(self) -> Metadata:
         """What an image header should say about this camera (lens, stop, focus, film...)."""
 
+    def pixel_spread_radians(self) -> float:
+        """Angle one pixel subtends seen from the scene (near the image centre): a camera ray's
+        footprint at distance d is about d times this, for filtering textures."""
+
     def with_dispersion(self, spectral: bool | None) -> Camera:
         """This camera with spectral sampling on, off, or (None) as its lens suggests."""
 

@@ -35,7 +35,7 @@ from realistic.core.transforms import look_at, scale, transform_points, transfor
 from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
-from realistic.optics.paraxial import film_distance_for_focus, focus_distance_for_film, paraxial_data
+from realistic.optics.paraxial import film_distance_for_focus, focus_distance_for_film, paraxial_data, thick_lens
 from realistic.optics.sampling import ExitPupilTable, camera_weight, exit_pupil_table, rear_element_sampler
 from realistic.optics.tracer import trace_from_film
 
@@ -178,6 +178,12 @@ class LensCamera:
                 "lensSampling": self.lens_sampling,
                 "stopShape": lens.stop_shape.describe() if lens.stop_shape else "circle",
                 "dispersion": "on" if self.spectral else "off"}
+
+    def pixel_spread_radians(self) -> float:
+        """Angle one pixel subtends in object space: pixel pitch over the image distance (film to
+        rear principal plane, thick-lens model), what a texture footprint grows by per unit distance."""
+        image_distance_mm = self.film_distance_mm + thick_lens(self.lens).rear_principal_from_rear_vertex_mm
+        return self.film_size_mm[0] / self.width / max(image_distance_mm, self.film_distance_mm)
 
     def with_dispersion(self, spectral: bool | None) -> LensCamera:
         """Spectral sampling on or off; None: on when the lens has Abbe numbers (its exit-pupil

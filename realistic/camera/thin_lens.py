@@ -88,6 +88,11 @@ class ThinLensCamera:
         return {"lens": "thin lens (pbrt perspective)", "fovDegrees": float(self.fov_deg),
                 "lensRadius": float(self.lens_radius), "focusDistanceSceneUnits": float(self.focal_distance)}
 
+    def pixel_spread_radians(self) -> float:
+        """Angle one pixel subtends at the image centre: the screen window's 2 tan(fov / 2) over the
+        shorter side's pixel count."""
+        return 2 * math.tan(math.radians(self.fov_deg) / 2) / min(self.width, self.height)
+
     def with_dispersion(self, spectral: bool | None) -> ThinLensCamera:
         """The camera itself: a thin lens has no glass to disperse (asking for dispersion is an error)."""
         if spectral:

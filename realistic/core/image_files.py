@@ -45,6 +45,12 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    """The inverse of ``srgb_encode``: sRGB-encoded values in [0, 1] to linear."""
+    x = np.clip(encoded, 0.0, 1.0)
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+
+
 def auto_exposure(image: np.ndarray) -> float:
     """Exposure in stops that maps the 97th percentile of luminance to 0.8 (0 for a black image)."""
     luminance = image @ np.array([0.2126, 0.7152, 0.0722], np.float32)
@@ -75,4 +81,4 @@ def read_linear_rgb(path: str | Path) -> np.ndarray:
             rgb = np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0
     except (OSError, UnidentifiedImageError) as err:
         raise UserError(f"{path}: not a readable image ({err})") from None
-    return np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4).astype(np.float32)
+    return srgb_decode(rgb).astype(np.float32)

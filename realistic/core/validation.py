@@ -97,3 +97,31 @@ def finite(value: float, name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
         raise UserError(f"{name} must be a finite number, got {value!r}")
     return float(value)
+
+
+#: Image-texture filters and wrap modes, by pbrt's names (pbrt-v4 ``filter``; pbrt-v2/v3 choose
+#: between trilinear and EWA with the bool ``trilinear``).
+TEXTURE_FILTERS = ("point", "bilinear", "trilinear", "ewa")
+TEXTURE_WRAPS = ("repeat", "black", "clamp")
+#: Longest-to-shortest axis ratio of an EWA ellipse: 1 (a circle) up to far beyond pbrt's default 8.
+MAX_ANISOTROPY = 1024.0
+
+
+def texture_filter(name: str) -> str:
+    if name not in TEXTURE_FILTERS:
+        raise UserError(f"image texture filter must be one of {', '.join(TEXTURE_FILTERS)}, got {name!r}")
+    return name
+
+
+def texture_wrap(name: str) -> str:
+    if name not in TEXTURE_WRAPS:
+        raise UserError(f"image texture wrap must be one of {', '.join(TEXTURE_WRAPS)}, got {name!r}")
+    return name
+
+
+def max_anisotropy(value: float) -> float:
+    """An EWA eccentricity limit: a finite number from 1 to ``MAX_ANISOTROPY``."""
+    value = finite(value, "maxanisotropy")
+    if not 1.0 <= value <= MAX_ANISOTROPY:
+        raise UserError(f"maxanisotropy must be between 1 and {MAX_ANISOTROPY:g}, got {value:g}")
+    return value

@@ -3,6 +3,7 @@
 - ``inputs``: ``RenderOptions`` (typed) to a ``Scene`` with its camera, for the CLI and the API.
 - ``passes``: ``render`` and ``render_passes``: sample-id passes on worker threads.
 - ``integrator``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces).
+- ``footprint``: a camera ray's pixel footprint on a surface, as two uv axes for texture filtering.
 - ``film``: per-pixel accumulation of pass sums.
 - ``timing``: per-stage thread-seconds.
 - ``convergence``: render at several sample counts and measure the error (``bench`` command);

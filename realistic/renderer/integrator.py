@@ -9,6 +9,8 @@ the area-sampling estimator (pdf in solid angle A_j^-1 |q - p|^2 / cos(theta_q))
 ``light_samples`` samples. Camera rays that hit an emitter's front side see its radiance; rays
 that miss everything see the background colour. Random numbers: dimensions 4 + 3k .. 6 + 3k of
 ``realistic.core.rng.uniform`` for light sample k, so a render does not depend on pass size.
+Image textures are filtered over each camera ray's pixel footprint (``renderer.footprint``) when
+the camera's ``pixel_spread_radians`` is given.
 
 Spectral rays (one wavelength each) evaluate every RGB albedo, light radiance and background as a
 spectrum at the ray's wavelength (``realistic.core.spectrum.rgb_basis``), multiply spectra, and return
@@ -24,9 +26,10 @@ import numpy as np
 from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, spectral_value
 from realistic.core.warp import concentric_disk
+from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
-from realistic.scene.model import Scene
+from realistic.scene.model import ImageTexture, Scene
 from realistic.scene.textures import albedo
 
 SHADOW_OFFSET = 1e-4  # relative to the hit point's magnitude (float32 precision of embree)
@@ -50,10 +53,14 @@ def _normalise(v: np.ndarray) -> np.ndarray:
 class DirectLighting:
     """Radiance arriving along camera rays, with direct illumination from the scene's area lights."""
 
-    def __init__(self, scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0):
+    def __init__(self, scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
+                 pixel_spread_radians: float = 0.0):
+        """``pixel_spread_radians``: the camera's (``Camera.pixel_spread_radians``); 0 point-samples
+        image textures (bilinear on their finest level)."""
         if light_samples < 1:
             raise ValueError("light_samples must be at least 1")
         self.intersector, self.light_samples, self.seed = intersector, light_samples, seed
+        self.pixel_spread_radians = pixel_spread_radians
         self.background = np.asarray(scene.background, dtype=np.float32)
         self.instance_count = len(scene.instances)
         self._build_surfaces(scene)
@@ -67,6 +74,7 @@ class DirectLighting:
                                      [np.zeros((0, 3), np.int64)])
         self._normals = np.concatenate([np.zeros((len(m.vertices), 3)) if m.normals is None else m.normals
                                         for m in scene.meshes] or [np.zeros((0, 3))]).astype(np.float32)
+        self._vertices = np.concatenate([m.vertices for m in scene.meshes] or [np.zeros((0, 3))])
         self._uv = np.concatenate([np.zeros((len(m.vertices), 2)) if m.uv is None else m.uv
                                    for m in scene.meshes] or [np.zeros((0, 2))]).astype(np.float32)
         mesh_of = np.array([inst.mesh for inst in scene.instances], dtype=np.int64)
@@ -75,6 +83,7 @@ class DirectLighting:
         # the same normal from its faces without the per-hit interpolation.
         smooth = [m.normals is not None and bool(np.ptp(m.normals, axis=0).max() > 1e-6) for m in scene.meshes]
         self._geom_smooth = np.array([smooth[i] for i in mesh_of], dtype=bool)
+        self._geom_linear = np.array([inst.transform[:3, :3] for inst in scene.instances]).reshape(-1, 3, 3)
         self._geom_normal_matrix = np.array([np.linalg.inv(inst.transform[:3, :3]).T for inst in scene.instances],
                                             dtype=np.float32).reshape(-1, 3, 3)
         self._materials = []
@@ -141,7 +150,7 @@ class DirectLighting:
             face = _rows(self._faces, self._geom_face_offset[geom] + prim)
             bary = np.column_stack([1.0 - hits.u[surface] - hits.v[surface], hits.u[surface], hits.v[surface]])
             shading = self._shading_normal(face, bary, geom, ng)
-            rho = colour(self._albedo(face, bary, geom), surface)
+            rho = colour(self._albedo(face, bary, geom, d, ng, hits.t[surface]), surface)
             magnitude = np.maximum(np.maximum(np.abs(point[:, 0]), np.abs(point[:, 1])), np.abs(point[:, 2]))
             eps = SHADOW_OFFSET * (magnitude + 1e-2 * self.intersector.extent)
             shadow_origin = point + ng * eps[:, None].astype(np.float32)
@@ -176,7 +185,9 @@ class DirectLighting:
             shading[smooth[good]] = n[good]
         return shading
 
-    def _albedo(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray) -> np.ndarray:
+    def _albedo(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray, direction: np.ndarray,
+                normal: np.ndarray, distance: np.ndarray) -> np.ndarray:
+        """Albedo (N, 3) of camera-ray hits; image textures filtered over the rays' footprints."""
         rho = np.empty((len(face), 3), np.float32)
         material_of = self._geom_material[geom]
         for index, material in enumerate(self._materials):
@@ -188,8 +199,22 @@ class DirectLighting:
                 f, b = face[rows], bary[rows]
                 uv = (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
                       + _rows(self._uv, f[:, 2]) * b[:, 2:])
-            rho[rows] = albedo(material, uv, len(rows))
+            footprint = None
+            if isinstance(material.texture, ImageTexture) and self.pixel_spread_radians > 0:
+                footprint = self._footprint(face[rows], geom[rows], direction[rows], normal[rows], distance[rows])
+            rho[rows] = albedo(material, uv, len(rows), footprint)
         return rho
+
+    def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,
+                   distance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """uv axes of the pixel footprints of hits on triangles ``face`` of instances ``geom``."""
+        corner = [_rows(self._vertices, face[:, k]) for k in range(3)]
+        linear = self._geom_linear[geom]
+        edge1 = np.einsum("nij,nj->ni", linear, corner[1] - corner[0])
+        edge2 = np.einsum("nij,nj->ni", linear, corner[2] - corner[0])
+        uv = [_rows(self._uv, face[:, k]).astype(np.float64) for k in range(3)]
+        return uv_footprint(direction.astype(np.float64), normal.astype(np.float64), distance.astype(np.float64),
+                            self.pixel_spread_radians, edge1, edge2, uv[1] - uv[0], uv[2] - uv[0])
 
     def _light_sample(self, point: np.ndarray, shadow_origin: np.ndarray, shading: np.ndarray, ng: np.ndarray,
                       rho: np.ndarray, pixel: np.ndarray, sample: np.ndarray, k: int, basis: np.ndarray | None

@@ -75,7 +75,8 @@ class _PassRunner:
                  light_samples: int, morton: bool, clock: StageClock):
         self.camera, self.morton, self.clock = camera, morton, clock
         self.generate = camera.ray_generator(backend, seed, cl_device)
-        self.integrator = DirectLighting(scene, Intersector(scene), light_samples, seed)
+        self.integrator = DirectLighting(scene, Intersector(scene), light_samples, seed,
+                                         camera.pixel_spread_radians())
 
     def __call__(self, first: int, count: int) -> _PassResult:
         spp = self.camera.spp

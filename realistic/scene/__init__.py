@@ -5,7 +5,8 @@
 - ``meshes``: mesh files through trimesh (OBJ, PLY, STL, GLB/GLTF, OFF), refusing what would render wrong;
   ``mesh_text_checks`` reads the text trimesh would misread, ``mesh_diagnosis`` says why a file is
   unreadable.
-- ``textures``: materials' albedo at surface points, batched.
+- ``textures``: materials' albedo at surface points, batched (image textures filtered over footprints).
+- ``mipmap``: MIP maps of images and their batched lookups (point, bilinear, trilinear, EWA).
 - ``intersect``: the embree scene built from a ``Scene``; closest-hit and occlusion queries.
 - ``staging``: a mesh on a grid floor under a light, the default scene, framing a subject.
 - ``pbrt/``: the pbrt scene language: ``lexer`` (tokens), ``parser`` (records and graphics

@@ -12,11 +12,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from realistic.core import validation
 from realistic.core.transforms import transform_points
+from realistic.scene.mipmap import MipMap
 
 if TYPE_CHECKING:
     from realistic.camera.base import Camera
@@ -35,17 +38,36 @@ class Mesh:
     name: str = ""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ImageTexture:
-    """An RGB image (linear, rows top to bottom) repeated over uv.
+    """An RGB image (linear, rows top to bottom) repeated over uv, looked up through a MIP map.
 
     ``v_origin`` says which row v = 0 is: "bottom" (pbrt-v3 and v4 flip images on load) or "top"
-    (pbrt-v1 and v2 look up the file's first row at v = 0); the pbrt dialect decides.
+    (pbrt-v1 and v2 look up the file's first row at v = 0); the pbrt dialect decides. ``filter``
+    ("point", "bilinear", "trilinear", "ewa"), ``max_anisotropy`` and ``wrap`` ("repeat", "black",
+    "clamp") are pbrt's imagemap parameters; the defaults are pbrt-v3's. A lookup without a
+    footprint reads level 0 bilinearly whatever the filter.
     """
 
     pixels: np.ndarray  # (H, W, 3) float32, linear
     scale: tuple[float, float] = (1.0, 1.0)  # repetitions of the image per unit of u, v
     v_origin: str = "bottom"
+    filter: str = "ewa"
+    max_anisotropy: float = 8.0
+    wrap: str = "repeat"
+    offset: tuple[float, float] = (0.0, 0.0)  # pbrt's udelta, vdelta: added to the scaled u, v
+
+    def __post_init__(self) -> None:
+        validation.texture_filter(self.filter)
+        validation.texture_wrap(self.wrap)
+        validation.max_anisotropy(self.max_anisotropy)
+        for name, value in zip(("uscale", "vscale", "udelta", "vdelta"), (*self.scale, *self.offset)):
+            validation.finite(value, f"image texture {name}")
+
+    @cached_property
+    def mipmap(self) -> MipMap:
+        """The MIP map of ``pixels``, built on first use and kept."""
+        return MipMap(self.pixels, self.wrap, self.max_anisotropy)
 
 
 @dataclass(frozen=True)

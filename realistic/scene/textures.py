@@ -6,9 +6,17 @@ import numpy as np
 
 from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Material, Texture
 
+#: A pixel's footprint around N texture points: two ellipse axes, each (N, 2) in uv units.
+Footprint = tuple[np.ndarray, np.ndarray]
 
-def evaluate(texture: Texture, uv: np.ndarray) -> np.ndarray:
-    """Texture colour (N, 3) float32 at texture coordinates uv (N, 2)."""
+
+def evaluate(texture: Texture, uv: np.ndarray, footprint: Footprint | None = None) -> np.ndarray:
+    """Texture colour (N, 3) float32 at texture coordinates uv (N, 2).
+
+    ``footprint``: two axes (N, 2) each, in uv units, of the ellipse a pixel covers around each point
+    (one pixel step, as pbrt's ray differentials); image textures filter over it, the procedural
+    ones point-sample.
+    """
     if isinstance(texture, GridTexture):
         f = (uv * texture.cells) % 1.0
         half = texture.line_width / 2
@@ -18,29 +26,31 @@ def evaluate(texture: Texture, uv: np.ndarray) -> np.ndarray:
         parity = (np.floor(uv[:, 0] * texture.cells) + np.floor(uv[:, 1] * texture.cells)) % 2
         return np.where(parity[:, None] == 0, np.float32(texture.even), np.float32(texture.odd)).astype(np.float32)
     if isinstance(texture, ImageTexture):
-        return _bilinear(texture, uv)
+        return _image(texture, uv, footprint)
     raise TypeError(f"unknown texture {texture!r}")
 
 
-def _bilinear(texture: ImageTexture, uv: np.ndarray) -> np.ndarray:
-    """Bilinear lookup with wrap-around; u to the right, v = 0 at the row ``texture.v_origin`` names."""
-    height, width = texture.pixels.shape[:2]
-    x = (uv[:, 0] * texture.scale[0]) % 1.0 * width - 0.5
-    v = (uv[:, 1] * texture.scale[1]) % 1.0
-    y = (v if texture.v_origin == "top" else 1.0 - v) * height - 0.5
-    x0, y0 = np.floor(x), np.floor(y)
-    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-    x0, y0 = x0.astype(np.int64) % width, y0.astype(np.int64) % height
-    x1, y1 = (x0 + 1) % width, (y0 + 1) % height
-    p = texture.pixels
-    top = p[y0, x0] * (1 - fx) + p[y0, x1] * fx
-    bottom = p[y1, x0] * (1 - fx) + p[y1, x1] * fx
-    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+def _image(texture: ImageTexture, uv: np.ndarray, footprint: Footprint | None) -> np.ndarray:
+    """A MIP-map lookup; (s, t) with t down the rows, so a bottom-origin image flips v."""
+    repeats = np.asarray(texture.scale, np.float64)
+    st = np.asarray(uv, np.float64) * repeats + np.asarray(texture.offset, np.float64)
+    flip = np.array([1.0, -1.0 if texture.v_origin == "bottom" else 1.0])
+    st = st * flip + np.array([0.0, 1.0 if texture.v_origin == "bottom" else 0.0])
+    mipmap = texture.mipmap
+    if footprint is None:
+        return mipmap.bilinear(st).astype(np.float32)
+    axis0, axis1 = (np.asarray(axis, np.float64) * repeats * flip for axis in footprint)
+    if texture.filter == "ewa":
+        return mipmap.ewa(st, axis0, axis1).astype(np.float32)
+    # pbrt's filter width for the isotropic filters: twice the largest component of either axis
+    width = 2 * np.maximum(np.abs(axis0).max(axis=1), np.abs(axis1).max(axis=1))
+    lookup = {"point": mipmap.point, "bilinear": mipmap.bilinear_at_width, "trilinear": mipmap.trilinear}
+    return lookup[texture.filter](st, width).astype(np.float32)
 
 
-def albedo(material: Material, uv: np.ndarray | None, count: int) -> np.ndarray:
+def albedo(material: Material, uv: np.ndarray | None, count: int, footprint: Footprint | None = None) -> np.ndarray:
     """Diffuse reflectance (N, 3) of ``count`` points of one material (uv needed with a texture)."""
     colour = np.broadcast_to(np.asarray(material.diffuse, dtype=np.float32), (count, 3))
     if material.texture is None or uv is None:
         return colour
-    return colour * evaluate(material.texture, uv)
+    return colour * evaluate(material.texture, uv, footprint)

@@ -1,15 +1,22 @@
 """Which pbrt a scene file was written for, and the conventions that differ between versions.
 
 Every convention that depends on the pbrt version is decided here, once per scene, and read by the
-importer; nowhere else asks which version a file is: the image-texture orientation, and the
-realistic camera's parameter names, units, frame and film size (``RealisticCameraConvention``).
-The texture orientation:
+importer; nowhere else asks which version a file is: the realistic camera's parameter names,
+units, frame and film size (``RealisticCameraConvention``), and the image-texture orientation:
 
 - pbrt-v1 and pbrt-v2 look textures up with v = 0 at the first (top) row of the image file
   (pbrt-v2 ``src/textures/imagemap.cpp`` builds its MIPMap from ``ReadImage`` as read);
 - pbrt-v3 and pbrt-v4 flip the image on load, so v = 0 is the bottom row (pbrt-v3
   ``src/textures/imagemap.cpp``: "Flip image in y; texture coordinate space has (0,0) at the lower
   left corner").
+
+and the imagemap parameters (``ImagemapConventions``): pbrt-v1/v2 (``src/textures/imagemap.cpp``)
+choose the filter with ``bool trilinear`` (default false: EWA) and raise texels to ``float gamma``
+(default 1); pbrt-v3 (``src/textures/imagemap.cpp``) has the same ``trilinear`` but a ``bool
+gamma`` (sRGB decoding, default true for .png and .tga files); pbrt-v4 (``src/pbrt/textures.cpp``)
+names the filter in ``string filter`` (default "bilinear") and the colour encoding in ``string
+encoding`` (default sRGB for .png, else linear), and adds ``bool invert``. All: ``maxanisotropy`` 8,
+``wrap`` "repeat", ``scale`` 1.
 
 ``auto`` decides from what the file uses: v4-only directives (``ColorSpace``, ``Option``,
 ``Attribute``, ``Import``) or ``Film "rgb"`` mean v4; the classic homework camera (``specfile``,
@@ -81,6 +88,24 @@ DEFAULT_FILM_DIAGONAL_MM = 35.0
 
 
 @dataclass(frozen=True)
+class ImagemapConventions:
+    """How a pbrt version spells an imagemap's filter and colour encoding, and their defaults."""
+
+    filter_parameter: str  # "trilinear" (a bool: trilinear or EWA) or "filter" (a name)
+    default_filter: str
+    encoding_parameter: str  # "gamma exponent", "gamma sRGB" (a bool) or "encoding" (a name)
+    max_anisotropy: float = 8.0
+    wrap: str = "repeat"
+    scale: float = 1.0
+
+
+_IMAGEMAP = {"v1": ImagemapConventions("trilinear", "ewa", "gamma exponent"),
+             "v2": ImagemapConventions("trilinear", "ewa", "gamma exponent"),
+             "v3": ImagemapConventions("trilinear", "ewa", "gamma sRGB"),
+             "v4": ImagemapConventions("filter", "bilinear", "encoding")}
+
+
+@dataclass(frozen=True)
 class Dialect:
     """A pbrt version and its conventions; ``reason`` says why it was chosen."""
 
@@ -101,6 +126,11 @@ class Dialect:
     def foreign_camera_parameters(self) -> frozenset[str]:
         """Realistic-camera parameters of the other versions that this one ignores."""
         return (CLASSIC_REALISTIC.names | PBRT3_REALISTIC.names) - self.realistic_camera.names
+
+    @property
+    def imagemap(self) -> ImagemapConventions:
+        """The imagemap texture's parameter names and defaults in this version."""
+        return _IMAGEMAP[self.name]
 
     def describe(self) -> str:
         return f"pbrt-{self.name} ({self.reason})"

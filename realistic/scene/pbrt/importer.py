@@ -27,7 +27,7 @@ from realistic.optics.formats import BUNDLED_LENSES, load_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus
 from realistic.scene.meshes import load_mesh_file
-from realistic.scene.model import AreaLight, CheckerTexture, ImageTexture, Material, Mesh, Scene
+from realistic.scene.model import AreaLight, CheckerTexture, Material, Mesh, Scene
 from realistic.scene.pbrt.dialect import (
     DEFAULT_FILM_DIAGONAL_MM,
     PBRT3_DEFAULT_APERTURE_MM,
@@ -35,6 +35,7 @@ from realistic.scene.pbrt.dialect import (
     Dialect,
     choose_dialect,
 )
+from realistic.scene.pbrt.imagemap import imagemap_texture
 from realistic.scene.pbrt.lexer import PbrtSyntaxError
 from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.scene.shapes import cone, disk, sphere
@@ -176,11 +177,12 @@ class _Importer:
             filename = p.get_string("filename")
             if not filename:
                 raise UserError(f'{tex.where}: imagemap texture "{name}" has no filename')
-            pixels = read_linear_rgb(self.find(filename, tex.directory, tex.where, "texture file"))
-            if p.has("udelta") or p.has("vdelta") or p.get_string("mapping", "uv") != "uv":
-                self.warn(tex.where, "imagemap mapping other than plain uv scaling (ignored)")
-            repeats = (p.get_float("uscale", 1.0), p.get_float("vscale", 1.0))
-            return Material((1.0, 1.0, 1.0), ImageTexture(pixels, repeats, self.dialect.texture_v_origin))
+            path = self.find(filename, tex.directory, tex.where, "texture file")
+            if p.get_string("mapping", "uv") != "uv":
+                self.warn(tex.where, "imagemap mapping other than uv (uv used)")
+            texture = imagemap_texture(p, read_linear_rgb(path), path.suffix.lower() == ".exr", filename,
+                                       self.dialect, tex.where)
+            return Material((1.0, 1.0, 1.0), texture)
         if tex.cls == "checkerboard":
             if p.get_float("uscale", 1.0) != p.get_float("vscale", 1.0):
                 self.warn(tex.where, "checkerboard with different uscale and vscale (uscale used)")
