@@ -1,8 +1,19 @@
 """Spectral colour: wavelengths per camera sample, RGB to spectrum, spectrum to linear sRGB.
 
-Wavelength sampling: uniform over [380, 780] nm (pdf 1/400 per nm), stratified within a pixel by
-``realistic.core.rng.wavelength_bits`` (a 1-D Kronecker sequence over the sample index). Uniform keeps
-the kernel free of table lookups; the colour noise it costs is small next to the lens's own.
+Wavelength sampling: importance sampled over [380, 780] nm with a density matched to what reaches
+the film, p(lambda) proportional to |rgb(lambda)|, the Euclidean norm of the linear sRGB response
+of a unit spectral sample (colour matching functions through ``RGB_FROM_XYZ``, negative lobes
+included). Among densities fixed before rendering, that one minimises the summed variance of the
+three channels' estimators r_c(lambda) L(lambda) / p(lambda) for a flat spectrum L (Lagrange: p
+proportional to sqrt(sum_c r_c^2)); measured against uniform and pbrt-v4's SampleVisibleWavelengths
+(sech^2; src/pbrt/util/sampling.h, restricted to 380-780 nm) it gives per-sample variances of
+(4.9, 2.2, 2.8) against (9.6, 4.1, 5.6) and (7.2, 2.2, 4.9) for a white spectrum
+(``estimator_variance``). It has no closed-form CDF, so the kernel and numpy use its piecewise
+constant version on ``WAVELENGTH_STRATA`` equal-probability intervals: the knots are the exact
+quantiles k / K of |rgb|, the inverse CDF is linear within each interval (one table lookup, no
+library call, so PoCL still vectorises), and ``wavelength_pdf`` is 1 / (K x interval width). The
+uniform number comes from the fifth dimension of the pixel's R5 sequence (``realistic.core.rng``),
+so a pixel's wavelengths are stratified jointly with its film and lens positions.
 
 RGB to spectrum: s(lambda) = r b_R(lambda) + g b_G(lambda) + b b_B(lambda) with three smooth,
 non-negative basis functions that sum to 1 at every wavelength (a partition of unity made of two
@@ -16,8 +27,8 @@ Spectrum to RGB: the CIE 1931 2-degree colour matching functions in the multi-lo
 of Wyman, Sloan and Shirley (JCGT 2013), integrated over [380, 780] nm to XYZ, adapted from the
 equal-energy white E to D65 with the Bradford transform, converted to linear sRGB, and scaled per
 channel so that the constant spectrum 1 gives exactly (1, 1, 1): a white object stays white.
-``rgb_response(lambda)`` folds all of that and the 1/pdf of uniform sampling into one (N, 3)
-weight, so a film sample adds weight x L(lambda) x rgb_response(lambda).
+``rgb_response(lambda)`` folds all of that and the sampling's 1/pdf into one (N, 3) weight, so a
+film sample adds weight x L(lambda) x rgb_response(lambda), whose expectation is the CIE integral.
 """
 
 from __future__ import annotations
@@ -29,6 +40,8 @@ import numpy as np
 LAMBDA_MIN_NM = 380.0
 LAMBDA_MAX_NM = 780.0
 LAMBDA_RANGE_NM = LAMBDA_MAX_NM - LAMBDA_MIN_NM
+#: Equal-probability intervals of the tabulated wavelength density (kernel table of K + 1 knots).
+WAVELENGTH_STRATA = 128
 
 #: (weight, mean nm, sigma below the mean, sigma above) per lobe; Wyman, Sloan, Shirley 2013, eq. 2.
 CMF_LOBES = (
@@ -46,11 +59,6 @@ D65_XYZ = np.array([0.95047, 1.0, 1.08883])
 #: Logistic steps of the RGB basis: blue/green and green/red boundaries and width (nm).
 BASIS_STEPS_NM = (490.0, 590.0)
 BASIS_WIDTH_NM = 12.0
-
-
-def wavelengths_nm(u: np.ndarray) -> np.ndarray:
-    """Wavelengths (float32 nm) from uniform numbers in [0, 1), as the kernel computes them."""
-    return np.float32(LAMBDA_MIN_NM) + np.float32(LAMBDA_RANGE_NM) * np.asarray(u, dtype=np.float32)
 
 
 def cie_xyz(wavelength_nm: np.ndarray) -> np.ndarray:
@@ -91,10 +99,53 @@ def _rgb_from_xyz() -> np.ndarray:
 RGB_FROM_XYZ = _rgb_from_xyz()
 
 
+def cie_rgb(wavelength_nm: np.ndarray) -> np.ndarray:
+    """Linear sRGB (N, 3) of a unit spectral sample at ``wavelength_nm``; integrates to (1, 1, 1)."""
+    return cie_xyz(wavelength_nm) @ RGB_FROM_XYZ.T
+
+
+def _wavelength_knots_nm() -> np.ndarray:
+    """The K + 1 quantiles k / K of the density |cie_rgb| over [380, 780] nm (float32, as the kernel
+    holds them), by the trapezoidal CDF on a 0.01 nm grid."""
+    lam = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, 40_001)
+    density = np.linalg.norm(cie_rgb(lam), axis=-1)
+    cdf = np.concatenate([[0.0], np.cumsum((density[1:] + density[:-1]) / 2 * np.diff(lam))])
+    knots = np.interp(np.linspace(0.0, cdf[-1], WAVELENGTH_STRATA + 1), cdf, lam)
+    knots[[0, -1]] = LAMBDA_MIN_NM, LAMBDA_MAX_NM
+    return knots.astype(np.float32)
+
+
+#: Knots of the piecewise linear inverse CDF: interval k holds probability 1 / WAVELENGTH_STRATA.
+WAVELENGTH_KNOTS_NM = _wavelength_knots_nm()
+
+
+def wavelengths_nm(u: np.ndarray) -> np.ndarray:
+    """Wavelengths (float32 nm) from uniform numbers in [0, 1): the inverse CDF, as the kernel computes it."""
+    scaled = np.asarray(u, dtype=np.float32) * np.float32(WAVELENGTH_STRATA)
+    k = np.minimum(scaled.astype(np.int32), WAVELENGTH_STRATA - 1)
+    lo, hi = WAVELENGTH_KNOTS_NM[k], WAVELENGTH_KNOTS_NM[k + 1]
+    return lo + (scaled - k.astype(np.float32)) * (hi - lo)
+
+
+def wavelength_pdf(wavelength_nm: np.ndarray) -> np.ndarray:
+    """Density (per nm, float64) of ``wavelengths_nm`` at each wavelength: 1 / (K x its interval's width)."""
+    knots = WAVELENGTH_KNOTS_NM.astype(np.float64)
+    k = np.clip(np.searchsorted(knots, wavelength_nm, side="right") - 1, 0, WAVELENGTH_STRATA - 1)
+    return 1.0 / (WAVELENGTH_STRATA * (knots[k + 1] - knots[k]))
+
+
 def rgb_response(wavelength_nm: np.ndarray) -> np.ndarray:
-    """Per-sample film weight (N, 3): linear sRGB of a unit spectral sample at ``wavelength_nm``
-    divided by the uniform pdf, so its mean over uniform wavelengths of a constant 1 is (1, 1, 1)."""
-    return (cie_xyz(wavelength_nm) @ RGB_FROM_XYZ.T * LAMBDA_RANGE_NM).astype(np.float32)
+    """Per-sample film weight (N, 3): ``cie_rgb`` over ``wavelength_pdf``, so its expectation over the
+    sampled wavelengths of a spectrum s is the CIE integral of s (a constant 1 gives (1, 1, 1))."""
+    return (cie_rgb(wavelength_nm) / wavelength_pdf(wavelength_nm)[..., None]).astype(np.float32)
+
+
+def estimator_variance(density: np.ndarray, wavelength_nm: np.ndarray) -> np.ndarray:
+    """Per-channel variance of one sample's ``cie_rgb / p`` for a flat spectrum 1, with p the
+    ``density`` tabulated on the fine grid ``wavelength_nm`` (normalised here; trapezoidal rule)."""
+    p = density / np.trapezoid(density, wavelength_nm)
+    r = cie_rgb(wavelength_nm)
+    return np.trapezoid(r * r / p[:, None], wavelength_nm, axis=0) - np.trapezoid(r, wavelength_nm, axis=0) ** 2
 
 
 def rgb_basis(wavelength_nm: np.ndarray) -> np.ndarray:
