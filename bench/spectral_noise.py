@@ -11,8 +11,9 @@ prints the relative RMSE of each test image against its own mode's reference:
 
 and the ratio spectral / RGB (the issue's target: at most 1.3). First it prints, for the wavelength
 densities considered, the per-sample variance of each channel's estimator for a flat white spectrum
-(``realistic.core.spectrum.estimator_variance``): what the colour conversion does to noise before
-stratification. References dominate the cost, so
+(``realistic.core.spectrum.estimator_variance``; it multiplies every other noise of a spectral
+sample) and the colour noise of a white pixel at each spp (what stratification leaves of it).
+References dominate the cost, so
 they are cached in the output folder as .npy, keyed by scene, resolution, mode, spp, seed and a hash
 of the sampling code (``kernels/lens.cl``, ``realistic/core/rng.py``, ``realistic/core/spectrum.py``,
 ``realistic/renderer/passes.py``), so a change to how samples are drawn makes a new reference.
@@ -34,7 +35,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import realistic  # noqa: E402
-from realistic.core.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, estimator_variance, wavelength_pdf  # noqa: E402
+from realistic.core.rng import stratified5  # noqa: E402
+from realistic.core.spectrum import (  # noqa: E402
+    LAMBDA_MAX_NM,
+    LAMBDA_MIN_NM,
+    cie_rgb,
+    estimator_variance,
+    wavelength_pdf,
+)
 from realistic.renderer.passes import render_passes  # noqa: E402
 
 SHARED_SCENES = ROOT.parent / "shared" / "scenes" / "pbrt"
@@ -93,13 +101,26 @@ def parse_res(text: str | None) -> dict[str, tuple[int, int]]:
     return res
 
 
-def density_variances() -> dict[str, list[float]]:
-    """Per-channel variance of one white sample's sRGB estimate under each wavelength density."""
+def density_table(spps: list[int], pixels: int = 4000) -> dict[str, dict]:
+    """Per wavelength density: each channel's per-sample variance for a flat white spectrum, and the
+    relative RMSE of a white pixel's colour from its spp wavelengths (R5's fifth dimension, through
+    the density's inverse CDF), the colour noise alone."""
     lam = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, 400_001)
     densities = {"uniform": np.ones_like(lam),
                  "pbrt-v4 visible (sech^2)": 1 / np.cosh(0.0072 * (lam - 538.0)) ** 2,
-                 "|rgb| tabulated (used)": wavelength_pdf(lam)}
-    return {name: estimator_variance(p, lam).tolist() for name, p in densities.items()}
+                 "|rgb| piecewise linear (used)": wavelength_pdf(lam)}
+    table = {}
+    for name, density in densities.items():
+        p = density / np.trapezoid(density, lam)
+        cdf = np.concatenate([[0.0], np.cumsum((p[1:] + p[:-1]) / 2 * np.diff(lam))])
+        white = []
+        for spp in spps:
+            pixel, sample = np.repeat(np.arange(pixels), spp), np.tile(np.arange(spp), pixels)
+            sampled = np.interp(stratified5(pixel, sample, 7)[4].astype(np.float64), cdf / cdf[-1], lam)
+            colour = (cie_rgb(sampled) / np.interp(sampled, lam, p)[:, None]).reshape(pixels, spp, 3).mean(axis=1)
+            white.append(float(np.sqrt(np.mean((colour - 1.0) ** 2))))
+        table[name] = {"variance_rgb": estimator_variance(density, lam).tolist(), "white_rel_rmse": white}
+    return table
 
 
 def main() -> None:
@@ -115,10 +136,12 @@ def main() -> None:
     res = parse_res(args.res)
     spps = [int(v) for v in args.spps.split(",")]
     version = code_hash()
-    variances = density_variances()
-    print(f"{'wavelength density':28s} {'var R':>7s} {'var G':>7s} {'var B':>7s}")
-    for name, v in variances.items():
-        print(f"{name:28s} {v[0]:7.3f} {v[1]:7.3f} {v[2]:7.3f}")
+    densities = density_table(spps)
+    print(f"{'wavelength density':30s} {'var R':>6s} {'var G':>6s} {'var B':>6s}  "
+          + " ".join(f"white@{spp:<4d}" for spp in spps))
+    for name, d in densities.items():
+        v = d["variance_rgb"]
+        print(f"{name:30s} {v[0]:6.2f} {v[1]:6.2f} {v[2]:6.2f}  " + " ".join(f"{e:10.4f}" for e in d["white_rel_rmse"]))
     rows = []
     for scene_name in args.scenes.split(","):
         size = res.get("*", res.get(scene_name, (150, 150)))
@@ -140,7 +163,7 @@ def main() -> None:
         res_text = "x".join(map(str, r["resolution"]))
         print(f"{r['scene']:28s} {res_text:>8s} {r['spp']:4d} {r['rel_rmse_rgb']:12.5f} "
               f"{r['rel_rmse_spectral']:13.5f} {r['ratio']:6.3f}")
-    result = {"reference_spp": args.reference_spp, "code_hash": version, "density_variances": variances,
+    result = {"reference_spp": args.reference_spp, "code_hash": version, "densities": densities,
               "rows": rows}
     (args.out / "spectral_noise.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
 

@@ -23,8 +23,10 @@
  *                                 PUPIL_AREA[k] (mm^2), when LENS_SAMPLING_PUPIL is 1
  *   SPECTRAL                      1: each sample carries a wavelength (output row 7), drawn as the
  *                                 fifth dimension of R5 (film and lens then use R5's first four)
- *                                 through the inverse CDF on the program-scope table
- *                                 LAMBDA_KNOTS_NM[LAMBDA_STRATA + 1] (realistic.core.spectrum)
+ *                                 through the inverse CDF of a piecewise linear density: node
+ *                                 LAMBDA_MIN_NM + k LAMBDA_STEP_NM, k = 0..LAMBDA_INTERVALS (64),
+ *                                 tables LAMBDA_DENSITY[k] (per nm) and LAMBDA_CDF[k]
+ *                                 (realistic.core.spectrum.wavelengths_nm)
  *   TRACE_SURFACES(r, il2)        the surfaces, rear first, as calls to sphere()/plane()
  *                                 with literal constants; when SPECTRAL, it first computes each
  *                                 dispersive glass's index A + B il2 (il2 = 1 / lambda^2 in
@@ -95,14 +97,22 @@ inline void stratified(uint pixel, uint sample, uint seed, uint *b0, uint *b1, u
 }
 
 #if SPECTRAL
-/* Wavelength (nm) from a uniform u in [0, 1): linear within the equal-probability interval
- * floor(u K) of the tabulated density (realistic.core.spectrum.wavelengths_nm). */
+/* Wavelength (nm) from a uniform u in [0, 1): the node interval k by a 6-step binary search on the
+ * CDF (LAMBDA_INTERVALS is 64), then the root of p0 t + (p1 - p0) t^2 / (2 step) = u - CDF[k] in
+ * the form that stays stable when p1 = p0 (realistic.core.spectrum.wavelengths_nm). */
 inline float wavelength_nm(float u) {
-    float scaled = u * (float)LAMBDA_STRATA;
-    int k = (int)scaled;
-    k = k < LAMBDA_STRATA - 1 ? k : LAMBDA_STRATA - 1;
-    float lo = LAMBDA_KNOTS_NM[k];
-    return lo + (scaled - (float)k) * (LAMBDA_KNOTS_NM[k + 1] - lo);
+    int k = 0;
+    k = LAMBDA_CDF[k + 32] <= u ? k + 32 : k;
+    k = LAMBDA_CDF[k + 16] <= u ? k + 16 : k;
+    k = LAMBDA_CDF[k + 8] <= u ? k + 8 : k;
+    k = LAMBDA_CDF[k + 4] <= u ? k + 4 : k;
+    k = LAMBDA_CDF[k + 2] <= u ? k + 2 : k;
+    k = LAMBDA_CDF[k + 1] <= u ? k + 1 : k;
+    float p0 = LAMBDA_DENSITY[k];
+    float slope = (LAMBDA_DENSITY[k + 1] - p0) * (1.0f / LAMBDA_STEP_NM);
+    float v = u - LAMBDA_CDF[k];
+    float t = 2.0f * v / (p0 + __builtin_sqrtf(p0 * p0 + 2.0f * slope * v));
+    return LAMBDA_MIN_NM + (float)k * LAMBDA_STEP_NM + t;
 }
 #endif
 

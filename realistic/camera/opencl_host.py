@@ -24,7 +24,7 @@ import numpy as np
 from realistic.camera.base import RayBatch
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.data_files import data_file
-from realistic.core.spectrum import WAVELENGTH_KNOTS_NM, WAVELENGTH_STRATA
+from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
 from realistic.optics.sampling import rear_element_sampler
@@ -157,12 +157,15 @@ def _stop_lines(lens) -> list[str]:
 
 
 def _wavelength_lines(camera: LensCamera) -> list[str]:
-    """A spectral camera's inverse-CDF table of wavelengths (``realistic.core.spectrum``)."""
+    """A spectral camera's wavelength density table (``realistic.core.spectrum.wavelengths_nm``)."""
     if not camera.spectral:
         return []
-    knots = ", ".join(_c_float(v) for v in WAVELENGTH_KNOTS_NM)
-    return [f"#define LAMBDA_STRATA {WAVELENGTH_STRATA}",
-            f"__constant float LAMBDA_KNOTS_NM[{WAVELENGTH_STRATA + 1}] = {{{knots}}};"]
+    def table(name: str, values: np.ndarray) -> str:
+        return f"__constant float {name}[{len(values)}] = {{{', '.join(_c_float(v) for v in values)}}};"
+    return [f"#define LAMBDA_INTERVALS {WAVELENGTH_INTERVALS}",
+            f"#define LAMBDA_MIN_NM {_c_float(WAVELENGTH_NODES_NM[0])}",
+            f"#define LAMBDA_STEP_NM {_c_float(WAVELENGTH_NODES_NM[1] - WAVELENGTH_NODES_NM[0])}",
+            table("LAMBDA_DENSITY", WAVELENGTH_DENSITY), table("LAMBDA_CDF", WAVELENGTH_CDF)]
 
 
 def camera_header(camera: LensCamera) -> str:

@@ -1,19 +1,21 @@
 """Spectral colour: wavelengths per camera sample, RGB to spectrum, spectrum to linear sRGB.
 
 Wavelength sampling: importance sampled over [380, 780] nm with a density matched to what reaches
-the film, p(lambda) proportional to |rgb(lambda)|, the Euclidean norm of the linear sRGB response
-of a unit spectral sample (colour matching functions through ``RGB_FROM_XYZ``, negative lobes
-included). Among densities fixed before rendering, that one minimises the summed variance of the
-three channels' estimators r_c(lambda) L(lambda) / p(lambda) for a flat spectrum L (Lagrange: p
-proportional to sqrt(sum_c r_c^2)); measured against uniform and pbrt-v4's SampleVisibleWavelengths
-(sech^2; src/pbrt/util/sampling.h, restricted to 380-780 nm) it gives per-sample variances of
-(4.9, 2.2, 2.8) against (9.6, 4.1, 5.6) and (7.2, 2.2, 4.9) for a white spectrum
-(``estimator_variance``). It has no closed-form CDF, so the kernel and numpy use its piecewise
-constant version on ``WAVELENGTH_STRATA`` equal-probability intervals: the knots are the exact
-quantiles k / K of |rgb|, the inverse CDF is linear within each interval (one table lookup, no
-library call, so PoCL still vectorises), and ``wavelength_pdf`` is 1 / (K x interval width). The
-uniform number comes from the fifth dimension of the pixel's R5 sequence (``realistic.core.rng``),
-so a pixel's wavelengths are stratified jointly with its film and lens positions.
+the film: p proportional to |rgb(lambda)| + a floor of 0.1 % of its peak, |rgb| the Euclidean norm
+of the linear sRGB response of a unit spectral sample (colour matching functions through
+``RGB_FROM_XYZ``, negative lobes included). Among fixed densities, |rgb| minimises the summed
+per-sample variance of the three channels' estimators r_c L / p for a flat spectrum (Lagrange: p
+proportional to sqrt(sum_c r_c^2)), and that variance multiplies all other noise of a spectral
+sample: per-sample variances (R, G, B) of about (4.9, 2.2, 2.8) against (9.6, 4.1, 5.6) for uniform
+wavelengths and (7.2, 2.2, 4.9) for pbrt-v4's ``SampleVisibleWavelengths`` (sech^2; pbrt-v4
+src/pbrt/util/sampling.h) restricted to 380-780 nm (``estimator_variance``; the floor keeps 1 / p
+bounded in the far red). The density is piecewise linear between ``WAVELENGTH_NODES`` equally
+spaced nodes (continuous, so response / pdf stays smooth and stratification keeps paying off), its
+CDF piecewise quadratic: the inverse finds the node interval (a fixed 6-step binary search in the
+kernel) and solves the quadratic in the form 2v / (p0 + sqrt(p0^2 + 2 s v)), stable when the slope s
+is 0. The uniform number comes from the fifth dimension of the pixel's R5 sequence
+(``realistic.core.rng``), so a pixel's wavelengths are stratified jointly with its film and lens
+positions.
 
 RGB to spectrum: s(lambda) = r b_R(lambda) + g b_G(lambda) + b b_B(lambda) with three smooth,
 non-negative basis functions that sum to 1 at every wavelength (a partition of unity made of two
@@ -40,8 +42,11 @@ import numpy as np
 LAMBDA_MIN_NM = 380.0
 LAMBDA_MAX_NM = 780.0
 LAMBDA_RANGE_NM = LAMBDA_MAX_NM - LAMBDA_MIN_NM
-#: Equal-probability intervals of the tabulated wavelength density (kernel table of K + 1 knots).
-WAVELENGTH_STRATA = 128
+#: Intervals of the piecewise linear wavelength density (nodes every 6.25 nm; a power of two for the
+#: kernel's binary search).
+WAVELENGTH_INTERVALS = 64
+#: The density's floor, as a fraction of the peak of |rgb|.
+DENSITY_FLOOR = 1e-3
 
 #: (weight, mean nm, sigma below the mean, sigma above) per lobe; Wyman, Sloan, Shirley 2013, eq. 2.
 CMF_LOBES = (
@@ -104,34 +109,34 @@ def cie_rgb(wavelength_nm: np.ndarray) -> np.ndarray:
     return cie_xyz(wavelength_nm) @ RGB_FROM_XYZ.T
 
 
-def _wavelength_knots_nm() -> np.ndarray:
-    """The K + 1 quantiles k / K of the density |cie_rgb| over [380, 780] nm (float32, as the kernel
-    holds them), by the trapezoidal CDF on a 0.01 nm grid."""
-    lam = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, 40_001)
-    density = np.linalg.norm(cie_rgb(lam), axis=-1)
-    cdf = np.concatenate([[0.0], np.cumsum((density[1:] + density[:-1]) / 2 * np.diff(lam))])
-    knots = np.interp(np.linspace(0.0, cdf[-1], WAVELENGTH_STRATA + 1), cdf, lam)
-    knots[[0, -1]] = LAMBDA_MIN_NM, LAMBDA_MAX_NM
-    return knots.astype(np.float32)
+def _wavelength_table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(nodes nm, density per nm at the nodes, CDF at the nodes) of the piecewise linear density."""
+    nodes = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, WAVELENGTH_INTERVALS + 1)
+    target = np.linalg.norm(cie_rgb(nodes), axis=-1)
+    density = target + DENSITY_FLOOR * target.max()
+    steps = (density[1:] + density[:-1]) / 2 * np.diff(nodes)
+    density /= steps.sum()
+    return nodes, density, np.concatenate([[0.0], np.cumsum(steps / steps.sum())])
 
 
-#: Knots of the piecewise linear inverse CDF: interval k holds probability 1 / WAVELENGTH_STRATA.
-WAVELENGTH_KNOTS_NM = _wavelength_knots_nm()
+WAVELENGTH_NODES_NM, WAVELENGTH_DENSITY, WAVELENGTH_CDF = _wavelength_table()
 
 
 def wavelengths_nm(u: np.ndarray) -> np.ndarray:
-    """Wavelengths (float32 nm) from uniform numbers in [0, 1): the inverse CDF, as the kernel computes it."""
-    scaled = np.asarray(u, dtype=np.float32) * np.float32(WAVELENGTH_STRATA)
-    k = np.minimum(scaled.astype(np.int32), WAVELENGTH_STRATA - 1)
-    lo, hi = WAVELENGTH_KNOTS_NM[k], WAVELENGTH_KNOTS_NM[k + 1]
-    return lo + (scaled - k.astype(np.float32)) * (hi - lo)
+    """Wavelengths (float32 nm) from uniform numbers in [0, 1): the density's inverse CDF (float64,
+    then rounded; the kernel's float32 version agrees within about 1e-3 nm)."""
+    u = np.asarray(u, dtype=np.float64)
+    k = np.clip(np.searchsorted(WAVELENGTH_CDF, u, side="right") - 1, 0, WAVELENGTH_INTERVALS - 1)
+    p0, p1 = WAVELENGTH_DENSITY[k], WAVELENGTH_DENSITY[k + 1]
+    width = WAVELENGTH_NODES_NM[1] - WAVELENGTH_NODES_NM[0]
+    v = u - WAVELENGTH_CDF[k]
+    t = 2 * v / (p0 + np.sqrt(p0 * p0 + 2 * (p1 - p0) / width * v))
+    return (WAVELENGTH_NODES_NM[k] + t).astype(np.float32)
 
 
 def wavelength_pdf(wavelength_nm: np.ndarray) -> np.ndarray:
-    """Density (per nm, float64) of ``wavelengths_nm`` at each wavelength: 1 / (K x its interval's width)."""
-    knots = WAVELENGTH_KNOTS_NM.astype(np.float64)
-    k = np.clip(np.searchsorted(knots, wavelength_nm, side="right") - 1, 0, WAVELENGTH_STRATA - 1)
-    return 1.0 / (WAVELENGTH_STRATA * (knots[k + 1] - knots[k]))
+    """Density (per nm, float64) of ``wavelengths_nm`` at each wavelength in [380, 780] nm."""
+    return np.interp(np.asarray(wavelength_nm, dtype=np.float64), WAVELENGTH_NODES_NM, WAVELENGTH_DENSITY)
 
 
 def rgb_response(wavelength_nm: np.ndarray) -> np.ndarray:
