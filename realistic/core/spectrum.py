@@ -9,7 +9,7 @@ proportional to sqrt(sum_c r_c^2)), and that variance multiplies all other noise
 sample: per-sample variances (R, G, B) of about (4.9, 2.2, 2.8) against (9.6, 4.1, 5.6) for uniform
 wavelengths and (7.2, 2.2, 4.9) for pbrt-v4's ``SampleVisibleWavelengths`` (sech^2; pbrt-v4
 src/pbrt/util/sampling.h) restricted to 380-780 nm (``estimator_variance``; the floor keeps 1 / p
-bounded in the far red). The density is piecewise linear between ``WAVELENGTH_NODES`` equally
+bounded in the far red). The density is piecewise linear between ``WAVELENGTH_INTERVALS`` + 1 equally
 spaced nodes (continuous, so response / pdf stays smooth and stratification keeps paying off), its
 CDF piecewise quadratic: the inverse finds the node interval (a fixed 6-step binary search in the
 kernel) and solves the quadratic in the form 2v / (p0 + sqrt(p0^2 + 2 s v)), stable when the slope s
@@ -41,7 +41,6 @@ import numpy as np
 
 LAMBDA_MIN_NM = 380.0
 LAMBDA_MAX_NM = 780.0
-LAMBDA_RANGE_NM = LAMBDA_MAX_NM - LAMBDA_MIN_NM
 #: Intervals of the piecewise linear wavelength density (nodes every 6.25 nm; a power of two for the
 #: kernel's binary search).
 WAVELENGTH_INTERVALS = 64
