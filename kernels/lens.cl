@@ -21,7 +21,12 @@
  *   REAR_CLEAR_MM, REAR_T_FAR     rear-element disk parameters (realistic.optics.sampling)
  *   PUPIL_INTERVALS, FILM_RADIUS_MM and program-scope tables PUPIL[4k..4k+3] = (x0, x1, y0, y1),
  *                                 PUPIL_AREA[k] (mm^2), when LENS_SAMPLING_PUPIL is 1
- *   SPECTRAL                      1: each sample carries a wavelength (output row 7)
+ *   SPECTRAL                      1: each sample carries a wavelength (output row 7), drawn as the
+ *                                 fifth dimension of R5 (film and lens then use R5's first four)
+ *                                 through the inverse CDF of a piecewise linear density: node
+ *                                 LAMBDA_MIN_NM + k LAMBDA_STEP_NM, k = 0..LAMBDA_INTERVALS (64),
+ *                                 tables LAMBDA_DENSITY[k] (per nm) and LAMBDA_CDF[k]
+ *                                 (realistic.core.spectrum.wavelengths_nm)
  *   TRACE_SURFACES(r, il2)        the surfaces, rear first, as calls to sphere()/plane()
  *                                 with literal constants; when SPECTRAL, it first computes each
  *                                 dispersive glass's index A + B il2 (il2 = 1 / lambda^2 in
@@ -33,20 +38,25 @@
 #define QUARTER_PI_F 0.785398163397448f
 
 /* ------------------------------------------------------------------ random numbers
- * Bit-identical to realistic/rng.py: lowbias32 hash, key chaining, 4-D Kronecker sequence (R4)
- * over the pixel's sample index in 32-bit fixed point, shifted by a per-pixel hashed offset
- * (Cranley-Patterson rotation). That is the stratification within a pixel. uint arithmetic wraps
- * modulo 2^32 as numpy's uint32 does.
+ * Bit-identical to realistic/core/rng.py: lowbias32 hash, key chaining, a Kronecker sequence over
+ * the pixel's sample index in 32-bit fixed point, shifted by a per-pixel hashed offset per
+ * dimension (Cranley-Patterson rotation): R4 (film x, film y, lens u, lens v), or for a SPECTRAL
+ * camera R5, whose fifth dimension is the wavelength. That is the stratification within a pixel.
+ * uint arithmetic wraps modulo 2^32 as numpy's uint32 does.
  */
 #define GOLDEN 0x9E3779B9u
-#define R4_0 0xDB4F0B91u
-#define R4_1 0xBBE05633u
-#define R4_2 0xA0F2EC76u
-#define R4_3 0x89E18285u
-#define KRONECKER_1D 0x9E3779B9u
-#define WAVELENGTH_DIM 0x7FFFFFFFu
-#define LAMBDA_MIN_NM 380.0f
-#define LAMBDA_RANGE_NM 400.0f
+#if SPECTRAL
+#define KRONECKER_0 0xE19B01ABu
+#define KRONECKER_1 0xC6D1D6C9u
+#define KRONECKER_2 0xAF36D01Fu
+#define KRONECKER_3 0x9A69443Fu
+#define KRONECKER_4 0x881403B9u
+#else
+#define KRONECKER_0 0xDB4F0B91u
+#define KRONECKER_1 0xBBE05633u
+#define KRONECKER_2 0xA0F2EC76u
+#define KRONECKER_3 0x89E18285u
+#endif
 
 inline uint hash32(uint x) {
     x ^= x >> 16;
@@ -70,23 +80,41 @@ inline void sample_address(uint first_pixel, uint first_sample, uint gid, uint *
     *sample = s - q * SPP;
 }
 
-/* The four stratified uint32 values (film x, film y, lens u, lens v) of one sample. */
-inline void stratified4(uint pixel, uint sample, uint seed, uint *b0, uint *b1, uint *b2, uint *b3) {
+/* The stratified uint32 values of one sample: film x, film y, lens u, lens v, and when SPECTRAL
+ * the wavelength's in *b4 (realistic.core.rng.stratified4 / stratified5). */
+inline void stratified(uint pixel, uint sample, uint seed, uint *b0, uint *b1, uint *b2, uint *b3, uint *b4) {
     uint h = hash32(hash32(seed + GOLDEN) ^ pixel);
     h = hash32(h ^ 0xFFFFFFFFu);  /* the per-pixel key: sample index 0xFFFFFFFF */
-    *b0 = sample * R4_0 + hash32(h ^ 0u);
-    *b1 = sample * R4_1 + hash32(h ^ 1u);
-    *b2 = sample * R4_2 + hash32(h ^ 2u);
-    *b3 = sample * R4_3 + hash32(h ^ 3u);
+    *b0 = sample * KRONECKER_0 + hash32(h ^ 0u);
+    *b1 = sample * KRONECKER_1 + hash32(h ^ 1u);
+    *b2 = sample * KRONECKER_2 + hash32(h ^ 2u);
+    *b3 = sample * KRONECKER_3 + hash32(h ^ 3u);
+#if SPECTRAL
+    *b4 = sample * KRONECKER_4 + hash32(h ^ 4u);
+#else
+    *b4 = 0u;
+#endif
 }
 
-/* The wavelength's uint32 value: golden-ratio Kronecker step plus a per-pixel hashed offset on a
- * dimension of its own (realistic.rng.wavelength_bits). */
-inline uint wavelength_bits(uint pixel, uint sample, uint seed) {
-    uint h = hash32(hash32(seed + GOLDEN) ^ pixel);
-    h = hash32(h ^ 0xFFFFFFFFu);
-    return sample * KRONECKER_1D + hash32(h ^ WAVELENGTH_DIM);
+#if SPECTRAL
+/* Wavelength (nm) from a uniform u in [0, 1): the node interval k by a 6-step binary search on the
+ * CDF (LAMBDA_INTERVALS is 64), then the root of p0 t + (p1 - p0) t^2 / (2 step) = u - CDF[k] in
+ * the form that stays stable when p1 = p0 (realistic.core.spectrum.wavelengths_nm). */
+inline float wavelength_nm(float u) {
+    int k = 0;
+    k = LAMBDA_CDF[k + 32] <= u ? k + 32 : k;
+    k = LAMBDA_CDF[k + 16] <= u ? k + 16 : k;
+    k = LAMBDA_CDF[k + 8] <= u ? k + 8 : k;
+    k = LAMBDA_CDF[k + 4] <= u ? k + 4 : k;
+    k = LAMBDA_CDF[k + 2] <= u ? k + 2 : k;
+    k = LAMBDA_CDF[k + 1] <= u ? k + 1 : k;
+    float p0 = LAMBDA_DENSITY[k];
+    float slope = (LAMBDA_DENSITY[k + 1] - p0) * (1.0f / LAMBDA_STEP_NM);
+    float v = u - LAMBDA_CDF[k];
+    float t = 2.0f * v / (p0 + __builtin_sqrtf(p0 * p0 + 2.0f * slope * v));
+    return LAMBDA_MIN_NM + (float)k * LAMBDA_STEP_NM + t;
 }
+#endif
 
 /* ------------------------------------------------------------------ tracing
  * The ray state in the frame of the surface about to be met: (ox, oy) transverse position, w the
@@ -245,8 +273,8 @@ __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __co
     uint gid = get_global_id(0);
     uint pixel, sample;
     sample_address(first_pixel, first_sample, gid, &pixel, &sample);
-    uint b0, b1, b2, b3;
-    stratified4(pixel, sample, seed, &b0, &b1, &b2, &b3);
+    uint b0, b1, b2, b3, b4;
+    stratified(pixel, sample, seed, &b0, &b1, &b2, &b3, &b4);
 
     uint py_i = pixel / WIDTH;
     uint px_i = pixel - py_i * WIDTH;
@@ -270,7 +298,7 @@ __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __co
     r.dz = PLANE_Z_MM * inv_len;
     r.alive = 1;
 #if SPECTRAL
-    float lambda_nm = LAMBDA_MIN_NM + LAMBDA_RANGE_NM * to_unit(wavelength_bits(pixel, sample, seed));
+    float lambda_nm = wavelength_nm(to_unit(b4));
     float il2 = 1.0e6f / (lambda_nm * lambda_nm);
 #else
     float il2 = 0.0f;  /* unused: the indices are literals */
@@ -298,19 +326,19 @@ __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __co
     pixel_out[gid] = (int)pixel;
 }
 
-/* Debug: the four stratified uint32 values of each sample, 4 rows of `stride` (and the wavelength
- * bits as a fifth when SPECTRAL), so the tests can check them against realistic.core.rng bit for bit. */
+/* Debug: the stratified uint32 values of each sample, 4 rows of `stride` (and the wavelength's
+ * as a fifth when SPECTRAL), so the tests can check them against realistic.core.rng bit for bit. */
 __kernel void sample_bits(uint first_pixel, uint first_sample, uint seed, uint stride, __global uint *out) {
     uint gid = get_global_id(0);
     uint pixel, sample;
     sample_address(first_pixel, first_sample, gid, &pixel, &sample);
-    uint b0, b1, b2, b3;
-    stratified4(pixel, sample, seed, &b0, &b1, &b2, &b3);
+    uint b0, b1, b2, b3, b4;
+    stratified(pixel, sample, seed, &b0, &b1, &b2, &b3, &b4);
     out[gid] = b0;
     out[stride + gid] = b1;
     out[2 * stride + gid] = b2;
     out[3 * stride + gid] = b3;
 #if SPECTRAL
-    out[4 * stride + gid] = wavelength_bits(pixel, sample, seed);
+    out[4 * stride + gid] = b4;
 #endif
 }

@@ -54,9 +54,9 @@ def edge_rays(camera: LensCamera, count: int, seed: int) -> np.ndarray:
     interval edge (float32 and float64 may pick neighbouring exit-pupil boxes there)."""
     ids = np.arange(count)
     pixel, sample = ids // camera.spp, ids % camera.spp
-    u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
-    wavelength = (wavelengths_nm(rng.to_unit_float(rng.wavelength_bits(pixel, sample, seed))).astype(np.float64)
-                  if camera.spectral else D_LINE_NM)
+    u = rng.stratified5(pixel, sample, seed) if camera.spectral else rng.stratified4(pixel, sample, seed)
+    u_x, u_y, u_lens, v_lens = u[:4]
+    wavelength = wavelengths_nm(u[4]).astype(np.float64) if camera.spectral else D_LINE_NM
     film_xy = camera.film_points(pixel, u_x, u_y)
     film = np.column_stack([film_xy, np.zeros(count)])
     near_interval_edge = np.zeros(count, dtype=bool)

@@ -18,10 +18,13 @@ from realistic.core import rng
 from realistic.core.spectrum import (
     LAMBDA_MAX_NM,
     LAMBDA_MIN_NM,
+    cie_rgb,
     cie_xyz,
     cie_xyz_integral,
+    estimator_variance,
     rgb_basis,
     rgb_response,
+    wavelength_pdf,
     wavelengths_nm,
 )
 from realistic.core.transforms import rotate, scale, translate
@@ -78,29 +81,82 @@ def test_per_ray_wavelengths_trace_as_each_wavelength_alone():
 
 # ------------------------------------------------------------------ wavelength sampling
 
-def test_wavelengths_are_stratified_within_each_pixel():
-    spp = 64
-    pixel = np.repeat(np.arange(500), spp)
-    sample = np.tile(np.arange(spp), 500)
-    lam = wavelengths_nm(rng.to_unit_float(rng.wavelength_bits(pixel, sample, seed=3))).reshape(500, spp)
+def _numeric_cdf(density, lo_nm=LAMBDA_MIN_NM, hi_nm=LAMBDA_MAX_NM, points=2_000_001):
+    """(grid, CDF) of ``density`` by the trapezoidal rule on a fine grid, normalised to end at 1."""
+    lam = np.linspace(lo_nm, hi_nm, points)
+    p = density(lam)
+    cdf = np.concatenate([[0.0], np.cumsum((p[1:] + p[:-1]) / 2 * np.diff(lam))])
+    return lam, cdf / cdf[-1], cdf[-1]
+
+
+def test_wavelength_density_integrates_to_one_and_inverse_cdf_hits_its_quantiles():
+    lam, cdf, total = _numeric_cdf(wavelength_pdf)
+    assert total == pytest.approx(1.0, abs=1e-5)
+    u = (np.arange(10_000) + 0.5) / 10_000  # stratified
+    sampled = wavelengths_nm(u).astype(np.float64)
+    assert np.all(np.diff(sampled) > 0) and sampled.min() > LAMBDA_MIN_NM and sampled.max() < LAMBDA_MAX_NM
+    np.testing.assert_allclose(np.interp(sampled, lam, cdf), u, atol=2e-6)
+    # the density is continuous (piecewise linear), so response / pdf has no jumps to spoil stratification
+    lam = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, 100_001)
+    assert np.abs(np.diff(wavelength_pdf(lam))).max() < 1e-3 * wavelength_pdf(lam).max()
+
+
+def test_importance_density_beats_uniform_and_pbrt_v4_visible_density():
+    lam = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, 400_001)
+    ours = estimator_variance(wavelength_pdf(lam), lam)
+    uniform = estimator_variance(np.ones_like(lam), lam)
+    sech2 = estimator_variance(1 / np.cosh(0.0072 * (lam - 538.0)) ** 2, lam)  # pbrt-v4 SampleVisibleWavelengths
+    assert ours.sum() < 0.75 * sech2.sum() < 0.75 * uniform.sum()
+    assert np.all(ours < uniform)
+
+
+def test_expected_film_colour_of_a_spectrum_is_its_cie_integral():
+    lam = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, 400_001)
+    u = (np.arange(1_000_000) + 0.5) / 1_000_000  # the estimator's expectation by stratified u
+    sampled = wavelengths_nm(u).astype(np.float64)
+    for spectrum in (lambda x: np.ones_like(x), lambda x: np.exp(-0.5 * ((x - 610.0) / 25.0) ** 2),
+                     lambda x: 0.2 + 0.7 * (x < 500)):
+        expected = np.trapezoid(cie_rgb(lam) * spectrum(lam)[:, None], lam, axis=0)
+        estimate = np.mean(rgb_response(sampled).astype(np.float64) * spectrum(sampled)[:, None], axis=0)
+        np.testing.assert_allclose(estimate, expected, atol=2e-3 * np.abs(expected).max())
+    white = np.mean(rgb_response(sampled).astype(np.float64), axis=0)
+    np.testing.assert_allclose(white, 1.0, atol=1e-4)  # the constant spectrum 1 is (1, 1, 1)
+
+
+@pytest.mark.parametrize("spp", [1, 2, 3, 5, 8, 16, 33, 64, 100, 256, 1024])
+def test_a_pixels_wavelengths_are_stratified_in_probability(spp):
+    pixels = 200
+    pixel = np.repeat(np.arange(pixels), spp)
+    sample = np.tile(np.arange(spp), pixels)
+    u = rng.stratified5(pixel, sample, seed=3)
+    lam = wavelengths_nm(u[4]).astype(np.float64)
     assert lam.min() >= LAMBDA_MIN_NM and lam.max() < LAMBDA_MAX_NM
-    # the golden-ratio sequence leaves no cyclic gap wider than 2.62 / N of the range (three-gap theorem)
-    ordered = np.sort(lam, axis=1)
-    gaps = np.diff(np.concatenate([ordered, ordered[:, :1] + 400.0], axis=1), axis=1)
-    assert gaps.max() < 2.62 * 400.0 / spp
-    # and pixels are shifted independently: the first samples cover the range uniformly
-    hist = np.histogram(lam[:, 0], bins=10, range=(380, 780))[0]
-    assert hist.min() > 25
+    # in probability (the numeric CDF of the density), a pixel's N wavelengths leave no cyclic gap
+    # wider than 2.8 / N: the fifth R5 step's three-gap bound for every N up to 1024
+    grid, cdf, _ = _numeric_cdf(wavelength_pdf)
+    q = np.interp(lam, grid, cdf).reshape(pixels, spp)
+    ordered = np.sort(q, axis=1)
+    gaps = np.diff(np.concatenate([ordered, ordered[:, :1] + 1.0], axis=1), axis=1)
+    assert gaps.max() < 2.8 / spp + 1e-5
+    # jointly with the film position: once N >= 64, the (film x, wavelength) pairs of a pixel fill a
+    # 4 x 4 grid of equal-probability cells evenly (no cell holds under half its share)
+    if spp >= 64:
+        cell = np.minimum(u[0].reshape(pixels, spp) * 4, 3).astype(int) * 4 + np.minimum(q * 4, 3).astype(int)
+        counts = np.stack([(cell == c).sum(axis=1) for c in range(16)], axis=1)
+        assert counts.min() >= spp / 16 / 2
+    # and pixels are rotated independently: their first samples cover the range as the density says
+    assert np.histogram(q[:, 0], bins=5, range=(0, 1))[0].min() > 20
 
 
-def test_kernel_wavelength_bits_equal_numpy_bit_for_bit():
+def test_kernel_stratified_bits_equal_numpy_bit_for_bit_for_spectral_cameras():
     host = _opencl()
     camera = reference_camera("dgauss100", "pupil", spectral=True)
     first, count, seed = 5_001, 20_000, 0xFFFFFFFF
     bits = host.LensKernel(camera).sample_bits(first, count, seed)
     ids = np.arange(first, first + count)
-    expected = rng.wavelength_bits(ids // camera.spp, ids % camera.spp, seed)
-    np.testing.assert_array_equal(bits[4], expected)
+    pixel, sample = ids // camera.spp, ids % camera.spp
+    np.testing.assert_array_equal(bits, np.stack(rng.kronecker_bits(pixel, sample, seed, rng.KRONECKER_R5)))
+    np.testing.assert_array_equal(rng.to_unit_float(bits), np.stack(rng.stratified5(pixel, sample, seed)))
 
 
 # ------------------------------------------------------------------ kernel against reference
@@ -112,7 +168,9 @@ def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, samplin
     count, seed = camera.sample_count, 11
     kernel = host.LensKernel(camera).generate(0, count, seed)
     ref = camera.generate_rays(0, count, seed)
-    np.testing.assert_allclose(kernel.wavelength_nm, ref.wavelength_nm, rtol=0, atol=1e-4)
+    # float32 u - CDF loses ~1e-7 of probability: the wavelength moves by that over the density
+    allowed = 1e-4 + 3e-7 / wavelength_pdf(ref.wavelength_nm)
+    assert np.all(np.abs(kernel.wavelength_nm - ref.wavelength_nm) <= allowed)
     both = assert_kernel_matches(kernel, ref, camera, seed)
     assert both.mean() > 0.3
 
@@ -165,18 +223,18 @@ def test_colour_matching_fit_has_the_cie_areas_and_exact_integrals():
 
 def test_constant_spectrum_is_white_and_grey_rgb_stays_grey():
     lam = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, 400_001)
-    response = rgb_response(lam).astype(np.float64)
+    response = cie_rgb(lam)
     basis = rgb_basis(lam).astype(np.float64)
-    # the expected film value of a constant spectrum 1 under uniform wavelengths is (1, 1, 1)
-    np.testing.assert_allclose(np.trapezoid(response, lam, axis=0) / 400.0, 1.0, atol=2e-6)
+    # the CIE integral of a constant spectrum 1 is (1, 1, 1)
+    np.testing.assert_allclose(np.trapezoid(response, lam, axis=0), 1.0, atol=2e-6)
     np.testing.assert_allclose(basis.sum(axis=1), 1.0, atol=1e-6)  # (1,1,1) -> constant 1, grey c -> constant c
     assert basis.min() >= 0
     for grey in (0.18, 0.5, 1.0):
         spectrum = basis @ np.array([grey, grey, grey])
-        rgb = np.trapezoid(response * spectrum[:, None], lam, axis=0) / 400.0
+        rgb = np.trapezoid(response * spectrum[:, None], lam, axis=0)
         np.testing.assert_allclose(rgb, grey, rtol=1e-5)
     # a saturated colour comes back close to itself: the round trip of the basis is near the identity
-    round_trip = np.trapezoid(response[:, :, None] * basis[:, None, :], lam, axis=0) / 400.0
+    round_trip = np.trapezoid(response[:, :, None] * basis[:, None, :], lam, axis=0)
     np.testing.assert_allclose(round_trip, np.eye(3), atol=0.06)
 
 
@@ -213,6 +271,23 @@ def test_spectral_path_without_dispersion_matches_rgb_path_within_noise():
     assert np.abs(difference).max() < 4 * sigma
     whole_sigma = sigma / 4  # 16 regions
     np.testing.assert_allclose(spec.mean(axis=(0, 1, 2)), rgb.mean(axis=(0, 1, 2)), rtol=0, atol=4 * whole_sigma)
+
+
+def test_white_scene_keeps_its_mean_colour_with_dispersion_on():
+    """Energy: a spectrally flat white scene (grey floor, white light) has the same mean colour through
+    the spectral estimator with the glasses' dispersion as through the RGB path, within noise."""
+    _opencl()
+    scene = Scene()
+    scene.add(quad(4.0, 4.0), material=Material((0.5, 0.5, 0.5)))
+    scene.lights.append(AreaLight("disk", (0.5, 0.5), (6.0, 6.0, 6.0), translate(0, 0, 1.5) @ rotate(180, (1, 0, 0))))
+    means = {}
+    for spectral in (False, True):
+        camera = _looking_down("dgauss", spectral, 24, 24, 16)
+        means[spectral] = np.stack([render(scene, camera, "opencl", seed=seed).mean(axis=(0, 1))
+                                    for seed in (1, 2, 3)]).astype(np.float64)
+    sigma = np.sqrt(means[True].var(axis=0, ddof=1) / 3 + means[False].var(axis=0, ddof=1) / 3)
+    difference = means[True].mean(axis=0) - means[False].mean(axis=0)
+    assert np.all(np.abs(difference) < 4 * sigma + 2e-3 * means[False].mean()), (difference, sigma)
 
 
 # ------------------------------------------------------------------ lateral colour

@@ -13,8 +13,9 @@ format puts it (``origin``): the film centre (pbrt-v3, meshes) or the front lens
 classic homework). ``world_from_camera`` carries the scene's unit; refocusing moves the film and,
 with the front-vertex convention, the whole camera frame with it.
 
-A *spectral* camera gives each sample a wavelength (``realistic.core.spectrum``: uniform over
-380-780 nm, stratified within the pixel) and traces it with the glasses' indices at that
+A *spectral* camera gives each sample a wavelength (``realistic.core.spectrum``: importance
+sampled over 380-780 nm, stratified within the pixel jointly with the film and lens positions by
+the R5 sequence of ``realistic.core.rng.stratified5``) and traces it with the glasses' indices at that
 wavelength, so the lens's chromatic aberration reaches the image. A non-spectral camera traces at
 the d line.
 """
@@ -139,15 +140,14 @@ class LensCamera:
     def generate_rays(self, first_sample: int, count: int, seed: int = 0) -> RayBatch:
         """Camera rays for sample ids first_sample .. first_sample + count - 1 (reference implementation)."""
         pixel, sample = split_sample_ids(first_sample, count, self.spp)
-        u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
+        u = rng.stratified5(pixel, sample, seed) if self.spectral else rng.stratified4(pixel, sample, seed)
+        u_x, u_y, u_lens, v_lens = u[:4]
         film_xy = self.film_points(pixel, u_x, u_y)
         sampler = self.pupil if self.lens_sampling == "pupil" else rear_element_sampler(self.lens,
                                                                                          self.film_distance_mm)
         targets, area = sampler.sample(film_xy, u_lens.astype(np.float64), v_lens.astype(np.float64))
         film = np.column_stack([film_xy, np.zeros(count)])
-        wavelength = None
-        if self.spectral:
-            wavelength = wavelengths_nm(rng.to_unit_float(rng.wavelength_bits(pixel, sample, seed)))
+        wavelength = wavelengths_nm(u[4]) if self.spectral else None
         traced = trace_from_film(self.lens, self.film_distance_mm, film, targets - film,
                                  D_LINE_NM if wavelength is None else wavelength.astype(np.float64))
         weight = np.where(traced.passed, camera_weight(film, targets, area, sampler.plane_z_mm), 0.0)

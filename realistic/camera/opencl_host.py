@@ -24,6 +24,7 @@ import numpy as np
 from realistic.camera.base import RayBatch
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.data_files import data_file
+from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
 from realistic.optics.sampling import rear_element_sampler
@@ -155,6 +156,18 @@ def _stop_lines(lens) -> list[str]:
     return ["#define STOP_MASKED 0", "#define STOP_INSIDE(x, y) (" + " & ".join(terms) + ")"]
 
 
+def _wavelength_lines(camera: LensCamera) -> list[str]:
+    """A spectral camera's wavelength density table (``realistic.core.spectrum.wavelengths_nm``)."""
+    if not camera.spectral:
+        return []
+    def table(name: str, values: np.ndarray) -> str:
+        return f"__constant float {name}[{len(values)}] = {{{', '.join(_c_float(v) for v in values)}}};"
+    return [f"#define LAMBDA_INTERVALS {WAVELENGTH_INTERVALS}",
+            f"#define LAMBDA_MIN_NM {_c_float(WAVELENGTH_NODES_NM[0])}",
+            f"#define LAMBDA_STEP_NM {_c_float(WAVELENGTH_NODES_NM[1] - WAVELENGTH_NODES_NM[0])}",
+            table("LAMBDA_DENSITY", WAVELENGTH_DENSITY), table("LAMBDA_CDF", WAVELENGTH_CDF)]
+
+
 def camera_header(camera: LensCamera) -> str:
     """The generated ``#define`` block that specialises ``lens.cl`` to one camera (see its header)."""
     lens = camera.lens
@@ -183,6 +196,7 @@ def camera_header(camera: LensCamera) -> str:
         f"#define REAR_W_MM {_c_float(-camera.film_distance_mm)}",
         "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
         *_stop_lines(lens),
+        *_wavelength_lines(camera),
     ]
     if camera.lens_sampling == "pupil":
         table = camera.pupil
@@ -281,8 +295,8 @@ class LensKernel:
                         pixel=pixels[:count], wavelength_nm=out[7, :count] if self.camera.spectral else None)
 
     def sample_bits(self, first: int, count: int, seed: int = 0) -> np.ndarray:
-        """The kernel's four stratified uint32 values per sample, and the wavelength's as a fifth
-        row for a spectral camera: shape (4 or 5, count) (for tests)."""
+        """The kernel's stratified uint32 values per sample: R4's four, or for a spectral camera R5's
+        five (the wavelength's last): shape (4 or 5, count) (for tests)."""
         first_pixel, first_sample, padded = self._launch_layout(first, count)
         rows = 4 + int(self.camera.spectral)
         bits = cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, rows * padded * 4)

@@ -7,10 +7,11 @@ kernel's samples exactly. All arithmetic is on uint32 and wraps modulo 2^32 in b
 Stratification within a pixel: the first four dimensions (film x, film y, lens u, lens v) are the
 4-D Kronecker sequence R4 (generalised golden ratio; Roberts 2018) over the pixel's sample index,
 computed in 32-bit fixed point and shifted by a per-pixel random toroidal offset (Cranley-Patterson
-rotation). Any sample count is well stratified, jointly in the four dimensions. The wavelength of
-a spectral sample is stratified the same way in one dimension: the golden-ratio Kronecker
-sequence over the sample index plus a per-pixel hashed offset, on dimension ``WAVELENGTH_DIM``,
-which no other sampler uses. Further dimensions (light samples) are plain hashes.
+rotation). Any sample count is well stratified, jointly in the four dimensions. A spectral sample
+draws its wavelength as a fifth dimension of the same kind of sequence: its five numbers are the 5-D
+Kronecker sequence R5 (the real root of x^6 = x + 1) with the rotation extended by a fifth per-pixel
+offset, so a pixel's film points, lens points and wavelengths are stratified together
+(``stratified5``). Non-spectral samples keep R4. Further dimensions (light samples) are plain hashes.
 """
 
 from __future__ import annotations
@@ -19,11 +20,9 @@ import numpy as np
 
 #: frac(phi_4^-k) * 2^32, k = 1..4, phi_4 the real root of x^5 = x + 1.
 KRONECKER_R4 = (0xDB4F0B91, 0xBBE05633, 0xA0F2EC76, 0x89E18285)
+#: frac(phi_5^-k) * 2^32 rounded, k = 1..5, phi_5 the real root of x^6 = x + 1 (spectral samples).
+KRONECKER_R5 = (0xE19B01AB, 0xC6D1D6C9, 0xAF36D01F, 0x9A69443F, 0x881403B9)
 _GOLDEN = 0x9E3779B9
-#: frac(golden ratio) * 2^32: the 1-D Kronecker step of the wavelength dimension.
-KRONECKER_1D = 0x9E3779B9
-#: Dimension of the per-pixel wavelength offset (far above the light sampler's 4 + 3k .. 6 + 3k).
-WAVELENGTH_DIM = 0x7FFFFFFF
 _TO_UNIT = np.float32(1.0 / (1 << 24))
 
 
@@ -57,19 +56,21 @@ def uniform(pixel: np.ndarray, sample: np.ndarray, dim: int, seed: int) -> np.nd
     return to_unit_float(hash_key(pixel, sample, dim, seed))
 
 
+def kronecker_bits(pixel: np.ndarray, sample: np.ndarray, seed: int, steps: tuple[int, ...]) -> list[np.ndarray]:
+    """uint32 values of the Kronecker sequence with ``steps`` over the sample index, dimension d
+    shifted by the per-pixel offset hash_key(pixel, 0xFFFFFFFF, d, seed)."""
+    sample = np.asarray(sample, dtype=np.uint32)
+    with np.errstate(over="ignore"):
+        return [sample * np.uint32(step) + hash_key(pixel, np.uint32(0xFFFFFFFF), dim, seed)
+                for dim, step in enumerate(steps)]
+
+
 def stratified4(pixel: np.ndarray, sample: np.ndarray, seed: int) -> list[np.ndarray]:
     """Film x, film y, lens u, lens v in [0, 1) (float32): R4 rotated by a per-pixel offset."""
-    sample = np.asarray(sample, dtype=np.uint32)
-    out = []
-    with np.errstate(over="ignore"):
-        for dim, step in enumerate(KRONECKER_R4):
-            offset = hash_key(pixel, np.uint32(0xFFFFFFFF), dim, seed)
-            out.append(to_unit_float(sample * np.uint32(step) + offset))
-    return out
+    return [to_unit_float(bits) for bits in kronecker_bits(pixel, sample, seed, KRONECKER_R4)]
 
 
-def wavelength_bits(pixel: np.ndarray, sample: np.ndarray, seed: int) -> np.ndarray:
-    """The uint32 wavelength value of each sample: 1-D Kronecker step plus a per-pixel offset."""
-    with np.errstate(over="ignore"):
-        offset = hash_key(pixel, np.uint32(0xFFFFFFFF), WAVELENGTH_DIM, seed)
-        return np.asarray(sample, dtype=np.uint32) * np.uint32(KRONECKER_1D) + offset
+def stratified5(pixel: np.ndarray, sample: np.ndarray, seed: int) -> list[np.ndarray]:
+    """Film x, film y, lens u, lens v, wavelength in [0, 1) (float32) of a spectral sample: R5
+    rotated by a per-pixel offset (the first four offsets are those of ``stratified4``)."""
+    return [to_unit_float(bits) for bits in kronecker_bits(pixel, sample, seed, KRONECKER_R5)]

@@ -1,8 +1,21 @@
 """Spectral colour: wavelengths per camera sample, RGB to spectrum, spectrum to linear sRGB.
 
-Wavelength sampling: uniform over [380, 780] nm (pdf 1/400 per nm), stratified within a pixel by
-``realistic.core.rng.wavelength_bits`` (a 1-D Kronecker sequence over the sample index). Uniform keeps
-the kernel free of table lookups; the colour noise it costs is small next to the lens's own.
+Wavelength sampling: importance sampled over [380, 780] nm with a density matched to what reaches
+the film: p proportional to |rgb(lambda)| + a floor of 0.1 % of its peak, |rgb| the Euclidean norm
+of the linear sRGB response of a unit spectral sample (colour matching functions through
+``RGB_FROM_XYZ``, negative lobes included). Among fixed densities, |rgb| minimises the summed
+per-sample variance of the three channels' estimators r_c L / p for a flat spectrum (Lagrange: p
+proportional to sqrt(sum_c r_c^2)), and that variance multiplies all other noise of a spectral
+sample: per-sample variances (R, G, B) of about (4.9, 2.2, 2.8) against (9.6, 4.1, 5.6) for uniform
+wavelengths and (7.2, 2.2, 4.9) for pbrt-v4's ``SampleVisibleWavelengths`` (sech^2; pbrt-v4
+src/pbrt/util/sampling.h) restricted to 380-780 nm (``estimator_variance``; the floor keeps 1 / p
+bounded in the far red). The density is piecewise linear between ``WAVELENGTH_INTERVALS`` + 1 equally
+spaced nodes (continuous, so response / pdf stays smooth and stratification keeps paying off), its
+CDF piecewise quadratic: the inverse finds the node interval (a fixed 6-step binary search in the
+kernel) and solves the quadratic in the form 2v / (p0 + sqrt(p0^2 + 2 s v)), stable when the slope s
+is 0. The uniform number comes from the fifth dimension of the pixel's R5 sequence
+(``realistic.core.rng``), so a pixel's wavelengths are stratified jointly with its film and lens
+positions.
 
 RGB to spectrum: s(lambda) = r b_R(lambda) + g b_G(lambda) + b b_B(lambda) with three smooth,
 non-negative basis functions that sum to 1 at every wavelength (a partition of unity made of two
@@ -16,8 +29,8 @@ Spectrum to RGB: the CIE 1931 2-degree colour matching functions in the multi-lo
 of Wyman, Sloan and Shirley (JCGT 2013), integrated over [380, 780] nm to XYZ, adapted from the
 equal-energy white E to D65 with the Bradford transform, converted to linear sRGB, and scaled per
 channel so that the constant spectrum 1 gives exactly (1, 1, 1): a white object stays white.
-``rgb_response(lambda)`` folds all of that and the 1/pdf of uniform sampling into one (N, 3)
-weight, so a film sample adds weight x L(lambda) x rgb_response(lambda).
+``rgb_response(lambda)`` folds all of that and the sampling's 1/pdf into one (N, 3) weight, so a
+film sample adds weight x L(lambda) x rgb_response(lambda), whose expectation is the CIE integral.
 """
 
 from __future__ import annotations
@@ -28,7 +41,11 @@ import numpy as np
 
 LAMBDA_MIN_NM = 380.0
 LAMBDA_MAX_NM = 780.0
-LAMBDA_RANGE_NM = LAMBDA_MAX_NM - LAMBDA_MIN_NM
+#: Intervals of the piecewise linear wavelength density (nodes every 6.25 nm; a power of two for the
+#: kernel's binary search).
+WAVELENGTH_INTERVALS = 64
+#: The density's floor, as a fraction of the peak of |rgb|.
+DENSITY_FLOOR = 1e-3
 
 #: (weight, mean nm, sigma below the mean, sigma above) per lobe; Wyman, Sloan, Shirley 2013, eq. 2.
 CMF_LOBES = (
@@ -46,11 +63,6 @@ D65_XYZ = np.array([0.95047, 1.0, 1.08883])
 #: Logistic steps of the RGB basis: blue/green and green/red boundaries and width (nm).
 BASIS_STEPS_NM = (490.0, 590.0)
 BASIS_WIDTH_NM = 12.0
-
-
-def wavelengths_nm(u: np.ndarray) -> np.ndarray:
-    """Wavelengths (float32 nm) from uniform numbers in [0, 1), as the kernel computes them."""
-    return np.float32(LAMBDA_MIN_NM) + np.float32(LAMBDA_RANGE_NM) * np.asarray(u, dtype=np.float32)
 
 
 def cie_xyz(wavelength_nm: np.ndarray) -> np.ndarray:
@@ -91,10 +103,53 @@ def _rgb_from_xyz() -> np.ndarray:
 RGB_FROM_XYZ = _rgb_from_xyz()
 
 
+def cie_rgb(wavelength_nm: np.ndarray) -> np.ndarray:
+    """Linear sRGB (N, 3) of a unit spectral sample at ``wavelength_nm``; integrates to (1, 1, 1)."""
+    return cie_xyz(wavelength_nm) @ RGB_FROM_XYZ.T
+
+
+def _wavelength_table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(nodes nm, density per nm at the nodes, CDF at the nodes) of the piecewise linear density."""
+    nodes = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, WAVELENGTH_INTERVALS + 1)
+    target = np.linalg.norm(cie_rgb(nodes), axis=-1)
+    density = target + DENSITY_FLOOR * target.max()
+    steps = (density[1:] + density[:-1]) / 2 * np.diff(nodes)
+    density /= steps.sum()
+    return nodes, density, np.concatenate([[0.0], np.cumsum(steps / steps.sum())])
+
+
+WAVELENGTH_NODES_NM, WAVELENGTH_DENSITY, WAVELENGTH_CDF = _wavelength_table()
+
+
+def wavelengths_nm(u: np.ndarray) -> np.ndarray:
+    """Wavelengths (float32 nm) from uniform numbers in [0, 1): the density's inverse CDF (float64,
+    then rounded; the kernel's float32 version agrees within about 1e-3 nm)."""
+    u = np.asarray(u, dtype=np.float64)
+    k = np.clip(np.searchsorted(WAVELENGTH_CDF, u, side="right") - 1, 0, WAVELENGTH_INTERVALS - 1)
+    p0, p1 = WAVELENGTH_DENSITY[k], WAVELENGTH_DENSITY[k + 1]
+    width = WAVELENGTH_NODES_NM[1] - WAVELENGTH_NODES_NM[0]
+    v = u - WAVELENGTH_CDF[k]
+    t = 2 * v / (p0 + np.sqrt(p0 * p0 + 2 * (p1 - p0) / width * v))
+    return (WAVELENGTH_NODES_NM[k] + t).astype(np.float32)
+
+
+def wavelength_pdf(wavelength_nm: np.ndarray) -> np.ndarray:
+    """Density (per nm, float64) of ``wavelengths_nm`` at each wavelength in [380, 780] nm."""
+    return np.interp(np.asarray(wavelength_nm, dtype=np.float64), WAVELENGTH_NODES_NM, WAVELENGTH_DENSITY)
+
+
 def rgb_response(wavelength_nm: np.ndarray) -> np.ndarray:
-    """Per-sample film weight (N, 3): linear sRGB of a unit spectral sample at ``wavelength_nm``
-    divided by the uniform pdf, so its mean over uniform wavelengths of a constant 1 is (1, 1, 1)."""
-    return (cie_xyz(wavelength_nm) @ RGB_FROM_XYZ.T * LAMBDA_RANGE_NM).astype(np.float32)
+    """Per-sample film weight (N, 3): ``cie_rgb`` over ``wavelength_pdf``, so its expectation over the
+    sampled wavelengths of a spectrum s is the CIE integral of s (a constant 1 gives (1, 1, 1))."""
+    return (cie_rgb(wavelength_nm) / wavelength_pdf(wavelength_nm)[..., None]).astype(np.float32)
+
+
+def estimator_variance(density: np.ndarray, wavelength_nm: np.ndarray) -> np.ndarray:
+    """Per-channel variance of one sample's ``cie_rgb / p`` for a flat spectrum 1, with p the
+    ``density`` tabulated on the fine grid ``wavelength_nm`` (normalised here; trapezoidal rule)."""
+    p = density / np.trapezoid(density, wavelength_nm)
+    r = cie_rgb(wavelength_nm)
+    return np.trapezoid(r * r / p[:, None], wavelength_nm, axis=0) - np.trapezoid(r, wavelength_nm, axis=0) ** 2
 
 
 def rgb_basis(wavelength_nm: np.ndarray) -> np.ndarray:
