@@ -39,6 +39,15 @@ def test_render_uses_the_scene_camera_unless_given_one():
         rl.render(rl.Scene(), backend="numpy")
 
 
+def test_the_default_scene_renders_as_its_pbrt_file_does_without_dispersion_unless_asked():
+    from pathlib import Path
+
+    default_file = Path(__file__).resolve().parents[1] / "scenes" / "default.pbrt"
+    assert not rl.load_scene(resolution=(8, 6), spp=1).camera.spectral
+    assert not rl.load_scene(str(default_file), resolution=(8, 6), spp=1).camera.spectral
+    assert rl.load_scene(resolution=(8, 6), spp=1, dispersion=True).camera.spectral
+
+
 def test_public_names_resolve_and_unknown_ones_fail():
     for name in rl.__all__:
         assert getattr(rl, name) is not None

@@ -77,7 +77,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default: the memory the system has available)")
     parser.add_argument("--dispersion", choices=("on", "off"),
                         help="spectral rendering with the glasses' dispersion (default: off for pbrt scenes, as "
-                             "pbrt renders them; otherwise on when the lens has Abbe numbers)")
+                             "pbrt renders them, and the default scene; for meshes on when the lens has Abbe numbers)")
 
 
 def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOptions:

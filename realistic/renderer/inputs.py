@@ -64,7 +64,7 @@ class RenderOptions:
     spp: int | None = None
     light_samples: int | None = None
     lens_sampling: str = "pupil"
-    dispersion: bool | None = None  # None: off for pbrt scenes, else on when the lens has Abbe numbers
+    dispersion: bool | None = None  # None: off for pbrt and the default scene, else on when the lens has Abbe numbers
     pbrt_dialect: str = "auto"  # pbrt scenes: which pbrt's conventions (realistic.scene.pbrt.dialect)
     search_paths: list[Path] = field(default_factory=list)
 
@@ -151,8 +151,10 @@ def build_render_inputs(options: RenderOptions) -> RenderInputs:
         scene.camera = scene.camera.autofocused(x, y, Intersector(scene).hit_distance)
         inputs.metadata["focusOn"] = f"{x:g},{y:g}"
     # a pbrt scene renders as pbrt would: dispersion only when asked for, even where a bundled lens
-    # with Abbe numbers stands in for the scene's lens file
-    dispersion = False if options.dispersion is None and options.is_pbrt else options.dispersion
+    # with Abbe numbers stands in for the scene's lens file; so does the default scene, which is
+    # scenes/default.pbrt and renders as that file does
+    pbrt_like = options.is_pbrt or not options.scene
+    dispersion = False if options.dispersion is None and pbrt_like else options.dispersion
     scene.camera = scene.camera.with_dispersion(dispersion)
     return inputs
 
