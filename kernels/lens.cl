@@ -22,6 +22,11 @@
  *   PUPIL_INTERVALS, FILM_RADIUS_MM and program-scope tables PUPIL[4k..4k+3] = (x0, x1, y0, y1),
  *                                 PUPIL_AREA[k] (mm^2), when LENS_SAMPLING_PUPIL is 1
  *   SPECTRAL                      1: each sample carries a wavelength (output row 7)
+ *   FILTER_KIND                   pixel filter sampling (realistic.core.pixel_filter): 0 box,
+ *                                 1 triangle, 2 tabulated; FILTER_RX, FILTER_RY its radii (pixels);
+ *                                 when 2, FILTER_BINS and tables FILTER_CDF_X/Y[FILTER_BINS + 1]
+ *                                 (CDF of |f| per axis) and FILTER_WEIGHT_X/Y[FILTER_BINS]
+ *                                 (sign(f) * integral|f| / integral f of each bin)
  *   TRACE_SURFACES(r, il2)        the surfaces, rear first, as calls to sphere()/plane()
  *                                 with literal constants; when SPECTRAL, it first computes each
  *                                 dispersive glass's index A + B il2 (il2 = 1 / lambda^2 in
@@ -234,6 +239,38 @@ inline void sample_plane(float fx, float fy, float u, float v, float *px, float 
 }
 #endif
 
+/* ------------------------------------------------------------------ pixel filter
+ * The film offset (pixels, from the pixel centre) drawn from |f| along one axis, and the sample's
+ * factor along it, as realistic.core.pixel_filter.PixelFilter.offsets. The box offset
+ * (u - 1/2) 2r is exact, so the 0.5-radius box gives the plain in-pixel jitter bit for bit. */
+#if FILTER_KIND == 0
+inline float filter_offset_x(float u, float *w) { *w = 1.0f; return (u - 0.5f) * (2.0f * FILTER_RX); }
+inline float filter_offset_y(float u, float *w) { *w = 1.0f; return (u - 0.5f) * (2.0f * FILTER_RY); }
+#elif FILTER_KIND == 1
+/* Inverse CDF of the tent max(0, r - |x|). */
+inline float tent(float u, const float r) {
+    int left = u < 0.5f;
+    float root = __builtin_sqrtf(left ? 2.0f * u : 2.0f - 2.0f * u);
+    return r * (left ? root - 1.0f : 1.0f - root);
+}
+inline float filter_offset_x(float u, float *w) { *w = 1.0f; return tent(u, FILTER_RX); }
+inline float filter_offset_y(float u, float *w) { *w = 1.0f; return tent(u, FILTER_RY); }
+#else
+/* The bin k with CDF[k] <= u < CDF[k + 1] by a branch-free binary search (FILTER_BINS a power of
+ * two), then u's place inside the bin. */
+inline float table_offset(float u, __constant float *cdf, __constant float *weight, const float r, float *w) {
+    int k = 0;
+    for (int step = FILTER_BINS / 2; step > 0; step >>= 1)
+        k = cdf[k + step] <= u ? k + step : k;
+    float lo = cdf[k], hi = cdf[k + 1];
+    float t = (u - lo) / (hi - lo);
+    *w = weight[k];
+    return -r + ((float)k + t) * (2.0f * r / FILTER_BINS);
+}
+inline float filter_offset_x(float u, float *w) { return table_offset(u, FILTER_CDF_X, FILTER_WEIGHT_X, FILTER_RX, w); }
+inline float filter_offset_y(float u, float *w) { return table_offset(u, FILTER_CDF_Y, FILTER_WEIGHT_Y, FILTER_RY, w); }
+#endif
+
 /* ------------------------------------------------------------------ kernels */
 
 /* Rays for sample ids first .. first + global size - 1, where first = first_pixel * SPP +
@@ -250,8 +287,11 @@ __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __co
 
     uint py_i = pixel / WIDTH;
     uint px_i = pixel - py_i * WIDTH;
-    float fx = -(((float)px_i + to_unit(b0)) * (1.0f / WIDTH) - 0.5f) * FILM_W_MM;
-    float fy = (((float)py_i + to_unit(b1)) * (1.0f / HEIGHT) - 0.5f) * FILM_H_MM;
+    float filter_wx, filter_wy;
+    float off_x = filter_offset_x(to_unit(b0), &filter_wx);
+    float off_y = filter_offset_y(to_unit(b1), &filter_wy);
+    float fx = -(((float)px_i + (0.5f + off_x)) * (1.0f / WIDTH) - 0.5f) * FILM_W_MM;
+    float fy = (((float)py_i + (0.5f + off_y)) * (1.0f / HEIGHT) - 0.5f) * FILM_H_MM;
 
     float tx, ty, area;
     sample_plane(fx, fy, to_unit(b2), to_unit(b3), &tx, &ty, &area);
@@ -259,7 +299,7 @@ __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __co
     float len2 = ddx * ddx + ddy * ddy + PLANE_Z_MM * PLANE_Z_MM;
     float inv_len = 1.0f / __builtin_sqrtf(len2);
     /* cos^4(theta) A / Z^2 with cos(theta) = Z / |delta|. */
-    float weight = area * (PLANE_Z_MM * PLANE_Z_MM) / (len2 * len2);
+    float weight = area * (PLANE_Z_MM * PLANE_Z_MM) / (len2 * len2) * (filter_wx * filter_wy);
 
     Ray r;
     r.ox = fx;

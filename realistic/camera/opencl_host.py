@@ -24,6 +24,7 @@ import numpy as np
 from realistic.camera.base import RayBatch
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.data_files import data_file
+from realistic.core.pixel_filter import TABLE_BINS
 from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
 from realistic.optics.sampling import rear_element_sampler
@@ -155,6 +156,22 @@ def _stop_lines(lens) -> list[str]:
     return ["#define STOP_MASKED 0", "#define STOP_INSIDE(x, y) (" + " & ".join(terms) + ")"]
 
 
+def _filter_lines(camera: LensCamera) -> list[str]:
+    """The pixel filter's ``FILTER_*`` defines and tables (see ``kernels/lens.cl``)."""
+    pixel_filter = camera.pixel_filter
+    kind = 2 if pixel_filter.tabulated else ("box", "triangle").index(pixel_filter.name)
+    lines = [f"#define FILTER_KIND {kind}", f"#define FILTER_RX {_c_float(pixel_filter.radius_x)}",
+             f"#define FILTER_RY {_c_float(pixel_filter.radius_y)}"]
+    if kind == 2:
+        lines.append(f"#define FILTER_BINS {TABLE_BINS}")
+        for axis, table in (("X", pixel_filter.x_table), ("Y", pixel_filter.y_table)):
+            cdf = ", ".join(_c_float(v) for v in table.cdf)
+            weight = ", ".join(_c_float(v) for v in table.sign * table.ratio)
+            lines += [f"__constant float FILTER_CDF_{axis}[{TABLE_BINS + 1}] = {{{cdf}}};",
+                      f"__constant float FILTER_WEIGHT_{axis}[{TABLE_BINS}] = {{{weight}}};"]
+    return lines
+
+
 def camera_header(camera: LensCamera) -> str:
     """The generated ``#define`` block that specialises ``lens.cl`` to one camera (see its header)."""
     lens = camera.lens
@@ -183,6 +200,7 @@ def camera_header(camera: LensCamera) -> str:
         f"#define REAR_W_MM {_c_float(-camera.film_distance_mm)}",
         "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
         *_stop_lines(lens),
+        *_filter_lines(camera),
     ]
     if camera.lens_sampling == "pupil":
         table = camera.pupil
