@@ -46,11 +46,22 @@ from realistic.core import validation
 from realistic.errors import UserError
 
 FILTER_NAMES = ("box", "triangle", "gaussian", "mitchell", "sinc")
+#: Other names accepted for a filter (pbrt calls the Lanczos windowed sinc "sinc").
+FILTER_ALIASES = {"lanczos": "sinc"}
 #: Bins per axis of a tabulated filter: a power of two, for the kernel's branch-free bin search.
 TABLE_BINS = 256
 _GAUSS_POINTS = 8
 #: The net integral of a sign-changing filter must be at least this fraction of integral|f|.
 MIN_NET_FRACTION = 1e-3
+
+
+def filter_name(name: str) -> str:
+    """The filter's name in ``FILTER_NAMES`` for ``name`` or an alias; the one check of a filter
+    name (CLI, Python API and pbrt importer); UserError naming the choices otherwise."""
+    name = FILTER_ALIASES.get(name, name)
+    if name not in FILTER_NAMES:
+        raise UserError(f"unknown pixel filter {name!r} (choose {', '.join(FILTER_NAMES + tuple(FILTER_ALIASES))})")
+    return name
 
 
 def _sinc(t: np.ndarray) -> np.ndarray:
@@ -101,7 +112,7 @@ class PixelFilter:
 
     def __post_init__(self) -> None:
         if self.name not in FILTER_NAMES:
-            raise UserError(f"unknown pixel filter {self.name!r} (choose {', '.join(FILTER_NAMES)})")
+            filter_name(self.name)  # raises, naming the choices
         validation.filter_radius(self.radius_x, "filter x radius (pixels)")
         validation.filter_radius(self.radius_y, "filter y radius (pixels)")
         validation.positive_length(self.alpha, "gaussian filter alpha")
