@@ -231,3 +231,14 @@ def test_any_pixel_filter_parameters_give_a_filter_or_one_line(name, params, dia
         f = camera.pixel_filter
         dx, dy, w = f.offsets(np.array([0.1, 0.5, 0.9], np.float32), np.array([0.3, 0.7, 0.0], np.float32))
         assert np.all(np.isfinite(w)) and np.all(np.abs(dx) <= f.radius_x) and np.all(np.abs(dy) <= f.radius_y)
+
+
+def test_the_cli_filter_option_is_checked_by_the_same_check():
+    from realistic.cli import build_parser
+    from realistic.cli.scene_arguments import options_from_args
+
+    args = build_parser().parse_args(["render", "--filter", "lanczos"])
+    assert options_from_args(args, None).pixel_filter == "sinc"
+    with pytest.raises(UserError, match="unknown pixel filter 'bessel'") as err:
+        build_parser().parse_args(["render", "--filter", "bessel"])
+    assert "\n" not in str(err.value)
