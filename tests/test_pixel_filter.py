@@ -242,3 +242,38 @@ def test_the_cli_filter_option_is_checked_by_the_same_check():
     with pytest.raises(UserError, match="unknown pixel filter 'bessel'") as err:
         build_parser().parse_args(["render", "--filter", "bessel"])
     assert "\n" not in str(err.value)
+
+
+EDGE_SCENE = """LookAt 0 0 0  0 0 1  0 1 0
+Camera "perspective" "float fov" 30
+Film "image" "integer xresolution" 16 "integer yresolution" 4
+WorldBegin
+AttributeBegin
+AreaLightSource "diffuse" "rgb L" [1 1 1]
+Translate 1000.1 0 10
+ReverseOrientation
+Shape "disk" "float radius" 1000
+AttributeEnd
+WorldEnd
+"""
+
+
+@pytest.mark.parametrize("name", ["triangle", "gaussian", "sinc"])
+def test_a_rendered_step_edge_is_the_filtered_step(tmp_path, name):
+    """A pinhole looks at the straight edge of a huge emitter (radiance 1); each column's value is
+    the integral of the filter beyond the edge over its whole integral, negative lobes included
+    (the render keeps rays of negative weight)."""
+    path = tmp_path / "edge.pbrt"
+    path.write_text(EDGE_SCENE)
+    scene = rl.load_scene(str(path), spp=4096, pbrt_dialect="v3", pixel_filter=name)
+    column = rl.render(scene, backend="numpy")[:, :, 0].mean(axis=0)
+    # the edge is at x = 0.1 on the plane z = 10: screen x 0.01 / tan(15 deg) of the half-height,
+    # the screen window's half-width is 4 (aspect 16:4), raster x = 16 (1 + screen / 4) / 2
+    edge = 8 * (1 + 0.01 / math.tan(math.radians(15)) / 4)
+    f = scene.camera.pixel_filter
+    r = f.radius_x
+    total = simpson(f, r)
+    for i in range(16):
+        lo = edge - (i + 0.5)
+        expected = 1.0 if lo <= -r else 0.0 if lo >= r else simpson(f, r, lo=lo) / total
+        assert column[i] == pytest.approx(expected, abs=0.02), (i, column[i], expected)
