@@ -14,6 +14,8 @@ The Python API, in the order a script uses it::
 - ``load_scene(path=None, **options)``: a pbrt scene (with its camera), a mesh file, or (None) the
   default scene; ``options`` are ``RenderOptions`` fields (``lens``, ``aperture_mm``, ``spp``...).
 - ``LensCamera`` (a real lens) and ``ThinLensCamera`` (pbrt's perspective) implement ``Camera``.
+- ``PixelFilter``: pbrt's pixel filters, for a camera's ``pixel_filter`` (default: a 0.5-pixel box);
+  ``load_scene(..., pixel_filter="gaussian")`` picks one by name at pbrt's defaults.
 - ``render(scene, camera=None, spp=None, ...)``: the image; ``render_passes`` adds statistics.
 - ``write_exr(path, image, metadata=None)``, ``read_exr(path)``.
 
@@ -42,6 +44,7 @@ _EXPORTS = {
     "Camera": "realistic.camera.base",
     "LensCamera": "realistic.camera.lens_camera",
     "ThinLensCamera": "realistic.camera.thin_lens",
+    "PixelFilter": "realistic.core.pixel_filter",
     "Scene": "realistic.scene.model",
     "RenderOptions": "realistic.renderer.inputs",
     "render": "realistic.renderer.passes",
@@ -50,15 +53,16 @@ _EXPORTS = {
     "read_exr": "realistic.core.image_files",
 }
 
-__all__ = ["BUNDLED_LENSES", "Camera", "LensCamera", "LensFileError", "LensSystem", "RenderOptions", "Scene",
-           "ThinLensCamera", "UserError", "load_lens", "load_scene", "parse_prescription", "read_exr", "render",
-           "render_passes", "write_exr"]
+__all__ = ["BUNDLED_LENSES", "Camera", "LensCamera", "LensFileError", "LensSystem", "PixelFilter", "RenderOptions",
+           "Scene", "ThinLensCamera", "UserError", "load_lens", "load_scene", "parse_prescription", "read_exr",
+           "render", "render_passes", "write_exr"]
 
 if TYPE_CHECKING:
     from realistic.camera.base import Camera
     from realistic.camera.lens_camera import LensCamera
     from realistic.camera.thin_lens import ThinLensCamera
     from realistic.core.image_files import read_exr, write_exr
+    from realistic.core.pixel_filter import PixelFilter
     from realistic.optics.formats import BUNDLED_LENSES, load_lens
     from realistic.optics.formats.pbrt_dat import parse_prescription
     from realistic.optics.lens import LensSystem

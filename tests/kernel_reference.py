@@ -22,6 +22,7 @@ from realistic.optics.sampling import rear_element_sampler
 from realistic.optics.tracer import trace_from_film
 
 EDGE_MM = 1e-4
+CENTRE_MM = 0.05
 
 
 def world_from_camera() -> np.ndarray:
@@ -51,13 +52,14 @@ def reference_camera(name: str, sampling: str, spectral: bool = False) -> LensCa
 def edge_rays(camera: LensCamera, count: int, seed: int) -> np.ndarray:
     """Rays whose verdict (at their own wavelength) flips when every clear aperture grows or shrinks
     by EDGE_MM, and, for pupil sampling, rays whose film point lies within EDGE_MM of a radial
-    interval edge (float32 and float64 may pick neighbouring exit-pupil boxes there)."""
+    interval edge (float32 and float64 may pick neighbouring exit-pupil boxes there) or within
+    CENTRE_MM of the film centre (where the box's polar angle is ill-conditioned)."""
     ids = np.arange(count)
     pixel, sample = ids // camera.spp, ids % camera.spp
     u = rng.stratified5(pixel, sample, seed) if camera.spectral else rng.stratified4(pixel, sample, seed)
     u_x, u_y, u_lens, v_lens = u[:4]
     wavelength = wavelengths_nm(u[4]).astype(np.float64) if camera.spectral else D_LINE_NM
-    film_xy = camera.film_points(pixel, u_x, u_y)
+    film_xy, _ = camera.filtered_film_points(pixel, u_x, u_y)
     film = np.column_stack([film_xy, np.zeros(count)])
     near_interval_edge = np.zeros(count, dtype=bool)
     if camera.lens_sampling == "pupil":
@@ -65,6 +67,9 @@ def edge_rays(camera: LensCamera, count: int, seed: int) -> np.ndarray:
         step = sampler.film_radius_mm / len(sampler.bounds)
         radius = np.hypot(film_xy[:, 0], film_xy[:, 1]) / step
         near_interval_edge = np.abs(radius - np.round(radius)) * step < EDGE_MM
+        # within CENTRE_MM of the film centre the box's rotation angle comes from float32 film
+        # coordinates with ~1e-6 mm of cancellation error, so the kernel's target turns by ~1e-6 / rho
+        near_interval_edge |= radius * step < CENTRE_MM
     else:
         sampler = rear_element_sampler(camera.lens, camera.film_distance_mm)
     targets, _ = sampler.sample(film_xy, u_lens.astype(np.float64), v_lens.astype(np.float64))
@@ -77,7 +82,7 @@ def edge_rays(camera: LensCamera, count: int, seed: int) -> np.ndarray:
 def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: LensCamera, seed: int) -> np.ndarray:
     """The tolerances of the kernel check; returns the mask of rays both pass."""
     np.testing.assert_array_equal(kernel.pixel, ref.pixel)
-    k_pass, r_pass = kernel.weight > 0, ref.weight > 0
+    k_pass, r_pass = kernel.weight != 0, ref.weight != 0  # negative filter lobes weigh < 0
     edge = edge_rays(camera, len(ref.weight), seed)
     assert edge.mean() < 0.01, "the edge allowance must stay a small minority of the rays"
     disagree = (k_pass != r_pass) & ~edge
@@ -85,7 +90,7 @@ def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: LensCamera, s
                                f"{np.flatnonzero(disagree)[:5]}"
     assert 0.02 < r_pass.mean(), "too few rays pass for the comparison to mean anything"
     assert np.all(kernel.origin[~k_pass] == 0) and np.all(kernel.direction[~k_pass] == 0)
-    both = k_pass & r_pass
+    both = k_pass & r_pass & ~edge  # on a pupil-interval edge float32 may take the neighbouring box
     np.testing.assert_allclose(kernel.direction[both], ref.direction[both], rtol=0, atol=1e-5)
     np.testing.assert_allclose(kernel.origin[both], ref.origin[both], rtol=0, atol=1e-3)
     np.testing.assert_allclose(kernel.weight[both], ref.weight[both], rtol=1e-4, atol=0)

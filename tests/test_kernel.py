@@ -12,6 +12,7 @@ from kernel_reference import assert_kernel_matches, camera_for_lens, reference_c
 from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import rng
+from realistic.core.pixel_filter import PixelFilter
 from realistic.errors import UserError
 
 opencl_host = pytest.importorskip("realistic.camera.opencl_host")
@@ -32,6 +33,24 @@ def opencl_platform():
 @pytest.mark.parametrize("name", LENSES)
 def test_kernel_matches_reference(name, sampling):
     _check_against_reference(reference_camera(name, sampling))
+
+
+@pytest.mark.parametrize("pixel_filter", [PixelFilter("triangle", 2.0, 1.5), PixelFilter("gaussian", 1.5, 1.5, 2.0),
+                                          PixelFilter("mitchell", 2.0, 2.0), PixelFilter("sinc", 3.0, 4.0)],
+                         ids=lambda f: f.name)
+def test_kernel_matches_reference_with_pixel_filters(pixel_filter):
+    """The film offsets drawn from a filter (exact tent, tables with signed weights) agree."""
+    camera = dataclasses.replace(reference_camera("dgauss", "pupil"), pixel_filter=pixel_filter)
+    _check_against_reference(camera)
+
+
+def test_default_box_film_points_are_plain_jitter_bit_for_bit():
+    """The 0.5-pixel box maps u to the in-pixel offset u exactly: today's film points, unchanged."""
+    camera = reference_camera("dgauss", "pupil")
+    pixel = np.arange(50_000) // camera.spp
+    u_x, u_y, _, _ = rng.stratified4(pixel, np.arange(50_000) % camera.spp, 3)
+    film_xy, weight = camera.filtered_film_points(pixel, u_x, u_y)
+    assert np.array_equal(film_xy, camera.film_points(pixel, u_x, u_y)) and np.all(weight == 1.0)
 
 
 def _cross_mask(tmp_path) -> str:

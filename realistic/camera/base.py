@@ -27,7 +27,7 @@ class RayBatch:
 
     origin: np.ndarray  # (N, 3)
     direction: np.ndarray  # (N, 3) unit
-    weight: np.ndarray  # (N,) cos^4(theta) A / Z^2 in mm^0 (area over distance squared); 1 for a thin lens
+    weight: np.ndarray  # (N,) cos^4(theta) A / Z^2 (1 for a thin lens) times the pixel filter's factor (may be < 0)
     pixel: np.ndarray  # (N,) raster index y * width + x
     wavelength_nm: np.ndarray | None = None  # (N,) for a spectral camera, else None
 

@@ -13,6 +13,10 @@ format puts it (``origin``): the film centre (pbrt-v3, meshes) or the front lens
 classic homework). ``world_from_camera`` carries the scene's unit; refocusing moves the film and,
 with the front-vertex convention, the whole camera frame with it.
 
+The film position of a sample is drawn from the camera's pixel filter (``pixel_filter``,
+``realistic.core.pixel_filter``: filter importance sampling), and the filter's sign-and-normalisation
+factor multiplies the sample's weight; the default 0.5-pixel box is plain jittering in the pixel.
+
 A *spectral* camera gives each sample a wavelength (``realistic.core.spectrum``: importance
 sampled over 380-780 nm, stratified within the pixel jointly with the film and lens positions by
 the R5 sequence of ``realistic.core.rng.stratified5``) and traces it with the glasses' indices at that
@@ -31,6 +35,7 @@ from realistic.camera.autofocus import autofocus_distance_mm
 from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, check_backend, split_sample_ids
 from realistic.core import rng, validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm
+from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
 from realistic.core.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, wavelengths_nm
 from realistic.core.transforms import look_at, scale, transform_points, transform_vectors
 from realistic.errors import UserError
@@ -65,8 +70,11 @@ class LensCamera:
     origin: str = "film"
     lens_sampling: str = "pupil"
     spectral: bool = False
+    pixel_filter: PixelFilter = PIXEL_BOX
 
     def __post_init__(self) -> None:
+        if not isinstance(self.pixel_filter, PixelFilter):
+            raise UserError(f"pixel_filter must be a PixelFilter, got {self.pixel_filter!r}")
         validation.resolution(self.width, self.height)
         validation.samples_per_pixel(self.spp)
         validation.film_diagonal_mm(self.film_diagonal_mm)
@@ -131,18 +139,26 @@ class LensCamera:
         return self.width * self.height * self.spp
 
     def film_points(self, pixel: np.ndarray, u_x: np.ndarray, u_y: np.ndarray) -> np.ndarray:
-        """Film points (N, 2) in mm for pixels and in-pixel offsets in [0, 1)."""
+        """Film points (N, 2) in mm for pixels and raster offsets from their corner (pixels; [0, 1)
+        inside the pixel)."""
         w_mm, h_mm = self.film_size_mm
         x = (pixel % self.width) + u_x.astype(np.float64)
         y = (pixel // self.width) + u_y.astype(np.float64)
         return np.column_stack([-(x / self.width - 0.5) * w_mm, (y / self.height - 0.5) * h_mm])
+
+    def filtered_film_points(self, pixel: np.ndarray, u_x: np.ndarray,
+                             u_y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Film points (N, 2) in mm drawn from the pixel filter around each pixel's centre with
+        uniform ``u_x``, ``u_y``, and each sample's filter weight (N,) (1 for box and triangle)."""
+        dx, dy, weight = self.pixel_filter.offsets(u_x, u_y)
+        return self.film_points(pixel, 0.5 + dx, 0.5 + dy), weight
 
     def generate_rays(self, first_sample: int, count: int, seed: int = 0) -> RayBatch:
         """Camera rays for sample ids first_sample .. first_sample + count - 1 (reference implementation)."""
         pixel, sample = split_sample_ids(first_sample, count, self.spp)
         u = rng.stratified5(pixel, sample, seed) if self.spectral else rng.stratified4(pixel, sample, seed)
         u_x, u_y, u_lens, v_lens = u[:4]
-        film_xy = self.film_points(pixel, u_x, u_y)
+        film_xy, filter_weight = self.filtered_film_points(pixel, u_x, u_y)
         sampler = self.pupil if self.lens_sampling == "pupil" else rear_element_sampler(self.lens,
                                                                                          self.film_distance_mm)
         targets, area = sampler.sample(film_xy, u_lens.astype(np.float64), v_lens.astype(np.float64))
@@ -150,7 +166,7 @@ class LensCamera:
         wavelength = wavelengths_nm(u[4]) if self.spectral else None
         traced = trace_from_film(self.lens, self.film_distance_mm, film, targets - film,
                                  D_LINE_NM if wavelength is None else wavelength.astype(np.float64))
-        weight = np.where(traced.passed, camera_weight(film, targets, area, sampler.plane_z_mm), 0.0)
+        weight = np.where(traced.passed, camera_weight(film, targets, area, sampler.plane_z_mm) * filter_weight, 0.0)
         to_world = self.world_from_lens
         passed = traced.passed[:, None]
         origin = np.where(passed, transform_points(to_world, traced.origin), 0.0)
@@ -177,7 +193,7 @@ class LensCamera:
                 "filmDistanceMm": float(self.film_distance_mm), "filmDiagonalMm": float(self.film_diagonal_mm),
                 "lensSampling": self.lens_sampling,
                 "stopShape": lens.stop_shape.describe() if lens.stop_shape else "circle",
-                "dispersion": "on" if self.spectral else "off"}
+                "dispersion": "on" if self.spectral else "off", "pixelFilter": self.pixel_filter.describe()}
 
     def pixel_spread_radians(self) -> float:
         """Angle one pixel subtends in object space: pixel pitch over the image distance (film to

@@ -24,6 +24,7 @@ import numpy as np
 from realistic.camera.base import RayBatch
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.data_files import data_file
+from realistic.core.pixel_filter import TABLE_BINS
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
@@ -168,6 +169,22 @@ def _wavelength_lines(camera: LensCamera) -> list[str]:
             table("LAMBDA_DENSITY", WAVELENGTH_DENSITY), table("LAMBDA_CDF", WAVELENGTH_CDF)]
 
 
+def _filter_lines(camera: LensCamera) -> list[str]:
+    """The pixel filter's ``FILTER_*`` defines and tables (see ``kernels/lens.cl``)."""
+    pixel_filter = camera.pixel_filter
+    kind = 2 if pixel_filter.tabulated else ("box", "triangle").index(pixel_filter.name)
+    lines = [f"#define FILTER_KIND {kind}", f"#define FILTER_RX {_c_float(pixel_filter.radius_x)}",
+             f"#define FILTER_RY {_c_float(pixel_filter.radius_y)}"]
+    if kind == 2:
+        lines.append(f"#define FILTER_BINS {TABLE_BINS}")
+        for axis, table in (("X", pixel_filter.x_table), ("Y", pixel_filter.y_table)):
+            cdf = ", ".join(_c_float(v) for v in table.cdf)
+            weight = ", ".join(_c_float(v) for v in table.sign * table.ratio)
+            lines += [f"__constant float FILTER_CDF_{axis}[{TABLE_BINS + 1}] = {{{cdf}}};",
+                      f"__constant float FILTER_WEIGHT_{axis}[{TABLE_BINS}] = {{{weight}}};"]
+    return lines
+
+
 def camera_header(camera: LensCamera) -> str:
     """The generated ``#define`` block that specialises ``lens.cl`` to one camera (see its header)."""
     lens = camera.lens
@@ -197,6 +214,7 @@ def camera_header(camera: LensCamera) -> str:
         "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
         *_stop_lines(lens),
         *_wavelength_lines(camera),
+        *_filter_lines(camera),
     ]
     if camera.lens_sampling == "pupil":
         table = camera.pupil

@@ -5,6 +5,9 @@ same ``RayBatch`` as the realistic camera's, from the same counter-based samples
 It has no lens to trace: its rays are a few arithmetic operations per sample and come from numpy
 whatever the backend.
 
+The film position is drawn from the pixel filter (``realistic.core.pixel_filter``), as the
+realistic camera draws it; the filter's factor is the ray's weight (1 for box and triangle).
+
 pbrt's screen window: the shorter image side spans [-1, 1], the longer [-aspect, aspect]; ``fov``
 is the angle across the shorter side. Camera space looks down +z, +x is image right, +y image up.
 """
@@ -18,6 +21,7 @@ import numpy as np
 
 from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, check_backend, split_sample_ids
 from realistic.core import rng, validation
+from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
 from realistic.core.transforms import transform_points, transform_vectors
 from realistic.core.warp import concentric_disk
 from realistic.errors import UserError
@@ -36,6 +40,7 @@ class ThinLensCamera:
     height: int
     spp: int
     world_from_camera: np.ndarray
+    pixel_filter: PixelFilter = PIXEL_BOX
 
     def __post_init__(self) -> None:
         if not 0 < self.fov_deg < 180:
@@ -61,8 +66,9 @@ class ThinLensCamera:
         pixel, sample = split_sample_ids(first_sample, count, self.spp)
         u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
         half_x, half_y = self.screen_window()
-        x = (pixel % self.width + u_x) / self.width
-        y = (pixel // self.width + u_y) / self.height
+        dx, dy, weight = self.pixel_filter.offsets(u_x, u_y)
+        x = (pixel % self.width + (0.5 + dx)) / self.width
+        y = (pixel // self.width + (0.5 + dy)) / self.height
         tan_half = math.tan(math.radians(self.fov_deg) / 2)
         direction = np.column_stack([(2 * x - 1) * half_x * tan_half, (1 - 2 * y) * half_y * tan_half,
                                      np.ones(count)])
@@ -74,7 +80,7 @@ class ThinLensCamera:
             direction = focus - origin
         world_direction = transform_vectors(self.world_from_camera, direction)
         world_direction /= np.linalg.norm(world_direction, axis=1, keepdims=True)
-        return RayBatch(transform_points(self.world_from_camera, origin), world_direction, np.ones(count), pixel)
+        return RayBatch(transform_points(self.world_from_camera, origin), world_direction, weight, pixel)
 
     def ray_generator(self, backend: str = "opencl", seed: int = 0, cl_device: str | None = None) -> RayGenerator:
         """numpy rays whatever the backend (there is no lens for a kernel to trace)."""
@@ -86,7 +92,8 @@ class ThinLensCamera:
 
     def metadata(self) -> Metadata:
         return {"lens": "thin lens (pbrt perspective)", "fovDegrees": float(self.fov_deg),
-                "lensRadius": float(self.lens_radius), "focusDistanceSceneUnits": float(self.focal_distance)}
+                "lensRadius": float(self.lens_radius), "focusDistanceSceneUnits": float(self.focal_distance),
+                "pixelFilter": self.pixel_filter.describe()}
 
     def pixel_spread_radians(self) -> float:
         """Angle one pixel subtends at the image centre: the screen window's 2 tan(fov / 2) over the

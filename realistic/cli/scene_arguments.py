@@ -13,6 +13,7 @@ from realistic.camera.lens_camera import LENS_SAMPLINGS
 from realistic.cli.values import checked, parse_pixel, parse_resolution, parse_vector, positive
 from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.pixel_filter import FILTER_ALIASES, FILTER_NAMES, filter_name
 from realistic.core.validation import finite
 from realistic.optics.formats import BUNDLED_LENSES
 from realistic.renderer.memory import parse_size
@@ -72,6 +73,11 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pbrt-dialect", choices=DIALECTS, default="auto",
                         help="pbrt scenes: read with this pbrt version's conventions (texture orientation); auto "
                              "decides from the directives and parameters the file uses (default: %(default)s)")
+    parser.add_argument("--filter", type=checked(str, filter_name), metavar="NAME",
+                        help=f"pixel filter ({', '.join(FILTER_NAMES + tuple(FILTER_ALIASES))}) with pbrt's default "
+                             "parameters (the pbrt scene's version's; pbrt-v4's for other scenes), replacing the "
+                             "scene's (default: the pbrt scene's PixelFilter or its version's default; a 0.5-pixel "
+                             "box for other scenes)")
     parser.add_argument("--max-memory", type=checked(str, parse_size), metavar="SIZE",
                         help="refuse renders estimated to need more memory than this, e.g. 8G or 512M "
                              "(default: the memory the system has available)")
@@ -94,4 +100,5 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
         resolution=parse_resolution(args.res) if args.res else None, film_diagonal_mm=args.film_diagonal,
         spp=spp, light_samples=args.light_samples, lens_sampling=args.lens_sampling,
         dispersion=None if args.dispersion is None else args.dispersion == "on",
-        search_paths=[Path(p) for p in args.search_path], pbrt_dialect=args.pbrt_dialect)
+        search_paths=[Path(p) for p in args.search_path], pbrt_dialect=args.pbrt_dialect,
+        pixel_filter=args.filter)

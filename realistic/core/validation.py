@@ -29,6 +29,8 @@ MAX_LIGHT_SAMPLES = 1024
 MAX_FILM_DIAGONAL_MM = 1000.0
 #: Diaphragm blades: real lenses have 5 to 18; the kernel unrolls one test per blade.
 MIN_BLADES, MAX_BLADES = 3, 64
+#: Pixel filter radius in pixels: pbrt's widest default is 4 (sinc); beyond 16 a filter is a blur.
+MAX_FILTER_RADIUS = 16.0
 
 
 def _integer(value: object, name: str) -> int:
@@ -90,6 +92,11 @@ def stop_diameter_mm(value: float) -> float:
 
 def film_diagonal_mm(value: float) -> float:
     return positive_length(value, "film diagonal (mm)", MAX_FILM_DIAGONAL_MM)
+
+
+def filter_radius(value: float, name: str = "filter radius (pixels)") -> float:
+    """A pixel filter radius: positive, finite, at most ``MAX_FILTER_RADIUS`` pixels."""
+    return positive_length(value, name, MAX_FILTER_RADIUS)
 
 
 def finite(value: float, name: str) -> float:

@@ -1,4 +1,9 @@
-"""The film: per-pixel sums of weight x radiance over the samples taken so far (box filter)."""
+"""The film: per-pixel sums of weight x radiance over the samples taken so far, divided by their count.
+
+The pixel filter is not applied here: the camera draws each sample's film position from the filter
+around its own pixel and folds sign(f) integral|f| / integral(f) into its weight
+(``realistic.core.pixel_filter``), so sum / samples is the filtered value whatever the filter, and
+a pass never spills into neighbouring pixels."""
 
 from __future__ import annotations
 
@@ -13,7 +18,7 @@ def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_coun
 
 
 class Film:
-    """Accumulates contributions of sample-id ranges; pixel value = sum / samples taken (box filter).
+    """Accumulates contributions of sample-id ranges; pixel value = sum / samples taken.
 
     Every sample counts, vignetted ones included (their contribution is 0), so a pixel's value is
     the film irradiance estimate E = mean(weight * radiance).

@@ -9,6 +9,7 @@ brings its own camera, which the options override), a mesh file set on a grid fl
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +20,7 @@ from realistic.camera.base import Camera
 from realistic.camera.lens_camera import MM_PER_METRE, LensCamera
 from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm
+from realistic.core.pixel_filter import filter_name
 from realistic.errors import UserError
 from realistic.optics.formats import load_lens
 from realistic.optics.lens import LensSystem
@@ -27,11 +29,14 @@ from realistic.optics.stop_shape import bladed_stop, mask_stop
 from realistic.scene.intersect import Intersector
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import Scene
+from realistic.scene.pbrt.dialect import Dialect
 from realistic.scene.pbrt.importer import import_pbrt
 from realistic.scene.staging import auto_eye, default_setup, mesh_setup
 
 MESH_DEFAULT_RES = (300, 300)
 MESH_DEFAULT_SPP = 16
+#: Whose default filter parameters ``--filter`` takes on a mesh scene: the newest pbrt's.
+MESH_FILTER_DIALECT = Dialect("v4", "--filter on a mesh scene")
 DEFAULT_LENS = "dgauss"
 #: Options that only a mesh or the default scene can use (a pbrt scene sets its own camera).
 MESH_ONLY = {"lens": "--lens", "camera_position": "--camera-pos", "target": "--target",
@@ -66,6 +71,7 @@ class RenderOptions:
     lens_sampling: str = "pupil"
     dispersion: bool | None = None  # None: off for pbrt and the default scene, else on when the lens has Abbe numbers
     pbrt_dialect: str = "auto"  # pbrt scenes: which pbrt's conventions (realistic.scene.pbrt.dialect)
+    pixel_filter: str | None = None  # a filter name replacing the scene's, at pbrt's default parameters
     search_paths: list[Path] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -80,6 +86,8 @@ class RenderOptions:
             validation.film_diagonal_mm(self.film_diagonal_mm)
         if self.blades is not None:
             validation.blades(self.blades)
+        if self.pixel_filter is not None:
+            self.pixel_filter = filter_name(self.pixel_filter)
         if self.aperture_mm is not None:
             validation.stop_diameter_mm(self.aperture_mm)
         for name, value in (("focus distance", self.focus_distance), ("f-number", self.f_number)):
@@ -163,7 +171,8 @@ def _pbrt_inputs(options: RenderOptions) -> RenderInputs:
     width, height = options.resolution or (None, None)
     imported = import_pbrt(options.scene, width, height, options.spp, options.lens_sampling,
                            lens_edit=options.stop_edit(), focus_scene_units=options.focus_distance,
-                           search_paths=options.search_paths, dialect=options.pbrt_dialect)
+                           search_paths=options.search_paths, dialect=options.pbrt_dialect,
+                           pixel_filter=options.pixel_filter)
     out = Path(imported.output_name).name if imported.output_name else "render.exr"
     if Path(out).suffix.lower() != ".exr":
         out = str(Path(out).with_suffix(".exr"))
@@ -184,8 +193,11 @@ def _mesh_inputs(options: RenderOptions) -> RenderInputs:
     if eye is None:
         film_short_mm = min(film_size_mm(film_diagonal, width, height))
         eye = setup.eye if setup.eye is not None and options.target is None else auto_eye(setup, lens, film_short_mm)
-    setup.scene.camera = LensCamera.looking_at(lens, eye, target, options.focus_distance, film_diagonal, width,
-                                               height, options.spp or MESH_DEFAULT_SPP, options.lens_sampling)
+    camera = LensCamera.looking_at(lens, eye, target, options.focus_distance, film_diagonal, width, height,
+                                   options.spp or MESH_DEFAULT_SPP, options.lens_sampling)
+    if options.pixel_filter is not None:  # at the newest pbrt's default parameters
+        camera = dataclasses.replace(camera, pixel_filter=MESH_FILTER_DIALECT.pixel_filter(options.pixel_filter))
+    setup.scene.camera = camera
     metadata = {"scene": str(options.scene or "default"), "mmPerSceneUnit": MM_PER_METRE,
                 "cameraPosition": ",".join(f"{v:g}" for v in eye),
                 "cameraTarget": ",".join(f"{v:g}" for v in target)}

@@ -83,7 +83,7 @@ class _PassRunner:
         with self.clock("ray generation"):
             rays = self.generate(first, count)
         with self.clock("shading"):
-            alive = np.flatnonzero(rays.weight > 0)
+            alive = np.flatnonzero(rays.weight != 0)  # a negative filter lobe gives negative weights
             if self.morton:
                 alive = alive[morton_order(rays.pixel[alive], self.camera.width)]
             pixel = rays.pixel[alive]

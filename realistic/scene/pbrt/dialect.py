@@ -18,6 +18,22 @@ names the filter in ``string filter`` (default "bilinear") and the colour encodi
 encoding`` (default sRGB for .png, else linear), and adds ``bool invert``. All: ``maxanisotropy`` 8,
 ``wrap`` "repeat", ``scale`` 1.
 
+The pixel filter (``PixelFilter``; the maths in ``realistic.core.pixel_filter``):
+
+- the default when a scene names none: pbrt-v1 ``mitchell`` (its ``core/api.cpp``
+  ``RenderOptions``: FilterName = "mitchell"); pbrt-v2 ``box`` (``src/core/api.cpp``
+  ``RenderOptions::RenderOptions``: FilterName = "box"); pbrt-v3 ``box`` (``src/core/api.cpp``
+  ``RenderOptions``: FilterName = "box"); pbrt-v4 ``gaussian`` (``BasicSceneBuilder``'s filter);
+- radii: ``xwidth``/``ywidth`` in pbrt-v1/v2/v3 (half-widths despite the name), ``xradius``/
+  ``yradius`` in pbrt-v4 (``src/pbrt/filters.cpp``), defaults per filter as each version's
+  ``Create...Filter`` sets them (the same numbers in all four: box 0.5, triangle 2, mitchell 2,
+  sinc 4; gaussian 2 before v4, 1.5 in v4);
+- gaussian falloff: ``alpha`` (default 2) before v4, ``sigma`` (default 0.5, alpha = 1 / (2 sigma^2))
+  in v4;
+- sinc: pbrt-v1/v2 ``src/filters/sinc.h`` measure both sincs in units of the radius,
+  sinc(tau x / r) sinc(x / r); pbrt-v3/v4 in pixels, sinc(x) sinc(x / tau) (``WindowedSinc``).
+  pbrt names it ``sinc`` in every version; ``lanczos`` is accepted as another name for it.
+
 ``auto`` decides from what the file uses: v4-only directives (``ColorSpace``, ``Option``,
 ``Attribute``, ``Import``) or ``Film "rgb"`` mean v4; the classic homework camera (``specfile``,
 ``filmdistance``, ``filmdiag``, ``aperture_diameter``) or v2-only directives (``SurfaceIntegrator``,
@@ -32,8 +48,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from realistic.core import validation
+from realistic.core.pixel_filter import PixelFilter, filter_name
 from realistic.errors import UserError
-from realistic.scene.pbrt.parser import PbrtScene
+from realistic.scene.pbrt.parser import Params, PbrtScene
 
 DIALECTS = ("auto", "v1", "v2", "v3", "v4")
 _V4_DIRECTIVES = ("ColorSpace", "Option", "Attribute", "Import")
@@ -41,6 +59,10 @@ _V2_DIRECTIVES = ("SurfaceIntegrator", "VolumeIntegrator", "Renderer")
 _V3_DIRECTIVES = ("Integrator", "MakeNamedMedium")
 _HOMEWORK_CAMERA = ("specfile", "filmdistance", "filmdiag", "aperture_diameter")
 _V3_CAMERA = ("lensfile", "aperturediameter", "focusdistance")
+#: Each filter's default radius (pixels), as every version's ``Create...Filter`` sets it.
+_DEFAULT_RADIUS = {"box": 0.5, "triangle": 2.0, "gaussian": 2.0, "mitchell": 2.0, "sinc": 4.0}
+#: A gaussian wider than this is flat over any allowed radius (1 / (2 sigma^2) stays normal).
+MAX_SIGMA = 1e6
 
 
 @dataclass(frozen=True)
@@ -131,6 +153,38 @@ class Dialect:
     def imagemap(self) -> ImagemapConventions:
         """The imagemap texture's parameter names and defaults in this version."""
         return _IMAGEMAP[self.name]
+
+    @property
+    def is_v4(self) -> bool:
+        return self.name == "v4"
+
+    @property
+    def default_filter_name(self) -> str:
+        """The pixel filter pbrt uses when the scene names none."""
+        return {"v1": "mitchell", "v4": "gaussian"}.get(self.name, "box")
+
+    def pixel_filter(self, name: str | None = None, params: Params | None = None) -> PixelFilter:
+        """The filter ``name`` (None: this version's default) with ``params`` read under this
+        version's parameter names and defaults; UserError for a name pbrt does not know."""
+        params = params or Params()
+        name = filter_name(name) if name else self.default_filter_name
+        radius = 1.5 if self.is_v4 and name == "gaussian" else _DEFAULT_RADIUS[name]
+        x_name, y_name = ("xradius", "yradius") if self.is_v4 else ("xwidth", "ywidth")
+        rx, ry = params.get_float(x_name, radius), params.get_float(y_name, radius)
+        validation.filter_radius(rx, f"filter {x_name} (pixels)")
+        validation.filter_radius(ry, f"filter {y_name} (pixels)")
+        tau = validation.positive_length(params.get_float("tau", 3.0), "sinc filter tau")
+        if self.is_v4:
+            alpha = 1.0 / (2.0 * validation.positive_length(params.get_float("sigma", 0.5), "gaussian filter sigma",
+                                                            MAX_SIGMA) ** 2)
+        else:
+            alpha = params.get_float("alpha", 2.0)
+        if self.name in ("v1", "v2"):
+            sinc_scale, window_scale = tau / rx, 1.0 / rx
+        else:
+            sinc_scale, window_scale = 1.0, 1.0 / tau
+        return PixelFilter(name, rx, ry, alpha, params.get_float("B", 1.0 / 3.0), params.get_float("C", 1.0 / 3.0),
+                           sinc_scale, window_scale)
 
     def describe(self) -> str:
         return f"pbrt-{self.name} ({self.reason})"

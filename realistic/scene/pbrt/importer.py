@@ -9,6 +9,7 @@ Everything the renderer cannot honour is reported once with file and line, and t
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -20,6 +21,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core import validation
 from realistic.core.image_files import read_linear_rgb
+from realistic.core.pixel_filter import PixelFilter, filter_name
 from realistic.core.transforms import scale, translate
 from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.errors import LensFileError, UserError
@@ -504,12 +506,36 @@ def import_world(path: str | Path, search_paths: list[Path] | None = None,
     return _Importer(parsed, search_paths, chosen).run(), parsed, chosen
 
 
+def import_pixel_filter(parsed: PbrtScene, dialect: Dialect, override: str | None = None) -> PixelFilter:
+    """The scene's ``PixelFilter`` read in ``dialect`` (its default when the scene names none);
+    ``override`` (a filter name) replaces the scene's with that filter at the dialect's defaults.
+
+    A filter name pbrt does not know is a warning and the dialect's default, not an error: pbrt-v2
+    itself warns and goes on, and this importer renders what it can of a scene everywhere else
+    (unknown shapes, materials and lights are warnings too); bad parameters of a known filter are
+    one-line errors naming the file and line."""
+    if override is not None:
+        return dialect.pixel_filter(override)
+    directive = parsed.pixel_filter
+    if directive is None:
+        return dialect.pixel_filter()
+    try:
+        filter_name(directive.type)
+    except UserError:
+        parsed.warn(directive.where, f'PixelFilter "{directive.type}" (the pbrt-{dialect.name} default, '
+                                     f'{dialect.default_filter_name}, is used)')
+        return dialect.pixel_filter()
+    with _located(directive.where):
+        return dialect.pixel_filter(directive.type, directive.params)
+
+
 def import_pbrt(path: str | Path, width: int | None = None, height: int | None = None, spp: int | None = None,
                 lens_sampling: str = "pupil", lens_edit: Callable[[LensSystem], LensSystem] | None = None,
                 focus_scene_units: float | None = None, search_paths: list[Path] | None = None,
-                dialect: str = "auto") -> ImportedScene:
+                dialect: str = "auto", pixel_filter: str | None = None) -> ImportedScene:
     """Read a pbrt scene and its camera (``Scene.camera``); resolution and samples default to the
-    file's (``Film`` and ``Sampler``); ``dialect`` as ``realistic.scene.pbrt.dialect`` explains."""
+    file's (``Film`` and ``Sampler``); ``dialect`` as ``realistic.scene.pbrt.dialect`` explains;
+    ``pixel_filter`` names a filter that replaces the scene's (``import_pixel_filter``)."""
     search_paths = list(search_paths or [])
     scene, parsed, chosen = import_world(path, search_paths, dialect)
     film = parsed.film.params if parsed.film else Params()
@@ -525,6 +551,7 @@ def import_pbrt(path: str | Path, width: int | None = None, height: int | None =
             spp = validation.samples_per_pixel(_whole_number(parsed.sampler.params, "pixelsamples", 16,
                                                              parsed.sampler.where))
     spp = spp or 16
-    scene.camera = import_camera(parsed, chosen, width, height, spp, lens_sampling, lens_edit, focus_scene_units,
-                                 search_paths)
+    scene.camera = dataclasses.replace(import_camera(parsed, chosen, width, height, spp, lens_sampling, lens_edit,
+                                                     focus_scene_units, search_paths),
+                                       pixel_filter=import_pixel_filter(parsed, chosen, pixel_filter))
     return ImportedScene(scene, film.get_string("filename"), parsed.warnings, chosen)

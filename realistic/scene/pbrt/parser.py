@@ -101,7 +101,7 @@ class ShapeRecord:
 
 @dataclass(frozen=True)
 class Directive:
-    """Camera, Film, Sampler or LightSource: type, parameters and the CTM when it was given."""
+    """Camera, Film, Sampler, PixelFilter or LightSource: type, parameters and the CTM when it was given."""
 
     type: str
     params: Params
@@ -115,6 +115,7 @@ class PbrtScene:
     film: Directive | None = None
     sampler: Directive | None = None
     camera: Directive | None = None
+    pixel_filter: Directive | None = None
     shapes: list[ShapeRecord] = field(default_factory=list)
     objects: dict[str, list[ShapeRecord]] = field(default_factory=dict)
     instances: list[tuple[str, np.ndarray, str]] = field(default_factory=list)
@@ -403,6 +404,9 @@ class _Parser:
     def d_Sampler(self, token: Token) -> None:
         self.scene.sampler = self._directive(token)
 
+    def d_PixelFilter(self, token: Token) -> None:
+        self.scene.pixel_filter = self._directive(token)
+
     def d_Camera(self, token: Token) -> None:
         camera = self._directive(token)
         try:
@@ -420,7 +424,7 @@ class _Parser:
         self.params()
         self.scene.warn(token.where(), f'{token.text} "{kind}" (ignored)')
 
-    d_PixelFilter = d_SurfaceIntegrator = d_VolumeIntegrator = d_Integrator = d_Accelerator = _ignored
+    d_SurfaceIntegrator = d_VolumeIntegrator = d_Integrator = d_Accelerator = _ignored
     d_Renderer = d_ColorSpace = d_MakeNamedMedium = _ignored
 
     def d_WorldBegin(self, token: Token) -> None:
