@@ -346,7 +346,7 @@ def test_lateral_colour_grows_with_field_height_and_vanishes_without_dispersion(
 
 # ------------------------------------------------------------------ command line
 
-def test_dispersion_option_defaults_to_the_lens_and_can_be_forced():
+def test_dispersion_option_defaults_to_the_lens_and_can_be_forced(tmp_path):
     from realistic.cli import build_parser
     from realistic.cli.scene_arguments import options_from_args
     from realistic.renderer.inputs import build_render_inputs
@@ -355,6 +355,10 @@ def test_dispersion_option_defaults_to_the_lens_and_can_be_forced():
         parsed = build_parser().parse_args(["render", "--res", "8x8", *args])
         return build_render_inputs(options_from_args(parsed, 1)).camera
 
-    assert load_lens("dgauss").has_dispersion and camera().spectral  # V numbers: on by default
-    assert not camera("--dispersion", "off").spectral
+    mesh = tmp_path / "tetrahedron.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    assert load_lens("dgauss").has_dispersion and camera(str(mesh)).spectral  # V numbers: on for a mesh
+    assert not camera(str(mesh), "--dispersion", "off").spectral
+    assert not camera().spectral  # the default scene renders as scenes/default.pbrt: off unless asked
+    assert camera("--dispersion", "on").spectral
     assert camera("--lens", "dgauss100", "--dispersion", "on").spectral
