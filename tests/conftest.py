@@ -53,3 +53,23 @@ def flat_field_brightness(lens, spp: int = 256) -> float:
     wall.lights.append(AreaLight("quad", (40.0, 40.0), (1.0, 1.0, 1.0), translate(0, 0, 10) @ rotate(180, (0, 1, 0))))
     camera = LensCamera.looking_at(lens, np.zeros(3), np.array([0, 0, 10.0]), 10.0, 43.27, 8, 8, spp)
     return float(render_passes(wall, camera, "numpy").image[3:5, 3:5].mean())
+
+
+def rays_the_pupil_table_loses(lens, film_distance_mm: float, table, seed: int, count: int = 300_000,
+                               film_radius_mm: float = 17.5) -> tuple[int, int]:
+    """(rays that pass the lens, passing rays outside the table's box) among ``count`` rays from film
+    points uniform over a disk of ``film_radius_mm``, aimed by the rear-element sampler (which
+    reaches every direction the lens can pass)."""
+    import numpy as np
+
+    from realistic.optics.sampling import rear_element_sampler
+    from realistic.optics.tracer import trace_from_film
+
+    rng = np.random.default_rng(seed)
+    radius = film_radius_mm * np.sqrt(rng.random(count))
+    angle = rng.uniform(0, 2 * np.pi, count)
+    film_xy = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
+    points, _ = rear_element_sampler(lens, film_distance_mm).sample(film_xy, rng.random(count), rng.random(count))
+    origins = np.column_stack([film_xy, np.zeros(count)])
+    passed = trace_from_film(lens, film_distance_mm, origins, points - origins).passed
+    return int(passed.sum()), int(np.sum(passed & ~table.contains(film_xy, points[:, :2])))

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from conftest import rays_the_pupil_table_loses
 from realistic import load_lens
 from realistic.core.warp import concentric_disk
 from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
@@ -13,7 +14,6 @@ from realistic.optics.sampling import (
     rear_element_sampler,
     rear_surface_depths_mm,
 )
-from realistic.optics.tracer import trace_from_film
 
 LENSES = ["dgauss", "wide", "fisheye", "telephoto", "dgauss100"]
 
@@ -81,18 +81,8 @@ def pupil_setup(request):
 
 def test_pupil_bounds_never_lose_a_passing_ray(pupil_setup):
     lens, film, table = pupil_setup
-    rear = rear_element_sampler(lens, film)
-    rng = np.random.default_rng(9)
-    count = 300_000
-    radius = 17.5 * np.sqrt(rng.random(count))
-    angle = rng.uniform(0, 2 * np.pi, count)
-    film_xy = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
-    points, _ = rear.sample(film_xy, rng.random(count), rng.random(count))
-    origins = np.column_stack([film_xy, np.zeros(count)])
-    passed = trace_from_film(lens, film, origins, points - origins).passed
-    assert passed.sum() > 1000
-    inside = table.contains(film_xy, points[:, :2])
-    assert not np.any(passed & ~inside)
+    passed, lost = rays_the_pupil_table_loses(lens, film, table, seed=9)
+    assert passed > 1000 and lost == 0
 
 
 def test_pupil_box_on_axis_matches_paraxial_exit_pupil(pupil_setup):
@@ -132,13 +122,5 @@ def test_pupil_bounds_hold_at_a_small_stop(name):
     film = film_distance_for_focus(lens, np.inf)
     table = exit_pupil_table(lens, film, 35.0)
     assert table.area_mm2()[0] > 0
-    rng = np.random.default_rng(3)
-    count = 300_000
-    radius = 17.5 * np.sqrt(rng.random(count))
-    angle = rng.uniform(0, 2 * np.pi, count)
-    film_xy = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
-    points, _ = rear_element_sampler(lens, film).sample(film_xy, rng.random(count), rng.random(count))
-    origins = np.column_stack([film_xy, np.zeros(count)])
-    passed = trace_from_film(lens, film, origins, points - origins).passed
-    assert passed.sum() > 100
-    assert not np.any(passed & ~table.contains(film_xy, points[:, :2]))
+    passed, lost = rays_the_pupil_table_loses(lens, film, table, seed=3)
+    assert passed > 100 and lost == 0

@@ -23,7 +23,8 @@ The pixel filter (``PixelFilter``; the maths in ``realistic.core.pixel_filter``)
 - the default when a scene names none: pbrt-v1 ``mitchell`` (its ``core/api.cpp``
   ``RenderOptions``: FilterName = "mitchell"); pbrt-v2 ``box`` (``src/core/api.cpp``
   ``RenderOptions::RenderOptions``: FilterName = "box"); pbrt-v3 ``box`` (``src/core/api.cpp``
-  ``RenderOptions``: FilterName = "box"); pbrt-v4 ``gaussian`` (``BasicSceneBuilder``'s filter);
+  ``RenderOptions``: FilterName = "box"); pbrt-v4 ``gaussian`` (``src/pbrt/scene.cpp``,
+  ``BasicSceneBuilder``'s scene defaults: filter.name = "gaussian");
 - radii: ``xwidth``/``ywidth`` in pbrt-v1/v2/v3 (half-widths despite the name), ``xradius``/
   ``yradius`` in pbrt-v4 (``src/pbrt/filters.cpp``), defaults per filter as each version's
   ``Create...Filter`` sets them (the same numbers in all four: box 0.5, triangle 2, mitchell 2,
