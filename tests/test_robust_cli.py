@@ -11,7 +11,6 @@ from pathlib import Path
 
 import pytest
 
-from conftest import shared_file
 from realistic.cli import main
 from realistic.core.atomic_files import remove_stale_temporaries
 from realistic.core.image_files import read_exr, write_exr
@@ -74,8 +73,9 @@ def test_memory_guard_refuses_before_work(tmp_path, capsys):
 @pytest.mark.parametrize("diagonal", ["0", "-70", "1e9"])
 def test_pbrt_film_diagonal_is_checked_like_the_option(tmp_path, capsys, diagonal):
     scene = tmp_path / "s.pbrt"
-    scene.write_text('Camera "realistic" "string lensfile" "dgauss.50mm.dat" "float aperturediameter" 10\n'
-                     f'    "float focusdistance" 2 "float filmdiag" {diagonal}\nWorldBegin\nShape "sphere"\n')
+    scene.write_text(f'Film "image" "float diagonal" {diagonal}\n'
+                     'Camera "realistic" "string lensfile" "dgauss.50mm.dat" "float aperturediameter" 10\n'
+                     '    "float focusdistance" 2\nWorldBegin\nShape "sphere"\n')
     err = refused(["render", str(scene), *QUICK, "--res", "8x8", "--out", str(tmp_path / "x.exr")], tmp_path, capsys)
     assert "film diagonal (mm)" in err
 
@@ -182,16 +182,27 @@ def test_a_second_interrupt_stops_at_once_and_writes_nothing(tmp_path):
 
 
 @pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
+def _plated_lens(path: Path, plates: int) -> Path:
+    """The double Gauss behind ``plates`` thin flat glass plates: a lens whose exit-pupil table takes
+    seconds to build (it grows linearly with the surfaces)."""
+    plate = "inf 0.05 1.5 0 40\ninf 0.05 1 0 40\n" * plates  # 5 columns, as the file has
+    path.write_text(plate + (REPO / "realistic/optics/formats/lenses/dgauss.50mm.dat").read_text())
+    return path
+
+
 def test_interrupt_during_set_up_says_nothing_was_written(tmp_path):
-    homework = shared_file("scenes/pbrt/dof-dragons.wide.pbrt")  # its exit-pupil table takes seconds
-    process = subprocess.Popen([sys.executable, "-m", "realistic", "render", str(homework), "--res", "64x64",
-                                "--out", str(tmp_path / "r.exr")], cwd=REPO, stderr=subprocess.PIPE)
-    time.sleep(4)
+    lens = _plated_lens(tmp_path / "plates.dat", 495)  # 1001 surfaces: a table of seconds
+    out = tmp_path / "out"
+    out.mkdir()
+    process = subprocess.Popen([sys.executable, "-m", "realistic", "render", *QUICK[:2], "--lens", str(lens),
+                                "--res", "64x64", "--out", str(out / "r.exr")], cwd=REPO, stderr=subprocess.PIPE,
+                               env={**os.environ, "REALISTIC_CACHE_DIR": "off"})
+    time.sleep(2.5)  # Python has started and is building the table
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=60)
     assert process.returncode == 130
     assert b"nothing written" in err and b"Traceback" not in err
-    assert list(tmp_path.iterdir()) == []
+    assert list(out.iterdir()) == []
 
 
 def test_api_scene_beyond_single_precision_is_a_user_error():
