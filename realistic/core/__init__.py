@@ -7,6 +7,7 @@
 - ``film_geometry``: film size from diagonal and resolution; the full-frame diagonal.
 - ``spectrum``: wavelengths per sample, RGB to spectrum, spectrum to linear sRGB.
 - ``atomic_files``: writability checks and atomic writes.
+- ``disk_cache``: arrays cached on disk under a hash of what they were computed from.
 - ``image_files``: EXR and PNG out, EXR and other images in.
 - ``data_files``: the kernel and default scene, in a checkout or an installation.
 """

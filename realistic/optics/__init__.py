@@ -11,7 +11,9 @@ frame with the film at z = 0 and +z toward the scene.
 - ``paraxial``: first-order data (EFL, BFL, pupils, f-number) and thick-lens focusing.
 - ``tracer``: the float64 real-ray tracer (film to scene), the production tracer and the kernel's
   oracle.
-- ``sampling``: where camera rays are aimed (exit-pupil table, rear element) and their weight.
+- ``sampling``: where camera rays are aimed (exit-pupil table, rear element) and their weight;
+  tables are cached in memory and on disk (``core.disk_cache``).
+- ``pupil_search``: finds the exit-pupil boxes by tracing grids and bisecting their edges.
 - ``field_curves``: relative illumination, vignetting and distortion against field.
 - ``report``: what ``lens info`` reports.
 - ``ray_json``: the JSON rays of ``lens trace``.
