@@ -59,7 +59,6 @@ def main() -> int:
     for name, scene, times in rows:
         lines.append(f"| {name} (`{scene.name}`) | "
                      + " | ".join(f"{times[s]:.1f}" for s in spp_list) + " |")
-    (out / "times.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
     print("\n".join(lines))
     return 0
 
