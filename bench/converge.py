@@ -65,7 +65,7 @@ def time_to_error(seconds: list[float], errors: list[float], target: float) -> f
     for i, error in enumerate(errors):
         if error > target:
             continue
-        if i == 0 or error == errors[i - 1]:
+        if i == 0 or error <= 0 or error == errors[i - 1]:
             return seconds[i]
         step = (math.log(target) - math.log(errors[i - 1])) / (math.log(error) - math.log(errors[i - 1]))
         return math.exp(math.log(seconds[i - 1]) + step * (math.log(seconds[i]) - math.log(seconds[i - 1])))

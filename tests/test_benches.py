@@ -73,6 +73,7 @@ def test_time_to_error_not_reached_and_reached_at_once():
     assert converge.time_to_error(seconds, errors, 0.1) is None
     assert converge.time_to_error(seconds, errors, 0.6) == 1.0  # the first point: an upper bound
     assert converge.time_to_error(seconds, errors, 0.2) == pytest.approx(4.0)  # a measured point exactly
+    assert converge.time_to_error([1.0, 2.0], [0.5, 0.0], 0.1) == 2.0  # no log of a zero error
 
 
 # --- the reference cache key -------------------------------------------------------------------
