@@ -113,7 +113,8 @@ def _format_time(seconds: float | None) -> str:
     return "not reached" if seconds is None else f"{seconds:.1f} s"
 
 
-def main() -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line: scene, resolution, sample counts and the error to time."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", type=Path, default=DEFAULT_SCENE, help="pbrt scene (default: the dgauss dragons)")
     parser.add_argument("--res", type=checked(str, parse_resolution), default=(512, 512), metavar="WxH",
@@ -126,7 +127,11 @@ def main() -> None:
                         help="relative RMSE to time (default 0.02)")
     parser.add_argument("--search-path", type=Path, action="append", metavar="DIR",
                         help="pbrt search path (default for the dragons: ../shared/meshes, ../shared/scenes/pbrt)")
-    args = parser.parse_args()
+    return parser
+
+
+def main() -> None:
+    args = build_parser().parse_args()
     search_paths = args.search_path
     if search_paths is None:
         search_paths = list(DEFAULT_SEARCH_PATHS) if args.scene.resolve() == DEFAULT_SCENE else []

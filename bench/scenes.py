@@ -34,6 +34,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from realistic.cli.values import checked, parse_resolution  # noqa: E402
+from realistic.core import validation  # noqa: E402
+from realistic.errors import UserError  # noqa: E402
+
 SHARED = ROOT.parent / "shared"
 LENSES = ("dgauss", "fisheye", "telephoto", "wide")
 #: pbrt-v3 on this machine, homework scenes at 300x300, 32 spp (issue 11).
@@ -75,10 +81,10 @@ def scene_list(root: Path = ROOT, shared: Path = SHARED) -> tuple[list[BenchScen
     return scenes, skipped
 
 
-def render_arguments(scene: BenchScene, res: str, spp: int, light_samples: int | None,
+def render_arguments(scene: BenchScene, res: tuple[int, int], spp: int, light_samples: int | None,
                      backend: str) -> list[str]:
     """The ``realistic render`` arguments (without --out) that render ``scene`` as benchmarked."""
-    arguments = [str(scene.path), "--res", res, "--spp", str(spp), "--backend", backend]
+    arguments = [str(scene.path), "--res", f"{res[0]}x{res[1]}", "--spp", str(spp), "--backend", backend]
     for folder in scene.search_paths:
         arguments += ["--search-path", str(folder)]
     if light_samples is not None:
@@ -123,22 +129,32 @@ def _child_environment(empty_cache: bool) -> dict[str, str]:
     return env
 
 
+class ChildFailed(Exception):
+    """A measuring process exited with an error; the message is its last line of stderr."""
+
+
+def _run_child(command: list[str], empty_cache: bool) -> str:
+    """Run ``command`` from the repository root and return its stdout, or raise ``ChildFailed``."""
+    run = subprocess.run(command, cwd=ROOT, env=_child_environment(empty_cache), capture_output=True, text=True)
+    if run.returncode != 0:
+        lines = run.stderr.strip().splitlines() or [f"exit status {run.returncode}"]
+        raise ChildFailed(lines[-1])
+    return run.stdout
+
+
 def cli_seconds(arguments: list[str], empty_cache: bool) -> float:
     """Wall seconds of ``python -m realistic render`` with ``arguments``."""
     with tempfile.TemporaryDirectory() as folder:
         start = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "realistic", "render", *arguments, "--out", str(Path(folder) / "r.exr")],
-                       check=True, cwd=ROOT, env=_child_environment(empty_cache),
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        _run_child([sys.executable, "-m", "realistic", "render", *arguments, "--out", str(Path(folder) / "r.exr")],
+                   empty_cache)
         return time.perf_counter() - start
 
 
 def library_figures(arguments: list[str], empty_cache: bool) -> dict:
     """``measure_in_process`` run in a fresh Python process (this script with ``--child``)."""
     command = [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps([time.time(), arguments])]
-    run = subprocess.run(command, check=True, cwd=ROOT, env=_child_environment(empty_cache),
-                         capture_output=True, text=True)
-    return json.loads(run.stdout.strip().splitlines()[-1])
+    return json.loads(_run_child(command, empty_cache).strip().splitlines()[-1])
 
 
 def median_figures(runs: list[dict]) -> dict:
@@ -146,16 +162,32 @@ def median_figures(runs: list[dict]) -> dict:
     return {key: statistics.median(run[key] for run in runs) for key in runs[0]}
 
 
-def main() -> None:
+def positive_count(value: int) -> int:
+    """``value`` when it is at least 1 (``--repeats``)."""
+    if value < 1:
+        raise UserError(f"{value} is not a positive count")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line: what to render and how often."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--res", default="300x300", help="WxH for every scene (default 300x300)")
-    parser.add_argument("--spp", type=int, default=32, help="samples per pixel (default 32)")
-    parser.add_argument("--light-samples", type=int, help="light samples per hit (default: each scene's own)")
-    parser.add_argument("--repeats", type=int, default=1, help="runs per figure; the median is shown (default 1)")
+    parser.add_argument("--res", type=checked(str, parse_resolution), default=(300, 300), metavar="WxH",
+                        help="resolution of every scene (default 300x300)")
+    parser.add_argument("--spp", type=checked(int, validation.samples_per_pixel), default=32, metavar="N",
+                        help="samples per pixel (default 32)")
+    parser.add_argument("--light-samples", type=checked(int, validation.light_samples), metavar="N",
+                        help="light samples per hit (default: each scene's own)")
+    parser.add_argument("--repeats", type=checked(int, positive_count), default=1, metavar="N",
+                        help="runs per figure; the median is shown (default 1)")
     parser.add_argument("--empty-cache", action="store_true", help="an empty exit-pupil disk cache per process")
     parser.add_argument("--backend", default="opencl", choices=("opencl", "numpy"))
     parser.add_argument("--child", help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    return parser
+
+
+def main() -> None:
+    args = build_parser().parse_args()
     if args.child:
         launched, arguments = json.loads(args.child)
         print(json.dumps(measure_in_process(arguments, launched)))
@@ -164,7 +196,7 @@ def main() -> None:
     scenes, skipped = scene_list()
     for message in skipped:
         print(f"skipped: {message}")
-    print(f"{args.res}, {args.spp} spp, backend {args.backend}, median of {args.repeats}, "
+    print(f"{args.res[0]}x{args.res[1]}, {args.spp} spp, backend {args.backend}, median of {args.repeats}, "
           f"{'empty' if args.empty_cache else 'user'} exit-pupil cache; the machine's load is not controlled")
     header = (f"{'scene':<20}{'cli s':>8}{'setup s':>9}{'(import':>8}{'load':>7}{'pupil':>7}{'stage)':>7}"
               f"{'1st pass s':>11}{'render s':>10}{'M samples/s':>12}{'lights':>7}")
@@ -172,8 +204,13 @@ def main() -> None:
     rows = []
     for scene in scenes:
         arguments = render_arguments(scene, args.res, args.spp, args.light_samples, args.backend)
-        cli = statistics.median(cli_seconds(arguments, args.empty_cache) for _ in range(args.repeats))
-        lib = median_figures([library_figures(arguments, args.empty_cache) for _ in range(args.repeats)])
+        try:
+            cli = statistics.median(cli_seconds(arguments, args.empty_cache) for _ in range(args.repeats))
+            lib = median_figures([library_figures(arguments, args.empty_cache) for _ in range(args.repeats)])
+        except ChildFailed as err:
+            skipped.append(f"{scene.name}: failed: {err}")
+            print(f"{scene.name:<20}failed: {err}", flush=True)
+            continue
         rows.append({"scene": scene.name, "path": str(scene.path), "cli_s": cli, **lib})
         print(f"{scene.name:<20}{cli:>8.2f}{lib['setup_s']:>9.2f}{lib['import_s']:>8.2f}{lib['load_s']:>7.2f}"
               f"{lib['exit_pupil_s']:>7.2f}{lib['setup_stage_s']:>7.2f}{lib['first_pass_s']:>11.2f}"
@@ -182,9 +219,9 @@ def main() -> None:
     slow = [r["scene"] for r in rows if r["first_pass_s"] >= FIRST_PASS_GOAL_S]
     print(f"\nfor comparison: {PBRT_V3}")
     print(f"first pass under {FIRST_PASS_GOAL_S:g} s: " + ("every scene" if not slow else f"not {', '.join(slow)}"))
-    report = {"resolution": args.res, "spp": args.spp, "light_samples": args.light_samples, "backend": args.backend,
-              "repeats": args.repeats, "empty_cache": args.empty_cache, "skipped": skipped, "rows": rows,
-              "pbrt_v3": PBRT_V3, "first_pass_goal_s": FIRST_PASS_GOAL_S}
+    report = {"resolution": list(args.res), "spp": args.spp, "light_samples": args.light_samples,
+              "backend": args.backend, "repeats": args.repeats, "empty_cache": args.empty_cache,
+              "skipped": skipped, "rows": rows, "pbrt_v3": PBRT_V3, "first_pass_goal_s": FIRST_PASS_GOAL_S}
     out = ROOT / "bench" / "results" / "scenes.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(report, indent=2) + "\n")

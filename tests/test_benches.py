@@ -135,10 +135,10 @@ def test_scene_list_with_shared_data_has_homework_and_dragons(tmp_path):
 
 def test_render_arguments_carry_search_paths_and_light_samples(tmp_path):
     scene = scenes.BenchScene("x", tmp_path / "x.pbrt", (tmp_path / "m", tmp_path / "p"))
-    arguments = scenes.render_arguments(scene, "300x300", 32, None, "opencl")
+    arguments = scenes.render_arguments(scene, (300, 300), 32, None, "opencl")
     assert arguments[:5] == [str(scene.path), "--res", "300x300", "--spp", "32"]
     assert arguments.count("--search-path") == 2 and "--light-samples" not in arguments
-    assert scenes.render_arguments(scene, "300x300", 32, 4, "numpy")[-2:] == ["--light-samples", "4"]
+    assert scenes.render_arguments(scene, (300, 300), 32, 4, "numpy")[-2:] == ["--light-samples", "4"]
 
 
 def test_render_arguments_parse_as_the_render_command(tmp_path):
@@ -146,11 +146,36 @@ def test_render_arguments_parse_as_the_render_command(tmp_path):
     from realistic.cli import build_parser
 
     scene = scenes.BenchScene("x", tmp_path / "x.pbrt", (tmp_path / "m",))
-    args = build_parser().parse_args(["render", *scenes.render_arguments(scene, "64x48", 8, 2, "numpy")])
+    args = build_parser().parse_args(["render", *scenes.render_arguments(scene, (64, 48), 8, 2, "numpy")])
     assert (args.spp, args.light_samples, args.backend) == (8, 2, "numpy")
+    assert args.res == "64x48"
     assert [Path(p) for p in args.search_path] == [tmp_path / "m"]
 
 
 def test_median_figures_per_key():
     runs = [{"a": 1.0, "b": 9.0}, {"a": 3.0, "b": 1.0}, {"a": 2.0, "b": 5.0}]
     assert scenes.median_figures(runs) == {"a": 2.0, "b": 5.0}
+
+
+# --- the command lines -------------------------------------------------------------------------
+
+_TEXT = st.one_of(st.text(max_size=12), st.from_regex(r"-?[0-9]{1,6}(x[0-9]{0,6})?(,[0-9x]{0,4}){0,3}", fullmatch=True))
+
+
+@pytest.mark.parametrize("module,option", [(scenes, "--res"), (scenes, "--spp"), (scenes, "--light-samples"),
+                                           (scenes, "--repeats"), (converge, "--res"), (converge, "--spps"),
+                                           (converge, "--reference-spp"), (converge, "--target")])
+@given(text=_TEXT)
+def test_options_parse_or_refuse_in_one_line(module, option, text, capsys):
+    """Any value is either accepted (and then valid) or refused by argparse with exit status 2 and a
+    one-line message naming the option; never another exception."""
+    try:
+        args = module.build_parser().parse_args([f"{option}={text}"])
+    except SystemExit as stop:
+        assert stop.code == 2
+        message = capsys.readouterr().err.strip().splitlines()[-1]
+        assert option in message and "Traceback" not in message
+        return
+    value = getattr(args, option[2:].replace("-", "_"))
+    values = value if isinstance(value, (tuple, list)) else [value]
+    assert all(v > 0 for v in values)
