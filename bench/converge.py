@@ -13,6 +13,8 @@ Python start-up and imports are not) and
 
 The time to ``--target`` (0.02) is interpolated linearly in log(seconds) against log(error) between
 the two measured points around the first crossing ("not reached" when no point is at or below it).
+The reference's own noise, estimated from the highest test count, is printed too: a target near it
+measures the reference, not the test.
 Beside it, pbrt-v3's figures measured on this machine for the dragons through dgauss at 512x512
 (64 spp: 29.5 s wall, relative RMSE 0.073), our time to 0.073 and the ratio ours / pbrt-v3.
 
@@ -70,6 +72,16 @@ def time_to_error(seconds: list[float], errors: list[float], target: float) -> f
         step = (math.log(target) - math.log(errors[i - 1])) / (math.log(error) - math.log(errors[i - 1]))
         return math.exp(math.log(seconds[i - 1]) + step * (math.log(seconds[i]) - math.log(seconds[i - 1])))
     return None
+
+
+def reference_noise(error: float, spp: int, reference_spp: int) -> float:
+    """The reference's own relative RMSE, estimated from one test's ``error`` at ``spp``.
+
+    Test and reference are independent with variances v/spp and v/reference_spp (the 1/N regime,
+    fair at the highest test count), so error^2 = v/spp + v/reference_spp and the reference's part
+    is error * sqrt(spp / (spp + reference_spp)). No target near or below it can be timed here.
+    """
+    return error * math.sqrt(spp / (spp + reference_spp))
 
 
 def source_hash(root: Path, scene: Path) -> str:
@@ -163,7 +175,10 @@ def main() -> None:
     to_target = time_to_error(walls, errors, args.target)
     to_pbrt = time_to_error(walls, errors, PBRT_V3["rel_rmse"])
     ratio = None if to_pbrt is None else to_pbrt / PBRT_V3["wall_s"]
-    print(f"\ntime to relative RMSE {args.target:g}: {_format_time(to_target)}")
+    floor = reference_noise(errors[-1], rows[-1]["spp"], args.reference_spp)
+    print(f"\nthe reference's own relative RMSE, estimated from {rows[-1]['spp']} spp: {floor:.4f} "
+          "(errors near it measure the reference; raise --reference-spp to time lower targets)")
+    print(f"time to relative RMSE {args.target:g}: {_format_time(to_target)}")
     comparable = args.scene.resolve() == DEFAULT_SCENE and args.res == (512, 512)
     print(f"pbrt-v3 (dragons, dgauss, 512x512, measured on this machine): {PBRT_V3['spp']} spp, "
           f"{PBRT_V3['wall_s']} s wall, relative RMSE {PBRT_V3['rel_rmse']}"
@@ -173,7 +188,8 @@ def main() -> None:
     report = {"scene": str(args.scene), "resolution": list(args.res), "search_paths": [str(p) for p in search_paths],
               "light_samples": inputs.light_samples, "reference_spp": args.reference_spp,
               "reference_seed": REFERENCE_SEED, "test_seed": TEST_SEED, "source_hash": version, "load_s": load_s,
-              "rows": rows, "target": args.target, "time_to_target_s": to_target, "pbrt_v3": PBRT_V3,
+              "rows": rows, "reference_noise_estimate": floor, "target": args.target,
+              "time_to_target_s": to_target, "pbrt_v3": PBRT_V3,
               "time_to_pbrt_error_s": to_pbrt, "ratio_to_pbrt": ratio,
               "comparable_to_pbrt": comparable}
     path = out / "converge.json"

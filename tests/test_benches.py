@@ -76,6 +76,15 @@ def test_time_to_error_not_reached_and_reached_at_once():
     assert converge.time_to_error([1.0, 2.0], [0.5, 0.0], 0.1) == 2.0  # no log of a zero error
 
 
+@given(st.floats(1e-4, 10.0), st.integers(1, 4096), st.integers(1, 1 << 16))
+def test_reference_noise_recovers_the_reference_part_of_the_error(variance, spp, reference_spp):
+    """With independent errors of variance v/n and v/N the measured error is sqrt(v/n + v/N); the
+    estimate gives back sqrt(v/N)."""
+    measured = math.sqrt(variance / spp + variance / reference_spp)
+    assert converge.reference_noise(measured, spp, reference_spp) == pytest.approx(
+        math.sqrt(variance / reference_spp), rel=1e-9)
+
+
 # --- the reference cache key -------------------------------------------------------------------
 
 def _package(root: Path) -> Path:
