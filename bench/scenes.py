@@ -1,0 +1,232 @@
+"""Scene benchmark: set-up, first pass and samples/s of the homework scenes, their dragons and ours.
+
+    .venv/bin/python bench/scenes.py [--res 300x300] [--spp 32] [--light-samples N] [--repeats 1]
+        [--empty-cache] [--backend opencl|numpy]
+
+Scenes: the homework's ``../shared/scenes/pbrt/dof-dragons.<lens>.pbrt``, their dragon versions
+``scenes/dof-dragons/<lens>.pbrt`` (search paths ``../shared/meshes`` and ``../shared/scenes/pbrt``)
+and ``scenes/default.pbrt``; scenes whose shared data is absent are skipped with the reason. Each
+scene is measured in fresh processes, so imports and caches start as a user's command would:
+
+- ``cli s``: wall seconds of ``python -m realistic render SCENE --res --spp --out TMP.exr``;
+- from the library (``build_render_inputs``, ``render_passes`` with an ``on_pass`` callback):
+  ``setup s`` = process start and imports + scene load + the "exit pupil" and "setup" stages
+  (everything before the first camera ray), ``first pass s`` = process start to the first finished
+  pass, ``render s`` = the rest of ``render_passes``, and samples/s = samples / render s.
+
+Light samples are the scenes' own (the homework gives 4) unless ``--light-samples`` is given. The
+exit-pupil tables come from the user's disk cache unless ``--empty-cache`` gives every process an
+empty one. Medians of ``--repeats`` (default 1, to keep the run short). The machine's load is not
+controlled: on a shared machine the figures are upper bounds. Writes bench/results/scenes.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from realistic.cli.values import checked, parse_resolution  # noqa: E402
+from realistic.core import validation  # noqa: E402
+from realistic.errors import UserError  # noqa: E402
+
+SHARED = ROOT.parent / "shared"
+LENSES = ("dgauss", "fisheye", "telephoto", "wide")
+#: pbrt-v3 on this machine, homework scenes at 300x300, 32 spp (issue 11).
+PBRT_V3 = "pbrt-v3, 300x300x32: 6.9-9.6 s wall per lens, 4.1-5.2 s of it set-up"
+FIRST_PASS_GOAL_S = 1.0
+
+
+@dataclass(frozen=True)
+class BenchScene:
+    """A scene file to measure and the pbrt search paths it needs."""
+
+    name: str
+    path: Path
+    search_paths: tuple[Path, ...] = field(default=())
+
+
+def scene_list(root: Path = ROOT, shared: Path = SHARED) -> tuple[list[BenchScene], list[str]]:
+    """The scenes whose files (and shared data) exist, and one message per scene skipped."""
+    scenes, skipped = [], []
+    pbrt_dir, meshes = shared / "scenes" / "pbrt", shared / "meshes"
+    for lens in LENSES:
+        homework = pbrt_dir / f"dof-dragons.{lens}.pbrt"
+        if homework.is_file():
+            scenes.append(BenchScene(f"homework {lens}", homework))
+        else:
+            skipped.append(f"homework {lens}: {homework} not found (no ../shared data)")
+    for lens in LENSES:
+        dragon = root / "scenes" / "dof-dragons" / f"{lens}.pbrt"
+        missing = [p for p in (dragon, meshes, pbrt_dir) if not p.exists()]
+        if missing:
+            skipped.append(f"dragons {lens}: {missing[0]} not found (no ../shared data)")
+        else:
+            scenes.append(BenchScene(f"dragons {lens}", dragon, (meshes, pbrt_dir)))
+    default = root / "scenes" / "default.pbrt"
+    if default.is_file():
+        scenes.append(BenchScene("default", default))
+    else:
+        skipped.append(f"default: {default} not found")
+    return scenes, skipped
+
+
+def render_arguments(scene: BenchScene, res: tuple[int, int], spp: int, light_samples: int | None,
+                     backend: str) -> list[str]:
+    """The ``realistic render`` arguments (without --out) that render ``scene`` as benchmarked."""
+    arguments = [str(scene.path), "--res", f"{res[0]}x{res[1]}", "--spp", str(spp), "--backend", backend]
+    for folder in scene.search_paths:
+        arguments += ["--search-path", str(folder)]
+    if light_samples is not None:
+        arguments += ["--light-samples", str(light_samples)]
+    return arguments
+
+
+def measure_in_process(arguments: list[str], launched: float) -> dict:
+    """Set-up, first-pass and render seconds of one render through the library; ``launched`` is the
+    ``time.time()`` at which the parent started this process (the origin of every figure)."""
+    from realistic.cli import build_parser
+    from realistic.cli.scene_arguments import options_from_args
+    from realistic.renderer.inputs import build_render_inputs
+    from realistic.renderer.passes import render_passes
+
+    imported = time.time()
+    args = build_parser().parse_args(["render", *arguments])
+    inputs = build_render_inputs(options_from_args(args, args.spp))
+    loaded = time.time()
+    first_pass: list[float] = []
+
+    def on_pass(_result) -> None:
+        if not first_pass:
+            first_pass.append(time.time())
+
+    result = render_passes(inputs.scene, inputs.camera, args.backend, args.seed, light_samples=inputs.light_samples,
+                           on_pass=on_pass)
+    stages = result.stage_seconds
+    before_rays = stages.get("exit pupil", 0.0) + stages.get("setup", 0.0)
+    render_s = result.seconds - before_rays
+    return {"import_s": imported - launched, "load_s": loaded - imported,
+            "exit_pupil_s": stages.get("exit pupil", 0.0), "setup_stage_s": stages.get("setup", 0.0),
+            "setup_s": loaded - launched + before_rays, "first_pass_s": first_pass[0] - launched,
+            "render_s": render_s, "samples": result.samples_done,
+            "samples_per_s": result.samples_done / render_s, "light_samples": inputs.light_samples}
+
+
+def _child_environment(empty_cache: bool) -> dict[str, str]:
+    env = dict(os.environ)
+    if empty_cache:
+        env["REALISTIC_CACHE_DIR"] = tempfile.mkdtemp(prefix="realistic-bench-cache-")
+    return env
+
+
+class ChildFailed(Exception):
+    """A measuring process exited with an error; the message is its last line of stderr."""
+
+
+def _run_child(command: list[str], empty_cache: bool) -> str:
+    """Run ``command`` from the repository root and return its stdout, or raise ``ChildFailed``."""
+    run = subprocess.run(command, cwd=ROOT, env=_child_environment(empty_cache), capture_output=True, text=True)
+    if run.returncode != 0:
+        lines = run.stderr.strip().splitlines() or [f"exit status {run.returncode}"]
+        raise ChildFailed(lines[-1])
+    return run.stdout
+
+
+def cli_seconds(arguments: list[str], empty_cache: bool) -> float:
+    """Wall seconds of ``python -m realistic render`` with ``arguments``."""
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        _run_child([sys.executable, "-m", "realistic", "render", *arguments, "--out", str(Path(folder) / "r.exr")],
+                   empty_cache)
+        return time.perf_counter() - start
+
+
+def library_figures(arguments: list[str], empty_cache: bool) -> dict:
+    """``measure_in_process`` run in a fresh Python process (this script with ``--child``)."""
+    command = [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps([time.time(), arguments])]
+    return json.loads(_run_child(command, empty_cache).strip().splitlines()[-1])
+
+
+def median_figures(runs: list[dict]) -> dict:
+    """The per-key median of several runs' figures."""
+    return {key: statistics.median(run[key] for run in runs) for key in runs[0]}
+
+
+def positive_count(value: int) -> int:
+    """``value`` when it is at least 1 (``--repeats``)."""
+    if value < 1:
+        raise UserError(f"{value} is not a positive count")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line: what to render and how often."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--res", type=checked(str, parse_resolution), default=(300, 300), metavar="WxH",
+                        help="resolution of every scene (default 300x300)")
+    parser.add_argument("--spp", type=checked(int, validation.samples_per_pixel), default=32, metavar="N",
+                        help="samples per pixel (default 32)")
+    parser.add_argument("--light-samples", type=checked(int, validation.light_samples), metavar="N",
+                        help="light samples per hit (default: each scene's own)")
+    parser.add_argument("--repeats", type=checked(int, positive_count), default=1, metavar="N",
+                        help="runs per figure; the median is shown (default 1)")
+    parser.add_argument("--empty-cache", action="store_true", help="an empty exit-pupil disk cache per process")
+    parser.add_argument("--backend", default="opencl", choices=("opencl", "numpy"))
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    return parser
+
+
+def main() -> None:
+    args = build_parser().parse_args()
+    if args.child:
+        launched, arguments = json.loads(args.child)
+        print(json.dumps(measure_in_process(arguments, launched)))
+        return
+
+    scenes, skipped = scene_list()
+    for message in skipped:
+        print(f"skipped: {message}")
+    print(f"{args.res[0]}x{args.res[1]}, {args.spp} spp, backend {args.backend}, median of {args.repeats}, "
+          f"{'empty' if args.empty_cache else 'user'} exit-pupil cache; the machine's load is not controlled")
+    header = (f"{'scene':<20}{'cli s':>8}{'setup s':>9}{'(import':>8}{'load':>7}{'pupil':>7}{'stage)':>7}"
+              f"{'1st pass s':>11}{'render s':>10}{'M samples/s':>12}{'lights':>7}")
+    print(header)
+    rows = []
+    for scene in scenes:
+        arguments = render_arguments(scene, args.res, args.spp, args.light_samples, args.backend)
+        try:
+            cli = statistics.median(cli_seconds(arguments, args.empty_cache) for _ in range(args.repeats))
+            lib = median_figures([library_figures(arguments, args.empty_cache) for _ in range(args.repeats)])
+        except ChildFailed as err:
+            skipped.append(f"{scene.name}: failed: {err}")
+            print(f"{scene.name:<20}failed: {err}", flush=True)
+            continue
+        rows.append({"scene": scene.name, "path": str(scene.path), "cli_s": cli, **lib})
+        print(f"{scene.name:<20}{cli:>8.2f}{lib['setup_s']:>9.2f}{lib['import_s']:>8.2f}{lib['load_s']:>7.2f}"
+              f"{lib['exit_pupil_s']:>7.2f}{lib['setup_stage_s']:>7.2f}{lib['first_pass_s']:>11.2f}"
+              f"{lib['render_s']:>10.2f}{lib['samples_per_s'] / 1e6:>12.3f}{int(lib['light_samples']):>7d}",
+              flush=True)
+    slow = [r["scene"] for r in rows if r["first_pass_s"] >= FIRST_PASS_GOAL_S]
+    print(f"\nfor comparison: {PBRT_V3}")
+    print(f"first pass under {FIRST_PASS_GOAL_S:g} s: " + ("every scene" if not slow else f"not {', '.join(slow)}"))
+    report = {"resolution": list(args.res), "spp": args.spp, "light_samples": args.light_samples,
+              "backend": args.backend, "repeats": args.repeats, "empty_cache": args.empty_cache,
+              "skipped": skipped, "rows": rows, "pbrt_v3": PBRT_V3, "first_pass_goal_s": FIRST_PASS_GOAL_S}
+    out = ROOT / "bench" / "results" / "scenes.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(report, indent=2) + "\n")
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,190 @@
+"""The pure helpers of bench/scenes.py and bench/converge.py (no timing is asserted)."""
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _bench_module(name: str):
+    spec = importlib.util.spec_from_file_location(f"bench_{name}", ROOT / "bench" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up while the class is made
+    spec.loader.exec_module(module)
+    return module
+
+
+scenes = _bench_module("scenes")
+converge = _bench_module("converge")
+
+
+# --- relative RMSE -----------------------------------------------------------------------------
+
+def test_relative_rmse_of_a_known_error():
+    """An error of +a and -a on alternating pixels of a constant c has RMSE a, so relRMSE a / c."""
+    reference = np.full((4, 6, 3), 2.0, dtype=np.float32)
+    sign = np.where(np.indices((4, 6, 3)).sum(axis=0) % 2 == 0, 1.0, -1.0)
+    assert converge.relative_rmse(reference + 0.5 * sign, reference) == pytest.approx(0.25)
+    assert converge.relative_rmse(reference, reference) == 0.0
+
+
+def test_relative_rmse_divides_by_the_mean_of_the_reference_not_per_pixel():
+    """A reference of 1 and 3 (mean 2) with the error 1 on every pixel: 1 / 2, not mean(1/ref)."""
+    reference = np.array([1.0, 3.0] * 8).reshape(4, 4, 1)
+    assert converge.relative_rmse(reference + 1.0, reference) == pytest.approx(0.5)
+
+
+@given(st.floats(1e-3, 1e3), st.integers(0, 2**32 - 1))
+def test_relative_rmse_is_scale_free(scale, seed):
+    rng = np.random.default_rng(seed)
+    reference = rng.uniform(0.5, 2.0, (5, 7, 3))
+    image = reference + rng.normal(0, 0.1, reference.shape)
+    assert converge.relative_rmse(scale * image, scale * reference) == pytest.approx(
+        converge.relative_rmse(image, reference), rel=1e-9)
+
+
+# --- time to a target error --------------------------------------------------------------------
+
+@given(st.floats(0.05, 5.0), st.floats(0.2, 1.0), st.floats(0.0, 1.0))
+def test_time_to_error_is_exact_on_a_power_law(c, slope, where):
+    """Errors c * t^-slope are a line in log-log, so interpolation between any two points is exact."""
+    seconds = [1.0, 4.0, 16.0, 64.0]
+    errors = [c * t ** -slope for t in seconds]
+    target = math.exp(math.log(errors[1]) + where * (math.log(errors[2]) - math.log(errors[1])))
+    expected = (c / target) ** (1 / slope)
+    assert converge.time_to_error(seconds, errors, target) == pytest.approx(expected, rel=1e-9)
+
+
+def test_time_to_error_takes_the_first_crossing_of_noisy_errors():
+    """0.1 is first reached between 2 s (0.2) and 8 s (0.05): halfway in log error, so 4 s."""
+    seconds, errors = [1.0, 2.0, 8.0, 16.0, 32.0], [0.4, 0.2, 0.05, 0.12, 0.01]
+    assert converge.time_to_error(seconds, errors, 0.1) == pytest.approx(4.0)
+
+
+def test_time_to_error_not_reached_and_reached_at_once():
+    seconds, errors = [1.0, 2.0, 4.0], [0.5, 0.3, 0.2]
+    assert converge.time_to_error(seconds, errors, 0.1) is None
+    assert converge.time_to_error(seconds, errors, 0.6) == 1.0  # the first point: an upper bound
+    assert converge.time_to_error(seconds, errors, 0.2) == pytest.approx(4.0)  # a measured point exactly
+    assert converge.time_to_error([1.0, 2.0], [0.5, 0.0], 0.1) == 2.0  # no log of a zero error
+
+
+@given(st.floats(1e-4, 10.0), st.integers(1, 4096), st.integers(1, 1 << 16))
+def test_reference_noise_recovers_the_reference_part_of_the_error(variance, spp, reference_spp):
+    """With independent errors of variance v/n and v/N the measured error is sqrt(v/n + v/N); the
+    estimate gives back sqrt(v/N)."""
+    measured = math.sqrt(variance / spp + variance / reference_spp)
+    assert converge.reference_noise(measured, spp, reference_spp) == pytest.approx(
+        math.sqrt(variance / reference_spp), rel=1e-9)
+
+
+# --- the reference cache key -------------------------------------------------------------------
+
+def _package(root: Path) -> Path:
+    (root / "realistic").mkdir()
+    (root / "kernels").mkdir()
+    (root / "realistic" / "a.py").write_text("x = 1\n")
+    (root / "kernels" / "lens.cl").write_text("kernel void k() {}\n")
+    scene = root / "s.pbrt"
+    scene.write_text("WorldBegin\nWorldEnd\n")
+    return scene
+
+
+@pytest.mark.parametrize("changed", ["realistic/a.py", "kernels/lens.cl", "s.pbrt"])
+def test_source_hash_changes_with_the_package_kernels_and_scene(tmp_path, changed):
+    scene = _package(tmp_path)
+    before = converge.source_hash(tmp_path, scene)
+    assert converge.source_hash(tmp_path, scene) == before
+    (tmp_path / changed).write_text((tmp_path / changed).read_text() + "// changed\n")
+    assert converge.source_hash(tmp_path, scene) != before
+
+
+def test_reference_path_names_scene_resolution_spp_and_version(tmp_path):
+    scene = ROOT / "scenes" / "dof-dragons" / "dgauss.pbrt"
+    path = converge.reference_path(tmp_path, scene, (512, 256), 1024, "abc123")
+    assert path.parent == tmp_path and path.suffix == ".npy"
+    assert all(part in path.name for part in ("dof-dragons-dgauss", "512x256", "1024spp", "abc123"))
+    assert converge.reference_path(tmp_path, scene, (512, 256), 1024, "abc124") != path
+    assert converge.reference_path(tmp_path, ROOT / "scenes" / "dof-dragons" / "wide.pbrt",
+                                   (512, 256), 1024, "abc123") != path
+
+
+# --- the scene list ----------------------------------------------------------------------------
+
+def test_scene_list_without_shared_data_keeps_only_the_default(tmp_path):
+    found, skipped = scenes.scene_list(ROOT, tmp_path / "no-shared")
+    assert [s.name for s in found] == ["default"]
+    assert len(skipped) == 2 * len(scenes.LENSES)
+    assert all("not found" in message and "no-shared" in message for message in skipped)
+
+
+def test_scene_list_with_shared_data_has_homework_and_dragons(tmp_path):
+    pbrt_dir, meshes = tmp_path / "scenes" / "pbrt", tmp_path / "meshes"
+    pbrt_dir.mkdir(parents=True)
+    meshes.mkdir()
+    for lens in scenes.LENSES[:2]:  # half of the homework present
+        (pbrt_dir / f"dof-dragons.{lens}.pbrt").write_text("")
+    found, skipped = scenes.scene_list(ROOT, tmp_path)
+    names = {s.name: s for s in found}
+    assert {f"homework {lens}" for lens in scenes.LENSES[:2]} <= set(names)
+    assert [m.split(":")[0] for m in skipped] == [f"homework {lens}" for lens in scenes.LENSES[2:]]
+    for lens in scenes.LENSES:
+        dragon = names[f"dragons {lens}"]
+        assert dragon.path == ROOT / "scenes" / "dof-dragons" / f"{lens}.pbrt"
+        assert dragon.search_paths == (meshes, pbrt_dir)
+    assert names["homework dgauss"].search_paths == ()
+
+
+def test_render_arguments_carry_search_paths_and_light_samples(tmp_path):
+    scene = scenes.BenchScene("x", tmp_path / "x.pbrt", (tmp_path / "m", tmp_path / "p"))
+    arguments = scenes.render_arguments(scene, (300, 300), 32, None, "opencl")
+    assert arguments[:5] == [str(scene.path), "--res", "300x300", "--spp", "32"]
+    assert arguments.count("--search-path") == 2 and "--light-samples" not in arguments
+    assert scenes.render_arguments(scene, (300, 300), 32, 4, "numpy")[-2:] == ["--light-samples", "4"]
+
+
+def test_render_arguments_parse_as_the_render_command(tmp_path):
+    """The benchmark's arguments are ones ``realistic render`` accepts, with the values intended."""
+    from realistic.cli import build_parser
+
+    scene = scenes.BenchScene("x", tmp_path / "x.pbrt", (tmp_path / "m",))
+    args = build_parser().parse_args(["render", *scenes.render_arguments(scene, (64, 48), 8, 2, "numpy")])
+    assert (args.spp, args.light_samples, args.backend) == (8, 2, "numpy")
+    assert args.res == "64x48"
+    assert [Path(p) for p in args.search_path] == [tmp_path / "m"]
+
+
+def test_median_figures_per_key():
+    runs = [{"a": 1.0, "b": 9.0}, {"a": 3.0, "b": 1.0}, {"a": 2.0, "b": 5.0}]
+    assert scenes.median_figures(runs) == {"a": 2.0, "b": 5.0}
+
+
+# --- the command lines -------------------------------------------------------------------------
+
+_TEXT = st.one_of(st.text(max_size=12), st.from_regex(r"-?[0-9]{1,6}(x[0-9]{0,6})?(,[0-9x]{0,4}){0,3}", fullmatch=True))
+
+
+@pytest.mark.parametrize("module,option", [(scenes, "--res"), (scenes, "--spp"), (scenes, "--light-samples"),
+                                           (scenes, "--repeats"), (converge, "--res"), (converge, "--spps"),
+                                           (converge, "--reference-spp"), (converge, "--target")])
+@given(text=_TEXT)
+def test_options_parse_or_refuse_in_one_line(module, option, text, capsys):
+    """Any value is either accepted (and then valid) or refused by argparse with exit status 2 and a
+    one-line message naming the option; never another exception."""
+    try:
+        args = module.build_parser().parse_args([f"{option}={text}"])
+    except SystemExit as stop:
+        assert stop.code == 2
+        message = capsys.readouterr().err.strip().splitlines()[-1]
+        assert option in message and "Traceback" not in message
+        return
+    value = getattr(args, option[2:].replace("-", "_"))
+    values = value if isinstance(value, (tuple, list)) else [value]
+    assert all(v > 0 for v in values)
