@@ -6,6 +6,7 @@ the filter's formula written out here, filtered values of a step edge and a line
 (or by that quadrature), the defaults as each pbrt's source sets them.
 """
 
+import dataclasses
 import math
 import re
 import tempfile
@@ -277,3 +278,24 @@ def test_a_rendered_step_edge_is_the_filtered_step(tmp_path, name):
         lo = edge - (i + 0.5)
         expected = 1.0 if lo <= -r else 0.0 if lo >= r else simpson(f, r, lo=lo) / total
         assert column[i] == pytest.approx(expected, abs=0.02), (i, column[i], expected)
+
+
+def test_the_pupil_table_bounds_samples_a_wide_filter_puts_beyond_the_film():
+    """A sinc of radius 4 puts film points up to 3.5 pixels past the corner pixels; the camera's
+    exit-pupil table reaches that far, so no ray those points pass falls outside its boxes (a table
+    of the film alone loses some: the test can fail)."""
+    from conftest import rays_the_pupil_table_loses
+    from realistic.camera.lens_camera import LensCamera
+    from realistic.optics.formats import load_lens
+    from realistic.optics.sampling import exit_pupil_table
+
+    lens = load_lens("wide")
+    camera = dataclasses.replace(LensCamera.looking_at(lens, (0, 0, 0), (0, 0, -5), width=40, height=30, spp=1),
+                                 pixel_filter=PixelFilter("sinc", 4.0, 4.0))
+    assert camera.sampled_film_diagonal_mm > camera.film_diagonal_mm + 5  # 3.5 px of 1.08 mm on each side
+    reach_mm = camera.sampled_film_diagonal_mm / 2
+    film_only = exit_pupil_table(lens, camera.film_distance_mm, camera.film_diagonal_mm)
+    for table, lost_expected in ((camera.pupil, False), (film_only, True)):
+        passed, lost = rays_the_pupil_table_loses(lens, camera.film_distance_mm, table, seed=5,
+                                                  film_radius_mm=reach_mm)
+        assert passed > 1000 and (lost > 0) == lost_expected

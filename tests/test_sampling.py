@@ -124,3 +124,14 @@ def test_pupil_bounds_hold_at_a_small_stop(name):
     assert table.area_mm2()[0] > 0
     passed, lost = rays_the_pupil_table_loses(lens, film, table, seed=3)
     assert passed > 100 and lost == 0
+
+
+@pytest.mark.parametrize("name", LENSES)
+def test_pupil_bounds_hold_out_to_the_edge_of_the_image_circle(name):
+    """On a 54 mm film every lens but the telephoto vignettes to a sliver or to nothing; where the
+    pupil is a moving sliver its interval is searched at radii inside it, and no passing ray is lost."""
+    lens = load_lens(name)
+    film = film_distance_for_focus(lens, 5000.0)
+    table = exit_pupil_table(lens, film, 54.0)
+    passed, lost = rays_the_pupil_table_loses(lens, film, table, seed=5, film_radius_mm=27.0)
+    assert passed > 1000 and lost == 0

@@ -27,6 +27,7 @@ the d line.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,7 +35,7 @@ import numpy as np
 from realistic.camera.autofocus import autofocus_distance_mm
 from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, check_backend, split_sample_ids
 from realistic.core import rng, validation
-from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm, pixel_pitch_mm
 from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
 from realistic.core.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, wavelengths_nm
 from realistic.core.transforms import look_at, scale, transform_points, transform_vectors
@@ -123,7 +124,16 @@ class LensCamera:
         spectral camera's boxes hold what passes at either end of the wavelength range as well as
         at the d line."""
         wavelengths = (LAMBDA_MIN_NM, D_LINE_NM, LAMBDA_MAX_NM) if self.spectral else (D_LINE_NM,)
-        return exit_pupil_table(self.lens, self.film_distance_mm, self.film_diagonal_mm, wavelengths_nm=wavelengths)
+        return exit_pupil_table(self.lens, self.film_distance_mm, self.sampled_film_diagonal_mm,
+                                wavelengths_nm=wavelengths)
+
+    @property
+    def sampled_film_diagonal_mm(self) -> float:
+        """Diagonal of the film area the samples land on: the film grown by how far the pixel filter
+        reaches past the corner pixels' edges (a 0.5-pixel box keeps every sample on the film), so
+        the exit-pupil table bounds every sample's pupil."""
+        beyond_px = math.hypot(max(self.pixel_filter.radius_x - 0.5, 0.0), max(self.pixel_filter.radius_y - 0.5, 0.0))
+        return self.film_diagonal_mm + 2 * beyond_px * pixel_pitch_mm(self.film_diagonal_mm, self.width, self.height)
 
     def prepare(self) -> None:
         """Build the exit-pupil table when this camera samples the pupil (memory, disk or traced)."""

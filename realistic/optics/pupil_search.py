@@ -9,9 +9,11 @@ per surface, so its time grows linearly with the number of surfaces:
 
 1. a coarse grid over the whole region the rear element can be reached in (``RearElementSampler``)
    finds where the passing directions are (and a dense grid where the coarse one finds none: at
-   every radius when it finds none at all, as for a small stop, else next to the radii it lit);
+   every radius when it finds none at all, as for a small stop, else next to the radii it lit;
+   then a fine scan of the line y = 0, across which the last sliver of a vignetted pupil lies);
 2. a finer grid over that region grown by a cell and a half gives, row by row and column by
-   column, a passing point next to a blocked one;
+   column, a passing point next to a blocked one (where the pupil reaches the window's edge, the
+   coarse grid missed part of it: the window doubles that way, up to ``WINDOW_GROWTHS`` times);
 3. bisection between each such pair finds the edge on that row or column to 1/256 of a cell.
 
 The box per film radius is the extreme of its rows' and columns' edges. An extreme that falls
@@ -31,13 +33,18 @@ from realistic.optics.tracer import trace_from_film
 
 #: Grid sizes (x columns, y rows over y >= 0) of the three stages, and the bisection steps.
 COARSE_GRID = (24, 12)
-DENSE_GRID = (96, 48)
+DENSE_GRID = (64, 32)
+#: The line y = 0 (and the reach, a row that passes nothing) scanned where the dense grid finds nothing.
+LINE_SCAN = (2048, 2)
 FINE_GRID = (32, 16)
 BISECTION_STEPS = 8
+#: How many times a search window may double where the pupil reaches its edge.
+WINDOW_GROWTHS = 3
 #: Radii next to a lit one that the dense grid searches when the coarse grid finds nothing there.
 DENSE_NEIGHBOURS = 2
 #: Changes with the search, so that tables an older search cached on disk are not used.
-SEARCH_VERSION = f"1:{COARSE_GRID}:{DENSE_GRID}:{FINE_GRID}:{BISECTION_STEPS}:{DENSE_NEIGHBOURS}"
+SEARCH_VERSION = repr((4, COARSE_GRID, DENSE_GRID, LINE_SCAN, FINE_GRID, BISECTION_STEPS, DENSE_NEIGHBOURS,
+                       WINDOW_GROWTHS))
 
 
 class _Passes:
@@ -162,6 +169,9 @@ def pupil_boxes(lens: LensSystem, film_distance_mm: float, plane_z_mm: float, fi
         missed = missed[lit_near[missed]]
     if len(missed):  # a pupil smaller than a coarse cell (a small stop), or one vignetted nearly away
         found[missed], box[missed], cell[missed] = _found_region(passes, film_radii_mm, reach_mm, DENSE_GRID, missed)
+        missed = missed[~found[missed]]
+    if len(missed):  # at an image circle's edge the pupil is a sliver across y = 0: scan that line finely
+        found[missed], box[missed], cell[missed] = _found_region(passes, film_radii_mm, reach_mm, LINE_SCAN, missed)
     lit = np.flatnonzero(found)
     result = np.full((len(film_radii_mm), 3), np.nan)
     pad = np.zeros((len(film_radii_mm), 3))
@@ -170,5 +180,21 @@ def pupil_boxes(lens: LensSystem, film_distance_mm: float, plane_z_mm: float, fi
         x_lo = np.maximum(box[lit, 0] - grow[:, 0], -reach_mm[lit])
         x_hi = np.minimum(box[lit, 1] + grow[:, 0], reach_mm[lit])
         y_hi = np.minimum(box[lit, 2] + grow[:, 1], reach_mm[lit])
-        result[lit], pad[lit] = _edges(passes, film_radii_mm[lit], x_lo, x_hi, y_hi)
+        todo = np.arange(len(lit))
+        for _ in range(WINDOW_GROWTHS + 1):
+            radii = lit[todo]
+            result[radii], pad[radii] = _edges(passes, film_radii_mm[radii], x_lo[todo], x_hi[todo], y_hi[todo])
+            # a passing direction on the window's edge, short of the reach: the coarse grid missed part
+            # of the pupil there, so the window doubles that way and the search runs again
+            reach = reach_mm[radii]
+            low = (result[radii, 0] <= x_lo[todo]) & (x_lo[todo] > -reach)
+            high = (result[radii, 1] >= x_hi[todo]) & (x_hi[todo] < reach)
+            top = (result[radii, 2] >= y_hi[todo]) & (y_hi[todo] < reach)
+            span_x, span_y = x_hi[todo] - x_lo[todo], y_hi[todo]
+            x_lo[todo] = np.where(low, np.maximum(x_lo[todo] - span_x, -reach), x_lo[todo])
+            x_hi[todo] = np.where(high, np.minimum(x_hi[todo] + span_x, reach), x_hi[todo])
+            y_hi[todo] = np.where(top, np.minimum(2 * span_y, reach), y_hi[todo])
+            todo = todo[low | high | top]
+            if not len(todo):
+                break
     return result, pad

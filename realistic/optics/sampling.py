@@ -179,30 +179,56 @@ def _cached_table(request: _PupilRequest) -> ExitPupilTable:
     return table
 
 
+#: Extra film radii searched inside an interval whose pupil changes fast: one end lit and the other
+#: dark (an image circle's edge, where the pupil is a moving sliver), or an edge that moves by more
+#: than a quarter of the box's width between the ends.
+INTERIOR_RADII = 6
+
+
 def _build_exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm: float,
                             intervals: int, wavelengths_nm: tuple[float, ...]) -> ExitPupilTable:
-    """Bound the exit pupil per radial film interval from the boxes found at the intervals' ends.
+    """Bound the exit pupil per radial film interval from the boxes found at sampled film radii.
 
-    An interval's box holds both ends' boxes, grown by the ends' padding and by half their
-    difference (an extreme between two sampled radii exceeds the nearer one by at most that;
-    ``realistic.optics.pupil_search``).
+    Every interval is sampled at its ends, and where its pupil changes fast at ``INTERIOR_RADII``
+    radii between them too. Its box holds the samples' boxes, grown by their padding and by half
+    the largest difference between neighbouring samples (an extreme between two sampled radii
+    exceeds the nearer one by at most that; ``realistic.optics.pupil_search``).
     """
     rear = rear_element_sampler(lens, film_distance_mm)
     film_radius = film_diagonal_mm / 2
     edges = np.linspace(0.0, film_radius, intervals + 1)
-    boxes, pad = pupil_boxes(lens, film_distance_mm, rear.plane_z_mm, edges, rear.radius_mm(edges), wavelengths_nm)
-    inner, outer = boxes[:-1], boxes[1:]
-    lo = np.fmin(inner, outer)
-    hi = np.fmax(inner, outer)
-    spread = np.where(np.isnan(hi - lo), 0.0, 0.5 * (hi - lo))
-    grow = np.fmax(pad[:-1], pad[1:]) + spread
-    x0 = lo[:, 0] - grow[:, 0]
-    x1 = hi[:, 1] + grow[:, 1]
-    y1 = hi[:, 2] + grow[:, 2]
-    none = np.isnan(x0) | np.isnan(x1) | np.isnan(y1)
+
+    def search(radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return pupil_boxes(lens, film_distance_mm, rear.plane_z_mm, radii, rear.radius_mm(radii), wavelengths_nm)
+
+    boxes, pad = search(edges)
+    # samples (K, S, 3) per interval in radius order: its inner end, interior radii where searched
+    # (else NaN), its outer end
+    samples = np.full((intervals, 2 + INTERIOR_RADII, 3), np.nan)
+    padding = np.zeros((intervals, 2 + INTERIOR_RADII, 3))
+    samples[:, 0], samples[:, -1] = boxes[:-1], boxes[1:]
+    padding[:, 0], padding[:, -1] = pad[:-1], pad[1:]
+    lit = ~np.isnan(boxes[:, 0])
+    width = boxes[:, 1] - boxes[:, 0]
+    with np.errstate(invalid="ignore"):
+        moves = np.abs(boxes[1:] - boxes[:-1]).max(axis=1) > 0.25 * np.fmin(width[:-1], width[1:])
+    refine = np.flatnonzero((lit[:-1] != lit[1:]) | (lit[:-1] & lit[1:] & moves))
+    if len(refine):
+        inside = np.linspace(edges[refine], edges[refine + 1], INTERIOR_RADII + 2, axis=1)[:, 1:-1]
+        found, found_pad = search(inside.ravel())
+        samples[refine, 1:-1] = found.reshape(len(refine), INTERIOR_RADII, 3)
+        padding[refine, 1:-1] = found_pad.reshape(len(refine), INTERIOR_RADII, 3)
+    known = ~np.isnan(samples)
+    lo = np.where(known, samples, np.inf).min(axis=1)
+    hi = np.where(known, samples, -np.inf).max(axis=1)
+    steps = np.abs(np.diff(samples, axis=1))  # NaN where either neighbour is unsampled or dark
+    spread = 0.5 * np.where(np.isnan(steps), 0.0, steps).max(axis=1)
+    grow = padding.max(axis=1) + spread
+    x0, x1, y1 = lo[:, 0] - grow[:, 0], hi[:, 1] + grow[:, 1], hi[:, 2] + grow[:, 2]
+    none = ~np.isfinite(x0)
     bounds = np.where(none[:, None], [1.0, -1.0, 1.0, -1.0], np.stack([x0, x1, -y1, y1], axis=1))
-    padding = np.where(none[:, None], 0.0, np.stack([np.maximum(grow[:, 0], grow[:, 1]), grow[:, 2]], axis=1))
-    return ExitPupilTable(rear.plane_z_mm, film_radius, bounds, padding)
+    grown = np.where(none[:, None], 0.0, np.stack([np.maximum(grow[:, 0], grow[:, 1]), grow[:, 2]], axis=1))
+    return ExitPupilTable(rear.plane_z_mm, film_radius, bounds, grown)
 
 
 def pass_fractions(lens: LensSystem, film_distance_mm: float, table: ExitPupilTable, film_radius_mm: float,
