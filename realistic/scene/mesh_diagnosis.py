@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import re
 import struct
+from collections.abc import Callable
 from pathlib import Path
 
 from realistic.errors import UserError
@@ -119,13 +120,19 @@ def _numbers(words: list[str]) -> list[float] | None:
         return None
 
 
-def _diagnose_obj(path: Path) -> tuple[int | None, str] | None:
-    try:
-        text = _text(path)
-    except UnicodeDecodeError:
-        return None, "the text is not valid UTF-8"
-    if text is None:
-        return None
+def _text_diagnosis(problem: Callable[[str], tuple[int | None, str] | None]
+                    ) -> Callable[[Path], tuple[int | None, str] | None]:
+    """A diagnosis of a text format: ``problem`` of the file's UTF-8 text (none for a file too large)."""
+    def diagnose(path: Path) -> tuple[int | None, str] | None:
+        try:
+            text = _text(path)
+        except UnicodeDecodeError:
+            return None, "the text is not valid UTF-8"
+        return None if text is None else problem(text)
+    return diagnose
+
+
+def _obj_problem(text: str) -> tuple[int | None, str] | None:
     lines = [line.split() for line in text.split("\n")]
     lines = [[] if words and words[0].startswith("#") else words for words in lines]
     kinds = {"v": "vertices", "vt": "texture coordinates", "vn": "normals"}
@@ -265,13 +272,7 @@ def _diagnose_stl(path: Path) -> tuple[int | None, str] | None:
     return None, f"neither binary ({why_not}) nor well-formed ASCII STL"
 
 
-def _diagnose_off(path: Path) -> tuple[int | None, str] | None:
-    try:
-        text = _text(path)
-    except UnicodeDecodeError:
-        return None, "the text is not valid UTF-8"
-    if text is None:
-        return None
+def _off_problem(text: str) -> tuple[int | None, str] | None:
     lines = [(n, line.split("#", 1)[0].split()) for n, line in enumerate(text.split("\n"), start=1)]
     lines = [(n, words) for n, words in lines if words]
     if not lines or lines[0][1][0] not in ("OFF", "COFF"):
@@ -367,5 +368,6 @@ def _diagnose_gltf(path: Path) -> tuple[int | None, str] | None:
     return None
 
 
-_DIAGNOSE = {"obj": _diagnose_obj, "ply": _diagnose_ply, "stl": _diagnose_stl, "off": _diagnose_off,
+_DIAGNOSE = {"obj": _text_diagnosis(_obj_problem), "ply": _diagnose_ply, "stl": _diagnose_stl,
+             "off": _text_diagnosis(_off_problem),
              "glb": _diagnose_glb, "gltf": _diagnose_gltf}
