@@ -94,16 +94,19 @@ def _found_region(passes: _Passes, film_x: np.ndarray, reach: np.ndarray, grid: 
 
 
 def _bisect(passes: _Passes, film_x: np.ndarray, inside: np.ndarray, outside: np.ndarray,
-            other: np.ndarray, along_x: bool) -> np.ndarray:
+            other: np.ndarray, along_x: bool, needed: np.ndarray) -> np.ndarray:
     """The outer end of the final bracket between passing ``inside`` and blocked ``outside``
-    coordinates (x when ``along_x``, else y; ``other`` is the fixed coordinate)."""
-    inside, outside = inside.copy(), outside.copy()
+    coordinates (x when ``along_x``, else y; ``other`` is the fixed coordinate), traced only where
+    ``needed``; elsewhere ``inside`` itself (a grid point at the window's edge, or nothing passing)."""
+    edge = inside.copy()
+    film_x, inside, outside, other = film_x[needed], inside[needed], outside[needed], other[needed]
     for _ in range(BISECTION_STEPS):
         middle = 0.5 * (inside + outside)
         passed = passes(film_x, middle, other) if along_x else passes(film_x, other, middle)
         inside = np.where(passed, middle, inside)
         outside = np.where(passed, outside, middle)
-    return outside
+    edge[needed] = outside
+    return edge
 
 
 def _edges(passes: _Passes, film_x: np.ndarray, x_lo: np.ndarray, x_hi: np.ndarray, y_hi: np.ndarray
@@ -122,15 +125,12 @@ def _edges(passes: _Passes, film_x: np.ndarray, x_lo: np.ndarray, x_hi: np.ndarr
     top = rows - 1 - np.argmax(passed[:, :, ::-1], axis=2)
     film_rows = np.broadcast_to(film_x[:, None], first.shape)
     film_columns = np.broadcast_to(film_x[:, None], top.shape)
-    y_rows = ys
-    left = np.where(first > 0, _bisect(passes, film_rows, xs[radii, first], xs[radii, np.maximum(first - 1, 0)],
-                                       y_rows, along_x=True), xs[radii, first])
-    right = np.where(last < columns - 1,
-                     _bisect(passes, film_rows, xs[radii, last], xs[radii, np.minimum(last + 1, columns - 1)],
-                             y_rows, along_x=True), xs[radii, last])
-    upper = np.where(top < rows - 1,
-                     _bisect(passes, film_columns, ys[radii, top], ys[radii, np.minimum(top + 1, rows - 1)],
-                             xs, along_x=False), ys[radii, top])
+    left = _bisect(passes, film_rows, xs[radii, first], xs[radii, np.maximum(first - 1, 0)], ys, True,
+                   row_any & (first > 0))
+    right = _bisect(passes, film_rows, xs[radii, last], xs[radii, np.minimum(last + 1, columns - 1)], ys, True,
+                    row_any & (last < columns - 1))
+    upper = _bisect(passes, film_columns, ys[radii, top], ys[radii, np.minimum(top + 1, rows - 1)], xs, False,
+                    column_any & (top < rows - 1))
     left = np.where(row_any, left, np.inf)
     right = np.where(row_any, right, -np.inf)
     upper = np.where(column_any, upper, -np.inf)
