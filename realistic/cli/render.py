@@ -135,7 +135,7 @@ def cmd_render(args: argparse.Namespace) -> int:
               f"taken to {out}", file=sys.stderr)
         return 130
     print(f"{out} and {png}: {camera.width}x{camera.height}, {camera.spp} spp, "
-          f"{metadata.get('pixelFilter', 'box radius 0.5x0.5')} filter, {result.seconds:.1f} s "
+          f"{metadata['pixelFilter']} filter, {result.seconds:.1f} s "
           f"(exit pupil {result.stage_seconds.get('exit pupil', 0.0):.2f} s), "
           f"{rays / max(result.seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {exposure:+.2f} EV")
     return 0
