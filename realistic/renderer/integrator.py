@@ -45,11 +45,6 @@ def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     return np.take(a, index, axis=0)
 
 
-def _interpolate(corners: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    """sum_k bary[:, k] * corners[:, k] of (N, 3, C) corner values, in corner order."""
-    return corners[:, 0] * bary[:, :1] + corners[:, 1] * bary[:, 1:2] + corners[:, 2] * bary[:, 2:]
-
-
 def _normalise(v: np.ndarray) -> np.ndarray:
     length = np.sqrt(_dot(v, v))[:, None]
     return np.divide(v, length, out=np.zeros_like(v), where=length > 0)
@@ -82,9 +77,6 @@ class DirectLighting:
         self._vertices = np.concatenate([m.vertices for m in scene.meshes] or [np.zeros((0, 3))])
         self._uv = np.concatenate([np.zeros((len(m.vertices), 2)) if m.uv is None else m.uv
                                    for m in scene.meshes] or [np.zeros((0, 2))]).astype(np.float32)
-        # per face corner, so that one row gather replaces a face gather and three corner gathers
-        self._corner_normals = _rows(self._normals, self._faces)  # (F, 3, 3) float32
-        self._corner_uv = _rows(self._uv, self._faces)  # (F, 3, 2) float32
         mesh_of = np.array([inst.mesh for inst in scene.instances], dtype=np.int64)
         self._geom_face_offset = face_offset[mesh_of] if len(mesh_of) else np.zeros(0, np.int64)
         # Smooth shading only where the vertex normals differ: a flat mesh (a floor quad, a disk) gets
@@ -116,8 +108,6 @@ class DirectLighting:
         power = self._light_area * sides * self._light_radiance.astype(np.float64).mean(axis=1)
         self._light_probability = power / power.sum() if power.sum() > 0 else power
         self._light_cdf = np.cumsum(self._light_probability)
-        self._light_scale = self._light_area / np.where(self._light_probability > 0, self._light_probability, 1) / np.pi
-        self._all_disks = bool(self._light_disk.all())
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
@@ -153,17 +143,14 @@ class DirectLighting:
                 return out, 0
             o = _rows(np.asarray(origin, np.float32), surface)
             d = _rows(np.asarray(direction, np.float32), surface)
-            geom, prim, t = hits.geom.take(surface), hits.prim.take(surface), hits.t.take(surface)
-            point = o + t[:, None] * d
-            ng = _normalise(_rows(hits.normal, surface).astype(np.float32, copy=False))
-            ng[_dot(ng, d) > 0] *= np.float32(-1.0)
-            face = self._geom_face_offset[geom] + prim  # global face ids
-            u, v = hits.u.take(surface), hits.v.take(surface)
-            bary = np.empty((len(surface), 3), np.float32)
-            np.subtract(np.float32(1.0) - u, v, out=bary[:, 0])
-            bary[:, 1], bary[:, 2] = u, v
+            geom, prim = hits.geom[surface], hits.prim[surface]
+            point = o + hits.t[surface, None] * d
+            ng = _normalise(_rows(hits.normal, surface).astype(np.float32))
+            ng *= np.where(_dot(ng, d) > 0, -1.0, 1.0).astype(np.float32)[:, None]
+            face = _rows(self._faces, self._geom_face_offset[geom] + prim)
+            bary = np.column_stack([1.0 - hits.u[surface] - hits.v[surface], hits.u[surface], hits.v[surface]])
             shading = self._shading_normal(face, bary, geom, ng)
-            rho = colour(self._albedo(face, bary, geom, d, ng, t), surface)
+            rho = colour(self._albedo(face, bary, geom, d, ng, hits.t[surface]), surface)
             magnitude = np.maximum(np.maximum(np.abs(point[:, 0]), np.abs(point[:, 1])), np.abs(point[:, 2]))
             eps = SHADOW_OFFSET * (magnitude + 1e-2 * self.intersector.extent)
             shadow_origin = point + ng * eps[:, None].astype(np.float32)
@@ -185,22 +172,17 @@ class DirectLighting:
         return out, shadow_rays
 
     def _shading_normal(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray, ng: np.ndarray) -> np.ndarray:
-        """Interpolated vertex normals on smooth meshes (world space, on ``ng``'s side), else ``ng``."""
-        smooth_of = self._geom_smooth[geom]
-        if not smooth_of.any():
-            return ng
         shading = ng.copy()
-        smooth = np.flatnonzero(smooth_of)
-        n = _interpolate(_rows(self._corner_normals, face.take(smooth)), _rows(bary, smooth))
-        matrix = self._geom_normal_matrix
-        if len(matrix) and np.all(matrix == matrix[0]):  # one transform for all (one instance, or alike)
-            n = n @ matrix[0].T
-        else:
-            n = np.einsum("nij,nj->ni", _rows(matrix, geom.take(smooth)), n)
-        n = _normalise(n)
-        n[_dot(n, _rows(ng, smooth)) < 0] *= np.float32(-1.0)
-        good = _dot(n, n) > 0.5
-        shading[smooth[good]] = n[good]
+        smooth = np.flatnonzero(self._geom_smooth[geom])
+        if len(smooth):
+            f, b = face[smooth], bary[smooth]
+            n = (_rows(self._normals, f[:, 0]) * b[:, :1] + _rows(self._normals, f[:, 1]) * b[:, 1:2]
+                 + _rows(self._normals, f[:, 2]) * b[:, 2:])
+            n = _normalise(np.einsum("nij,nj->ni", self._geom_normal_matrix[geom[smooth]], n))
+            flip = _dot(n, ng[smooth]) < 0
+            n[flip] *= -1
+            good = _dot(n, n) > 0.5
+            shading[smooth[good]] = n[good]
         return shading
 
     def _albedo(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray, direction: np.ndarray,
@@ -208,34 +190,29 @@ class DirectLighting:
         """Albedo (N, 3) of camera-ray hits; image textures filtered over the rays' footprints."""
         rho = np.empty((len(face), 3), np.float32)
         material_of = self._geom_material[geom]
-        # hits sorted by material: one stable argsort instead of a full-length mask per material
-        order = np.argsort(material_of, kind="stable") if len(self._materials) > 1 else np.arange(len(face))
-        bounds = np.searchsorted(material_of.take(order), np.arange(len(self._materials) + 1))
         for index, material in enumerate(self._materials):
-            rows = order[bounds[index]:bounds[index + 1]]
+            rows = np.flatnonzero(material_of == index)
             if len(rows) == 0:
                 continue
-            if material.texture is None:
-                rho[rows] = material.diffuse
-                continue
-            f = face.take(rows)
-            uv = _interpolate(_rows(self._corner_uv, f), _rows(bary, rows))
+            uv = None
+            if material.texture is not None:
+                f, b = face[rows], bary[rows]
+                uv = (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
+                      + _rows(self._uv, f[:, 2]) * b[:, 2:])
             footprint = None
             if isinstance(material.texture, ImageTexture) and self.pixel_spread_radians > 0:
-                footprint = self._footprint(f, geom.take(rows), _rows(direction, rows), _rows(normal, rows),
-                                            distance.take(rows))
+                footprint = self._footprint(face[rows], geom[rows], direction[rows], normal[rows], distance[rows])
             rho[rows] = albedo(material, uv, len(rows), footprint)
         return rho
 
     def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,
                    distance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """uv axes of the pixel footprints of hits on global faces ``face`` of instances ``geom``."""
-        corner = _rows(self._vertices, _rows(self._faces, face))  # (n, 3, 3)
+        """uv axes of the pixel footprints of hits on triangles ``face`` of instances ``geom``."""
+        corner = [_rows(self._vertices, face[:, k]) for k in range(3)]
         linear = self._geom_linear[geom]
-        edge1 = np.einsum("nij,nj->ni", linear, corner[:, 1] - corner[:, 0])
-        edge2 = np.einsum("nij,nj->ni", linear, corner[:, 2] - corner[:, 0])
-        uv = _rows(self._corner_uv, face).astype(np.float64)
-        uv = [uv[:, k] for k in range(3)]
+        edge1 = np.einsum("nij,nj->ni", linear, corner[1] - corner[0])
+        edge2 = np.einsum("nij,nj->ni", linear, corner[2] - corner[0])
+        uv = [_rows(self._uv, face[:, k]).astype(np.float64) for k in range(3)]
         return uv_footprint(direction.astype(np.float64), normal.astype(np.float64), distance.astype(np.float64),
                             self.pixel_spread_radians, edge1, edge2, uv[1] - uv[0], uv[2] - uv[0])
 
@@ -249,34 +226,23 @@ class DirectLighting:
         u_pick = rng.uniform(pixel, sample, 4 + 3 * k, self.seed)
         u1 = rng.uniform(pixel, sample, 5 + 3 * k, self.seed)
         u2 = rng.uniform(pixel, sample, 6 + 3 * k, self.seed)
-        one = len(self._light_cdf) == 1  # one light: its rows broadcast, no pick, no gathers
-        j = (np.zeros(len(point), np.int64) if one else
-             np.minimum(np.searchsorted(self._light_cdf, u_pick, side="right"), len(self._light_cdf) - 1))
-
-        def light_rows(table: np.ndarray) -> np.ndarray:
-            return table[:1] if one else _rows(table, j)
-
+        j = np.minimum(np.searchsorted(self._light_cdf, u_pick, side="right"), len(self._light_cdf) - 1)
         dx, dy = concentric_disk(u1, u2)
-        if self._all_disks:
-            x, y = dx.astype(np.float32)[:, None], dy.astype(np.float32)[:, None]
-        else:
-            disk = self._light_disk[j]
-            x = np.where(disk, dx, 2.0 * u1 - 1.0).astype(np.float32)[:, None]
-            y = np.where(disk, dy, 2.0 * u2 - 1.0).astype(np.float32)[:, None]
-        q = light_rows(self._light_centre) + light_rows(self._light_a) * x + light_rows(self._light_b) * y
+        disk = self._light_disk[j]
+        x = np.where(disk, dx, 2.0 * u1 - 1.0).astype(np.float32)[:, None]
+        y = np.where(disk, dy, 2.0 * u2 - 1.0).astype(np.float32)[:, None]
+        q = _rows(self._light_centre, j) + _rows(self._light_a, j) * x + _rows(self._light_b, j) * y
         to_light = q - point
         dist2 = _dot(to_light, to_light)
         wi = to_light / np.sqrt(dist2)[:, None]
         cos_p = _dot(wi, shading)
-        light_normal = light_rows(self._light_normal)
-        cos_q = -(wi[:, 0] * light_normal[:, 0] + wi[:, 1] * light_normal[:, 1] + wi[:, 2] * light_normal[:, 2])
-        if self._light_two_sided.any():
-            cos_q = np.where(self._light_two_sided[j], np.abs(cos_q), cos_q)
+        cos_q = -_dot(wi, _rows(self._light_normal, j))
+        cos_q = np.where(self._light_two_sided[j], np.abs(cos_q), cos_q)
         live = np.flatnonzero((cos_p > 0) & (cos_q > 0) & (_dot(wi, ng) > 0) & (dist2 > 0))
-        jl = j.take(live)
-        light_scale = self._light_scale[:1] if one else self._light_scale.take(jl)
-        scale = (cos_p.take(live) * cos_q.take(live) / dist2.take(live) * light_scale).astype(np.float32)
-        emitted = self._light_radiance[:1] if one else _rows(self._light_radiance, jl)
+        jl = j[live]
+        scale = (cos_p[live] * cos_q[live] / dist2[live]
+                 * (self._light_area[jl] / self._light_probability[jl] / np.pi)).astype(np.float32)
+        emitted = _rows(self._light_radiance, jl)
         if basis is not None:
             emitted = spectral_value(emitted, _rows(basis, live))[:, None]
         contribution = _rows(rho, live) * emitted * scale[:, None]
