@@ -3,6 +3,7 @@
 - ``rng``: counter-based random numbers, bit-identical in numpy and ``kernels/lens.cl``.
 - ``warp``: maps from the unit square (the concentric disk).
 - ``pixel_filter``: pbrt's pixel filters, their integrals and the film offsets sampled from them.
+- ``vectors``: row-wise dot products and normalisation of (N, 3) batches.
 - ``transforms``: 4x4 matrices (translate, scale, rotate, look-at) and applying them to points.
 - ``film_geometry``: film size from diagonal and resolution; the full-frame diagonal.
 - ``spectrum``: wavelengths per sample, RGB to spectrum, spectrum to linear sRGB.

@@ -12,26 +12,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from realistic.core.vectors import dot, normalise
+
 #: Grazing hits: the along-ray axis is stretched by at most 1 / this (pbrt's EWA clamps it anyway).
 MIN_COSINE = 1e-3
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    length = np.sqrt(_dot(v, v))[:, None]
-    return np.divide(v, length, out=np.zeros_like(v), where=length > 0)
 
 
 def tangent_axes(direction: np.ndarray, normal: np.ndarray, width: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """World-space axes (N, 3) of a cone of ``width`` (N,) cut by the plane of unit ``normal``
     (N, 3) along unit ``direction`` (N, 3): (across the ray, along the ray's projection)."""
-    cosine = _dot(direction, normal)
-    along = _unit(direction - cosine[:, None] * normal)
-    fallback = _unit(np.cross(normal, np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])))
-    along = np.where(_dot(along, along)[:, None] > 0.5, along, fallback)
+    cosine = dot(direction, normal)
+    along = normalise(direction - cosine[:, None] * normal)
+    fallback = normalise(np.cross(normal, np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])))
+    along = np.where(dot(along, along)[:, None] > 0.5, along, fallback)
     across = np.cross(normal, along)
     stretch = 1.0 / np.maximum(np.abs(cosine), MIN_COSINE)
     return across * width[:, None], along * (width * stretch)[:, None]
@@ -41,8 +34,8 @@ def to_uv(vectors: np.ndarray, edge1: np.ndarray, edge2: np.ndarray, duv1: np.nd
           ) -> np.ndarray:
     """uv offsets (N, 2) of tangent ``vectors`` (N, 3) on triangles with world edges ``edge1``,
     ``edge2`` (N, 3) and uv edges ``duv1``, ``duv2`` (N, 2); zero on degenerate triangles."""
-    g11, g12, g22 = _dot(edge1, edge1), _dot(edge1, edge2), _dot(edge2, edge2)
-    r1, r2 = _dot(edge1, vectors), _dot(edge2, vectors)
+    g11, g12, g22 = dot(edge1, edge1), dot(edge1, edge2), dot(edge2, edge2)
+    r1, r2 = dot(edge1, vectors), dot(edge2, vectors)
     det = g11 * g22 - g12 * g12
     good = det > 1e-12 * g11 * g22
     inv = np.divide(1.0, det, out=np.zeros_like(det), where=good)

@@ -25,6 +25,7 @@ import numpy as np
 
 from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, spectral_value
+from realistic.core.vectors import dot, normalise
 from realistic.core.warp import concentric_disk
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.timing import StageClock
@@ -35,19 +36,9 @@ from realistic.scene.textures import albedo
 SHADOW_OFFSET = 1e-4  # relative to the hit point's magnitude (float32 precision of embree)
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise dot product of (N, 3) arrays (column arithmetic: several times faster than einsum)."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
-
-
 def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     """a[index] for row gathers; np.take is about 3x faster than fancy indexing on (N, 3) arrays."""
     return np.take(a, index, axis=0)
-
-
-def _normalise(v: np.ndarray) -> np.ndarray:
-    length = np.sqrt(_dot(v, v))[:, None]
-    return np.divide(v, length, out=np.zeros_like(v), where=length > 0)
 
 
 class DirectLighting:
@@ -135,7 +126,7 @@ class DirectLighting:
             seen = np.flatnonzero(light_id >= 0)
             if len(seen):
                 j = light_id[seen]
-                front = (_dot(_rows(direction, seen), _rows(self._light_normal, j)) < 0) | self._light_two_sided[j]
+                front = (dot(_rows(direction, seen), _rows(self._light_normal, j)) < 0) | self._light_two_sided[j]
                 out[seen] = colour(_rows(self._light_radiance, j), seen) * front[:, None]
             surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0))
             out[surface] = 0.0
@@ -145,8 +136,8 @@ class DirectLighting:
             d = _rows(np.asarray(direction, np.float32), surface)
             geom, prim = hits.geom[surface], hits.prim[surface]
             point = o + hits.t[surface, None] * d
-            ng = _normalise(_rows(hits.normal, surface).astype(np.float32))
-            ng *= np.where(_dot(ng, d) > 0, -1.0, 1.0).astype(np.float32)[:, None]
+            ng = normalise(_rows(hits.normal, surface).astype(np.float32))
+            ng *= np.where(dot(ng, d) > 0, -1.0, 1.0).astype(np.float32)[:, None]
             face = _rows(self._faces, self._geom_face_offset[geom] + prim)
             bary = np.column_stack([1.0 - hits.u[surface] - hits.v[surface], hits.u[surface], hits.v[surface]])
             shading = self._shading_normal(face, bary, geom, ng)
@@ -178,10 +169,10 @@ class DirectLighting:
             f, b = face[smooth], bary[smooth]
             n = (_rows(self._normals, f[:, 0]) * b[:, :1] + _rows(self._normals, f[:, 1]) * b[:, 1:2]
                  + _rows(self._normals, f[:, 2]) * b[:, 2:])
-            n = _normalise(np.einsum("nij,nj->ni", self._geom_normal_matrix[geom[smooth]], n))
-            flip = _dot(n, ng[smooth]) < 0
+            n = normalise(np.einsum("nij,nj->ni", self._geom_normal_matrix[geom[smooth]], n))
+            flip = dot(n, ng[smooth]) < 0
             n[flip] *= -1
-            good = _dot(n, n) > 0.5
+            good = dot(n, n) > 0.5
             shading[smooth[good]] = n[good]
         return shading
 
@@ -233,12 +224,12 @@ class DirectLighting:
         y = np.where(disk, dy, 2.0 * u2 - 1.0).astype(np.float32)[:, None]
         q = _rows(self._light_centre, j) + _rows(self._light_a, j) * x + _rows(self._light_b, j) * y
         to_light = q - point
-        dist2 = _dot(to_light, to_light)
+        dist2 = dot(to_light, to_light)
         wi = to_light / np.sqrt(dist2)[:, None]
-        cos_p = _dot(wi, shading)
-        cos_q = -_dot(wi, _rows(self._light_normal, j))
+        cos_p = dot(wi, shading)
+        cos_q = -dot(wi, _rows(self._light_normal, j))
         cos_q = np.where(self._light_two_sided[j], np.abs(cos_q), cos_q)
-        live = np.flatnonzero((cos_p > 0) & (cos_q > 0) & (_dot(wi, ng) > 0) & (dist2 > 0))
+        live = np.flatnonzero((cos_p > 0) & (cos_q > 0) & (dot(wi, ng) > 0) & (dist2 > 0))
         jl = j[live]
         scale = (cos_p[live] * cos_q[live] / dist2[live]
                  * (self._light_area[jl] / self._light_probability[jl] / np.pi)).astype(np.float32)
