@@ -43,6 +43,7 @@ sys.path.insert(0, str(ROOT))
 
 from realistic.cli.values import checked, parse_resolution, parse_spp_list, positive  # noqa: E402
 from realistic.core import validation  # noqa: E402
+from realistic.renderer.convergence import relative_rmse  # noqa: E402
 from realistic.renderer.inputs import RenderInputs, RenderOptions, build_render_inputs  # noqa: E402
 from realistic.renderer.passes import render_passes  # noqa: E402
 
@@ -52,12 +53,6 @@ DEFAULT_SEARCH_PATHS = (SHARED / "meshes", SHARED / "scenes" / "pbrt")
 REFERENCE_SEED, TEST_SEED = 1, 2
 #: pbrt-v3 on this machine: dragons through dgauss, 512x512, 64 spp (issue 11).
 PBRT_V3 = {"spp": 64, "wall_s": 29.5, "rel_rmse": 0.073}
-
-
-def relative_rmse(image: np.ndarray, reference: np.ndarray) -> float:
-    """sqrt(mean((image - reference)^2)) / mean(reference) over all pixels and channels."""
-    diff = image.astype(np.float64) - reference.astype(np.float64)
-    return float(np.sqrt(np.mean(diff * diff)) / np.mean(reference, dtype=np.float64))
 
 
 def time_to_error(seconds: list[float], errors: list[float], target: float) -> float | None:

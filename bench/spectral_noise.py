@@ -43,6 +43,7 @@ from realistic.core.spectrum import (  # noqa: E402
     estimator_variance,
     wavelength_pdf,
 )
+from realistic.renderer.convergence import relative_rmse  # noqa: E402
 from realistic.renderer.passes import render_passes  # noqa: E402
 
 SHARED_SCENES = ROOT.parent / "shared" / "scenes" / "pbrt"
@@ -50,12 +51,6 @@ SAMPLING_CODE = ("kernels/lens.cl", "realistic/core/rng.py", "realistic/core/spe
                  "realistic/renderer/passes.py")
 DEFAULT_RES = {"default": (150, 150), "dof-dragons.dgauss.pbrt": (160, 160)}
 REFERENCE_SEED, TEST_SEED = 1, 2
-
-
-def relative_rmse(image: np.ndarray, reference: np.ndarray) -> float:
-    """sqrt(mean((image - reference)^2)) / mean(reference) over all pixels and channels."""
-    diff = image.astype(np.float64) - reference.astype(np.float64)
-    return float(np.sqrt(np.mean(diff * diff)) / np.mean(reference, dtype=np.float64))
 
 
 def code_hash() -> str:

@@ -26,6 +26,12 @@ def rmse(image: np.ndarray, reference: np.ndarray) -> float:
     return float(np.sqrt(np.mean((image.astype(np.float64) - reference.astype(np.float64)) ** 2)))
 
 
+def relative_rmse(image: np.ndarray, reference: np.ndarray) -> float:
+    """RMSE over all pixels and channels divided by the reference's mean (one scale for the image,
+    not per pixel), as the convergence benches quote it."""
+    return rmse(image, reference) / float(np.mean(reference, dtype=np.float64))
+
+
 def measure_sample_counts(scene: Scene, camera: Camera, spp_list: list[int], backend: str = "opencl", seed: int = 0,
                           light_samples: int = 1, reference: np.ndarray | None = None,
                           cl_device: str | None = None, progress: bool = True,
