@@ -89,9 +89,9 @@ class RealisticCameraConvention:
     camera_units_mm: float  # millimetres per camera-space unit
 
     @property
-    def required(self) -> tuple[str, ...]:
-        """The parameters a file must give, as pbrt declares them ("string specfile")."""
-        return (f"string {self.lens_file}",) + ((f"float {self.film_distance}",) if self.film_distance else ())
+    def required(self) -> tuple[tuple[str, str], ...]:
+        """The (type, name) of each parameter a file must give: ("string", "specfile")."""
+        return (("string", self.lens_file),) + ((("float", self.film_distance),) if self.film_distance else ())
 
     @property
     def names(self) -> frozenset[str]:

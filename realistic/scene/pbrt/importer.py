@@ -445,9 +445,9 @@ def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, 
         raise UserError(f'{directive.where}: Camera "{directive.type}" is not supported (use realistic or perspective)')
     convention = dialect.realistic_camera
     with _located(directive.where):  # errors about the camera's parameters name its line
-        missing = [declared for declared in convention.required if not params.has(declared.split()[1])]
+        missing = [(kind, name) for kind, name in convention.required if not params.has(name)]
         if missing:
-            quoted = " and ".join(f'"{declared}"' for declared in missing)
+            quoted = " and ".join(f'"{kind} {name}"' for kind, name in missing)
             raise UserError(f'Camera "realistic" read as {dialect.describe()} needs {quoted} '
                             f"(--pbrt-dialect reads another version's parameter names)")
         for name in sorted(dialect.foreign_camera_parameters):
