@@ -222,6 +222,7 @@ class _Parser:
         self.current_object: str | None = None
         self.named_materials: dict[str, Declaration] = {}
         self.frames: list[_Frame] = []
+        self.finished_imports: list[_Frame] = []  # in the order they ended
         self.last: Token | None = None
 
     # ---- token access -------------------------------------------------------------------------
@@ -236,16 +237,21 @@ class _Parser:
                 return frame.tokens[frame.pos]
             if len(self.frames) == 1:
                 return None
-            self.end_of(self.frames.pop())
+            finished = self.frames.pop()
+            if finished.restore is not None:
+                self.finished_imports.append(finished)
         return None
 
+    def end_imports(self) -> None:
+        """Imported files used up (by the directive before, whose parameters may have run to their
+        end) give back the graphics state they were given: pbrt-v4 ``src/pbrt/parser.cpp`` parses an
+        Import with a copy of the state (``BasicSceneBuilder::CopyForImport``) and keeps only its
+        shapes, instances, named materials and textures."""
+        for frame in self.finished_imports:  # innermost first, so the outermost's state is the one kept
+            self.end_of(frame)
+        self.finished_imports.clear()
+
     def end_of(self, frame: _Frame) -> None:
-        """An included file is used up; an imported one gives back the graphics state it was given
-        (pbrt-v4 ``src/pbrt/parser.cpp`` parses an Import with a copy of the state,
-        ``BasicSceneBuilder::CopyForImport``, and keeps only its shapes, instances, named materials
-        and textures)."""
-        if frame.restore is None:
-            return
         state, depth = frame.restore
         while len(self.stack) > depth:
             kind, _, where = self.stack.pop()
@@ -344,6 +350,7 @@ class _Parser:
     def run(self) -> PbrtScene:
         self.frames = [_Frame(self._load(self.scene.path), str(self.scene.path), _identity(self.scene.path))]
         while (token := self.peek()) is not None:
+            self.end_imports()
             self.advance()
             if token.kind != "word":
                 raise PbrtSyntaxError(token.path, token.line, f"expected a directive, found {token.text}")
@@ -356,6 +363,7 @@ class _Parser:
                     handler(token)
                 except ValueError as err:
                     raise PbrtSyntaxError(token.path, token.line, f"{token.text}: {err}") from None
+        self.end_imports()
         self.close_open_blocks("by the end of the file")
         return self.scene
 
