@@ -545,8 +545,7 @@ def _v4_aperture(name: str | None, lens: LensSystem, parsed: PbrtScene, where: s
             raise UserError(f'aperture image "{name}" not found next to the scene ({parsed.path.parent}) nor on '
                             f"the search paths (pbrt-v4's built-in apertures: {', '.join(V4_BUILTIN_APERTURES)})")
         shape = transmission_stop(read_linear_rgb(path).mean(axis=2), str(path))
-    diameter = lens.stop_diameter_mm
-    ratio = shape.open_area_mm2(diameter) / (np.pi * diameter**2 / 4)
+    ratio = shape.open_area_mm2(1.0) / (np.pi / 4)  # the shape scales with the stop: any diameter will do
     parsed.warn(where, f'aperture "{name}" passes {ratio:.0%} of the full stop\'s light here (pbrt-v4 rescales '
                        f"its aperture image to the full circle's brightness)")
     return shape
