@@ -36,13 +36,14 @@ The pixel filter (``PixelFilter``; the maths in ``realistic.core.pixel_filter``)
   pbrt names it ``sinc`` in every version; ``lanczos`` is accepted as another name for it.
 
 ``auto`` decides from what the file uses: v4-only directives (``ColorSpace``, ``Option``,
-``Attribute``, ``Import``) or ``Film "rgb"`` mean v4; the classic homework camera (``specfile``,
-``filmdistance``, ``filmdiag``, ``aperture_diameter``) or v2-only directives (``SurfaceIntegrator``,
-``VolumeIntegrator``, ``Renderer``) mean v2; pbrt-v3's realistic camera parameters (``lensfile``,
-``aperturediameter``, ``focusdistance``) or ``Integrator``/``MakeNamedMedium`` mean v3 (or v4). A
-file with no signal is read as v3; one with signals of two versions is read as the newest, with a
-warning. v1 is never chosen automatically: nothing in a file tells it from v2, and v1 and v2 share
-their conventions.
+``Attribute``, ``Import``), ``Film "rgb"`` or the realistic camera's ``aperture`` mean v4; the
+classic homework camera (``specfile``, ``filmdistance``, ``filmdiag``, ``aperture_diameter``) or
+v2-only directives (``SurfaceIntegrator``, ``VolumeIntegrator``, ``Renderer``) mean v2; pbrt-v3's
+realistic camera parameters (``lensfile``, ``aperturediameter``, ``focusdistance``) or
+``Integrator``/``MakeNamedMedium`` mean v3 (or v4). A file with no signal is read as v3; one with
+signals of two versions is read as the newest, with a warning (v3's signals are v4's too, so they do
+not clash with v4's). v1 is never chosen automatically: nothing in a file tells it from v2, and v1
+and v2 share their conventions.
 """
 
 from __future__ import annotations
@@ -230,7 +231,7 @@ def choose_dialect(parsed: PbrtScene, requested: str = "auto") -> Dialect:
         return Dialect("v3", "no version-specific directive or parameter; v3 assumed")
     chosen = max(found)  # "v4" > "v3" > "v2": the newest version signalled
     # pbrt-v4 kept every v3 signal (Integrator, MakeNamedMedium, lensfile, ...): only v2's mix
-    clashing = [version for version in sorted(found) if version != chosen and not (chosen, version) == ("v4", "v3")]
+    clashing = [version for version in sorted(found) if version != chosen and (chosen, version) != ("v4", "v3")]
     if clashing:
         others = "; ".join(f"{version}: {found[version][0]}" for version in clashing)
         parsed.warn(str(parsed.path), f"the file mixes pbrt versions ({others}); read as pbrt-{chosen}")

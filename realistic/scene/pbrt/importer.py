@@ -1,9 +1,11 @@
-"""pbrt scenes (v1/v2/v3 subset) turned into our Scene and camera.
+"""pbrt scenes (v1 to v4 subset) turned into our Scene and camera.
 
 Cameras: ``realistic`` as the file's dialect writes it (``dialect.RealisticCameraConvention``: the
 classic homework's ``specfile``, ``filmdistance``, ``aperture_diameter``, ``filmdiag`` in mm from
 the front lens vertex, or pbrt-v3/v4's ``lensfile``, ``aperturediameter``, ``focusdistance`` in
-metres from the film centre with ``Film "diagonal"``), and ``perspective`` (pinhole or thin lens).
+metres from the film centre with ``Film "diagonal"``, and pbrt-v4's ``aperture`` shape), and
+``perspective`` (pinhole or thin lens). Shapes: pbrt's analytic shapes tessellated, trianglemesh,
+plymesh and pbrt-v4's bilinearmesh (two triangles per patch).
 Everything the renderer cannot honour is reported once with file and line, and the render goes on.
 """
 

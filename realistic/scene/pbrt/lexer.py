@@ -1,4 +1,4 @@
-"""Tokens of the pbrt scene language (v1, v2, v3), each with the file and line it came from."""
+"""Tokens of the pbrt scene language (v1 to v4), each with the file and line it came from."""
 
 from __future__ import annotations
 
