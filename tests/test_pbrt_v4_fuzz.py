@@ -54,7 +54,7 @@ def v4_lines(draw):
     if kind in ("TransformTimes", "Translate"):
         return f"{kind} " + " ".join(draw(st.lists(NUMBERS, min_size=1, max_size=4)))
     if kind == "Shape":
-        shape = draw(st.sampled_from(['"sphere"', '"disk"', '"bilinearmesh"', '"plymesh"', '"curve"']))
+        shape = draw(st.sampled_from(['"sphere"', '"disk"', '"bilinearmesh"', '"plymesh"', '"curve"', '"loopsubdiv"']))
         return f"Shape {shape} {draw(params())}"
     return kind
 

@@ -240,6 +240,10 @@ class _Importer:
             return [(self.triangle_mesh(shape), np.eye(4))]
         if shape.type == "bilinearmesh":
             return [(self.bilinear_mesh(shape), np.eye(4))]
+        if shape.type == "loopsubdiv":  # pbrt-v3/v4: "indices" and "P" of a triangle control mesh, "levels"
+            vertices, indices = self._indexed_points(shape, 3, "triangle")
+            self.warn(shape.where, "loopsubdiv (rendered as its control mesh, not subdivided)")
+            return [(Mesh(vertices, indices.reshape(-1, 3), None, None, shape.type), np.eye(4))]
         if shape.type == "plymesh":
             filename = p.get_string("filename")
             if not filename:
