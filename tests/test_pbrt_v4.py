@@ -254,3 +254,12 @@ def test_loopsubdiv_is_rendered_as_its_control_mesh_with_a_warning(tmp_path):
     mesh = mesh_of(imported.scene, "loopsubdiv")
     assert len(mesh.faces) == 4 and len(mesh.vertices) == 4
     assert warnings_about(imported, "s.pbrt:5: unsupported: loopsubdiv (rendered as its control mesh")
+
+
+def test_strings_decode_pbrts_backslash_escapes(tmp_path):
+    """pbrt-v2 (pbrtlex.ll) and pbrt-v3/v4 (parser.cpp, decodeEscaped) decode \\" \\\\ \\n \\t ... in strings."""
+    (tmp_path / 'a "quoted" name.pbrt').write_text('Shape "sphere" "float radius" 4\n')
+    body = 'Include "a \\"quoted\\" name.pbrt"\nShape "disk" "string label" "x\\ty\\\\z"\n'
+    parsed = parse_pbrt(world(tmp_path, body))
+    assert parsed.shapes[0].params.get_float("radius") == 4
+    assert parsed.shapes[1].params.get_string("label") == "x\ty\\z"

@@ -12,11 +12,21 @@ from realistic.errors import UserError
 
 _TOKEN = re.compile(r'''
     (?P<space>[ \t\r]+) | (?P<newline>\n) | (?P<comment>\#[^\n]*)
-  | (?P<string>"[^"\n]*") | (?P<open>\[) | (?P<close>\])
+  | (?P<string>"(?:[^"\\\n]|\\.)*") | (?P<open>\[) | (?P<close>\])
   | (?P<number>[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?(?![A-Za-z_]))
   | (?P<word>[A-Za-z_][A-Za-z0-9_]*)
   | (?P<bad>.)
 ''', re.VERBOSE)
+
+
+#: Backslash escapes inside strings: pbrt-v2 ``src/core/pbrtlex.ll`` and pbrt-v3/v4 ``parser.cpp``
+#: (``decodeEscaped``) agree on these; any other escaped character stands for itself (pbrt-v2's rule).
+_ESCAPES = {"b": "\b", "f": "\f", "n": "\n", "r": "\r", "t": "\t"}
+_ESCAPED = re.compile(r"\\(.)")
+
+
+def _unescape(text: str) -> str:
+    return _ESCAPED.sub(lambda m: _ESCAPES.get(m.group(1), m.group(1)), text) if "\\" in text else text
 
 
 class PbrtSyntaxError(UserError):
@@ -36,7 +46,7 @@ class Token:
     @property
     def value(self) -> str | float:
         if self.kind == "string":
-            return self.text[1:-1]
+            return _unescape(self.text[1:-1])
         if self.kind == "number":
             return float(self.text)
         return self.text
