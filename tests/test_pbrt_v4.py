@@ -263,3 +263,15 @@ def test_strings_decode_pbrts_backslash_escapes(tmp_path):
     parsed = parse_pbrt(world(tmp_path, body))
     assert parsed.shapes[0].params.get_float("radius") == 4
     assert parsed.shapes[1].params.get_string("label") == "x\ty\\z"
+
+
+def test_gzipped_scene_files_are_read_as_pbrt_v4_reads_them(tmp_path):
+    import gzip
+
+    (tmp_path / "geometry.pbrt.gz").write_bytes(gzip.compress(b'Shape "sphere" "float radius" 6\n'))
+    (tmp_path / "broken.pbrt.gz").write_bytes(gzip.compress(b'Shape "sphere"\n')[:-6])
+    parsed = parse_pbrt(world(tmp_path, 'Import "geometry.pbrt.gz"\n'))
+    assert parsed.shapes[0].params.get_float("radius") == 6
+    with pytest.raises(UserError, match=r"broken\.pbrt\.gz: cannot read scene file") as err:
+        parse_pbrt(world(tmp_path, 'Include "broken.pbrt.gz"\n', name="b.pbrt"))
+    assert "\n" not in str(err.value)

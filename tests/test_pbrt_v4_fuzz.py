@@ -135,3 +135,13 @@ def test_v4_realistic_cameras_give_a_camera_or_a_one_line_error(diameter, focus,
         if imported is not None:
             lens = imported.scene.camera.lens
             assert 0 < lens.stop_diameter_mm <= 17.1  # clamped to the file's stop, as pbrt-v4 does
+
+
+@given(st.binary(max_size=64), st.integers(0, 64))
+def test_any_gzip_file_imports_or_gives_a_one_line_error(data, cut):
+    import gzip
+
+    with tempfile.TemporaryDirectory() as folder:
+        Path(folder, "raw.pbrt.gz").write_bytes(data)
+        Path(folder, "cut.pbrt.gz").write_bytes(gzip.compress(data)[:cut])
+        import_in(folder, HEADER + 'Import "raw.pbrt.gz"\nImport "cut.pbrt.gz"\n')

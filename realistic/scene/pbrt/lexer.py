@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import gzip
 import math
 import re
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,11 +58,17 @@ class Token:
 
 
 def read_scene_text(path: Path) -> str:
-    """The text of a scene file, or a UserError naming it."""
+    """The text of a scene file (gzip-compressed when its name ends in .gz, as pbrt-v4's
+    ``Tokenizer::CreateFromFile`` reads it), or a UserError naming it."""
     try:
-        return path.read_text(encoding="utf-8", errors="replace")
-    except OSError as err:
-        raise UserError(f"{path}: cannot read scene file: {err.strerror}") from None
+        data = path.read_bytes()
+        if path.suffix.lower() == ".gz":
+            data = gzip.decompress(data)
+    except OSError as err:  # gzip.BadGzipFile is one
+        raise UserError(f"{path}: cannot read scene file: {err.strerror or err}") from None
+    except (EOFError, zlib.error) as err:
+        raise UserError(f"{path}: cannot read scene file: a damaged gzip stream ({err or 'cut short'})") from None
+    return data.decode("utf-8", errors="replace")
 
 
 def tokenize(text: str, path: Path) -> Iterator[Token]:
