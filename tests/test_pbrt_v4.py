@@ -275,3 +275,25 @@ def test_gzipped_scene_files_are_read_as_pbrt_v4_reads_them(tmp_path):
     with pytest.raises(UserError, match=r"broken\.pbrt\.gz: cannot read scene file") as err:
         parse_pbrt(world(tmp_path, 'Include "broken.pbrt.gz"\n', name="b.pbrt"))
     assert "\n" not in str(err.value)
+
+
+def test_active_transform_starttime_moves_the_shutter_open_pose_we_render(tmp_path):
+    parsed = parse_pbrt(world(tmp_path, 'Translate 1 0 0\nActiveTransform StartTime\nTranslate 0 4 0\n'
+                                        'ActiveTransform All\nTranslate 0 0 2\nShape "sphere"\n'))
+    np.testing.assert_allclose(parsed.shapes[0].transform[:3, 3], [1, 4, 2])
+
+
+def test_a_v4_scene_header_with_two_cameras_bracketed_strings_and_iso(tmp_path):
+    """As pbrt-v4-scenes write them: the last Camera wins, a lens file in a subfolder (the bundled
+    prescription of that name stands in here), single values in brackets, the film's ISO reported."""
+    path = write(tmp_path, 'Scale -1 1 1\nLookAt 0 0 0  0 1 0  0 0 1\n'
+                           'Camera "perspective" "float fov" [ 60 ]\n'
+                           'Camera "realistic" "string lensfile" [ "lenses/wide.22mm.dat" ] '
+                           '"float focusdistance" [ 4 ] "float aperturediameter" [ 8.7 ]\n'
+                           'Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 11 ] "float iso" [ 1300 ]\n'
+                           'Sampler "halton" "integer pixelsamples" [ 4 ]\nWorldBegin\nShape "sphere"\n')
+    imported = import_pbrt(path)
+    camera = imported.scene.camera
+    assert camera.lens.name == "wide" and camera.lens.stop_diameter_mm == 8.7
+    assert (camera.width, camera.height, camera.spp) == (16, 11, 4)
+    assert warnings_about(imported, 's.pbrt:5: unsupported: Film "iso" 1300')
