@@ -297,3 +297,15 @@ def test_a_v4_scene_header_with_two_cameras_bracketed_strings_and_iso(tmp_path):
     assert camera.lens.name == "wide" and camera.lens.stop_diameter_mm == 8.7
     assert (camera.width, camera.height, camera.spp) == (16, 11, 4)
     assert warnings_about(imported, 's.pbrt:5: unsupported: Film "iso" 1300')
+
+
+def test_named_spectra_and_blackbodies_import_with_a_warning_not_an_error(tmp_path):
+    path = world(tmp_path, 'AttributeBegin\nAreaLightSource "diffuse" "spectrum L" "stdillum-D65"\nShape "disk"\n'
+                           'AttributeEnd\nAttributeBegin\nAreaLightSource "diffuse" "blackbody L" [ 5500 ]\n'
+                           'Translate 0 0 3\nShape "disk"\nAttributeEnd\n'
+                           'Material "conductor" "spectrum eta" "metal-Cu-eta" "spectrum k" "metal-Cu-k"\n'
+                           'Shape "sphere"\n')
+    imported = import_pbrt(path)
+    assert len(imported.scene.lights) == 2 and len(imported.scene.meshes) == 1
+    # each message is said once (the blackbody's is the same as the named spectrum's)
+    assert warnings_about(imported, "s.pbrt:6: unsupported:") and warnings_about(imported, "s.pbrt:14: unsupported:")

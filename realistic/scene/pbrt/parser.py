@@ -3,9 +3,9 @@
 This module knows pbrt's grammar and state rules (CTM, attribute and transform stacks, named
 coordinate systems, object instancing, textures, materials, area lights, and pbrt-v4's additions:
 ``Attribute`` defaults, ``Import``, ``Option``, ``ColorSpace``, media, ``ActiveTransform``) but
-nothing of how we render; ``realistic.scene.pbrt.importer`` turns the records into our scene and camera. What it cannot
-honour it reports once with file and line and carries on; a syntax error stops with file, line
-and what was expected.
+nothing of how we render; ``realistic.scene.pbrt.importer`` turns the records into our scene and
+camera. What it cannot honour it reports once with file and line and carries on; a syntax error
+stops with file, line and what was expected.
 """
 
 from __future__ import annotations
