@@ -309,3 +309,14 @@ def test_named_spectra_and_blackbodies_import_with_a_warning_not_an_error(tmp_pa
     assert len(imported.scene.lights) == 2 and len(imported.scene.meshes) == 1
     # each message is said once (the blackbody's is the same as the named spectrum's)
     assert warnings_about(imported, "s.pbrt:6: unsupported:") and warnings_about(imported, "s.pbrt:14: unsupported:")
+
+
+@pytest.mark.parametrize("dialect,material", [("v3", "conductor"), ("v4", "diffuse")])
+def test_transform_blocks_keep_only_the_transform_before_v4_and_everything_in_v4(tmp_path, dialect, material):
+    path = world(tmp_path, 'Material "diffuse"\nTransformBegin\nMaterial "conductor"\nTranslate 1 0 0\n'
+                           'TransformEnd\nShape "sphere"\n')
+    imported = import_pbrt(path, dialect=dialect)
+    parsed = parse_pbrt(path, transform_blocks_keep_all=dialect == "v4")
+    assert parsed.shapes[0].material.type == material and parsed.shapes[0].transform[0, 3] == 0
+    said = warnings_about(imported, "s.pbrt:6: unsupported: TransformBegin/End (deprecated in pbrt-v4")
+    assert bool(said) == (dialect == "v4")

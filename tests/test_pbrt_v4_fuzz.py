@@ -40,7 +40,8 @@ def params(draw):
 def v4_lines(draw):
     kind = draw(st.sampled_from(["Attribute", "Option", "ColorSpace", "MakeNamedMedium", "MediumInterface",
                                  "ActiveTransform", "TransformTimes", "Import", "Include", "Shape", "Translate",
-                                 "AttributeBegin", "AttributeEnd", "AreaLightSource", "Material"]))
+                                 "AttributeBegin", "AttributeEnd", "TransformBegin", "TransformEnd", "AreaLightSource",
+                                 "Material"]))
     if kind in ("Attribute", "MakeNamedMedium", "AreaLightSource", "Material"):
         return f"{kind} {draw(STRINGS)} {draw(params())}"
     if kind == "Option":

@@ -571,6 +571,11 @@ def import_world(path: str | Path, search_paths: list[Path] | None = None,
     search_paths = list(search_paths or [])
     parsed = parse_pbrt(path, search_paths)
     chosen = choose_dialect(parsed, dialect)
+    if chosen.is_v4 and "TransformBegin" in parsed.directives:  # v4 blocks keep the whole state: read again
+        parsed = parse_pbrt(path, search_paths, transform_blocks_keep_all=True)
+        chosen = choose_dialect(parsed, dialect)
+        parsed.warn(parsed.directives["TransformBegin"], "TransformBegin/End (deprecated in pbrt-v4, which reads "
+                                                         "them as AttributeBegin/End; so do we)")
     if parsed.world_begin is not None and parsed.world_end is None and not chosen.is_v4:  # v4 has no WorldEnd
         parsed.warn(str(parsed.path), f"no WorldEnd after the WorldBegin at {parsed.world_begin} (pbrt-v3 would "
                     f"render nothing; the world is rendered as read, but the file may be cut short)")

@@ -213,8 +213,9 @@ def _bare_bool(token: Token) -> bool:
 
 
 class _Parser:
-    def __init__(self, path: Path, search_paths: list[Path]):
+    def __init__(self, path: Path, search_paths: list[Path], transform_blocks_keep_all: bool = False):
         self.search_paths = search_paths
+        self.transform_blocks_keep_all = transform_blocks_keep_all
         self.scene = PbrtScene(path)
         self.state = _State(np.eye(4), DEFAULT_MATERIAL)
         self.stack: list[tuple[str, _State, str]] = []  # (block kind, saved state, where it began)
@@ -575,7 +576,11 @@ class _Parser:
         self._push("Transform", token)
 
     def d_TransformEnd(self, token: Token) -> None:
-        self.state.ctm = self._pop(token, "Transform").ctm
+        saved = self._pop(token, "Transform")
+        if self.transform_blocks_keep_all:
+            self.state = saved
+        else:
+            self.state.ctm = saved.ctm
 
     def d_ReverseOrientation(self, token: Token) -> None:
         self.state.reverse_orientation = not self.state.reverse_orientation
@@ -651,8 +656,13 @@ class _Parser:
             self.scene.shapes.append(record)
 
 
-def parse_pbrt(path: str | Path, search_paths: list[Path] | None = None) -> PbrtScene:
-    """Read a pbrt scene file (with its Includes) into records."""
+def parse_pbrt(path: str | Path, search_paths: list[Path] | None = None,
+               transform_blocks_keep_all: bool = False) -> PbrtScene:
+    """Read a pbrt scene file (with its Includes) into records.
+
+    ``TransformEnd`` restores only the transform (pbrt-v1 to v3), or, with
+    ``transform_blocks_keep_all``, the whole graphics state: pbrt-v4's parser reads the deprecated
+    TransformBegin/End as AttributeBegin/End (``src/pbrt/parser.cpp``)."""
     path = Path(path)
     if not _is_file(path):
         try:
@@ -660,4 +670,4 @@ def parse_pbrt(path: str | Path, search_paths: list[Path] | None = None) -> Pbrt
         except (OSError, ValueError) as err:
             what = f"cannot read scene file: {getattr(err, 'strerror', None) or err}"
         raise UserError(f"{path}: {what}")
-    return _Parser(path, list(search_paths or [])).run()
+    return _Parser(path, list(search_paths or []), transform_blocks_keep_all).run()
