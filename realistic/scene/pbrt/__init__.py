@@ -1,4 +1,4 @@
-"""The pbrt scene language (v1/v2/v3 subset), read in three steps.
+"""The pbrt scene language (v1 to v4 subset), read in three steps.
 
 - ``lexer``: tokens with the file and line they came from.
 - ``parser``: directives into plain records (graphics state, transforms, instancing); knows

@@ -36,22 +36,28 @@ The pixel filter (``PixelFilter``; the maths in ``realistic.core.pixel_filter``)
   pbrt names it ``sinc`` in every version; ``lanczos`` is accepted as another name for it.
 
 ``auto`` decides from what the file uses: v4-only directives (``ColorSpace``, ``Option``,
-``Attribute``, ``Import``) or ``Film "rgb"`` mean v4; the classic homework camera (``specfile``,
-``filmdistance``, ``filmdiag``, ``aperture_diameter``) or v2-only directives (``SurfaceIntegrator``,
-``VolumeIntegrator``, ``Renderer``) mean v2; pbrt-v3's realistic camera parameters (``lensfile``,
-``aperturediameter``, ``focusdistance``) or ``Integrator``/``MakeNamedMedium`` mean v3 (or v4). A
-file with no signal is read as v3; one with signals of two versions is read as the newest, with a
-warning. v1 is never chosen automatically: nothing in a file tells it from v2, and v1 and v2 share
-their conventions.
+``Attribute``, ``Import``), ``Film "rgb"`` or the realistic camera's ``aperture`` mean v4; the
+classic homework camera (``specfile``, ``filmdistance``, ``filmdiag``, ``aperture_diameter``) or
+v2-only directives (``SurfaceIntegrator``, ``VolumeIntegrator``, ``Renderer``) mean v2; pbrt-v3's
+realistic camera parameters (``lensfile``, ``aperturediameter``, ``focusdistance``) or
+``Integrator``/``MakeNamedMedium`` mean v3 (or v4). A file with no signal is read as v3; one with
+signals of two versions is read as the newest, with a warning (v3's signals are v4's too, so they do
+not clash with v4's). v1 is never chosen automatically: nothing in a file tells it from v2, and v1
+and v2 share their conventions.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
+
+import numpy as np
 
 from realistic.core import validation
 from realistic.core.pixel_filter import PixelFilter, filter_name
 from realistic.errors import UserError
+from realistic.optics.stop_shape import StopShape, bladed_stop, polygon_stop, transmission_stop
 from realistic.scene.pbrt.parser import Params, PbrtScene
 
 DIALECTS = ("auto", "v1", "v2", "v3", "v4")
@@ -60,6 +66,7 @@ _V2_DIRECTIVES = ("SurfaceIntegrator", "VolumeIntegrator", "Renderer")
 _V3_DIRECTIVES = ("Integrator", "MakeNamedMedium")
 _HOMEWORK_CAMERA = ("specfile", "filmdistance", "filmdiag", "aperture_diameter")
 _V3_CAMERA = ("lensfile", "aperturediameter", "focusdistance")
+_V4_CAMERA = ("aperture",)
 #: Each filter's default radius (pixels), as every version's ``Create...Filter`` sets it.
 _DEFAULT_RADIUS = {"box": 0.5, "triangle": 2.0, "gaussian": 2.0, "mitchell": 2.0, "sinc": 4.0}
 #: A gaussian wider than this is flat over any allowed radius (1 / (2 sigma^2) stays normal).
@@ -87,6 +94,7 @@ class RealisticCameraConvention:
     film_diagonal_on_camera: str | None  # the camera's parameter, or None: Film "diagonal"
     origin: str  # "front_vertex" or "film" (LensCamera.origin)
     camera_units_mm: float  # millimetres per camera-space unit
+    stop_shape: str | None = None  # pbrt-v4's "aperture": a built-in shape's name or an image file
 
     @property
     def required(self) -> tuple[tuple[str, str], ...]:
@@ -96,13 +104,16 @@ class RealisticCameraConvention:
     @property
     def names(self) -> frozenset[str]:
         return frozenset(name for name in (self.lens_file, self.stop_diameter, self.film_distance,
-                                           self.focus_distance, self.film_diagonal_on_camera) if name)
+                                           self.focus_distance, self.film_diagonal_on_camera, self.stop_shape)
+                         if name)
 
 
 CLASSIC_REALISTIC = RealisticCameraConvention("specfile", "aperture_diameter", "filmdistance", None, "filmdiag",
                                               "front_vertex", 1.0)
 PBRT3_REALISTIC = RealisticCameraConvention("lensfile", "aperturediameter", None, "focusdistance", None, "film",
                                             1000.0)
+#: pbrt-v4 (src/pbrt/cameras.cpp, RealisticCamera::Create) adds ``aperture`` to pbrt-v3's parameters.
+PBRT4_REALISTIC = dataclasses.replace(PBRT3_REALISTIC, stop_shape="aperture")
 #: pbrt-v3's default aperture diameter (mm) and focus distance (m), src/cameras/realistic.cpp.
 PBRT3_DEFAULT_APERTURE_MM, PBRT3_DEFAULT_FOCUS_M = 1.0, 10.0
 #: The film diagonal (mm) when a file gives none: pbrt-v3 ``src/core/film.cpp``; the classic camera's
@@ -143,12 +154,13 @@ class Dialect:
     @property
     def realistic_camera(self) -> RealisticCameraConvention:
         """The realistic camera's parameter names, units and frame in this version."""
-        return CLASSIC_REALISTIC if self.name in ("v1", "v2") else PBRT3_REALISTIC
+        return {"v1": CLASSIC_REALISTIC, "v2": CLASSIC_REALISTIC, "v3": PBRT3_REALISTIC}.get(self.name,
+                                                                                          PBRT4_REALISTIC)
 
     @property
     def foreign_camera_parameters(self) -> frozenset[str]:
         """Realistic-camera parameters of the other versions that this one ignores."""
-        return (CLASSIC_REALISTIC.names | PBRT3_REALISTIC.names) - self.realistic_camera.names
+        return (CLASSIC_REALISTIC.names | PBRT4_REALISTIC.names) - self.realistic_camera.names
 
     @property
     def imagemap(self) -> ImagemapConventions:
@@ -200,7 +212,7 @@ def _signals(parsed: PbrtScene) -> dict[str, list[str]]:
         found["v4"].append(f'Film "rgb" at {parsed.film.where}')
     camera = parsed.camera
     if camera is not None and camera.type == "realistic":
-        for version, names in (("v2", _HOMEWORK_CAMERA), ("v3", _V3_CAMERA)):
+        for version, names in (("v2", _HOMEWORK_CAMERA), ("v3", _V3_CAMERA), ("v4", _V4_CAMERA)):
             used = [name for name in names if camera.params.has(name)]
             if used:
                 found[version].append(f"realistic camera's {', '.join(used)} at {camera.where}")
@@ -218,7 +230,49 @@ def choose_dialect(parsed: PbrtScene, requested: str = "auto") -> Dialect:
     if not found:
         return Dialect("v3", "no version-specific directive or parameter; v3 assumed")
     chosen = max(found)  # "v4" > "v3" > "v2": the newest version signalled
-    if len(found) > 1:
-        others = "; ".join(f"{version}: {found[version][0]}" for version in sorted(found) if version != chosen)
+    # pbrt-v4 kept every v3 signal (Integrator, MakeNamedMedium, lensfile, ...): only v2's mix
+    clashing = [version for version in sorted(found) if version != chosen and (chosen, version) != ("v4", "v3")]
+    if clashing:
+        others = "; ".join(f"{version}: {found[version][0]}" for version in clashing)
         parsed.warn(str(parsed.path), f"the file mixes pbrt versions ({others}); read as pbrt-{chosen}")
     return Dialect(chosen, found[chosen][0])
+
+
+#: pbrt-v4's built-in ``aperture`` shapes (src/pbrt/cameras.cpp, RealisticCamera::Create).
+V4_BUILTIN_APERTURES = ("gaussian", "square", "pentagon", "star")
+_BUILTIN_SIDE = 256  # pbrt-v4 rasterises its built-in apertures at 256 x 256 over the stop's square
+
+
+def v4_builtin_aperture(name: str) -> StopShape:
+    """pbrt-v4's built-in aperture ``name`` as a stop shape, placed as pbrt-v4 places it.
+
+    pbrt-v4 draws each shape on a 256 x 256 image spanning the stop's square [-r, r]^2 with row 0 at
+    -r, flips the image in y (``FlipY``) and looks the stop point (x, y) up at row (y / r + 1) / 2:
+    so a shape drawn at (x, y) lands at (x, -y) on the stop. The shapes, in units of r:
+
+    - ``gaussian``: transmission max(0, exp(-r^2) - exp(-1)) (dithered into our binary mask);
+    - ``square``: the pixels from 1/4 to 3/4 of each side, a square of half-side 1/2 (vertices on
+      the circle of 0.5 sqrt 2, at 45 degrees);
+    - ``pentagon``: the regular pentagon with a vertex at (0, 1), scaled by 0.8, so after the flip
+      its vertex points to -y;
+    - ``star``: five outer vertices at radius 1 and angles 36 + 72 k degrees, five inner ones at
+      radius cos 72 / cos 36 between them (symmetric in y, so the flip leaves it).
+
+    pbrt-v4 then rescales every aperture image so the stop passes as much light as the full circle
+    of the same diameter; here brightness follows the open area (``realistic.optics.stop_shape``).
+    """
+    if name == "gaussian":
+        g = (np.arange(_BUILTIN_SIDE) + 0.5) / _BUILTIN_SIDE * 2 - 1
+        x, y = np.meshgrid(g, g)
+        return transmission_stop(np.maximum(0.0, np.exp(-(x * x + y * y)) - math.exp(-1.0)), "pbrt-v4 gaussian")
+    if name == "square":
+        return bladed_stop(4, 45.0, 0.0, math.sqrt(0.5))
+    if name == "pentagon":
+        return bladed_stop(5, -90.0, 0.0, 0.8)
+    if name == "star":
+        inner = math.cos(math.radians(72)) / math.cos(math.radians(36))
+        angle = np.pi * np.arange(10) / 5
+        radius = np.where(np.arange(10) % 2 == 1, 1.0, inner)
+        drawn = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
+        return polygon_stop(drawn * [1.0, -1.0], "pbrt-v4 star")
+    raise UserError(f'unknown built-in aperture "{name}" (pbrt-v4 has {", ".join(V4_BUILTIN_APERTURES)})')

@@ -1,9 +1,11 @@
-"""pbrt scenes (v1/v2/v3 subset) turned into our Scene and camera.
+"""pbrt scenes (v1 to v4 subset) turned into our Scene and camera.
 
 Cameras: ``realistic`` as the file's dialect writes it (``dialect.RealisticCameraConvention``: the
 classic homework's ``specfile``, ``filmdistance``, ``aperture_diameter``, ``filmdiag`` in mm from
 the front lens vertex, or pbrt-v3/v4's ``lensfile``, ``aperturediameter``, ``focusdistance`` in
-metres from the film centre with ``Film "diagonal"``), and ``perspective`` (pinhole or thin lens).
+metres from the film centre with ``Film "diagonal"``, and pbrt-v4's ``aperture`` shape), and
+``perspective`` (pinhole or thin lens). Shapes: pbrt's analytic shapes tessellated, trianglemesh,
+plymesh and pbrt-v4's bilinearmesh (two triangles per patch).
 Everything the renderer cannot honour is reported once with file and line, and the render goes on.
 """
 
@@ -28,14 +30,17 @@ from realistic.errors import LensFileError, UserError
 from realistic.optics.formats import BUNDLED_LENSES, load_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus
+from realistic.optics.stop_shape import StopShape, transmission_stop
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import AreaLight, CheckerTexture, Material, Mesh, Scene
 from realistic.scene.pbrt.dialect import (
     DEFAULT_FILM_DIAGONAL_MM,
     PBRT3_DEFAULT_APERTURE_MM,
     PBRT3_DEFAULT_FOCUS_M,
+    V4_BUILTIN_APERTURES,
     Dialect,
     choose_dialect,
+    v4_builtin_aperture,
 )
 from realistic.scene.pbrt.imagemap import imagemap_texture
 from realistic.scene.pbrt.lexer import PbrtSyntaxError
@@ -233,10 +238,18 @@ class _Importer:
         p = shape.params
         if shape.type == "trianglemesh":
             return [(self.triangle_mesh(shape), np.eye(4))]
+        if shape.type == "bilinearmesh":
+            return [(self.bilinear_mesh(shape), np.eye(4))]
+        if shape.type == "loopsubdiv":  # pbrt-v3/v4: "indices" and "P" of a triangle control mesh, "levels"
+            vertices, indices = self._indexed_points(shape, 3, "triangle")
+            self.warn(shape.where, "loopsubdiv (rendered as its control mesh, not subdivided)")
+            return [(Mesh(vertices, indices.reshape(-1, 3), None, None, shape.type), np.eye(4))]
         if shape.type == "plymesh":
             filename = p.get_string("filename")
             if not filename:
                 raise UserError(f"{shape.where}: plymesh has no filename")
+            if p.has("displacement"):  # pbrt-v4 src/pbrt/shapes.cpp tessellates and displaces along N
+                self.warn(shape.where, 'plymesh "displacement" (the mesh is rendered undisplaced)')
             path = self.find(filename, shape.directory, shape.where, "plymesh file")
             return [(obj.mesh, obj.transform) for obj in load_mesh_file(path)]
         if shape.type == "disk":
@@ -259,23 +272,43 @@ class _Importer:
     def triangle_mesh(self, shape: ShapeRecord) -> Mesh:
         """pbrt's trianglemesh: bad points or indices are errors; uv or N that do not fit are dropped
         with a warning, as pbrt does."""
-        p, where = shape.params, shape.where
+        vertices, indices = self._indexed_points(shape, 3, "triangle")
+        return self._mesh_with_attributes(shape, vertices, indices.reshape(-1, 3))
+
+    def bilinear_mesh(self, shape: ShapeRecord) -> Mesh:
+        """pbrt-v4's bilinearmesh (src/pbrt/shapes.cpp, BilinearPatch::CreateMesh): each patch's four
+        indices are its corners p00, p10, p01, p11 (default [0 1 2 3] for four points). Each patch is
+        split into the triangles (p00, p10, p11) and (p00, p11, p01), which face the way pbrt's
+        dp/du x dp/dv does and are exact for planar patches; a warped patch is approximated."""
+        vertices, indices = self._indexed_points(shape, 4, "patch")
+        p00, p10, p01, p11 = indices.reshape(-1, 4).T
+        faces = np.column_stack([p00, p10, p11, p00, p11, p01]).reshape(-1, 3)
+        self.warn(shape.where, "bilinearmesh (each bilinear patch is rendered as two triangles)")
+        return self._mesh_with_attributes(shape, vertices, faces)
+
+    def _indexed_points(self, shape: ShapeRecord, corners: int, unit: str) -> tuple[np.ndarray, np.ndarray]:
+        """A mesh shape's "P" as (N, 3) points and its "indices" (``corners`` per ``unit``), checked."""
+        p, where, kind = shape.params, shape.where, shape.type
         points = np.asarray(p.get_floats("P", []), dtype=np.float64)
         if len(points) == 0 or len(points) % 3:
-            raise UserError(f'{where}: trianglemesh "point P" needs 3 values per point, got {len(points)} values')
+            raise UserError(f'{where}: {kind} "point P" needs 3 values per point, got {len(points)} values')
         vertices = points.reshape(-1, 3)
         if not np.all(np.isfinite(vertices)):
-            raise UserError(f'{where}: trianglemesh "point P" has a value that is not a finite number')
-        indices = p.get_floats("indices", [0.0, 1.0, 2.0] if len(vertices) == 3 else [])  # pbrt's default
-        if len(indices) == 0 or len(indices) % 3:
-            raise UserError(f'{where}: trianglemesh "integer indices" needs 3 per triangle, got {len(indices)} '
+            raise UserError(f'{where}: {kind} "point P" has a value that is not a finite number')
+        default = [float(i) for i in range(corners)] if len(vertices) == corners else []  # pbrt's default
+        indices = p.get_floats("indices", default)
+        if len(indices) == 0 or len(indices) % corners:
+            raise UserError(f'{where}: {kind} "integer indices" needs {corners} per {unit}, got {len(indices)} '
                             f"values")
         indices = np.asarray(indices, dtype=np.float64)
         bad = (indices != np.floor(indices)) | (indices < 0) | (indices >= len(vertices))
         if np.any(bad):
-            raise UserError(f"{where}: trianglemesh index {indices[np.argmax(bad)]:g} is not a point number (0 to "
+            raise UserError(f"{where}: {kind} index {indices[np.argmax(bad)]:g} is not a point number (0 to "
                             f'{len(vertices) - 1} for the {len(vertices)} points of "P")')
-        faces = indices.astype(np.int64).reshape(-1, 3)
+        return vertices, indices.astype(np.int64)
+
+    def _mesh_with_attributes(self, shape: ShapeRecord, vertices: np.ndarray, faces: np.ndarray) -> Mesh:
+        """The mesh with the shape's per-point uv and unit normals where they fit the points."""
         uv = self._per_point(shape, ("uv", "st"), 2, len(vertices))
         normals = self._per_point(shape, ("N",), 3, len(vertices))
         if normals is not None:
@@ -283,9 +316,9 @@ class _Importer:
             if np.all(length > 0):
                 normals = normals / length
             else:
-                self.warn(where, 'trianglemesh "N" with a zero-length normal (normals ignored)')
+                self.warn(shape.where, f'{shape.type} "N" with a zero-length normal (normals ignored)')
                 normals = None
-        return Mesh(vertices, faces, normals, uv, "trianglemesh")
+        return Mesh(vertices, faces, normals, uv, shape.type)
 
     def _per_point(self, shape: ShapeRecord, names: tuple[str, ...], width: int, points: int) -> np.ndarray | None:
         """A per-point array (uv or normals) of a trianglemesh, or None (with a warning when it does
@@ -297,7 +330,7 @@ class _Importer:
         else:
             return None
         if len(values) != width * points:
-            self.warn(shape.where, f'trianglemesh "{name}" has {len(values)} values, not {width} for each of '
+            self.warn(shape.where, f'{shape.type} "{name}" has {len(values)} values, not {width} for each of '
                                    f"the {points} points ({name} ignored)")
             return None
         return np.asarray(values, dtype=np.float64).reshape(-1, width)
@@ -456,7 +489,11 @@ def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, 
                                              f"(ignored)")
         lens = scene_lens(convention.lens_file)
         if convention.film_distance is None:  # pbrt-v3/v4: focused by distance, with their default stop
-            lens = lens.with_stop_diameter(params.get_float(convention.stop_diameter, PBRT3_DEFAULT_APERTURE_MM))
+            lens = _v3_stop(lens, params.get_float(convention.stop_diameter, PBRT3_DEFAULT_APERTURE_MM), parsed,
+                            directive.where)
+            if convention.stop_shape is not None and params.has(convention.stop_shape):
+                lens = lens.with_stop_shape(_v4_aperture(params.get_string(convention.stop_shape), lens, parsed,
+                                                         directive.where, search_paths))
             focus = params.get_float(convention.focus_distance, PBRT3_DEFAULT_FOCUS_M)
             if not focus > 0:
                 raise UserError(f"{convention.focus_distance} must be a positive number of metres, got {focus:g}")
@@ -486,6 +523,40 @@ def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, 
     return camera
 
 
+def _v3_stop(lens: LensSystem, diameter_mm: float, parsed: PbrtScene, where: str) -> LensSystem:
+    """The lens with its stop set to ``aperturediameter``: pbrt-v3 (src/cameras/realistic.cpp) and
+    pbrt-v4 (src/pbrt/cameras.cpp, RealisticCamera's constructor) clamp a diameter wider than the
+    lens file's stop to that stop, with a warning; so do we."""
+    widest = lens.stop_diameter_mm
+    if diameter_mm > widest:
+        parsed.warn(where, f'"aperturediameter" {diameter_mm:g} mm is wider than the lens file\'s stop '
+                           f"({widest:g} mm; clamped to it, as pbrt does)")
+        diameter_mm = widest
+    return lens.with_stop_diameter(diameter_mm)
+
+
+def _v4_aperture(name: str | None, lens: LensSystem, parsed: PbrtScene, where: str,
+                 search_paths: list[Path]) -> StopShape | None:
+    """pbrt-v4's ``aperture``: a built-in shape (``dialect.v4_builtin_aperture``) or an image file
+    (the average of its channels, file's top row at +y, as pbrt-v4 flips it on load) whose levels
+    are the stop's transmission; "" keeps the circle. Each differs from pbrt-v4 in brightness,
+    which pbrt-v4 rescales to the full circle's, and that is said once with the file and line."""
+    if not name:
+        return None
+    if name in V4_BUILTIN_APERTURES:
+        shape = v4_builtin_aperture(name)
+    else:
+        path = resolve_file(name, parsed.path.parent, search_paths)
+        if path is None:
+            raise UserError(f'aperture image "{name}" not found next to the scene ({parsed.path.parent}) nor on '
+                            f"the search paths (pbrt-v4's built-in apertures: {', '.join(V4_BUILTIN_APERTURES)})")
+        shape = transmission_stop(read_linear_rgb(path).mean(axis=2), str(path))
+    ratio = shape.open_area_mm2(1.0) / (np.pi / 4)  # the shape scales with the stop: any diameter will do
+    parsed.warn(where, f'aperture "{name}" passes {ratio:.0%} of the full stop\'s light here (pbrt-v4 rescales '
+                       f"its aperture image to the full circle's brightness)")
+    return shape
+
+
 def _lens_name(params: Params, name: str) -> str:
     value = params.get_string(name)
     if not value:
@@ -500,7 +571,12 @@ def import_world(path: str | Path, search_paths: list[Path] | None = None,
     search_paths = list(search_paths or [])
     parsed = parse_pbrt(path, search_paths)
     chosen = choose_dialect(parsed, dialect)
-    if parsed.world_begin is not None and parsed.world_end is None:
+    if chosen.is_v4 and "TransformBegin" in parsed.directives:  # v4 blocks keep the whole state: read again
+        parsed = parse_pbrt(path, search_paths, transform_blocks_keep_all=True)
+        chosen = choose_dialect(parsed, dialect)
+        parsed.warn(parsed.directives["TransformBegin"], "TransformBegin/End (deprecated in pbrt-v4, which reads "
+                                                         "them as AttributeBegin/End; so do we)")
+    if parsed.world_begin is not None and parsed.world_end is None and not chosen.is_v4:  # v4 has no WorldEnd
         parsed.warn(str(parsed.path), f"no WorldEnd after the WorldBegin at {parsed.world_begin} (pbrt-v3 would "
                     f"render nothing; the world is rendered as read, but the file may be cut short)")
     return _Importer(parsed, search_paths, chosen).run(), parsed, chosen
@@ -529,6 +605,29 @@ def import_pixel_filter(parsed: PbrtScene, dialect: Dialect, override: str | Non
         return dialect.pixel_filter(directive.type, directive.params)
 
 
+#: Film types read as an RGB image: pbrt-v1/v2/v3's "image" and pbrt-v4's "rgb" (src/pbrt/film.cpp).
+RGB_FILMS = ("image", "rgb")
+#: pbrt-v4's other films: what we render of them is their RGB image.
+V4_OTHER_FILMS = ("gbuffer", "spectral")
+#: pbrt-v4's sensor model (src/pbrt/film.cpp, PixelSensor::Create) and its neutral values: ISO 100,
+#: no white balance and the CIE 1931 sensor leave the image as the film's radiance.
+V4_SENSOR_DEFAULTS = {"iso": 100.0, "whitebalance": 0.0, "sensor": "cie1931"}
+
+
+def _check_film(parsed: PbrtScene) -> None:
+    """Warn, with the Film's file and line, about a film type or sensor setting we do not model."""
+    film = parsed.film
+    if film.type in V4_OTHER_FILMS:
+        parsed.warn(film.where, f'Film "{film.type}" (its RGB image is rendered; the other channels are not)')
+    elif film.type not in RGB_FILMS:
+        parsed.warn(film.where, f'Film "{film.type}" (rendered as an RGB image film)')
+    for name, neutral in V4_SENSOR_DEFAULTS.items():
+        given = film.params.get_string(name) if isinstance(neutral, str) else film.params.get_float(name)
+        if given is not None and given != neutral:
+            parsed.warn(film.where, f'Film "{name}" {given} (the image is the film\'s radiance, as with pbrt-v4\'s '
+                                    f"{name} {neutral})")
+
+
 def import_pbrt(path: str | Path, width: int | None = None, height: int | None = None, spp: int | None = None,
                 lens_sampling: str = "pupil", lens_edit: Callable[[LensSystem], LensSystem] | None = None,
                 focus_scene_units: float | None = None, search_paths: list[Path] | None = None,
@@ -542,6 +641,8 @@ def import_pbrt(path: str | Path, width: int | None = None, height: int | None =
     film_where = parsed.film.where if parsed.film else str(parsed.path)
     if parsed.film and parsed.film.params.has("cropwindow"):
         parsed.warn(parsed.film.where, "Film cropwindow (the whole image is rendered)")
+    if parsed.film:
+        _check_film(parsed)
     if not (width and height):  # the file's resolution is used
         with _located(film_where):
             width, height = validation.resolution(width or _whole_number(film, "xresolution", 640, film_where),

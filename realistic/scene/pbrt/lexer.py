@@ -1,9 +1,11 @@
-"""Tokens of the pbrt scene language (v1, v2, v3), each with the file and line it came from."""
+"""Tokens of the pbrt scene language (v1 to v4), each with the file and line it came from."""
 
 from __future__ import annotations
 
+import gzip
 import math
 import re
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,11 +14,21 @@ from realistic.errors import UserError
 
 _TOKEN = re.compile(r'''
     (?P<space>[ \t\r]+) | (?P<newline>\n) | (?P<comment>\#[^\n]*)
-  | (?P<string>"[^"\n]*") | (?P<open>\[) | (?P<close>\])
+  | (?P<string>"(?:[^"\\\n]|\\.)*") | (?P<open>\[) | (?P<close>\])
   | (?P<number>[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?(?![A-Za-z_]))
   | (?P<word>[A-Za-z_][A-Za-z0-9_]*)
   | (?P<bad>.)
 ''', re.VERBOSE)
+
+
+#: Backslash escapes inside strings: pbrt-v2 ``src/core/pbrtlex.ll`` and pbrt-v3/v4 ``parser.cpp``
+#: (``decodeEscaped``) agree on these; any other escaped character stands for itself (pbrt-v2's rule).
+_ESCAPES = {"b": "\b", "f": "\f", "n": "\n", "r": "\r", "t": "\t"}
+_ESCAPED = re.compile(r"\\(.)")
+
+
+def _unescape(text: str) -> str:
+    return _ESCAPED.sub(lambda m: _ESCAPES.get(m.group(1), m.group(1)), text) if "\\" in text else text
 
 
 class PbrtSyntaxError(UserError):
@@ -36,7 +48,7 @@ class Token:
     @property
     def value(self) -> str | float:
         if self.kind == "string":
-            return self.text[1:-1]
+            return _unescape(self.text[1:-1])
         if self.kind == "number":
             return float(self.text)
         return self.text
@@ -46,11 +58,17 @@ class Token:
 
 
 def read_scene_text(path: Path) -> str:
-    """The text of a scene file, or a UserError naming it."""
+    """The text of a scene file (gzip-compressed when its name ends in .gz, as pbrt-v4's
+    ``Tokenizer::CreateFromFile`` reads it), or a UserError naming it."""
     try:
-        return path.read_text(encoding="utf-8", errors="replace")
-    except OSError as err:
-        raise UserError(f"{path}: cannot read scene file: {err.strerror}") from None
+        data = path.read_bytes()
+        if path.suffix.lower() == ".gz":
+            data = gzip.decompress(data)
+    except OSError as err:  # gzip.BadGzipFile is one
+        raise UserError(f"{path}: cannot read scene file: {err.strerror or err}") from None
+    except (EOFError, zlib.error) as err:
+        raise UserError(f"{path}: cannot read scene file: a damaged gzip stream ({err or 'cut short'})") from None
+    return data.decode("utf-8", errors="replace")
 
 
 def tokenize(text: str, path: Path) -> Iterator[Token]:

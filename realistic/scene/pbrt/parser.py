@@ -1,10 +1,11 @@
 """The pbrt scene language read into plain records: directives, transforms and graphics state.
 
 This module knows pbrt's grammar and state rules (CTM, attribute and transform stacks, named
-coordinate systems, object instancing, textures, materials, area lights) but nothing of how we
-render; ``realistic.scene.pbrt.importer`` turns the records into our scene and camera. What it cannot
-honour it reports once with file and line and carries on; a syntax error stops with file, line
-and what was expected.
+coordinate systems, object instancing, textures, materials, area lights, and pbrt-v4's additions:
+``Attribute`` defaults, ``Import``, ``Option``, ``ColorSpace``, media, ``ActiveTransform``) but
+nothing of how we render; ``realistic.scene.pbrt.importer`` turns the records into our scene and
+camera. What it cannot honour it reports once with file and line and carries on; a syntax error
+stops with file, line and what was expected.
 """
 
 from __future__ import annotations
@@ -53,6 +54,14 @@ class Params:
     def get_float(self, name: str, default: float | None = None) -> float | None:
         values = self.get_floats(name)
         return default if not values else values[0]
+
+    def with_defaults(self, defaults: dict[str, Param]) -> Params:
+        """These parameters, and each of ``defaults`` that they do not give (pbrt-v4's ``Attribute``
+        values: ``src/pbrt/scene.cpp`` builds each entity's ParameterDictionary from its own
+        parameters followed by the graphics state's attributes, and a lookup takes the first match)."""
+        if not defaults:
+            return self
+        return Params({**defaults, **self.items})
 
     def get_string(self, name: str, default: str | None = None) -> str | None:
         p = self.items.get(name)
@@ -133,15 +142,31 @@ class PbrtScene:
             self.warnings.append(text)
 
 
+#: pbrt-v4's ``Attribute`` targets (``src/pbrt/scene.cpp``, BasicSceneBuilder::Attribute).
+ATTRIBUTE_TARGETS = ("shape", "light", "material", "medium", "texture")
+#: ``ActiveTransform`` arguments (pbrt-v3/v4 parser): which of the two motion-blur transforms later
+#: transform directives change.
+ACTIVE_TRANSFORMS = ("All", "StartTime", "EndTime")
+
+
 @dataclass
 class _State:
     ctm: np.ndarray
     material: Declaration
     area_light: Declaration | None = None
     reverse_orientation: bool = False
+    # pbrt-v4 Attribute defaults per target; each update replaces the inner dict, so copies may share it
+    attributes: dict[str, dict[str, Param]] = field(default_factory=dict)
+    # False after ActiveTransform EndTime: transforms then change only the shutter-close transform,
+    # which we do not render (shapes stay where the shutter-open transform puts them)
+    start_active: bool = True
 
     def copy(self) -> _State:
-        return _State(self.ctm.copy(), self.material, self.area_light, self.reverse_orientation)
+        return _State(self.ctm.copy(), self.material, self.area_light, self.reverse_orientation,
+                      dict(self.attributes), self.start_active)
+
+    def defaults(self, target: str) -> dict[str, Param]:
+        return self.attributes.get(target, {})
 
 
 DEFAULT_MATERIAL = Declaration("matte", Params(), "<default>")
@@ -180,11 +205,17 @@ class _Frame:
     label: str  # the file as the scene named it (the top file: as given)
     identity: str
     pos: int = 0
+    restore: tuple[_State, int] | None = None  # Import: the graphics state and stack depth to go back to
+
+
+def _bare_bool(token: Token) -> bool:
+    return token.kind == "word" and token.text in ("true", "false")
 
 
 class _Parser:
-    def __init__(self, path: Path, search_paths: list[Path]):
+    def __init__(self, path: Path, search_paths: list[Path], transform_blocks_keep_all: bool = False):
         self.search_paths = search_paths
+        self.transform_blocks_keep_all = transform_blocks_keep_all
         self.scene = PbrtScene(path)
         self.state = _State(np.eye(4), DEFAULT_MATERIAL)
         self.stack: list[tuple[str, _State, str]] = []  # (block kind, saved state, where it began)
@@ -192,6 +223,7 @@ class _Parser:
         self.current_object: str | None = None
         self.named_materials: dict[str, Declaration] = {}
         self.frames: list[_Frame] = []
+        self.finished_imports: list[_Frame] = []  # in the order they ended
         self.last: Token | None = None
 
     # ---- token access -------------------------------------------------------------------------
@@ -206,8 +238,29 @@ class _Parser:
                 return frame.tokens[frame.pos]
             if len(self.frames) == 1:
                 return None
-            self.frames.pop()
+            finished = self.frames.pop()
+            if finished.restore is not None:
+                self.finished_imports.append(finished)
         return None
+
+    def end_imports(self) -> None:
+        """Imported files used up (by the directive before, whose parameters may have run to their
+        end) give back the graphics state they were given: pbrt-v4 ``src/pbrt/parser.cpp`` parses an
+        Import with a copy of the state (``BasicSceneBuilder::CopyForImport``) and keeps only its
+        shapes, instances, named materials and textures."""
+        for frame in self.finished_imports:  # innermost first, so the outermost's state is the one kept
+            self.end_of(frame)
+        self.finished_imports.clear()
+
+    def end_of(self, frame: _Frame) -> None:
+        state, depth = frame.restore
+        while len(self.stack) > depth:
+            kind, _, where = self.stack.pop()
+            self.scene.warn(where, f"{kind}Begin without a matching {kind}End in the imported file "
+                                   f"{frame.label} (closed at its end)")
+            if kind == "Object":
+                self.current_object = None
+        self.state = state
 
     def advance(self) -> None:
         """Step past the token ``peek`` returned."""
@@ -264,7 +317,9 @@ class _Parser:
 
     def param_values(self, declaration: Token) -> list:
         first = self.next(f"a value for {declaration.text}")
-        if first.kind in ("string", "number"):
+        if _bare_bool(first):  # pbrt-v4 writes bool values unquoted (src/pbrt/parser.cpp, parseParameters)
+            values = [first.text]
+        elif first.kind in ("string", "number"):
             values = [first.value]
         elif first.kind != "[":
             raise PbrtSyntaxError(first.path, first.line, f"expected a value or [ for {declaration.text}, "
@@ -272,6 +327,9 @@ class _Parser:
         else:
             values = []
             while (token := self.next(f"] closing the values of {declaration.text}")).kind != "]":
+                if _bare_bool(token):
+                    values.append(token.text)
+                    continue
                 if token.kind not in ("string", "number"):
                     raise PbrtSyntaxError(token.path, token.line, f"expected ] closing the values of "
                                           f"{declaration.text}, found {token.text}")
@@ -293,6 +351,7 @@ class _Parser:
     def run(self) -> PbrtScene:
         self.frames = [_Frame(self._load(self.scene.path), str(self.scene.path), _identity(self.scene.path))]
         while (token := self.peek()) is not None:
+            self.end_imports()
             self.advance()
             if token.kind != "word":
                 raise PbrtSyntaxError(token.path, token.line, f"expected a directive, found {token.text}")
@@ -305,6 +364,7 @@ class _Parser:
                     handler(token)
                 except ValueError as err:
                     raise PbrtSyntaxError(token.path, token.line, f"{token.text}: {err}") from None
+        self.end_imports()
         self.close_open_blocks("by the end of the file")
         return self.scene
 
@@ -326,7 +386,8 @@ class _Parser:
     def set_ctm(self, matrix: np.ndarray) -> None:
         if not np.all(np.isfinite(matrix)):
             raise ValueError("the transform overflows (values beyond a double's range)")
-        self.state.ctm = matrix
+        if self.state.start_active:
+            self.state.ctm = matrix
 
     def apply(self, matrix: np.ndarray) -> None:
         with np.errstate(over="ignore", invalid="ignore"):  # judged by set_ctm
@@ -334,7 +395,9 @@ class _Parser:
 
     def d_Include(self, token: Token) -> None:
         name = self.string(token)
-        path = resolve_file(name, token.path.parent, self.search_paths)
+        # pbrt-v3/v4 resolve a relative name against the first scene file's folder (ResolveFilename,
+        # src/pbrt/util/file.cpp); pbrt-v1/v2 and most scenes mean the including file's: try both
+        path = resolve_file(name, token.path.parent, [self.scene.path.parent, *self.search_paths])
         if path is None:
             self.scene.warn(token.where(), f'{token.text} "{name}": no such file in {token.path.parent} or the '
                                        f'search paths (skipped)')
@@ -348,7 +411,8 @@ class _Parser:
         if len(self.frames) > MAX_INCLUDE_DEPTH:
             raise PbrtSyntaxError(token.path, token.line, f'{token.text} "{name}" nests files more than '
                                   f"{MAX_INCLUDE_DEPTH} deep (the limit)")
-        self.frames.append(_Frame(self._load(path), name, identity))
+        restore = (self.state.copy(), len(self.stack)) if token.text == "Import" else None
+        self.frames.append(_Frame(self._load(path), name, identity, restore=restore))
 
     d_Import = d_Include
 
@@ -425,11 +489,66 @@ class _Parser:
         self.scene.warn(token.where(), f'{token.text} "{kind}" (ignored)')
 
     d_SurfaceIntegrator = d_VolumeIntegrator = d_Integrator = d_Accelerator = _ignored
-    d_Renderer = d_ColorSpace = d_MakeNamedMedium = _ignored
+    d_Renderer = _ignored
+
+    # ---- pbrt-v4 (src/pbrt/parser.cpp for the grammar, src/pbrt/scene.cpp for the meaning) --------
+    def d_Attribute(self, token: Token) -> None:
+        """``Attribute "target" params``: defaults for the target's later directives in this block."""
+        target = self.string(token)
+        if target not in ATTRIBUTE_TARGETS:
+            raise PbrtSyntaxError(token.path, token.line, f'Attribute "{target}": unknown target (pbrt-v4 has '
+                                  f'{", ".join(ATTRIBUTE_TARGETS)})')
+        params = self.params()
+        self.state.attributes = {**self.state.attributes,
+                                 target: {**self.state.defaults(target), **params.items}}
+
+    def d_Option(self, token: Token) -> None:
+        """``Option "name" value``: a renderer setting given as one token (pbrt-v4's command-line options)."""
+        name = self.string(token)
+        value = self.next(f'a value for Option "{name}"')
+        if value.kind not in ("string", "number", "word"):
+            raise PbrtSyntaxError(value.path, value.line, f'expected a value for Option "{name}", found {value.text}')
+        self.scene.warn(token.where(), f'Option "{name}" {value.text} (renderer options are ours to set; ignored)')
+
+    def d_ColorSpace(self, token: Token) -> None:
+        name = self.string(token)
+        if name.lower() != "srgb":
+            self.scene.warn(token.where(), f'ColorSpace "{name}" (RGB values are read as sRGB primaries)')
+
+    def d_MakeNamedMedium(self, token: Token) -> None:
+        name = self.string(token)
+        self.params().with_defaults(self.state.defaults("medium"))
+        self.scene.warn(token.where(), f'MakeNamedMedium "{name}" (participating media are not rendered; ignored)')
+
+    def d_MediumInterface(self, token: Token) -> None:
+        """``MediumInterface "inside" ["outside"]`` (one name means both, as pbrt-v4's parser reads it)."""
+        names = [self.string(token)]
+        if (nxt := self.peek()) is not None and nxt.kind == "string":
+            self.advance()
+            names.append(str(nxt.value))
+        shown = " ".join(f'"{n}"' for n in names)
+        if any(names):
+            self.scene.warn(token.where(), f"MediumInterface {shown} (participating media are not rendered; "
+                                           f"ignored)")
+
+    def d_ActiveTransform(self, token: Token) -> None:
+        which = self.next(f"All, StartTime or EndTime after {token.text}")
+        if which.kind != "word" or which.text not in ACTIVE_TRANSFORMS:
+            raise PbrtSyntaxError(which.path, which.line, f"expected All, StartTime or EndTime after "
+                                  f"{token.text}, found {which.text}")
+        self.state.start_active = which.text != "EndTime"
+        if which.text != "All":
+            self.scene.warn(token.where(), "ActiveTransform StartTime/EndTime (motion blur is not rendered; "
+                                           "shapes and camera stay at the shutter-open transform)")
+
+    def d_TransformTimes(self, token: Token) -> None:
+        self.numbers(token, 2)
+        self.scene.warn(token.where(), "TransformTimes (motion blur is not rendered)")
 
     def d_WorldBegin(self, token: Token) -> None:
         self.named_frames["world"] = np.eye(4)
         self.state.ctm = np.eye(4)
+        self.state.start_active = True  # pbrt-v4 scene.cpp: WorldBegin makes all transforms active
         self.scene.world_begin = self.scene.world_begin or token.where()
 
     def d_WorldEnd(self, token: Token) -> None:
@@ -457,7 +576,11 @@ class _Parser:
         self._push("Transform", token)
 
     def d_TransformEnd(self, token: Token) -> None:
-        self.state.ctm = self._pop(token, "Transform").ctm
+        saved = self._pop(token, "Transform")
+        if self.transform_blocks_keep_all:
+            self.state = saved
+        else:
+            self.state.ctm = saved.ctm
 
     def d_ReverseOrientation(self, token: Token) -> None:
         self.state.reverse_orientation = not self.state.reverse_orientation
@@ -493,14 +616,17 @@ class _Parser:
 
     def d_Texture(self, token: Token) -> None:
         name, kind, cls = self.string(token), self.string(token), self.string(token)
-        self.scene.textures[name] = TextureDef(name, kind, cls, self.params(), token.path.parent, token.where())
+        params = self.params().with_defaults(self.state.defaults("texture"))
+        self.scene.textures[name] = TextureDef(name, kind, cls, params, token.path.parent, token.where())
 
     def d_Material(self, token: Token) -> None:
-        self.state.material = Declaration(self.string(token), self.params(), token.where())
+        kind = self.string(token)
+        self.state.material = Declaration(kind, self.params().with_defaults(self.state.defaults("material")),
+                                          token.where())
 
     def d_MakeNamedMaterial(self, token: Token) -> None:
         name = self.string(token)
-        params = self.params()
+        params = self.params().with_defaults(self.state.defaults("material"))
         self.named_materials[name] = Declaration(params.get_string("type", "matte"), params, token.where())
 
     def d_NamedMaterial(self, token: Token) -> None:
@@ -510,15 +636,19 @@ class _Parser:
         self.state.material = self.named_materials[name]
 
     def d_AreaLightSource(self, token: Token) -> None:
-        self.state.area_light = Declaration(self.string(token), self.params(), token.where())
+        kind = self.string(token)
+        self.state.area_light = Declaration(kind, self.params().with_defaults(self.state.defaults("light")),
+                                            token.where())
 
     def d_LightSource(self, token: Token) -> None:
         kind = self.string(token)
-        self.scene.lights.append(Directive(kind, self.params(), self.state.ctm.copy(), token.where()))
+        params = self.params().with_defaults(self.state.defaults("light"))
+        self.scene.lights.append(Directive(kind, params, self.state.ctm.copy(), token.where()))
 
     def d_Shape(self, token: Token) -> None:
         kind = self.string(token)
-        record = ShapeRecord(kind, self.params(), self.state.ctm.copy(), self.state.material,
+        params = self.params().with_defaults(self.state.defaults("shape"))
+        record = ShapeRecord(kind, params, self.state.ctm.copy(), self.state.material,
                              self.state.area_light, self.state.reverse_orientation, token.path.parent, token.where())
         if self.current_object is not None:
             self.scene.objects[self.current_object].append(record)
@@ -526,8 +656,13 @@ class _Parser:
             self.scene.shapes.append(record)
 
 
-def parse_pbrt(path: str | Path, search_paths: list[Path] | None = None) -> PbrtScene:
-    """Read a pbrt scene file (with its Includes) into records."""
+def parse_pbrt(path: str | Path, search_paths: list[Path] | None = None,
+               transform_blocks_keep_all: bool = False) -> PbrtScene:
+    """Read a pbrt scene file (with its Includes) into records.
+
+    ``TransformEnd`` restores only the transform (pbrt-v1 to v3), or, with
+    ``transform_blocks_keep_all``, the whole graphics state: pbrt-v4's parser reads the deprecated
+    TransformBegin/End as AttributeBegin/End (``src/pbrt/parser.cpp``)."""
     path = Path(path)
     if not _is_file(path):
         try:
@@ -535,4 +670,4 @@ def parse_pbrt(path: str | Path, search_paths: list[Path] | None = None) -> Pbrt
         except (OSError, ValueError) as err:
             what = f"cannot read scene file: {getattr(err, 'strerror', None) or err}"
         raise UserError(f"{path}: {what}")
-    return _Parser(path, list(search_paths or [])).run()
+    return _Parser(path, list(search_paths or []), transform_blocks_keep_all).run()
