@@ -4,9 +4,10 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from realistic.cli import main
 from realistic.errors import UserError
 from realistic.optics.formats import load_lens
 from realistic.optics.formats.pbrt_dat import parse_prescription
@@ -172,3 +173,18 @@ def test_wavelength_lists_parse_or_fail_with_one_line(text):
         assert "\n" not in str(err)
     else:
         assert values and all(200 <= v <= 2000 for v in values)
+
+
+JUDGE_OPTIONS = ["--field", "--wavelengths", "--samples", "--focus", "--aperture", "--max-frequency"]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(JUDGE_OPTIONS), st.text(alphabet="0123456789.,-FdCe nai", max_size=12)),
+                max_size=3), st.sampled_from(["spot", "mtf"]))
+def test_spot_and_mtf_options_are_accepted_or_refused_in_one_line(tmp_path_factory, capsys, options, command):
+    # An output in a missing folder: a command line that passes every check stops there, before tracing.
+    out = tmp_path_factory.mktemp("judge") / "missing" / "plot.png"
+    argv = ["lens", command, "dgauss", "--out", str(out)] + [f"{o}={v}" for o, v in options]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith("realistic: error:")

@@ -38,9 +38,17 @@ def _load(args: argparse.Namespace) -> LensSystem:
     return lens.with_stop_diameter(args.aperture) if args.aperture else lens
 
 
+def _outputs(args: argparse.Namespace, default_plot: str) -> Path:
+    """The plot's path; both outputs are checked before any tracing, so a bad path fails at once."""
+    out = Path(args.out or default_plot)
+    check_writable(out)
+    if args.json:
+        check_writable(Path(args.json))
+    return out
+
+
 def _write(path: str | None, text: str) -> None:
     if path:
-        check_writable(Path(path))
         write_text_atomically(Path(path), text)
 
 
@@ -63,9 +71,8 @@ def cmd_lens_spot(args: argparse.Namespace) -> int:
     from realistic.optics.spot import spot_diagram
 
     lens = _load(args)
+    out = _outputs(args, f"{lens.name}-spot.png")
     report = spot_diagram(lens, args.field, args.wavelengths, args.focus, args.samples)
-    out = Path(args.out or f"{lens.name}-spot.png")
-    check_writable(out)
     _write(args.json, json.dumps(report.as_dict(), indent=1) + "\n")
     plot_spots(report, out)
     print(f"{lens.name}: film {report.film_distance_mm:.4f} mm behind the rear vertex ({report.focus} focus)")
@@ -82,9 +89,8 @@ def cmd_lens_mtf(args: argparse.Namespace) -> int:
     from realistic.optics.mtf import lens_mtf
 
     lens = _load(args)
+    out = _outputs(args, f"{lens.name}-mtf.png")
     report = lens_mtf(lens, args.field, args.wavelengths, args.max_frequency, args.focus, args.samples)
-    out = Path(args.out or f"{lens.name}-mtf.png")
-    check_writable(out)
     _write(args.json, json.dumps(report.as_dict(), indent=1) + "\n")
     plot_mtf(report, out)
     nu = report.frequencies_lp_mm
@@ -181,8 +187,8 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
 
 
 def _pupil_samples(n: int) -> int:
-    if not 2 <= n <= 2048:
-        raise UserError(f"pupil samples {n} must be 2..2048")
+    if not 2 <= n <= 1024:
+        raise UserError(f"pupil samples {n} must be 2..1024")
     return n
 
 
