@@ -63,7 +63,7 @@ def test_defocused_slow_singlet_has_the_uniform_disk_mtf():
     """At f/50 the singlet's spherical aberration (~2e-6 mm) is negligible beside a 2 mm defocus blur."""
     lens = parse_prescription(SINGLET).with_stop_diameter(2.0)
     para, defocus = paraxial_data(lens), 2.0
-    rays = trace_object_point(lens, 0.0, samples_across=300, margin=1.05)
+    rays = trace_object_point(lens, 0.0, samples_across=300)
     spot = spots_at([[rays]], [0.0], [587.5618], para.bfl_mm + defocus)[0]
     diameter = defocus * para.entrance_pupil_diameter_mm / para.efl_mm
     nu = np.linspace(0, 3.0 / diameter, 31)
@@ -85,7 +85,7 @@ def test_best_focus_is_the_minimum_of_the_rms_radius():
     lens = load_lens("dgauss")
     fields, waves = [0.0, 10.0], [486.1327, 587.5618, 656.2725]
     traced = [[trace_object_point(lens, f, w, samples_across=32) for w in waves] for f in fields]
-    best = best_focus_mm([r for field in traced for r in field])
+    best = best_focus_mm(traced)
 
     def total_ms(s):
         return sum(sp.rms_radius_mm**2 for sp in spots_at(traced, fields, waves, s))
@@ -188,3 +188,22 @@ def test_spot_and_mtf_options_are_accepted_or_refused_in_one_line(tmp_path_facto
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and err.startswith("realistic: error:")
+
+
+def test_the_beam_that_passes_fills_the_paraxial_entrance_pupil_at_a_small_stop():
+    lens = load_lens("dgauss").with_stop_diameter(2.0)
+    para = paraxial_data(lens)
+    rays = trace_object_point(lens, 0.0, samples_across=256)
+    assert rays.beam_area_mm2 == pytest.approx(math.pi * (para.entrance_pupil_diameter_mm / 2) ** 2, rel=0.01)
+
+
+def test_a_fisheye_beam_far_from_the_paraxial_pupil_is_found():
+    """At 75 deg the fisheye's real entrance pupil lies far outside its paraxial one."""
+    lens = load_lens("fisheye")
+    para = paraxial_data(lens)
+    rays = trace_object_point(lens, 75.0)
+    assert len(rays.point) > 500
+    assert rays.beam_area_mm2 < math.pi * (para.entrance_pupil_diameter_mm / 2) ** 2  # foreshortened
+    heights = [abs(trace_object_point(lens, f, samples_across=16).at(para.bfl_mm).mean(axis=0)[1])
+               for f in (20.0, 40.0, 60.0, 75.0)]
+    assert heights == sorted(heights)  # the image height still grows with the field

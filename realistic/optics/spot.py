@@ -3,8 +3,9 @@
 An object point at infinity per field angle, traced at each wavelength through an equal-area grid
 over the entrance pupil (``realistic.optics.forward_trace``), lands on a film plane at the paraxial
 focus of the d line or at *best focus*: the film distance that minimises the mean square spot
-radius summed over all fields and wavelengths. Because each ray is a straight line behind the
-lens, that sum is a quadratic in the film distance and its minimum is found in closed form.
+radius summed over all fields (each field's wavelengths together). Because each ray is a straight
+line behind the lens, that sum is a quadratic in the film distance and its minimum is found in
+closed form.
 
 Radii are measured from the centroid of all wavelengths' rays of a field: the RMS radius
 sqrt(mean |p - c|^2) and the geometric radius max |p - c|. Every ray carries the same weight (the
@@ -85,19 +86,22 @@ class Spot:
         }
 
 
-def best_focus_mm(rays: list[ImageRays]) -> float:
-    """Film distance (mm behind the rear vertex) minimising the summed mean square spot radius.
+def best_focus_mm(fields: list[list[ImageRays]]) -> float:
+    """Film distance (mm behind the rear vertex) minimising the sum over fields of the mean square
+    spot radius, each field's rays of all wavelengths taken together about their centroid (the
+    radius ``Spot`` reports).
 
-    With p(s) = a + b s per ray, a bundle's mean square radius about its centroid is
-    Var(a) + 2 s Cov(a, b) + s^2 Var(b) (summed over x and y), minimal at
-    s = -sum Cov(a, b) / sum Var(b).
+    With p(s) = a + b s per ray, a field's mean square radius is Var(a) + 2 s Cov(a, b) + s^2 Var(b)
+    (summed over x and y), so the sum is minimal at s = -sum Cov(a, b) / sum Var(b).
     """
     cov = var = 0.0
-    for r in rays:
-        if len(r.point) < 2:
+    for rays in fields:
+        point = np.concatenate([r.point for r in rays])
+        slope = np.concatenate([r.slope for r in rays])
+        if len(point) < 2:
             continue
-        a = r.point - r.point.mean(axis=0)
-        b = r.slope - r.slope.mean(axis=0)
+        a = point - point.mean(axis=0)
+        b = slope - slope.mean(axis=0)
         cov += float(np.sum(a * b)) / len(a)
         var += float(np.sum(b * b)) / len(a)
     if var <= 0:
@@ -132,7 +136,7 @@ def film_distance_for(lens: LensSystem, traced: list[list[ImageRays]], focus: st
         raise UserError(f"focus must be one of {', '.join(FOCUS_MODES)}, got {focus!r}")
     if focus == "paraxial":
         return paraxial_data(lens).bfl_mm
-    return best_focus_mm([r for field in traced for r in field])
+    return best_focus_mm(traced)
 
 
 def spots_at(traced: list[list[ImageRays]], fields_deg: list[float], wavelengths_nm: list[float],
