@@ -61,3 +61,18 @@ def test_off_axis_psf_lands_where_the_forward_trace_says():
 def test_psf_refuses_a_point_behind_the_front_of_the_lens():
     with pytest.raises(UserError, match="not in front of the lens"):
         point_spread(load_lens("dgauss"), 50.0, focus_mm=1000.0)
+
+
+def test_the_opencl_rays_give_the_numpy_psf():
+    """The kernel's float32 rays and the float64 reference land the same light in the same pixels."""
+    opencl_host = pytest.importorskip("realistic.camera.opencl_host")
+    try:
+        opencl_host.context()
+    except UserError as err:
+        pytest.skip(f"no OpenCL platform: {err}")
+    lens = stopped_dgauss()
+    reference = point_spread(lens, 3000.0, 5.0, pixel_mm=0.004, size=24, spp=32, source_radius_mm=0.5)
+    kernel = point_spread(lens, 3000.0, 5.0, pixel_mm=0.004, size=24, spp=32, source_radius_mm=0.5,
+                          backend="opencl")
+    assert kernel.flux == pytest.approx(reference.flux, rel=1e-3)
+    np.testing.assert_allclose(kernel.image, reference.image, atol=1e-3 * reference.image.max())

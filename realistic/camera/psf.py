@@ -47,12 +47,16 @@ class PointSpread:
 
 
 def _sphere_hits(origin: np.ndarray, direction: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:
-    """True where a ray (unit direction) meets the sphere in front of its origin."""
-    oc = origin - centre
-    b = np.sum(oc * direction, axis=1)
-    c = np.sum(oc * oc, axis=1) - radius * radius
-    disc = b * b - c
-    return (disc >= 0) & (-b + np.sqrt(np.maximum(disc, 0.0)) > 0)
+    """True where a ray meets the sphere ahead of its origin, in float64 from the distance of the
+    sphere's centre to the ray's line (b^2 - c of the quadratic cancels badly for a sphere metres
+    away, and the OpenCL rays are float32)."""
+    d = np.asarray(direction, dtype=np.float64)
+    length = np.linalg.norm(d, axis=1, keepdims=True)
+    d = np.divide(d, length, out=np.zeros_like(d), where=length > 0)
+    to_centre = centre - np.asarray(origin, dtype=np.float64)
+    along = np.sum(to_centre * d, axis=1)
+    across = to_centre - along[:, None] * d
+    return (along > 0) & (np.sum(across * across, axis=1) <= radius * radius)
 
 
 def point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focus_mm: float | None = None,
