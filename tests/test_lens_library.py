@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from realistic.cli import main
 from realistic.cli.lens_judge import parse_fields
 from realistic.errors import UserError
-from realistic.optics.library import element_count, image_circle_mm, library_files, read_library_lens
+from realistic.optics.library import element_count, image_circle_mm, library_files, read_library_lens, resolve_lens
 from realistic.optics.paraxial import paraxial_data
 
 #: (library name, stated EFL mm, stated f-number, stated full angle of view deg, stop, source: the patent
@@ -88,3 +88,9 @@ def test_field_lists_parse_or_fail_with_one_line(text):
         assert "\n" not in str(err)
     else:
         assert values and all(abs(v) < 90 for v in values)
+
+
+def test_an_unknown_lens_name_lists_the_library():
+    with pytest.raises(UserError, match="not a library lens name .*tessar.100mm"):
+        resolve_lens("no-such-lens")
+    assert resolve_lens("tessar.100mm").name == "tessar.100mm"

@@ -10,9 +10,11 @@ at least ``IMAGE_CIRCLE_ILLUMINATION`` of the centre's.
 from __future__ import annotations
 
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 
+from realistic.errors import LensFileError
 from realistic.optics.field_curves import field_curves
 from realistic.optics.formats import BUNDLED_LENSES, load_lens
 from realistic.optics.formats.pbrt_dat import parse_prescription
@@ -78,6 +80,14 @@ def library_entry(name: str) -> dict:
 
 def resolve_lens(name_or_path: str) -> LensSystem:
     """A library lens by name (``library_files``), else whatever ``load_lens`` accepts."""
-    if name_or_path in library_files() and name_or_path not in BUNDLED_LENSES:
+    names = library_files()
+    if name_or_path in names and name_or_path not in BUNDLED_LENSES:
         return read_library_lens(name_or_path)[0]
+    try:
+        exists = Path(name_or_path).exists()
+    except (OSError, ValueError):
+        exists = True  # let load_lens say what is wrong with the path
+    if not exists and name_or_path not in BUNDLED_LENSES:
+        raise LensFileError(name_or_path, None, f"no such lens file, and not a library lens name "
+                                                f"({', '.join(names)}; 'lens list' describes them)")
     return load_lens(name_or_path)
