@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from realistic.renderer.bsdf.base import BSDFSample
-from realistic.renderer.bsdf.oren_nayar import cosine_on_side
+from realistic.renderer.bsdf.lambertian import cosine_on_side
 
 
 class DiffuseTransmission:

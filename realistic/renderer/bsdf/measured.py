@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from realistic.renderer.bsdf.base import BSDFSample
-from realistic.renderer.bsdf.oren_nayar import cosine_on_side, cosine_pdf
+from realistic.renderer.bsdf.lambertian import cosine_on_side, cosine_pdf
 from realistic.scene.measured import HalfangleTable, IrregularSamples, brdf_remap
 
 FIRST_RADIUS2 = 0.001

@@ -12,19 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from realistic.renderer.bsdf.base import BSDFSample
-from realistic.renderer.bsdf.lambertian import cosine_hemisphere
-
-
-def cosine_pdf(wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
-    """Density (N,) of cosine-weighted directions on wo's side of the surface."""
-    return np.where(wo[:, 2] * wi[:, 2] > 0, np.abs(wi[:, 2]) / np.float32(np.pi), 0.0).astype(np.float32)
-
-
-def cosine_on_side(wo: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Cosine-weighted directions (N, 3) on wo's side of the surface."""
-    wi = cosine_hemisphere(u)
-    wi[:, 2] *= np.where(wo[:, 2] < 0, -1.0, 1.0).astype(np.float32)
-    return wi
+from realistic.renderer.bsdf.lambertian import cosine_on_side, cosine_pdf
 
 
 class OrenNayar:

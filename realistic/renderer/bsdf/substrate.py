@@ -12,8 +12,8 @@ import numpy as np
 
 from realistic.renderer.bsdf import fresnel
 from realistic.renderer.bsdf.base import BSDFSample
+from realistic.renderer.bsdf.lambertian import cosine_on_side, cosine_pdf
 from realistic.renderer.bsdf.microfacet import GGX, half_vector, upper
-from realistic.renderer.bsdf.oren_nayar import cosine_on_side, cosine_pdf
 
 
 class FresnelBlend:
