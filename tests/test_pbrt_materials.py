@@ -161,3 +161,18 @@ def test_a_scene_of_every_material_renders(tmp_path):
     imported = import_pbrt(path, spp=1)
     image = render_passes(imported.scene, imported.scene.camera, "numpy").image
     assert np.all(np.isfinite(image)) and image.max() > 0
+
+
+def test_copper_is_pbrts_tabulated_copper_and_the_default_metal(tmp_path):
+    from realistic.scene.metals import COPPER_K, COPPER_N, copper
+
+    eta, k = copper()
+    # RGB of a spectrum lies within its range where the colour matching functions are positive-ish:
+    # copper's index falls from about 1.2 (blue) to 0.2 (red); k rises from about 2.1 to 4.
+    assert eta[2] > eta[1] > eta[0] and 0 < eta[0] < 0.4 and 1.0 < eta[2] < 1.3
+    assert k[0] > k[1] > k[2] and min(COPPER_K) < k[2] and k[0] < max(COPPER_K)
+    assert min(COPPER_N) < eta[1] < max(COPPER_N)
+    m, warnings, _ = _one(tmp_path, 'Material "conductor" "spectrum eta" "metal-Cu-eta" "spectrum k" "metal-Cu-k"',
+                          "v4")
+    assert (m.eta, m.k) == (eta, k) == (Conductor().eta, Conductor().k) and not warnings
+    assert _one(tmp_path, 'Material "metal"', "v3")[0] == Conductor(roughness_u=0.01, roughness_v=0.01, rule="pbrt-v3")

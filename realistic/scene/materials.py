@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 from realistic.core import validation
 from realistic.errors import UserError
+from realistic.scene.metals import copper
 from realistic.scene.model import RGB, CheckerTexture, GridTexture, ImageTexture, Material
 
 ROUGHNESS_RULES = ("alpha", "pbrt-v3", "sqrt", "blinn")
@@ -95,11 +96,11 @@ class Plastic:
 @dataclass(frozen=True)
 class Conductor:
     """A metal: GGX microfacets (``roughness`` u and v) with the conductor Fresnel reflectance of a
-    complex index ``eta`` + i ``k`` (RGB); roughness 0 is a perfect mirror. ``scale`` tints it
+    complex index ``eta`` + i ``k`` (RGB; copper by default); roughness 0 is a perfect mirror. ``scale`` tints it
     (pbrt-v1/v2 shinymetal's reflectance, 1 otherwise)."""
 
-    eta: Colour = (0.2, 0.92, 1.1)
-    k: Colour = (3.9, 2.45, 2.14)
+    eta: Colour = copper()[0]
+    k: Colour = copper()[1]
     roughness_u: Scalar = 0.01
     roughness_v: Scalar = 0.01
     rule: str = "alpha"

@@ -38,14 +38,14 @@ from realistic.scene.materials import (
     SurfaceMaterial,
 )
 from realistic.scene.measured import float_file_numbers, load_measured, spectrum_to_rgb
+from realistic.scene.metals import copper
 from realistic.scene.model import Material
 from realistic.scene.pbrt.parser import Declaration, Params
 
-#: Copper, the default metal of pbrt-v2/v3 ``metal`` and pbrt-v4 ``conductor``, as RGB indices: an
-#: approximation in common use, not computed from pbrt's tabulated spectra (named spectra such as
-#: "metal-Au-eta" are not tabulated here and also fall back to these, with a warning).
-COPPER_ETA = (0.2004, 0.9240, 1.1022)
-COPPER_K = (3.9129, 2.4528, 2.1421)
+#: Copper (``realistic.scene.metals``), the default metal of pbrt-v2/v3 ``metal`` and pbrt-v4
+#: ``conductor``; pbrt-v4's other named metal spectra ("metal-Au-eta", ...) are not tabulated here
+#: and fall back to copper with a warning.
+COPPER_ETA, COPPER_K = copper()
 MAX_MIX_DEPTH = 16
 
 
@@ -100,9 +100,11 @@ class _Reader:
         p = self.params.items[name]
         if len(p.values) == 1 and isinstance(p.values[0], str):
             text = p.values[0]
+            if text in ("metal-Cu-eta", "metal-Cu-k"):
+                return COPPER_ETA if text.endswith("eta") else COPPER_K
             if text.startswith("metal-"):
-                self.context.warn(self.where, f'named spectrum "{text}" (the copper indices used)')
-                return COPPER_ETA if "eta" in name else COPPER_K if name.endswith("k") else default
+                self.context.warn(self.where, f'named spectrum "{text}" (copper\'s used)')
+                return COPPER_ETA if text.endswith("eta") else COPPER_K
             path = self.context.find(text, Path(self.where.rsplit(":", 1)[0]).parent, self.where, "spectrum file")
             try:
                 values = list(float_file_numbers(path.read_bytes()))  # pbrt reads .spd files with ReadFloatFile
