@@ -33,6 +33,7 @@ class MicrofacetReflection:
         self.ggx = GGX(alpha_x, alpha_y)
         self.fresnel = fresnel
         self.has_specular = bool(self.smooth.any())
+        self.only_specular = bool(self.smooth.all())
 
     def _f(self, cos: np.ndarray) -> np.ndarray:
         if self.fresnel is None:
@@ -40,6 +41,8 @@ class MicrofacetReflection:
         return np.broadcast_to(self.fresnel(cos), self.scale.shape)
 
     def evaluate(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
+        if self.only_specular:
+            return np.zeros_like(self.scale)
         wo_up, wi_up, same = upper(wo, wi)
         wh, ok = half_vector(wo_up, wi_up)
         cos_o, cos_i = wo_up[:, 2].astype(np.float64), wi_up[:, 2].astype(np.float64)
@@ -51,17 +54,22 @@ class MicrofacetReflection:
         return (self.scale * self._f(cos_h) * shape[:, None]).astype(np.float32)
 
     def pdf(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
+        if self.only_specular:
+            return np.zeros(len(wo), np.float32)
         wo_up, wi_up, same = upper(wo, wi)
         wh, ok = half_vector(wo_up, wi_up)
         live = same & ok & ~self.smooth & (wo_up[:, 2] > 0)
         return np.where(live, np.nan_to_num(self.ggx.reflection_pdf(wo_up, wh)), 0.0).astype(np.float32)
 
     def sample(self, wo: np.ndarray, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
-        flip = np.where(wo[:, 2] < 0, -1.0, 1.0).astype(np.float32)[:, None]
-        wo_up = wo * flip
-        wh = self.ggx.sample_visible(wo_up, u)
-        wi_up = (-wo_up + 2.0 * np.einsum("ij,ij->i", wo_up, wh)[:, None] * wh).astype(np.float32)
-        wi = np.where(self.smooth[:, None], reflect_z(wo), wi_up * flip).astype(np.float32)
+        if self.only_specular:
+            wi = reflect_z(wo)
+        else:
+            flip = np.where(wo[:, 2] < 0, -1.0, 1.0).astype(np.float32)[:, None]
+            wo_up = wo * flip
+            wh = self.ggx.sample_visible(wo_up, u)
+            wi_up = (-wo_up + 2.0 * np.einsum("ij,ij->i", wo_up, wh)[:, None] * wh).astype(np.float32)
+            wi = np.where(self.smooth[:, None], reflect_z(wo), wi_up * flip).astype(np.float32)
         value = self.evaluate(wo, wi)
         pdf = self.pdf(wo, wi)
         if self.has_specular:

@@ -26,7 +26,7 @@ from realistic.scene.measured import HalfangleTable, IrregularSamples, brdf_rema
 
 FIRST_RADIUS2 = 0.001
 LAST_LEVEL = 11  # 0.001 * 2^11 = 2.048 is the first radius^2 above 1.5
-NEIGHBOURS = 32
+NEIGHBOURS = 8
 CHUNK = 65_536
 
 
