@@ -159,3 +159,16 @@ def test_oren_nayar_against_its_formula_at_hand_picked_angles():
     # opposite azimuths: the cos(phi_i - phi_o) term is clamped to 0
     f = OrenNayar(np.ones((1, 1), np.float32), 20.0).evaluate(direction(30.0), direction(60.0, 180.0))
     assert f[0, 0] == pytest.approx(a / np.pi, rel=1e-5)
+
+
+@pytest.mark.parametrize("material, has, only", [
+    (Material(WHITE), False, False), (Material(WHITE, sigma=10.0), False, False), (Plastic(), False, False),
+    (Plastic(roughness=0.0), True, False), (Conductor(roughness_u=0.0, roughness_v=0.0), True, True),
+    (Mirror(), True, True), (Dielectric(), True, True), (Substrate(), False, False),
+    (DiffuseTransmission(), False, False), (Mix(Mirror(), Dielectric()), True, True),
+    (Mix(Mirror(), Material()), True, False)])
+def test_specular_flags(material, has, only):
+    bsdf = _bsdf(material, 4)
+    assert (bsdf.has_specular, bsdf.only_specular) == (has, only)
+    s = bsdf.sample(direction(30.0, 0.0, 4), np.full((4, 2), 0.3, np.float32), np.float32([0.1, 0.4, 0.6, 0.9]))
+    assert s.specular.any() <= has and (not only or s.specular.all())

@@ -176,3 +176,8 @@ def test_copper_is_pbrts_tabulated_copper_and_the_default_metal(tmp_path):
                           "v4")
     assert (m.eta, m.k) == (eta, k) == (Conductor().eta, Conductor().k) and not warnings
     assert _one(tmp_path, 'Material "metal"', "v3")[0] == Conductor(roughness_u=0.01, roughness_v=0.01, rule="pbrt-v3")
+
+
+def test_uber_coat_index_per_version(tmp_path):
+    assert _one(tmp_path, 'Material "uber" "float eta" 1.33', "v3")[0].eta == 1.33  # FresnelDielectric(1, eta)
+    assert _one(tmp_path, 'Material "uber"', "v2")[0].eta == pytest.approx(1 / 1.5)  # FresnelDielectric(1.5, 1)

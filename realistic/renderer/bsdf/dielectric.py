@@ -25,6 +25,7 @@ class Dielectric:
     """Specular glass of index ``eta`` (N,) with reflection tint ``kr`` and transmission tint ``kt`` (N, C)."""
 
     has_specular = True
+    only_specular = True
 
     def __init__(self, eta: np.ndarray | float, kr: np.ndarray, kt: np.ndarray, thin: bool = False):
         self.kr, self.kt = np.asarray(kr, np.float32), np.asarray(kt, np.float32)

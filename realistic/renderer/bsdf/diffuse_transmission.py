@@ -14,6 +14,7 @@ class DiffuseTransmission:
     """Reflectance ``r`` and transmittance ``t`` (N, C)."""
 
     has_specular = False
+    only_specular = False
 
     def __init__(self, r: np.ndarray, t: np.ndarray):
         self.r, self.t = np.asarray(r, np.float32), np.asarray(t, np.float32)

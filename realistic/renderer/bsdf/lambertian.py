@@ -36,6 +36,7 @@ class Lambertian:
     """Ideal diffuse reflection of ``albedo`` (N, C); no transmission."""
 
     has_specular = False
+    only_specular = False
 
     def __init__(self, albedo: np.ndarray):
         self.albedo = np.asarray(albedo, np.float32)

@@ -99,6 +99,7 @@ class MeasuredBRDF:
     """A measured BRDF; ``to_channels`` (N, C, 3) turns its RGB into the rays' C channels."""
 
     has_specular = False
+    only_specular = False
 
     def __init__(self, data: IrregularSamples | HalfangleTable, to_channels: np.ndarray):
         self.data, self.to_channels = data, np.asarray(to_channels, np.float32)

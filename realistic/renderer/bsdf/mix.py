@@ -23,7 +23,8 @@ class WeightedSum:
         c = np.stack([np.asarray(x, np.float64) for x in chances], axis=1)
         total = c.sum(axis=1, keepdims=True)
         self.chances = np.where(total > 0, c / np.where(total > 0, total, 1.0), 1.0 / len(parts)).astype(np.float32)
-        self.has_specular = any(getattr(p, "has_specular", False) for p in parts)
+        self.has_specular = any(p.has_specular for p in parts)
+        self.only_specular = all(p.only_specular for p in parts)
 
     def evaluate(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
         return sum(w * p.evaluate(wo, wi) for w, p in zip(self.weights, self.parts)).astype(np.float32)

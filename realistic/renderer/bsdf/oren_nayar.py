@@ -19,6 +19,7 @@ class OrenNayar:
     """Rough diffuse reflection of ``albedo`` (N, C) with facet slope deviation ``sigma_degrees`` (N,)."""
 
     has_specular = False
+    only_specular = False
 
     def __init__(self, albedo: np.ndarray, sigma_degrees: np.ndarray | float):
         self.albedo = np.asarray(albedo, np.float32)

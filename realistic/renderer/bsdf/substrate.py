@@ -20,6 +20,7 @@ class FresnelBlend:
     """Diffuse ``rd`` under a coat of normal reflectance ``rs`` (N, C), GGX widths (N,)."""
 
     has_specular = False
+    only_specular = False
 
     def __init__(self, rd: np.ndarray, rs: np.ndarray, alpha_x: np.ndarray, alpha_y: np.ndarray):
         self.rd, self.rs = np.asarray(rd, np.float32), np.asarray(rs, np.float32)

@@ -4,9 +4,10 @@ Parameters and defaults per type as pbrt-v2 ``src/materials/*.cpp``, pbrt-v3 ``s
 and pbrt-v4 ``src/pbrt/materials.cpp`` create them. Roughness follows the dialect
 (``realistic.scene.materials``): pbrt-v1/v2 Blinn exponents 1 / r, pbrt-v3's ``RoughnessToAlpha``
 polynomial and pbrt-v4's square root when ``remaproughness`` is true (the default), the value
-itself when false. pbrt-v1/v2/v3 ``plastic`` and ``uber`` weight the coat by the Fresnel
-reflectance of ``FresnelDielectric(1.5, 1)`` (index 1.5 outside, 1 inside: the coat reflects
-totally beyond 41.8 degrees from the microfacet normal), reproduced here as index 1 / 1.5.
+itself when false. pbrt-v1/v2/v3 ``plastic`` (and pbrt-v1/v2 ``uber``) weight the coat by the
+Fresnel reflectance of ``FresnelDielectric(1.5, 1)`` (pbrt-v3 ``src/materials/plastic.cpp``: index
+1.5 outside, 1 inside, so the coat reflects totally beyond 41.8 degrees from the microfacet
+normal), reproduced here as index 1 / 1.5; pbrt-v3 ``uber`` uses ``FresnelDielectric(1, eta)``.
 
 Where a type has no exact counterpart, the closest material is rendered and a warning names the
 file and line (once per message): ``uber`` as plastic, ``translucent`` as diffuse transmission,
@@ -172,10 +173,14 @@ def build_material(declaration: Declaration, context: MaterialContext, depth: in
     if kind in ("matte", "diffuse"):
         return _matte(r, "Kd" if r.has("Kd") or kind == "matte" else "reflectance", 0.5)
     if kind in ("plastic", "uber"):
+        eta = 1.0 / 1.5
         if kind == "uber":
             r.approximate("plastic (its Kr, Kt and opacity ignored)")
+            if context.dialect_name == "v3":  # pbrt-v3 uber.cpp: FresnelDielectric(1, eta), eta default 1.5
+                eta = r.scalar("eta", r.scalar("index", 1.5))
+                eta = eta if isinstance(eta, float) and eta > 0 else 1.5
         rough = r.scalar("roughness", 0.1)
-        return Plastic(r.colour("Kd", (0.25,) * 3), r.colour("Ks", (0.25,) * 3), rough, r.rule(), 1.0 / 1.5)
+        return Plastic(r.colour("Kd", (0.25,) * 3), r.colour("Ks", (0.25,) * 3), rough, r.rule(), eta)
     if kind == "coateddiffuse":
         r.approximate("plastic (a diffuse base under a white Fresnel coat; thickness, albedo, g ignored)")
         ru, _ = r.roughness_pair(0.0)
