@@ -43,3 +43,21 @@ def albedo_by_integration(bsdf, wo: np.ndarray, rng: np.random.Generator) -> np.
 def pdf_integral(bsdf, wo: np.ndarray, rng: np.random.Generator) -> float:
     wi = uniform_sphere(rng, len(wo))
     return float((bsdf.pdf(wo, wi) * 4 * np.pi).mean())
+
+
+class SpectralHits:
+    """HitParameters for N spectral rays at ``wavelength_nm`` (N,): colours become (N, 1) spectra."""
+
+    def __init__(self, wavelength_nm: np.ndarray):
+        from realistic.core.spectrum import rgb_basis
+
+        self.n, self.basis = len(wavelength_nm), rgb_basis(wavelength_nm)
+
+    def colour(self, value):
+        from realistic.core.spectrum import spectral_value
+
+        rgb = np.tile(np.asarray(value, np.float32).reshape(1, 3), (self.n, 1))
+        return spectral_value(rgb, self.basis)[:, None]
+
+    def scalar(self, value):
+        return np.full(self.n, value, np.float32)

@@ -172,3 +172,24 @@ def test_specular_flags(material, has, only):
     assert (bsdf.has_specular, bsdf.only_specular) == (has, only)
     s = bsdf.sample(direction(30.0, 0.0, 4), np.full((4, 2), 0.3, np.float32), np.float32([0.1, 0.4, 0.6, 0.9]))
     assert s.specular.any() <= has and (not only or s.specular.all())
+
+
+@pytest.mark.parametrize("name", sorted(SMOOTH_FREE))
+def test_spectral_rays_get_one_channel_and_the_same_white_furnace(name):
+    """With one wavelength per ray a white material's BSDF is the same at every wavelength (the RGB
+    basis sums to 1), so its one channel matches the RGB result."""
+    from bsdf_helpers import SpectralHits
+
+    rng = np.random.default_rng(61)
+    n = 50_000
+    hits = SpectralHits(rng.uniform(380, 780, n).astype(np.float32))
+    material = SMOOTH_FREE[name]
+    bsdf, rgb = bsdf_for(material, hits), _bsdf(material, n)
+    wo, wi = direction(35.0, 10.0, n), uniform_sphere(rng, n)
+    f, f_rgb = bsdf.evaluate(wo, wi), rgb.evaluate(wo, wi)
+    assert f.shape == (n, 1)
+    white = np.allclose(f_rgb, f_rgb[:, :1], rtol=1e-6)
+    if white:
+        assert np.allclose(f[:, 0], f_rgb[:, 0], rtol=1e-4, atol=1e-7)
+    s = bsdf.sample(wo, rng.random((n, 2)).astype(np.float32), rng.random(n).astype(np.float32))
+    assert s.value.shape == (n, 1) and np.all(np.isfinite(s.value))
