@@ -3,7 +3,7 @@ against pbrt-v2's formulas written out independently here, and the readers' erro
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from bsdf_helpers import direction, uniform_sphere
@@ -144,6 +144,8 @@ _TEXT = st.text(alphabet="0123456789 .-+e#\nx\t", max_size=300)
 
 
 @given(_TEXT)
+@example("1e310")  # an infinite wavelength count
+@example("nan 1 2 3 4 5")
 def test_irregular_reader_succeeds_or_fails_with_one_line(tmp_path_factory, text):
     path = tmp_path_factory.mktemp("fuzz") / "f.brdf"
     path.write_text(text)

@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from conftest import shared_file
 from realistic.errors import UserError
@@ -181,3 +183,26 @@ def test_copper_is_pbrts_tabulated_copper_and_the_default_metal(tmp_path):
 def test_uber_coat_index_per_version(tmp_path):
     assert _one(tmp_path, 'Material "uber" "float eta" 1.33', "v3")[0].eta == 1.33  # FresnelDielectric(1, eta)
     assert _one(tmp_path, 'Material "uber"', "v2")[0].eta == pytest.approx(1 / 1.5)  # FresnelDielectric(1.5, 1)
+
+
+_TYPES = ["matte", "diffuse", "plastic", "uber", "coateddiffuse", "metal", "conductor", "coatedconductor", "mirror",
+          "glass", "dielectric", "thindielectric", "substrate", "translucent", "diffusetransmission", "mix",
+          "measured", "hair", "interface", "shinymetal"]
+_PARAMS = ['"float roughness"', '"float uroughness"', '"float sigma"', '"float eta"', '"float index"',
+           '"rgb Kd"', '"rgb Ks"', '"rgb Kr"', '"rgb eta"', '"rgb k"', '"rgb reflectance"', '"float amount"',
+           '"spectrum eta"', '"string filename"', '"bool remaproughness"', '"string namedmaterial1"',
+           '"texture Kd"', '"texture roughness"', '"float scale"']
+_VALUES = ["[-1]", "[0]", "[1e30]", "[.5 .5 .5]", "[1 2]", '"a"', '"true"', "[400 1 500]", "[-5 -5 -5]", '"x.brdf"',
+           "[]", '"t"']
+
+
+@given(st.sampled_from(_TYPES), st.lists(st.tuples(st.sampled_from(_PARAMS), st.sampled_from(_VALUES)), max_size=4),
+       st.sampled_from(["v2", "v3", "v4"]))
+def test_any_material_line_imports_or_fails_with_one_line_naming_it(tmp_path_factory, kind, params, dialect):
+    folder = tmp_path_factory.mktemp("fuzz")
+    body = ('Texture "t" "float" "checkerboard"\nMakeNamedMaterial "a" "string type" "matte"\n'
+            f'Material "{kind}" ' + " ".join(f"{name} {value}" for name, value in params))
+    try:
+        _one(folder, body, dialect)
+    except UserError as err:
+        assert "\n" not in str(err) and f"{folder / 'scene.pbrt'}:" in str(err)

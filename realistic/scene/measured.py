@@ -110,7 +110,7 @@ def read_irregular(path: Path) -> IrregularSamples:
         raise UserError(f"{path}: cannot read the measured BRDF ({err.strerror})") from None
     except ValueError as err:
         raise UserError(f"{path}: measured BRDF: {err}") from None
-    if len(values) == 0 or values[0] != int(values[0]) or not 1 <= values[0] <= 10_000:
+    if len(values) == 0 or not 1 <= values[0] <= 10_000 or values[0] != int(values[0]):
         shown = f"{values[0]:g}" if len(values) else "nothing"
         raise UserError(f"{path}: measured BRDF must start with its number of wavelengths (1 to 10000), "
                         f"got {shown}")

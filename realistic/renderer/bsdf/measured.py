@@ -18,7 +18,6 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from realistic.renderer.bsdf.base import BSDFSample
 from realistic.renderer.bsdf.lambertian import cosine_on_side, cosine_pdf
@@ -31,7 +30,10 @@ CHUNK = 65_536
 
 
 @lru_cache(maxsize=16)
-def _tree(samples: IrregularSamples) -> cKDTree:
+def _tree(samples: IrregularSamples):
+    """The samples' kd-tree, built once per file (scipy is imported here, when a scene needs it)."""
+    from scipy.spatial import cKDTree
+
     return cKDTree(samples.points)
 
 

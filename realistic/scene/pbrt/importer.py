@@ -153,7 +153,8 @@ class _Importer:
 
     def _material(self, declaration: Declaration) -> SurfaceMaterial:
         """pbrt's material types as scene materials (``realistic.scene.pbrt.materials``)."""
-        return build_material(declaration, self)
+        with _located(declaration.where):
+            return build_material(declaration, self)
 
     @property
     def dialect_name(self) -> str:
