@@ -17,7 +17,7 @@ from realistic.renderer.bsdf.base import BSDFSample
 from realistic.renderer.bsdf.fresnel import reflect_z
 from realistic.renderer.bsdf.microfacet import GGX, SMOOTH_ALPHA, half_vector, upper
 
-Fresnel = Callable[[np.ndarray], np.ndarray]  # cosines (N,) -> reflectance (N, C)
+Fresnel = Callable[[np.ndarray, np.ndarray], np.ndarray]  # (cosines (M,), hit rows (M,)) -> reflectance (M, C)
 
 
 class MicrofacetReflection:
@@ -35,10 +35,10 @@ class MicrofacetReflection:
         self.has_specular = bool(self.smooth.any())
         self.only_specular = bool(self.smooth.all())
 
-    def _f(self, cos: np.ndarray) -> np.ndarray:
-        if self.fresnel is None:
-            return np.ones_like(self.scale)
-        return np.broadcast_to(self.fresnel(cos), self.scale.shape)
+    def _reflected(self, cos: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """scale x Fresnel (M, C) at the hit ``rows`` for the cosines ``cos`` (M,)."""
+        scale = np.take(self.scale, rows, axis=0)
+        return scale if self.fresnel is None else scale * self.fresnel(cos, rows)
 
     def evaluate(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
         if self.only_specular:
@@ -49,9 +49,11 @@ class MicrofacetReflection:
         live = same & ok & ~self.smooth & (cos_o > 0) & (cos_i > 0)
         with np.errstate(divide="ignore", invalid="ignore"):
             shape = self.ggx.d(wh) * self.ggx.g(wo_up, wi_up) / (4.0 * cos_o * cos_i)
-        shape = np.where(live, np.nan_to_num(shape), 0.0).astype(np.float32)
-        cos_h = np.einsum("ij,ij->i", wo_up.astype(np.float64), wh)
-        return (self.scale * self._f(cos_h) * shape[:, None]).astype(np.float32)
+        rows = np.flatnonzero(live)
+        cos_h = np.einsum("ij,ij->i", np.take(wo_up, rows, axis=0).astype(np.float64), np.take(wh, rows, axis=0))
+        out = np.zeros_like(self.scale)
+        out[rows] = self._reflected(cos_h, rows) * np.nan_to_num(shape[rows]).astype(np.float32)[:, None]
+        return out
 
     def pdf(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
         if self.only_specular:
@@ -73,10 +75,10 @@ class MicrofacetReflection:
         value = self.evaluate(wo, wi)
         pdf = self.pdf(wo, wi)
         if self.has_specular:
-            cos = np.abs(wo[:, 2]).astype(np.float32)
+            rows = np.flatnonzero(self.smooth)
+            cos = np.abs(wo[rows, 2]).astype(np.float32)
             with np.errstate(divide="ignore", invalid="ignore"):
-                mirror = self.scale * self._f(cos) / cos[:, None]
-            value = np.where(self.smooth[:, None], np.nan_to_num(mirror), value).astype(np.float32)
+                value[rows] = np.nan_to_num(self._reflected(cos, rows) / cos[:, None])
             pdf = np.where(self.smooth, 1.0, pdf).astype(np.float32)
         valid = (pdf > 0) & (wo[:, 2] != 0) & (wi[:, 2] * wo[:, 2] > 0)
         return BSDFSample(wi, value, pdf, self.smooth.copy(), valid)

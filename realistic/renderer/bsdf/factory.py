@@ -66,13 +66,14 @@ def bsdf_for(material: SurfaceMaterial, hits: HitParameters) -> BSDF:
         kd, ks = colour(hits, material.diffuse), colour(hits, material.specular)
         a = alpha(scalar(hits, material.roughness), material.rule)
         eta = np.float32(material.eta)
-        coat = MicrofacetReflection(ks, a, a, lambda c: fresnel.dielectric(c, eta)[:, None])
+        coat = MicrofacetReflection(ks, a, a, lambda c, rows: fresnel.dielectric(c, eta)[:, None])
         return WeightedSum([Lambertian(kd), coat], [np.ones_like(kd)] * 2, [kd.mean(axis=1), ks.mean(axis=1)])
     if isinstance(material, Conductor):
         eta, k = colour(hits, material.eta), colour(hits, material.k)
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
-        return MicrofacetReflection(colour(hits, material.scale), ax, ay, lambda c: fresnel.conductor(c, eta, k))
+        return MicrofacetReflection(colour(hits, material.scale), ax, ay,
+                                    lambda c, rows: fresnel.conductor(c, eta[rows], k[rows]))
     if isinstance(material, Mirror):
         kr = colour(hits, material.reflectance)
         zero = np.zeros(len(kr), np.float32)

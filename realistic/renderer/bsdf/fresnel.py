@@ -32,21 +32,21 @@ def dielectric(cos_i: np.ndarray, eta: np.ndarray | float) -> np.ndarray:
 def conductor(cos_i: np.ndarray, eta: np.ndarray, k: np.ndarray) -> np.ndarray:
     """Reflectance (N, C) of a conductor of complex index ``eta`` + i ``k`` (N, C) seen from a
     medium of index 1 at cosine ``cos_i`` (N,) (its absolute value is used)."""
-    c = np.clip(np.abs(np.asarray(cos_i, np.float64)), 0.0, 1.0)[:, None]
-    eta, k = np.asarray(eta, np.float64), np.asarray(k, np.float64)
-    cos2, sin2 = c * c, 1.0 - c * c
+    c = np.clip(np.abs(np.asarray(cos_i, np.float32)), 0.0, 1.0)[:, None]  # float32: ample for a reflectance
+    eta, k = np.asarray(eta, np.float32), np.asarray(k, np.float32)
+    cos2, sin2 = c * c, np.float32(1.0) - c * c
     eta2, k2 = eta * eta, k * k
     t0 = eta2 - k2 - sin2
-    a2_plus_b2 = np.sqrt(t0 * t0 + 4.0 * eta2 * k2)
+    a2_plus_b2 = np.sqrt(t0 * t0 + np.float32(4.0) * eta2 * k2)
     t1 = a2_plus_b2 + cos2
-    a = np.sqrt(np.maximum(0.0, 0.5 * (a2_plus_b2 + t0)))
-    t2 = 2.0 * c * a
+    a = np.sqrt(np.maximum(np.float32(0.0), np.float32(0.5) * (a2_plus_b2 + t0)))
+    t2 = np.float32(2.0) * c * a
     with np.errstate(invalid="ignore", divide="ignore"):
         r_s = (t1 - t2) / (t1 + t2)
         t3 = cos2 * a2_plus_b2 + sin2 * sin2
         t4 = t2 * sin2
         r_p = r_s * (t3 - t4) / (t3 + t4)
-    return np.nan_to_num(0.5 * (r_p + r_s), nan=1.0).astype(np.float32)
+    return np.nan_to_num(np.float32(0.5) * (r_p + r_s), nan=1.0).astype(np.float32, copy=False)
 
 
 def schlick(cos_i: np.ndarray, r0: np.ndarray) -> np.ndarray:
