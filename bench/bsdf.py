@@ -27,6 +27,7 @@ sys.path.insert(0, str(ROOT))
 from realistic.renderer.bsdf import bsdf_for  # noqa: E402
 from realistic.renderer.bsdf.measured import MeasuredBRDF  # noqa: E402
 from realistic.scene.materials import (  # noqa: E402
+    CoatedDiffuse,
     Conductor,
     Dielectric,
     Measured,
@@ -56,7 +57,8 @@ class Hits:
 
 def materials() -> dict[str, object]:
     found = {"lambertian": Material((0.5,) * 3), "oren-nayar": Material((0.5,) * 3, sigma=20.0),
-             "plastic": Plastic(), "conductor": Conductor(roughness_u=0.1, roughness_v=0.1), "mirror": Mirror(),
+             "plastic": Plastic(), "coated diffuse": CoatedDiffuse(roughness=0.1),
+             "conductor": Conductor(roughness_u=0.1, roughness_v=0.1), "mirror": Mirror(),
              "glass": Dielectric(1.5), "substrate": Substrate(), "mix": Mix(Material(), Plastic(), 0.5)}
     if BRDF.is_file():
         found["measured .brdf"] = Measured(str(BRDF))

@@ -8,6 +8,7 @@ from bsdf_helpers import ConstantHits, albedo_by_integration, albedo_by_sampling
 from realistic.renderer.bsdf import Lambertian, bsdf_for
 from realistic.renderer.bsdf.oren_nayar import OrenNayar
 from realistic.scene.materials import (
+    CoatedDiffuse,
     Conductor,
     Dielectric,
     DiffuseTransmission,
@@ -26,13 +27,15 @@ SMOOTH_FREE = {
     "lambertian": Material(WHITE),
     "oren-nayar": Material(WHITE, sigma=25.0),
     "plastic": Plastic((0.5,) * 3, (0.5,) * 3, 0.3),
+    "coated diffuse": CoatedDiffuse(WHITE, 0.25),
     "conductor": Conductor(roughness_u=0.3, roughness_v=0.1),
     "white conductor": Conductor((1.0,) * 3, (1e4,) * 3, 0.2, 0.2),
     "substrate": Substrate(WHITE, (0.04,) * 3, 0.2, 0.2),
     "diffuse transmission": DiffuseTransmission((0.3,) * 3, (0.7,) * 3),
     "mix": Mix(Material(WHITE), Plastic((0.5,) * 3, (0.5,) * 3, 0.2), 0.4),
 }
-REFLECTIVE = ["lambertian", "oren-nayar", "plastic", "conductor", "white conductor", "substrate", "mix"]
+REFLECTIVE = ["lambertian", "oren-nayar", "plastic", "coated diffuse", "conductor", "white conductor", "substrate",
+              "mix"]
 
 
 def _bsdf(material, n=N):
@@ -53,11 +56,12 @@ def test_white_furnace_albedo_at_most_one_and_sampling_agrees_with_integration(n
 
 @pytest.mark.parametrize("material", [Material(WHITE), DiffuseTransmission((0.4,) * 3, (0.6,) * 3),
                                       Mirror(WHITE), Dielectric(1.5), Dielectric(1.33, thin=True),
-                                      Mix(Mirror(WHITE), Dielectric(1.7), 0.5)])
+                                      Mix(Mirror(WHITE), Dielectric(1.7), 0.5), CoatedDiffuse(WHITE, 0.0, eta=1.6)])
 @pytest.mark.parametrize("theta", [0.0, 45.0, 89.0])
 def test_lossless_materials_keep_all_energy(material, theta):
     """White Lambertian, R + T = 1 diffuse transmission, mirror, glass (R + T = 1 from outside and
-    from inside, total internal reflection included), a thin slab and a mix of them: albedo 1."""
+    from inside, total internal reflection included), a thin slab, a mix of them, and a white base
+    under a smooth coat (diffuse albedo 1 - F(cos_o) plus the coat's F(cos_o)): albedo 1."""
     rng = np.random.default_rng(5)
     bsdf = _bsdf(material)
     for side in (1.0, -1.0):
@@ -166,6 +170,7 @@ def test_oren_nayar_against_its_formula_at_hand_picked_angles():
     (Plastic(roughness=0.0), True, False), (Conductor(roughness_u=0.0, roughness_v=0.0), True, True),
     (Mirror(), True, True), (Dielectric(), True, True), (Substrate(), False, False),
     (DiffuseTransmission(), False, False), (Mix(Mirror(), Dielectric()), True, True),
+    (CoatedDiffuse(), True, False), (CoatedDiffuse(roughness=0.2), False, False),
     (Mix(Mirror(), Material()), True, False)])
 def test_specular_flags(material, has, only):
     bsdf = _bsdf(material, 4)
@@ -193,3 +198,16 @@ def test_spectral_rays_get_one_channel_and_the_same_white_furnace(name):
         assert np.allclose(f[:, 0], f_rgb[:, 0], rtol=1e-4, atol=1e-7)
     s = bsdf.sample(wo, rng.random((n, 2)).astype(np.float32), rng.random(n).astype(np.float32))
     assert s.value.shape == (n, 1) and np.all(np.isfinite(s.value))
+
+
+def test_coat_internal_diffuse_reflectance_agrees_with_pbrt_v2s_fit():
+    """The coat's internal diffuse reflectance 1 - (1 - F_ext) / eta^2 (F_ext integrated here)
+    against pbrt-v2's polynomial fit ``Fdr`` (src/core/reflection.h, Egan and Hilgeman 1973), which
+    it should match to the fit's accuracy (a few thousandths); eta = 1 reflects nothing."""
+    from realistic.renderer.bsdf.coated_diffuse import hemispherical_reflectance
+
+    for eta in (1.2, 1.33, 1.5, 2.0, 2.5):
+        internal = 1 - (1 - hemispherical_reflectance(eta)) / eta ** 2
+        fit = -1.4399 / eta ** 2 + 0.7099 / eta + 0.6681 + 0.0636 * eta
+        assert internal == pytest.approx(fit, abs=0.006)
+    assert hemispherical_reflectance(1.0) == pytest.approx(0.0, abs=1e-12)

@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 from conftest import shared_file
 from realistic.errors import UserError
 from realistic.scene.materials import (
+    CoatedDiffuse,
     Conductor,
     Dielectric,
     DiffuseTransmission,
@@ -48,11 +49,12 @@ def test_plastic_per_version(tmp_path, dialect, rule):
     assert m == Plastic((0.25,) * 3, (0.25,) * 3, 0.1, "alpha", 1 / 1.5)
 
 
-def test_v4_coateddiffuse_is_a_plastic_with_a_warning(tmp_path):
+def test_v4_coateddiffuse_is_a_thin_coat_with_a_warning(tmp_path):
     m, warnings, path = _one(tmp_path, 'Material "coateddiffuse" "rgb reflectance" [.2 .3 .4] "float roughness" .3',
                              "v4")
-    assert m == Plastic((0.2, 0.3, 0.4), (1.0, 1.0, 1.0), 0.3, "sqrt", 1.5)
-    assert any(w.startswith(f'{path}:3: unsupported: Material "coateddiffuse", rendered as plastic') for w in warnings)
+    assert m == CoatedDiffuse((0.2, 0.3, 0.4), 0.3, "sqrt", 1.5)
+    assert any(w.startswith(f'{path}:3: unsupported: Material "coateddiffuse", rendered as a diffuse base') for w in
+               warnings)
 
 
 def test_metal_and_conductor(tmp_path):

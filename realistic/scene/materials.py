@@ -75,7 +75,7 @@ def _rule(rule: str) -> None:
 @dataclass(frozen=True)
 class Plastic:
     """A diffuse base under a glossy dielectric reflection (pbrt's ``plastic``, and the
-    approximation used for ``uber`` and pbrt-v4's ``coateddiffuse``): Lambertian ``diffuse`` plus
+    approximation used for ``uber``): Lambertian ``diffuse`` plus
     a GGX lobe scaled by ``specular`` with the Fresnel reflectance of ``eta``. The two lobes add, as
     in pbrt-v2/v3, so ``diffuse + specular`` <= 1 conserves energy."""
 
@@ -91,6 +91,25 @@ class Plastic:
         _scalar(self.roughness, "plastic roughness")
         _rule(self.rule)
         _scalar(self.eta, "plastic eta", 1e-3, 1e3)
+
+
+@dataclass(frozen=True)
+class CoatedDiffuse:
+    """pbrt-v4's ``coateddiffuse`` without the layer's medium: a Lambertian base of ``reflectance``
+    under a dielectric coat of index ``eta`` and GGX ``roughness`` (``renderer.bsdf.coated_diffuse``
+    says how the base's light gets through the coat; the coat's roughness shapes its own reflection
+    only). Conserves energy: a white base under a smooth coat reflects everything."""
+
+    reflectance: Colour = (0.5, 0.5, 0.5)
+    roughness: Scalar = 0.0
+    rule: str = "alpha"
+    eta: float = 1.5
+
+    def __post_init__(self) -> None:
+        _colour(self.reflectance, "coateddiffuse reflectance")
+        _scalar(self.roughness, "coateddiffuse roughness")
+        _rule(self.rule)
+        _scalar(self.eta, "coateddiffuse eta", 1e-3, 1e3)
 
 
 @dataclass(frozen=True)
@@ -195,8 +214,8 @@ class Mix:
         _scalar(self.amount, "mix amount", 0.0, 1.0)
 
 
-SurfaceMaterial = (Material | Plastic | Conductor | Mirror | Dielectric | Substrate | DiffuseTransmission | Measured
-                   | Mix)
+SurfaceMaterial = (Material | Plastic | CoatedDiffuse | Conductor | Mirror | Dielectric | Substrate
+                   | DiffuseTransmission | Measured | Mix)
 
 
 def matte_equivalent(material: SurfaceMaterial) -> Material:
@@ -205,8 +224,8 @@ def matte_equivalent(material: SurfaceMaterial) -> Material:
         return material
     if isinstance(material, Mix):
         return matte_equivalent(material.first if _number(material.amount, 0.5) < 0.5 else material.second)
-    colour = {Plastic: "diffuse", Substrate: "diffuse", Mirror: "reflectance", Dielectric: "reflectance",
-              DiffuseTransmission: "reflectance"}.get(type(material))
+    colour = {Plastic: "diffuse", Substrate: "diffuse", CoatedDiffuse: "reflectance", Mirror: "reflectance",
+              Dielectric: "reflectance", DiffuseTransmission: "reflectance"}.get(type(material))
     value = getattr(material, colour) if colour else (0.5, 0.5, 0.5)
     if isinstance(value, ScaledTexture):
         return Material(value.scale, value.texture)

@@ -11,6 +11,7 @@ import numpy as np
 
 from realistic.renderer.bsdf import fresnel
 from realistic.renderer.bsdf.base import BSDF, HitParameters
+from realistic.renderer.bsdf.coated_diffuse import CoatedLambertian
 from realistic.renderer.bsdf.conductor import MicrofacetReflection
 from realistic.renderer.bsdf.dielectric import Dielectric as DielectricBSDF
 from realistic.renderer.bsdf.diffuse_transmission import DiffuseTransmission as DiffuseTransmissionBSDF
@@ -21,6 +22,7 @@ from realistic.renderer.bsdf.mix import WeightedSum
 from realistic.renderer.bsdf.oren_nayar import OrenNayar
 from realistic.renderer.bsdf.substrate import FresnelBlend
 from realistic.scene.materials import (
+    CoatedDiffuse,
     Conductor,
     Dielectric,
     DiffuseTransmission,
@@ -68,6 +70,19 @@ def bsdf_for(material: SurfaceMaterial, hits: HitParameters) -> BSDF:
         eta = np.float32(material.eta)
         coat = MicrofacetReflection(ks, a, a, lambda c, rows: fresnel.dielectric(c, eta)[:, None])
         return WeightedSum([Lambertian(kd), coat], [np.ones_like(kd)] * 2, [kd.mean(axis=1), ks.mean(axis=1)])
+    if isinstance(material, CoatedDiffuse):
+        base = CoatedLambertian(colour(hits, material.reflectance), material.eta)
+        a = alpha(scalar(hits, material.roughness), material.rule)
+        eta = np.float32(material.eta)
+        coat = MicrofacetReflection(np.ones_like(base.albedo), a, a,
+                                    lambda c, rows: fresnel.dielectric(c, eta)[:, None])
+
+        def chances(wo: np.ndarray) -> list[np.ndarray]:
+            """Each lobe's share of the albedo at wo: the coat's F(cos_o), the base the rest."""
+            f = fresnel.dielectric(np.abs(wo[:, 2]), eta)
+            return [(1 - f) * base.albedo_estimate, f]
+
+        return WeightedSum([base, coat], [np.ones_like(base.albedo)] * 2, chances)
     if isinstance(material, Conductor):
         eta, k = colour(hits, material.eta), colour(hits, material.k)
         ax = alpha(scalar(hits, material.roughness_u), material.rule)

@@ -11,7 +11,7 @@ normal), reproduced here as index 1 / 1.5; pbrt-v3 ``uber`` uses ``FresnelDielec
 
 Where a type has no exact counterpart, the closest material is rendered and a warning names the
 file and line (once per message): ``uber`` as plastic, ``translucent`` as diffuse transmission,
-pbrt-v4 ``coateddiffuse`` as plastic with a white Fresnel coat, ``coatedconductor`` as its
+pbrt-v4 ``coateddiffuse`` as a diffuse base under an infinitely thin coat, ``coatedconductor`` as its
 conductor, rough ``glass``/``dielectric`` as smooth, the subsurface, ``hair`` and ``fourier``
 types as matte. Bump maps and displacement are ignored with a warning.
 """
@@ -27,6 +27,7 @@ import numpy as np
 from realistic.core.validation import finite
 from realistic.errors import UserError
 from realistic.scene.materials import (
+    CoatedDiffuse,
     Conductor,
     Dielectric,
     DiffuseTransmission,
@@ -182,11 +183,11 @@ def build_material(declaration: Declaration, context: MaterialContext, depth: in
         rough = r.scalar("roughness", 0.1)
         return Plastic(r.colour("Kd", (0.25,) * 3), r.colour("Ks", (0.25,) * 3), rough, r.rule(), eta)
     if kind == "coateddiffuse":
-        r.approximate("plastic (a diffuse base under a white Fresnel coat; thickness, albedo, g ignored)")
+        r.approximate("a diffuse base under a thin coat (the layer's thickness, albedo and g ignored)")
         ru, _ = r.roughness_pair(0.0)
         eta = r.scalar("eta", 1.5)
-        return Plastic(r.colour("reflectance", (0.5,) * 3), (1.0, 1.0, 1.0), ru, r.rule(),
-                       eta if isinstance(eta, float) and eta > 0 else 1.5)
+        return CoatedDiffuse(r.colour("reflectance", (0.5,) * 3), ru, r.rule(),
+                             eta if isinstance(eta, float) and eta > 0 else 1.5)
     if kind in ("metal", "conductor", "coatedconductor", "shinymetal"):
         return _conductor(r)
     if kind == "mirror":
