@@ -164,3 +164,21 @@ def test_merl_reader_succeeds_or_fails_with_one_line(tmp_path_factory, payload, 
     with pytest.raises(UserError) as err:
         read_halfangle(path)
     assert "\n" not in str(err.value) and str(path) in str(err.value)
+
+
+@pytest.mark.parametrize("name", ["acryl_blue", "garnet_red"])
+def test_measured_brdfs_are_reciprocal_and_reflect_less_than_they_receive(name):
+    from bsdf_helpers import albedo_by_integration, albedo_by_sampling
+
+    data = load_measured(str(shared_file(f"scenes/pbrt/brdfs/{name}.brdf")))
+    rng = np.random.default_rng(8)
+    n = 40_000
+    bsdf = MeasuredBRDF(data, np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)))
+    a, b = uniform_sphere(rng, n), uniform_sphere(rng, n)
+    b[:, 2] = np.abs(b[:, 2]) * np.sign(a[:, 2])
+    assert np.allclose(bsdf.evaluate(a, b), bsdf.evaluate(b, a), rtol=1e-6, atol=1e-9)
+    for theta in (10.0, 60.0):
+        wo = direction(theta, 0.0, n)
+        by_integration = albedo_by_integration(bsdf, wo, rng)
+        assert np.all(by_integration < 1.0) and by_integration.max() > 0.01
+        assert np.allclose(albedo_by_sampling(bsdf, wo, rng), by_integration, rtol=0.05, atol=0.003)
