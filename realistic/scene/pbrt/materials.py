@@ -237,7 +237,7 @@ def _times(colour: object, scale: float) -> object:
 
 
 def _product(a: object, b: object) -> object:
-    """The product of two colours; of two textures the first is kept (scaled by the second's mean 0.5)."""
+    """The product of two colours (a texture times a constant; of two textures only the first is kept)."""
     if isinstance(b, tuple):
         return _times_rgb(a, b)
     if isinstance(a, tuple):
