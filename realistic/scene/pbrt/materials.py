@@ -213,6 +213,9 @@ def build_material(declaration: Declaration, context: MaterialContext, depth: in
         r.approximate("diffuse transmission of Kd times reflect and transmit (its glossy Ks ignored)")
         kd = r.colour("Kd", (0.25,) * 3)
         reflect, transmit = r.colour("reflect", (0.5,) * 3), r.colour("transmit", (0.5,) * 3)
+        if not isinstance(kd, tuple) and not (isinstance(reflect, tuple) and isinstance(transmit, tuple)):
+            context.warn(declaration.where, 'textured "reflect" or "transmit" with a textured Kd in Material '
+                                            '"translucent" (the Kd texture alone is used)')
         return DiffuseTransmission(_product(kd, reflect), _product(kd, transmit))
     if kind == "measured":
         return _measured(r)
