@@ -29,7 +29,7 @@ def test_materials_textures_and_unsupported_reports(tmp_path):
                  '"rgb tex1" [1 1 1] "rgb tex2" [0 0 0]\n'
                  'Texture "s" "color" "scale" "texture tex1" "c" "color tex2" [.5 .5 .5]\n'
                  'Material "matte" "texture Kd" "s"\nShape "sphere"\n'
-                 'Material "measured" "string filename" "x.brdf"\nShape "sphere"\n'
+                 'Material "velvet"\nShape "sphere"\n'
                  'Material "plastic" "rgb Kd" [.1 .2 .3]\nShape "sphere"\n'
                  'LightSource "point" "rgb I" [1 1 1]\n')
     imported = import_pbrt(path)
@@ -37,10 +37,9 @@ def test_materials_textures_and_unsupported_reports(tmp_path):
     assert isinstance(a.texture, CheckerTexture) and a.texture.cells == 4
     assert a.diffuse == pytest.approx((0.5, 0.5, 0.5))
     assert b.diffuse == (0.5, 0.5, 0.5) and b.texture is None
-    assert c.diffuse == pytest.approx((0.1, 0.2, 0.3))
+    assert c.diffuse == pytest.approx((0.1, 0.2, 0.3)) and c.specular == (0.25, 0.25, 0.25)  # plastic
     text = "\n".join(imported.warnings)
-    assert f'{path}:8: unsupported: Material "measured", rendered as matte grey' in text
-    assert 'Material "plastic", rendered as matte with its Kd' in text
+    assert f'{path}:8: unsupported: Material "velvet", rendered as matte grey' in text
     assert 'LightSource "point"' in text
 
 

@@ -176,7 +176,7 @@ def test_pbrt_scene_rejects_mesh_only_options(tmp_path, capsys):
 def test_unsupported_pbrt_features_are_reported_and_rendered(tmp_path, capsys):
     scene = tmp_path / "s.pbrt"
     scene.write_text('Film "image" "integer xresolution" 8 "integer yresolution" 8\nCamera "perspective"\n'
-                     'WorldBegin\nMaterial "glass"\nShape "sphere"\n')
+                     'WorldBegin\nMaterial "velvet"\nShape "sphere"\n')
     status, _, err = run_cli([str(scene), "--spp", "1", "--out", str(tmp_path / "x.exr")], capsys)
     assert status == 0
-    assert f'{scene}:4: unsupported: Material "glass", rendered as matte grey' in err
+    assert f'{scene}:4: unsupported: Material "velvet", rendered as matte grey' in err

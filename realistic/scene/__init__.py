@@ -5,10 +5,13 @@
 - ``meshes``: mesh files through trimesh (OBJ, PLY, STL, GLB/GLTF, OFF), refusing what would render wrong;
   ``mesh_text_checks`` reads the text trimesh would misread, ``mesh_diagnosis`` says why a file is
   unreadable.
+- ``materials``: the non-Lambertian materials (plastic, conductor, mirror, dielectric, substrate, diffuse
+  transmission, measured, mix) as frozen descriptions; ``measured`` reads pbrt-v2's measured-BRDF
+  files; ``metals`` holds pbrt's copper spectra.
 - ``textures``: materials' albedo at surface points, batched (image textures filtered over footprints).
 - ``mipmap``: MIP maps of images and their batched lookups (point, bilinear, trilinear, EWA).
 - ``intersect``: the embree scene built from a ``Scene``; closest-hit and occlusion queries.
 - ``staging``: a mesh on a grid floor under a light, the default scene, framing a subject.
 - ``pbrt/``: the pbrt scene language: ``lexer`` (tokens), ``parser`` (records and graphics
-  state), ``importer`` (records to ``Scene`` and camera).
+  state), ``importer`` (records to ``Scene`` and camera), ``materials`` (material types per version).
 """

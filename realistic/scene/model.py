@@ -19,6 +19,7 @@ import numpy as np
 
 from realistic.core import validation
 from realistic.core.transforms import transform_points
+from realistic.errors import UserError
 from realistic.scene.mipmap import MipMap
 
 if TYPE_CHECKING:
@@ -94,10 +95,19 @@ Texture = ImageTexture | GridTexture | CheckerTexture
 
 @dataclass(frozen=True)
 class Material:
-    """Lambertian reflector: albedo = ``diffuse`` times the texture's colour when there is one."""
+    """Matte reflector: albedo = ``diffuse`` times the texture's colour when there is one.
+
+    ``sigma`` is the Oren-Nayar roughness in degrees (the standard deviation of the facet slope
+    angle, pbrt's ``matte`` sigma); 0 is Lambertian. Other materials: ``realistic.scene.materials``.
+    """
 
     diffuse: RGB = (0.5, 0.5, 0.5)
     texture: Texture | None = None
+    sigma: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= validation.finite(self.sigma, "matte sigma (degrees)") <= 90.0:
+            raise UserError(f"matte sigma (degrees) must be between 0 and 90, got {self.sigma:g}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -9,9 +9,21 @@ Conventions shared by every BSDF (``base.BSDF``):
 - ``evaluate`` gives f(wo, wi) without the cosine; ``pdf`` is per unit solid angle of ``wi``.
   Specular (delta) lobes are zero in both and appear only through ``sample``, which flags them.
 - ``bsdf_for(material, hits)`` builds the BSDF of one material for a batch of hits; ``hits`` looks
-  textures and constants up at those hits (``base.HitParameters``).
+  textures and constants up at those hits (``base.HitParameters``). ``hits.colour`` must be linear
+  in its RGB argument (no clamping: conductor indices exceed 1), since measured BRDFs turn their
+  RGB into the rays' channels through ``hits.colour`` of the three unit colours.
+- Reflection lobes are two-sided (pbrt's ``SameHemisphere``): they reflect a pair of directions on
+  either side, so flipping the shading normal toward the viewer changes nothing for them. Glass
+  (``dielectric``) tells inside from outside by the sign of ``wo[:, 2]``: for it the integrator
+  must keep the surface's outward normal, unflipped.
+- ``has_specular`` / ``only_specular`` say whether ``sample`` may / always returns specular samples.
 
-Modules: ``base`` (the protocol, the sample record, the frame), ``lambertian``, ``factory``.
+Modules: ``base`` (the protocol, the sample record, the frame), ``lambertian`` (and the cosine
+sampling the diffuse lobes share), ``oren_nayar``, ``fresnel`` (reflectances, reflection and
+refraction), ``microfacet`` (GGX and the roughness rules), ``conductor`` (metals, mirror, the coat
+of plastic), ``dielectric`` (glass, thin slabs), ``substrate`` (FresnelBlend),
+``diffuse_transmission``, ``mix`` (weighted sums: plastic and pbrt's mix), ``measured`` (pbrt-v2's
+measured BRDFs), ``factory``.
 """
 
 from realistic.renderer.bsdf.base import BSDF, BSDFSample, HitParameters, ShadingFrame

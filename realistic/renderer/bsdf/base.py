@@ -27,7 +27,15 @@ class BSDFSample:
 
 
 class BSDF(Protocol):
-    """Scattering at N hits of one material (see the package docstring for the conventions)."""
+    """Scattering at N hits of one material (see the package docstring for the conventions).
+
+    ``has_specular``: some hits may return specular samples (mirror, glass, smooth metal, a mix
+    holding one); ``only_specular``: every sample is specular and ``evaluate`` is zero everywhere,
+    so light sampling there is wasted work.
+    """
+
+    has_specular: bool
+    only_specular: bool
 
     def evaluate(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
         """f(wo, wi), (N, C); zero for the specular lobes."""

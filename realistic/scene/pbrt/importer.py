@@ -31,6 +31,7 @@ from realistic.optics.formats import BUNDLED_LENSES, load_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus
 from realistic.optics.stop_shape import StopShape, transmission_stop
+from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import AreaLight, CheckerTexture, Material, Mesh, Scene
 from realistic.scene.pbrt.dialect import (
@@ -44,6 +45,7 @@ from realistic.scene.pbrt.dialect import (
 )
 from realistic.scene.pbrt.imagemap import imagemap_texture
 from realistic.scene.pbrt.lexer import PbrtSyntaxError
+from realistic.scene.pbrt.materials import build_material
 from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.scene.shapes import cone, disk, sphere
 
@@ -133,7 +135,7 @@ class _Importer:
         self.search_paths = search_paths
         self.dialect = dialect
         self.scene = Scene()
-        self.materials: dict[int, Material] = {}
+        self.materials: dict[int, SurfaceMaterial] = {}
         # shape record -> (mesh index, local transform, object-space box corners)
         self.stored: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
 
@@ -148,26 +150,23 @@ class _Importer:
         return path
 
     # ---- materials and textures ---------------------------------------------------------------
-    def material(self, declaration: Declaration) -> Material:
+    def material(self, declaration: Declaration) -> SurfaceMaterial:
         key = id(declaration)
         if key not in self.materials:
             self.materials[key] = self._material(declaration)
         return self.materials[key]
 
-    def _material(self, declaration: Declaration) -> Material:
-        if declaration.type not in ("matte", "plastic", "uber", "substrate", "translucent"):
-            self.warn(declaration.where, f'Material "{declaration.type}", rendered as matte grey')
-            return Material(GREY)
-        if declaration.type != "matte":
-            self.warn(declaration.where, f'Material "{declaration.type}", rendered as matte with its Kd')
-        kd = declaration.params.items.get("Kd")
-        if kd is not None and kd.type == "texture":
-            return self.texture_material(_texture_name(declaration.params, "Kd", kd.where), declaration.where)
-        colour = _rgb(declaration.params, "Kd", GREY)
-        if colour is None:
-            self.warn(declaration.where, f"a spectral Kd in {declaration.type}, rendered grey")
-            colour = GREY
-        return Material(colour)
+    def _material(self, declaration: Declaration) -> SurfaceMaterial:
+        """pbrt's material types as scene materials (``realistic.scene.pbrt.materials``)."""
+        with _located(declaration.where):
+            return build_material(declaration, self)
+
+    @property
+    def dialect_name(self) -> str:
+        return self.dialect.name
+
+    def named_material(self, name: str) -> Declaration | None:
+        return self.parsed.named_materials.get(name)
 
     def texture_material(self, name: str, where: str, using: tuple[str, ...] = ()) -> Material:
         """A Kd texture as colour x texture (pbrt's scale of an image by a constant included)."""

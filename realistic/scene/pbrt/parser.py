@@ -130,6 +130,7 @@ class PbrtScene:
     instances: list[tuple[str, np.ndarray, str]] = field(default_factory=list)
     lights: list[Directive] = field(default_factory=list)
     textures: dict[str, TextureDef] = field(default_factory=dict)
+    named_materials: dict[str, Declaration] = field(default_factory=dict)  # for mix materials' parts
     warnings: list[str] = field(default_factory=list)
     world_begin: str | None = None  # where WorldBegin was, if anywhere
     directives: dict[str, str] = field(default_factory=dict)  # each directive name -> where it first appeared
@@ -221,7 +222,7 @@ class _Parser:
         self.stack: list[tuple[str, _State, str]] = []  # (block kind, saved state, where it began)
         self.named_frames: dict[str, np.ndarray] = {}
         self.current_object: str | None = None
-        self.named_materials: dict[str, Declaration] = {}
+        self.named_materials = self.scene.named_materials
         self.frames: list[_Frame] = []
         self.finished_imports: list[_Frame] = []  # in the order they ended
         self.last: Token | None = None

@@ -1,0 +1,337 @@
+"""pbrt's ``Material`` and ``MakeNamedMaterial`` types (v1/v2/v3 and v4 names) as scene materials.
+
+Parameters and defaults per type as pbrt-v2 ``src/materials/*.cpp``, pbrt-v3 ``src/materials/*.cpp``
+and pbrt-v4 ``src/pbrt/materials.cpp`` create them. Roughness follows the dialect
+(``realistic.scene.materials``): pbrt-v1/v2 Blinn exponents 1 / r, pbrt-v3's ``RoughnessToAlpha``
+polynomial and pbrt-v4's square root when ``remaproughness`` is true (the default), the value
+itself when false. pbrt-v1/v2/v3 ``plastic`` (and pbrt-v1/v2 ``uber``) weight the coat by the
+Fresnel reflectance of ``FresnelDielectric(1.5, 1)`` (pbrt-v3 ``src/materials/plastic.cpp``: index
+1.5 outside, 1 inside, so the coat reflects totally beyond 41.8 degrees from the microfacet
+normal), reproduced here as index 1 / 1.5; pbrt-v3 ``uber`` uses ``FresnelDielectric(1, eta)``.
+
+Where a type has no exact counterpart, the closest material is rendered and a warning names the
+file and line (once per message): ``uber`` as plastic, ``translucent`` as diffuse transmission,
+pbrt-v4 ``coateddiffuse`` as a diffuse base under an infinitely thin coat, ``coatedconductor`` as its
+conductor, rough ``glass``/``dielectric`` as smooth, the subsurface, ``hair`` and ``fourier``
+types as matte. Bump maps and displacement are ignored with a warning.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from realistic.core.validation import finite
+from realistic.errors import UserError
+from realistic.scene.materials import (
+    CoatedDiffuse,
+    Conductor,
+    Dielectric,
+    DiffuseTransmission,
+    Measured,
+    Mirror,
+    Mix,
+    Plastic,
+    ScaledTexture,
+    Substrate,
+    SurfaceMaterial,
+)
+from realistic.scene.measured import float_file_numbers, load_measured, spectrum_to_rgb
+from realistic.scene.metals import copper
+from realistic.scene.model import Material
+from realistic.scene.pbrt.parser import Declaration, Params
+
+#: Copper (``realistic.scene.metals``), the default metal of pbrt-v2/v3 ``metal`` and pbrt-v4
+#: ``conductor``; pbrt-v4's other named metal spectra ("metal-Au-eta", ...) are not tabulated here
+#: and fall back to copper with a warning.
+COPPER_ETA, COPPER_K = copper()
+MAX_MIX_DEPTH = 16
+
+
+class MaterialContext(Protocol):
+    """What the importer lends: warnings, textures as colour x texture, files, named materials."""
+
+    dialect_name: str
+
+    def warn(self, where: str, message: str) -> None: ...
+
+    def texture_material(self, name: str, where: str) -> Material: ...
+
+    def find(self, name: str, directory: Path, where: str, what: str) -> Path: ...
+
+    def named_material(self, name: str) -> Declaration | None: ...
+
+
+@dataclass
+class _Reader:
+    """One declaration's parameters read as colours and scalars (constants or textures)."""
+
+    declaration: Declaration
+    context: MaterialContext
+
+    @property
+    def where(self) -> str:
+        return self.declaration.where
+
+    @property
+    def params(self) -> Params:
+        return self.declaration.params
+
+    def has(self, name: str) -> bool:
+        return self.params.has(name)
+
+    def colour(self, name: str, default: tuple) -> object:
+        p = self.params.items.get(name)
+        if p is None:
+            return default
+        if p.type == "texture":
+            return self.texture(name)
+        if p.type == "spectrum":
+            return self.spectrum(name, default)
+        if p.type in ("blackbody", "xyz") or len(p.values) not in (1, 3):
+            self.context.warn(self.where, f'"{p.type} {name}" in Material "{self.declaration.type}" (the default used)')
+            return default
+        values = self.params.get_floats(name)
+        return tuple(float(v) for v in (values * 3 if len(values) == 1 else values))
+
+    def spectrum(self, name: str, default: tuple) -> tuple:
+        """A "spectrum" parameter: (wavelength, value) pairs or a .spd file of them, as RGB."""
+        p = self.params.items[name]
+        if len(p.values) == 1 and isinstance(p.values[0], str):
+            text = p.values[0]
+            if text in ("metal-Cu-eta", "metal-Cu-k"):
+                return COPPER_ETA if text.endswith("eta") else COPPER_K
+            if text.startswith("metal-"):
+                self.context.warn(self.where, f'named spectrum "{text}" (copper\'s used)')
+                return COPPER_ETA if text.endswith("eta") else COPPER_K
+            path = self.context.find(text, Path(self.where.rsplit(":", 1)[0]).parent, self.where, "spectrum file")
+            try:
+                values = list(float_file_numbers(path.read_bytes()))  # pbrt reads .spd files with ReadFloatFile
+            except (OSError, ValueError) as err:
+                raise UserError(f"{self.where}: spectrum file {path}: {err}") from None
+        else:
+            values = self.params.get_floats(name)
+        if len(values) < 2 or len(values) % 2:
+            raise UserError(f'{self.where}: "spectrum {name}" needs (wavelength, value) pairs, got {len(values)} '
+                            f"numbers")
+        pairs = np.asarray(values, np.float64).reshape(-1, 2)
+        if not np.all(np.isfinite(pairs)) or np.any(np.diff(pairs[:, 0]) <= 0):
+            raise UserError(f'{self.where}: "spectrum {name}" wavelengths must increase and values be finite')
+        return tuple(float(c) for c in spectrum_to_rgb(pairs[:, 0], pairs[None, :, 1])[0])
+
+    def texture(self, name: str) -> object:
+        texture_name = self.params.get_string(name)
+        if not texture_name:
+            raise UserError(f'{self.where}: "texture {name}" needs the name of a texture')
+        made = self.context.texture_material(texture_name, self.where)
+        if made.texture is None:
+            return made.diffuse
+        return made.texture if made.diffuse == (1.0, 1.0, 1.0) else ScaledTexture(made.texture, made.diffuse)
+
+    def scalar(self, name: str, default: float) -> object:
+        p = self.params.items.get(name)
+        if p is None:
+            return default
+        if p.type == "texture":
+            value = self.texture(name)
+            return float(np.mean(value)) if isinstance(value, tuple) else value
+        return finite(self.params.get_float(name, default), f'"{name}" of Material "{self.declaration.type}"')
+
+    def flag(self, name: str, default: bool) -> bool:
+        p = self.params.items.get(name)
+        return default if p is None or not p.values else p.values[0] is True
+
+    def rule(self) -> str:
+        """How this dialect turns roughness into GGX alpha."""
+        if self.context.dialect_name in ("v1", "v2"):
+            return "blinn"
+        if not self.flag("remaproughness", True):
+            return "alpha"
+        return "pbrt-v3" if self.context.dialect_name == "v3" else "sqrt"
+
+    def roughness_pair(self, default: float) -> tuple[object, object]:
+        r = self.scalar("roughness", default)
+        return self.scalar("uroughness", r), self.scalar("vroughness", r)
+
+    def approximate(self, what: str) -> None:
+        self.context.warn(self.where, f'Material "{self.declaration.type}", rendered as {what}')
+
+
+def _v4(context: MaterialContext) -> bool:
+    return context.dialect_name == "v4"
+
+
+def build_material(declaration: Declaration, context: MaterialContext, depth: int = 0) -> SurfaceMaterial:
+    """The scene material a pbrt material declaration describes (warnings through ``context``)."""
+    r = _Reader(declaration, context)
+    kind = declaration.type
+    for bump in ("bumpmap", "displacement", "normalmap"):
+        if r.has(bump):
+            context.warn(declaration.where, f'"{bump}" of Material "{kind}" (ignored)')
+    if kind in ("matte", "diffuse"):
+        return _matte(r, "Kd" if r.has("Kd") or kind == "matte" else "reflectance", 0.5)
+    if kind in ("plastic", "uber"):
+        eta = 1.0 / 1.5
+        if kind == "uber":
+            r.approximate("plastic (its Kr, Kt and opacity ignored)")
+            if context.dialect_name == "v3":  # pbrt-v3 uber.cpp: FresnelDielectric(1, eta), eta default 1.5
+                eta = r.scalar("eta", r.scalar("index", 1.5))
+                eta = eta if isinstance(eta, float) and eta > 0 else 1.5
+        rough = r.scalar("roughness", 0.1)
+        return Plastic(r.colour("Kd", (0.25,) * 3), r.colour("Ks", (0.25,) * 3), rough, r.rule(), eta)
+    if kind == "coateddiffuse":
+        r.approximate("a diffuse base under a thin coat (the layer's thickness, albedo and g ignored)")
+        ru, _ = r.roughness_pair(0.0)
+        eta = r.scalar("eta", 1.5)
+        return CoatedDiffuse(r.colour("reflectance", (0.5,) * 3), ru, r.rule(),
+                             eta if isinstance(eta, float) and eta > 0 else 1.5)
+    if kind in ("metal", "conductor", "coatedconductor", "shinymetal"):
+        return _conductor(r)
+    if kind == "mirror":
+        return Mirror(r.colour("Kr", (0.9,) * 3))
+    if kind in ("glass", "dielectric", "thindielectric"):
+        eta = r.scalar("eta", r.scalar("index", 1.5) if not _v4(context) else 1.5)
+        if not isinstance(eta, float):
+            context.warn(declaration.where, f'textured or spectral eta of Material "{kind}" (1.5 used)')
+            eta = 1.5
+        ru, rv = r.roughness_pair(0.0)
+        if (isinstance(ru, float) and ru > 0) or (isinstance(rv, float) and rv > 0) or not isinstance(ru, float):
+            r.approximate("smooth glass (its roughness ignored)")
+        return Dielectric(eta, r.colour("Kr", (1.0,) * 3), r.colour("Kt", (1.0,) * 3), kind == "thindielectric")
+    if kind == "substrate":
+        ru, rv = r.roughness_pair(0.1)
+        return Substrate(r.colour("Kd", (0.5,) * 3), r.colour("Ks", (0.5,) * 3), ru, rv, r.rule())
+    if kind == "diffusetransmission":
+        scale = r.scalar("scale", 1.0)
+        scale = scale if isinstance(scale, float) else 1.0
+        refl, trans = r.colour("reflectance", (0.25,) * 3), r.colour("transmittance", (0.25,) * 3)
+        return DiffuseTransmission(_times(refl, scale), _times(trans, scale))
+    if kind == "translucent":
+        r.approximate("diffuse transmission of Kd times reflect and transmit (its glossy Ks ignored)")
+        kd = r.colour("Kd", (0.25,) * 3)
+        reflect, transmit = r.colour("reflect", (0.5,) * 3), r.colour("transmit", (0.5,) * 3)
+        if not isinstance(kd, tuple) and not (isinstance(reflect, tuple) and isinstance(transmit, tuple)):
+            context.warn(declaration.where, 'textured "reflect" or "transmit" with a textured Kd in Material '
+                                            '"translucent" (the Kd texture alone is used)')
+        return DiffuseTransmission(_product(kd, reflect), _product(kd, transmit))
+    if kind == "measured":
+        return _measured(r)
+    if kind == "mix":
+        return _mix(r, depth)
+    if kind in ("interface", "none", ""):
+        r.approximate("a clear boundary of index 1 (light passes straight through)")
+        return Dielectric(1.0)
+    if kind in ("kdsubsurface", "subsurface", "hair", "fourier"):
+        r.approximate("matte with its Kd or reflectance (grey when it has none)")
+        return _matte(r, "reflectance" if r.has("reflectance") else "Kd", 0.5)
+    context.warn(declaration.where, f'Material "{kind}", rendered as matte grey')
+    return Material((0.5, 0.5, 0.5))
+
+
+def _times(colour: object, scale: float) -> object:
+    if isinstance(colour, tuple):
+        return tuple(c * scale for c in colour)
+    if isinstance(colour, ScaledTexture):
+        return ScaledTexture(colour.texture, tuple(c * scale for c in colour.scale))
+    return ScaledTexture(colour, (scale,) * 3) if scale != 1.0 else colour
+
+
+def _product(a: object, b: object) -> object:
+    """The product of two colours (a texture times a constant; of two textures only the first is kept)."""
+    if isinstance(b, tuple):
+        return _times_rgb(a, b)
+    if isinstance(a, tuple):
+        return _times_rgb(b, a)
+    return a
+
+
+def _times_rgb(colour: object, rgb: tuple) -> object:
+    if isinstance(colour, tuple):
+        return tuple(x * y for x, y in zip(colour, rgb))
+    if isinstance(colour, ScaledTexture):
+        return ScaledTexture(colour.texture, tuple(x * y for x, y in zip(colour.scale, rgb)))
+    return ScaledTexture(colour, rgb)
+
+
+def _matte(r: _Reader, name: str, default: float) -> Material:
+    colour = r.colour(name, (default,) * 3)
+    sigma = r.scalar("sigma", 0.0)
+    if not isinstance(sigma, float):
+        r.context.warn(r.where, "a textured Oren-Nayar sigma (its mean is not known here; 0 used)")
+        sigma = 0.0
+    sigma = min(abs(sigma), 90.0)
+    if isinstance(colour, tuple):
+        return Material(colour, None, sigma)
+    if isinstance(colour, ScaledTexture):
+        return Material(colour.scale, colour.texture, sigma)
+    return Material((1.0, 1.0, 1.0), colour, sigma)
+
+
+def _conductor(r: _Reader) -> Conductor:
+    kind = r.declaration.type
+    prefix = "conductor." if kind == "coatedconductor" else ""
+    if kind == "coatedconductor":
+        r.approximate("its conductor without the dielectric coat")
+    if kind == "shinymetal" or r.has(prefix + "reflectance"):
+        # pbrt-v1/v2 shinymetal (Ks) and pbrt-v4 conductor "reflectance": k from the reflectance R at
+        # normal incidence with eta = 1, k = 2 sqrt(R) / sqrt(1 - R) (pbrt-v4 ``ConductorMaterial``).
+        reflectance = r.colour("Ks" if kind == "shinymetal" else prefix + "reflectance", (1.0,) * 3)
+        if not isinstance(reflectance, tuple):
+            r.context.warn(r.where, f'a textured reflectance of Material "{kind}" (its mean 0.5 used)')
+            reflectance = (0.5,) * 3
+        rr = np.clip(np.asarray(reflectance, np.float64), 0.0, 0.9999)
+        k = tuple(float(v) for v in 2 * np.sqrt(rr) / np.sqrt(1 - rr))
+        ru, rv = r.roughness_pair(0.1 if kind == "shinymetal" else 0.0)
+        return Conductor((1.0, 1.0, 1.0), k, ru, rv, r.rule())
+    eta = r.colour(prefix + "eta", COPPER_ETA)
+    k = r.colour(prefix + "k", COPPER_K)
+    ru, rv = r.roughness_pair(0.0 if _v4(r.context) else 0.01)
+    if kind == "coatedconductor":
+        ru = r.scalar("conductor.uroughness", r.scalar("conductor.roughness", 0.0))
+        rv = r.scalar("conductor.vroughness", r.scalar("conductor.roughness", 0.0))
+    return Conductor(eta, k, ru, rv, r.rule())
+
+
+def _measured(r: _Reader) -> SurfaceMaterial:
+    filename = r.params.get_string("filename")
+    if not filename:
+        raise UserError(f'{r.where}: Material "measured" has no "string filename"')
+    if filename.lower().endswith(".bsdf"):
+        r.approximate("matte grey (pbrt-v4's .bsdf measured format is not read)")
+        return Material((0.5, 0.5, 0.5))
+    path = r.context.find(filename, Path(r.where.rsplit(":", 1)[0]).parent, r.where, "measured BRDF file")
+    try:
+        load_measured(str(path))  # read now, so a bad file is an error naming the scene line
+    except UserError as err:
+        raise UserError(f"{r.where}: {err}") from None
+    return Measured(str(path))
+
+
+def _mix(r: _Reader, depth: int) -> SurfaceMaterial:
+    if depth > MAX_MIX_DEPTH:
+        raise UserError(f'{r.where}: Material "mix" nested more than {MAX_MIX_DEPTH} deep (a mix made of itself?)')
+    p = r.params.items.get("materials")
+    if p is not None:  # pbrt-v4: two names; amount is the chance of the second
+        names = [v for v in p.values if isinstance(v, str)]
+        if len(names) != 2:
+            raise UserError(f'{r.where}: Material "mix" needs two "materials", got {len(names)}')
+        first, second = names
+        swap = False
+    else:  # pbrt-v1/v2/v3: amount weights namedmaterial1
+        first, second = r.params.get_string("namedmaterial1"), r.params.get_string("namedmaterial2")
+        swap = True
+    parts = []
+    for name in (first, second):
+        declaration = r.context.named_material(name) if name else None
+        if declaration is None:
+            raise UserError(f'{r.where}: Material "mix" names material "{name}", which is not defined')
+        parts.append(build_material(declaration, r.context, depth + 1))
+    amount = r.scalar("amount", 0.5)
+    if isinstance(amount, float):
+        amount = min(max(amount, 0.0), 1.0)
+    if swap:
+        return Mix(parts[1], parts[0], amount)
+    return Mix(parts[0], parts[1], amount)
