@@ -2,8 +2,9 @@
 
 Geometry ids: instance i of ``Scene.instances`` is geometry i; area light j (of
 ``Scene.area_lights``) is geometry ``len(instances) + j``. embreex has no instancing, so each
-instance's triangles are transformed to world space here (the scene model still stores each mesh once). ``run()`` releases the GIL,
-so several threads may trace batches at once after the BVH is built (done in the constructor).
+instance's triangles are transformed to world space here (the scene model still stores each
+mesh once). ``run()`` releases the GIL, so several threads may trace batches at once after the
+BVH is built (done in the constructor).
 """
 
 from __future__ import annotations
