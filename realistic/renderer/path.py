@@ -33,7 +33,7 @@ from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot, normalise
 from realistic.renderer.bsdf import ShadingFrame, bsdf_for
 from realistic.renderer.integrator import SHADOW_OFFSET, DirectLighting
-from realistic.renderer.light_sampler import LightSampler, colour
+from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.lights import EmissiveInstance
@@ -244,8 +244,13 @@ class PathIntegrator(DirectLighting):
             if len(live) == 0:
                 continue
             start = point[live] + ng[live] * eps[live] * np.sign(side_g[live]).astype(np.float32)[:, None]
+            # toward a point: the vector from the offset start to it, traced to 1 - 1e-4 of its length
+            # (as DirectLighting does, so the light's own surface never shadows it); else a far ray
+            far = ls.distance[live] >= FAR
+            target = point[live] + ls.wi[live] * ls.distance[live, None]
+            vector = np.where(far[:, None], ls.wi[live], target - start)
             with timed("embree"):
-                blocked = self.intersector.occluded(start, ls.wi[live], ls.distance[live] * np.float32(1 - 1e-4))
+                blocked = self.intersector.occluded(start, vector, np.where(far, FAR, np.float32(1 - 1e-4)))
             shadow_rays += len(live)
             free = live[~blocked]
             out[ray[free]] += contribution[free]  # one row per path: no repeated indices
