@@ -95,3 +95,36 @@ def test_closed_emitting_sphere_converges_to_the_series():
     radiance, _ = integrator.radiance(np.zeros((N, 3), np.float32), direction, np.arange(N), np.zeros(N, int))
     mean, error = _mean_and_error(radiance[:, 0])
     assert abs(mean - 1 / (1 - a)) < 4 * error + 5e-3
+
+
+@pytest.mark.parametrize("mapping,shape", [("latlong", (16, 32, 3)), ("equal-area", (16, 16, 3))])
+def test_white_furnace_through_an_environment_map(mapping, shape):
+    """A map of ones samples by its (sin-weighted) texel distribution and still reads the albedo."""
+    a = 0.5
+    scene = Scene()
+    scene.add(sphere(1.0, 48), np.eye(4), Material((a, a, a)))
+    scene.lights.append(InfiniteLight((1.0, 1.0, 1.0), np.ones(shape, np.float32), mapping))
+    origin, direction = _rays_at_sphere(N)
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 8, 0.0, 3, "path")
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
+    mean, error = _mean_and_error(radiance[:, 0])
+    assert abs(mean - a) < 4 * error + 2e-3
+
+
+@pytest.mark.parametrize("mapping", ["latlong", "equal-area"])
+def test_environment_map_mis_agrees_with_light_sampling_alone(mapping):
+    """Under a map with a bright sun, MIS and light sampling alone estimate the same direct light."""
+    rng = np.random.default_rng(11)
+    image = (0.2 + rng.random((16, 16 if mapping == "equal-area" else 32, 3))).astype(np.float32)
+    image[2:4, 3:5] = 40.0
+    scene = Scene()
+    scene.add(sphere(1.0, 48), np.eye(4), Material((0.8, 0.8, 0.8)))
+    scene.lights.append(InfiniteLight((1.0, 1.0, 1.0), image, mapping))
+    origin, direction = _rays_at_sphere(N)
+    means = []
+    for mis in (True, False):
+        integrator = PathIntegrator(scene, Intersector(scene), 1, 9, 0.0, 1, "direct", mis=mis)
+        radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
+        means.append(_mean_and_error(radiance[:, 0]))
+    (m1, e1), (m2, e2) = means
+    assert abs(m1 - m2) < 4 * np.hypot(e1, e2)
