@@ -160,3 +160,23 @@ class _NoHitsProbe:
 
     def scalar(self, value):
         return np.zeros(0, np.float32)
+
+
+@pytest.mark.parametrize("depth,expected", [(0, 0.0), (1, 0.0), (2, 0.9)])
+def test_directlighting_maxdepth_limits_specular_bounces_as_pbrt(depth, expected):
+    """pbrt-v3's DirectLightingIntegrator follows a specular bounce while depth + 1 < maxdepth, and
+    lights the first hit whatever maxdepth is (a point light over a Lambertian floor at depth 0)."""
+    scene = Scene()
+    scene.add(quad(20.0, 20.0), np.eye(4), Material())
+    scene.lights.append(InfiniteLight((1.0, 1.0, 1.0)))
+    mirror = PathIntegrator(scene, Intersector(scene), 1, 6, 0.0, depth, "direct",
+                            bsdf_factory=_factory(lambda n, c: Mirror(0.9, n, c)))
+    origin, direction = _camera_rays(100)
+    radiance, _ = mirror.radiance(origin, direction, np.arange(100), np.zeros(100, int))
+    np.testing.assert_allclose(radiance, expected, rtol=1e-5)
+    lit = Scene()
+    lit.add(quad(20.0, 20.0), np.eye(4), Material((1.0, 1.0, 1.0)))
+    lit.lights.append(PointLight((1.0, 1.0, 1.0), np.array([0.0, 0.0, 1.0])))
+    floor = PathIntegrator(lit, Intersector(lit), 1, 6, 0.0, depth, "direct")
+    radiance, _ = floor.radiance(np.float32([[0, 0, 2]]), np.float32([[0, 0, -1]]), np.zeros(1, int), np.zeros(1, int))
+    np.testing.assert_allclose(radiance, 1 / math.pi, rtol=1e-5)

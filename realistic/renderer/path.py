@@ -12,8 +12,9 @@ hits grouped by material (``realistic.renderer.bsdf.bsdf_for``). At each surface
 
 ``mode`` "path": every BSDF sample continues, up to ``max_depth`` bounces, with Russian roulette
 after the third (pbrt-v3 ``PathIntegrator``: q = max(0.05, 1 - max throughput)). "direct" (pbrt's
-``directlighting``): non-specular BSDF samples only collect the emission they reach, specular ones
-continue (up to ``max_depth``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
+``directlighting``): the first hit is always lit; non-specular BSDF samples only collect the
+emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbrt-v3
+``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
 after specular bounces), for tests.
 
 Random numbers: the first vertex's light sample k uses dimensions 4 + 3k .. 6 + 3k as
@@ -109,7 +110,9 @@ class PathIntegrator(DirectLighting):
         prev_pdf = np.zeros(n)
         prev_point = o.astype(np.float64)
         shadow_rays = 0
-        for depth in range(self.max_depth + 1):
+        # "direct" shades the first hit whatever max_depth is (its MIS rays are traced one step more)
+        last = max(self.max_depth, 1) if self.mode == "direct" else self.max_depth
+        for depth in range(last + 1):
             if len(path) == 0:
                 break
             with timed("embree"):
@@ -121,7 +124,7 @@ class PathIntegrator(DirectLighting):
                                depth, out)
                 light_id = hits.geom - self.instance_count
                 surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0) & shade)
-                if depth == self.max_depth or len(surface) == 0:
+                if depth == last or len(surface) == 0:
                     break
                 state = self._shade(hits, surface, path, o, d, beta, basis, pixel, sample, depth, out, timed)
             shadow_rays += state.pop("shadow_rays")
@@ -261,9 +264,10 @@ class PathIntegrator(DirectLighting):
         new_beta = beta_s * throughput
         shade = np.ones(m, bool)
         if self.mode == "direct":
-            shade = is_specular
-            if not self.mis:
-                go &= is_specular
+            # pbrt-v3 DirectLightingIntegrator: specular reflection while depth + 1 < maxdepth
+            follow = is_specular & (depth + 1 < self.max_depth)
+            shade = follow
+            go &= follow | (~is_specular if self.mis else False)
         elif depth >= ROULETTE_AFTER:
             q = np.maximum(0.05, 1.0 - new_beta.max(axis=1))
             survive = rng.uniform(px, sx, base + 3, self.seed) >= q
