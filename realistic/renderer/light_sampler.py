@@ -149,6 +149,8 @@ class LightSampler:
         self.probability = power / power.sum() if power.sum() > 0 else power
         self.cdf = np.cumsum(self.probability)
         self.has_lights = bool(len(self.lights)) and power.sum() > 0
+        # whether a ray can reach emission (an area light, an emitting instance, the sky)
+        self.hittable = bool(np.any((power > 0) & np.isin(self.kind, (AREA, INSTANCE, INFINITE))))
         # per light arrays (zeros where not that kind)
         n = len(self.lights)
         self.position = np.zeros((n, 3))

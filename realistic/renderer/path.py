@@ -267,7 +267,8 @@ class PathIntegrator(DirectLighting):
             # pbrt-v3 DirectLightingIntegrator: specular reflection while depth + 1 < maxdepth
             follow = is_specular & (depth + 1 < self.max_depth)
             shade = follow
-            go &= follow | (~is_specular if self.mis else False)
+            # a non-specular sample's ray only looks for emission: none to find with delta lights alone
+            go &= follow | (~is_specular if self.mis and self.lights.hittable else False)
         elif depth >= ROULETTE_AFTER:
             q = np.maximum(0.05, 1.0 - new_beta.max(axis=1))
             survive = rng.uniform(px, sx, base + 3, self.seed) >= q
