@@ -33,12 +33,12 @@ from realistic.core.spectrum import rgb_basis
 from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot, normalise
 from realistic.renderer.bsdf import ShadingFrame, bsdf_for
-from realistic.renderer.integrator import SHADOW_OFFSET, DirectLighting
+from realistic.renderer.integrator import SHADOW_OFFSET, DirectLighting, _rows
 from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.lights import EmissiveInstance
-from realistic.scene.model import ImageTexture, Scene
+from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Scene
 from realistic.scene.textures import evaluate
 
 BOUNCE_DIMENSION = 4 + 3 * MAX_LIGHT_SAMPLES
@@ -126,8 +126,17 @@ class PathIntegrator(DirectLighting):
                 surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0) & shade)
                 if depth == last or len(surface) == 0:
                     break
-                state = self._shade(hits, surface, path, o, d, beta, basis, pixel, sample, depth, out, timed)
-            shadow_rays += state.pop("shadow_rays")
+                state = self._shade(hits, surface, path, o, d, beta, basis, pixel, sample, depth)
+            shadow = state["shadow"]
+            if shadow["rows"] is not None and len(shadow["rows"]):
+                with timed("embree"):  # every light sample's shadow ray of this bounce in one batch
+                    blocked = self.intersector.occluded(shadow["start"], shadow["vector"], shadow["length"])
+                with timed("shading"):
+                    free = ~blocked
+                    rows, value = shadow["rows"][free], shadow["contribution"][free]
+                    for c in range(channels):  # rows repeat with several light samples per hit
+                        out[:, c] += np.bincount(rows, value[:, c], minlength=n).astype(np.float32)
+                shadow_rays += len(blocked)
             path, o, d, beta = state["path"], state["origin"], state["direction"], state["beta"]
             specular, shade, prev_pdf, prev_point = state["specular"], state["shade"], state["pdf"], state["point"]
         result = np.empty((n, 3), np.float32)
@@ -174,23 +183,22 @@ class PathIntegrator(DirectLighting):
                                    self.lights.pdf_instance(light, prev_point[rows], point, normal), prev_lights)
                 out[path[rows]] += beta[rows] * le * weight[:, None].astype(np.float32)
 
-    def _shade(self, hits, surface, path, o, d, beta, basis, pixel, sample, depth, out, timed) -> dict:
-        """Next-event estimation and one BSDF sample at the surface hits ``surface``; the next bounce."""
+    def _shade(self, hits, surface, path, o, d, beta, basis, pixel, sample, depth) -> dict:
+        """Next-event estimation and one BSDF sample at the surface hits ``surface``: the next bounce,
+        and the shadow rays (``shadow``: starts, vectors, lengths, ray rows, contributions if free)."""
         ray = path[surface]
         px, sx = pixel[ray], sample[ray]
-        sb = None if basis is None else basis[surface]
-        ds = d[surface]
+        sb = None if basis is None else _rows(basis, surface)
+        ds = _rows(d, surface)
         geom, prim = hits.geom[surface], hits.prim[surface]
         t = hits.t[surface]
-        point = o[surface] + t[:, None] * ds
-        ng = normalise(hits.normal[surface].astype(np.float32))
+        point = _rows(o, surface) + t[:, None] * ds
+        ng = normalise(_rows(hits.normal, surface).astype(np.float32))
         ng *= np.where(dot(ng, ds) > 0, -1.0, 1.0).astype(np.float32)[:, None]
-        face = self._faces[self._geom_face_offset[geom] + prim]
+        face = _rows(self._faces, self._geom_face_offset[geom] + prim)
         u, v = hits.u[surface], hits.v[surface]
         bary = np.column_stack([1.0 - u - v, u, v])
         shading = self._shading_normal(face, bary, geom, ng)
-        uv = (self._uv[face[:, 0]] * bary[:, :1] + self._uv[face[:, 1]] * bary[:, 1:2]
-              + self._uv[face[:, 2]] * bary[:, 2:])
         frame = ShadingFrame(shading)
         wo = frame.to_local(-ds)
         magnitude = np.abs(point).max(axis=1)
@@ -214,13 +222,18 @@ class PathIntegrator(DirectLighting):
         is_specular = np.zeros(m, bool)
         valid = np.zeros(m, bool)
         material_of = self._geom_material[geom]
-        for index in np.unique(material_of):
-            rows = np.flatnonzero(material_of == index)
+        groups = np.unique(material_of)
+        for index in groups:
+            # one material over every hit (the common case): slices, not gathers and scatters
+            rows = slice(None) if len(groups) == 1 else np.flatnonzero(material_of == index)
             footprint = None
             material = self._materials[index]
             if depth == 0 and self.pixel_spread_radians > 0 and _has_image(material):
                 footprint = self._footprint(face[rows], geom[rows], ds[rows], ng[rows], t[rows])
-            params = SurfaceParameters(uv[rows], footprint, None if sb is None else sb[rows])
+            f, b = face[rows], bary[rows]
+            uv = (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
+                  + _rows(self._uv, f[:, 2]) * b[:, 2:]) if _has_texture(material) else np.zeros((len(f), 2))
+            params = SurfaceParameters(uv, footprint, None if sb is None else sb[rows])
             bsdf = self.bsdf_factory(material, params)
             for k, (_, local) in enumerate(samples):
                 light_f[k][rows] = bsdf.evaluate(wo[rows], local[rows])
@@ -232,8 +245,8 @@ class PathIntegrator(DirectLighting):
             with np.errstate(divide="ignore", invalid="ignore"):
                 throughput[rows] = np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))
                                             [:, None], 0.0)
-        shadow_rays = 0
         beta_s = beta[surface]
+        shadow = {"start": [], "vector": [], "length": [], "rows": [], "contribution": []}
         for k, (ls, local) in enumerate(samples):
             side_g = dot(ls.wi, ng)
             usable = ls.valid & (side_g * local[:, 2] > 0)
@@ -244,19 +257,16 @@ class PathIntegrator(DirectLighting):
                                  0.0).astype(np.float32)
             contribution = beta_s * light_f[k] * ls.radiance * scale[:, None]
             live = np.flatnonzero(np.any(contribution > 0, axis=1) | np.any(contribution < 0, axis=1))
-            if len(live) == 0:
-                continue
             start = point[live] + ng[live] * eps[live] * np.sign(side_g[live]).astype(np.float32)[:, None]
             # toward a point: the vector from the offset start to it, traced to 1 - 1e-4 of its length
             # (as DirectLighting does, so the light's own surface never shadows it); else a far ray
             far = ls.distance[live] >= FAR
             target = point[live] + ls.wi[live] * ls.distance[live, None]
-            vector = np.where(far[:, None], ls.wi[live], target - start)
-            with timed("embree"):
-                blocked = self.intersector.occluded(start, vector, np.where(far, FAR, np.float32(1 - 1e-4)))
-            shadow_rays += len(live)
-            free = live[~blocked]
-            out[ray[free]] += contribution[free]  # one row per path: no repeated indices
+            shadow["start"].append(start)
+            shadow["vector"].append(np.where(far[:, None], ls.wi[live], target - start))
+            shadow["length"].append(np.where(far, FAR, np.float32(1 - 1e-4)).astype(np.float32))
+            shadow["rows"].append(ray[live])
+            shadow["contribution"].append(contribution[live])
         # the next bounce
         world_wi = frame.to_world(wi)
         side = dot(world_wi, ng)
@@ -280,8 +290,13 @@ class PathIntegrator(DirectLighting):
         return {"path": ray[keep], "origin": np.ascontiguousarray(start, np.float32),
                 "direction": np.ascontiguousarray(world_wi[keep], np.float32), "beta": new_beta[keep],
                 "specular": is_specular[keep], "shade": shade[keep], "pdf": pdf[keep],
-                "point": point[keep].astype(np.float64), "shadow_rays": shadow_rays}
+                "point": point[keep].astype(np.float64),
+                "shadow": {key: np.concatenate(parts) if parts else None for key, parts in shadow.items()}}
 
 
 def _has_image(material) -> bool:
     return any(isinstance(value, ImageTexture) for value in vars(material).values())
+
+
+def _has_texture(material) -> bool:
+    return any(isinstance(value, ImageTexture | GridTexture | CheckerTexture) for value in vars(material).values())
