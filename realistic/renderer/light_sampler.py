@@ -167,10 +167,10 @@ class LightSampler:
                 self.position[i] = d / np.linalg.norm(d)
                 self.intensity[i] = light.radiance
         frames = [light.frame() for light in scene.area_lights]
-        self.area_centre = np.array([f[0] for f in frames]).reshape(-1, 3)
-        self.area_a = np.array([f[1] for f in frames]).reshape(-1, 3)
-        self.area_b = np.array([f[2] for f in frames]).reshape(-1, 3)
-        self.area_normal = np.array([f[3] for f in frames]).reshape(-1, 3)
+        self.area_centre = np.array([f[0] for f in frames], np.float32).reshape(-1, 3)
+        self.area_a = np.array([f[1] for f in frames], np.float32).reshape(-1, 3)
+        self.area_b = np.array([f[2] for f in frames], np.float32).reshape(-1, 3)
+        self.area_normal = np.array([f[3] for f in frames], np.float32).reshape(-1, 3)
         self.area_size = np.array([light.area() for light in scene.area_lights]).reshape(-1)
         self.area_disk = np.array([light.shape == "disk" for light in scene.area_lights], bool)
         self.area_two_sided = np.array([light.two_sided for light in scene.area_lights], bool)
@@ -186,24 +186,27 @@ class LightSampler:
                basis: np.ndarray | None) -> LightSample:
         """One light sample per point (N, 3)."""
         n = len(point)
-        p = np.asarray(point, np.float64)
-        wi = np.zeros((n, 3))
-        distance = np.zeros(n)
-        rgb = np.zeros((n, 3))
+        p = np.asarray(point, np.float32)
+        wi = np.zeros((n, 3), np.float32)
+        distance = np.zeros(n, np.float32)
+        rgb = np.zeros((n, 3), np.float32)
         pdf = np.zeros(n)
         j = np.minimum(np.searchsorted(self.cdf, u_pick, side="right"), len(self.cdf) - 1)
         kind = self.kind[j]
         u1, u2 = np.asarray(u1, np.float64), np.asarray(u2, np.float64)
         rows = np.flatnonzero(kind == AREA)
         if len(rows):
+            rows = slice(None) if len(rows) == n else rows  # area lights alone: no gathers
             slot = self.area_slot[j[rows]]
             dx, dy = concentric_disk(u1[rows], u2[rows])
             disk = self.area_disk[slot]
-            x = np.where(disk, dx, 2.0 * u1[rows] - 1.0)[:, None]
-            y = np.where(disk, dy, 2.0 * u2[rows] - 1.0)[:, None]
-            q = self.area_centre[slot] + self.area_a[slot] * x + self.area_b[slot] * y
-            self._towards_surface(rows, p, q, self.area_normal[slot], self.area_two_sided[slot], self.area_size[slot],
-                                  self.area_radiance[slot], wi, distance, rgb, pdf)
+            x = np.where(disk, dx, 2.0 * u1[rows] - 1.0).astype(np.float32)[:, None]
+            y = np.where(disk, dy, 2.0 * u2[rows] - 1.0).astype(np.float32)[:, None]
+            q = (np.take(self.area_centre, slot, axis=0) + np.take(self.area_a, slot, axis=0) * x
+                 + np.take(self.area_b, slot, axis=0) * y)
+            self._towards_surface(rows, p, q, np.take(self.area_normal, slot, axis=0), self.area_two_sided[slot],
+                                  self.area_size[slot], np.take(self.area_radiance, slot, axis=0),
+                                  wi, distance, rgb, pdf)
         for i, emitter in self.emitters.items():
             rows = np.flatnonzero(j == i)
             if len(rows):
@@ -253,15 +256,15 @@ class LightSampler:
         pdf *= self.probability[j]
         delta = (kind == POINT) | (kind == SPOT) | (kind == DISTANT)
         valid = (pdf > 0) & np.any(rgb != 0, axis=1)
-        return LightSample(wi.astype(np.float32), distance.astype(np.float32), colour(rgb, basis), pdf, delta, valid)
+        return LightSample(wi, distance, colour(rgb, basis), pdf, delta, valid)
 
     @staticmethod
     def _towards_surface(rows, p, q, normal, two_sided, area, radiance, wi, distance, rgb, pdf) -> None:
-        to_light = q - p[rows]
-        d2 = np.einsum("ij,ij->i", to_light, to_light)
-        d = np.sqrt(np.maximum(d2, 1e-300))
+        to_light = np.asarray(q - p[rows], np.float32)
+        d2 = dot(to_light, to_light)
+        d = np.sqrt(np.maximum(d2, np.float32(1e-30)))
         w = to_light / d[:, None]
-        cos_q = -np.einsum("ij,ij->i", w, normal)
+        cos_q = -dot(w, np.asarray(normal, np.float32))
         cos_q = np.where(two_sided, np.abs(cos_q), cos_q)
         ok = (cos_q > 0) & (d2 > 0)
         wi[rows], distance[rows] = w, d
