@@ -43,10 +43,12 @@ def colour(rgb: np.ndarray, basis: np.ndarray | None) -> np.ndarray:
 
 @dataclass
 class LightSample:
-    """Per shading point: unit direction to the light, shadow-ray length along it, incident radiance
-    (N, C), density (solid angle, times the pick probability; the pick probability for deltas)."""
+    """Per shading point: unit direction to the light, the light's point (for shadow rays; unused for
+    distant and infinite lights), the distance to it (``FAR`` for those), incident radiance (N, C),
+    density (solid angle, times the pick probability; the pick probability for deltas)."""
 
     wi: np.ndarray
+    target: np.ndarray
     distance: np.ndarray
     radiance: np.ndarray
     pdf: np.ndarray
@@ -188,6 +190,7 @@ class LightSampler:
         n = len(point)
         p = np.asarray(point, np.float32)
         wi = np.zeros((n, 3), np.float32)
+        target = np.zeros((n, 3), np.float32)
         distance = np.zeros(n, np.float32)
         rgb = np.zeros((n, 3), np.float32)
         pdf = np.zeros(n)
@@ -204,6 +207,7 @@ class LightSampler:
             y = np.where(disk, dy, 2.0 * u2[rows] - 1.0).astype(np.float32)[:, None]
             q = (np.take(self.area_centre, slot, axis=0) + np.take(self.area_a, slot, axis=0) * x
                  + np.take(self.area_b, slot, axis=0) * y)
+            target[rows] = q
             self._towards_surface(rows, p, q, np.take(self.area_normal, slot, axis=0), self.area_two_sided[slot],
                                   self.area_size[slot], np.take(self.area_radiance, slot, axis=0),
                                   wi, distance, rgb, pdf)
@@ -217,6 +221,7 @@ class LightSampler:
                 r = np.sqrt(s)
                 b1, b2 = 1.0 - r, u2[rows] * r
                 q = emitter.origin[tri] + emitter.e1[tri] * b1[:, None] + emitter.e2[tri] * b2[:, None]
+                target[rows] = q
                 self._towards_surface(rows, p, q, emitter.normal[tri], np.full(len(rows), emitter.light.two_sided),
                                       np.full(len(rows), emitter.area),
                                       np.broadcast_to(np.asarray(emitter.light.radiance, np.float64), (len(rows), 3)),
@@ -224,6 +229,7 @@ class LightSampler:
         rows = np.flatnonzero((kind == POINT) | (kind == SPOT))
         if len(rows):
             jr = j[rows]
+            target[rows] = self.position[jr]
             to_light = self.position[jr] - p[rows]
             d2 = np.einsum("ij,ij->i", to_light, to_light)
             wi[rows] = to_light / np.sqrt(np.maximum(d2, 1e-300))[:, None]
@@ -256,7 +262,7 @@ class LightSampler:
         pdf *= self.probability[j]
         delta = (kind == POINT) | (kind == SPOT) | (kind == DISTANT)
         valid = (pdf > 0) & np.any(rgb != 0, axis=1)
-        return LightSample(wi, distance, colour(rgb, basis), pdf, delta, valid)
+        return LightSample(wi, target, distance, colour(rgb, basis), pdf, delta, valid)
 
     @staticmethod
     def _towards_surface(rows, p, q, normal, two_sided, area, radiance, wi, distance, rgb, pdf) -> None:

@@ -24,6 +24,7 @@ Random numbers: the first vertex's light sample k uses dimensions 4 + 3k .. 6 + 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from contextlib import nullcontext
 
 import numpy as np
@@ -38,7 +39,7 @@ from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.lights import EmissiveInstance
-from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Scene
+from realistic.scene.model import ImageTexture, Scene
 from realistic.scene.textures import evaluate
 
 BOUNCE_DIMENSION = 4 + 3 * MAX_LIGHT_SAMPLES
@@ -48,22 +49,33 @@ ROULETTE_AFTER = 3
 
 
 class SurfaceParameters:
-    """``HitParameters`` over a batch of hits: constants and textures at their uv (and footprints)."""
+    """``HitParameters`` over ``count`` hits: constants, and textures at their uv (image textures
+    filtered over their footprints). ``uv`` and ``footprint`` are functions called on the first
+    texture lookup that needs them (``footprint`` may return None: point-sampled), so untextured
+    materials cost neither."""
 
-    def __init__(self, uv: np.ndarray, footprint, basis: np.ndarray | None):
-        self.uv, self.footprint, self.basis = uv, footprint, basis
+    def __init__(self, count: int, uv: Callable[[], np.ndarray], footprint: Callable[[], object],
+                 basis: np.ndarray | None):
+        self.count, self.basis = count, basis
+        self._uv, self._footprint, self._cache = uv, footprint, {}
+
+    def _get(self, name: str):
+        if name not in self._cache:
+            self._cache[name] = (self._uv if name == "uv" else self._footprint)()
+        return self._cache[name]
 
     def colour(self, value: object) -> np.ndarray:
         if isinstance(value, tuple | list | np.ndarray | float | int):
-            rgb = np.broadcast_to(np.asarray(value, np.float32), (len(self.uv), 3))
+            rgb = np.broadcast_to(np.asarray(value, np.float32), (self.count, 3))
         else:
-            rgb = evaluate(value, self.uv, self.footprint if isinstance(value, ImageTexture) else None)
+            footprint = self._get("footprint") if isinstance(value, ImageTexture) else None
+            rgb = evaluate(value, self._get("uv"), footprint)
         return colour(rgb, self.basis)
 
     def scalar(self, value: object) -> np.ndarray:
         if isinstance(value, float | int):
-            return np.full(len(self.uv), value, np.float32)
-        return evaluate(value, self.uv, None).mean(axis=1).astype(np.float32)
+            return np.full(self.count, value, np.float32)
+        return evaluate(value, self._get("uv"), None).mean(axis=1).astype(np.float32)
 
 
 def power_heuristic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -226,14 +238,19 @@ class PathIntegrator(DirectLighting):
         for index in groups:
             # one material over every hit (the common case): slices, not gathers and scatters
             rows = slice(None) if len(groups) == 1 else np.flatnonzero(material_of == index)
-            footprint = None
             material = self._materials[index]
-            if depth == 0 and self.pixel_spread_radians > 0 and _has_image(material):
-                footprint = self._footprint(face[rows], geom[rows], ds[rows], ng[rows], t[rows])
             f, b = face[rows], bary[rows]
-            uv = (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
-                  + _rows(self._uv, f[:, 2]) * b[:, 2:]) if _has_texture(material) else np.zeros((len(f), 2))
-            params = SurfaceParameters(uv, footprint, None if sb is None else sb[rows])
+
+            def uv(f=f, b=b) -> np.ndarray:
+                return (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
+                        + _rows(self._uv, f[:, 2]) * b[:, 2:])
+
+            def footprint(rows=rows):  # camera rays only: deeper bounces have no pixel footprint here
+                if depth > 0 or self.pixel_spread_radians <= 0:
+                    return None
+                return self._footprint(face[rows], geom[rows], ds[rows], ng[rows], t[rows])
+
+            params = SurfaceParameters(len(f), uv, footprint, None if sb is None else sb[rows])
             bsdf = self.bsdf_factory(material, params)
             for k, (_, local) in enumerate(samples):
                 light_f[k][rows] = bsdf.evaluate(wo[rows], local[rows])
@@ -261,7 +278,7 @@ class PathIntegrator(DirectLighting):
             # toward a point: the vector from the offset start to it, traced to 1 - 1e-4 of its length
             # (as DirectLighting does, so the light's own surface never shadows it); else a far ray
             far = ls.distance[live] >= FAR
-            target = point[live] + ls.wi[live] * ls.distance[live, None]
+            target = ls.target[live]
             shadow["start"].append(start)
             shadow["vector"].append(np.where(far[:, None], ls.wi[live], target - start))
             shadow["length"].append(np.where(far, FAR, np.float32(1 - 1e-4)).astype(np.float32))
@@ -292,11 +309,3 @@ class PathIntegrator(DirectLighting):
                 "specular": is_specular[keep], "shade": shade[keep], "pdf": pdf[keep],
                 "point": point[keep].astype(np.float64),
                 "shadow": {key: np.concatenate(parts) if parts else None for key, parts in shadow.items()}}
-
-
-def _has_image(material) -> bool:
-    return any(isinstance(value, ImageTexture) for value in vars(material).values())
-
-
-def _has_texture(material) -> bool:
-    return any(isinstance(value, ImageTexture | GridTexture | CheckerTexture) for value in vars(material).values())
