@@ -350,5 +350,5 @@ def test_import_gives_a_scene_and_camera_or_a_user_error(text):
             assert mesh.faces.min() >= 0 and mesh.faces.max() < len(mesh.vertices)
             assert mesh.uv is None or mesh.uv.shape == (len(mesh.vertices), 2)
             assert mesh.normals is None or np.allclose(np.linalg.norm(mesh.normals, axis=1), 1)
-        for light in scene.lights:
+        for light in scene.area_lights:
             assert light.area() > 0 and np.all(np.isfinite(light.frame()[3]))

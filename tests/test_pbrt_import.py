@@ -31,7 +31,7 @@ def test_materials_textures_and_unsupported_reports(tmp_path):
                  'Material "matte" "texture Kd" "s"\nShape "sphere"\n'
                  'Material "velvet"\nShape "sphere"\n'
                  'Material "plastic" "rgb Kd" [.1 .2 .3]\nShape "sphere"\n'
-                 'LightSource "point" "rgb I" [1 1 1]\n')
+                 'LightSource "goniometric" "rgb I" [1 1 1]\n')
     imported = import_pbrt(path)
     a, b, c = (inst.material for inst in imported.scene.instances)
     assert isinstance(a.texture, CheckerTexture) and a.texture.cells == 4
@@ -40,7 +40,7 @@ def test_materials_textures_and_unsupported_reports(tmp_path):
     assert c.diffuse == pytest.approx((0.1, 0.2, 0.3)) and c.specular == (0.25, 0.25, 0.25)  # plastic
     text = "\n".join(imported.warnings)
     assert f'{path}:8: unsupported: Material "velvet", rendered as matte grey' in text
-    assert 'LightSource "point"' in text
+    assert 'LightSource "goniometric" is not supported' in text
 
 
 def test_shapes_instances_and_area_light(tmp_path):

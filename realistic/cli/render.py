@@ -118,6 +118,7 @@ def cmd_render(args: argparse.Namespace) -> int:
                            progress=True, max_memory_bytes=args.max_memory)
     metadata = {**camera.metadata(), **inputs.metadata,
                 "spp": int(camera.spp), "seed": int(args.seed), "lightSamples": int(inputs.light_samples),
+                "integrator": inputs.scene.integrator, "maxDepth": int(inputs.scene.max_depth),
                 "backend": args.backend, "renderSeconds": float(result.seconds),
                 "exitPupilSeconds": float(result.stage_seconds.get("exit pupil", 0.0)),
                 "samplesDone": int(result.samples_done), "samplesTotal": int(result.samples_total),

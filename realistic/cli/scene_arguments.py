@@ -70,6 +70,12 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--light-samples", type=checked(int, validation.light_samples), metavar="N",
                         help=f"light samples per hit, 1 to {validation.MAX_LIGHT_SAMPLES} "
                              "(default: the scene's, else 1)")
+    parser.add_argument("--integrator", choices=("directlighting", "path"),
+                        help="directlighting (light and BSDF samples combined by MIS; specular bounces followed) "
+                             "or path (path tracing with next-event estimation, MIS and Russian roulette) "
+                             "(default: the pbrt scene's Integrator, else directlighting)")
+    parser.add_argument("--maxdepth", type=checked(int, validation.max_depth), metavar="N",
+                        help=f"bounces of a path, 0 to {validation.MAX_DEPTH} (default: the scene's, else 5)")
     parser.add_argument("--pbrt-dialect", choices=DIALECTS, default="auto",
                         help="pbrt scenes: read with this pbrt version's conventions (texture orientation); auto "
                              "decides from the directives and parameters the file uses (default: %(default)s)")
@@ -98,7 +104,8 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
         camera_position=parse_vector(args.camera_pos, "camera position") if args.camera_pos else None,
         target=parse_vector(args.target, "target") if args.target else None,
         resolution=parse_resolution(args.res) if args.res else None, film_diagonal_mm=args.film_diagonal,
-        spp=spp, light_samples=args.light_samples, lens_sampling=args.lens_sampling,
+        spp=spp, light_samples=args.light_samples, integrator=args.integrator, max_depth=args.maxdepth,
+        lens_sampling=args.lens_sampling,
         dispersion=None if args.dispersion is None else args.dispersion == "on",
         search_paths=[Path(p) for p in args.search_path], pbrt_dialect=args.pbrt_dialect,
         pixel_filter=args.filter)

@@ -2,6 +2,7 @@
 
 - ``rng``: counter-based random numbers, bit-identical in numpy and ``kernels/lens.cl``.
 - ``warp``: maps from the unit square (the concentric disk).
+- ``distribution``: a 2-D piecewise-constant distribution (environment-map importance sampling).
 - ``pixel_filter``: pbrt's pixel filters, their integrals and the film offsets sampled from them.
 - ``vectors``: row-wise dot products and normalisation of (N, 3) batches.
 - ``transforms``: 4x4 matrices (translate, scale, rotate, look-at) and applying them to points.

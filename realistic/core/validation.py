@@ -76,6 +76,14 @@ def light_samples(count: int) -> int:
     return _in_range(_integer(count, "light samples"), "light samples", 1, MAX_LIGHT_SAMPLES)
 
 
+#: Deepest path (bounces) an integrator may be asked for; beyond a few hundred nothing changes in float32.
+MAX_DEPTH = 1000
+
+
+def max_depth(depth: int) -> int:
+    return _in_range(_integer(depth, "maximum path depth"), "maximum path depth", 0, MAX_DEPTH)
+
+
 def blades(count: int) -> int:
     return _in_range(_integer(count, "blade count"), "blade count", MIN_BLADES, MAX_BLADES)
 

@@ -2,7 +2,10 @@
 
 - ``inputs``: ``RenderOptions`` (typed) to a ``Scene`` with its camera, for the CLI and the API.
 - ``passes``: ``render`` and ``render_passes``: sample-id passes on worker threads.
-- ``integrator``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces).
+- ``integrators``: which integrator a scene asks for (``make_integrator``).
+- ``integrator``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces): the fast path.
+- ``path``: MIS direct lighting and path tracing over any BSDF and light, one embree batch per bounce.
+- ``light_sampler``: every light picked by power, sampled, with densities for MIS.
 - ``footprint``: a camera ray's pixel footprint on a surface, as two uv axes for texture filtering.
 - ``film``: per-pixel accumulation of pass sums.
 - ``timing``: per-stage thread-seconds.

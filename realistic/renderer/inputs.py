@@ -26,6 +26,7 @@ from realistic.optics.formats import load_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import stop_diameter_for_f_number
 from realistic.optics.stop_shape import bladed_stop, mask_stop
+from realistic.renderer.integrators import INTEGRATORS
 from realistic.scene.intersect import Intersector
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import Scene
@@ -68,6 +69,8 @@ class RenderOptions:
     film_diagonal_mm: float | None = None
     spp: int | None = None
     light_samples: int | None = None
+    integrator: str | None = None  # "directlighting" or "path" (realistic.renderer.integrators)
+    max_depth: int | None = None
     lens_sampling: str = "pupil"
     dispersion: bool | None = None  # None: off for pbrt and the default scene, else on when the lens has Abbe numbers
     pbrt_dialect: str = "auto"  # pbrt scenes: which pbrt's conventions (realistic.scene.pbrt.dialect)
@@ -80,6 +83,10 @@ class RenderOptions:
             validation.samples_per_pixel(self.spp)
         if self.light_samples is not None:
             validation.light_samples(self.light_samples)
+        if self.integrator is not None and self.integrator not in INTEGRATORS:
+            raise UserError(f"unknown integrator {self.integrator!r} (choose {', '.join(INTEGRATORS)})")
+        if self.max_depth is not None:
+            validation.max_depth(self.max_depth)
         if self.resolution is not None:
             validation.resolution(*self.resolution)
         if self.film_diagonal_mm is not None:
@@ -154,6 +161,10 @@ def build_render_inputs(options: RenderOptions) -> RenderInputs:
     scene = inputs.scene
     if options.light_samples is not None:
         scene.light_samples = options.light_samples
+    if options.integrator is not None:
+        scene.integrator = options.integrator
+    if options.max_depth is not None:
+        scene.max_depth = options.max_depth
     if options.focus_on is not None:
         x, y = options.focus_on
         scene.camera = scene.camera.autofocused(x, y, Intersector(scene).hit_distance)

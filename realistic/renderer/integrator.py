@@ -87,15 +87,16 @@ class DirectLighting:
         self._geom_material = np.array([material_index[id(inst.material)] for inst in scene.instances], np.int64)
 
     def _build_lights(self, scene: Scene) -> None:
-        frames = [light.frame() for light in scene.lights]
+        lights = scene.area_lights
+        frames = [light.frame() for light in lights]
         self._light_centre = np.array([f[0] for f in frames], np.float32).reshape(-1, 3)
         self._light_a = np.array([f[1] for f in frames], np.float32).reshape(-1, 3)
         self._light_b = np.array([f[2] for f in frames], np.float32).reshape(-1, 3)
         self._light_normal = np.array([f[3] for f in frames], np.float32).reshape(-1, 3)
-        self._light_disk = np.array([light.shape == "disk" for light in scene.lights], bool)
-        self._light_two_sided = np.array([light.two_sided for light in scene.lights], bool)
-        self._light_area = np.array([light.area() for light in scene.lights], np.float64)
-        self._light_radiance = np.array([light.radiance for light in scene.lights], np.float32).reshape(-1, 3)
+        self._light_disk = np.array([light.shape == "disk" for light in lights], bool)
+        self._light_two_sided = np.array([light.two_sided for light in lights], bool)
+        self._light_area = np.array([light.area() for light in lights], np.float64)
+        self._light_radiance = np.array([light.radiance for light in lights], np.float32).reshape(-1, 3)
         sides = np.where(self._light_two_sided, 2.0, 1.0)
         power = self._light_area * sides * self._light_radiance.astype(np.float64).mean(axis=1)
         self._light_probability = power / power.sum() if power.sum() > 0 else power

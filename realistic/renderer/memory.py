@@ -27,7 +27,7 @@ def estimate_peak_bytes(scene: Scene, camera: Camera, pass_samples: int, threads
     """Bytes a render of ``scene`` through ``camera`` holds at its peak."""
     pixels = camera.width * camera.height
     in_flight = min(pass_samples, camera.sample_count) * max(1, threads)
-    triangles = sum(len(scene.meshes[inst.mesh].faces) for inst in scene.instances) + 256 * len(scene.lights)
+    triangles = sum(len(scene.meshes[inst.mesh].faces) for inst in scene.instances) + 256 * len(scene.area_lights)
     return (BASE_BYTES + FILM_BYTES_PER_PIXEL * pixels + PASS_BYTES_PER_SAMPLE * in_flight
             + SCENE_BYTES_PER_TRIANGLE * triangles)
 

@@ -24,7 +24,7 @@ from realistic.core import validation
 from realistic.core.spectrum import rgb_response
 from realistic.errors import UserError
 from realistic.renderer.film import Film, pass_sums
-from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.integrators import make_integrator
 from realistic.renderer.memory import check_memory
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
@@ -75,8 +75,8 @@ class _PassRunner:
                  light_samples: int, morton: bool, clock: StageClock):
         self.camera, self.morton, self.clock = camera, morton, clock
         self.generate = camera.ray_generator(backend, seed, cl_device)
-        self.integrator = DirectLighting(scene, Intersector(scene), light_samples, seed,
-                                         camera.pixel_spread_radians())
+        self.integrator = make_integrator(scene, Intersector(scene), light_samples, seed,
+                                          camera.pixel_spread_radians())
 
     def __call__(self, first: int, count: int) -> _PassResult:
         spp = self.camera.spp

@@ -1,9 +1,10 @@
 """Ray-scene intersection with embreex: the embree scene is built once per render.
 
-Geometry ids: instance i of ``Scene.instances`` is geometry i; area light j is geometry
-``len(instances) + j``. embreex has no instancing, so each instance's triangles are transformed
-to world space here (the scene model still stores each mesh once). ``run()`` releases the GIL,
-so several threads may trace batches at once after the BVH is built (done in the constructor).
+Geometry ids: instance i of ``Scene.instances`` is geometry i; area light j (of
+``Scene.area_lights``) is geometry ``len(instances) + j``. embreex has no instancing, so each
+instance's triangles are transformed to world space here (the scene model still stores each
+mesh once). ``run()`` releases the GIL, so several threads may trace batches at once after the
+BVH is built (done in the constructor).
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ class Intersector:
         for index, inst in enumerate(scene.instances):
             mesh = scene.meshes[inst.mesh]
             self._add(transform_points(inst.transform, mesh.vertices), mesh.faces, f"instance {index} ({mesh.name})")
-        for index, light in enumerate(scene.lights):
+        for index, light in enumerate(scene.area_lights):
             mesh = light_mesh(light)
             self._add(transform_points(light.transform, mesh.vertices), mesh.faces, f"area light {index}")
         lo, hi = _bounds(scene)
@@ -86,7 +87,7 @@ def _f32(a: np.ndarray) -> np.ndarray:
 
 def _bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     lo, hi = scene.bounds()
-    for light in scene.lights:
+    for light in scene.area_lights:
         c, a, b, _ = light.frame()
         corners = c + np.array([a + b, a - b, -a + b, -a - b])
         lo, hi = np.minimum(lo, corners.min(axis=0)), np.maximum(hi, corners.max(axis=0))

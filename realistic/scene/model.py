@@ -159,18 +159,26 @@ class AreaLight:
 
 @dataclass(eq=False)
 class Scene:
-    """Meshes (each stored once), their instances, area lights and the background colour.
+    """Meshes (each stored once), their instances, lights and the background colour.
 
-    The background is what camera rays that hit nothing see; it does not light the scene.
+    The background is what camera rays that hit nothing see when the scene has no infinite light;
+    it does not light the scene.
     ``realistic.render`` renders through ``camera`` when it is given none.
     """
 
     meshes: list[Mesh] = field(default_factory=list)
     instances: list[Instance] = field(default_factory=list)
-    lights: list[AreaLight] = field(default_factory=list)
+    lights: list = field(default_factory=list)  # AreaLight or any light of ``realistic.scene.lights``
     background: RGB = (0.0, 0.0, 0.0)
     camera: Camera | None = None  # the scene's own view: a pbrt file's camera, a loaded mesh's framing
     light_samples: int = 1  # light samples per hit the scene asks for
+    integrator: str = "directlighting"  # "directlighting" or "path" (``realistic.renderer.integrators``)
+    max_depth: int = 5  # bounces of "path"; specular bounces of "directlighting" (pbrt's maxdepth)
+
+    @property
+    def area_lights(self) -> list[AreaLight]:
+        """The area lights among ``lights``, in order: embree geometry ``len(instances) + j`` is the j-th."""
+        return [light for light in self.lights if isinstance(light, AreaLight)]
 
     def add_mesh(self, mesh: Mesh) -> int:
         """Store a mesh once; returns its index for ``Instance.mesh``."""

@@ -35,6 +35,23 @@ The pixel filter (``PixelFilter``; the maths in ``realistic.core.pixel_filter``)
   sinc(tau x / r) sinc(x / r); pbrt-v3/v4 in pixels, sinc(x) sinc(x / tau) (``WindowedSinc``).
   pbrt names it ``sinc`` in every version; ``lanczos`` is accepted as another name for it.
 
+Lights (``LightConventions``; the mapping in ``realistic.scene.pbrt.lights``): pbrt-v1/v2/v3 scale
+a light by ``spectrum scale`` (default 1; pbrt-v2 ``src/lights/point.cpp``, pbrt-v3
+``src/lights/spot.cpp``: I * sc), fall a spot light off as delta^4 between the cone angles
+(pbrt-v3 ``SpotLight::Falloff``) and read an infinite light's lat-long map from ``mapname``
+(pbrt-v3 ``src/lights/infinite.cpp``). pbrt-v4 (``src/pbrt/lights.cpp``) has ``float scale``,
+normalises point and spot lights to ``power`` (k_e = 4 pi, and 2 pi ((1 - cos_start) + (cos_start -
+cos_end) / 2)) and distant and infinite lights to ``illuminance`` (k_e = pi for a constant light;
+the map's upper-hemisphere illuminance for an image), uses smoothstep between the cone angles and
+reads an equal-area map from ``filename``. RGB values render as given in every version (pbrt-v4
+divides an RGB illuminant by its illuminant's luminance, which cancels).
+
+Integrators: the scene's ``Integrator`` (v3/v4) or ``SurfaceIntegrator`` (v1/v2) with ``integer
+maxdepth`` (default 5 in every version). A file with none renders with direct lighting, as
+pbrt-v1/v2 did by default (pbrt-v2 ``src/core/api.cpp``: SurfIntegratorName "directlighting"), also
+for v3/v4 files whose pbrt would path-trace: the renderer's own scenes keep their images and cost,
+and ``--integrator path`` asks for the rest.
+
 ``auto`` decides from what the file uses: v4-only directives (``ColorSpace``, ``Option``,
 ``Attribute``, ``Import``), ``Film "rgb"`` or the realistic camera's ``aperture`` mean v4; the
 classic homework camera (``specfile``, ``filmdistance``, ``filmdiag``, ``aperture_diameter``) or
@@ -133,6 +150,21 @@ class ImagemapConventions:
     scale: float = 1.0
 
 
+@dataclass(frozen=True)
+class LightConventions:
+    """How one pbrt version scales lights, falls spot lights off and maps environment images."""
+
+    scale_is_spectrum: bool  # "spectrum scale" (v1-v3) or "float scale" (v4)
+    photometric: bool  # v4's "power" and "illuminance"
+    spot_falloff: str  # "quartic" (v1-v3) or "smoothstep" (v4)
+    map_parameter: str  # "mapname" (v1-v3) or "filename" (v4)
+    mapping: str  # "latlong" (v1-v3) or "equal-area" (v4)
+
+
+CLASSIC_LIGHTS = LightConventions(True, False, "quartic", "mapname", "latlong")
+PBRT4_LIGHTS = LightConventions(False, True, "smoothstep", "filename", "equal-area")
+
+
 _IMAGEMAP = {"v1": ImagemapConventions("trilinear", "ewa", "gamma exponent"),
              "v2": ImagemapConventions("trilinear", "ewa", "gamma exponent"),
              "v3": ImagemapConventions("trilinear", "ewa", "gamma sRGB"),
@@ -166,6 +198,11 @@ class Dialect:
     def imagemap(self) -> ImagemapConventions:
         """The imagemap texture's parameter names and defaults in this version."""
         return _IMAGEMAP[self.name]
+
+    @property
+    def lights(self) -> LightConventions:
+        """The light parameters' conventions in this version."""
+        return PBRT4_LIGHTS if self.is_v4 else CLASSIC_LIGHTS
 
     @property
     def is_v4(self) -> bool:

@@ -45,6 +45,7 @@ from realistic.scene.pbrt.dialect import (
 )
 from realistic.scene.pbrt.imagemap import imagemap_texture
 from realistic.scene.pbrt.lexer import PbrtSyntaxError
+from realistic.scene.pbrt.lights import import_integrator, import_lights
 from realistic.scene.pbrt.materials import build_material
 from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.scene.shapes import cone, disk, sphere
@@ -419,8 +420,8 @@ class _Importer:
         for name, world, _ in self.parsed.instances:
             for shape in self.parsed.objects[name]:
                 self.add_shape(shape, world)
-        for light in self.parsed.lights:
-            self.warn(light.where, f'LightSource "{light.type}" (not lit; only area lights are)')
+        self.scene.lights.extend(import_lights(self.parsed, self.dialect, self.find))
+        self.scene.integrator, self.scene.max_depth = import_integrator(self.parsed)
         return self.scene
 
 

@@ -125,6 +125,7 @@ class PbrtScene:
     sampler: Directive | None = None
     camera: Directive | None = None
     pixel_filter: Directive | None = None
+    integrator: Directive | None = None  # Integrator (v3/v4) or SurfaceIntegrator (v1/v2)
     shapes: list[ShapeRecord] = field(default_factory=list)
     objects: dict[str, list[ShapeRecord]] = field(default_factory=dict)
     instances: list[tuple[str, np.ndarray, str]] = field(default_factory=list)
@@ -489,8 +490,11 @@ class _Parser:
         self.params()
         self.scene.warn(token.where(), f'{token.text} "{kind}" (ignored)')
 
-    d_SurfaceIntegrator = d_VolumeIntegrator = d_Integrator = d_Accelerator = _ignored
-    d_Renderer = _ignored
+    def d_Integrator(self, token: Token) -> None:
+        self.scene.integrator = self._directive(token)
+
+    d_SurfaceIntegrator = d_Integrator
+    d_VolumeIntegrator = d_Accelerator = d_Renderer = _ignored
 
     # ---- pbrt-v4 (src/pbrt/parser.cpp for the grammar, src/pbrt/scene.cpp for the meaning) --------
     def d_Attribute(self, token: Token) -> None:

@@ -1,0 +1,47 @@
+"""Which integrator renders a scene: ``Scene.integrator`` ("directlighting" or "path") and its depth.
+
+Lambertian surfaces lit by area lights alone under "directlighting" keep ``DirectLighting``, the
+light-sampling fast path whose images the homework scenes have always had (with only diffuse BSDFs
+and area lights MIS adds cost and no accuracy worth it); everything else goes through
+``PathIntegrator`` (MIS direct lighting, or path tracing).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from realistic.renderer.bsdf import Lambertian, bsdf_for
+from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.path import PathIntegrator
+from realistic.scene.intersect import Intersector
+from realistic.scene.model import AreaLight, Scene
+
+INTEGRATORS = ("directlighting", "path")
+
+
+class _NoHits:
+    """Parameters at no hits: enough for ``bsdf_for`` to tell which BSDF a material makes."""
+
+    def colour(self, value: object) -> np.ndarray:
+        return np.zeros((0, 3), np.float32)
+
+    def scalar(self, value: object) -> np.ndarray:
+        return np.zeros(0, np.float32)
+
+
+def is_lambertian(scene: Scene) -> bool:
+    """Whether every instance's material makes a Lambertian BSDF."""
+    materials = {id(inst.material): inst.material for inst in scene.instances}
+    return all(isinstance(bsdf_for(material, _NoHits()), Lambertian) for material in materials.values())
+
+
+def make_integrator(scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
+                    pixel_spread_radians: float = 0.0) -> DirectLighting:
+    """The integrator ``scene.integrator`` names, at ``scene.max_depth``."""
+    if scene.integrator not in INTEGRATORS:
+        raise ValueError(f"unknown integrator {scene.integrator!r} (choose {', '.join(INTEGRATORS)})")
+    if scene.integrator == "directlighting" and all(isinstance(light, AreaLight) for light in scene.lights) \
+            and is_lambertian(scene):
+        return DirectLighting(scene, intersector, light_samples, seed, pixel_spread_radians)
+    mode = "direct" if scene.integrator == "directlighting" else "path"
+    return PathIntegrator(scene, intersector, light_samples, seed, pixel_spread_radians, scene.max_depth, mode)

@@ -1,0 +1,327 @@
+"""Every light of a scene behind one batched interface: pick by power, sample, and give densities.
+
+``sample`` picks light j with probability P_j proportional to its power (pbrt's
+``PowerLightSampler``; powers as pbrt-v3's ``Light::Power``) and one point or direction on it;
+densities are per unit solid angle at the shading point and include P_j. Area lights and emitting
+instances are sampled uniformly by area (solid-angle pdf d^2 / (cos_q A)); point, spot and distant
+lights are deltas (``delta`` True, pdf = P_j); an infinite light with a map is importance sampled
+by a ``Distribution2D`` over its texels' luminance (times sin(theta) for a lat-long map, whose
+texels shrink toward the poles), without one uniformly over the sphere. ``pdf_area``, ``pdf_instance``
+and ``pdf_environment`` give the same densities for directions that BSDF sampling found, for MIS.
+
+Colours come back as (N, C): C = 3 for RGB rays, C = 1 spectral values at each ray's wavelength
+(``basis``: the rows of ``realistic.core.spectrum.rgb_basis`` of those rays).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from realistic.core.distribution import Distribution2D
+from realistic.core.spectrum import spectral_value
+from realistic.core.transforms import transform_points
+from realistic.core.vectors import dot
+from realistic.core.warp import concentric_disk
+from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, SpotLight
+from realistic.scene.model import AreaLight, Scene
+
+AREA, POINT, SPOT, DISTANT, INFINITE, INSTANCE = range(6)
+#: Luminance weights of linear sRGB (Rec. 709), for the environment maps' sampling densities.
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+#: Shadow-ray length toward distant and infinite lights (beyond any scene embree holds in float32).
+FAR = np.float32(1e30)
+
+
+def colour(rgb: np.ndarray, basis: np.ndarray | None) -> np.ndarray:
+    """RGB rows (N, 3) as they are, or their spectral values (N, 1) at the rays' basis rows."""
+    rgb = np.asarray(rgb, np.float32)
+    return rgb if basis is None else spectral_value(rgb, basis)[:, None]
+
+
+@dataclass
+class LightSample:
+    """Per shading point: unit direction to the light, the light's point (for shadow rays; unused for
+    distant and infinite lights), the distance to it (``FAR`` for those), incident radiance (N, C),
+    density (solid angle, times the pick probability; the pick probability for deltas)."""
+
+    wi: np.ndarray
+    target: np.ndarray
+    distance: np.ndarray
+    radiance: np.ndarray
+    pdf: np.ndarray
+    delta: np.ndarray
+    valid: np.ndarray
+
+
+class _Environment:
+    """One infinite light's sampling tables."""
+
+    def __init__(self, light: InfiniteLight):
+        self.light = light
+        self.rgb = np.asarray(light.radiance, np.float64)
+        if light.image is None:
+            self.distribution = None
+            return
+        lum = np.maximum(np.asarray(light.image, np.float64) @ LUMINANCE, 0.0)
+        if light.mapping == "latlong":
+            rows = lum.shape[0]
+            lum = lum * np.sin((np.arange(rows) + 0.5) / rows * math.pi)[:, None]
+        self.distribution = Distribution2D(lum)
+
+    def radiance(self, direction: np.ndarray) -> np.ndarray:
+        """RGB radiance (N, 3) arriving from world directions (N, 3)."""
+        if self.light.image is None:
+            return np.broadcast_to(self.rgb, (len(direction), 3))
+        return self.light.texels(self.light.to_uv(direction)) * self.rgb
+
+    def jacobian(self, uv: np.ndarray) -> np.ndarray:
+        """d(uv) / d(solid angle) of the mapping at uv."""
+        if self.light.mapping == "equal-area":
+            return np.full(len(uv), 1.0 / (4 * math.pi))
+        sin_theta = np.sin(uv[:, 1] * math.pi)
+        with np.errstate(divide="ignore"):
+            return np.where(sin_theta > 0, 1.0 / (2 * math.pi * math.pi * sin_theta), 0.0)
+
+    def sample(self, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World directions (N, 3) and their solid-angle densities (N,)."""
+        if self.distribution is None:
+            z = 1.0 - 2.0 * u1.astype(np.float64)
+            r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+            phi = 2 * math.pi * u2
+            return np.column_stack([r * np.cos(phi), r * np.sin(phi), z]), np.full(len(u1), 1.0 / (4 * math.pi))
+        uv, density = self.distribution.sample(u1, u2)
+        return self.light.to_world(uv), density * self.jacobian(uv)
+
+    def pdf(self, direction: np.ndarray) -> np.ndarray:
+        if self.distribution is None:
+            return np.full(len(direction), 1.0 / (4 * math.pi))
+        uv = self.light.to_uv(direction)
+        return self.distribution.pdf(uv) * self.jacobian(uv)
+
+
+class _Emitter:
+    """An emitting instance's world triangles and their area CDF."""
+
+    def __init__(self, light: EmissiveInstance, scene: Scene):
+        inst = scene.instances[light.instance]
+        mesh = scene.meshes[inst.mesh]
+        corners = transform_points(inst.transform, mesh.vertices)[mesh.faces]
+        self.origin, self.e1, self.e2 = corners[:, 0], corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+        cross = np.cross(self.e1, self.e2)
+        area = np.linalg.norm(cross, axis=1)
+        self.normal = cross / np.maximum(area, 1e-300)[:, None]
+        self.area = float(area.sum() / 2)
+        self.cdf = np.cumsum(area) / area.sum()
+        self.light = light
+
+
+class LightSampler:
+    """All of a scene's lights, picked by power."""
+
+    def __init__(self, scene: Scene, extent: float):
+        self.lights = list(scene.lights)
+        self.background = np.asarray(scene.background, np.float32)
+        radius = max(extent, 1e-6) * math.sqrt(3) / 2  # the scene box's bounding sphere
+        area_index = {id(light): j for j, light in enumerate(scene.area_lights)}
+        self.kind = np.zeros(len(self.lights), np.int64)
+        power = np.zeros(len(self.lights))
+        self.area_slot = np.full(len(self.lights), -1)  # light index -> index among the area lights
+        self.environments: dict[int, _Environment] = {}
+        self.emitters: dict[int, _Emitter] = {}
+        self.instance_light: dict[int, int] = {}  # emitting instance -> light index
+        for i, light in enumerate(self.lights):
+            if isinstance(light, AreaLight):
+                self.kind[i], self.area_slot[i] = AREA, area_index[id(light)]
+                power[i] = math.pi * light.area() * (2 if light.two_sided else 1) * float(np.mean(light.radiance))
+            elif isinstance(light, EmissiveInstance):
+                self.kind[i] = INSTANCE
+                self.emitters[i] = _Emitter(light, scene)
+                self.instance_light[light.instance] = i
+                power[i] = light.power(self.emitters[i].area)
+            else:
+                self.kind[i] = {PointLight: POINT, SpotLight: SPOT, DistantLight: DISTANT,
+                                InfiniteLight: INFINITE}[type(light)]
+                power[i] = light.power(radius)
+                if isinstance(light, InfiniteLight):
+                    self.environments[i] = _Environment(light)
+        power = np.where(np.isfinite(power) & (power > 0), power, 0.0)
+        self.probability = power / power.sum() if power.sum() > 0 else power
+        self.cdf = np.cumsum(self.probability)
+        self.has_lights = bool(len(self.lights)) and power.sum() > 0
+        # whether a ray can reach emission (an area light, an emitting instance, the sky)
+        self.hittable = bool(np.any((power > 0) & np.isin(self.kind, (AREA, INSTANCE, INFINITE))))
+        # per light arrays (zeros where not that kind)
+        n = len(self.lights)
+        self.position = np.zeros((n, 3))
+        self.intensity = np.zeros((n, 3))
+        self.to_light_frame = np.tile(np.eye(3), (n, 1, 1))
+        for i, light in enumerate(self.lights):
+            if isinstance(light, PointLight | SpotLight):
+                self.position[i] = light.position
+                self.intensity[i] = light.intensity
+            if isinstance(light, SpotLight):
+                self.to_light_frame[i] = np.linalg.inv(np.asarray(light.light_to_world, np.float64)[:3, :3])
+            if isinstance(light, DistantLight):
+                d = np.asarray(light.direction, np.float64)
+                self.position[i] = d / np.linalg.norm(d)
+                self.intensity[i] = light.radiance
+        frames = [light.frame() for light in scene.area_lights]
+        self.area_centre = np.array([f[0] for f in frames], np.float32).reshape(-1, 3)
+        self.area_a = np.array([f[1] for f in frames], np.float32).reshape(-1, 3)
+        self.area_b = np.array([f[2] for f in frames], np.float32).reshape(-1, 3)
+        self.area_normal = np.array([f[3] for f in frames], np.float32).reshape(-1, 3)
+        self.area_size = np.array([light.area() for light in scene.area_lights]).reshape(-1)
+        self.area_disk = np.array([light.shape == "disk" for light in scene.area_lights], bool)
+        self.area_two_sided = np.array([light.two_sided for light in scene.area_lights], bool)
+        self.area_radiance = np.array([light.radiance for light in scene.area_lights], np.float32).reshape(-1, 3)
+        slot_light = np.full(len(frames), -1)
+        for i, slot in enumerate(self.area_slot):
+            if slot >= 0:
+                slot_light[slot] = i
+        self.area_probability = self.probability[slot_light] if len(frames) else np.zeros(0)
+
+    # ---- sampling ------------------------------------------------------------------------------
+    def sample(self, point: np.ndarray, u_pick: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+               basis: np.ndarray | None) -> LightSample:
+        """One light sample per point (N, 3)."""
+        n = len(point)
+        p = np.asarray(point, np.float32)
+        wi = np.zeros((n, 3), np.float32)
+        target = np.zeros((n, 3), np.float32)
+        distance = np.zeros(n, np.float32)
+        rgb = np.zeros((n, 3), np.float32)
+        pdf = np.zeros(n)
+        j = np.minimum(np.searchsorted(self.cdf, u_pick, side="right"), len(self.cdf) - 1)
+        kind = self.kind[j]
+        u1, u2 = np.asarray(u1, np.float64), np.asarray(u2, np.float64)
+        rows = np.flatnonzero(kind == AREA)
+        if len(rows):
+            rows = slice(None) if len(rows) == n else rows  # area lights alone: no gathers
+            slot = self.area_slot[j[rows]]
+            dx, dy = concentric_disk(u1[rows], u2[rows])
+            disk = self.area_disk[slot]
+            x = np.where(disk, dx, 2.0 * u1[rows] - 1.0).astype(np.float32)[:, None]
+            y = np.where(disk, dy, 2.0 * u2[rows] - 1.0).astype(np.float32)[:, None]
+            q = (np.take(self.area_centre, slot, axis=0) + np.take(self.area_a, slot, axis=0) * x
+                 + np.take(self.area_b, slot, axis=0) * y)
+            target[rows] = q
+            self._towards_surface(rows, p, q, np.take(self.area_normal, slot, axis=0), self.area_two_sided[slot],
+                                  self.area_size[slot], np.take(self.area_radiance, slot, axis=0),
+                                  wi, distance, rgb, pdf)
+        for i, emitter in self.emitters.items():
+            rows = np.flatnonzero(j == i)
+            if len(rows):
+                # reuse u1 for the triangle (rescaled within its CDF step) and (u1', u2) inside it
+                tri = np.minimum(np.searchsorted(emitter.cdf, u1[rows], side="right"), len(emitter.cdf) - 1)
+                lo = np.where(tri > 0, emitter.cdf[tri - 1], 0.0)
+                s = np.clip((u1[rows] - lo) / np.maximum(emitter.cdf[tri] - lo, 1e-300), 0.0, 1.0)
+                r = np.sqrt(s)
+                b1, b2 = 1.0 - r, u2[rows] * r
+                q = emitter.origin[tri] + emitter.e1[tri] * b1[:, None] + emitter.e2[tri] * b2[:, None]
+                target[rows] = q
+                self._towards_surface(rows, p, q, emitter.normal[tri], np.full(len(rows), emitter.light.two_sided),
+                                      np.full(len(rows), emitter.area),
+                                      np.broadcast_to(np.asarray(emitter.light.radiance, np.float64), (len(rows), 3)),
+                                      wi, distance, rgb, pdf)
+        rows = np.flatnonzero((kind == POINT) | (kind == SPOT))
+        if len(rows):
+            jr = j[rows]
+            target[rows] = self.position[jr]
+            to_light = self.position[jr] - p[rows]
+            d2 = np.einsum("ij,ij->i", to_light, to_light)
+            wi[rows] = to_light / np.sqrt(np.maximum(d2, 1e-300))[:, None]
+            distance[rows] = np.sqrt(d2)
+            scale = 1.0 / np.maximum(d2, 1e-300)
+            spot = kind[rows] == SPOT
+            if np.any(spot):
+                local = np.einsum("nij,nj->ni", self.to_light_frame[jr[spot]], -wi[rows[spot]])
+                cos = local[:, 2] / np.maximum(np.linalg.norm(local, axis=1), 1e-300)
+                falloff = np.zeros(len(cos))
+                for i in np.unique(jr[spot]):
+                    mine = jr[spot] == i
+                    falloff[mine] = self.lights[i].falloff(cos[mine])
+                scale[spot] *= falloff
+            rgb[rows] = self.intensity[jr] * scale[:, None]
+            pdf[rows] = 1.0
+        rows = np.flatnonzero(kind == DISTANT)
+        if len(rows):
+            wi[rows] = self.position[j[rows]]
+            distance[rows] = FAR
+            rgb[rows] = self.intensity[j[rows]]
+            pdf[rows] = 1.0
+        for i, env in self.environments.items():
+            rows = np.flatnonzero(j == i)
+            if len(rows):
+                w, density = env.sample(u1[rows], u2[rows])
+                wi[rows], distance[rows], pdf[rows] = w, FAR, density
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    rgb[rows] = np.where(density[:, None] > 0, env.radiance(w), 0.0)
+        pdf *= self.probability[j]
+        delta = (kind == POINT) | (kind == SPOT) | (kind == DISTANT)
+        valid = (pdf > 0) & np.any(rgb != 0, axis=1)
+        return LightSample(wi, target, distance, colour(rgb, basis), pdf, delta, valid)
+
+    @staticmethod
+    def _towards_surface(rows, p, q, normal, two_sided, area, radiance, wi, distance, rgb, pdf) -> None:
+        to_light = np.asarray(q - p[rows], np.float32)
+        d2 = dot(to_light, to_light)
+        d = np.sqrt(np.maximum(d2, np.float32(1e-30)))
+        w = to_light / d[:, None]
+        cos_q = -dot(w, np.asarray(normal, np.float32))
+        cos_q = np.where(two_sided, np.abs(cos_q), cos_q)
+        ok = (cos_q > 0) & (d2 > 0)
+        wi[rows], distance[rows] = w, d
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pdf[rows] = np.where(ok, d2 / (cos_q * area), 0.0)
+        rgb[rows] = np.where(ok[:, None], radiance, 0.0)
+
+    # ---- densities and emission for directions found by BSDF sampling ----------------------
+    def pdf_area(self, slot: np.ndarray, origin: np.ndarray, hit: np.ndarray) -> np.ndarray:
+        """Density with which ``sample`` would pick points ``hit`` on area lights ``slot`` from ``origin``."""
+        to = np.asarray(hit, np.float64) - origin
+        d2 = np.einsum("ij,ij->i", to, to)
+        cos_q = np.abs(np.einsum("ij,ij->i", to, self.area_normal[slot])) / np.sqrt(np.maximum(d2, 1e-300))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(cos_q > 0, self.area_probability[slot] * d2 / (cos_q * self.area_size[slot]), 0.0)
+
+    def area_emission(self, slot: np.ndarray, direction: np.ndarray, basis: np.ndarray | None) -> np.ndarray:
+        """Radiance (N, C) seen along ``direction`` on area lights ``slot`` (zero on a one-sided back)."""
+        front = (dot(direction, self.area_normal[slot].astype(np.float32)) < 0) | self.area_two_sided[slot]
+        return colour(self.area_radiance[slot] * front[:, None], basis)
+
+    def instance_emission(self, light: int, direction: np.ndarray, normal: np.ndarray,
+                          basis: np.ndarray | None) -> np.ndarray:
+        """Radiance (N, C) of emitting instance light ``light`` seen along ``direction`` at faces of
+        geometric normal ``normal`` (as embree gives it, the winding's side)."""
+        emitter = self.emitters[light]
+        front = (dot(direction, normal) < 0) | emitter.light.two_sided
+        rgb = np.asarray(emitter.light.radiance, np.float32)[None, :] * front[:, None]
+        return colour(rgb, basis)
+
+    def pdf_instance(self, light: int, origin: np.ndarray, hit: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        to = np.asarray(hit, np.float64) - origin
+        d2 = np.einsum("ij,ij->i", to, to)
+        n = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        cos_q = np.abs(np.einsum("ij,ij->i", to, n)) / np.sqrt(np.maximum(d2, 1e-300))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(cos_q > 0, self.probability[light] * d2 / (cos_q * self.emitters[light].area), 0.0)
+
+    def environment(self, direction: np.ndarray, basis: np.ndarray | None, camera: bool) -> np.ndarray:
+        """Radiance (N, C) from the infinite lights along ``direction``; with none, the background for
+        camera rays and black for others."""
+        if not self.environments:
+            rgb = np.broadcast_to(self.background if camera else np.zeros(3, np.float32), (len(direction), 3))
+            return colour(rgb, basis)
+        total = np.zeros((len(direction), 3))
+        for env in self.environments.values():
+            total += env.radiance(np.asarray(direction, np.float64))
+        return colour(total, basis)
+
+    def pdf_environment(self, direction: np.ndarray) -> np.ndarray:
+        total = np.zeros(len(direction))
+        for i, env in self.environments.items():
+            total += self.probability[i] * env.pdf(np.asarray(direction, np.float64))
+        return total

@@ -1,0 +1,311 @@
+"""Path tracing and MIS direct lighting over any lights and BSDFs, wavefront style.
+
+Each bounce is one batch: every live path's ray goes through embree together, then numpy shades the
+hits grouped by material (``realistic.renderer.bsdf.bsdf_for``). At each surface vertex:
+
+- next-event estimation: ``light_samples`` light samples at the first vertex, one beyond
+  (``LightSampler``), each weighted by the power heuristic against the BSDF's density (Veach 1997;
+  pbrt's ``EstimateDirect``): w_l = (n p_l)^2 / ((n p_l)^2 + p_f^2), deltas weight 1;
+- one BSDF sample continues the path; when it reaches an emitter (area light, emitting instance or,
+  on a miss, the infinite lights) that emission is weighted w_f = p_f^2 / ((n p_l)^2 + p_f^2), or 1
+  after a specular bounce or for camera rays.
+
+``mode`` "path": every BSDF sample continues, up to ``max_depth`` bounces, with Russian roulette
+after the third (pbrt-v3 ``PathIntegrator``: q = max(0.05, 1 - max throughput)). "direct" (pbrt's
+``directlighting``): the first hit is always lit; non-specular BSDF samples only collect the
+emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbrt-v3
+``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
+after specular bounces), for tests.
+
+Random numbers: the first vertex's light sample k uses dimensions 4 + 3k .. 6 + 3k as
+``DirectLighting`` does; bounce b's BSDF sample, lobe choice, roulette and its light sample use
+``BOUNCE_DIMENSION + 8 b + (0 .. 6)``, so results do not depend on pass size.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from contextlib import nullcontext
+
+import numpy as np
+
+from realistic.core import rng
+from realistic.core.spectrum import rgb_basis
+from realistic.core.validation import MAX_LIGHT_SAMPLES
+from realistic.core.vectors import dot, normalise
+from realistic.renderer.bsdf import ShadingFrame, bsdf_for
+from realistic.renderer.integrator import SHADOW_OFFSET, DirectLighting, _rows
+from realistic.renderer.light_sampler import FAR, LightSampler, colour
+from realistic.renderer.timing import StageClock
+from realistic.scene.intersect import Intersector
+from realistic.scene.lights import EmissiveInstance
+from realistic.scene.model import ImageTexture, Scene
+from realistic.scene.textures import evaluate
+
+BOUNCE_DIMENSION = 4 + 3 * MAX_LIGHT_SAMPLES
+MODES = ("direct", "path")
+#: Bounces after which Russian roulette may end a path (pbrt-v3 ``PathIntegrator``: bounces > 3).
+ROULETTE_AFTER = 3
+
+
+class SurfaceParameters:
+    """``HitParameters`` over ``count`` hits: constants, and textures at their uv (image textures
+    filtered over their footprints). ``uv`` and ``footprint`` are functions called on the first
+    texture lookup that needs them (``footprint`` may return None: point-sampled), so untextured
+    materials cost neither."""
+
+    def __init__(self, count: int, uv: Callable[[], np.ndarray], footprint: Callable[[], object],
+                 basis: np.ndarray | None):
+        self.count, self.basis = count, basis
+        self._uv, self._footprint, self._cache = uv, footprint, {}
+
+    def _get(self, name: str):
+        if name not in self._cache:
+            self._cache[name] = (self._uv if name == "uv" else self._footprint)()
+        return self._cache[name]
+
+    def colour(self, value: object) -> np.ndarray:
+        if isinstance(value, tuple | list | np.ndarray | float | int):
+            rgb = np.broadcast_to(np.asarray(value, np.float32), (self.count, 3))
+        else:
+            footprint = self._get("footprint") if isinstance(value, ImageTexture) else None
+            rgb = evaluate(value, self._get("uv"), footprint)
+        return colour(rgb, self.basis)
+
+    def scalar(self, value: object) -> np.ndarray:
+        if isinstance(value, float | int):
+            return np.full(self.count, value, np.float32)
+        return evaluate(value, self._get("uv"), None).mean(axis=1).astype(np.float32)
+
+
+def power_heuristic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a^2 / (a^2 + b^2), 0 where both are 0."""
+    a2, b2 = np.square(a, dtype=np.float64), np.square(b, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(a2 + b2 > 0, a2 / (a2 + b2), 0.0)
+
+
+class PathIntegrator(DirectLighting):
+    """Radiance along camera rays by path tracing (``mode`` "path") or MIS direct lighting ("direct")."""
+
+    def __init__(self, scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
+                 pixel_spread_radians: float = 0.0, max_depth: int = 5, mode: str = "path", mis: bool = True,
+                 bsdf_factory=bsdf_for):
+        super().__init__(scene, intersector, light_samples, seed, pixel_spread_radians)
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}")
+        if max_depth < 0:
+            raise ValueError("max_depth must be at least 0")
+        self.max_depth, self.mode, self.mis, self.bsdf_factory = max_depth, mode, mis, bsdf_factory
+        self.lights = LightSampler(scene, intersector.extent)
+        self._instance_light = np.full(max(self.instance_count, 1), -1, np.int64)
+        for i, light in enumerate(scene.lights):
+            if isinstance(light, EmissiveInstance):
+                self._instance_light[light.instance] = i
+
+    def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
+                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, int]:
+        """RGB radiance (N, 3) float32 (spectral values in all columns with ``wavelength_nm``) and the
+        number of shadow rays traced."""
+        timed = clock or (lambda _stage: nullcontext())
+        n = len(origin)
+        basis_all = None if wavelength_nm is None else rgb_basis(wavelength_nm)
+        channels = 3 if basis_all is None else 1
+        out = np.zeros((n, channels), np.float32)
+        beta = np.ones((n, channels), np.float32)
+        path = np.arange(n)
+        o = np.ascontiguousarray(origin, np.float32)
+        d = np.ascontiguousarray(direction, np.float32)
+        specular = np.ones(n, bool)
+        shade = np.ones(n, bool)
+        prev_pdf = np.zeros(n)
+        prev_point = o.astype(np.float64)
+        shadow_rays = 0
+        # "direct" shades the first hit whatever max_depth is (its MIS rays are traced one step more)
+        last = max(self.max_depth, 1) if self.mode == "direct" else self.max_depth
+        for depth in range(last + 1):
+            if len(path) == 0:
+                break
+            with timed("embree"):
+                hits = self.intersector.closest(o, d)
+            with timed("shading"):
+                basis = None if basis_all is None else basis_all[path]
+                prev_lights = self.light_samples if depth == 1 else 1
+                self._emission(hits, path, o, d, beta, basis, specular, prev_pdf, prev_point, prev_lights,
+                               depth, out)
+                light_id = hits.geom - self.instance_count
+                surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0) & shade)
+                if depth == last or len(surface) == 0:
+                    break
+                state = self._shade(hits, surface, path, o, d, beta, basis, pixel, sample, depth)
+            shadow = state["shadow"]
+            if shadow["rows"] is not None and len(shadow["rows"]):
+                with timed("embree"):  # every light sample's shadow ray of this bounce in one batch
+                    blocked = self.intersector.occluded(shadow["start"], shadow["vector"], shadow["length"])
+                with timed("shading"):
+                    free = ~blocked
+                    rows, value = shadow["rows"][free], shadow["contribution"][free]
+                    for c in range(channels):  # rows repeat with several light samples per hit
+                        out[:, c] += np.bincount(rows, value[:, c], minlength=n).astype(np.float32)
+                shadow_rays += len(blocked)
+            path, o, d, beta = state["path"], state["origin"], state["direction"], state["beta"]
+            specular, shade, prev_pdf, prev_point = state["specular"], state["shade"], state["pdf"], state["point"]
+        result = np.empty((n, 3), np.float32)
+        result[:] = out
+        return result, shadow_rays
+
+    def _mis(self, weight_rows: np.ndarray, specular: np.ndarray, prev_pdf: np.ndarray, light_pdf: np.ndarray,
+             prev_lights: int) -> np.ndarray:
+        """Weights of BSDF-sampled emission: 1 after specular bounces (and camera rays), else the power
+        heuristic (or 0 without MIS)."""
+        if not self.mis:
+            return specular[weight_rows].astype(np.float64)
+        return np.where(specular[weight_rows], 1.0,
+                        power_heuristic(prev_pdf[weight_rows], prev_lights * light_pdf))
+
+    def _emission(self, hits, path, o, d, beta, basis, specular, prev_pdf, prev_point, prev_lights, depth,
+                  out) -> None:
+        """Add what the rays see of emitters, MIS-weighted against the light samples that could find it."""
+        pick = (lambda rows: None) if basis is None else (lambda rows: basis[rows])
+        miss = np.flatnonzero(hits.geom < 0)
+        if len(miss):
+            le = self.lights.environment(d[miss], pick(miss), camera=depth == 0)
+            pdf = self.lights.pdf_environment(d[miss]) if self.lights.environments else np.zeros(len(miss))
+            weight = self._mis(miss, specular, prev_pdf, pdf, prev_lights) if self.lights.environments else \
+                np.ones(len(miss))
+            out[path[miss]] += beta[miss] * le * weight[:, None].astype(np.float32)
+        slot = hits.geom - self.instance_count
+        lit = np.flatnonzero(slot >= 0)
+        if len(lit):
+            point = o[lit] + hits.t[lit, None] * d[lit]
+            le = self.lights.area_emission(slot[lit], d[lit], pick(lit))
+            weight = self._mis(lit, specular, prev_pdf, self.lights.pdf_area(slot[lit], prev_point[lit], point),
+                               prev_lights)
+            out[path[lit]] += beta[lit] * le * weight[:, None].astype(np.float32)
+        if self.lights.emitters:
+            geom = np.where((hits.geom >= 0) & (slot < 0), hits.geom, 0)
+            which = np.where((hits.geom >= 0) & (slot < 0), self._instance_light[geom], -1)
+            for light in np.unique(which[which >= 0]):
+                rows = np.flatnonzero(which == light)
+                point = o[rows] + hits.t[rows, None] * d[rows]
+                normal = hits.normal[rows].astype(np.float32)
+                le = self.lights.instance_emission(light, d[rows], normal, pick(rows))
+                weight = self._mis(rows, specular, prev_pdf,
+                                   self.lights.pdf_instance(light, prev_point[rows], point, normal), prev_lights)
+                out[path[rows]] += beta[rows] * le * weight[:, None].astype(np.float32)
+
+    def _shade(self, hits, surface, path, o, d, beta, basis, pixel, sample, depth) -> dict:
+        """Next-event estimation and one BSDF sample at the surface hits ``surface``: the next bounce,
+        and the shadow rays (``shadow``: starts, vectors, lengths, ray rows, contributions if free)."""
+        ray = path[surface]
+        px, sx = pixel[ray], sample[ray]
+        sb = None if basis is None else _rows(basis, surface)
+        ds = _rows(d, surface)
+        geom, prim = hits.geom[surface], hits.prim[surface]
+        t = hits.t[surface]
+        point = _rows(o, surface) + t[:, None] * ds
+        ng = normalise(_rows(hits.normal, surface).astype(np.float32))
+        ng *= np.where(dot(ng, ds) > 0, -1.0, 1.0).astype(np.float32)[:, None]
+        face = _rows(self._faces, self._geom_face_offset[geom] + prim)
+        u, v = hits.u[surface], hits.v[surface]
+        bary = np.column_stack([1.0 - u - v, u, v])
+        shading = self._shading_normal(face, bary, geom, ng)
+        frame = ShadingFrame(shading)
+        wo = frame.to_local(-ds)
+        magnitude = np.abs(point).max(axis=1)
+        eps = (SHADOW_OFFSET * (magnitude + 1e-2 * self.intersector.extent)).astype(np.float32)[:, None]
+        m = len(surface)
+        base = BOUNCE_DIMENSION + 8 * depth
+        light_count = self.light_samples if depth == 0 else 1
+        samples = []
+        for k in range(light_count if self.lights.has_lights else 0):
+            dims = (4 + 3 * k, 5 + 3 * k, 6 + 3 * k) if depth == 0 else (base + 4, base + 5, base + 6)
+            ls = self.lights.sample(point, *(rng.uniform(px, sx, dim, self.seed) for dim in dims), sb)
+            samples.append((ls, frame.to_local(ls.wi)))
+        u_bsdf = np.column_stack([rng.uniform(px, sx, base, self.seed), rng.uniform(px, sx, base + 1, self.seed)])
+        u_lobe = rng.uniform(px, sx, base + 2, self.seed)
+        channels = beta.shape[1]
+        light_f = [np.zeros((m, channels), np.float32) for _ in samples]
+        light_bsdf_pdf = [np.zeros(m) for _ in samples]
+        wi = np.zeros((m, 3), np.float32)
+        throughput = np.zeros((m, channels), np.float32)
+        pdf = np.zeros(m)
+        is_specular = np.zeros(m, bool)
+        valid = np.zeros(m, bool)
+        material_of = self._geom_material[geom]
+        groups = np.unique(material_of)
+        for index in groups:
+            # one material over every hit (the common case): slices, not gathers and scatters
+            rows = slice(None) if len(groups) == 1 else np.flatnonzero(material_of == index)
+            material = self._materials[index]
+            f, b = face[rows], bary[rows]
+
+            def uv(f=f, b=b) -> np.ndarray:
+                return (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
+                        + _rows(self._uv, f[:, 2]) * b[:, 2:])
+
+            def footprint(rows=rows):  # camera rays only: deeper bounces have no pixel footprint here
+                if depth > 0 or self.pixel_spread_radians <= 0:
+                    return None
+                return self._footprint(face[rows], geom[rows], ds[rows], ng[rows], t[rows])
+
+            params = SurfaceParameters(len(f), uv, footprint, None if sb is None else sb[rows])
+            bsdf = self.bsdf_factory(material, params)
+            for k, (_, local) in enumerate(samples):
+                light_f[k][rows] = bsdf.evaluate(wo[rows], local[rows])
+                light_bsdf_pdf[k][rows] = bsdf.pdf(wo[rows], local[rows])
+            s = bsdf.sample(wo[rows], u_bsdf[rows], u_lobe[rows])
+            wi[rows], pdf[rows], is_specular[rows] = s.wi, s.pdf, s.specular
+            ok = s.valid & (s.pdf > 0)
+            valid[rows] = ok
+            with np.errstate(divide="ignore", invalid="ignore"):
+                throughput[rows] = np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))
+                                            [:, None], 0.0)
+        beta_s = beta[surface]
+        shadow = {"start": [], "vector": [], "length": [], "rows": [], "contribution": []}
+        for k, (ls, local) in enumerate(samples):
+            side_g = dot(ls.wi, ng)
+            usable = ls.valid & (side_g * local[:, 2] > 0)
+            weight = np.where(ls.delta | (not self.mis), 1.0,
+                              power_heuristic(light_count * ls.pdf, light_bsdf_pdf[k]))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                scale = np.where(usable, np.abs(local[:, 2]) * weight / (np.where(usable, ls.pdf, 1.0) * light_count),
+                                 0.0).astype(np.float32)
+            contribution = beta_s * light_f[k] * ls.radiance * scale[:, None]
+            live = np.flatnonzero(np.any(contribution > 0, axis=1) | np.any(contribution < 0, axis=1))
+            start = point[live] + ng[live] * eps[live] * np.sign(side_g[live]).astype(np.float32)[:, None]
+            # toward a point: the vector from the offset start to it, traced to 1 - 1e-4 of its length
+            # (as DirectLighting does, so the light's own surface never shadows it); else a far ray
+            far = ls.distance[live] >= FAR
+            target = ls.target[live]
+            shadow["start"].append(start)
+            shadow["vector"].append(np.where(far[:, None], ls.wi[live], target - start))
+            shadow["length"].append(np.where(far, FAR, np.float32(1 - 1e-4)).astype(np.float32))
+            shadow["rows"].append(ray[live])
+            shadow["contribution"].append(contribution[live])
+        # the next bounce
+        world_wi = frame.to_world(wi)
+        side = dot(world_wi, ng)
+        go = valid & (side * wi[:, 2] > 0)
+        new_beta = beta_s * throughput
+        shade = np.ones(m, bool)
+        if self.mode == "direct":
+            # pbrt-v3 DirectLightingIntegrator: specular reflection while depth + 1 < maxdepth
+            follow = is_specular & (depth + 1 < self.max_depth)
+            shade = follow
+            # a non-specular sample's ray only looks for emission: none to find with delta lights alone
+            go &= follow | (~is_specular if self.mis and self.lights.hittable else False)
+        elif depth >= ROULETTE_AFTER:
+            q = np.maximum(0.05, 1.0 - new_beta.max(axis=1))
+            survive = rng.uniform(px, sx, base + 3, self.seed) >= q
+            go &= survive
+            new_beta /= np.maximum(1.0 - q, 1e-6).astype(np.float32)[:, None]
+        go &= np.any(new_beta != 0, axis=1)
+        keep = np.flatnonzero(go)
+        start = point[keep] + ng[keep] * eps[keep] * np.sign(side[keep]).astype(np.float32)[:, None]
+        return {"path": ray[keep], "origin": np.ascontiguousarray(start, np.float32),
+                "direction": np.ascontiguousarray(world_wi[keep], np.float32), "beta": new_beta[keep],
+                "specular": is_specular[keep], "shade": shade[keep], "pdf": pdf[keep],
+                "point": point[keep].astype(np.float64),
+                "shadow": {key: np.concatenate(parts) if parts else None for key, parts in shadow.items()}}
