@@ -30,7 +30,6 @@ from realistic.core.warp import concentric_disk
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
-from realistic.scene.materials import matte_equivalent
 from realistic.scene.model import ImageTexture, Scene
 from realistic.scene.textures import albedo
 
@@ -83,7 +82,7 @@ class DirectLighting:
         for inst in scene.instances:
             if id(inst.material) not in material_index:
                 material_index[id(inst.material)] = len(self._materials)
-                self._materials.append(matte_equivalent(inst.material))  # until BSDFs are wired in
+                self._materials.append(inst.material)
         self._geom_material = np.array([material_index[id(inst.material)] for inst in scene.instances], np.int64)
 
     def _build_lights(self, scene: Scene) -> None:

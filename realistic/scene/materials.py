@@ -216,23 +216,3 @@ class Mix:
 
 SurfaceMaterial = (Material | Plastic | CoatedDiffuse | Conductor | Mirror | Dielectric | Substrate
                    | DiffuseTransmission | Measured | Mix)
-
-
-def matte_equivalent(material: SurfaceMaterial) -> Material:
-    """The Lambertian material closest in colour, for code that shades everything as matte."""
-    if isinstance(material, Material):
-        return material
-    if isinstance(material, Mix):
-        return matte_equivalent(material.first if _number(material.amount, 0.5) < 0.5 else material.second)
-    colour = {Plastic: "diffuse", Substrate: "diffuse", CoatedDiffuse: "reflectance", Mirror: "reflectance",
-              Dielectric: "reflectance", DiffuseTransmission: "reflectance"}.get(type(material))
-    value = getattr(material, colour) if colour else (0.5, 0.5, 0.5)
-    if isinstance(value, ScaledTexture):
-        return Material(value.scale, value.texture)
-    if isinstance(value, _TEXTURES):
-        return Material((1.0, 1.0, 1.0), value)
-    return Material(value)
-
-
-def _number(value: object, default: float) -> float:
-    return float(value) if isinstance(value, numbers.Real) else default
