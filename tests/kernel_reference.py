@@ -95,3 +95,14 @@ def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: LensCamera, s
     np.testing.assert_allclose(kernel.origin[both], ref.origin[both], rtol=0, atol=1e-3)
     np.testing.assert_allclose(kernel.weight[both], ref.weight[both], rtol=1e-4, atol=0)
     return both
+
+
+def aspherised_dgauss():
+    """The bundled double Gauss with its front and rear surfaces made conic with r^4 and r^6 terms:
+    large enough departures (tenths of a millimetre at the rim) that a spherical trace would differ."""
+    lens = load_lens("dgauss")
+    conic = lens.conic.copy()
+    coefficients = lens.aspheric_coefficients.copy()
+    conic[0], coefficients[0, :2] = -0.6, (-3e-6, 2e-9)
+    conic[-1], coefficients[-1, :2] = 1.5, (4e-6, -1e-8)
+    return dataclasses.replace(lens, conic=conic, aspheric_coefficients=coefficients)

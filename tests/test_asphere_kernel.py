@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from kernel_reference import assert_kernel_matches, camera_for_lens
+from kernel_reference import aspherised_dgauss, assert_kernel_matches, camera_for_lens
 from realistic import load_lens
 from realistic.errors import UserError
 
@@ -20,17 +20,6 @@ def opencl_platform():
         opencl_host.context()
     except UserError as err:
         pytest.skip(f"no OpenCL platform: {err}")
-
-
-def aspherised_dgauss():
-    """The bundled double Gauss with its front and rear surfaces made conic with r^4 and r^6 terms:
-    large enough departures (tenths of a millimetre at the rim) that a spherical trace would differ."""
-    lens = load_lens("dgauss")
-    conic = lens.conic.copy()
-    coefficients = lens.aspheric_coefficients.copy()
-    conic[0], coefficients[0, :2] = -0.6, (-3e-6, 2e-9)
-    conic[-1], coefficients[-1, :2] = 1.5, (4e-6, -1e-8)
-    return dataclasses.replace(lens, conic=conic, aspheric_coefficients=coefficients)
 
 
 @pytest.mark.parametrize("sampling", ["pupil", "rear"])

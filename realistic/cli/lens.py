@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from realistic.cli.lens_convert import add_convert_command
 from realistic.cli.values import checked, parse_resolution, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, write_text_atomically
@@ -164,3 +165,4 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
     curves.add_argument("--map-res", default="512x512", metavar="WxH",
                         help="resolution of the vignetting map (default: %(default)s)")
     curves.set_defaults(run=cmd_lens_curves)
+    add_convert_command(lens_commands)

@@ -71,6 +71,7 @@ class LensSystem:
     stop: int
     source: str = ""
     convention_note: str = ""
+    description: str = ""  # the file's own words about the lens: its origin (patent, example), focal length
     stop_shape: StopShape | None = None  # None: the stop is the circle of its aperture diameter
     conic: np.ndarray | None = None  # (N,) conic constant k; None: all spheres
     aspheric_coefficients: np.ndarray | None = None  # (N, 9) A4 .. A20 (mm^(1-p) for r^p); None: all 0
@@ -168,7 +169,8 @@ def _check_asphere(path: str, line: int, radius: float, aperture: float, conic: 
 
 def build_lens(path: str, lines: list[int], radius: list[float], thickness: list[float], index: list[float],
                abbe: list[float], aperture: list[float], name: str | None = None, note: str = "",
-               conic: list[float] | None = None, coefficients: list[list[float]] | None = None) -> LensSystem:
+               conic: list[float] | None = None, coefficients: list[list[float]] | None = None,
+               description: str = "") -> LensSystem:
     """Validate per-surface values (prescription conventions) into a LensSystem.
 
     ``lines[i]`` is the file line that errors about surface i name; every parser feeds this one
@@ -222,7 +224,7 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
         name=name or Path(path).stem,
         radius_mm=np.array(radius), thickness_mm=np.array(thickness), index_d=np.array(index),
         abbe_v=np.array(abbe), aperture_mm=np.array(aperture), stop=stop,
-        source=path, convention_note=note, conic=np.array(conic, dtype=np.float64),
+        source=path, convention_note=note, description=description, conic=np.array(conic, dtype=np.float64),
         aspheric_coefficients=np.array([a + [0.0] * (COEFFICIENT_COUNT - len(a)) for a in coefficients],
                                        dtype=np.float64).reshape(count, COEFFICIENT_COUNT),
     )
