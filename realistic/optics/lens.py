@@ -160,7 +160,8 @@ def _check_asphere(path: str, line: int, radius: float, aperture: float, conic: 
     if radius == 0 and (conic != 0 or any(coefficients)):
         raise LensFileError(path, line, "the aperture stop (radius 0) cannot be aspheric")
     c = 1.0 / radius if radius != 0 and math.isfinite(radius) else 0.0
-    if conic_radicand((aperture / 2) ** 2, c, conic) < 0:
+    half = aperture / 2
+    if conic_radicand(half * half, c, conic) < 0:  # (a product overflows to inf; a power would raise)
         reach = 1.0 / (abs(c) * math.sqrt(1.0 + conic))
         raise LensFileError(path, line, f"aperture diameter {aperture:g} mm is larger than the conic (radius "
                             f"{radius:g} mm, k {conic:g}) allows: its sag is defined only to a semi-diameter "

@@ -86,6 +86,12 @@ def intersect_surface(o: tuple, d: tuple, vertex_z: float, radius: float) -> tup
 def intersect_asphere(o: tuple, d: tuple, vertex_z: float, radius: float, conic: float,
                       coefficients: np.ndarray) -> tuple[tuple, tuple, np.ndarray]:
     """Hit point, unit normal facing the incoming ray, and a failure mask for an aspheric surface."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # judged by the failure mask
+        return _asphere_hit(o, d, vertex_z, radius, conic, coefficients)
+
+
+def _asphere_hit(o: tuple, d: tuple, vertex_z: float, radius: float, conic: float,
+                 coefficients: np.ndarray) -> tuple[tuple, tuple, np.ndarray]:
     ox, oy, oz = o
     dx, dy, dz = d
     c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0
