@@ -171,7 +171,7 @@ inline __attribute__((always_inline)) void sphere(Ray *r, const float R, const f
 
 /* An even asphere (realistic.optics.asphere) of base curvature C, conic constant K and coefficients
  * A4 .. A20 (r^4 .. r^20), as the float64 tracer meets it (realistic.optics.tracer.intersect_asphere):
- * the root of the base conic nearest the vertex plane (the plane's root when the conic is missed),
+ * the nearer root ahead on the base conic's vertex branch (1 + (1 + K) C w >= 0), else the vertex plane's,
  * then ASPHERE_ITERATIONS Newton steps on F(t) = w(t) + sag(rho(t)), a fixed count so that every
  * work item runs the same code. A ray whose final |F| exceeds ASPHERE_TOLERANCE_MM, that leaves the
  * conic's domain or the clear aperture, is blocked (the tracer's reason `asphere`). The normal is the
@@ -193,7 +193,11 @@ inline __attribute__((always_inline)) void asphere(Ray *r, const float C, const 
     float g = C * (r->ox * r->ox + r->oy * r->oy) + 2.0f * r->w + CK * r->w * r->w;
     float disc = b * b - a * g;
     float root = __builtin_sqrtf(disc > 0.0f ? disc : 0.0f);
-    float t = disc >= 0.0f ? -g / (b + (b < 0.0f ? -root : root)) : -r->w / r->dz;
+    float qq = -(b + (b < 0.0f ? -root : root));
+    float t1 = qq / a, t2 = g / qq;
+    int ok1 = (disc >= 0.0f) & (t1 > 0.0f) & (1.0f + CK * (r->w + t1 * r->dz) >= 0.0f);
+    int ok2 = (disc >= 0.0f) & (t2 > 0.0f) & (1.0f + CK * (r->w + t2 * r->dz) >= 0.0f);
+    float t = (ok1 & !(ok2 & (t2 < t1))) ? t1 : (ok2 ? t2 : -r->w / r->dz);
     float hx, hy, rho, q2, q, f;
     for (int it = 0; it < ASPHERE_ITERATIONS; ++it) {
         hx = r->ox + t * r->dx;

@@ -30,6 +30,8 @@ from realistic.optics.pupil_search import SEARCH_VERSION, pupil_boxes
 from realistic.optics.tracer import trace_from_film
 
 PUPIL_INTERVALS = 64
+#: Part of an aspheric lens's pupil-table key: change it when the tracer's asphere rules change.
+ASPHERE_KEY = b"asphere-2"
 
 
 def rear_surface_depths_mm(lens: LensSystem, film_distance_mm: float) -> tuple[float, float]:
@@ -165,7 +167,7 @@ def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm
         lens = dataclasses.replace(lens, stop_shape=None, aperture_mm=circle)
     shape = lens.radius_mm.tobytes()
     if lens.aspheric.any():  # spherical lenses keep their keys (and cached tables)
-        shape += lens.conic.tobytes() + lens.aspheric_coefficients.tobytes()
+        shape += ASPHERE_KEY + lens.conic.tobytes() + lens.aspheric_coefficients.tobytes()
     key = (shape, lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
            lens.abbe_v.tobytes(), lens.aperture_mm.tobytes(), film_distance_mm, film_diagonal_mm,
            intervals, wavelengths_nm)

@@ -11,8 +11,8 @@ Rules (the kernel follows the same ones):
 * The stop and flat surfaces are planes z = vertex.
 * An aspheric surface (``realistic.optics.asphere``) is met by Newton's method on
   F(t) = w(t) + sag(r(t)) (w: axial position relative to the vertex, + toward the scene), started
-  from the root of the base conic nearest the vertex plane (exact for a pure conic; the plane's
-  root when the conic is missed). Its normal is the sag's gradient (2 x s', 2 y s', 1). A ray the
+  from the nearer root ahead on the base conic's vertex branch (exact for a pure conic; the vertex
+  plane's root when the ray misses that branch). Its normal is the sag's gradient (2 x s', 2 y s', 1). A ray the
   iteration does not bring to the surface (|F| above ``ASPHERE_TOLERANCE_MM``, or outside the
   conic's domain), or that meets it outside the clear aperture, is blocked with reason ``asphere``.
 * A hit farther from the axis than half the clear aperture blocks the ray (``stop`` at the stop,
@@ -96,14 +96,19 @@ def _asphere_hit(o: tuple, d: tuple, vertex_z: float, radius: float, conic: floa
     dx, dy, dz = d
     c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0
     w = oz - vertex_z
-    # The base conic c rho + 2 w + (1 + k) c w^2 = 0 along the ray: a t^2 + 2 b t + g = 0, and its
-    # root that tends to the plane's -w / dz as c -> 0, in the cancellation-free form.
+    # The base conic c rho + 2 w + (1 + k) c w^2 = 0 along the ray: a t^2 + 2 b t + g = 0, roots in the
+    # cancellation-free form. The vertex branch is where 1 + (1 + k) c w >= 0 (there it equals the square
+    # root in the sag); of the roots ahead on it the nearer is taken, else the vertex plane's root.
     ck = (1.0 + conic) * c
     a = c * (dx * dx + dy * dy) + ck * dz * dz
     b = c * (ox * dx + oy * dy) + dz + ck * w * dz
     g = c * (ox * ox + oy * oy) + 2.0 * w + ck * w * w
     disc = b * b - a * g
-    t = np.where(disc >= 0, -g / (b + np.where(b < 0, -1.0, 1.0) * np.sqrt(np.maximum(disc, 0.0))), -w / dz)
+    q = -(b + np.where(b < 0, -1.0, 1.0) * np.sqrt(np.maximum(disc, 0.0)))
+    roots = [q / a, g / q]
+    usable = [(disc >= 0) & (t > 0) & (1.0 + ck * (w + t * dz) >= 0) for t in roots]
+    t = np.where(usable[0] & ~(usable[1] & (roots[1] < roots[0])), roots[0],
+                 np.where(usable[1], roots[1], -w / dz))
     for _ in range(ASPHERE_ITERATIONS):
         hx, hy = ox + t * dx, oy + t * dy
         rho2 = hx * hx + hy * hy

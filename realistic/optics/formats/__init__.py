@@ -31,6 +31,10 @@ BUNDLED_LENSES = {
     "fisheye": "fisheye.10mm.dat",
     "telephoto": "telephoto.250mm.dat",
     "dgauss100": "dgauss100.dat",
+    # aspheric lenses (JSON): source, example and what was set beyond the source in each file's description
+    "phone-us10101561": "phone.us10101561.e3.json",
+    "canon-ef24-f1.4": "canon-ef24.us20100033848.e3.json",
+    "canon-rf50-f1.2": "canon-rf50.us20190265441.e2.json",
 }
 
 
