@@ -43,6 +43,10 @@ def aspheric_lens():
 @pytest.mark.parametrize("name", list(BUNDLED_LENSES))
 def test_bundled_lenses_round_trip_through_every_format(name, suffix):
     lens = load_lens(name)
+    if suffix == ".dat" and lens.aspheric.any():
+        pytest.skip(".dat has no columns for aspheres (the refusal is tested below)")
+    if suffix == ".seq" and lens.index_d.max() >= 2:
+        pytest.skip("a CODE V fictitious glass code holds indices below 2 only (the refusal is tested below)")
     back = parse_text(format_lens(lens, suffix), f"x{suffix}", suffix) if suffix != ".zmx" else \
         parse_zmx(format_lens(lens, suffix), "x.zmx")
     assert_same_lens(lens, back)
@@ -67,6 +71,8 @@ def test_formats_that_cannot_hold_a_lens_refuse_it():
         format_lens(lens, ".zmx")
     with pytest.raises(UserError, match="use one of"):
         format_lens(lens, ".txt")
+    with pytest.raises(UserError, match="CODE V glass code"):
+        format_lens(load_lens("canon-rf50-f1.2"), ".seq")  # n_d 2.001
 
 
 def iset_json(lens) -> str:
