@@ -32,7 +32,7 @@
  *                                 when 2, FILTER_BINS and tables FILTER_CDF_X/Y[FILTER_BINS + 1]
  *                                 (CDF of |f| per axis) and FILTER_WEIGHT_X/Y[FILTER_BINS]
  *                                 (sign(f) * integral|f| / integral f of each bin)
- *   TRACE_SURFACES(r, il2)        the surfaces, rear first, as calls to sphere()/plane()
+ *   TRACE_SURFACES(r, il2)        the surfaces, rear first, as calls to sphere()/plane()/asphere()
  *                                 with literal constants; when SPECTRAL, it first computes each
  *                                 dispersive glass's index A + B il2 (il2 = 1 / lambda^2 in
  *                                 um^-2, A and B literal Cauchy coefficients) and passes index
@@ -164,6 +164,64 @@ inline __attribute__((always_inline)) void sphere(Ray *r, const float R, const f
     r->alive = r->alive & (disc >= 0.0f) & (t > 0.0f) & (cz * R > 0.0f) & (hx * hx + hy * hy <= AP2);
     float s = (hx * r->dx + hy * r->dy + cz * r->dz > 0.0f ? -1.0f : 1.0f) * (1.0f / (R < 0.0f ? -R : R));
     if (REFRACTS) refract(r, hx * s, hy * s, cz * s, ETA);
+    r->ox = hx;
+    r->oy = hy;
+    r->w = hw - GAP;
+}
+
+/* An even asphere (realistic.optics.asphere) of base curvature C, conic constant K and coefficients
+ * A4 .. A20 (r^4 .. r^20), as the float64 tracer meets it (realistic.optics.tracer.intersect_asphere):
+ * the nearer root ahead on the base conic's vertex branch (1 + (1 + K) C w >= 0), else the vertex plane's,
+ * then ASPHERE_ITERATIONS Newton steps on F(t) = w(t) + sag(rho(t)), a fixed count so that every
+ * work item runs the same code. A ray whose final |F| exceeds ASPHERE_TOLERANCE_MM, that leaves the
+ * conic's domain or the clear aperture, is blocked (the tracer's reason `asphere`). The normal is the
+ * sag's gradient (2 x s', 2 y s', 1), turned to face the ray. */
+#define ASPHERE_ITERATIONS 6
+#define ASPHERE_TOLERANCE_MM 1e-4f
+#define ASPHERE_POLY(rho) ((rho) * (rho) * (A4 + (rho) * (A6 + (rho) * (A8 + (rho) * (A10 + (rho) * (A12 + \
+    (rho) * (A14 + (rho) * (A16 + (rho) * (A18 + (rho) * A20)))))))))
+#define ASPHERE_DPOLY(rho) ((rho) * (2.0f * A4 + (rho) * (3.0f * A6 + (rho) * (4.0f * A8 + (rho) * (5.0f * A10 + \
+    (rho) * (6.0f * A12 + (rho) * (7.0f * A14 + (rho) * (8.0f * A16 + (rho) * (9.0f * A18 + (rho) * 10.0f * A20)))))))))
+inline __attribute__((always_inline)) void asphere(Ray *r, const float C, const float K, const float A4, const float A6,
+                                                  const float A8, const float A10, const float A12, const float A14,
+                                                  const float A16, const float A18, const float A20, const float AP2,
+                                                  const float ETA, const int REFRACTS, const float GAP) {
+    const float CK = (1.0f + K) * C;
+    const float CCK = CK * C;
+    float a = C * (r->dx * r->dx + r->dy * r->dy) + CK * r->dz * r->dz;
+    float b = C * (r->ox * r->dx + r->oy * r->dy) + r->dz + CK * r->w * r->dz;
+    float g = C * (r->ox * r->ox + r->oy * r->oy) + 2.0f * r->w + CK * r->w * r->w;
+    float disc = b * b - a * g;
+    float root = __builtin_sqrtf(disc > 0.0f ? disc : 0.0f);
+    float qq = -(b + (b < 0.0f ? -root : root));
+    float t1 = qq / a, t2 = g / qq;
+    int ok1 = (disc >= 0.0f) & (t1 > 0.0f) & (1.0f + CK * (r->w + t1 * r->dz) >= 0.0f);
+    int ok2 = (disc >= 0.0f) & (t2 > 0.0f) & (1.0f + CK * (r->w + t2 * r->dz) >= 0.0f);
+    float t = (ok1 & !(ok2 & (t2 < t1))) ? t1 : (ok2 ? t2 : -r->w / r->dz);
+    float hx, hy, rho, q2, q, f;
+    for (int it = 0; it < ASPHERE_ITERATIONS; ++it) {
+        hx = r->ox + t * r->dx;
+        hy = r->oy + t * r->dy;
+        rho = hx * hx + hy * hy;
+        q2 = 1.0f - CCK * rho;
+        q = __builtin_sqrtf(q2 > 0.0f ? q2 : 0.0f);
+        f = r->w + t * r->dz + C * rho / (1.0f + q) + ASPHERE_POLY(rho);
+        float slope = C / (2.0f * q) + ASPHERE_DPOLY(rho);
+        t = t - f / (r->dz + 2.0f * slope * (hx * r->dx + hy * r->dy));
+    }
+    hx = r->ox + t * r->dx;
+    hy = r->oy + t * r->dy;
+    float hw = r->w + t * r->dz;
+    rho = hx * hx + hy * hy;
+    q2 = 1.0f - CCK * rho;
+    q = __builtin_sqrtf(q2 > 0.0f ? q2 : 0.0f);
+    f = hw + C * rho / (1.0f + q) + ASPHERE_POLY(rho);
+    float af = f < 0.0f ? -f : f;
+    r->alive = r->alive & (af <= ASPHERE_TOLERANCE_MM) & (q2 >= 0.0f) & (t > 0.0f) & (rho <= AP2);
+    float slope2 = 2.0f * (C / (2.0f * q) + ASPHERE_DPOLY(rho));
+    float nx = hx * slope2, ny = hy * slope2;
+    float s = (nx * r->dx + ny * r->dy + r->dz > 0.0f ? -1.0f : 1.0f) / __builtin_sqrtf(nx * nx + ny * ny + 1.0f);
+    if (REFRACTS) refract(r, nx * s, ny * s, s, ETA);
     r->ox = hx;
     r->oy = hy;
     r->w = hw - GAP;

@@ -79,8 +79,10 @@ def edge_rays(camera: LensCamera, count: int, seed: int) -> np.ndarray:
     return (verdicts[0] != verdicts[1]) | near_interval_edge
 
 
-def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: LensCamera, seed: int) -> np.ndarray:
-    """The tolerances of the kernel check; returns the mask of rays both pass."""
+def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: LensCamera, seed: int,
+                          direction_atol: float = 1e-5) -> np.ndarray:
+    """The tolerances of the kernel check; returns the mask of rays both pass. ``direction_atol`` is
+    widened only for lenses whose float32 arithmetic is shown to lose more (see its callers)."""
     np.testing.assert_array_equal(kernel.pixel, ref.pixel)
     k_pass, r_pass = kernel.weight != 0, ref.weight != 0  # negative filter lobes weigh < 0
     edge = edge_rays(camera, len(ref.weight), seed)
@@ -91,7 +93,18 @@ def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: LensCamera, s
     assert 0.02 < r_pass.mean(), "too few rays pass for the comparison to mean anything"
     assert np.all(kernel.origin[~k_pass] == 0) and np.all(kernel.direction[~k_pass] == 0)
     both = k_pass & r_pass & ~edge  # on a pupil-interval edge float32 may take the neighbouring box
-    np.testing.assert_allclose(kernel.direction[both], ref.direction[both], rtol=0, atol=1e-5)
+    np.testing.assert_allclose(kernel.direction[both], ref.direction[both], rtol=0, atol=direction_atol)
     np.testing.assert_allclose(kernel.origin[both], ref.origin[both], rtol=0, atol=1e-3)
     np.testing.assert_allclose(kernel.weight[both], ref.weight[both], rtol=1e-4, atol=0)
     return both
+
+
+def aspherised_dgauss():
+    """The bundled double Gauss with its front and rear surfaces made conic with r^4 and r^6 terms:
+    large enough departures (tenths of a millimetre at the rim) that a spherical trace would differ."""
+    lens = load_lens("dgauss")
+    conic = lens.conic.copy()
+    coefficients = lens.aspheric_coefficients.copy()
+    conic[0], coefficients[0, :2] = -0.6, (-3e-6, 2e-9)
+    conic[-1], coefficients[-1, :2] = 1.5, (4e-6, -1e-8)
+    return dataclasses.replace(lens, conic=conic, aspheric_coefficients=coefficients)

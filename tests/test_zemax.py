@@ -97,11 +97,11 @@ def replace_line(text: str, number: int, new: str) -> str:
 
 # (surface whose line is changed, keyword of the line, new line, message fragment); the stop is SURF 6.
 UNSUPPORTED = {
-    "even asphere": (3, "TYPE", "  TYPE EVENASPH", "surface type EVENASPH"),
+    "odd asphere": (3, "TYPE", "  TYPE ODDASPH", "surface type ODDASPH"),
     "toroid": (3, "TYPE", "  TYPE TOROIDAL", "surface type TOROIDAL"),
     "coordinate break": (4, "TYPE", "  TYPE COORDBRK", "surface type COORDBRK"),
     "paraxial": (2, "TYPE", "  TYPE PARAXIAL", "surface type PARAXIAL"),
-    "conic": (3, "CONI", "  CONI -5.0E-1", "conic constant"),
+    "conic not a number": (3, "CONI", "  CONI abc", "CONI 'abc' is not a number"),
     "mirror": (1, "GLAS", "  GLAS MIRROR 0 0", "mirror"),
     "catalogue glass": (1, "GLAS", "  GLAS N-BK7 0 0", "catalogue glass 'N-BK7'"),
     "blank glass without values": (1, "GLAS", "  GLAS ___BLANK 1 0", "model glass ___BLANK"),
@@ -182,8 +182,8 @@ def test_cli_lens_info_reads_a_zmx_file(dgauss, tmp_path):
 def test_cli_reports_a_bad_zmx_in_one_line_with_status_2(dgauss, tmp_path):
     path = tmp_path / "bad.zmx"
     text = zmx_text(dgauss)
-    path.write_text(replace_line(text, surface_line(text, 3, "TYPE"), "  TYPE EVENASPH"), encoding="utf-16")
+    path.write_text(replace_line(text, surface_line(text, 3, "TYPE"), "  TYPE TOROIDAL"), encoding="utf-16")
     run = run_cli(str(path))
     assert run.returncode == 2
     assert run.stderr.count("\n") == 1 and "Traceback" not in run.stderr
-    assert f"{path}:{surface_line(text, 3, 'TYPE')}: surface type EVENASPH" in run.stderr
+    assert f"{path}:{surface_line(text, 3, 'TYPE')}: surface type TOROIDAL" in run.stderr

@@ -198,6 +198,10 @@ def camera_header(camera: LensCamera) -> str:
         refracts = int(eta != "1.0f")
         if i == lens.stop:
             calls.append(f"stop(r, {_c_float(gap)});")
+        elif lens.aspheric[i]:
+            c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0
+            shape = ", ".join(_c_float(v) for v in (c, lens.conic[i], *lens.aspheric_coefficients[i]))
+            calls.append(f"asphere(r, {shape}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
         elif radius == 0 or not np.isfinite(radius):
             calls.append(f"plane(r, {_c_float(ap2)}, {eta}, 1, {_c_float(gap)});")
         else:

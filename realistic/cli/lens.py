@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from realistic.cli.lens_convert import add_convert_command
 from realistic.cli.lens_judge import add_judge_commands
 from realistic.cli.values import checked, parse_resolution, positive
 from realistic.core import validation
@@ -165,4 +166,5 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
     curves.add_argument("--map-res", default="512x512", metavar="WxH",
                         help="resolution of the vignetting map (default: %(default)s)")
     curves.set_defaults(run=cmd_lens_curves)
+    add_convert_command(lens_commands)
     add_judge_commands(lens_commands)

@@ -4,8 +4,10 @@ Frames and units are set out in ``lens``: millimetres, surfaces numbered from th
 frame with the film at z = 0 and +z toward the scene.
 
 - ``lens``: ``LensSystem`` (surfaces as arrays) and ``build_lens``, the one validation of a lens.
-- ``formats/``: file readers (pbrt ``.dat``, Zemax ``.zmx``) and the bundled prescriptions;
-  ``load_lens`` dispatches there. Readers import the model, never the reverse.
+- ``asphere``: the even-asphere sag (conic and A4 .. A20) and its slope.
+- ``formats/``: file readers and writers (pbrt ``.dat``, Zemax ``.zmx``, isetlens/omni ``.json``,
+  CODE V ``.seq``) and the bundled prescriptions; ``load_lens`` dispatches there. Readers import
+  the model, never the reverse.
 - ``stop_shape``: the aperture stop's shape (circle, blades, image mask).
 - ``dispersion``: refractive index against wavelength from n_d and V_d.
 - ``paraxial``: first-order data (EFL, BFL, pupils, f-number) and thick-lens focusing.

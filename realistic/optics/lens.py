@@ -19,6 +19,10 @@ centre of curvature on the film side, i.e. convex toward the scene; 0: the plana
 ``inf``: a flat refracting surface), distance to the next surface, index of the medium behind the
 surface (0, 1 or blank: air), optional Abbe number, clear aperture diameter.
 
+A surface may be an even asphere (``realistic.optics.asphere``): a conic constant k and the
+coefficients A4 .. A20 of r^4 .. r^20 beside its base radius. A surface with k = 0 and every
+coefficient 0 is a sphere and is traced exactly as one; paraxial analysis uses the base curvature.
+
 A lens has at most ``MAX_SURFACES`` surfaces: real photographic lenses have well under 50, and the
 tracer's cost grows with the count, so a file with thousands of rows is refused (the readers stop
 at the first row past the limit, so even a huge file is refused quickly). The limit leaves room for
@@ -36,6 +40,7 @@ import numpy as np
 
 from realistic.core import validation
 from realistic.errors import LensFileError, UserError
+from realistic.optics.asphere import COEFFICIENT_COUNT, COEFFICIENT_POWERS, conic_radicand
 from realistic.optics.stop_shape import StopShape
 
 #: Most surfaces a prescription may have (stop included); real lenses have well under 50.
@@ -66,11 +71,30 @@ class LensSystem:
     stop: int
     source: str = ""
     convention_note: str = ""
+    description: str = ""  # the file's own words about the lens: its origin (patent, example), focal length
     stop_shape: StopShape | None = None  # None: the stop is the circle of its aperture diameter
+    conic: np.ndarray | None = None  # (N,) conic constant k; None: all spheres
+    aspheric_coefficients: np.ndarray | None = None  # (N, 9) A4 .. A20 (mm^(1-p) for r^p); None: all 0
+
+    def __post_init__(self) -> None:
+        count = len(self.radius_mm)
+        if self.conic is None:
+            object.__setattr__(self, "conic", np.zeros(count))
+        if self.aspheric_coefficients is None:
+            object.__setattr__(self, "aspheric_coefficients", np.zeros((count, COEFFICIENT_COUNT)))
 
     @property
     def surface_count(self) -> int:
         return len(self.radius_mm)
+
+    @property
+    def aspheric(self) -> np.ndarray:
+        """Per surface: True for an asphere (k != 0 or a coefficient != 0), False for a sphere or plane."""
+        return (self.conic != 0) | np.any(self.aspheric_coefficients != 0, axis=1)
+
+    @property
+    def asphere_count(self) -> int:
+        return int(np.count_nonzero(self.aspheric))
 
     @property
     def curvature_per_mm(self) -> np.ndarray:
@@ -124,13 +148,39 @@ class LensSystem:
         return dataclasses.replace(self, stop_shape=shape)
 
 
+def _check_asphere(path: str, line: int, radius: float, aperture: float, conic: float,
+                   coefficients: list[float]) -> None:
+    """An aspheric surface's own rules: finite values, at most nine coefficients, not the stop,
+    and a conic defined over the whole clear aperture."""
+    if len(coefficients) > COEFFICIENT_COUNT:
+        raise LensFileError(path, line, f"{len(coefficients)} aspheric coefficients: at most {COEFFICIENT_COUNT} "
+                            f"(A4 .. A20, the coefficients of r^{COEFFICIENT_POWERS[0]} .. r^{COEFFICIENT_POWERS[-1]})")
+    if not all(math.isfinite(x) for x in [conic, *coefficients]):
+        raise LensFileError(path, line, "the conic constant and aspheric coefficients must be finite numbers")
+    if radius == 0 and (conic != 0 or any(coefficients)):
+        raise LensFileError(path, line, "the aperture stop (radius 0) cannot be aspheric")
+    c = 1.0 / radius if radius != 0 and math.isfinite(radius) else 0.0
+    half = aperture / 2
+    if conic_radicand(half * half, c, conic) < 0:  # (a product overflows to inf; a power would raise)
+        reach = 1.0 / (abs(c) * math.sqrt(1.0 + conic))
+        raise LensFileError(path, line, f"aperture diameter {aperture:g} mm is larger than the conic (radius "
+                            f"{radius:g} mm, k {conic:g}) allows: its sag is defined only to a semi-diameter "
+                            f"of {reach:g} mm")
+
+
 def build_lens(path: str, lines: list[int], radius: list[float], thickness: list[float], index: list[float],
-               abbe: list[float], aperture: list[float], name: str | None = None, note: str = "") -> LensSystem:
+               abbe: list[float], aperture: list[float], name: str | None = None, note: str = "",
+               conic: list[float] | None = None, coefficients: list[list[float]] | None = None,
+               description: str = "") -> LensSystem:
     """Validate per-surface values (prescription conventions) into a LensSystem.
 
     ``lines[i]`` is the file line that errors about surface i name; every parser feeds this one
-    constructor so that all lens files obey the same rules.
+    constructor so that all lens files obey the same rules. ``conic`` and ``coefficients`` (per
+    surface: k, and up to nine coefficients A4, A6, ... of r^4, r^6, ...) make surfaces aspheric.
     """
+    count = len(lines)
+    conic = [0.0] * count if conic is None else list(conic)
+    coefficients = [[] for _ in range(count)] if coefficients is None else [list(a) for a in coefficients]
     if len(lines) > MAX_SURFACES:
         raise LensFileError(path, lines[MAX_SURFACES], too_many_surfaces(len(lines)))
     for i, line in enumerate(lines):
@@ -147,7 +197,9 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
             raise LensFileError(path, line, f"Abbe number {abbe[i]:g} must not be negative")
         if aperture[i] <= 0:
             raise LensFileError(path, line, f"aperture diameter {aperture[i]:g} mm must be > 0")
-        if radius[i] != 0 and math.isfinite(radius[i]) and aperture[i] / 2 > abs(radius[i]):
+        if conic[i] != 0 or any(coefficients[i]) or len(coefficients[i]) > COEFFICIENT_COUNT:
+            _check_asphere(path, line, radius[i], aperture[i], conic[i], coefficients[i])
+        elif radius[i] != 0 and math.isfinite(radius[i]) and aperture[i] / 2 > abs(radius[i]):
             raise LensFileError(path, line, f"aperture diameter {aperture[i]:g} mm is larger than the "
                                 f"sphere of radius {radius[i]:g} mm allows (semi-diameter > |R|)")
 
@@ -173,5 +225,7 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
         name=name or Path(path).stem,
         radius_mm=np.array(radius), thickness_mm=np.array(thickness), index_d=np.array(index),
         abbe_v=np.array(abbe), aperture_mm=np.array(aperture), stop=stop,
-        source=path, convention_note=note,
+        source=path, convention_note=note, description=description, conic=np.array(conic, dtype=np.float64),
+        aspheric_coefficients=np.array([a + [0.0] * (COEFFICIENT_COUNT - len(a)) for a in coefficients],
+                                       dtype=np.float64).reshape(count, COEFFICIENT_COUNT),
     )

@@ -23,12 +23,15 @@ import numpy as np
 
 from realistic.core.disk_cache import cache_key, load_arrays, store_arrays
 from realistic.core.warp import concentric_disk
+from realistic.optics.asphere import sag_mm
 from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
 from realistic.optics.pupil_search import SEARCH_VERSION, pupil_boxes
 from realistic.optics.tracer import trace_from_film
 
 PUPIL_INTERVALS = 64
+#: Part of an aspheric lens's pupil-table key: change it when the tracer's asphere rules change.
+ASPHERE_KEY = b"asphere-2"
 
 
 def rear_surface_depths_mm(lens: LensSystem, film_distance_mm: float) -> tuple[float, float]:
@@ -37,6 +40,10 @@ def rear_surface_depths_mm(lens: LensSystem, film_distance_mm: float) -> tuple[f
     radius = lens.radius_mm[-1]
     half = lens.aperture_mm[-1] / 2
     rim = vertex
+    if lens.aspheric[-1]:  # the sag need not be monotonic: its extremes over the clear radius
+        c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0
+        depth = vertex - sag_mm(np.linspace(0.0, half, 257) ** 2, c, lens.conic[-1], lens.aspheric_coefficients[-1])
+        return float(depth.min()), float(depth.max())
     if radius != 0 and np.isfinite(radius):
         rim = vertex - radius + np.sign(radius) * np.sqrt(radius * radius - half * half)
     return min(vertex, rim), max(vertex, rim)
@@ -158,7 +165,10 @@ def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm
         circle = lens.aperture_mm.copy()
         circle[lens.stop] = 2 * reach  # may exceed the widest element: only the bounds use it
         lens = dataclasses.replace(lens, stop_shape=None, aperture_mm=circle)
-    key = (lens.radius_mm.tobytes(), lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
+    shape = lens.radius_mm.tobytes()
+    if lens.aspheric.any():  # spherical lenses keep their keys (and cached tables)
+        shape += ASPHERE_KEY + lens.conic.tobytes() + lens.aspheric_coefficients.tobytes()
+    key = (shape, lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
            lens.abbe_v.tobytes(), lens.aperture_mm.tobytes(), film_distance_mm, film_diagonal_mm,
            intervals, wavelengths_nm)
     return _cached_table(_PupilRequest(key, lens))

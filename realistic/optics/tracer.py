@@ -9,6 +9,12 @@ Rules (the kernel follows the same ones):
   met: for a ray travelling +z, the far root when R > 0 (centre on the film side), the near root
   when R < 0. A hit on the far hemisphere of the sphere is a miss.
 * The stop and flat surfaces are planes z = vertex.
+* An aspheric surface (``realistic.optics.asphere``) is met by Newton's method on
+  F(t) = w(t) + sag(r(t)) (w: axial position relative to the vertex, + toward the scene), started
+  from the nearer root ahead on the base conic's vertex branch (exact for a pure conic; the vertex
+  plane's root when the ray misses that branch). Its normal is the sag's gradient (2 x s', 2 y s', 1). A ray the
+  iteration does not bring to the surface (|F| above ``ASPHERE_TOLERANCE_MM``, or outside the
+  conic's domain), or that meets it outside the clear aperture, is blocked with reason ``asphere``.
 * A hit farther from the axis than half the clear aperture blocks the ray (``stop`` at the stop,
   ``aperture`` elsewhere); a shaped stop (``realistic.optics.stop_shape``) blocks what falls outside its
   opening.
@@ -22,11 +28,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from realistic.optics.asphere import conic_radicand, sag_mm, sag_slope
 from realistic.optics.dispersion import D_LINE_NM, refractive_index
 from realistic.optics.lens import LensSystem
 
-PASSED, MISS, APERTURE, STOP, TIR = 0, 1, 2, 3, 4
-REASONS = {MISS: "miss", APERTURE: "aperture", STOP: "stop", TIR: "tir"}
+PASSED, MISS, APERTURE, STOP, TIR, ASPHERE = 0, 1, 2, 3, 4, 5
+REASONS = {MISS: "miss", APERTURE: "aperture", STOP: "stop", TIR: "tir", ASPHERE: "asphere"}
+#: Newton steps on an aspheric surface; the conic start leaves only the polynomial's correction,
+#: which converges quadratically in a few steps.
+ASPHERE_ITERATIONS = 16
+#: Largest |w + sag| (mm) accepted as a hit on an aspheric surface.
+ASPHERE_TOLERANCE_MM = 1e-9
 
 
 @dataclass(frozen=True)
@@ -36,7 +48,7 @@ class TraceResult:
     origin: np.ndarray  # (N, 3) hit on the front surface
     direction: np.ndarray  # (N, 3) unit direction into the scene
     blocked_surface: np.ndarray  # (N,) surface index from 0 at the front, -1 when the ray passed
-    blocked_reason: np.ndarray  # (N,) PASSED, MISS, APERTURE, STOP or TIR
+    blocked_reason: np.ndarray  # (N,) PASSED, MISS, APERTURE, STOP, TIR or ASPHERE
 
     @property
     def passed(self) -> np.ndarray:
@@ -69,6 +81,47 @@ def intersect_surface(o: tuple, d: tuple, vertex_z: float, radius: float) -> tup
     scale = np.where(hx * dx + hy * dy + (hz - centre_z) * dz > 0, -1.0, 1.0) / abs(radius)
     normal = (hx * scale, hy * scale, (hz - centre_z) * scale)
     return (hx, hy, hz), normal, miss
+
+
+def intersect_asphere(o: tuple, d: tuple, vertex_z: float, radius: float, conic: float,
+                      coefficients: np.ndarray) -> tuple[tuple, tuple, np.ndarray]:
+    """Hit point, unit normal facing the incoming ray, and a failure mask for an aspheric surface."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # judged by the failure mask
+        return _asphere_hit(o, d, vertex_z, radius, conic, coefficients)
+
+
+def _asphere_hit(o: tuple, d: tuple, vertex_z: float, radius: float, conic: float,
+                 coefficients: np.ndarray) -> tuple[tuple, tuple, np.ndarray]:
+    ox, oy, oz = o
+    dx, dy, dz = d
+    c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0
+    w = oz - vertex_z
+    # The base conic c rho + 2 w + (1 + k) c w^2 = 0 along the ray: a t^2 + 2 b t + g = 0, roots in the
+    # cancellation-free form. The vertex branch is where 1 + (1 + k) c w >= 0 (there it equals the square
+    # root in the sag); of the roots ahead on it the nearer is taken, else the vertex plane's root.
+    ck = (1.0 + conic) * c
+    a = c * (dx * dx + dy * dy) + ck * dz * dz
+    b = c * (ox * dx + oy * dy) + dz + ck * w * dz
+    g = c * (ox * ox + oy * oy) + 2.0 * w + ck * w * w
+    disc = b * b - a * g
+    q = -(b + np.where(b < 0, -1.0, 1.0) * np.sqrt(np.maximum(disc, 0.0)))
+    roots = [q / a, g / q]
+    usable = [(disc >= 0) & (t > 0) & (1.0 + ck * (w + t * dz) >= 0) for t in roots]
+    t = np.where(usable[0] & ~(usable[1] & (roots[1] < roots[0])), roots[0],
+                 np.where(usable[1], roots[1], -w / dz))
+    for _ in range(ASPHERE_ITERATIONS):
+        hx, hy = ox + t * dx, oy + t * dy
+        rho2 = hx * hx + hy * hy
+        f = w + t * dz + sag_mm(rho2, c, conic, coefficients)
+        t = t - f / (dz + 2.0 * sag_slope(rho2, c, conic, coefficients) * (hx * dx + hy * dy))
+    hx, hy, hz = ox + t * dx, oy + t * dy, oz + t * dz
+    rho2 = hx * hx + hy * hy
+    f = hz - vertex_z + sag_mm(rho2, c, conic, coefficients)
+    fail = ~(np.abs(f) <= ASPHERE_TOLERANCE_MM) | ~(conic_radicand(rho2, c, conic) >= 0) | ~(t > 0)
+    slope2 = 2.0 * sag_slope(rho2, c, conic, coefficients)
+    nx, ny = hx * slope2, hy * slope2
+    scale = np.where(nx * dx + ny * dy + dz > 0, -1.0, 1.0) / np.sqrt(nx * nx + ny * ny + 1.0)
+    return (hx, hy, hz), (nx * scale, ny * scale, scale), fail
 
 
 def refract(d: tuple, normal: tuple, eta: float | np.ndarray) -> tuple[tuple, np.ndarray]:
@@ -105,6 +158,7 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     reason = np.zeros(count, dtype=np.int8)
     vertex_z = lens.vertex_z_mm(film_distance_mm)
     index = refractive_index(lens.index_d, lens.abbe_v, wavelength_nm)
+    aspheric = lens.aspheric
 
     def block(mask: np.ndarray, i: int, why: int) -> None:
         fresh = mask & (reason == PASSED)
@@ -113,15 +167,21 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
 
     with np.errstate(invalid="ignore", divide="ignore"):
         for i in range(lens.surface_count - 1, -1, -1):
-            o, normal, miss = intersect_surface(o, d, vertex_z[i], lens.radius_mm[i])
-            block(miss, i, MISS)
+            if aspheric[i]:
+                o, normal, fail = intersect_asphere(o, d, vertex_z[i], lens.radius_mm[i], lens.conic[i],
+                                                    lens.aspheric_coefficients[i])
+                block(fail, i, ASPHERE)
+            else:
+                o, normal, miss = intersect_surface(o, d, vertex_z[i], lens.radius_mm[i])
+                block(miss, i, MISS)
             if path is not None:
                 path.append(np.stack(o, axis=1))
             if i == lens.stop and lens.stop_shape is not None:
                 block(~lens.stop_shape.inside(o[0], o[1], lens.aperture_mm[i]), i, STOP)
             else:
                 r2 = o[0] * o[0] + o[1] * o[1]
-                block(~(r2 <= (lens.aperture_mm[i] / 2) ** 2), i, STOP if i == lens.stop else APERTURE)
+                block(~(r2 <= (lens.aperture_mm[i] / 2) ** 2), i,
+                      STOP if i == lens.stop else ASPHERE if aspheric[i] else APERTURE)
             if i != lens.stop:
                 n_front = index[i - 1] if i > 0 else 1.0
                 d, tir = refract(d, normal, index[i] / n_front)

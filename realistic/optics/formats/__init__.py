@@ -4,6 +4,8 @@ Readers import the lens model (``realistic.optics.lens``) and never the reverse.
 
 - ``pbrt_dat``: pbrt-style ``.dat`` prescriptions (and any extension other than those below).
 - ``zemax``: Zemax sequential ``.zmx`` files (ASCII or UTF-16).
+- ``json_lens``: isetlens / pbrt-v4 omni ``.json`` prescriptions (aspheres included).
+- ``codev``: CODE V ``.seq`` sequence files.
 - ``lenses/``: the bundled prescriptions, package data, named by ``BUNDLED_LENSES``.
 """
 
@@ -12,10 +14,15 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-from realistic.errors import LensFileError
-from realistic.optics.formats.pbrt_dat import parse_prescription
-from realistic.optics.formats.zemax import decode_zmx, parse_zmx
+from realistic.errors import LensFileError, UserError
+from realistic.optics.formats.codev import format_codev, parse_codev
+from realistic.optics.formats.json_lens import format_json_lens, parse_json_lens
+from realistic.optics.formats.pbrt_dat import format_prescription, parse_prescription
+from realistic.optics.formats.zemax import decode_zmx, format_zmx, parse_zmx
 from realistic.optics.lens import LensSystem
+
+#: Writers by file extension (``lens convert``); readers dispatch on the same extensions.
+WRITERS = {".dat": format_prescription, ".json": format_json_lens, ".zmx": format_zmx, ".seq": format_codev}
 
 #: Short names of the bundled prescriptions (package data in ``lenses/`` beside this module).
 BUNDLED_LENSES = {
@@ -24,19 +31,24 @@ BUNDLED_LENSES = {
     "fisheye": "fisheye.10mm.dat",
     "telephoto": "telephoto.250mm.dat",
     "dgauss100": "dgauss100.dat",
+    # aspheric lenses (JSON): source, example and what was set beyond the source in each file's description
+    "phone-us10101561": "phone.us10101561.e3.json",
+    "canon-ef24-f1.4": "canon-ef24.us20100033848.e3.json",
+    "canon-rf50-f1.2": "canon-rf50.us20190265441.e2.json",
 }
 
 
 def load_lens(name_or_path: str | Path) -> LensSystem:
     """Load a bundled lens by short name (``dgauss``, ``wide``, ...) or a prescription file by path.
 
-    A path ending in ``.zmx`` is read as a Zemax sequential file (``realistic.optics.formats.zemax``).
+    A path ending in ``.zmx`` is read as a Zemax sequential file, ``.json`` as an isetlens/omni
+    prescription, ``.seq`` as a CODE V sequence file; anything else as a pbrt-style ``.dat``.
     """
     key = str(name_or_path)
     if key in BUNDLED_LENSES:
         resource = resources.files(__package__) / "lenses" / BUNDLED_LENSES[key]
-        return parse_prescription(resource.read_text(encoding="utf-8"), path=f"{key} ({BUNDLED_LENSES[key]})",
-                                  name=key)
+        return parse_text(resource.read_text(encoding="utf-8"), f"{key} ({BUNDLED_LENSES[key]})",
+                          Path(BUNDLED_LENSES[key]).suffix, name=key)
     path = Path(key)
     try:
         is_dir, is_file, exists = path.is_dir(), path.is_file(), path.exists()
@@ -56,4 +68,21 @@ def load_lens(name_or_path: str | Path) -> LensSystem:
         text = data.decode("utf-8-sig")
     except (OSError, UnicodeDecodeError) as err:
         raise LensFileError(key, None, f"cannot read: {err}") from None
-    return parse_prescription(text, path=key)
+    return parse_text(text, key, path.suffix.lower())
+
+
+def parse_text(text: str, path: str, suffix: str, name: str | None = None) -> LensSystem:
+    """Parse prescription text by its file extension (``.json``, ``.seq``, else ``.dat``)."""
+    if suffix == ".json":
+        return parse_json_lens(text, path, name)
+    if suffix == ".seq":
+        return parse_codev(text, path, name)
+    return parse_prescription(text, path=path, name=name)
+
+
+def format_lens(lens: LensSystem, suffix: str) -> str:
+    """``lens`` as the text of a ``.dat``, ``.json``, ``.zmx`` or ``.seq`` file (exact floats)."""
+    if suffix not in WRITERS:
+        raise UserError(f"cannot write a lens as {suffix or 'a file without an extension'!r}: "
+                        f"use one of {', '.join(WRITERS)}")
+    return WRITERS[suffix](lens)

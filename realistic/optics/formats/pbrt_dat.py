@@ -11,7 +11,7 @@ import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from realistic.errors import LensFileError
+from realistic.errors import LensFileError, UserError
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
 
 COLUMN_NAMES_4 = ("radius", "thickness", "index", "aperture")
@@ -129,3 +129,21 @@ def parse_prescription(text: str, path: str = "<string>", name: str | None = Non
                 "the pbrt-v4 100 mm convention, shifted to distance-to-next")
     return build_lens(path, [row.line for row in rows], radius, thickness, index, abbe, aperture,
                       name=name, note=note)
+
+
+def format_prescription(lens: LensSystem) -> str:
+    """``lens`` as a pbrt-style ``.dat`` table (5 columns when a glass has a V number), floats
+    written exactly. Aspheres cannot be written: the format has no column for them."""
+    if lens.aspheric.any():
+        surface = int(lens.aspheric.argmax())
+        raise UserError(f"{lens.name}: surface {surface} is aspheric and a .dat prescription has no columns for "
+                        f"aspheres: convert to .json, .zmx or .seq")
+    five = lens.has_dispersion
+    lines = [f"# {lens.name}"] + [f"# {line}" for line in lens.description.splitlines() if line.strip()]
+    lines.append("# radius thickness n_d V_d aperture" if five else "# radius thickness n_d aperture")
+    for i in range(lens.surface_count):
+        radius = 0.0 if i == lens.stop else float(lens.radius_mm[i])
+        values = [radius, float(lens.thickness_mm[i]), float(lens.index_d[i])]
+        values += [float(lens.abbe_v[i])] if five else []
+        lines.append("\t".join(repr(v) for v in values + [float(lens.aperture_mm[i])]))
+    return "\n".join(lines) + "\n"

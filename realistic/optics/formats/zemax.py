@@ -1,6 +1,9 @@
 """Zemax ``.zmx`` sequential files as lens prescriptions.
 
-Supported: ``MODE SEQ`` files of ``TYPE STANDARD`` spherical surfaces (``CURV`` in 1/unit,
+Supported: ``MODE SEQ`` files of ``TYPE STANDARD`` spheres and conics and ``TYPE EVENASPH`` even
+aspheres (``CONI`` conic constant; ``PARM 2`` .. ``PARM 8`` the coefficients of r^4 .. r^16 in
+unit^(1-p), converted to mm; ``PARM 1``, the r^2 term, must be 0 since it would move the paraxial
+curvature away from CURV), with ``CURV`` in 1/unit,
 ``DISZ`` thickness to the next surface, ``DIAM`` semi-diameter, or ``CLAP 0 max`` whose hard
 circular aperture takes precedence over DIAM), in ``UNIT`` MM, CM, IN or METER, with model
 glasses ``GLAS ___BLANK code pickup n_d V_d ...``. A
@@ -16,8 +19,8 @@ surface is rejected rather than approximated: our stop is its own flat surface a
 be > 0, so splitting it off would change the lens (put the stop on a flat dummy air surface in
 Zemax). Semi-diameters are kept as the file gives them.
 
-Rejected with the line that holds them: other surface types (EVENASPH, TOROIDAL, COORDBRK, PARAXIAL,
-...), non-zero ``CONI``, mirrors, tilts and decentres (``SCBD``/``SCAD``, ``OBDC``), obscurations and
+Rejected with the line that holds them: other surface types (TOROIDAL, COORDBRK, PARAXIAL, ODDASPH,
+...), a non-zero r^2 term, mirrors, tilts and decentres (``SCBD``/``SCAD``, ``OBDC``), obscurations and
 non-circular apertures, glass in object or image space, a curved image surface, non-sequential mode.
 Everything else (fields, wavelengths, solves, tolerances, display settings) is ignored.
 """
@@ -27,9 +30,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from realistic.errors import LensFileError
+import numpy as np
+
+from realistic.errors import LensFileError, UserError
+from realistic.optics.asphere import COEFFICIENT_POWERS
 from realistic.optics.formats.pbrt_dat import text_lines
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
+
+#: Surface types read: spheres and conics, and even aspheres with PARM 1..8 on r^2 .. r^16.
+SURFACE_TYPES = ("STANDARD", "EVENASPH")
+EVENASPH_TERMS = 8
 
 #: Lens units Zemax writes on the ``UNIT`` line, in millimetres.
 UNIT_MM = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "M": 1000.0, "METER": 1000.0}
@@ -55,6 +65,9 @@ class _Surface:
     semi_diameter: float | None = None
     clear_semi_diameter: float | None = None
     stop_line: int = 0
+    kind: str = "STANDARD"
+    conic: float = 0.0
+    parms: dict[int, tuple[float, int]] = field(default_factory=dict)  # PARM n: (value, line)
     catalogue: list[str] = field(default_factory=list)
 
 
@@ -115,9 +128,16 @@ def _surface_keyword(tokens: list[str], surface: _Surface, path: str, line: int)
     """Apply one keyword line inside a ``SURF`` block."""
     keyword, args = tokens[0], tokens[1:]
     first = args[0] if args else None
-    if keyword == "TYPE" and first != "STANDARD":
-        raise LensFileError(path, line, f"surface type {first} is not supported (only TYPE STANDARD spheres)")
-    if keyword == "CURV":
+    if keyword == "TYPE":
+        if first not in SURFACE_TYPES:
+            raise LensFileError(path, line, f"surface type {first} is not supported (only TYPE STANDARD and "
+                                f"TYPE EVENASPH)")
+        surface.kind = first
+    elif keyword == "PARM":
+        number = _number(first, path, line, "PARM number")
+        value = _number(args[1] if len(args) > 1 else None, path, line, f"PARM {first}")
+        surface.parms[int(number) if number.is_integer() else -1] = (value, line)
+    elif keyword == "CURV":
         surface.curvature, surface.curvature_line = _number(first, path, line, "CURV"), line
         if not math.isfinite(surface.curvature):
             raise LensFileError(path, line, f"CURV {first} is not a finite curvature (a flat surface is CURV 0)")
@@ -135,8 +155,8 @@ def _surface_keyword(tokens: list[str], surface: _Surface, path: str, line: int)
         surface.clear_semi_diameter = high
     elif keyword == "STOP":
         surface.stop_line = line
-    elif keyword == "CONI" and _number(first, path, line, "CONI") != 0:
-        raise LensFileError(path, line, f"conic constant {first} is not supported (only spheres, CONI 0)")
+    elif keyword == "CONI":
+        surface.conic = _number(first, path, line, "CONI")
     elif keyword in ("SCBD", "SCAD", "OBDC") and any(_number(a, path, line, keyword) != 0 for a in
                                                     args[1 if keyword != "OBDC" else 0:]):
         raise LensFileError(path, line, f"tilted or decentred surfaces and apertures ({keyword}) are not supported")
@@ -211,9 +231,56 @@ def parse_zmx(text: str, path: str = "<string>") -> LensSystem:
         apertures.append(2 * semi * unit_mm)
 
     radius = [0.0 if s is stop else math.inf if s.curvature == 0 else unit_mm / s.curvature for s in lens]
+    coefficients = [_coefficients(s, unit_mm, path) for s in lens]
     catalogue = [name for s in lens for name in s.catalogue]
     note = (f"catalogue glasses read from the n_d/V_d on their GLAS lines: {', '.join(catalogue)}"
             if catalogue else "")
     return build_lens(path, [s.line for s in lens], radius, [s.thickness * unit_mm for s in lens],
                       [s.index for s in lens], [s.abbe for s in lens],
-                      apertures, note=note)
+                      apertures, note=note, conic=[s.conic for s in lens], coefficients=coefficients)
+
+
+def _coefficients(surface: _Surface, unit_mm: float, path: str) -> list[float]:
+    """A4 .. A16 in mm of an EVENASPH surface (none for STANDARD, whose PARMs mean nothing)."""
+    if surface.kind != "EVENASPH":
+        return []
+    values = [0.0] * EVENASPH_TERMS
+    for number, (value, line) in surface.parms.items():
+        if not 1 <= number <= EVENASPH_TERMS:
+            if value != 0:
+                raise LensFileError(path, line, f"EVENASPH has PARM 1 .. {EVENASPH_TERMS}; PARM {number} = {value:g} "
+                                    f"is not supported")
+            continue
+        if number == 1 and value != 0:
+            raise LensFileError(path, line, f"an r^2 aspheric term (PARM 1 = {value:g}) is not supported: fold it "
+                                f"into CURV")
+        values[number - 1] = value
+    return [a * unit_mm ** (1 - power) for a, power in zip(values[1:], COEFFICIENT_POWERS)]
+
+
+
+def format_zmx(lens: LensSystem) -> str:
+    """``lens`` as a Zemax sequential file in mm (ASCII) that ``parse_zmx`` reads back exactly;
+    aspheres as EVENASPH, which carries terms up to r^16."""
+    beyond = np.flatnonzero(np.any(lens.aspheric_coefficients[:, EVENASPH_TERMS - 1:] != 0, axis=1))
+    if len(beyond):
+        raise UserError(f"{lens.name}: surface {beyond[0]} has r^18 or r^20 terms, which Zemax's EVENASPH "
+                        f"(up to r^16) cannot hold: convert to .json or .seq")
+    lines = ["VERS 190513 80 123", "MODE SEQ", f"NAME {lens.name}", "UNIT MM X W X CM MR CPMM",
+             "SURF 0", "  TYPE STANDARD", "  CURV 0.0", "  DISZ INFINITY"]
+    for i in range(lens.surface_count):
+        radius = float(lens.radius_mm[i])
+        curvature = 0.0 if radius == 0 or math.isinf(radius) else 1.0 / radius
+        lines += [f"SURF {i + 1}"] + (["  STOP"] if i == lens.stop else [])
+        lines += [f"  TYPE {'EVENASPH' if lens.aspheric[i] else 'STANDARD'}", f"  CURV {curvature!r}"]
+        if lens.aspheric[i]:
+            lines.append(f"  CONI {float(lens.conic[i])!r}")
+            terms = [0.0, *lens.aspheric_coefficients[i, :EVENASPH_TERMS - 1]]
+            lines += [f"  PARM {k} {float(a)!r}" for k, a in enumerate(terms, start=1)]
+        lines.append(f"  DISZ {float(lens.thickness_mm[i])!r}")
+        if lens.index_d[i] != 1:
+            lines.append(f"  GLAS ___BLANK 1 0 {float(lens.index_d[i])!r} {float(lens.abbe_v[i])!r} 0 0 0 0 0 0")
+        lines.append(f"  DIAM {float(lens.aperture_mm[i]) / 2!r}")
+    lines += [f"SURF {lens.surface_count + 1}", "  TYPE STANDARD", "  CURV 0.0", "  DISZ 0",
+              f"  DIAM {float(lens.aperture_mm.max())!r}"]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,37 @@
+"""The OpenCL kernel against the float64 tracer for aspheric lenses, with the tolerances of the spheres."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from kernel_reference import aspherised_dgauss, assert_kernel_matches, camera_for_lens
+from realistic import load_lens
+from realistic.errors import UserError
+
+opencl_host = pytest.importorskip("realistic.camera.opencl_host")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def opencl_platform():
+    try:
+        opencl_host.context()
+    except UserError as err:
+        pytest.skip(f"no OpenCL platform: {err}")
+
+
+@pytest.mark.parametrize("sampling", ["pupil", "rear"])
+def test_kernel_matches_tracer_for_an_aspheric_lens(sampling):
+    lens = aspherised_dgauss()
+    camera = camera_for_lens(lens)
+    if sampling != "pupil":
+        camera = dataclasses.replace(camera, lens_sampling=sampling)
+    count, seed = camera.sample_count, 11
+    kernel = camera.ray_generator("opencl", seed)(0, count)
+    reference = camera.generate_rays(0, count, seed)
+    assert_kernel_matches(kernel, reference, camera, seed)
+    spherical = dataclasses.replace(camera, lens=load_lens("dgauss")).generate_rays(0, count, seed)
+    both = (reference.weight != 0) & (spherical.weight != 0)
+    assert np.max(np.abs(reference.direction[both] - spherical.direction[both])) > 1e-3  # the aspheres matter
