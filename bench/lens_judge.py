@@ -22,8 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from realistic.camera.psf import point_spread  # noqa: E402
+from realistic.optics.formats import load_lens  # noqa: E402
 from realistic.optics.forward_trace import pupil_grid  # noqa: E402
-from realistic.optics.library import resolve_lens  # noqa: E402
 from realistic.optics.mtf import lens_mtf  # noqa: E402
 from realistic.optics.spot import NAMED_WAVELENGTHS_NM, spot_diagram  # noqa: E402
 
@@ -50,7 +50,7 @@ def main() -> None:
     args = parser.parse_args()
     rows = []
     for name in args.lenses:
-        lens = resolve_lens(name)
+        lens = load_lens(name)
         spot = timed(lambda lens=lens: spot_diagram(lens, FIELDS, WAVES, "best", 64), args.repeat)
         mtf = timed(lambda lens=lens: lens_mtf(lens, FIELDS, WAVES, 100.0, "best", 128), args.repeat)
         psf = timed(lambda lens=lens: point_spread(lens, 3000.0, 0.0, pixel_mm=0.002, size=64, spp=256),

@@ -13,15 +13,13 @@ import numpy as np
 
 from realistic.cli.lens_convert import add_convert_command
 from realistic.cli.lens_judge import add_judge_commands
-from realistic.cli.values import checked, parse_resolution, positive
+from realistic.cli.values import LENS_HELP, checked, parse_resolution, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.optics.dispersion import D_LINE_NM
-from realistic.optics.formats import BUNDLED_LENSES, load_lens
+from realistic.optics.formats import load_lens
 from realistic.optics.lens import LensSystem
-
-LENS_HELP = f"bundled lens name ({', '.join(BUNDLED_LENSES)}) or path to a prescription file"
 
 
 def _write_checked(path: Path, text: str) -> None:

@@ -12,8 +12,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from realistic.cli.values import LENS_HELP
 from realistic.core.atomic_files import check_writable, write_text_atomically
-from realistic.optics.formats import BUNDLED_LENSES, WRITERS, format_lens, load_lens
+from realistic.optics.formats import WRITERS, format_lens, load_lens
 
 
 def cmd_lens_convert(args: argparse.Namespace) -> int:
@@ -34,6 +35,6 @@ def add_convert_command(lens_commands: argparse._SubParsersAction) -> None:
                     f"OUT in the format of OUT's extension ({', '.join(WRITERS)}). Values are written "
                     "exactly; a lens the output format cannot hold is refused.")
     convert.add_argument("lens", metavar="LENS",
-                         help=f"bundled lens name ({', '.join(BUNDLED_LENSES)}) or path to a prescription file")
+                         help=LENS_HELP)
     convert.add_argument("output", metavar="OUT", help="output file; its extension picks the format")
     convert.set_defaults(run=cmd_lens_convert)

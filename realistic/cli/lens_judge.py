@@ -11,13 +11,12 @@ import json
 import math
 from pathlib import Path
 
-from realistic.cli.values import checked, positive
+from realistic.cli.values import LENS_HELP, checked, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.errors import UserError
+from realistic.optics.formats import bundled_lens_files, load_lens
 from realistic.optics.lens import LensSystem
-
-LENS_HELP = "library lens name (see 'lens list') or path to a prescription file"
 
 
 def parse_fields(text: str) -> list[float]:
@@ -32,9 +31,7 @@ def parse_fields(text: str) -> list[float]:
 
 
 def _load(args: argparse.Namespace) -> LensSystem:
-    from realistic.optics.library import resolve_lens
-
-    lens = resolve_lens(args.lens)
+    lens = load_lens(args.lens)
     return lens.with_stop_diameter(args.aperture) if args.aperture else lens
 
 
@@ -53,9 +50,9 @@ def _write(path: str | None, text: str) -> None:
 
 
 def cmd_lens_list(args: argparse.Namespace) -> int:
-    from realistic.optics.library import library_entry, library_files
+    from realistic.optics.library import library_entry
 
-    entries = [library_entry(name) for name in library_files()]
+    entries = [library_entry(name) for name in bundled_lens_files()]
     if args.json:
         print(json.dumps(entries, indent=1))
         return 0

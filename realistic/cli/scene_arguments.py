@@ -10,12 +10,11 @@ from typing import TYPE_CHECKING
 
 from realistic.camera.base import BACKENDS
 from realistic.camera.lens_camera import LENS_SAMPLINGS
-from realistic.cli.values import checked, parse_pixel, parse_resolution, parse_vector, positive
+from realistic.cli.values import LENS_HELP, checked, parse_pixel, parse_resolution, parse_vector, positive
 from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.pixel_filter import FILTER_ALIASES, FILTER_NAMES, filter_name
 from realistic.core.validation import finite
-from realistic.optics.formats import BUNDLED_LENSES
 from realistic.renderer.memory import parse_size
 from realistic.scene.pbrt.dialect import DIALECTS
 
@@ -26,8 +25,7 @@ if TYPE_CHECKING:
 def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     """The arguments that choose what to render (shared by ``render`` and ``bench``)."""
     parser.add_argument("scene", nargs="?", metavar="SCENE", help="pbrt scene or mesh file; omit for the default scene")
-    parser.add_argument("--lens", help=f"mesh scenes: bundled lens ({', '.join(BUNDLED_LENSES)}) or prescription file "
-                                       "(default: dgauss)")
+    parser.add_argument("--lens", help=f"mesh scenes: {LENS_HELP} (default: dgauss)")
     stop = parser.add_mutually_exclusive_group()
     stop.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                       help="stop diameter in mm (default: the scene's or lens's)")

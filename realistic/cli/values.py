@@ -11,6 +11,7 @@ import numpy as np
 
 from realistic.core import validation
 from realistic.errors import UserError
+from realistic.optics.formats import BUNDLED_LENSES
 
 Value = TypeVar("Value")
 
@@ -72,3 +73,8 @@ def parse_spp_list(text: str) -> list[int]:
     if not values or any(v < 1 for v in values):
         raise UserError(f"--spp {text!r} is not a comma-separated list of positive integers")
     return [validation.samples_per_pixel(v) for v in values]
+
+
+#: Help for a LENS argument (every command that takes one).
+LENS_HELP = (f"bundled lens name ({', '.join(BUNDLED_LENSES)}, or any name 'realistic lens list' shows) "
+             "or path to a prescription file (.dat, .json, .zmx, .seq)")

@@ -9,39 +9,29 @@ at least ``IMAGE_CIRCLE_ILLUMINATION`` of the centre's.
 
 from __future__ import annotations
 
-from importlib import resources
-from pathlib import Path
+import json
 
 import numpy as np
 
-from realistic.errors import LensFileError
 from realistic.optics.field_curves import field_curves
-from realistic.optics.formats import BUNDLED_LENSES, load_lens
-from realistic.optics.formats.pbrt_dat import parse_prescription
+from realistic.optics.formats import bundled_lens_files, bundled_lens_text, load_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import paraxial_data
 
 #: Relative illumination (of the centre's) that bounds the image circle.
 IMAGE_CIRCLE_ILLUMINATION = 0.1
-_PACKAGE = "realistic.optics.formats"
-
-
-def library_files() -> dict[str, str]:
-    """Library name -> file name of every bundled ``.dat`` prescription: the short names of
-    ``BUNDLED_LENSES`` where one exists, else the file name without ``.dat``."""
-    short = {file: name for name, file in BUNDLED_LENSES.items()}
-    files = sorted(p.name for p in (resources.files(_PACKAGE) / "lenses").iterdir() if p.name.endswith(".dat"))
-    return {short.get(f, f[:-len(".dat")]): f for f in files}
 
 
 def read_library_lens(name: str) -> tuple[LensSystem, str]:
-    """(lens, header comment text) of library lens ``name`` (a key of ``library_files``)."""
-    file = library_files()[name]
-    text = (resources.files(_PACKAGE) / "lenses" / file).read_text(encoding="utf-8")
-    comments = [line.lstrip("#").strip() for line in text.splitlines() if line.startswith("#")]
-    # Column-name lines ("Columns: ...", "radius<TAB>sep<TAB>n ...") say nothing about the source.
-    header = " ".join(c for c in comments if c and not c.startswith("Columns") and "\t" not in c)
-    return parse_prescription(text, path=f"{name} ({file})", name=name), header
+    """(lens, source text) of bundled lens ``name``: the header comments of a ``.dat`` file (less its
+    column-name lines), the description of a ``.json`` one."""
+    text = bundled_lens_text(name)
+    if bundled_lens_files()[name].endswith(".json"):
+        header = str(json.loads(text).get("description", ""))
+    else:
+        comments = [line.lstrip("#").strip() for line in text.splitlines() if line.startswith("#")]
+        header = " ".join(c for c in comments if c and not c.startswith("Columns") and "\t" not in c)
+    return load_lens(name), header
 
 
 def element_count(lens: LensSystem) -> int:
@@ -71,23 +61,8 @@ def library_entry(name: str) -> dict:
     lens, header = read_library_lens(name)
     para = paraxial_data(lens)
     return {
-        "name": name, "file": library_files()[name], "focal_length_mm": para.efl_mm, "f_number": para.f_number,
+        "name": name, "file": bundled_lens_files()[name], "focal_length_mm": para.efl_mm, "f_number": para.f_number,
         "image_circle_mm": image_circle_mm(lens), "elements": element_count(lens),
         "aspheres": int(getattr(lens, "asphere_count", 0)), "source": header,
     }
 
-
-
-def resolve_lens(name_or_path: str) -> LensSystem:
-    """A library lens by name (``library_files``), else whatever ``load_lens`` accepts."""
-    names = library_files()
-    if name_or_path in names and name_or_path not in BUNDLED_LENSES:
-        return read_library_lens(name_or_path)[0]
-    try:
-        exists = Path(name_or_path).exists()
-    except (OSError, ValueError):
-        exists = True  # let load_lens say what is wrong with the path
-    if not exists and name_or_path not in BUNDLED_LENSES:
-        raise LensFileError(name_or_path, None, f"no such lens file, and not a library lens name "
-                                                f"({', '.join(names)}; 'lens list' describes them)")
-    return load_lens(name_or_path)

@@ -6,7 +6,7 @@ Readers import the lens model (``realistic.optics.lens``) and never the reverse.
 - ``zemax``: Zemax sequential ``.zmx`` files (ASCII or UTF-16).
 - ``json_lens``: isetlens / pbrt-v4 omni ``.json`` prescriptions (aspheres included).
 - ``codev``: CODE V ``.seq`` sequence files.
-- ``lenses/``: the bundled prescriptions, package data, named by ``BUNDLED_LENSES``.
+- ``lenses/``: the bundled prescriptions, package data, named by ``bundled_lens_files``.
 """
 
 from __future__ import annotations
@@ -38,17 +38,25 @@ BUNDLED_LENSES = {
 }
 
 
+def bundled_lens_files() -> dict[str, str]:
+    """Name -> file of every bundled prescription: the short names of ``BUNDLED_LENSES``, and every
+    other file under its file name less the extension (``tessar.100mm``); ``lens list`` shows them."""
+    short = {file: name for name, file in BUNDLED_LENSES.items()}
+    files = sorted(p.name for p in (resources.files(__package__) / "lenses").iterdir()
+                   if p.name.endswith((".dat", ".json")))
+    return {short.get(f, f.rsplit(".", 1)[0]): f for f in files}
+
+
 def load_lens(name_or_path: str | Path) -> LensSystem:
-    """Load a bundled lens by short name (``dgauss``, ``wide``, ...) or a prescription file by path.
+    """Load a bundled lens by name (``dgauss``, ``tessar.100mm``, ...) or a prescription file by path.
 
     A path ending in ``.zmx`` is read as a Zemax sequential file, ``.json`` as an isetlens/omni
     prescription, ``.seq`` as a CODE V sequence file; anything else as a pbrt-style ``.dat``.
     """
     key = str(name_or_path)
-    if key in BUNDLED_LENSES:
-        resource = resources.files(__package__) / "lenses" / BUNDLED_LENSES[key]
-        return parse_text(resource.read_text(encoding="utf-8"), f"{key} ({BUNDLED_LENSES[key]})",
-                          Path(BUNDLED_LENSES[key]).suffix, name=key)
+    bundled = bundled_lens_files()
+    if key in bundled:
+        return parse_text(bundled_lens_text(key), f"{key} ({bundled[key]})", Path(bundled[key]).suffix, name=key)
     path = Path(key)
     try:
         is_dir, is_file, exists = path.is_dir(), path.is_file(), path.exists()
@@ -59,8 +67,9 @@ def load_lens(name_or_path: str | Path) -> LensSystem:
     if exists and not is_file:
         raise LensFileError(key, None, "is not a regular file (a lens file is a .dat or .zmx prescription)")
     if not is_file:
-        names = ", ".join(BUNDLED_LENSES)
-        raise LensFileError(key, None, f"no such lens file, and not a bundled lens name ({names})")
+        names = ", ".join(bundled)
+        raise LensFileError(key, None, f"no such lens file, and not a bundled lens name ({names}; "
+                                       f"'realistic lens list' describes them)")
     try:
         data = path.read_bytes()
         if path.suffix.lower() == ".zmx":
@@ -69,6 +78,11 @@ def load_lens(name_or_path: str | Path) -> LensSystem:
     except (OSError, UnicodeDecodeError) as err:
         raise LensFileError(key, None, f"cannot read: {err}") from None
     return parse_text(text, key, path.suffix.lower())
+
+
+def bundled_lens_text(name: str) -> str:
+    """The text of bundled lens ``name`` (a key of ``bundled_lens_files``)."""
+    return (resources.files(__package__) / "lenses" / bundled_lens_files()[name]).read_text(encoding="utf-8")
 
 
 def parse_text(text: str, path: str, suffix: str, name: str | None = None) -> LensSystem:
