@@ -142,11 +142,12 @@ def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[tuple[int
     try:
         with np.load(path, allow_pickle=False) as data:
             header = json.loads(str(data["header"]))
-            if header.get("format") != FORMAT:
+            if not isinstance(header, dict) or header.get("format") != FORMAT:
                 raise ValueError("not a checkpoint")
             saved = {name: data[name] for name in data.files}
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as err:
-        raise UserError(f"{path}: cannot resume: not a readable checkpoint ({err})") from None
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
+        reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise UserError(f"{path}: cannot resume: not a readable checkpoint ({reason})") from None
     for name, label in _NAMES.items():
         theirs, ours = header.get(name), getattr(identity, name)
         if theirs != ours:
@@ -155,8 +156,11 @@ def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[tuple[int
                             f"render has {show(ours)}); remove it or render without --resume")
     width, height = (int(v) for v in identity.resolution.split("x"))
     film = PassFilm(Film(width, height, identity.spp), passes)
-    film.film.sums[:], film.film.samples[:] = saved["sums"], saved["samples"]
-    film.next_pass = int(header["next_pass"])
-    for index, first_pixel in zip(saved["waiting_index"], saved["waiting_first_pixel"]):
-        film.waiting[int(index)] = (int(first_pixel), saved[f"waiting_{index}"])
+    try:
+        film.film.sums[:], film.film.samples[:] = saved["sums"], saved["samples"]
+        film.next_pass = int(header["next_pass"])
+        for index, first_pixel in zip(saved["waiting_index"], saved["waiting_first_pixel"], strict=True):
+            film.waiting[int(index)] = (int(first_pixel), saved[f"waiting_{index}"])
+    except (KeyError, ValueError, TypeError) as err:
+        raise UserError(f"{path}: cannot resume: the checkpoint is damaged ({type(err).__name__})") from None
     return film
