@@ -85,12 +85,15 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
                              "resolution)")
     parser.add_argument("--preview-every", type=positive("preview interval (seconds)"), metavar="SECONDS",
                         help="rewrite the PNG preview this often while rendering (default: only at the end)")
+    parser.add_argument("--pass-samples", type=checked(int, validation.pass_samples), metavar="N",
+                        help="sample ids per pass (default: 131072); checkpoints hold whole passes, and a farm task "
+                             "is about 2^20 samples of passes")
     add_farm_arguments(parser)
     parser.set_defaults(run=cmd_render)
 
 
 def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--workers``, ``--scheduler`` and ``--pass-samples`` (shared by ``render`` and ``bench``)."""
+    """``--workers`` and ``--scheduler`` (shared by ``render`` and ``bench``)."""
     farm = parser.add_mutually_exclusive_group()
     farm.add_argument("--workers", type=checked(int, validation.workers), metavar="N",
                       help="render on a Dask LocalCluster of N worker processes on this machine (default: threads "
@@ -98,8 +101,6 @@ def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
     farm.add_argument("--scheduler", metavar="ADDRESS",
                       help="render on the Dask cluster whose scheduler is at ADDRESS, e.g. tcp://host:8786 "
                            "(default: $DASK_SCHEDULER_ADDRESS when set)")
-    parser.add_argument("--pass-samples", type=checked(int, validation.pass_samples), metavar="N",
-                        help="sample ids per pass (default: 131072); a farm task is about 2^20 samples of passes")
 
 
 @contextmanager

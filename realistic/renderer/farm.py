@@ -1,9 +1,10 @@
 """Passes on a Dask cluster (``dask.distributed``): a LocalCluster of worker processes or a scheduler.
 
 Imported only when a farm option is used, so plain renders and ``--help`` never load dask. The
-scene (meshes, materials, lights: its description, not the BVH) is scattered once and fetched once
-per worker; each worker builds embree's scene, the camera's exit-pupil table and OpenCL program
-on the first task that needs them and keeps them across tasks in a cache keyed by content hashes
+scene (meshes, materials, lights: its description, not the BVH) goes to the cluster once, as a
+task's result, and is fetched once per worker; each worker builds embree's scene, the camera's
+exit-pupil table and OpenCL program on the first task that needs them and keeps them across tasks
+in a cache keyed by content hashes
 (``checkpoint.content_hash``). A task is a few consecutive passes (about ``task_samples`` samples,
 0.5-2 s of work) and returns each pass's sums separately, so the client adds them in pass order
 (``film.PassFilm``) and the image is bit-identical to an in-process render for any number of
@@ -35,6 +36,8 @@ DEFAULT_TASK_SAMPLES = 1 << 20
 #: Runners (camera + integrator) and BVHs each worker keeps, most recently used first.
 RUNNERS_KEPT = 8
 SCENES_KEPT = 2
+#: How long a client waits to reach a scheduler before the render is refused.
+CONNECT_TIMEOUT = "15s"
 
 _runners: OrderedDict[str, PassRunner] = OrderedDict()
 _scenes: OrderedDict[str, Intersector] = OrderedDict()
@@ -53,7 +56,7 @@ def farm_client(workers: int | None = None, scheduler: str | None = None,
     threaded worker processes (its dashboard link passed to ``announce``), closed on exit."""
     if scheduler:
         try:
-            client = Client(scheduler, timeout="15s")
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError, ValueError) as err:
             raise UserError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
         try:
@@ -92,6 +95,11 @@ def _runner(scene: Scene, scene_key: str, camera: Camera, runner_key: str, setti
         return runner
 
 
+def _scene(scene: Scene) -> Scene:
+    """The scene as a task's result, so workers fetch it from each other (once per worker)."""
+    return scene
+
+
 def run_task(scene: Scene, scene_key: str, camera: Camera, runner_key: str, settings: dict,
              passes: list[tuple[int, int, int]]) -> list[PassResult]:
     """A task on a worker: passes (plan index, first sample id, count) of one camera."""
@@ -106,7 +114,9 @@ class DaskPasses:
         self.client, self.settings, self.cameras = client, settings, cameras
         described = dataclasses.replace(scene, camera=None)
         self.scene_key = content_hash(described)
-        self.scene = client.scatter(described, hash=False)
+        # a task whose definition holds the scene, not scattered data: if the worker holding it dies,
+        # the scheduler makes it again from the definition instead of cancelling every pass
+        self.scene = client.submit(_scene, described, key=f"scene-{self.scene_key}", pure=False)
         self.runner_keys = [content_hash((self.scene_key, camera, sorted(settings.items()))) for camera in cameras]
         threads = sum(client.nthreads().values())
         self.capacity = max(2, 2 * threads)  # tasks submitted ahead: every worker busy, one queued each
@@ -125,5 +135,5 @@ class DaskPasses:
         return [(frame, future.result()) for future, frame in pending.items()]
 
     def close(self, finished: bool) -> None:
-        """Drop the scattered scene (tasks not collected are released with their futures)."""
+        """Release the scene (tasks not collected are released with their futures)."""
         self.scene.release()
