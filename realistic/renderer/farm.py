@@ -13,9 +13,11 @@ workers, task order or retry. A dead worker's tasks are rerun by Dask.
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import logging
 import os
+import signal
 import threading
 from collections import OrderedDict
 from collections.abc import Iterator
@@ -36,6 +38,8 @@ DEFAULT_TASK_SAMPLES = 1 << 20
 #: Runners (camera + integrator) and BVHs each worker keeps, most recently used first.
 RUNNERS_KEPT = 8
 SCENES_KEPT = 2
+#: Set in the worker processes of the LocalClusters started here: they ignore terminal signals.
+LOCAL_WORKER = "REALISTIC_LOCAL_WORKER"
 #: How long a client waits to reach a scheduler before the render is refused.
 CONNECT_TIMEOUT = "15s"
 
@@ -64,15 +68,38 @@ def farm_client(workers: int | None = None, scheduler: str | None = None,
         finally:
             client.close()
         return
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
-    client = Client(cluster)
+    with _terminal_signals_ignored():  # worker processes started now inherit the ignoring
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR, env={LOCAL_WORKER: "1"})
+        client = Client(cluster)
     announce(f"Dask LocalCluster of {workers} worker processes; dashboard {client.dashboard_link}")
     try:
         yield client
     finally:
         client.close()
         cluster.close()
+
+
+@contextmanager
+def _terminal_signals_ignored() -> Iterator[None]:
+    """Ignore SIGINT and SIGHUP while the body runs (main thread only; elsewhere a no-op).
+
+    Ctrl-C and a closed terminal signal the whole foreground process group. Worker processes started
+    meanwhile inherit the ignored dispositions (Python installs its KeyboardInterrupt handler only
+    where SIGINT is not ignored), so they finish the tasks in flight while this process handles the
+    signal and then closes them.
+    """
+    names = ("SIGINT", "SIGHUP")
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {number: signal.signal(number, signal.SIG_IGN)
+                for number in (getattr(signal, name) for name in names if hasattr(signal, name))}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 def _runner(scene: Scene, scene_key: str, camera: Camera, runner_key: str, settings: dict) -> PassRunner:
@@ -92,7 +119,21 @@ def _runner(scene: Scene, scene_key: str, camera: Camera, runner_key: str, setti
                                                    **settings)
         while len(_runners) > RUNNERS_KEPT:
             _runners.popitem(last=False)
+        if os.environ.get(LOCAL_WORKER):
+            _ignore_terminal_signals()
         return runner
+
+
+def _ignore_terminal_signals() -> None:
+    """Ignore SIGINT and SIGHUP in this process, from any thread (C ``signal``, which Python's
+    ``signal.signal`` allows only in the main thread): PoCL's LLVM installs handlers for them when it
+    compiles a kernel, and those end a local worker on the Ctrl-C meant for the render."""
+    libc = ctypes.CDLL(None)
+    libc.signal.restype = ctypes.c_void_p
+    libc.signal.argtypes = [ctypes.c_int, ctypes.c_void_p]
+    for name in ("SIGINT", "SIGHUP"):
+        if hasattr(signal, name):
+            libc.signal(getattr(signal, name), ctypes.c_void_p(int(signal.SIG_IGN)))
 
 
 def _scene(scene: Scene) -> Scene:

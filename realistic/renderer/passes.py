@@ -264,7 +264,8 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
             preview(frames[-1 if len(frames) == 1 else _current(frames)].film.image())
             state["preview"] = now
 
-    pending: dict = {}
+    pending: dict = {}  # future -> frame
+    in_flight: dict = {}  # future -> passes it holds
     finished = False
     interrupted = False
     try:
@@ -273,15 +274,17 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
                 while tasks and len(pending) < executor.capacity:
                     index, chunk = tasks.popleft()
                     plan = frames[index].plan
-                    pending[executor.submit(index, [(i, *plan[i]) for i in chunk])] = index
+                    future = executor.submit(index, [(i, *plan[i]) for i in chunk])
+                    pending[future], in_flight[future] = index, len(chunk)
                 for future in executor.wait_first(set(pending)):
+                    in_flight.pop(future)
                     take(pending.pop(future), future.result())
                 periodic()
         except KeyboardInterrupt:
             interrupted = True
             if progress:
-                print(f"\nrealistic: interrupted: finishing the {len(pending)} passes in flight, then writing what "
-                      "is done (interrupt again to stop at once and keep nothing)", file=sys.stderr)
+                print(f"\nrealistic: interrupted: finishing the {sum(in_flight.values())} passes in flight, then "
+                      "writing what is done (interrupt again to stop at once and keep nothing)", file=sys.stderr)
             for index, results in executor.finish_in_flight(pending):
                 take(index, results)
             if checkpoint is not None:
