@@ -163,7 +163,7 @@ def _output_image(image: np.ndarray, camera: Camera, args: argparse.Namespace) -
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.passes import DEFAULT_PASS_SAMPLES, Checkpointing, render_frames
+    from realistic.renderer.passes import DEFAULT_PASS_SAMPLES, Checkpointing, render_frames, render_passes
     from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
     if args.out is not None and Path(args.out).suffix.lower() != ".exr":
@@ -205,13 +205,17 @@ def cmd_render(args: argparse.Namespace) -> int:
         image, _, exposure = _output_image(image, cameras[0], args)
         write_png(out.with_suffix(".png"), image, exposure)
 
+    common = {"pass_samples": args.pass_samples or DEFAULT_PASS_SAMPLES, "progress": True,
+              "max_memory_bytes": args.max_memory}
     with farm_client(args) as client:
-        results = render_frames(inputs.scene, cameras, args.backend, args.seed, args.cl_device, inputs.light_samples,
-                                pass_samples=args.pass_samples or DEFAULT_PASS_SAMPLES, progress=True,
-                                max_memory_bytes=args.max_memory, client=client, checkpoint=checkpoint,
-                                on_frame=save if sweep is not None else None,
-                                preview=preview if args.preview_every and sweep is None else None,
-                                preview_every=args.preview_every)
+        if sweep is None:
+            results = [render_passes(inputs.scene, cameras[0], args.backend, args.seed, args.cl_device,
+                                     inputs.light_samples, client=client, checkpoint=checkpoint,
+                                     preview=preview if args.preview_every else None,
+                                     preview_every=args.preview_every, **common)]
+        else:
+            results = render_frames(inputs.scene, cameras, args.backend, args.seed, args.cl_device,
+                                    inputs.light_samples, client=client, on_frame=save, **common)
     for index, result in enumerate(results):
         if index not in written and (sweep is None or result.samples_done > 0):
             save(index, result)  # a single image always; a sequence's unfinished frames that have samples
