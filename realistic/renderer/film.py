@@ -59,7 +59,7 @@ class PassFilm:
 
     def add(self, index: int, first_pixel: int, sums: np.ndarray) -> None:
         """Take pass ``index``'s sums (from ``pass_sums``) starting at pixel ``first_pixel``."""
-        if index < self.next_pass or index in self.waiting:
+        if self.has(index):
             return  # a retried task's duplicate
         self.waiting[index] = (first_pixel, sums)
         while self.next_pass in self.waiting:
@@ -67,10 +67,13 @@ class PassFilm:
             self.film.add(*self.passes[self.next_pass], first_pixel, sums)
             self.next_pass += 1
 
+    def has(self, index: int) -> bool:
+        """Whether pass ``index`` has been taken."""
+        return index < self.next_pass or index in self.waiting
+
     @property
-    def done(self) -> set[int]:
-        """Indices of every pass taken so far."""
-        return set(range(self.next_pass)) | set(self.waiting)
+    def passes_taken(self) -> int:
+        return self.next_pass + len(self.waiting)
 
     def image(self) -> np.ndarray:
         """The image of every pass taken so far, waiting ones included (``Film.image``)."""

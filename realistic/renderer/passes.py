@@ -216,7 +216,7 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
             frame = frames[0]
             frame.film = load_checkpoint(checkpoint.path, identity, frame.plan)
             frame.result.samples_done = int(frame.film.film.samples.sum())
-            frame.result.passes_done = len(frame.film.done)
+            frame.result.passes_done = frame.film.passes_taken
     settings = {"backend": backend, "seed": seed, "cl_device": cl_device, "light_samples": light_samples,
                 "morton": morton}
     if client is None:
@@ -227,7 +227,7 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
         executor = DaskPasses(client, scene, cameras, settings, pass_samples, task_samples)
     tasks = deque()
     for index, frame in enumerate(frames):
-        todo = [i for i in range(len(frame.plan)) if i not in frame.film.done]
+        todo = [i for i in range(len(frame.plan)) if not frame.film.has(i)]
         for lo in range(0, len(todo), executor.passes_per_task):
             tasks.append((index, todo[lo:lo + executor.passes_per_task]))
     bar = _progress_bar(sum(f.result.passes_total for f in frames), sum(f.result.passes_done for f in frames)) \
@@ -237,7 +237,7 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
     def take(index: int, results: list[PassResult]) -> None:
         frame = frames[index]
         for done in results:
-            if done.index in frame.film.done:
+            if frame.film.has(done.index):
                 continue  # a retried task's duplicate
             frame.film.add(done.index, done.first_pixel, done.sums)
             frame.result.samples_done += done.count
@@ -261,7 +261,7 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
             save_checkpoint(checkpoint.path, identity, frames[0].film)
             state["checkpoint"] = now
         if preview is not None and preview_every is not None and now - state["preview"] >= preview_every:
-            preview(frames[-1 if len(frames) == 1 else _current(frames)].film.image())
+            preview(frames[_current(frames)].film.image())
             state["preview"] = now
 
     pending: dict = {}  # future -> frame
