@@ -154,3 +154,16 @@ def test_help_and_plain_renders_do_not_import_dask(tmp_path):
         out = subprocess.run([sys.executable, "-c", code, *args], cwd=REPO, capture_output=True, text=True,
                              timeout=120, env={k: v for k, v in os.environ.items() if k != "DASK_SCHEDULER_ADDRESS"})
         assert out.stdout.strip().endswith("[]"), out.stdout + out.stderr
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--workers", "0"], "workers must be between 1 and"),
+    (["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"], "not allowed with argument"),
+    (["--pass-samples", "0"], "pass size (samples) must be between 1 and"),
+    (["--sweep", "focus=1:2"], "--sweep 'focus=1:2'"),
+    (["--sweep", "focus=1:2:2", "--resume"], "--resume continues one image"),
+])
+def test_farm_options_are_checked_in_one_line(args, message, tmp_path, capsys):
+    assert main(["render", "--backend", "numpy", "--res", "8x8", "--out", str(tmp_path / "x.exr"), *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err, err
