@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+import importlib.util
 import logging
 import os
 import signal
@@ -72,7 +73,9 @@ def farm_client(workers: int | None = None, scheduler: str | None = None,
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR, env={LOCAL_WORKER: "1"})
         client = Client(cluster)
-    announce(f"Dask LocalCluster of {workers} worker processes; dashboard {client.dashboard_link}")
+    dashboard = (f"dashboard {client.dashboard_link}" if importlib.util.find_spec("bokeh")
+                 else f"dashboard at {client.dashboard_link} once bokeh is installed (pip install bokeh)")
+    announce(f"Dask LocalCluster of {workers} worker processes; {dashboard}")
     try:
         yield client
     finally:
