@@ -4,11 +4,12 @@ Imported only when a farm option is used, so plain renders and ``--help`` never 
 scene (meshes, materials, lights: its description, not the BVH) goes to the cluster once, as a
 task's result, and is fetched once per worker; each worker builds embree's scene, the camera's
 exit-pupil table and OpenCL program on the first task that needs them and keeps them across tasks
-in a cache keyed by content hashes
-(``checkpoint.content_hash``). A task is a few consecutive passes (about ``task_samples`` samples,
-0.5-2 s of work) and returns each pass's sums separately, so the client adds them in pass order
-(``film.PassFilm``) and the image is bit-identical to an in-process render for any number of
-workers, task order or retry. A dead worker's tasks are rerun by Dask.
+in a cache keyed by content hashes (``checkpoint.content_hash``). A task is a few consecutive
+passes (about ``task_samples`` samples) and returns each pass's sums separately, so the client adds
+them in pass order (``film.PassFilm``) and the image is bit-identical to an in-process render for
+any number of workers, task order or retry. A dead worker's tasks are rerun by Dask. The worker
+processes of a LocalCluster started here ignore SIGINT and SIGHUP, which a terminal sends to the
+whole process group: this process handles them (finish the tasks in flight, write what is done).
 """
 
 from __future__ import annotations
@@ -47,11 +48,6 @@ CONNECT_TIMEOUT = "15s"
 _runners: OrderedDict[str, PassRunner] = OrderedDict()
 _scenes: OrderedDict[str, Intersector] = OrderedDict()
 _lock = threading.Lock()
-
-
-def scheduler_from_environment() -> str | None:
-    """``DASK_SCHEDULER_ADDRESS`` when set and not empty."""
-    return os.environ.get("DASK_SCHEDULER_ADDRESS") or None
 
 
 @contextmanager
