@@ -167,3 +167,22 @@ def test_farm_options_are_checked_in_one_line(args, message, tmp_path, capsys):
     assert main(["render", "--backend", "numpy", "--res", "8x8", "--out", str(tmp_path / "x.exr"), *args]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err, err
+
+
+def _ignored_signals() -> int:
+    with open("/proc/self/status") as status:
+        return int(next(line for line in status if line.startswith("SigIgn:")).split()[1], 16)
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the signal mask from Linux's /proc")
+def test_local_workers_ignore_the_terminals_ctrl_c_after_building_the_kernel(tiny):
+    """Ctrl-C reaches the whole process group; PoCL's LLVM installs its own SIGINT handler when it
+    compiles the kernel, so the workers re-ignore SIGINT and SIGHUP and only this process handles them."""
+    from realistic.renderer.farm import farm_client
+
+    scene, camera = tiny
+    with farm_client(1, announce=lambda line: None) as client:
+        render(scene, camera, "opencl", pass_samples=4096, client=client)
+        masks = client.run(_ignored_signals)
+    assert masks and all(mask & (1 << (signal.SIGINT - 1)) and mask & (1 << (signal.SIGHUP - 1))
+                         for mask in masks.values())
