@@ -130,8 +130,7 @@ def test_interrupt_keeps_the_passes_done():
     assert result.interrupted
     assert 2 * 512 <= result.samples_done < result.samples_total
     assert result.samples_done % 512 == 0  # only whole passes
-    rows_done = result.image.reshape(-1, 3)[: result.samples_done // 4]
-    assert rows_done.max() > 0 and np.all(result.image.reshape(-1, 3)[result.samples_done // 4 + 256:] == 0)
+    assert result.image.max() > 0  # which pixels they cover: tests/test_progressive.py
 
 
 @pytest.mark.skipif(os.name != "posix", reason="SIGINT delivery")

@@ -9,7 +9,7 @@ import argparse
 import json
 from pathlib import Path
 
-from realistic.cli.render import report_warnings
+from realistic.cli.render import add_farm_arguments, farm_client, report_warnings
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
 from realistic.cli.values import parse_spp_list
 from realistic.core.atomic_files import check_writable, write_text_atomically
@@ -21,6 +21,7 @@ Render SCENE (as `render` takes it) at each sample count and print seconds, came
 the fraction of lens samples vignetted, and the RMSE against --reference (an EXR of the same
 resolution) or, without one, against the render with the most samples. Writes a log-log
 convergence plot (RMSE against spp and against seconds) and, with --json, the table as JSON.
+--workers and --scheduler render on a Dask cluster as `render` does (docs/farm.md).
 """
 
 
@@ -34,6 +35,7 @@ def add_bench_command(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", metavar="OUT.json", help="also write the table as JSON")
     parser.add_argument("--plot", default="convergence.png", metavar="OUT.png",
                         help="convergence plot (default: %(default)s)")
+    add_farm_arguments(parser)
     parser.set_defaults(run=cmd_bench)
 
 
@@ -54,12 +56,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
         reference = read_exr(Path(args.reference))[0]
     inputs = build_render_inputs(options_from_args(args, spp_list[0]))
     report_warnings(inputs.warnings)
-    rows, _ = measure_sample_counts(inputs.scene, inputs.camera, spp_list, args.backend, args.seed,
-                                    inputs.light_samples, reference, args.cl_device,
-                                    max_memory_bytes=args.max_memory)
+    with farm_client(args) as client:
+        rows, _ = measure_sample_counts(inputs.scene, inputs.camera, spp_list, args.backend, args.seed,
+                                        inputs.light_samples, reference, args.cl_device,
+                                        max_memory_bytes=args.max_memory, client=client)
     against = "reference" if reference is not None else f"{max(spp_list)} spp"
     camera = inputs.camera
-    print(f"{args.scene or 'default scene'}: {camera.width}x{camera.height}, backend {args.backend}")
+    where = f", {args.workers} workers" if args.workers else ", on the Dask cluster" if client is not None else ""
+    print(f"{args.scene or 'default scene'}: {camera.width}x{camera.height}, backend {args.backend}{where}")
     print(format_table(rows, against))
     slope = convergence_slope(rows)
     print(f"RMSE ~ spp^{slope:.2f} (Monte Carlo: -0.5)")

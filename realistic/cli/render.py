@@ -10,6 +10,8 @@ import argparse
 import os
 import sys
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import partial
 from pathlib import Path
 
@@ -43,6 +45,13 @@ traces at the d line in RGB.
 
 The EXR holds the film irradiance (float32 RGB, metadata in the header); the PNG preview beside
 it is sRGB.
+
+Passes are ordered so that any prefix of them is spread over the whole frame. --workers N renders
+on N worker processes of a Dask LocalCluster on this machine, --scheduler (or
+DASK_SCHEDULER_ADDRESS) on an existing Dask cluster; the image is bit-identical to an in-process
+render. --sweep renders a sequence (OUT_0001.exr, ...) as one job. Renders save a checkpoint
+(OUT.exr.partial) every --checkpoint-every seconds and when interrupted; --resume continues one.
+docs/farm.md has the details.
 """
 
 
@@ -63,7 +72,49 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
                              "calibrated so a metered middle grey reads 0.18, instead of film irradiance")
     parser.add_argument("--iso", type=positive("ISO speed"),
                         help="ISO speed (default with --shutter: 100)")
+    parser.add_argument("--sweep", metavar="NAME=START:STOP:N",
+                        help="render N frames with NAME (focus, aperture, fstop, film-distance) going from START to "
+                             "STOP, to OUT_0001.exr onwards, as one job (focus in scene units, the others as their "
+                             "options take them)")
+    parser.add_argument("--checkpoint-every", type=positive("checkpoint interval (seconds)"), default=60.0,
+                        metavar="SECONDS",
+                        help="save the film to OUT.exr.partial this often, and when interrupted (default: "
+                             "%(default)g; removed when the render completes)")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue from OUT.exr.partial (refused if made for another scene, camera, seed or "
+                             "resolution)")
+    parser.add_argument("--preview-every", type=positive("preview interval (seconds)"), metavar="SECONDS",
+                        help="rewrite the PNG preview this often while rendering (default: only at the end)")
+    parser.add_argument("--pass-samples", type=checked(int, validation.pass_samples), metavar="N",
+                        help="sample ids per pass (default: 131072); checkpoints hold whole passes, and a farm task "
+                             "is about 2^20 samples of passes")
+    add_farm_arguments(parser)
     parser.set_defaults(run=cmd_render)
+
+
+def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--workers`` and ``--scheduler`` (shared by ``render`` and ``bench``)."""
+    farm = parser.add_mutually_exclusive_group()
+    farm.add_argument("--workers", type=checked(int, validation.workers), metavar="N",
+                      help="render on a Dask LocalCluster of N worker processes on this machine (default: threads "
+                           "in this process)")
+    farm.add_argument("--scheduler", metavar="ADDRESS",
+                      help="render on the Dask cluster whose scheduler is at ADDRESS, e.g. tcp://host:8786 "
+                           "(default: $DASK_SCHEDULER_ADDRESS when set)")
+
+
+@contextmanager
+def farm_client(args: argparse.Namespace) -> Iterator[object | None]:
+    """The Dask client that ``--workers`` / ``--scheduler`` / ``$DASK_SCHEDULER_ADDRESS`` ask for, or
+    None (render on threads); dask is imported only here, and only when one is asked for."""
+    scheduler = args.scheduler or (None if args.workers else os.environ.get("DASK_SCHEDULER_ADDRESS") or None)
+    if not args.workers and not scheduler:
+        yield None
+        return
+    from realistic.renderer.farm import farm_client as open_client
+
+    with open_client(args.workers, scheduler, lambda line: print(f"realistic: {line}", file=sys.stderr)) as client:
+        yield client
 
 
 def report_warnings(warnings: list[str]) -> None:
@@ -99,44 +150,91 @@ def _write_images(out: Path, image: np.ndarray, metadata: dict, exposure: float)
         raise UserError(f"{err}; the render was saved as {rescue} (and its .png) instead") from None
 
 
+def _output_image(image: np.ndarray, camera: Camera, args: argparse.Namespace) -> tuple[np.ndarray, dict, float]:
+    """The image to write (photographic with --shutter/--iso), its extra header, the preview exposure."""
+    header: dict = {}
+    if args.shutter or args.iso:
+        image, header = _photographic(image, camera, args)
+    exposure = args.exposure if args.exposure is not None else (0.0 if args.shutter or args.iso
+                                                                   else auto_exposure(image))
+    return image, header, exposure
+
+
 def cmd_render(args: argparse.Namespace) -> int:
+    from realistic.renderer.checkpoint import checkpoint_path
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.passes import render_passes
+    from realistic.renderer.passes import DEFAULT_PASS_SAMPLES, Checkpointing, render_frames, render_passes
+    from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
     if args.out is not None and Path(args.out).suffix.lower() != ".exr":
         raise UserError(f"{args.out}: the output must be an .exr file (the PNG preview goes beside it)")
+    sweep = parse_sweep(args.sweep) if args.sweep else None
+    if sweep is not None and args.resume:
+        raise UserError("--resume continues one image, not a --sweep sequence")
     inputs = build_render_inputs(options_from_args(args, args.spp))
     report_warnings(inputs.warnings)
     if "pbrtDialect" in inputs.metadata:
         print(f"realistic: {args.scene}: read as {inputs.metadata['pbrtDialect']}", file=sys.stderr)
     out = Path(args.out or inputs.default_out)
-    png = out.with_suffix(".png")
-    check_writable(out)
-    check_writable(png)
-    camera = inputs.camera
-    result = render_passes(inputs.scene, camera, args.backend, args.seed, args.cl_device, inputs.light_samples,
-                           progress=True, max_memory_bytes=args.max_memory)
-    metadata = {**camera.metadata(), **inputs.metadata,
-                "spp": int(camera.spp), "seed": int(args.seed), "lightSamples": int(inputs.light_samples),
-                "integrator": inputs.scene.integrator, "maxDepth": int(inputs.scene.max_depth),
-                "backend": args.backend, "renderSeconds": float(result.seconds),
-                "exitPupilSeconds": float(result.stage_seconds.get("exit pupil", 0.0)),
-                "samplesDone": int(result.samples_done), "samplesTotal": int(result.samples_total),
-                "interrupted": int(result.interrupted)}
-    image = result.image
-    if args.shutter or args.iso:
-        image, photographic = _photographic(image, camera, args)
-        metadata.update(photographic)
-    exposure = args.exposure if args.exposure is not None else (0.0 if args.shutter or args.iso
-                                                                   else auto_exposure(image))
-    _write_images(out, image, metadata, exposure)
-    rays = result.primary_rays + result.shadow_rays
-    if result.interrupted:
-        print(f"realistic: interrupted: wrote the {result.samples_done} of {result.samples_total} samples "
-              f"taken to {out}", file=sys.stderr)
+    cameras = sweep_cameras(inputs.camera, sweep) if sweep is not None else [inputs.camera]
+    outs = [frame_path(out, i) for i in range(len(cameras))] if sweep is not None else [out]
+    for path in outs:
+        check_writable(path)
+        check_writable(path.with_suffix(".png"))
+    checkpoint = None
+    if sweep is None:
+        checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, args.resume)
+        check_writable(checkpoint.path)
+    written: dict[int, float] = {}
+
+    def save(index: int, result) -> None:
+        camera = cameras[index]
+        metadata = {**camera.metadata(), **inputs.metadata,
+                    "spp": int(camera.spp), "seed": int(args.seed), "lightSamples": int(inputs.light_samples),
+                    "integrator": inputs.scene.integrator, "maxDepth": int(inputs.scene.max_depth),
+                    "backend": args.backend, "renderSeconds": float(result.seconds),
+                    "exitPupilSeconds": float(result.stage_seconds.get("exit pupil", 0.0)),
+                    "samplesDone": int(result.samples_done), "samplesTotal": int(result.samples_total),
+                    "interrupted": int(result.interrupted)}
+        if sweep is not None:
+            metadata.update({"sweep": args.sweep, "frame": index + 1, "frames": len(cameras)})
+        image, header, exposure = _output_image(result.image, camera, args)
+        _write_images(outs[index], image, {**metadata, **header}, exposure)
+        written[index] = exposure
+
+    def preview(image: np.ndarray) -> None:
+        image, _, exposure = _output_image(image, cameras[0], args)
+        write_png(out.with_suffix(".png"), image, exposure)
+
+    common = {"pass_samples": args.pass_samples or DEFAULT_PASS_SAMPLES, "progress": True,
+              "max_memory_bytes": args.max_memory}
+    with farm_client(args) as client:
+        if sweep is None:
+            results = [render_passes(inputs.scene, cameras[0], args.backend, args.seed, args.cl_device,
+                                     inputs.light_samples, client=client, checkpoint=checkpoint,
+                                     preview=preview if args.preview_every else None,
+                                     preview_every=args.preview_every, **common)]
+        else:
+            results = render_frames(inputs.scene, cameras, args.backend, args.seed, args.cl_device,
+                                    inputs.light_samples, client=client, on_frame=save, **common)
+    for index, result in enumerate(results):
+        if index not in written and (sweep is None or result.samples_done > 0):
+            save(index, result)  # a single image always; a sequence's unfinished frames that have samples
+    interrupted = any(result.interrupted for result in results)
+    if interrupted:
+        done = sum(r.samples_done for r in results)
+        total = sum(r.samples_total for r in results)
+        where = out if sweep is None else f"{len(written)} frames named like {outs[0]}"
+        kept = f"; the checkpoint {checkpoint.path} lets --resume continue" if checkpoint is not None else ""
+        print(f"realistic: interrupted: wrote the {done} of {total} samples taken to {where}{kept}", file=sys.stderr)
         return 130
-    print(f"{out} and {png}: {camera.width}x{camera.height}, {camera.spp} spp, "
-          f"{metadata['pixelFilter']} filter, {result.seconds:.1f} s "
+    result, camera = results[-1], cameras[-1]
+    rays = sum(r.primary_rays + r.shadow_rays for r in results)
+    seconds = max(r.seconds for r in results)
+    names = (f"{outs[0]} .. {outs[-1]} ({len(outs)} frames)" if sweep is not None
+             else f"{out} and {out.with_suffix('.png')}")
+    print(f"{names}: {camera.width}x{camera.height}, {camera.spp} spp, "
+          f"{camera.metadata()['pixelFilter']} filter, {seconds:.1f} s "
           f"(exit pupil {result.stage_seconds.get('exit pupil', 0.0):.2f} s), "
-          f"{rays / max(result.seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {exposure:+.2f} EV")
+          f"{rays / max(seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {written[len(outs) - 1]:+.2f} EV")
     return 0

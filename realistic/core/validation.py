@@ -140,3 +140,20 @@ def max_anisotropy(value: float) -> float:
     if not 1.0 <= value <= MAX_ANISOTROPY:
         raise UserError(f"maxanisotropy must be between 1 and {MAX_ANISOTROPY:g}, got {value:g}")
     return value
+
+
+#: Worker processes of a local render farm (a LocalCluster on this machine).
+MAX_WORKERS = 1024
+#: Sample ids per pass: the kernel launches at most 2^31 work items; far below that, a pass's
+#: rays no longer fit in memory (about 200 bytes a sample in flight).
+MAX_PASS_SAMPLES = 1 << 26
+
+
+def workers(count: int) -> int:
+    """Worker processes for a LocalCluster: 1 to ``MAX_WORKERS``."""
+    return _in_range(_integer(count, "workers"), "workers", 1, MAX_WORKERS)
+
+
+def pass_samples(count: int) -> int:
+    """Sample ids per render pass: 1 to ``MAX_PASS_SAMPLES``."""
+    return _in_range(_integer(count, "pass size (samples)"), "pass size (samples)", 1, MAX_PASS_SAMPLES)

@@ -42,3 +42,45 @@ class Film:
         value = np.divide(self.sums, self.samples[:, None], out=np.zeros_like(self.sums),
                           where=self.samples[:, None] > 0)
         return value.reshape(self.height, self.width, 3).astype(np.float32)
+
+
+class PassFilm:
+    """A ``Film`` fed the sums of numbered passes in pass-index order, whatever order they arrive in.
+
+    Sums that arrive early wait until every pass before them is in, so float64 additions happen in
+    one order and the image is bit-identical however passes were scheduled. ``passes`` holds each
+    pass's (first sample id, count) in index order (``pass_plan.plan_passes``).
+    """
+
+    def __init__(self, film: Film, passes: list[tuple[int, int]]):
+        self.film, self.passes = film, passes
+        self.next_pass = 0  # passes 0 .. next_pass - 1 are in film
+        self.waiting: dict[int, tuple[int, np.ndarray]] = {}  # index -> (first pixel, sums)
+
+    def add(self, index: int, first_pixel: int, sums: np.ndarray) -> None:
+        """Take pass ``index``'s sums (from ``pass_sums``) starting at pixel ``first_pixel``."""
+        if self.has(index):
+            return  # a retried task's duplicate
+        self.waiting[index] = (first_pixel, sums)
+        while self.next_pass in self.waiting:
+            first_pixel, sums = self.waiting.pop(self.next_pass)
+            self.film.add(*self.passes[self.next_pass], first_pixel, sums)
+            self.next_pass += 1
+
+    def has(self, index: int) -> bool:
+        """Whether pass ``index`` has been taken."""
+        return index < self.next_pass or index in self.waiting
+
+    @property
+    def passes_taken(self) -> int:
+        return self.next_pass + len(self.waiting)
+
+    def image(self) -> np.ndarray:
+        """The image of every pass taken so far, waiting ones included (``Film.image``)."""
+        if not self.waiting:
+            return self.film.image()
+        film = Film(self.film.width, self.film.height, self.film.spp)
+        film.sums[:], film.samples[:] = self.film.sums, self.film.samples
+        for index in sorted(self.waiting):
+            film.add(*self.passes[index], *self.waiting[index])
+        return film.image()

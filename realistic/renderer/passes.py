@@ -1,11 +1,15 @@
 """Pass scheduling: ``render(scene, camera, ...)`` returns the film image as an array.
 
 A render is the range of sample ids 0 .. W*H*spp - 1 cut into passes of at most ``pass_samples``
-ids, so memory stays flat as resolution and spp grow. Two worker threads each run whole passes
-(camera rays, embree, shading, per-pass accumulation); embreex and most numpy loops release the
-GIL, so one thread's ray generation overlaps the other's intersection. The main thread adds the
-pass sums to the film. Ctrl-C stops submitting passes, lets the passes in flight finish, and
-returns what has accumulated (``RenderResult.interrupted``).
+ids (``pass_plan``), so memory stays flat as resolution and spp grow; passes are numbered in
+progressive order, so any prefix of them is spread over the whole frame. Passes run on two worker
+threads in this process (embreex and most numpy loops release the GIL, so one thread's ray
+generation overlaps the other's intersection), or, given a Dask ``client``, as tasks of a few
+passes each on its workers (``farm``). The main thread adds pass sums to the film in pass-index
+order (``film.PassFilm``), so the image is bit-identical whatever ran where. Ctrl-C stops submitting
+passes, lets the passes in flight finish, and returns what has accumulated
+(``RenderResult.interrupted``). With a ``checkpoint`` path the film is saved there every
+``checkpoint_every`` seconds and on interrupt, and ``resume`` continues from it (``checkpoint``).
 """
 
 from __future__ import annotations
@@ -13,9 +17,11 @@ from __future__ import annotations
 import dataclasses
 import sys
 import time
+from collections import deque
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -23,14 +29,16 @@ from realistic.camera.base import Camera
 from realistic.core import validation
 from realistic.core.spectrum import rgb_response
 from realistic.errors import UserError
-from realistic.renderer.film import Film, pass_sums
+from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, save_checkpoint
+from realistic.renderer.film import Film, PassFilm, pass_sums
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.memory import check_memory
+from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES, plan_passes
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import Scene
 
-DEFAULT_PASS_SAMPLES = 1 << 17
+__all__ = ["DEFAULT_PASS_SAMPLES", "RenderResult", "render", "render_frames", "render_passes"]
 
 
 @dataclass
@@ -45,14 +53,18 @@ class RenderResult:
     seconds: float
     interrupted: bool
     stage_seconds: dict[str, float] = field(default_factory=dict)
+    passes_done: int = 0
+    passes_total: int = 0
 
 
 @dataclass(frozen=True)
-class _PassResult:
-    first_sample: int
-    count: int
+class PassResult:
+    """One pass's per-pixel sums (``film.pass_sums``) and ray counts; ``index`` is its plan index."""
+
+    index: int
     first_pixel: int
     sums: np.ndarray
+    count: int
     primary_rays: int
     shadow_rays: int
 
@@ -68,17 +80,22 @@ def morton_order(pixel: np.ndarray, width: int) -> np.ndarray:
     return np.argsort(code, kind="stable")
 
 
-class _PassRunner:
-    """Runs one pass of sample ids: rays, hits, shading, per-pixel sums."""
+class PassRunner:
+    """Runs passes of sample ids: rays, hits, shading, per-pixel sums. Built once per camera (and
+    per worker process on a farm); ``intersector`` shares one scene's embree BVH between cameras."""
 
     def __init__(self, scene: Scene, camera: Camera, backend: str, seed: int, cl_device: str | None,
-                 light_samples: int, morton: bool, clock: StageClock):
+                 light_samples: int, morton: bool, clock: StageClock, intersector: Intersector | None = None):
         self.camera, self.morton, self.clock = camera, morton, clock
         self.generate = camera.ray_generator(backend, seed, cl_device)
-        self.integrator = make_integrator(scene, Intersector(scene), light_samples, seed,
+        self.integrator = make_integrator(scene, intersector or Intersector(scene), light_samples, seed,
                                           camera.pixel_spread_radians())
 
-    def __call__(self, first: int, count: int) -> _PassResult:
+    def run(self, passes: list[tuple[int, int, int]]) -> list[PassResult]:
+        """The results of passes given as (plan index, first sample id, count)."""
+        return [self(index, first, count) for index, first, count in passes]
+
+    def __call__(self, index: int, first: int, count: int) -> PassResult:
         spp = self.camera.spp
         with self.clock("ray generation"):
             rays = self.generate(first, count)
@@ -99,78 +116,239 @@ class _PassRunner:
             if wavelength is not None:
                 value *= rgb_response(wavelength)
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
-        return _PassResult(first, count, first_pixel, sums, len(alive), shadow_rays)
+        return PassResult(index, first_pixel, sums, count, len(alive), shadow_rays)
+
+
+class _ThreadPasses:
+    """Passes on threads of this process, one pass per task, one runner per camera (built on first use)."""
+
+    def __init__(self, scene: Scene, cameras: list[Camera], settings: dict, threads: int, clock: StageClock):
+        self.scene, self.cameras, self.settings, self.clock = scene, cameras, settings, clock
+        self.runners: dict[int, PassRunner] = {}
+        self.intersector: Intersector | None = None
+        self.capacity = max(1, threads)
+        self.passes_per_task = 1
+        self.pool = ThreadPoolExecutor(max_workers=self.capacity)
+
+    def runner(self, frame: int) -> PassRunner:
+        if frame not in self.runners:
+            with self.clock("setup"):  # ray generator, BVH build, shading tables
+                self.intersector = self.intersector or Intersector(self.scene)
+                self.runners[frame] = PassRunner(self.scene, self.cameras[frame], clock=self.clock,
+                                                 intersector=self.intersector, **self.settings)
+        return self.runners[frame]
+
+    def submit(self, frame: int, passes: list[tuple[int, int, int]]):
+        return self.pool.submit(self.runner(frame).run, passes)
+
+    def wait_first(self, pending: set) -> set:
+        return wait(pending, return_when=FIRST_COMPLETED).done
+
+    def finish_in_flight(self, pending: dict) -> list[tuple[int, list[PassResult]]]:
+        """(frame, results) of the tasks already running (``pending``: future -> frame); those not
+        started are cancelled."""
+        return [(frame, future.result()) for future, frame in pending.items() if not future.cancel()]
+
+    def close(self, finished: bool) -> None:
+        # a second interrupt while passes finish leaves them running: the caller stops at once
+        self.pool.shutdown(wait=finished, cancel_futures=not finished)
+
+
+@dataclass
+class _Frame:
+    """One image of a job: its plan, film and statistics."""
+
+    camera: Camera
+    plan: list[tuple[int, int]]
+    film: PassFilm
+    result: RenderResult
+
+    @property
+    def complete(self) -> bool:
+        return self.film.next_pass == len(self.plan)
+
+
+@dataclass
+class Checkpointing:
+    """Where and how often a single-image render saves its film, and whether it starts from there."""
+
+    path: Path
+    every_seconds: float | None = 60.0  # None: only on interrupt
+    resume: bool = False
+
+
+def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", seed: int = 0,
+                  cl_device: str | None = None, light_samples: int = 1, *,
+                  pass_samples: int = DEFAULT_PASS_SAMPLES, threads: int = 2, morton: bool = False,
+                  progress: bool = False, on_pass: Callable[[RenderResult], None] | None = None,
+                  on_frame: Callable[[int, RenderResult], None] | None = None,
+                  max_memory_bytes: int | None = None, client=None, task_samples: int | None = None,
+                  checkpoint: Checkpointing | None = None,
+                  preview: Callable[[np.ndarray], None] | None = None,
+                  preview_every: float | None = None) -> list[RenderResult]:
+    """Render one image per camera as one job (on a farm every frame's passes are in one graph, so
+    workers stay busy across frame boundaries); ``on_frame(i, result)`` is called as frame i
+    completes. Other options as ``render_passes``; ``checkpoint`` needs exactly one camera."""
+    validation.seed(seed)
+    validation.pass_samples(pass_samples)
+    if not cameras:
+        raise UserError("nothing to render: no cameras")
+    if checkpoint is not None and len(cameras) != 1:
+        raise UserError("checkpoints are for single images, not sequences")
+    if client is None:
+        for camera in cameras:
+            check_memory(scene, camera, pass_samples, threads, max_memory_bytes)
+    start = time.perf_counter()
+    clock = StageClock()
+    with clock("exit pupil"):  # the lens's sampling tables (``Camera.prepare``)
+        for camera in cameras:
+            camera.prepare()
+    frames = []
+    for camera in cameras:
+        plan = plan_passes(camera.sample_count, pass_samples)
+        result = RenderResult(np.zeros((camera.height, camera.width, 3), np.float32), 0, camera.sample_count,
+                              0, 0, 0.0, False, passes_total=len(plan))
+        frames.append(_Frame(camera, plan, PassFilm(Film(camera.width, camera.height, camera.spp), plan), result))
+    identity = None
+    if checkpoint is not None:
+        identity = RenderIdentity.of(scene, cameras[0], seed, pass_samples, backend, light_samples)
+        if checkpoint.resume:
+            frame = frames[0]
+            frame.film = load_checkpoint(checkpoint.path, identity, frame.plan)
+            frame.result.samples_done = int(frame.film.film.samples.sum())
+            frame.result.passes_done = frame.film.passes_taken
+    settings = {"backend": backend, "seed": seed, "cl_device": cl_device, "light_samples": light_samples,
+                "morton": morton}
+    if client is None:
+        executor = _ThreadPasses(scene, cameras, settings, threads, clock)
+    else:
+        from realistic.renderer.farm import DaskPasses  # imports dask: only for farm renders
+
+        executor = DaskPasses(client, scene, cameras, settings, pass_samples, task_samples)
+    tasks = deque()
+    for index, frame in enumerate(frames):
+        todo = [i for i in range(len(frame.plan)) if not frame.film.has(i)]
+        for lo in range(0, len(todo), executor.passes_per_task):
+            tasks.append((index, todo[lo:lo + executor.passes_per_task]))
+    bar = _progress_bar(sum(f.result.passes_total for f in frames), sum(f.result.passes_done for f in frames)) \
+        if progress else None
+    state = {"checkpoint": time.monotonic(), "preview": time.monotonic()}
+
+    def take(index: int, results: list[PassResult]) -> None:
+        frame = frames[index]
+        for done in results:
+            if frame.film.has(done.index):
+                continue  # a retried task's duplicate
+            frame.film.add(done.index, done.first_pixel, done.sums)
+            frame.result.samples_done += done.count
+            frame.result.primary_rays += done.primary_rays
+            frame.result.shadow_rays += done.shadow_rays
+            frame.result.passes_done += 1
+            if bar is not None:
+                samples = sum(f.result.samples_done for f in frames)
+                bar.set_postfix_str(f"{samples / max(time.perf_counter() - start, 1e-9) / 1e6:.2f} M samples/s",
+                                    refresh=False)
+                bar.update(1)
+        if on_pass is not None:
+            on_pass(frame.result)
+        if frame.complete and on_frame is not None:
+            on_frame(index, _finish(frame, start, clock))
+
+    def periodic() -> None:
+        now = time.monotonic()
+        if checkpoint is not None and checkpoint.every_seconds is not None \
+                and now - state["checkpoint"] >= checkpoint.every_seconds:
+            save_checkpoint(checkpoint.path, identity, frames[0].film)
+            state["checkpoint"] = now
+        if preview is not None and preview_every is not None and now - state["preview"] >= preview_every:
+            preview(frames[_current(frames)].film.image())
+            state["preview"] = now
+
+    pending: dict = {}  # future -> frame
+    in_flight: dict = {}  # future -> passes it holds
+    finished = False
+    interrupted = False
+    try:
+        try:
+            while tasks or pending:
+                while tasks and len(pending) < executor.capacity:
+                    index, chunk = tasks.popleft()
+                    plan = frames[index].plan
+                    future = executor.submit(index, [(i, *plan[i]) for i in chunk])
+                    pending[future], in_flight[future] = index, len(chunk)
+                for future in executor.wait_first(set(pending)):
+                    in_flight.pop(future)
+                    take(pending.pop(future), future.result())
+                periodic()
+        except KeyboardInterrupt:
+            interrupted = True
+            if progress:
+                print(f"\nrealistic: interrupted: finishing the {sum(in_flight.values())} passes in flight, then "
+                      "writing what is done (interrupt again to stop at once and keep nothing)", file=sys.stderr)
+            for index, results in executor.finish_in_flight(pending):
+                take(index, results)
+            if checkpoint is not None:
+                save_checkpoint(checkpoint.path, identity, frames[0].film)
+        finished = True
+    finally:
+        executor.close(finished)
+    if bar is not None:
+        bar.close()
+    if checkpoint is not None and not interrupted and frames[0].complete:
+        checkpoint.path.unlink(missing_ok=True)
+    results = []
+    for frame in frames:
+        frame.result.interrupted = interrupted or not frame.complete
+        results.append(_finish(frame, start, clock))
+    return results
+
+
+def _current(frames: list[_Frame]) -> int:
+    """The first frame not yet complete (the last one when all are)."""
+    return next((i for i, frame in enumerate(frames) if not frame.complete), len(frames) - 1)
+
+
+def _finish(frame: _Frame, start: float, clock: StageClock) -> RenderResult:
+    result = frame.result
+    result.image = frame.film.image()
+    result.seconds = time.perf_counter() - start
+    result.stage_seconds = dict(clock.seconds)
+    return result
 
 
 def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: int = 0,
                   cl_device: str | None = None, light_samples: int = 1,
                   pass_samples: int = DEFAULT_PASS_SAMPLES, threads: int = 2, morton: bool = False,
                   progress: bool = False, on_pass: Callable[[RenderResult], None] | None = None,
-                  max_memory_bytes: int | None = None) -> RenderResult:
+                  max_memory_bytes: int | None = None, *, client=None, task_samples: int | None = None,
+                  checkpoint: Checkpointing | None = None, preview: Callable[[np.ndarray], None] | None = None,
+                  preview_every: float | None = None) -> RenderResult:
     """Render and return the image with statistics; ``on_pass`` is called after each pass is added.
 
     Before any work, a render whose estimated peak memory exceeds ``max_memory_bytes`` (None: what
     the system has available) is refused with a UserError (``realistic.renderer.memory``). A first
     KeyboardInterrupt finishes the passes in flight and returns what has accumulated
-    (``RenderResult.interrupted``); a second one while they finish propagates at once.
+    (``RenderResult.interrupted``); a second one while they finish propagates at once. ``client``
+    (a ``dask.distributed.Client``) runs the passes on its workers in tasks of about
+    ``task_samples`` samples (``farm``); the image is bit-identical to a render on threads.
+    ``checkpoint`` saves and resumes the film; ``preview(image)`` is called every ``preview_every`` s.
     """
-    validation.seed(seed)
-    check_memory(scene, camera, pass_samples, threads, max_memory_bytes)
-    start = time.perf_counter()
-    clock = StageClock()
-    with clock("exit pupil"):  # the lens's sampling table (``Camera.prepare``)
-        camera.prepare()
-    with clock("setup"):  # ray generator, BVH build, shading tables
-        runner = _PassRunner(scene, camera, backend, seed, cl_device, light_samples, morton, clock)
-    film = Film(camera.width, camera.height, camera.spp)
-    total = camera.sample_count
-    starts = list(range(0, total, pass_samples))
-    result = RenderResult(film.image(), 0, total, 0, 0, 0.0, False)
-    bar = _progress_bar(len(starts)) if progress else None
-    pending: set[Future] = set()
-    next_pass = 0
-    pool = ThreadPoolExecutor(max_workers=threads)
-    finished = False
-    try:
-        try:
-            while next_pass < len(starts) or pending:
-                while next_pass < len(starts) and len(pending) < threads:
-                    first = starts[next_pass]
-                    pending.add(pool.submit(runner, first, min(pass_samples, total - first)))
-                    next_pass += 1
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
-                    _add(film, result, future.result(), bar, start)
-                    if on_pass is not None:
-                        on_pass(result)
-        except KeyboardInterrupt:
-            result.interrupted = True
-            if progress:
-                print(f"\nrealistic: interrupted: finishing the {len(pending)} passes in flight, then writing what "
-                      "is done (interrupt again to stop at once and keep nothing)", file=sys.stderr)
-            for future in pending:
-                if not future.cancel():
-                    _add(film, result, future.result(), bar, start)
-        finished = True
-    finally:  # a second interrupt while passes finish leaves them running: the caller stops at once
-        pool.shutdown(wait=finished, cancel_futures=not finished)
-    if bar is not None:
-        bar.close()
-    result.image = film.image()
-    result.seconds = time.perf_counter() - start
-    result.stage_seconds = dict(clock.seconds)
-    return result
+    return render_frames(scene, [camera], backend, seed, cl_device, light_samples, pass_samples=pass_samples,
+                         threads=threads, morton=morton, progress=progress, on_pass=on_pass,
+                         max_memory_bytes=max_memory_bytes, client=client, task_samples=task_samples,
+                         checkpoint=checkpoint, preview=preview, preview_every=preview_every)[0]
 
 
 def render(scene: Scene, camera: Camera | None = None, backend: str = "opencl", seed: int = 0, *,
-           spp: int | None = None, **options) -> np.ndarray:
+           spp: int | None = None, client=None, **options) -> np.ndarray:
     """The film image (H, W, 3) float32: film irradiance per pixel in units of scene radiance.
 
     ``camera`` None renders through the scene's own camera (``Scene.camera``: a pbrt file's, or the
-    framing of a loaded mesh); ``spp`` overrides the camera's samples per pixel. ``options`` are
-    those of ``render_passes`` (``light_samples`` defaults to the scene's). A spectral camera
-    renders through the colour matching functions to linear sRGB (``realistic.core.spectrum``);
-    others render RGB directly.
+    framing of a loaded mesh); ``spp`` overrides the camera's samples per pixel; ``client`` (a
+    ``dask.distributed.Client``) renders on its workers, bit-identically. ``options`` are those of
+    ``render_passes`` (``light_samples`` defaults to the scene's). A spectral camera renders through
+    the colour matching functions to linear sRGB (``realistic.core.spectrum``); others render RGB
+    directly.
     """
     camera = camera if camera is not None else scene.camera
     if camera is None:
@@ -178,21 +356,10 @@ def render(scene: Scene, camera: Camera | None = None, backend: str = "opencl", 
     if spp is not None:
         camera = dataclasses.replace(camera, spp=spp)
     options.setdefault("light_samples", scene.light_samples)
-    return render_passes(scene, camera, backend, seed, **options).image
+    return render_passes(scene, camera, backend, seed, client=client, **options).image
 
 
-def _add(film: Film, result: RenderResult, done: _PassResult, bar, start: float) -> None:
-    film.add(done.first_sample, done.count, done.first_pixel, done.sums)
-    result.samples_done += done.count
-    result.primary_rays += done.primary_rays
-    result.shadow_rays += done.shadow_rays
-    if bar is not None:
-        rate = (result.primary_rays + result.shadow_rays) / max(time.perf_counter() - start, 1e-9)
-        bar.set_postfix_str(f"{rate / 1e6:.2f} M rays/s", refresh=False)
-        bar.update(1)
-
-
-def _progress_bar(passes: int):
+def _progress_bar(passes: int, done: int):
     from tqdm import tqdm
 
-    return tqdm(total=passes, unit="pass", desc="render", leave=False, dynamic_ncols=True)
+    return tqdm(total=passes, initial=done, unit="pass", desc="render", leave=False, dynamic_ncols=True)

@@ -1,0 +1,179 @@
+"""Passes on a Dask cluster (``dask.distributed``): a LocalCluster of worker processes or a scheduler.
+
+Imported only when a farm option is used, so plain renders and ``--help`` never load dask. The
+scene (meshes, materials, lights: its description, not the BVH) goes to the cluster once, as a
+task's result, and is fetched once per worker; each worker builds embree's scene, the camera's
+exit-pupil table and OpenCL program on the first task that needs them and keeps them across tasks
+in a cache keyed by content hashes (``checkpoint.content_hash``). A task is a few consecutive
+passes (about ``task_samples`` samples) and returns each pass's sums separately, so the client adds
+them in pass order (``film.PassFilm``) and the image is bit-identical to an in-process render for
+any number of workers, task order or retry. A dead worker's tasks are rerun by Dask. The worker
+processes of a LocalCluster started here ignore SIGINT and SIGHUP, which a terminal sends to the
+whole process group: this process handles them (finish the tasks in flight, write what is done).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import importlib.util
+import logging
+import os
+import signal
+import threading
+from collections import OrderedDict
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from distributed import Client, LocalCluster, wait
+
+from realistic.camera.base import Camera
+from realistic.errors import UserError
+from realistic.renderer.checkpoint import content_hash
+from realistic.renderer.passes import PassResult, PassRunner
+from realistic.renderer.timing import StageClock
+from realistic.scene.intersect import Intersector
+from realistic.scene.model import Scene
+
+#: Samples per task by default: 8 passes of 2^17, 0.5-1 s on an idle core (docs/farm.md).
+DEFAULT_TASK_SAMPLES = 1 << 20
+#: Runners (camera + integrator) and BVHs each worker keeps, most recently used first.
+RUNNERS_KEPT = 8
+SCENES_KEPT = 2
+#: Set in the worker processes of the LocalClusters started here: they ignore terminal signals.
+LOCAL_WORKER = "REALISTIC_LOCAL_WORKER"
+#: How long a client waits to reach a scheduler before the render is refused.
+CONNECT_TIMEOUT = "15s"
+
+_runners: OrderedDict[str, PassRunner] = OrderedDict()
+_scenes: OrderedDict[str, Intersector] = OrderedDict()
+_lock = threading.Lock()
+
+
+@contextmanager
+def farm_client(workers: int | None = None, scheduler: str | None = None,
+                announce=print) -> Iterator[Client]:
+    """A client of the scheduler at ``scheduler``, or of a new LocalCluster of ``workers`` single-
+    threaded worker processes (its dashboard link passed to ``announce``), closed on exit."""
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError, ValueError) as err:
+            raise UserError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    with _terminal_signals_ignored():  # worker processes started now inherit the ignoring
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR, env={LOCAL_WORKER: "1"})
+        client = Client(cluster)
+    dashboard = (f"dashboard {client.dashboard_link}" if importlib.util.find_spec("bokeh")
+                 else f"dashboard at {client.dashboard_link} once bokeh is installed (pip install bokeh)")
+    announce(f"Dask LocalCluster of {workers} worker processes; {dashboard}")
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+@contextmanager
+def _terminal_signals_ignored() -> Iterator[None]:
+    """Ignore SIGINT and SIGHUP while the body runs (main thread only; elsewhere a no-op).
+
+    Ctrl-C and a closed terminal signal the whole foreground process group. Worker processes started
+    meanwhile inherit the ignored dispositions (Python installs its KeyboardInterrupt handler only
+    where SIGINT is not ignored), so they finish the tasks in flight while this process handles the
+    signal and then closes them.
+    """
+    names = ("SIGINT", "SIGHUP")
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {number: signal.signal(number, signal.SIG_IGN)
+                for number in (getattr(signal, name) for name in names if hasattr(signal, name))}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
+def _runner(scene: Scene, scene_key: str, camera: Camera, runner_key: str, settings: dict) -> PassRunner:
+    """This worker's runner for (scene, camera, settings), built on first use."""
+    with _lock:
+        runner = _runners.get(runner_key)
+        if runner is not None:
+            _runners.move_to_end(runner_key)
+            return runner
+        intersector = _scenes.get(scene_key)
+        if intersector is None:
+            intersector = _scenes[scene_key] = Intersector(scene)
+            while len(_scenes) > SCENES_KEPT:
+                _scenes.popitem(last=False)
+        camera.prepare()
+        runner = _runners[runner_key] = PassRunner(scene, camera, clock=StageClock(), intersector=intersector,
+                                                   **settings)
+        while len(_runners) > RUNNERS_KEPT:
+            _runners.popitem(last=False)
+        if os.environ.get(LOCAL_WORKER):
+            _ignore_terminal_signals()
+        return runner
+
+
+def _ignore_terminal_signals() -> None:
+    """Ignore SIGINT and SIGHUP in this process, from any thread (C ``signal``, which Python's
+    ``signal.signal`` allows only in the main thread): PoCL's LLVM installs handlers for them when it
+    compiles a kernel, and those end a local worker on the Ctrl-C meant for the render."""
+    libc = ctypes.CDLL(None)
+    libc.signal.restype = ctypes.c_void_p
+    libc.signal.argtypes = [ctypes.c_int, ctypes.c_void_p]
+    for name in ("SIGINT", "SIGHUP"):
+        if hasattr(signal, name):
+            libc.signal(getattr(signal, name), ctypes.c_void_p(int(signal.SIG_IGN)))
+
+
+def _scene(scene: Scene) -> Scene:
+    """The scene as a task's result, so workers fetch it from each other (once per worker)."""
+    return scene
+
+
+def run_task(scene: Scene, scene_key: str, camera: Camera, runner_key: str, settings: dict,
+             passes: list[tuple[int, int, int]]) -> list[PassResult]:
+    """A task on a worker: passes (plan index, first sample id, count) of one camera."""
+    return _runner(scene, scene_key, camera, runner_key, settings).run(passes)
+
+
+class DaskPasses:
+    """Submits tasks of consecutive passes to a Dask client's workers (``passes.render_frames``)."""
+
+    def __init__(self, client: Client, scene: Scene, cameras: list[Camera], settings: dict, pass_samples: int,
+                 task_samples: int | None = None):
+        self.client, self.settings, self.cameras = client, settings, cameras
+        described = dataclasses.replace(scene, camera=None)
+        self.scene_key = content_hash(described)
+        # a task whose definition holds the scene, not scattered data: if the worker holding it dies,
+        # the scheduler makes it again from the definition instead of cancelling every pass
+        self.scene = client.submit(_scene, described, key=f"scene-{self.scene_key}", pure=False)
+        self.runner_keys = [content_hash((self.scene_key, camera, sorted(settings.items()))) for camera in cameras]
+        threads = sum(client.nthreads().values())
+        self.capacity = max(2, 2 * threads)  # tasks submitted ahead: every worker busy, one queued each
+        self.passes_per_task = max(1, (task_samples or DEFAULT_TASK_SAMPLES) // pass_samples)
+
+    def submit(self, frame: int, passes: list[tuple[int, int, int]]):
+        return self.client.submit(run_task, self.scene, self.scene_key, self.cameras[frame], self.runner_keys[frame],
+                                  self.settings, passes, pure=False)
+
+    def wait_first(self, pending: set) -> set:
+        return wait(list(pending), return_when="FIRST_COMPLETED").done
+
+    def finish_in_flight(self, pending: dict) -> list[tuple[int, list[PassResult]]]:
+        """(frame, results) of every task submitted (at most ``capacity``, a couple of seconds each)."""
+        wait(list(pending))
+        return [(frame, future.result()) for future, frame in pending.items()]
+
+    def close(self, finished: bool) -> None:
+        """Release the scene (tasks not collected are released with their futures)."""
+        self.scene.release()
