@@ -145,9 +145,9 @@ def test_mirrored_triangle_mesh_keeps_its_object_space_front(tmp_path):
        r=st.one_of(st.floats(-1e30, 1e30, allow_nan=False), st.just(0.0)),
        light=st.sampled_from(['"rgb L" [1 1 1]', '"rgb L" [-1 nan 1]', '"blackbody L" 5000', '"bool twosided" "x"',
                               '"rgb scale" [1e40 1 1]', '"rgb L" [1 1]']),
-       reverse=st.booleans())
-def test_area_lights_on_any_shape_import_or_fail_in_one_line(tmp_path, shape, r, light, reverse):
-    world = ("ReverseOrientation\n" if reverse else "") + f'AreaLightSource "diffuse" {light}\n' + \
+       reverse=st.booleans(), squash=st.sampled_from(["", "Scale 1 1 0\n", "Scale 1 -1 1\n", "Scale 1e-200 1 1\n"]))
+def test_area_lights_on_any_shape_import_or_fail_in_one_line(tmp_path, shape, r, light, reverse, squash):
+    world = ("ReverseOrientation\n" if reverse else "") + squash + f'AreaLightSource "diffuse" {light}\n' + \
         f"Shape {shape.format(r=r)}\n"
     try:
         scene = _import(tmp_path, world).scene
@@ -156,3 +156,7 @@ def test_area_lights_on_any_shape_import_or_fail_in_one_line(tmp_path, shape, r,
         return
     for light in scene.lights:
         assert isinstance(light, EmissiveInstance) and 0 <= light.instance < len(scene.instances)
+        inst = scene.instances[light.instance]
+        corners = (scene.meshes[inst.mesh].vertices @ inst.transform[:3, :3].T)[scene.meshes[inst.mesh].faces]
+        area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1).sum()
+        assert 0 < area < np.inf

@@ -406,7 +406,11 @@ class _Importer:
             first = len(self.scene.instances)
             self.add_instances(shape, world)
             for index in range(first, len(self.scene.instances)):
-                self._face_front(index, shape)
+                area = self._face_front(index, shape)
+                if not 0 < area < np.inf:
+                    self.warn(where, f"area light of area {area:.3g} (too small or too large to sample; the "
+                                     f"shape is drawn unlit)")
+                    continue
                 self.scene.lights.append(EmissiveInstance(index, radiance, two_sided))
             return True
         transform = world @ shape.transform @ translate(0, 0, shape.params.get_float("height", 0.0))
@@ -428,9 +432,9 @@ class _Importer:
         self.scene.lights.append(light)
         return True
 
-    def _face_front(self, index: int, shape: ShapeRecord) -> None:
+    def _face_front(self, index: int, shape: ShapeRecord) -> float:
         """Rewind instance ``index``'s faces so that each one's counter-clockwise normal in the world
-        is the side pbrt emits from (``EmissiveInstance`` emits on that side).
+        is the side pbrt emits from (``EmissiveInstance`` emits on that side); returns its world area.
 
         pbrt-v3 ``src/core/interaction.cpp`` and ``src/shapes/triangle.cpp``, pbrt-v4
         ``src/pbrt/shapes.h``: a triangle's normal faces its shading normals where the mesh has them
@@ -443,10 +447,11 @@ class _Importer:
         inst = self.scene.instances[index]
         mesh = self.scene.meshes[inst.mesh]
         linear = np.asarray(inst.transform, np.float64)[:3, :3]
-        world = mesh.vertices @ linear.T
-        corners = world[mesh.faces]
-        winding = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        if mesh.normals is not None and shape.type not in QUADRICS:
+        with np.errstate(all="ignore"):
+            corners = (mesh.vertices @ linear.T)[mesh.faces]
+            winding = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+            area = float(np.linalg.norm(winding, axis=1).sum() / 2)
+        if mesh.normals is not None and shape.type not in QUADRICS and np.linalg.det(linear) != 0:
             with np.errstate(all="ignore"):
                 shading = (mesh.normals @ np.linalg.inv(linear))[mesh.faces].sum(axis=1)
             flip = np.einsum("ij,ij->i", winding, shading) < 0
@@ -458,6 +463,7 @@ class _Importer:
             faces = np.where(flip[:, None], mesh.faces[:, ::-1], mesh.faces)
             rewound = self.scene.add_mesh(dataclasses.replace(mesh, faces=faces))
             self.scene.instances[index] = dataclasses.replace(inst, mesh=rewound)
+        return area if np.isfinite(area) else np.inf
 
     def run(self) -> Scene:
         for shape in self.parsed.shapes:
