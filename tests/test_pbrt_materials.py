@@ -64,10 +64,10 @@ def test_metal_and_conductor(tmp_path):
     m, _, _ = _one(tmp_path, 'Material "metal" "spectrum eta" [400 1.5 500 1.5 600 1.5 700 1.5] '
                              '"float uroughness" .1 "float vroughness" .2', "v3")
     assert np.allclose(m.eta, 1.5, rtol=1e-3) and (m.roughness_u, m.roughness_v, m.rule) == (0.1, 0.2, "pbrt-v3")
-    m, warnings, path = _one(tmp_path, 'Material "conductor" "spectrum eta" "metal-Au-eta" "spectrum k" "metal-Au-k"',
-                             "v4")
+    m, warnings, path = _one(tmp_path, 'Material "conductor" "spectrum eta" "metal-CuZn-eta" '
+                                       '"spectrum k" "metal-CuZn-k"', "v4")
     assert isinstance(m, Conductor) and m.roughness_u == 0.0 and m.rule == "sqrt"
-    assert any('named spectrum "metal-Au-eta"' in w for w in warnings)
+    assert any('named spectrum "metal-CuZn-eta"' in w for w in warnings)
     m, _, _ = _one(tmp_path, 'Material "conductor" "rgb reflectance" [.64 .64 .64] "float roughness" .1', "v4")
     assert m.eta == (1.0, 1.0, 1.0) and np.allclose(m.k, 2 * 0.8 / 0.6)  # k = 2 sqrt(R) / sqrt(1 - R)
     m, warnings, _ = _one(tmp_path, 'Material "coatedconductor" "float conductor.roughness" .2', "v4")

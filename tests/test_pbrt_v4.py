@@ -303,11 +303,11 @@ def test_named_spectra_and_blackbodies_import_with_a_warning_not_an_error(tmp_pa
     path = world(tmp_path, 'AttributeBegin\nAreaLightSource "diffuse" "spectrum L" "stdillum-D65"\nShape "disk"\n'
                            'AttributeEnd\nAttributeBegin\nAreaLightSource "diffuse" "blackbody L" [ 5500 ]\n'
                            'Translate 0 0 3\nShape "disk"\nAttributeEnd\n'
-                           'Material "conductor" "spectrum eta" "metal-Au-eta" "spectrum k" "metal-Au-k"\n'
+                           'Material "conductor" "spectrum eta" "metal-CuZn-eta" "spectrum k" "metal-CuZn-k"\n'
                            'Shape "sphere"\n')
     imported = import_pbrt(path)
     assert len(imported.scene.lights) == 2 and len(imported.scene.meshes) == 1
-    # each message is said once (the blackbody's is the same as the named spectrum's); copper is known, gold is not
+    # each message is said once (the blackbody's is the same as the named spectrum's); gold is known, brass is not
     assert warnings_about(imported, "s.pbrt:6: unsupported:") and warnings_about(imported, "s.pbrt:14: unsupported:")
 
 

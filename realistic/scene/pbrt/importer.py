@@ -31,6 +31,7 @@ from realistic.optics.formats import BUNDLED_LENSES, load_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus
 from realistic.optics.stop_shape import StopShape, transmission_stop
+from realistic.scene.lights import EmissiveInstance
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import AreaLight, CheckerTexture, Material, Mesh, Scene
@@ -51,6 +52,8 @@ from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRec
 from realistic.scene.shapes import cone, disk, sphere
 
 GREY = (0.5, 0.5, 0.5)
+#: Shapes pbrt defines by an equation, whose front is their object-space outside.
+QUADRICS = ("sphere", "cone", "cylinder")
 #: Farthest a shape or the camera may reach from the world origin: the renderer intersects in single
 #: precision, where products of larger coordinates overflow (float32 holds up to 3.4e38).
 MAX_WORLD_COORDINATE = 1e18
@@ -353,6 +356,10 @@ class _Importer:
             return
         if shape.area_light is not None and self.add_area_light(shape, world):
             return
+        self.add_instances(shape, world)
+
+    def add_instances(self, shape: ShapeRecord, world: np.ndarray) -> None:
+        """Instances of the shape's meshes under ``world`` (meshes tessellated or loaded once)."""
         material = self.material(shape.material)
         if id(shape) not in self.stored:  # tessellate or load once, however often it is instanced
             with np.errstate(all="ignore"):  # extreme sizes: judged by _sound
@@ -383,6 +390,9 @@ class _Importer:
         if radiance is None:
             self.warn(where, "spectral area light L (rendered white)")
             radiance = (1.0, 1.0, 1.0)
+        for name in ("filename", "power"):  # pbrt-v4 DiffuseAreaLight: image emission, photometric power
+            if declaration.params.has(name):
+                self.warn(where, f'area light "{name}" (ignored; L and scale set its radiance)')
         light_scale = _rgb(declaration.params, "scale", (1.0, 1.0, 1.0)) or (1.0, 1.0, 1.0)
         radiance = tuple(a * b for a, b in zip(radiance, light_scale))
         samples = _whole_number(declaration.params, "nsamples", 1, where)
@@ -390,9 +400,19 @@ class _Importer:
             self.warn(where, f"nsamples {samples} (at most {MAX_LIGHT_SAMPLES} are taken)")
             samples = MAX_LIGHT_SAMPLES
         self.scene.light_samples = max(self.scene.light_samples, samples)
-        if shape.type != "disk":
-            self.warn(where, f'area light on a "{shape.type}" (only disks emit; shape rendered unlit)')
-            return False
+        twosided = declaration.params.items.get("twosided")
+        two_sided = bool(twosided and twosided.values and twosided.values[0] is True)
+        if shape.type != "disk":  # any other shape emits from its faces and reflects by its material
+            first = len(self.scene.instances)
+            self.add_instances(shape, world)
+            for index in range(first, len(self.scene.instances)):
+                area = self._face_front(index, shape)
+                if not 0 < area < np.inf:
+                    self.warn(where, f"area light of area {area:.3g} (too small or too large to sample; the "
+                                     f"shape is drawn unlit)")
+                    continue
+                self.scene.lights.append(EmissiveInstance(index, radiance, two_sided))
+            return True
         transform = world @ shape.transform @ translate(0, 0, shape.params.get_float("height", 0.0))
         if not (np.all(np.isfinite(transform)) and abs(np.linalg.det(transform[:3, :3])) > 0):
             self.warn(where, "area light whose transform flattens it (a Scale by 0, say; skipped)")
@@ -403,8 +423,6 @@ class _Importer:
             self.warn(where, f"area light reaching beyond {MAX_WORLD_COORDINATE:g} from the origin, more than the "
                              f"renderer's single precision holds (skipped)")
             return True
-        twosided = declaration.params.items.get("twosided")
-        two_sided = bool(twosided and twosided.values and twosided.values[0] is True)
         light = AreaLight("disk", (radius, radius), radiance, transform, shape.reverse_orientation, two_sided)
         with np.errstate(all="ignore"):
             area, normal = light.area(), light.frame()[3]
@@ -413,6 +431,39 @@ class _Importer:
             return True
         self.scene.lights.append(light)
         return True
+
+    def _face_front(self, index: int, shape: ShapeRecord) -> float:
+        """Rewind instance ``index``'s faces so that each one's counter-clockwise normal in the world
+        is the side pbrt emits from (``EmissiveInstance`` emits on that side); returns its world area.
+
+        pbrt-v3 ``src/core/interaction.cpp`` and ``src/shapes/triangle.cpp``, pbrt-v4
+        ``src/pbrt/shapes.h``: a triangle's normal faces its shading normals where the mesh has them
+        (reversed by ReverseOrientation, as pbrt-v4's ``TriangleMesh`` does), else it is its world
+        winding's normal flipped by ReverseOrientation xor a handedness-swapping transform; quadric
+        shapes (sphere, cone, cylinder) face outward in object space, flipped by ReverseOrientation
+        xor the swap, which is the world winding of our outward-wound tessellations flipped by
+        ReverseOrientation alone.
+        """
+        inst = self.scene.instances[index]
+        mesh = self.scene.meshes[inst.mesh]
+        linear = np.asarray(inst.transform, np.float64)[:3, :3]
+        with np.errstate(all="ignore"):
+            corners = (mesh.vertices @ linear.T)[mesh.faces]
+            winding = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+            area = float(np.linalg.norm(winding, axis=1).sum() / 2)
+        if mesh.normals is not None and shape.type not in QUADRICS and np.linalg.det(linear) != 0:
+            with np.errstate(all="ignore"):
+                shading = (mesh.normals @ np.linalg.inv(linear))[mesh.faces].sum(axis=1)
+            flip = np.einsum("ij,ij->i", winding, shading) < 0
+        else:
+            swaps = shape.type not in QUADRICS and np.linalg.det(linear) < 0
+            flip = np.full(len(mesh.faces), bool(swaps))
+        flip ^= shape.reverse_orientation
+        if np.any(flip):
+            faces = np.where(flip[:, None], mesh.faces[:, ::-1], mesh.faces)
+            rewound = self.scene.add_mesh(dataclasses.replace(mesh, faces=faces))
+            self.scene.instances[index] = dataclasses.replace(inst, mesh=rewound)
+        return area if np.isfinite(area) else np.inf
 
     def run(self) -> Scene:
         for shape in self.parsed.shapes:

@@ -18,6 +18,7 @@ types as matte. Bump maps and displacement are ignored with a warning.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -40,13 +41,13 @@ from realistic.scene.materials import (
     SurfaceMaterial,
 )
 from realistic.scene.measured import float_file_numbers, load_measured, spectrum_to_rgb
-from realistic.scene.metals import copper
+from realistic.scene.metals import TABLES, copper, named_metal
 from realistic.scene.model import Material
 from realistic.scene.pbrt.parser import Declaration, Params
 
 #: Copper (``realistic.scene.metals``), the default metal of pbrt-v2/v3 ``metal`` and pbrt-v4
-#: ``conductor``; pbrt-v4's other named metal spectra ("metal-Au-eta", ...) are not tabulated here
-#: and fall back to copper with a warning.
+#: ``conductor``; pbrt-v4's named metal spectra ("metal-Au-eta", ...) are ``metals.TABLES``', and
+#: those not tabulated there (brass, "metal-CuZn-...") fall back to copper with a warning.
 COPPER_ETA, COPPER_K = copper()
 MAX_MIX_DEPTH = 16
 
@@ -102,8 +103,9 @@ class _Reader:
         p = self.params.items[name]
         if len(p.values) == 1 and isinstance(p.values[0], str):
             text = p.values[0]
-            if text in ("metal-Cu-eta", "metal-Cu-k"):
-                return COPPER_ETA if text.endswith("eta") else COPPER_K
+            metal = re.fullmatch(r"metal-(\w+)-(eta|k)", text)
+            if metal and metal.group(1) in TABLES:
+                return named_metal(metal.group(1))[metal.group(2) == "k"]
             if text.startswith("metal-"):
                 self.context.warn(self.where, f'named spectrum "{text}" (copper\'s used)')
                 return COPPER_ETA if text.endswith("eta") else COPPER_K
