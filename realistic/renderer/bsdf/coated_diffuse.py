@@ -18,8 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from realistic.renderer.bsdf import fresnel
-from realistic.renderer.bsdf.base import BSDFSample
-from realistic.renderer.bsdf.lambertian import cosine_on_side, cosine_pdf
+from realistic.renderer.bsdf.lambertian import CosineSampled
 
 
 def hemispherical_reflectance(eta: float) -> float:
@@ -28,11 +27,9 @@ def hemispherical_reflectance(eta: float) -> float:
     return float(2.0 * np.mean(fresnel.dielectric(mu, eta).astype(np.float64) * mu))
 
 
-class CoatedLambertian:
+class CoatedLambertian(CosineSampled):
     """The coated base's lobe for albedo ``albedo`` (N, C) under a coat of index ``eta``."""
 
-    has_specular = False
-    only_specular = False
 
     def __init__(self, albedo: np.ndarray, eta: float):
         self.albedo = np.asarray(albedo, np.float32)
@@ -46,11 +43,3 @@ class CoatedLambertian:
         t = (1.0 - fresnel.dielectric(np.abs(wi[:, 2]), self.eta)) * (1.0 - fresnel.dielectric(np.abs(wo[:, 2]),
                                                                                                   self.eta))
         return (self.scale * (t * same).astype(np.float32)[:, None]).astype(np.float32)
-
-    def pdf(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
-        return cosine_pdf(wo, wi)
-
-    def sample(self, wo: np.ndarray, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
-        wi = cosine_on_side(wo, u)
-        pdf = self.pdf(wo, wi)
-        return BSDFSample(wi, self.evaluate(wo, wi), pdf, np.zeros(len(wo), bool), pdf > 0)

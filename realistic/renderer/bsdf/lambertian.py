@@ -32,11 +32,27 @@ def cosine_on_side(wo: np.ndarray, u: np.ndarray) -> np.ndarray:
     return wi
 
 
-class Lambertian:
-    """Ideal diffuse reflection of ``albedo`` (N, C); no transmission."""
+class CosineSampled:
+    """Base of the reflection lobes sampled by cosine-weighted directions on wo's side (their
+    ``evaluate`` is their own): Lambertian, Oren-Nayar, the coated diffuse base, measured BRDFs."""
 
     has_specular = False
     only_specular = False
+
+    def evaluate(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def pdf(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
+        return cosine_pdf(wo, wi)
+
+    def sample(self, wo: np.ndarray, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
+        wi = cosine_on_side(wo, u)
+        pdf = self.pdf(wo, wi)
+        return BSDFSample(wi, self.evaluate(wo, wi), pdf, np.zeros(len(wi), bool), pdf > 0)
+
+
+class Lambertian(CosineSampled):
+    """Ideal diffuse reflection of ``albedo`` (N, C); no transmission."""
 
     def __init__(self, albedo: np.ndarray):
         self.albedo = np.asarray(albedo, np.float32)
@@ -44,11 +60,3 @@ class Lambertian:
     def evaluate(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
         same_side = wo[:, 2] * wi[:, 2] > 0
         return self.albedo * (same_side / np.float32(np.pi)).astype(np.float32)[:, None]
-
-    def pdf(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
-        return cosine_pdf(wo, wi)
-
-    def sample(self, wo: np.ndarray, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
-        wi = cosine_on_side(wo, u)
-        valid = wo[:, 2] * wi[:, 2] > 0
-        return BSDFSample(wi, self.evaluate(wo, wi), self.pdf(wo, wi), np.zeros(len(wi), bool), valid)

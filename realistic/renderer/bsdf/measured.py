@@ -19,8 +19,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from realistic.renderer.bsdf.base import BSDFSample
-from realistic.renderer.bsdf.lambertian import cosine_on_side, cosine_pdf
+from realistic.renderer.bsdf.lambertian import CosineSampled
 from realistic.scene.measured import HalfangleTable, IrregularSamples, brdf_remap
 
 FIRST_RADIUS2 = 0.001
@@ -97,11 +96,9 @@ def halfangle_lookup(table: HalfangleTable, wo: np.ndarray, wi: np.ndarray) -> n
     return np.where(ok[:, None], table.rgb[i_h, i_d, i_phi], 0.0)
 
 
-class MeasuredBRDF:
+class MeasuredBRDF(CosineSampled):
     """A measured BRDF; ``to_channels`` (N, C, 3) turns its RGB into the rays' C channels."""
 
-    has_specular = False
-    only_specular = False
 
     def __init__(self, data: IrregularSamples | HalfangleTable, to_channels: np.ndarray):
         self.data, self.to_channels = data, np.asarray(to_channels, np.float32)
@@ -116,11 +113,3 @@ class MeasuredBRDF:
             else:
                 rgb[rows] = irregular_lookup(self.data, brdf_remap(wo[rows], wi[rows]))
         return np.einsum("ncj,nj->nc", self.to_channels, rgb.astype(np.float32))
-
-    def pdf(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
-        return cosine_pdf(wo, wi)
-
-    def sample(self, wo: np.ndarray, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
-        wi = cosine_on_side(wo, u)
-        pdf = self.pdf(wo, wi)
-        return BSDFSample(wi, self.evaluate(wo, wi), pdf, np.zeros(len(wo), bool), pdf > 0)

@@ -11,15 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from realistic.renderer.bsdf.base import BSDFSample
-from realistic.renderer.bsdf.lambertian import cosine_on_side, cosine_pdf
+from realistic.renderer.bsdf.lambertian import CosineSampled
 
 
-class OrenNayar:
+class OrenNayar(CosineSampled):
     """Rough diffuse reflection of ``albedo`` (N, C) with facet slope deviation ``sigma_degrees`` (N,)."""
 
-    has_specular = False
-    only_specular = False
 
     def __init__(self, albedo: np.ndarray, sigma_degrees: np.ndarray | float):
         self.albedo = np.asarray(albedo, np.float32)
@@ -41,11 +38,3 @@ class OrenNayar:
         shape = (self.a + self.b * np.nan_to_num(term)) / np.float32(np.pi)
         same = wo[:, 2] * wi[:, 2] > 0
         return (self.albedo * (shape * same)[:, None]).astype(np.float32)
-
-    def pdf(self, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
-        return cosine_pdf(wo, wi)
-
-    def sample(self, wo: np.ndarray, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
-        wi = cosine_on_side(wo, u)
-        pdf = self.pdf(wo, wi)
-        return BSDFSample(wi, self.evaluate(wo, wi), pdf, np.zeros(len(wi), bool), pdf > 0)
