@@ -62,6 +62,12 @@ def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
     for colour, fraction in zip(FAN_COLOURS, (0.0, 0.5, 0.9)):
         for line in meridional_fan(lens, film_distance_mm, fraction * reach, table):
             ax.plot(line[:, 2], line[:, 0], color=colour, lw=0.6)
+    # The axial range of the film, the vertices and the fans (0.6 track beyond the front), plus 5 %:
+    # an asphere's polynomial may run far off near a rim no ray reaches (phone-us10101561's
+    # surface 8 reaches 71 mm at its stated clear aperture), which would otherwise shrink the lens.
+    vertex_z = lens.vertex_z_mm(film_distance_mm)
+    near, far = min(0.0, vertex_z.min()), vertex_z.max() + 0.6 * lens.track_length_mm
+    ax.set_xlim(near - 0.05 * (far - near), far + 0.05 * (far - near))
     ax.axvline(0.0, color="grey", lw=2)
     ax.axhline(0.0, color="grey", lw=0.5, ls="--")
     ax.set_aspect("equal")
