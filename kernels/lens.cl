@@ -9,7 +9,10 @@
  * (../shared/DESIGN.md, "Facts measured on this machine"): no calls to OpenCL builtin math
  * functions (PoCL does not inline them and a call stops the vectoriser), plain float arithmetic
  * instead of float3 helpers, ternaries instead of fmax/select, an `alive` mask instead of early
- * exits, and the surfaces unrolled with their constants known at compile time.
+ * exits, no loops in the body (fixed counts written out), no twin instruction chains that LLVM's
+ * SLP vectoriser would pack into 2-wide vectors, and the surfaces unrolled with their constants
+ * known at compile time. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized loop" per kernel, and
+ * the built generate_rays.so (POCL_CACHE_DIR, POCL_LEAVE_KERNEL_COMPILER_TEMP_FILES=1) uses ymm.
  *
  * The host (realistic/opencl_host.py) prepends a generated header that defines, per camera:
  *   WIDTH, HEIGHT, SPP            resolution and samples per pixel (integer constants)
@@ -172,16 +175,28 @@ inline __attribute__((always_inline)) void sphere(Ray *r, const float R, const f
 /* An even asphere (realistic.optics.asphere) of base curvature C, conic constant K and coefficients
  * A4 .. A20 (r^4 .. r^20), as the float64 tracer meets it (realistic.optics.tracer.intersect_asphere):
  * the nearer root ahead on the base conic's vertex branch (1 + (1 + K) C w >= 0), else the vertex plane's,
- * then ASPHERE_ITERATIONS Newton steps on F(t) = w(t) + sag(rho(t)), a fixed count so that every
- * work item runs the same code. A ray whose final |F| exceeds ASPHERE_TOLERANCE_MM, that leaves the
+ * then six Newton steps on F(t) = w(t) + sag(rho(t)), a fixed count so that every work item runs
+ * the same branch-free code. A ray whose final |F| exceeds ASPHERE_TOLERANCE_MM, that leaves the
  * conic's domain or the clear aperture, is blocked (the tracer's reason `asphere`). The normal is the
  * sag's gradient (2 x s', 2 y s', 1), turned to face the ray. */
-#define ASPHERE_ITERATIONS 6
 #define ASPHERE_TOLERANCE_MM 1e-4f
 #define ASPHERE_POLY(rho) ((rho) * (rho) * (A4 + (rho) * (A6 + (rho) * (A8 + (rho) * (A10 + (rho) * (A12 + \
     (rho) * (A14 + (rho) * (A16 + (rho) * (A18 + (rho) * A20)))))))))
 #define ASPHERE_DPOLY(rho) ((rho) * (2.0f * A4 + (rho) * (3.0f * A6 + (rho) * (4.0f * A8 + (rho) * (5.0f * A10 + \
     (rho) * (6.0f * A12 + (rho) * (7.0f * A14 + (rho) * (8.0f * A16 + (rho) * (9.0f * A18 + (rho) * 10.0f * A20)))))))))
+/* One Newton step on F(t), written out six times rather than looped: PoCL's
+ * work-group vectoriser is LLVM's loop vectoriser run on the loop over work items, which widens
+ * innermost loops only, so any loop left inside the kernel body (even a constant-count one) kept
+ * the asphere path scalar (objdump of the built kernel: 0 ymm instructions, 0.5-1.1 M rays/s). */
+#define ASPHERE_NEWTON_STEP \
+    hx = r->ox + t * r->dx; \
+    hy = r->oy + t * r->dy; \
+    rho = hx * hx + hy * hy; \
+    q2 = 1.0f - CCK * rho; \
+    q = __builtin_sqrtf(q2 > 0.0f ? q2 : 0.0f); \
+    f = r->w + t * r->dz + C * rho / (1.0f + q) + ASPHERE_POLY(rho); \
+    slope = C / (2.0f * q) + ASPHERE_DPOLY(rho); \
+    t = t - f / (r->dz + 2.0f * slope * (hx * r->dx + hy * r->dy));
 inline __attribute__((always_inline)) void asphere(Ray *r, const float C, const float K, const float A4, const float A6,
                                                   const float A8, const float A10, const float A12, const float A14,
                                                   const float A16, const float A18, const float A20, const float AP2,
@@ -194,21 +209,23 @@ inline __attribute__((always_inline)) void asphere(Ray *r, const float C, const 
     float disc = b * b - a * g;
     float root = __builtin_sqrtf(disc > 0.0f ? disc : 0.0f);
     float qq = -(b + (b < 0.0f ? -root : root));
+    /* The two roots' tests are written as different instruction sequences on purpose (as
+     * concentric_disk's): as twins, LLVM's SLP vectoriser packed them into 2-wide vectors, and a
+     * vector-typed instruction in the body stops PoCL's work-group vectoriser ("instruction return
+     * type cannot be vectorized" with POCL_VECTORIZER_REMARKS=1). */
     float t1 = qq / a, t2 = g / qq;
     int ok1 = (disc >= 0.0f) & (t1 > 0.0f) & (1.0f + CK * (r->w + t1 * r->dz) >= 0.0f);
-    int ok2 = (disc >= 0.0f) & (t2 > 0.0f) & (1.0f + CK * (r->w + t2 * r->dz) >= 0.0f);
-    float t = (ok1 & !(ok2 & (t2 < t1))) ? t1 : (ok2 ? t2 : -r->w / r->dz);
-    float hx, hy, rho, q2, q, f;
-    for (int it = 0; it < ASPHERE_ITERATIONS; ++it) {
-        hx = r->ox + t * r->dx;
-        hy = r->oy + t * r->dy;
-        rho = hx * hx + hy * hy;
-        q2 = 1.0f - CCK * rho;
-        q = __builtin_sqrtf(q2 > 0.0f ? q2 : 0.0f);
-        f = r->w + t * r->dz + C * rho / (1.0f + q) + ASPHERE_POLY(rho);
-        float slope = C / (2.0f * q) + ASPHERE_DPOLY(rho);
-        t = t - f / (r->dz + 2.0f * slope * (hx * r->dx + hy * r->dy));
-    }
+    int ok2 = (disc >= 0.0f) & (0.0f < t2) & (CK * r->w + (CK * r->dz) * t2 >= -1.0f);
+    /* Both roots and the plane's are computed for every ray and chosen by masks: written as a
+     * ternary with the plane's division in one arm, clang made the choice a branch (`br i1` in
+     * PoCL's program.bc), which the work-group vectoriser would have to if-convert. */
+    float tp = -r->w / r->dz;
+    int take1 = -(ok1 & !(ok2 & (t2 < t1)));
+    int take2 = -(!take1 & ok2);
+    float t = as_float((as_int(t1) & take1) | (as_int(t2) & take2) | (as_int(tp) & ~(take1 | take2)));
+    float hx, hy, rho, q2, q, f, slope;
+    ASPHERE_NEWTON_STEP ASPHERE_NEWTON_STEP ASPHERE_NEWTON_STEP
+    ASPHERE_NEWTON_STEP ASPHERE_NEWTON_STEP ASPHERE_NEWTON_STEP
     hx = r->ox + t * r->dx;
     hy = r->oy + t * r->dy;
     float hw = r->w + t * r->dz;

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.optics.asphere import sag_mm
 from realistic.optics.field_curves import meridional_fan
 from realistic.optics.lens import LensSystem
 from realistic.optics.sampling import exit_pupil_table
@@ -17,11 +18,15 @@ from realistic.optics.sampling import exit_pupil_table
 FAN_COLOURS = ("tab:blue", "tab:green", "tab:red")
 
 
-def _profile(lens: LensSystem, film_distance_mm: float, i: int, rho: np.ndarray) -> np.ndarray:
-    """z of surface i at heights rho (lens frame)."""
+def surface_profile(lens: LensSystem, film_distance_mm: float, i: int, rho: np.ndarray) -> np.ndarray:
+    """z of surface i at heights rho (lens frame): the vertex less the sag, which for an even
+    asphere is its own (conic and polynomial, ``realistic.optics.asphere``), not the base sphere's."""
     z = lens.vertex_z_mm(film_distance_mm)[i]
     r = lens.radius_mm[i]
-    if r == 0 or not np.isfinite(r):
+    flat = r == 0 or not np.isfinite(r)
+    if lens.aspheric[i]:
+        return z - sag_mm(rho * rho, 0.0 if flat else 1.0 / r, lens.conic[i], lens.aspheric_coefficients[i])
+    if flat:
         return np.full_like(rho, z)
     return z - r + np.sign(r) * np.sqrt(r * r - rho * rho)
 
@@ -44,12 +49,12 @@ def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
             ax.plot([z, z], [-half, -top], "k", lw=2)
             continue
         rho = np.linspace(-half, half, 101)
-        ax.plot(_profile(lens, film_distance_mm, i, rho), rho, "k", lw=1)
+        ax.plot(surface_profile(lens, film_distance_mm, i, rho), rho, "k", lw=1)
         if lens.index_d[i] > 1 and i + 1 < lens.surface_count:  # glass behind: close the element's rim
             edge = min(half, lens.aperture_mm[i + 1] / 2)
             for sign in (-1, 1):
-                za = _profile(lens, film_distance_mm, i, np.array([sign * edge]))[0]
-                zb = _profile(lens, film_distance_mm, i + 1, np.array([sign * edge]))[0]
+                za = surface_profile(lens, film_distance_mm, i, np.array([sign * edge]))[0]
+                zb = surface_profile(lens, film_distance_mm, i + 1, np.array([sign * edge]))[0]
                 ax.plot([za, zb], [sign * edge, sign * edge], "k", lw=1)
     table = exit_pupil_table(lens, film_distance_mm, film_diagonal_mm)
     lit = np.flatnonzero(table.area_mm2() > 0)
@@ -57,6 +62,12 @@ def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
     for colour, fraction in zip(FAN_COLOURS, (0.0, 0.5, 0.9)):
         for line in meridional_fan(lens, film_distance_mm, fraction * reach, table):
             ax.plot(line[:, 2], line[:, 0], color=colour, lw=0.6)
+    # The axial range of the film, the vertices and the fans (0.6 track beyond the front), plus 5 %:
+    # an asphere's polynomial may run far off near a rim no ray reaches (phone-us10101561's
+    # surface 8 reaches 71 mm at its stated clear aperture), which would otherwise shrink the lens.
+    vertex_z = lens.vertex_z_mm(film_distance_mm)
+    near, far = min(0.0, vertex_z.min()), vertex_z.max() + 0.6 * lens.track_length_mm
+    ax.set_xlim(near - 0.05 * (far - near), far + 0.05 * (far - near))
     ax.axvline(0.0, color="grey", lw=2)
     ax.axhline(0.0, color="grey", lw=0.5, ls="--")
     ax.set_aspect("equal")

@@ -10,13 +10,16 @@ at least ``IMAGE_CIRCLE_ILLUMINATION`` of the centre's.
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 
-from realistic.optics.field_curves import field_curves
+from realistic.core.disk_cache import cache_key, load_arrays, store_arrays
 from realistic.optics.formats import bundled_lens_files, bundled_lens_text, load_lens
 from realistic.optics.lens import LensSystem
-from realistic.optics.paraxial import paraxial_data
+from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
+from realistic.optics.sampling import camera_weight, exit_pupil_table
+from realistic.optics.tracer import trace_from_film
 
 #: Relative illumination (of the centre's) that bounds the image circle.
 IMAGE_CIRCLE_ILLUMINATION = 0.1
@@ -41,19 +44,75 @@ def element_count(lens: LensSystem) -> int:
     return int(np.count_nonzero(starts))
 
 
-def image_circle_mm(lens: LensSystem, points: int = 41, samples: int = 4000) -> float:
-    """Diameter (mm) of the image circle (see the module docstring), searched out to 4 x EFL."""
+def image_circle_mm(lens: LensSystem, points: int = 9, samples: int = 4000) -> float:
+    """Diameter (mm) of the image circle (see the module docstring), searched out to 4 x EFL.
+
+    The relative illumination is traced at ``points`` film radii from the centre to the edge (one
+    batch), then the first interval where it falls below the threshold is bisected
+    ``BISECTIONS`` times and the crossing interpolated linearly in the last bracket: about a third
+    of the rays of a 41-point field curve, at a finer final spacing. A dip narrower than the coarse
+    spacing is missed, as it was by the 41-point scan when narrower than its spacing. Results are
+    kept in the disk cache (``realistic.core.disk_cache``), keyed by the prescription.
+    """
+    key = cache_key("image-circle", IMAGE_CIRCLE_VERSION, _lens_key(lens), points, samples)
+    stored = load_arrays(key)
+    if stored is not None and "diameter_mm" in stored:
+        return float(stored["diameter_mm"])
+    diameter = _image_circle_traced(lens, points, samples)
+    store_arrays(key, {"diameter_mm": np.asarray(diameter)})
+    return diameter
+
+
+#: Bump when the image-circle search changes, so cached diameters are recomputed.
+IMAGE_CIRCLE_VERSION = 1
+#: Halvings of the coarse interval that holds the threshold crossing.
+BISECTIONS = 6
+
+
+def _lens_key(lens: LensSystem) -> bytes:
+    """Everything of a prescription that the image circle depends on, as bytes."""
+    arrays = (lens.radius_mm, lens.thickness_mm, lens.index_d, lens.abbe_v, lens.aperture_mm, lens.conic,
+              lens.aspheric_coefficients)
+    shape = repr((lens.stop, lens.stop_shape)).encode()
+    return b"".join(np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in arrays) + shape
+
+
+def _image_circle_traced(lens: LensSystem, points: int, samples: int) -> float:
+    """The image-circle diameter by a coarse scan and a bisection of relative illumination."""
     efl = abs(paraxial_data(lens).efl_mm)
-    rows = field_curves(lens, film_diagonal_mm=min(8.0 * efl, 1000.0), points=points, samples=samples)
-    radii = np.array([r["film_radius_mm"] for r in rows])
-    light = np.array([r["relative_illumination"] for r in rows])
-    below = np.flatnonzero(light < IMAGE_CIRCLE_ILLUMINATION)
+    film_diagonal = min(8.0 * efl, 1000.0)
+    film_distance = film_distance_for_focus(lens, math.inf)
+    table = exit_pupil_table(lens, film_distance, film_diagonal)
+    rng = np.random.default_rng(0)
+    u1, u2 = rng.random(samples), rng.random(samples)
+
+    def illumination(radii: np.ndarray) -> np.ndarray:
+        """Mean camera weight at each film radius (same pupil samples at every radius)."""
+        film_xy = np.column_stack([np.repeat(radii, samples), np.zeros(len(radii) * samples)])
+        film = np.column_stack([film_xy, np.zeros(len(film_xy))])
+        targets, area = table.sample(film_xy, np.tile(u1, len(radii)), np.tile(u2, len(radii)))
+        passed = trace_from_film(lens, film_distance, film, targets - film).passed
+        weight = np.where(passed, camera_weight(film, targets, area, table.plane_z_mm), 0.0)
+        return weight.reshape(len(radii), samples).mean(axis=1)
+
+    radii = np.linspace(0.0, film_diagonal / 2 * 0.999, points)
+    light = illumination(radii)
+    threshold = IMAGE_CIRCLE_ILLUMINATION * light[0]
+    below = np.flatnonzero(light < threshold)
     if len(below) == 0:
         return 2.0 * float(radii[-1])
     k = int(below[0])
-    # Linear interpolation between the last sample above the threshold and the first below it.
-    t = (light[k - 1] - IMAGE_CIRCLE_ILLUMINATION) / (light[k - 1] - light[k])
-    return 2.0 * float(radii[k - 1] + t * (radii[k] - radii[k - 1]))
+    lo, hi, light_lo, light_hi = radii[k - 1], radii[k], light[k - 1], light[k]
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        light_mid = illumination(np.array([mid]))[0]
+        if light_mid < threshold:
+            hi, light_hi = mid, light_mid
+        else:
+            lo, light_lo = mid, light_mid
+    # Linear interpolation between the last radius above the threshold and the first below it.
+    t = (light_lo - threshold) / (light_lo - light_hi)
+    return 2.0 * float(lo + t * (hi - lo))
 
 
 def library_entry(name: str) -> dict:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from realistic.optics.asphere import COEFFICIENT_POWERS
 from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus, focus_distance_for_film, nearest_focus_mm, paraxial_data
@@ -29,6 +30,10 @@ def lens_summary(lens: LensSystem, wavelength_nm: float = D_LINE_NM, film_distan
         for i, (r, t, n, v, a) in enumerate(zip(lens.radius_mm, lens.thickness_mm, lens.index_d,
                                                 lens.abbe_v, lens.aperture_mm))
     ]
+    for i in map(int, lens.aspheric.nonzero()[0]):
+        summary["surfaces"][i]["conic"] = float(lens.conic[i])
+        summary["surfaces"][i]["aspheric_coefficients"] = {
+            f"A{p}": float(a) for p, a in zip(COEFFICIENT_POWERS, lens.aspheric_coefficients[i]) if a != 0}
     if sampling_film_diagonal_mm:
         distance = film_distance_mm if film_distance_mm is not None else summary["film_distance_infinity_mm"]
         table = exit_pupil_table(lens, distance, sampling_film_diagonal_mm)
@@ -52,6 +57,13 @@ def format_summary(summary: dict) -> str:
         abbe = f"{s['abbe_v']:.1f}" if s["abbe_v"] else "-"
         lines.append(f"{i:3d} {radius:>11} {s['thickness_mm']:11.4f} {s['index_d']:7.4f} {abbe:>8} "
                      f"{s['aperture_mm']:10.3f}")
+    aspheres = [(i, s) for i, s in enumerate(summary["surfaces"]) if "conic" in s]
+    if aspheres:
+        lines.append("")
+        lines.append("even aspheres: sag = c r^2 / (1 + sqrt(1 - (1 + k) c^2 r^2)) + sum A_p r^p (mm)")
+        for i, s in aspheres:
+            terms = "  ".join(f"{name} {value:.6e}" for name, value in s["aspheric_coefficients"].items())
+            lines.append(f"{i:3d}  conic k {s['conic']:.6g}" + (f"  {terms}" if terms else ""))
     rows = [
         ("wavelength", summary["wavelength_nm"], "nm"),
         ("effective focal length", summary["efl_mm"], "mm"),
