@@ -70,7 +70,7 @@ def farm_client(workers: int | None = None, scheduler: str | None = None,
                                silence_logs=logging.ERROR, env={LOCAL_WORKER: "1"})
         client = Client(cluster)
     dashboard = (f"dashboard {client.dashboard_link}" if importlib.util.find_spec("bokeh")
-                 else f"dashboard at {client.dashboard_link} once bokeh is installed (pip install bokeh)")
+                 else f"dashboard at {client.dashboard_link} once bokeh is installed (the farm extra brings it)")
     announce(f"Dask LocalCluster of {workers} worker processes; {dashboard}")
     try:
         yield client
