@@ -221,7 +221,7 @@ inline __attribute__((always_inline)) void asphere(Ray *r, const float C, const 
      * PoCL's program.bc), which the work-group vectoriser would have to if-convert. */
     float tp = -r->w / r->dz;
     int take1 = -(ok1 & !(ok2 & (t2 < t1)));
-    int take2 = -(!take1 & ok2);
+    int take2 = -((take1 == 0) & ok2);
     float t = as_float((as_int(t1) & take1) | (as_int(t2) & take2) | (as_int(tp) & ~(take1 | take2)));
     float hx, hy, rho, q2, q, f, slope;
     ASPHERE_NEWTON_STEP ASPHERE_NEWTON_STEP ASPHERE_NEWTON_STEP
