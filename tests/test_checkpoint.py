@@ -111,7 +111,7 @@ def test_any_file_is_resumed_or_refused_in_one_line(tmp_path_factory, content):
     path.write_bytes(content)
     identity = RenderIdentity("2x2", 0, "s", "c", 1, 4, "numpy", 1)
     with pytest.raises(UserError) as err:
-        load_checkpoint(path, identity, plan_passes(4, 4))
+        load_checkpoint(path, identity, plan_passes(4, 1, 4))
     assert "\n" not in str(err.value) and str(path) in str(err.value)
 
 
