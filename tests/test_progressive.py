@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.renderer.film import Film, PassFilm
-from realistic.renderer.pass_plan import plan_passes, progressive_order
+from realistic.renderer.pass_plan import plan_passes, progressive_order, slice_bounds
 from realistic.renderer.passes import render_passes
 from realistic.scene.staging import default_setup
 
@@ -27,8 +27,23 @@ def _coverage(plan, pixels, spp):
 @given(st.integers(1, 400), st.integers(1, 40), st.integers(1, 700))
 def test_plan_covers_every_pixel_sample_pair_once(pixels, spp, pass_samples):
     plan = plan_passes(pixels, spp, pass_samples)
-    assert all(1 <= block.count <= max(pass_samples, spp) for block in plan)
+    assert all(1 <= block.count <= pass_samples for block in plan)
     assert np.all(_coverage(plan, pixels, spp) == 1)
+
+
+@given(st.integers(1, 10**7), st.integers(1, 4096), st.integers(1, 1 << 20))
+def test_slices_double_so_each_pixel_is_sent_about_log2_spp_times(pixels, spp, pass_samples):
+    """A pass's sums hold every pixel it touches once, so a render sends and adds each pixel's sums
+    once per slice: slices grow geometrically (at most log2(spp) + 2 of them while the cap of
+    ``pass_samples`` samples does not bind), and the first is a whole frame as soon as one pass can
+    hold every pixel."""
+    bounds = np.array(slice_bounds(pixels, spp, pass_samples))
+    widths = np.diff(bounds)
+    assert bounds[0] == 0 and bounds[-1] == spp and np.all(widths >= 1)
+    assert widths[0] == min(spp, max(1, pass_samples // pixels))
+    assert np.all((widths[1:] == np.minimum(bounds[1:-1], pass_samples)) | (bounds[2:] == spp))
+    if spp <= pass_samples:
+        assert len(widths) <= np.log2(spp) + 2
 
 
 @given(st.integers(1, 400), st.integers(1, 40), st.integers(1, 700))

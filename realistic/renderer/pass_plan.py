@@ -2,9 +2,9 @@
 
 A pass is a ``SampleBlock`` (``realistic.camera.base``): a run of pixels times a slice of each
 pixel's samples, so a camera makes its rays in one call. The plan takes sample slices outermost
-(every pixel's first slice before anyone's second) and runs of pixels inside, so after any prefix
-of passes that finishes a slice every pixel has the same number of samples: an interrupted,
-checkpointed or previewed image is a whole noisy frame. Within a slice the runs of pixels are
+(every pixel's first slice before anyone's second; slices double in width) and runs of pixels
+inside, so after any prefix of passes that finishes a slice every pixel has the same number of
+samples: an interrupted, checkpointed or previewed image is a whole noisy frame. Within a slice the runs of pixels are
 visited in bit-reversed order (van der Corput), so a slice in progress is spread over the frame
 too. A pass is about ``pass_samples`` pairs. Random numbers depend on (pixel, sample, dimension,
 seed) only, so the plan changes only the float64 summation order of an image. The film adds pass
@@ -33,22 +33,29 @@ def progressive_order(count: int) -> np.ndarray:
     return np.argsort(reversed_index, kind="stable")
 
 
-def slice_samples(pixels: int, spp: int, pass_samples: int) -> int:
-    """Samples of each pixel per slice: as many as let one pass hold every pixel (at least 1)."""
-    return max(1, min(spp, pass_samples // pixels))
+def slice_bounds(pixels: int, spp: int, pass_samples: int) -> list[int]:
+    """Sample boundaries 0 = b0 < b1 < ... = spp of the slices: the first slice is as wide as lets
+    one pass hold every pixel (at least 1 sample), and each later one as wide as all before it
+    (capped at ``pass_samples``). The first whole frame comes after 1/spp of the render at most;
+    the samples per pixel double from slice to slice, so there are about log2(spp) + 1 slices and
+    a pixel's sums are sent and added that many times, not spp times."""
+    bounds = [0, min(spp, max(1, pass_samples // pixels))]
+    while bounds[-1] < spp:
+        bounds.append(min(spp, bounds[-1] + min(bounds[-1], pass_samples)))
+    return bounds
 
 
 def plan_passes(pixels: int, spp: int, pass_samples: int = DEFAULT_PASS_SAMPLES) -> list[SampleBlock]:
     """The passes of a render of ``pixels`` pixels at ``spp`` samples each, in progressive order:
-    slices of ``slice_samples`` samples outermost, runs of about pass_samples / slice pixels inside."""
+    slices (``slice_bounds``) outermost, runs of about pass_samples / slice width pixels inside."""
     if pass_samples < 1:
         raise ValueError(f"pass_samples must be >= 1, got {pass_samples}")
-    width = slice_samples(pixels, spp, pass_samples)
-    run = max(1, pass_samples // width)
-    starts = np.arange(0, pixels, run, dtype=np.int64)
+    bounds = slice_bounds(pixels, spp, pass_samples)
     plan = []
-    for first_sample in range(0, spp, width):
-        samples = min(width, spp - first_sample)
+    for first_sample, end in zip(bounds[:-1], bounds[1:]):
+        samples = end - first_sample
+        run = max(1, pass_samples // samples)
+        starts = np.arange(0, pixels, run, dtype=np.int64)
         plan += [SampleBlock.of_pixels(int(starts[i]), int(min(run, pixels - starts[i])), first_sample, samples)
                  for i in progressive_order(len(starts))]
     return plan
