@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from realistic import load_lens  # noqa: E402
-from realistic.camera.base import split_sample_ids  # noqa: E402
+from realistic.camera.base import SampleBlock  # noqa: E402
 from realistic.camera.lens_camera import LensCamera  # noqa: E402
 from realistic.camera.opencl_host import LensKernel  # noqa: E402
 from realistic.core import rng  # noqa: E402
@@ -77,7 +77,7 @@ def _surface_f32(o, d, vertex_z: float, radius: float, eta: float, refracts: boo
 def generate_rays_f32(camera: LensCamera, first: int, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """generate_rays in float32 numpy (world transform left out); returns (direction (3, N), weight)."""
     lens = camera.lens
-    pixel, sample = split_sample_ids(first, count, camera.spp)
+    pixel, sample = SampleBlock(first, count, camera.spp).ids()
     u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
     w_mm, h_mm = camera.film_size_mm
     fx = -(((pixel % camera.width).astype(F32) + u_x) / F32(camera.width) - F32(0.5)) * F32(w_mm)
@@ -136,6 +136,11 @@ def _rate(run, rays: int, repeats: int) -> float:
     return rays / best
 
 
+def _reference(camera: LensCamera, first: int, count: int, seed: int):
+    """The float64 reference on sample ids first .. first + count - 1."""
+    return camera.generate_rays(SampleBlock(first, count, camera.spp), seed)
+
+
 def _chunked(fn, camera: LensCamera, count: int):
     return lambda: [fn(camera, s, min(CHUNK, count - s), 0) for s in range(0, count, CHUNK)]
 
@@ -147,15 +152,16 @@ def bench_one(name: str, sampling: str, sizes: list[int], numpy_rays: int, repea
                         spp=max(1, -(-2 * max(sizes) // (1920 * 1080))), lens_sampling=sampling)
     start = time.perf_counter()
     kernel = LensKernel(camera)
-    kernel.generate(0, 256, 0)  # PoCL compiles the work-group function at the first launch
+    kernel.generate(SampleBlock(0, 256, camera.spp), 0)  # PoCL compiles the work-group function at the first launch
     build_s = time.perf_counter() - start
     row = {"lens": name, "sampling": sampling, "build_s": build_s, "kernel_rays_per_s": {}, "pass_fraction": None}
     for size in sizes:
-        kernel.generate(size, size, 0)  # warm: buffers of this size
-        row["kernel_rays_per_s"][str(size)] = _rate(lambda size=size: kernel.generate(0, size, 0), size, repeats)
-    batch = kernel.generate(0, max(sizes), 0)
+        kernel.generate(SampleBlock(size, size, camera.spp), 0)  # warm: buffers of this size
+        block = SampleBlock(0, size, camera.spp)
+        row["kernel_rays_per_s"][str(size)] = _rate(lambda block=block: kernel.generate(block, 0), size, repeats)
+    batch = kernel.generate(SampleBlock(0, max(sizes), camera.spp), 0)
     row["pass_fraction"] = float(np.mean(np.any(batch.direction != 0, axis=1)))
-    row["numpy_f64_rays_per_s"] = _rate(_chunked(LensCamera.generate_rays, camera, numpy_rays), numpy_rays, 1)
+    row["numpy_f64_rays_per_s"] = _rate(_chunked(_reference, camera, numpy_rays), numpy_rays, 1)
     # the float32 numpy version below knows spheres only: no figure for an aspheric lens
     row["numpy_f32_rays_per_s"] = (None if lens.aspheric.any() else
                                    _rate(_chunked(generate_rays_f32, camera, numpy_rays), numpy_rays, 2))

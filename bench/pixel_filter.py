@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import realistic as rl  # noqa: E402
+from realistic.camera.base import SampleBlock  # noqa: E402
 from realistic.camera.opencl_host import LensKernel  # noqa: E402
 from realistic.core.pixel_filter import PIXEL_BOX  # noqa: E402
 from realistic.renderer.inputs import MESH_FILTER_DIALECT  # noqa: E402
@@ -35,11 +36,11 @@ FILTERS = ("box", "triangle", "gaussian", "mitchell", "sinc")
 def kernel_rate(camera: rl.LensCamera, rays: int, repeats: int) -> float:
     """Median M rays/s of ``repeats`` launches of ``rays`` rays (the program is built first)."""
     kernel = LensKernel(camera)
-    kernel.generate(0, 1024)
+    kernel.generate(SampleBlock(0, 1024, camera.spp))
     times = []
     for seed in range(repeats):
         start = time.perf_counter()
-        kernel.generate(0, rays, seed)
+        kernel.generate(SampleBlock(0, rays, camera.spp), seed)
         times.append(time.perf_counter() - start)
     return rays / statistics.median(times) / 1e6
 

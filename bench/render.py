@@ -24,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from realistic import load_lens  # noqa: E402
+from realistic.camera.base import SampleBlock  # noqa: E402
 from realistic.camera.lens_camera import LensCamera  # noqa: E402
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm  # noqa: E402
 from realistic.renderer.integrator import DirectLighting  # noqa: E402
@@ -80,10 +81,11 @@ def ceiling(setup, camera, backend: str, samples: int) -> dict:
     recorder = RecordingIntersector(setup.scene)
     integrator = DirectLighting(setup.scene, recorder)
     first = camera.sample_count // 2 - samples // 2
-    rays = camera.ray_generator(backend)(first, samples)
+    block = SampleBlock(first, samples, camera.spp)
+    rays = camera.ray_generator(backend)(block)
     alive = np.flatnonzero(rays.weight > 0)
     integrator.radiance(rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32),
-                        rays.pixel[alive], (first + alive) % camera.spp)
+                        rays.pixel[alive], block.ids()[1][alive])
     (po, pd), (so, sd, sdist) = recorder.primary[0], recorder.shadow[0]
     chunk = 1 << 16
     base = Intersector(setup.scene)

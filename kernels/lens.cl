@@ -78,14 +78,16 @@ inline uint hash32(uint x) {
 /* Top 24 bits as a float in [0, 1). */
 inline float to_unit(uint bits) { return (float)(bits >> 8) * (1.0f / 16777216.0f); }
 
-/* Pixel and sample index within the pixel of work item gid. The host splits the launch's
- * first sample id into (first_pixel, first_sample) with first_sample < SPP, so the uint sum
- * below cannot wrap for any launch the host allows. */
-inline void sample_address(uint first_pixel, uint first_sample, uint gid, uint *pixel, uint *sample) {
-    uint s = first_sample + gid;
-    uint q = s / SPP;
+/* Pixel and sample index within the pixel of work item gid of a launch over a slice of each
+ * pixel's samples (realistic.camera.base.SampleBlock): pixels get slice_width samples each, from
+ * slice_start, and the launch starts `offset` pairs into pixel first_pixel's slice. The host keeps
+ * offset < slice_width and checks offset + launch size < 2^32, so the uint sum cannot wrap. */
+inline void sample_address(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint gid,
+                           uint *pixel, uint *sample) {
+    uint s = offset + gid;
+    uint q = s / slice_width;
     *pixel = first_pixel + q;
-    *sample = s - q * SPP;
+    *sample = slice_start + (s - q * slice_width);
 }
 
 /* The stratified uint32 values of one sample: film x, film y, lens u, lens v, and when SPECTRAL
@@ -394,15 +396,14 @@ inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
 
 /* ------------------------------------------------------------------ kernels */
 
-/* Rays for sample ids first .. first + global size - 1, where first = first_pixel * SPP +
- * first_sample. out holds 7 rows of `stride` floats: origin x, y, z, direction x, y, z, weight
+/* Rays of the sample block the host lays out (sample_address). out holds 7 rows of `stride` floats: origin x, y, z, direction x, y, z, weight
  * (world space; a blocked ray has weight 0 and zero origin and direction), and when SPECTRAL an
  * eighth: the wavelength in nm. world is the camera-to-world matrix, rows of (m0 m1 m2 t). */
-__kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __constant float *world,
+__kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint seed, __constant float *world,
                             uint stride, __global float *out, __global int *pixel_out) {
     uint gid = get_global_id(0);
     uint pixel, sample;
-    sample_address(first_pixel, first_sample, gid, &pixel, &sample);
+    sample_address(first_pixel, offset, slice_start, slice_width, gid, &pixel, &sample);
     uint b0, b1, b2, b3, b4;
     stratified(pixel, sample, seed, &b0, &b1, &b2, &b3, &b4);
 
@@ -461,10 +462,10 @@ __kernel void generate_rays(uint first_pixel, uint first_sample, uint seed, __co
 
 /* Debug: the stratified uint32 values of each sample, 4 rows of `stride` (and the wavelength's
  * as a fifth when SPECTRAL), so the tests can check them against realistic.core.rng bit for bit. */
-__kernel void sample_bits(uint first_pixel, uint first_sample, uint seed, uint stride, __global uint *out) {
+__kernel void sample_bits(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint seed, uint stride, __global uint *out) {
     uint gid = get_global_id(0);
     uint pixel, sample;
-    sample_address(first_pixel, first_sample, gid, &pixel, &sample);
+    sample_address(first_pixel, offset, slice_start, slice_width, gid, &pixel, &sample);
     uint b0, b1, b2, b3, b4;
     stratified(pixel, sample, seed, &b0, &b1, &b2, &b3, &b4);
     out[gid] = b0;

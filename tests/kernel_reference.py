@@ -12,7 +12,7 @@ from functools import cache
 import numpy as np
 
 from realistic import load_lens
-from realistic.camera.base import RayBatch
+from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import rng
 from realistic.core.spectrum import wavelengths_nm
@@ -49,13 +49,13 @@ def reference_camera(name: str, sampling: str, spectral: bool = False) -> LensCa
     return camera if sampling == "pupil" else dataclasses.replace(camera, lens_sampling=sampling)
 
 
-def edge_rays(camera: LensCamera, count: int, seed: int) -> np.ndarray:
+def edge_rays(camera: LensCamera, block: SampleBlock, seed: int) -> np.ndarray:
     """Rays whose verdict (at their own wavelength) flips when every clear aperture grows or shrinks
     by EDGE_MM, and, for pupil sampling, rays whose film point lies within EDGE_MM of a radial
     interval edge (float32 and float64 may pick neighbouring exit-pupil boxes there) or within
     CENTRE_MM of the film centre (where the box's polar angle is ill-conditioned)."""
-    ids = np.arange(count)
-    pixel, sample = ids // camera.spp, ids % camera.spp
+    pixel, sample = block.ids()
+    count = block.count
     u = rng.stratified5(pixel, sample, seed) if camera.spectral else rng.stratified4(pixel, sample, seed)
     u_x, u_y, u_lens, v_lens = u[:4]
     wavelength = wavelengths_nm(u[4]).astype(np.float64) if camera.spectral else D_LINE_NM
@@ -80,12 +80,13 @@ def edge_rays(camera: LensCamera, count: int, seed: int) -> np.ndarray:
 
 
 def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: LensCamera, seed: int,
-                          direction_atol: float = 1e-5) -> np.ndarray:
-    """The tolerances of the kernel check; returns the mask of rays both pass. ``direction_atol`` is
-    widened only for lenses whose float32 arithmetic is shown to lose more (see its callers)."""
+                          direction_atol: float = 1e-5, block: SampleBlock | None = None) -> np.ndarray:
+    """The tolerances of the kernel check on the rays of ``block`` (None: sample ids 0 .. N - 1);
+    returns the mask of rays both pass. ``direction_atol`` is widened only for lenses whose float32
+    arithmetic is shown to lose more (see its callers)."""
     np.testing.assert_array_equal(kernel.pixel, ref.pixel)
     k_pass, r_pass = kernel.weight != 0, ref.weight != 0  # negative filter lobes weigh < 0
-    edge = edge_rays(camera, len(ref.weight), seed)
+    edge = edge_rays(camera, block or SampleBlock(0, len(ref.weight), camera.spp), seed)
     assert edge.mean() < 0.01, "the edge allowance must stay a small minority of the rays"
     disagree = (k_pass != r_pass) & ~edge
     assert not disagree.any(), f"{disagree.sum()} rays get a different pass/blocked verdict, e.g. ids " \

@@ -8,6 +8,7 @@ from PIL import Image
 
 from conftest import flat_field_brightness, rays_the_pupil_table_loses
 from realistic import UserError, load_lens
+from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.optics.paraxial import film_distance_for_focus, stop_diameter_for_f_number
 from realistic.optics.stop_shape import bladed_stop, mask_stop
@@ -80,7 +81,7 @@ def blur_outline(shape, seed=0) -> tuple[np.ndarray, np.ndarray]:
     lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, 2.8)).with_stop_shape(shape)
     film = film_distance_for_focus(lens, 1000.0)
     camera = LensCamera(lens, film, 1e-3, 1, 1, 200_000)
-    rays = camera.generate_rays(0, camera.sample_count, seed)
+    rays = camera.generate_rays(SampleBlock(0, camera.sample_count, camera.spp), seed)
     ok = rays.weight > 0
     o, d = rays.origin[ok], rays.direction[ok]
     at = o[:, :2] + d[:, :2] * ((8000.0 - o[:, 2:3]) / d[:, 2:3])

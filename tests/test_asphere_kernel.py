@@ -9,6 +9,7 @@ import pytest
 
 from kernel_reference import aspherised_dgauss, assert_kernel_matches, camera_for_lens
 from realistic import load_lens
+from realistic.camera.base import SampleBlock
 from realistic.errors import UserError
 
 opencl_host = pytest.importorskip("realistic.camera.opencl_host")
@@ -29,9 +30,10 @@ def test_kernel_matches_tracer_for_an_aspheric_lens(sampling):
     if sampling != "pupil":
         camera = dataclasses.replace(camera, lens_sampling=sampling)
     count, seed = camera.sample_count, 11
-    kernel = camera.ray_generator("opencl", seed)(0, count)
-    reference = camera.generate_rays(0, count, seed)
+    kernel = camera.ray_generator("opencl", seed)(SampleBlock(0, count, camera.spp))
+    reference = camera.generate_rays(SampleBlock(0, count, camera.spp), seed)
     assert_kernel_matches(kernel, reference, camera, seed)
-    spherical = dataclasses.replace(camera, lens=load_lens("dgauss")).generate_rays(0, count, seed)
+    block = SampleBlock(0, count, camera.spp)
+    spherical = dataclasses.replace(camera, lens=load_lens("dgauss")).generate_rays(block, seed)
     both = (reference.weight != 0) & (spherical.weight != 0)
     assert np.max(np.abs(reference.direction[both] - spherical.direction[both])) > 1e-3  # the aspheres matter

@@ -9,6 +9,7 @@ import pytest
 
 from kernel_reference import assert_kernel_matches, world_from_camera
 from realistic import load_lens
+from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.errors import UserError
 from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
@@ -84,5 +85,6 @@ def test_kernel_matches_tracer_on_bundled_aspheric_lenses(name, film_diagonal_mm
     for sampling in samplings:
         cam = dataclasses.replace(camera, lens_sampling=sampling) if sampling != "pupil" else camera
         count = cam.sample_count
-        assert_kernel_matches(cam.ray_generator("opencl", 11)(0, count), cam.generate_rays(0, count, 11), cam, 11,
+        block = SampleBlock(0, count, cam.spp)
+        assert_kernel_matches(cam.ray_generator("opencl", 11)(block), cam.generate_rays(block, 11), cam, 11,
                               direction_atol)

@@ -1,6 +1,7 @@
 """Checkpoints (renderer/checkpoint): identity, refusals in one line, resume bit-identical, SIGKILL."""
 
 import dataclasses
+import json
 import os
 import signal
 import subprocess
@@ -111,7 +112,7 @@ def test_any_file_is_resumed_or_refused_in_one_line(tmp_path_factory, content):
     path.write_bytes(content)
     identity = RenderIdentity("2x2", 0, "s", "c", 1, 4, "numpy", 1)
     with pytest.raises(UserError) as err:
-        load_checkpoint(path, identity, plan_passes(4, 4))
+        load_checkpoint(path, identity, plan_passes(4, 1, 4))
     assert "\n" not in str(err.value) and str(path) in str(err.value)
 
 
@@ -158,3 +159,14 @@ def test_cli_refuses_a_checkpoint_for_another_seed_in_one_line(tmp_path):
     refused = subprocess.run(_render(out, "--resume", "--seed", "7"), cwd=REPO, capture_output=True, text=True,
                              timeout=120)
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1 and "another seed" in refused.stderr
+
+
+def test_a_checkpoint_of_the_contiguous_pass_plan_is_refused_in_one_line(tmp_path):
+    """Format 1 numbered contiguous ranges of sample ids; its pass indices mean other passes now."""
+    path = tmp_path / "x.exr.partial"
+    with path.open("wb") as out:
+        np.savez(out, header=np.array(json.dumps({"format": "realistic checkpoint 1"})))
+    identity = RenderIdentity("2x2", 0, "s", "c", 1, 4, "numpy", 1)
+    with pytest.raises(UserError, match="realistic checkpoint 1, this version reads realistic checkpoint 2") as err:
+        load_checkpoint(path, identity, plan_passes(4, 1, 4))
+    assert "\n" not in str(err.value)

@@ -13,6 +13,7 @@ import pytest
 
 from kernel_reference import assert_kernel_matches, reference_camera
 from realistic import load_lens
+from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import rng
 from realistic.core.spectrum import (
@@ -152,7 +153,7 @@ def test_kernel_stratified_bits_equal_numpy_bit_for_bit_for_spectral_cameras():
     host = _opencl()
     camera = reference_camera("dgauss100", "pupil", spectral=True)
     first, count, seed = 5_001, 20_000, 0xFFFFFFFF
-    bits = host.LensKernel(camera).sample_bits(first, count, seed)
+    bits = host.LensKernel(camera).sample_bits(SampleBlock(first, count, camera.spp), seed)
     ids = np.arange(first, first + count)
     pixel, sample = ids // camera.spp, ids % camera.spp
     np.testing.assert_array_equal(bits, np.stack(rng.kronecker_bits(pixel, sample, seed, rng.KRONECKER_R5)))
@@ -166,8 +167,8 @@ def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, samplin
     host = _opencl()
     camera = reference_camera(name, sampling, spectral=True)
     count, seed = camera.sample_count, 11
-    kernel = host.LensKernel(camera).generate(0, count, seed)
-    ref = camera.generate_rays(0, count, seed)
+    kernel = host.LensKernel(camera).generate(SampleBlock(0, count, camera.spp), seed)
+    ref = camera.generate_rays(SampleBlock(0, count, camera.spp), seed)
     # float32 u - CDF loses ~1e-7 of probability: the wavelength moves by that over the density
     allowed = 1e-4 + 3e-7 / wavelength_pdf(ref.wavelength_nm)
     assert np.all(np.abs(kernel.wavelength_nm - ref.wavelength_nm) <= allowed)
@@ -175,7 +176,7 @@ def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, samplin
     assert both.mean() > 0.3
 
     # the wavelength matters far beyond that tolerance: the same rays traced at the d line differ
-    d_line = dataclasses.replace(camera, spectral=False).generate_rays(0, count, seed)
+    d_line = dataclasses.replace(camera, spectral=False).generate_rays(SampleBlock(0, count, camera.spp), seed)
     same = both & (d_line.weight > 0)
     moved = np.abs(d_line.direction[same] - ref.direction[same]).max(axis=1)
     far_from_d = np.abs(ref.wavelength_nm[same] - 587.6) > 100
@@ -186,11 +187,11 @@ def test_spectral_kernel_is_batch_size_independent():
     host = _opencl()
     kernel = host.LensKernel(reference_camera("dgauss100", "pupil", spectral=True))
     first, total = 1234, 40_000
-    whole = kernel.generate(first, total, seed=5)
+    whole = kernel.generate(SampleBlock(first, total, kernel.camera.spp), seed=5)
     sizes = [1, 255, 257, 9_999]
     sizes.append(total - sum(sizes))
     starts = first + np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    parts = [kernel.generate(int(s), n, seed=5) for s, n in zip(starts, sizes)]
+    parts = [kernel.generate(SampleBlock(int(s), n, kernel.camera.spp), seed=5) for s, n in zip(starts, sizes)]
     for field in ("origin", "direction", "weight", "pixel", "wavelength_nm"):
         assert np.array_equal(getattr(whole, field), np.concatenate([getattr(p, field) for p in parts])), field
 
@@ -199,9 +200,9 @@ def test_spectral_kernel_is_batch_size_independent():
 def test_spectral_kernel_still_vectorises(tmp_path):
     _opencl()
     script = ("from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
-              "from realistic.camera.opencl_host import LensKernel\n"
+              "from realistic.camera.base import SampleBlock\nfrom realistic.camera.opencl_host import LensKernel\n"
               "camera = LensCamera(load_lens('dgauss100'), 75.0, 43.27, 64, 48, spp=4, spectral=True)\n"
-              "LensKernel(camera).generate(0, 4096, 0)\n")
+              "LensKernel(camera).generate(SampleBlock(0, 4096, camera.spp), 0)\n")
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
     subprocess.run([sys.executable, "-c", script], check=True, env=env, cwd=REPO, timeout=120)
     (so,) = tmp_path.glob("pocl/kcache/**/generate_rays/**/*.so")

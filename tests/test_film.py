@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from realistic.camera.base import SampleBlock
 from realistic.core.atomic_files import check_writable, write_atomically
 from realistic.core.image_files import auto_exposure, read_exr, srgb_encode, write_exr, write_png
 from realistic.errors import UserError
@@ -17,16 +18,27 @@ def test_film_averages_over_the_samples_taken_including_partial_pixels():
     # pass 1: sample ids 0..5 (pixel 0 complete, pixel 1 half done)
     pixel = np.array([0, 0, 0, 1, 1])  # id 2 was vignetted: no row, but it still counts
     value = np.array([[4.0, 0, 0], [4.0, 0, 0], [4.0, 0, 0], [2.0, 0, 0], [2.0, 0, 0]])
-    film.add(0, 6, 0, pass_sums(pixel, value, 0, 2))
+    film.add(SampleBlock(0, 6, 4), 0, pass_sums(pixel, value, 0, 2))
     image = film.image()
     assert image[0, 0, 0] == pytest.approx(3.0)  # 12 / 4 samples
     assert image[0, 1, 0] == pytest.approx(2.0)  # 4 / 2 samples so far
     assert image[0, 2, 0] == 0.0  # no samples yet
-    film.add(6, 6, 1, pass_sums(np.array([1, 2]), np.array([[8.0, 0, 0], [4.0, 1, 0]]), 1, 2))
+    film.add(SampleBlock(6, 6, 4), 1, pass_sums(np.array([1, 2]), np.array([[8.0, 0, 0], [4.0, 1, 0]]), 1, 2))
     image = film.image()
     assert image[0, 1, 0] == pytest.approx(3.0)  # 12 / 4
     assert image[0, 2, 0] == pytest.approx(1.0) and image[0, 2, 1] == pytest.approx(0.25)
     np.testing.assert_array_equal(film.samples, [4, 4, 4])
+
+
+def test_film_counts_a_slice_of_each_pixels_samples():
+    """Samples [1, 3) of pixels 0..2 give each pixel 2 samples; then sample 0 of all of them, 3."""
+    film = Film(width=3, height=1, spp=4)
+    film.add(SampleBlock.of_pixels(0, 3, 1, 2), 0, np.array([[6.0, 0, 0], [2.0, 0, 0], [0.0, 0, 0]]))
+    np.testing.assert_array_equal(film.samples, [2, 2, 2])
+    assert film.image()[0, 0, 0] == pytest.approx(3.0)
+    film.add(SampleBlock.of_pixels(0, 3, 0, 1), 0, np.array([[3.0, 0, 0], [1.0, 0, 0], [3.0, 0, 0]]))
+    np.testing.assert_array_equal(film.samples, [3, 3, 3])
+    np.testing.assert_allclose(film.image()[0, :, 0], [3.0, 1.0, 1.0])
 
 
 def test_exr_round_trip_keeps_pixels_and_metadata(tmp_path):

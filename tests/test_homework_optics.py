@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import shared_file
+from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.optics.paraxial import focus_distance_for_film, paraxial_data, thick_lens
 from realistic.scene.pbrt.importer import import_pbrt
@@ -23,7 +24,7 @@ def homework_camera(lens, width=8, height=8, spp=1):
 
 
 def pixel_mean_weight(camera):
-    rays = camera.generate_rays(0, camera.sample_count, seed=1)
+    rays = camera.generate_rays(SampleBlock(0, camera.sample_count, camera.spp), seed=1)
     return np.bincount(rays.pixel, rays.weight, camera.width * camera.height).reshape(camera.height, camera.width) \
         / camera.spp
 
@@ -44,7 +45,7 @@ def test_sharpest_cone_is_the_one_the_lens_core_puts_in_focus(lens):
     depth = np.array([(to_lens @ [*(c.transform[:3, 3] + [0, 0.075, 0]), 1])[2] for c in cones])  # mm from film
     # the bundle of rays through one point at the film centre: its width at each cone's depth
     point = LensCamera(camera.lens, camera.film_distance_mm, 1e-3, 1, 1, 20_000)
-    rays = point.generate_rays(0, point.sample_count, seed=2)
+    rays = point.generate_rays(SampleBlock(0, point.sample_count, point.spp), seed=2)
     o, d = rays.origin[rays.weight > 0], rays.direction[rays.weight > 0]
     width = [np.sqrt(np.mean(np.sum((o[:, :2] + d[:, :2] * ((z - o[:, 2:3]) / d[:, 2:3])) ** 2, axis=1)))
              for z in depth]
@@ -66,7 +67,7 @@ def test_fisheye_image_is_a_circle():
 
 def chief_angle_deg(camera, column):
     """Angle to the axis of the mean ray through the middle row's pixel ``column``."""
-    rays = camera.generate_rays(0, camera.sample_count, seed=3)
+    rays = camera.generate_rays(SampleBlock(0, camera.sample_count, camera.spp), seed=3)
     pick = (rays.pixel == (camera.height // 2) * camera.width + column) & (rays.weight > 0)
     to_lens = np.linalg.inv(camera.world_from_lens[:3, :3])
     d = (rays.direction[pick] @ to_lens.T).mean(axis=0)

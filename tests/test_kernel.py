@@ -10,6 +10,7 @@ import pytest
 
 from kernel_reference import assert_kernel_matches, camera_for_lens, reference_camera
 from realistic import load_lens
+from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import rng
 from realistic.core.pixel_filter import PixelFilter
@@ -77,8 +78,8 @@ def test_kernel_matches_reference_with_shaped_stops(shape, tmp_path):
 def _check_against_reference(camera: LensCamera) -> None:
     count, seed = camera.sample_count, 11
     assert count >= 100_000
-    kernel = camera.ray_generator("opencl", seed)(0, count)
-    assert_kernel_matches(kernel, camera.generate_rays(0, count, seed), camera, seed)
+    kernel = camera.ray_generator("opencl", seed)(SampleBlock(0, count, camera.spp))
+    assert_kernel_matches(kernel, camera.generate_rays(SampleBlock(0, count, camera.spp), seed), camera, seed)
 
 
 @pytest.mark.parametrize("sampling", SAMPLINGS)
@@ -86,11 +87,11 @@ def test_batch_size_does_not_change_rays(sampling):
     camera = reference_camera("dgauss", sampling)
     kernel = opencl_host.LensKernel(camera)
     first, total = 1234, 70_000  # first is not a multiple of spp: launches start mid-pixel
-    whole = kernel.generate(first, total, seed=5)
+    whole = kernel.generate(SampleBlock(first, total, camera.spp), seed=5)
     sizes = [1, 255, 256, 257, 9_999, 31]
     sizes.append(total - sum(sizes))
     starts = first + np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    parts = [kernel.generate(int(s), n, seed=5) for s, n in zip(starts, sizes)]
+    parts = [kernel.generate(SampleBlock(int(s), n, camera.spp), seed=5) for s, n in zip(starts, sizes)]
     for field in ("origin", "direction", "weight", "pixel"):
         joined = np.concatenate([getattr(p, field) for p in parts])
         assert np.array_equal(getattr(whole, field), joined), field
@@ -101,11 +102,40 @@ def test_concurrent_launches_from_two_threads_keep_their_own_rays():
 
     kernel = opencl_host.LensKernel(reference_camera("dgauss", "pupil"))
     starts = [i * 20_000 for i in range(12)]
-    serial = [kernel.generate(s, 20_000, seed=2) for s in starts]
+    serial = [kernel.generate(SampleBlock(s, 20_000, kernel.camera.spp), seed=2) for s in starts]
     with ThreadPoolExecutor(max_workers=2) as pool:
-        parallel = list(pool.map(lambda s: kernel.generate(s, 20_000, seed=2), starts))
+        parallel = list(pool.map(lambda s: kernel.generate(SampleBlock(s, 20_000, kernel.camera.spp), seed=2), starts))
     for a, b in zip(serial, parallel):
         assert np.array_equal(a.origin, b.origin) and np.array_equal(a.pixel, b.pixel)
+
+
+@pytest.mark.parametrize("sampling", SAMPLINGS)
+def test_sliced_launches_match_the_reference_and_the_whole_pixel_launch(sampling):
+    """A pass of the progressive plan is a slice of each pixel's samples: the kernel's rays of
+    samples [3, 8) of a run of pixels (and a launch starting mid-run) match the reference, and are
+    bit for bit those of the same (pixel, sample) pairs in a launch of whole pixels."""
+    camera = reference_camera("dgauss", sampling)
+    assert camera.spp >= 8
+    kernel = opencl_host.LensKernel(camera)
+    first_pixel, pixels = 777, 20_000
+    whole = kernel.generate(SampleBlock.of_pixels(first_pixel, pixels, 0, camera.spp), seed=4)
+    for block in (SampleBlock.of_pixels(first_pixel, pixels, 3, 5),
+                  SampleBlock(first_pixel * 5 + 2, pixels * 5 - 9, 5, 3)):
+        rays = kernel.generate(block, seed=4)
+        assert_kernel_matches(rays, camera.generate_rays(block, 4), camera, 4, block=block)
+        pixel, sample = block.ids()
+        assert np.array_equal(rays.pixel, pixel)
+        at = (pixel - first_pixel) * camera.spp + sample  # the same pairs in the whole-pixel launch
+        for field in ("origin", "direction", "weight"):
+            assert np.array_equal(getattr(rays, field), getattr(whole, field)[at]), field
+
+
+def test_kernel_refuses_blocks_past_its_32_bit_indices():
+    kernel = opencl_host.LensKernel(reference_camera("dgauss", "pupil"))
+    with pytest.raises(ValueError, match="32-bit"):
+        kernel.generate(SampleBlock.of_pixels(2**31 - 10, 64, 0, 1))
+    with pytest.raises(ValueError, match="32-bit"):
+        kernel.generate(SampleBlock(0, 64, 4, 2**32 - 2))
 
 
 def test_kernel_random_numbers_equal_numpy_bit_for_bit():
@@ -113,7 +143,7 @@ def test_kernel_random_numbers_equal_numpy_bit_for_bit():
     kernel = opencl_host.LensKernel(camera)
     for first, seed in ((0, 0), ((2**31 - 5_000) * 7 + 3, 0xFFFFFFFF), (123_457, 2**32 + 99)):
         count = 20_000
-        bits = kernel.sample_bits(first, count, seed)
+        bits = kernel.sample_bits(SampleBlock(first, count, camera.spp), seed)
         ids = np.arange(first, first + count, dtype=np.int64)
         pixel, sample = ids // 7, ids % 7
         with np.errstate(over="ignore"):

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from conftest import shared_file
+from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.errors import UserError
@@ -107,6 +108,6 @@ def test_pbrt_v3_realistic_camera_works_in_metres(tmp_path):
     assert camera.lens.stop_diameter_mm == 10
     assert focus_distance_for_film(camera.lens, camera.film_distance_mm) == pytest.approx(2000.0)
     np.testing.assert_allclose(camera.world_from_lens[:3, :3], np.eye(3) * 1e-3)
-    rays = camera.generate_rays(0, 64, 0)
+    rays = camera.generate_rays(SampleBlock(0, 64, camera.spp), 0)
     ok = rays.weight > 0
     assert ok.any() and np.all(np.abs(rays.origin[ok]) < 0.2)  # within the lens, in metres

@@ -1,5 +1,7 @@
 """Progressive pass order (renderer/pass_plan) and pass-ordered accumulation (film.PassFilm)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -8,19 +10,63 @@ from hypothesis import strategies as st
 from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.renderer.film import Film, PassFilm
-from realistic.renderer.pass_plan import plan_passes, progressive_order
+from realistic.renderer.pass_plan import plan_passes, progressive_order, slice_bounds
 from realistic.renderer.passes import render_passes
 from realistic.scene.staging import default_setup
 
 
-@given(st.integers(1, 5000), st.integers(1, 700))
-def test_plan_covers_every_sample_id_once(total, pass_samples):
-    plan = plan_passes(total, pass_samples)
-    covered = np.zeros(total, np.int64)
-    for first, count in plan:
-        assert 1 <= count <= pass_samples
-        covered[first:first + count] += 1
-    assert np.all(covered == 1)
+def _coverage(plan, pixels, spp):
+    """How many times the plan visits each (pixel, sample) pair."""
+    covered = np.zeros((pixels, spp), np.int64)
+    for block in plan:
+        pixel, sample = block.ids()
+        np.add.at(covered, (pixel, sample), 1)
+    return covered
+
+
+@given(st.integers(1, 400), st.integers(1, 40), st.integers(1, 700))
+def test_plan_covers_every_pixel_sample_pair_once(pixels, spp, pass_samples):
+    plan = plan_passes(pixels, spp, pass_samples)
+    assert all(1 <= block.count <= pass_samples for block in plan)
+    assert np.all(_coverage(plan, pixels, spp) == 1)
+
+
+@given(st.integers(1, 10**7), st.integers(1, 4096), st.integers(1, 1 << 20))
+def test_slices_double_so_each_pixel_is_sent_about_log2_spp_times(pixels, spp, pass_samples):
+    """A pass's sums hold every pixel it touches once, so a render sends and adds each pixel's sums
+    once per slice: slices grow geometrically (at most log2(spp) + 2 of them while the cap of
+    ``pass_samples`` samples does not bind), and the first is a whole frame as soon as one pass can
+    hold every pixel."""
+    bounds = np.array(slice_bounds(pixels, spp, pass_samples))
+    widths = np.diff(bounds)
+    assert bounds[0] == 0 and bounds[-1] == spp and np.all(widths >= 1)
+    assert widths[0] == min(spp, max(1, pass_samples // pixels))
+    assert np.all((widths[1:] == np.minimum(bounds[1:-1], pass_samples)) | (bounds[2:] == spp))
+    if spp <= pass_samples:
+        assert len(widths) <= np.log2(spp) + 2
+
+
+@given(st.integers(1, 400), st.integers(1, 40), st.integers(1, 700))
+def test_every_pixel_has_the_same_samples_after_each_finished_slice(pixels, spp, pass_samples):
+    """Slices outermost: after every prefix of the plan that ends a slice, each pixel has the same
+    number of samples, the first k of its own (a whole noisy frame, not finished bands)."""
+    plan = plan_passes(pixels, spp, pass_samples)
+    film = Film(pixels, 1, spp)
+    for index, block in enumerate(plan):
+        film.add(block, block.first_pixel, np.zeros((block.pixel_count, 3)))
+        if index + 1 == len(plan) or plan[index + 1].first_sample != block.first_sample:
+            taken = block.first_sample + block.samples
+            assert np.all(film.samples == taken)
+            assert np.all(_coverage(plan[:index + 1], pixels, spp)[:, :taken] == 1)
+
+
+def test_the_default_plan_gives_every_pixel_of_a_large_frame_a_sample_after_one_slice():
+    """512x512 at 64 spp: passes of 2^17 pairs, one sample of each pixel per slice, so the first
+    slice (two passes) is a whole 1-spp frame."""
+    plan = plan_passes(512 * 512, 64)
+    assert len(plan) == 128 and all(block.count == 1 << 17 for block in plan)
+    assert {b.first_sample for b in plan[:2]} == {0} and plan[2].first_sample == 1
+    assert np.all(_coverage(plan[:2], 512 * 512, 64).sum(axis=1) == 1)
 
 
 @given(st.integers(1, 3000))
@@ -37,21 +83,17 @@ def test_every_power_of_two_prefix_is_spread_over_the_frame(count):
         k *= 2
 
 
-def _random_sums(rng, plan, spp):
-    out = []
-    for first, count in plan:
-        first_pixel = first // spp
-        pixels = (first + count - 1) // spp - first_pixel + 1
-        out.append((first_pixel, rng.standard_normal((pixels, 3)) * 10.0 ** rng.integers(-8, 8, (pixels, 1))))
-    return out
+def _random_sums(rng, plan):
+    return [(block.first_pixel, rng.standard_normal((block.pixel_count, 3))
+             * 10.0 ** rng.integers(-8, 8, (block.pixel_count, 1))) for block in plan]
 
 
 @given(st.integers(1, 6), st.integers(1, 12), st.integers(1, 40), st.randoms())
 def test_pass_film_is_bit_identical_in_any_arrival_order(pixels, spp, pass_samples, shuffle):
-    """Pass sums whose float64 additions do not commute (magnitudes 1e-8 to 1e8, pixels split over
-    several passes) give the same film bits whatever order they arrive in, duplicates included."""
-    plan = plan_passes(pixels * spp, pass_samples)
-    sums = _random_sums(np.random.default_rng(pixels * 1000 + spp * 10 + pass_samples), plan, spp)
+    """Pass sums whose float64 additions do not commute (magnitudes 1e-8 to 1e8, pixels in several
+    passes) give the same film bits whatever order they arrive in, duplicates included."""
+    plan = plan_passes(pixels, spp, pass_samples)
+    sums = _random_sums(np.random.default_rng(pixels * 1000 + spp * 10 + pass_samples), plan)
     in_order = PassFilm(Film(pixels, 1, spp), plan)
     for index, (first_pixel, s) in enumerate(sums):
         in_order.add(index, first_pixel, s)
@@ -66,12 +108,12 @@ def test_pass_film_is_bit_identical_in_any_arrival_order(pixels, spp, pass_sampl
 
 
 def test_waiting_passes_show_in_the_image_but_not_in_the_film():
-    plan = plan_passes(8, 2)  # 4 pixels, 2 spp, one pixel a pass
+    plan = plan_passes(4, 2, 1)  # 4 pixels, 2 spp, one pixel's sample a pass
     film = PassFilm(Film(4, 1, 2), plan)
-    film.add(2, plan[2][0] // 2, np.full((1, 3), 4.0))  # pass 2 arrives before 0 and 1
+    film.add(2, plan[2].first_pixel, np.full((1, 3), 4.0))  # pass 2 arrives before 0 and 1
     assert film.next_pass == 0 and film.film.samples.sum() == 0
     image = film.image().reshape(-1, 3)
-    assert np.all(image[plan[2][0] // 2] == 2.0) and image.sum() == 6.0
+    assert np.all(image[plan[2].first_pixel] == 4.0) and image.sum() == 12.0
 
 
 @pytest.fixture(scope="module")
@@ -80,25 +122,21 @@ def tiny():
     return setup.scene, LensCamera.looking_at(load_lens("dgauss"), setup.eye, setup.target, None, 43.27, 32, 32, 4)
 
 
-def test_an_interrupted_render_holds_exactly_the_first_passes_of_the_plan(tiny):
+def test_an_interrupted_render_is_a_whole_noisy_frame(tiny):
+    """32x32 at 4 spp in passes of 256 pairs: each slice is one sample of every pixel, in four
+    passes. Interrupted after the first slice, the image is the whole frame at 1 spp: bit for bit
+    the render of the same camera at spp 1 (random numbers depend on (pixel, sample) only)."""
     scene, camera = tiny
-    calls = []
 
     def interrupt(result):
-        calls.append(result.samples_done)
-        if len(calls) == 2:
+        if result.passes_done == 4:
             raise KeyboardInterrupt
 
-    result = render_passes(scene, camera, "numpy", pass_samples=256, threads=2, on_pass=interrupt)
-    assert result.interrupted and 2 <= result.passes_done < result.passes_total == 16
-    plan = plan_passes(camera.sample_count, 256)
-    expected = np.zeros(32 * 32, bool)
-    for first, count in plan[:result.passes_done]:
-        expected[first // 4:(first + count) // 4] = True
-    lit = np.any(result.image.reshape(-1, 3) != 0, axis=1)
-    assert not np.any(lit & ~expected)  # nothing outside the passes done
-    rows = np.flatnonzero(expected.reshape(32, 32).any(axis=1))
-    assert rows.min() < 8 and rows.max() >= 16  # not the top rows only: spread over the frame
+    result = render_passes(scene, camera, "numpy", pass_samples=256, threads=1, on_pass=interrupt)
+    assert result.interrupted and result.passes_done == 4 and result.passes_total == 16
+    assert result.samples_done == 32 * 32
+    one_spp = render_passes(scene, dataclasses.replace(camera, spp=1), "numpy", pass_samples=256, threads=1)
+    assert np.array_equal(result.image, one_spp.image) and np.count_nonzero(result.image) > 0
 
 
 def test_threads_and_pass_order_do_not_change_the_image(tiny):

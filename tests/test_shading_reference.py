@@ -16,6 +16,7 @@ import math
 import numpy as np
 import pytest
 
+from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import rng
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
@@ -187,7 +188,7 @@ def case(request):
     """(name, scene, camera, backend, rays, live rows, reference radiance of the live rays, reference image)."""
     name, backend = request.param
     scene, camera = camera_for(name)
-    rays = camera.ray_generator(backend, SEED)(0, camera.sample_count)
+    rays = camera.ray_generator(backend, SEED)(SampleBlock(0, camera.sample_count, camera.spp))
     assert rays.wavelength_nm is None  # an RGB render: the reference has no spectral path
     alive = np.flatnonzero(rays.weight != 0)
     origin, direction = rays.origin[alive].astype(F32), rays.direction[alive].astype(F32)

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from realistic.camera.base import SampleBlock
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.errors import UserError
 
@@ -12,7 +13,7 @@ from realistic.errors import UserError
 def test_pinhole_rays_project_like_pbrt():
     # 200 x 100 image, fov 40 degrees across the shorter (vertical) side
     camera = ThinLensCamera(40, 0, 1, 200, 100, 1, np.eye(4))
-    rays = camera.generate_rays(0, camera.sample_count, seed=3)
+    rays = camera.generate_rays(SampleBlock(0, camera.sample_count, camera.spp), seed=3)
     tan_half = math.tan(math.radians(20))
     # the point each ray reaches at z = 10, projected back the textbook way
     points = rays.origin + rays.direction * (10 / rays.direction[:, 2:3])
@@ -27,8 +28,8 @@ def test_thin_lens_rays_meet_the_pinhole_ray_on_the_focal_plane():
     world[:3, 3] = (1, 2, 3)
     pinhole = ThinLensCamera(30, 0, 1, 16, 16, 8, world)
     lens = ThinLensCamera(30, 0.2, 4.0, 16, 16, 8, world)
-    a = pinhole.generate_rays(0, pinhole.sample_count, seed=1)
-    b = lens.generate_rays(0, lens.sample_count, seed=1)
+    a = pinhole.generate_rays(SampleBlock(0, pinhole.sample_count, pinhole.spp), seed=1)
+    b = lens.generate_rays(SampleBlock(0, lens.sample_count, lens.spp), seed=1)
     assert np.ptp(b.origin[:, 0]) > 0.2  # the lens really spreads the origins
     on_plane_a = a.origin + a.direction * ((4.0 + 3 - a.origin[:, 2:3]) / a.direction[:, 2:3])
     on_plane_b = b.origin + b.direction * ((4.0 + 3 - b.origin[:, 2:3]) / b.direction[:, 2:3])

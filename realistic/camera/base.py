@@ -1,10 +1,10 @@
 """The interface every camera implements, and the ray batch it produces.
 
-A render is the range of *sample ids* 0 .. width * height * spp - 1; sample id i belongs to pixel
-i // spp (raster order, x fastest) as that pixel's sample i % spp, so any render can be cut into
-passes of bounded size. A camera turns a range of sample ids into a ``RayBatch`` of world-space
-rays; ``ray_generator`` binds the backend (OpenCL kernel or numpy reference) and the seed once, so
-the renderer calls every camera the same way.
+A render is the set of (pixel, sample) pairs, pixels in raster order (x fastest), samples 0 .. spp - 1
+of each. A ``SampleBlock`` names a batch of them: a run of pixels times a slice of each pixel's
+samples, so a render can be cut into passes of bounded size that each cover the frame evenly. A
+camera turns a block into a ``RayBatch`` of world-space rays; ``ray_generator`` binds the backend
+(OpenCL kernel or numpy reference) and the seed once, so the renderer calls every camera the same way.
 """
 
 from __future__ import annotations
@@ -32,8 +32,51 @@ class RayBatch:
     wavelength_nm: np.ndarray | None = None  # (N,) for a spectral camera, else None
 
 
-#: ``(first_sample, count) -> RayBatch``: a camera's rays with the backend and seed already chosen.
-RayGenerator = Callable[[int, int], RayBatch]
+@dataclass(frozen=True)
+class SampleBlock:
+    """``count`` consecutive pairs of the sequence that gives each pixel the samples
+    ``first_sample .. first_sample + samples - 1``: pair t (t = first, first + 1, ...) is sample
+    ``first_sample + t % samples`` of pixel ``t // samples``. With ``samples = spp`` and
+    ``first_sample = 0``, t is today's sample id (pixel * spp + sample); a pass takes a slice
+    (``samples < spp``) of a run of whole pixels (``of_pixels``)."""
+
+    first: int
+    count: int
+    samples: int  # the slice width: samples of each pixel in this sequence
+    first_sample: int = 0
+
+    def __post_init__(self) -> None:
+        if self.first < 0 or self.count < 1 or self.samples < 1 or self.first_sample < 0:
+            raise ValueError(f"invalid sample block {self}")
+
+    @classmethod
+    def of_pixels(cls, first_pixel: int, pixel_count: int, first_sample: int, samples: int) -> SampleBlock:
+        """Samples first_sample .. + samples - 1 of each of pixels first_pixel .. + pixel_count - 1."""
+        return cls(first_pixel * samples, pixel_count * samples, samples, first_sample)
+
+    @property
+    def first_pixel(self) -> int:
+        return self.first // self.samples
+
+    @property
+    def pixel_count(self) -> int:
+        """Pixels with at least one sample in the block."""
+        return (self.first + self.count - 1) // self.samples - self.first_pixel + 1
+
+    def ids(self) -> tuple[np.ndarray, np.ndarray]:
+        """(pixel, sample within the pixel) int64 arrays of the block's pairs, in launch order."""
+        t = np.arange(self.first, self.first + self.count, dtype=np.int64)
+        return t // self.samples, self.first_sample + t % self.samples
+
+    def samples_per_pixel(self) -> np.ndarray:
+        """How many samples each of the block's ``pixel_count`` pixels gets."""
+        pixels = np.arange(self.first_pixel, self.first_pixel + self.pixel_count, dtype=np.int64)
+        end = self.first + self.count
+        return np.minimum(end, (pixels + 1) * self.samples) - np.maximum(self.first, pixels * self.samples)
+
+
+#: ``SampleBlock -> RayBatch``: a camera's rays with the backend and seed already chosen.
+RayGenerator = Callable[[SampleBlock], RayBatch]
 
 Metadata = dict[str, str | int | float]
 
@@ -56,15 +99,15 @@ class Camera(Protocol):
     def sample_count(self) -> int:
         """width * height * spp: the sample ids a render of this camera covers."""
 
-    def generate_rays(self, first_sample: int, count: int, seed: int = 0) -> RayBatch:
-        """Rays of sample ids first_sample .. first_sample + count - 1, by the numpy reference."""
+    def generate_rays(self, block: SampleBlock, seed: int = 0) -> RayBatch:
+        """Rays of the block's samples, in its order, by the numpy reference."""
 
     def prepare(self) -> None:
         """Build ahead what ray generation needs (a lens camera's exit-pupil table), so that a
         render can time it as a stage of its own; ``ray_generator`` builds it otherwise."""
 
     def ray_generator(self, backend: str = "opencl", seed: int = 0, cl_device: str | None = None) -> RayGenerator:
-        """The rays of any range of sample ids from ``backend`` (see ``BACKENDS``) with ``seed``."""
+        """The rays of any ``SampleBlock`` from ``backend`` (see ``BACKENDS``) with ``seed``."""
 
     def metadata(self) -> Metadata:
         """What an image header should say about this camera (lens, stop, focus, film...)."""
@@ -78,12 +121,6 @@ class Camera(Protocol):
 
     def autofocused(self, x: float, y: float, hit_distance: HitDistance) -> Camera:
         """Refocused on what raster point (x, y) sees (``hit_distance``: the scene along a ray)."""
-
-
-def split_sample_ids(first_sample: int, count: int, spp: int) -> tuple[np.ndarray, np.ndarray]:
-    """(pixel, sample within the pixel) int64 arrays of sample ids first_sample .. + count - 1."""
-    ids = np.arange(first_sample, first_sample + count, dtype=np.int64)
-    return ids // spp, ids % spp
 
 
 def check_backend(backend: str) -> None:

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from realistic.camera.autofocus import autofocus_distance_mm
-from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, check_backend, split_sample_ids
+from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, SampleBlock, check_backend
 from realistic.core import rng, validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm, pixel_pitch_mm
 from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
@@ -163,9 +163,10 @@ class LensCamera:
         dx, dy, weight = self.pixel_filter.offsets(u_x, u_y)
         return self.film_points(pixel, 0.5 + dx, 0.5 + dy), weight
 
-    def generate_rays(self, first_sample: int, count: int, seed: int = 0) -> RayBatch:
-        """Camera rays for sample ids first_sample .. first_sample + count - 1 (reference implementation)."""
-        pixel, sample = split_sample_ids(first_sample, count, self.spp)
+    def generate_rays(self, block: SampleBlock, seed: int = 0) -> RayBatch:
+        """Camera rays for the block's samples, in its order (reference implementation)."""
+        pixel, sample = block.ids()
+        count = block.count
         u = rng.stratified5(pixel, sample, seed) if self.spectral else rng.stratified4(pixel, sample, seed)
         u_x, u_y, u_lens, v_lens = u[:4]
         film_xy, filter_weight = self.filtered_film_points(pixel, u_x, u_y)
@@ -189,11 +190,11 @@ class LensCamera:
         """The OpenCL kernel's rays (float32) or the numpy reference's (float64) for this camera."""
         check_backend(backend)
         if backend == "numpy":
-            return lambda first, count: self.generate_rays(first, count, seed)
+            return lambda block: self.generate_rays(block, seed)
         from realistic.camera.opencl_host import LensKernel  # imports pyopencl, so only when chosen
 
         kernel = LensKernel(self, cl_device)
-        return lambda first, count: kernel.generate(first, count, seed)
+        return lambda block: kernel.generate(block, seed)
 
     def metadata(self) -> Metadata:
         lens = self.lens

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from realistic.camera.base import RayBatch
+from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.data_files import data_file
 from realistic.core.pixel_filter import TABLE_BINS
@@ -283,16 +283,15 @@ class LensKernel:
         self._lock = threading.Lock()
         self._rows = ROWS + int(camera.spectral)
 
-    def _launch_layout(self, first: int, count: int) -> tuple[np.uint32, np.uint32, int]:
-        """(first pixel, first sample within it, padded launch size), checking the uint32 limits."""
-        spp = self.camera.spp
-        if first < 0 or count < 1:
-            raise ValueError(f"need first >= 0 and count >= 1, got first={first}, count={count}")
-        padded = -(-count // LOCAL_SIZE) * LOCAL_SIZE
-        first_pixel, first_sample = divmod(first, spp)
-        if first_sample + padded >= 2**32 or first_pixel + (first_sample + padded) // spp >= 2**31:
-            raise ValueError(f"sample ids {first} + {count} exceed the kernel's 32-bit pixel indices")
-        return np.uint32(first_pixel), np.uint32(first_sample), padded
+    def _launch_layout(self, block: SampleBlock) -> tuple[tuple[np.uint32, ...], int]:
+        """The kernel's (first pixel, offset, slice start, slice width) arguments and the padded
+        launch size, checking the uint32 limits."""
+        padded = -(-block.count // LOCAL_SIZE) * LOCAL_SIZE
+        first_pixel, offset = divmod(block.first, block.samples)
+        if offset + padded >= 2**32 or first_pixel + (offset + padded) // block.samples >= 2**31 \
+                or block.first_sample + block.samples >= 2**32:
+            raise ValueError(f"sample block {block} exceeds the kernel's 32-bit indices")
+        return tuple(np.uint32(v) for v in (first_pixel, offset, block.first_sample, block.samples)), padded
 
     def _buffers(self, padded: int) -> None:
         if padded > self._capacity:
@@ -301,14 +300,15 @@ class LensKernel:
             self._pixels = cl.Buffer(self.context, mf.WRITE_ONLY, padded * 4)
             self._capacity = padded
 
-    def generate(self, first: int, count: int, seed: int = 0) -> RayBatch:
-        """Rays of sample ids first .. first + count - 1, as ``LensCamera.generate_rays`` makes them (float32)."""
-        first_pixel, first_sample, padded = self._launch_layout(first, count)
+    def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
+        """Rays of the block's samples, as ``LensCamera.generate_rays`` makes them (float32)."""
+        address, padded = self._launch_layout(block)
+        count = block.count
         out = np.empty((self._rows, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
         with self._lock:
             self._buffers(padded)
-            self._generate(self.queue, (padded,), (LOCAL_SIZE,), first_pixel, first_sample,
+            self._generate(self.queue, (padded,), (LOCAL_SIZE,), *address,
                            np.uint32(seed & 0xFFFFFFFF), self._world, np.uint32(padded), self._out, self._pixels)
             cl.enqueue_copy(self.queue, out, self._out)
             cl.enqueue_copy(self.queue, pixels, self._pixels)
@@ -316,15 +316,16 @@ class LensKernel:
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count], wavelength_nm=out[7, :count] if self.camera.spectral else None)
 
-    def sample_bits(self, first: int, count: int, seed: int = 0) -> np.ndarray:
+    def sample_bits(self, block: SampleBlock, seed: int = 0) -> np.ndarray:
         """The kernel's stratified uint32 values per sample: R4's four, or for a spectral camera R5's
         five (the wavelength's last): shape (4 or 5, count) (for tests)."""
-        first_pixel, first_sample, padded = self._launch_layout(first, count)
+        address, padded = self._launch_layout(block)
+        count = block.count
         rows = 4 + int(self.camera.spectral)
         bits = cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, rows * padded * 4)
         host = np.empty((rows, padded), dtype=np.uint32)
         with self._lock:
-            self._bits(self.queue, (padded,), (LOCAL_SIZE,), first_pixel, first_sample,
+            self._bits(self.queue, (padded,), (LOCAL_SIZE,), *address,
                        np.uint32(seed & 0xFFFFFFFF), np.uint32(padded), bits)
             cl.enqueue_copy(self.queue, host, bits)
         return host[:, :count]

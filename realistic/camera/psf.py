@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import validation
 from realistic.errors import UserError
@@ -98,7 +99,7 @@ def point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focu
     generate = camera.ray_generator(backend, seed)
     image = np.zeros((size, size))
     for row in range(size):
-        batch = generate(((y0 + row) * width + x0) * spp, size * spp)
+        batch = generate(SampleBlock.of_pixels((y0 + row) * width + x0, size, 0, spp))
         hit = _sphere_hits(batch.origin, batch.direction, centre, radius) & (batch.weight != 0)
         column = batch.pixel - ((y0 + row) * width + x0)
         image[row] = np.bincount(column, weights=np.where(hit, batch.weight, 0.0), minlength=size) / spp

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, check_backend, split_sample_ids
+from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, SampleBlock, check_backend
 from realistic.core import rng, validation
 from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
 from realistic.core.transforms import transform_points, transform_vectors
@@ -61,9 +61,10 @@ class ThinLensCamera:
         aspect = self.width / self.height
         return (aspect, 1.0) if aspect > 1 else (1.0, 1.0 / aspect)
 
-    def generate_rays(self, first_sample: int, count: int, seed: int = 0) -> RayBatch:
-        """Rays for sample ids first_sample .. first_sample + count - 1."""
-        pixel, sample = split_sample_ids(first_sample, count, self.spp)
+    def generate_rays(self, block: SampleBlock, seed: int = 0) -> RayBatch:
+        """Rays for the block's samples, in its order."""
+        pixel, sample = block.ids()
+        count = block.count
         u_x, u_y, u_lens, v_lens = rng.stratified4(pixel, sample, seed)
         half_x, half_y = self.screen_window()
         dx, dy, weight = self.pixel_filter.offsets(u_x, u_y)
@@ -85,7 +86,7 @@ class ThinLensCamera:
     def ray_generator(self, backend: str = "opencl", seed: int = 0, cl_device: str | None = None) -> RayGenerator:
         """numpy rays whatever the backend (there is no lens for a kernel to trace)."""
         check_backend(backend)
-        return lambda first, count: self.generate_rays(first, count, seed)
+        return lambda block: self.generate_rays(block, seed)
 
     def prepare(self) -> None:
         """Nothing to build ahead: a thin lens samples its aperture disk directly."""

@@ -20,11 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from realistic.camera.base import SampleBlock
 from realistic.core.atomic_files import write_atomically
 from realistic.errors import UserError
 from realistic.renderer.film import Film, PassFilm
 
-FORMAT = "realistic checkpoint 1"
+#: 2: passes are slices of every pixel's samples (``pass_plan``); a format-1 plan numbered other passes.
+FORMAT = "realistic checkpoint 2"
 
 
 def content_hash(value: object) -> str:
@@ -134,7 +136,7 @@ def save_checkpoint(path: Path, identity: RenderIdentity, film: PassFilm) -> Non
     write_atomically(Path(path), write)
 
 
-def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[tuple[int, int]]) -> PassFilm:
+def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlock]) -> PassFilm:
     """The film saved at ``path``; UserError (one line) if it is missing, unreadable or made for another render."""
     path = Path(path)
     if not path.is_file():
@@ -142,8 +144,10 @@ def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[tuple[int
     try:
         with np.load(path, allow_pickle=False) as data:
             header = json.loads(str(data["header"]))
-            if not isinstance(header, dict) or header.get("format") != FORMAT:
+            if not isinstance(header, dict) or not str(header.get("format")).startswith("realistic checkpoint"):
                 raise ValueError("not a checkpoint")
+            if header["format"] != FORMAT:
+                raise ValueError(f"{header['format']}, this version reads {FORMAT}")
             saved = {name: data[name] for name in data.files}
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
         reason = str(err).splitlines()[0] if str(err) else type(err).__name__

@@ -27,7 +27,7 @@ from contextlib import contextmanager
 
 from distributed import Client, LocalCluster, wait
 
-from realistic.camera.base import Camera
+from realistic.camera.base import Camera, SampleBlock
 from realistic.errors import UserError
 from realistic.renderer.checkpoint import content_hash
 from realistic.renderer.passes import PassResult, PassRunner
@@ -141,8 +141,8 @@ def _scene(scene: Scene) -> Scene:
 
 
 def run_task(scene: Scene, scene_key: str, camera: Camera, runner_key: str, settings: dict,
-             passes: list[tuple[int, int, int]]) -> list[PassResult]:
-    """A task on a worker: passes (plan index, first sample id, count) of one camera."""
+             passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
+    """A task on a worker: passes (plan index, sample block) of one camera."""
     return _runner(scene, scene_key, camera, runner_key, settings).run(passes)
 
 
@@ -162,7 +162,7 @@ class DaskPasses:
         self.capacity = max(2, 2 * threads)  # tasks submitted ahead: every worker busy, one queued each
         self.passes_per_task = max(1, (task_samples or DEFAULT_TASK_SAMPLES) // pass_samples)
 
-    def submit(self, frame: int, passes: list[tuple[int, int, int]]):
+    def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]):
         return self.client.submit(run_task, self.scene, self.scene_key, self.cameras[frame], self.runner_keys[frame],
                                   self.settings, passes, pure=False)
 

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from realistic.camera.base import SampleBlock
+
 
 def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_count: int) -> np.ndarray:
     """Sums (pixel_count, 3) of ``value`` rows per pixel, pixels first_pixel .. + pixel_count - 1."""
@@ -18,7 +20,7 @@ def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_coun
 
 
 class Film:
-    """Accumulates contributions of sample-id ranges; pixel value = sum / samples taken.
+    """Accumulates contributions of sample blocks; pixel value = sum / samples taken.
 
     Every sample counts, vignetted ones included (their contribution is 0), so a pixel's value is
     the film irradiance estimate E = mean(weight * radiance).
@@ -29,13 +31,10 @@ class Film:
         self.sums = np.zeros((width * height, 3), np.float64)
         self.samples = np.zeros(width * height, np.int64)
 
-    def add(self, first_sample: int, count: int, first_pixel: int, sums: np.ndarray) -> None:
-        """Add the sums of a pass (from ``pass_sums``) covering sample ids first_sample .. + count - 1."""
+    def add(self, block: SampleBlock, first_pixel: int, sums: np.ndarray) -> None:
+        """Add the sums of a pass (from ``pass_sums``) of the samples of ``block``."""
         self.sums[first_pixel:first_pixel + len(sums)] += sums
-        end = first_sample + count
-        pixels = np.arange(first_sample // self.spp, (end - 1) // self.spp + 1)
-        self.samples[pixels] += (np.minimum(end, (pixels + 1) * self.spp)
-                                 - np.maximum(first_sample, pixels * self.spp))
+        self.samples[block.first_pixel:block.first_pixel + block.pixel_count] += block.samples_per_pixel()
 
     def image(self) -> np.ndarray:
         """(height, width, 3) float32 film values; pixels with no samples yet are 0."""
@@ -49,10 +48,10 @@ class PassFilm:
 
     Sums that arrive early wait until every pass before them is in, so float64 additions happen in
     one order and the image is bit-identical however passes were scheduled. ``passes`` holds each
-    pass's (first sample id, count) in index order (``pass_plan.plan_passes``).
+    pass's ``SampleBlock`` in index order (``pass_plan.plan_passes``).
     """
 
-    def __init__(self, film: Film, passes: list[tuple[int, int]]):
+    def __init__(self, film: Film, passes: list[SampleBlock]):
         self.film, self.passes = film, passes
         self.next_pass = 0  # passes 0 .. next_pass - 1 are in film
         self.waiting: dict[int, tuple[int, np.ndarray]] = {}  # index -> (first pixel, sums)
@@ -64,7 +63,7 @@ class PassFilm:
         self.waiting[index] = (first_pixel, sums)
         while self.next_pass in self.waiting:
             first_pixel, sums = self.waiting.pop(self.next_pass)
-            self.film.add(*self.passes[self.next_pass], first_pixel, sums)
+            self.film.add(self.passes[self.next_pass], first_pixel, sums)
             self.next_pass += 1
 
     def has(self, index: int) -> bool:
@@ -82,5 +81,5 @@ class PassFilm:
         film = Film(self.film.width, self.film.height, self.film.spp)
         film.sums[:], film.samples[:] = self.film.sums, self.film.samples
         for index in sorted(self.waiting):
-            film.add(*self.passes[index], *self.waiting[index])
+            film.add(self.passes[index], *self.waiting[index])
         return film.image()

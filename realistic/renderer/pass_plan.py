@@ -1,16 +1,22 @@
-"""Which sample ids each pass covers, and the order passes run in.
+"""Which samples each pass covers, and the order passes run in.
 
-A pass is a contiguous range of sample ids (``realistic.camera.base``: id = pixel * spp + sample),
-so a camera makes its rays in one call. Passes are numbered in *progressive order*: the raster
-ranges are visited in bit-reversed order (van der Corput), so the first 2^k passes of any plan are
-spread evenly over the frame (consecutive ones at most about n / 2^k ranges apart) instead of
-filling it from the top. The film adds pass sums in this pass index order whatever order they
-finish in (``film.PassFilm``), so an image does not depend on threads, workers or retries.
+A pass is a ``SampleBlock`` (``realistic.camera.base``): a run of pixels times a slice of each
+pixel's samples, so a camera makes its rays in one call. The plan takes sample slices outermost
+(every pixel's first slice before anyone's second; slices double in width) and runs of pixels
+inside, so after any prefix of passes that finishes a slice every pixel has the same number of
+samples: an interrupted, checkpointed or previewed image is a whole noisy frame. Within a slice the runs of pixels are
+visited in bit-reversed order (van der Corput), so a slice in progress is spread over the frame
+too. A pass is about ``pass_samples`` pairs. Random numbers depend on (pixel, sample, dimension,
+seed) only, so the plan changes only the float64 summation order of an image. The film adds pass
+sums in plan index order whatever order they finish in (``film.PassFilm``), so an image does not
+depend on threads, workers or retries.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from realistic.camera.base import SampleBlock
 
 DEFAULT_PASS_SAMPLES = 1 << 17
 
@@ -27,9 +33,29 @@ def progressive_order(count: int) -> np.ndarray:
     return np.argsort(reversed_index, kind="stable")
 
 
-def plan_passes(total_samples: int, pass_samples: int = DEFAULT_PASS_SAMPLES) -> list[tuple[int, int]]:
-    """(first sample id, count) of every pass of a render of ``total_samples`` ids, in progressive order."""
+def slice_bounds(pixels: int, spp: int, pass_samples: int) -> list[int]:
+    """Sample boundaries 0 = b0 < b1 < ... = spp of the slices: the first slice is as wide as lets
+    one pass hold every pixel (at least 1 sample), and each later one as wide as all before it
+    (capped at ``pass_samples``). The first whole frame comes after 1/spp of the render at most;
+    the samples per pixel double from slice to slice, so there are about log2(spp) + 1 slices and
+    a pixel's sums are sent and added that many times, not spp times."""
+    bounds = [0, min(spp, max(1, pass_samples // pixels))]
+    while bounds[-1] < spp:
+        bounds.append(min(spp, bounds[-1] + min(bounds[-1], pass_samples)))
+    return bounds
+
+
+def plan_passes(pixels: int, spp: int, pass_samples: int = DEFAULT_PASS_SAMPLES) -> list[SampleBlock]:
+    """The passes of a render of ``pixels`` pixels at ``spp`` samples each, in progressive order:
+    slices (``slice_bounds``) outermost, runs of about pass_samples / slice width pixels inside."""
     if pass_samples < 1:
         raise ValueError(f"pass_samples must be >= 1, got {pass_samples}")
-    starts = np.arange(0, total_samples, pass_samples, dtype=np.int64)
-    return [(int(starts[i]), int(min(pass_samples, total_samples - starts[i]))) for i in progressive_order(len(starts))]
+    bounds = slice_bounds(pixels, spp, pass_samples)
+    plan = []
+    for first_sample, end in zip(bounds[:-1], bounds[1:]):
+        samples = end - first_sample
+        run = max(1, pass_samples // samples)
+        starts = np.arange(0, pixels, run, dtype=np.int64)
+        plan += [SampleBlock.of_pixels(int(starts[i]), int(min(run, pixels - starts[i])), first_sample, samples)
+                 for i in progressive_order(len(starts))]
+    return plan

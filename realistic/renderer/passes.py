@@ -1,8 +1,9 @@
 """Pass scheduling: ``render(scene, camera, ...)`` returns the film image as an array.
 
-A render is the range of sample ids 0 .. W*H*spp - 1 cut into passes of at most ``pass_samples``
-ids (``pass_plan``), so memory stays flat as resolution and spp grow; passes are numbered in
-progressive order, so any prefix of them is spread over the whole frame. Passes run on two worker
+A render is every pixel's spp samples cut into passes of about ``pass_samples`` samples
+(``pass_plan``: slices of each pixel's samples times runs of pixels), so memory stays flat as
+resolution and spp grow; passes are numbered in progressive order, so an interrupted render is a
+whole noisy frame. Passes run on two worker
 threads in this process (embreex and most numpy loops release the GIL, so one thread's ray
 generation overlaps the other's intersection), or, given a Dask ``client``, as tasks of a few
 passes each on its workers (``farm``). The main thread adds pass sums to the film in pass-index
@@ -25,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from realistic.camera.base import Camera
+from realistic.camera.base import Camera, SampleBlock
 from realistic.core import validation
 from realistic.core.spectrum import rgb_response
 from realistic.errors import UserError
@@ -91,14 +92,13 @@ class PassRunner:
         self.integrator = make_integrator(scene, intersector or Intersector(scene), light_samples, seed,
                                           camera.pixel_spread_radians())
 
-    def run(self, passes: list[tuple[int, int, int]]) -> list[PassResult]:
-        """The results of passes given as (plan index, first sample id, count)."""
-        return [self(index, first, count) for index, first, count in passes]
+    def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
+        """The results of passes given as (plan index, sample block)."""
+        return [self(index, block) for index, block in passes]
 
-    def __call__(self, index: int, first: int, count: int) -> PassResult:
-        spp = self.camera.spp
+    def __call__(self, index: int, block: SampleBlock) -> PassResult:
         with self.clock("ray generation"):
-            rays = self.generate(first, count)
+            rays = self.generate(block)
         with self.clock("shading"):
             alive = np.flatnonzero(rays.weight != 0)  # a negative filter lobe gives negative weights
             if self.morton:
@@ -107,16 +107,15 @@ class PassRunner:
             origin = rays.origin[alive].astype(np.float32)
             direction = rays.direction[alive].astype(np.float32)
             wavelength = None if rays.wavelength_nm is None else rays.wavelength_nm[alive]
-        radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, (first + alive) % spp,
+        radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, block.ids()[1][alive],
                                                          self.clock, wavelength)
         with self.clock("accumulation"):
-            first_pixel = first // spp
-            pixel_count = (first + count - 1) // spp - first_pixel + 1
+            first_pixel, pixel_count = block.first_pixel, block.pixel_count
             value = radiance * rays.weight[alive, None].astype(np.float32)
             if wavelength is not None:
                 value *= rgb_response(wavelength)
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
-        return PassResult(index, first_pixel, sums, count, len(alive), shadow_rays)
+        return PassResult(index, first_pixel, sums, block.count, len(alive), shadow_rays)
 
 
 class _ThreadPasses:
@@ -138,7 +137,7 @@ class _ThreadPasses:
                                                  intersector=self.intersector, **self.settings)
         return self.runners[frame]
 
-    def submit(self, frame: int, passes: list[tuple[int, int, int]]):
+    def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]):
         return self.pool.submit(self.runner(frame).run, passes)
 
     def wait_first(self, pending: set) -> set:
@@ -159,7 +158,7 @@ class _Frame:
     """One image of a job: its plan, film and statistics."""
 
     camera: Camera
-    plan: list[tuple[int, int]]
+    plan: list[SampleBlock]
     film: PassFilm
     result: RenderResult
 
@@ -205,7 +204,7 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
             camera.prepare()
     frames = []
     for camera in cameras:
-        plan = plan_passes(camera.sample_count, pass_samples)
+        plan = plan_passes(camera.width * camera.height, camera.spp, pass_samples)
         result = RenderResult(np.zeros((camera.height, camera.width, 3), np.float32), 0, camera.sample_count,
                               0, 0, 0.0, False, passes_total=len(plan))
         frames.append(_Frame(camera, plan, PassFilm(Film(camera.width, camera.height, camera.spp), plan), result))
@@ -274,7 +273,7 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
                 while tasks and len(pending) < executor.capacity:
                     index, chunk = tasks.popleft()
                     plan = frames[index].plan
-                    future = executor.submit(index, [(i, *plan[i]) for i in chunk])
+                    future = executor.submit(index, [(i, plan[i]) for i in chunk])
                     pending[future], in_flight[future] = index, len(chunk)
                 for future in executor.wait_first(set(pending)):
                     in_flight.pop(future)
