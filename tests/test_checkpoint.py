@@ -127,11 +127,9 @@ def _render(out: Path, *extra: str) -> list[str]:
             "--pass-samples", "1024", "--out", str(out), *extra]
 
 
-@pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
-def test_sigkill_then_resume_is_bit_identical_to_an_uninterrupted_render(tmp_path):
-    whole = tmp_path / "whole.exr"
-    subprocess.run(_render(whole), cwd=REPO, check=True, capture_output=True, timeout=120)
-    out = tmp_path / "killed.exr"
+def _killed_after_first_checkpoint(out: Path) -> Path:
+    """Start a CLI render to ``out`` that checkpoints often, SIGKILL it once its checkpoint exists;
+    the checkpoint's path."""
     partial = out.with_name(out.name + ".partial")
     process = subprocess.Popen(_render(out, "--checkpoint-every", "0.05"), cwd=REPO,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -140,7 +138,17 @@ def test_sigkill_then_resume_is_bit_identical_to_an_uninterrupted_render(tmp_pat
         time.sleep(0.01)
     process.send_signal(signal.SIGKILL)
     process.wait(timeout=30)
-    assert process.returncode == -signal.SIGKILL and partial.is_file() and not out.exists()
+    assert process.returncode == -signal.SIGKILL
+    return partial
+
+
+@pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
+def test_sigkill_then_resume_is_bit_identical_to_an_uninterrupted_render(tmp_path):
+    whole = tmp_path / "whole.exr"
+    subprocess.run(_render(whole), cwd=REPO, check=True, capture_output=True, timeout=120)
+    out = tmp_path / "killed.exr"
+    partial = _killed_after_first_checkpoint(out)
+    assert partial.is_file() and not out.exists()
     resumed = subprocess.run(_render(out, "--resume"), cwd=REPO, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     assert np.array_equal(read_exr(out)[0], read_exr(whole)[0]) and not partial.exists()
@@ -148,14 +156,7 @@ def test_sigkill_then_resume_is_bit_identical_to_an_uninterrupted_render(tmp_pat
 
 def test_cli_refuses_a_checkpoint_for_another_seed_in_one_line(tmp_path):
     out = tmp_path / "r.exr"
-    partial = out.with_name(out.name + ".partial")
-    process = subprocess.Popen(_render(out, "--checkpoint-every", "0.05"), cwd=REPO,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 90
-    while not partial.exists() and process.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.01)
-    process.send_signal(signal.SIGKILL)
-    process.wait(timeout=30)
+    _killed_after_first_checkpoint(out)
     refused = subprocess.run(_render(out, "--resume", "--seed", "7"), cwd=REPO, capture_output=True, text=True,
                              timeout=120)
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1 and "another seed" in refused.stderr
