@@ -107,7 +107,7 @@ def test_camera_rays_see_the_sphere_radiance_on_its_front_only(tmp_path):
 def test_disk_area_lights_stay_area_lights_on_the_fast_path(tmp_path):
     world = (FLOOR + 'AttributeBegin\nAreaLightSource "diffuse" "rgb L" [1 1 1]\nTranslate 0 0 2\n'
              'Shape "disk" "float radius" 0.5\nAttributeEnd\n')
-    scene = _import(tmp_path, world).scene
+    scene = _import(tmp_path, world, 'Integrator "directlighting"\n').scene
     assert [type(light) for light in scene.lights] == [AreaLight]
     assert type(make_integrator(scene, Intersector(scene))) is DirectLighting
     world = world.replace('"disk" "float radius" 0.5', '"sphere" "float radius" 0.5')

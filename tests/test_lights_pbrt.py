@@ -80,7 +80,9 @@ def test_unsupported_lights_are_reported_with_file_and_line(tmp_path):
 @pytest.mark.parametrize("line,expected", [('Integrator "path" "integer maxdepth" 7\n', ("path", 7)),
                                            ('SurfaceIntegrator "directlighting"\n', ("directlighting", 5)),
                                            ('Integrator "volpath" "integer maxdepth" 3\n', ("path", 3)),
-                                           ("", ("directlighting", 5))])
+                                           # no line: each version's default (v2 directlighting, v3 path)
+                                           ('Renderer "sampler"\n', ("directlighting", 5)),
+                                           ("", ("path", 5))])
 def test_integrator_line(tmp_path, line, expected):
     imported = _import(tmp_path, "", head=line)
     assert (imported.scene.integrator, imported.scene.max_depth) == expected

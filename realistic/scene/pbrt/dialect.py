@@ -209,6 +209,13 @@ class Dialect:
         return self.name == "v4"
 
     @property
+    def default_integrator(self) -> str:
+        """The integrator pbrt uses when the scene names none: pbrt-v1/v2's ``SurfIntegratorName =
+        "directlighting"`` (core/api.cpp), pbrt-v3's ``IntegratorName = "path"`` (src/core/api.cpp),
+        pbrt-v4's ``integrator.name = "volpath"`` (src/pbrt/scene.cpp), which renders here as path."""
+        return "directlighting" if self.name in ("v1", "v2") else "path"
+
+    @property
     def default_filter_name(self) -> str:
         """The pixel filter pbrt uses when the scene names none."""
         return {"v1": "mitchell", "v4": "gaussian"}.get(self.name, "box")

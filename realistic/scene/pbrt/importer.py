@@ -472,7 +472,7 @@ class _Importer:
             for shape in self.parsed.objects[name]:
                 self.add_shape(shape, world)
         self.scene.lights.extend(import_lights(self.parsed, self.dialect, self.find))
-        self.scene.integrator, self.scene.max_depth = import_integrator(self.parsed)
+        self.scene.integrator, self.scene.max_depth = import_integrator(self.parsed, self.dialect.default_integrator)
         return self.scene
 
 

@@ -176,12 +176,13 @@ def import_lights(parsed: PbrtScene, dialect: Dialect, find: Callable[..., Path]
     return lights
 
 
-def import_integrator(parsed: PbrtScene) -> tuple[str, int]:
+def import_integrator(parsed: PbrtScene, default: str) -> tuple[str, int]:
     """(integrator name, max depth) of the scene's Integrator line: "directlighting" (pbrt's
-    ``whitted`` too) or "path", pbrt's others falling back to "path" with a warning."""
+    ``whitted`` too) or "path", pbrt's others falling back to "path" with a warning; ``default``
+    (the dialect's) when there is no such line."""
     directive = parsed.integrator
     if directive is None:
-        return "directlighting", DEFAULT_MAX_DEPTH
+        return default, DEFAULT_MAX_DEPTH
     value = directive.params.get_float("maxdepth", DEFAULT_MAX_DEPTH)
     try:
         depth = validation.max_depth(int(value) if math.isfinite(value) and value == int(value) else value)
