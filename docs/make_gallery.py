@@ -7,7 +7,7 @@ measured BRDFs are slow) through the real CLI (OpenCL backend, PNG previews at a
 the EXR headers. Needs ../shared (the homework scenes, the dragon mesh, the floor texture, the
 BRDF files).
 
-    python docs/make_gallery.py [--spp 4,512] [--seed-spp 4,128] [--only NAME,...] [--out docs/gallery]
+    python docs/make_gallery.py [--spp 4,512] [--seed-spp 4,512] [--only NAME,...] [--out docs/gallery]
                                 [--shared ../shared]
 """
 
@@ -36,7 +36,7 @@ def scenes(shared: Path) -> list[tuple[str, Path, list[str], bool]]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--spp", default="4,512", help="sample counts (default: %(default)s)")
-    parser.add_argument("--seed-spp", default="4,128",
+    parser.add_argument("--seed-spp", default="4,512",
                         help="sample counts of the measured-BRDF seed scenes (default: %(default)s)")
     parser.add_argument("--only", default="", help="comma-separated scene names to render (default: all)")
     parser.add_argument("--out", default=str(ROOT / "docs" / "gallery"), help="folder for the images")
