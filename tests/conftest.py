@@ -18,6 +18,18 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 
 
+@pytest.fixture(scope="module")
+def opencl_platform():
+    """Skips the module's tests when no OpenCL platform exists (CI installs PoCL with the package)."""
+    from realistic.errors import UserError
+
+    opencl_host = pytest.importorskip("realistic.camera.opencl_host")
+    try:
+        opencl_host.context()
+    except UserError as err:
+        pytest.skip(f"no OpenCL platform: {err}")
+
+
 @pytest.fixture(autouse=True, scope="session")
 def fresh_disk_cache(tmp_path_factory):
     """Tests (and the CLI processes they start) cache exit-pupil tables in a folder of this session's

@@ -10,17 +10,8 @@ import pytest
 from kernel_reference import aspherised_dgauss, assert_kernel_matches, camera_for_lens
 from realistic import load_lens
 from realistic.camera.base import SampleBlock
-from realistic.errors import UserError
 
-opencl_host = pytest.importorskip("realistic.camera.opencl_host")
-
-
-@pytest.fixture(scope="module", autouse=True)
-def opencl_platform():
-    try:
-        opencl_host.context()
-    except UserError as err:
-        pytest.skip(f"no OpenCL platform: {err}")
+pytestmark = pytest.mark.usefixtures("opencl_platform")
 
 
 @pytest.mark.parametrize("sampling", ["pupil", "rear"])

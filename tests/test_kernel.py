@@ -21,13 +21,7 @@ opencl_host = pytest.importorskip("realistic.camera.opencl_host")
 LENSES = ["dgauss", "wide", "fisheye", "telephoto", "dgauss100"]
 SAMPLINGS = ["pupil", "rear"]
 
-
-@pytest.fixture(scope="module", autouse=True)
-def opencl_platform():
-    try:
-        opencl_host.context()
-    except UserError as err:
-        pytest.skip(f"no OpenCL platform: {err}")
+pytestmark = pytest.mark.usefixtures("opencl_platform")
 
 
 @pytest.mark.parametrize("sampling", SAMPLINGS)
