@@ -14,7 +14,9 @@ Python start-up and imports are not) and
 The time to ``--target`` (0.02) is interpolated linearly in log(seconds) against log(error) between
 the two measured points around the first crossing ("not reached" when no point is at or below it).
 The reference's own noise, estimated from the highest test count, is printed too: a target near it
-measures the reference, not the test.
+measures the reference, not the test. So the script also fits error^2 = a/spp + b (test variance
+plus the reference's own squared error) and extrapolates the spp and wall time to the target
+against the converged image by the 1/N law, and pbrt-v3's time by the same law from its one point.
 Beside it, pbrt-v3's figures measured on this machine for the dragons through dgauss at 512x512
 (64 spp: 29.5 s wall, relative RMSE 0.073), our time to 0.073 and the ratio ours / pbrt-v3.
 
@@ -52,7 +54,7 @@ DEFAULT_SCENE = ROOT / "scenes" / "dof-dragons" / "dgauss.pbrt"
 DEFAULT_SEARCH_PATHS = (SHARED / "meshes", SHARED / "scenes" / "pbrt")
 REFERENCE_SEED, TEST_SEED = 1, 2
 #: pbrt-v3 on this machine: dragons through dgauss, 512x512, 64 spp (issue 11).
-PBRT_V3 = {"spp": 64, "wall_s": 29.5, "rel_rmse": 0.073}
+PBRT_V3 = {"spp": 64, "wall_s": 29.5, "setup_s": 5.6, "render_s": 24.0, "rel_rmse": 0.073}
 
 
 def time_to_error(seconds: list[float], errors: list[float], target: float) -> float | None:
@@ -77,6 +79,36 @@ def reference_noise(error: float, spp: int, reference_spp: int) -> float:
     is error * sqrt(spp / (spp + reference_spp)). No target near or below it can be timed here.
     """
     return error * math.sqrt(spp / (spp + reference_spp))
+
+
+def inverse_n_fit(spps: list[int], errors: list[float]) -> tuple[float, float]:
+    """(a, b) of error^2 = a / spp + b, least squares over the measured points.
+
+    Test and reference noise are independent, so the squared error against the reference is the
+    test's variance a / spp plus the reference's own squared error b (clamped at 0). sqrt(a / spp) is
+    then the test's error against the converged image, which a target near the reference's noise
+    needs: a 1024-spp reference cannot time 0.02 directly when its own error is about that.
+    """
+    design = np.column_stack([1.0 / np.asarray(spps, np.float64), np.ones(len(spps))])
+    (a, b), *_ = np.linalg.lstsq(design, np.square(np.asarray(errors, np.float64)), rcond=None)
+    return float(a), max(float(b), 0.0)
+
+
+def extrapolated_seconds(spps: list[int], render_s: list[float], setup_s: float, variance: float,
+                         target: float) -> tuple[float, float]:
+    """(spp, wall seconds) to reach ``target`` under the 1/N law with variance ``variance`` (``a``
+    of ``inverse_n_fit``): spp = a / target^2; render seconds from a least-squares line in spp
+    through the measured renders, plus ``setup_s``."""
+    spp = variance / target**2
+    slope, intercept = np.polyfit(np.asarray(spps, np.float64), np.asarray(render_s, np.float64), 1)
+    return spp, setup_s + float(intercept + slope * spp)
+
+
+def pbrt_v3_seconds(target: float) -> float:
+    """pbrt-v3's wall seconds to ``target`` by the same 1/N law from its one measured point: set-up
+    plus render time scaled by (error / target)^2. Convergence slower than 1/N past 64 spp (as
+    pbrt-v3's seemed) only makes it slower, so a ratio against this is a lower bound."""
+    return PBRT_V3["setup_s"] + PBRT_V3["render_s"] * (PBRT_V3["rel_rmse"] / target) ** 2
 
 
 def source_hash(root: Path, scene: Path) -> str:
@@ -173,7 +205,15 @@ def main() -> None:
     floor = reference_noise(errors[-1], rows[-1]["spp"], args.reference_spp)
     print(f"\nthe reference's own relative RMSE, estimated from {rows[-1]['spp']} spp: {floor:.4f} "
           "(errors near it measure the reference; raise --reference-spp to time lower targets)")
-    print(f"time to relative RMSE {args.target:g}: {_format_time(to_target)}")
+    print(f"time to relative RMSE {args.target:g}: {_format_time(to_target)} (measured against the reference)")
+    variance, reference_squared = inverse_n_fit([r["spp"] for r in rows], errors)
+    fit_spp, fit_s = extrapolated_seconds([r["spp"] for r in rows], [r["render_s"] for r in rows], load_s,
+                                          variance, args.target)
+    pbrt_s = pbrt_v3_seconds(args.target)
+    print(f"1/N fit error^2 = {variance:.4g}/spp + {reference_squared:.3g} (the reference's own error "
+          f"{math.sqrt(reference_squared):.4f}): relative RMSE {args.target:g} against the converged image "
+          f"at {fit_spp:.0f} spp, {fit_s:.1f} s wall; pbrt-v3 by the same law {pbrt_s:.0f} s: "
+          f"pbrt-v3 / ours = {pbrt_s / fit_s:.1f}x")
     comparable = args.scene.resolve() == DEFAULT_SCENE and args.res == (512, 512)
     print(f"pbrt-v3 (dragons, dgauss, 512x512, measured on this machine): {PBRT_V3['spp']} spp, "
           f"{PBRT_V3['wall_s']} s wall, relative RMSE {PBRT_V3['rel_rmse']}"
@@ -185,6 +225,9 @@ def main() -> None:
               "reference_seed": REFERENCE_SEED, "test_seed": TEST_SEED, "source_hash": version, "load_s": load_s,
               "rows": rows, "reference_noise_estimate": floor, "target": args.target,
               "time_to_target_s": to_target, "pbrt_v3": PBRT_V3,
+              "fit": {"variance_per_spp": variance, "reference_squared_error": reference_squared,
+                      "spp_to_target": fit_spp, "seconds_to_target": fit_s, "pbrt_v3_seconds_to_target": pbrt_s,
+                      "pbrt_v3_over_ours": pbrt_s / fit_s},
               "time_to_pbrt_error_s": to_pbrt, "ratio_to_pbrt": ratio,
               "comparable_to_pbrt": comparable}
     path = out / "converge.json"

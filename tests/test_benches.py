@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from realistic.renderer.convergence import relative_rmse
@@ -190,3 +190,25 @@ def test_options_parse_or_refuse_in_one_line(module, option, text, capsys):
     value = getattr(args, option[2:].replace("-", "_"))
     values = value if isinstance(value, (tuple, list)) else [value]
     assert all(v > 0 for v in values)
+
+
+@given(st.floats(1e-3, 10.0), st.floats(0.0, 1e-2))
+@settings(max_examples=30, deadline=None)
+def test_inverse_n_fit_recovers_test_variance_and_reference_error(variance, reference_squared):
+    spps = [4, 8, 16, 32, 64, 128, 256]
+    errors = [math.sqrt(variance / n + reference_squared) for n in spps]
+    a, b = converge.inverse_n_fit(spps, errors)
+    assert a == pytest.approx(variance, rel=1e-6)
+    assert b == pytest.approx(reference_squared, rel=1e-6, abs=1e-12)
+
+
+def test_extrapolated_seconds_follow_the_1_over_n_law_and_linear_render_time():
+    spps, render_s = [4, 16, 64], [1.0 + 0.5 * n for n in (4, 16, 64)]
+    spp, seconds = converge.extrapolated_seconds(spps, render_s, 2.0, 0.04, 0.02)
+    assert spp == pytest.approx(100.0)  # 0.04 / 0.02^2
+    assert seconds == pytest.approx(2.0 + 1.0 + 0.5 * 100.0)
+
+
+def test_pbrt_v3_time_by_the_same_law_hits_its_own_measured_point():
+    assert converge.pbrt_v3_seconds(converge.PBRT_V3["rel_rmse"]) == pytest.approx(converge.PBRT_V3["wall_s"], rel=0.01)
+    assert converge.pbrt_v3_seconds(0.02) == pytest.approx(5.6 + 24.0 * (0.073 / 0.02) ** 2)
