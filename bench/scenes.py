@@ -1,7 +1,7 @@
 """Scene benchmark: set-up, first pass and samples/s of the homework scenes, their dragons and ours.
 
     .venv/bin/python bench/scenes.py [--res 300x300] [--spp 32] [--light-samples N] [--repeats 1]
-        [--empty-cache] [--backend opencl|numpy]
+        [--empty-cache] [--backend opencl|numpy] [--only TEXT] [--flat]
 
 Scenes: the homework's ``../shared/scenes/pbrt/dof-dragons.<lens>.pbrt``, their dragon versions
 ``scenes/dof-dragons/<lens>.pbrt`` (search paths ``../shared/meshes`` and ``../shared/scenes/pbrt``)
@@ -12,7 +12,14 @@ scene is measured in fresh processes, so imports and caches start as a user's co
 - from the library (``build_render_inputs``, ``render_passes`` with an ``on_pass`` callback):
   ``setup s`` = process start and imports + scene load + the "exit pupil" and "setup" stages
   (everything before the first camera ray), ``first pass s`` = process start to the first finished
-  pass, ``render s`` = the rest of ``render_passes``, and samples/s = samples / render s.
+  pass, ``render s`` = the rest of ``render_passes``, and samples/s = samples / render s;
+  ``peak MiB`` = that process's peak resident set (``getrusage``'s ru_maxrss), whose interpreter
+  baseline (python with numpy, pyopencl and embreex imported, nothing loaded) is measured first.
+
+``--only TEXT`` keeps the scenes whose name contains TEXT ("dragons"); ``--flat`` measures the
+library figures with every instance copied into one world-space embree scene
+(``Intersector(scene, share=False)``, the renderer before geometry was shared between instances)
+and skips the CLI column.
 
 Light samples are the scenes' own (the homework gives 4) unless ``--light-samples`` is given. The
 exit-pupil tables come from the user's disk cache unless ``--empty-cache`` gives every process an
@@ -25,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -92,9 +100,14 @@ def render_arguments(scene: BenchScene, res: tuple[int, int], spp: int, light_sa
     return arguments
 
 
-def measure_in_process(arguments: list[str], launched: float) -> dict:
+def measure_in_process(arguments: list[str], launched: float, flat: bool = False) -> dict:
     """Set-up, first-pass and render seconds of one render through the library; ``launched`` is the
     ``time.time()`` at which the parent started this process (the origin of every figure)."""
+    if flat:
+        import realistic.renderer.passes as passes
+        from realistic.scene.intersect import Intersector
+
+        passes.Intersector = lambda scene: Intersector(scene, share=False)
     from realistic.cli import build_parser
     from realistic.cli.scene_arguments import options_from_args
     from realistic.renderer.inputs import build_render_inputs
@@ -119,7 +132,26 @@ def measure_in_process(arguments: list[str], launched: float) -> dict:
             "exit_pupil_s": stages.get("exit pupil", 0.0), "setup_stage_s": stages.get("setup", 0.0),
             "setup_s": loaded - launched + before_rays, "first_pass_s": first_pass[0] - launched,
             "render_s": render_s, "samples": result.samples_done,
-            "samples_per_s": result.samples_done / render_s, "light_samples": inputs.light_samples}
+            "samples_per_s": result.samples_done / render_s, "light_samples": inputs.light_samples,
+            "peak_rss_mib": peak_rss_mib()}
+
+
+def peak_rss_mib() -> float:
+    """This process's peak resident set size so far, MiB (Linux's ru_maxrss is in KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+#: What the interpreter alone costs before any scene, in a bare ``python -c``: numpy, pyopencl and
+#: embreex imported, nothing loaded or rendered; then the renderer's own modules.
+BASELINE_CODE = """
+import json, resource, time
+start = time.perf_counter()
+import embreex.rtcore_scene, numpy, pyopencl
+peak = lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+bare, imported = peak(), time.perf_counter() - start
+from realistic.renderer.passes import render_passes
+print(json.dumps({"import_s": imported, "peak_rss_mib": bare, "with_renderer_mib": peak()}))
+"""
 
 
 def _child_environment(empty_cache: bool) -> dict[str, str]:
@@ -151,10 +183,15 @@ def cli_seconds(arguments: list[str], empty_cache: bool) -> float:
         return time.perf_counter() - start
 
 
-def library_figures(arguments: list[str], empty_cache: bool) -> dict:
+def library_figures(arguments: list[str], empty_cache: bool, flat: bool = False) -> dict:
     """``measure_in_process`` run in a fresh Python process (this script with ``--child``)."""
-    command = [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps([time.time(), arguments])]
+    command = [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps([time.time(), arguments, flat])]
     return json.loads(_run_child(command, empty_cache).strip().splitlines()[-1])
+
+
+def baseline_figures() -> dict:
+    """``BASELINE_CODE`` in a fresh Python process."""
+    return json.loads(_run_child([sys.executable, "-c", BASELINE_CODE], False).strip().splitlines()[-1])
 
 
 def median_figures(runs: list[dict]) -> dict:
@@ -182,6 +219,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="runs per figure; the median is shown (default 1)")
     parser.add_argument("--empty-cache", action="store_true", help="an empty exit-pupil disk cache per process")
     parser.add_argument("--backend", default="opencl", choices=("opencl", "numpy"))
+    parser.add_argument("--only", metavar="TEXT", help="only the scenes whose name contains TEXT (e.g. dragons)")
+    parser.add_argument("--flat", action="store_true",
+                        help="copy every instance into one world-space embree scene (as before sharing); no CLI column")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     return parser
 
@@ -189,24 +229,32 @@ def build_parser() -> argparse.ArgumentParser:
 def main() -> None:
     args = build_parser().parse_args()
     if args.child:
-        launched, arguments = json.loads(args.child)
-        print(json.dumps(measure_in_process(arguments, launched)))
+        launched, arguments, flat = json.loads(args.child)
+        print(json.dumps(measure_in_process(arguments, launched, flat)))
         return
 
     scenes, skipped = scene_list()
+    if args.only:
+        scenes = [scene for scene in scenes if args.only in scene.name]
     for message in skipped:
         print(f"skipped: {message}")
     print(f"{args.res[0]}x{args.res[1]}, {args.spp} spp, backend {args.backend}, median of {args.repeats}, "
+          f"{'flat (unshared) embree scene, ' if args.flat else ''}"
           f"{'empty' if args.empty_cache else 'user'} exit-pupil cache; the machine's load is not controlled")
     header = (f"{'scene':<20}{'cli s':>8}{'setup s':>9}{'(import':>8}{'load':>7}{'pupil':>7}{'stage)':>7}"
-              f"{'1st pass s':>11}{'render s':>10}{'M samples/s':>12}{'lights':>7}")
+              f"{'1st pass s':>11}{'render s':>10}{'M samples/s':>12}{'lights':>7}{'peak MiB':>9}")
+    baseline = median_figures([baseline_figures() for _ in range(args.repeats)])
+    print(f"interpreter baseline (python + numpy + pyopencl + embreex imported, nothing rendered): "
+          f"peak RSS {baseline['peak_rss_mib']:.0f} MiB ({baseline['with_renderer_mib']:.0f} MiB with the "
+          f"renderer's modules imported), imports {baseline['import_s']:.2f} s")
     print(header)
     rows = []
     for scene in scenes:
         arguments = render_arguments(scene, args.res, args.spp, args.light_samples, args.backend)
         try:
-            cli = statistics.median(cli_seconds(arguments, args.empty_cache) for _ in range(args.repeats))
-            lib = median_figures([library_figures(arguments, args.empty_cache) for _ in range(args.repeats)])
+            cli = (float("nan") if args.flat else
+                   statistics.median(cli_seconds(arguments, args.empty_cache) for _ in range(args.repeats)))
+            lib = median_figures([library_figures(arguments, args.empty_cache, args.flat) for _ in range(args.repeats)])
         except ChildFailed as err:
             skipped.append(f"{scene.name}: failed: {err}")
             print(f"{scene.name:<20}failed: {err}", flush=True)
@@ -214,14 +262,16 @@ def main() -> None:
         rows.append({"scene": scene.name, "path": str(scene.path), "cli_s": cli, **lib})
         print(f"{scene.name:<20}{cli:>8.2f}{lib['setup_s']:>9.2f}{lib['import_s']:>8.2f}{lib['load_s']:>7.2f}"
               f"{lib['exit_pupil_s']:>7.2f}{lib['setup_stage_s']:>7.2f}{lib['first_pass_s']:>11.2f}"
-              f"{lib['render_s']:>10.2f}{lib['samples_per_s'] / 1e6:>12.3f}{int(lib['light_samples']):>7d}",
+              f"{lib['render_s']:>10.2f}{lib['samples_per_s'] / 1e6:>12.3f}{int(lib['light_samples']):>7d}"
+              f"{lib['peak_rss_mib']:>9.0f}",
               flush=True)
     slow = [r["scene"] for r in rows if r["first_pass_s"] >= FIRST_PASS_GOAL_S]
     print(f"\nfor comparison: {PBRT_V3}")
     print(f"first pass under {FIRST_PASS_GOAL_S:g} s: " + ("every scene" if not slow else f"not {', '.join(slow)}"))
     report = {"resolution": list(args.res), "spp": args.spp, "light_samples": args.light_samples,
-              "backend": args.backend, "repeats": args.repeats, "empty_cache": args.empty_cache,
-              "skipped": skipped, "rows": rows, "pbrt_v3": PBRT_V3, "first_pass_goal_s": FIRST_PASS_GOAL_S}
+              "backend": args.backend, "repeats": args.repeats, "empty_cache": args.empty_cache, "flat": args.flat,
+              "skipped": skipped, "baseline": baseline, "rows": rows, "pbrt_v3": PBRT_V3,
+              "first_pass_goal_s": FIRST_PASS_GOAL_S}
     out = ROOT / "bench" / "results" / "scenes.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(report, indent=2) + "\n")

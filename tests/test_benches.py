@@ -212,3 +212,9 @@ def test_extrapolated_seconds_follow_the_1_over_n_law_and_linear_render_time():
 def test_pbrt_v3_time_by_the_same_law_hits_its_own_measured_point():
     assert converge.pbrt_v3_seconds(converge.PBRT_V3["rel_rmse"]) == pytest.approx(converge.PBRT_V3["wall_s"], rel=0.01)
     assert converge.pbrt_v3_seconds(0.02) == pytest.approx(5.6 + 24.0 * (0.073 / 0.02) ** 2)
+
+
+def test_scene_bench_measures_peak_memory_and_the_interpreter_baseline():
+    baseline = scenes.baseline_figures()
+    assert 0 < baseline["peak_rss_mib"] <= baseline["with_renderer_mib"] and baseline["import_s"] > 0
+    assert scenes.build_parser().parse_args(["--only", "dragons", "--flat"]).flat

@@ -142,6 +142,10 @@ class _Importer:
         self.materials: dict[int, SurfaceMaterial] = {}
         # shape record -> (mesh index, local transform, object-space box corners)
         self.stored: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
+        # a mesh file named by several shapes is loaded and stored once (the intersector then builds
+        # it once for all its instances): path -> its objects, mesh identity -> scene mesh index
+        self.loaded: dict[Path, list[tuple[Mesh, np.ndarray]]] = {}
+        self.mesh_index: dict[int, int] = {}
 
     def warn(self, where: str, message: str) -> None:
         self.parsed.warn(where, message)
@@ -253,8 +257,10 @@ class _Importer:
                 raise UserError(f"{shape.where}: plymesh has no filename")
             if p.has("displacement"):  # pbrt-v4 src/pbrt/shapes.cpp tessellates and displaces along N
                 self.warn(shape.where, 'plymesh "displacement" (the mesh is rendered undisplaced)')
-            path = self.find(filename, shape.directory, shape.where, "plymesh file")
-            return [(obj.mesh, obj.transform) for obj in load_mesh_file(path)]
+            path = self.find(filename, shape.directory, shape.where, "plymesh file").resolve()
+            if path not in self.loaded:
+                self.loaded[path] = [(obj.mesh, obj.transform) for obj in load_mesh_file(path)]
+            return self.loaded[path]
         if shape.type == "disk":
             if p.get_float("innerradius", 0.0):
                 self.warn(shape.where, "disk innerradius (rendered as a full disk)")
@@ -368,7 +374,7 @@ class _Importer:
                 self.warn(shape.where, f'Shape "{shape.type}" whose sizes are too extreme for its triangles, '
                                        f"normals or uv to be computed (skipped)")
                 meshes = []
-            self.stored[id(shape)] = [(self.scene.add_mesh(mesh), local, _corners(mesh.vertices))
+            self.stored[id(shape)] = [(self._mesh_index(mesh), local, _corners(mesh.vertices))
                                       for mesh, local in meshes]
         for index, local, corners in self.stored[id(shape)]:
             transform = world @ shape.transform @ local
@@ -378,6 +384,12 @@ class _Importer:
                                        f"{MAX_WORLD_COORDINATE:g} the renderer's single precision holds (skipped)")
                 continue
             self.scene.add(index, transform, material)
+
+    def _mesh_index(self, mesh: Mesh) -> int:
+        """The scene's index of ``mesh``, stored on first use (a mesh file's meshes are shared by shapes)."""
+        if id(mesh) not in self.mesh_index:
+            self.mesh_index[id(mesh)] = self.scene.add_mesh(mesh)
+        return self.mesh_index[id(mesh)]
 
     def add_area_light(self, shape: ShapeRecord, world: np.ndarray) -> bool:
         """Add the shape's area light; False when the shape is to be drawn as an ordinary shape instead."""
