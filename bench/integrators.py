@@ -29,9 +29,9 @@ from realistic.scene.staging import auto_eye, mesh_setup  # noqa: E402
 from render import subject  # noqa: E402
 
 VARIANTS = {
-    "fast path (DirectLighting)": lambda scene, *a: DirectLighting(scene, *a),
-    "MIS direct (PathIntegrator)": lambda scene, *a: PathIntegrator(scene, *a, max_depth=5, mode="direct"),
-    "path, maxdepth 5": lambda scene, *a: PathIntegrator(scene, *a, max_depth=5, mode="path"),
+    "fast path (DirectLighting)": lambda scene, *a, **backend: DirectLighting(scene, *a, **backend),
+    "MIS direct (PathIntegrator)": lambda scene, *a, **_: PathIntegrator(scene, *a, max_depth=5, mode="direct"),
+    "path, maxdepth 5": lambda scene, *a, **_: PathIntegrator(scene, *a, max_depth=5, mode="path"),
 }
 
 

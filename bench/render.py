@@ -1,12 +1,14 @@
 """Render benchmark: where the time goes, against embreex's own ceiling on the same scene.
 
-    .venv/bin/python bench/render.py [--res 512x512] [--spp 64] [--backend opencl|numpy]
+    .venv/bin/python bench/render.py [--res 512x512] [--spp 64] [--backend opencl|numpy] [--threads 2]
 
 Renders the dragon (../shared/meshes/dragon.ply, else a procedural mesh of similar size) on the
 grid floor under a disk light, twice: samples in raster order and sorted along a Morton curve per
-pass. Prints per-stage thread-seconds (two workers, so they can add up to twice the wall time),
-rays per second, and the ceiling: the same primary and shadow rays of one pass traced by embreex
-alone on two threads. Writes bench/results/render.json.
+pass. Prints per-stage thread-seconds (``--threads`` workers, two by default, so they can add up to
+twice the wall time), shading's thread-seconds per sample against embree's (backend "opencl" shades
+with ``kernels/shade.cl`` on PoCL, whose own threads are not counted: a worker waiting for its launch
+counts the launch's wall time), rays per second, and the ceiling: the same primary and shadow rays
+of one pass traced by embreex alone on two threads. Writes bench/results/render.json.
 """
 
 from __future__ import annotations
@@ -99,8 +101,8 @@ def ceiling(setup, camera, backend: str, samples: int) -> dict:
             "samples_per_s": samples / (t_primary + t_shadow)}
 
 
-def run(setup, camera, backend: str, morton: bool) -> dict:
-    result = render_passes(setup.scene, camera, backend, 0, morton=morton)
+def run(setup, camera, backend: str, morton: bool, threads: int = 2) -> dict:
+    result = render_passes(setup.scene, camera, backend, 0, morton=morton, threads=threads)
     rays = result.primary_rays + result.shadow_rays
     return {"morton": morton, "seconds": result.seconds, "samples": result.samples_done,
             "primary_rays": result.primary_rays, "shadow_rays": result.shadow_rays,
@@ -114,6 +116,7 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--backend", default="opencl", choices=("opencl", "numpy"))
     parser.add_argument("--lens", default="dgauss")
+    parser.add_argument("--threads", type=int, default=2, help="render worker threads (default 2)")
     args = parser.parse_args()
     width, height = (int(v) for v in args.res.split("x"))
     objects, source = subject()
@@ -125,10 +128,10 @@ def main() -> None:
                                    args.spp)
     triangles = sum(len(setup.scene.meshes[i.mesh].faces) for i in setup.scene.instances)
     print(f"scene: {source}, {triangles} triangles; {width}x{height}, {args.spp} spp, lens {args.lens}, "
-          f"backend {args.backend}, passes of {DEFAULT_PASS_SAMPLES} samples on 2 threads")
+          f"backend {args.backend}, passes of {DEFAULT_PASS_SAMPLES} samples on {args.threads} thread(s)")
     render_passes(setup.scene, LensCamera.looking_at(lens, eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, 16, 16, 1),
                   args.backend)  # warm-up: kernel build and caches
-    runs = [run(setup, camera, args.backend, morton) for morton in (False, True)]
+    runs = [run(setup, camera, args.backend, morton, args.threads) for morton in (False, True)]
     top = ceiling(setup, camera, args.backend, DEFAULT_PASS_SAMPLES)
     print(f"\n{'stage':<16}{'raster s':>10}{'share':>8}{'morton s':>10}{'share':>8}")
     for stage in STAGES:
@@ -139,6 +142,14 @@ def main() -> None:
         print(f"{stage:<16}{''.join(cells)}")
     print(f"{'wall':<16}{runs[0]['seconds']:>10.2f}{'':>8}{runs[1]['seconds']:>10.2f}")
     for r in runs:
+        stages = r["stage_thread_seconds"]
+        r["shading_over_embree"] = stages["shading"] / max(stages["embree"], 1e-12)
+        r["shading_us_per_sample"] = 1e6 * stages["shading"] / r["samples"]
+        r["embree_us_per_sample"] = 1e6 * stages["embree"] / r["samples"]
+        label = "morton" if r["morton"] else "raster"
+        print(f"{label}: shading {r['shading_us_per_sample']:.3f} us/sample, embree {r['embree_us_per_sample']:.3f} "
+              f"us/sample (thread-seconds): shading / embree = {r['shading_over_embree']:.2f}")
+    for r in runs:
         label = "morton" if r["morton"] else "raster"
         print(f"{label}: {r['samples_per_s'] / 1e6:.2f} M samples/s, {r['rays_per_s'] / 1e6:.2f} M rays/s "
               f"({r['primary_rays']} primary + {r['shadow_rays']} shadow rays)")
@@ -148,7 +159,8 @@ def main() -> None:
     best = max(r["samples_per_s"] for r in runs)
     print(f"end to end / ceiling: {100 * best / top['samples_per_s']:.1f} %")
     report = {"scene": source, "triangles": triangles, "resolution": [width, height], "spp": args.spp,
-              "backend": args.backend, "lens": args.lens, "pass_samples": DEFAULT_PASS_SAMPLES, "runs": runs,
+              "backend": args.backend, "lens": args.lens, "pass_samples": DEFAULT_PASS_SAMPLES,
+              "threads": args.threads, "runs": runs,
               "ceiling": top, "fraction_of_ceiling": best / top["samples_per_s"]}
     out = ROOT / "bench" / "results" / "render.json"
     out.parent.mkdir(parents=True, exist_ok=True)

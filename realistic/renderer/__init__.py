@@ -9,6 +9,7 @@
 - ``sweep``: ``--sweep`` sequences: one camera per frame.
 - ``integrators``: which integrator a scene asks for (``make_integrator``).
 - ``integrator``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces): the fast path.
+- ``shade_kernel``: the fast path's shading as an OpenCL kernel (``kernels/shade.cl``), backend "opencl".
 - ``path``: MIS direct lighting and path tracing over any BSDF and light, one embree batch per bounce.
 - ``light_sampler``: every light picked by power, sampled, with densities for MIS.
 - ``footprint``: a camera ray's pixel footprint on a surface, as two uv axes for texture filtering.

@@ -15,6 +15,14 @@ the camera's ``pixel_spread_radians`` is given.
 Spectral rays (one wavelength each) evaluate every RGB albedo, light radiance and background as a
 spectrum at the ray's wavelength (``realistic.core.spectrum.rgb_basis``), multiply spectra, and return
 the spectral radiance in all three columns; the film then weights it by ``rgb_response``.
+
+Backends: the numpy code here is the reference and shades with backend "numpy". With backend
+"opencl" RGB rays are shaded by ``kernels/shade.cl`` (``renderer.shade_kernel``): one launch per pass
+computes every surface hit's normals and albedo and every light sample's shadow ray and
+contribution, embree traces all the shadow rays in one ``occluded`` call, and numpy sums the
+unblocked contributions; camera rays that miss or see an emitter keep the numpy code. Spectral rays
+stay on the numpy path with either backend. The two agree to float32 rounding, shadow-ray origins
+bit for bit (``tests/test_shade_kernel.py``).
 """
 
 from __future__ import annotations
@@ -41,13 +49,22 @@ def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     return np.take(a, index, axis=0)
 
 
+def _facing(normal: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """embree's geometric normals (N, 3), normalised in float32 and turned to face the rays."""
+    ng = normalise(np.asarray(normal).astype(np.float32))
+    ng *= np.where(dot(ng, direction) > 0, -1.0, 1.0).astype(np.float32)[:, None]
+    return ng
+
+
 class DirectLighting:
     """Radiance arriving along camera rays, with direct illumination from the scene's area lights."""
 
     def __init__(self, scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
-                 pixel_spread_radians: float = 0.0):
+                 pixel_spread_radians: float = 0.0, *, backend: str = "numpy", cl_device: str | None = None):
         """``pixel_spread_radians``: the camera's (``Camera.pixel_spread_radians``); 0 point-samples
-        image textures (bilinear on their finest level)."""
+        image textures (bilinear on their finest level). ``backend`` "opencl" shades RGB rays with
+        ``kernels/shade.cl`` on the OpenCL device ``cl_device`` (``renderer.shade_kernel``); "numpy"
+        with the numpy code here, the reference."""
         if light_samples < 1:
             raise ValueError("light_samples must be at least 1")
         self.intersector, self.light_samples, self.seed = intersector, light_samples, seed
@@ -56,6 +73,9 @@ class DirectLighting:
         self.instance_count = len(scene.instances)
         self._build_surfaces(scene)
         self._build_lights(scene)
+        self._kernel = None
+        if backend == "opencl" and len(self._light_area) and self._light_cdf[-1] > 0:
+            self._kernel = self._build_kernel(cl_device)
 
     def _build_surfaces(self, scene: Scene) -> None:
         """Per-mesh data concatenated once, and per-instance (geometry id) lookups into it."""
@@ -101,6 +121,26 @@ class DirectLighting:
         self._light_probability = power / power.sum() if power.sum() > 0 else power
         self._light_cdf = np.cumsum(self._light_probability)
 
+    def _build_kernel(self, cl_device: str | None):
+        """The scene's tables on the OpenCL device (imports pyopencl only here); None (the numpy
+        path) for more area lights than the kernel's light search reaches."""
+        from realistic.renderer.shade_kernel import LIGHT_FLOATS, MAX_LIGHTS, ShadeKernel
+
+        if len(self._light_area) > MAX_LIGHTS:
+            return None
+
+        rows = np.zeros((len(self._light_area), LIGHT_FLOATS), np.float32)
+        rows[:, 0:3], rows[:, 3:6], rows[:, 6:9] = self._light_centre, self._light_a, self._light_b
+        rows[:, 9:12], rows[:, 12:15] = self._light_normal, self._light_radiance
+        with np.errstate(divide="ignore"):
+            rows[:, 15] = self._light_area / self._light_probability / np.pi
+        rows[:, 16], rows[:, 17] = self._light_disk, self._light_two_sided
+        return ShadeKernel(faces=self._faces, normals=self._normals, uv=self._uv,
+                           geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
+                           geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
+                           materials=self._materials, light_rows=rows, light_cdf=self._light_cdf,
+                           extent=self.intersector.extent, device=cl_device)
+
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
                  ) -> tuple[np.ndarray, int]:
@@ -111,6 +151,8 @@ class DirectLighting:
         timed = clock or (lambda _stage: nullcontext())
         with timed("embree"):
             hits = self.intersector.closest(origin, direction)
+        if self._kernel is not None and wavelength_nm is None:
+            return self._radiance_kernel(origin, direction, pixel, sample, hits, timed)
         with timed("shading"):
             basis = None if wavelength_nm is None else rgb_basis(wavelength_nm)
 
@@ -133,19 +175,7 @@ class DirectLighting:
             out[surface] = 0.0
             if len(surface) == 0 or len(self._light_area) == 0 or self._light_cdf[-1] <= 0:
                 return out, 0
-            o = _rows(np.asarray(origin, np.float32), surface)
-            d = _rows(np.asarray(direction, np.float32), surface)
-            geom, prim = hits.geom[surface], hits.prim[surface]
-            point = o + hits.t[surface, None] * d
-            ng = normalise(_rows(hits.normal, surface).astype(np.float32))
-            ng *= np.where(dot(ng, d) > 0, -1.0, 1.0).astype(np.float32)[:, None]
-            face = _rows(self._faces, self._geom_face_offset[geom] + prim)
-            bary = np.column_stack([1.0 - hits.u[surface] - hits.v[surface], hits.u[surface], hits.v[surface]])
-            shading = self._shading_normal(face, bary, geom, ng)
-            rho = colour(self._albedo(face, bary, geom, d, ng, hits.t[surface]), surface)
-            magnitude = np.maximum(np.maximum(np.abs(point[:, 0]), np.abs(point[:, 1])), np.abs(point[:, 2]))
-            eps = SHADOW_OFFSET * (magnitude + 1e-2 * self.intersector.extent)
-            shadow_origin = point + ng * eps[:, None].astype(np.float32)
+            point, shadow_origin, shading, ng, rho = self._surface_points(origin, direction, hits, surface, basis)
         total = np.zeros((len(surface), 3 if basis is None else 1), np.float32)
         shadow_rays = 0
         for k in range(self.light_samples):
@@ -162,6 +192,80 @@ class DirectLighting:
         with timed("shading"):
             out[surface] = total / np.float32(self.light_samples)
         return out, shadow_rays
+
+    def _surface_points(self, origin: np.ndarray, direction: np.ndarray, hits, surface: np.ndarray,
+                        basis: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+        """Of the rays ``surface``, which hit instances: hit points, shadow-ray origins, shading and
+        geometric normals (facing the rays), and albedos (spectral values at ``basis``'s rows, if given)."""
+        o = _rows(np.asarray(origin, np.float32), surface)
+        d = _rows(np.asarray(direction, np.float32), surface)
+        geom, prim = hits.geom[surface], hits.prim[surface]
+        point = o + hits.t[surface, None] * d
+        ng = _facing(_rows(hits.normal, surface), d)
+        face = _rows(self._faces, self._geom_face_offset[geom] + prim)
+        bary = np.column_stack([1.0 - hits.u[surface] - hits.v[surface], hits.u[surface], hits.v[surface]])
+        shading = self._shading_normal(face, bary, geom, ng)
+        rho = self._albedo(face, bary, geom, d, ng, hits.t[surface])
+        if basis is not None:
+            rho = spectral_value(rho, _rows(basis, surface))[:, None]
+        magnitude = np.maximum(np.maximum(np.abs(point[:, 0]), np.abs(point[:, 1])), np.abs(point[:, 2]))
+        eps = SHADOW_OFFSET * (magnitude + 1e-2 * self.intersector.extent)
+        shadow_origin = point + ng * eps[:, None].astype(np.float32)
+        return point, shadow_origin, shading, ng, rho
+
+    def _radiance_kernel(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
+                         hits, timed) -> tuple[np.ndarray, int]:
+        """``radiance`` of RGB rays through ``kernels/shade.cl``: the kernel shades every surface hit
+        and writes all light samples' shadow rays, embree traces them in one call, numpy sums."""
+        from realistic.renderer.shade_kernel import LOCAL_SIZE, MAX_SHADOW_ROWS
+
+        n = len(origin)
+        if n == 0:
+            return np.zeros((0, 3), np.float32), 0
+        with timed("shading"):
+            albedo = self._host_albedo(origin, direction, hits) if self._kernel.host_albedo.any() else None
+            out = np.zeros((n, 3), np.float32)
+            group = max(1, MAX_SHADOW_ROWS // (-(-n // LOCAL_SIZE) * LOCAL_SIZE))  # light samples per launch
+            shadow_rays = 0
+        for first in range(0, self.light_samples, group):
+            count = min(group, self.light_samples - first)
+            with timed("shading"):
+                batch = self._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
+                                           hits.normal, pixel, sample, albedo, count, self.seed, first)
+            with timed("embree"):
+                blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
+            with timed("shading"):
+                contribution = batch.contribution.reshape(count, batch.stride, 3)[:, :n]
+                # 0/1 as uint8: float32 times uint8 is a plain float32 loop (times bool is a slower cast)
+                unblocked = np.logical_not(blocked).view(np.uint8).reshape(count, batch.stride, 1)[:, :n]
+                for k in range(count):  # in light-sample order, as the numpy path adds them
+                    out += contribution[k] * unblocked[k]
+                shadow_rays += int(np.count_nonzero(batch.length > 0))
+        with timed("shading"):
+            if self.light_samples > 1:
+                out /= np.float32(self.light_samples)
+            out[hits.geom < 0] = self.background
+            seen = np.flatnonzero(hits.geom >= self.instance_count)
+            if len(seen):
+                j = hits.geom[seen] - self.instance_count
+                front = (dot(_rows(direction, seen), _rows(self._light_normal, j)) < 0) | self._light_two_sided[j]
+                out[seen] = _rows(self._light_radiance, j) * front[:, None]
+        return out, shadow_rays
+
+    def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits) -> np.ndarray:
+        """Albedo (N, 3) by ``_albedo`` on the surface hits whose material the kernel leaves to the
+        host (image textures); other rows are zero, unread by the kernel."""
+        albedo = np.zeros((len(origin), 3), np.float32)
+        surface = (hits.geom >= 0) & (hits.geom < self.instance_count)
+        geom_all = np.where(surface, hits.geom, 0)
+        rows = np.flatnonzero(surface & self._kernel.host_albedo[self._geom_material[geom_all]])
+        if len(rows):
+            d = _rows(np.asarray(direction, np.float32), rows)
+            geom, prim = hits.geom[rows], hits.prim[rows]
+            face = _rows(self._faces, self._geom_face_offset[geom] + prim)
+            bary = np.column_stack([1.0 - hits.u[rows] - hits.v[rows], hits.u[rows], hits.v[rows]])
+            albedo[rows] = self._albedo(face, bary, geom, d, _facing(_rows(hits.normal, rows), d), hits.t[rows])
+        return albedo
 
     def _shading_normal(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray, ng: np.ndarray) -> np.ndarray:
         shading = ng.copy()

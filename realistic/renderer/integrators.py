@@ -36,12 +36,15 @@ def is_lambertian(scene: Scene) -> bool:
 
 
 def make_integrator(scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
-                    pixel_spread_radians: float = 0.0) -> DirectLighting:
-    """The integrator ``scene.integrator`` names, at ``scene.max_depth``."""
+                    pixel_spread_radians: float = 0.0, *, backend: str = "numpy",
+                    cl_device: str | None = None) -> DirectLighting:
+    """The integrator ``scene.integrator`` names, at ``scene.max_depth``. ``backend`` "opencl" lets
+    ``DirectLighting`` shade with its OpenCL kernel on ``cl_device``; ``PathIntegrator`` is numpy only."""
     if scene.integrator not in INTEGRATORS:
         raise ValueError(f"unknown integrator {scene.integrator!r} (choose {', '.join(INTEGRATORS)})")
     if scene.integrator == "directlighting" and all(isinstance(light, AreaLight) for light in scene.lights) \
             and is_lambertian(scene):
-        return DirectLighting(scene, intersector, light_samples, seed, pixel_spread_radians)
+        return DirectLighting(scene, intersector, light_samples, seed, pixel_spread_radians, backend=backend,
+                              cl_device=cl_device)
     mode = "direct" if scene.integrator == "directlighting" else "path"
     return PathIntegrator(scene, intersector, light_samples, seed, pixel_spread_radians, scene.max_depth, mode)

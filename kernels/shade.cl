@@ -1,0 +1,339 @@
+/* Direct lighting of camera-ray hits: closest hit -> shadow rays and their contributions.
+ *
+ * OpenCL 1.2 C, float32. The numpy reference is realistic.renderer.integrator.DirectLighting (its
+ * numpy path); the host is realistic/renderer/shade_kernel.py. One work item per (camera ray i,
+ * light sample k) of a 2-D launch: dimension 0 runs over the n rays (padded to the work-group
+ * size), dimension 1 over light samples first_sample, first_sample + 1, ..., so the per-hit work
+ * (hit point, normals, albedo) is redone per light sample; with one light sample, the renderer's
+ * default, nothing is redone.
+ *
+ * Per work item, as the numpy code does it, in the same float32 operations and order:
+ *   - the hit point o + t d, the geometric normal (embree's Ng normalised, turned to face the ray),
+ *     the shadow-ray origin offset along it by SHADOW_OFFSET (max |p_i| + 1e-2 extent);
+ *   - the smooth shading normal of meshes with varying vertex normals: barycentric interpolation,
+ *     the instance's normal matrix, normalised, turned to the geometric normal's side, kept only
+ *     where it normalised to unit length (``DirectLighting._shading_normal``);
+ *   - the albedo: the material's diffuse colour, times a grid or checker texture's colour at the
+ *     interpolated uv (``realistic.scene.textures.evaluate``), or, for materials the kernel does
+ *     not evaluate (image textures, filtered over pixel footprints), the host's numpy albedo row;
+ *   - light sample k: random numbers of dimensions 4 + 3k .. 6 + 3k (realistic.core.rng.uniform,
+ *     bit for bit), the light picked by its float32 CDF rounded up (the same choice as numpy's
+ *     searchsorted on the float64 CDF), a point on the disk (concentric map) or quad, and the
+ *     area-sampling estimate rho / pi L cos_p cos_q / d^2 A / P.
+ * Outputs, row o = (k - first_sample) * stride + i: shadow-ray origin and vector (to the light
+ * point) (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
+ * miss, an emitter, a light facing away, padding) so embree skips it, and the contribution (3
+ * floats, 0 when dead). The light's emitting side, the shading and the geometric normal decide
+ * which samples live, as in numpy; embree's answer decides which contributions count (the host).
+ *
+ * Written for PoCL's work-group vectoriser as kernels/lens.cl is (see its header): no calls to
+ * OpenCL builtin math functions (__builtin_sqrtf and __builtin_floorf are LLVM intrinsics), no
+ * loops, no early exits, ternaries instead of branches, and every gather's index clamped into its
+ * table so masked-off lanes read valid memory. FP_CONTRACT is off so that a * b + c rounds twice,
+ * as numpy does: the hit point and the shadow-ray origin are then bit-identical to the numpy
+ * path's (the light point differs from numpy's float64 concentric map by float32 rounding).
+ * Every table read is a vector gather on the CPU, the kernel's main cost: the build options below
+ * leave out the reads a scene does not need. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized
+ * loop" for shade (tests/test_shade_kernel.py does), with POCL_KERNEL_CACHE=0 for a fresh build.
+ */
+
+#pragma OPENCL FP_CONTRACT OFF
+
+#define PI_F 3.14159265358979f
+#define QUARTER_PI_F 0.785398163397448f
+#define GOLDEN 0x9E3779B9u
+#define SHADOW_OFFSET 1e-4f
+#define SHADOW_LENGTH 0.9999f
+/* Build options (-D) the host sets per scene, so that the work the scene never needs costs no gathers:
+ * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO (0 or 1, see the kernel). */
+#if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO)
+#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.."
+#endif
+/* Row strides of the tables the host lays out (realistic/renderer/shade_kernel.py). */
+#define GEOM_INTS 4      /* face offset, material, smooth (0/1), unused */
+#define GEOM_FLOATS 9    /* normal matrix, row major */
+#define MATERIAL_FLOATS 16
+#define LIGHT_FLOATS 20
+/* Material kinds (MATERIAL_FLOATS row: kind, diffuse rgb, cells, low, high, colour a rgb, colour b rgb). */
+#define KIND_CONSTANT 0
+#define KIND_GRID 1      /* a: line, b: base; low, high: line_width / 2 and 1 - line_width / 2 */
+#define KIND_CHECKER 2   /* a: even, b: odd */
+#define KIND_HOST 3      /* albedo from the host's array */
+
+/* Component c of row i of a table of row width w, and field k of a table row. The offsets go
+ * through the kernel argument `unit` (always 1), which LLVM cannot see through: with literal
+ * offsets the x, y, z chains read neighbouring addresses, LLVM's SLP vectoriser packs them into
+ * 2-wide vectors before PoCL's work-group vectoriser runs, and that one then gives up on the whole
+ * kernel ("instruction return type cannot be vectorized" with POCL_VECTORIZER_REMARKS=1): on the
+ * bench's dragon pass (131072 samples, one PoCL thread) 36 ms scalar against 7.5 ms vectorised. */
+#define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
+#define FIELD(row, k) ((row)[(k) * unit])
+
+/* ------------------------------------------------------------------ random numbers
+ * The same functions as kernels/lens.cl's, replicated (each file is built alone): lowbias32 and the
+ * top-24-bit float, bit-identical to realistic/core/rng.py (tests/test_shade_kernel.py checks). */
+inline uint hash32(uint x) {
+    x ^= x >> 16;
+    x *= 0x7FEB352Du;
+    x ^= x >> 15;
+    x *= 0x846CA68Bu;
+    x ^= x >> 16;
+    return x;
+}
+
+inline float to_unit(uint bits) { return (float)(bits >> 8) * (1.0f / 16777216.0f); }
+
+/* ------------------------------------------------------------------ light sampling
+ * Replicated from kernels/lens.cl: sin and cos of |x| <= pi/4 by Taylor polynomials, and the
+ * Shirley-Chiu concentric map (realistic.core.warp.concentric_disk, within float32 rounding). */
+inline __attribute__((always_inline)) void sincos_quarter(float x, float *s, float *c) {
+    float x2 = x * x;
+    *s = x * (1.0f + x2 * (-1.0f / 6 + x2 * (1.0f / 120 + x2 * (-1.0f / 5040 + x2 * (1.0f / 362880)))));
+    *c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24 + x2 * (-1.0f / 720 + x2 * (1.0f / 40320 + x2 * (-1.0f / 3628800)))));
+}
+
+inline __attribute__((always_inline)) void concentric_disk(float u1, float u2, float *x, float *y) {
+    float a = 2.0f * u1 - 1.0f;
+    float b = 2.0f * u2 - 1.0f;
+    float abs_a = a < 0.0f ? -a : a;
+    float abs_b = as_float(as_uint(b) & 0x7FFFFFFFu);
+    int first = abs_a > abs_b;
+    float num = first ? b : a;
+    float den = first ? a : b;
+    float ratio = den != 0.0f ? num / den : 0.0f;
+    float s, c;
+    sincos_quarter(QUARTER_PI_F * ratio, &s, &c);
+    *x = den * (first ? c : s);
+    *y = den * (first ? s : c);
+}
+
+/* The light of sample value u: how many entries of the rounded-up CDF are <= u (numpy's
+ * searchsorted side="right"), at most count - 1. A branch-free binary search written out in
+ * PICK_BITS steps (a build option: the bit length of count - 1, so steps of 2^(PICK_BITS - 1) .. 1
+ * reach every light; 0 for a single light, at most 16). */
+#define PICK_STEP(step) \
+    probe = found + (step); \
+    at = (probe < count ? probe : count) - 1; \
+    found = ((probe <= count) & (FIELD(cdf, at) <= u)) ? probe : found;
+inline __attribute__((always_inline)) int pick_light(__global const float *cdf, int count, float u, uint unit) {
+    int found = 0, probe, at;
+#if PICK_BITS > 16
+#error "the light search is written out for at most 65535 lights"
+#endif
+#if PICK_BITS >= 16
+    PICK_STEP(32768)
+#endif
+#if PICK_BITS >= 15
+    PICK_STEP(16384)
+#endif
+#if PICK_BITS >= 14
+    PICK_STEP(8192)
+#endif
+#if PICK_BITS >= 13
+    PICK_STEP(4096)
+#endif
+#if PICK_BITS >= 12
+    PICK_STEP(2048)
+#endif
+#if PICK_BITS >= 11
+    PICK_STEP(1024)
+#endif
+#if PICK_BITS >= 10
+    PICK_STEP(512)
+#endif
+#if PICK_BITS >= 9
+    PICK_STEP(256)
+#endif
+#if PICK_BITS >= 8
+    PICK_STEP(128)
+#endif
+#if PICK_BITS >= 7
+    PICK_STEP(64)
+#endif
+#if PICK_BITS >= 6
+    PICK_STEP(32)
+#endif
+#if PICK_BITS >= 5
+    PICK_STEP(16)
+#endif
+#if PICK_BITS >= 4
+    PICK_STEP(8)
+#endif
+#if PICK_BITS >= 3
+    PICK_STEP(4)
+#endif
+#if PICK_BITS >= 2
+    PICK_STEP(2)
+#endif
+#if PICK_BITS >= 1
+    PICK_STEP(1)
+#endif
+    return found < count - 1 ? found : count - 1;
+}
+
+/* ------------------------------------------------------------------ kernels */
+
+__kernel void shade(uint n, uint stride, uint first_sample, uint seed, uint unit, int instance_count, float offset_base, int light_count,
+                    __global const float *origin, __global const float *direction, __global const float *tfar,
+                    __global const float *hit_u, __global const float *hit_v, __global const int *prim,
+                    __global const int *geom, __global const float *ng_in, __global const uint *pixel,
+                    __global const uint *sample, __global const float *albedo_in,
+                    __global const int *faces, __global const float *normals, __global const float *uvs,
+                    __global const int *geom_ints, __global const float *geom_floats,
+                    __global const float *materials, __global const float *lights, __global const float *cdf,
+                    __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
+                    __global float *contribution) {
+    uint i = get_global_id(0);
+    uint o = get_global_id(1) * stride + i;
+    uint k = first_sample + get_global_id(1);
+    uint r = i < n ? i : n - 1;
+    int g = geom[r];
+    int surface = (i < n) & (g >= 0) & (g < instance_count);
+    int gs = surface ? g : 0;
+
+    /* hit point and geometric normal facing the ray */
+    float dx = AT(direction, 3, r, 0), dy = AT(direction, 3, r, 1), dz = AT(direction, 3, r, 2);
+    float t = surface ? tfar[r] : 0.0f;
+    float px = AT(origin, 3, r, 0) + t * dx;
+    float py = AT(origin, 3, r, 1) + t * dy;
+    float pz = AT(origin, 3, r, 2) + t * dz;
+    float gx = AT(ng_in, 3, r, 0), gy = AT(ng_in, 3, r, 1), gz = AT(ng_in, 3, r, 2);
+    float glen = __builtin_sqrtf(gx * gx + gy * gy + gz * gz);
+    int gok = glen > 0.0f;
+    gx = gok ? gx / glen : 0.0f;
+    gy = gok ? gy / glen : 0.0f;
+    gz = gok ? gz / glen : 0.0f;
+    float side = gx * dx + gy * dy + gz * dz > 0.0f ? -1.0f : 1.0f;
+    gx *= side;
+    gy *= side;
+    gz *= side;
+    float ax = px < 0.0f ? -px : px, ay = py < 0.0f ? -py : py, az = pz < 0.0f ? -pz : pz;
+    float magnitude = ax > ay ? ax : ay;
+    magnitude = magnitude > az ? magnitude : az;
+    float eps = SHADOW_OFFSET * (magnitude + offset_base);
+    float sx = px + gx * eps, sy = py + gy * eps, sz = pz + gz * eps;
+
+    /* the triangle and its barycentrics */
+    int face = geom_ints[GEOM_INTS * gs] + (surface ? prim[r] : 0);
+    int material = geom_ints[GEOM_INTS * gs + 1];
+    int i0 = AT(faces, 3, face, 0), i1 = AT(faces, 3, face, 1), i2 = AT(faces, 3, face, 2);
+    float b1 = hit_u[r], b2 = hit_v[r];
+    float b0 = 1.0f - b1 - b2;
+
+    /* shading normal (SMOOTH: whether any instance has varying vertex normals) */
+#if SMOOTH
+    int smooth = geom_ints[GEOM_INTS * gs + 2];
+    float nx = AT(normals, 3, i0, 0) * b0 + AT(normals, 3, i1, 0) * b1 + AT(normals, 3, i2, 0) * b2;
+    float ny = AT(normals, 3, i0, 1) * b0 + AT(normals, 3, i1, 1) * b1 + AT(normals, 3, i2, 1) * b2;
+    float nz = AT(normals, 3, i0, 2) * b0 + AT(normals, 3, i1, 2) * b1 + AT(normals, 3, i2, 2) * b2;
+    __global const float *m = geom_floats + GEOM_FLOATS * gs;
+    float wx = FIELD(m, 0) * nx + FIELD(m, 1) * ny + FIELD(m, 2) * nz;
+    float wy = FIELD(m, 3) * nx + FIELD(m, 4) * ny + FIELD(m, 5) * nz;
+    float wz = FIELD(m, 6) * nx + FIELD(m, 7) * ny + FIELD(m, 8) * nz;
+    float wlen = __builtin_sqrtf(wx * wx + wy * wy + wz * wz);
+    int wok = wlen > 0.0f;
+    wx = wok ? wx / wlen : 0.0f;
+    wy = wok ? wy / wlen : 0.0f;
+    wz = wok ? wz / wlen : 0.0f;
+    float wside = wx * gx + wy * gy + wz * gz < 0.0f ? -1.0f : 1.0f;
+    wx *= wside;
+    wy *= wside;
+    wz *= wside;
+    int use_smooth = smooth & (wx * wx + wy * wy + wz * wz > 0.5f);
+    float shx = use_smooth ? wx : gx, shy = use_smooth ? wy : gy, shz = use_smooth ? wz : gz;
+#else
+    float shx = gx, shy = gy, shz = gz;
+#endif
+
+    /* albedo (TEXTURED: whether any material has a grid or checker texture; HOST_ALBEDO: whether
+     * any material's albedo comes from the host) */
+    __global const float *mat = materials + MATERIAL_FLOATS * material;
+    float rho_r = FIELD(mat, 1), rho_g = FIELD(mat, 2), rho_b = FIELD(mat, 3);
+#if TEXTURED || HOST_ALBEDO
+    int kind = (int)FIELD(mat, 0);
+#endif
+#if TEXTURED
+    float tu = AT(uvs, 2, i0, 0) * b0 + AT(uvs, 2, i1, 0) * b1 + AT(uvs, 2, i2, 0) * b2;
+    float tv = AT(uvs, 2, i0, 1) * b0 + AT(uvs, 2, i1, 1) * b1 + AT(uvs, 2, i2, 1) * b2;
+    float cu = tu * FIELD(mat, 4), cv = tv * FIELD(mat, 4);
+    float fu_floor = __builtin_floorf(cu), fv_floor = __builtin_floorf(cv);
+    float fu = cu - fu_floor, fv = cv - fv_floor;
+    int on_line = (fu < FIELD(mat, 5)) | (fu > FIELD(mat, 6)) | (fv < FIELD(mat, 5)) | (fv > FIELD(mat, 6));
+    float parity_sum = fu_floor + fv_floor;
+    int odd = parity_sum - 2.0f * __builtin_floorf(parity_sum * 0.5f) != 0.0f;
+    int use_b = kind == KIND_GRID ? !on_line : odd;
+    float tex_r = use_b ? FIELD(mat, 10) : FIELD(mat, 7);
+    float tex_g = use_b ? FIELD(mat, 11) : FIELD(mat, 8);
+    float tex_b = use_b ? FIELD(mat, 12) : FIELD(mat, 9);
+    int textured = kind == KIND_GRID || kind == KIND_CHECKER;
+    rho_r = textured ? rho_r * tex_r : rho_r;
+    rho_g = textured ? rho_g * tex_g : rho_g;
+    rho_b = textured ? rho_b * tex_b : rho_b;
+#endif
+#if HOST_ALBEDO
+    uint host_row = kind == KIND_HOST ? r : 0u;
+    rho_r = kind == KIND_HOST ? AT(albedo_in, 3, host_row, 0) : rho_r;
+    rho_g = kind == KIND_HOST ? AT(albedo_in, 3, host_row, 1) : rho_g;
+    rho_b = kind == KIND_HOST ? AT(albedo_in, 3, host_row, 2) : rho_b;
+#endif
+
+    /* light sample k: dimensions 4 + 3k, 5 + 3k, 6 + 3k */
+    uint h = hash32(hash32(hash32(seed + GOLDEN) ^ pixel[r]) ^ sample[r]);
+    uint dim = 4u + 3u * k;
+    float u_pick = to_unit(hash32(h ^ dim));
+    float u1 = to_unit(hash32(h ^ (dim + 1u)));
+    float u2 = to_unit(hash32(h ^ (dim + 2u)));
+    int j = pick_light(cdf, light_count, u_pick, unit);
+    __global const float *light = lights + LIGHT_FLOATS * j;
+    float disk_x, disk_y;
+    concentric_disk(u1, u2, &disk_x, &disk_y);
+    int disk = FIELD(light, 16) != 0.0f;
+    float lx = disk ? disk_x : 2.0f * u1 - 1.0f;
+    float ly = disk ? disk_y : 2.0f * u2 - 1.0f;
+    float qx = FIELD(light, 0) + FIELD(light, 3) * lx + FIELD(light, 6) * ly;
+    float qy = FIELD(light, 1) + FIELD(light, 4) * lx + FIELD(light, 7) * ly;
+    float qz = FIELD(light, 2) + FIELD(light, 5) * lx + FIELD(light, 8) * ly;
+    float tx = qx - px, ty = qy - py, tz = qz - pz;
+    float dist2 = tx * tx + ty * ty + tz * tz;
+    float dist = __builtin_sqrtf(dist2);
+    float ix = tx / dist, iy = ty / dist, iz = tz / dist;
+    float cos_p = ix * shx + iy * shy + iz * shz;
+    float cos_q = -(ix * FIELD(light, 9) + iy * FIELD(light, 10) + iz * FIELD(light, 11));
+    cos_q = FIELD(light, 17) != 0.0f && cos_q < 0.0f ? -cos_q : cos_q;
+    int live = surface & (cos_p > 0.0f) & (cos_q > 0.0f) & (ix * gx + iy * gy + iz * gz > 0.0f) & (dist2 > 0.0f);
+    float scale = cos_p * cos_q / dist2 * FIELD(light, 15);
+
+    AT(shadow_origin, 3, o, 0) = live ? sx : 0.0f;
+    AT(shadow_origin, 3, o, 1) = live ? sy : 0.0f;
+    AT(shadow_origin, 3, o, 2) = live ? sz : 0.0f;
+    AT(shadow_vector, 3, o, 0) = live ? qx - sx : 0.0f;
+    AT(shadow_vector, 3, o, 1) = live ? qy - sy : 0.0f;
+    AT(shadow_vector, 3, o, 2) = live ? qz - sz : 0.0f;
+    shadow_length[o] = live ? SHADOW_LENGTH : -1.0f;
+    AT(contribution, 3, o, 0) = live ? rho_r * FIELD(light, 12) * scale : 0.0f;
+    AT(contribution, 3, o, 1) = live ? rho_g * FIELD(light, 13) * scale : 0.0f;
+    AT(contribution, 3, o, 2) = live ? rho_b * FIELD(light, 14) * scale : 0.0f;
+}
+
+/* Debug: the light-sample random numbers of each ray, rows u_pick, u1, u2 per light sample
+ * (3 * light_samples rows of `stride`), so the tests can check them against realistic.core.rng. */
+__kernel void light_uniforms(uint n, uint stride, uint seed, __global const uint *pixel, __global const uint *sample,
+                             __global float *out) {
+    uint i = get_global_id(0);
+    uint k = get_global_id(1);
+    uint r = i < n ? i : n - 1;
+    uint h = hash32(hash32(hash32(seed + GOLDEN) ^ pixel[r]) ^ sample[r]);
+    uint dim = 4u + 3u * k;
+    out[(3 * k) * stride + i] = to_unit(hash32(h ^ dim));
+    out[(3 * k + 1) * stride + i] = to_unit(hash32(h ^ (dim + 1u)));
+    out[(3 * k + 2) * stride + i] = to_unit(hash32(h ^ (dim + 2u)));
+}
+
+/* Debug: the concentric map of (u1, u2) pairs, for the tests against realistic.core.warp. */
+__kernel void disk_points(__global const float *u1, __global const float *u2, __global float *x, __global float *y) {
+    uint i = get_global_id(0);
+    float px, py;
+    concentric_disk(u1[i], u2[i], &px, &py);
+    x[i] = px;
+    y[i] = py;
+}

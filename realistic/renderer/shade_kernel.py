@@ -1,0 +1,270 @@
+"""OpenCL host side of direct-lighting shading: ``kernels/shade.cl`` on PoCL, one launch per pass.
+
+``DirectLighting`` (``renderer/integrator.py``) uses this module when the render's backend is
+"opencl" (``PassRunner`` passes it on); its numpy code stays the reference, and the tests compare
+the two per hit (``tests/test_shade_kernel.py``). For each camera ray of a pass the kernel computes
+the hit point, the geometric and shading normals, the albedo (constant, grid and checker materials;
+image-textured rows come from the numpy ``_albedo``) and, for every light sample, the light point,
+the shadow ray and its contribution. It writes them into flat arrays ordered by light sample then
+ray (row k * stride + i), so embree traces all of a pass's shadow rays in one ``occluded`` call;
+dead samples have length -1, which embree skips.
+
+The program source does not depend on the scene: the scene's tables (faces, vertex normals, uvs,
+per-instance normal matrices and materials, lights and their CDF) are device buffers made once per
+integrator. Four build options leave out what a scene never needs (every table read is a vector
+gather on the CPU, the kernel's main cost): the light search's depth, smooth normals, procedural
+textures, host albedos. PoCL builds each variant once per process and caches the build on disk
+across processes. Inputs are wrapped without copying (``USE_HOST_PTR``: PoCL on the CPU reads the numpy
+arrays in place); outputs are numpy arrays kept per thread and reused across passes while they are
+large enough. Each thread has its own queue and kernel object, so the renderer's worker threads
+launch independently; PoCL spreads each launch over every core.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from realistic.camera import opencl_host
+from realistic.core.data_files import data_file
+
+KERNEL_FILE = "shade.cl"
+#: Work-group size along the rays; launches are padded to a multiple of it.
+LOCAL_SIZE = 256
+#: Table row widths, as ``kernels/shade.cl`` defines them.
+GEOM_INTS, GEOM_FLOATS, MATERIAL_FLOATS, LIGHT_FLOATS = 4, 9, 16, 20
+KIND_CONSTANT, KIND_GRID, KIND_CHECKER, KIND_HOST = range(4)
+#: The kernel's light search is written out for at most this many lights.
+MAX_LIGHTS = 65535
+#: Shadow rays per launch (and per embree call) at most: a pass's light samples go in groups of
+#: about this many rays, so memory stays flat in the light-sample count (40 bytes per row here,
+#: about as much again in embree's ray structs).
+MAX_SHADOW_ROWS = 1 << 19
+
+
+def kernel_source_path():
+    """``kernels/shade.cl`` in a checkout, else where a wheel installs it."""
+    return data_file(f"kernels/{KERNEL_FILE}")
+
+
+@lru_cache(maxsize=16)
+def _program(ctx, source: str, options: tuple[str, ...]):
+    """Build ``source`` for ``ctx`` with ``options`` once per process; returns the program and its
+    build seconds."""
+    cl = opencl_host.cl
+    start = time.perf_counter()
+    try:
+        program = cl.Program(ctx, source).build(options=list(options))
+    except cl.RuntimeError as err:
+        raise RuntimeError(f"building {KERNEL_FILE} failed:\n{err}") from None
+    return program, time.perf_counter() - start
+
+
+def rounded_up_cdf(cdf: np.ndarray) -> np.ndarray:
+    """float32 values c' >= c, each the smallest such: for a float32 u, c' <= u exactly when c <= u,
+    so the kernel's float32 search picks the lights numpy's float64 ``searchsorted`` picks."""
+    c32 = np.asarray(cdf, np.float64).astype(np.float32)
+    low = c32.astype(np.float64) < cdf
+    c32[low] = np.nextafter(c32[low], np.float32(np.inf))
+    return c32
+
+
+def material_row(material) -> np.ndarray:
+    """A material's MATERIAL_FLOATS row (see ``kernels/shade.cl``)."""
+    from realistic.scene.model import CheckerTexture, GridTexture
+
+    row = np.zeros(MATERIAL_FLOATS, np.float32)
+    row[1:4] = np.asarray(material.diffuse, np.float32)
+    texture = material.texture
+    if texture is None:
+        row[0] = KIND_CONSTANT
+    elif isinstance(texture, GridTexture):
+        half = texture.line_width / 2
+        row[0] = KIND_GRID
+        row[4:7] = (texture.cells, half, 1 - half)  # float32, as numpy compares float32 uvs with them
+        row[7:10], row[10:13] = texture.line, texture.base
+    elif isinstance(texture, CheckerTexture):
+        row[0] = KIND_CHECKER
+        row[4] = texture.cells
+        row[7:10], row[10:13] = texture.even, texture.odd
+    else:
+        row[0] = KIND_HOST
+    return row
+
+
+@dataclass
+class ShadowBatch:
+    """One launch's outputs: ``light_samples`` x ``stride`` rows (row k * stride + i for ray i and
+    the launch's k-th light sample)."""
+
+    origin: np.ndarray  # (rows, 3) float32
+    vector: np.ndarray  # (rows, 3) float32: to the light point
+    length: np.ndarray  # (rows,) float32: 1 - 1e-4 (in units of vector), -1 for a dead sample
+    contribution: np.ndarray  # (rows, 3) float32, 0 for a dead sample
+    stride: int
+
+
+class _ThreadState:
+    """A thread's queue, kernel object and reusable output arrays (with their buffers)."""
+
+    def __init__(self, context, program):
+        cl = opencl_host.cl
+        self.queue = cl.CommandQueue(context)
+        self.shade = cl.Kernel(program, "shade")
+        self.rows = 0
+        self.arrays: dict[str, np.ndarray] = {}
+        self.buffers: dict = {}
+
+    def outputs(self, context, rows: int) -> None:
+        """Output arrays of at least ``rows`` rows (an eighth more, so passes of varying size settle
+        on one allocation)."""
+        if rows <= self.rows:
+            return
+        cl = opencl_host.cl
+        rows += rows // 8
+        flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
+        for name, width in (("origin", 3), ("vector", 3), ("length", 1), ("contribution", 3)):
+            array = np.empty(rows * width, np.float32)
+            self.arrays[name] = array
+            self.buffers[name] = cl.Buffer(context, flags, hostbuf=array)
+        self.rows = rows
+
+
+class ShadeKernel:
+    """``shade.cl`` with one scene's tables on the device."""
+
+    def __init__(self, *, faces: np.ndarray, normals: np.ndarray, uv: np.ndarray, geom_face_offset: np.ndarray,
+                 geom_material: np.ndarray, geom_smooth: np.ndarray, geom_normal_matrix: np.ndarray,
+                 materials: list, light_rows: np.ndarray, light_cdf: np.ndarray, extent: float,
+                 device: str | None = None):
+        cl = opencl_host.cl
+        self.context = opencl_host.context(device)  # a UserError when there is no OpenCL platform
+        if not 0 < len(light_cdf) <= MAX_LIGHTS:
+            raise ValueError(f"the shading kernel handles 1 to {MAX_LIGHTS} area lights, not {len(light_cdf)}")
+        self.instance_count = len(geom_face_offset)
+        self.light_count = len(light_cdf)
+        self.offset_base = np.float32(1e-2 * extent)  # numpy adds the float64 1e-2 extent to float32 as float32
+        geom_ints = np.zeros((max(self.instance_count, 1), GEOM_INTS), np.int32)
+        geom_ints[:self.instance_count, 0] = geom_face_offset
+        geom_ints[:self.instance_count, 1] = geom_material
+        geom_ints[:self.instance_count, 2] = geom_smooth
+        geom_floats = np.zeros((max(self.instance_count, 1), GEOM_FLOATS), np.float32)
+        geom_floats[:self.instance_count] = np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9)
+        material_rows = np.array([material_row(m) for m in materials] or [np.zeros(MATERIAL_FLOATS)], np.float32)
+        self.host_albedo = np.array([row[0] == KIND_HOST for row in material_rows], bool)
+        # the program variant this scene needs: work no instance or material asks for is compiled out
+        self.options = (f"-DPICK_BITS={(len(light_cdf) - 1).bit_length()}",
+                        f"-DSMOOTH={int(np.any(geom_smooth))}",
+                        f"-DTEXTURED={int(np.any(np.isin(material_rows[:, 0], (KIND_GRID, KIND_CHECKER))))}",
+                        f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
+        self.source = kernel_source_path().read_text(encoding="utf-8")
+        self.program, self.build_seconds = _program(self.context, self.source, self.options)
+        mf = cl.mem_flags
+
+        def table(array: np.ndarray, dtype) -> object:
+            data = np.ascontiguousarray(array, dtype=dtype).ravel()
+            if data.size == 0:
+                data = np.zeros(4, dtype)
+            return cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=data)
+
+        self._tables = [table(faces, np.int32), table(normals, np.float32), table(uv, np.float32),
+                        table(geom_ints, np.int32), table(geom_floats, np.float32), table(material_rows, np.float32),
+                        table(light_rows, np.float32), table(rounded_up_cdf(light_cdf), np.float32)]
+        self._dummy_albedo = np.zeros(3, np.float32)
+        self._local = threading.local()
+        self._states: list[_ThreadState] = []  # keeps every thread's buffers alive with the kernel
+
+    def _state(self) -> _ThreadState:
+        state = getattr(self._local, "state", None)
+        if state is None:
+            state = self._local.state = _ThreadState(self.context, self.program)
+            self._states.append(state)
+        return state
+
+    def shade(self, origin: np.ndarray, direction: np.ndarray, t: np.ndarray, u: np.ndarray, v: np.ndarray,
+              prim: np.ndarray, geom: np.ndarray, normal: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
+              albedo: np.ndarray | None, light_samples: int, seed: int, first_sample: int = 0) -> ShadowBatch:
+        """Shadow rays and contributions of N camera rays and their closest hits (embree's t, u, v,
+        prim, geom and unnormalised Ng) for light samples ``first_sample`` .. ``first_sample +
+        light_samples - 1``; ``albedo`` (N, 3) the numpy albedo where a material's row is KIND_HOST
+        (None when no material is). The arrays returned are this thread's, valid until its next call."""
+        cl = opencl_host.cl
+        n = len(origin)
+        stride = -(-n // LOCAL_SIZE) * LOCAL_SIZE
+        rows = stride * light_samples
+        if n == 0:
+            empty = np.zeros((0, 3), np.float32)
+            return ShadowBatch(empty, empty, np.zeros(0, np.float32), empty, 0)
+        state = self._state()
+        state.outputs(self.context, rows)
+        mf = cl.mem_flags
+        inputs = [np.ascontiguousarray(origin, np.float32), np.ascontiguousarray(direction, np.float32),
+                  np.ascontiguousarray(t, np.float32), np.ascontiguousarray(u, np.float32),
+                  np.ascontiguousarray(v, np.float32), np.ascontiguousarray(prim, np.int32),
+                  np.ascontiguousarray(geom, np.int32), np.ascontiguousarray(normal, np.float32),
+                  _as_uint32(pixel), _as_uint32(sample),
+                  self._dummy_albedo if albedo is None else np.ascontiguousarray(albedo, np.float32)]
+        buffers = [cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a) for a in inputs]
+        kernel = state.shade
+        kernel.set_args(np.uint32(n), np.uint32(stride), np.uint32(first_sample), np.uint32(seed & 0xFFFFFFFF),
+                        np.uint32(1),
+                        np.int32(self.instance_count),
+                        self.offset_base, np.int32(self.light_count), *buffers, *self._tables,
+                        state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
+                        state.buffers["contribution"])
+        cl.enqueue_nd_range_kernel(state.queue, kernel, (stride, light_samples), (LOCAL_SIZE, 1))
+        arrays = {}
+        for name, width in (("origin", 3), ("vector", 3), ("length", 1), ("contribution", 3)):
+            host = state.arrays[name][:rows * width]
+            # a read into the buffer's own host pointer: PoCL copies nothing, and the call orders
+            # the read after the kernel (and would copy if a platform kept its own memory)
+            cl.enqueue_copy(state.queue, host, state.buffers[name], is_blocking=False)
+            arrays[name] = host
+        state.queue.finish()
+        for buffer in buffers:
+            buffer.release()
+        return ShadowBatch(arrays["origin"].reshape(rows, 3), arrays["vector"].reshape(rows, 3), arrays["length"],
+                           arrays["contribution"].reshape(rows, 3), stride)
+
+    def light_uniforms(self, pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int) -> np.ndarray:
+        """The kernel's light-sample random numbers (3 * light_samples, N): u_pick, u1, u2 per light
+        sample (for tests against ``realistic.core.rng.uniform``)."""
+        cl = opencl_host.cl
+        n = len(pixel)
+        stride = max(LOCAL_SIZE, -(-n // LOCAL_SIZE) * LOCAL_SIZE)
+        state = self._state()
+        out = np.empty((3 * light_samples, stride), np.float32)
+        mf = cl.mem_flags
+        inputs = [cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=_as_uint32(a))
+                  for a in (pixel, sample)]
+        out_buffer = cl.Buffer(self.context, mf.WRITE_ONLY, out.nbytes)
+        cl.Kernel(self.program, "light_uniforms")(state.queue, (stride, light_samples), (LOCAL_SIZE, 1), np.uint32(n),
+                                                  np.uint32(stride), np.uint32(seed & 0xFFFFFFFF), *inputs, out_buffer)
+        cl.enqueue_copy(state.queue, out, out_buffer)
+        return out[:, :n]
+
+    def disk_points(self, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The kernel's concentric map of float32 (u1, u2) (for tests against ``core.warp``)."""
+        cl = opencl_host.cl
+        state = self._state()
+        mf = cl.mem_flags
+        a, b = (np.ascontiguousarray(x, np.float32) for x in (u1, u2))
+        x, y = np.empty_like(a), np.empty_like(a)
+        bx, by = (cl.Buffer(self.context, mf.WRITE_ONLY, a.nbytes) for _ in range(2))
+        ins = [cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=c) for c in (a, b)]
+        cl.Kernel(self.program, "disk_points")(state.queue, (len(a),), None, *ins, bx, by)
+        cl.enqueue_copy(state.queue, x, bx)
+        cl.enqueue_copy(state.queue, y, by)
+        return x, y
+
+
+def _as_uint32(a: np.ndarray) -> np.ndarray:
+    """uint32 bits of integer rows (int32 viewed in place, wider types converted modulo 2^32)."""
+    a = np.asarray(a)
+    if a.dtype == np.int32 or a.dtype == np.uint32:
+        return np.ascontiguousarray(a).view(np.uint32)
+    return np.ascontiguousarray(a.astype(np.uint32))

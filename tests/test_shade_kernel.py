@@ -1,0 +1,224 @@
+"""The OpenCL shading kernel (kernels/shade.cl on PoCL) against DirectLighting's numpy path.
+
+Per hit and light sample: the same live samples, bit-identical shadow-ray origins, and contributions
+and shadow-ray vectors equal to float32 rounding (1e-5 relative); its random numbers are
+``realistic.core.rng.uniform``'s bit for bit. Per image: renders with backend "numpy" and "opencl"
+through a thin lens (whose rays are the same for both backends) agree to 1e-5 relative. The
+independent float64 reference (tests/test_shading_reference.py) checks the kernel's images too,
+through its "opencl" cases. Skips only when no OpenCL platform exists.
+"""
+
+import numpy as np
+import pytest
+
+from realistic.camera.base import SampleBlock
+from realistic.camera.lens_camera import LensCamera
+from realistic.camera.thin_lens import ThinLensCamera
+from realistic.core import rng
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.transforms import look_at, rotate, scale, translate
+from realistic.core.warp import concentric_disk
+from realistic.optics.formats import load_lens
+from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.passes import render_passes
+from realistic.scene.intersect import Intersector
+from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, Material, Scene
+from realistic.scene.shapes import cone, sphere
+from realistic.scene.staging import default_setup
+from test_shading_reference import textured_scene
+
+pytest.importorskip("realistic.camera.opencl_host")
+pytestmark = pytest.mark.usefixtures("opencl_platform")
+
+SEED = 11
+F32 = np.float32
+
+
+def busy_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
+    """The shading reference's textured scene (an EWA image floor, a checkered smooth sphere, a gridded
+    smooth cone, a plain quad; a one-sided disk and a two-sided quad light) plus a smooth sphere under
+    a non-uniform scale (its normal matrix is not a rotation), a mirrored smooth cone, a two-sided
+    disk light, a one-sided quad light and a dozen small bright quad lights (a longer light CDF to search)."""
+    scene, eye, target = textured_scene()
+    scene.add(sphere(0.5, 20), translate(0.6, 0.9, 0.8) @ scale(1.6, 0.7, 1.0) @ rotate(30, (0, 0, 1)),
+              Material((0.6, 0.9, 0.4), CheckerTexture((0.9, 0.1, 0.2), (0.1, 0.8, 0.3), cells=9.0)))
+    scene.add(cone(0.3, 0.8, 16), translate(-1.6, 0.0, 0.6) @ scale(-1.0, 1.0, 1.0) @ rotate(-90, (1, 0, 0)),
+              Material((0.8, 0.5, 0.2), GridTexture((0.9, 0.9, 0.2), (0.1, 0.1, 0.5), cells=3.0, line_width=0.1)))
+    scene.lights.append(AreaLight("disk", (0.4, 0.4), (8.0, 4.0, 2.0),
+                                  translate(1.5, 1.8, 1.0) @ rotate(120, (1, 0, 0)), two_sided=True))
+    scene.lights.append(AreaLight("quad", (0.6, 0.3), (2.0, 9.0, 3.0),
+                                  translate(0.0, 2.5, 2.0) @ rotate(150, (1, 0, 0))))
+    for i in range(12):
+        scene.lights.append(AreaLight("quad", (0.1, 0.1), (100.0 + 40.0 * i,) * 3,
+                                      translate(-2.5 + 0.4 * i, 2.2, -2.0) @ rotate(90 + 5 * i, (1, 0, 0)),
+                                      two_sided=bool(i % 2)))
+    return scene, eye, target
+
+
+def rays_of(scene: Scene, eye: np.ndarray, target: np.ndarray, width: int = 40, height: int = 30, spp: int = 2):
+    """A lens camera's camera rays (numpy reference) over the whole image: (origin, direction, pixel, sample)."""
+    camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, width, height, spp)
+    rays = camera.ray_generator("numpy", SEED)(SampleBlock(0, camera.sample_count, spp))
+    alive = np.flatnonzero(rays.weight != 0)
+    return (rays.origin[alive].astype(F32), rays.direction[alive].astype(F32), rays.pixel[alive],
+            alive % spp, camera.pixel_spread_radians())
+
+
+@pytest.fixture(scope="module", params=["default", "busy"])
+def scene_rays(request):
+    if request.param == "default":
+        setup = default_setup()
+        return setup.scene, rays_of(setup.scene, setup.eye, setup.target)
+    scene, eye, target = busy_scene()
+    return scene, rays_of(scene, eye, target)
+
+
+@pytest.mark.parametrize("light_samples", [1, 3])
+def test_per_hit_samples_match_the_numpy_path(scene_rays, light_samples):
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    intersector = Intersector(scene)
+    numpy_path = DirectLighting(scene, intersector, light_samples, SEED, spread)
+    kernel_path = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl")
+    hits = intersector.closest(origin, direction)
+    surface = np.flatnonzero((hits.geom >= 0) & (hits.geom < len(scene.instances)))
+    point, shadow_origin, shading, ng, rho = numpy_path._surface_points(origin, direction, hits, surface)
+    albedo = kernel_path._host_albedo(origin, direction, hits) if kernel_path._kernel.host_albedo.any() else None
+    batch = kernel_path._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal,
+                                      pixel, sample, albedo, light_samples, SEED)
+    assert batch.length.shape == (light_samples * batch.stride,)
+    live_rows = []
+    for k in range(light_samples):
+        contribution, to_light, live = numpy_path._light_sample(point, shadow_origin, shading, ng, rho,
+                                                                pixel[surface], sample[surface], k, None)
+        rows = k * batch.stride + surface[live]
+        live_rows.append(rows)
+        assert np.all(batch.length[rows] == F32(1.0 - 1e-4))
+        np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])  # exactly: embree's geometry
+        np.testing.assert_allclose(batch.vector[rows], to_light, rtol=1e-5, atol=1e-6 * np.abs(to_light).max())
+        np.testing.assert_allclose(batch.contribution[rows], contribution, rtol=1e-5,
+                                   atol=1e-6 * np.abs(contribution).max())
+    dead = np.setdiff1d(np.arange(len(batch.length)), np.concatenate(live_rows))
+    assert len(dead) and np.all(batch.length[dead] == -1.0) and np.all(batch.contribution[dead] == 0.0)
+    if scene.lights[0].shape == "disk" and len(scene.lights) > 2:  # the busy scene: every light is picked
+        picked = set()
+        for k in range(light_samples):
+            u = rng.uniform(pixel[surface], sample[surface], 4 + 3 * k, SEED)
+            picked |= set(np.searchsorted(numpy_path._light_cdf, u, side="right").tolist())
+        assert picked >= set(range(len(scene.lights)))
+
+
+@pytest.mark.parametrize("light_samples", [1, 2])
+def test_radiance_matches_the_numpy_path(scene_rays, light_samples):
+    """The whole ``radiance``: emitters, misses and surfaces, shadow rays traced; the same ray count."""
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    intersector = Intersector(scene)
+    expected, expected_rays = DirectLighting(scene, intersector, light_samples, SEED, spread).radiance(
+        origin, direction, pixel, sample)
+    got, shadow_rays = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl").radiance(
+        origin, direction, pixel, sample)
+    assert got.dtype == np.float32 and shadow_rays == expected_rays > 0
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+
+
+def test_light_samples_in_several_launches_match(scene_rays, monkeypatch):
+    """A pass whose light samples exceed a launch's shadow-ray budget runs them in groups."""
+    from realistic.renderer import shade_kernel
+
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    intersector = Intersector(scene)
+    expected, expected_rays = DirectLighting(scene, intersector, 3, SEED, spread).radiance(
+        origin, direction, pixel, sample)
+    monkeypatch.setattr(shade_kernel, "MAX_SHADOW_ROWS", 1)  # one light sample per launch
+    got, shadow_rays = DirectLighting(scene, intersector, 3, SEED, spread, backend="opencl").radiance(
+        origin, direction, pixel, sample)
+    assert shadow_rays == expected_rays
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+
+
+def test_no_rays():
+    setup = default_setup()
+    integrator = DirectLighting(setup.scene, Intersector(setup.scene), 2, backend="opencl")
+    empty = np.zeros((0, 3), F32)
+    got, shadow_rays = integrator.radiance(empty, empty, np.zeros(0, np.int32), np.zeros(0, np.int64))
+    assert got.shape == (0, 3) and shadow_rays == 0
+
+
+def test_spectral_rays_keep_the_numpy_path():
+    setup = default_setup()
+    origin, direction, pixel, sample, spread = rays_of(setup.scene, setup.eye, setup.target, 16, 12, 1)
+    wavelength = np.linspace(400.0, 700.0, len(origin)).astype(F32)
+    intersector = Intersector(setup.scene)
+    expected, _ = DirectLighting(setup.scene, intersector, 1, SEED, spread).radiance(
+        origin, direction, pixel, sample, wavelength_nm=wavelength)
+    got, _ = DirectLighting(setup.scene, intersector, 1, SEED, spread, backend="opencl").radiance(
+        origin, direction, pixel, sample, wavelength_nm=wavelength)
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_random_numbers_are_rng_uniform_bit_for_bit():
+    setup = default_setup()
+    kernel = DirectLighting(setup.scene, Intersector(setup.scene), backend="opencl")._kernel
+    generator = np.random.default_rng(3)
+    pixel = np.concatenate([generator.integers(0, 2**31 - 1, 5000), [0, 1, 2**31 - 1]]).astype(np.int32)
+    sample = np.concatenate([generator.integers(0, 2**32 - 1, 5000), [0, 2**32 - 1, 7]]).astype(np.int64)
+    for seed in (0, 5, 2**32 - 1):
+        got = kernel.light_uniforms(pixel, sample, 3, seed)
+        for k in range(3):
+            for j in range(3):
+                np.testing.assert_array_equal(got[3 * k + j], rng.uniform(pixel, sample, 4 + 3 * k + j, seed))
+
+
+def test_disk_points_match_the_concentric_map():
+    setup = default_setup()
+    kernel = DirectLighting(setup.scene, Intersector(setup.scene), backend="opencl")._kernel
+    grid = (np.arange(257) / 256).astype(F32)
+    u1, u2 = (a.ravel() for a in np.meshgrid(np.minimum(grid, F32(1 - 2**-24)), grid))
+    x, y = kernel.disk_points(u1, u2)
+    ex, ey = concentric_disk(u1, u2)
+    np.testing.assert_allclose(x, ex, rtol=0, atol=3e-7)
+    np.testing.assert_allclose(y, ey, rtol=0, atol=3e-7)
+
+
+@pytest.mark.parametrize("name", ["bench", "busy"])
+def test_renders_match_between_backends(name):
+    """A small bench render (a mesh on the grid floor under the disk light) and the busy scene with
+    two light samples: through a thin lens both backends trace the same camera rays, so the images
+    differ by the shading alone."""
+    if name == "bench":
+        setup = default_setup()
+        scene, eye, target, light_samples = setup.scene, setup.eye, setup.target, 1
+    else:
+        (scene, eye, target), light_samples = busy_scene(), 2
+    distance = float(np.linalg.norm(np.asarray(target) - np.asarray(eye)))
+    camera = ThinLensCamera(40.0, 0.02, distance, 48, 32, 4, look_at(eye, target))
+    images = {backend: render_passes(scene, camera, backend, SEED, light_samples=light_samples, pass_samples=1500,
+                                     threads=2).image for backend in ("numpy", "opencl")}
+    assert images["numpy"].max() > 0
+    np.testing.assert_allclose(images["opencl"], images["numpy"], rtol=1e-5, atol=1e-5 * images["numpy"].max())
+
+
+def test_the_kernel_vectorises(tmp_path):
+    """PoCL's work-group vectoriser widens ``shade`` (every table read would otherwise be scalar:
+    about 4x slower). Its remarks need a fresh build, so this runs in a process of its own."""
+    import os
+    import subprocess
+    import sys
+
+    script = (
+        "import numpy as np\n"
+        "from realistic.renderer.integrator import DirectLighting\n"
+        "from realistic.scene.intersect import Intersector\n"
+        "from test_shade_kernel import busy_scene\n"
+        "scene = busy_scene()[0]\n"
+        "integrator = DirectLighting(scene, Intersector(scene), 2, backend='opencl')\n"
+        "ray = np.array([[0.0, 1.0, 4.0]], np.float32)\n"
+        "integrator.radiance(ray, np.array([[0.0, -0.2, -1.0]], np.float32) / np.float32(1.0198039),\n"
+        "                    np.zeros(1, np.int32), np.zeros(1, np.int64))\n")
+    env = dict(os.environ, POCL_KERNEL_CACHE="0", POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=str(tmp_path),
+               PYTHONPATH=os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    remarks = run.stdout + run.stderr
+    if "vectorized loop" not in remarks and "not vectorized" not in remarks:
+        pytest.skip("this PoCL prints no vectoriser remarks")
+    assert "loop not vectorized" not in remarks and "vectorized loop" in remarks
