@@ -69,6 +69,7 @@ class DirectLighting:
             raise ValueError("light_samples must be at least 1")
         self.intersector, self.light_samples, self.seed = intersector, light_samples, seed
         self.pixel_spread_radians = pixel_spread_radians
+        self.backend = backend  # also runs EWA texture lookups on the device (``scene.ewa_kernel``)
         self.background = np.asarray(scene.background, dtype=np.float32)
         self.instance_count = len(scene.instances)
         self._build_surfaces(scene)
@@ -298,7 +299,7 @@ class DirectLighting:
             footprint = None
             if isinstance(material.texture, ImageTexture) and self.pixel_spread_radians > 0:
                 footprint = self._footprint(face[rows], geom[rows], direction[rows], normal[rows], distance[rows])
-            rho[rows] = albedo(material, uv, len(rows), footprint)
+            rho[rows] = albedo(material, uv, len(rows), footprint, self.backend)
         return rho
 
     def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,

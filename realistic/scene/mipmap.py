@@ -16,18 +16,21 @@ level from the minor axis and blends two levels of a Gaussian-weighted sum over 
 the ellipse (weights from pbrt's 128-entry table of exp(-2 r^2) - exp(-2)). ``point`` and
 ``bilinear`` follow pbrt-v4 ``src/pbrt/util/mipmap.cpp`` (MIPMap::Filter): one lookup at the level
 floor(L - 1 + log2(width)). All lookups are numpy over the points; EWA's varying number of texels
-per point is expanded into one flat array of (point, texel) taps and summed with ``np.bincount``.
+per point is expanded into one flat array of (point, texel) taps and summed with ``np.bincount``;
+that is the reference of ``realistic.scene.ewa_kernel`` (``kernels/ewa.cl``), which the "opencl"
+backend uses for EWA.
 """
 
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
 import numpy as np
 
 _LUT_SIZE = 128
 #: pbrt's EWA weights: a Gaussian exp(-alpha r^2) with alpha = 2, shifted to be 0 at r = 1.
-_EWA_WEIGHTS = np.exp(-2.0 * np.arange(_LUT_SIZE) / (_LUT_SIZE - 1)) - np.exp(-2.0)
+EWA_WEIGHTS = np.exp(-2.0 * np.arange(_LUT_SIZE) / (_LUT_SIZE - 1)) - np.exp(-2.0)
 #: Most (point, texel) EWA taps expanded at once, to bound memory.
 _TAPS_PER_CHUNK = 1 << 21
 
@@ -77,6 +80,29 @@ class MipMap:
     @property
     def level_count(self) -> int:
         return len(self.levels)
+
+    @property
+    def texels(self) -> np.ndarray:
+        """Every level's texels (M, 3) float32, level after level, rows top to bottom."""
+        return self._texels
+
+    @property
+    def level_base(self) -> np.ndarray:
+        """Index in ``texels`` of each level's first texel."""
+        return self._base
+
+    @property
+    def level_width(self) -> np.ndarray:
+        return self._width
+
+    @property
+    def level_height(self) -> np.ndarray:
+        return self._height
+
+    @cached_property
+    def _device_ewa(self):
+        from realistic.scene.ewa_kernel import EwaKernel  # pyopencl only where the kernel is used
+        return EwaKernel(self)
 
     def texel(self, level: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Texels (N, 3) at integer (x, y) of per-point ``level``s, outside the image as ``wrap`` says."""
@@ -128,8 +154,11 @@ class MipMap:
         delta = (level - lower)[:, None]
         return self.bilinear(st, lower) * (1 - delta) + self.bilinear(st, upper) * delta
 
-    def ewa(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
-        """Elliptically weighted average (N, 3) over the ellipse with axes ``axis0``, ``axis1`` (N, 2)."""
+    def ewa(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray, backend: str = "numpy") -> np.ndarray:
+        """Elliptically weighted average (N, 3) over the ellipse with axes ``axis0``, ``axis1`` (N, 2);
+        ``backend`` "opencl" runs ``kernels/ewa.cl`` (same result to float32 rounding)."""
+        if backend == "opencl":
+            return self._device_ewa(st, axis0, axis1)
         swap = (axis0 * axis0).sum(axis=1) < (axis1 * axis1).sum(axis=1)
         major = np.where(swap[:, None], axis1, axis0).astype(np.float64)
         minor = np.where(swap[:, None], axis0, axis1).astype(np.float64)
@@ -202,7 +231,7 @@ class MipMap:
         r2 = a[owner] * ds * ds + b[owner] * ds * dt + c[owner] * dt * dt
         keep = r2 < 1
         owner, x, y = owner[keep], x[keep], y[keep]
-        weight = _EWA_WEIGHTS[np.minimum((r2[keep] * _LUT_SIZE).astype(np.int64), _LUT_SIZE - 1)]
+        weight = EWA_WEIGHTS[np.minimum((r2[keep] * _LUT_SIZE).astype(np.int64), _LUT_SIZE - 1)]
         texels = self.texel(level[owner], x, y) * weight[:, None]
         n = len(sums)
         for channel in range(3):

@@ -10,12 +10,13 @@ from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Mat
 Footprint = tuple[np.ndarray, np.ndarray]
 
 
-def evaluate(texture: Texture, uv: np.ndarray, footprint: Footprint | None = None) -> np.ndarray:
+def evaluate(texture: Texture, uv: np.ndarray, footprint: Footprint | None = None, backend: str = "numpy"
+             ) -> np.ndarray:
     """Texture colour (N, 3) float32 at texture coordinates uv (N, 2).
 
     ``footprint``: two axes (N, 2) each, in uv units, of the ellipse a pixel covers around each point
     (one pixel step, as pbrt's ray differentials); image textures filter over it, the procedural
-    ones point-sample.
+    ones point-sample. ``backend`` "opencl" runs EWA lookups on the device (``scene.ewa_kernel``).
     """
     if isinstance(texture, GridTexture):
         f = (uv * texture.cells) % 1.0
@@ -26,11 +27,11 @@ def evaluate(texture: Texture, uv: np.ndarray, footprint: Footprint | None = Non
         parity = (np.floor(uv[:, 0] * texture.cells) + np.floor(uv[:, 1] * texture.cells)) % 2
         return np.where(parity[:, None] == 0, np.float32(texture.even), np.float32(texture.odd)).astype(np.float32)
     if isinstance(texture, ImageTexture):
-        return _image(texture, uv, footprint)
+        return _image(texture, uv, footprint, backend)
     raise TypeError(f"unknown texture {texture!r}")
 
 
-def _image(texture: ImageTexture, uv: np.ndarray, footprint: Footprint | None) -> np.ndarray:
+def _image(texture: ImageTexture, uv: np.ndarray, footprint: Footprint | None, backend: str) -> np.ndarray:
     """A MIP-map lookup; (s, t) with t down the rows, so a bottom-origin image flips v."""
     repeats = np.asarray(texture.scale, np.float64)
     st = np.asarray(uv, np.float64) * repeats + np.asarray(texture.offset, np.float64)
@@ -41,16 +42,17 @@ def _image(texture: ImageTexture, uv: np.ndarray, footprint: Footprint | None) -
         return mipmap.bilinear(st).astype(np.float32)
     axis0, axis1 = (np.asarray(axis, np.float64) * repeats * flip for axis in footprint)
     if texture.filter == "ewa":
-        return mipmap.ewa(st, axis0, axis1).astype(np.float32)
+        return mipmap.ewa(st, axis0, axis1, backend).astype(np.float32)
     # pbrt's filter width for the isotropic filters: twice the largest component of either axis
     width = 2 * np.maximum(np.abs(axis0).max(axis=1), np.abs(axis1).max(axis=1))
     lookup = {"point": mipmap.point, "bilinear": mipmap.bilinear_at_width, "trilinear": mipmap.trilinear}
     return lookup[texture.filter](st, width).astype(np.float32)
 
 
-def albedo(material: Material, uv: np.ndarray | None, count: int, footprint: Footprint | None = None) -> np.ndarray:
+def albedo(material: Material, uv: np.ndarray | None, count: int, footprint: Footprint | None = None,
+           backend: str = "numpy") -> np.ndarray:
     """Diffuse reflectance (N, 3) of ``count`` points of one material (uv needed with a texture)."""
     colour = np.broadcast_to(np.asarray(material.diffuse, dtype=np.float32), (count, 3))
     if material.texture is None or uv is None:
         return colour
-    return colour * evaluate(material.texture, uv, footprint)
+    return colour * evaluate(material.texture, uv, footprint, backend)
