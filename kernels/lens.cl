@@ -24,9 +24,13 @@
  *   REAR_CLEAR_MM, REAR_T_FAR     rear-element disk parameters (realistic.optics.sampling)
  *   PUPIL_INTERVALS, FILM_RADIUS_MM and program-scope tables PUPIL[4k..4k+3] = (x0, x1, y0, y1),
  *                                 PUPIL_AREA[k] (mm^2), when LENS_SAMPLING_PUPIL is 1
- *   SPECTRAL                      1: each sample carries a wavelength (output row 7), drawn as the
- *                                 fifth dimension of R5 (film and lens then use R5's first four)
- *                                 through the inverse CDF of a piecewise linear density: node
+ *   SPECTRAL                      1: each sample is WAVELENGTHS_PER_SAMPLE (K) work items, one ray
+ *                                 per wavelength (output row 7), sample-major; they share the
+ *                                 sample's film and lens numbers, and ray j's wavelength number is
+ *                                 (u + j) / K, u R5's fifth dimension (in fixed point
+ *                                 bits / K + j LAMBDA_STRATUM_STEP, floor(2^32 / K);
+ *                                 realistic.core.rng.spectral_rays; film and lens then use R5's
+ *                                 first four), through the inverse CDF of a piecewise linear density: node
  *                                 LAMBDA_MIN_NM + k LAMBDA_STEP_NM, k = 0..LAMBDA_INTERVALS (64),
  *                                 tables LAMBDA_DENSITY[k] (per nm) and LAMBDA_CDF[k]
  *                                 (realistic.core.spectrum.wavelengths_nm)
@@ -125,6 +129,20 @@ inline float wavelength_nm(float u) {
     return LAMBDA_MIN_NM + (float)k * LAMBDA_STEP_NM + t;
 }
 #endif
+
+/* The sample id (within the launch) of work item gid and, when SPECTRAL, which of the sample's
+ * WAVELENGTHS_PER_SAMPLE rays it is (its wavelength stratum; 0 otherwise). A constant divisor: the
+ * compiler turns the division into a multiply and shift, which vectorises. */
+inline void ray_of_sample(uint gid, uint *sample_gid, uint *stratum) {
+#if SPECTRAL
+    uint s = gid / WAVELENGTHS_PER_SAMPLE;
+    *sample_gid = s;
+    *stratum = gid - s * WAVELENGTHS_PER_SAMPLE;
+#else
+    *sample_gid = gid;
+    *stratum = 0u;
+#endif
+}
 
 /* ------------------------------------------------------------------ tracing
  * The ray state in the frame of the surface about to be met: (ox, oy) transverse position, w the
@@ -396,14 +414,17 @@ inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
 
 /* ------------------------------------------------------------------ kernels */
 
-/* Rays of the sample block the host lays out (sample_address). out holds 7 rows of `stride` floats: origin x, y, z, direction x, y, z, weight
+/* Rays of the sample block the host lays out (sample_address): one per sample, or when SPECTRAL
+ * WAVELENGTHS_PER_SAMPLE consecutive ones per sample (ray_of_sample). out holds 7 rows of `stride`
+ * floats: origin x, y, z, direction x, y, z, weight
  * (world space; a blocked ray has weight 0 and zero origin and direction), and when SPECTRAL an
  * eighth: the wavelength in nm. world is the camera-to-world matrix, rows of (m0 m1 m2 t). */
 __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint seed, __constant float *world,
                             uint stride, __global float *out, __global int *pixel_out) {
     uint gid = get_global_id(0);
-    uint pixel, sample;
-    sample_address(first_pixel, offset, slice_start, slice_width, gid, &pixel, &sample);
+    uint pixel, sample, sample_gid, stratum;
+    ray_of_sample(gid, &sample_gid, &stratum);
+    sample_address(first_pixel, offset, slice_start, slice_width, sample_gid, &pixel, &sample);
     uint b0, b1, b2, b3, b4;
     stratified(pixel, sample, seed, &b0, &b1, &b2, &b3, &b4);
 
@@ -432,7 +453,7 @@ __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uin
     r.dz = PLANE_Z_MM * inv_len;
     r.alive = 1;
 #if SPECTRAL
-    float lambda_nm = wavelength_nm(to_unit(b4));
+    float lambda_nm = wavelength_nm(to_unit(b4 / WAVELENGTHS_PER_SAMPLE + stratum * LAMBDA_STRATUM_STEP));
     float il2 = 1.0e6f / (lambda_nm * lambda_nm);
 #else
     float il2 = 0.0f;  /* unused: the indices are literals */

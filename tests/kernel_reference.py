@@ -55,8 +55,12 @@ def edge_rays(camera: LensCamera, block: SampleBlock, seed: int) -> np.ndarray:
     interval edge (float32 and float64 may pick neighbouring exit-pupil boxes there) or within
     CENTRE_MM of the film centre (where the box's polar angle is ill-conditioned)."""
     pixel, sample = block.ids()
-    count = block.count
-    u = rng.stratified5(pixel, sample, seed) if camera.spectral else rng.stratified4(pixel, sample, seed)
+    if camera.spectral:  # the camera's K rays per sample, at their own wavelengths
+        u = rng.spectral_rays(pixel, sample, seed, camera.wavelengths_per_sample)
+        pixel = np.repeat(pixel, camera.wavelengths_per_sample)
+    else:
+        u = rng.stratified4(pixel, sample, seed)
+    count = len(pixel)
     u_x, u_y, u_lens, v_lens = u[:4]
     wavelength = wavelengths_nm(u[4]).astype(np.float64) if camera.spectral else D_LINE_NM
     film_xy, _ = camera.filtered_film_points(pixel, u_x, u_y)
@@ -81,12 +85,13 @@ def edge_rays(camera: LensCamera, block: SampleBlock, seed: int) -> np.ndarray:
 
 def assert_kernel_matches(kernel: RayBatch, ref: RayBatch, camera: LensCamera, seed: int,
                           direction_atol: float = 1e-5, block: SampleBlock | None = None) -> np.ndarray:
-    """The tolerances of the kernel check on the rays of ``block`` (None: sample ids 0 .. N - 1);
+    """The tolerances of the kernel check on the rays of ``block`` (None: sample ids 0 .. N / K - 1,
+    K the camera's rays per sample);
     returns the mask of rays both pass. ``direction_atol`` is widened only for lenses whose float32
     arithmetic is shown to lose more (see its callers)."""
     np.testing.assert_array_equal(kernel.pixel, ref.pixel)
     k_pass, r_pass = kernel.weight != 0, ref.weight != 0  # negative filter lobes weigh < 0
-    edge = edge_rays(camera, block or SampleBlock(0, len(ref.weight), camera.spp), seed)
+    edge = edge_rays(camera, block or SampleBlock(0, len(ref.weight) // camera.rays_per_sample, camera.spp), seed)
     assert edge.mean() < 0.01, "the edge allowance must stay a small minority of the rays"
     disagree = (k_pass != r_pass) & ~edge
     assert not disagree.any(), f"{disagree.sum()} rays get a different pass/blocked verdict, e.g. ids " \

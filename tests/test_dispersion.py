@@ -162,13 +162,16 @@ def test_kernel_stratified_bits_equal_numpy_bit_for_bit_for_spectral_cameras():
 
 # ------------------------------------------------------------------ kernel against reference
 
-@pytest.mark.parametrize("name, sampling", [("dgauss100", "pupil"), ("dgauss", "rear")])
-def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, sampling):
+@pytest.mark.parametrize("name, sampling, wavelengths", [("dgauss100", "pupil", 1), ("dgauss100", "pupil", 3),
+                                                         ("dgauss", "rear", 3)])
+def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, sampling, wavelengths):
     host = _opencl()
-    camera = reference_camera(name, sampling, spectral=True)
+    camera = dataclasses.replace(reference_camera(name, sampling, spectral=True), wavelengths_per_sample=wavelengths)
     count, seed = camera.sample_count, 11
     kernel = host.LensKernel(camera).generate(SampleBlock(0, count, camera.spp), seed)
     ref = camera.generate_rays(SampleBlock(0, count, camera.spp), seed)
+    assert len(ref.weight) == len(kernel.weight) == wavelengths * count  # K rays per sample, sample-major
+    np.testing.assert_array_equal(ref.pixel, np.repeat(np.arange(count) // camera.spp, wavelengths))
     # float32 u - CDF loses ~1e-7 of probability: the wavelength moves by that over the density
     allowed = 1e-4 + 3e-7 / wavelength_pdf(ref.wavelength_nm)
     assert np.all(np.abs(kernel.wavelength_nm - ref.wavelength_nm) <= allowed)
@@ -177,8 +180,8 @@ def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, samplin
 
     # the wavelength matters far beyond that tolerance: the same rays traced at the d line differ
     d_line = dataclasses.replace(camera, spectral=False).generate_rays(SampleBlock(0, count, camera.spp), seed)
-    same = both & (d_line.weight > 0)
-    moved = np.abs(d_line.direction[same] - ref.direction[same]).max(axis=1)
+    same = both & np.repeat(d_line.weight > 0, wavelengths)  # each sample's K rays start as its one d-line ray
+    moved = np.abs(np.repeat(d_line.direction, wavelengths, axis=0)[same] - ref.direction[same]).max(axis=1)
     far_from_d = np.abs(ref.wavelength_nm[same] - 587.6) > 100
     assert np.median(moved[far_from_d]) > 5 * 1e-5
 
@@ -197,11 +200,13 @@ def test_spectral_kernel_is_batch_size_independent():
 
 
 @pytest.mark.skipif(shutil.which("objdump") is None, reason="needs objdump")
-def test_spectral_kernel_still_vectorises(tmp_path):
+@pytest.mark.parametrize("wavelengths", [3, 4])  # a work item per wavelength: K = 3 divides by 3
+def test_spectral_kernel_still_vectorises(tmp_path, wavelengths):
     _opencl()
     script = ("from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
               "from realistic.camera.base import SampleBlock\nfrom realistic.camera.opencl_host import LensKernel\n"
-              "camera = LensCamera(load_lens('dgauss100'), 75.0, 43.27, 64, 48, spp=4, spectral=True)\n"
+              "camera = LensCamera(load_lens('dgauss100'), 75.0, 43.27, 64, 48, spp=4, spectral=True, "
+              f"wavelengths_per_sample={wavelengths})\n"
               "LensKernel(camera).generate(SampleBlock(0, 4096, camera.spp), 0)\n")
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
     subprocess.run([sys.executable, "-c", script], check=True, env=env, cwd=REPO, timeout=120)

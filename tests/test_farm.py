@@ -4,6 +4,7 @@ killed worker, sweeps as one job, worker-side caching, and the CLI's farm option
 One LocalCluster serves the module (scaled between tests); renders are 32x32 at a few spp.
 """
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -73,6 +74,17 @@ def test_the_opencl_kernel_on_workers_is_bit_identical_too(client, tiny, referen
     _scale(client, 2)
     image = render(scene, camera, "opencl", seed=5, pass_samples=PASS, client=client, task_samples=TASK)
     assert np.array_equal(image, reference["opencl"])
+
+
+def test_a_spectral_render_with_several_wavelengths_per_sample_is_bit_identical_too(client, tiny):
+    scene, camera = tiny  # dgauss has Abbe numbers: dispersive, 3 rays per sample
+    spectral = dataclasses.replace(camera, spectral=True, wavelengths_per_sample=3)
+    _scale(client, 2)
+    local = render_passes(scene, spectral, "opencl", seed=5, pass_samples=PASS)
+    farmed = render_passes(scene, spectral, "opencl", seed=5, pass_samples=PASS, client=client, task_samples=TASK)
+    assert local.image.max() > 0 and np.array_equal(farmed.image, local.image)
+    assert farmed.samples_done == local.samples_done == spectral.sample_count
+    assert farmed.primary_rays == local.primary_rays > spectral.sample_count  # up to 3 rays a sample
 
 
 def test_each_worker_builds_the_scene_and_camera_once(client, tiny):

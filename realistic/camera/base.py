@@ -99,6 +99,11 @@ class Camera(Protocol):
     def sample_count(self) -> int:
         """width * height * spp: the sample ids a render of this camera covers."""
 
+    @property
+    def rays_per_sample(self) -> int:
+        """Camera rays ``generate_rays`` makes per sample, consecutively (a spectral lens camera's
+        wavelengths per sample; else 1)."""
+
     def generate_rays(self, block: SampleBlock, seed: int = 0) -> RayBatch:
         """Rays of the block's samples, in its order, by the numpy reference."""
 

@@ -17,11 +17,20 @@ The film position of a sample is drawn from the camera's pixel filter (``pixel_f
 ``realistic.core.pixel_filter``: filter importance sampling), and the filter's sign-and-normalisation
 factor multiplies the sample's weight; the default 0.5-pixel box is plain jittering in the pixel.
 
-A *spectral* camera gives each sample a wavelength (``realistic.core.spectrum``: importance
-sampled over 380-780 nm, stratified within the pixel jointly with the film and lens positions by
-the R5 sequence of ``realistic.core.rng.stratified5``) and traces it with the glasses' indices at that
-wavelength, so the lens's chromatic aberration reaches the image. A non-spectral camera traces at
-the d line.
+A *spectral* camera traces each sample at ``wavelengths_per_sample`` (K) wavelengths, one ray per
+wavelength (``realistic.core.spectrum``: importance sampled over 380-780 nm). The sample's R5 number
+u4 (``realistic.core.rng``: stratified within the pixel jointly with the film and lens positions)
+gives the K wavelengths invCDF((u4 + j) / K), j = 0 .. K - 1: one in each 1/K of the density's
+probability (``rng.spectral_rays``; the hero-wavelength scheme of Wilkie et al. 2014 and pbrt-v4's
+``SampledWavelengths``, except that a dispersive lens bends each wavelength its own way, so each
+gets its own ray). The K rays share the sample's film position, lens position and sample index, so
+the renderer draws the same light samples for them (``rng.uniform(pixel, sample, ...)``): their
+spectral values add up to a nearly constant colour, and what noise is left is luminance noise like
+an RGB render's rather than colour speckle. Each ray is traced with the glasses' indices at its
+wavelength, so the lens's chromatic aberration reaches the image. ``generate_rays`` returns the K
+rays of a sample consecutively (sample-major: N K rays for N samples); the film adds each with 1/K
+of the sample's weight (``realistic.renderer.passes``), so a pixel's value stays the mean over its
+samples. A non-spectral camera traces one ray per sample at the d line and ignores K.
 """
 
 from __future__ import annotations
@@ -37,7 +46,7 @@ from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator,
 from realistic.core import rng, validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm, pixel_pitch_mm
 from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
-from realistic.core.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, wavelengths_nm
+from realistic.core.spectrum import DEFAULT_WAVELENGTHS_PER_SAMPLE, LAMBDA_MAX_NM, LAMBDA_MIN_NM, wavelengths_nm
 from realistic.core.transforms import look_at, scale, transform_points, transform_vectors
 from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM
@@ -58,7 +67,8 @@ class LensCamera:
     """Everything ray generation needs; validated on construction.
 
     ``world_from_camera`` maps camera space (mm, origin as ``origin`` says, +z toward the scene)
-    to world units.
+    to world units. ``wavelengths_per_sample``: rays (wavelengths) per camera sample when
+    ``spectral`` (see the module docstring); ignored otherwise.
     """
 
     lens: LensSystem
@@ -72,12 +82,14 @@ class LensCamera:
     lens_sampling: str = "pupil"
     spectral: bool = False
     pixel_filter: PixelFilter = PIXEL_BOX
+    wavelengths_per_sample: int = DEFAULT_WAVELENGTHS_PER_SAMPLE
 
     def __post_init__(self) -> None:
         if not isinstance(self.pixel_filter, PixelFilter):
             raise UserError(f"pixel_filter must be a PixelFilter, got {self.pixel_filter!r}")
         validation.resolution(self.width, self.height)
         validation.samples_per_pixel(self.spp)
+        validation.wavelengths_per_sample(self.wavelengths_per_sample)
         validation.film_diagonal_mm(self.film_diagonal_mm)
         validation.positive_length(self.film_distance_mm, "film distance (mm)")
         if self.lens_sampling not in LENS_SAMPLINGS:
@@ -148,6 +160,11 @@ class LensCamera:
     def sample_count(self) -> int:
         return self.width * self.height * self.spp
 
+    @property
+    def rays_per_sample(self) -> int:
+        """Camera rays per sample: ``wavelengths_per_sample`` for a spectral camera, else 1."""
+        return self.wavelengths_per_sample if self.spectral else 1
+
     def film_points(self, pixel: np.ndarray, u_x: np.ndarray, u_y: np.ndarray) -> np.ndarray:
         """Film points (N, 2) in mm for pixels and raster offsets from their corner (pixels; [0, 1)
         inside the pixel)."""
@@ -164,10 +181,16 @@ class LensCamera:
         return self.film_points(pixel, 0.5 + dx, 0.5 + dy), weight
 
     def generate_rays(self, block: SampleBlock, seed: int = 0) -> RayBatch:
-        """Camera rays for the block's samples, in its order (reference implementation)."""
+        """Camera rays for the block's samples, in its order (reference implementation): one per
+        sample, or for a spectral camera ``rays_per_sample`` consecutive rays per sample that share
+        its film and lens positions, at its K stratified wavelengths."""
         pixel, sample = block.ids()
-        count = block.count
-        u = rng.stratified5(pixel, sample, seed) if self.spectral else rng.stratified4(pixel, sample, seed)
+        if self.spectral:
+            u = rng.spectral_rays(pixel, sample, seed, self.wavelengths_per_sample)
+            pixel = np.repeat(pixel, self.wavelengths_per_sample)
+        else:
+            u = rng.stratified4(pixel, sample, seed)
+        count = len(pixel)
         u_x, u_y, u_lens, v_lens = u[:4]
         film_xy, filter_weight = self.filtered_film_points(pixel, u_x, u_y)
         sampler = self.pupil if self.lens_sampling == "pupil" else rear_element_sampler(self.lens,
@@ -204,7 +227,8 @@ class LensCamera:
                 "filmDistanceMm": float(self.film_distance_mm), "filmDiagonalMm": float(self.film_diagonal_mm),
                 "lensSampling": self.lens_sampling,
                 "stopShape": lens.stop_shape.describe() if lens.stop_shape else "circle",
-                "dispersion": "on" if self.spectral else "off", "pixelFilter": self.pixel_filter.describe()}
+                "dispersion": "on" if self.spectral else "off", "pixelFilter": self.pixel_filter.describe(),
+                **({"wavelengthsPerSample": int(self.wavelengths_per_sample)} if self.spectral else {})}
 
     def pixel_spread_radians(self) -> float:
         """Angle one pixel subtends in object space: pixel pitch over the image distance (film to

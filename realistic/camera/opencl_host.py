@@ -25,6 +25,7 @@ from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.data_files import data_file
 from realistic.core.pixel_filter import TABLE_BINS
+from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
@@ -41,6 +42,7 @@ KERNEL_FILE = "lens.cl"
 #: Work-group size; launches are padded to a multiple of it so every group runs the same code.
 LOCAL_SIZE = 256
 #: Output rows of ``generate_rays``: origin xyz, direction xyz, weight (and wavelength when spectral).
+#: A spectral camera's launch has one work item per ray: ``rays_per_sample`` per sample.
 ROWS = 7
 
 
@@ -158,12 +160,15 @@ def _stop_lines(lens) -> list[str]:
 
 
 def _wavelength_lines(camera: LensCamera) -> list[str]:
-    """A spectral camera's wavelength density table (``realistic.core.spectrum.wavelengths_nm``)."""
+    """A spectral camera's wavelength density table (``realistic.core.spectrum.wavelengths_nm``) and
+    its wavelengths per sample with the fixed-point width of their strata (``realistic.core.rng.spectral_rays``)."""
     if not camera.spectral:
         return []
     def table(name: str, values: np.ndarray) -> str:
         return f"__constant float {name}[{len(values)}] = {{{', '.join(_c_float(v) for v in values)}}};"
-    return [f"#define LAMBDA_INTERVALS {WAVELENGTH_INTERVALS}",
+    return [f"#define WAVELENGTHS_PER_SAMPLE {camera.wavelengths_per_sample}u",
+            f"#define LAMBDA_STRATUM_STEP {wavelength_step(camera.wavelengths_per_sample)}u",
+            f"#define LAMBDA_INTERVALS {WAVELENGTH_INTERVALS}",
             f"#define LAMBDA_MIN_NM {_c_float(WAVELENGTH_NODES_NM[0])}",
             f"#define LAMBDA_STEP_NM {_c_float(WAVELENGTH_NODES_NM[1] - WAVELENGTH_NODES_NM[0])}",
             table("LAMBDA_DENSITY", WAVELENGTH_DENSITY), table("LAMBDA_CDF", WAVELENGTH_CDF)]
@@ -283,10 +288,10 @@ class LensKernel:
         self._lock = threading.Lock()
         self._rows = ROWS + int(camera.spectral)
 
-    def _launch_layout(self, block: SampleBlock) -> tuple[tuple[np.uint32, ...], int]:
+    def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1) -> tuple[tuple[np.uint32, ...], int]:
         """The kernel's (first pixel, offset, slice start, slice width) arguments and the padded
-        launch size, checking the uint32 limits."""
-        padded = -(-block.count // LOCAL_SIZE) * LOCAL_SIZE
+        launch size (``rays_per_sample`` work items per sample), checking the uint32 limits."""
+        padded = -(-block.count * rays_per_sample // LOCAL_SIZE) * LOCAL_SIZE
         first_pixel, offset = divmod(block.first, block.samples)
         if offset + padded >= 2**32 or first_pixel + (offset + padded) // block.samples >= 2**31 \
                 or block.first_sample + block.samples >= 2**32:
@@ -301,9 +306,10 @@ class LensKernel:
             self._capacity = padded
 
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
-        """Rays of the block's samples, as ``LensCamera.generate_rays`` makes them (float32)."""
-        address, padded = self._launch_layout(block)
-        count = block.count
+        """Rays of the block's samples, as ``LensCamera.generate_rays`` makes them (float32): a
+        spectral camera's ``rays_per_sample`` rays of each sample consecutively."""
+        address, padded = self._launch_layout(block, self.camera.rays_per_sample)
+        count = block.count * self.camera.rays_per_sample
         out = np.empty((self._rows, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
         with self._lock:

@@ -56,6 +56,10 @@ class ThinLensCamera:
     def sample_count(self) -> int:
         return self.width * self.height * self.spp
 
+    @property
+    def rays_per_sample(self) -> int:
+        return 1
+
     def screen_window(self) -> tuple[float, float]:
         """Half extents (x, y) of the screen window."""
         aspect = self.width / self.height

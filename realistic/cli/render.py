@@ -41,7 +41,9 @@ With --dispersion on (the default for a mesh or the default scene through a lens
 has Abbe numbers; pbrt scenes render without it unless asked, as pbrt does), each camera
 sample carries a wavelength, the glasses' indices follow it, and the film integrates through the
 CIE 1931 colour matching functions to linear sRGB: the lens's chromatic aberration shows. Off
-traces at the d line in RGB.
+traces at the d line in RGB. --wavelengths-per-sample K traces each spectral sample at K
+stratified wavelengths sharing its film, lens and light samples, which turns the colour speckle of
+one wavelength per sample into plain luminance noise, at K times the camera rays.
 
 The EXR holds the film irradiance (float32 RGB, metadata in the header); the PNG preview beside
 it is sRGB.
@@ -233,7 +235,9 @@ def cmd_render(args: argparse.Namespace) -> int:
     seconds = max(r.seconds for r in results)
     names = (f"{outs[0]} .. {outs[-1]} ({len(outs)} frames)" if sweep is not None
              else f"{out} and {out.with_suffix('.png')}")
-    print(f"{names}: {camera.width}x{camera.height}, {camera.spp} spp, "
+    wavelengths = camera.metadata().get("wavelengthsPerSample")
+    spectral = f" x {wavelengths} wavelengths" if wavelengths else ""
+    print(f"{names}: {camera.width}x{camera.height}, {camera.spp} spp{spectral}, "
           f"{camera.metadata()['pixelFilter']} filter, {seconds:.1f} s "
           f"(exit pupil {result.stage_seconds.get('exit pupil', 0.0):.2f} s), "
           f"{rays / max(seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {written[len(outs) - 1]:+.2f} EV")

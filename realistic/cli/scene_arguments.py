@@ -14,6 +14,7 @@ from realistic.cli.values import LENS_HELP, checked, parse_pixel, parse_resoluti
 from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.pixel_filter import FILTER_ALIASES, FILTER_NAMES, filter_name
+from realistic.core.spectrum import DEFAULT_WAVELENGTHS_PER_SAMPLE
 from realistic.core.validation import finite
 from realistic.renderer.memory import parse_size
 from realistic.scene.pbrt.dialect import DIALECTS
@@ -61,7 +62,8 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=checked(int, validation.seed), default=0,
                         help=f"random seed, 0 to {validation.MAX_SEED} (default: %(default)s)")
     parser.add_argument("--backend", choices=BACKENDS, default="opencl",
-                        help="camera ray generation: OpenCL kernel or numpy reference (default: %(default)s)")
+                        help="camera rays and direct-lighting shading: OpenCL kernels or numpy references "
+                             "(default: %(default)s)")
     parser.add_argument("--lens-sampling", choices=LENS_SAMPLINGS, default="pupil",
                         help="aim camera rays at the exit-pupil bounds or the rear element (default: %(default)s)")
     parser.add_argument("--cl-device", metavar="NAME", help="OpenCL device (substring of its name, or an index)")
@@ -88,6 +90,11 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dispersion", choices=("on", "off"),
                         help="spectral rendering with the glasses' dispersion (default: off for pbrt scenes, as "
                              "pbrt renders them, and the default scene; for meshes on when the lens has Abbe numbers)")
+    parser.add_argument("--wavelengths-per-sample", type=checked(int, validation.wavelengths_per_sample), metavar="K",
+                        help="spectral renders: trace each camera sample at K wavelengths, one per 1/K of the "
+                             "wavelength density, sharing its film, lens and light samples (less colour noise, "
+                             f"K times the camera rays), 1 to {validation.MAX_WAVELENGTHS_PER_SAMPLE} "
+                             f"(default: {DEFAULT_WAVELENGTHS_PER_SAMPLE})")
 
 
 def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOptions:
@@ -105,5 +112,6 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
         spp=spp, light_samples=args.light_samples, integrator=args.integrator, max_depth=args.maxdepth,
         lens_sampling=args.lens_sampling,
         dispersion=None if args.dispersion is None else args.dispersion == "on",
+        wavelengths_per_sample=args.wavelengths_per_sample,
         search_paths=[Path(p) for p in args.search_path], pbrt_dialect=args.pbrt_dialect,
         pixel_filter=args.filter)

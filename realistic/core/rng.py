@@ -12,6 +12,18 @@ draws its wavelength as a fifth dimension of the same kind of sequence: its five
 Kronecker sequence R5 (the real root of x^6 = x + 1) with the rotation extended by a fifth per-pixel
 offset, so a pixel's film points, lens points and wavelengths are stratified together
 (``stratified5``). Non-spectral samples keep R4. Further dimensions (light samples) are plain hashes.
+
+Several wavelengths per sample (``spectral_rays``): a spectral sample traced at K wavelengths takes
+the K numbers (u4 + j) / K, j = 0 .. K - 1, from its one R5 value u4: exactly one in each 1/K of
+[0, 1), as in pbrt-v4's ``SampledWavelengths`` and the hero wavelength of Wilkie et al. 2014. Placing
+u4 itself inside each stratum (rather than rotating, (u4 + j / K) mod 1, whose offset inside a
+stratum is frac(K u4)) keeps a pixel's spp x K numbers as evenly spread as R5's fifth dimension
+(largest gap at most 1.9 / (spp K) measured for spp up to 64, any K; the rotation's reaches 6.8 and
+12.9 / (spp K) for K = 8 and 16 at 64 spp) and jointly stratified with the film and lens numbers.
+In 32-bit fixed point the number is bits // K + j floor(2^32 / K), which the kernel computes bit
+for bit and which never wraps. The K
+rays share the sample's film and lens numbers (and its sample index, so whatever else is drawn from
+``uniform(pixel, sample, ...)`` too).
 """
 
 from __future__ import annotations
@@ -70,7 +82,25 @@ def stratified4(pixel: np.ndarray, sample: np.ndarray, seed: int) -> list[np.nda
     return [to_unit_float(bits) for bits in kronecker_bits(pixel, sample, seed, KRONECKER_R4)]
 
 
+def wavelength_step(wavelengths: int) -> int:
+    """The 32-bit fixed-point width of one of K wavelength strata: floor(2^32 / K) (exactly 2^32 / K
+    for K a power of two; 0 for K = 1, which has one stratum)."""
+    return ((1 << 32) // wavelengths) & 0xFFFFFFFF
+
+
 def stratified5(pixel: np.ndarray, sample: np.ndarray, seed: int) -> list[np.ndarray]:
     """Film x, film y, lens u, lens v, wavelength in [0, 1) (float32) of a spectral sample: R5
     rotated by a per-pixel offset (the first four offsets are those of ``stratified4``)."""
     return [to_unit_float(bits) for bits in kronecker_bits(pixel, sample, seed, KRONECKER_R5)]
+
+
+def spectral_rays(pixel: np.ndarray, sample: np.ndarray, seed: int, wavelengths: int) -> list[np.ndarray]:
+    """``stratified5`` for each of the ``wavelengths`` (K) rays of every sample, sample-major (ray
+    j of sample i is row i K + j; N K rows): film x, film y, lens u, lens v repeat the sample's, and
+    ray j's wavelength number is (u4 + j) / K, u4 the sample's R5 value (in fixed point
+    u4_bits // K + j ``wavelength_step(K)``). K = 1 is ``stratified5``."""
+    bits = kronecker_bits(np.repeat(np.asarray(pixel), wavelengths), np.repeat(np.asarray(sample), wavelengths),
+                          seed, KRONECKER_R5)
+    j = np.tile(np.arange(wavelengths, dtype=np.uint32), len(bits[0]) // wavelengths)
+    bits[4] = bits[4] // np.uint32(wavelengths) + j * np.uint32(wavelength_step(wavelengths))
+    return [to_unit_float(b) for b in bits]

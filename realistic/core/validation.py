@@ -68,6 +68,17 @@ def samples_per_pixel(spp: int) -> int:
     return _in_range(_integer(spp, "samples per pixel"), "samples per pixel", 1, MAX_SPP)
 
 
+#: Wavelengths (rays) per spectral camera sample: past a handful the colour noise is gone and each
+#: one costs a ray; 16 keeps a largest pass's rays (16 x 2^26) within the kernel's 2^31 work items.
+MAX_WAVELENGTHS_PER_SAMPLE = 16
+
+
+def wavelengths_per_sample(count: int) -> int:
+    """Wavelengths traced per spectral camera sample: 1 to ``MAX_WAVELENGTHS_PER_SAMPLE``."""
+    return _in_range(_integer(count, "wavelengths per sample"), "wavelengths per sample", 1,
+                     MAX_WAVELENGTHS_PER_SAMPLE)
+
+
 def seed(value: int) -> int:
     return _in_range(_integer(value, "seed"), "seed", 0, MAX_SEED)
 

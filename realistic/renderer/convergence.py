@@ -51,8 +51,9 @@ def measure_sample_counts(scene: Scene, camera: Camera, spp_list: list[int], bac
         if result.interrupted:
             raise UserError(f"interrupted during the {spp} spp render")
         seconds = max(result.seconds, 1e-9)
-        rows.append({"spp": spp, "seconds": result.seconds, "camera_rays_per_second": result.samples_done / seconds,
-                     "vignetted_fraction": 1.0 - result.primary_rays / max(result.samples_done, 1),
+        camera_rays = result.samples_done * camera.rays_per_sample  # a spectral sample is K rays
+        rows.append({"spp": spp, "seconds": result.seconds, "camera_rays_per_second": camera_rays / seconds,
+                     "vignetted_fraction": 1.0 - result.primary_rays / max(camera_rays, 1),
                      "shadow_rays": result.shadow_rays})
         images.append(result.image)
     target = reference if reference is not None else images[int(np.argmax(spp_list))]

@@ -73,6 +73,7 @@ class RenderOptions:
     max_depth: int | None = None
     lens_sampling: str = "pupil"
     dispersion: bool | None = None  # None: off for pbrt and the default scene, else on when the lens has Abbe numbers
+    wavelengths_per_sample: int | None = None  # spectral renders: rays per sample (None: the camera's default)
     pbrt_dialect: str = "auto"  # pbrt scenes: which pbrt's conventions (realistic.scene.pbrt.dialect)
     pixel_filter: str | None = None  # a filter name replacing the scene's, at pbrt's default parameters
     search_paths: list[Path] = field(default_factory=list)
@@ -83,6 +84,8 @@ class RenderOptions:
             validation.samples_per_pixel(self.spp)
         if self.light_samples is not None:
             validation.light_samples(self.light_samples)
+        if self.wavelengths_per_sample is not None:
+            validation.wavelengths_per_sample(self.wavelengths_per_sample)
         if self.integrator is not None and self.integrator not in INTEGRATORS:
             raise UserError(f"unknown integrator {self.integrator!r} (choose {', '.join(INTEGRATORS)})")
         if self.max_depth is not None:
@@ -175,6 +178,10 @@ def build_render_inputs(options: RenderOptions) -> RenderInputs:
     pbrt_like = options.is_pbrt or not options.scene
     dispersion = False if options.dispersion is None and pbrt_like else options.dispersion
     scene.camera = scene.camera.with_dispersion(dispersion)
+    if options.wavelengths_per_sample is not None:
+        if not getattr(scene.camera, "spectral", False):
+            raise UserError("--wavelengths-per-sample applies to spectral renders (--dispersion on)")
+        scene.camera = dataclasses.replace(scene.camera, wavelengths_per_sample=options.wavelengths_per_sample)
     return inputs
 
 

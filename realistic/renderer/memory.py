@@ -3,7 +3,8 @@
 The estimate is a linear model fitted on this project's renders (peak RSS of the default scene at
 64x64, 1024x1024 and 2048x2048, 1 spp) and rounded up: the interpreter with numpy, embree, PoCL
 and the lens tables; the film (float64 sums, sample counts, float32 images for EXR and PNG) per
-pixel; the rays and shading arrays of the passes in flight per sample; and embree's world-space
+pixel; the rays and shading arrays of the passes in flight per camera ray (a spectral camera
+traces ``rays_per_sample`` rays per sample, one per wavelength); and embree's world-space
 copy of every instance's triangles with the shading tables per triangle.
 """
 
@@ -18,7 +19,7 @@ from realistic.scene.model import Scene
 
 BASE_BYTES = 350 * 2**20
 FILM_BYTES_PER_PIXEL = 80
-PASS_BYTES_PER_SAMPLE = 600
+PASS_BYTES_PER_SAMPLE = 600  # per camera ray in flight
 SCENE_BYTES_PER_TRIANGLE = 256
 _SIZE = re.compile(r"^\s*(\d+(?:\.\d*)?)\s*([kmgt]?)i?b?\s*$", re.IGNORECASE)
 
@@ -26,7 +27,7 @@ _SIZE = re.compile(r"^\s*(\d+(?:\.\d*)?)\s*([kmgt]?)i?b?\s*$", re.IGNORECASE)
 def estimate_peak_bytes(scene: Scene, camera: Camera, pass_samples: int, threads: int) -> int:
     """Bytes a render of ``scene`` through ``camera`` holds at its peak."""
     pixels = camera.width * camera.height
-    in_flight = min(pass_samples, camera.sample_count) * max(1, threads)
+    in_flight = min(pass_samples, camera.sample_count) * max(1, threads) * camera.rays_per_sample
     triangles = sum(len(scene.meshes[inst.mesh].faces) for inst in scene.instances) + 256 * len(scene.area_lights)
     return (BASE_BYTES + FILM_BYTES_PER_PIXEL * pixels + PASS_BYTES_PER_SAMPLE * in_flight
             + SCENE_BYTES_PER_TRIANGLE * triangles)

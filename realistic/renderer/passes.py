@@ -100,6 +100,13 @@ class PassRunner:
         with self.clock("ray generation"):
             rays = self.generate(block)
         with self.clock("shading"):
+            # a spectral camera's K rays per sample (its wavelengths) come consecutively, sample-major
+            rays_per_sample, rest = divmod(len(rays.weight), block.count)
+            if rest or not rays_per_sample:
+                raise RuntimeError(f"{len(rays.weight)} camera rays for {block.count} samples")
+            sample = block.ids()[1]
+            if rays_per_sample > 1:  # the K rays share the sample id, so the integrator's light samples
+                sample = np.repeat(sample, rays_per_sample)
             alive = np.flatnonzero(rays.weight != 0)  # a negative filter lobe gives negative weights
             if self.morton:
                 alive = alive[morton_order(rays.pixel[alive], self.camera.width)]
@@ -108,13 +115,16 @@ class PassRunner:
             origin = np.take(rays.origin, alive, axis=0).astype(np.float32, copy=False)
             direction = np.take(rays.direction, alive, axis=0).astype(np.float32, copy=False)
             wavelength = None if rays.wavelength_nm is None else rays.wavelength_nm[alive]
-        radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, block.ids()[1][alive],
+        radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, sample[alive],
                                                          self.clock, wavelength)
         with self.clock("accumulation"):
             first_pixel, pixel_count = block.first_pixel, block.pixel_count
             value = radiance * rays.weight[alive, None].astype(np.float32)
             if wavelength is not None:
-                value *= rgb_response(wavelength)
+                response = rgb_response(wavelength)
+                if rays_per_sample > 1:  # each of a sample's K wavelengths is 1/K of its estimate
+                    response /= np.float32(rays_per_sample)
+                value *= response
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
         return PassResult(index, first_pixel, sums, block.count, len(alive), shadow_rays)
 
@@ -347,8 +357,8 @@ def render(scene: Scene, camera: Camera | None = None, backend: str = "opencl", 
     framing of a loaded mesh); ``spp`` overrides the camera's samples per pixel; ``client`` (a
     ``dask.distributed.Client``) renders on its workers, bit-identically. ``options`` are those of
     ``render_passes`` (``light_samples`` defaults to the scene's). A spectral camera renders through
-    the colour matching functions to linear sRGB (``realistic.core.spectrum``); others render RGB
-    directly.
+    the colour matching functions to linear sRGB (``realistic.core.spectrum``), each sample the mean
+    of its ``wavelengths_per_sample`` rays; others render RGB directly.
     """
     camera = camera if camera is not None else scene.camera
     if camera is None:
