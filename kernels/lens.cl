@@ -47,7 +47,6 @@
  */
 
 #define PI_F 3.14159265358979f
-#define QUARTER_PI_F 0.785398163397448f
 
 /* ------------------------------------------------------------------ random numbers
  * Bit-identical to realistic/core/rng.py: lowbias32 hash, key chaining, a Kronecker sequence over
@@ -70,17 +69,7 @@
 #define KRONECKER_3 0x89E18285u
 #endif
 
-inline uint hash32(uint x) {
-    x ^= x >> 16;
-    x *= 0x7FEB352Du;
-    x ^= x >> 15;
-    x *= 0x846CA68Bu;
-    x ^= x >> 16;
-    return x;
-}
-
-/* Top 24 bits as a float in [0, 1). */
-inline float to_unit(uint bits) { return (float)(bits >> 8) * (1.0f / 16777216.0f); }
+#include "common.cl"  /* expanded by the host (realistic.camera.opencl_host.kernel_source) */
 
 /* Pixel and sample index within the pixel of work item gid of a launch over a slice of each
  * pixel's samples (realistic.camera.base.SampleBlock): pixels get slice_width samples each, from
@@ -301,35 +290,8 @@ inline __attribute__((always_inline)) void stop(Ray *r, const float GAP) {
     r->w = -GAP;
 }
 
-/* ------------------------------------------------------------------ sampling */
-
-/* sin and cos of |x| <= pi/4 by Taylor polynomials (error below 3e-9, under float32 rounding). */
-inline void sincos_quarter(float x, float *s, float *c) {
-    float x2 = x * x;
-    *s = x * (1.0f + x2 * (-1.0f / 6 + x2 * (1.0f / 120 + x2 * (-1.0f / 5040 + x2 * (1.0f / 362880)))));
-    *c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24 + x2 * (-1.0f / 720 + x2 * (1.0f / 40320 + x2 * (-1.0f / 3628800)))));
-}
-
-/* Shirley-Chiu concentric map of [0,1)^2 onto the unit disk, as realistic.sampling.concentric_disk.
- * |a| and |b| are computed by different instruction sequences on purpose: two isomorphic chains
- * from u1 and u2 into one comparison let LLVM's SLP vectoriser pack them (back to the hashes) into
- * 2-wide vectors before PoCL's work-group vectoriser runs, and that stops the latter (LLVM 14
- * cannot widen instructions that already have a vector type). */
-inline void concentric_disk(float u1, float u2, float *x, float *y) {
-    float a = 2.0f * u1 - 1.0f;
-    float b = 2.0f * u2 - 1.0f;
-    float abs_a = a < 0.0f ? -a : a;
-    float abs_b = as_float(as_uint(b) & 0x7FFFFFFFu);
-    int first = abs_a > abs_b;
-    float num = first ? b : a;
-    float den = first ? a : b;
-    float ratio = den != 0.0f ? num / den : 0.0f;
-    float s, c;
-    sincos_quarter(QUARTER_PI_F * ratio, &s, &c);
-    /* first: phi = pi/4 b/a, (cos, sin); else phi = pi/2 - pi/4 a/b, (cos, sin) = (sin, cos) */
-    *x = den * (first ? c : s);
-    *y = den * (first ? s : c);
-}
+/* ------------------------------------------------------------------ sampling (sincos_quarter and
+ * concentric_disk: kernels/common.cl) */
 
 #if LENS_SAMPLING_PUPIL
 /* Exit-pupil box of the film point's radial interval, rotated to its polar angle. */

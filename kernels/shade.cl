@@ -40,7 +40,6 @@
 #pragma OPENCL FP_CONTRACT OFF
 
 #define PI_F 3.14159265358979f
-#define QUARTER_PI_F 0.785398163397448f
 #define GOLDEN 0x9E3779B9u
 #define SHADOW_OFFSET 1e-4f
 #define SHADOW_LENGTH 0.9999f
@@ -69,43 +68,7 @@
 #define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
 #define FIELD(row, k) ((row)[(k) * unit])
 
-/* ------------------------------------------------------------------ random numbers
- * The same functions as kernels/lens.cl's, replicated (each file is built alone): lowbias32 and the
- * top-24-bit float, bit-identical to realistic/core/rng.py (tests/test_shade_kernel.py checks). */
-inline uint hash32(uint x) {
-    x ^= x >> 16;
-    x *= 0x7FEB352Du;
-    x ^= x >> 15;
-    x *= 0x846CA68Bu;
-    x ^= x >> 16;
-    return x;
-}
-
-inline float to_unit(uint bits) { return (float)(bits >> 8) * (1.0f / 16777216.0f); }
-
-/* ------------------------------------------------------------------ light sampling
- * Replicated from kernels/lens.cl: sin and cos of |x| <= pi/4 by Taylor polynomials, and the
- * Shirley-Chiu concentric map (realistic.core.warp.concentric_disk, within float32 rounding). */
-inline __attribute__((always_inline)) void sincos_quarter(float x, float *s, float *c) {
-    float x2 = x * x;
-    *s = x * (1.0f + x2 * (-1.0f / 6 + x2 * (1.0f / 120 + x2 * (-1.0f / 5040 + x2 * (1.0f / 362880)))));
-    *c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24 + x2 * (-1.0f / 720 + x2 * (1.0f / 40320 + x2 * (-1.0f / 3628800)))));
-}
-
-inline __attribute__((always_inline)) void concentric_disk(float u1, float u2, float *x, float *y) {
-    float a = 2.0f * u1 - 1.0f;
-    float b = 2.0f * u2 - 1.0f;
-    float abs_a = a < 0.0f ? -a : a;
-    float abs_b = as_float(as_uint(b) & 0x7FFFFFFFu);
-    int first = abs_a > abs_b;
-    float num = first ? b : a;
-    float den = first ? a : b;
-    float ratio = den != 0.0f ? num / den : 0.0f;
-    float s, c;
-    sincos_quarter(QUARTER_PI_F * ratio, &s, &c);
-    *x = den * (first ? c : s);
-    *y = den * (first ? s : c);
-}
+#include "common.cl"  /* expanded by the host (realistic.camera.opencl_host.kernel_source) */
 
 /* The light of sample value u: how many entries of the rounded-up CDF are <= u (numpy's
  * searchsorted side="right"), at most count - 1. A branch-free binary search written out in

@@ -17,7 +17,6 @@ import os
 import threading
 import time
 from functools import cache, lru_cache
-from pathlib import Path
 
 import numpy as np
 
@@ -46,9 +45,17 @@ LOCAL_SIZE = 256
 ROWS = 7
 
 
-def kernel_source_path() -> Path:
-    """``kernels/lens.cl`` in a checkout, else where a wheel installs it (``<prefix>/share/realistic``)."""
-    return data_file(f"kernels/{KERNEL_FILE}")
+def kernel_source(name: str) -> str:
+    """The text of ``kernels/<name>`` (in a checkout, else where a wheel installs it:
+    ``<prefix>/share/realistic``) with its ``#include "common.cl"`` line replaced by that file.
+
+    The host expands the include rather than the OpenCL compiler, so the program source (PoCL's
+    cache key) holds all of it and a change to ``common.cl`` rebuilds every kernel that uses it.
+    """
+    text = data_file(f"kernels/{name}").read_text(encoding="utf-8")
+    lines = [data_file("kernels/common.cl").read_text(encoding="utf-8") if line.startswith('#include "common.cl"')
+             else line for line in text.splitlines(keepends=True)]
+    return "".join(lines)
 
 
 def _all_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
@@ -276,7 +283,7 @@ class LensKernel:
         self.camera = camera
         self.context = context(device)
         self.queue = cl.CommandQueue(self.context)
-        self.source = camera_header(camera) + kernel_source_path().read_text(encoding="utf-8")
+        self.source = camera_header(camera) + kernel_source(KERNEL_FILE)
         self.program, self.build_seconds = _program(self.context, self.source)
         self._generate = cl.Kernel(self.program, "generate_rays")
         self._bits = cl.Kernel(self.program, "sample_bits")

@@ -30,7 +30,6 @@ from functools import lru_cache
 import numpy as np
 
 from realistic.camera import opencl_host
-from realistic.core.data_files import data_file
 
 KERNEL_FILE = "shade.cl"
 #: Work-group size along the rays; launches are padded to a multiple of it.
@@ -44,11 +43,6 @@ MAX_LIGHTS = 65535
 #: about this many rays, so memory stays flat in the light-sample count (40 bytes per row here,
 #: about as much again in embree's ray structs).
 MAX_SHADOW_ROWS = 1 << 19
-
-
-def kernel_source_path():
-    """``kernels/shade.cl`` in a checkout, else where a wheel installs it."""
-    return data_file(f"kernels/{KERNEL_FILE}")
 
 
 @lru_cache(maxsize=16)
@@ -161,7 +155,7 @@ class ShadeKernel:
                         f"-DSMOOTH={int(np.any(geom_smooth))}",
                         f"-DTEXTURED={int(np.any(np.isin(material_rows[:, 0], (KIND_GRID, KIND_CHECKER))))}",
                         f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
-        self.source = kernel_source_path().read_text(encoding="utf-8")
+        self.source = opencl_host.kernel_source(KERNEL_FILE)
         self.program, self.build_seconds = _program(self.context, self.source, self.options)
         mf = cl.mem_flags
 
