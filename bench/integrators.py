@@ -20,13 +20,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import realistic.renderer.passes as passes  # noqa: E402
-from realistic import load_lens  # noqa: E402
-from realistic.camera.lens_camera import LensCamera  # noqa: E402
-from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm  # noqa: E402
 from realistic.renderer.integrator import DirectLighting  # noqa: E402
 from realistic.renderer.path import PathIntegrator  # noqa: E402
-from realistic.scene.staging import auto_eye, mesh_setup  # noqa: E402
-from render import subject  # noqa: E402
+from render import staged_subject  # noqa: E402
 
 VARIANTS = {
     "fast path (DirectLighting)": lambda scene, *a, **backend: DirectLighting(scene, *a, **backend),
@@ -50,12 +46,7 @@ def main() -> None:
     parser.add_argument("--backend", default="opencl", choices=("opencl", "numpy"))
     args = parser.parse_args()
     width, height = (int(v) for v in args.res.split("x"))
-    objects, source = subject()
-    setup = mesh_setup(objects)
-    lens = load_lens("dgauss")
-    eye = auto_eye(setup, lens, min(film_size_mm(FULL_FRAME_DIAGONAL_MM, width, height)))
-    camera = LensCamera.looking_at(lens, eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, width, height, args.spp)
-    warm = LensCamera.looking_at(lens, eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, 16, 16, 1)
+    setup, camera, source, warm = staged_subject("dgauss", width, height, args.spp)
     passes.render_passes(setup.scene, warm, args.backend)  # kernel build and caches
     print(f"scene: {source}; {width}x{height}, {args.spp} spp, backend {args.backend}, 2 threads")
     print(f"\n{'integrator':<30}{'wall s':>8}{'shading s':>11}{'embree s':>10}{'shading us/sample':>19}"

@@ -50,6 +50,21 @@ def subject() -> tuple[list[MeshObject], str]:
     return [MeshObject(mesh, np.eye(4), None)], f"procedural ({len(mesh.faces)} triangles)"
 
 
+def staged_subject(lens_name: str, width: int, height: int, spp: int) -> tuple:
+    """The subject on its grid floor and a camera through ``lens_name`` framing it: (setup, camera,
+    description of the subject, a 16x16 1-spp camera of the same view for warming up). Shared by
+    the benches that render this scene."""
+    objects, source = subject()
+    setup = mesh_setup(objects)
+    lens = load_lens(lens_name)
+    eye = auto_eye(setup, lens, min(film_size_mm(FULL_FRAME_DIAGONAL_MM, width, height)))
+
+    def camera(w: int, h: int, samples: int) -> LensCamera:
+        return LensCamera.looking_at(lens, eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, w, h, samples)
+
+    return setup, camera(width, height, spp), source, camera(16, 16, 1)
+
+
 class RecordingIntersector(Intersector):
     """Keeps the rays it is asked to trace (for the ceiling measurement)."""
 
@@ -119,18 +134,11 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2, help="render worker threads (default 2)")
     args = parser.parse_args()
     width, height = (int(v) for v in args.res.split("x"))
-    objects, source = subject()
-    setup = mesh_setup(objects)
-    lens = load_lens(args.lens)
-    film_short = min(film_size_mm(FULL_FRAME_DIAGONAL_MM, width, height))
-    eye = auto_eye(setup, lens, film_short)
-    camera = LensCamera.looking_at(lens, eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, width, height,
-                                   args.spp)
+    setup, camera, source, warm = staged_subject(args.lens, width, height, args.spp)
     triangles = sum(len(setup.scene.meshes[i.mesh].faces) for i in setup.scene.instances)
     print(f"scene: {source}, {triangles} triangles; {width}x{height}, {args.spp} spp, lens {args.lens}, "
           f"backend {args.backend}, passes of {DEFAULT_PASS_SAMPLES} samples on {args.threads} thread(s)")
-    render_passes(setup.scene, LensCamera.looking_at(lens, eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, 16, 16, 1),
-                  args.backend)  # warm-up: kernel build and caches
+    render_passes(setup.scene, warm, args.backend)  # warm-up: kernel build and caches
     runs = [run(setup, camera, args.backend, morton, args.threads) for morton in (False, True)]
     top = ceiling(setup, camera, args.backend, DEFAULT_PASS_SAMPLES)
     print(f"\n{'stage':<16}{'raster s':>10}{'share':>8}{'morton s':>10}{'share':>8}")

@@ -25,16 +25,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from realistic import load_lens  # noqa: E402
 from realistic.camera.base import SampleBlock  # noqa: E402
-from realistic.camera.lens_camera import LensCamera  # noqa: E402
-from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm  # noqa: E402
 from realistic.renderer.integrator import DirectLighting  # noqa: E402
 from realistic.renderer.passes import DEFAULT_PASS_SAMPLES  # noqa: E402
 from realistic.renderer.timing import StageClock  # noqa: E402
 from realistic.scene.intersect import Intersector  # noqa: E402
-from realistic.scene.staging import auto_eye, mesh_setup  # noqa: E402
-from render import subject  # noqa: E402
+from render import staged_subject  # noqa: E402
 
 
 def main() -> None:
@@ -45,11 +41,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=7)
     args = parser.parse_args()
     width, height = (int(v) for v in args.res.split("x"))
-    objects, source = subject()
-    setup = mesh_setup(objects)
-    lens = load_lens("dgauss")
-    eye = auto_eye(setup, lens, min(film_size_mm(FULL_FRAME_DIAGONAL_MM, width, height)))
-    camera = LensCamera.looking_at(lens, eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, width, height, args.spp)
+    setup, camera, source, _ = staged_subject("dgauss", width, height, args.spp)
     block = SampleBlock(camera.sample_count // 2 - DEFAULT_PASS_SAMPLES // 2, DEFAULT_PASS_SAMPLES, camera.spp)
     rays = camera.ray_generator("opencl")(block)
     alive = np.flatnonzero(rays.weight != 0)
