@@ -20,7 +20,8 @@ SHARED = Path(__file__).resolve().parents[2] / "shared"
 
 @pytest.fixture(scope="module")
 def opencl_platform():
-    """Skips the module's tests when no OpenCL platform exists (CI installs PoCL with the package)."""
+    """``realistic.camera.opencl_host``; skips the module's tests when no OpenCL platform exists (CI
+    installs PoCL with the package)."""
     from realistic.errors import UserError
 
     opencl_host = pytest.importorskip("realistic.camera.opencl_host")
@@ -28,6 +29,7 @@ def opencl_platform():
         opencl_host.context()
     except UserError as err:
         pytest.skip(f"no OpenCL platform: {err}")
+    return opencl_host
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -29,7 +29,6 @@ from realistic.core.spectrum import (
     wavelengths_nm,
 )
 from realistic.core.transforms import rotate, scale, translate
-from realistic.errors import UserError
 from realistic.optics.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM, refractive_index
 from realistic.optics.paraxial import film_distance_for_focus
 from realistic.optics.tracer import trace_from_film
@@ -38,15 +37,6 @@ from realistic.scene.model import AreaLight, Material, Scene
 from realistic.scene.shapes import quad
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def _opencl():
-    host = pytest.importorskip("realistic.camera.opencl_host")
-    try:
-        host.context()
-    except UserError as err:
-        pytest.skip(f"no OpenCL platform: {err}")
-    return host
 
 
 # ------------------------------------------------------------------ glass indices
@@ -149,8 +139,8 @@ def test_a_pixels_wavelengths_are_stratified_in_probability(spp):
     assert np.histogram(q[:, 0], bins=5, range=(0, 1))[0].min() > 20
 
 
-def test_kernel_stratified_bits_equal_numpy_bit_for_bit_for_spectral_cameras():
-    host = _opencl()
+def test_kernel_stratified_bits_equal_numpy_bit_for_bit_for_spectral_cameras(opencl_platform):
+    host = opencl_platform
     camera = reference_camera("dgauss100", "pupil", spectral=True)
     first, count, seed = 5_001, 20_000, 0xFFFFFFFF
     bits = host.LensKernel(camera).sample_bits(SampleBlock(first, count, camera.spp), seed)
@@ -164,8 +154,8 @@ def test_kernel_stratified_bits_equal_numpy_bit_for_bit_for_spectral_cameras():
 
 @pytest.mark.parametrize("name, sampling, wavelengths", [("dgauss100", "pupil", 1), ("dgauss100", "pupil", 3),
                                                          ("dgauss", "rear", 3)])
-def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, sampling, wavelengths):
-    host = _opencl()
+def test_spectral_kernel_matches_reference_at_each_rays_wavelength(opencl_platform, name, sampling, wavelengths):
+    host = opencl_platform
     camera = dataclasses.replace(reference_camera(name, sampling, spectral=True), wavelengths_per_sample=wavelengths)
     count, seed = camera.sample_count, 11
     kernel = host.LensKernel(camera).generate(SampleBlock(0, count, camera.spp), seed)
@@ -186,8 +176,8 @@ def test_spectral_kernel_matches_reference_at_each_rays_wavelength(name, samplin
     assert np.median(moved[far_from_d]) > 5 * 1e-5
 
 
-def test_spectral_kernel_is_batch_size_independent():
-    host = _opencl()
+def test_spectral_kernel_is_batch_size_independent(opencl_platform):
+    host = opencl_platform
     kernel = host.LensKernel(reference_camera("dgauss100", "pupil", spectral=True))
     first, total = 1234, 40_000
     whole = kernel.generate(SampleBlock(first, total, kernel.camera.spp), seed=5)
@@ -201,8 +191,7 @@ def test_spectral_kernel_is_batch_size_independent():
 
 @pytest.mark.skipif(shutil.which("objdump") is None, reason="needs objdump")
 @pytest.mark.parametrize("wavelengths", [3, 4])  # a work item per wavelength: K = 3 divides by 3
-def test_spectral_kernel_still_vectorises(tmp_path, wavelengths):
-    _opencl()
+def test_spectral_kernel_still_vectorises(opencl_platform, tmp_path, wavelengths):
     script = ("from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
               "from realistic.camera.base import SampleBlock\nfrom realistic.camera.opencl_host import LensKernel\n"
               "camera = LensCamera(load_lens('dgauss100'), 75.0, 43.27, 64, 48, spp=4, spectral=True, "
@@ -253,8 +242,7 @@ def _looking_down(lens_name: str, spectral: bool, width: int, height: int, spp: 
     return LensCamera(lens, film, 43.27, width, height, spp, world, spectral=spectral)
 
 
-def test_spectral_path_without_dispersion_matches_rgb_path_within_noise():
-    _opencl()
+def test_spectral_path_without_dispersion_matches_rgb_path_within_noise(opencl_platform):
     scene = Scene()
     scene.add(quad(4.0, 4.0), material=Material((0.6, 0.6, 0.6)))
     scene.add(quad(0.2, 0.2), translate(0.05, 0.03, 0.3), Material((0.3, 0.3, 0.3)))
@@ -282,7 +270,6 @@ def test_spectral_path_without_dispersion_matches_rgb_path_within_noise():
 def test_white_scene_keeps_its_mean_colour_with_dispersion_on():
     """Energy: a spectrally flat white scene (grey floor, white light) has the same mean colour through
     the spectral estimator with the glasses' dispersion as through the RGB path, within noise."""
-    _opencl()
     scene = Scene()
     scene.add(quad(4.0, 4.0), material=Material((0.5, 0.5, 0.5)))
     scene.lights.append(AreaLight("disk", (0.5, 0.5), (6.0, 6.0, 6.0), translate(0, 0, 1.5) @ rotate(180, (1, 0, 0))))
@@ -329,7 +316,6 @@ def _edge_offsets(camera: LensCamera, seed: int = 1) -> list[tuple[float, float]
 
 
 def test_lateral_colour_grows_with_field_height_and_vanishes_without_dispersion():
-    _opencl()
     lens = load_lens("dgauss100")
     film = film_distance_for_focus(lens, 2000.0)
 

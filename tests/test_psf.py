@@ -63,13 +63,8 @@ def test_psf_refuses_a_point_behind_the_front_of_the_lens():
         point_spread(load_lens("dgauss"), 50.0, focus_mm=1000.0)
 
 
-def test_the_opencl_rays_give_the_numpy_psf():
+def test_the_opencl_rays_give_the_numpy_psf(opencl_platform):
     """The kernel's float32 rays and the float64 reference land the same light in the same pixels."""
-    opencl_host = pytest.importorskip("realistic.camera.opencl_host")
-    try:
-        opencl_host.context()
-    except UserError as err:
-        pytest.skip(f"no OpenCL platform: {err}")
     lens = stopped_dgauss()
     reference = point_spread(lens, 3000.0, 5.0, pixel_mm=0.004, size=24, spp=32, source_radius_mm=0.5)
     kernel = point_spread(lens, 3000.0, 5.0, pixel_mm=0.004, size=24, spp=32, source_radius_mm=0.5,
