@@ -65,6 +65,12 @@ def staged_subject(lens_name: str, width: int, height: int, spp: int) -> tuple:
     return setup, camera(width, height, spp), source, camera(16, 16, 1)
 
 
+def middle_block(camera, samples: int) -> SampleBlock:
+    """Up to ``samples`` samples from the middle of the render (all of a render smaller than that)."""
+    samples = min(samples, camera.sample_count)
+    return SampleBlock(max(0, camera.sample_count // 2 - samples // 2), samples, camera.spp)
+
+
 class RecordingIntersector(Intersector):
     """Keeps the rays it is asked to trace (for the ceiling measurement)."""
 
@@ -97,8 +103,7 @@ def ceiling(setup, camera, backend: str, samples: int) -> dict:
     """embreex alone on one pass's primary and shadow rays, two threads over 64k-ray chunks."""
     recorder = RecordingIntersector(setup.scene)
     integrator = DirectLighting(setup.scene, recorder)
-    first = camera.sample_count // 2 - samples // 2
-    block = SampleBlock(first, samples, camera.spp)
+    block = middle_block(camera, samples)
     rays = camera.ray_generator(backend)(block)
     alive = np.flatnonzero(rays.weight > 0)
     integrator.radiance(rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32),
@@ -111,9 +116,9 @@ def ceiling(setup, camera, backend: str, samples: int) -> dict:
                    for s in range(0, len(so), chunk)]
     t_primary = min(traced_in_two_threads(primary_jobs) for _ in range(3))
     t_shadow = min(traced_in_two_threads(shadow_jobs) for _ in range(3))
-    return {"samples": samples, "primary_rays": len(po), "shadow_rays": len(so),
+    return {"samples": block.count, "primary_rays": len(po), "shadow_rays": len(so),
             "primary_rays_per_s": len(po) / t_primary, "shadow_rays_per_s": len(so) / t_shadow,
-            "samples_per_s": samples / (t_primary + t_shadow)}
+            "samples_per_s": block.count / (t_primary + t_shadow)}
 
 
 def run(setup, camera, backend: str, morton: bool, threads: int = 2) -> dict:

@@ -25,12 +25,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from realistic.camera.base import SampleBlock  # noqa: E402
 from realistic.renderer.integrator import DirectLighting  # noqa: E402
 from realistic.renderer.passes import DEFAULT_PASS_SAMPLES  # noqa: E402
 from realistic.renderer.timing import StageClock  # noqa: E402
 from realistic.scene.intersect import Intersector  # noqa: E402
-from render import staged_subject  # noqa: E402
+from render import middle_block, staged_subject  # noqa: E402
 
 
 def main() -> None:
@@ -42,7 +41,7 @@ def main() -> None:
     args = parser.parse_args()
     width, height = (int(v) for v in args.res.split("x"))
     setup, camera, source, _ = staged_subject("dgauss", width, height, args.spp)
-    block = SampleBlock(camera.sample_count // 2 - DEFAULT_PASS_SAMPLES // 2, DEFAULT_PASS_SAMPLES, camera.spp)
+    block = middle_block(camera, DEFAULT_PASS_SAMPLES)
     rays = camera.ray_generator("opencl")(block)
     alive = np.flatnonzero(rays.weight != 0)
     args_in = (rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32), rays.pixel[alive],

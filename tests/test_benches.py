@@ -218,3 +218,17 @@ def test_scene_bench_measures_peak_memory_and_the_interpreter_baseline():
     baseline = scenes.baseline_figures()
     assert 0 < baseline["peak_rss_mib"] <= baseline["with_renderer_mib"] and baseline["import_s"] > 0
     assert scenes.build_parser().parse_args(["--only", "dragons", "--flat"]).flat
+
+
+render_bench = _bench_module("render")
+
+
+@pytest.mark.parametrize("pixels, spp, samples", [(64 * 64, 4, 131072), (512 * 512, 64, 131072), (1, 1, 8)])
+def test_middle_block_stays_inside_the_render_however_small(pixels, spp, samples):
+    class Camera:
+        sample_count = pixels * spp
+
+    Camera.spp = spp
+    block = render_bench.middle_block(Camera, samples)
+    assert block.first >= 0 and block.first + block.count <= Camera.sample_count
+    assert block.count == min(samples, Camera.sample_count)
