@@ -153,3 +153,14 @@ def test_a_camera_read_in_the_wrong_dialect_names_what_it_lacks(tmp_path):
         rl.load_scene(path, pbrt_dialect="v3")
     message = str(error.value)
     assert message.startswith(f"{path}:2: ") and '"string lensfile"' in message and "--pbrt-dialect" in message
+
+
+def test_the_python_api_takes_search_paths_as_strings(picture_scene, tmp_path):
+    elsewhere = tmp_path / "scenes"
+    elsewhere.mkdir()
+    path = picture_scene(name="scenes/s.pbrt")  # the texture stays in tmp_path, found only by the search path
+    with pytest.raises(rl.UserError, match="picture.exr"):
+        rl.load_scene(path, resolution=(8, 8), spp=1)
+    by_str = rl.load_scene(str(path), resolution=(8, 8), spp=1, search_paths=[str(tmp_path)])
+    by_path = rl.load_scene(path, resolution=(8, 8), spp=1, search_paths=[tmp_path])
+    assert np.array_equal(rl.render(by_str, backend="numpy"), rl.render(by_path, backend="numpy"))

@@ -10,6 +10,7 @@ brings its own camera, which the options override), a mesh file set on a grid fl
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,7 +54,7 @@ class RenderOptions:
     from the film plane.
     """
 
-    scene: str | None = None
+    scene: str | os.PathLike | None = None
     lens: str | None = None
     aperture_mm: float | None = None
     f_number: float | None = None
@@ -76,10 +77,13 @@ class RenderOptions:
     wavelengths_per_sample: int | None = None  # spectral renders: rays per sample (None: the camera's default)
     pbrt_dialect: str = "auto"  # pbrt scenes: which pbrt's conventions (realistic.scene.pbrt.dialect)
     pixel_filter: str | None = None  # a filter name replacing the scene's, at pbrt's default parameters
-    search_paths: list[Path] = field(default_factory=list)
+    search_paths: list[str | os.PathLike] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         """Each value through its one check (``realistic.core.validation``), as the CLI's are."""
+        # the Python API may pass str or os.PathLike where the CLI passes Path
+        self.scene = None if self.scene is None else str(self.scene)
+        self.search_paths = [Path(folder) for folder in self.search_paths]
         if self.spp is not None:
             validation.samples_per_pixel(self.spp)
         if self.light_samples is not None:
