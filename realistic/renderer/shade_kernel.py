@@ -159,11 +159,14 @@ class ShadeKernel:
         self.program, self.build_seconds = _program(self.context, self.source, self.options)
         mf = cl.mem_flags
 
+        self._host_tables: list[np.ndarray] = []  # kept alive: the buffers wrap them (no device copy)
+
         def table(array: np.ndarray, dtype) -> object:
             data = np.ascontiguousarray(array, dtype=dtype).ravel()
             if data.size == 0:
                 data = np.zeros(4, dtype)
-            return cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=data)
+            self._host_tables.append(data)
+            return cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=data)
 
         self._tables = [table(faces, np.int32), table(normals, np.float32), table(uv, np.float32),
                         table(geom_ints, np.int32), table(geom_floats, np.float32), table(material_rows, np.float32),

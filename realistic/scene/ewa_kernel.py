@@ -35,13 +35,16 @@ class EwaKernel:
         mf = cl.mem_flags
 
         def constant(array: np.ndarray) -> cl.Buffer:
-            return cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(array))
+            # wrapped, not copied (PoCL on the CPU reads host memory): the texels are not held twice
+            return cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=array)
 
-        self._tables = [constant(mipmap.texels.astype(np.float32)), constant(mipmap.level_base.astype(np.int64)),
-                        constant(mipmap.level_width.astype(np.int64)), constant(mipmap.level_height.astype(np.int64))]
+        self._host = [np.ascontiguousarray(mipmap.texels, np.float32)] + [
+            np.ascontiguousarray(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
+        self._tables = [constant(array) for array in self._host]  # the arrays stay alive with their buffers
         self._wrap, self._levels = np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count)
         self._max_anisotropy = np.float64(mipmap.max_anisotropy)
-        self._lut = constant(EWA_WEIGHTS.astype(np.float64))
+        self._host.append(np.ascontiguousarray(EWA_WEIGHTS, np.float64))
+        self._lut = constant(self._host[-1])
         self._lock = threading.Lock()
 
     def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:

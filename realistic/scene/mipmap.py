@@ -67,19 +67,31 @@ class MipMap:
         if (size_y, size_x) != (height, width):
             image = np.einsum("yi,ijc,xj->yxc", _area_resample_matrix(height, size_y), image,
                               _area_resample_matrix(width, size_x))
-        levels = [image]
+        shapes = [(size_y, size_x)]
         for _ in range(int(math.log2(max(size_x, size_y)))):
-            levels.append(_halve(levels[-1]))
-        self.levels = levels
+            shapes.append((max(1, shapes[-1][0] // 2), max(1, shapes[-1][1] // 2)))
         self.wrap, self.max_anisotropy = wrap, float(max_anisotropy)
-        self._width = np.array([lvl.shape[1] for lvl in levels], np.int64)
-        self._height = np.array([lvl.shape[0] for lvl in levels], np.int64)
+        self._height = np.array([h for h, _ in shapes], np.int64)
+        self._width = np.array([w for _, w in shapes], np.int64)
         self._base = np.concatenate([[0], np.cumsum(self._width * self._height)[:-1]])
-        self._texels = np.concatenate([lvl.reshape(-1, 3) for lvl in levels]).astype(np.float32)
+        # averaged in float64, stored in float32 level by level: one float64 level is alive at a time
+        self._texels = np.empty((int(np.sum(self._width * self._height)), 3), np.float32)
+        level = image
+        for index in range(len(shapes)):
+            if index:
+                level = _halve(level)
+            self._texels[self._base[index]:self._base[index] + level.shape[0] * level.shape[1]] = level.reshape(-1, 3)
 
     @property
     def level_count(self) -> int:
-        return len(self.levels)
+        return len(self._width)
+
+    @property
+    def levels(self) -> list[np.ndarray]:
+        """Each level as an (h, w, 3) float32 view of ``texels`` (only the float32 pyramid is kept:
+        a float64 copy of the homework's 1024 x 1024 texture would hold 32 MiB for nothing)."""
+        return [self._texels[base:base + w * h].reshape(h, w, 3)
+                for base, w, h in zip(self._base, self._width, self._height)]
 
     @property
     def texels(self) -> np.ndarray:
@@ -181,7 +193,7 @@ class MipMap:
         """Gaussian-weighted texel sum at per-point ``level`` (the coarsest level's texel beyond it)."""
         out = np.empty((len(st), 3))
         beyond = level >= self.level_count
-        out[beyond] = self.levels[-1][0, 0]
+        out[beyond] = self._texels[-1]
         rows = np.flatnonzero(~beyond)
         level = level[rows]
         w, h = self._width[level].astype(np.float64), self._height[level].astype(np.float64)
