@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.renderer.film import Film, PassFilm
-from realistic.renderer.pass_plan import plan_passes, progressive_order, slice_bounds
+from realistic.renderer.pass_plan import PASS_RAYS, default_pass_samples, plan_passes, progressive_order, slice_bounds
 from realistic.renderer.passes import render_passes
 from realistic.scene.staging import default_setup
 
@@ -22,6 +22,15 @@ def _coverage(plan, pixels, spp):
         pixel, sample = block.ids()
         np.add.at(covered, (pixel, sample), 1)
     return covered
+
+
+@given(st.integers(1, 8), st.integers(0, 64))
+def test_default_passes_hold_a_fixed_number_of_rays_whatever_the_light_samples(wavelengths, light_samples):
+    """Camera rays (one per wavelength) and their shadow rays per pass: the largest whole number of
+    samples within PASS_RAYS, so four light samples do not make a pass's memory five times larger."""
+    rays_per_sample = wavelengths * (1 + light_samples)
+    samples = default_pass_samples(wavelengths, light_samples)
+    assert samples * rays_per_sample <= PASS_RAYS < (samples + 1) * rays_per_sample
 
 
 @given(st.integers(1, 400), st.integers(1, 40), st.integers(1, 700))
@@ -155,3 +164,14 @@ def test_previews_are_whole_images_while_rendering(tiny):
     assert np.array_equal(previews[-1], result.image)
     done = [np.count_nonzero(np.any(p != 0, axis=2)) for p in previews]
     assert done == sorted(done)  # pixels only gain samples
+
+
+def test_a_render_without_a_pass_size_sizes_its_passes_by_rays(tiny):
+    """128x128 at 8 spp is 131072 samples: one pass at one light sample, but 131072 / 52428 -> 3
+    passes at four, whose shadow rays would otherwise make each pass five times the rays."""
+    scene, camera = tiny
+    camera = dataclasses.replace(camera, width=128, height=128, spp=8)
+    one = render_passes(scene, camera, "numpy", light_samples=1, threads=1)
+    four = render_passes(scene, camera, "numpy", light_samples=4, threads=1)
+    assert one.passes_total == len(plan_passes(128 * 128, 8, default_pass_samples(1, 1))) == 1
+    assert four.passes_total == len(plan_passes(128 * 128, 8, default_pass_samples(1, 4))) == 3

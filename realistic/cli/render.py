@@ -88,8 +88,9 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--preview-every", type=positive("preview interval (seconds)"), metavar="SECONDS",
                         help="rewrite the PNG preview this often while rendering (default: only at the end)")
     parser.add_argument("--pass-samples", type=checked(int, validation.pass_samples), metavar="N",
-                        help="sample ids per pass (default: 131072); checkpoints hold whole passes, and a farm task "
-                             "is about 2^20 samples of passes")
+                        help="sample ids per pass (default: about 2^18 camera and shadow rays' worth, 131072 "
+                             "samples at one light sample, 52428 at four); checkpoints hold whole passes, and a farm "
+                             "task is about 2^20 samples of passes")
     add_farm_arguments(parser)
     parser.set_defaults(run=cmd_render)
 
@@ -165,7 +166,7 @@ def _output_image(image: np.ndarray, camera: Camera, args: argparse.Namespace) -
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.passes import DEFAULT_PASS_SAMPLES, Checkpointing, render_frames, render_passes
+    from realistic.renderer.passes import Checkpointing, render_frames, render_passes
     from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
     if args.out is not None and Path(args.out).suffix.lower() != ".exr":
@@ -208,7 +209,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         image, _, exposure = _output_image(image, cameras[0], args)
         write_png(out.with_suffix(".png"), image, exposure)
 
-    common = {"pass_samples": args.pass_samples or DEFAULT_PASS_SAMPLES, "progress": True,
+    common = {"pass_samples": args.pass_samples, "progress": True,
               "max_memory_bytes": args.max_memory}
     with farm_client(args) as client:
         if sweep is None:

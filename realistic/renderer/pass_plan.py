@@ -18,7 +18,20 @@ import numpy as np
 
 from realistic.camera.base import SampleBlock
 
-DEFAULT_PASS_SAMPLES = 1 << 17
+#: Camera plus shadow rays a pass traces by default. Memory in flight and a pass's fixed costs (kernel
+#: launches, embree calls, Python) both go with it: 2^18 rays is 2^17 samples of one camera ray and one
+#: shadow ray each, which measured within a few percent of the embree ceiling (bench/render.py).
+PASS_RAYS = 1 << 18
+
+
+def default_pass_samples(rays_per_sample: int = 1, light_samples: int = 1) -> int:
+    """Samples per pass for a camera tracing ``rays_per_sample`` rays per sample (a spectral camera's
+    wavelengths) with ``light_samples`` shadow rays per hit: ``PASS_RAYS`` rays in all, so passes
+    of the homework scenes' four light samples hold a fifth of the samples, not more memory."""
+    return max(1, PASS_RAYS // (max(1, rays_per_sample) * (1 + max(0, light_samples))))
+
+
+DEFAULT_PASS_SAMPLES = default_pass_samples()  # one camera ray and one light sample per sample: 2^17
 
 
 def progressive_order(count: int) -> np.ndarray:

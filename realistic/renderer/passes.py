@@ -34,12 +34,12 @@ from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, save_
 from realistic.renderer.film import Film, PassFilm, pass_sums
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.memory import check_memory
-from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES, plan_passes
+from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES, default_pass_samples, plan_passes
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import Scene
 
-__all__ = ["DEFAULT_PASS_SAMPLES", "RenderResult", "render", "render_frames", "render_passes"]
+__all__ = ["DEFAULT_PASS_SAMPLES", "RenderResult", "default_pass_samples", "render", "render_frames", "render_passes"]
 
 
 @dataclass
@@ -189,7 +189,7 @@ class Checkpointing:
 
 def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", seed: int = 0,
                   cl_device: str | None = None, light_samples: int = 1, *,
-                  pass_samples: int = DEFAULT_PASS_SAMPLES, threads: int = 2, morton: bool = False,
+                  pass_samples: int | None = None, threads: int = 2, morton: bool = False,
                   progress: bool = False, on_pass: Callable[[RenderResult], None] | None = None,
                   on_frame: Callable[[int, RenderResult], None] | None = None,
                   max_memory_bytes: int | None = None, client=None, task_samples: int | None = None,
@@ -200,9 +200,11 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
     workers stay busy across frame boundaries); ``on_frame(i, result)`` is called as frame i
     completes. Other options as ``render_passes``; ``checkpoint`` needs exactly one camera."""
     validation.seed(seed)
-    validation.pass_samples(pass_samples)
     if not cameras:
         raise UserError("nothing to render: no cameras")
+    if pass_samples is None:
+        pass_samples = default_pass_samples(cameras[0].rays_per_sample, light_samples)
+    validation.pass_samples(pass_samples)
     if checkpoint is not None and len(cameras) != 1:
         raise UserError("checkpoints are for single images, not sequences")
     if client is None:
@@ -328,12 +330,13 @@ def _finish(frame: _Frame, start: float, clock: StageClock) -> RenderResult:
 
 def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: int = 0,
                   cl_device: str | None = None, light_samples: int = 1,
-                  pass_samples: int = DEFAULT_PASS_SAMPLES, threads: int = 2, morton: bool = False,
+                  pass_samples: int | None = None, threads: int = 2, morton: bool = False,
                   progress: bool = False, on_pass: Callable[[RenderResult], None] | None = None,
                   max_memory_bytes: int | None = None, *, client=None, task_samples: int | None = None,
                   checkpoint: Checkpointing | None = None, preview: Callable[[np.ndarray], None] | None = None,
                   preview_every: float | None = None) -> RenderResult:
     """Render and return the image with statistics; ``on_pass`` is called after each pass is added.
+    ``pass_samples`` None sizes passes by rays (``pass_plan.default_pass_samples``).
 
     Before any work, a render whose estimated peak memory exceeds ``max_memory_bytes`` (None: what
     the system has available) is refused with a UserError (``realistic.renderer.memory``). A first
