@@ -6,13 +6,16 @@
 Scenes: the homework's ``../shared/scenes/pbrt/dof-dragons.<lens>.pbrt``, their dragon versions
 ``scenes/dof-dragons/<lens>.pbrt`` (search paths ``../shared/meshes`` and ``../shared/scenes/pbrt``)
 and ``scenes/default.pbrt``; scenes whose shared data is absent are skipped with the reason. Each
-scene is measured in fresh processes, so imports and caches start as a user's command would:
+scene is measured in fresh processes, so imports and caches start as a user's command would (with
+Python's bytecode cache allowed, as an installed package has it, even where PYTHONDONTWRITEBYTECODE is
+set):
 
 - ``cli s``: wall seconds of ``python -m realistic render SCENE --res --spp --out TMP.exr``;
 - from the library (``build_render_inputs``, ``render_passes`` with an ``on_pass`` callback):
   ``setup s`` = process start and imports + scene load + the "exit pupil" and "setup" stages
   (everything before the first camera ray), ``first pass s`` = process start to the first finished
-  pass, ``render s`` = the rest of ``render_passes``, and samples/s = samples / render s;
+  pass, ``1st frame s`` = to the first whole frame (every pixel's first samples: the first slice),
+  ``render s`` = the rest of ``render_passes``, and samples/s = samples / render s;
   ``peak MiB`` = that process's peak resident set (``getrusage``'s ru_maxrss), whose interpreter
   baseline (python with numpy, pyopencl and embreex imported, nothing loaded) is measured first.
 
@@ -111,17 +114,25 @@ def measure_in_process(arguments: list[str], launched: float, flat: bool = False
     from realistic.cli import build_parser
     from realistic.cli.scene_arguments import options_from_args
     from realistic.renderer.inputs import build_render_inputs
+    from realistic.renderer.pass_plan import default_pass_samples, plan_passes
     from realistic.renderer.passes import render_passes
 
     imported = time.time()
     args = build_parser().parse_args(["render", *arguments])
     inputs = build_render_inputs(options_from_args(args, args.spp))
     loaded = time.time()
+    camera = inputs.camera
+    plan = plan_passes(camera.width * camera.height, camera.spp,
+                       default_pass_samples(camera.rays_per_sample, inputs.light_samples))
+    frame_passes = sum(1 for block in plan if block.first_sample == 0)  # the first slice: every pixel once
     first_pass: list[float] = []
+    first_frame: list[float] = []
 
-    def on_pass(_result) -> None:
+    def on_pass(result) -> None:
         if not first_pass:
             first_pass.append(time.time())
+        if not first_frame and result.passes_done >= frame_passes:
+            first_frame.append(time.time())
 
     result = render_passes(inputs.scene, inputs.camera, args.backend, args.seed, light_samples=inputs.light_samples,
                            on_pass=on_pass)
@@ -131,6 +142,7 @@ def measure_in_process(arguments: list[str], launched: float, flat: bool = False
     return {"import_s": imported - launched, "load_s": loaded - imported,
             "exit_pupil_s": stages.get("exit pupil", 0.0), "setup_stage_s": stages.get("setup", 0.0),
             "setup_s": loaded - launched + before_rays, "first_pass_s": first_pass[0] - launched,
+            "first_frame_s": first_frame[0] - launched,
             "render_s": render_s, "samples": result.samples_done,
             "samples_per_s": result.samples_done / render_s, "light_samples": inputs.light_samples,
             "peak_rss_mib": peak_rss_mib()}
@@ -155,7 +167,10 @@ print(json.dumps({"import_s": imported, "peak_rss_mib": bare, "with_renderer_mib
 
 
 def _child_environment(empty_cache: bool) -> dict[str, str]:
+    """The measuring processes' environment: Python's bytecode cache allowed, as in an installed
+    package (pip compiles it at install), so start-up is not timed compiling the sources."""
     env = dict(os.environ)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     if empty_cache:
         env["REALISTIC_CACHE_DIR"] = tempfile.mkdtemp(prefix="realistic-bench-cache-")
     return env
@@ -242,7 +257,7 @@ def main() -> None:
           f"{'flat (unshared) embree scene, ' if args.flat else ''}"
           f"{'empty' if args.empty_cache else 'user'} exit-pupil cache; the machine's load is not controlled")
     header = (f"{'scene':<20}{'cli s':>8}{'setup s':>9}{'(import':>8}{'load':>7}{'pupil':>7}{'stage)':>7}"
-              f"{'1st pass s':>11}{'render s':>10}{'M samples/s':>12}{'lights':>7}{'peak MiB':>9}")
+              f"{'1st pass s':>11}{'1st frame s':>12}{'render s':>10}{'M samples/s':>12}{'lights':>7}{'peak MiB':>9}")
     baseline = median_figures([baseline_figures() for _ in range(args.repeats)])
     print(f"interpreter baseline (python + numpy + pyopencl + embreex imported, nothing rendered): "
           f"peak RSS {baseline['peak_rss_mib']:.0f} MiB ({baseline['with_renderer_mib']:.0f} MiB with the "
@@ -262,7 +277,8 @@ def main() -> None:
         rows.append({"scene": scene.name, "path": str(scene.path), "cli_s": cli, **lib})
         print(f"{scene.name:<20}{cli:>8.2f}{lib['setup_s']:>9.2f}{lib['import_s']:>8.2f}{lib['load_s']:>7.2f}"
               f"{lib['exit_pupil_s']:>7.2f}{lib['setup_stage_s']:>7.2f}{lib['first_pass_s']:>11.2f}"
-              f"{lib['render_s']:>10.2f}{lib['samples_per_s'] / 1e6:>12.3f}{int(lib['light_samples']):>7d}"
+              f"{lib['first_frame_s']:>12.2f}{lib['render_s']:>10.2f}{lib['samples_per_s'] / 1e6:>12.3f}"
+              f"{int(lib['light_samples']):>7d}"
               f"{lib['peak_rss_mib']:>9.0f}",
               flush=True)
     slow = [r["scene"] for r in rows if r["first_pass_s"] >= FIRST_PASS_GOAL_S]
