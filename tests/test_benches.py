@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from realistic.renderer.convergence import relative_rmse
+from realistic.renderer.convergence import relative_rmse, two_seed_noise
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -76,15 +76,6 @@ def test_time_to_error_not_reached_and_reached_at_once():
     assert converge.time_to_error(seconds, errors, 0.6) == 1.0  # the first point: an upper bound
     assert converge.time_to_error(seconds, errors, 0.2) == pytest.approx(4.0)  # a measured point exactly
     assert converge.time_to_error([1.0, 2.0], [0.5, 0.0], 0.1) == 2.0  # no log of a zero error
-
-
-@given(st.floats(1e-4, 10.0), st.integers(1, 4096), st.integers(1, 1 << 16))
-def test_reference_noise_recovers_the_reference_part_of_the_error(variance, spp, reference_spp):
-    """With independent errors of variance v/n and v/N the measured error is sqrt(v/n + v/N); the
-    estimate gives back sqrt(v/N)."""
-    measured = math.sqrt(variance / spp + variance / reference_spp)
-    assert converge.reference_noise(measured, spp, reference_spp) == pytest.approx(
-        math.sqrt(variance / reference_spp), rel=1e-9)
 
 
 # --- the reference cache key -------------------------------------------------------------------
@@ -192,21 +183,34 @@ def test_options_parse_or_refuse_in_one_line(module, option, text, capsys):
     assert all(v > 0 for v in values)
 
 
-@given(st.floats(1e-3, 10.0), st.floats(0.0, 1e-2))
+@given(st.floats(1e-3, 10.0), st.floats(0.5, 1.5))
 @settings(max_examples=30, deadline=None)
-def test_inverse_n_fit_recovers_test_variance_and_reference_error(variance, reference_squared):
-    spps = [4, 8, 16, 32, 64, 128, 256]
-    errors = [math.sqrt(variance / n + reference_squared) for n in spps]
-    a, b = converge.inverse_n_fit(spps, errors)
-    assert a == pytest.approx(variance, rel=1e-6)
-    assert b == pytest.approx(reference_squared, rel=1e-6, abs=1e-12)
+def test_the_noise_power_law_is_recovered_and_inverted(c, q):
+    spps = [64, 128, 256]
+    fit_c, fit_q = converge.noise_power_law(spps, [c * n ** -q for n in spps])
+    assert fit_c == pytest.approx(c, rel=1e-6) and fit_q == pytest.approx(q, rel=1e-6)
+    assert converge.spp_to_noise(fit_c, fit_q, c * 1000.0 ** -q) == pytest.approx(1000.0, rel=1e-6)
 
 
-def test_extrapolated_seconds_follow_the_1_over_n_law_and_linear_render_time():
+def test_one_noise_point_extrapolates_by_the_1_over_n_law():
+    c, q = converge.noise_power_law([100], [0.04])
+    assert q == 0.5 and converge.spp_to_noise(c, q, 0.02) == pytest.approx(400.0)
+
+
+def test_extrapolated_seconds_follow_the_linear_render_time():
     spps, render_s = [4, 16, 64], [1.0 + 0.5 * n for n in (4, 16, 64)]
-    spp, seconds = converge.extrapolated_seconds(spps, render_s, 2.0, 0.04, 0.02)
-    assert spp == pytest.approx(100.0)  # 0.04 / 0.02^2
-    assert seconds == pytest.approx(2.0 + 1.0 + 0.5 * 100.0)
+    assert converge.extrapolated_seconds(spps, render_s, 2.0, 100.0) == pytest.approx(2.0 + 1.0 + 0.5 * 100.0)
+
+
+def test_two_seed_noise_is_each_renders_error_against_the_truth():
+    """Two independent unbiased renders of an image with per-pixel noise sigma: the estimate is
+    sigma / mean, the RMSE each has against the true image, which it never sees."""
+    rng = np.random.default_rng(5)
+    truth = rng.uniform(0.5, 1.5, (200, 300, 3))
+    first, second = (truth + rng.normal(0.0, 0.1, truth.shape) for _ in range(2))
+    expected = relative_rmse(first, truth)
+    assert two_seed_noise(first, second) == pytest.approx(expected, rel=0.02)
+    assert expected == pytest.approx(0.1 / truth.mean(), rel=0.02)
 
 
 def test_pbrt_v3_time_by_the_same_law_hits_its_own_measured_point():

@@ -32,6 +32,14 @@ def relative_rmse(image: np.ndarray, reference: np.ndarray) -> float:
     return rmse(image, reference) / float(np.mean(reference, dtype=np.float64))
 
 
+def two_seed_noise(first: np.ndarray, second: np.ndarray) -> float:
+    """Relative RMSE of one render against its converged image, from two renders that differ only in
+    seed: independent, unbiased estimates a and b of the same image give E[(a - b)^2] = 2 var, so
+    sqrt(mean((a - b)^2) / 2) over the mean needs no reference and carries none of its noise."""
+    mean = float(np.mean(0.5 * (first.astype(np.float64) + second.astype(np.float64))))
+    return rmse(first, second) / math.sqrt(2.0) / mean
+
+
 def measure_sample_counts(scene: Scene, camera: Camera, spp_list: list[int], backend: str = "opencl", seed: int = 0,
                           light_samples: int = 1, reference: np.ndarray | None = None,
                           cl_device: str | None = None, progress: bool = True,
