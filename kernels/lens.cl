@@ -14,9 +14,9 @@
  * known at compile time. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized loop" per kernel, and
  * the built generate_rays.so (POCL_CACHE_DIR, POCL_LEAVE_KERNEL_COMPILER_TEMP_FILES=1) uses ymm.
  *
- * The host (realistic/opencl_host.py) prepends a generated header that defines, per camera:
- *   WIDTH, HEIGHT, SPP            resolution and samples per pixel (integer constants)
- *   FILM_W_MM, FILM_H_MM          film size (mm)
+ * The host (realistic/opencl_host.py) prepends a generated header that defines, per camera (the
+ * resolution, the film's size and the sample count are kernel arguments instead, so a new --res or
+ * --spp reuses PoCL's cached build rather than compiling for a second or more):
  *   PLANE_Z_MM                    z of the sampling plane (lens frame: film at z = 0, +z to scene)
  *   FRONT_VERTEX_Z_MM             z of the front vertex
  *   REAR_W_MM                     -film distance: z of the film relative to the rear vertex
@@ -382,6 +382,7 @@ inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
  * (world space; a blocked ray has weight 0 and zero origin and direction), and when SPECTRAL an
  * eighth: the wavelength in nm. world is the camera-to-world matrix, rows of (m0 m1 m2 t). */
 __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint seed, __constant float *world,
+                            uint width, float inv_width, float inv_height, float film_w_mm, float film_h_mm,
                             uint stride, __global float *out, __global int *pixel_out) {
     uint gid = get_global_id(0);
     uint pixel, sample, sample_gid, stratum;
@@ -390,13 +391,13 @@ __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uin
     uint b0, b1, b2, b3, b4;
     stratified(pixel, sample, seed, &b0, &b1, &b2, &b3, &b4);
 
-    uint py_i = pixel / WIDTH;
-    uint px_i = pixel - py_i * WIDTH;
+    uint py_i = pixel / width;
+    uint px_i = pixel - py_i * width;
     float filter_wx, filter_wy;
     float off_x = filter_offset_x(to_unit(b0), &filter_wx);
     float off_y = filter_offset_y(to_unit(b1), &filter_wy);
-    float fx = -(((float)px_i + (0.5f + off_x)) * (1.0f / WIDTH) - 0.5f) * FILM_W_MM;
-    float fy = (((float)py_i + (0.5f + off_y)) * (1.0f / HEIGHT) - 0.5f) * FILM_H_MM;
+    float fx = -(((float)px_i + (0.5f + off_x)) * inv_width - 0.5f) * film_w_mm;
+    float fy = (((float)py_i + (0.5f + off_y)) * inv_height - 0.5f) * film_h_mm;
 
     float tx, ty, area;
     sample_plane(fx, fy, to_unit(b2), to_unit(b3), &tx, &ty, &area);

@@ -177,3 +177,17 @@ def test_program_is_built_once_per_camera_configuration():
     assert again.program is first.program
     other = opencl_host.LensKernel(reference_camera("wide", "rear"))
     assert other.program is not first.program
+
+
+def test_a_new_resolution_or_sample_count_reuses_the_program_and_matches_the_reference():
+    """Resolution, film size and spp are kernel arguments, not compiled in: a camera that differs only
+    in them shares the built program (no recompile for a new --res or --spp), and its rays still
+    match the reference."""
+    camera = reference_camera("dgauss", "pupil")
+    first = opencl_host.LensKernel(camera)
+    for changed in (dataclasses.replace(camera, spp=camera.spp + 3),
+                    dataclasses.replace(camera, width=2 * camera.width, height=2 * camera.height),
+                    dataclasses.replace(camera, width=camera.width + 5)):  # another aspect: another film size
+        again = opencl_host.LensKernel(changed)
+        assert again.program is first.program
+        _check_against_reference(changed)

@@ -201,7 +201,6 @@ def camera_header(camera: LensCamera) -> str:
     """The generated ``#define`` block that specialises ``lens.cl`` to one camera (see its header)."""
     lens = camera.lens
     vertex_z = lens.vertex_z_mm(camera.film_distance_mm)
-    w_mm, h_mm = camera.film_size_mm
     ratios, calls = _index_ratios(camera)
     for eta, i in zip(ratios, range(lens.surface_count - 1, -1, -1)):
         gap = lens.thickness_mm[i - 1] if i > 0 else 0.0
@@ -220,11 +219,6 @@ def camera_header(camera: LensCamera) -> str:
             calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
     lines = [
         f"#define SPECTRAL {int(camera.spectral)}",
-        f"#define WIDTH {camera.width}u",
-        f"#define HEIGHT {camera.height}u",
-        f"#define SPP {camera.spp}u",
-        f"#define FILM_W_MM {_c_float(w_mm)}",
-        f"#define FILM_H_MM {_c_float(h_mm)}",
         f"#define FRONT_VERTEX_Z_MM {_c_float(vertex_z[0])}",
         f"#define REAR_W_MM {_c_float(-camera.film_distance_mm)}",
         "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
@@ -290,6 +284,10 @@ class LensKernel:
         world = np.ascontiguousarray(camera.world_from_lens[:3, :4], dtype=np.float32)
         mf = cl.mem_flags
         self._world = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=world)
+        w_mm, h_mm = camera.film_size_mm
+        # the values the compiler folded when they were literals: 1.0f / WIDTH rounds as float32 does
+        self._film = (np.uint32(camera.width), np.float32(1) / np.float32(camera.width),
+                      np.float32(1) / np.float32(camera.height), np.float32(w_mm), np.float32(h_mm))
         self._capacity = 0
         self._out = self._pixels = None
         self._lock = threading.Lock()
@@ -322,7 +320,8 @@ class LensKernel:
         with self._lock:
             self._buffers(padded)
             self._generate(self.queue, (padded,), (LOCAL_SIZE,), *address,
-                           np.uint32(seed & 0xFFFFFFFF), self._world, np.uint32(padded), self._out, self._pixels)
+                           np.uint32(seed & 0xFFFFFFFF), self._world, *self._film,
+                           np.uint32(padded), self._out, self._pixels)
             cl.enqueue_copy(self.queue, out, self._out)
             cl.enqueue_copy(self.queue, pixels, self._pixels)
             self.queue.finish()
