@@ -30,6 +30,8 @@ separate dimensions. Why Sobol' and not a Kronecker sequence like the camera's: 
 visibility of a soft shadow, an Owen-scrambled net's variance falls like N^-1.5 at N = 2^m samples,
 and its 2-D projection is a (0, 2)-net, the best 2-D stratification in base 2; the per-pixel keys are
 ``hash_key(pixel, 0xFFFFFFFF, d, seed)`` at d = ``LIGHT_KEYS`` (the camera's rotations use d = 0 .. 4).
+The index is uint32: distinct while spp x L <= 2^32 (beyond, at the validation's extremes of 2^24
+spp and 1024 light samples, samples 2^32 / L apart repeat their light numbers).
 
 Several wavelengths per sample (``spectral_rays``): a spectral sample traced at K wavelengths takes
 the K numbers (u4 + j) / K, j = 0 .. K - 1, from its one R5 value u4: exactly one in each 1/K of
