@@ -82,13 +82,18 @@ def test_reverse_bits_reverses_the_binary_digits(x):
 
 @given(st.integers(0, 2**32 - 1), st.integers(0, 2**31 - 1), st.integers(1, 64), st.integers(0, 2**32 - 1))
 def test_numbers_are_in_the_unit_interval_and_per_element(pixel, sample, light_samples, seed):
-    """Every number is float32 in [0, 1), and an element's numbers do not depend on the batch."""
+    """Every number is float32 in [0, 1), and an element's numbers do not depend on the batch (nor
+    the point on whether the pick is asked for)."""
     ks = np.arange(light_samples)
     batch = np.array([rng.light_uniforms(np.array([pixel, 3]), np.array([sample, 9]), k, light_samples, seed)
                       for k in ks])
     alone = np.array([rng.light_uniforms(np.array([pixel]), np.array([sample]), k, light_samples, seed) for k in ks])
     assert batch.dtype == np.float32 and np.all((batch >= 0) & (batch < 1))
     np.testing.assert_array_equal(batch[:, :, :1], alone)
+    point_only = rng.light_uniforms(np.array([pixel]), np.array([sample]), light_samples - 1, light_samples, seed,
+                                    pick=False)
+    np.testing.assert_array_equal(point_only[1:], alone[-1, 1:])
+    assert point_only[0] == 0
 
 
 @pytest.mark.parametrize("spp, light_samples", [(16, 1), (16, 4), (4, 16), (64, 1)])
@@ -175,7 +180,7 @@ def floor_estimates(scene: Scene, intersector: Intersector, spp: int, light_samp
     return radiance[:, 0].astype(np.float64).reshape(GRID * GRID, spp).mean(axis=1)
 
 
-def _iid_light_uniforms(pixel, sample, k, light_samples, seed):
+def _iid_light_uniforms(pixel, sample, k, light_samples, seed, pick=True):
     """The integrator's former light numbers: independent hashes at dimensions 4 + 3k .. 6 + 3k."""
     return [rng.uniform(pixel, sample, dim, seed) for dim in (4 + 3 * k, 5 + 3 * k, 6 + 3 * k)]
 

@@ -69,13 +69,18 @@ def hash32(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def hash_key(pixel: np.ndarray, sample: np.ndarray, dim: int, seed: int) -> np.ndarray:
-    """uint32 hash of (pixel, sample, dim, seed); pass sample = 0xFFFFFFFF for per-pixel values."""
+def hash_keys(pixel: np.ndarray, sample: np.ndarray, dims: tuple[int, ...], seed: int) -> list[np.ndarray]:
+    """``hash_key`` at each of ``dims``, hashing (seed, pixel, sample) once."""
     with np.errstate(over="ignore"):
         h = hash32(np.uint32((seed + _GOLDEN) & 0xFFFFFFFF))
         h = hash32(h ^ np.asarray(pixel, dtype=np.uint32))
         h = hash32(h ^ np.asarray(sample, dtype=np.uint32))
-        return hash32(h ^ np.uint32(dim))
+        return [hash32(h ^ np.uint32(dim)) for dim in dims]
+
+
+def hash_key(pixel: np.ndarray, sample: np.ndarray, dim: int, seed: int) -> np.ndarray:
+    """uint32 hash of (pixel, sample, dim, seed); pass sample = 0xFFFFFFFF for per-pixel values."""
+    return hash_keys(pixel, sample, (dim,), seed)[0]
 
 
 def to_unit_float(bits: np.ndarray) -> np.ndarray:
@@ -167,21 +172,42 @@ def sobol2_digits(index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return y, x
 
 
+def _light_index(sample: np.ndarray, k: int, light_samples: int) -> np.ndarray:
+    """The light-sample index sample * light_samples + k (uint32, wrapping)."""
+    with np.errstate(over="ignore"):
+        return np.asarray(sample, dtype=np.uint32) * np.uint32(light_samples) + np.uint32(k)
+
+
+def light_point_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """uint32 (u1, u2) of light sample ``k`` of ``light_samples`` per camera sample: the pixel's
+    Owen-scrambled Sobol' point at its shuffled index sample * light_samples + k (module notes)."""
+    shuffle, key1, key2 = hash_keys(pixel, np.uint32(0xFFFFFFFF), LIGHT_KEYS[:3], seed)
+    index = reverse_bits(owen_scramble_digits(reverse_bits(_light_index(sample, k, light_samples)), shuffle))
+    d1, d2 = sobol2_digits(index)
+    return reverse_bits(owen_scramble_digits(d1, key1)), reverse_bits(owen_scramble_digits(d2, key2))
+
+
+def light_pick_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int) -> np.ndarray:
+    """uint32 u0 (the light pick) of light sample ``k``: a scrambled van der Corput number at the
+    index shuffled by a key of its own (module notes)."""
+    shuffle, key = hash_keys(pixel, np.uint32(0xFFFFFFFF), LIGHT_KEYS[3:], seed)
+    index = reverse_bits(owen_scramble_digits(reverse_bits(_light_index(sample, k, light_samples)), shuffle))
+    return reverse_bits(owen_scramble_digits(index, key))
+
+
 def light_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int) -> list[np.ndarray]:
     """uint32 values (u0 pick, u1, u2 point) of light sample ``k`` of ``light_samples`` per camera
-    sample: the pixel's randomised Sobol' points at index sample * light_samples + k (module notes)."""
-    keys = [hash_key(pixel, np.uint32(0xFFFFFFFF), dim, seed) for dim in LIGHT_KEYS]
-    with np.errstate(over="ignore"):
-        index = np.asarray(sample, dtype=np.uint32) * np.uint32(light_samples) + np.uint32(k)
-    shuffled = reverse_bits(owen_scramble_digits(reverse_bits(index), keys[0]))
-    d1, d2 = sobol2_digits(shuffled)
-    picked = reverse_bits(owen_scramble_digits(reverse_bits(index), keys[3]))
-    return [reverse_bits(owen_scramble_digits(picked, keys[4])),
-            reverse_bits(owen_scramble_digits(d1, keys[1])),
-            reverse_bits(owen_scramble_digits(d2, keys[2]))]
+    sample, as ``kernels/shade.cl`` computes them."""
+    return [light_pick_bits(pixel, sample, k, light_samples, seed),
+            *light_point_bits(pixel, sample, k, light_samples, seed)]
 
 
-def light_uniforms(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int
-                   ) -> list[np.ndarray]:
-    """``light_bits`` as float32 in [0, 1): the light pick u0 and the light point u1, u2."""
-    return [to_unit_float(bits) for bits in light_bits(pixel, sample, k, light_samples, seed)]
+def light_uniforms(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int,
+                   pick: bool = True) -> list[np.ndarray]:
+    """``light_bits`` as float32 in [0, 1): the light pick u0 and the light point u1, u2. ``pick``
+    False leaves u0 at 0 without computing it (a scene with one light needs no pick; the kernel's
+    compiler drops the pick there too)."""
+    u1, u2 = (to_unit_float(bits) for bits in light_point_bits(pixel, sample, k, light_samples, seed))
+    u0 = to_unit_float(light_pick_bits(pixel, sample, k, light_samples, seed)) if pick else np.zeros_like(u1)
+    return [u0, u1, u2]

@@ -323,7 +323,8 @@ class DirectLighting:
 
         ``basis`` (rows of ``rgb_basis`` per point) makes the light's radiance spectral, as ``rho`` is then.
         """
-        u_pick, u1, u2 = rng.light_uniforms(pixel, sample, k, self.light_samples, self.seed)
+        u_pick, u1, u2 = rng.light_uniforms(pixel, sample, k, self.light_samples, self.seed,
+                                            pick=len(self._light_cdf) > 1)
         j = np.minimum(np.searchsorted(self._light_cdf, u_pick, side="right"), len(self._light_cdf) - 1)
         dx, dy = concentric_disk(u1, u2)
         disk = self._light_disk[j]
