@@ -1,4 +1,4 @@
-"""Counter-based random numbers, bit-identical in numpy and in ``kernels/lens.cl``.
+"""Counter-based random numbers, bit-identical in numpy and in ``kernels/lens.cl`` and ``kernels/shade.cl``.
 
 Every number is a pure function of (pixel, sample index, dimension, seed), so a render does not
 depend on batch size, pass order or the number of workers, and the numpy reference can be fed the
@@ -26,9 +26,12 @@ samples is random ("padding", as pbrt's samplers pad dimensions), yet the L ligh
 camera sample (L a power of two) still form a net, and so do the pixel's. The light pick u0 is the
 same construction in one dimension (a scrambled van der Corput sequence, index shuffled with its own
 key): stratified, but independent of the point, as pbrt samples a light's index and point from
-separate dimensions. Why Sobol' and not a Kronecker sequence like the camera's: for the discontinuous
-visibility of a soft shadow, an Owen-scrambled net's variance falls like N^-1.5 at N = 2^m samples,
-and its 2-D projection is a (0, 2)-net, the best 2-D stratification in base 2; the per-pixel keys are
+separate dimensions. Why Sobol' and not a Kronecker sequence like the camera's: its 2-D points are
+(0, m, 2)-nets, and for the discontinuous visibility of a soft shadow an Owen-scrambled net's
+variance falls like N^-1.5 (Owen 1997); on a disk light half-covered by random edges and blobs,
+measured at N = 16 / 64 / 256 points, the mean squared error was 0.0119 / 0.0032 / 0.00072 with iid
+numbers, 0.0093 / 0.00073 / 0.000092 with R3's last two dimensions (Cranley-Patterson rotated), and
+0.0029 / 0.00039 / 0.000046 with these. The per-pixel keys are
 ``hash_key(pixel, 0xFFFFFFFF, d, seed)`` at d = ``LIGHT_KEYS`` (the camera's rotations use d = 0 .. 4).
 The index is uint32: distinct while spp x L <= 2^32 (beyond, at the validation's extremes of 2^24
 spp and 1024 light samples, samples 2^32 / L apart repeat their light numbers).
