@@ -191,8 +191,6 @@ class ShadeKernel:
         thread's, valid until its next call."""
         cl = opencl_host.cl
         total = first_sample + light_samples if total_samples is None else total_samples
-        if not 0 <= first_sample < first_sample + light_samples <= total:
-            raise ValueError(f"light samples {first_sample} .. {first_sample + light_samples - 1} not within {total}")
         n = len(origin)
         stride = -(-n // LOCAL_SIZE) * LOCAL_SIZE
         rows = stride * light_samples
