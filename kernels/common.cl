@@ -1,6 +1,6 @@
 /* Functions kernels/lens.cl and kernels/shade.cl share; each includes it where it needs them
  * (a textual include the host expands: realistic.camera.opencl_host.kernel_source). Random numbers: lowbias32 and the top 24 bits as a float, bit-identical to
- * realistic/core/rng.py; the concentric disk map of realistic/core/warp.py (float32 rounding). */
+ * realistic/core/rng.py, and the pieces of its light-sample Sobol' sequence; the concentric disk map of realistic/core/warp.py (float32 rounding). */
 
 #define QUARTER_PI_F 0.785398163397448f
 
@@ -10,6 +10,36 @@ inline uint hash32(uint x) {
     x ^= x >> 15;
     x *= 0x846CA68Bu;
     x ^= x >> 16;
+    return x;
+}
+
+/* The 32 bits of x in reverse order (realistic.core.rng.reverse_bits). */
+inline __attribute__((always_inline)) uint reverse_bits(uint x) {
+    x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+    x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+    x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
+    x = ((x >> 8) & 0x00FF00FFu) | ((x & 0x00FF00FFu) << 8);
+    return (x >> 16) | (x << 16);
+}
+
+/* Hashed Owen scramble of base-2 digits stored lowest bit first (realistic.core.rng.owen_scramble_digits). */
+inline __attribute__((always_inline)) uint owen_scramble_digits(uint v, uint key) {
+    v ^= v * 0x3D20ADEAu;
+    v += key;
+    v *= (key >> 16) | 1u;
+    v ^= v * 0x05526C56u;
+    v ^= v * 0x53A22864u;
+    return v;
+}
+
+/* Sobol's second dimension of an index, digits lowest bit first: the XOR over bit supersets
+ * (realistic.core.rng.sobol2_digits; the first dimension's digits are the index itself). */
+inline __attribute__((always_inline)) uint sobol1_digits(uint x) {
+    x ^= (x >> 1) & 0x55555555u;
+    x ^= (x >> 2) & 0x33333333u;
+    x ^= (x >> 4) & 0x0F0F0F0Fu;
+    x ^= (x >> 8) & 0x00FF00FFu;
+    x ^= (x >> 16) & 0x0000FFFFu;
     return x;
 }
 

@@ -16,8 +16,8 @@
  *   - the albedo: the material's diffuse colour, times a grid or checker texture's colour at the
  *     interpolated uv (``realistic.scene.textures.evaluate``), or, for materials the kernel does
  *     not evaluate (image textures, filtered over pixel footprints), the host's numpy albedo row;
- *   - light sample k: random numbers of dimensions 4 + 3k .. 6 + 3k (realistic.core.rng.uniform,
- *     bit for bit), the light picked by its float32 CDF rounded up (the same choice as numpy's
+ *   - light sample k of light_samples: the pixel's scrambled Sobol' numbers at index
+ *     sample * light_samples + k (realistic.core.rng.light_bits, bit for bit), the light picked by its float32 CDF rounded up (the same choice as numpy's
  *     searchsorted on the float64 CDF), a point on the disk (concentric map) or quad, and the
  *     area-sampling estimate rho / pi L cos_p cos_q / d^2 A / P.
  * Outputs, row o = (k - first_sample) * stride + i: shadow-ray origin and vector (to the light
@@ -134,9 +134,28 @@ inline __attribute__((always_inline)) int pick_light(__global const float *cdf, 
     return found < count - 1 ? found : count - 1;
 }
 
+/* Light sample k of light_samples (per camera sample) of a pixel's sample: the pick u0 and the
+ * light point u1, u2, as realistic.core.rng.light_bits computes them (bit for bit): the index
+ * shuffled per pixel, Sobol's first two dimensions Owen-scrambled per pixel for the point, a
+ * scrambled van der Corput number of the index shuffled by its own key for the pick. The keys are
+ * hash_key(pixel, 0xFFFFFFFF, d, seed) at d = 16 .. 20 (rng.LIGHT_KEYS). u2's bits are multiplied
+ * by `unit` (1; see AT): the u1 and u2 chains are otherwise isomorphic, LLVM's SLP vectoriser packs
+ * them into 2-wide vectors, and PoCL's work-group vectoriser then gives up on the kernel. */
+inline __attribute__((always_inline)) void light_numbers(uint pixel, uint sample, uint k, uint light_samples, uint seed,
+                                                         uint unit, float *u0, float *u1, float *u2) {
+    uint h = hash32(hash32(hash32(seed + GOLDEN) ^ pixel) ^ 0xFFFFFFFFu);
+    uint index = sample * light_samples + k;
+    uint reversed = reverse_bits(index);
+    uint shuffled = reverse_bits(owen_scramble_digits(reversed, hash32(h ^ 16u)));
+    *u1 = to_unit(reverse_bits(owen_scramble_digits(shuffled, hash32(h ^ 17u))));
+    *u2 = to_unit(reverse_bits(owen_scramble_digits(sobol1_digits(shuffled), hash32(h ^ 18u))) * unit);
+    uint picked = reverse_bits(owen_scramble_digits(reversed, hash32(h ^ 19u)));
+    *u0 = to_unit(reverse_bits(owen_scramble_digits(picked, hash32(h ^ 20u))));
+}
+
 /* ------------------------------------------------------------------ kernels */
 
-__kernel void shade(uint n, uint stride, uint first_sample, uint seed, uint unit, int instance_count, float offset_base, int light_count,
+__kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, uint seed, uint unit, int instance_count, float offset_base, int light_count,
                     __global const float *origin, __global const float *direction, __global const float *tfar,
                     __global const float *hit_u, __global const float *hit_v, __global const int *prim,
                     __global const int *geom, __global const float *ng_in, __global const uint *pixel,
@@ -240,12 +259,9 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint seed, uint unit
     rho_b = kind == KIND_HOST ? AT(albedo_in, 3, host_row, 2) : rho_b;
 #endif
 
-    /* light sample k: dimensions 4 + 3k, 5 + 3k, 6 + 3k */
-    uint h = hash32(hash32(hash32(seed + GOLDEN) ^ pixel[r]) ^ sample[r]);
-    uint dim = 4u + 3u * k;
-    float u_pick = to_unit(hash32(h ^ dim));
-    float u1 = to_unit(hash32(h ^ (dim + 1u)));
-    float u2 = to_unit(hash32(h ^ (dim + 2u)));
+    /* light sample k */
+    float u_pick, u1, u2;
+    light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
     int j = pick_light(cdf, light_count, u_pick, unit);
     __global const float *light = lights + LIGHT_FLOATS * j;
     float disk_x, disk_y;
@@ -285,11 +301,11 @@ __kernel void light_uniforms(uint n, uint stride, uint seed, __global const uint
     uint i = get_global_id(0);
     uint k = get_global_id(1);
     uint r = i < n ? i : n - 1;
-    uint h = hash32(hash32(hash32(seed + GOLDEN) ^ pixel[r]) ^ sample[r]);
-    uint dim = 4u + 3u * k;
-    out[(3 * k) * stride + i] = to_unit(hash32(h ^ dim));
-    out[(3 * k + 1) * stride + i] = to_unit(hash32(h ^ (dim + 1u)));
-    out[(3 * k + 2) * stride + i] = to_unit(hash32(h ^ (dim + 2u)));
+    float u0, u1, u2;
+    light_numbers(pixel[r], sample[r], k, get_global_size(1), seed, 1u, &u0, &u1, &u2);
+    out[(3 * k) * stride + i] = u0;
+    out[(3 * k + 1) * stride + i] = u1;
+    out[(3 * k + 2) * stride + i] = u2;
 }
 
 /* Debug: the concentric map of (u1, u2) pairs, for the tests against realistic.core.warp. */

@@ -1,7 +1,7 @@
 """The general integrator against ``DirectLighting`` on the shading reference's textured scene.
 
 With light sampling alone (``mis`` False) and area lights only, ``PathIntegrator`` "direct" draws the
-same random numbers (dimensions 4 + 3k ..) and evaluates the same estimator through the BSDF
+same random numbers (``rng.light_uniforms``) and evaluates the same estimator through the BSDF
 interface, so each ray's radiance must agree to float32 rounding: EWA-filtered image, checker and grid
 textures over pixel footprints, smooth normals, one- and two-sided lights, the background, RGB and
 spectral rays. ``DirectLighting`` itself is checked against a slow float64 reference in

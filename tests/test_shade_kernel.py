@@ -2,7 +2,7 @@
 
 Per hit and light sample: the same live samples, bit-identical shadow-ray origins, and contributions
 and shadow-ray vectors equal to float32 rounding (1e-5 relative); its random numbers are
-``realistic.core.rng.uniform``'s bit for bit. Per image: renders with backend "numpy" and "opencl"
+``realistic.core.rng.light_uniforms``'s bit for bit. Per image: renders with backend "numpy" and "opencl"
 through a thin lens (whose rays are the same for both backends) agree to 1e-5 relative. The
 independent float64 reference (tests/test_shading_reference.py) checks the kernel's images too,
 through its "opencl" cases. Skips only when no OpenCL platform exists.
@@ -102,7 +102,7 @@ def test_per_hit_samples_match_the_numpy_path(scene_rays, light_samples):
     if scene.lights[0].shape == "disk" and len(scene.lights) > 2:  # the busy scene: every light is picked
         picked = set()
         for k in range(light_samples):
-            u = rng.uniform(pixel[surface], sample[surface], 4 + 3 * k, SEED)
+            u = rng.light_uniforms(pixel[surface], sample[surface], k, light_samples, SEED)[0]
             picked |= set(np.searchsorted(numpy_path._light_cdf, u, side="right").tolist())
         assert picked >= set(range(len(scene.lights)))
 
@@ -155,17 +155,18 @@ def test_spectral_rays_keep_the_numpy_path():
     np.testing.assert_array_equal(got, expected)
 
 
-def test_random_numbers_are_rng_uniform_bit_for_bit():
+def test_random_numbers_are_rng_light_uniforms_bit_for_bit():
     setup = default_setup()
     kernel = DirectLighting(setup.scene, Intersector(setup.scene), backend="opencl")._kernel
     generator = np.random.default_rng(3)
     pixel = np.concatenate([generator.integers(0, 2**31 - 1, 5000), [0, 1, 2**31 - 1]]).astype(np.int32)
     sample = np.concatenate([generator.integers(0, 2**32 - 1, 5000), [0, 2**32 - 1, 7]]).astype(np.int64)
-    for seed in (0, 5, 2**32 - 1):
-        got = kernel.light_uniforms(pixel, sample, 3, seed)
-        for k in range(3):
+    for seed, light_samples in ((0, 3), (5, 1), (2**32 - 1, 4)):
+        got = kernel.light_uniforms(pixel, sample, light_samples, seed)
+        for k in range(light_samples):
+            expected = rng.light_uniforms(pixel, sample, k, light_samples, seed)
             for j in range(3):
-                np.testing.assert_array_equal(got[3 * k + j], rng.uniform(pixel, sample, 4 + 3 * k + j, seed))
+                np.testing.assert_array_equal(got[3 * k + j], expected[j])
 
 
 def test_disk_points_match_the_concentric_map():

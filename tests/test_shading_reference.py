@@ -96,7 +96,7 @@ def reference_radiance(scene: Scene, intersector: Intersector, origin: np.ndarra
     frames = [light.frame() for light in scene.lights]
     power = np.array([light.area() * (2 if light.two_sided else 1) * np.mean(light.radiance) for light in scene.lights])
     cdf = np.cumsum(power / power.sum())
-    u = {dim: rng.uniform(pixel, sample, dim, SEED) for dim in range(4, 4 + 3 * LIGHT_SAMPLES)}
+    u = [rng.light_uniforms(pixel, sample, k, LIGHT_SAMPLES, SEED) for k in range(LIGHT_SAMPLES)]  # pick, u1, u2
     out = np.zeros((len(origin), 3))
     shadow = []  # (ray, shadow origin, shadow vector, contribution if unoccluded)
     for i in range(len(origin)):
@@ -146,9 +146,9 @@ def reference_radiance(scene: Scene, intersector: Intersector, origin: np.ndarra
                 footprint = _footprint(d, ng64, float(hits.t[i]), spread, edges, duv)
             rho = rho * _texture(material.texture, uv, footprint)
         for k in range(LIGHT_SAMPLES):
-            j = min(int(np.searchsorted(cdf, u[4 + 3 * k][i], side="right")), len(cdf) - 1)
+            j = min(int(np.searchsorted(cdf, u[k][0][i], side="right")), len(cdf) - 1)
             light, (centre, a, b, light_normal) = scene.lights[j], frames[j]
-            u1, u2 = u[5 + 3 * k][i], u[6 + 3 * k][i]
+            u1, u2 = u[k][1][i], u[k][2][i]
             if light.shape == "disk":
                 x, y = (float(v[0]) for v in concentric_disk(np.array([u1]), np.array([u2])))
             else:

@@ -1,4 +1,4 @@
-"""Counter-based random numbers, bit-identical in numpy and in ``kernels/lens.cl``.
+"""Counter-based random numbers, bit-identical in numpy and in ``kernels/lens.cl`` and ``kernels/shade.cl``.
 
 Every number is a pure function of (pixel, sample index, dimension, seed), so a render does not
 depend on batch size, pass order or the number of workers, and the numpy reference can be fed the
@@ -11,7 +11,30 @@ rotation). Any sample count is well stratified, jointly in the four dimensions. 
 draws its wavelength as a fifth dimension of the same kind of sequence: its five numbers are the 5-D
 Kronecker sequence R5 (the real root of x^6 = x + 1) with the rotation extended by a fifth per-pixel
 offset, so a pixel's film points, lens points and wavelengths are stratified together
-(``stratified5``). Non-spectral samples keep R4. Further dimensions (light samples) are plain hashes.
+(``stratified5``). Non-spectral samples keep R4. Other dimensions (``uniform``) are plain hashes.
+
+Light samples of direct lighting (``light_bits``): a pixel's spp x L light samples (L per camera
+sample) are the points 0 .. spp L - 1 of a per-pixel randomised Sobol' sequence over the index
+sample L + k. The light's 2-D point (u1, u2) is Sobol's first two dimensions, a (0, 2)-sequence in
+base 2 (every aligned block of 2^m points has one point in each of the 2^m elementary boxes of any
+shape; Niederreiter 1992), Owen-scrambled per pixel and dimension with the hash-based scrambler of
+pbrt-v4 (``FastOwenScrambler``, src/pbrt/util/lowdiscrepancy.h; Burley 2020, "Practical hash-based
+Owen scrambling", JCGT 9(4)), which keeps the net property and makes each point uniform. The index
+itself is shuffled per pixel by the same kind of scramble (applied to its bits from the top), which
+permutes aligned blocks of 2^m indices among themselves: the pairing of light points with camera
+samples is random ("padding", as pbrt's samplers pad dimensions), yet the L light samples of one
+camera sample (L a power of two) still form a net, and so do the pixel's. The light pick u0 is the
+same construction in one dimension (a scrambled van der Corput sequence, index shuffled with its own
+key): stratified, but independent of the point, as pbrt samples a light's index and point from
+separate dimensions. Why Sobol' and not a Kronecker sequence like the camera's: its 2-D points are
+(0, m, 2)-nets, and for the discontinuous visibility of a soft shadow an Owen-scrambled net's
+variance falls like N^-1.5 (Owen 1997); on a disk light half-covered by random edges and blobs,
+measured at N = 16 / 64 / 256 points, the mean squared error was 0.0119 / 0.0032 / 0.00072 with iid
+numbers, 0.0093 / 0.00073 / 0.000092 with R3's last two dimensions (Cranley-Patterson rotated), and
+0.0029 / 0.00039 / 0.000046 with these. The per-pixel keys are
+``hash_key(pixel, 0xFFFFFFFF, d, seed)`` at d = ``LIGHT_KEYS`` (the camera's rotations use d = 0 .. 4).
+The index is uint32: distinct while spp x L <= 2^32 (beyond, at the validation's extremes of 2^24
+spp and 1024 light samples, samples 2^32 / L apart repeat their light numbers).
 
 Several wavelengths per sample (``spectral_rays``): a spectral sample traced at K wavelengths takes
 the K numbers (u4 + j) / K, j = 0 .. K - 1, from its one R5 value u4: exactly one in each 1/K of
@@ -49,13 +72,18 @@ def hash32(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def hash_key(pixel: np.ndarray, sample: np.ndarray, dim: int, seed: int) -> np.ndarray:
-    """uint32 hash of (pixel, sample, dim, seed); pass sample = 0xFFFFFFFF for per-pixel values."""
+def hash_keys(pixel: np.ndarray, sample: np.ndarray, dims: tuple[int, ...], seed: int) -> list[np.ndarray]:
+    """``hash_key`` at each of ``dims``, hashing (seed, pixel, sample) once."""
     with np.errstate(over="ignore"):
         h = hash32(np.uint32((seed + _GOLDEN) & 0xFFFFFFFF))
         h = hash32(h ^ np.asarray(pixel, dtype=np.uint32))
         h = hash32(h ^ np.asarray(sample, dtype=np.uint32))
-        return hash32(h ^ np.uint32(dim))
+        return [hash32(h ^ np.uint32(dim)) for dim in dims]
+
+
+def hash_key(pixel: np.ndarray, sample: np.ndarray, dim: int, seed: int) -> np.ndarray:
+    """uint32 hash of (pixel, sample, dim, seed); pass sample = 0xFFFFFFFF for per-pixel values."""
+    return hash_keys(pixel, sample, (dim,), seed)[0]
 
 
 def to_unit_float(bits: np.ndarray) -> np.ndarray:
@@ -104,3 +132,85 @@ def spectral_rays(pixel: np.ndarray, sample: np.ndarray, seed: int, wavelengths:
     j = np.tile(np.arange(wavelengths, dtype=np.uint32), len(bits[0]) // wavelengths)
     bits[4] = bits[4] // np.uint32(wavelengths) + j * np.uint32(wavelength_step(wavelengths))
     return [to_unit_float(b) for b in bits]
+
+
+#: Per-pixel key dimensions (``hash_key`` with sample 0xFFFFFFFF) of the light samples: index
+#: shuffle and scrambles of u1, u2 (the light point), index shuffle and scramble of u0 (the pick).
+LIGHT_KEYS = (16, 17, 18, 19, 20)
+
+
+def reverse_bits(x: np.ndarray) -> np.ndarray:
+    """uint32 with its 32 bits in reverse order."""
+    x = np.asarray(x, dtype=np.uint32)
+    for shift, mask in ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF)):
+        x = ((x >> np.uint32(shift)) & np.uint32(mask)) | ((x & np.uint32(mask)) << np.uint32(shift))
+    return (x >> np.uint32(16)) | (x << np.uint32(16))
+
+
+def owen_scramble_digits(digits: np.ndarray, key: np.ndarray) -> np.ndarray:
+    """A hashed Owen scramble of a number's base-2 digits stored lowest bit first (bit r holds the
+    digit of 2^-(r + 1)): each bit is flipped or not by a function of the key and the bits below it,
+    i.e. of the more significant digits (pbrt-v4 ``FastOwenScrambler``'s steps and constants,
+    applied to the already reversed bits)."""
+    v = np.asarray(digits, dtype=np.uint32)
+    key = np.asarray(key, dtype=np.uint32)
+    with np.errstate(over="ignore"):
+        v = v ^ (v * np.uint32(0x3D20ADEA))
+        v = v + key
+        v = v * ((key >> np.uint32(16)) | np.uint32(1))
+        v = v ^ (v * np.uint32(0x05526C56))
+        return v ^ (v * np.uint32(0x53A22864))
+
+
+def sobol2_digits(index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sobol's first two dimensions of ``index`` as digits lowest bit first (``reverse_bits`` gives
+    the 32-bit fixed-point value). Dimension 0 is the van der Corput sequence: the index's own bits.
+    Dimension 1's generator matrix is Pascal's triangle mod 2: digit r is the XOR of the index bits c
+    with binomial(c, r) odd, i.e. (Lucas) with c a bit superset of r; five butterfly steps sum over
+    supersets."""
+    y = np.asarray(index, dtype=np.uint32)
+    x = y
+    for shift, mask in ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF), (16, 0x0000FFFF)):
+        x = x ^ ((x >> np.uint32(shift)) & np.uint32(mask))
+    return y, x
+
+
+def _light_index(sample: np.ndarray, k: int, light_samples: int) -> np.ndarray:
+    """The light-sample index sample * light_samples + k (uint32, wrapping)."""
+    with np.errstate(over="ignore"):
+        return np.asarray(sample, dtype=np.uint32) * np.uint32(light_samples) + np.uint32(k)
+
+
+def light_point_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """uint32 (u1, u2) of light sample ``k`` of ``light_samples`` per camera sample: the pixel's
+    Owen-scrambled Sobol' point at its shuffled index sample * light_samples + k (module notes)."""
+    shuffle, key1, key2 = hash_keys(pixel, np.uint32(0xFFFFFFFF), LIGHT_KEYS[:3], seed)
+    index = reverse_bits(owen_scramble_digits(reverse_bits(_light_index(sample, k, light_samples)), shuffle))
+    d1, d2 = sobol2_digits(index)
+    return reverse_bits(owen_scramble_digits(d1, key1)), reverse_bits(owen_scramble_digits(d2, key2))
+
+
+def light_pick_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int) -> np.ndarray:
+    """uint32 u0 (the light pick) of light sample ``k``: a scrambled van der Corput number at the
+    index shuffled by a key of its own (module notes)."""
+    shuffle, key = hash_keys(pixel, np.uint32(0xFFFFFFFF), LIGHT_KEYS[3:], seed)
+    index = reverse_bits(owen_scramble_digits(reverse_bits(_light_index(sample, k, light_samples)), shuffle))
+    return reverse_bits(owen_scramble_digits(index, key))
+
+
+def light_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int) -> list[np.ndarray]:
+    """uint32 values (u0 pick, u1, u2 point) of light sample ``k`` of ``light_samples`` per camera
+    sample, as ``kernels/shade.cl`` computes them."""
+    return [light_pick_bits(pixel, sample, k, light_samples, seed),
+            *light_point_bits(pixel, sample, k, light_samples, seed)]
+
+
+def light_uniforms(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int,
+                   pick: bool = True) -> list[np.ndarray]:
+    """``light_bits`` as float32 in [0, 1): the light pick u0 and the light point u1, u2. ``pick``
+    False leaves u0 at 0 without computing it (a scene with one light needs no pick; the kernel's
+    compiler drops the pick there too)."""
+    u1, u2 = (to_unit_float(bits) for bits in light_point_bits(pixel, sample, k, light_samples, seed))
+    u0 = to_unit_float(light_pick_bits(pixel, sample, k, light_samples, seed)) if pick else np.zeros_like(u1)
+    return [u0, u1, u2]

@@ -7,8 +7,10 @@ probability P_j (proportional to its power), a point q uniformly on its area A_j
 
 the area-sampling estimator (pdf in solid angle A_j^-1 |q - p|^2 / cos(theta_q)), averaged over
 ``light_samples`` samples. Camera rays that hit an emitter's front side see its radiance; rays
-that miss everything see the background colour. Random numbers: dimensions 4 + 3k .. 6 + 3k of
-``realistic.core.rng.uniform`` for light sample k, so a render does not depend on pass size.
+that miss everything see the background colour. Random numbers: ``realistic.core.rng.light_uniforms``
+for light sample k of camera sample s, a per-pixel scrambled Sobol' sequence over s L + k (L light
+samples), so a pixel's spp L light samples are stratified together and a render does not depend on
+pass size.
 Image textures are filtered over each camera ray's pixel footprint (``renderer.footprint``) when
 the camera's ``pixel_spread_radians`` is given.
 
@@ -232,7 +234,8 @@ class DirectLighting:
             count = min(group, self.light_samples - first)
             with timed("shading"):
                 batch = self._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
-                                           hits.normal, pixel, sample, albedo, count, self.seed, first)
+                                           hits.normal, pixel, sample, albedo, count, self.seed, first,
+                                           self.light_samples)
             with timed("embree"):
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
@@ -320,9 +323,8 @@ class DirectLighting:
 
         ``basis`` (rows of ``rgb_basis`` per point) makes the light's radiance spectral, as ``rho`` is then.
         """
-        u_pick = rng.uniform(pixel, sample, 4 + 3 * k, self.seed)
-        u1 = rng.uniform(pixel, sample, 5 + 3 * k, self.seed)
-        u2 = rng.uniform(pixel, sample, 6 + 3 * k, self.seed)
+        u_pick, u1, u2 = rng.light_uniforms(pixel, sample, k, self.light_samples, self.seed,
+                                            pick=len(self._light_cdf) > 1)
         j = np.minimum(np.searchsorted(self._light_cdf, u_pick, side="right"), len(self._light_cdf) - 1)
         dx, dy = concentric_disk(u1, u2)
         disk = self._light_disk[j]

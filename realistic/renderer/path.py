@@ -17,9 +17,10 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 ``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
 after specular bounces), for tests.
 
-Random numbers: the first vertex's light sample k uses dimensions 4 + 3k .. 6 + 3k as
-``DirectLighting`` does; bounce b's BSDF sample, lobe choice, roulette and its light sample use
-``BOUNCE_DIMENSION + 8 b + (0 .. 6)``, so results do not depend on pass size.
+Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
+stratified light samples) as ``DirectLighting`` does; bounce b's BSDF sample, lobe choice,
+roulette and its light sample use ``BOUNCE_DIMENSION + 8 b + (0 .. 6)``, so results do not depend
+on pass size.
 """
 
 from __future__ import annotations
@@ -220,8 +221,11 @@ class PathIntegrator(DirectLighting):
         light_count = self.light_samples if depth == 0 else 1
         samples = []
         for k in range(light_count if self.lights.has_lights else 0):
-            dims = (4 + 3 * k, 5 + 3 * k, 6 + 3 * k) if depth == 0 else (base + 4, base + 5, base + 6)
-            ls = self.lights.sample(point, *(rng.uniform(px, sx, dim, self.seed) for dim in dims), sb)
+            if depth == 0:
+                u_light = rng.light_uniforms(px, sx, k, self.light_samples, self.seed)
+            else:
+                u_light = [rng.uniform(px, sx, dim, self.seed) for dim in (base + 4, base + 5, base + 6)]
+            ls = self.lights.sample(point, *u_light, sb)
             samples.append((ls, frame.to_local(ls.wi)))
         u_bsdf = np.column_stack([rng.uniform(px, sx, base, self.seed), rng.uniform(px, sx, base + 1, self.seed)])
         u_lobe = rng.uniform(px, sx, base + 2, self.seed)

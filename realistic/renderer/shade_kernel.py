@@ -184,12 +184,16 @@ class ShadeKernel:
 
     def shade(self, origin: np.ndarray, direction: np.ndarray, t: np.ndarray, u: np.ndarray, v: np.ndarray,
               prim: np.ndarray, geom: np.ndarray, normal: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
-              albedo: np.ndarray | None, light_samples: int, seed: int, first_sample: int = 0) -> ShadowBatch:
+              albedo: np.ndarray | None, light_samples: int, seed: int, first_sample: int = 0,
+              total_samples: int | None = None) -> ShadowBatch:
         """Shadow rays and contributions of N camera rays and their closest hits (embree's t, u, v,
         prim, geom and unnormalised Ng) for light samples ``first_sample`` .. ``first_sample +
-        light_samples - 1``; ``albedo`` (N, 3) the numpy albedo where a material's row is KIND_HOST
-        (None when no material is). The arrays returned are this thread's, valid until its next call."""
+        light_samples - 1`` of ``total_samples`` per camera sample (default: up to the last of these,
+        which the random numbers depend on: ``rng.light_bits``); ``albedo`` (N, 3) the numpy albedo
+        where a material's row is KIND_HOST (None when no material is). The arrays returned are this
+        thread's, valid until its next call."""
         cl = opencl_host.cl
+        total = first_sample + light_samples if total_samples is None else total_samples
         n = len(origin)
         stride = -(-n // LOCAL_SIZE) * LOCAL_SIZE
         rows = stride * light_samples
@@ -207,7 +211,8 @@ class ShadeKernel:
                   self._dummy_albedo if albedo is None else np.ascontiguousarray(albedo, np.float32)]
         buffers = [cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a) for a in inputs]
         kernel = state.shade
-        kernel.set_args(np.uint32(n), np.uint32(stride), np.uint32(first_sample), np.uint32(seed & 0xFFFFFFFF),
+        kernel.set_args(np.uint32(n), np.uint32(stride), np.uint32(first_sample), np.uint32(total),
+                        np.uint32(seed & 0xFFFFFFFF),
                         np.uint32(1),
                         np.int32(self.instance_count),
                         self.offset_base, np.int32(self.light_count), *buffers, *self._tables,
@@ -229,7 +234,7 @@ class ShadeKernel:
 
     def light_uniforms(self, pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int) -> np.ndarray:
         """The kernel's light-sample random numbers (3 * light_samples, N): u_pick, u1, u2 per light
-        sample (for tests against ``realistic.core.rng.uniform``)."""
+        sample of ``light_samples`` per camera sample (for tests against ``realistic.core.rng.light_uniforms``)."""
         cl = opencl_host.cl
         n = len(pixel)
         stride = max(LOCAL_SIZE, -(-n // LOCAL_SIZE) * LOCAL_SIZE)
