@@ -11,7 +11,7 @@ from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.renderer.film import Film, PassFilm
 from realistic.renderer.pass_plan import PASS_RAYS, default_pass_samples, plan_passes, progressive_order, slice_bounds
-from realistic.renderer.passes import render_passes
+from realistic.renderer.passes import gather_rows, render_passes
 from realistic.scene.staging import default_setup
 
 
@@ -175,3 +175,14 @@ def test_a_render_without_a_pass_size_sizes_its_passes_by_rays(tiny):
     four = render_passes(scene, camera, "numpy", light_samples=4, threads=1)
     assert one.passes_total == len(plan_passes(128 * 128, 8, default_pass_samples(1, 1))) == 1
     assert four.passes_total == len(plan_passes(128 * 128, 8, default_pass_samples(1, 4))) == 3
+
+
+@given(st.integers(1, 300), st.integers(0, 2**32 - 1), st.sampled_from([np.float32, np.float64]), st.booleans())
+def test_gather_rows_is_row_indexing_as_contiguous_float32(count, seed, dtype, transposed):
+    """The kernel's (rows, n) output viewed as (n, 3) points, or a plain (n, 3) array: the same rows."""
+    rng = np.random.default_rng(seed)
+    points = rng.random((3, count)).astype(dtype).T if transposed else rng.random((count, 3)).astype(dtype)
+    rows = np.flatnonzero(rng.random(count) < 0.7)
+    gathered = gather_rows(points, rows)
+    assert gathered.dtype == np.float32 and gathered.flags.c_contiguous and gathered.shape == (len(rows), 3)
+    assert np.array_equal(gathered, points[rows].astype(np.float32))

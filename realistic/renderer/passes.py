@@ -81,6 +81,18 @@ def morton_order(pixel: np.ndarray, width: int) -> np.ndarray:
     return np.argsort(code, kind="stable")
 
 
+def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """points[rows] as a contiguous (len(rows), 3) float32 array. The kernel's rays are transposed
+    views of its (rows, n) output: gathering from each coordinate's contiguous row straight into the
+    result's column takes 0.9 ms per 97k rays, ``np.take`` along the strided axis 1.4-1.6 ms."""
+    if points.strides[0] < points.strides[1] and points.dtype == np.float32:  # coordinates are contiguous rows
+        gathered = np.empty((len(rows), points.shape[1]), np.float32)
+        for column in range(points.shape[1]):
+            np.take(points[:, column], rows, out=gathered[:, column])
+        return gathered
+    return np.take(points, rows, axis=0).astype(np.float32, copy=False)
+
+
 class PassRunner:
     """Runs passes of sample ids: rays, hits, shading, per-pixel sums. Built once per camera (and
     per worker process on a farm); ``intersector`` shares one scene's embree BVH between cameras."""
@@ -111,9 +123,7 @@ class PassRunner:
             if self.morton:
                 alive = alive[morton_order(rays.pixel[alive], self.camera.width)]
             pixel = rays.pixel[alive]
-            # np.take: the kernel's rays are strided views; take gathers them twice as fast as indexing
-            origin = np.take(rays.origin, alive, axis=0).astype(np.float32, copy=False)
-            direction = np.take(rays.direction, alive, axis=0).astype(np.float32, copy=False)
+            origin, direction = gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)
             wavelength = None if rays.wavelength_nm is None else rays.wavelength_nm[alive]
         radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, sample[alive],
                                                          self.clock, wavelength)
