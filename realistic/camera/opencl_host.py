@@ -286,7 +286,8 @@ class LensKernel:
         self._world = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=world)
         w_mm, h_mm = camera.film_size_mm
         # the values the compiler folded when they were literals: 1.0f / WIDTH rounds as float32 does
-        self._film = (np.uint32(camera.width), np.float32(1) / np.float32(camera.width),
+        self._film = (np.uint32(camera.width), np.float64(1) / np.float64(camera.width),
+                      np.float32(1) / np.float32(camera.width),
                       np.float32(1) / np.float32(camera.height), np.float32(w_mm), np.float32(h_mm))
         self._capacity = 0
         self._out = self._pixels = None
