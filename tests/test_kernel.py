@@ -191,3 +191,14 @@ def test_a_new_resolution_or_sample_count_reuses_the_program_and_matches_the_ref
         again = opencl_host.LensKernel(changed)
         assert again.program is first.program
         _check_against_reference(changed)
+
+
+def test_pixels_of_a_huge_film_map_to_their_rows_and_columns_exactly():
+    """The kernel finds a pixel's row by a double multiply, not a division: near the end of a
+    16411 x 16417 film (pixel ids past 2^28) every column and row still matches the reference."""
+    camera = dataclasses.replace(reference_camera("dgauss", "pupil"), width=16411, height=16417, spp=2)
+    block = SampleBlock(camera.sample_count - 40_000, 40_000, camera.spp)
+    kernel = camera.ray_generator("opencl", 3)(block)
+    reference = camera.generate_rays(block, 3)
+    assert kernel.pixel.min() > 2**28
+    assert_kernel_matches(kernel, reference, camera, 3, block=block)
