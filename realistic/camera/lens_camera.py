@@ -24,7 +24,7 @@ gives the K wavelengths invCDF((u4 + j) / K), j = 0 .. K - 1: one in each 1/K of
 probability (``rng.spectral_rays``; the hero-wavelength scheme of Wilkie et al. 2014 and pbrt-v4's
 ``SampledWavelengths``, except that a dispersive lens bends each wavelength its own way, so each
 gets its own ray). The K rays share the sample's film position, lens position and sample index, so
-the renderer draws the same light samples for them (``rng.uniform(pixel, sample, ...)``): their
+the renderer draws the same light samples for them (``rng.light_uniforms(pixel, sample, ...)``): their
 spectral values add up to a nearly constant colour, and what noise is left is luminance noise like
 an RGB render's rather than colour speckle. Each ray is traced with the glasses' indices at its
 wavelength, so the lens's chromatic aberration reaches the image. ``generate_rays`` returns the K
