@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import os
 import threading
-import time
 from functools import cache, lru_cache
 
 import numpy as np
@@ -249,21 +248,21 @@ def camera_header(camera: LensCamera) -> str:
     return "\n".join(lines) + "\n"
 
 
-#: Programs kept built, per context and source (one source per camera configuration): enough for a
-#: render, its autofocus and a bench's sample counts; older ones are dropped (PoCL's disk cache
-#: makes rebuilding one about 0.03 s).
+#: Programs kept built, per context, source and options (lens programs: one per lens, focus and
+#: filter; shading: one per scene variant; EWA: one): enough for a render, its autofocus and a bench's
+#: sample counts; older ones are dropped (PoCL's disk cache makes rebuilding one about 0.03-0.1 s).
 PROGRAM_CACHE_SIZE = 16
 
 
 @lru_cache(maxsize=PROGRAM_CACHE_SIZE)
-def _program(ctx: cl.Context, source: str) -> tuple[cl.Program, float]:
-    """Build ``source`` for ``ctx``; returns the program and its build seconds."""
-    start = time.perf_counter()
+def build_program(ctx: cl.Context, source: str, name: str, options: tuple[str, ...] = ()) -> cl.Program:
+    """``source`` (``kernels/<name>``, expanded by ``kernel_source``, perhaps behind a generated
+    header) built for ``ctx`` with ``options``, once per process: the lens, shading and EWA kernels
+    all build here. A build error names the kernel file."""
     try:
-        program = cl.Program(ctx, source).build()
+        return cl.Program(ctx, source).build(options=list(options))
     except cl.RuntimeError as err:
-        raise RuntimeError(f"building {KERNEL_FILE} failed:\n{err}") from None
-    return program, time.perf_counter() - start
+        raise RuntimeError(f"building {name} failed:\n{err}") from None
 
 
 class LensKernel:
@@ -277,8 +276,7 @@ class LensKernel:
         self.camera = camera
         self.context = context(device)
         self.queue = cl.CommandQueue(self.context)
-        self.source = camera_header(camera) + kernel_source(KERNEL_FILE)
-        self.program, self.build_seconds = _program(self.context, self.source)
+        self.program = build_program(self.context, camera_header(camera) + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._generate = cl.Kernel(self.program, "generate_rays")
         self._bits = cl.Kernel(self.program, "sample_bits")
         world = np.ascontiguousarray(camera.world_from_lens[:3, :4], dtype=np.float32)

@@ -23,9 +23,7 @@ launch independently; PoCL spreads each launch over every core.
 from __future__ import annotations
 
 import threading
-import time
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -43,19 +41,6 @@ MAX_LIGHTS = 65535
 #: about this many rays, so memory stays flat in the light-sample count (40 bytes per row here,
 #: about as much again in embree's ray structs).
 MAX_SHADOW_ROWS = 1 << 19
-
-
-@lru_cache(maxsize=16)
-def _program(ctx, source: str, options: tuple[str, ...]):
-    """Build ``source`` for ``ctx`` with ``options`` once per process; returns the program and its
-    build seconds."""
-    cl = opencl_host.cl
-    start = time.perf_counter()
-    try:
-        program = cl.Program(ctx, source).build(options=list(options))
-    except cl.RuntimeError as err:
-        raise RuntimeError(f"building {KERNEL_FILE} failed:\n{err}") from None
-    return program, time.perf_counter() - start
 
 
 def rounded_up_cdf(cdf: np.ndarray) -> np.ndarray:
@@ -155,8 +140,8 @@ class ShadeKernel:
                         f"-DSMOOTH={int(np.any(geom_smooth))}",
                         f"-DTEXTURED={int(np.any(np.isin(material_rows[:, 0], (KIND_GRID, KIND_CHECKER))))}",
                         f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
-        self.source = opencl_host.kernel_source(KERNEL_FILE)
-        self.program, self.build_seconds = _program(self.context, self.source, self.options)
+        self.program = opencl_host.build_program(self.context, opencl_host.kernel_source(KERNEL_FILE), KERNEL_FILE,
+                                                 self.options)
         mf = cl.mem_flags
 
         self._host_tables: list[np.ndarray] = []  # kept alive: the buffers wrap them (no device copy)

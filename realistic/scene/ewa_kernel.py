@@ -9,20 +9,15 @@ rounding; ``tests/test_ewa_kernel.py`` checks that.
 from __future__ import annotations
 
 import threading
-from functools import lru_cache
 
 import numpy as np
 import pyopencl as cl
 
-from realistic.camera.opencl_host import LOCAL_SIZE, context
-from realistic.core.data_files import data_file
+from realistic.camera.opencl_host import LOCAL_SIZE, build_program, context, kernel_source
 from realistic.core.validation import TEXTURE_WRAPS
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
 
-
-@lru_cache(maxsize=4)
-def _program(ctx: cl.Context) -> cl.Program:
-    return cl.Program(ctx, data_file("kernels/ewa.cl").read_text(encoding="utf-8")).build()
+KERNEL_FILE = "ewa.cl"
 
 
 class EwaKernel:
@@ -31,7 +26,7 @@ class EwaKernel:
     def __init__(self, mipmap: MipMap, device: str | None = None):
         self.context = context(device)
         self.queue = cl.CommandQueue(self.context)
-        self._kernel = cl.Kernel(_program(self.context), "ewa")
+        self._kernel = cl.Kernel(build_program(self.context, kernel_source(KERNEL_FILE), KERNEL_FILE), "ewa")
         mf = cl.mem_flags
 
         def constant(array: np.ndarray) -> cl.Buffer:
