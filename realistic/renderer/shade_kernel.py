@@ -144,13 +144,11 @@ class ShadeKernel:
                                                  self.options)
         mf = cl.mem_flags
 
-        self._host_tables: list[np.ndarray] = []  # kept alive: the buffers wrap them (no device copy)
-
         def table(array: np.ndarray, dtype) -> object:
+            """The array wrapped, not copied (a USE_HOST_PTR buffer keeps its host array alive)."""
             data = np.ascontiguousarray(array, dtype=dtype).ravel()
             if data.size == 0:
                 data = np.zeros(4, dtype)
-            self._host_tables.append(data)
             return cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=data)
 
         self._tables = [table(faces, np.int32), table(normals, np.float32), table(uv, np.float32),

@@ -29,17 +29,16 @@ class EwaKernel:
         self._kernel = cl.Kernel(build_program(self.context, kernel_source(KERNEL_FILE), KERNEL_FILE), "ewa")
         mf = cl.mem_flags
 
-        def constant(array: np.ndarray) -> cl.Buffer:
-            # wrapped, not copied (PoCL on the CPU reads host memory): the texels are not held twice
-            return cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=array)
+        def constant(array: np.ndarray, dtype) -> cl.Buffer:
+            # wrapped, not copied (PoCL on the CPU reads host memory), so the texels are not held twice;
+            # a USE_HOST_PTR buffer keeps its host array alive
+            return cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=np.ascontiguousarray(array, dtype))
 
-        self._host = [np.ascontiguousarray(mipmap.texels, np.float32)] + [
-            np.ascontiguousarray(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
-        self._tables = [constant(array) for array in self._host]  # the arrays stay alive with their buffers
+        self._tables = [constant(mipmap.texels, np.float32)] + [
+            constant(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
         self._wrap, self._levels = np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count)
         self._max_anisotropy = np.float64(mipmap.max_anisotropy)
-        self._host.append(np.ascontiguousarray(EWA_WEIGHTS, np.float64))
-        self._lut = constant(self._host[-1])
+        self._lut = constant(EWA_WEIGHTS, np.float64)
         self._lock = threading.Lock()
 
     def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
