@@ -202,11 +202,10 @@ class DirectLighting:
         geometric normals (facing the rays), and albedos (spectral values at ``basis``'s rows, if given)."""
         o = _rows(np.asarray(origin, np.float32), surface)
         d = _rows(np.asarray(direction, np.float32), surface)
-        geom, prim = hits.geom[surface], hits.prim[surface]
+        geom = hits.geom[surface]
         point = o + hits.t[surface, None] * d
         ng = _facing(_rows(hits.normal, surface), d)
-        face = _rows(self._faces, self._geom_face_offset[geom] + prim)
-        bary = np.column_stack([1.0 - hits.u[surface] - hits.v[surface], hits.u[surface], hits.v[surface]])
+        face, bary = self._triangles(hits, surface)
         shading = self._shading_normal(face, bary, geom, ng)
         rho = self._albedo(face, bary, geom, d, ng, hits.t[surface])
         if basis is not None:
@@ -269,11 +268,16 @@ class DirectLighting:
         rows = np.flatnonzero(surface & self._kernel.host_albedo[self._geom_material[geom_all]])
         if len(rows):
             d = _rows(np.asarray(direction, np.float32), rows)
-            geom, prim = hits.geom[rows], hits.prim[rows]
-            face = _rows(self._faces, self._geom_face_offset[geom] + prim)
-            bary = np.column_stack([1.0 - hits.u[rows] - hits.v[rows], hits.u[rows], hits.v[rows]])
-            albedo[rows] = self._albedo(face, bary, geom, d, _facing(_rows(hits.normal, rows), d), hits.t[rows])
+            face, bary = self._triangles(hits, rows)
+            albedo[rows] = self._albedo(face, bary, hits.geom[rows], d, _facing(_rows(hits.normal, rows), d),
+                                        hits.t[rows])
         return albedo
+
+    def _triangles(self, hits, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The hit triangles' vertex indices (n, 3) and barycentrics (n, 3) of the hits ``rows``."""
+        u, v = hits.u[rows], hits.v[rows]
+        face = _rows(self._faces, self._geom_face_offset[hits.geom[rows]] + hits.prim[rows])
+        return face, np.column_stack([1.0 - u - v, u, v])
 
     def _shading_normal(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray, ng: np.ndarray) -> np.ndarray:
         shading = ng.copy()

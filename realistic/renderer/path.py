@@ -33,9 +33,9 @@ import numpy as np
 from realistic.core import rng
 from realistic.core.spectrum import rgb_basis
 from realistic.core.validation import MAX_LIGHT_SAMPLES
-from realistic.core.vectors import dot, normalise
+from realistic.core.vectors import dot
 from realistic.renderer.bsdf import ShadingFrame, bsdf_for
-from realistic.renderer.integrator import SHADOW_OFFSET, DirectLighting, _rows
+from realistic.renderer.integrator import SHADOW_OFFSET, DirectLighting, _facing, _rows
 from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
@@ -203,14 +203,11 @@ class PathIntegrator(DirectLighting):
         px, sx = pixel[ray], sample[ray]
         sb = None if basis is None else _rows(basis, surface)
         ds = _rows(d, surface)
-        geom, prim = hits.geom[surface], hits.prim[surface]
+        geom = hits.geom[surface]
         t = hits.t[surface]
         point = _rows(o, surface) + t[:, None] * ds
-        ng = normalise(_rows(hits.normal, surface).astype(np.float32))
-        ng *= np.where(dot(ng, ds) > 0, -1.0, 1.0).astype(np.float32)[:, None]
-        face = _rows(self._faces, self._geom_face_offset[geom] + prim)
-        u, v = hits.u[surface], hits.v[surface]
-        bary = np.column_stack([1.0 - u - v, u, v])
+        ng = _facing(_rows(hits.normal, surface), ds)
+        face, bary = self._triangles(hits, surface)
         shading = self._shading_normal(face, bary, geom, ng)
         frame = ShadingFrame(shading)
         wo = frame.to_local(-ds)
