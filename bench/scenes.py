@@ -17,7 +17,7 @@ set):
   pass, ``1st frame s`` = to the first whole frame (every pixel's first samples: the first slice),
   ``render s`` = the rest of ``render_passes``, and samples/s = samples / render s;
   ``peak MiB`` = that process's peak resident set (``getrusage``'s ru_maxrss), whose interpreter
-  baseline (python with numpy, pyopencl and embreex imported, nothing loaded) is measured first.
+  baseline (python with numpy and pyopencl imported and embree loaded, nothing else) is measured first.
 
 ``--only TEXT`` keeps the scenes whose name contains TEXT ("dragons"); ``--flat`` measures the
 library figures with every instance copied into one world-space embree scene
@@ -153,12 +153,14 @@ def peak_rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-#: What the interpreter alone costs before any scene, in a bare ``python -c``: numpy, pyopencl and
-#: embreex imported, nothing loaded or rendered; then the renderer's own modules.
+#: What the interpreter alone costs before any scene, in a bare ``python -c``: numpy and pyopencl
+#: imported and embree's library loaded, nothing loaded or rendered; then the renderer's own modules.
 BASELINE_CODE = """
 import json, resource, time
 start = time.perf_counter()
-import embreex.rtcore_scene, numpy, pyopencl
+import numpy, pyopencl
+from realistic.scene import embree
+embree.EmbreeScene()
 peak = lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 bare, imported = peak(), time.perf_counter() - start
 from realistic.renderer.passes import render_passes
@@ -259,7 +261,7 @@ def main() -> None:
     header = (f"{'scene':<20}{'cli s':>8}{'setup s':>9}{'(import':>8}{'load':>7}{'pupil':>7}{'stage)':>7}"
               f"{'1st pass s':>11}{'1st frame s':>12}{'render s':>10}{'M samples/s':>12}{'lights':>7}{'peak MiB':>9}")
     baseline = median_figures([baseline_figures() for _ in range(args.repeats)])
-    print(f"interpreter baseline (python + numpy + pyopencl + embreex imported, nothing rendered): "
+    print(f"interpreter baseline (python + numpy + pyopencl + embree loaded, nothing rendered): "
           f"peak RSS {baseline['peak_rss_mib']:.0f} MiB ({baseline['with_renderer_mib']:.0f} MiB with the "
           f"renderer's modules imported), imports {baseline['import_s']:.2f} s")
     print(header)

@@ -4,7 +4,7 @@ A render is every pixel's spp samples cut into passes of about ``pass_samples`` 
 (``pass_plan``: slices of each pixel's samples times runs of pixels), so memory stays flat as
 resolution and spp grow; passes are numbered in progressive order, so an interrupted render is a
 whole noisy frame. Passes run on two worker
-threads in this process (embreex and most numpy loops release the GIL, so one thread's ray
+threads in this process (embree's queries and most numpy loops release the GIL, so one thread's ray
 generation overlaps the other's intersection), or, given a Dask ``client``, as tasks of a few
 passes each on its workers (``farm``). The main thread adds pass sums to the film in pass-index
 order (``film.PassFilm``), so the image is bit-identical whatever ran where. Ctrl-C stops submitting
