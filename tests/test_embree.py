@@ -6,6 +6,7 @@ no lane is lost or mixed with another; an instance under a known affine map chec
 two-level build.
 """
 
+import ctypes
 import threading
 
 import numpy as np
@@ -13,6 +14,7 @@ import pytest
 
 from realistic.scene import embree
 from realistic.scene.embree import PACKET, EmbreeScene
+from realistic.scene.packet_loop import packet_loop
 
 SQUARE_VERTICES = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
 SQUARE_FACES = np.array([[0, 1, 2], [0, 2, 3]])
@@ -139,3 +141,14 @@ def test_bad_meshes_and_uncommitted_scenes_are_refused():
 
 def test_the_library_is_the_one_embreex_ships():
     assert any("embree4" in path.name for path in embree.library_candidates())
+
+
+def test_the_packet_loop_calls_the_function_once_per_packet_with_the_right_addresses():
+    calls = []
+    record = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)(
+        lambda valid, scene, packet, arguments: calls.append((valid, scene, packet, arguments)))
+    address = ctypes.cast(record, ctypes.c_void_p).value
+    packet_loop()(address, 1000, 77, 5000, 1344, 3)
+    assert calls == [(1000, 77, 5000, None), (1064, 77, 6344, None), (1128, 77, 7688, None)]
+    packet_loop()(address, 1000, 77, 5000, 1344, 0)
+    assert len(calls) == 3
