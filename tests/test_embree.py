@@ -7,12 +7,14 @@ two-level build.
 """
 
 import ctypes
+import struct
 import threading
 
 import numpy as np
 import pytest
 
 from realistic.scene import embree
+from realistic.scene import packet_loop as packet_loop_module
 from realistic.scene.embree import PACKET, EmbreeScene
 from realistic.scene.packet_loop import packet_loop
 
@@ -143,12 +145,38 @@ def test_the_library_is_the_one_embreex_ships():
     assert any("embree4" in path.name for path in embree.library_candidates())
 
 
-def test_the_packet_loop_calls_the_function_once_per_packet_with_the_right_addresses():
+@pytest.mark.parametrize("loop", ["shipped", "compiled here"])
+def test_the_packet_loop_calls_the_function_once_per_packet_with_the_right_addresses(loop):
+    owner = None if loop == "shipped" else packet_loop_module.compiled_for_host()  # owns the code
+    trace = packet_loop() if owner is None else owner[-1]
     calls = []
     record = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)(
         lambda valid, scene, packet, arguments: calls.append((valid, scene, packet, arguments)))
     address = ctypes.cast(record, ctypes.c_void_p).value
-    packet_loop()(address, 1000, 77, 5000, 1344, 3)
+    trace(address, 1000, 77, 5000, 1344, 3)
     assert calls == [(1000, 77, 5000, None), (1064, 77, 6344, None), (1128, 77, 7688, None)]
-    packet_loop()(address, 1000, 77, 5000, 1344, 0)
+    trace(address, 1000, 77, 5000, 1344, 0)
     assert len(calls) == 3
+    del owner
+
+
+def elf_text_section(elf: bytes) -> bytes:
+    """The .text section of a little-endian ELF64 object, and a check that nothing relocates it."""
+    section_headers, = struct.unpack_from("<Q", elf, 0x28)
+    entry_size, count, names_index = struct.unpack_from("<HHH", elf, 0x3A)
+    sections = [struct.unpack_from("<IIQQQQIIQQ", elf, section_headers + i * entry_size) for i in range(count)]
+    names_offset = sections[names_index][4]
+    names = [elf[names_offset + s[0]:elf.index(b"\0", names_offset + s[0])].decode() for s in sections]
+    assert ".rela.text" not in names and ".rel.text" not in names
+    text = sections[names.index(".text")]
+    return elf[text[4]:text[4] + text[5]]
+
+
+def test_the_shipped_machine_code_is_the_ir_compiled_by_llvmlite():
+    llvm = pytest.importorskip("llvmlite.binding")
+    llvm.initialize_native_target()
+    llvm.initialize_native_asmprinter()
+    machine = llvm.Target.from_triple("x86_64-unknown-linux-gnu").create_target_machine(
+        cpu="x86-64", features="", opt=2, reloc="pic", codemodel="default")
+    module = llvm.parse_assembly(packet_loop_module._IR)
+    assert elf_text_section(machine.emit_object(module)) == packet_loop_module.X86_64_SYSV_CODE
