@@ -8,7 +8,6 @@ two-level build.
 
 import ctypes
 import struct
-import threading
 
 import numpy as np
 import pytest
@@ -112,25 +111,6 @@ def test_an_instance_is_hit_where_its_transform_puts_the_mesh():
     assert np.array_equal(hits.prim, prim)
     np.testing.assert_allclose(hits.u, u, atol=1e-5)
     np.testing.assert_allclose(hits.v, v, atol=1e-5)
-
-
-def test_threads_query_one_scene_at_once():
-    rng = np.random.default_rng(6)
-    origin, direction = rays_at(rng.uniform(-0.2, 1.2, (5000, 2)))
-    scene = square_scene()
-    expected = scene.intersect(origin, direction)
-    results = [None] * 4
-
-    def trace(i):
-        results[i] = scene.intersect(origin, direction)
-
-    threads = [threading.Thread(target=trace, args=(i,)) for i in range(4)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join()
-    for result in results:
-        assert np.array_equal(result.t, expected.t) and np.array_equal(result.prim, expected.prim)
 
 
 def test_bad_meshes_and_uncommitted_scenes_are_refused():
