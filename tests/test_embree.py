@@ -12,10 +12,9 @@ import struct
 import numpy as np
 import pytest
 
-from realistic.scene import embree
-from realistic.scene import packet_loop as packet_loop_module
-from realistic.scene.embree import PACKET, EmbreeScene
-from realistic.scene.packet_loop import packet_loop
+from realistic.scene import embree, packet_loop
+from realistic.scene.embree import EmbreeScene
+from realistic.scene.packet_loop import PACKET
 
 SQUARE_VERTICES = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
 SQUARE_FACES = np.array([[0, 1, 2], [0, 2, 3]])
@@ -125,19 +124,91 @@ def test_the_library_is_the_one_embreex_ships():
     assert any("embree4" in path.name for path in embree.library_candidates())
 
 
-@pytest.mark.parametrize("loop", ["shipped", "compiled here"])
-def test_the_packet_loop_calls_the_function_once_per_packet_with_the_right_addresses(loop):
-    owner = None if loop == "shipped" else packet_loop_module.compiled_for_host()  # owns the code
-    trace = packet_loop() if owner is None else owner[-1]
-    calls = []
-    record = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)(
-        lambda valid, scene, packet, arguments: calls.append((valid, scene, packet, arguments)))
-    address = ctypes.cast(record, ctypes.c_void_p).value
-    trace(address, 1000, 77, 5000, 1344, 3)
-    assert calls == [(1000, 77, 5000, None), (1064, 77, 6344, None), (1128, 77, 7688, None)]
-    trace(address, 1000, 77, 5000, 1344, 0)
-    assert len(calls) == 3
-    del owner
+def packet_view(address: int, rows: int, dtype) -> np.ndarray:
+    """The packet at ``address`` as (rows, 16) of ``dtype``, shared with the caller's memory."""
+    return np.ctypeslib.as_array(ctypes.cast(address, ctypes.POINTER(ctypes.c_int32)), (rows * PACKET,)).view(
+        dtype).reshape(rows, PACKET)
+
+
+@pytest.fixture(params=["shipped", "compiled here"])
+def loops(request):
+    """The closest and occluded loops as this machine runs them, or as llvmlite compiles them here."""
+    if request.param == "shipped":
+        yield packet_loop.closest_loop(), packet_loop.occluded_loop()
+    else:
+        owners = packet_loop.compiled_for_host("closest"), packet_loop.compiled_for_host("occluded")  # own the code
+        yield owners[0][-1], owners[1][-1]
+
+
+def fake_embree(check):
+    """A ctypes function with rtcIntersect16's signature that hands each packet to ``check``."""
+    function = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)(
+        lambda valid, scene, packet, arguments: check(packet_view(valid, 1, np.int32)[0], scene, packet, arguments))
+    return function, ctypes.cast(function, ctypes.c_void_p).value
+
+
+@pytest.mark.parametrize("n", [0, 1, PACKET, 37])
+def test_the_closest_loop_fills_and_reads_packets_as_embree_lays_them_out(loops, n):
+    rng = np.random.default_rng(n)
+    origin, direction = rng.normal(size=(2, n, 3)).astype(np.float32)
+    seen = []
+
+    def check(valid, scene, address, arguments):
+        floats = packet_view(address, packet_loop.ROWS, np.float32)
+        ints = packet_view(address, packet_loop.ROWS, np.int32)
+        live = valid == -1
+        seen.append(live.sum())
+        assert scene == 99 and arguments is None
+        assert np.all(valid[~live] == 0) and np.all(np.diff(live.astype(int)) <= 0)  # live lanes first
+        first = sum(seen[:-1])
+        np.testing.assert_array_equal(floats[0:3, live].T, origin[first:first + live.sum()])
+        np.testing.assert_array_equal(floats[4:7, live].T, direction[first:first + live.sum()])
+        assert np.all(floats[[3, 7, 12, 13, 14, 15, 16]][:, live] == 0) and np.all(floats[8, live] == np.float32(2.5))
+        assert np.all(ints[[9, 17, 18, 19]][:, live] == -1) and np.all(ints[[10, 11]][:, live] == 0)
+        # a hit that encodes the ray: t = 2 x, u = y, v = z, prim = lane, geom 5, instance 3, Ng = direction
+        floats[8], floats[15], floats[16] = 2 * floats[0], floats[1], floats[2]
+        ints[17], ints[18], ints[19] = np.arange(PACKET), 5, 3
+        floats[12:15] = floats[4:7]
+
+    function, address = fake_embree(check)
+    closest, _ = loops
+    out = [np.full(n, -7, np.float32) for _ in range(3)] + [np.full(n, -7, np.int32) for _ in range(3)]
+    normal = np.zeros((n, 3), np.float32)
+    closest(address, 99, origin.ctypes.data, direction.ctypes.data, n, 2.5, *(a.ctypes.data for a in out),
+            normal.ctypes.data)
+    assert sum(seen) == n and len(seen) == -(-n // PACKET)
+    t, u, v, prim, geom, instance = out
+    np.testing.assert_array_equal(t, 2 * origin[:, 0])
+    np.testing.assert_array_equal(np.column_stack([u, v]), origin[:, 1:])
+    np.testing.assert_array_equal(prim, np.arange(n) % PACKET)
+    assert np.all(geom == 5) and np.all(instance == 3)
+    np.testing.assert_array_equal(normal, direction)
+
+
+def test_the_occluded_loop_traces_only_rays_with_a_distance_and_reports_negative_tfar(loops):
+    n = 40
+    rng = np.random.default_rng(7)
+    origin, direction = rng.normal(size=(2, n, 3)).astype(np.float32)
+    distance = rng.uniform(0.5, 2, n).astype(np.float32)
+    distance[[3, 17]], distance[[5, 30]] = -1.0, np.nan
+    traced = []
+
+    def check(valid, scene, address, arguments):
+        floats = packet_view(address, 12, np.float32)
+        first = len(traced) * PACKET
+        lanes = np.arange(PACKET)
+        expected = (first + lanes < n) & (distance[np.minimum(first + lanes, n - 1)] >= 0)
+        np.testing.assert_array_equal(valid == -1, expected)
+        traced.append(valid)
+        np.testing.assert_array_equal(floats[8, :min(PACKET, n - first)], distance[first:first + PACKET])
+        floats[8, (valid == -1) & (floats[0] > 0)] = -np.inf  # "occluded" where x > 0
+
+    function, address = fake_embree(check)
+    _, occluded = loops
+    blocked = np.zeros(n, np.bool_)
+    occluded(address, 0, origin.ctypes.data, direction.ctypes.data, n, distance.ctypes.data, blocked.ctypes.data)
+    assert len(traced) == 3
+    np.testing.assert_array_equal(blocked, ((origin[:, 0] > 0) & (distance >= 0)) | (distance < 0))
 
 
 def elf_text_section(elf: bytes) -> bytes:
@@ -152,11 +223,11 @@ def elf_text_section(elf: bytes) -> bytes:
     return elf[text[4]:text[4] + text[5]]
 
 
-def test_the_shipped_machine_code_is_the_ir_compiled_by_llvmlite():
+@pytest.mark.parametrize("name, ir", [("closest", packet_loop.closest_ir), ("occluded", packet_loop.occluded_ir)])
+def test_the_shipped_machine_code_is_the_ir_compiled_by_llvmlite(name, ir):
     llvm = pytest.importorskip("llvmlite.binding")
     llvm.initialize_native_target()
     llvm.initialize_native_asmprinter()
     machine = llvm.Target.from_triple("x86_64-unknown-linux-gnu").create_target_machine(
         cpu="x86-64", features="", opt=2, reloc="pic", codemodel="default")
-    module = llvm.parse_assembly(packet_loop_module._IR)
-    assert elf_text_section(machine.emit_object(module)) == packet_loop_module.X86_64_SYSV_CODE
+    assert elf_text_section(machine.emit_object(llvm.parse_assembly(ir()))) == packet_loop.SHIPPED[name]

@@ -4,16 +4,14 @@ embreex 4.4's own binding copies triangle meshes into embree element by element 
 200k triangles), answers single-ray queries, and binds no instancing. The C API of the same
 library has what the renderer needs: meshes built from our float32 arrays without a copy
 (``rtcSetSharedGeometryBuffer``), instances of one mesh's scene under several transforms
-(embree's two-level BVH), and packets of 16 rays per call, which ``scene/packet_loop`` calls over a
-whole batch in one ctypes call (the GIL released), so several threads trace at once. On the
-dragons scene (11 instances of one 200k-triangle dragon) the build takes 0.06 s where embreex took
-0.3 s, and a pass's rays trace faster than embreex traced a flat world-space copy.
+(embree's two-level BVH), and packets of 16 rays per call, which ``scene/packet_loop`` packs,
+traces and unpacks over a whole batch in one ctypes call (the GIL released), so several threads
+trace at once. On the dragons scene (11 instances of one 200k-triangle dragon) the build takes
+0.06 s where embreex took 0.3 s, and a pass's rays trace faster than embreex traced a flat
+world-space copy.
 
-Layouts follow ``embree4/rtcore_ray.h``: ``RTCRayHit16`` is rows of 16 lanes (the ray's org_x,
-org_y, org_z, tnear, dir_x, dir_y, dir_z, time, tfar, mask, id, flags, then the hit's Ng_x, Ng_y,
-Ng_z, u, v, primID, geomID, instID[1], instPrimID[1]), 64-byte aligned; ``RTCRay16`` is its first
-twelve rows. A hit in an instanced scene reports the instance's id in instID and its normal in the
-instanced mesh's object space.
+A hit in an instanced scene reports the instance's id in instID and its normal in the instanced
+mesh's object space.
 """
 
 from __future__ import annotations
@@ -28,19 +26,12 @@ from pathlib import Path
 import numpy as np
 
 from realistic.errors import UserError
-from realistic.scene.packet_loop import packet_loop
+from realistic.scene.packet_loop import closest_loop, occluded_loop
 
-PACKET = 16  # rays per rtcIntersect16 / rtcOccluded16 call
-INVALID_ID = 0xFFFFFFFF  # RTC_INVALID_GEOMETRY_ID
-_ALIGN = 64
 _TRIANGLE, _INSTANCE = 0, 121  # RTCGeometryType
 _INDEX_BUFFER, _VERTEX_BUFFER = 0, 1  # RTCBufferType
 _UINT3, _FLOAT3, _FLOAT3X4_ROW_MAJOR = 0x5003, 0x9003, 0x9134  # RTCFormat
 _OUT_OF_MEMORY, _UNSUPPORTED_CPU = 4, 5  # RTCError
-# rows of RTCRayHit16
-_ORIGIN, _TNEAR, _DIRECTION, _TIME, _TFAR, _MASK, _ID, _FLAGS = 0, 3, 4, 7, 8, 9, 10, 11
-_NG, _U, _V, _PRIM, _GEOM, _INST = 12, 15, 16, 17, 18, 19
-_RAY_ROWS, _RAYHIT_ROWS = 12, 21
 
 _vp, _uint, _size = ctypes.c_void_p, ctypes.c_uint, ctypes.c_size_t
 _SIGNATURES = {
@@ -108,14 +99,6 @@ def _check(what: str) -> None:
         raise RuntimeError(f"embree reported error {code} {what}")
 
 
-def _aligned_empty(shape: tuple[int, ...], dtype) -> np.ndarray:
-    """An uninitialised array whose data starts on a 64-byte boundary (embree's packet alignment)."""
-    size = int(np.prod(shape)) * np.dtype(dtype).itemsize
-    raw = np.empty(size + _ALIGN, np.uint8)
-    start = -raw.ctypes.data % _ALIGN
-    return raw[start:start + size].view(dtype).reshape(shape)
-
-
 @dataclass(frozen=True)
 class RayHits:
     """Closest hits: ``geom`` the hit geometry's id in its own scene and ``instance`` the id of the
@@ -181,65 +164,37 @@ class EmbreeScene:
 
     def intersect(self, origin: np.ndarray, direction: np.ndarray, tfar: float = 1e37) -> RayHits:
         """Closest hit of each ray (float32 (N, 3) origins and directions, t in [0, tfar])."""
+        origin, direction = _rays(origin, direction)
         n = len(origin)
-        packets = _packed_rays(origin, direction, _RAYHIT_ROWS)
-        packets[:, _TFAR] = tfar
-        ids = packets.view(np.uint32)
-        ids[:, _PRIM:_INST + 1] = INVALID_ID
-        packets[:, _NG:_V + 1] = 0
-        self._trace("rtcIntersect16", packets, _valid_lanes(n))
-        lanes = lambda row: packets[:, row].reshape(-1)[:n]  # noqa: E731
-        signed = packets.view(np.int32)
-        return RayHits(lanes(_TFAR), lanes(_U), lanes(_V), signed[:, _PRIM].reshape(-1)[:n],
-                       signed[:, _GEOM].reshape(-1)[:n], signed[:, _INST].reshape(-1)[:n],
-                       packets[:, _NG:_NG + 3].transpose(0, 2, 1).reshape(-1, 3)[:n])
+        hits = RayHits(*(np.empty(n, dtype) for dtype in (np.float32, np.float32, np.float32, np.int32, np.int32,
+                                                          np.int32)), np.empty((n, 3), np.float32))
+        closest_loop()(self._function("rtcIntersect16"), self._handle, origin.ctypes.data, direction.ctypes.data, n,
+                       tfar, *(a.ctypes.data for a in (hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.instance,
+                                                       hits.normal)))
+        return hits
 
     def occluded(self, origin: np.ndarray, direction: np.ndarray, distance: np.ndarray) -> np.ndarray:
         """True where something lies within [0, distance] of the ray, and where the distance is
         negative (embreex answered so; callers keep that)."""
-        n = len(origin)
-        packets = _packed_rays(origin, direction, _RAY_ROWS)
-        tfar = np.zeros(len(packets) * PACKET, np.float32)
-        tfar[:n] = distance
-        packets[:, _TFAR] = tfar.reshape(-1, PACKET)
-        active = np.zeros(len(tfar), bool)
-        active[:n] = tfar[:n] >= 0  # a ray with tfar < tnear is not one embree traces
-        self._trace("rtcOccluded16", packets, active)
-        return packets[:, _TFAR].reshape(-1)[:n] < 0  # embree sets tfar to -inf when blocked
+        origin, direction = _rays(origin, direction)
+        distance = np.ascontiguousarray(distance, np.float32).reshape(-1)
+        if len(distance) != len(origin):
+            raise ValueError(f"{len(distance)} distances for {len(origin)} rays")
+        blocked = np.empty(len(origin), np.bool_)
+        occluded_loop()(self._function("rtcOccluded16"), self._handle, origin.ctypes.data, direction.ctypes.data,
+                        len(origin), distance.ctypes.data, blocked.ctypes.data)
+        return blocked
 
-    def _trace(self, function: str, packets: np.ndarray, active: np.ndarray) -> None:
-        """Call embree's ``function`` on every packet (lanes where ``active``), in one native loop."""
+    def _function(self, name: str) -> int:
         if not self.committed:
             raise RuntimeError("commit the embree scene before tracing it")
-        valid = _aligned_empty((len(packets), PACKET), np.int32)
-        valid[:] = np.where(active.reshape(-1, PACKET), -1, 0)
-        address = ctypes.cast(getattr(self._lib, function), ctypes.c_void_p).value
-        packet_loop()(address, valid.ctypes.data, self._handle, packets.ctypes.data, packets.strides[0], len(packets))
+        return ctypes.cast(getattr(self._lib, name), ctypes.c_void_p).value
 
 
-def _valid_lanes(n: int) -> np.ndarray:
-    active = np.zeros(-(-n // PACKET) * PACKET, bool)
-    active[:n] = True
-    return active
-
-
-def _packed_rays(origin: np.ndarray, direction: np.ndarray, rows: int) -> np.ndarray:
-    """(P, rows, 16) float32 packets holding the rays (the last packet's spare lanes zeroed), with
-    tnear, time, mask, id and flags set; the caller sets tfar and the hit rows."""
-    n = len(origin)
-    count = -(-n // PACKET)
-    packets = _aligned_empty((count, rows, PACKET), np.float32)
-    full = n // PACKET
-    for row, values in ((_ORIGIN, origin), (_DIRECTION, direction)):
-        packets[:full, row:row + 3] = np.asarray(values[:full * PACKET], np.float32).reshape(
-            full, PACKET, 3).transpose(0, 2, 1)
-        if full < count:
-            packets[full, row:row + 3] = 0
-            packets[full, row:row + 3, :n - full * PACKET] = np.asarray(values[full * PACKET:], np.float32).T
-    packets[:, _TNEAR] = 0
-    packets[:, _TIME] = 0
-    ids = packets.view(np.uint32)
-    ids[:, _MASK] = INVALID_ID  # every mask bit: no geometry is masked out
-    ids[:, _ID] = 0
-    ids[:, _FLAGS] = 0
-    return packets
+def _rays(origin: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Origins and directions as contiguous float32 (N, 3) arrays, as the loops read them."""
+    origin = np.ascontiguousarray(origin, np.float32).reshape(-1, 3)
+    direction = np.ascontiguousarray(direction, np.float32).reshape(-1, 3)
+    if len(origin) != len(direction):
+        raise ValueError(f"{len(origin)} origins and {len(direction)} directions")
+    return origin, direction
