@@ -127,7 +127,7 @@ class Intersector:
 
     def closest(self, origin: np.ndarray, direction: np.ndarray) -> Hits:
         """Nearest hit along each ray (direction need not be unit; t is in its units)."""
-        hits = self._embree.intersect(_f32(origin), _f32(direction), float(_MISS_T))
+        hits = self._embree.intersect(origin, direction, float(_MISS_T))
         geom, normal = hits.geom, hits.normal
         instanced = np.flatnonzero(hits.instance >= 0)
         if len(instanced):
@@ -139,11 +139,10 @@ class Intersector:
     def occluded(self, origin: np.ndarray, direction: np.ndarray, distance: np.ndarray) -> np.ndarray:
         """True where something lies between t = 0 and t = ``distance``, and where ``distance`` is
         negative (as embreex answered)."""
-        origin = _f32(origin)
         dists = np.array(distance, dtype=np.float32).reshape(-1)
         if len(dists) == 1 and len(origin) != 1:
             dists = np.full(len(origin), dists[0], np.float32)
-        return self._embree.occluded(origin, _f32(direction), dists)
+        return self._embree.occluded(origin, direction, dists)
 
     def hit_distance(self, origin: np.ndarray, direction: np.ndarray) -> float | None:
         """Distance along one ray (origin and direction (3,)) to its closest hit; None for a miss."""
@@ -171,6 +170,3 @@ def _check_finite(vertices: np.ndarray, what: str) -> None:
         raise UserError(f"the scene's {what} has world coordinates that are not finite in single precision "
                         "(embree's), beyond about 3.4e38")
 
-
-def _f32(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a, dtype=np.float32)
