@@ -8,6 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from realistic import load_lens
+from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.renderer.film import Film, PassFilm
 from realistic.renderer.pass_plan import PASS_RAYS, default_pass_samples, plan_passes, progressive_order, slice_bounds
@@ -22,6 +23,14 @@ def _coverage(plan, pixels, spp):
         pixel, sample = block.ids()
         np.add.at(covered, (pixel, sample), 1)
     return covered
+
+
+@given(st.integers(0, 10**9), st.integers(1, 5000), st.integers(1, 300), st.integers(0, 10**6))
+def test_sample_ids_are_each_pairs_sample_within_its_pixel(first, count, samples, first_sample):
+    """The tiled sample numbers equal pair t's sample, first_sample + t mod samples (SampleBlock's definition)."""
+    block = SampleBlock(first, count, samples, first_sample)
+    t = np.arange(first, first + count, dtype=np.int64)
+    np.testing.assert_array_equal(block.sample_ids(), first_sample + t % samples)
 
 
 @given(st.integers(1, 8), st.integers(0, 64))

@@ -116,7 +116,7 @@ class PassRunner:
             rays_per_sample, rest = divmod(len(rays.weight), block.count)
             if rest or not rays_per_sample:
                 raise RuntimeError(f"{len(rays.weight)} camera rays for {block.count} samples")
-            sample = block.ids()[1]
+            sample = block.sample_ids()
             if rays_per_sample > 1:  # the K rays share the sample id, so the integrator's light samples
                 sample = np.repeat(sample, rays_per_sample)
             alive = np.flatnonzero(rays.weight != 0)  # a negative filter lobe gives negative weights
