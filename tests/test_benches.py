@@ -166,7 +166,8 @@ _TEXT = st.one_of(st.text(max_size=12), st.from_regex(r"-?[0-9]{1,6}(x[0-9]{0,6}
 
 @pytest.mark.parametrize("module,option", [(scenes, "--res"), (scenes, "--spp"), (scenes, "--light-samples"),
                                            (scenes, "--repeats"), (converge, "--res"), (converge, "--spps"),
-                                           (converge, "--reference-spp"), (converge, "--target")])
+                                           (converge, "--reference-spp"), (converge, "--target"),
+                                           (converge, "--light-samples")])
 @given(text=_TEXT)
 def test_options_parse_or_refuse_in_one_line(module, option, text, capsys):
     """Any value is either accepted (and then valid) or refused by argparse with exit status 2 and a
