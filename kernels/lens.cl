@@ -377,12 +377,10 @@ inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
 /* ------------------------------------------------------------------ kernels */
 
 /* Rays of the sample block the host lays out (sample_address): one per sample, or when SPECTRAL
- * WAVELENGTHS_PER_SAMPLE consecutive ones per sample (ray_of_sample). out holds `stride` origins
- * (x, y, z), then `stride` directions (x, y, z), each ray's three floats together so that the host
- * gathers the rays that passed as whole rows (twice as fast as from a row per coordinate), then a
- * row of `stride` weights (world space; a blocked ray has weight 0 and zero origin and direction),
- * and when SPECTRAL a row of wavelengths in nm. world is the camera-to-world matrix, rows of
- * (m0 m1 m2 t). */
+ * WAVELENGTHS_PER_SAMPLE consecutive ones per sample (ray_of_sample). out holds 7 rows of `stride`
+ * floats: origin x, y, z, direction x, y, z, weight
+ * (world space; a blocked ray has weight 0 and zero origin and direction), and when SPECTRAL an
+ * eighth: the wavelength in nm. world is the camera-to-world matrix, rows of (m0 m1 m2 t). */
 __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint seed, __constant float *world,
                             uint width, double pixel_rows, float inv_width, float inv_height, float film_w_mm, float film_h_mm,
                             uint stride, __global float *out, __global int *pixel_out) {
@@ -436,12 +434,12 @@ __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uin
     float vy = world[4] * r.dx + world[5] * r.dy + world[6] * r.dz;
     float vz = world[8] * r.dx + world[9] * r.dy + world[10] * r.dz;
     float scale = 1.0f / __builtin_sqrtf(vx * vx + vy * vy + vz * vz);
-    out[3 * gid] = r.alive ? wx : 0.0f;
-    out[3 * gid + 1] = r.alive ? wy : 0.0f;
-    out[3 * gid + 2] = r.alive ? wz : 0.0f;
-    out[3 * stride + 3 * gid] = r.alive ? vx * scale : 0.0f;
-    out[3 * stride + 3 * gid + 1] = r.alive ? vy * scale : 0.0f;
-    out[3 * stride + 3 * gid + 2] = r.alive ? vz * scale : 0.0f;
+    out[gid] = r.alive ? wx : 0.0f;
+    out[stride + gid] = r.alive ? wy : 0.0f;
+    out[2 * stride + gid] = r.alive ? wz : 0.0f;
+    out[3 * stride + gid] = r.alive ? vx * scale : 0.0f;
+    out[4 * stride + gid] = r.alive ? vy * scale : 0.0f;
+    out[5 * stride + gid] = r.alive ? vz * scale : 0.0f;
     out[6 * stride + gid] = r.alive ? weight : 0.0f;
 #if SPECTRAL
     out[7 * stride + gid] = lambda_nm;

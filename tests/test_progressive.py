@@ -188,7 +188,7 @@ def test_a_render_without_a_pass_size_sizes_its_passes_by_rays(tiny):
 
 @given(st.integers(1, 300), st.integers(0, 2**32 - 1), st.sampled_from([np.float32, np.float64]), st.booleans())
 def test_gather_rows_is_row_indexing_as_contiguous_float32(count, seed, dtype, transposed):
-    """(n, 3) points, C-ordered or transposed views of (3, n) rows: the same rows, contiguous float32."""
+    """The kernel's (rows, n) output viewed as (n, 3) points, or a plain (n, 3) array: the same rows."""
     rng = np.random.default_rng(seed)
     points = rng.random((3, count)).astype(dtype).T if transposed else rng.random((count, 3)).astype(dtype)
     rows = np.flatnonzero(rng.random(count) < 0.7)

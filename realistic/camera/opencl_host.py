@@ -324,8 +324,7 @@ class LensKernel:
             cl.enqueue_copy(self.queue, out, self._out)
             cl.enqueue_copy(self.queue, pixels, self._pixels)
             self.queue.finish()
-        rays = out[0:6].reshape(2, padded, 3)
-        return RayBatch(origin=rays[0, :count], direction=rays[1, :count], weight=out[6, :count],
+        return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count], wavelength_nm=out[7, :count] if self.camera.spectral else None)
 
     def sample_bits(self, block: SampleBlock, seed: int = 0) -> np.ndarray:
