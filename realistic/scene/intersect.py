@@ -139,7 +139,7 @@ class Intersector:
     def occluded(self, origin: np.ndarray, direction: np.ndarray, distance: np.ndarray) -> np.ndarray:
         """True where something lies between t = 0 and t = ``distance``, and where ``distance`` is
         negative (as embreex answered)."""
-        dists = np.array(distance, dtype=np.float32).reshape(-1)
+        dists = np.asarray(distance, dtype=np.float32).reshape(-1)  # read, never written: no copy
         if len(dists) == 1 and len(origin) != 1:
             dists = np.full(len(origin), dists[0], np.float32)
         return self._embree.occluded(origin, direction, dists)
