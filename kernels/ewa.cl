@@ -10,6 +10,7 @@
  * 2 clamp (validation.TEXTURE_WRAPS's order).
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#pragma OPENCL FP_CONTRACT OFF  /* a * b + c rounds twice, as in numpy */
 
 #define LUT_SIZE 128
 
@@ -81,15 +82,11 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
     return sum / fmax(weights, 1e-300);
 }
 
-__kernel void ewa(__global const float *texels, __global const long *base, __global const long *width,
-                  __global const long *height, const int wrap, const int levels, const double max_anisotropy,
-                  __global const double *lut, __global const double *st, __global const double *axis0,
-                  __global const double *axis1, const int count, __global float *out) {
-    int i = get_global_id(0);
-    if (i >= count) return;
-    double2 p = (double2)(st[2 * i], st[2 * i + 1]);
-    double2 major = (double2)(axis0[2 * i], axis0[2 * i + 1]);
-    double2 minor = (double2)(axis1[2 * i], axis1[2 * i + 1]);
+/* The filtered colour at (s, t) over the ellipse with axes major and minor (in st units): the
+ * longer axis first, the eccentricity clamped, the level from the minor axis, two levels blended. */
+inline double3 ewa_lookup(__global const float *texels, __global const long *base, __global const long *width,
+                          __global const long *height, int wrap, int levels, double max_anisotropy,
+                          __global const double *lut, double2 p, double2 major, double2 minor) {
     if (dot(major, major) < dot(minor, minor)) {
         double2 swap = major; major = minor; minor = swap;
     }
@@ -99,19 +96,139 @@ __kernel void ewa(__global const float *texels, __global const long *base, __glo
         minor *= stretch;
         minor_len *= stretch;
     }
-    double3 value;
-    if (minor_len == 0) {
-        value = bilinear0(texels, base, width, height, wrap, p.x, p.y);
-    } else {
-        double lod = fmax(0.0, levels - 1 + log2(fmax(minor_len, 1e-8)));
-        double lower = floor(lod);
-        double delta = lod - lower;
-        value = ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower, p.x, p.y,
-                          major.x, major.y, minor.x, minor.y) * (1 - delta)
-              + ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower + 1, p.x, p.y,
-                          major.x, major.y, minor.x, minor.y) * delta;
-    }
+    if (minor_len == 0) return bilinear0(texels, base, width, height, wrap, p.x, p.y);
+    double lod = fmax(0.0, levels - 1 + log2(fmax(minor_len, 1e-8)));
+    double lower = floor(lod);
+    double delta = lod - lower;
+    return ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower, p.x, p.y,
+                     major.x, major.y, minor.x, minor.y) * (1 - delta)
+         + ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower + 1, p.x, p.y,
+                     major.x, major.y, minor.x, minor.y) * delta;
+}
+
+__kernel void ewa(__global const float *texels, __global const long *base, __global const long *width,
+                  __global const long *height, const int wrap, const int levels, const double max_anisotropy,
+                  __global const double *lut, __global const double *st, __global const double *axis0,
+                  __global const double *axis1, const int count, __global float *out) {
+    int i = get_global_id(0);
+    if (i >= count) return;
+    double3 value = ewa_lookup(texels, base, width, height, wrap, levels, max_anisotropy, lut,
+                               (double2)(st[2 * i], st[2 * i + 1]), (double2)(axis0[2 * i], axis0[2 * i + 1]),
+                               (double2)(axis1[2 * i], axis1[2 * i + 1]));
     out[3 * i] = (float)value.x;
     out[3 * i + 1] = (float)value.y;
     out[3 * i + 2] = (float)value.z;
+}
+
+/* ------------------------------------------------------------------ lookups at surface hits
+ * The albedo of camera-ray hits on one image-textured material, from embree's hit records: what
+ * realistic.renderer.integrator.DirectLighting._albedo computes in numpy (its reference), in the
+ * same operations and order (FP_CONTRACT off, so a * b + c rounds twice as numpy's does):
+ *   - embree's Ng normalised in float32 and turned to face the ray (_facing);
+ *   - the uv interpolated in float32 from the triangle's corners with barycentrics (1 - u - v, u, v);
+ *   - the pixel footprint in float64 (realistic/renderer/footprint.py): the cone of width t * spread
+ *     cut by the tangent plane (across the ray, and along its projection stretched by
+ *     1 / max(|cos|, MIN_COSINE)), carried into uv by the triangle's world edges (the instance's
+ *     linear map times the mesh's float64 edges) and uv edges;
+ *   - st = uv * scale + offset with t flipped for a bottom-origin image, the axes scaled alike
+ *     (realistic/scene/textures.py); the EWA lookup above; times the material's diffuse colour.
+ * Rows whose hit is not on an instance of `material` are left as they are. MAPPING holds: spread
+ * (the camera's radians per pixel), s scale, t scale, s offset, t offset, t flip (+-1), t shift (0
+ * or 1), diffuse r, g, b. */
+
+#define MIN_COSINE 1e-3
+
+inline double dot3(double3 a, double3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+inline double3 cross3(double3 a, double3 b) {
+    return (double3)(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+
+inline double3 normalise3(double3 v) {
+    double length = sqrt(dot3(v, v));
+    return length > 0 ? v / length : (double3)(0.0);
+}
+
+/* uv offset of the tangent vector w on a triangle with world edges e1, e2 and uv edges g1, g2
+ * (footprint.to_uv): w = alpha e1 + beta e2 by the normal equations; zero on a degenerate triangle. */
+inline double2 to_uv(double3 w, double3 e1, double3 e2, double2 g1, double2 g2) {
+    double g11 = dot3(e1, e1), g12 = dot3(e1, e2), g22 = dot3(e2, e2);
+    double r1 = dot3(e1, w), r2 = dot3(e2, w);
+    double det = g11 * g22 - g12 * g12;
+    double inv = det > 1e-12 * g11 * g22 ? 1.0 / det : 0.0;
+    double alpha = (g22 * r1 - g12 * r2) * inv, beta = (g11 * r2 - g12 * r1) * inv;
+    return alpha * g1 + beta * g2;
+}
+
+/* The instance's linear map (row-major 3 x 3) applied to v, row by row as numpy's einsum sums. */
+inline double3 linear_map(__global const double *m, double3 v) {
+    return (double3)(m[0] * v.x + m[1] * v.y + m[2] * v.z, m[3] * v.x + m[4] * v.y + m[5] * v.z,
+                     m[6] * v.x + m[7] * v.y + m[8] * v.z);
+}
+
+inline double3 vertex(__global const double *vertices, int i) {
+    return (double3)(vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]);
+}
+
+__kernel void ewa_hits(__global const float *texels, __global const long *base, __global const long *width,
+                       __global const long *height, const int wrap, const int levels, const double max_anisotropy,
+                       __global const double *lut, __global const int *faces, __global const double *vertices,
+                       __global const float *uvs, __global const int *geom_face_offset,
+                       __global const int *geom_material, __global const double *geom_linear,
+                       const int instance_count, const int material, __global const double *mapping,
+                       __global const float *direction, __global const float *tfar, __global const float *hit_u,
+                       __global const float *hit_v, __global const int *prim, __global const int *geom,
+                       __global const float *ng_in, const int count, __global float *out) {
+    int i = get_global_id(0);
+    if (i >= count) return;
+    int g = geom[i];
+    if (g < 0 || g >= instance_count || geom_material[g] != material) return;
+
+    /* embree's normal, normalised in float32 and facing the ray */
+    float dx = direction[3 * i], dy = direction[3 * i + 1], dz = direction[3 * i + 2];
+    float nx = ng_in[3 * i], ny = ng_in[3 * i + 1], nz = ng_in[3 * i + 2];
+    float nlen = __builtin_sqrtf(nx * nx + ny * ny + nz * nz);  /* correctly rounded, as numpy's */
+    nx = nlen > 0.0f ? nx / nlen : 0.0f;
+    ny = nlen > 0.0f ? ny / nlen : 0.0f;
+    nz = nlen > 0.0f ? nz / nlen : 0.0f;
+    float side = nx * dx + ny * dy + nz * dz > 0.0f ? -1.0f : 1.0f;
+    double3 normal = (double3)(nx * side, ny * side, nz * side);
+    double3 d = (double3)(dx, dy, dz);
+
+    /* the triangle, its uv at the hit (float32) and its edges in world space and in uv */
+    int f = 3 * (geom_face_offset[g] + prim[i]);
+    int c0 = faces[f], c1 = faces[f + 1], c2 = faces[f + 2];
+    float u = hit_u[i], v = hit_v[i];
+    float b0 = 1.0f - u - v;
+    float us = uvs[2 * c0] * b0 + uvs[2 * c1] * u + uvs[2 * c2] * v;
+    float vs = uvs[2 * c0 + 1] * b0 + uvs[2 * c1 + 1] * u + uvs[2 * c2 + 1] * v;
+    double2 uv0 = (double2)(uvs[2 * c0], uvs[2 * c0 + 1]);
+    double2 duv1 = (double2)(uvs[2 * c1], uvs[2 * c1 + 1]) - uv0;
+    double2 duv2 = (double2)(uvs[2 * c2], uvs[2 * c2 + 1]) - uv0;
+    double3 corner0 = vertex(vertices, c0);
+    double3 edge1 = linear_map(geom_linear + 9 * g, vertex(vertices, c1) - corner0);
+    double3 edge2 = linear_map(geom_linear + 9 * g, vertex(vertices, c2) - corner0);
+
+    /* the footprint's tangent axes (footprint.tangent_axes) and their uv offsets */
+    double w = (double)tfar[i] * mapping[0];
+    double cosine = dot3(d, normal);
+    double3 along = normalise3(d - cosine * normal);
+    if (!(dot3(along, along) > 0.5)) {
+        double3 other = fabs(normal.x) < 0.9 ? (double3)(1.0, 0.0, 0.0) : (double3)(0.0, 1.0, 0.0);
+        along = normalise3(cross3(normal, other));
+    }
+    double3 across = cross3(normal, along);
+    double stretch = 1.0 / fmax(fabs(cosine), MIN_COSINE);
+    double2 axis0 = to_uv(across * w, edge1, edge2, duv1, duv2);
+    double2 axis1 = to_uv(along * (w * stretch), edge1, edge2, duv1, duv2);
+
+    /* into the image's st (textures._image) and the lookup */
+    double2 scale = (double2)(mapping[1], mapping[2]), flip = (double2)(1.0, mapping[5]);
+    double2 st = ((double2)(us, vs) * scale + (double2)(mapping[3], mapping[4])) * flip
+               + (double2)(0.0, mapping[6]);
+    double3 value = ewa_lookup(texels, base, width, height, wrap, levels, max_anisotropy, lut, st,
+                               axis0 * scale * flip, axis1 * scale * flip);
+    out[3 * i] = (float)mapping[7] * (float)value.x;
+    out[3 * i + 1] = (float)mapping[8] * (float)value.y;
+    out[3 * i + 2] = (float)mapping[9] * (float)value.z;
 }

@@ -22,7 +22,9 @@ Backends: the numpy code here is the reference and shades with backend "numpy". 
 "opencl" RGB rays are shaded by ``kernels/shade.cl`` (``renderer.shade_kernel``): one launch per pass
 computes every surface hit's normals and albedo and every light sample's shadow ray and
 contribution, embree traces all the shadow rays in one ``occluded`` call, and numpy sums the
-unblocked contributions; camera rays that miss or see an emitter keep the numpy code. Spectral rays
+unblocked contributions; camera rays that miss or see an emitter keep the numpy code. The albedo of
+EWA-filtered image textures comes from ``kernels/ewa.cl``'s ``ewa_hits`` (hit records to albedo, bit
+for bit the numpy ``_albedo`` here: ``tests/test_ewa_hits.py``), other image textures' from ``_albedo``. Spectral rays
 stay on the numpy path with either backend. The two agree to float32 rounding, shadow-ray origins
 bit for bit (``tests/test_shade_kernel.py``).
 """
@@ -138,11 +140,34 @@ class DirectLighting:
         with np.errstate(divide="ignore"):
             rows[:, 15] = self._light_area / self._light_probability / np.pi
         rows[:, 16], rows[:, 17] = self._light_disk, self._light_two_sided
-        return ShadeKernel(faces=self._faces, normals=self._normals, uv=self._uv,
-                           geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
-                           geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
-                           materials=self._materials, light_rows=rows, light_cdf=self._light_cdf,
-                           extent=self.intersector.extent, device=cl_device)
+        kernel = ShadeKernel(faces=self._faces, normals=self._normals, uv=self._uv,
+                             geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
+                             geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
+                             materials=self._materials, light_rows=rows, light_cdf=self._light_cdf,
+                             extent=self.intersector.extent, device=cl_device)
+        self._build_device_textures(kernel.host_albedo)
+        return kernel
+
+    def _build_device_textures(self, host_albedo: np.ndarray) -> None:
+        """EWA image textures filtered over pixel footprints: their albedo is computed from the hit
+        records on the device (``EwaKernel.at_hits``), the rest of the host's materials in numpy."""
+        self._device_textures = []
+        self._numpy_albedo = host_albedo.copy()  # materials left to ``_albedo``
+        if self.pixel_spread_radians <= 0:
+            return
+        from realistic.scene.ewa_kernel import SurfaceTables, hit_mapping
+
+        for index, material in enumerate(self._materials):
+            texture = material.texture
+            if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter == "ewa":
+                ewa = texture.mipmap.device_ewa
+                self._device_textures.append((index, ewa, hit_mapping(texture, material.diffuse,
+                                                                      self.pixel_spread_radians)))
+                self._numpy_albedo[index] = False
+        if self._device_textures:
+            self._surface_tables = SurfaceTables(self._device_textures[0][1].context, self._faces, self._vertices,
+                                                 self._uv, self._geom_face_offset, self._geom_material,
+                                                 self._geom_linear.reshape(-1, 9))
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
@@ -260,12 +285,17 @@ class DirectLighting:
         return out, shadow_rays
 
     def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits) -> np.ndarray:
-        """Albedo (N, 3) by ``_albedo`` on the surface hits whose material the kernel leaves to the
-        host (image textures); other rows are zero, unread by the kernel."""
+        """Albedo (N, 3) of the surface hits whose material the shading kernel leaves to the host
+        (image textures): EWA-filtered ones on the device (``_build_device_textures``), the others by
+        ``_albedo``; other rows are zero, unread by the kernel."""
         albedo = np.zeros((len(origin), 3), np.float32)
+        for index, ewa, mapping in self._device_textures:
+            ewa.at_hits(self._surface_tables, index, mapping, direction, hits, albedo)
+        if not self._numpy_albedo.any():
+            return albedo
         surface = (hits.geom >= 0) & (hits.geom < self.instance_count)
         geom_all = np.where(surface, hits.geom, 0)
-        rows = np.flatnonzero(surface & self._kernel.host_albedo[self._geom_material[geom_all]])
+        rows = np.flatnonzero(surface & self._numpy_albedo[self._geom_material[geom_all]])
         if len(rows):
             d = _rows(np.asarray(direction, np.float32), rows)
             face, bary = self._triangles(hits, rows)

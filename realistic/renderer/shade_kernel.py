@@ -4,8 +4,8 @@
 "opencl" (``PassRunner`` passes it on); its numpy code stays the reference, and the tests compare
 the two per hit (``tests/test_shade_kernel.py``). For each camera ray of a pass the kernel computes
 the hit point, the geometric and shading normals, the albedo (constant, grid and checker materials;
-image-textured rows come from the numpy ``_albedo``) and, for every light sample, the light point,
-the shadow ray and its contribution. It writes them into flat arrays ordered by light sample then
+image-textured rows come from the host: ``DirectLighting._host_albedo``) and, for every light
+sample, the light point, the shadow ray and its contribution. It writes them into flat arrays ordered by light sample then
 ray (row k * stride + i), so embree traces all of a pass's shadow rays in one ``occluded`` call;
 dead samples have length -1, which embree skips.
 

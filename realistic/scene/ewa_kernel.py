@@ -4,6 +4,11 @@ The numpy ``MipMap.ewa`` expands every (lookup, texel) tap into flat arrays: abo
 the largest cost of a homework render's floor. The kernel runs the same mathematics per lookup in
 double precision (one work-item loops over its ellipse), so it agrees with the reference to float32
 rounding; ``tests/test_ewa_kernel.py`` checks that.
+
+``SurfaceTables`` and ``EwaKernel.at_hits`` go one step further for the renderer: from embree's hit
+records to the albedo, with the uv, the pixel footprint and the st mapping computed on the device
+too (``ewa_hits``; numpy spent three times as long on those as on the lookups). Its reference is
+``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
 """
 
 from __future__ import annotations
@@ -16,8 +21,40 @@ import pyopencl as cl
 from realistic.camera.opencl_host import LOCAL_SIZE, build_program, context, kernel_source
 from realistic.core.validation import TEXTURE_WRAPS
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
+from realistic.scene.model import ImageTexture
+from realistic.scene.textures import st_mapping
 
 KERNEL_FILE = "ewa.cl"
+
+
+def _wrapped(context, array: np.ndarray, dtype) -> cl.Buffer:
+    """A read-only buffer over the array, not a copy (PoCL on the CPU reads host memory); a
+    USE_HOST_PTR buffer keeps its host array alive."""
+    data = np.ascontiguousarray(array, dtype).ravel()
+    if data.size == 0:
+        data = np.zeros(4, dtype)
+    return cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=data)
+
+
+class SurfaceTables:
+    """A scene's triangles as ``ewa_hits`` reads them, wrapped once per render: faces (F, 3) of
+    concatenated vertex indices, float64 vertices (V, 3) in mesh space, float32 uvs (V, 2), and per
+    instance (embree geometry id) its first face, material index and linear map (3 x 3)."""
+
+    def __init__(self, context, faces: np.ndarray, vertices: np.ndarray, uv: np.ndarray,
+                 geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_linear: np.ndarray):
+        self.instance_count = np.int32(len(geom_face_offset))
+        self.buffers = [_wrapped(context, faces, np.int32), _wrapped(context, vertices, np.float64),
+                        _wrapped(context, uv, np.float32), _wrapped(context, geom_face_offset, np.int32),
+                        _wrapped(context, geom_material, np.int32), _wrapped(context, geom_linear, np.float64)]
+
+
+def hit_mapping(texture: ImageTexture, diffuse, spread_radians: float) -> np.ndarray:
+    """``ewa_hits``' MAPPING row: spread, st scale, offset, t flip and shift (``textures.st_mapping``),
+    and the material's diffuse colour (float32 values, exact in float64)."""
+    repeats, offset, flip, shift = st_mapping(texture)
+    return np.array([spread_radians, *repeats, *offset, flip[1], shift[1],
+                     *np.asarray(diffuse, np.float32)], np.float64)
 
 
 class EwaKernel:
@@ -26,19 +63,13 @@ class EwaKernel:
     def __init__(self, mipmap: MipMap, device: str | None = None):
         self.context = context(device)
         self.queue = cl.CommandQueue(self.context)
-        self._kernel = cl.Kernel(build_program(self.context, kernel_source(KERNEL_FILE), KERNEL_FILE), "ewa")
-        mf = cl.mem_flags
-
-        def constant(array: np.ndarray, dtype) -> cl.Buffer:
-            # wrapped, not copied (PoCL on the CPU reads host memory), so the texels are not held twice;
-            # a USE_HOST_PTR buffer keeps its host array alive
-            return cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=np.ascontiguousarray(array, dtype))
-
-        self._tables = [constant(mipmap.texels, np.float32)] + [
-            constant(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
-        self._wrap, self._levels = np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count)
-        self._max_anisotropy = np.float64(mipmap.max_anisotropy)
-        self._lut = constant(EWA_WEIGHTS, np.float64)
+        program = build_program(self.context, kernel_source(KERNEL_FILE), KERNEL_FILE)
+        self._kernel, self._hits_kernel = cl.Kernel(program, "ewa"), cl.Kernel(program, "ewa_hits")
+        # the texels wrapped, not copied, so they are not held twice
+        self._map = [_wrapped(self.context, mipmap.texels, np.float32)] + [
+            _wrapped(self.context, a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
+        self._map += [np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
+                      np.float64(mipmap.max_anisotropy), _wrapped(self.context, EWA_WEIGHTS, np.float64)]
         self._lock = threading.Lock()
 
     def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
@@ -53,7 +84,29 @@ class EwaKernel:
         result = cl.Buffer(self.context, mf.WRITE_ONLY, out.nbytes)
         padded = -(-count // LOCAL_SIZE) * LOCAL_SIZE
         with self._lock:
-            self._kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._tables, self._wrap, self._levels,
-                         self._max_anisotropy, self._lut, *inputs, np.int32(count), result)
+            self._kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._map, *inputs, np.int32(count), result)
             cl.enqueue_copy(self.queue, out, result)
         return out
+
+    def at_hits(self, surfaces: SurfaceTables, material: int, mapping: np.ndarray, direction: np.ndarray,
+                hits, out: np.ndarray) -> None:
+        """Write into ``out`` (N, 3) float32 the albedo of the rays (unit ``direction`` (N, 3)) whose
+        closest hit (``scene.intersect.Hits``) is on an instance of material index ``material``, whose
+        image texture this map is (``hit_mapping``); other rows are left as they are."""
+        count = len(direction)
+        if count == 0:
+            return
+        mf = cl.mem_flags
+        inputs = [cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=np.ascontiguousarray(a, dtype))
+                  for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
+                                   (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
+                                   (hits.geom, np.int32), (hits.normal, np.float32))]
+        if out.dtype != np.float32 or not out.flags.c_contiguous or out.shape != (count, 3):
+            raise ValueError(f"at_hits writes a C-contiguous ({count}, 3) float32 array, not {out.dtype} {out.shape}")
+        result = cl.Buffer(self.context, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=out)
+        padded = -(-count // LOCAL_SIZE) * LOCAL_SIZE
+        with self._lock:
+            self._hits_kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._map, *surfaces.buffers,
+                              surfaces.instance_count, np.int32(material), *inputs, np.int32(count), result)
+            # a read into the buffer's own host pointer: PoCL copies nothing; it orders the read after the kernel
+            cl.enqueue_copy(self.queue, out, result)

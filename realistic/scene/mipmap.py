@@ -112,7 +112,8 @@ class MipMap:
         return self._height
 
     @cached_property
-    def _device_ewa(self):
+    def device_ewa(self):
+        """This map's texels on the OpenCL device (``scene.ewa_kernel.EwaKernel``), made on first use."""
         from realistic.scene.ewa_kernel import EwaKernel  # pyopencl only where the kernel is used
         return EwaKernel(self)
 
@@ -170,7 +171,7 @@ class MipMap:
         """Elliptically weighted average (N, 3) over the ellipse with axes ``axis0``, ``axis1`` (N, 2);
         ``backend`` "opencl" runs ``kernels/ewa.cl`` (same result to float32 rounding)."""
         if backend == "opencl":
-            return self._device_ewa(st, axis0, axis1)
+            return self.device_ewa(st, axis0, axis1)
         swap = (axis0 * axis0).sum(axis=1) < (axis1 * axis1).sum(axis=1)
         major = np.where(swap[:, None], axis1, axis0).astype(np.float64)
         minor = np.where(swap[:, None], axis0, axis1).astype(np.float64)

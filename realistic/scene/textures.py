@@ -31,12 +31,18 @@ def evaluate(texture: Texture, uv: np.ndarray, footprint: Footprint | None = Non
     raise TypeError(f"unknown texture {texture!r}")
 
 
+def st_mapping(texture: ImageTexture) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(repeats, offset, flip, shift), each (2,) float64: st = (uv * repeats + offset) * flip + shift,
+    with t down the image's rows, so a bottom-origin image flips v (footprint axes scale by repeats * flip)."""
+    bottom = texture.v_origin == "bottom"
+    return (np.asarray(texture.scale, np.float64), np.asarray(texture.offset, np.float64),
+            np.array([1.0, -1.0 if bottom else 1.0]), np.array([0.0, 1.0 if bottom else 0.0]))
+
+
 def _image(texture: ImageTexture, uv: np.ndarray, footprint: Footprint | None, backend: str) -> np.ndarray:
-    """A MIP-map lookup; (s, t) with t down the rows, so a bottom-origin image flips v."""
-    repeats = np.asarray(texture.scale, np.float64)
-    st = np.asarray(uv, np.float64) * repeats + np.asarray(texture.offset, np.float64)
-    flip = np.array([1.0, -1.0 if texture.v_origin == "bottom" else 1.0])
-    st = st * flip + np.array([0.0, 1.0 if texture.v_origin == "bottom" else 0.0])
+    """A MIP-map lookup at ``st_mapping``'s (s, t)."""
+    repeats, offset, flip, shift = st_mapping(texture)
+    st = (np.asarray(uv, np.float64) * repeats + offset) * flip + shift
     mipmap = texture.mipmap
     if footprint is None:
         return mipmap.bilinear(st).astype(np.float32)

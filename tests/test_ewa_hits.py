@@ -1,0 +1,116 @@
+"""``ewa_hits`` (kernels/ewa.cl): the albedo of image-textured hits computed from embree's hit
+records on the device, against its numpy reference ``DirectLighting._albedo`` (uv interpolation,
+pixel footprint, st mapping, EWA lookup), per hit, to float32 rounding; and the renderer's choice
+of which materials go to the device."""
+
+import numpy as np
+import pytest
+
+from realistic.camera.base import SampleBlock
+from realistic.camera.lens_camera import LensCamera
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.transforms import rotate, scale, translate
+from realistic.optics.formats import load_lens
+from realistic.renderer.integrator import DirectLighting, _facing
+from realistic.scene.intersect import Intersector
+from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
+from realistic.scene.shapes import cone, quad, sphere
+from test_shading_reference import textured_scene
+
+pytestmark = pytest.mark.usefixtures("opencl_platform")
+
+F32 = np.float32
+
+
+def image(seed: int, shape: tuple[int, int]) -> np.ndarray:
+    return np.random.default_rng(seed).random((*shape, 3)).astype(np.float32)
+
+
+def instanced_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
+    """Image textures of every wrap and both v origins on instances whose linear maps are not
+    rotations (a non-uniform scale, a mirror, a shear), on curved, sloped and grazing surfaces, with
+    a trilinear texture beside them (left to numpy) and a floor seen nearly edge on."""
+    scene = Scene(background=(0.0, 0.0, 0.0))
+    clamp = ImageTexture(image(1, (48, 80)), scale=(3.0, 2.0), v_origin="bottom", wrap="clamp",
+                         offset=(-0.3, 0.1))
+    black = ImageTexture(image(2, (64, 64)), scale=(2.5, 5.0), v_origin="top", wrap="black", max_anisotropy=3.0)
+    repeat = ImageTexture(image(3, (16, 128)), scale=(7.0, 1.5), max_anisotropy=16.0)
+    trilinear = ImageTexture(image(4, (32, 32)), scale=(4.0, 4.0), filter="trilinear")
+    scene.add(quad(30.0, 30.0), rotate(-90, (1, 0, 0)), Material((0.9, 0.8, 0.7), repeat))
+    ball = sphere(0.5, 40)
+    scene.add(ball, translate(-0.9, 0.6, 0.3) @ scale(1.4, 0.8, 1.1) @ rotate(25, (0, 0, 1)),
+              Material((0.6, 0.9, 0.5), clamp))
+    scene.add(ball, translate(0.8, 0.5, -0.2) @ scale(-1.0, 1.0, 1.0), Material((1.0, 1.0, 1.0), black))
+    shear = np.eye(4)
+    shear[0, 1] = 0.6
+    scene.add(cone(0.4, 1.0, 24), translate(0.1, 0.0, 1.0) @ shear @ rotate(-90, (1, 0, 0)),
+              Material((0.7, 0.7, 0.9), clamp))
+    scene.add(quad(0.8, 0.8), translate(0.0, 0.6, -1.0) @ rotate(35, (0, 1, 0)), Material((0.5, 0.5, 0.5), trilinear))
+    scene.lights.append(AreaLight("disk", (1.0, 1.0), (20.0, 20.0, 20.0), translate(0, 3.0, 0) @ rotate(90, (1, 0, 0))))
+    return scene, np.array([0.0, 0.35, 4.5]), np.array([0.0, 0.3, 0.0])
+
+
+def hits_of(scene: Scene, eye: np.ndarray, target: np.ndarray, width: int = 96, height: int = 64):
+    camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, width, height, 2)
+    rays = camera.ray_generator("numpy", 3)(SampleBlock(0, camera.sample_count, 2))
+    alive = np.flatnonzero(rays.weight != 0)
+    origin, direction = rays.origin[alive].astype(F32), rays.direction[alive].astype(F32)
+    intersector = Intersector(scene)
+    return intersector, origin, direction, intersector.closest(origin, direction), camera.pixel_spread_radians()
+
+
+def reference_albedo(integrator: DirectLighting, host: np.ndarray, direction: np.ndarray, hits) -> np.ndarray:
+    """``_albedo`` in numpy on the surface hits of the materials ``host`` marks; zero elsewhere."""
+    out = np.zeros((len(direction), 3), F32)
+    surface = (hits.geom >= 0) & (hits.geom < integrator.instance_count)
+    rows = np.flatnonzero(surface & host[integrator._geom_material[np.where(surface, hits.geom, 0)]])
+    d = direction[rows]
+    face, bary = integrator._triangles(hits, rows)
+    out[rows] = integrator._albedo(face, bary, hits.geom[rows], d, _facing(hits.normal[rows], d), hits.t[rows])
+    return out
+
+
+@pytest.mark.parametrize("name", ["textured", "instanced"])
+def test_device_albedo_matches_numpy(name):
+    scene, eye, target = textured_scene() if name == "textured" else instanced_scene()
+    intersector, origin, direction, hits, spread = hits_of(scene, eye, target)
+    device = DirectLighting(scene, intersector, 1, 5, spread, backend="opencl")
+    numpy_path = DirectLighting(scene, intersector, 1, 5, spread, backend="numpy")
+    host = device._kernel.host_albedo
+    on_device = host & ~device._numpy_albedo
+    assert on_device.any()
+    albedo = device._host_albedo(origin, direction, hits)
+    reference = reference_albedo(numpy_path, host, direction, hits)
+    textured = np.flatnonzero(reference.any(axis=1))
+    assert len(textured) > 1000 and reference.max() > 0.3
+    # the same float64 operations in the same order: bit for bit here (numpy's einsum may sum a machine's
+    # way, moving an edge by an ulp; a tap can then change table bin, moving the albedo by far under 1e-5)
+    np.testing.assert_allclose(albedo, reference, rtol=1e-5, atol=1e-6)
+    assert np.mean(albedo == reference) > 0.99
+
+
+def test_only_ewa_textures_with_footprints_go_to_the_device():
+    scene, eye, target = instanced_scene()
+    intersector, *_ = hits_of(scene, eye, target, 8, 8)
+    with_spread = DirectLighting(scene, intersector, 1, 5, 1e-3, backend="opencl")
+    materials = with_spread._materials
+    on_device = [i for i, _, _ in with_spread._device_textures]
+    assert [materials[i].texture.filter for i in on_device] == ["ewa"] * 4
+    assert [m.texture.filter for i, m in enumerate(materials) if with_spread._numpy_albedo[i]] == ["trilinear"]
+    point_sampled = DirectLighting(scene, intersector, 1, 5, 0.0, backend="opencl")
+    assert point_sampled._device_textures == []  # no footprint: level 0 bilinearly, in numpy
+
+
+def test_rows_of_other_materials_are_left_alone():
+    scene, eye, target = instanced_scene()
+    intersector, origin, direction, hits, spread = hits_of(scene, eye, target, 32, 24)
+    device = DirectLighting(scene, intersector, 1, 5, spread, backend="opencl")
+    index, ewa, mapping = device._device_textures[0]
+    out = np.full((len(direction), 3), -7.0, F32)
+    ewa.at_hits(device._surface_tables, index, mapping, direction, hits, out)
+    surface = (hits.geom >= 0) & (hits.geom < device.instance_count)
+    mine = surface & (device._geom_material[np.where(surface, hits.geom, 0)] == index)
+    assert mine.any() and (~mine).any()
+    assert np.all(out[~mine] == -7.0) and np.all(out[mine] >= 0.0)
+    with pytest.raises(ValueError, match="float32"):
+        ewa.at_hits(device._surface_tables, index, mapping, direction, hits, out.astype(np.float64))
