@@ -61,6 +61,9 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
     double det = 4 * a * c - b * b;
     double half_t = 2 * sqrt(a * det) / det;
     int y0 = (int)ceil(t - half_t), y1 = (int)floor(t + half_t);
+    /* texel() per tap, with the wrap's integer divisions done once per row and the column stepped */
+    int iw = (int)width[level], ih = (int)height[level];
+    __global const float *level_texels = texels + 3 * base[level];
     double3 sum = (double3)(0.0);
     double weights = 0.0;
     for (int y = y0; y <= y1; ++y) {
@@ -69,14 +72,24 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
         double root = sqrt(fmax(bb * bb - 4 * a * (c * dt * dt - 1), 0.0));
         int x0 = (int)ceil(s + (-bb - root) / (2 * a));
         int x1 = (int)floor(s + (-bb + root) / (2 * a));
+        int row = wrap == 0 ? y % ih : clamp(y, 0, ih - 1);
+        row += row < 0 ? ih : 0;
+        double row_inside = wrap == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
+        __global const float *row_texels = level_texels + 3 * (long)row * iw;
+        int column = x0 % iw;  /* repeat: x mod w, stepped along the row */
+        column += column < 0 ? iw : 0;
         for (int x = x0; x <= x1; ++x) {
             double ds = x - s;
             double r2 = a * ds * ds + b * ds * dt + c * dt * dt;
             if (r2 < 1) {
                 double weight = lut[min((int)(r2 * LUT_SIZE), LUT_SIZE - 1)];
-                sum += texel(texels, base, width, height, wrap, (int)level, x, y) * weight;
+                int at = wrap == 0 ? column : clamp(x, 0, iw - 1);
+                double inside = wrap == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
+                __global const float *p = row_texels + 3 * at;
+                sum += (double3)(p[0], p[1], p[2]) * inside * weight;
                 weights += weight;
             }
+            column = column + 1 == iw ? 0 : column + 1;
         }
     }
     return sum / fmax(weights, 1e-300);
