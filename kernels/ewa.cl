@@ -8,6 +8,10 @@
  * Texels: every level's RGB rows, level after level, in one float array (MipMap._texels);
  * level k has width[k] x height[k] texels starting at texel base[k]. wrap: 0 repeat, 1 black,
  * 2 clamp (validation.TEXTURE_WRAPS's order).
+ *
+ * sqrt, ceil, floor, fmax and fabs are written as LLVM's builtins: PoCL's library versions of the
+ * OpenCL functions are calls, and cost a third of a lookup's time (same results: each is exact or
+ * correctly rounded either way). log2 stays the library's (__builtin_log2 is slower still).
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #pragma OPENCL FP_CONTRACT OFF  /* a * b + c rounds twice, as in numpy */
@@ -33,7 +37,7 @@ inline double3 texel(__global const float *texels, __global const long *base, __
 inline double3 bilinear0(__global const float *texels, __global const long *base, __global const long *width,
                          __global const long *height, int wrap, double s, double t) {
     double x = s * width[0] - 0.5, y = t * height[0] - 0.5;
-    double x0 = floor(x), y0 = floor(y);
+    double x0 = __builtin_floor(x), y0 = __builtin_floor(y);
     double fx = x - x0, fy = y - y0;
     int ix = (int)x0, iy = (int)y0;
     double3 top = texel(texels, base, width, height, wrap, 0, ix, iy) * (1 - fx)
@@ -59,8 +63,8 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
     double inv_f = 1 / (a * c - b * b * 0.25);
     a *= inv_f; b *= inv_f; c *= inv_f;
     double det = 4 * a * c - b * b;
-    double half_t = 2 * sqrt(a * det) / det;
-    int y0 = (int)ceil(t - half_t), y1 = (int)floor(t + half_t);
+    double half_t = 2 * __builtin_sqrt(a * det) / det;
+    int y0 = (int)__builtin_ceil(t - half_t), y1 = (int)__builtin_floor(t + half_t);
     /* texel() per tap, with the wrap's integer divisions done once per row and the column stepped */
     int iw = (int)width[level], ih = (int)height[level];
     __global const float *level_texels = texels + 3 * base[level];
@@ -69,9 +73,9 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
     for (int y = y0; y <= y1; ++y) {
         double dt = y - t;
         double bb = b * dt;
-        double root = sqrt(fmax(bb * bb - 4 * a * (c * dt * dt - 1), 0.0));
-        int x0 = (int)ceil(s + (-bb - root) / (2 * a));
-        int x1 = (int)floor(s + (-bb + root) / (2 * a));
+        double root = __builtin_sqrt(__builtin_fmax(bb * bb - 4 * a * (c * dt * dt - 1), 0.0));
+        int x0 = (int)__builtin_ceil(s + (-bb - root) / (2 * a));
+        int x1 = (int)__builtin_floor(s + (-bb + root) / (2 * a));
         int row = wrap == 0 ? y % ih : clamp(y, 0, ih - 1);
         row += row < 0 ? ih : 0;
         double row_inside = wrap == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
@@ -92,7 +96,7 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
             column = column + 1 == iw ? 0 : column + 1;
         }
     }
-    return sum / fmax(weights, 1e-300);
+    return sum / __builtin_fmax(weights, 1e-300);
 }
 
 /* The filtered colour at (s, t) over the ellipse with axes major and minor (in st units): the
@@ -103,15 +107,15 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
     if (dot(major, major) < dot(minor, minor)) {
         double2 swap = major; major = minor; minor = swap;
     }
-    double major_len = sqrt(dot(major, major)), minor_len = sqrt(dot(minor, minor));
+    double major_len = __builtin_sqrt(dot(major, major)), minor_len = __builtin_sqrt(dot(minor, minor));
     if (minor_len * max_anisotropy < major_len && minor_len > 0) {
-        double stretch = major_len / fmax(minor_len * max_anisotropy, 1e-300);
+        double stretch = major_len / __builtin_fmax(minor_len * max_anisotropy, 1e-300);
         minor *= stretch;
         minor_len *= stretch;
     }
     if (minor_len == 0) return bilinear0(texels, base, width, height, wrap, p.x, p.y);
-    double lod = fmax(0.0, levels - 1 + log2(fmax(minor_len, 1e-8)));
-    double lower = floor(lod);
+    double lod = __builtin_fmax(0.0, levels - 1 + log2(__builtin_fmax(minor_len, 1e-8)));
+    double lower = __builtin_floor(lod);
     double delta = lod - lower;
     return ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower, p.x, p.y,
                      major.x, major.y, minor.x, minor.y) * (1 - delta)
@@ -158,7 +162,7 @@ inline double3 cross3(double3 a, double3 b) {
 }
 
 inline double3 normalise3(double3 v) {
-    double length = sqrt(dot3(v, v));
+    double length = __builtin_sqrt(dot3(v, v));
     return length > 0 ? v / length : (double3)(0.0);
 }
 
@@ -227,11 +231,11 @@ __kernel void ewa_hits(__global const float *texels, __global const long *base, 
     double cosine = dot3(d, normal);
     double3 along = normalise3(d - cosine * normal);
     if (!(dot3(along, along) > 0.5)) {
-        double3 other = fabs(normal.x) < 0.9 ? (double3)(1.0, 0.0, 0.0) : (double3)(0.0, 1.0, 0.0);
+        double3 other = __builtin_fabs(normal.x) < 0.9 ? (double3)(1.0, 0.0, 0.0) : (double3)(0.0, 1.0, 0.0);
         along = normalise3(cross3(normal, other));
     }
     double3 across = cross3(normal, along);
-    double stretch = 1.0 / fmax(fabs(cosine), MIN_COSINE);
+    double stretch = 1.0 / __builtin_fmax(__builtin_fabs(cosine), MIN_COSINE);
     double2 axis0 = to_uv(across * w, edge1, edge2, duv1, duv2);
     double2 axis1 = to_uv(along * (w * stretch), edge1, edge2, duv1, duv2);
 
