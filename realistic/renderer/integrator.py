@@ -264,13 +264,15 @@ class DirectLighting:
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
                 contribution = batch.contribution.reshape(count, batch.stride, 3)[:, :n]
-                # 0/1 as uint8: float32 times uint8 is a plain float32 loop (times bool is a slower cast)
+                # 0/1 as uint8: float32 times uint8 is a plain float32 loop (times bool is a slower cast);
+                # the batch's arrays are this thread's to overwrite until its next launch
                 unblocked = np.logical_not(blocked).view(np.uint8).reshape(count, batch.stride, 1)[:, :n]
-                for k in range(count):  # in light-sample order, as the numpy path adds them
-                    if first + k == 0:  # out is zero: 0 + x is x, written without a temporary
-                        np.multiply(contribution[k], unblocked[k], out=out)
-                    else:
-                        out += contribution[k] * unblocked[k]
+                np.multiply(contribution, unblocked, out=contribution)
+                if first == 0:  # out is zero: 0 + x is x, so the sum starts at light sample 0 as numpy's does
+                    np.add.reduce(contribution, axis=0, out=out)  # adds rows k = 0, 1, ... in order
+                else:
+                    for k in range(count):  # in light-sample order, as the numpy path adds them
+                        out += contribution[k]
                 shadow_rays += int(np.count_nonzero(batch.length > 0))
         with timed("shading"):
             if self.light_samples > 1:
