@@ -88,8 +88,8 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--preview-every", type=positive("preview interval (seconds)"), metavar="SECONDS",
                         help="rewrite the PNG preview this often while rendering (default: only at the end)")
     parser.add_argument("--pass-samples", type=checked(int, validation.pass_samples), metavar="N",
-                        help="sample ids per pass (default: about 2^18 camera and shadow rays' worth, 131072 "
-                             "samples at one light sample, 52428 at four); checkpoints hold whole passes, and a farm "
+                        help="sample ids per pass (default: about 2^19 camera and shadow rays' worth, 262144 "
+                             "samples at one light sample, 104857 at four); checkpoints hold whole passes, and a farm "
                              "task is about 2^20 samples of passes")
     add_farm_arguments(parser)
     parser.set_defaults(run=cmd_render)

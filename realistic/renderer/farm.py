@@ -35,7 +35,7 @@ from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import Scene
 
-#: Samples per task by default: 8 passes of 2^17, 0.5-1 s on an idle core (docs/farm.md).
+#: Samples per task by default: 4 passes of 2^18, 0.5-1 s on an idle core (docs/farm.md).
 DEFAULT_TASK_SAMPLES = 1 << 20
 #: Runners (camera + integrator) and BVHs each worker keeps, most recently used first.
 RUNNERS_KEPT = 8

@@ -19,9 +19,10 @@ import numpy as np
 from realistic.camera.base import SampleBlock
 
 #: Camera plus shadow rays a pass traces by default. Memory in flight and a pass's fixed costs (kernel
-#: launches, embree calls, Python) both go with it: 2^18 rays is 2^17 samples of one camera ray and one
-#: shadow ray each, which measured within a few percent of the embree ceiling (bench/render.py).
-PASS_RAYS = 1 << 18
+#: launches, embree calls, Python) both go with it: 2^19 rays is 2^18 samples of one camera ray and one
+#: shadow ray each, 104,857 at four light samples. Against 2^18: bench/render.py's dragon 4-16 % more
+#: samples/s, bench/scenes.py's dragons (four light samples) 5-10 % more, their peak RSS 216 -> 249 MiB.
+PASS_RAYS = 1 << 19
 
 
 def default_pass_samples(rays_per_sample: int = 1, light_samples: int = 1) -> int:
@@ -31,7 +32,7 @@ def default_pass_samples(rays_per_sample: int = 1, light_samples: int = 1) -> in
     return max(1, PASS_RAYS // (max(1, rays_per_sample) * (1 + max(0, light_samples))))
 
 
-DEFAULT_PASS_SAMPLES = default_pass_samples()  # one camera ray and one light sample per sample: 2^17
+DEFAULT_PASS_SAMPLES = default_pass_samples()  # one camera ray and one light sample per sample: 2^18
 
 
 def progressive_order(count: int) -> np.ndarray:
