@@ -1,11 +1,10 @@
 /* Direct lighting of camera-ray hits: closest hit -> shadow rays and their contributions.
  *
  * OpenCL 1.2 C, float32. The numpy reference is realistic.renderer.integrator.DirectLighting (its
- * numpy path); the host is realistic/renderer/shade_kernel.py. One work item per (camera ray i,
- * light sample k) of a 2-D launch: dimension 0 runs over the n rays (padded to the work-group
- * size), dimension 1 over light samples first_sample, first_sample + 1, ..., so the per-hit work
- * (hit point, normals, albedo) is redone per light sample; with one light sample, the renderer's
- * default, nothing is redone.
+ * numpy path); the host is realistic/renderer/shade_kernel.py. One work item per camera ray i
+ * (the n rays padded to the work-group size): the per-hit work (hit point, normals, albedo) once,
+ * then light samples first_sample .. first_sample + LAUNCH_SAMPLES - 1 (a build option, so the
+ * loop is unrolled and the body stays loop-free for the vectoriser).
  *
  * Per work item, as the numpy code does it, in the same float32 operations and order:
  *   - the hit point o + t d, the geometric normal (embree's Ng normalised, turned to face the ray),
@@ -44,9 +43,10 @@
 #define SHADOW_OFFSET 1e-4f
 #define SHADOW_LENGTH 0.9999f
 /* Build options (-D) the host sets per scene, so that the work the scene never needs costs no gathers:
- * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO (0 or 1, see the kernel). */
-#if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO)
-#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.."
+ * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO (0 or 1, see the kernel); and
+ * per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more). */
+#if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO) || !defined(LAUNCH_SAMPLES)
+#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DLAUNCH_SAMPLES=.."
 #endif
 /* Row strides of the tables the host lays out (realistic/renderer/shade_kernel.py). */
 #define GEOM_INTS 4      /* face offset, material, smooth (0/1), unused */
@@ -166,8 +166,6 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                     __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
                     __global float *contribution) {
     uint i = get_global_id(0);
-    uint o = get_global_id(1) * stride + i;
-    uint k = first_sample + get_global_id(1);
     uint r = i < n ? i : n - 1;
     int g = geom[r];
     int surface = (i < n) & (g >= 0) & (g < instance_count);
@@ -259,39 +257,45 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     rho_b = kind == KIND_HOST ? AT(albedo_in, 3, host_row, 2) : rho_b;
 #endif
 
-    /* light sample k */
-    float u_pick, u1, u2;
-    light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
-    int j = pick_light(cdf, light_count, u_pick, unit);
-    __global const float *light = lights + LIGHT_FLOATS * j;
-    float disk_x, disk_y;
-    concentric_disk(u1, u2, &disk_x, &disk_y);
-    int disk = FIELD(light, 16) != 0.0f;
-    float lx = disk ? disk_x : 2.0f * u1 - 1.0f;
-    float ly = disk ? disk_y : 2.0f * u2 - 1.0f;
-    float qx = FIELD(light, 0) + FIELD(light, 3) * lx + FIELD(light, 6) * ly;
-    float qy = FIELD(light, 1) + FIELD(light, 4) * lx + FIELD(light, 7) * ly;
-    float qz = FIELD(light, 2) + FIELD(light, 5) * lx + FIELD(light, 8) * ly;
-    float tx = qx - px, ty = qy - py, tz = qz - pz;
-    float dist2 = tx * tx + ty * ty + tz * tz;
-    float dist = __builtin_sqrtf(dist2);
-    float ix = tx / dist, iy = ty / dist, iz = tz / dist;
-    float cos_p = ix * shx + iy * shy + iz * shz;
-    float cos_q = -(ix * FIELD(light, 9) + iy * FIELD(light, 10) + iz * FIELD(light, 11));
-    cos_q = FIELD(light, 17) != 0.0f && cos_q < 0.0f ? -cos_q : cos_q;
-    int live = surface & (cos_p > 0.0f) & (cos_q > 0.0f) & (ix * gx + iy * gy + iz * gz > 0.0f) & (dist2 > 0.0f);
-    float scale = cos_p * cos_q / dist2 * FIELD(light, 15);
+    /* the launch's light samples, unrolled */
+#pragma unroll
+    for (uint q = 0; q < LAUNCH_SAMPLES; ++q) {
+        /* light sample k, row o */
+        uint k = first_sample + q;
+        uint o = q * stride + i;
+        float u_pick, u1, u2;
+        light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
+        int j = pick_light(cdf, light_count, u_pick, unit);
+        __global const float *light = lights + LIGHT_FLOATS * j;
+        float disk_x, disk_y;
+        concentric_disk(u1, u2, &disk_x, &disk_y);
+        int disk = FIELD(light, 16) != 0.0f;
+        float lx = disk ? disk_x : 2.0f * u1 - 1.0f;
+        float ly = disk ? disk_y : 2.0f * u2 - 1.0f;
+        float qx = FIELD(light, 0) + FIELD(light, 3) * lx + FIELD(light, 6) * ly;
+        float qy = FIELD(light, 1) + FIELD(light, 4) * lx + FIELD(light, 7) * ly;
+        float qz = FIELD(light, 2) + FIELD(light, 5) * lx + FIELD(light, 8) * ly;
+        float tx = qx - px, ty = qy - py, tz = qz - pz;
+        float dist2 = tx * tx + ty * ty + tz * tz;
+        float dist = __builtin_sqrtf(dist2);
+        float ix = tx / dist, iy = ty / dist, iz = tz / dist;
+        float cos_p = ix * shx + iy * shy + iz * shz;
+        float cos_q = -(ix * FIELD(light, 9) + iy * FIELD(light, 10) + iz * FIELD(light, 11));
+        cos_q = FIELD(light, 17) != 0.0f && cos_q < 0.0f ? -cos_q : cos_q;
+        int live = surface & (cos_p > 0.0f) & (cos_q > 0.0f) & (ix * gx + iy * gy + iz * gz > 0.0f) & (dist2 > 0.0f);
+        float scale = cos_p * cos_q / dist2 * FIELD(light, 15);
 
-    AT(shadow_origin, 3, o, 0) = live ? sx : 0.0f;
-    AT(shadow_origin, 3, o, 1) = live ? sy : 0.0f;
-    AT(shadow_origin, 3, o, 2) = live ? sz : 0.0f;
-    AT(shadow_vector, 3, o, 0) = live ? qx - sx : 0.0f;
-    AT(shadow_vector, 3, o, 1) = live ? qy - sy : 0.0f;
-    AT(shadow_vector, 3, o, 2) = live ? qz - sz : 0.0f;
-    shadow_length[o] = live ? SHADOW_LENGTH : -1.0f;
-    AT(contribution, 3, o, 0) = live ? rho_r * FIELD(light, 12) * scale : 0.0f;
-    AT(contribution, 3, o, 1) = live ? rho_g * FIELD(light, 13) * scale : 0.0f;
-    AT(contribution, 3, o, 2) = live ? rho_b * FIELD(light, 14) * scale : 0.0f;
+        AT(shadow_origin, 3, o, 0) = live ? sx : 0.0f;
+        AT(shadow_origin, 3, o, 1) = live ? sy : 0.0f;
+        AT(shadow_origin, 3, o, 2) = live ? sz : 0.0f;
+        AT(shadow_vector, 3, o, 0) = live ? qx - sx : 0.0f;
+        AT(shadow_vector, 3, o, 1) = live ? qy - sy : 0.0f;
+        AT(shadow_vector, 3, o, 2) = live ? qz - sz : 0.0f;
+        shadow_length[o] = live ? SHADOW_LENGTH : -1.0f;
+        AT(contribution, 3, o, 0) = live ? rho_r * FIELD(light, 12) * scale : 0.0f;
+        AT(contribution, 3, o, 1) = live ? rho_g * FIELD(light, 13) * scale : 0.0f;
+        AT(contribution, 3, o, 2) = live ? rho_b * FIELD(light, 14) * scale : 0.0f;
+    }
 }
 
 /* Debug: the light-sample random numbers of each ray, rows u_pick, u1, u2 per light sample

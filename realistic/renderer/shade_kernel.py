@@ -5,16 +5,17 @@
 the two per hit (``tests/test_shade_kernel.py``). For each camera ray of a pass the kernel computes
 the hit point, the geometric and shading normals, the albedo (constant, grid and checker materials;
 image-textured rows come from the host: ``DirectLighting._host_albedo``) and, for every light
-sample, the light point, the shadow ray and its contribution. It writes them into flat arrays ordered by light sample then
-ray (row k * stride + i), so embree traces all of a pass's shadow rays in one ``occluded`` call;
-dead samples have length -1, which embree skips.
+sample, the light point, the shadow ray and its contribution. It writes them into flat arrays
+ordered by light sample then ray (row k * stride + i), so embree traces all of a pass's shadow rays
+in one ``occluded`` call; dead samples have length -1, which embree skips.
 
 The program source does not depend on the scene: the scene's tables (faces, vertex normals, uvs,
 per-instance normal matrices and materials, lights and their CDF) are device buffers made once per
 integrator. Four build options leave out what a scene never needs (every table read is a vector
 gather on the CPU, the kernel's main cost): the light search's depth, smooth normals, procedural
-textures, host albedos. PoCL builds each variant once per process and caches the build on disk
-across processes. Inputs are wrapped without copying (``USE_HOST_PTR``: PoCL on the CPU reads the numpy
+textures, host albedos. A fifth, the light samples per launch, lets each work item do a hit's work
+once for all of them (the loop unrolled). PoCL builds each variant once per process and caches the
+build on disk across processes. Inputs are wrapped without copying (``USE_HOST_PTR``: PoCL on the CPU reads the numpy
 arrays in place); outputs are numpy arrays kept per thread and reused across passes while they are
 large enough. Each thread has its own queue and kernel object, so the renderer's worker threads
 launch independently; PoCL spreads each launch over every core.
@@ -90,10 +91,10 @@ class ShadowBatch:
 class _ThreadState:
     """A thread's queue, kernel object and reusable output arrays (with their buffers)."""
 
-    def __init__(self, context, program):
+    def __init__(self, context):
         cl = opencl_host.cl
         self.queue = cl.CommandQueue(context)
-        self.shade = cl.Kernel(program, "shade")
+        self.shade: dict[int, object] = {}  # light samples per launch -> that program's kernel object
         self.rows = 0
         self.arrays: dict[str, np.ndarray] = {}
         self.buffers: dict = {}
@@ -140,8 +141,7 @@ class ShadeKernel:
                         f"-DSMOOTH={int(np.any(geom_smooth))}",
                         f"-DTEXTURED={int(np.any(np.isin(material_rows[:, 0], (KIND_GRID, KIND_CHECKER))))}",
                         f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
-        self.program = opencl_host.build_program(self.context, opencl_host.kernel_source(KERNEL_FILE), KERNEL_FILE,
-                                                 self.options)
+        self.program = self._program(1)
         mf = cl.mem_flags
 
         def table(array: np.ndarray, dtype) -> object:
@@ -158,10 +158,16 @@ class ShadeKernel:
         self._local = threading.local()
         self._states: list[_ThreadState] = []  # keeps every thread's buffers alive with the kernel
 
+    def _program(self, launch_samples: int):
+        """The scene's program variant whose work items make ``launch_samples`` light samples each
+        (built once per process and count: a render needs one, or two with a remainder)."""
+        return opencl_host.build_program(self.context, opencl_host.kernel_source(KERNEL_FILE), KERNEL_FILE,
+                                         (*self.options, f"-DLAUNCH_SAMPLES={launch_samples}"))
+
     def _state(self) -> _ThreadState:
         state = getattr(self._local, "state", None)
         if state is None:
-            state = self._local.state = _ThreadState(self.context, self.program)
+            state = self._local.state = _ThreadState(self.context)
             self._states.append(state)
         return state
 
@@ -193,7 +199,9 @@ class ShadeKernel:
                   _as_uint32(pixel), _as_uint32(sample),
                   self._dummy_albedo if albedo is None else np.ascontiguousarray(albedo, np.float32)]
         buffers = [cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a) for a in inputs]
-        kernel = state.shade
+        kernel = state.shade.get(light_samples)
+        if kernel is None:
+            kernel = state.shade[light_samples] = opencl_host.cl.Kernel(self._program(light_samples), "shade")
         kernel.set_args(np.uint32(n), np.uint32(stride), np.uint32(first_sample), np.uint32(total),
                         np.uint32(seed & 0xFFFFFFFF),
                         np.uint32(1),
@@ -201,7 +209,7 @@ class ShadeKernel:
                         self.offset_base, np.int32(self.light_count), *buffers, *self._tables,
                         state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
                         state.buffers["contribution"])
-        cl.enqueue_nd_range_kernel(state.queue, kernel, (stride, light_samples), (LOCAL_SIZE, 1))
+        cl.enqueue_nd_range_kernel(state.queue, kernel, (stride,), (LOCAL_SIZE,))
         arrays = {}
         for name, width in (("origin", 3), ("vector", 3), ("length", 1), ("contribution", 3)):
             host = state.arrays[name][:rows * width]
