@@ -120,19 +120,35 @@ def test_radiance_matches_the_numpy_path(scene_rays, light_samples):
     np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
 
 
-def test_light_samples_in_several_launches_match(scene_rays, monkeypatch):
-    """A pass whose light samples exceed a launch's shadow-ray budget runs them in groups."""
+@pytest.mark.parametrize("light_samples, budget", [(3, 1), (6, None)])
+def test_light_samples_in_several_launches_match(scene_rays, monkeypatch, light_samples, budget):
+    """A pass whose light samples exceed a launch's shadow-ray budget (one row: one light sample
+    per launch) or its unrolled count (MAX_LAUNCH_SAMPLES: 6 = 4 + 2, two program variants) runs
+    them in groups."""
     from realistic.renderer import shade_kernel
 
     scene, (origin, direction, pixel, sample, spread) = scene_rays
     intersector = Intersector(scene)
-    expected, expected_rays = DirectLighting(scene, intersector, 3, SEED, spread).radiance(
+    expected, expected_rays = DirectLighting(scene, intersector, light_samples, SEED, spread).radiance(
         origin, direction, pixel, sample)
-    monkeypatch.setattr(shade_kernel, "MAX_SHADOW_ROWS", 1)  # one light sample per launch
-    got, shadow_rays = DirectLighting(scene, intersector, 3, SEED, spread, backend="opencl").radiance(
+    if budget is not None:
+        monkeypatch.setattr(shade_kernel, "MAX_SHADOW_ROWS", budget)
+    assert budget is not None or light_samples > shade_kernel.MAX_LAUNCH_SAMPLES  # so it runs in groups
+    got, shadow_rays = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl").radiance(
         origin, direction, pixel, sample)
     assert shadow_rays == expected_rays
     np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+
+
+def test_a_launch_makes_at_most_max_launch_samples(scene_rays):
+    from realistic.renderer.shade_kernel import MAX_LAUNCH_SAMPLES
+
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    integrator = DirectLighting(scene, Intersector(scene), 1, SEED, spread, backend="opencl")
+    hits = integrator.intersector.closest(origin, direction)
+    with pytest.raises(ValueError, match=f"1 to {MAX_LAUNCH_SAMPLES} light samples"):
+        integrator._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal,
+                                 pixel, sample, None, MAX_LAUNCH_SAMPLES + 1, SEED)
 
 
 def test_no_rays():

@@ -144,7 +144,7 @@ class DirectLighting:
                              geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
                              geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
                              materials=self._materials, light_rows=rows, light_cdf=self._light_cdf,
-                             extent=self.intersector.extent, device=cl_device)
+                             extent=self.intersector.extent, device=cl_device, launch_samples=self.light_samples)
         self._build_device_textures(kernel.host_albedo)
         return kernel
 
@@ -244,7 +244,7 @@ class DirectLighting:
                          hits, timed) -> tuple[np.ndarray, int]:
         """``radiance`` of RGB rays through ``kernels/shade.cl``: the kernel shades every surface hit
         and writes all light samples' shadow rays, embree traces them in one call, numpy sums."""
-        from realistic.renderer.shade_kernel import LOCAL_SIZE, MAX_SHADOW_ROWS
+        from realistic.renderer.shade_kernel import LOCAL_SIZE, MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS
 
         n = len(origin)
         if n == 0:
@@ -252,7 +252,8 @@ class DirectLighting:
         with timed("shading"):
             albedo = self._host_albedo(origin, direction, hits) if self._kernel.host_albedo.any() else None
             out = np.zeros((n, 3), np.float32)
-            group = max(1, MAX_SHADOW_ROWS // (-(-n // LOCAL_SIZE) * LOCAL_SIZE))  # light samples per launch
+            # light samples per launch
+            group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // (-(-n // LOCAL_SIZE) * LOCAL_SIZE)))
             shadow_rays = 0
         for first in range(0, self.light_samples, group):
             count = min(group, self.light_samples - first)

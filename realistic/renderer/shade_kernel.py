@@ -42,6 +42,9 @@ MAX_LIGHTS = 65535
 #: about this many rays, so memory stays flat in the light-sample count (40 bytes per row here,
 #: about as much again in embree's ray structs).
 MAX_SHADOW_ROWS = 1 << 19
+#: Light samples per launch at most: a work item's loop over them is unrolled when the program is
+#: built, and PoCL's build (uncached) grows by about 0.4 s per light sample unrolled.
+MAX_LAUNCH_SAMPLES = 4
 
 
 def rounded_up_cdf(cdf: np.ndarray) -> np.ndarray:
@@ -120,7 +123,10 @@ class ShadeKernel:
     def __init__(self, *, faces: np.ndarray, normals: np.ndarray, uv: np.ndarray, geom_face_offset: np.ndarray,
                  geom_material: np.ndarray, geom_smooth: np.ndarray, geom_normal_matrix: np.ndarray,
                  materials: list, light_rows: np.ndarray, light_cdf: np.ndarray, extent: float,
-                 device: str | None = None):
+                 device: str | None = None, launch_samples: int = 1):
+        """``launch_samples``: the light samples per launch a render will ask for (at most
+        ``MAX_LAUNCH_SAMPLES``), whose program is built here rather than in its first pass (others
+        are built on first use)."""
         cl = opencl_host.cl
         self.context = opencl_host.context(device)  # a UserError when there is no OpenCL platform
         if not 0 < len(light_cdf) <= MAX_LIGHTS:
@@ -141,7 +147,7 @@ class ShadeKernel:
                         f"-DSMOOTH={int(np.any(geom_smooth))}",
                         f"-DTEXTURED={int(np.any(np.isin(material_rows[:, 0], (KIND_GRID, KIND_CHECKER))))}",
                         f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
-        self.program = self._program(1)
+        self.program = self._program(min(launch_samples, MAX_LAUNCH_SAMPLES))
         mf = cl.mem_flags
 
         def table(array: np.ndarray, dtype) -> object:
@@ -182,6 +188,8 @@ class ShadeKernel:
         where a material's row is KIND_HOST (None when no material is). The arrays returned are this
         thread's, valid until its next call."""
         cl = opencl_host.cl
+        if not 0 < light_samples <= MAX_LAUNCH_SAMPLES:
+            raise ValueError(f"a launch makes 1 to {MAX_LAUNCH_SAMPLES} light samples per ray, not {light_samples}")
         total = first_sample + light_samples if total_samples is None else total_samples
         n = len(origin)
         stride = -(-n // LOCAL_SIZE) * LOCAL_SIZE
