@@ -1,6 +1,7 @@
 """Shared fixtures: where the project's shared reference data lives (skips when it is absent)."""
 
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -51,6 +52,14 @@ def shared_file(relative: str) -> Path:
     if not path.exists():
         pytest.skip(f"shared data not available: {path} (a clone without ../shared skips this test)")
     return path
+
+
+def sigint_by_default() -> None:
+    """``preexec_fn`` of the CLI processes a test interrupts: SIGINT back to its default, so the
+    child's Python installs its Ctrl-C handler even when the test run ignores SIGINT (a shell starts
+    background jobs, a CI run under ``nohup ... &`` among them, with SIGINT ignored, and children
+    inherit that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def flat_field_brightness(lens, spp: int = 256) -> float:

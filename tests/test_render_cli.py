@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from conftest import shared_file
+from conftest import shared_file, sigint_by_default
 from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.cli import main
@@ -138,7 +138,7 @@ def test_ctrl_c_writes_what_has_accumulated(tmp_path):
     out = tmp_path / "big.exr"
     process = subprocess.Popen([sys.executable, "-m", "realistic", "render", "--backend", "numpy",
                                 "--res", "200x200", "--spp", "256", "--out", str(out)],
-                               cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.PIPE)
+                               cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.PIPE, preexec_fn=sigint_by_default)
     seen = b""
     deadline = time.monotonic() + 60
     while b"1/" not in seen and time.monotonic() < deadline:  # the progress bar shows a pass done

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import sigint_by_default
 from realistic.cli import main
 from realistic.core.atomic_files import remove_stale_temporaries
 from realistic.core.image_files import read_exr, write_exr
@@ -131,7 +132,7 @@ def _tiny_image():
 def _render_process(out: Path, *extra: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "realistic", "render", *QUICK, "--res", "160x160",
                              "--spp", "512", "--out", str(out), *extra],
-                            cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.PIPE)
+                            cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.PIPE, preexec_fn=sigint_by_default)
 
 
 def _wait_for(process: subprocess.Popen, text: bytes, seen: bytes = b"") -> bytes:
@@ -196,7 +197,7 @@ def test_interrupt_during_set_up_says_nothing_was_written(tmp_path):
     out.mkdir()
     process = subprocess.Popen([sys.executable, "-m", "realistic", "render", *QUICK[:2], "--lens", str(lens),
                                 "--res", "64x64", "--out", str(out / "r.exr")], cwd=REPO, stderr=subprocess.PIPE,
-                               env={**os.environ, "REALISTIC_CACHE_DIR": "off"})
+                               env={**os.environ, "REALISTIC_CACHE_DIR": "off"}, preexec_fn=sigint_by_default)
     time.sleep(2.5)  # Python has started and is building the table
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=60)
