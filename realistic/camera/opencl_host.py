@@ -248,6 +248,16 @@ def camera_header(camera: LensCamera) -> str:
     return "\n".join(lines) + "\n"
 
 
+def wrapped_buffer(ctx: cl.Context, array: np.ndarray, dtype) -> cl.Buffer:
+    """A read-only buffer over ``array`` as contiguous ``dtype``, not a copy (PoCL on the CPU reads
+    host memory; a USE_HOST_PTR buffer keeps its host array alive); an empty array is wrapped as four
+    zeros, since OpenCL has no empty buffers. The shading and EWA kernels' tables go through here."""
+    data = np.ascontiguousarray(array, dtype).ravel()
+    if data.size == 0:
+        data = np.zeros(4, dtype)
+    return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=data)
+
+
 #: Programs kept built, per context, source and options (lens programs: one per lens, focus and
 #: filter; shading: one per scene variant; EWA: one): enough for a render, its autofocus and a bench's
 #: sample counts; older ones are dropped (PoCL's disk cache makes rebuilding one about 0.03-0.1 s).

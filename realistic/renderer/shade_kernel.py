@@ -127,7 +127,6 @@ class ShadeKernel:
         """``launch_samples``: the light samples per launch a render will ask for (at most
         ``MAX_LAUNCH_SAMPLES``), whose program is built here rather than in its first pass (others
         are built on first use)."""
-        cl = opencl_host.cl
         self.context = opencl_host.context(device)  # a UserError when there is no OpenCL platform
         if not 0 < len(light_cdf) <= MAX_LIGHTS:
             raise ValueError(f"the shading kernel handles 1 to {MAX_LIGHTS} area lights, not {len(light_cdf)}")
@@ -148,18 +147,10 @@ class ShadeKernel:
                         f"-DTEXTURED={int(np.any(np.isin(material_rows[:, 0], (KIND_GRID, KIND_CHECKER))))}",
                         f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
         self.program = self._program(min(launch_samples, MAX_LAUNCH_SAMPLES))
-        mf = cl.mem_flags
-
-        def table(array: np.ndarray, dtype) -> object:
-            """The array wrapped, not copied (a USE_HOST_PTR buffer keeps its host array alive)."""
-            data = np.ascontiguousarray(array, dtype=dtype).ravel()
-            if data.size == 0:
-                data = np.zeros(4, dtype)
-            return cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=data)
-
-        self._tables = [table(faces, np.int32), table(normals, np.float32), table(uv, np.float32),
-                        table(geom_ints, np.int32), table(geom_floats, np.float32), table(material_rows, np.float32),
-                        table(light_rows, np.float32), table(rounded_up_cdf(light_cdf), np.float32)]
+        self._tables = [opencl_host.wrapped_buffer(self.context, array, dtype) for array, dtype in (
+            (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom_ints, np.int32),
+            (geom_floats, np.float32), (material_rows, np.float32), (light_rows, np.float32),
+            (rounded_up_cdf(light_cdf), np.float32))]
         self._dummy_albedo = np.zeros(3, np.float32)
         self._local = threading.local()
         self._states: list[_ThreadState] = []  # keeps every thread's buffers alive with the kernel

@@ -18,22 +18,13 @@ import threading
 import numpy as np
 import pyopencl as cl
 
-from realistic.camera.opencl_host import LOCAL_SIZE, build_program, context, kernel_source
+from realistic.camera.opencl_host import LOCAL_SIZE, build_program, context, kernel_source, wrapped_buffer
 from realistic.core.validation import TEXTURE_WRAPS
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
 from realistic.scene.model import ImageTexture
 from realistic.scene.textures import st_mapping
 
 KERNEL_FILE = "ewa.cl"
-
-
-def _wrapped(context, array: np.ndarray, dtype) -> cl.Buffer:
-    """A read-only buffer over the array, not a copy (PoCL on the CPU reads host memory); a
-    USE_HOST_PTR buffer keeps its host array alive."""
-    data = np.ascontiguousarray(array, dtype).ravel()
-    if data.size == 0:
-        data = np.zeros(4, dtype)
-    return cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=data)
 
 
 class SurfaceTables:
@@ -44,9 +35,9 @@ class SurfaceTables:
     def __init__(self, context, faces: np.ndarray, vertices: np.ndarray, uv: np.ndarray,
                  geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_linear: np.ndarray):
         self.instance_count = np.int32(len(geom_face_offset))
-        self.buffers = [_wrapped(context, faces, np.int32), _wrapped(context, vertices, np.float64),
-                        _wrapped(context, uv, np.float32), _wrapped(context, geom_face_offset, np.int32),
-                        _wrapped(context, geom_material, np.int32), _wrapped(context, geom_linear, np.float64)]
+        self.buffers = [wrapped_buffer(context, a, dtype) for a, dtype in
+                        ((faces, np.int32), (vertices, np.float64), (uv, np.float32), (geom_face_offset, np.int32),
+                         (geom_material, np.int32), (geom_linear, np.float64))]
 
 
 def hit_mapping(texture: ImageTexture, diffuse, spread_radians: float) -> np.ndarray:
@@ -66,10 +57,11 @@ class EwaKernel:
         program = build_program(self.context, kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._kernel, self._hits_kernel = cl.Kernel(program, "ewa"), cl.Kernel(program, "ewa_hits")
         # the texels wrapped, not copied, so they are not held twice
-        self._map = [_wrapped(self.context, mipmap.texels, np.float32)] + [
-            _wrapped(self.context, a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
+        self._map = [wrapped_buffer(self.context, mipmap.texels, np.float32)] + [
+            wrapped_buffer(self.context, a, np.int64)
+            for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
         self._map += [np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
-                      np.float64(mipmap.max_anisotropy), _wrapped(self.context, EWA_WEIGHTS, np.float64)]
+                      np.float64(mipmap.max_anisotropy), wrapped_buffer(self.context, EWA_WEIGHTS, np.float64)]
         self._lock = threading.Lock()
 
     def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
@@ -96,14 +88,13 @@ class EwaKernel:
         count = len(direction)
         if count == 0:
             return
-        mf = cl.mem_flags
-        inputs = [cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=np.ascontiguousarray(a, dtype))
+        if out.dtype != np.float32 or not out.flags.c_contiguous or out.shape != (count, 3):
+            raise ValueError(f"at_hits writes a C-contiguous ({count}, 3) float32 array, not {out.dtype} {out.shape}")
+        inputs = [wrapped_buffer(self.context, a, dtype)
                   for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
                                    (hits.geom, np.int32), (hits.normal, np.float32))]
-        if out.dtype != np.float32 or not out.flags.c_contiguous or out.shape != (count, 3):
-            raise ValueError(f"at_hits writes a C-contiguous ({count}, 3) float32 array, not {out.dtype} {out.shape}")
-        result = cl.Buffer(self.context, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=out)
+        result = cl.Buffer(self.context, cl.mem_flags.READ_WRITE | cl.mem_flags.USE_HOST_PTR, hostbuf=out)
         padded = -(-count // LOCAL_SIZE) * LOCAL_SIZE
         with self._lock:
             self._hits_kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._map, *surfaces.buffers,
