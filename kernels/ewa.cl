@@ -10,8 +10,8 @@
  * 2 clamp (validation.TEXTURE_WRAPS's order).
  *
  * sqrt, ceil, floor, fmax and fabs are written as LLVM's builtins: PoCL's library versions of the
- * OpenCL functions are calls, and cost a third of a lookup's time (same results: each is exact or
- * correctly rounded either way). log2 stays the library's (__builtin_log2 is slower still).
+ * OpenCL functions are calls, and cost about a fifth of a lookup's time (same results: each is
+ * exact or correctly rounded either way). log2 stays the library's (__builtin_log2 is slower still).
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #pragma OPENCL FP_CONTRACT OFF  /* a * b + c rounds twice, as in numpy */
