@@ -117,8 +117,12 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
     double lod = __builtin_fmax(0.0, levels - 1 + log2(__builtin_fmax(minor_len, 1e-8)));
     double lower = __builtin_floor(lod);
     double delta = lod - lower;
-    return ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower, p.x, p.y,
-                     major.x, major.y, minor.x, minor.y) * (1 - delta)
+    double3 value = ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower, p.x, p.y,
+                              major.x, major.y, minor.x, minor.y);
+    /* A magnified lookup (lod clamped to 0: most of a near floor's) gives the next level no weight:
+     * value * 1 + next * 0 is value, bit for bit, so the next level's sum is skipped. */
+    if (delta == 0) return value;
+    return value * (1 - delta)
          + ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower + 1, p.x, p.y,
                      major.x, major.y, minor.x, minor.y) * delta;
 }

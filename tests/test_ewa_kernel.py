@@ -36,3 +36,24 @@ def test_an_empty_batch(opencl_platform):
     mipmap = MipMap(np.ones((8, 8, 3)))
     empty = np.zeros((0, 2))
     assert mipmap.ewa(empty, empty, empty, "opencl").shape == (0, 3)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_a_magnified_lookup_reads_the_finest_level_alone(opencl_platform, backend):
+    """pbrt-v3's EWA blends the levels around lod with weight lod - floor(lod); where the footprint's
+    minor axis is under a texel, lod is clamped to 0 and the next level's weight is 0. Both paths skip
+    that level: poisoning every coarser level changes no magnified lookup, but does change lookups
+    whose lod lies between 0 and 1, which read level 1."""
+    image = np.random.default_rng(3).random((32, 32, 3))
+    poisoned = MipMap(image)
+    poisoned.texels[poisoned.level_base[1]:] = np.nan
+    rng = np.random.default_rng(5)
+    st = rng.random((500, 2))
+    angle = rng.random(500) * 2 * np.pi
+    minor = np.where(np.arange(500) < 400, 0.9, 1.5) / 32  # texels of level 0: lod 0, then lod in (0, 1)
+    major = minor * (1 + 7 * rng.random(500))
+    axis0 = np.column_stack([np.cos(angle), np.sin(angle)]) * major[:, None]
+    axis1 = np.column_stack([-np.sin(angle), np.cos(angle)]) * minor[:, None]
+    clean, dirty = MipMap(image).ewa(st, axis0, axis1, backend), poisoned.ewa(st, axis0, axis1, backend)
+    assert np.array_equal(dirty[:400], clean[:400])
+    assert np.isnan(dirty[400:]).all() and np.isfinite(clean).all()

@@ -187,7 +187,11 @@ class MipMap:
         lower = np.floor(lod).astype(np.int64)
         delta = (lod - lower)[:, None]
         args = st[rows], major[rows], minor[rows]
-        out[rows] = self._ewa_level(lower, *args) * (1 - delta) + self._ewa_level(lower + 1, *args) * delta
+        out[rows] = self._ewa_level(lower, *args)
+        # where lod is clamped to 0 (a magnified lookup) the next level has weight 0: skipped, as the kernel does
+        blend = np.flatnonzero(delta[:, 0] > 0)
+        out[rows[blend]] = (out[rows[blend]] * (1 - delta[blend])
+                            + self._ewa_level(lower[blend] + 1, *(arg[blend] for arg in args)) * delta[blend])
         return out
 
     def _ewa_level(self, level: np.ndarray, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
