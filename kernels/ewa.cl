@@ -114,7 +114,11 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
         minor_len *= stretch;
     }
     if (minor_len == 0) return bilinear0(texels, base, width, height, wrap, p.x, p.y);
-    double lod = __builtin_fmax(0.0, levels - 1 + log2(__builtin_fmax(minor_len, 1e-8)));
+    /* lod is clamped to 0 where the minor axis is at most the finest texel, 2^(1 - levels): log2 of
+     * such a length is at most 1 - levels (exact at powers of two), so the library call is skipped */
+    double length = __builtin_fmax(minor_len, 1e-8);
+    double lod = length <= 1.0 / (double)(1L << (levels - 1)) ? 0.0
+               : __builtin_fmax(0.0, levels - 1 + log2(length));
     double lower = __builtin_floor(lod);
     double delta = lod - lower;
     double3 value = ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower, p.x, p.y,

@@ -50,7 +50,8 @@ def test_a_magnified_lookup_reads_the_finest_level_alone(opencl_platform, backen
     rng = np.random.default_rng(5)
     st = rng.random((500, 2))
     angle = rng.random(500) * 2 * np.pi
-    minor = np.where(np.arange(500) < 400, 0.9, 1.5) / 32  # texels of level 0: lod 0, then lod in (0, 1)
+    # in texels of level 0: under one and exactly one (lod 0, the kernel skips log2), then lod in (0, 1)
+    minor = np.select([np.arange(500) < 300, np.arange(500) < 400], [0.9, 1.0], 1.5) / 32
     major = minor * (1 + 7 * rng.random(500))
     axis0 = np.column_stack([np.cos(angle), np.sin(angle)]) * major[:, None]
     axis1 = np.column_stack([-np.sin(angle), np.cos(angle)]) * minor[:, None]
