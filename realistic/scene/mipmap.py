@@ -13,7 +13,8 @@ negative lobes, and every level keeps the image mean exactly.
 Lookups follow the same file: trilinear blends bilinear lookups at the two levels around
 ``L - 1 + log2(width)``; EWA clamps the ellipse's eccentricity to ``max_anisotropy``, picks the
 level from the minor axis and blends two levels of a Gaussian-weighted sum over the texels inside
-the ellipse (weights from pbrt's 128-entry table of exp(-2 r^2) - exp(-2)). ``point`` and
+the ellipse (weights from pbrt's 128-entry table of exp(-2 r^2) - exp(-2)); where the level is
+clamped to 0 (a magnified lookup) the second level's weight is 0 and its sum is skipped. ``point`` and
 ``bilinear`` follow pbrt-v4 ``src/pbrt/util/mipmap.cpp`` (MIPMap::Filter): one lookup at the level
 floor(L - 1 + log2(width)). All lookups are numpy over the points; EWA's varying number of texels
 per point is expanded into one flat array of (point, texel) taps and summed with ``np.bincount``;
