@@ -114,8 +114,9 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
         minor_len *= stretch;
     }
     if (minor_len == 0) return bilinear0(texels, base, width, height, wrap, p.x, p.y);
-    /* lod is clamped to 0 where the minor axis is at most the finest texel, 2^(1 - levels): log2 of
-     * such a length is at most 1 - levels (exact at powers of two), so the library call is skipped */
+    /* lod is clamped to 0 where the minor axis is at most 2^(1 - levels) (a texel of the finest level
+     * along its longer side): log2 is exact at powers of two and monotone, so levels - 1 + log2 of such a
+     * length is at most 0, and the library call is skipped */
     double length = __builtin_fmax(minor_len, 1e-8);
     double lod = length <= 1.0 / (double)(1L << (levels - 1)) ? 0.0
                : __builtin_fmax(0.0, levels - 1 + log2(length));
