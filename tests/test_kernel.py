@@ -179,6 +179,29 @@ def test_program_is_built_once_per_camera_configuration():
     assert other.program is not first.program
 
 
+def test_a_program_from_the_binary_cache_makes_the_rays_a_source_build_makes(monkeypatch):
+    """The lens program loaded from pyopencl's binary cache (the second build of a source is a hit)
+    makes bit for bit the rays of the same source built by the compiler with the cache off."""
+    camera = reference_camera("telephoto", "pupil")
+    block = SampleBlock(0, 30_000, camera.spp)
+    rays = []
+    for cache in (None, None, "off"):  # a miss or a hit, then surely a hit, then no cache at all
+        if cache:
+            monkeypatch.setenv("REALISTIC_CACHE_DIR", cache)
+        opencl_host.build_program.cache_clear()  # the in-process cache would hand back the same program
+        rays.append(opencl_host.LensKernel(camera).generate(block, seed=3))
+    opencl_host.build_program.cache_clear()
+    for other in rays[1:]:
+        for field in ("origin", "direction", "weight", "pixel"):
+            assert np.array_equal(getattr(other, field), getattr(rays[0], field)), field
+
+
+def test_a_kernel_that_does_not_compile_names_its_file_and_the_compiler_message():
+    with pytest.raises(RuntimeError, match=r"building broken\.cl failed:(.|\n)*undeclared_name"):
+        source = "__kernel void k(__global float *a) { a[0] = undeclared_name; }"
+        opencl_host.build_program(opencl_host.context(), source, "broken.cl")
+
+
 def test_a_new_resolution_or_sample_count_reuses_the_program_and_matches_the_reference():
     """Resolution, film size and spp are kernel arguments, not compiled in: a camera that differs only
     in them shares the built program (no recompile for a new --res or --spp), and its rays still

@@ -21,6 +21,7 @@ import numpy as np
 
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
+from realistic.core import disk_cache
 from realistic.core.data_files import data_file
 from realistic.core.pixel_filter import TABLE_BINS
 from realistic.core.rng import wavelength_step
@@ -31,6 +32,7 @@ from realistic.optics.sampling import rear_element_sampler
 
 try:
     import pyopencl as cl
+    from pyopencl.cache import create_built_program_from_source_cached
 except ImportError:  # reported as a UserError when a context is asked for
     cl = None
 
@@ -48,8 +50,8 @@ def kernel_source(name: str) -> str:
     """The text of ``kernels/<name>`` (in a checkout, else where a wheel installs it:
     ``<prefix>/share/realistic``) with its ``#include "common.cl"`` line replaced by that file.
 
-    The host expands the include rather than the OpenCL compiler, so the program source (PoCL's
-    cache key) holds all of it and a change to ``common.cl`` rebuilds every kernel that uses it.
+    The host expands the include rather than the OpenCL compiler, so the program source (the binary
+    cache's key) holds all of it and a change to ``common.cl`` rebuilds every kernel that uses it.
     """
     text = data_file(f"kernels/{name}").read_text(encoding="utf-8")
     lines = [data_file("kernels/common.cl").read_text(encoding="utf-8") if line.startswith('#include "common.cl"')
@@ -260,7 +262,7 @@ def wrapped_buffer(ctx: cl.Context, array: np.ndarray, dtype) -> cl.Buffer:
 
 #: Programs kept built, per context, source and options (lens programs: one per lens, focus and
 #: filter; shading: one per scene variant; EWA: one): enough for a render, its autofocus and a bench's
-#: sample counts; older ones are dropped (PoCL's disk cache makes rebuilding one about 0.03-0.1 s).
+#: sample counts; older ones are dropped (the binary cache makes rebuilding one about 5 ms).
 PROGRAM_CACHE_SIZE = 16
 
 
@@ -268,11 +270,21 @@ PROGRAM_CACHE_SIZE = 16
 def build_program(ctx: cl.Context, source: str, name: str, options: tuple[str, ...] = ()) -> cl.Program:
     """``source`` (``kernels/<name>``, expanded by ``kernel_source``, perhaps behind a generated
     header) built for ``ctx`` with ``options``, once per process: the lens, shading and EWA kernels
-    all build here. A build error names the kernel file."""
+    all build here. A build error names the kernel file.
+
+    Built programs are kept on disk by pyopencl's binary cache (its own folder, under
+    ``$XDG_CACHE_HOME/pyopencl`` or ``~/.cache/pyopencl``), which pyopencl itself skips for PoCL
+    because PoCL caches too: but a PoCL cache hit still preprocesses the source with the OpenCL
+    headers, 50-80 ms per program here, where loading the binary takes 5 ms. Three programs make a
+    render, so this is 0.15-0.2 s of every start. ``REALISTIC_CACHE_DIR=off`` builds from source.
+    """
+    binary_cache = False if disk_cache.cache_dir() is None else None  # None: pyopencl's folder
     try:
-        return cl.Program(ctx, source).build(options=list(options))
+        built, _ = create_built_program_from_source_cached(ctx, source, " ".join(options).encode(),
+                                                           cache_dir=binary_cache)
     except cl.RuntimeError as err:
         raise RuntimeError(f"building {name} failed:\n{err}") from None
+    return cl.Program(built)
 
 
 class LensKernel:
