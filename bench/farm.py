@@ -37,7 +37,7 @@ from distributed import Client, LocalCluster, wait  # noqa: E402
 from realistic.renderer.farm import DEFAULT_TASK_SAMPLES  # noqa: E402
 from realistic.renderer.inputs import RenderOptions, build_render_inputs  # noqa: E402
 from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES  # noqa: E402
-from realistic.renderer.passes import render_passes  # noqa: E402
+from realistic.renderer.passes import default_threads, render_passes  # noqa: E402
 
 DRAGON = ROOT.parent / "shared" / "meshes" / "dragon.ply"
 NETWORK_BYTES_PER_S = 125e6  # 1 Gbit/s: an assumption, not measured
@@ -139,7 +139,7 @@ def main() -> None:
     rows = scaling(farm_rate / args.workers, overhead, task_rate, scene_bytes, setup_s, task_samples)
 
     print(f"\n{'':24}{'seconds':>9}{'M samples/s':>13}")
-    print(f"{'threads (2, in-process)':24}{threads_s:9.2f}{threads_rate / 1e6:13.3f}")
+    print(f"{f'threads ({default_threads()}, in-process)':24}{threads_s:9.2f}{threads_rate / 1e6:13.3f}")
     print(f"{f'LocalCluster ({args.workers} procs)':24}{farm_s:9.2f}{farm_rate / 1e6:13.3f}")
     print(f"ratio cluster / threads: {farm_rate / threads_rate:.2f}   (cluster start {cluster_start_s:.1f} s)")
     print(f"\nscheduler: {task_rate:.0f} empty tasks/s; {tiny['tiny_passes_per_s']:.0f} tiny passes/s "

@@ -48,7 +48,8 @@ def main() -> None:
     width, height = (int(v) for v in args.res.split("x"))
     setup, camera, source, warm = staged_subject("dgauss", width, height, args.spp)
     passes.render_passes(setup.scene, warm, args.backend)  # kernel build and caches
-    print(f"scene: {source}; {width}x{height}, {args.spp} spp, backend {args.backend}, 2 threads")
+    print(f"scene: {source}; {width}x{height}, {args.spp} spp, backend {args.backend}, "
+          f"{passes.default_threads()} threads")
     print(f"\n{'integrator':<30}{'wall s':>8}{'shading s':>11}{'embree s':>10}{'shading us/sample':>19}"
           f"{'shadow rays':>13}")
     results = {}

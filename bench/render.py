@@ -1,13 +1,14 @@
 """Render benchmark: where the time goes, against embree's own ceiling on the same scene.
 
-    .venv/bin/python bench/render.py [--res 512x512] [--spp 64] [--backend opencl|numpy] [--threads 2]
+    .venv/bin/python bench/render.py [--res 512x512] [--spp 64] [--backend opencl|numpy] [--threads N]
         [--pass-samples 32768,131072] [--repeats 1]
 
 Renders the dragon (../shared/meshes/dragon.ply, else a procedural mesh of similar size) on the
 grid floor under a disk light: samples in raster order at each ``--pass-samples`` size (default: the
 renderer's), then at the renderer's size sorted along a Morton curve per pass. Prints per-stage
-thread-seconds of the fastest of ``--repeats`` interleaved runs (``--threads`` workers, two by
-default, so they can add up to twice the wall time), shading's thread-seconds per sample against
+thread-seconds of the fastest of ``--repeats`` interleaved runs (``--threads`` workers, by
+default the renderer's ``default_threads()``: one per core plus one, so they can add up to more
+than the wall time times the cores), shading's thread-seconds per sample against
 embree's (backend "opencl" shades with ``kernels/shade.cl`` on PoCL, whose own threads are not
 counted: a worker waiting for its launch counts the launch's wall time), rays per second, and the
 ceiling: the same primary and shadow rays of one pass traced by embree alone on two threads, through
@@ -37,7 +38,7 @@ from realistic.camera.lens_camera import LensCamera  # noqa: E402
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm  # noqa: E402
 from realistic.core.transforms import transform_points  # noqa: E402
 from realistic.renderer.integrator import DirectLighting  # noqa: E402
-from realistic.renderer.passes import DEFAULT_PASS_SAMPLES, render_passes  # noqa: E402
+from realistic.renderer.passes import DEFAULT_PASS_SAMPLES, default_threads, render_passes  # noqa: E402
 from realistic.renderer.timing import STAGES  # noqa: E402
 from realistic.scene.intersect import Intersector  # noqa: E402
 from realistic.scene.meshes import MeshObject, load_mesh_file  # noqa: E402
@@ -151,7 +152,7 @@ def embreex_scene(scene) -> tuple:
     return flat, buffers
 
 
-def run(setup, camera, backend: str, morton: bool, threads: int = 2,
+def run(setup, camera, backend: str, morton: bool, threads: int | None = None,
         pass_samples: int = DEFAULT_PASS_SAMPLES) -> dict:
     result = render_passes(setup.scene, camera, backend, 0, morton=morton, threads=threads,
                            pass_samples=pass_samples)
@@ -178,7 +179,8 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--backend", default="opencl", choices=("opencl", "numpy"))
     parser.add_argument("--lens", default="dgauss")
-    parser.add_argument("--threads", type=int, default=2, help="render worker threads (default 2)")
+    parser.add_argument("--threads", type=int, default=default_threads(),
+                        help=f"render worker threads (default {default_threads()}: the renderer's, cores + 1)")
     parser.add_argument("--pass-samples", type=pass_sizes, default=[DEFAULT_PASS_SAMPLES], metavar="N,N,...",
                         help=f"pass sizes to compare in raster order (default {DEFAULT_PASS_SAMPLES}, the renderer's)")
     parser.add_argument("--repeats", type=int, default=1,

@@ -203,13 +203,43 @@ def test_render_is_independent_of_pass_size_and_thread_count():
     assert a.max() > 0
 
 
+def test_the_default_thread_count_is_one_per_usable_core_plus_one(monkeypatch):
+    from realistic.renderer import passes
+
+    monkeypatch.setattr(passes.os, "sched_getaffinity", lambda pid: {0, 3, 5}, raising=False)
+    assert passes.default_threads() == 4
+    monkeypatch.delattr(passes.os, "sched_getaffinity", raising=False)  # as on macOS and Windows
+    monkeypatch.setattr(passes.os, "cpu_count", lambda: 6)
+    assert passes.default_threads() == 7
+
+
+def test_a_render_given_no_thread_count_runs_the_default_and_matches_one_thread(monkeypatch):
+    from realistic.renderer import passes
+
+    counts = []
+    build = passes._ThreadPasses.__init__
+
+    def counting(self, scene, cameras, settings, threads, clock):
+        counts.append(threads)
+        build(self, scene, cameras, settings, threads, clock)
+
+    monkeypatch.setattr(passes._ThreadPasses, "__init__", counting)
+    monkeypatch.setattr(passes, "default_threads", lambda: 5)
+    _, camera = camera_looking_down("dgauss", 4.0, 6, 4, 8, 20.0)
+    default = render_passes(lit_plane(), camera, "numpy", seed=9, pass_samples=50).image
+    one = render_passes(lit_plane(), camera, "numpy", seed=9, pass_samples=50, threads=1).image
+    assert counts == [5, 1]
+    np.testing.assert_array_equal(default, one)  # pass sums are added in pass order: bit-identical
+    assert default.max() > 0
+
+
 def test_opencl_and_numpy_backends_render_the_same_image():
     from realistic.errors import UserError
 
     _, camera = camera_looking_down("dgauss", 6.0, 40, 30, 16, 20.0)
     reference = render(lit_plane(), camera, "numpy", seed=5, pass_samples=4096)
     try:
-        for _ in range(2):  # passes run on two threads: the generator must not mix them up
+        for _ in range(2):  # passes run on several threads: the generator must not mix them up
             image = render(lit_plane(), camera, "opencl", seed=5, pass_samples=4096)
             np.testing.assert_allclose(image, reference, rtol=1e-3, atol=1e-6)
     except UserError as err:
