@@ -179,21 +179,44 @@ def test_program_is_built_once_per_camera_configuration():
     assert other.program is not first.program
 
 
-def test_a_program_from_the_binary_cache_makes_the_rays_a_source_build_makes(monkeypatch):
-    """The lens program loaded from pyopencl's binary cache (the second build of a source is a hit)
-    makes bit for bit the rays of the same source built by the compiler with the cache off."""
+def _telephoto_rays(kernel_cache_cleared: bool = True):
     camera = reference_camera("telephoto", "pupil")
-    block = SampleBlock(0, 30_000, camera.spp)
-    rays = []
-    for cache in (None, None, "off"):  # a miss or a hit, then surely a hit, then no cache at all
-        if cache:
-            monkeypatch.setenv("REALISTIC_CACHE_DIR", cache)
+    if kernel_cache_cleared:
         opencl_host.build_program.cache_clear()  # the in-process cache would hand back the same program
-        rays.append(opencl_host.LensKernel(camera).generate(block, seed=3))
+    return opencl_host.LensKernel(camera).generate(SampleBlock(0, 30_000, camera.spp), seed=3)
+
+
+def _assert_same_rays(a, b):
+    for field in ("origin", "direction", "weight", "pixel"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+
+
+def test_a_program_from_cached_binaries_makes_the_rays_a_source_build_makes(monkeypatch, tmp_path):
+    """The lens program's binaries go to the disk cache on its first build and come back from it on
+    the next: the rays are bit for bit those of a build from source with the cache off."""
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
+    built = _telephoto_rays()
+    assert len(list(tmp_path.glob("opencl-program-*.npz"))) == 1
+    loaded = _telephoto_rays()
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", "off")
+    uncached = _telephoto_rays()
     opencl_host.build_program.cache_clear()
-    for other in rays[1:]:
-        for field in ("origin", "direction", "weight", "pixel"):
-            assert np.array_equal(getattr(other, field), getattr(rays[0], field)), field
+    _assert_same_rays(loaded, built)
+    _assert_same_rays(uncached, built)
+
+
+def test_a_corrupt_or_foreign_cached_binary_is_rebuilt_from_source(monkeypatch, tmp_path):
+    from realistic.core import disk_cache
+
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
+    built = _telephoto_rays()
+    (entry,) = tmp_path.glob("opencl-program-*.npz")
+    for bad in ({"device0": np.frombuffer(b"not a program", np.uint8)}, {"elsewhere": np.zeros(4, np.uint8)}):
+        disk_cache.store_arrays(entry.stem, bad)
+        _assert_same_rays(_telephoto_rays(), built)
+    entry.write_bytes(b"truncated")
+    _assert_same_rays(_telephoto_rays(), built)
+    opencl_host.build_program.cache_clear()
 
 
 def test_a_kernel_that_does_not_compile_names_its_file_and_the_compiler_message():

@@ -32,7 +32,6 @@ from realistic.optics.sampling import rear_element_sampler
 
 try:
     import pyopencl as cl
-    from pyopencl.cache import create_built_program_from_source_cached
 except ImportError:  # reported as a UserError when a context is asked for
     cl = None
 
@@ -262,7 +261,7 @@ def wrapped_buffer(ctx: cl.Context, array: np.ndarray, dtype) -> cl.Buffer:
 
 #: Programs kept built, per context, source and options (lens programs: one per lens, focus and
 #: filter; shading: one per scene variant; EWA: one): enough for a render, its autofocus and a bench's
-#: sample counts; older ones are dropped (the binary cache makes rebuilding one about 5 ms).
+#: sample counts; older ones are dropped (the disk cache's binaries make rebuilding one about 5 ms).
 PROGRAM_CACHE_SIZE = 16
 
 
@@ -272,19 +271,44 @@ def build_program(ctx: cl.Context, source: str, name: str, options: tuple[str, .
     header) built for ``ctx`` with ``options``, once per process: the lens, shading and EWA kernels
     all build here. A build error names the kernel file.
 
-    Built programs are kept on disk by pyopencl's binary cache (its own folder, under
-    ``$XDG_CACHE_HOME/pyopencl`` or ``~/.cache/pyopencl``), which pyopencl itself skips for PoCL
-    because PoCL caches too: but a PoCL cache hit still preprocesses the source with the OpenCL
-    headers, 50-80 ms per program here, where loading the binary takes 5 ms. Three programs make a
-    render, so this is 0.15-0.2 s of every start. ``REALISTIC_CACHE_DIR=off`` builds from source.
+    The built binaries are kept in the disk cache (``realistic.core.disk_cache``), keyed by the
+    device, its driver, the options and the source: PoCL caches its builds too, but a hit there
+    still runs the preprocessor over the OpenCL headers, 50-80 ms per program on this machine, where
+    loading a binary takes 5 ms; a render builds three. (pyopencl's own binary cache, which it
+    leaves off for PoCL, is not used: it fails with a KeyError on an unwritable folder and waits a
+    minute on a lock file left by a killed process.)
     """
-    binary_cache = False if disk_cache.cache_dir() is None else None  # None: pyopencl's folder
+    key = disk_cache.cache_key("opencl-program", _device_identity(ctx), source.encode(), options)
     try:
-        built, _ = create_built_program_from_source_cached(ctx, source, " ".join(options).encode(),
-                                                           cache_dir=binary_cache)
+        program = _from_cached_binaries(ctx, key, options)
+        if program is None:
+            program = cl.Program(ctx, source).build(options=list(options))
+            binaries = program.get_info(cl.program_info.BINARIES)
+            if all(binaries):
+                disk_cache.store_arrays(key, {f"device{i}": np.frombuffer(binary, np.uint8)
+                                              for i, binary in enumerate(binaries)})
     except cl.RuntimeError as err:
         raise RuntimeError(f"building {name} failed:\n{err}") from None
-    return cl.Program(built)
+    return program
+
+
+def _device_identity(ctx: cl.Context) -> tuple[str, ...]:
+    """What a binary built for ``ctx`` depends on besides its source: each device and its driver."""
+    return tuple(f"{d.platform.name} {d.platform.version} | {d.name} {d.version} {d.driver_version}"
+                 for d in ctx.devices)
+
+
+def _from_cached_binaries(ctx: cl.Context, key: str, options: tuple[str, ...]) -> cl.Program | None:
+    """The program from the binaries cached under ``key``, or None: none cached, or one the driver
+    will not load (a cache entry is an optimisation, never an error)."""
+    stored = disk_cache.load_arrays(key)
+    if stored is None or sorted(stored) != [f"device{i}" for i in range(len(ctx.devices))]:
+        return None
+    try:
+        binaries = [stored[f"device{i}"].tobytes() for i in range(len(ctx.devices))]
+        return cl.Program(ctx, ctx.devices, binaries).build(options=list(options))
+    except cl.Error:
+        return None
 
 
 class LensKernel:
