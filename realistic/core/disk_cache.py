@@ -1,10 +1,10 @@
 """A cache of computed arrays on disk, keyed by a hash of what they were computed from.
 
 Used for results that take a noticeable fraction of a small render to compute and depend only on
-a few numbers or a text: the exit-pupil table, the OpenCL programs' binaries. Entries live in ``$REALISTIC_CACHE_DIR``, else
-``$XDG_CACHE_HOME/realistic``, else ``~/.cache/realistic``; ``REALISTIC_CACHE_DIR=off`` turns the
-cache off. The cache is an optimisation only: an unreadable, corrupt or unwritable entry is
-recomputed, never an error.
+a few numbers or a text: the exit-pupil table, the OpenCL programs' binaries. Entries live in
+``$REALISTIC_CACHE_DIR``, else ``$XDG_CACHE_HOME/realistic``, else ``~/.cache/realistic``;
+``REALISTIC_CACHE_DIR=off`` turns the cache off. The cache is an optimisation only: an unreadable,
+corrupt or unwritable entry is recomputed, never an error.
 """
 
 from __future__ import annotations
