@@ -7,8 +7,8 @@ Renders the dragon (../shared/meshes/dragon.ply, else a procedural mesh of simil
 grid floor under a disk light: samples in raster order at each ``--pass-samples`` size (default: the
 renderer's), then at the renderer's size sorted along a Morton curve per pass. Prints per-stage
 thread-seconds of the fastest of ``--repeats`` interleaved runs (``--threads`` workers, by
-default the renderer's ``default_threads()``: one per core plus one, so they can add up to more
-than the wall time times the cores), shading's thread-seconds per sample against
+default the renderer's ``default_threads()``: one per core, so they can add up to the wall time
+times the cores), shading's thread-seconds per sample against
 embree's (backend "opencl" shades with ``kernels/shade.cl`` on PoCL, whose own threads are not
 counted: a worker waiting for its launch counts the launch's wall time), rays per second, and the
 ceiling: the same primary and shadow rays of one pass traced by embree alone on two threads, through
@@ -180,7 +180,7 @@ def main() -> None:
     parser.add_argument("--backend", default="opencl", choices=("opencl", "numpy"))
     parser.add_argument("--lens", default="dgauss")
     parser.add_argument("--threads", type=int, default=default_threads(),
-                        help=f"render worker threads (default {default_threads()}: the renderer's, cores + 1)")
+                        help=f"render worker threads (default {default_threads()}: the renderer's, one per core)")
     parser.add_argument("--pass-samples", type=pass_sizes, default=[DEFAULT_PASS_SAMPLES], metavar="N,N,...",
                         help=f"pass sizes to compare in raster order (default {DEFAULT_PASS_SAMPLES}, the renderer's)")
     parser.add_argument("--repeats", type=int, default=1,

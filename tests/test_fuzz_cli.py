@@ -52,7 +52,7 @@ def test_vectors_pixels_shutters_and_sizes_parse_or_refuse(text):
 
 OPTIONS = ["--res", "--spp", "--seed", "--blades", "--blade-rotation", "--blade-curvature", "--exposure",
            "--aperture", "--fstop", "--focus", "--film-diagonal", "--light-samples", "--iso", "--shutter",
-           "--max-memory", "--camera-pos", "--target", "--focus-on", "--lens-sampling", "--dispersion"]
+           "--max-memory", "--camera-pos", "--target", "--focus-on", "--lens-sampling", "--dispersion", "--threads"]
 
 
 @given(st.lists(st.tuples(st.sampled_from(OPTIONS), ANY_TEXT), max_size=4))

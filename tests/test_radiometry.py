@@ -203,14 +203,14 @@ def test_render_is_independent_of_pass_size_and_thread_count():
     assert a.max() > 0
 
 
-def test_the_default_thread_count_is_one_per_usable_core_plus_one(monkeypatch):
-    from realistic.renderer import passes
+def test_the_default_thread_count_is_one_per_usable_core(monkeypatch):
+    from realistic.renderer import thread_count
 
-    monkeypatch.setattr(passes.os, "sched_getaffinity", lambda pid: {0, 3, 5}, raising=False)
-    assert passes.default_threads() == 4
-    monkeypatch.delattr(passes.os, "sched_getaffinity", raising=False)  # as on macOS and Windows
-    monkeypatch.setattr(passes.os, "cpu_count", lambda: 6)
-    assert passes.default_threads() == 7
+    monkeypatch.setattr(thread_count.os, "sched_getaffinity", lambda pid: {0, 3, 5}, raising=False)
+    assert thread_count.default_threads() == 3
+    monkeypatch.delattr(thread_count.os, "sched_getaffinity", raising=False)  # as on macOS and Windows
+    monkeypatch.setattr(thread_count.os, "cpu_count", lambda: 6)
+    assert thread_count.default_threads() == 6
 
 
 def test_a_render_given_no_thread_count_runs_the_default_and_matches_one_thread(monkeypatch):

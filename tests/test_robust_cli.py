@@ -48,6 +48,8 @@ def refused(args: list[str], tmp_path: Path, capsys) -> str:
     (["--film-diagonal", "-70"], "film diagonal"),
     (["--film-diagonal", "1e9"], "film diagonal (mm) must be at most 1000"),
     (["--light-samples", "0"], "light samples"),
+    (["--threads", "0"], "threads must be between 1 and 1024, got 0"),
+    (["--threads", "2", "--workers", "2"], "not allowed with argument"),
     (["--aperture", "nan"], "aperture diameter must be a positive number of mm"),
     (["--aperture", "1000"], "aperture diameter 1000 mm is wider than dgauss's widest element (25.2 mm)"),
     (["--iso", "-100"], "ISO speed"),

@@ -15,13 +15,14 @@ from realistic.cli.values import parse_spp_list
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.core.image_files import read_exr
 from realistic.errors import UserError
+from realistic.renderer.thread_count import default_threads
 
 DESCRIPTION = """\
 Render SCENE (as `render` takes it) at each sample count and print seconds, camera rays per second,
 the fraction of lens samples vignetted, and the RMSE against --reference (an EXR of the same
 resolution) or, without one, against the render with the most samples. Writes a log-log
 convergence plot (RMSE against spp and against seconds) and, with --json, the table as JSON.
---workers and --scheduler render on a Dask cluster as `render` does (docs/farm.md).
+--threads, --workers and --scheduler choose where to render as `render` does (docs/farm.md).
 """
 
 
@@ -59,10 +60,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
     with farm_client(args) as client:
         rows, _ = measure_sample_counts(inputs.scene, inputs.camera, spp_list, args.backend, args.seed,
                                         inputs.light_samples, reference, args.cl_device,
-                                        max_memory_bytes=args.max_memory, client=client)
+                                        max_memory_bytes=args.max_memory, client=client, threads=args.threads)
     against = "reference" if reference is not None else f"{max(spp_list)} spp"
     camera = inputs.camera
-    where = f", {args.workers} workers" if args.workers else ", on the Dask cluster" if client is not None else ""
+    where = (f", {args.workers} workers" if args.workers else ", on the Dask cluster" if client is not None
+             else f", {args.threads or default_threads()} threads")
     print(f"{args.scene or 'default scene'}: {camera.width}x{camera.height}, backend {args.backend}{where}")
     print(format_table(rows, against))
     slope = convergence_slope(rows)

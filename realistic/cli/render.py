@@ -25,6 +25,7 @@ from realistic.core import validation
 from realistic.core.atomic_files import check_writable
 from realistic.core.image_files import auto_exposure, write_exr, write_png
 from realistic.errors import UserError
+from realistic.renderer.thread_count import default_threads
 
 DESCRIPTION = """\
 SCENE is a pbrt scene file (.pbrt: the classic dof-dragons homework scenes and common simple pbrt
@@ -48,7 +49,8 @@ one wavelength per sample into plain luminance noise, at K times the camera rays
 The EXR holds the film irradiance (float32 RGB, metadata in the header); the PNG preview beside
 it is sRGB.
 
-Passes are ordered so that any prefix of them is spread over the whole frame. --workers N renders
+Passes are ordered so that any prefix of them is spread over the whole frame. They run on threads
+in this process, one per core unless --threads says how many; --workers N renders
 on N worker processes of a Dask LocalCluster on this machine, --scheduler (or
 DASK_SCHEDULER_ADDRESS) on an existing Dask cluster; the image is bit-identical to an in-process
 render. --sweep renders a sequence (OUT_0001.exr, ...) as one job. Renders save a checkpoint
@@ -96,8 +98,11 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
 
 
 def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--workers`` and ``--scheduler`` (shared by ``render`` and ``bench``)."""
+    """``--threads``, ``--workers`` and ``--scheduler`` (shared by ``render`` and ``bench``)."""
     farm = parser.add_mutually_exclusive_group()
+    farm.add_argument("--threads", type=checked(int, validation.threads), metavar="N",
+                      help="render on N threads in this process (default: one per core, "
+                           f"{default_threads()} here)")
     farm.add_argument("--workers", type=checked(int, validation.workers), metavar="N",
                       help="render on a Dask LocalCluster of N worker processes on this machine (default: threads "
                            "in this process)")
@@ -110,7 +115,8 @@ def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
 def farm_client(args: argparse.Namespace) -> Iterator[object | None]:
     """The Dask client that ``--workers`` / ``--scheduler`` / ``$DASK_SCHEDULER_ADDRESS`` ask for, or
     None (render on threads); dask is imported only here, and only when one is asked for."""
-    scheduler = args.scheduler or (None if args.workers else os.environ.get("DASK_SCHEDULER_ADDRESS") or None)
+    in_process = args.workers or args.threads  # either names where to render: the environment does not
+    scheduler = args.scheduler or (None if in_process else os.environ.get("DASK_SCHEDULER_ADDRESS") or None)
     if not args.workers and not scheduler:
         yield None
         return
@@ -209,7 +215,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         image, _, exposure = _output_image(image, cameras[0], args)
         write_png(out.with_suffix(".png"), image, exposure)
 
-    common = {"pass_samples": args.pass_samples, "progress": True,
+    common = {"pass_samples": args.pass_samples, "threads": args.threads, "progress": True,
               "max_memory_bytes": args.max_memory}
     with farm_client(args) as client:
         if sweep is None:

@@ -153,8 +153,10 @@ def max_anisotropy(value: float) -> float:
     return value
 
 
-#: Worker processes of a local render farm (a LocalCluster on this machine).
+#: Worker processes of a local render farm (a LocalCluster on this machine), and render threads
+#: in one process.
 MAX_WORKERS = 1024
+MAX_THREADS = 1024
 #: Sample ids per pass: the kernel launches at most 2^31 work items; far below that, a pass's
 #: rays no longer fit in memory (about 200 bytes a sample in flight).
 MAX_PASS_SAMPLES = 1 << 26
@@ -163,6 +165,11 @@ MAX_PASS_SAMPLES = 1 << 26
 def workers(count: int) -> int:
     """Worker processes for a LocalCluster: 1 to ``MAX_WORKERS``."""
     return _in_range(_integer(count, "workers"), "workers", 1, MAX_WORKERS)
+
+
+def threads(count: int) -> int:
+    """Render threads in this process: 1 to ``MAX_THREADS``."""
+    return _in_range(_integer(count, "threads"), "threads", 1, MAX_THREADS)
 
 
 def pass_samples(count: int) -> int:

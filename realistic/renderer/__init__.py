@@ -4,6 +4,7 @@
 - ``passes``: ``render``, ``render_passes`` and ``render_frames``: sample-id passes on threads or a
   Dask cluster, added to the film in pass order.
 - ``pass_plan``: passes as sample-id ranges in progressive (bit-reversed) order.
+- ``thread_count``: the default number of render threads (one per core).
 - ``farm``: passes as Dask tasks (imported only for farm renders; needs the ``farm`` extra).
 - ``checkpoint``: a render's identity (content hashes) and its checkpoint file.
 - ``sweep``: ``--sweep`` sequences: one camera per frame.

@@ -3,12 +3,11 @@
 A render is every pixel's spp samples cut into passes of about ``pass_samples`` samples
 (``pass_plan``: slices of each pixel's samples times runs of pixels), so memory stays flat as
 resolution and spp grow; passes are numbered in progressive order, so an interrupted render is a
-whole noisy frame. Passes run on worker threads in this process, one per core plus one
-(``default_threads``: embree's queries, the kernels and most numpy loops release the GIL, so one
-thread's ray generation overlaps another's intersection, and the extra thread fills the gaps while
-the others wait on the GIL), or, given a Dask ``client``, as tasks of a few passes each on its
-workers (``farm``). The main thread adds pass sums to the film in pass-index order
-(``film.PassFilm``), so the image is bit-identical whatever ran where. Ctrl-C stops submitting
+whole noisy frame. Passes run on worker threads in this process, one per core
+(``thread_count.default_threads``: embree's queries, the kernels and most numpy loops release the
+GIL, so one thread's ray generation overlaps another's intersection), or, given a Dask ``client``,
+as tasks of a few passes each on its workers (``farm``). The main thread adds pass sums to the film
+in pass-index order (``film.PassFilm``), so the image is bit-identical whatever ran where. Ctrl-C stops submitting
 passes, lets the passes in flight finish, and returns what has accumulated
 (``RenderResult.interrupted``). With a ``checkpoint`` path the film is saved there every
 ``checkpoint_every`` seconds and on interrupt, and ``resume`` continues from it (``checkpoint``).
@@ -17,7 +16,6 @@ passes, lets the passes in flight finish, and returns what has accumulated
 from __future__ import annotations
 
 import dataclasses
-import os
 import sys
 import time
 from collections import deque
@@ -37,6 +35,7 @@ from realistic.renderer.film import Film, PassFilm, pass_sums
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.memory import check_memory
 from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES, default_pass_samples, plan_passes
+from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import Scene
@@ -199,18 +198,6 @@ class Checkpointing:
     path: Path
     every_seconds: float | None = 60.0  # None: only on interrupt
     resume: bool = False
-
-
-def default_threads() -> int:
-    """Render threads when none are asked for: one per core this process may run on, plus one. On
-    two cores a third thread keeps them busy while the others wait on the GIL or a kernel's last
-    work-group (idle 10-11 % -> 7 % of the dragons' render, 2-6 % faster); each thread holds one
-    pass, so memory grows with it (the dragons' peak RSS 249 -> 277 MiB)."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return cores + 1
 
 
 def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", seed: int = 0,
