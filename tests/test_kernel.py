@@ -192,20 +192,25 @@ def _assert_same_rays(a, b):
 
 
 def test_a_program_from_cached_binaries_makes_the_rays_a_source_build_makes(monkeypatch, tmp_path):
-    """The lens program's binaries go to the disk cache on its first build and come back from it on
-    the next: the rays are bit for bit those of a build from source with the cache off."""
+    """A program's first build leaves a mark in the disk cache, its second stores the binaries, and
+    the third loads them: the rays are bit for bit those of a build from source with the cache off."""
+    from realistic.core import disk_cache
+
     monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
-    built = _telephoto_rays()
-    assert len(list(tmp_path.glob("opencl-program-*.npz"))) == 1
+    first = _telephoto_rays()
+    (entry,) = tmp_path.glob("opencl-program-*.npz")
+    assert list(disk_cache.load_arrays(entry.stem)) == ["built"]
+    second = _telephoto_rays()
+    assert list(disk_cache.load_arrays(entry.stem)) == ["device0"]
     loaded = _telephoto_rays()
     monkeypatch.setenv("REALISTIC_CACHE_DIR", "off")
     uncached = _telephoto_rays()
     opencl_host.build_program.cache_clear()
-    _assert_same_rays(loaded, built)
-    _assert_same_rays(uncached, built)
+    for rays in (second, loaded, uncached):
+        _assert_same_rays(rays, first)
 
 
-def test_a_corrupt_or_foreign_cached_binary_is_rebuilt_from_source(monkeypatch, tmp_path):
+def test_a_corrupt_or_foreign_cache_entry_is_rebuilt_from_source(monkeypatch, tmp_path):
     from realistic.core import disk_cache
 
     monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
@@ -214,6 +219,7 @@ def test_a_corrupt_or_foreign_cached_binary_is_rebuilt_from_source(monkeypatch, 
     for bad in ({"device0": np.frombuffer(b"not a program", np.uint8)}, {"elsewhere": np.zeros(4, np.uint8)}):
         disk_cache.store_arrays(entry.stem, bad)
         _assert_same_rays(_telephoto_rays(), built)
+        assert list(disk_cache.load_arrays(entry.stem)) == ["device0"]  # replaced by the real binaries
     entry.write_bytes(b"truncated")
     _assert_same_rays(_telephoto_rays(), built)
     opencl_host.build_program.cache_clear()

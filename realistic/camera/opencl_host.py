@@ -274,19 +274,19 @@ def build_program(ctx: cl.Context, source: str, name: str, options: tuple[str, .
     The built binaries are kept in the disk cache (``realistic.core.disk_cache``), keyed by the
     device, its driver, the options and the source: PoCL caches its builds too, but a hit there
     still runs the preprocessor over the OpenCL headers, 50-80 ms per program on this machine, where
-    loading a binary takes 5 ms; a render builds three. (pyopencl's own binary cache, which it
-    leaves off for PoCL, is not used: it fails with a KeyError on an unwritable folder and waits a
-    minute on a lock file left by a killed process.)
+    loading a binary takes 5 ms; a render builds three. Asking PoCL for a program's binaries makes it
+    compile every kernel once more, for any work-group size (about 0.5 s a program), which pays only
+    for a program built again and again: so the first build leaves a mark, and the second stores the
+    binaries. (pyopencl's own binary cache, which it leaves off for PoCL, is not used: it fails with
+    a KeyError on an unwritable folder and waits a minute on a lock file left by a killed process.)
     """
     key = disk_cache.cache_key("opencl-program", _device_identity(ctx), source.encode(), options)
+    stored = disk_cache.load_arrays(key)
     try:
-        program = _from_cached_binaries(ctx, key, options)
+        program = _from_binaries(ctx, stored, options)
         if program is None:
             program = cl.Program(ctx, source).build(options=list(options))
-            binaries = program.get_info(cl.program_info.BINARIES)
-            if all(binaries):
-                disk_cache.store_arrays(key, {f"device{i}": np.frombuffer(binary, np.uint8)
-                                              for i, binary in enumerate(binaries)})
+            _remember(key, program, built_before=stored is not None)
     except cl.RuntimeError as err:
         raise RuntimeError(f"building {name} failed:\n{err}") from None
     return program
@@ -298,17 +298,27 @@ def _device_identity(ctx: cl.Context) -> tuple[str, ...]:
                  for d in ctx.devices)
 
 
-def _from_cached_binaries(ctx: cl.Context, key: str, options: tuple[str, ...]) -> cl.Program | None:
-    """The program from the binaries cached under ``key``, or None: none cached, or one the driver
-    will not load (a cache entry is an optimisation, never an error)."""
-    stored = disk_cache.load_arrays(key)
-    if stored is None or sorted(stored) != [f"device{i}" for i in range(len(ctx.devices))]:
+def _from_binaries(ctx: cl.Context, stored: dict[str, np.ndarray] | None, options: tuple[str, ...]
+                   ) -> cl.Program | None:
+    """The program from a cache entry's binaries, one per device, or None: no entry, a first
+    build's mark, or binaries the driver will not load (a cache entry is never an error)."""
+    names = [f"device{i}" for i in range(len(ctx.devices))]
+    if stored is None or sorted(stored) != names:
         return None
     try:
-        binaries = [stored[f"device{i}"].tobytes() for i in range(len(ctx.devices))]
-        return cl.Program(ctx, ctx.devices, binaries).build(options=list(options))
+        return cl.Program(ctx, ctx.devices, [stored[n].tobytes() for n in names]).build(options=list(options))
     except cl.Error:
         return None
+
+
+def _remember(key: str, program: cl.Program, built_before: bool) -> None:
+    """After a build from source: a mark the first time, the binaries from the second on."""
+    if not built_before:
+        disk_cache.store_arrays(key, {"built": np.zeros(1, np.uint8)})
+        return
+    binaries = program.get_info(cl.program_info.BINARIES)
+    if all(binaries):
+        disk_cache.store_arrays(key, {f"device{i}": np.frombuffer(b, np.uint8) for i, b in enumerate(binaries)})
 
 
 class LensKernel:
