@@ -46,6 +46,22 @@ def fresh_disk_cache(tmp_path_factory):
         os.environ["REALISTIC_CACHE_DIR"] = previous
 
 
+@pytest.fixture
+def thread_counts(monkeypatch) -> list[int]:
+    """The thread counts in-process renders start their pools with, in order, while the test runs."""
+    from realistic.renderer import passes
+
+    counts = []
+    build = passes._ThreadPasses.__init__
+
+    def counting(self, scene, cameras, settings, threads, clock):
+        counts.append(threads)
+        build(self, scene, cameras, settings, threads, clock)
+
+    monkeypatch.setattr(passes._ThreadPasses, "__init__", counting)
+    return counts
+
+
 def shared_file(relative: str) -> Path:
     """Path of a file in ../shared, or skip the test with the reason."""
     path = SHARED / relative

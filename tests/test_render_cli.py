@@ -67,17 +67,8 @@ def test_default_scene_renders(tmp_path, capsys):
     assert header["scene"] == "default" and image.max() > 0
 
 
-def test_threads_renders_on_that_many_threads_in_process_whatever_the_environment(tmp_path, capsys, monkeypatch):
-    from realistic.renderer import passes
-
-    counts = []
-    build = passes._ThreadPasses.__init__
-
-    def counting(self, scene, cameras, settings, threads, clock):
-        counts.append(threads)
-        build(self, scene, cameras, settings, threads, clock)
-
-    monkeypatch.setattr(passes._ThreadPasses, "__init__", counting)
+def test_threads_renders_on_that_many_threads_in_process_whatever_the_environment(tmp_path, capsys, monkeypatch,
+                                                                                  thread_counts):
     monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://192.0.2.1:8786")  # no cluster there: not to be used
     images = {}
     for threads in ("1", "4"):
@@ -85,7 +76,7 @@ def test_threads_renders_on_that_many_threads_in_process_whatever_the_environmen
         status, _, _ = run_cli([*FAST, "--threads", threads, "--out", str(out)], capsys)
         assert status == 0
         images[threads] = read_exr(out)[0]
-    assert counts == [1, 4]
+    assert thread_counts == [1, 4]
     np.testing.assert_array_equal(images["1"], images["4"])
 
 
