@@ -16,11 +16,12 @@ passes, lets the passes in flight finish, and returns what has accumulated
 from __future__ import annotations
 
 import dataclasses
+import queue
 import sys
 import time
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -152,6 +153,7 @@ class _ThreadPasses:
         self.capacity = max(1, threads)
         self.passes_per_task = 1
         self.pool = ThreadPoolExecutor(max_workers=self.capacity)
+        self.finished: queue.SimpleQueue = queue.SimpleQueue()  # futures, as they finish
 
     def runner(self, frame: int) -> PassRunner:
         if frame not in self.runners:
@@ -162,10 +164,23 @@ class _ThreadPasses:
         return self.runners[frame]
 
     def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]):
-        return self.pool.submit(self.runner(frame).run, passes)
+        future = self.pool.submit(self.runner(frame).run, passes)
+        future.add_done_callback(self.finished.put)
+        return future
 
     def wait_first(self, pending: set) -> set:
-        return wait(pending, return_when=FIRST_COMPLETED).done
+        """The tasks finished since the last call (at least one), waited for in ``SimpleQueue.get``.
+
+        Not ``concurrent.futures.wait``: a Ctrl-C (KeyboardInterrupt) landing in its Event.wait can
+        leave the waiter's lock held by this thread (a ``with`` interrupted between acquire and its
+        body), and the workers then block for ever in ``set_result`` while the render waits to
+        finish the passes in flight (seen as a hung SIGTERM test; py-spy showed both workers in
+        ``_FirstCompletedWaiter.add_result``). SimpleQueue's get holds no Python lock when a signal
+        interrupts it, and its put never blocks."""
+        done = {self.finished.get()}
+        while not self.finished.empty():
+            done.add(self.finished.get())
+        return done & pending
 
     def finish_in_flight(self, pending: dict) -> list[tuple[int, list[PassResult]]]:
         """(frame, results) of the tasks already running (``pending``: future -> frame); those not
