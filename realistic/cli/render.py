@@ -115,8 +115,8 @@ def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
 def farm_client(args: argparse.Namespace) -> Iterator[object | None]:
     """The Dask client that ``--workers`` / ``--scheduler`` / ``$DASK_SCHEDULER_ADDRESS`` ask for, or
     None (render on threads); dask is imported only here, and only when one is asked for."""
-    in_process = args.workers or args.threads  # either names where to render: the environment does not
-    scheduler = args.scheduler or (None if in_process else os.environ.get("DASK_SCHEDULER_ADDRESS") or None)
+    place_named = args.workers or args.threads  # the command line says where to render: not the environment
+    scheduler = args.scheduler or (None if place_named else os.environ.get("DASK_SCHEDULER_ADDRESS") or None)
     if not args.workers and not scheduler:
         yield None
         return

@@ -7,8 +7,8 @@ whole noisy frame. Passes run on worker threads in this process, one per core
 (``thread_count.default_threads``: embree's queries, the kernels and most numpy loops release the
 GIL, so one thread's ray generation overlaps another's intersection), or, given a Dask ``client``,
 as tasks of a few passes each on its workers (``farm``). The main thread adds pass sums to the film
-in pass-index order (``film.PassFilm``), so the image is bit-identical whatever ran where. Ctrl-C stops submitting
-passes, lets the passes in flight finish, and returns what has accumulated
+in pass-index order (``film.PassFilm``), so the image is bit-identical whatever ran where. Ctrl-C
+stops submitting passes, lets the passes in flight finish, and returns what has accumulated
 (``RenderResult.interrupted``). With a ``checkpoint`` path the film is saved there every
 ``checkpoint_every`` seconds and on interrupt, and ``resume`` continues from it (``checkpoint``).
 """

@@ -8,8 +8,8 @@ import os
 
 def default_threads() -> int:
     """Render threads when none are asked for: one per core this process may run on. (Two cores
-    kept two threads: a third cut the idle CPU from 10-11 % to 7 % of the dragons' render but made
-    bench/render.py and bench/converge.py no faster, 4.00/4.21 against 4.00/4.14 M samples/s, and
+    keep two threads: a third cut the idle CPU from 10-11 % to 7 % of the dragons' render, but
+    bench/render.py made 4.00 and 4.14 M samples/s with it against 4.00 and 4.21 without, and it
     cost a pass of memory.)"""
     try:
         return len(os.sched_getaffinity(0))
