@@ -19,6 +19,7 @@ from functools import cache, lru_cache
 
 import numpy as np
 
+from realistic.camera import pocl_cpu
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import disk_cache
@@ -97,6 +98,7 @@ def _context_for(spec: str | None, origin: str) -> cl.Context:
     else:
         pocl = [entry for entry in found if "portable computing language" in entry[2].name.lower()]
         device = (pocl or found)[0][3]
+    pocl_cpu.name_unknown_cpu(device)  # before any build: PoCL 3.0 cannot build for a CPU LLVM 14 calls "generic"
     return cl.Context([device])
 
 

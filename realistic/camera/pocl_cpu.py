@@ -1,0 +1,107 @@
+"""PoCL's CPU device on processors newer than its LLVM: name the CPU by the x86-64 level it supports.
+
+The PoCL that pip installs (pyopencl's wheels: PoCL 3.0 linked with LLVM 14) asks LLVM for the host
+CPU's name (``llvm::sys::getHostCPUName``). LLVM 14 does not know processors released after it (AMD
+family 1Ah, Zen 5, for one) and answers "generic", which PoCL passes to clang as ``-target-cpu``;
+clang rejects that name for x86-64, so every kernel build fails with "unknown target CPU 'generic'"
+(pocl/pocl#1049). Later PoCLs read ``POCL_LLVM_CPU_NAME`` instead (``lib/CL/pocl_llvm_utils.cc``,
+``pocl_get_llvm_cpu_name``), and this one has no setting for it: ``name_unknown_cpu`` rewrites the
+name where the device keeps it (its ``llvm_cpu`` string, heap memory PoCL allocated) to the x86-64
+micro-architecture level (v2, v3, v4) the host's CPU flags show, a name LLVM 14 knows.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import platform
+from pathlib import Path
+
+#: The name LLVM gives a CPU it does not recognise.
+UNKNOWN_CPU = b"generic"
+#: The device struct's first bytes, searched for the pointer to its CPU name (PoCL 3.0 keeps it
+#: 640 bytes in).
+DEVICE_STRUCT_BYTES = 4096
+#: x86-64 micro-architecture levels (the x86-64 psABI), each with the Linux CPU flags it adds to
+#: the one before; LLVM 12 and later accept each as a CPU name.
+X86_64_LEVELS = (
+    ("x86-64-v2", {"cx16", "lahf_lm", "popcnt", "pni", "sse4_1", "sse4_2", "ssse3"}),
+    ("x86-64-v3", {"avx", "avx2", "bmi1", "bmi2", "f16c", "fma", "abm", "movbe", "xsave"}),
+    ("x86-64-v4", {"avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl"}),
+)
+
+
+def x86_64_level(flags: set[str]) -> str:
+    """The highest x86-64 level whose flags (and every lower level's) are all in ``flags``."""
+    level, needed = "x86-64", set()
+    for name, added in X86_64_LEVELS:
+        needed |= added
+        if not needed <= flags:
+            break
+        level = name
+    return level
+
+
+def host_cpu_flags(cpuinfo: Path = Path("/proc/cpuinfo")) -> set[str]:
+    """The first processor's flags in ``/proc/cpuinfo`` (empty where there is none)."""
+    try:
+        text = cpuinfo.read_text(encoding="ascii", errors="replace")
+    except OSError:
+        return set()
+    for line in text.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip() == "flags":
+            return set(value.split())
+    return set()
+
+
+def _mapped_regions() -> list[tuple[int, int, bool]]:
+    """This process's readable memory from ``/proc/self/maps``: (start, end, heap), heap where
+    malloc may have allocated it (writable, and the heap or an anonymous mapping)."""
+    regions = []
+    for line in Path("/proc/self/maps").read_text().splitlines():
+        fields = line.split()
+        start, end = (int(bound, 16) for bound in fields[0].split("-"))
+        if fields[1][0] == "r":
+            regions.append((start, end, fields[1][1] == "w" and (len(fields) < 6 or fields[5] == "[heap]")))
+    return regions
+
+
+def _region(regions: list[tuple[int, int, bool]], address: int, size: int) -> tuple[int, int, bool] | None:
+    return next((r for r in regions if r[0] <= address and address + size <= r[1]), None)
+
+
+def rewrite_cpu_name(struct_address: int, struct_bytes: int, name: str) -> bool:
+    """Overwrite in place the heap string "generic" that a pointer in the struct at ``struct_address``
+    points to with ``name``; True when one was found and rewritten.
+
+    Only memory the process maps readable is read, and only a string on the heap whose allocation
+    (``malloc_usable_size``) holds ``name`` is written, so a struct without such a pointer is left
+    as it is."""
+    encoded = name.encode("ascii") + b"\0"
+    regions = _mapped_regions()
+    libc = ctypes.CDLL(None)
+    libc.malloc_usable_size.restype = ctypes.c_size_t
+    libc.malloc_usable_size.argtypes = [ctypes.c_void_p]
+    for offset in range(0, struct_bytes, 8):
+        if _region(regions, struct_address + offset, 8) is None:
+            break
+        pointer = ctypes.c_uint64.from_address(struct_address + offset).value
+        target = _region(regions, pointer, len(UNKNOWN_CPU) + 1) if pointer else None
+        if target is None or ctypes.string_at(pointer, len(UNKNOWN_CPU) + 1) != UNKNOWN_CPU + b"\0":
+            continue
+        if not target[2] or libc.malloc_usable_size(pointer) < len(encoded):
+            return False
+        ctypes.memmove(pointer, encoded, len(encoded))
+        return True
+    return False
+
+
+def name_unknown_cpu(device) -> str | None:
+    """Give a PoCL CPU device that LLVM named "generic" the host's x86-64 level as its CPU name, so
+    its kernels build; the name given, or None where nothing needed it (another driver or processor,
+    a CPU LLVM knows, or a device already named)."""
+    if (platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64")
+            or "portable computing language" not in device.platform.name.lower()):
+        return None
+    level = x86_64_level(host_cpu_flags())
+    return level if rewrite_cpu_name(device.int_ptr, DEVICE_STRUCT_BYTES, level) else None
