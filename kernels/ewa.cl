@@ -65,35 +65,38 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
     double det = 4 * a * c - b * b;
     double half_t = 2 * __builtin_sqrt(a * det) / det;
     int y0 = (int)__builtin_ceil(t - half_t), y1 = (int)__builtin_floor(t + half_t);
-    /* texel() per tap, with the wrap's integer divisions done once per row and the column stepped */
+    /* texel() per tap, with the wrap done once per row and the column stepped. Every level's sides are
+     * powers of two (MipMap), so repeat's x mod w is x & (w - 1), also for negative x. */
     int iw = (int)width[level], ih = (int)height[level];
     __global const float *level_texels = texels + 3 * base[level];
+    /* Each row's span runs between the ellipse's two crossings of it. Multiplying by 1 / (2a) instead of
+     * dividing can move a crossing by an ulp, and so add or drop a texel only where r2 rounds to 1 or
+     * to within 1e-12 of it: its weight, EWA_WEIGHTS[127], is exactly 0, so the sums are the same. */
+    double inv_2a = 1 / (2 * a);
     double3 sum = (double3)(0.0);
     double weights = 0.0;
     for (int y = y0; y <= y1; ++y) {
         double dt = y - t;
         double bb = b * dt;
         double root = __builtin_sqrt(__builtin_fmax(bb * bb - 4 * a * (c * dt * dt - 1), 0.0));
-        int x0 = (int)__builtin_ceil(s + (-bb - root) / (2 * a));
-        int x1 = (int)__builtin_floor(s + (-bb + root) / (2 * a));
-        int row = wrap == 0 ? y % ih : clamp(y, 0, ih - 1);
-        row += row < 0 ? ih : 0;
+        int x0 = (int)__builtin_ceil(s + (-bb - root) * inv_2a);
+        int x1 = (int)__builtin_floor(s + (-bb + root) * inv_2a);
+        int row = wrap == 0 ? y & (ih - 1) : clamp(y, 0, ih - 1);
         double row_inside = wrap == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
         __global const float *row_texels = level_texels + 3 * (long)row * iw;
-        int column = x0 % iw;  /* repeat: x mod w, stepped along the row */
-        column += column < 0 ? iw : 0;
+        double cdt2 = c * dt * dt;
         for (int x = x0; x <= x1; ++x) {
             double ds = x - s;
-            double r2 = a * ds * ds + b * ds * dt + c * dt * dt;
+            double r2 = a * ds * ds + b * ds * dt + cdt2;
             if (r2 < 1) {
-                double weight = lut[min((int)(r2 * LUT_SIZE), LUT_SIZE - 1)];
-                int at = wrap == 0 ? column : clamp(x, 0, iw - 1);
+                /* r2 < 1, so r2 * 128 < 128 exactly: the index is at most 127 */
+                double weight = lut[(int)(r2 * LUT_SIZE)];
+                int at = wrap == 0 ? x & (iw - 1) : clamp(x, 0, iw - 1);
                 double inside = wrap == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
                 __global const float *p = row_texels + 3 * at;
                 sum += (double3)(p[0], p[1], p[2]) * inside * weight;
                 weights += weight;
             }
-            column = column + 1 == iw ? 0 : column + 1;
         }
     }
     return sum / __builtin_fmax(weights, 1e-300);

@@ -58,3 +58,15 @@ def test_a_magnified_lookup_reads_the_finest_level_alone(opencl_platform, backen
     clean, dirty = MipMap(image).ewa(st, axis0, axis1, backend), poisoned.ewa(st, axis0, axis1, backend)
     assert np.array_equal(dirty[:400], clean[:400])
     assert np.isnan(dirty[400:]).all() and np.isfinite(clean).all()
+
+
+def test_the_kernel_refuses_a_map_whose_sides_are_not_powers_of_two(opencl_platform):
+    """The kernel wraps a repeating texture with x & (w - 1): MipMap always resamples to powers of two,
+    and a map that did not would be refused rather than read at the wrong texels."""
+    from types import SimpleNamespace
+
+    from realistic.scene.ewa_kernel import EwaKernel
+
+    odd = SimpleNamespace(level_width=np.array([48, 24]), level_height=np.array([32, 16]))
+    with pytest.raises(ValueError, match="power-of-two"):
+        EwaKernel(odd)

@@ -52,6 +52,9 @@ class EwaKernel:
     """One MIP map's texels on the device, and EWA lookups over them (thread-safe: one lock)."""
 
     def __init__(self, mipmap: MipMap, device: str | None = None):
+        sides = np.concatenate([mipmap.level_width, mipmap.level_height])
+        if np.any(sides & (sides - 1)):  # the kernel wraps with x & (w - 1)
+            raise ValueError(f"MIP map levels must have power-of-two sides, not {sides.tolist()}")
         self.context = context(device)
         self.queue = cl.CommandQueue(self.context)
         program = build_program(self.context, kernel_source(KERNEL_FILE), KERNEL_FILE)
