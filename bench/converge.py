@@ -22,8 +22,10 @@ renderer's quasi-random samples converge faster than 1/N, q > 0.5) gives the spp
 the target; so does the 1/N law from the highest point alone, an upper bound on the time while q
 > 0.5 holds. pbrt-v3's time to the target follows the 1/N law from its one point (an optimistic
 bound for it: its convergence past 64 spp seemed slower). Beside it, pbrt-v3's figures measured on
-this machine for the dragons through dgauss at 512x512 (64 spp: 29.5 s wall, relative RMSE 0.073
-against its own converged image), our time to 0.073 and the ratio ours / pbrt-v3.
+the issue's machine for the dragons through dgauss at 512x512 (64 spp: 29.5 s wall, relative RMSE
+0.073 against its own converged image), our time to 0.073 and the ratio ours / pbrt-v3. Those
+figures are constants: on another processor the ratio compares the machines as well as the
+renderers, so the table and the JSON name the processor this run had (``machine.describe``).
 
 ``--light-samples N`` renders the tests with N light samples per hit instead of the scene's (the
 reference keeps the scene's; both estimators converge to the same image): where the lens's depth of
@@ -52,7 +54,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))  # first already when run as a script; not when a test loads this file
 
+import machine  # noqa: E402
 from realistic.cli.values import checked, parse_resolution, parse_spp_list, positive  # noqa: E402
 from realistic.core import validation  # noqa: E402
 from realistic.renderer.convergence import relative_rmse, two_seed_noise  # noqa: E402
@@ -63,7 +67,7 @@ SHARED = ROOT.parent / "shared"
 DEFAULT_SCENE = ROOT / "scenes" / "dof-dragons" / "dgauss.pbrt"
 DEFAULT_SEARCH_PATHS = (SHARED / "meshes", SHARED / "scenes" / "pbrt")
 REFERENCE_SEED, TEST_SEED, NOISE_SEED = 1, 2, 3
-#: pbrt-v3 on this machine: dragons through dgauss, 512x512, 64 spp (issue 11).
+#: pbrt-v3 on the issue's machine: dragons through dgauss, 512x512, 64 spp (issue 11).
 PBRT_V3 = {"spp": 64, "wall_s": 29.5, "setup_s": 5.6, "render_s": 24.0, "rel_rmse": 0.073}
 
 
@@ -199,7 +203,7 @@ def main() -> None:
     print(f"{args.scene.name}, {args.res[0]}x{args.res[1]}, light samples {light_samples} (reference: "
           f"{inputs.light_samples}), reference "
           f"{args.reference_spp} spp (seed {REFERENCE_SEED}), tests seed {TEST_SEED}, scene load {load_s:.2f} s; "
-          "the machine's load is not controlled")
+          f"the machine's load is not controlled; processor: {machine.describe()}")
     print("relative RMSE = sqrt(mean((img - ref)^2)) / mean(ref)")
     print(f"{'spp':>5}{'render s':>10}{'wall s':>9}{'rel RMSE':>10}{'noise':>8}")
     rows = []
@@ -236,12 +240,14 @@ def main() -> None:
     print(f"pbrt-v3 to {args.target:g} by the 1/N law from its measured point: {pbrt_s:.0f} s; pbrt-v3 / ours = "
           f"{pbrt_s / law_s:.2f}x ({pbrt_s / bound_s:.2f}x with our 1/N bound)"
           + ("" if comparable else " (pbrt-v3's figure is for the dragons at 512x512: not comparable)"))
-    print(f"pbrt-v3 (dragons, dgauss, 512x512, measured on this machine): {PBRT_V3['spp']} spp, "
+    print(f"pbrt-v3 (dragons, dgauss, 512x512, measured on the issue's machine, not by this run): "
+          f"{PBRT_V3['spp']} spp, "
           f"{PBRT_V3['wall_s']} s wall, relative RMSE {PBRT_V3['rel_rmse']}"
           + ("" if comparable else " (another scene or resolution than ours: not comparable)"))
     print(f"ours to relative RMSE {PBRT_V3['rel_rmse']}: {_format_time(to_pbrt)}"
           + ("" if ratio is None else f", ours / pbrt-v3 = {ratio:.2f}"))
-    report = {"scene": str(args.scene), "resolution": list(args.res), "search_paths": [str(p) for p in search_paths],
+    report = {"machine": machine.describe(), "scene": str(args.scene), "resolution": list(args.res),
+              "search_paths": [str(p) for p in search_paths],
               "light_samples": light_samples, "reference_light_samples": inputs.light_samples,
               "reference_spp": args.reference_spp,
               "reference_seed": REFERENCE_SEED, "test_seed": TEST_SEED, "noise_seed": NOISE_SEED,

@@ -46,14 +46,17 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))  # first already when run as a script; not when a test loads this file
 
+import machine  # noqa: E402
 from realistic.cli.values import checked, parse_resolution  # noqa: E402
 from realistic.core import validation  # noqa: E402
 from realistic.errors import UserError  # noqa: E402
 
 SHARED = ROOT.parent / "shared"
 LENSES = ("dgauss", "fisheye", "telephoto", "wide")
-#: pbrt-v3 on this machine, homework scenes at 300x300, 32 spp (issue 11).
+#: pbrt-v3 on the issue's machine, homework scenes at 300x300, 32 spp (issue 11): another processor than
+#: this run's (machine.describe) makes the comparison one of machines as well.
 PBRT_V3 = "pbrt-v3, 300x300x32: 6.9-9.6 s wall per lens, 4.1-5.2 s of it set-up"
 FIRST_PASS_GOAL_S = 1.0
 
@@ -257,7 +260,8 @@ def main() -> None:
         print(f"skipped: {message}")
     print(f"{args.res[0]}x{args.res[1]}, {args.spp} spp, backend {args.backend}, median of {args.repeats}, "
           f"{'flat (unshared) embree scene, ' if args.flat else ''}"
-          f"{'empty' if args.empty_cache else 'user'} exit-pupil cache; the machine's load is not controlled")
+          f"{'empty' if args.empty_cache else 'user'} exit-pupil cache; the machine's load is not controlled; "
+          f"processor: {machine.describe()}")
     header = (f"{'scene':<20}{'cli s':>8}{'setup s':>9}{'(import':>8}{'load':>7}{'pupil':>7}{'stage)':>7}"
               f"{'1st pass s':>11}{'1st frame s':>12}{'render s':>10}{'M samples/s':>12}{'lights':>7}{'peak MiB':>9}")
     baseline = median_figures([baseline_figures() for _ in range(args.repeats)])
@@ -284,9 +288,10 @@ def main() -> None:
               f"{lib['peak_rss_mib']:>9.0f}",
               flush=True)
     slow = [r["scene"] for r in rows if r["first_pass_s"] >= FIRST_PASS_GOAL_S]
-    print(f"\nfor comparison: {PBRT_V3}")
+    print(f"\nfor comparison, measured on the issue's machine, not by this run: {PBRT_V3}")
     print(f"first pass under {FIRST_PASS_GOAL_S:g} s: " + ("every scene" if not slow else f"not {', '.join(slow)}"))
-    report = {"resolution": list(args.res), "spp": args.spp, "light_samples": args.light_samples,
+    report = {"machine": machine.describe(), "resolution": list(args.res), "spp": args.spp,
+              "light_samples": args.light_samples,
               "backend": args.backend, "repeats": args.repeats, "empty_cache": args.empty_cache, "flat": args.flat,
               "skipped": skipped, "baseline": baseline, "rows": rows, "pbrt_v3": PBRT_V3,
               "first_pass_goal_s": FIRST_PASS_GOAL_S}

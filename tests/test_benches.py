@@ -237,3 +237,18 @@ def test_middle_block_stays_inside_the_render_however_small(pixels, spp, samples
     block = render_bench.middle_block(Camera, samples)
     assert block.first >= 0 and block.first + block.count <= Camera.sample_count
     assert block.count == min(samples, Camera.sample_count)
+
+
+# --- the processor a bench names ----------------------------------------------------------------
+
+machine = _bench_module("machine")
+
+
+def test_the_machine_is_named_by_the_first_processors_model_family_and_the_usable_cores(tmp_path):
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text("processor\t: 0\ncpu family\t: 26\nmodel\t\t: 2\nmodel name\t: AMD EPYC\n\n"
+                       "processor\t: 1\ncpu family\t: 25\nmodel name\t: other\n")
+    import os
+    cores = len(os.sched_getaffinity(0))
+    assert machine.describe(cpuinfo) == f"AMD EPYC, family 26 model 2, {cores} cores"
+    assert machine.describe(tmp_path / "absent").endswith(f", {cores} cores")
