@@ -107,3 +107,17 @@ def test_the_opencl_device_builds_kernels(opencl_platform):
     cl.Kernel(program, "square")(queue, values.shape, None, buffer)
     cl.enqueue_copy(queue, values, buffer)
     assert np.array_equal(values, np.arange(64.0) ** 2)
+
+
+def test_without_proc_maps_nothing_is_read_or_written(monkeypatch):
+    unknown = heap_string(b"generic")
+    try:
+        def unreadable(self, *args, **kwargs):
+            raise PermissionError(13, "Permission denied", str(self))
+
+        monkeypatch.setattr(pocl_cpu.Path, "read_text", unreadable)
+        struct = (ctypes.c_uint64 * 1)(unknown)
+        assert not pocl_cpu.rewrite_cpu_name(ctypes.addressof(struct), ctypes.sizeof(struct), "x86-64-v3")
+        assert ctypes.string_at(unknown) == b"generic"
+    finally:
+        LIBC.free(unknown)

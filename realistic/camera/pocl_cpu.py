@@ -78,7 +78,10 @@ def rewrite_cpu_name(struct_address: int, struct_bytes: int, name: str) -> bool:
     (``malloc_usable_size``) holds ``name`` is written, so a struct without such a pointer is left
     as it is."""
     encoded = name.encode("ascii") + b"\0"
-    regions = _mapped_regions()
+    try:
+        regions = _mapped_regions()
+    except OSError:  # no /proc: nothing can be read safely
+        return False
     libc = ctypes.CDLL(None)
     libc.malloc_usable_size.restype = ctypes.c_size_t
     libc.malloc_usable_size.argtypes = [ctypes.c_void_p]
