@@ -248,7 +248,8 @@ def test_the_machine_is_named_by_the_first_processors_model_family_and_the_usabl
     cpuinfo = tmp_path / "cpuinfo"
     cpuinfo.write_text("processor\t: 0\ncpu family\t: 26\nmodel\t\t: 2\nmodel name\t: AMD EPYC\n\n"
                        "processor\t: 1\ncpu family\t: 25\nmodel name\t: other\n")
-    import os
-    cores = len(os.sched_getaffinity(0))
+    from realistic.renderer.thread_count import default_threads
+
+    cores = default_threads()
     assert machine.describe(cpuinfo) == f"AMD EPYC, family 26 model 2, {cores} cores"
     assert machine.describe(tmp_path / "absent").endswith(f", {cores} cores")

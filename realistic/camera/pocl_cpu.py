@@ -41,17 +41,25 @@ def x86_64_level(flags: set[str]) -> str:
     return level
 
 
-def host_cpu_flags(cpuinfo: Path = Path("/proc/cpuinfo")) -> set[str]:
-    """The first processor's flags in ``/proc/cpuinfo`` (empty where there is none)."""
+def cpuinfo_fields(cpuinfo: Path = Path("/proc/cpuinfo")) -> dict[str, str]:
+    """The first processor's fields in ``/proc/cpuinfo`` ("flags", "model name", ...; empty where
+    there is no such file)."""
+    fields: dict[str, str] = {}
     try:
         text = cpuinfo.read_text(encoding="ascii", errors="replace")
     except OSError:
-        return set()
+        return fields
     for line in text.splitlines():
         key, _, value = line.partition(":")
-        if key.strip() == "flags":
-            return set(value.split())
-    return set()
+        if not key.strip():
+            break  # the first processor's block ends at its blank line
+        fields.setdefault(key.strip(), value.strip())
+    return fields
+
+
+def host_cpu_flags(cpuinfo: Path = Path("/proc/cpuinfo")) -> set[str]:
+    """The first processor's flags in ``/proc/cpuinfo`` (empty where there is none)."""
+    return set(cpuinfo_fields(cpuinfo).get("flags", "").split())
 
 
 def _mapped_regions() -> list[tuple[int, int, bool]]:
