@@ -179,10 +179,9 @@ def test_program_is_built_once_per_camera_configuration():
     assert other.program is not first.program
 
 
-def _telephoto_rays(kernel_cache_cleared: bool = True):
+def _telephoto_rays():
     camera = reference_camera("telephoto", "pupil")
-    if kernel_cache_cleared:
-        opencl_host.build_program.cache_clear()  # the in-process cache would hand back the same program
+    opencl_host.build_program.cache_clear()  # the in-process cache would hand back the same program
     return opencl_host.LensKernel(camera).generate(SampleBlock(0, 30_000, camera.spp), seed=3)
 
 
