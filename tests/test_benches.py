@@ -253,3 +253,17 @@ def test_the_machine_is_named_by_the_first_processors_model_family_and_the_usabl
     cores = default_threads()
     assert machine.describe(cpuinfo) == f"AMD EPYC, family 26 model 2, {cores} cores"
     assert machine.describe(tmp_path / "absent").endswith(f", {cores} cores")
+
+
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_the_ceiling_traces_every_ray_the_render_traced(backend):
+    """The ceiling's rays are the render's own, all of them: as many primary and (live) shadow rays as
+    ``render_passes`` reports for the same camera, not one pass's."""
+    from realistic.renderer.passes import render_passes
+
+    setup, camera, _, _ = render_bench.staged_subject("dgauss", 24, 16, 4)
+    rendered = render_passes(setup.scene, camera, backend, 0, pass_samples=512)
+    recorder = render_bench.recorded_rays(setup, camera, backend, pass_samples=512)
+    assert len(recorder.primary) == len(recorder.shadow) > 1  # one closest and one occluded call per pass
+    assert sum(len(o) for o, _ in recorder.primary) == rendered.primary_rays > 0
+    assert sum(int(np.count_nonzero(t > 0)) for _, _, t in recorder.shadow) == rendered.shadow_rays > 0
