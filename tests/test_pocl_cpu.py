@@ -2,7 +2,12 @@
 
 import ctypes
 import mmap
+import os
 import platform
+import re
+import shutil
+import subprocess
+import sys
 
 import pytest
 from hypothesis import given
@@ -36,18 +41,28 @@ def test_a_missing_flag_drops_below_its_level_and_extra_flags_change_nothing(lev
 
 
 @given(st.text())
-def test_cpuinfo_of_any_text_reads_as_a_set_of_flags(tmp_path_factory, text):
+def test_cpuinfo_of_any_text_names_a_cpu_llvm_14_knows(tmp_path_factory, text):
     path = tmp_path_factory.mktemp("cpuinfo") / "cpuinfo"
     path.write_bytes(text.encode("utf-8", "surrogatepass"))
-    flags = pocl_cpu.host_cpu_flags(path)
-    assert isinstance(flags, set) and all(isinstance(flag, str) and flag for flag in flags)
+    assert pocl_cpu.cpu_name(pocl_cpu.cpuinfo_fields(path)) in LEVEL_NAMES + [pocl_cpu.WIDE_AMD_CPU]
 
 
-def test_cpuinfo_flags_are_the_first_processors(tmp_path):
+def test_cpuinfo_fields_are_the_first_processors(tmp_path):
     path = tmp_path / "cpuinfo"
     path.write_text("processor\t: 0\nflags\t\t: fpu avx2 fma\n\nprocessor\t: 1\nflags\t\t: fpu\n")
-    assert pocl_cpu.host_cpu_flags(path) == {"fpu", "avx2", "fma"}
-    assert pocl_cpu.host_cpu_flags(tmp_path / "absent") == set()
+    assert pocl_cpu.cpuinfo_fields(path)["flags"] == "fpu avx2 fma"
+    assert pocl_cpu.cpuinfo_fields(tmp_path / "absent") == {}
+
+
+@pytest.mark.parametrize("vendor, level, name", [
+    ("AuthenticAMD", 3, pocl_cpu.WIDE_AMD_CPU),  # AVX-512 on AMD: 16-lane kernels
+    ("GenuineIntel", 3, "x86-64-v4"),  # LLVM's own Intel tunings prefer 256-bit vectors: keep the level's
+    ("AuthenticAMD", 2, "x86-64-v3"),  # no AVX-512: the level
+    ("", 3, "x86-64-v4"),
+])
+def test_only_an_amd_processor_with_avx512_gets_the_wide_name(vendor, level, name):
+    fields = {"vendor_id": vendor, "flags": " ".join(sorted(flags_through(level)))}
+    assert pocl_cpu.cpu_name(fields) == name
 
 
 def heap_string(text: bytes) -> int:
@@ -121,3 +136,52 @@ def test_without_proc_maps_nothing_is_read_or_written(monkeypatch):
         assert ctypes.string_at(unknown) == b"generic"
     finally:
         LIBC.free(unknown)
+
+
+#: Knights Landing's own instructions (AVX512ER, AVX512PF, PREFETCHWT1), which no AMD processor has.
+KNIGHTS_LANDING_ONLY = re.compile(
+    r"\b(vexp2p[sd]|vrcp28[ps][sd]|vrsqrt28[ps][sd]|v(gather|scatter)pf[01][dq]p[sd]|prefetchwt1)\b")
+
+
+@pytest.mark.skipif(shutil.which("objdump") is None, reason="needs objdump")
+def test_kernels_built_for_the_wide_name_are_16_lanes_wide_and_use_no_knights_landing_instruction(
+        opencl_platform, tmp_path):
+    """Every kind of kernel (lens: spherical and aspheric, pupil and rear sampling, spectral; shading;
+    EWA), built from source where ``name_unknown_cpu`` gave this CPU ``WIDE_AMD_CPU``: the code uses
+    512-bit registers and none of the instructions Knights Landing has and AMD's processors lack."""
+    script = (
+        "import dataclasses\nimport numpy as np\n"
+        "from kernel_reference import aspherised_dgauss, camera_for_lens\n"
+        "from test_shade_kernel import busy_scene\n"
+        "from realistic import load_lens\nfrom realistic.camera import pocl_cpu\n"
+        "from realistic.camera.base import SampleBlock\nfrom realistic.camera.opencl_host import context\n"
+        "from realistic.renderer.integrator import DirectLighting\nfrom realistic.scene.intersect import Intersector\n"
+        "from realistic.scene.mipmap import MipMap\n"
+        "print('given', pocl_cpu.given_name(context().devices[0]))\n"
+        "for lens in (load_lens('dgauss'), aspherised_dgauss()):\n"
+        "    for sampling in ('pupil', 'rear'):\n"
+        "        camera = dataclasses.replace(camera_for_lens(lens), lens_sampling=sampling)\n"
+        "        camera.ray_generator('opencl', 1)(SampleBlock(0, 4096, camera.spp))\n"
+        "camera = camera_for_lens(load_lens('dgauss100'), spectral=True)\n"
+        "camera.ray_generator('opencl', 1)(SampleBlock(0, 4096, camera.spp))\n"
+        "scene = busy_scene()[0]\n"
+        "integrator = DirectLighting(scene, Intersector(scene), 2, backend='opencl')\n"
+        "ray = np.array([[0.0, 1.0, 4.0]], np.float32)\n"
+        "integrator.radiance(ray, np.array([[0.0, -0.2, -1.0]], np.float32), np.zeros(1, np.int32), "
+        "np.zeros(1, np.int64))\n"
+        "st = np.full((4, 2), 0.5)\n"
+        "MipMap(np.ones((8, 8, 3))).ewa(st, st * 0.1, st * 0.05, 'opencl')\n")
+    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path), REALISTIC_CACHE_DIR="off",
+               PYTHONPATH=os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    if f"given {pocl_cpu.WIDE_AMD_CPU}" not in run.stdout:
+        pytest.skip(f"this CPU is not given {pocl_cpu.WIDE_AMD_CPU!r} ({run.stdout.strip()})")
+    code = {path: subprocess.run(["objdump", "-d", str(path)], capture_output=True, text=True, check=True).stdout
+            for path in tmp_path.glob("pocl/kcache/**/*.so")}  # kcache/../<kernel>/<launch shape>/<kernel>.so
+    assert {"generate_rays", "shade", "ewa"} <= {path.stem for path in code}
+    for path, text in code.items():
+        found = KNIGHTS_LANDING_ONLY.search(text)
+        assert found is None, f"{path.stem} uses {found.group()}"
+    assert sum(text.count("%zmm") for path, text in code.items() if path.stem == "generate_rays") > 500, \
+        "the lens kernel is not 16 lanes wide"

@@ -7,7 +7,8 @@ clang rejects that name for x86-64, so every kernel build fails with "unknown ta
 (pocl/pocl#1049). Later PoCLs read ``POCL_LLVM_CPU_NAME`` instead (``lib/CL/pocl_llvm_utils.cc``,
 ``pocl_get_llvm_cpu_name``), and this one has no setting for it: ``name_unknown_cpu`` rewrites the
 name where the device keeps it (its ``llvm_cpu`` string, heap memory PoCL allocated) to the x86-64
-micro-architecture level (v2, v3, v4) the host's CPU flags show, a name LLVM 14 knows.
+micro-architecture level (v2, v3, v4) the host's CPU flags show, a name LLVM 14 knows, or on an AMD
+processor with AVX-512 to ``WIDE_AMD_CPU``, whose tuning lets the kernels use 512-bit vectors.
 """
 
 from __future__ import annotations
@@ -28,6 +29,26 @@ X86_64_LEVELS = (
     ("x86-64-v3", {"avx", "avx2", "bmi1", "bmi2", "f16c", "fma", "abm", "movbe", "xsave"}),
     ("x86-64-v4", {"avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl"}),
 )
+
+#: The name given to an AMD processor at x86-64-v4. LLVM 14's tuning for x86-64-v4, like that of every
+#: Intel AVX-512 processor it knows, has TuningPrefer256Bit, so PoCL's work-group vectoriser makes
+#: kernels 8 float lanes wide; LLVM's tunings for AMD's AVX-512 processors (znver4 and later, which
+#: LLVM 14 does not know) leave it out, and of the AVX-512 processors LLVM 14 knows, only Knights
+#: Landing's does (llvm/lib/Target/X86/X86.td). Named so, the kernels are 16 lanes wide: on Zen 5 the
+#: lens kernel makes the same rays 1.8x as fast (bench/lens_kernel.py), their chain of dependent
+#: square roots and divisions surface by surface being latency-bound at 8 lanes. Knights Landing's
+#: own instructions (AVX512ER, AVX512PF, PREFETCHWT1), which AMD lacks, are emitted only for their
+#: intrinsics, which no kernel uses: tests/test_pocl_cpu.py disassembles kernels built so and looks.
+WIDE_AMD_CPU = "knl"
+#: Names given by ``name_unknown_cpu``, per device (``int_ptr``): a program's binaries depend on them.
+_given: dict[int, str] = {}
+
+
+def cpu_name(fields: dict[str, str]) -> str:
+    """The name to give a CPU that LLVM 14 calls "generic", from its ``/proc/cpuinfo`` fields: its
+    x86-64 level, or ``WIDE_AMD_CPU`` for an AMD processor at x86-64-v4."""
+    level = x86_64_level(set(fields.get("flags", "").split()))
+    return WIDE_AMD_CPU if level == "x86-64-v4" and fields.get("vendor_id") == "AuthenticAMD" else level
 
 
 def x86_64_level(flags: set[str]) -> str:
@@ -55,11 +76,6 @@ def cpuinfo_fields(cpuinfo: Path = Path("/proc/cpuinfo")) -> dict[str, str]:
             break  # the first processor's block ends at its blank line
         fields.setdefault(key.strip(), value.strip())
     return fields
-
-
-def host_cpu_flags(cpuinfo: Path = Path("/proc/cpuinfo")) -> set[str]:
-    """The first processor's flags in ``/proc/cpuinfo`` (empty where there is none)."""
-    return set(cpuinfo_fields(cpuinfo).get("flags", "").split())
 
 
 def _mapped_regions() -> list[tuple[int, int, bool]]:
@@ -108,11 +124,19 @@ def rewrite_cpu_name(struct_address: int, struct_bytes: int, name: str) -> bool:
 
 
 def name_unknown_cpu(device) -> str | None:
-    """Give a PoCL CPU device that LLVM named "generic" the host's x86-64 level as its CPU name, so
-    its kernels build; the name given, or None where nothing needed it (another driver or processor,
-    a CPU LLVM knows, or a device already named)."""
+    """Give a PoCL CPU device that LLVM named "generic" a name LLVM knows (``cpu_name``), so its
+    kernels build; the name given, or None where nothing needed it (another driver or processor, a
+    CPU LLVM knows, or a device already named)."""
     if (platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64")
             or "portable computing language" not in device.platform.name.lower()):
         return None
-    level = x86_64_level(host_cpu_flags())
-    return level if rewrite_cpu_name(device.int_ptr, DEVICE_STRUCT_BYTES, level) else None
+    name = cpu_name(cpuinfo_fields())
+    if not rewrite_cpu_name(device.int_ptr, DEVICE_STRUCT_BYTES, name):
+        return None
+    _given[device.int_ptr] = name
+    return name
+
+
+def given_name(device) -> str | None:
+    """The CPU name ``name_unknown_cpu`` gave ``device`` in this process, None if it gave none."""
+    return _given.get(device.int_ptr)
