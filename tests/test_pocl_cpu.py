@@ -9,6 +9,7 @@ import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -110,7 +111,6 @@ def test_a_generic_string_outside_the_heap_is_left_alone(tmp_path):
 def test_the_opencl_device_builds_kernels(opencl_platform):
     """Whatever LLVM calls this machine's CPU, PoCL builds and runs a kernel (on a CPU LLVM 14 does not
     know, only after ``name_unknown_cpu``)."""
-    import numpy as np
     import pyopencl as cl
 
     ctx = opencl_platform.context()
@@ -185,3 +185,36 @@ def test_kernels_built_for_the_wide_name_are_16_lanes_wide_and_use_no_knights_la
         assert found is None, f"{path.stem} uses {found.group()}"
     assert sum(text.count("%zmm") for path, text in code.items() if path.stem == "generate_rays") > 500, \
         "the lens kernel is not 16 lanes wide"
+
+
+def test_the_wide_name_changes_the_speed_not_the_image(opencl_platform, tmp_path):
+    """A render through the lens kernel, the shading kernel and EWA (the busy scene seen through
+    dgauss) is bit for bit the same built for ``WIDE_AMD_CPU`` as for x86-64-v4, where this CPU is
+    given the former (each build from source, in a process of its own)."""
+    script = (
+        "import sys\nimport numpy as np\nfrom realistic.camera import pocl_cpu\n"
+        "wanted = sys.argv[1]\n"
+        "if wanted != 'default':\n"
+        "    pocl_cpu.cpu_name = lambda fields: wanted\n"
+        "from test_shade_kernel import busy_scene\n"
+        "from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
+        "from realistic.camera.opencl_host import context\n"
+        "from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM\n"
+        "from realistic.renderer.passes import render_passes\n"
+        "print('given', pocl_cpu.given_name(context().devices[0]))\n"
+        "scene, eye, target = busy_scene()\n"
+        "camera = LensCamera.looking_at(load_lens('dgauss'), eye, target, None, FULL_FRAME_DIAGONAL_MM, 48, 32, 8)\n"
+        "np.save(sys.argv[2], render_passes(scene, camera, 'opencl', 3, light_samples=2, pass_samples=2048).image)\n")
+    env = dict(os.environ, REALISTIC_CACHE_DIR="off",
+               PYTHONPATH=os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))
+    images = {}
+    for name in ("default", "x86-64-v4"):
+        run = subprocess.run([sys.executable, "-c", script, name, str(tmp_path / f"{name}.npy")], capture_output=True,
+                             text=True, env=dict(env, XDG_CACHE_HOME=str(tmp_path / name)), timeout=600)
+        assert run.returncode == 0, run.stderr[-2000:]
+        if name == "default" and f"given {pocl_cpu.WIDE_AMD_CPU}" not in run.stdout:
+            pytest.skip(f"this CPU is not given {pocl_cpu.WIDE_AMD_CPU!r} ({run.stdout.strip()})")
+        assert f"given {pocl_cpu.WIDE_AMD_CPU if name == 'default' else name}" in run.stdout
+        images[name] = np.load(tmp_path / f"{name}.npy")
+    assert images["default"].max() > 0
+    assert np.array_equal(images["default"], images["x86-64-v4"])
