@@ -6,12 +6,14 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from realistic import load_lens
 from realistic.errors import LensFileError
-from realistic.optics.asphere import sag_mm, sag_slope
+from realistic.optics.asphere import sag_and_slope, sag_mm, sag_slope, significant
 from realistic.optics.lens import build_lens
-from realistic.optics.paraxial import paraxial_data
+from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
 from realistic.optics.tracer import ASPHERE, trace_from_film
 
 GLASS = 1.5168
@@ -111,3 +113,42 @@ def test_the_stop_cannot_be_aspheric():
     with pytest.raises(LensFileError, match="stop"):
         build_lens("x.dat", [1, 2, 3], [0.0, math.inf, RADIUS], [2.0, THICKNESS, 50.0], [0.0, GLASS, 0.0],
                    [0.0] * 3, [20.0, 32.0, 32.0], conic=[-1.0, 0.0, 0.0])
+
+
+@given(st.lists(st.floats(-5.0, 5.0), min_size=9, max_size=9), st.integers(0, 9), st.floats(-3.0, 3.0),
+       st.floats(-0.5, 0.5))
+def test_dropping_the_zero_coefficients_above_the_highest_changes_no_bit(values, zeros_on_top, conic, curvature):
+    """``significant`` (Horner from the highest nonzero coefficient) and ``sag_and_slope`` (one
+    square root for both) give exactly what the full coefficients give, inf and NaN radii included."""
+    coefficients = np.array(values[:9 - zeros_on_top] + [0.0] * zeros_on_top)
+    rho2 = np.array([0.0, 1e-12, 0.3, 2.0, 40.0, 1e30, np.inf, np.nan])
+    short = significant(coefficients)
+    assert len(short) == (np.flatnonzero(coefficients)[-1] + 1 if coefficients.any() else 0)
+    with np.errstate(all="ignore"):  # inf and NaN radii
+        full = sag_mm(rho2, curvature, conic, coefficients), sag_slope(rho2, curvature, conic, coefficients)
+        shorter = [(sag_mm(rho2, curvature, conic, short), sag_slope(rho2, curvature, conic, short)),
+                   sag_and_slope(rho2, curvature, conic, short)]
+    for got in shorter:
+        for a, b in zip(got, full):
+            assert np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+@pytest.mark.parametrize("name", ["phone-us10101561", "canon-rf50-f1.2", "dgauss"])
+def test_the_tracer_stopping_blocked_rays_early_changes_no_bit(name):
+    """Without ``path`` the tracer drops each blocked ray at its surface; with it, it traces every
+    ray through every surface, as before. Both give the same rays, surfaces and reasons, bit for bit,
+    at one wavelength and at one per ray."""
+    lens = load_lens(name)
+    film = film_distance_for_focus(lens, math.inf)
+    rng = np.random.default_rng(4)
+    count = 4000
+    reach = lens.aperture_mm[-1]
+    origins = np.column_stack([rng.uniform(-15, 15, count), rng.uniform(-15, 15, count), np.zeros(count)])
+    targets = np.column_stack([rng.uniform(-reach, reach, (count, 2)), np.full(count, film)])
+    for wavelength in (587.56, rng.uniform(400.0, 700.0, count)):
+        every = trace_from_film(lens, film, origins, targets - origins, wavelength, path=[])
+        early = trace_from_film(lens, film, origins, targets - origins, wavelength)
+        assert 0 < early.passed.sum() < count
+        for a, b in ((early.origin, every.origin), (early.direction, every.direction),
+                     (early.blocked_surface, every.blocked_surface), (early.blocked_reason, every.blocked_reason)):
+            assert np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))

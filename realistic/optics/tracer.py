@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from realistic.optics.asphere import conic_radicand, sag_mm, sag_slope
+from realistic.optics.asphere import conic_radicand, sag_and_slope, significant
 from realistic.optics.dispersion import D_LINE_NM, refractive_index
 from realistic.optics.lens import LensSystem
 
@@ -94,6 +94,7 @@ def _asphere_hit(o: tuple, d: tuple, vertex_z: float, radius: float, conic: floa
                  coefficients: np.ndarray) -> tuple[tuple, tuple, np.ndarray]:
     ox, oy, oz = o
     dx, dy, dz = d
+    coefficients = significant(coefficients)
     c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0
     w = oz - vertex_z
     # The base conic c rho + 2 w + (1 + k) c w^2 = 0 along the ray: a t^2 + 2 b t + g = 0, roots in the
@@ -112,13 +113,15 @@ def _asphere_hit(o: tuple, d: tuple, vertex_z: float, radius: float, conic: floa
     for _ in range(ASPHERE_ITERATIONS):
         hx, hy = ox + t * dx, oy + t * dy
         rho2 = hx * hx + hy * hy
-        f = w + t * dz + sag_mm(rho2, c, conic, coefficients)
-        t = t - f / (dz + 2.0 * sag_slope(rho2, c, conic, coefficients) * (hx * dx + hy * dy))
+        sag, slope = sag_and_slope(rho2, c, conic, coefficients)
+        f = w + t * dz + sag
+        t = t - f / (dz + 2.0 * slope * (hx * dx + hy * dy))
     hx, hy, hz = ox + t * dx, oy + t * dy, oz + t * dz
     rho2 = hx * hx + hy * hy
-    f = hz - vertex_z + sag_mm(rho2, c, conic, coefficients)
+    sag, slope = sag_and_slope(rho2, c, conic, coefficients)
+    f = hz - vertex_z + sag
     fail = ~(np.abs(f) <= ASPHERE_TOLERANCE_MM) | ~(conic_radicand(rho2, c, conic) >= 0) | ~(t > 0)
-    slope2 = 2.0 * sag_slope(rho2, c, conic, coefficients)
+    slope2 = 2.0 * slope
     nx, ny = hx * slope2, hy * slope2
     scale = np.where(nx * dx + ny * dy + dz > 0, -1.0, 1.0) / np.sqrt(nx * nx + ny * ny + 1.0)
     return (hx, hy, hz), (nx * scale, ny * scale, scale), fail
@@ -146,7 +149,9 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     follows it (``realistic.optics.dispersion``), media without a V number keep n_d.
 
     With ``path`` given, the hit point (N, 3) on each surface is appended to it, rear surface
-    first (for drawing ray fans).
+    first (for drawing ray fans). Without it, a ray blocked at a surface is not traced further
+    (every step is per ray, so the others' results are the same bit for bit): the exit-pupil
+    search, whose grids send most rays into an aperture, then traces only what still passes.
     """
     origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
@@ -156,12 +161,15 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     count = len(origins)
     surface = np.full(count, -1, dtype=np.int64)
     reason = np.zeros(count, dtype=np.int8)
+    live = np.arange(count)  # the rays o and d hold, in order
     vertex_z = lens.vertex_z_mm(film_distance_mm)
-    index = refractive_index(lens.index_d, lens.abbe_v, wavelength_nm)
+    if np.ndim(wavelength_nm):
+        wavelength_nm = np.broadcast_to(wavelength_nm, (count,))
+    index = refractive_index(lens.index_d, lens.abbe_v, wavelength_nm)  # (media,) or (media, count)
     aspheric = lens.aspheric
 
     def block(mask: np.ndarray, i: int, why: int) -> None:
-        fresh = mask & (reason == PASSED)
+        fresh = live[mask & (reason[live] == PASSED)]
         surface[fresh] = i
         reason[fresh] = why
 
@@ -184,11 +192,16 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
                       STOP if i == lens.stop else ASPHERE if aspheric[i] else APERTURE)
             if i != lens.stop:
                 n_front = index[i - 1] if i > 0 else 1.0
-                d, tir = refract(d, normal, index[i] / n_front)
+                eta = index[i] / n_front
+                d, tir = refract(d, normal, eta[..., live] if np.ndim(eta) else eta)
                 block(tir, i, TIR)
-    dead = reason != PASSED
-    origin = np.stack(o, axis=1)
-    direction = np.stack(d, axis=1)
-    origin[dead] = np.nan
-    direction[dead] = np.nan
+            going = reason[live] == PASSED
+            if path is None and not going.all():
+                live = live[going]
+                o, d = tuple(a[going] for a in o), tuple(a[going] for a in d)
+    origin = np.full((count, 3), np.nan)
+    direction = np.full((count, 3), np.nan)
+    passing = reason[live] == PASSED  # all of them, unless ``path`` kept every ray
+    origin[live[passing]] = np.stack(o, axis=1)[passing]
+    direction[live[passing]] = np.stack(d, axis=1)[passing]
     return TraceResult(origin, direction, surface, reason)
