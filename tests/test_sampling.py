@@ -135,3 +135,23 @@ def test_pupil_bounds_hold_out_to_the_edge_of_the_image_circle(name):
     table = exit_pupil_table(lens, film, 54.0)
     passed, lost = rays_the_pupil_table_loses(lens, film, table, seed=5, film_radius_mm=27.0)
     assert passed > 1000 and lost == 0
+
+
+def test_the_pupil_search_traces_every_wavelength_at_once_as_it_would_one_by_one():
+    """The search's pass test traces a ray per direction and wavelength in one call; a direction
+    passes where any of its wavelengths does, as tracing each wavelength apart says."""
+    from realistic.optics.pupil_search import _Passes
+    from realistic.optics.tracer import trace_from_film
+
+    lens = load_lens("canon-rf50-f1.2")
+    film = film_distance_for_focus(lens, np.inf)
+    wavelengths = (400.0, 587.56, 700.0)
+    rng = np.random.default_rng(2)
+    film_x, x, y = rng.uniform(0, 18, 3000), rng.uniform(-30, 30, 3000), rng.uniform(0, 30, 3000)
+    plane_z = film + 20.0
+    passes = _Passes(lens, film, plane_z, wavelengths)(film_x, x, y)
+    origins = np.column_stack([film_x, np.zeros_like(film_x), np.zeros_like(film_x)])
+    directions = np.column_stack([x - film_x, y, np.full_like(x, plane_z)])
+    each = [trace_from_film(lens, film, origins, directions, w).passed for w in wavelengths]
+    assert np.array_equal(passes, np.logical_or.reduce(each))
+    assert 0 < passes.sum() < len(passes) and not np.array_equal(each[0], each[2])  # the wavelengths differ
