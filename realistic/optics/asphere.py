@@ -27,40 +27,34 @@ def conic_radicand(rho2: np.ndarray, curvature: float, conic: float) -> np.ndarr
 def sag_mm(rho2: np.ndarray, curvature: float, conic: float, coefficients: np.ndarray) -> np.ndarray:
     """The sag at squared radius ``rho2`` (mm^2); NaN where the conic is undefined. ``coefficients``
     are A4, A6, ... (all of them, or up to the highest nonzero one: ``significant``)."""
-    return _sag(rho2, curvature, coefficients, _root(rho2, curvature, conic))
+    return sag_and_slope(rho2, curvature, conic, coefficients)[0]
 
 
 def sag_slope(rho2: np.ndarray, curvature: float, conic: float, coefficients: np.ndarray) -> np.ndarray:
     """d sag / d(r^2): the surface normal is (2 x s', 2 y s', 1) up to sign and length."""
-    return _slope(rho2, curvature, coefficients, _root(rho2, curvature, conic))
+    return sag_and_slope(rho2, curvature, conic, coefficients)[1]
 
 
 def sag_and_slope(rho2: np.ndarray, curvature: float, conic: float, coefficients: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """``sag_mm`` and ``sag_slope`` at once, bit for bit, with one square root (Newton's method
-    needs both at every step)."""
-    root = _root(rho2, curvature, conic)
-    return _sag(rho2, curvature, coefficients, root), _slope(rho2, curvature, coefficients, root)
+    """The sag and its slope at once, with one square root: Newton's method needs both at every step,
+    and the float64 tracer's cost there is numpy's per-call overhead."""
+    rho2 = np.asarray(rho2, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):  # NaN outside the conic's domain
+        root = np.sqrt(conic_radicand(rho2, curvature, conic))
+        sag = curvature * rho2 / (1.0 + root) + _horner(rho2, coefficients) * rho2 * rho2
+        # d/d(rho) of A_m rho^m is m A_m rho^(m-1), with m = 2 for A4
+        slope = curvature / (2.0 * root) + _horner(rho2, np.arange(2, len(coefficients) + 2) * coefficients) * rho2
+    return sag, slope
 
 
-def _root(rho2: np.ndarray, curvature: float, conic: float) -> np.ndarray:
-    with np.errstate(invalid="ignore"):
-        return np.sqrt(conic_radicand(rho2, curvature, conic))
-
-
-def _sag(rho2: np.ndarray, curvature: float, coefficients: np.ndarray, root: np.ndarray) -> np.ndarray:
-    poly = np.zeros_like(np.asarray(rho2, dtype=np.float64))
-    for a in coefficients[::-1]:  # Horner in rho from the highest A down to A4, then times rho^2
-        poly = poly * rho2 + a
-    return curvature * rho2 / (1.0 + root) + poly * rho2 * rho2
-
-
-def _slope(rho2: np.ndarray, curvature: float, coefficients: np.ndarray, root: np.ndarray) -> np.ndarray:
-    poly = np.zeros_like(np.asarray(rho2, dtype=np.float64))
-    for m, a in zip(range(len(coefficients) + 1, 1, -1), coefficients[::-1]):  # sum m A_m rho^(m-1)
-        poly = poly * rho2 + m * a
-    with np.errstate(divide="ignore"):
-        return curvature / (2.0 * root) + poly * rho2
+def _horner(rho2: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
+    """c0 + c1 rho + c2 rho^2 + ... by Horner's rule from the last coefficient, starting from 0
+    (0 * rho + c_last: NaN where rho is not finite, even when the polynomial is constant)."""
+    poly = np.asarray(rho2, dtype=np.float64) * 0.0
+    for c in coefficients[::-1]:
+        poly = poly * rho2 + c
+    return poly
 
 
 def significant(coefficients: np.ndarray) -> np.ndarray:
