@@ -155,3 +155,25 @@ def test_the_pupil_search_traces_every_wavelength_at_once_as_it_would_one_by_one
     each = [trace_from_film(lens, film, origins, directions, w).passed for w in wavelengths]
     assert np.array_equal(passes, np.logical_or.reduce(each))
     assert 0 < passes.sum() < len(passes) and not np.array_equal(each[0], each[2])  # the wavelengths differ
+
+
+def test_bisecting_several_edges_together_finds_what_each_alone_finds():
+    """The search bisects a pupil's left, right and upper edges in one trace per step; each set of
+    brackets ends where it would bisected on its own."""
+    from realistic.optics.pupil_search import _bisect, _Passes
+
+    lens = load_lens("canon-ef24-f1.4")
+    film = film_distance_for_focus(lens, np.inf)
+    passes = _Passes(lens, film, film + 20.0, (587.56,))
+    rng = np.random.default_rng(5)
+    film_x = rng.uniform(0, 18, (4, 6))
+    ys = rng.uniform(0, 10, (4, 6))
+    left = (film_x, np.zeros((4, 6)), np.full((4, 6), -40.0), ys, True, rng.random((4, 6)) < 0.7)
+    right = (film_x, np.zeros((4, 6)), np.full((4, 6), 40.0), ys, True, rng.random((4, 6)) < 0.7)
+    upper = (film_x, np.zeros((4, 6)), np.full((4, 6), 40.0), rng.uniform(-5, 5, (4, 6)), False,
+             rng.random((4, 6)) < 0.7)
+    together = _bisect(passes, [left, right, upper])
+    for problem, edge in zip((left, right, upper), together):
+        (alone,) = _bisect(passes, [problem])
+        assert np.array_equal(edge, alone)
+        assert np.all(edge[~problem[5]] == 0.0) and np.any(edge[problem[5]] != 0.0)

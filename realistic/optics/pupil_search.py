@@ -95,20 +95,27 @@ def _found_region(passes: _Passes, film_x: np.ndarray, reach: np.ndarray, grid: 
     return found, box, cell
 
 
-def _bisect(passes: _Passes, film_x: np.ndarray, inside: np.ndarray, outside: np.ndarray,
-            other: np.ndarray, along_x: bool, needed: np.ndarray) -> np.ndarray:
-    """The outer end of the final bracket between passing ``inside`` and blocked ``outside``
-    coordinates (x when ``along_x``, else y; ``other`` is the fixed coordinate), traced only where
-    ``needed``; elsewhere ``inside`` itself (a grid point at the window's edge, or nothing passing)."""
-    edge = inside.copy()
-    film_x, inside, outside, other = film_x[needed], inside[needed], outside[needed], other[needed]
+def _bisect(passes: _Passes, problems: list[tuple]) -> list[np.ndarray]:
+    """Per problem (film_x, inside, outside, other, along_x, needed): the outer end of the final
+    bracket between passing ``inside`` and blocked ``outside`` coordinates (x when ``along_x``, else
+    y; ``other`` is the fixed coordinate), traced only where ``needed``; elsewhere ``inside`` itself
+    (a grid point at the window's edge, or nothing passing). The problems are independent, so every
+    step traces all of their pairs at once: one call instead of one per problem."""
+    edges, parts = [], []
+    for film_x, inside, outside, other, along_x, needed in problems:
+        edges.append(inside.copy())
+        parts.append((film_x[needed], inside[needed], outside[needed], other[needed],
+                      np.full(int(np.count_nonzero(needed)), along_x)))
+    film_x, inside, outside, other, along_x = (np.concatenate(column) for column in zip(*parts))
     for _ in range(BISECTION_STEPS):
         middle = 0.5 * (inside + outside)
-        passed = passes(film_x, middle, other) if along_x else passes(film_x, other, middle)
+        passed = passes(film_x, np.where(along_x, middle, other), np.where(along_x, other, middle))
         inside = np.where(passed, middle, inside)
         outside = np.where(passed, outside, middle)
-    edge[needed] = outside
-    return edge
+    ends = np.cumsum([len(part[0]) for part in parts])
+    for edge, (_, _, _, _, _, needed), found in zip(edges, problems, np.split(outside, ends[:-1])):
+        edge[needed] = found
+    return edges
 
 
 def _edges(passes: _Passes, film_x: np.ndarray, x_lo: np.ndarray, x_hi: np.ndarray, y_hi: np.ndarray
@@ -127,12 +134,12 @@ def _edges(passes: _Passes, film_x: np.ndarray, x_lo: np.ndarray, x_hi: np.ndarr
     top = rows - 1 - np.argmax(passed[:, :, ::-1], axis=2)
     film_rows = np.broadcast_to(film_x[:, None], first.shape)
     film_columns = np.broadcast_to(film_x[:, None], top.shape)
-    left = _bisect(passes, film_rows, xs[radii, first], xs[radii, np.maximum(first - 1, 0)], ys, True,
-                   row_any & (first > 0))
-    right = _bisect(passes, film_rows, xs[radii, last], xs[radii, np.minimum(last + 1, columns - 1)], ys, True,
-                    row_any & (last < columns - 1))
-    upper = _bisect(passes, film_columns, ys[radii, top], ys[radii, np.minimum(top + 1, rows - 1)], xs, False,
-                    column_any & (top < rows - 1))
+    left, right, upper = _bisect(passes, [
+        (film_rows, xs[radii, first], xs[radii, np.maximum(first - 1, 0)], ys, True, row_any & (first > 0)),
+        (film_rows, xs[radii, last], xs[radii, np.minimum(last + 1, columns - 1)], ys, True,
+         row_any & (last < columns - 1)),
+        (film_columns, ys[radii, top], ys[radii, np.minimum(top + 1, rows - 1)], xs, False,
+         column_any & (top < rows - 1))])
     left = np.where(row_any, left, np.inf)
     right = np.where(row_any, right, -np.inf)
     upper = np.where(column_any, upper, -np.inf)
