@@ -19,6 +19,14 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 
 
+def fresh_process_env(**overrides: str) -> dict[str, str]:
+    """The environment for a script run in a process of its own (a fresh kernel build, say):
+    this one with ``overrides``, and this folder first on PYTHONPATH so the script can import the
+    tests' helpers (``busy_scene``, ``kernel_reference``)."""
+    path = os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")])
+    return dict(os.environ, **overrides, PYTHONPATH=path)
+
+
 @pytest.fixture(scope="module")
 def opencl_platform():
     """``realistic.camera.opencl_host``; skips the module's tests when no OpenCL platform exists (CI

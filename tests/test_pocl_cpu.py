@@ -2,18 +2,19 @@
 
 import ctypes
 import mmap
-import os
 import platform
 import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import fresh_process_env
 from realistic.camera import pocl_cpu
 
 LEVEL_NAMES = ["x86-64"] + [name for name, _ in pocl_cpu.X86_64_LEVELS]
@@ -138,6 +139,21 @@ def test_without_proc_maps_nothing_is_read_or_written(monkeypatch):
         LIBC.free(unknown)
 
 
+def built_from_source(script: str, cache_home: Path, *args: str) -> str:
+    """The standard output of ``script`` run in a process of its own whose kernels PoCL builds from
+    source into ``cache_home`` (neither realistic's binary cache nor an earlier PoCL build)."""
+    run = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, timeout=600,
+                         env=fresh_process_env(XDG_CACHE_HOME=str(cache_home), REALISTIC_CACHE_DIR="off"))
+    assert run.returncode == 0, run.stderr[-2000:]
+    return run.stdout
+
+
+def skip_unless_given_the_wide_name(output: str) -> None:
+    """Skip where the script's ``given <name>`` line shows this CPU was not given ``WIDE_AMD_CPU``."""
+    if f"given {pocl_cpu.WIDE_AMD_CPU}" not in output:
+        pytest.skip(f"this CPU is not given {pocl_cpu.WIDE_AMD_CPU!r} ({output.strip()})")
+
+
 #: Knights Landing's own instructions (AVX512ER, AVX512PF, PREFETCHWT1), which no AMD processor has.
 KNIGHTS_LANDING_ONLY = re.compile(
     r"\b(vexp2p[sd]|vrcp28[ps][sd]|vrsqrt28[ps][sd]|v(gather|scatter)pf[01][dq]p[sd]|prefetchwt1)\b")
@@ -171,12 +187,7 @@ def test_kernels_built_for_the_wide_name_are_16_lanes_wide_and_use_no_knights_la
         "np.zeros(1, np.int64))\n"
         "st = np.full((4, 2), 0.5)\n"
         "MipMap(np.ones((8, 8, 3))).ewa(st, st * 0.1, st * 0.05, 'opencl')\n")
-    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path), REALISTIC_CACHE_DIR="off",
-               PYTHONPATH=os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))
-    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
-    assert run.returncode == 0, run.stderr[-2000:]
-    if f"given {pocl_cpu.WIDE_AMD_CPU}" not in run.stdout:
-        pytest.skip(f"this CPU is not given {pocl_cpu.WIDE_AMD_CPU!r} ({run.stdout.strip()})")
+    skip_unless_given_the_wide_name(built_from_source(script, tmp_path))
     code = {path: subprocess.run(["objdump", "-d", str(path)], capture_output=True, text=True, check=True).stdout
             for path in tmp_path.glob("pocl/kcache/**/*.so")}  # kcache/../<kernel>/<launch shape>/<kernel>.so
     assert {"generate_rays", "shade", "ewa"} <= {path.stem for path in code}
@@ -205,16 +216,12 @@ def test_the_wide_name_changes_the_speed_not_the_image(opencl_platform, tmp_path
         "scene, eye, target = busy_scene()\n"
         "camera = LensCamera.looking_at(load_lens('dgauss'), eye, target, None, FULL_FRAME_DIAGONAL_MM, 48, 32, 8)\n"
         "np.save(sys.argv[2], render_passes(scene, camera, 'opencl', 3, light_samples=2, pass_samples=2048).image)\n")
-    env = dict(os.environ, REALISTIC_CACHE_DIR="off",
-               PYTHONPATH=os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))
     images = {}
     for name in ("default", "x86-64-v4"):
-        run = subprocess.run([sys.executable, "-c", script, name, str(tmp_path / f"{name}.npy")], capture_output=True,
-                             text=True, env=dict(env, XDG_CACHE_HOME=str(tmp_path / name)), timeout=600)
-        assert run.returncode == 0, run.stderr[-2000:]
-        if name == "default" and f"given {pocl_cpu.WIDE_AMD_CPU}" not in run.stdout:
-            pytest.skip(f"this CPU is not given {pocl_cpu.WIDE_AMD_CPU!r} ({run.stdout.strip()})")
-        assert f"given {pocl_cpu.WIDE_AMD_CPU if name == 'default' else name}" in run.stdout
+        output = built_from_source(script, tmp_path / name, name, str(tmp_path / f"{name}.npy"))
+        if name == "default":
+            skip_unless_given_the_wide_name(output)
+        assert f"given {pocl_cpu.WIDE_AMD_CPU if name == 'default' else name}" in output
         images[name] = np.load(tmp_path / f"{name}.npy")
     assert images["default"].max() > 0
     assert np.array_equal(images["default"], images["x86-64-v4"])

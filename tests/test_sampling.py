@@ -159,7 +159,7 @@ def test_the_pupil_search_traces_every_wavelength_at_once_as_it_would_one_by_one
 
 def test_bisecting_several_edges_together_finds_what_each_alone_finds():
     """The search bisects a pupil's left, right and upper edges in one trace per step; each set of
-    brackets ends where it would bisected on its own."""
+    brackets ends where it ends bisected on its own."""
     from realistic.optics.pupil_search import _bisect, _Passes
 
     lens = load_lens("canon-ef24-f1.4")

@@ -298,7 +298,7 @@ def _device_identity(ctx: cl.Context) -> tuple[str, ...]:
     """What a binary built for ``ctx`` depends on besides its source: each device, its driver, and
     the CPU name ``pocl_cpu`` gave it, if any (the code LLVM makes differs with the name)."""
     return tuple(f"{d.platform.name} {d.platform.version} | {d.name} {d.version} {d.driver_version}"
-                 + (f" | cpu {pocl_cpu.given_name(d)}" if pocl_cpu.given_name(d) else "") for d in ctx.devices)
+                 + ("" if (cpu := pocl_cpu.given_name(d)) is None else f" | cpu {cpu}") for d in ctx.devices)
 
 
 def _from_binaries(ctx: cl.Context, stored: dict[str, np.ndarray] | None, options: tuple[str, ...]
