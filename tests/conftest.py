@@ -2,6 +2,8 @@
 
 import os
 import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -25,6 +27,15 @@ def fresh_process_env(**overrides: str) -> dict[str, str]:
     tests' helpers (``busy_scene``, ``kernel_reference``)."""
     path = os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")])
     return dict(os.environ, **overrides, PYTHONPATH=path)
+
+
+def built_from_source(script: str, cache_home: Path, *args: str) -> str:
+    """The standard output of ``script`` run in a process of its own whose kernels PoCL builds from
+    source into ``cache_home`` (neither realistic's binary cache nor an earlier PoCL build)."""
+    run = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, timeout=600,
+                         env=fresh_process_env(XDG_CACHE_HOME=str(cache_home), REALISTIC_CACHE_DIR="off"))
+    assert run.returncode == 0, run.stderr[-2000:]
+    return run.stdout
 
 
 @pytest.fixture(scope="module")

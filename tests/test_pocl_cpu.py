@@ -6,15 +6,13 @@ import platform
 import re
 import shutil
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from conftest import fresh_process_env
+from conftest import built_from_source
 from realistic.camera import pocl_cpu
 
 LEVEL_NAMES = ["x86-64"] + [name for name, _ in pocl_cpu.X86_64_LEVELS]
@@ -137,15 +135,6 @@ def test_without_proc_maps_nothing_is_read_or_written(monkeypatch):
         assert ctypes.string_at(unknown) == b"generic"
     finally:
         LIBC.free(unknown)
-
-
-def built_from_source(script: str, cache_home: Path, *args: str) -> str:
-    """The standard output of ``script`` run in a process of its own whose kernels PoCL builds from
-    source into ``cache_home`` (neither realistic's binary cache nor an earlier PoCL build)."""
-    run = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, timeout=600,
-                         env=fresh_process_env(XDG_CACHE_HOME=str(cache_home), REALISTIC_CACHE_DIR="off"))
-    assert run.returncode == 0, run.stderr[-2000:]
-    return run.stdout
 
 
 def skip_unless_given_the_wide_name(output: str) -> None:

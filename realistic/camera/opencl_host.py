@@ -19,7 +19,7 @@ from functools import cache, lru_cache
 
 import numpy as np
 
-from realistic.camera import pocl_cpu
+from realistic.camera import pocl_cpu, pocl_interleave
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import disk_cache
@@ -99,6 +99,7 @@ def _context_for(spec: str | None, origin: str) -> cl.Context:
         pocl = [entry for entry in found if "portable computing language" in entry[2].name.lower()]
         device = (pocl or found)[0][3]
     pocl_cpu.name_unknown_cpu(device)  # before any build: PoCL 3.0 cannot build for a CPU LLVM 14 calls "generic"
+    pocl_interleave.interleave_work_items(device)  # before any build too: LLVM reads the option as it builds
     return cl.Context([device])
 
 
@@ -282,6 +283,7 @@ def build_program(ctx: cl.Context, source: str, name: str, options: tuple[str, .
     binaries. (pyopencl's own binary cache, which it leaves off for PoCL, is not used: it fails with
     a KeyError on an unwritable folder and waits a minute on a lock file left by a killed process.)
     """
+    options = (*options, *pocl_interleave.build_options())
     key = disk_cache.cache_key("opencl-program", _device_identity(ctx), source.encode(), options)
     stored = disk_cache.load_arrays(key)
     try:

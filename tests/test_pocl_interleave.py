@@ -1,0 +1,116 @@
+"""PoCL's work-item loops interleaved through LLVM's options (realistic.camera.pocl_interleave)."""
+
+import ctypes
+import ctypes.util
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from conftest import built_from_source
+from realistic.camera import pocl_interleave
+
+
+def mapped_base(library: Path) -> int:
+    """Where ``library`` is loaded: the start of its mapping at file offset 0 (``/proc/self/maps``)."""
+    for line in Path("/proc/self/maps").read_text().splitlines():
+        fields = line.split(maxsplit=5)
+        if len(fields) == 6 and fields[5] == str(library) and int(fields[2], 16) == 0:
+            return int(fields[0].split("-")[0], 16)
+    raise AssertionError(f"{library} is not mapped")
+
+
+def loaded_path(name: str) -> Path:
+    """The path this process loaded the library whose file name starts with ``name`` from."""
+    for line in Path("/proc/self/maps").read_text().splitlines():
+        fields = line.split(maxsplit=5)
+        if len(fields) == 6 and Path(fields[5]).name.startswith(name):
+            return Path(fields[5])
+    pytest.skip(f"no {name} mapped in this process")
+
+
+@pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="needs /proc")
+def test_symbol_values_place_exported_functions_where_the_dynamic_linker_put_them():
+    """The value read from libc's symbol table plus the address libc is mapped at (from
+    ``/proc/self/maps``) is the address ``dlsym`` gives, for functions libc exports."""
+    libc_path = loaded_path("libc.so")
+    libc = ctypes.CDLL(ctypes.util.find_library("c"))
+    names = ["malloc", "free", "qsort", "abort"]  # plain functions: no IFUNC (memcpy)
+    values = pocl_interleave.function_values(libc_path, names)
+    assert set(values) == set(names)
+    base = mapped_base(libc_path)
+    for name in names:
+        assert base + values[name] == ctypes.cast(getattr(libc, name), ctypes.c_void_p).value, name
+
+
+def test_the_parse_function_of_the_loaded_pocl_is_found(opencl_platform):
+    """PoCL's own LLVM options parser: in its static symbol table (pip's PoCL) or exported, and the
+    exported anchor function's symbol value agrees with where the library is mapped."""
+    opencl_platform.context()
+    library = pocl_interleave.loaded_pocl()
+    if library is None:
+        pytest.skip("the OpenCL platform is not PoCL")
+    values = pocl_interleave.function_values(library, [pocl_interleave.ANCHOR])
+    loaded = ctypes.CDLL(str(library))
+    anchor = ctypes.cast(getattr(loaded, pocl_interleave.ANCHOR), ctypes.c_void_p).value
+    assert mapped_base(library) + values[pocl_interleave.ANCHOR] == anchor
+    assert pocl_interleave.parse_options_function(library) is not None
+    assert pocl_interleave.build_options() == (f"-DREALISTIC_INTERLEAVE={pocl_interleave.INTERLEAVE}",)
+
+
+@given(st.binary(max_size=512), st.integers(0, 63))
+def test_any_file_gives_symbols_or_nothing(tmp_path_factory, data, cut):
+    """Arbitrary bytes, and an ELF header made to point anywhere, give a dict or {}, never an error."""
+    folder = tmp_path_factory.mktemp("elf")
+    header = bytearray(b"\x7fELF\x02\x01" + bytes(58))
+    header[0x28:0x30] = (len(header) + cut).to_bytes(8, "little")
+    header[0x3A:0x3E] = (64).to_bytes(2, "little") + (1 + cut % 7).to_bytes(2, "little")
+    for content in (data, bytes(header) + data, bytes(header[:cut])):
+        path = folder / "library.so"
+        path.write_bytes(content)
+        found = pocl_interleave.function_values(path, ["malloc"])
+        assert isinstance(found, dict) and all(isinstance(v, int) for v in found.values())
+    assert pocl_interleave.function_values(folder / "missing.so", ["malloc"]) == {}
+
+
+RENDER = (
+    "import sys\nimport numpy as np\nfrom realistic.camera import pocl_interleave\n"
+    "if sys.argv[1] == 'off':\n"
+    "    pocl_interleave.interleave_work_items = lambda device: None\n"
+    "from test_shade_kernel import busy_scene\n"
+    "from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
+    "from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM\n"
+    "from realistic.renderer.passes import render_passes\n"
+    "scene, eye, target = busy_scene()\n"
+    "camera = LensCamera.looking_at(load_lens('dgauss'), eye, target, None, FULL_FRAME_DIAGONAL_MM, 48, 32, 8)\n"
+    "np.save(sys.argv[2], render_passes(scene, camera, 'opencl', 3, light_samples=2, pass_samples=2048).image)\n"
+    "print('options', pocl_interleave.build_options())\n")
+
+
+def test_interleaving_changes_the_code_not_the_image(opencl_platform, tmp_path):
+    """A render through the lens, shading and EWA kernels, each built from source in a process of
+    its own, is bit for bit the same with and without interleaving; with it, the lens kernel's
+    machine code holds ``INTERLEAVE`` times the square roots (where objdump is at hand)."""
+    outputs, images = {}, {}
+    for mode in ("off", "on"):
+        outputs[mode] = built_from_source(RENDER, tmp_path / mode, mode, str(tmp_path / f"{mode}.npy"))
+        images[mode] = np.load(tmp_path / f"{mode}.npy")
+    if "()" in outputs["on"]:
+        pytest.skip(f"interleaving is not set on this platform ({outputs['on'].strip()})")
+    assert "()" in outputs["off"]
+    assert images["on"].max() > 0
+    assert np.array_equal(images["on"], images["off"])
+    if shutil.which("objdump") is None:
+        return
+    roots = {}
+    for mode in ("off", "on"):
+        code = [path for path in (tmp_path / mode).glob("pocl/kcache/**/*.so") if path.stem == "generate_rays"]
+        assert code, f"no lens kernel built in {mode}"
+        text = subprocess.run(["objdump", "-d", str(code[0])], capture_output=True, text=True, check=True).stdout
+        roots[mode] = len(re.findall(r"\bvsqrtp[sd]\b", text))
+    assert roots["on"] == pocl_interleave.INTERLEAVE * roots["off"] > 0, roots
