@@ -327,10 +327,10 @@ def _remember(key: str, program: cl.Program, built_before: bool) -> None:
 
 
 class LensKernel:
-    """``lens.cl`` built for one camera, with device buffers reused across launches.
+    """``lens.cl`` built for one camera; each launch writes straight into the arrays it returns.
 
     Safe to call from several threads: launches are serialised on one lock (the kernel object's
-    arguments and the reused buffers are shared; PoCL spreads one launch over every core anyway).
+    arguments are shared; PoCL spreads one launch over every core anyway).
     """
 
     def __init__(self, camera: LensCamera, device: str | None = None):
@@ -348,8 +348,6 @@ class LensKernel:
         self._film = (np.uint32(camera.width), np.float64(1) / np.float64(camera.width),
                       np.float32(1) / np.float32(camera.width),
                       np.float32(1) / np.float32(camera.height), np.float32(w_mm), np.float32(h_mm))
-        self._capacity = 0
-        self._out = self._pixels = None
         self._lock = threading.Lock()
         self._rows = ROWS + int(camera.spectral)
 
@@ -363,13 +361,6 @@ class LensKernel:
             raise ValueError(f"sample block {block} exceeds the kernel's 32-bit indices")
         return tuple(np.uint32(v) for v in (first_pixel, offset, block.first_sample, block.samples)), padded
 
-    def _buffers(self, padded: int) -> None:
-        if padded > self._capacity:
-            mf = cl.mem_flags
-            self._out = cl.Buffer(self.context, mf.WRITE_ONLY, self._rows * padded * 4)
-            self._pixels = cl.Buffer(self.context, mf.WRITE_ONLY, padded * 4)
-            self._capacity = padded
-
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
         """Rays of the block's samples, as ``LensCamera.generate_rays`` makes them (float32): a
         spectral camera's ``rays_per_sample`` rays of each sample consecutively."""
@@ -377,14 +368,18 @@ class LensKernel:
         count = block.count * self.camera.rays_per_sample
         out = np.empty((self._rows, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
+        # the kernel writes into the result's own arrays (USE_HOST_PTR): the reads below then copy
+        # nothing on PoCL's CPU device, where a copy from a buffer of its own cost a fifth of a launch
+        flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
         with self._lock:
-            self._buffers(padded)
+            buffers = [cl.Buffer(self.context, flags, hostbuf=array) for array in (out, pixels)]
             self._generate(self.queue, (padded,), (LOCAL_SIZE,), *address,
-                           np.uint32(seed & 0xFFFFFFFF), self._world, *self._film,
-                           np.uint32(padded), self._out, self._pixels)
-            cl.enqueue_copy(self.queue, out, self._out)
-            cl.enqueue_copy(self.queue, pixels, self._pixels)
+                           np.uint32(seed & 0xFFFFFFFF), self._world, *self._film, np.uint32(padded), *buffers)
+            for array, buffer in zip((out, pixels), buffers):
+                cl.enqueue_copy(self.queue, array, buffer, is_blocking=False)  # orders the read after the kernel
             self.queue.finish()
+        for buffer in buffers:
+            buffer.release()
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count], wavelength_nm=out[7, :count] if self.camera.spectral else None)
 
