@@ -41,25 +41,29 @@ def test_symbol_values_place_exported_functions_where_the_dynamic_linker_put_the
     libc_path = loaded_path("libc.so")
     libc = ctypes.CDLL(ctypes.util.find_library("c"))
     names = ["malloc", "free", "qsort", "abort"]  # plain functions: no IFUNC (memcpy)
-    values = pocl_interleave.function_values(libc_path, names)
+    values = pocl_interleave.symbol_values(libc_path, names)
     assert set(values) == set(names)
     base = mapped_base(libc_path)
     for name in names:
         assert base + values[name] == ctypes.cast(getattr(libc, name), ctypes.c_void_p).value, name
 
 
-def test_the_parse_function_of_the_loaded_pocl_is_found(opencl_platform):
-    """PoCL's own LLVM options parser: in its static symbol table (pip's PoCL) or exported, and the
-    exported anchor function's symbol value agrees with where the library is mapped."""
+def test_the_loaded_pocl_places_llvm_where_its_symbol_table_says(opencl_platform):
+    """PoCL's own LLVM options parser and interleave count: in its static symbol table (pip's PoCL)
+    or exported; the exported anchor's symbol value agrees with where the library is mapped, and
+    the count is back with the cost model (0) outside ``interleaved()``, ``INTERLEAVE`` inside."""
     opencl_platform.context()
     library = pocl_interleave.loaded_pocl()
-    if library is None:
-        pytest.skip("the OpenCL platform is not PoCL")
-    values = pocl_interleave.function_values(library, [pocl_interleave.ANCHOR])
+    if library is None or pocl_interleave._count is None:
+        pytest.skip("the OpenCL platform is not a PoCL whose LLVM options can be set")
+    values = pocl_interleave.symbol_values(library, [pocl_interleave.ANCHOR])
     loaded = ctypes.CDLL(str(library))
     anchor = ctypes.cast(getattr(loaded, pocl_interleave.ANCHOR), ctypes.c_void_p).value
     assert mapped_base(library) + values[pocl_interleave.ANCHOR] == anchor
-    assert pocl_interleave.parse_options_function(library) is not None
+    assert pocl_interleave._count.value == 0
+    with pocl_interleave.interleaved():
+        assert pocl_interleave._count.value == pocl_interleave.INTERLEAVE
+    assert pocl_interleave._count.value == 0
     assert pocl_interleave.build_options() == (f"-DREALISTIC_INTERLEAVE={pocl_interleave.INTERLEAVE}",)
 
 
@@ -73,29 +77,31 @@ def test_any_file_gives_symbols_or_nothing(tmp_path_factory, data, cut):
     for content in (data, bytes(header) + data, bytes(header[:cut])):
         path = folder / "library.so"
         path.write_bytes(content)
-        found = pocl_interleave.function_values(path, ["malloc"])
+        found = pocl_interleave.symbol_values(path, ["malloc"])
         assert isinstance(found, dict) and all(isinstance(v, int) for v in found.values())
-    assert pocl_interleave.function_values(folder / "missing.so", ["malloc"]) == {}
+    assert pocl_interleave.symbol_values(folder / "missing.so", ["malloc"]) == {}
 
 
 RENDER = (
     "import sys\nimport numpy as np\nfrom realistic.camera import pocl_interleave\n"
     "if sys.argv[1] == 'off':\n"
-    "    pocl_interleave.interleave_work_items = lambda device: None\n"
+    "    pocl_interleave.interleave_work_items = lambda device: False\n"
     "from test_shade_kernel import busy_scene\n"
     "from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
     "from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM\n"
     "from realistic.renderer.passes import render_passes\n"
     "scene, eye, target = busy_scene()\n"
-    "camera = LensCamera.looking_at(load_lens('dgauss'), eye, target, None, FULL_FRAME_DIAGONAL_MM, 48, 32, 8)\n"
+    "camera = LensCamera.looking_at(load_lens('dgauss'), eye, target, None, FULL_FRAME_DIAGONAL_MM, 48, 32, 64)\n"
     "np.save(sys.argv[2], render_passes(scene, camera, 'opencl', 3, light_samples=2, pass_samples=2048).image)\n"
     "print('options', pocl_interleave.build_options())\n")
 
 
 def test_interleaving_changes_the_code_not_the_image(opencl_platform, tmp_path):
     """A render through the lens, shading and EWA kernels, each built from source in a process of
-    its own, is bit for bit the same with and without interleaving; with it, the lens kernel's
-    machine code holds ``INTERLEAVE`` times the square roots (where objdump is at hand)."""
+    its own, is bit for bit the same with and without interleaving; with it, the machine code of
+    the lens kernel's variant for large launches (compiled as the kernel is made, the camera having
+    enough samples) holds ``INTERLEAVE`` times the square roots, its small-launch variant and the
+    shading kernel as many as without (where objdump is at hand)."""
     outputs, images = {}, {}
     for mode in ("off", "on"):
         outputs[mode] = built_from_source(RENDER, tmp_path / mode, mode, str(tmp_path / f"{mode}.npy"))
@@ -107,10 +113,15 @@ def test_interleaving_changes_the_code_not_the_image(opencl_platform, tmp_path):
     assert np.array_equal(images["on"], images["off"])
     if shutil.which("objdump") is None:
         return
-    roots = {}
+    roots = {}  # (mode, kernel, PoCL's variant of it): square roots in its machine code
     for mode in ("off", "on"):
-        code = [path for path in (tmp_path / mode).glob("pocl/kcache/**/*.so") if path.stem == "generate_rays"]
-        assert code, f"no lens kernel built in {mode}"
-        text = subprocess.run(["objdump", "-d", str(code[0])], capture_output=True, text=True, check=True).stdout
-        roots[mode] = len(re.findall(r"\bvsqrtp[sd]\b", text))
-    assert roots["on"] == pocl_interleave.INTERLEAVE * roots["off"] > 0, roots
+        for path in (tmp_path / mode).glob("pocl/kcache/**/*.so"):  # .../<kernel>/<variant>/<kernel>.so
+            if path.stem in ("generate_rays", "shade"):
+                text = subprocess.run(["objdump", "-d", str(path)], capture_output=True, text=True,
+                                      check=True).stdout
+                roots[mode, path.stem, path.parent.name] = len(re.findall(r"\bvsqrtp[sd]\b", text))
+    assert ("on", "generate_rays", "256-1-1-goffs0") in roots, roots
+    for _, kernel, variant in roots:
+        off, on = roots["off", kernel, variant], roots["on", kernel, variant]
+        interleaved = kernel == "generate_rays" and not variant.endswith("smallgrid")
+        assert on == (pocl_interleave.INTERLEAVE * off if interleaved else off) and off > 0, roots

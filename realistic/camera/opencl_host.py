@@ -99,7 +99,7 @@ def _context_for(spec: str | None, origin: str) -> cl.Context:
         pocl = [entry for entry in found if "portable computing language" in entry[2].name.lower()]
         device = (pocl or found)[0][3]
     pocl_cpu.name_unknown_cpu(device)  # before any build: PoCL 3.0 cannot build for a CPU LLVM 14 calls "generic"
-    pocl_interleave.interleave_work_items(device)  # before any build too: LLVM reads the option as it builds
+    pocl_interleave.interleave_work_items(device)  # before any build too
     return cl.Context([device])
 
 
@@ -283,7 +283,6 @@ def build_program(ctx: cl.Context, source: str, name: str, options: tuple[str, .
     binaries. (pyopencl's own binary cache, which it leaves off for PoCL, is not used: it fails with
     a KeyError on an unwritable folder and waits a minute on a lock file left by a killed process.)
     """
-    options = (*options, *pocl_interleave.build_options())
     key = disk_cache.cache_key("opencl-program", _device_identity(ctx), source.encode(), options)
     stored = disk_cache.load_arrays(key)
     try:
@@ -326,6 +325,11 @@ def _remember(key: str, program: cl.Program, built_before: bool) -> None:
         disk_cache.store_arrays(key, {f"device{i}": np.frombuffer(b, np.uint8) for i, b in enumerate(binaries)})
 
 
+#: PoCL 3.0 compiles a kernel apart for launches of fewer work items than this (its "smallgrid"
+#: variant) and for the others (measured: 32768 work items take the first, 65536 the second).
+SMALL_GRID_LIMIT = 65536
+
+
 class LensKernel:
     """``lens.cl`` built for one camera; each launch writes straight into the arrays it returns.
 
@@ -337,7 +341,8 @@ class LensKernel:
         self.camera = camera
         self.context = context(device)
         self.queue = cl.CommandQueue(self.context)
-        self.program = build_program(self.context, camera_header(camera) + kernel_source(KERNEL_FILE), KERNEL_FILE)
+        self.program = build_program(self.context, camera_header(camera) + kernel_source(KERNEL_FILE), KERNEL_FILE,
+                                     pocl_interleave.build_options())
         self._generate = cl.Kernel(self.program, "generate_rays")
         self._bits = cl.Kernel(self.program, "sample_bits")
         world = np.ascontiguousarray(camera.world_from_lens[:3, :4], dtype=np.float32)
@@ -350,6 +355,11 @@ class LensKernel:
                       np.float32(1) / np.float32(camera.height), np.float32(w_mm), np.float32(h_mm))
         self._lock = threading.Lock()
         self._rows = ROWS + int(camera.spectral)
+        if camera.sample_count * camera.rays_per_sample >= SMALL_GRID_LIMIT:
+            # PoCL compiles a kernel at its first launch: this one compiles the variant large
+            # launches run, interleaved (small launches, where speed hardly counts, are not)
+            with pocl_interleave.interleaved():
+                self.generate(SampleBlock(0, -(-SMALL_GRID_LIMIT // camera.rays_per_sample), camera.spp))
 
     def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1) -> tuple[tuple[np.uint32, ...], int]:
         """The kernel's (first pixel, offset, slice start, slice width) arguments and the padded

@@ -8,20 +8,25 @@ it: the kernel is bound by latency, not throughput. LLVM's option ``-force-vecto
 makes the vectoriser emit N independent vectors per loop iteration, instruction by instruction, so
 their latencies overlap. On Zen 5 with 16 lanes (``pocl_cpu.WIDE_AMD_CPU``) the lens kernel makes
 1.6x the rays per second at N = 2, 1.9x at N = 4 and 1.7x at N = 8 (dgauss and wide, 1M rays per
-launch): ``INTERLEAVE`` is 4.
+launch): ``INTERLEAVE`` is 4. The shading kernel, bound by its table gathers, gains nothing and
+takes 0.8 s longer to compile so, so only kernels compiled inside ``interleaved()`` (the lens
+kernel's first launch, where PoCL compiles it) are interleaved; elsewhere LLVM's cost model decides.
 
 PoCL 3.0 refuses ``-mllvm`` among build options ("Invalid build option") and has no setting of its
 own for LLVM's options, but its LLVM is in this process, and LLVM reads options from
-``LLVMParseCommandLineOptions`` (``llvm-c/Support.h``), once, before PoCL's first build. The PoCL
-that pip installs links LLVM statically and does not export that function: ``function_values``
-finds it in the library's ELF symbol table (``.symtab``), and its address is its value there
-relative to an exported function's, whose address the dynamic linker gives. A PoCL built against a
-shared libLLVM exports it, and the dynamic linker finds it directly.
+``LLVMParseCommandLineOptions`` (``llvm-c/Support.h``), called once, before PoCL's first build.
+The option then counts as given, and the vectoriser reads its value from the variable
+``llvm::VectorizerParams::VectorizationInterleave`` each time it runs: 0 leaves the count to the
+cost model, and ``interleaved()`` sets it to ``INTERLEAVE`` for a while. The PoCL that pip installs
+links LLVM statically and exports neither: ``symbol_values`` finds them in the library's ELF symbol
+table (``.symtab``), and their addresses are their values there relative to an exported
+function's, whose address the dynamic linker gives. A PoCL built against a shared libLLVM has them
+exported, and the dynamic linker finds them directly.
 
 Interleaving changes the order instructions run in, not any lane's arithmetic (LLVM reorders no
 floating-point sum without fast-math, which no kernel asks for), so images stay bit for bit the
-same (tests/test_pocl_interleave.py). ``build_options`` marks builds made so, which keeps them
-apart in PoCL's kernel cache and in ours.
+same (tests/test_pocl_interleave.py). ``build_options`` marks programs built to be interleaved,
+which keeps them apart in PoCL's kernel cache and in ours.
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ import ctypes
 import platform
 import struct
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -38,30 +45,34 @@ import numpy as np
 INTERLEAVE = 4
 #: The LLVM C API function that parses LLVM's command-line options.
 PARSE_OPTIONS = "LLVMParseCommandLineOptions"
+#: Where the loop vectoriser reads the interleave count of ``-force-vector-interleave``
+#: (``llvm::VectorizerParams::VectorizationInterleave``, an unsigned; LLVM's LoopAccessAnalysis.cpp).
+INTERLEAVE_COUNT = "_ZN4llvm16VectorizerParams23VectorizationInterleaveE"
 #: A function every PoCL exports (the ICD loader asks it for the others), whose address anchors the
 #: symbol table's values to where the library is loaded.
 ANCHOR = "clGetExtensionFunctionAddress"
 
 _ELF_SYMBOL = np.dtype([("name", "<u4"), ("info", "u1"), ("other", "u1"), ("section", "<u2"),
                         ("value", "<u8"), ("size", "<u8")])
-_SYMTAB, _DYNSYM, _FUNCTION = 2, 11, 2  # section types; symbol type (the low four bits of info)
+_SYMTAB, _DYNSYM = 2, 11  # section types
+_OBJECT, _FUNCTION = 1, 2  # symbol types (the low four bits of info)
 _lock = threading.Lock()
-_applied: int | None = None  # the interleave count set in this process, once set
+_count: ctypes.c_uint | None = None  # LLVM's interleave count, once the option is given
 _tried = False
 
 
-def function_values(path: Path, names: list[str]) -> dict[str, int]:
-    """The values (offsets from the load address) of the functions ``names`` defined in the ELF64
+def symbol_values(path: Path, names: list[str]) -> dict[str, int]:
+    """The values (offsets from the load address) of the functions and variables ``names`` defined in the ELF64
     little-endian shared library at ``path``, from its symbol tables (``.symtab`` and ``.dynsym``);
     names it does not define are left out, and a file that is not such a library gives {}."""
     try:
         with open(path, "rb") as file:
-            return _function_values(file, names)
+            return _symbol_values(file, names)
     except (OSError, ValueError, struct.error):
         return {}
 
 
-def _function_values(file, names: list[str]) -> dict[str, int]:
+def _symbol_values(file, names: list[str]) -> dict[str, int]:
     header = file.read(64)
     if len(header) < 64 or header[:6] != b"\x7fELF\x02\x01":  # ELF, 64-bit, little-endian
         return {}
@@ -82,7 +93,8 @@ def _function_values(file, names: list[str]) -> dict[str, int]:
         symbols = np.frombuffer(data, _ELF_SYMBOL, len(data) // _ELF_SYMBOL.itemsize)
         file.seek(headers[link][4])
         strings = file.read(headers[link][5])
-        defined = symbols[((symbols["info"] & 0xF) == _FUNCTION) & (symbols["section"] != 0)]
+        kind = symbols["info"] & 0xF
+        defined = symbols[((kind == _FUNCTION) | (kind == _OBJECT)) & (symbols["section"] != 0)]
         for name in names:
             if name in found:
                 continue
@@ -116,42 +128,66 @@ def loaded_pocl() -> Path | None:
     return None
 
 
-def parse_options_function(library: Path):
-    """``LLVMParseCommandLineOptions`` of the LLVM that ``library`` (loaded) uses, or None."""
+def _addresses(library: Path, names: list[str]) -> dict[str, int]:
+    """Where the functions and variables ``names`` of ``library`` (loaded) or its LLVM are: all of
+    them, or {}."""
     loaded = ctypes.CDLL(str(library))
-    try:
-        address = ctypes.cast(getattr(loaded, PARSE_OPTIONS), ctypes.c_void_p).value
-    except AttributeError:
-        values = function_values(library, [PARSE_OPTIONS, ANCHOR])
-        if len(values) < 2 or not hasattr(loaded, ANCHOR):
-            return None
-        anchor = ctypes.cast(getattr(loaded, ANCHOR), ctypes.c_void_p).value
-        address = anchor - values[ANCHOR] + values[PARSE_OPTIONS]
-    prototype = ctypes.CFUNCTYPE(None, ctypes.c_int, ctypes.POINTER(ctypes.c_char_p), ctypes.c_char_p)
-    return prototype(address)
+    found = {}
+    for name in names:
+        try:
+            found[name] = ctypes.addressof(ctypes.c_char.in_dll(loaded, name))
+        except ValueError:  # not exported: from the symbol table, relative to the anchor
+            break
+    else:
+        return found
+    values = symbol_values(library, [*names, ANCHOR])
+    if len(values) < len(names) + 1 or not hasattr(loaded, ANCHOR):
+        return {}
+    base = ctypes.cast(getattr(loaded, ANCHOR), ctypes.c_void_p).value - values[ANCHOR]
+    return {name: base + values[name] for name in names}
 
 
-def interleave_work_items(device) -> int | None:
-    """Set PoCL's LLVM to interleave ``INTERLEAVE`` vectors, once per process, before any build
-    for ``device`` (a PoCL CPU device on Linux x86-64); the count in force, None where it is not set."""
-    global _applied, _tried
+def interleave_work_items(device) -> bool:
+    """Give LLVM's ``-force-vector-interleave`` once per process, before any build for ``device``
+    (a PoCL CPU device on Linux x86-64), with the count left to the cost model until
+    ``interleaved()``; whether ``interleaved()`` can now interleave."""
+    global _count, _tried
     if (platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64")
             or "portable computing language" not in device.platform.name.lower()):
-        return None
+        return False
     with _lock:
         if not _tried:
             _tried = True
             library = loaded_pocl()
-            parse = parse_options_function(library) if library is not None else None
-            if parse is None:
-                return None
+            found = _addresses(library, [PARSE_OPTIONS, INTERLEAVE_COUNT]) if library is not None else {}
+            if not found:
+                return False
+            prototype = ctypes.CFUNCTYPE(None, ctypes.c_int, ctypes.POINTER(ctypes.c_char_p), ctypes.c_char_p)
             arguments = [b"realistic", f"-force-vector-interleave={INTERLEAVE}".encode()]
-            parse(len(arguments), (ctypes.c_char_p * len(arguments))(*arguments), b"")
-            _applied = INTERLEAVE
-        return _applied
+            prototype(found[PARSE_OPTIONS])(len(arguments), (ctypes.c_char_p * len(arguments))(*arguments), b"")
+            count = ctypes.c_uint.from_address(found[INTERLEAVE_COUNT])
+            if count.value == INTERLEAVE:  # the option took: hand the count back to the cost model
+                count.value = 0
+                _count = count
+        return _count is not None
+
+
+@contextmanager
+def interleaved() -> Iterator[None]:
+    """Kernels that PoCL compiles while this is open (on any thread) interleave ``INTERLEAVE``
+    vectors; one caller at a time."""
+    with _lock:
+        if _count is None:
+            yield
+            return
+        _count.value = INTERLEAVE
+        try:
+            yield
+        finally:
+            _count.value = 0
 
 
 def build_options() -> tuple[str, ...]:
-    """Build options that mark a program built with interleaving on (none when it is off): PoCL's
-    kernel cache and ours key on the options, not on LLVM's settings."""
-    return () if _applied is None else (f"-DREALISTIC_INTERLEAVE={_applied}",)
+    """Build options that mark a program whose kernels are compiled ``interleaved()`` (none where
+    interleaving is off): PoCL's kernel cache and ours key on the options, not on LLVM's settings."""
+    return () if _count is None else (f"-DREALISTIC_INTERLEAVE={INTERLEAVE}",)
