@@ -30,6 +30,30 @@ def test_film_averages_over_the_samples_taken_including_partial_pixels():
     np.testing.assert_array_equal(film.samples, [4, 4, 4])
 
 
+def sequential_sums(pixel: np.ndarray, value: np.ndarray, pixel_count: int) -> np.ndarray:
+    """Per-pixel sums as a plain loop makes them: each row added in turn, in float64."""
+    sums = np.zeros((pixel_count, 3))
+    for p, row in zip(pixel, value.astype(np.float64)):
+        sums[p] += row
+    return sums
+
+
+@pytest.mark.parametrize("sort", [True, False])
+def test_pass_sums_add_each_pixels_rows_in_order_to_the_bit(sort):
+    """Rows in pixel order (runs of up to 700 rows, pixels with none between) and rows in any order
+    both give exactly the sums of adding each row in turn in float64, as the farm's and the
+    threads' renders assume. (``np.add.reduceat``, 35 % faster on sorted rows, fails this: it
+    adds long runs pairwise.)"""
+    rng = np.random.default_rng(4)
+    pixel = np.repeat(np.arange(0, 60, 3), rng.integers(1, 700, 20)) + 5
+    if not sort:
+        pixel = rng.permutation(pixel)
+    value = (rng.random((len(pixel), 3)) * 10.0 ** rng.integers(-3, 4, (len(pixel), 1))).astype(np.float32)
+    sums = pass_sums(pixel, value, 5, 60)
+    np.testing.assert_array_equal(sums, sequential_sums(pixel - 5, value, 60))
+    assert np.count_nonzero(sums.any(axis=1)) == 20
+
+
 def test_film_counts_a_slice_of_each_pixels_samples():
     """Samples [1, 3) of pixels 0..2 give each pixel 2 samples; then sample 0 of all of them, 3."""
     film = Film(width=3, height=1, spp=4)
