@@ -341,8 +341,9 @@ class LensKernel:
         self.camera = camera
         self.context = context(device)
         self.queue = cl.CommandQueue(self.context)
+        interleave = pocl_interleave.ASPHERIC_INTERLEAVE if camera.lens.asphere_count else pocl_interleave.INTERLEAVE
         self.program = build_program(self.context, camera_header(camera) + kernel_source(KERNEL_FILE), KERNEL_FILE,
-                                     pocl_interleave.build_options())
+                                     pocl_interleave.build_options(interleave))
         self._generate = cl.Kernel(self.program, "generate_rays")
         self._bits = cl.Kernel(self.program, "sample_bits")
         world = np.ascontiguousarray(camera.world_from_lens[:3, :4], dtype=np.float32)
@@ -358,7 +359,7 @@ class LensKernel:
         if camera.sample_count * camera.rays_per_sample >= SMALL_GRID_LIMIT:
             # PoCL compiles a kernel at its first launch: this one compiles the variant large
             # launches run, interleaved (small launches, where speed hardly counts, are not)
-            with pocl_interleave.interleaved():
+            with pocl_interleave.interleaved(interleave):
                 self.generate(SampleBlock(0, -(-SMALL_GRID_LIMIT // camera.rays_per_sample), camera.spp))
 
     def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1) -> tuple[tuple[np.uint32, ...], int]:

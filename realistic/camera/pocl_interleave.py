@@ -8,16 +8,19 @@ it: the kernel is bound by latency, not throughput. LLVM's option ``-force-vecto
 makes the vectoriser emit N independent vectors per loop iteration, instruction by instruction, so
 their latencies overlap. On Zen 5 with 16 lanes (``pocl_cpu.WIDE_AMD_CPU``) the lens kernel makes
 1.6x the rays per second at N = 2, 1.9x at N = 4 and 1.7x at N = 8 (dgauss and wide, 1M rays per
-launch): ``INTERLEAVE`` is 4. The shading kernel, bound by its table gathers, gains nothing and
-takes 0.8 s longer to compile so, so only kernels compiled inside ``interleaved()`` (the lens
-kernel's first launch, where PoCL compiles it) are interleaved; elsewhere LLVM's cost model decides.
+launch): ``INTERLEAVE`` is 4. A lens with aspheres makes a kernel three times as long (six
+Newton steps a surface), whose first build takes 1-1.8 s longer at 4 and 0.3-0.5 s at 2, for 2.3x
+and 1.7x the rays per second: such kernels are interleaved ``ASPHERIC_INTERLEAVE`` times. The
+shading kernel, bound by its table gathers, gains nothing and takes 0.8 s longer to compile so, so
+only kernels compiled inside ``interleaved()`` (the lens kernel's first launch, where PoCL compiles
+it) are interleaved; elsewhere LLVM's cost model decides.
 
 PoCL 3.0 refuses ``-mllvm`` among build options ("Invalid build option") and has no setting of its
 own for LLVM's options, but its LLVM is in this process, and LLVM reads options from
 ``LLVMParseCommandLineOptions`` (``llvm-c/Support.h``), called once, before PoCL's first build.
 The option then counts as given, and the vectoriser reads its value from the variable
 ``llvm::VectorizerParams::VectorizationInterleave`` each time it runs: 0 leaves the count to the
-cost model, and ``interleaved()`` sets it to ``INTERLEAVE`` for a while. The PoCL that pip installs
+cost model, and ``interleaved(count)`` sets it for a while. The PoCL that pip installs
 links LLVM statically and exports neither: ``symbol_values`` finds them in the library's ELF symbol
 table (``.symtab``), and their addresses are their values there relative to an exported
 function's, whose address the dynamic linker gives. A PoCL built against a shared libLLVM has them
@@ -41,8 +44,10 @@ from pathlib import Path
 
 import numpy as np
 
-#: Vectors of work items interleaved per iteration of PoCL's work-item loop.
+#: Vectors of work items interleaved per iteration of PoCL's work-item loop, and for the longer
+#: kernels of lenses with aspheres.
 INTERLEAVE = 4
+ASPHERIC_INTERLEAVE = 2
 #: The LLVM C API function that parses LLVM's command-line options.
 PARSE_OPTIONS = "LLVMParseCommandLineOptions"
 #: Where the loop vectoriser reads the interleave count of ``-force-vector-interleave``
@@ -173,21 +178,21 @@ def interleave_work_items(device) -> bool:
 
 
 @contextmanager
-def interleaved() -> Iterator[None]:
-    """Kernels that PoCL compiles while this is open (on any thread) interleave ``INTERLEAVE``
-    vectors; one caller at a time."""
+def interleaved(count: int = INTERLEAVE) -> Iterator[None]:
+    """Kernels that PoCL compiles while this is open (on any thread) interleave ``count`` vectors;
+    one caller at a time."""
     with _lock:
         if _count is None:
             yield
             return
-        _count.value = INTERLEAVE
+        _count.value = count
         try:
             yield
         finally:
             _count.value = 0
 
 
-def build_options() -> tuple[str, ...]:
-    """Build options that mark a program whose kernels are compiled ``interleaved()`` (none where
-    interleaving is off): PoCL's kernel cache and ours key on the options, not on LLVM's settings."""
-    return () if _count is None else (f"-DREALISTIC_INTERLEAVE={INTERLEAVE}",)
+def build_options(count: int = INTERLEAVE) -> tuple[str, ...]:
+    """Build options that mark a program whose kernels are compiled ``interleaved(count)`` (none
+    where interleaving is off): PoCL's kernel cache and ours key on the options, not on LLVM's settings."""
+    return () if _count is None else (f"-DREALISTIC_INTERLEAVE={count}",)
