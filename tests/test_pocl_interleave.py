@@ -25,20 +25,13 @@ def mapped_base(library: Path) -> int:
     raise AssertionError(f"{library} is not mapped")
 
 
-def loaded_path(name: str) -> Path:
-    """The path this process loaded the library whose file name starts with ``name`` from."""
-    for line in Path("/proc/self/maps").read_text().splitlines():
-        fields = line.split(maxsplit=5)
-        if len(fields) == 6 and Path(fields[5]).name.startswith(name):
-            return Path(fields[5])
-    pytest.skip(f"no {name} mapped in this process")
-
-
 @pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="needs /proc")
 def test_symbol_values_place_exported_functions_where_the_dynamic_linker_put_them():
     """The value read from libc's symbol table plus the address libc is mapped at (from
     ``/proc/self/maps``) is the address ``dlsym`` gives, for functions libc exports."""
-    libc_path = loaded_path("libc.so")
+    libc_path = pocl_interleave.loaded_library("libc.so")
+    if libc_path is None:
+        pytest.skip("no libc.so mapped in this process")
     libc = ctypes.CDLL(ctypes.util.find_library("c"))
     names = ["malloc", "free", "qsort", "abort"]  # plain functions: no IFUNC (memcpy)
     values = pocl_interleave.symbol_values(libc_path, names)
@@ -53,7 +46,7 @@ def test_the_loaded_pocl_places_llvm_where_its_symbol_table_says(opencl_platform
     or exported; the exported anchor's symbol value agrees with where the library is mapped, and
     the count is back with the cost model (0) outside ``interleaved()``, ``INTERLEAVE`` inside."""
     opencl_platform.context()
-    library = pocl_interleave.loaded_pocl()
+    library = pocl_interleave.loaded_library("libpocl")
     if library is None or pocl_interleave._count is None:
         pytest.skip("the OpenCL platform is not a PoCL whose LLVM options can be set")
     values = pocl_interleave.symbol_values(library, [pocl_interleave.ANCHOR])

@@ -96,7 +96,7 @@ def _context_for(spec: str | None, origin: str) -> cl.Context:
     if spec:
         device = _match(spec, found, origin)
     else:
-        pocl = [entry for entry in found if "portable computing language" in entry[2].name.lower()]
+        pocl = [entry for entry in found if pocl_cpu.is_pocl(entry[2].name)]
         device = (pocl or found)[0][3]
     pocl_cpu.name_unknown_cpu(device)  # before any build: PoCL 3.0 cannot build for a CPU LLVM 14 calls "generic"
     pocl_interleave.interleave_work_items(device)  # before any build too

@@ -123,12 +123,23 @@ def rewrite_cpu_name(struct_address: int, struct_bytes: int, name: str) -> bool:
     return False
 
 
+def is_pocl(platform_name: str) -> bool:
+    """Whether an OpenCL platform of this name is PoCL."""
+    return "portable computing language" in platform_name.lower()
+
+
+def pocl_on_linux_x86_64(device) -> bool:
+    """Whether ``device`` is PoCL's, in this process on Linux x86-64: where this module and
+    ``pocl_interleave`` reach into PoCL's memory."""
+    return (platform.system() == "Linux" and platform.machine() in ("x86_64", "AMD64")
+            and is_pocl(device.platform.name))
+
+
 def name_unknown_cpu(device) -> str | None:
     """Give a PoCL CPU device that LLVM named "generic" a name LLVM knows (``cpu_name``), so its
     kernels build; the name given, or None where nothing needed it (another driver or processor, a
     CPU LLVM knows, or a device already named)."""
-    if (platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64")
-            or "portable computing language" not in device.platform.name.lower()):
+    if not pocl_on_linux_x86_64(device):
         return None
     name = cpu_name(cpuinfo_fields())
     if not rewrite_cpu_name(device.int_ptr, DEVICE_STRUCT_BYTES, name):

@@ -35,7 +35,6 @@ which keeps them apart in PoCL's kernel cache and in ours.
 from __future__ import annotations
 
 import ctypes
-import platform
 import struct
 import threading
 from collections.abc import Iterator
@@ -43,6 +42,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+
+from realistic.camera import pocl_cpu
 
 #: Vectors of work items interleaved per iteration of PoCL's work-item loop, and for the longer
 #: kernels of lenses with aspheres.
@@ -120,15 +121,16 @@ def _string_offsets(strings: bytes, name: bytes) -> list[int]:
     return offsets
 
 
-def loaded_pocl() -> Path | None:
-    """The PoCL library this process has loaded (``/proc/self/maps``), if any."""
+def loaded_library(prefix: str) -> Path | None:
+    """The library whose file name starts with ``prefix`` that this process has loaded
+    (``/proc/self/maps``), if any."""
     try:
         lines = Path("/proc/self/maps").read_text().splitlines()
     except OSError:
         return None
     for line in lines:
         fields = line.split(maxsplit=5)
-        if len(fields) == 6 and Path(fields[5]).name.startswith("libpocl"):
+        if len(fields) == 6 and Path(fields[5]).name.startswith(prefix):
             return Path(fields[5])
     return None
 
@@ -157,13 +159,12 @@ def interleave_work_items(device) -> bool:
     (a PoCL CPU device on Linux x86-64), with the count left to the cost model until
     ``interleaved()``; whether ``interleaved()`` can now interleave."""
     global _count, _tried
-    if (platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64")
-            or "portable computing language" not in device.platform.name.lower()):
+    if not pocl_cpu.pocl_on_linux_x86_64(device):
         return False
     with _lock:
         if not _tried:
             _tried = True
-            library = loaded_pocl()
+            library = loaded_library("libpocl")
             found = _addresses(library, [PARSE_OPTIONS, INTERLEAVE_COUNT]) if library is not None else {}
             if not found:
                 return False
