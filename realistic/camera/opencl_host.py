@@ -326,8 +326,16 @@ def _remember(key: str, program: cl.Program, built_before: bool) -> None:
 
 
 #: PoCL 3.0 compiles a kernel apart for launches of fewer work items than this (its "smallgrid"
-#: variant) and for the others (measured: 32768 work items take the first, 65536 the second).
+#: variant) and for the others (measured: 32768 work items take the first, 65536 the second). Every
+#: launch of the lens, shading and EWA kernels has at least this many work items (``launch_size``),
+#: so each kernel is compiled once, not twice (0.1-0.6 s each, uncached), at the cost of padding work
+#: items in a small launch (65536 of them take about a millisecond).
 SMALL_GRID_LIMIT = 65536
+
+
+def launch_size(work_items: int) -> int:
+    """Work items to launch for ``work_items``: a multiple of ``LOCAL_SIZE``, at least ``SMALL_GRID_LIMIT``."""
+    return max(SMALL_GRID_LIMIT, -(-work_items // LOCAL_SIZE) * LOCAL_SIZE)
 
 
 class LensKernel:
@@ -356,21 +364,22 @@ class LensKernel:
                       np.float32(1) / np.float32(camera.height), np.float32(w_mm), np.float32(h_mm))
         self._lock = threading.Lock()
         self._rows = ROWS + int(camera.spectral)
-        if camera.sample_count * camera.rays_per_sample >= SMALL_GRID_LIMIT:
-            # PoCL compiles a kernel at its first launch: this one compiles the variant large
-            # launches run, interleaved (small launches, where speed hardly counts, are not)
-            with pocl_interleave.interleaved(interleave):
-                self.generate(SampleBlock(0, -(-SMALL_GRID_LIMIT // camera.rays_per_sample), camera.spp))
+        # PoCL compiles a kernel at its first launch (every launch is as large: ``launch_size``):
+        # this one compiles it interleaved
+        with pocl_interleave.interleaved(interleave):
+            self.generate(SampleBlock(0, 1, camera.spp))
 
     def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1) -> tuple[tuple[np.uint32, ...], int]:
         """The kernel's (first pixel, offset, slice start, slice width) arguments and the padded
-        launch size (``rays_per_sample`` work items per sample), checking the uint32 limits."""
-        padded = -(-block.count * rays_per_sample // LOCAL_SIZE) * LOCAL_SIZE
+        launch size (``rays_per_sample`` work items per sample), checking the uint32 limits for the
+        work items up to the last work group's end (those padded beyond it compute rays nobody reads)."""
+        used = -(-block.count * rays_per_sample // LOCAL_SIZE) * LOCAL_SIZE
         first_pixel, offset = divmod(block.first, block.samples)
-        if offset + padded >= 2**32 or first_pixel + (offset + padded) // block.samples >= 2**31 \
+        if offset + used >= 2**32 or first_pixel + (offset + used) // block.samples >= 2**31 \
                 or block.first_sample + block.samples >= 2**32:
             raise ValueError(f"sample block {block} exceeds the kernel's 32-bit indices")
-        return tuple(np.uint32(v) for v in (first_pixel, offset, block.first_sample, block.samples)), padded
+        return tuple(np.uint32(v) for v in (first_pixel, offset, block.first_sample, block.samples)), \
+            launch_size(used)
 
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
         """Rays of the block's samples, as ``LensCamera.generate_rays`` makes them (float32): a

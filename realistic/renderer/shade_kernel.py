@@ -32,7 +32,7 @@ from realistic.camera import opencl_host
 
 KERNEL_FILE = "shade.cl"
 #: Work-group size along the rays; launches are padded to a multiple of it.
-LOCAL_SIZE = 256
+LOCAL_SIZE = opencl_host.LOCAL_SIZE
 #: Table row widths, as ``kernels/shade.cl`` defines them.
 GEOM_INTS, GEOM_FLOATS, MATERIAL_FLOATS, LIGHT_FLOATS = 4, 9, 16, 20
 KIND_CONSTANT, KIND_GRID, KIND_CHECKER, KIND_HOST = range(4)
@@ -183,7 +183,7 @@ class ShadeKernel:
             raise ValueError(f"a launch makes 1 to {MAX_LAUNCH_SAMPLES} light samples per ray, not {light_samples}")
         total = first_sample + light_samples if total_samples is None else total_samples
         n = len(origin)
-        stride = -(-n // LOCAL_SIZE) * LOCAL_SIZE
+        stride = opencl_host.launch_size(n)  # rows past n are dead light samples (length -1)
         rows = stride * light_samples
         if n == 0:
             empty = np.zeros((0, 3), np.float32)
