@@ -4,6 +4,8 @@ Skips only when no OpenCL platform exists; CI installs PoCL through the package'
 """
 
 import dataclasses
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -191,8 +193,9 @@ def _assert_same_rays(a, b):
 
 
 def test_a_program_from_cached_binaries_makes_the_rays_a_source_build_makes(monkeypatch, tmp_path):
-    """A program's first build leaves a mark in the disk cache, its second stores the binaries, and
-    the third loads them: the rays are bit for bit those of a build from source with the cache off."""
+    """A program's first build leaves a mark in the disk cache, its second stores the binaries as
+    the process exits, and the third loads them: the rays are bit for bit those of a build from
+    source with the cache off."""
     from realistic.core import disk_cache
 
     monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
@@ -200,6 +203,8 @@ def test_a_program_from_cached_binaries_makes_the_rays_a_source_build_makes(monk
     (entry,) = tmp_path.glob("opencl-program-*.npz")
     assert list(disk_cache.load_arrays(entry.stem)) == ["built"]
     second = _telephoto_rays()
+    assert list(disk_cache.load_arrays(entry.stem)) == ["built"]  # not yet: at exit
+    opencl_host.store_built_binaries()
     assert list(disk_cache.load_arrays(entry.stem)) == ["device0"]
     loaded = _telephoto_rays()
     monkeypatch.setenv("REALISTIC_CACHE_DIR", "off")
@@ -207,6 +212,33 @@ def test_a_program_from_cached_binaries_makes_the_rays_a_source_build_makes(monk
     opencl_host.build_program.cache_clear()
     for rays in (second, loaded, uncached):
         _assert_same_rays(rays, first)
+
+
+BUILD = ("import glob, os\n"
+         "from realistic.camera import opencl_host\n"
+         "from realistic.core import disk_cache\n"
+         "source = '__kernel void twice(__global float *a) { a[get_global_id(0)] *= 2.0f; }'\n"
+         "opencl_host.build_program(opencl_host.context(), source, 'twice.cl')\n"
+         "(entry,) = glob.glob(os.path.join(os.environ['REALISTIC_CACHE_DIR'], 'opencl-program-*.npz'))\n"
+         "print(sorted(disk_cache.load_arrays(os.path.basename(entry)[:-4])))\n")
+
+
+def test_a_second_build_stores_its_binaries_as_the_process_exits(tmp_path):
+    """A program's first build from source leaves a mark; the second, in another process, stores
+    the binaries when that process exits (``store_built_binaries``), not while it runs."""
+    from conftest import fresh_process_env
+
+    def build() -> str:
+        run = subprocess.run([sys.executable, "-c", BUILD], capture_output=True, text=True, timeout=300,
+                             env=fresh_process_env(REALISTIC_CACHE_DIR=str(tmp_path)))
+        assert run.returncode == 0, run.stderr[-2000:]
+        return run.stdout.strip()
+
+    assert build() == "['built']"
+    assert build() == "['built']"  # during the second process
+    (entry,) = tmp_path.glob("opencl-program-*.npz")
+    with np.load(entry) as stored:
+        assert stored.files == ["device0"]  # after it
 
 
 def test_a_corrupt_or_foreign_cache_entry_is_rebuilt_from_source(monkeypatch, tmp_path):
@@ -218,6 +250,7 @@ def test_a_corrupt_or_foreign_cache_entry_is_rebuilt_from_source(monkeypatch, tm
     for bad in ({"device0": np.frombuffer(b"not a program", np.uint8)}, {"elsewhere": np.zeros(4, np.uint8)}):
         disk_cache.store_arrays(entry.stem, bad)
         _assert_same_rays(_telephoto_rays(), built)
+        opencl_host.store_built_binaries()
         assert list(disk_cache.load_arrays(entry.stem)) == ["device0"]  # replaced by the real binaries
     entry.write_bytes(b"truncated")
     _assert_same_rays(_telephoto_rays(), built)

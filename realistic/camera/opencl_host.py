@@ -13,6 +13,7 @@ otherwise the first PoCL device, otherwise the first device found.
 
 from __future__ import annotations
 
+import atexit
 import os
 import threading
 from functools import cache, lru_cache
@@ -280,8 +281,9 @@ def build_program(ctx: cl.Context, source: str, name: str, options: tuple[str, .
     loading a binary takes 5 ms; a render builds three. Asking PoCL for a program's binaries makes it
     compile every kernel once more, for any work-group size (about 0.5 s a program), which pays only
     for a program built again and again: so the first build leaves a mark, and the second stores the
-    binaries. (pyopencl's own binary cache, which it leaves off for PoCL, is not used: it fails with
-    a KeyError on an unwritable folder and waits a minute on a lock file left by a killed process.)
+    binaries as the process exits (``store_built_binaries``), not before its render. (pyopencl's own
+    binary cache, which it leaves off for PoCL, is not used: it fails with a KeyError on an
+    unwritable folder and waits a minute on a lock file left by a killed process.)
     """
     key = disk_cache.cache_key("opencl-program", _device_identity(ctx), source.encode(), options)
     stored = disk_cache.load_arrays(key)
@@ -315,14 +317,32 @@ def _from_binaries(ctx: cl.Context, stored: dict[str, np.ndarray] | None, option
         return None
 
 
+#: Programs built from source for the second time, whose binaries ``store_built_binaries`` stores.
+_unstored: list[tuple[str, cl.Program]] = []
+
+
 def _remember(key: str, program: cl.Program, built_before: bool) -> None:
-    """After a build from source: a mark the first time, the binaries from the second on."""
+    """After a build from source: a mark the first time; from the second on, the binaries at exit."""
     if not built_before:
         disk_cache.store_arrays(key, {"built": np.zeros(1, np.uint8)})
-        return
-    binaries = program.get_info(cl.program_info.BINARIES)
-    if all(binaries):
-        disk_cache.store_arrays(key, {f"device{i}": np.frombuffer(b, np.uint8) for i, b in enumerate(binaries)})
+    else:
+        _unstored.append((key, program))
+
+
+@atexit.register  # after pyopencl's own exit handler is registered, so it runs first
+def store_built_binaries() -> None:
+    """Store the binaries of the programs ``build_program`` built from source a second time. Run as
+    the process exits, when the image is written: asking PoCL for binaries compiles every kernel
+    again (about 0.5 s a program). An interrupt or a driver's refusal leaves the rest unstored."""
+    try:
+        while _unstored:
+            key, program = _unstored.pop()
+            binaries = program.get_info(cl.program_info.BINARIES)
+            if all(binaries):
+                disk_cache.store_arrays(key, {f"device{i}": np.frombuffer(b, np.uint8)
+                                              for i, b in enumerate(binaries)})
+    except (KeyboardInterrupt, cl.Error):
+        _unstored.clear()
 
 
 #: PoCL 3.0 compiles a kernel apart for launches of fewer work items than this (its "smallgrid"
