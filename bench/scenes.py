@@ -1,7 +1,7 @@
 """Scene benchmark: set-up, first pass and samples/s of the homework scenes, their dragons and ours.
 
     .venv/bin/python bench/scenes.py [--res 300x300] [--spp 32] [--light-samples N] [--repeats 1]
-        [--empty-cache] [--backend opencl|numpy] [--only TEXT] [--flat]
+        [--empty-cache | --cold] [--backend opencl|numpy] [--only TEXT] [--flat]
 
 Scenes: the homework's ``../shared/scenes/pbrt/dof-dragons.<lens>.pbrt``, their dragon versions
 ``scenes/dof-dragons/<lens>.pbrt`` (search paths ``../shared/meshes`` and ``../shared/scenes/pbrt``)
@@ -25,9 +25,12 @@ library figures with every instance copied into one world-space embree scene
 and skips the CLI column.
 
 Light samples are the scenes' own (the homework gives 4) unless ``--light-samples`` is given. The
-exit-pupil tables come from the user's disk cache unless ``--empty-cache`` gives every process an
-empty one. Medians of ``--repeats`` (default 1, to keep the run short). The machine's load is not
-controlled: on a shared machine the figures are upper bounds. Writes bench/results/scenes.json.
+exit-pupil tables and the OpenCL programs' binaries come from the user's disk cache unless
+``--empty-cache`` gives every process an empty one; ``--cold`` empties PoCL's kernel cache too (an
+empty ``XDG_CACHE_HOME`` per process), so that every process renders as a user's first-ever render
+of that scene does, compiling its kernels. Medians of ``--repeats`` (default 1, to keep the run
+short). The machine's load is not controlled: on a shared machine the figures are upper bounds.
+Writes bench/results/scenes.json.
 """
 
 from __future__ import annotations
@@ -171,13 +174,24 @@ print(json.dumps({"import_s": imported, "peak_rss_mib": bare, "with_renderer_mib
 """
 
 
-def _child_environment(empty_cache: bool) -> dict[str, str]:
+#: What the caches a measuring process starts with are called in the table's heading.
+CACHE_WORDS = {"user": "the user's caches", "empty": "empty exit-pupil and program-binary cache",
+               "cold": "every cache empty (PoCL's kernels too)"}
+
+
+def _child_environment(caches: str, empty_folder: str) -> dict[str, str]:
     """The measuring processes' environment: Python's bytecode cache allowed, as in an installed
-    package (pip compiles it at install), so start-up is not timed compiling the sources."""
+    package (pip compiles it at install), so start-up is not timed compiling the sources; with
+    ``caches`` "empty", realistic's disk cache in ``empty_folder``; "cold", every cache under
+    ``XDG_CACHE_HOME`` (realistic's, PoCL's kernels, pyopencl's) there."""
     env = dict(os.environ)
     env.pop("PYTHONDONTWRITEBYTECODE", None)
-    if empty_cache:
-        env["REALISTIC_CACHE_DIR"] = tempfile.mkdtemp(prefix="realistic-bench-cache-")
+    if caches == "empty":
+        env["REALISTIC_CACHE_DIR"] = empty_folder
+    elif caches == "cold":
+        for name in ("REALISTIC_CACHE_DIR", "POCL_CACHE_DIR"):
+            env.pop(name, None)
+        env["XDG_CACHE_HOME"] = empty_folder
     return env
 
 
@@ -185,33 +199,35 @@ class ChildFailed(Exception):
     """A measuring process exited with an error; the message is its last line of stderr."""
 
 
-def _run_child(command: list[str], empty_cache: bool) -> str:
+def _run_child(command: list[str], caches: str) -> str:
     """Run ``command`` from the repository root and return its stdout, or raise ``ChildFailed``."""
-    run = subprocess.run(command, cwd=ROOT, env=_child_environment(empty_cache), capture_output=True, text=True)
+    with tempfile.TemporaryDirectory(prefix="realistic-bench-cache-") as empty_folder:
+        run = subprocess.run(command, cwd=ROOT, env=_child_environment(caches, empty_folder), capture_output=True,
+                             text=True)
     if run.returncode != 0:
         lines = run.stderr.strip().splitlines() or [f"exit status {run.returncode}"]
         raise ChildFailed(lines[-1])
     return run.stdout
 
 
-def cli_seconds(arguments: list[str], empty_cache: bool) -> float:
+def cli_seconds(arguments: list[str], caches: str) -> float:
     """Wall seconds of ``python -m realistic render`` with ``arguments``."""
     with tempfile.TemporaryDirectory() as folder:
         start = time.perf_counter()
         _run_child([sys.executable, "-m", "realistic", "render", *arguments, "--out", str(Path(folder) / "r.exr")],
-                   empty_cache)
+                   caches)
         return time.perf_counter() - start
 
 
-def library_figures(arguments: list[str], empty_cache: bool, flat: bool = False) -> dict:
+def library_figures(arguments: list[str], caches: str, flat: bool = False) -> dict:
     """``measure_in_process`` run in a fresh Python process (this script with ``--child``)."""
     command = [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps([time.time(), arguments, flat])]
-    return json.loads(_run_child(command, empty_cache).strip().splitlines()[-1])
+    return json.loads(_run_child(command, caches).strip().splitlines()[-1])
 
 
 def baseline_figures() -> dict:
     """``BASELINE_CODE`` in a fresh Python process."""
-    return json.loads(_run_child([sys.executable, "-c", BASELINE_CODE], False).strip().splitlines()[-1])
+    return json.loads(_run_child([sys.executable, "-c", BASELINE_CODE], "user").strip().splitlines()[-1])
 
 
 def median_figures(runs: list[dict]) -> dict:
@@ -237,7 +253,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="light samples per hit (default: each scene's own)")
     parser.add_argument("--repeats", type=checked(int, positive_count), default=1, metavar="N",
                         help="runs per figure; the median is shown (default 1)")
-    parser.add_argument("--empty-cache", action="store_true", help="an empty exit-pupil disk cache per process")
+    caches = parser.add_mutually_exclusive_group()
+    caches.add_argument("--empty-cache", action="store_const", dest="caches", const="empty", default="user",
+                        help="an empty realistic disk cache (exit-pupil tables, program binaries) per process")
+    caches.add_argument("--cold", action="store_const", dest="caches", const="cold",
+                        help="every cache empty (PoCL's kernels too) per process: a first-ever render")
     parser.add_argument("--backend", default="opencl", choices=("opencl", "numpy"))
     parser.add_argument("--only", metavar="TEXT", help="only the scenes whose name contains TEXT (e.g. dragons)")
     parser.add_argument("--flat", action="store_true",
@@ -260,7 +280,7 @@ def main() -> None:
         print(f"skipped: {message}")
     print(f"{args.res[0]}x{args.res[1]}, {args.spp} spp, backend {args.backend}, median of {args.repeats}, "
           f"{'flat (unshared) embree scene, ' if args.flat else ''}"
-          f"{'empty' if args.empty_cache else 'user'} exit-pupil cache; the machine's load is not controlled; "
+          f"{CACHE_WORDS[args.caches]}; the machine's load is not controlled; "
           f"processor: {machine.describe()}")
     header = (f"{'scene':<20}{'cli s':>8}{'setup s':>9}{'(import':>8}{'load':>7}{'pupil':>7}{'stage)':>7}"
               f"{'1st pass s':>11}{'1st frame s':>12}{'render s':>10}{'M samples/s':>12}{'lights':>7}{'peak MiB':>9}")
@@ -274,8 +294,8 @@ def main() -> None:
         arguments = render_arguments(scene, args.res, args.spp, args.light_samples, args.backend)
         try:
             cli = (float("nan") if args.flat else
-                   statistics.median(cli_seconds(arguments, args.empty_cache) for _ in range(args.repeats)))
-            lib = median_figures([library_figures(arguments, args.empty_cache, args.flat) for _ in range(args.repeats)])
+                   statistics.median(cli_seconds(arguments, args.caches) for _ in range(args.repeats)))
+            lib = median_figures([library_figures(arguments, args.caches, args.flat) for _ in range(args.repeats)])
         except ChildFailed as err:
             skipped.append(f"{scene.name}: failed: {err}")
             print(f"{scene.name:<20}failed: {err}", flush=True)
@@ -292,7 +312,7 @@ def main() -> None:
     print(f"first pass under {FIRST_PASS_GOAL_S:g} s: " + ("every scene" if not slow else f"not {', '.join(slow)}"))
     report = {"machine": machine.describe(), "resolution": list(args.res), "spp": args.spp,
               "light_samples": args.light_samples,
-              "backend": args.backend, "repeats": args.repeats, "empty_cache": args.empty_cache, "flat": args.flat,
+              "backend": args.backend, "repeats": args.repeats, "caches": args.caches, "flat": args.flat,
               "skipped": skipped, "baseline": baseline, "rows": rows, "pbrt_v3": PBRT_V3,
               "first_pass_goal_s": FIRST_PASS_GOAL_S}
     out = ROOT / "bench" / "results" / "scenes.json"

@@ -135,6 +135,22 @@ def test_scene_list_with_shared_data_has_homework_and_dragons(tmp_path):
     assert names["homework dgauss"].search_paths == ()
 
 
+@pytest.mark.parametrize("caches", ["user", "empty", "cold"])
+def test_child_caches_start_where_the_option_says(monkeypatch, caches):
+    """--empty-cache moves realistic's disk cache to the empty folder; --cold moves every cache under
+    XDG_CACHE_HOME there (PoCL's too), leaving no cache variable that points elsewhere."""
+    for name, value in (("REALISTIC_CACHE_DIR", "/mine"), ("POCL_CACHE_DIR", "/pocl"), ("XDG_CACHE_HOME", "/xdg"),
+                        ("PYTHONDONTWRITEBYTECODE", "1")):
+        monkeypatch.setenv(name, value)
+    env = scenes._child_environment(caches, "/empty")
+    assert "PYTHONDONTWRITEBYTECODE" not in env
+    expected = {"user": ("/mine", "/pocl", "/xdg"), "empty": ("/empty", "/pocl", "/xdg"),
+                "cold": (None, None, "/empty")}[caches]
+    assert tuple(env.get(name) for name in ("REALISTIC_CACHE_DIR", "POCL_CACHE_DIR", "XDG_CACHE_HOME")) == expected
+    option = {"user": [], "empty": ["--empty-cache"], "cold": ["--cold"]}[caches]
+    assert scenes.build_parser().parse_args(option).caches == caches
+
+
 def test_render_arguments_carry_search_paths_and_light_samples(tmp_path):
     scene = scenes.BenchScene("x", tmp_path / "x.pbrt", (tmp_path / "m", tmp_path / "p"))
     arguments = scenes.render_arguments(scene, (300, 300), 32, None, "opencl")
