@@ -183,7 +183,7 @@ class ShadeKernel:
             raise ValueError(f"a launch makes 1 to {MAX_LAUNCH_SAMPLES} light samples per ray, not {light_samples}")
         total = first_sample + light_samples if total_samples is None else total_samples
         n = len(origin)
-        stride = opencl_host.launch_size(n)  # rows past n are dead light samples (length -1)
+        stride = -(-n // LOCAL_SIZE) * LOCAL_SIZE
         rows = stride * light_samples
         if n == 0:
             empty = np.zeros((0, 3), np.float32)
