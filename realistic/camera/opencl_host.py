@@ -355,9 +355,15 @@ def store_built_binaries() -> None:
 SMALL_GRID_LIMIT = 65536
 
 
+def whole_groups(work_items: int) -> int:
+    """``work_items`` rounded up to whole work groups of ``LOCAL_SIZE``: the launch size of every
+    kernel here, and the row stride of the outputs laid out by it."""
+    return -(-work_items // LOCAL_SIZE) * LOCAL_SIZE
+
+
 def launch_size(work_items: int) -> int:
-    """Work items to launch for ``work_items``: a multiple of ``LOCAL_SIZE``, at least ``SMALL_GRID_LIMIT``."""
-    return max(SMALL_GRID_LIMIT, -(-work_items // LOCAL_SIZE) * LOCAL_SIZE)
+    """Work items to launch the lens kernel for ``work_items``: whole groups, at least ``SMALL_GRID_LIMIT``."""
+    return max(SMALL_GRID_LIMIT, whole_groups(work_items))
 
 
 class LensKernel:
@@ -395,7 +401,7 @@ class LensKernel:
         """The kernel's (first pixel, offset, slice start, slice width) arguments and the padded
         launch size (``rays_per_sample`` work items per sample), checking the uint32 limits for the
         work items up to the last work group's end (those padded beyond it compute rays nobody reads)."""
-        used = -(-block.count * rays_per_sample // LOCAL_SIZE) * LOCAL_SIZE
+        used = whole_groups(block.count * rays_per_sample)
         first_pixel, offset = divmod(block.first, block.samples)
         if offset + used >= 2**32 or first_pixel + (offset + used) // block.samples >= 2**31 \
                 or block.first_sample + block.samples >= 2**32:

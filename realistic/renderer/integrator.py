@@ -244,7 +244,8 @@ class DirectLighting:
                          hits, timed) -> tuple[np.ndarray, int]:
         """``radiance`` of RGB rays through ``kernels/shade.cl``: the kernel shades every surface hit
         and writes all light samples' shadow rays, embree traces them in one call, numpy sums."""
-        from realistic.renderer.shade_kernel import LOCAL_SIZE, MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS
+        from realistic.camera.opencl_host import whole_groups
+        from realistic.renderer.shade_kernel import MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS
 
         n = len(origin)
         if n == 0:
@@ -253,7 +254,7 @@ class DirectLighting:
             albedo = self._host_albedo(origin, direction, hits) if self._kernel.host_albedo.any() else None
             out = np.zeros((n, 3), np.float32)
             # light samples per launch
-            group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // (-(-n // LOCAL_SIZE) * LOCAL_SIZE)))
+            group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // whole_groups(n)))  # the kernel's stride
             shadow_rays = 0
         for first in range(0, self.light_samples, group):
             count = min(group, self.light_samples - first)

@@ -183,7 +183,7 @@ class ShadeKernel:
             raise ValueError(f"a launch makes 1 to {MAX_LAUNCH_SAMPLES} light samples per ray, not {light_samples}")
         total = first_sample + light_samples if total_samples is None else total_samples
         n = len(origin)
-        stride = -(-n // LOCAL_SIZE) * LOCAL_SIZE
+        stride = opencl_host.whole_groups(n)
         rows = stride * light_samples
         if n == 0:
             empty = np.zeros((0, 3), np.float32)
@@ -227,7 +227,7 @@ class ShadeKernel:
         sample of ``light_samples`` per camera sample (for tests against ``realistic.core.rng.light_uniforms``)."""
         cl = opencl_host.cl
         n = len(pixel)
-        stride = max(LOCAL_SIZE, -(-n // LOCAL_SIZE) * LOCAL_SIZE)
+        stride = max(LOCAL_SIZE, opencl_host.whole_groups(n))
         state = self._state()
         out = np.empty((3 * light_samples, stride), np.float32)
         mf = cl.mem_flags

@@ -18,7 +18,7 @@ import threading
 import numpy as np
 import pyopencl as cl
 
-from realistic.camera.opencl_host import LOCAL_SIZE, build_program, context, kernel_source, wrapped_buffer
+from realistic.camera.opencl_host import LOCAL_SIZE, build_program, context, kernel_source, whole_groups, wrapped_buffer
 from realistic.core.validation import TEXTURE_WRAPS
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
 from realistic.scene.model import ImageTexture
@@ -77,7 +77,7 @@ class EwaKernel:
         inputs = [cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
                             hostbuf=np.ascontiguousarray(a, dtype=np.float64)) for a in (st, axis0, axis1)]
         result = cl.Buffer(self.context, mf.WRITE_ONLY, out.nbytes)
-        padded = -(-count // LOCAL_SIZE) * LOCAL_SIZE
+        padded = whole_groups(count)
         with self._lock:
             self._kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._map, *inputs, np.int32(count), result)
             cl.enqueue_copy(self.queue, out, result)
@@ -98,7 +98,7 @@ class EwaKernel:
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
                                    (hits.geom, np.int32), (hits.normal, np.float32))]
         result = cl.Buffer(self.context, cl.mem_flags.READ_WRITE | cl.mem_flags.USE_HOST_PTR, hostbuf=out)
-        padded = -(-count // LOCAL_SIZE) * LOCAL_SIZE
+        padded = whole_groups(count)
         with self._lock:
             self._hits_kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._map, *surfaces.buffers,
                               surfaces.instance_count, np.int32(material), *inputs, np.int32(count), result)
