@@ -73,9 +73,9 @@ def thread_counts(monkeypatch) -> list[int]:
     counts = []
     build = passes._ThreadPasses.__init__
 
-    def counting(self, scene, cameras, settings, threads, clock):
+    def counting(self, scene, cameras, settings, threads, clock, *placement):
         counts.append(threads)
-        build(self, scene, cameras, settings, threads, clock)
+        build(self, scene, cameras, settings, threads, clock, *placement)
 
     monkeypatch.setattr(passes._ThreadPasses, "__init__", counting)
     return counts

@@ -23,7 +23,7 @@ import numpy as np
 from realistic.camera import pocl_cpu, pocl_interleave
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
-from realistic.core import disk_cache
+from realistic.core import affinity, disk_cache
 from realistic.core.data_files import data_file
 from realistic.core.pixel_filter import TABLE_BINS
 from realistic.core.rng import wavelength_step
@@ -63,15 +63,20 @@ def kernel_source(name: str) -> str:
 def _all_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
     if cl is None:
         raise UserError(NO_PLATFORM)
+    # listing PoCL's devices starts its thread pool: remembered, so a render can spread it over the CPUs
+    found = affinity.record_runtime_threads(_list_devices)
+    if not found:
+        raise UserError(NO_PLATFORM)
+    return found
+
+
+def _list_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
     try:
         platforms = cl.get_platforms()
     except cl.Error:  # PLATFORM_NOT_FOUND_KHR when the ICD loader finds nothing
         platforms = []
-    found = [(p, d, platform, device) for p, platform in enumerate(platforms)
-             for d, device in enumerate(platform.get_devices())]
-    if not found:
-        raise UserError(NO_PLATFORM)
-    return found
+    return [(p, d, platform, device) for p, platform in enumerate(platforms)
+            for d, device in enumerate(platform.get_devices())]
 
 
 def _match(spec: str, found: list, origin: str):

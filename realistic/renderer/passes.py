@@ -22,13 +22,14 @@ import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
-from realistic.core import validation
+from realistic.core import affinity, validation
 from realistic.core.spectrum import rgb_response
 from realistic.errors import UserError
 from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, save_checkpoint
@@ -144,15 +145,22 @@ class PassRunner:
 
 
 class _ThreadPasses:
-    """Passes on threads of this process, one pass per task, one runner per camera (built on first use)."""
+    """Passes on threads of this process, one pass per task, one runner per camera (built on first use).
+    ``pin_threads``: each worker on its own CPU and the OpenCL runtime's pool spread over them while
+    the render runs (``core.affinity``)."""
 
-    def __init__(self, scene: Scene, cameras: list[Camera], settings: dict, threads: int, clock: StageClock):
+    def __init__(self, scene: Scene, cameras: list[Camera], settings: dict, threads: int, clock: StageClock,
+                 pin_threads: bool = True):
         self.scene, self.cameras, self.settings, self.clock = scene, cameras, settings, clock
         self.runners: dict[int, PassRunner] = {}
         self.intersector: Intersector | None = None
         self.capacity = max(1, threads)
         self.passes_per_task = 1
-        self.pool = ThreadPoolExecutor(max_workers=self.capacity)
+        self.placement = ExitStack()
+        if pin_threads:
+            self.placement.enter_context(affinity.runtime_threads_spread())
+        self.pool = ThreadPoolExecutor(max_workers=self.capacity,
+                                       initializer=affinity.worker_pinner() if pin_threads else None)
         self.finished: queue.SimpleQueue = queue.SimpleQueue()  # futures, as they finish
 
     def runner(self, frame: int) -> PassRunner:
@@ -190,6 +198,7 @@ class _ThreadPasses:
     def close(self, finished: bool) -> None:
         # a second interrupt while passes finish leaves them running: the caller stops at once
         self.pool.shutdown(wait=finished, cancel_futures=not finished)
+        self.placement.close()
 
 
 @dataclass
@@ -223,7 +232,7 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
                   max_memory_bytes: int | None = None, client=None, task_samples: int | None = None,
                   checkpoint: Checkpointing | None = None,
                   preview: Callable[[np.ndarray], None] | None = None,
-                  preview_every: float | None = None) -> list[RenderResult]:
+                  preview_every: float | None = None, pin_threads: bool = True) -> list[RenderResult]:
     """Render one image per camera as one job (on a farm every frame's passes are in one graph, so
     workers stay busy across frame boundaries); ``on_frame(i, result)`` is called as frame i
     completes. Other options as ``render_passes``; ``checkpoint`` needs exactly one camera."""
@@ -262,7 +271,7 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
     settings = {"backend": backend, "seed": seed, "cl_device": cl_device, "light_samples": light_samples,
                 "morton": morton}
     if client is None:
-        executor = _ThreadPasses(scene, cameras, settings, threads, clock)
+        executor = _ThreadPasses(scene, cameras, settings, threads, clock, pin_threads)
     else:
         from realistic.renderer.farm import DaskPasses  # imports dask: only for farm renders
 
@@ -364,10 +373,11 @@ def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: i
                   progress: bool = False, on_pass: Callable[[RenderResult], None] | None = None,
                   max_memory_bytes: int | None = None, *, client=None, task_samples: int | None = None,
                   checkpoint: Checkpointing | None = None, preview: Callable[[np.ndarray], None] | None = None,
-                  preview_every: float | None = None) -> RenderResult:
+                  preview_every: float | None = None, pin_threads: bool = True) -> RenderResult:
     """Render and return the image with statistics; ``on_pass`` is called after each pass is added.
     ``pass_samples`` None sizes passes by rays (``pass_plan.default_pass_samples``), ``threads``
-    None runs ``default_threads()``.
+    None runs ``default_threads()``; ``pin_threads`` keeps each render thread on one CPU (Linux;
+    ``core.affinity``: without it the scheduler queued workers behind each other while a CPU idled).
 
     Before any work, a render whose estimated peak memory exceeds ``max_memory_bytes`` (None: what
     the system has available) is refused with a UserError (``realistic.renderer.memory``). A first
@@ -380,7 +390,8 @@ def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: i
     return render_frames(scene, [camera], backend, seed, cl_device, light_samples, pass_samples=pass_samples,
                          threads=threads, morton=morton, progress=progress, on_pass=on_pass,
                          max_memory_bytes=max_memory_bytes, client=client, task_samples=task_samples,
-                         checkpoint=checkpoint, preview=preview, preview_every=preview_every)[0]
+                         checkpoint=checkpoint, preview=preview, preview_every=preview_every,
+                         pin_threads=pin_threads)[0]
 
 
 def render(scene: Scene, camera: Camera | None = None, backend: str = "opencl", seed: int = 0, *,
