@@ -5,7 +5,8 @@
 
 Renders the dragon (../shared/meshes/dragon.ply, else a procedural mesh of similar size) on the
 grid floor under a disk light: samples in raster order at each ``--pass-samples`` size (default: the
-renderer's), then at the renderer's size sorted along a Morton curve per pass. Prints per-stage
+renderer's), then at the renderer's size sorted along a Morton curve per pass, then in raster order
+with its threads left free to move between CPUs ("free": ``pin_threads=False``). Prints per-stage
 thread-seconds of the fastest of ``--repeats`` interleaved runs (``--threads`` workers, by
 default the renderer's ``default_threads()``: one per core, so they can add up to the wall time
 times the cores), shading's thread-seconds per sample against
@@ -167,12 +168,12 @@ def embreex_scene(scene) -> tuple:
 
 
 def run(setup, camera, backend: str, morton: bool, threads: int | None = None,
-        pass_samples: int = DEFAULT_PASS_SAMPLES) -> dict:
+        pass_samples: int = DEFAULT_PASS_SAMPLES, pinned: bool = True) -> dict:
     result = render_passes(setup.scene, camera, backend, 0, morton=morton, threads=threads,
-                           pass_samples=pass_samples)
+                           pass_samples=pass_samples, pin_threads=pinned)
     rays = result.primary_rays + result.shadow_rays
-    label = f"{'morton' if morton else 'raster'} {pass_samples // 1024}k"
-    return {"label": label, "morton": morton, "pass_samples": pass_samples, "seconds": result.seconds,
+    label = f"{'morton' if morton else 'raster'} {pass_samples // 1024}k{'' if pinned else ' free'}"
+    return {"label": label, "morton": morton, "pass_samples": pass_samples, "pinned": pinned, "seconds": result.seconds,
             "samples": result.samples_done,
             "primary_rays": result.primary_rays, "shadow_rays": result.shadow_rays,
             "samples_per_s": result.samples_done / result.seconds, "rays_per_s": rays / result.seconds,
@@ -206,22 +207,24 @@ def main() -> None:
     print(f"scene: {source}, {triangles} triangles; {width}x{height}, {args.spp} spp, lens {args.lens}, "
           f"backend {args.backend}, default passes of {DEFAULT_PASS_SAMPLES} samples on {args.threads} thread(s)")
     render_passes(setup.scene, warm, args.backend)  # warm-up: kernel build and caches
-    configs = [(False, size) for size in args.pass_samples] + [(True, DEFAULT_PASS_SAMPLES)]
+    configs = [(False, size, True) for size in args.pass_samples] + [(True, DEFAULT_PASS_SAMPLES, True),
+                                                                      (False, DEFAULT_PASS_SAMPLES, False)]
     runs: list[dict] = [{} for _ in configs]
     for _ in range(args.repeats):  # interleaved, so a load change on a shared machine hits every config alike
-        for i, (morton, size) in enumerate(configs):
-            r = run(setup, camera, args.backend, morton, args.threads, size)
+        for i, (morton, size, pinned) in enumerate(configs):
+            r = run(setup, camera, args.backend, morton, args.threads, size, pinned)
             if not runs[i] or r["seconds"] < runs[i]["seconds"]:
                 runs[i] = r
     top = ceiling(setup, camera, args.backend, args.threads)
-    print(f"\n{'stage':<16}" + "".join(f"{r['label'] + ' s':>14}{'share':>8}" for r in runs))
+    column = max(14, *(len(r["label"]) + 4 for r in runs))
+    print(f"\n{'stage':<16}" + "".join(f"{r['label'] + ' s':>{column}}{'share':>8}" for r in runs))
     for stage in STAGES:
         cells = []
         for r in runs:
             seconds = r["stage_thread_seconds"][stage]
-            cells.append(f"{seconds:>14.2f}{100 * seconds / sum(r['stage_thread_seconds'].values()):>7.1f}%")
+            cells.append(f"{seconds:>{column}.2f}{100 * seconds / sum(r['stage_thread_seconds'].values()):>7.1f}%")
         print(f"{stage:<16}{''.join(cells)}")
-    print(f"{'wall':<16}" + "".join(f"{r['seconds']:>14.2f}{'':>8}" for r in runs))
+    print(f"{'wall':<16}" + "".join(f"{r['seconds']:>{column}.2f}{'':>8}" for r in runs))
     for r in runs:
         stages = r["stage_thread_seconds"]
         r["shading_over_embree"] = stages["shading"] / max(stages["embree"], 1e-12)
