@@ -72,6 +72,21 @@ def test_render_workers_follow_pin_threads(pin, tiny):
     assert sorted(sets, key=min) == expected
 
 
+@needs_two_cpus
+def test_a_system_that_refuses_pinning_still_renders(monkeypatch, tiny):
+    """Where setting a CPU set is forbidden (a sandbox), workers and the runtime's pool run unpinned:
+    the render completes, with the same image."""
+    def refuse(*_args):
+        raise PermissionError("not permitted")
+
+    scene, camera = tiny
+    free = render_passes(scene, camera, "numpy", pass_samples=256, threads=2, pin_threads=False).image
+    monkeypatch.setattr(os, "sched_setaffinity", refuse)
+    monkeypatch.setattr(affinity, "_runtime_threads", {threading.get_native_id()})
+    refused = render_passes(scene, camera, "numpy", pass_samples=256, threads=2).image
+    assert np.array_equal(refused, free)
+
+
 def test_python_threads_are_not_taken_for_the_runtimes():
     release = threading.Event()
     before = set(affinity._runtime_threads)
