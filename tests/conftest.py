@@ -66,19 +66,19 @@ def fresh_disk_cache(tmp_path_factory):
 
 
 @pytest.fixture
-def thread_counts(monkeypatch) -> list[int]:
-    """The thread counts in-process renders start their pools with, in order, while the test runs."""
+def thread_pools(monkeypatch) -> list[tuple[int, bool]]:
+    """(threads, pin_threads) of each pool in-process renders start while the test runs, in order."""
     from realistic.renderer import passes
 
-    counts = []
+    pools = []
     build = passes._ThreadPasses.__init__
 
-    def counting(self, scene, cameras, settings, threads, clock, *placement):
-        counts.append(threads)
-        build(self, scene, cameras, settings, threads, clock, *placement)
+    def recording(self, scene, cameras, settings, threads, clock, pin_threads=True):
+        pools.append((threads, pin_threads))
+        build(self, scene, cameras, settings, threads, clock, pin_threads)
 
-    monkeypatch.setattr(passes._ThreadPasses, "__init__", counting)
-    return counts
+    monkeypatch.setattr(passes._ThreadPasses, "__init__", recording)
+    return pools
 
 
 def shared_file(relative: str) -> Path:

@@ -68,7 +68,7 @@ def test_default_scene_renders(tmp_path, capsys):
 
 
 def test_threads_renders_on_that_many_threads_in_process_whatever_the_environment(tmp_path, capsys, monkeypatch,
-                                                                                  thread_counts):
+                                                                                  thread_pools):
     monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://192.0.2.1:8786")  # no cluster there: not to be used
     images = {}
     for threads in ("1", "4"):
@@ -76,8 +76,14 @@ def test_threads_renders_on_that_many_threads_in_process_whatever_the_environmen
         status, _, _ = run_cli([*FAST, "--threads", threads, "--out", str(out)], capsys)
         assert status == 0
         images[threads] = read_exr(out)[0]
-    assert thread_counts == [1, 4]
+    assert [threads for threads, _ in thread_pools] == [1, 4]
     np.testing.assert_array_equal(images["1"], images["4"])
+
+
+@pytest.mark.parametrize(("flags", "pinned"), [([], True), (["--no-pin-threads"], False)])
+def test_render_threads_keep_to_one_cpu_unless_told_not_to(tmp_path, capsys, thread_pools, flags, pinned):
+    assert run_cli([*FAST, *flags, "--out", str(tmp_path / "p.exr")], capsys)[0] == 0
+    assert [pin for _, pin in thread_pools] == [pinned]
 
 
 def test_bunny_from_shared_data(tmp_path, capsys):

@@ -60,7 +60,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     with farm_client(args) as client:
         rows, _ = measure_sample_counts(inputs.scene, inputs.camera, spp_list, args.backend, args.seed,
                                         inputs.light_samples, reference, args.cl_device,
-                                        max_memory_bytes=args.max_memory, client=client, threads=args.threads)
+                                        max_memory_bytes=args.max_memory, client=client, threads=args.threads,
+                                        pin_threads=args.pin_threads)
     against = "reference" if reference is not None else f"{max(spp_list)} spp"
     camera = inputs.camera
     where = (f", {args.workers} workers" if args.workers else ", on the Dask cluster" if client is not None

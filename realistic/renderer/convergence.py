@@ -44,20 +44,20 @@ def measure_sample_counts(scene: Scene, camera: Camera, spp_list: list[int], bac
                           light_samples: int = 1, reference: np.ndarray | None = None,
                           cl_device: str | None = None, progress: bool = True,
                           max_memory_bytes: int | None = None, client=None,
-                          threads: int | None = None) -> tuple[list[dict], np.ndarray]:
+                          threads: int | None = None, pin_threads: bool = True) -> tuple[list[dict], np.ndarray]:
     """Rows of seconds, camera rays/s, vignetted fraction and RMSE per spp, and the last image.
 
     An untimed 1 spp render first pays the one-time costs (kernel build, exit-pupil table), so each
     row times rendering alone. ``client`` (a ``dask.distributed.Client``) renders on its workers,
-    else ``threads`` (None: ``default_threads()``) in this process.
+    else ``threads`` (None: ``default_threads()``) in this process, each on one CPU unless not ``pin_threads``.
     """
     render_passes(scene, dataclasses.replace(camera, spp=1), backend, seed, cl_device, light_samples,
-                  threads=threads, max_memory_bytes=max_memory_bytes, client=client)
+                  threads=threads, max_memory_bytes=max_memory_bytes, client=client, pin_threads=pin_threads)
     rows, images = [], []
     for spp in spp_list:
         result = render_passes(scene, dataclasses.replace(camera, spp=spp), backend, seed, cl_device,
                                light_samples, threads=threads, progress=progress,
-                               max_memory_bytes=max_memory_bytes, client=client)
+                               max_memory_bytes=max_memory_bytes, client=client, pin_threads=pin_threads)
         if result.interrupted:
             raise UserError(f"interrupted during the {spp} spp render")
         seconds = max(result.seconds, 1e-9)
