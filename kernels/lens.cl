@@ -14,16 +14,12 @@
  * known at compile time. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized loop" per kernel, and
  * the built generate_rays.so (POCL_CACHE_DIR, POCL_LEAVE_KERNEL_COMPILER_TEMP_FILES=1) uses ymm.
  *
- * The host (realistic/opencl_host.py) prepends a generated header that defines, per camera (the
- * resolution, the film's size and the sample count are kernel arguments instead, so a new --res or
- * --spp reuses PoCL's cached build rather than compiling for a second or more):
- *   PLANE_Z_MM                    z of the sampling plane (lens frame: film at z = 0, +z to scene)
- *   FRONT_VERTEX_Z_MM             z of the front vertex
- *   REAR_W_MM                     -film distance: z of the film relative to the rear vertex
+ * The host (realistic/opencl_host.py) prepends a generated header that defines, per lens and
+ * camera (the resolution, the film's size, the sample count and everything that depends on the
+ * focus are kernel arguments instead, so a new --res, --spp or focus reuses PoCL's cached build
+ * rather than compiling for a second or more):
  *   LENS_SAMPLING_PUPIL           1: exit-pupil boxes, 0: rear-element disk
- *   REAR_CLEAR_MM, REAR_T_FAR     rear-element disk parameters (realistic.optics.sampling)
- *   PUPIL_INTERVALS, FILM_RADIUS_MM and program-scope tables PUPIL[4k..4k+3] = (x0, x1, y0, y1),
- *                                 PUPIL_AREA[k] (mm^2), when LENS_SAMPLING_PUPIL is 1
+ *   PUPIL_INTERVALS               the exit-pupil table's radial intervals, when LENS_SAMPLING_PUPIL is 1
  *   SPECTRAL                      1: each sample is WAVELENGTHS_PER_SAMPLE (K) work items, one ray
  *                                 per wavelength (output row 7), sample-major; they share the
  *                                 sample's film and lens numbers, and ray j's wavelength number is
@@ -44,7 +40,18 @@
  *                                 dispersive glass's index A + B il2 (il2 = 1 / lambda^2 in
  *                                 um^-2, A and B literal Cauchy coefficients) and passes index
  *                                 ratios to those calls
+ * The kernel argument `focus` holds what changes with the film distance, float32 at the FOCUS_*
+ * offsets below (realistic.camera.opencl_host.focus_values). Products and quotients of these values
+ * that were once folded from literals come precomputed in float32, so every ray rounds as it did.
  */
+
+#define FOCUS_PLANE_Z 0         /* z of the sampling plane (lens frame: film at z = 0, +z to scene) */
+#define FOCUS_PLANE_Z2 1        /* its square */
+#define FOCUS_FRONT_VERTEX_Z 2  /* z of the front vertex */
+#define FOCUS_REAR_W 3          /* -film distance: z of the film relative to the rear vertex */
+#define FOCUS_SAMPLING 4        /* pupil: PUPIL_INTERVALS / film radius (mm); rear-element disk
+                                 * (realistic.optics.sampling): 1 - t_far, clear radius * t_far, clear radius */
+#define FOCUS_PUPIL 8           /* pupil: boxes (x0, x1, y0, y1) per interval, then their areas (mm^2) */
 
 #define PI_F 3.14159265358979f
 
@@ -295,12 +302,14 @@ inline __attribute__((always_inline)) void stop(Ray *r, const float GAP) {
 
 #if LENS_SAMPLING_PUPIL
 /* Exit-pupil box of the film point's radial interval, rotated to its polar angle. */
-inline void sample_plane(float fx, float fy, float u, float v, float *px, float *py, float *area) {
+inline void sample_plane(__constant float *focus, float fx, float fy, float u, float v, float *px, float *py,
+                         float *area) {
     float rho2 = fx * fx + fy * fy;
     float rho = __builtin_sqrtf(rho2);
-    int k = (int)(rho * ((float)PUPIL_INTERVALS / FILM_RADIUS_MM));
+    int k = (int)(rho * focus[FOCUS_SAMPLING]);
     k = k < PUPIL_INTERVALS - 1 ? k : PUPIL_INTERVALS - 1;
-    float x0 = PUPIL[4 * k], x1 = PUPIL[4 * k + 1], y0 = PUPIL[4 * k + 2], y1 = PUPIL[4 * k + 3];
+    __constant float *box = focus + FOCUS_PUPIL + 4 * k;
+    float x0 = box[0], x1 = box[1], y0 = box[2], y1 = box[3];
     float x = x0 + u * (x1 - x0);
     float y = y0 + v * (y1 - y0);
     float inv = rho > 0.0f ? 1.0f / rho : 0.0f;
@@ -308,14 +317,16 @@ inline void sample_plane(float fx, float fy, float u, float v, float *px, float 
     float sin_phi = fy * inv;
     *px = x * cos_phi - y * sin_phi;
     *py = x * sin_phi + y * cos_phi;
-    *area = PUPIL_AREA[k];
+    *area = focus[FOCUS_PUPIL + 4 * PUPIL_INTERVALS + k];
 }
 #else
 /* Rear-element disk whose radius covers the element's real extent from this film point. */
-inline void sample_plane(float fx, float fy, float u, float v, float *px, float *py, float *area) {
+inline void sample_plane(__constant float *focus, float fx, float fy, float u, float v, float *px, float *py,
+                         float *area) {
     float rho = __builtin_sqrtf(fx * fx + fy * fy);
-    float radius = rho * (1.0f - REAR_T_FAR) + REAR_CLEAR_MM * REAR_T_FAR;
-    radius = radius > REAR_CLEAR_MM ? radius : REAR_CLEAR_MM;
+    float clear = focus[FOCUS_SAMPLING + 2];
+    float radius = rho * focus[FOCUS_SAMPLING] + focus[FOCUS_SAMPLING + 1];
+    radius = radius > clear ? radius : clear;
     float dx, dy;
     concentric_disk(u, v, &dx, &dy);
     *px = dx * radius;
@@ -382,7 +393,7 @@ inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
  * (world space; a blocked ray has weight 0 and zero origin and direction), and when SPECTRAL an
  * eighth: the wavelength in nm. world is the camera-to-world matrix, rows of (m0 m1 m2 t). */
 __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint seed, __constant float *world,
-                            uint width, double pixel_rows, float inv_width, float inv_height, float film_w_mm, float film_h_mm,
+                            __constant float *focus, uint width, double pixel_rows, float inv_width, float inv_height, float film_w_mm, float film_h_mm,
                             uint stride, __global float *out, __global int *pixel_out) {
     uint gid = get_global_id(0);
     uint pixel, sample, sample_gid, stratum;
@@ -403,20 +414,21 @@ __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uin
     float fy = (((float)py_i + (0.5f + off_y)) * inv_height - 0.5f) * film_h_mm;
 
     float tx, ty, area;
-    sample_plane(fx, fy, to_unit(b2), to_unit(b3), &tx, &ty, &area);
+    sample_plane(focus, fx, fy, to_unit(b2), to_unit(b3), &tx, &ty, &area);
     float ddx = tx - fx, ddy = ty - fy;
-    float len2 = ddx * ddx + ddy * ddy + PLANE_Z_MM * PLANE_Z_MM;
+    float plane_z2 = focus[FOCUS_PLANE_Z2];
+    float len2 = ddx * ddx + ddy * ddy + plane_z2;
     float inv_len = 1.0f / __builtin_sqrtf(len2);
     /* cos^4(theta) A / Z^2 with cos(theta) = Z / |delta|. */
-    float weight = area * (PLANE_Z_MM * PLANE_Z_MM) / (len2 * len2) * (filter_wx * filter_wy);
+    float weight = area * plane_z2 / (len2 * len2) * (filter_wx * filter_wy);
 
     Ray r;
     r.ox = fx;
     r.oy = fy;
-    r.w = REAR_W_MM;
+    r.w = focus[FOCUS_REAR_W];
     r.dx = ddx * inv_len;
     r.dy = ddy * inv_len;
-    r.dz = PLANE_Z_MM * inv_len;
+    r.dz = focus[FOCUS_PLANE_Z] * inv_len;
     r.alive = 1;
 #if SPECTRAL
     float lambda_nm = wavelength_nm(to_unit(b4 / WAVELENGTHS_PER_SAMPLE + stratum * LAMBDA_STRATUM_STEP));
@@ -426,7 +438,7 @@ __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uin
 #endif
     TRACE_SURFACES(&r, il2);
 
-    float oz = r.w + FRONT_VERTEX_Z_MM;
+    float oz = r.w + focus[FOCUS_FRONT_VERTEX_Z];
     float wx = world[0] * r.ox + world[1] * r.oy + world[2] * oz + world[3];
     float wy = world[4] * r.ox + world[5] * r.oy + world[6] * oz + world[7];
     float wz = world[8] * r.ox + world[9] * r.oy + world[10] * oz + world[11];

@@ -17,6 +17,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.core import rng
 from realistic.core.pixel_filter import PixelFilter
 from realistic.errors import UserError
+from realistic.optics.paraxial import film_distance_for_focus
 
 opencl_host = pytest.importorskip("realistic.camera.opencl_host")
 
@@ -275,6 +276,20 @@ def test_a_new_resolution_or_sample_count_reuses_the_program_and_matches_the_ref
         again = opencl_host.LensKernel(changed)
         assert again.program is first.program
         _check_against_reference(changed)
+
+
+@pytest.mark.parametrize("sampling", SAMPLINGS)
+def test_a_new_focus_reuses_the_program_and_matches_the_reference(sampling):
+    """What depends on the film distance (sampling plane, vertices, exit-pupil boxes) is the kernel's
+    ``focus`` argument: refocusing shares the built program, and each focus's rays match its own
+    reference (so the argument is read, not the first camera's values)."""
+    camera = reference_camera("dgauss", sampling)
+    first = opencl_host.LensKernel(camera)
+    for metres in (0.8, 40.0):
+        refocused = dataclasses.replace(camera, film_distance_mm=film_distance_for_focus(camera.lens, 1000 * metres))
+        assert not np.array_equal(opencl_host.focus_values(refocused), opencl_host.focus_values(camera))
+        assert opencl_host.LensKernel(refocused).program is first.program
+        _check_against_reference(refocused)
 
 
 def test_pixels_of_a_huge_film_map_to_their_rows_and_columns_exactly():

@@ -207,9 +207,9 @@ def _filter_lines(camera: LensCamera) -> list[str]:
 
 
 def camera_header(camera: LensCamera) -> str:
-    """The generated ``#define`` block that specialises ``lens.cl`` to one camera (see its header)."""
+    """The generated ``#define`` block that specialises ``lens.cl`` to one lens and camera (see its
+    header); what depends on the focus is ``focus_values`` instead, so refocusing reuses the build."""
     lens = camera.lens
-    vertex_z = lens.vertex_z_mm(camera.film_distance_mm)
     ratios, calls = _index_ratios(camera)
     for eta, i in zip(ratios, range(lens.surface_count - 1, -1, -1)):
         gap = lens.thickness_mm[i - 1] if i > 0 else 0.0
@@ -228,34 +228,37 @@ def camera_header(camera: LensCamera) -> str:
             calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
     lines = [
         f"#define SPECTRAL {int(camera.spectral)}",
-        f"#define FRONT_VERTEX_Z_MM {_c_float(vertex_z[0])}",
-        f"#define REAR_W_MM {_c_float(-camera.film_distance_mm)}",
         "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
         *_stop_lines(lens),
         *_wavelength_lines(camera),
         *_filter_lines(camera),
     ]
     if camera.lens_sampling == "pupil":
-        table = camera.pupil
-        boxes = ", ".join(_c_float(v) for v in table.bounds.ravel())
-        areas = ", ".join(_c_float(v) for v in table.area_mm2())
-        lines += [
-            "#define LENS_SAMPLING_PUPIL 1",
-            f"#define PLANE_Z_MM {_c_float(table.plane_z_mm)}",
-            f"#define PUPIL_INTERVALS {len(table.bounds)}",
-            f"#define FILM_RADIUS_MM {_c_float(table.film_radius_mm)}",
-            f"__constant float PUPIL[{table.bounds.size}] = {{{boxes}}};",
-            f"__constant float PUPIL_AREA[{len(table.bounds)}] = {{{areas}}};",
-        ]
+        lines += ["#define LENS_SAMPLING_PUPIL 1", f"#define PUPIL_INTERVALS {len(camera.pupil.bounds)}"]
     else:
-        rear = rear_element_sampler(lens, camera.film_distance_mm)
-        lines += [
-            "#define LENS_SAMPLING_PUPIL 0",
-            f"#define PLANE_Z_MM {_c_float(rear.plane_z_mm)}",
-            f"#define REAR_CLEAR_MM {_c_float(rear.clear_radius_mm)}",
-            f"#define REAR_T_FAR {_c_float(rear.plane_z_mm / rear.far_z_mm)}",
-        ]
+        lines += ["#define LENS_SAMPLING_PUPIL 0"]
     return "\n".join(lines) + "\n"
+
+
+def focus_values(camera: LensCamera) -> np.ndarray:
+    """``lens.cl``'s ``focus`` argument (float32, at its FOCUS_* offsets): the sampling plane, its
+    square, the front vertex and the film's distance from the rear vertex, the sampling's constants
+    and the exit-pupil boxes and areas. Each is rounded to float32 before the products and quotients
+    are taken in float32, as the compiler once folded them from literals."""
+    f = np.float32
+    vertex_z = camera.lens.vertex_z_mm(camera.film_distance_mm)
+    if camera.lens_sampling == "pupil":
+        table = camera.pupil
+        plane_z = f(table.plane_z_mm)
+        sampling = [f(len(table.bounds)) / f(table.film_radius_mm), f(0), f(0), f(0)]
+        tables = [np.asarray(table.bounds, np.float32).ravel(), np.asarray(table.area_mm2(), np.float32)]
+    else:
+        rear = rear_element_sampler(camera.lens, camera.film_distance_mm)
+        plane_z, t_far, clear = f(rear.plane_z_mm), f(rear.plane_z_mm / rear.far_z_mm), f(rear.clear_radius_mm)
+        sampling = [f(1) - t_far, clear * t_far, clear, f(0)]
+        tables = []
+    head = np.array([plane_z, plane_z * plane_z, f(vertex_z[0]), f(-camera.film_distance_mm), *sampling], np.float32)
+    return np.concatenate([head, *tables]).astype(np.float32)
 
 
 def wrapped_buffer(ctx: cl.Context, array: np.ndarray, dtype) -> cl.Buffer:
@@ -390,6 +393,7 @@ class LensKernel:
         world = np.ascontiguousarray(camera.world_from_lens[:3, :4], dtype=np.float32)
         mf = cl.mem_flags
         self._world = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=world)
+        self._focus = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=focus_values(camera))
         w_mm, h_mm = camera.film_size_mm
         # the values the compiler folded when they were literals: 1.0f / WIDTH rounds as float32 does
         self._film = (np.uint32(camera.width), np.float64(1) / np.float64(camera.width),
@@ -427,7 +431,8 @@ class LensKernel:
         with self._lock:
             buffers = [cl.Buffer(self.context, flags, hostbuf=array) for array in (out, pixels)]
             self._generate(self.queue, (padded,), (LOCAL_SIZE,), *address,
-                           np.uint32(seed & 0xFFFFFFFF), self._world, *self._film, np.uint32(padded), *buffers)
+                           np.uint32(seed & 0xFFFFFFFF), self._world, self._focus, *self._film, np.uint32(padded),
+                           *buffers)
             for array, buffer in zip((out, pixels), buffers):
                 cl.enqueue_copy(self.queue, array, buffer, is_blocking=False)  # orders the read after the kernel
             self.queue.finish()
