@@ -281,15 +281,30 @@ def test_a_new_resolution_or_sample_count_reuses_the_program_and_matches_the_ref
 @pytest.mark.parametrize("sampling", SAMPLINGS)
 def test_a_new_focus_reuses_the_program_and_matches_the_reference(sampling):
     """What depends on the film distance (sampling plane, vertices, exit-pupil boxes) is the kernel's
-    ``focus`` argument: refocusing shares the built program, and each focus's rays match its own
+    ``settings`` argument: refocusing shares the built program, and each focus's rays match its own
     reference (so the argument is read, not the first camera's values)."""
     camera = reference_camera("dgauss", sampling)
     first = opencl_host.LensKernel(camera)
     for metres in (0.8, 40.0):
         refocused = dataclasses.replace(camera, film_distance_mm=film_distance_for_focus(camera.lens, 1000 * metres))
-        assert not np.array_equal(opencl_host.focus_values(refocused), opencl_host.focus_values(camera))
+        assert not np.array_equal(opencl_host.setting_values(refocused), opencl_host.setting_values(camera))
         assert opencl_host.LensKernel(refocused).program is first.program
         _check_against_reference(refocused)
+
+
+def test_a_new_round_stop_reuses_the_program_and_matches_the_reference():
+    """A round stop's diameter (an f-stop) is a setting too; a bladed stop's outline is compiled in."""
+    camera = reference_camera("dgauss", "pupil")
+    first = opencl_host.LensKernel(camera)
+    diameter = float(camera.lens.aperture_mm[camera.lens.stop])
+    for scale in (0.4, 0.75):
+        stopped = dataclasses.replace(camera, lens=camera.lens.with_stop_diameter(scale * diameter))
+        assert opencl_host.LensKernel(stopped).program is first.program
+        _check_against_reference(stopped)
+    from realistic.optics.stop_shape import bladed_stop
+
+    bladed = dataclasses.replace(camera, lens=camera.lens.with_stop_shape(bladed_stop(6, 10.0)))
+    assert opencl_host.LensKernel(bladed).program is not first.program
 
 
 def test_pixels_of_a_huge_film_map_to_their_rows_and_columns_exactly():

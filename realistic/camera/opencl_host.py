@@ -155,9 +155,8 @@ def _stop_lines(lens) -> list[str]:
     """``STOP_INSIDE(x, y)`` (and a mask table) for the lens's stop, as realistic.optics.stop_shape defines it."""
     diameter = float(lens.aperture_mm[lens.stop])
     shape = lens.stop_shape
-    if shape is None:
-        return [f"#define STOP_INSIDE(x, y) ((x) * (x) + (y) * (y) <= {_c_float((diameter / 2) ** 2)})",
-                "#define STOP_MASKED 0"]
+    if shape is None:  # round: its squared radius is a setting (``setting_values``)
+        return ["#define STOP_INSIDE(x, y) ((x) * (x) + (y) * (y) <= STOP_R2)", "#define STOP_MASKED 0"]
     if shape.mask is not None:
         rows, cols = shape.mask.shape
         table = ", ".join("1" if v else "0" for v in shape.mask.ravel())
@@ -208,7 +207,8 @@ def _filter_lines(camera: LensCamera) -> list[str]:
 
 def camera_header(camera: LensCamera) -> str:
     """The generated ``#define`` block that specialises ``lens.cl`` to one lens and camera (see its
-    header); what depends on the focus is ``focus_values`` instead, so refocusing reuses the build."""
+    header); the focus and a round stop's diameter are ``setting_values`` instead, so a camera
+    refocused or stopped down reuses the build."""
     lens = camera.lens
     ratios, calls = _index_ratios(camera)
     for eta, i in zip(ratios, range(lens.surface_count - 1, -1, -1)):
@@ -217,7 +217,7 @@ def camera_header(camera: LensCamera) -> str:
         radius = lens.radius_mm[i]
         refracts = int(eta != "1.0f")
         if i == lens.stop:
-            calls.append(f"stop(r, {_c_float(gap)});")
+            calls.append(f"stop(r, {_c_float(gap)}, settings[SET_STOP_R2]);")
         elif lens.aspheric[i]:
             c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0
             shape = ", ".join(_c_float(v) for v in (c, lens.conic[i], *lens.aspheric_coefficients[i]))
@@ -240,24 +240,28 @@ def camera_header(camera: LensCamera) -> str:
     return "\n".join(lines) + "\n"
 
 
-def focus_values(camera: LensCamera) -> np.ndarray:
-    """``lens.cl``'s ``focus`` argument (float32, at its FOCUS_* offsets): the sampling plane, its
-    square, the front vertex and the film's distance from the rear vertex, the sampling's constants
-    and the exit-pupil boxes and areas. Each is rounded to float32 before the products and quotients
-    are taken in float32, as the compiler once folded them from literals."""
+def setting_values(camera: LensCamera) -> np.ndarray:
+    """``lens.cl``'s ``settings`` argument (float32, at its SET_* offsets): the sampling plane, its
+    square, the front vertex and the film's distance from the rear vertex, the sampling's constants,
+    a round stop's squared radius, and the exit-pupil boxes and areas. Each is rounded to float32
+    before the products and quotients are taken in float32, as the compiler once folded them from
+    literals."""
     f = np.float32
-    vertex_z = camera.lens.vertex_z_mm(camera.film_distance_mm)
+    lens = camera.lens
+    vertex_z = lens.vertex_z_mm(camera.film_distance_mm)
     if camera.lens_sampling == "pupil":
         table = camera.pupil
         plane_z = f(table.plane_z_mm)
-        sampling = [f(len(table.bounds)) / f(table.film_radius_mm), f(0), f(0), f(0)]
+        sampling = [f(len(table.bounds)) / f(table.film_radius_mm), f(0), f(0)]
         tables = [np.asarray(table.bounds, np.float32).ravel(), np.asarray(table.area_mm2(), np.float32)]
     else:
-        rear = rear_element_sampler(camera.lens, camera.film_distance_mm)
+        rear = rear_element_sampler(lens, camera.film_distance_mm)
         plane_z, t_far, clear = f(rear.plane_z_mm), f(rear.plane_z_mm / rear.far_z_mm), f(rear.clear_radius_mm)
-        sampling = [f(1) - t_far, clear * t_far, clear, f(0)]
+        sampling = [f(1) - t_far, clear * t_far, clear]
         tables = []
-    head = np.array([plane_z, plane_z * plane_z, f(vertex_z[0]), f(-camera.film_distance_mm), *sampling], np.float32)
+    stop_r2 = f((float(lens.aperture_mm[lens.stop]) / 2) ** 2)
+    head = np.array([plane_z, plane_z * plane_z, f(vertex_z[0]), f(-camera.film_distance_mm), *sampling, stop_r2],
+                    np.float32)
     return np.concatenate([head, *tables]).astype(np.float32)
 
 
@@ -271,7 +275,7 @@ def wrapped_buffer(ctx: cl.Context, array: np.ndarray, dtype) -> cl.Buffer:
     return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=data)
 
 
-#: Programs kept built, per context, source and options (lens programs: one per lens, focus and
+#: Programs kept built, per context, source and options (lens programs: one per lens, sampling and
 #: filter; shading: one per scene variant; EWA: one): enough for a render, its autofocus and a bench's
 #: sample counts; older ones are dropped (the disk cache's binaries make rebuilding one about 5 ms).
 PROGRAM_CACHE_SIZE = 16
@@ -393,7 +397,7 @@ class LensKernel:
         world = np.ascontiguousarray(camera.world_from_lens[:3, :4], dtype=np.float32)
         mf = cl.mem_flags
         self._world = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=world)
-        self._focus = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=focus_values(camera))
+        self._settings = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=setting_values(camera))
         w_mm, h_mm = camera.film_size_mm
         # the values the compiler folded when they were literals: 1.0f / WIDTH rounds as float32 does
         self._film = (np.uint32(camera.width), np.float64(1) / np.float64(camera.width),
@@ -431,7 +435,7 @@ class LensKernel:
         with self._lock:
             buffers = [cl.Buffer(self.context, flags, hostbuf=array) for array in (out, pixels)]
             self._generate(self.queue, (padded,), (LOCAL_SIZE,), *address,
-                           np.uint32(seed & 0xFFFFFFFF), self._world, self._focus, *self._film, np.uint32(padded),
+                           np.uint32(seed & 0xFFFFFFFF), self._world, self._settings, *self._film, np.uint32(padded),
                            *buffers)
             for array, buffer in zip((out, pixels), buffers):
                 cl.enqueue_copy(self.queue, array, buffer, is_blocking=False)  # orders the read after the kernel
