@@ -87,6 +87,16 @@ def test_a_system_that_refuses_pinning_still_renders(monkeypatch, tiny):
     assert np.array_equal(refused, free)
 
 
+def test_a_runtime_thread_that_has_ended_is_forgotten(monkeypatch):
+    """An id that is no longer one of this process's threads is dropped rather than pinned (the
+    system may have given it to another process)."""
+    ended = max(affinity.native_threads()) + 10**6  # no thread of this process has it
+    monkeypatch.setattr(affinity, "_runtime_threads", {ended})
+    with affinity.runtime_threads_spread():
+        pass
+    assert affinity._runtime_threads == (set() if len(CPUS) >= 2 else {ended})
+
+
 def test_python_threads_are_not_taken_for_the_runtimes():
     release = threading.Event()
     before = set(affinity._runtime_threads)

@@ -6,8 +6,8 @@ the scheduler picks at wake-up. On a busy last-level cache Linux skips its searc
 (the SIS_UTIL heuristic), so the woken thread queues behind a running one while another CPU idles
 until the next load balance. sched_switch traces of the dragons render on two CPUs showed both
 workers runnable on one CPU, taking turns every 4 ms, with the other CPU idle for 8-11 ms at a
-time: 8-13 % of the render's CPU time was idle. Pinned, a worker always runs on its own CPU, and
-PoCL's two pool threads, pinned one per CPU, cannot queue behind each other either.
+time: 7-13 % of the render's CPU time was idle. Pinned, a worker always runs on its own CPU, and
+PoCL's pool threads, pinned one per CPU, cannot queue behind each other either.
 
 Unpinned threads keep the process's CPU set. Where threads cannot be pinned (not Linux), or the
 process may run on a single CPU, every function here leaves placement to the system.
@@ -82,11 +82,12 @@ def runtime_threads_spread() -> Iterator[None]:
         return
     with _lock:
         if _spreads == 0:
+            _runtime_threads.intersection_update(native_threads())  # ended ones: their ids may be reused
             for k, tid in enumerate(sorted(_runtime_threads)):
                 try:
                     _saved[tid] = os.sched_getaffinity(tid)
                     os.sched_setaffinity(tid, {cpus[k % len(cpus)]})
-                except OSError:  # the thread has ended (ProcessLookupError), or may not be moved
+                except OSError:  # it ended meanwhile, or may not be moved
                     _saved.pop(tid, None)
         _spreads += 1
     try:
