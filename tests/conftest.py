@@ -29,13 +29,19 @@ def fresh_process_env(**overrides: str) -> dict[str, str]:
     return dict(os.environ, **overrides, PYTHONPATH=path)
 
 
+def run_fresh(script: str, *args: str, timeout: float = 600, **env: str) -> subprocess.CompletedProcess:
+    """``script`` (with ``args``) run by Python in a process of its own (``fresh_process_env`` with
+    ``env``), which must succeed; its output captured as text."""
+    run = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, timeout=timeout,
+                         env=fresh_process_env(**env))
+    assert run.returncode == 0, run.stderr[-2000:]
+    return run
+
+
 def built_from_source(script: str, cache_home: Path, *args: str) -> str:
     """The standard output of ``script`` run in a process of its own whose kernels PoCL builds from
     source into ``cache_home`` (neither realistic's binary cache nor an earlier PoCL build)."""
-    run = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, timeout=600,
-                         env=fresh_process_env(XDG_CACHE_HOME=str(cache_home), REALISTIC_CACHE_DIR="off"))
-    assert run.returncode == 0, run.stderr[-2000:]
-    return run.stdout
+    return run_fresh(script, *args, XDG_CACHE_HOME=str(cache_home), REALISTIC_CACHE_DIR="off").stdout
 
 
 @pytest.fixture(scope="module")

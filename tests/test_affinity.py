@@ -3,15 +3,13 @@ runtime's pool spread while a render runs and restored after, and images unchang
 
 import json
 import os
-import subprocess
-import sys
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import run_fresh
 from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import affinity
@@ -19,7 +17,6 @@ from realistic.renderer.passes import _ThreadPasses, render_passes
 from realistic.renderer.timing import StageClock
 from realistic.scene.staging import default_setup
 
-ROOT = Path(__file__).resolve().parents[1]
 CPUS = affinity.allowed_cpus()
 needs_two_cpus = pytest.mark.skipif(len(CPUS) < 2, reason="pinning needs a process allowed on two or more CPUs")
 
@@ -141,16 +138,12 @@ print(json.dumps({"units": device.max_compute_units, "platform": device.platform
 
 
 @needs_two_cpus
+@pytest.mark.usefixtures("opencl_platform")
 def test_pocl_pool_is_recorded_spread_and_restored():
     """In a fresh process, listing the devices starts PoCL's pool (one thread per compute unit): it
     is recorded, pinned one thread per CPU inside the spreading (which nests), and given back its
     CPU set after."""
-    pytest.importorskip("pyopencl")
-    done = subprocess.run([sys.executable, "-c", _CHILD], capture_output=True, text=True, cwd=ROOT, timeout=300)
-    if "no OpenCL platform" in done.stderr:
-        pytest.skip("no OpenCL platform")
-    assert done.returncode == 0, done.stderr
-    found = json.loads(done.stdout.strip().splitlines()[-1])
+    found = json.loads(run_fresh(_CHILD, timeout=300).stdout.strip().splitlines()[-1])
     if "Portable Computing Language" not in found["platform"]:
         pytest.skip(f"the pool checked here is PoCL's, not {found['platform']}'s")
     assert len(found["pool"]) == found["units"]

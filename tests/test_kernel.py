@@ -4,8 +4,6 @@ Skips only when no OpenCL platform exists; CI installs PoCL through the package'
 """
 
 import dataclasses
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -227,13 +225,10 @@ BUILD = ("import glob, os\n"
 def test_a_second_build_stores_its_binaries_as_the_process_exits(tmp_path):
     """A program's first build from source leaves a mark; the second, in another process, stores
     the binaries when that process exits (``store_built_binaries``), not while it runs."""
-    from conftest import fresh_process_env
+    from conftest import run_fresh
 
     def build() -> str:
-        run = subprocess.run([sys.executable, "-c", BUILD], capture_output=True, text=True, timeout=300,
-                             env=fresh_process_env(REALISTIC_CACHE_DIR=str(tmp_path)))
-        assert run.returncode == 0, run.stderr[-2000:]
-        return run.stdout.strip()
+        return run_fresh(BUILD, timeout=300, REALISTIC_CACHE_DIR=str(tmp_path)).stdout.strip()
 
     assert build() == "['built']"
     assert build() == "['built']"  # during the second process

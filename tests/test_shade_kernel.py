@@ -11,7 +11,7 @@ through its "opencl" cases. Skips only when no OpenCL platform exists.
 import numpy as np
 import pytest
 
-from conftest import fresh_process_env
+from conftest import run_fresh
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
@@ -218,8 +218,6 @@ def test_renders_match_between_backends(name):
 def test_the_kernel_vectorises(tmp_path):
     """PoCL's work-group vectoriser widens ``shade`` (every table read would otherwise be scalar:
     about 4x slower). Its remarks need a fresh build, so this runs in a process of its own."""
-    import subprocess
-    import sys
 
     script = (
         "import numpy as np\n"
@@ -231,10 +229,8 @@ def test_the_kernel_vectorises(tmp_path):
         "ray = np.array([[0.0, 1.0, 4.0]], np.float32)\n"
         "integrator.radiance(ray, np.array([[0.0, -0.2, -1.0]], np.float32) / np.float32(1.0198039),\n"
         "                    np.zeros(1, np.int32), np.zeros(1, np.int64))\n")
-    env = fresh_process_env(POCL_KERNEL_CACHE="0", POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=str(tmp_path),
-                            REALISTIC_CACHE_DIR="off")  # compiled from source, not loaded from realistic's cache
-    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
-    assert run.returncode == 0, run.stderr[-2000:]
+    run = run_fresh(script, POCL_KERNEL_CACHE="0", POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=str(tmp_path),
+                    REALISTIC_CACHE_DIR="off")  # compiled from source, not loaded from realistic's cache
     remarks = run.stdout + run.stderr
     if "vectorized loop" not in remarks and "not vectorized" not in remarks:
         pytest.skip("this PoCL prints no vectoriser remarks")
