@@ -262,7 +262,7 @@ def setting_values(camera: LensCamera) -> np.ndarray:
     stop_r2 = f((float(lens.aperture_mm[lens.stop]) / 2) ** 2)
     head = np.array([plane_z, plane_z * plane_z, f(vertex_z[0]), f(-camera.film_distance_mm), *sampling, stop_r2],
                     np.float32)
-    return np.concatenate([head, *tables]).astype(np.float32)
+    return np.concatenate([head, *tables])  # float32 throughout
 
 
 def wrapped_buffer(ctx: cl.Context, array: np.ndarray, dtype) -> cl.Buffer:

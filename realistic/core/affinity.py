@@ -20,6 +20,9 @@ import os
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import TypeVar
+
+Result = TypeVar("Result")
 
 #: Native thread ids the OpenCL runtime started (``record_runtime_threads``): PoCL's CPU pool.
 _runtime_threads: set[int] = set()
@@ -43,7 +46,7 @@ def native_threads() -> set[int]:
         return set()
 
 
-def record_runtime_threads(start: Callable[[], object]) -> object:
+def record_runtime_threads(start: Callable[[], Result]) -> Result:
     """``start()``'s result; the native threads it started, other than Python's, are remembered
     as the OpenCL runtime's (call it around the first platform enumeration, which starts PoCL's pool)."""
     before = native_threads()
