@@ -81,6 +81,20 @@ def test_a_float_pfm_ramp_keeps_its_values_exactly(tmp_path, little_endian):
 MODES_8_BIT = ("RGB", "RGBA", "L", "LA", "P", "1")
 
 
+def test_a_radiance_hdr_keeps_its_float_values(tmp_path):
+    """Flat (not run-length encoded) RGBE scanlines, as a width under 8 requires; each texel is
+    mantissa * 2^(exponent - 136) (Radiance's rgbe.c)."""
+    rgbe = np.array([[[128, 64, 32, 129], [255, 1, 0, 140], [1, 2, 3, 100]],
+                     [[200, 100, 50, 120], [0, 0, 0, 0], [10, 20, 30, 150]]], np.uint8)
+    header = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 3\n"
+    (tmp_path / "sky.hdr").write_bytes(header + rgbe.tobytes())
+    pixels, stored_linear = read_image(tmp_path / "sky.hdr")
+    exponent = rgbe[..., 3:].astype(np.float64)
+    expected = np.where(exponent > 0, rgbe[..., :3] * 2.0 ** (exponent - 136), 0.0)
+    assert stored_linear
+    np.testing.assert_allclose(pixels, expected, rtol=1e-6)
+
+
 @pytest.mark.parametrize("suffix,mode", [(s, m) for s in (".png", ".tga", ".bmp") for m in MODES_8_BIT
                                          if s != ".bmp" or "A" not in m])  # BMP holds no alpha
 def test_8_bit_images_read_as_pillows_rgb_did(tmp_path, suffix, mode):
