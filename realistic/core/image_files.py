@@ -72,7 +72,7 @@ def write_png(path: Path, image: np.ndarray, exposure_stops: float) -> None:
 #: Suffixes read through imageio's OpenCV plugin: the formats whose bit depth or float values Pillow
 #: cannot hold (16-bit RGB PNG and TIFF, float RGB PFM and TIFF, Radiance HDR). Other non-EXR images
 #: (JPEG, TGA, BMP, ...) go through its Pillow plugin.
-OPENCV_SUFFIXES = frozenset({".png", ".pfm", ".hdr", ".tif", ".tiff"})
+_OPENCV_SUFFIXES = frozenset({".png", ".pfm", ".hdr", ".tif", ".tiff"})
 #: Pillow modes with more than 8 bits per sample (single-channel); other modes are read converted to RGB.
 _DEEP_PILLOW_MODES = ("I", "F")
 
@@ -103,11 +103,11 @@ def read_linear_rgb(path: str | Path) -> np.ndarray:
 
 
 def _read_with_imageio(path: Path) -> np.ndarray:
-    """The first image in ``path`` at its stored type: OpenCV for ``OPENCV_SUFFIXES``, else Pillow
-    (converted to RGB unless its mode has more than 8 bits per sample, as CMYK or palette JPEG/TGA/GIF need)."""
+    """The first image in ``path`` at its stored type: OpenCV for ``_OPENCV_SUFFIXES``, else Pillow,
+    converted to RGB (as CMYK, YCbCr and palette images need) unless its samples have more than 8 bits."""
     import imageio.v3 as iio
 
-    if path.suffix.lower() in OPENCV_SUFFIXES:
+    if path.suffix.lower() in _OPENCV_SUFFIXES:
         import cv2
 
         cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # its log would repeat our error

@@ -166,9 +166,8 @@ def read_ply(path: Path) -> Mesh | None:
     if data is None or sorted(element.name for element in data.elements) != ["face", "vertex"]:
         return None
     vertex, face = data["vertex"].data, data["face"].data
-    names = set(vertex.dtype.names or ()) | set(face.dtype.names or ())
-    index_name = next((name for name in _PLY_INDICES if name in names), None)
-    if index_name is None or names.intersection(_PLY_FOR_TRIMESH):
+    index_name = next((name for name in _PLY_INDICES if name in (face.dtype.names or ())), None)
+    if index_name is None or {*(vertex.dtype.names or ()), *(face.dtype.names or ())} & set(_PLY_FOR_TRIMESH):
         return None
     index = data["face"].ply_property(index_name)
     if not isinstance(index, plyfile.PlyListProperty) or np.dtype(index.val_dtype).kind not in "iu":
@@ -197,17 +196,16 @@ def _triangulated(lists: np.ndarray) -> np.ndarray:
     """(F, 3) int64 triangles of polygon index lists as trimesh makes them (``triangulate_quads``):
     the triangles, then each quad's (0, 1, 2), then each quad's (2, 3, 0), then fans of the larger
     polygons; lists of fewer than 3 indices are dropped."""
-    if lists.dtype != object:  # memory-mapped rows of one length
-        rows = {lists.shape[1]: lists.astype(np.int64)}
+    fans = [np.empty((0, 3), np.int64)]
+    if lists.dtype != object:  # memory-mapped rows of one length, 3 or 4
+        rows = {k: lists.astype(np.int64) if lists.shape[1] == k else np.empty((0, k), np.int64) for k in (3, 4)}
     else:
         lengths = np.fromiter((len(row) for row in lists), np.int64, len(lists))
         rows = {k: np.array([row for row in lists[lengths == k]], np.int64).reshape(-1, k) for k in (3, 4)}
-        big = [np.asarray(row, np.int64) for row in lists[lengths > 4]]
-        rows[5] = np.concatenate([np.column_stack([np.full(len(fan) - 2, fan[0]), fan[1:-1], fan[2:]])
-                                  for fan in big]) if big else np.empty((0, 3), np.int64)
-    empty = np.empty((0, 3), np.int64)
-    quads = rows.get(4, np.empty((0, 4), np.int64))
-    return np.concatenate([rows.get(3, empty), quads[:, [0, 1, 2]], quads[:, [2, 3, 0]], rows.get(5, empty)])
+        fans += [np.column_stack([np.full(len(fan) - 2, fan[0]), fan[1:-1], fan[2:]]).astype(np.int64)
+                 for fan in lists[lengths > 4]]
+    quads = rows[4]
+    return np.concatenate([rows[3], quads[:, [0, 1, 2]], quads[:, [2, 3, 0]], *fans])
 
 
 def _check_path(path: Path) -> None:
