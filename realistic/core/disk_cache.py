@@ -23,14 +23,17 @@ OFF = "off"
 
 
 def cache_dir() -> Path | None:
-    """The cache folder, or None when the cache is turned off."""
+    """The cache folder, or None when the cache is turned off: ``$REALISTIC_CACHE_DIR``, else the
+    platform's user cache folder for "realistic" (platformdirs; on Linux ``$XDG_CACHE_HOME/realistic``,
+    else ``~/.cache/realistic``)."""
     chosen = os.environ.get("REALISTIC_CACHE_DIR")
     if chosen == OFF:
         return None
     if chosen:
         return Path(chosen)
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "realistic"
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("realistic", appauthor=False))
 
 
 def cache_key(kind: str, *parts: object) -> str:

@@ -1,4 +1,5 @@
-"""Image files: OpenEXR with metadata and PNG previews (written atomically), EXR and other images read."""
+"""Image files: OpenEXR with metadata and PNG previews (written atomically); EXR (OpenEXR) and other
+images (imageio) read at their stored bit depth or float values."""
 
 from __future__ import annotations
 
@@ -59,26 +60,69 @@ def auto_exposure(image: np.ndarray) -> float:
 
 
 def write_png(path: Path, image: np.ndarray, exposure_stops: float) -> None:
-    """8-bit sRGB PNG preview of linear ``image`` scaled by 2^exposure_stops."""
-    from PIL import Image
+    """8-bit sRGB PNG preview of linear ``image`` scaled by 2^exposure_stops (imageio's Pillow plugin,
+    the same library that reads images)."""
+    import imageio.v3 as iio
 
     encoded = srgb_encode(image.astype(np.float32) * np.float32(2.0**exposure_stops))
     rgb = np.round(encoded * 255).astype(np.uint8)
-    write_atomically(path, lambda name: Image.fromarray(rgb, "RGB").save(name, format="PNG"))
+    write_atomically(path, lambda name: iio.imwrite(name, rgb, plugin="pillow", extension=".png"))
 
 
-def read_linear_rgb(path: str | Path) -> np.ndarray:
-    """Linear RGB float32 (H, W, 3): EXR as stored, other formats (PNG, JPEG, ...) sRGB-decoded."""
+#: Suffixes read through imageio's OpenCV plugin: the formats whose bit depth or float values Pillow
+#: cannot hold (16-bit RGB PNG and TIFF, float RGB PFM and TIFF, Radiance HDR). Other non-EXR images
+#: (JPEG, TGA, BMP, ...) go through its Pillow plugin.
+_OPENCV_SUFFIXES = frozenset({".png", ".pfm", ".hdr", ".tif", ".tiff"})
+#: Pillow modes with more than 8 bits per sample (single-channel); other modes are read converted to RGB.
+_DEEP_PILLOW_MODES = ("I", "F")
+
+
+def read_image(path: str | Path) -> tuple[np.ndarray, bool]:
+    """(linear RGB float32 (H, W, 3), whether the file stored linear float values): EXR and other float
+    images as stored; integer images divided by their type's maximum (so 8- and 16-bit keep every level)
+    and sRGB-decoded. Grey is repeated into RGB, alpha dropped."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no such texture file")
     if path.suffix.lower() == ".exr":
-        return read_exr(path)[0]
-    from PIL import Image, UnidentifiedImageError
-
+        return read_exr(path)[0], True
     try:
-        with Image.open(path) as img:
-            rgb = np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0
-    except (OSError, UnidentifiedImageError) as err:
-        raise UserError(f"{path}: not a readable image ({err})") from None
-    return srgb_decode(rgb).astype(np.float32)
+        pixels = _read_with_imageio(path)
+    except Exception as err:  # imageio, Pillow and OpenCV raise many types for unreadable files
+        message = " ".join(str(err).split()) or type(err).__name__
+        raise UserError(f"{path}: not a readable image ({message})") from None
+    rgb = _rgb_channels(pixels, path)
+    if np.issubdtype(rgb.dtype, np.floating):
+        return rgb.astype(np.float32), True
+    return srgb_decode(rgb.astype(np.float64) / np.iinfo(rgb.dtype).max).astype(np.float32), False
+
+
+def read_linear_rgb(path: str | Path) -> np.ndarray:
+    """Linear RGB float32 (H, W, 3) of an image file (``read_image`` without its flag)."""
+    return read_image(path)[0]
+
+
+def _read_with_imageio(path: Path) -> np.ndarray:
+    """The first image in ``path`` at its stored type: OpenCV for ``_OPENCV_SUFFIXES``, else Pillow,
+    converted to RGB (as CMYK, YCbCr and palette images need) unless its samples have more than 8 bits."""
+    import imageio.v3 as iio
+
+    if path.suffix.lower() in _OPENCV_SUFFIXES:
+        import cv2
+
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # its log would repeat our error
+        return iio.imread(path, plugin="opencv", index=0, flags=cv2.IMREAD_UNCHANGED)
+    mode = str(iio.immeta(path, plugin="pillow", index=0).get("mode", ""))
+    deep = mode.startswith(_DEEP_PILLOW_MODES)
+    return iio.imread(path, plugin="pillow", index=0, mode=None if deep else "RGB")
+
+
+def _rgb_channels(pixels: np.ndarray, path: Path) -> np.ndarray:
+    """(H, W, 3) of an image read as (H, W) grey, (H, W, 1|2) grey (+ alpha) or (H, W, 3|4) RGB (+ alpha)."""
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    if pixels.ndim != 3 or pixels.shape[2] not in (1, 2, 3, 4) or 0 in pixels.shape:
+        raise UserError(f"{path}: not a grey or RGB image (array of shape {pixels.shape})")
+    if pixels.shape[2] <= 2:
+        return np.repeat(pixels[..., :1], 3, axis=2)
+    return pixels[..., :3]

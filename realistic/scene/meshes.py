@@ -92,7 +92,7 @@ def load_mesh_file(path: str | Path) -> list[MeshObject]:
     _check_path(path)
     extension = path.suffix.lower().lstrip(".")
     if extension == "ply":
-        mesh = read_plain_binary_ply(path)
+        mesh = read_ply(path)
         if mesh is not None:
             _check_object(path, path.name, mesh, np.eye(4))
             objects = [MeshObject(mesh, np.eye(4), None, str(path))]
@@ -134,54 +134,78 @@ def load_mesh_file(path: str | Path) -> list[MeshObject]:
     return objects
 
 
-_PLY_FLOATS = {"float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
-_PLY_COUNTS = {"uchar": "u1", "uint8": "u1"}
-_PLY_INDICES = {"int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4"}
+#: Vertex properties holding texture coordinates, in the order trimesh tries them.
+_PLY_UV = (("texture_u", "texture_v"), ("u", "v"), ("s", "t"))
+_PLY_INDICES = ("vertex_indices", "vertex_index")
+#: Properties that only trimesh reads (colours, per-corner uv): a file with any goes to it.
+_PLY_FOR_TRIMESH = ("red", "green", "blue", "alpha", "texcoord")
 
 
-def read_plain_binary_ply(path: Path) -> Mesh | None:
-    """The mesh of a binary PLY of the plainest layout (as scanners' files are: vertices with float x,
-    y, z only, then triangles as a uchar-counted int list), read with numpy in milliseconds; None for
-    anything else (ASCII, other properties or elements, polygons, a size that does not add up), which
-    trimesh then reads. The result is what trimesh gives for the same file (``tests/test_meshes_ply.py``)."""
-    with open(path, "rb") as file:
-        head = file.read(4096)
-        end = head.find(b"end_header\n")
-        if not head.startswith(b"ply\n") or end < 0:
-            return None
-        lines = [line.split() for line in head[:end].decode("ascii", "replace").splitlines()[1:]]
-        lines = [line for line in lines if line and line[0] not in ("comment", "obj_info")]
-        layout = [line for line in lines if line[0] != "format"]
-        formats = [line for line in lines if line[0] == "format"]
-        if len(formats) != 1 or formats[0][1:] not in (["binary_little_endian", "1.0"], ["binary_big_endian", "1.0"]):
-            return None
-        order = "<" if formats[0][1] == "binary_little_endian" else ">"
-        if (len(layout) != 6 or layout[0][:2] != ["element", "vertex"] or layout[4][:2] != ["element", "face"]
-                or [line[-1] for line in layout[1:4]] != ["x", "y", "z"] or len(layout[5]) != 5
-                or layout[5][:2] != ["property", "list"] or layout[5][4] not in ("vertex_indices", "vertex_index")):
-            return None
-        kinds = [line[1] for line in layout[1:4] if len(line) == 3 and line[0] == "property"]
-        if len(kinds) != 3 or len(set(kinds)) != 1 or kinds[0] not in _PLY_FLOATS:
-            return None
-        if layout[5][2] not in _PLY_COUNTS or layout[5][3] not in _PLY_INDICES:
-            return None
+def read_ply(path: Path) -> Mesh | None:
+    """The mesh of a PLY file, ASCII or binary, read with plyfile (milliseconds for a scanner's binary
+    triangles, without the 1.5 s trimesh import): vertex x, y, z with optional normals (nx, ny, nz) and
+    uv, and faces triangulated as trimesh does. None for what plyfile cannot parse and for anything else
+    (colours, per-face uv, other elements, no triangle), which trimesh then reads or diagnoses. The
+    result is what trimesh gives for the same file (``tests/test_meshes_ply.py``)."""
+    import plyfile
+
+    data = None
+    # Faces of 3 (then 4) indices each are memory-mapped (plyfile's known_list_len, which checks every
+    # row's count: other faces fail as a face element error); mixed polygons are read row by row.
+    for length in (3, 4, None):
+        known = {} if length is None else {"face": {name: length for name in _PLY_INDICES}}
         try:
-            n, m = int(layout[0][2]), int(layout[4][2])
-        except (ValueError, IndexError):
+            with _quiet():
+                data = plyfile.PlyData.read(str(path), known_list_len=known)
+            break
+        except plyfile.PlyElementParseError as err:
+            if length is None or err.element is None or err.element.name != "face":
+                return None
+        except Exception:  # plyfile raises its parse errors, numpy's and the codecs' for malformed files
             return None
-        if n <= 0 or m <= 0 or len(layout[0]) != 3 or len(layout[4]) != 3:
-            return None
-        vertex = np.dtype((order + _PLY_FLOATS[kinds[0]], 3))
-        face = np.dtype([("count", "u1"), ("index", order + _PLY_INDICES[layout[5][3]], 3)])
-        file.seek(end + len(b"end_header\n"))
-        body = file.read()
-    if len(body) != n * vertex.itemsize + m * face.itemsize:
+    if data is None or sorted(element.name for element in data.elements) != ["face", "vertex"]:
         return None
-    vertices = np.frombuffer(body, vertex, n).astype(np.float64)
-    faces = np.frombuffer(body, face, m, offset=n * vertex.itemsize)
-    if not np.all(faces["count"] == 3):
+    vertex, face = data["vertex"].data, data["face"].data
+    index_name = next((name for name in _PLY_INDICES if name in (face.dtype.names or ())), None)
+    if index_name is None or {*(vertex.dtype.names or ()), *(face.dtype.names or ())} & set(_PLY_FOR_TRIMESH):
         return None
-    return Mesh(vertices.reshape(n, 3), faces["index"].astype(np.int64), None, None, path.name)
+    index = data["face"].ply_property(index_name)
+    if not isinstance(index, plyfile.PlyListProperty) or np.dtype(index.val_dtype).kind not in "iu":
+        return None
+    vertices, faces = _ply_columns(vertex, ("x", "y", "z")), _triangulated(face[index_name])
+    if vertices is None or not len(vertices) or not len(faces):
+        return None
+    normals = _ply_columns(vertex, ("nx", "ny", "nz"))
+    uv = next((columns for pair in _PLY_UV if (columns := _ply_columns(vertex, pair)) is not None), None)
+    return Mesh(vertices, faces, _finite_or_none(normals), _finite_or_none(uv), path.name)
+
+
+def _finite_or_none(values: np.ndarray | None) -> np.ndarray | None:
+    """``values`` when all finite (trimesh's normals and uv are dropped otherwise too, ``_mesh``)."""
+    return values if values is not None and np.all(np.isfinite(values)) else None
+
+
+def _ply_columns(data: np.ndarray, names: tuple[str, ...]) -> np.ndarray | None:
+    """(N, len(names)) float64 of an element's numeric scalar properties; None when one is missing."""
+    if not all(name in (data.dtype.names or ()) and data.dtype[name].kind in "iuf" for name in names):
+        return None
+    return np.column_stack([data[name] for name in names]).astype(np.float64)
+
+
+def _triangulated(lists: np.ndarray) -> np.ndarray:
+    """(F, 3) int64 triangles of polygon index lists as trimesh makes them (``triangulate_quads``):
+    the triangles, then each quad's (0, 1, 2), then each quad's (2, 3, 0), then fans of the larger
+    polygons; lists of fewer than 3 indices are dropped."""
+    fans = [np.empty((0, 3), np.int64)]
+    if lists.dtype != object:  # memory-mapped rows of one length, 3 or 4
+        rows = {k: lists.astype(np.int64) if lists.shape[1] == k else np.empty((0, k), np.int64) for k in (3, 4)}
+    else:
+        lengths = np.fromiter((len(row) for row in lists), np.int64, len(lists))
+        rows = {k: np.array([row for row in lists[lengths == k]], np.int64).reshape(-1, k) for k in (3, 4)}
+        fans += [np.column_stack([np.full(len(fan) - 2, fan[0]), fan[1:-1], fan[2:]]).astype(np.int64)
+                 for fan in lists[lengths > 4]]
+    quads = rows[4]
+    return np.concatenate([rows[3], quads[:, [0, 1, 2]], quads[:, [2, 3, 0]], *fans])
 
 
 def _check_path(path: Path) -> None:

@@ -1,7 +1,7 @@
 """pbrt's ``imagemap`` texture parameters read into an ``ImageTexture``.
 
 Which parameters a version has, and their defaults, are the dialect's (``Dialect.imagemap``). The
-file is read as linear (``read_linear_rgb`` decodes sRGB from all but EXR); an encoding that
+file is read as linear (``read_image`` decodes sRGB from integer images, not float ones); an encoding that
 differs from that applies to the file's stored values. Every bad value is a one-line ``UserError``
 naming the file and line.
 """
@@ -86,7 +86,7 @@ def _encoded(pixels: np.ndarray, stored_linear: bool, params: Params, dialect: D
 def imagemap_texture(params: Params, pixels: np.ndarray, stored_linear: bool, filename: str, dialect: Dialect,
                      where: str) -> ImageTexture:
     """The ``ImageTexture`` an imagemap's ``params`` (declared at ``where``) describe over ``pixels``
-    as read (linear); ``stored_linear``: whether the file held linear values (EXR) rather than sRGB."""
+    as read (linear); ``stored_linear``: whether the file held linear floats (EXR, PFM) rather than sRGB."""
     conventions = dialect.imagemap
     try:
         texture_filter = _filter(params, dialect, where)

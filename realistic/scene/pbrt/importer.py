@@ -22,7 +22,7 @@ import numpy as np
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core import validation
-from realistic.core.image_files import read_linear_rgb
+from realistic.core.image_files import read_image, read_linear_rgb
 from realistic.core.pixel_filter import PixelFilter, filter_name
 from realistic.core.transforms import scale, translate
 from realistic.core.validation import MAX_LIGHT_SAMPLES
@@ -194,8 +194,7 @@ class _Importer:
             path = self.find(filename, tex.directory, tex.where, "texture file")
             if p.get_string("mapping", "uv") != "uv":
                 self.warn(tex.where, "imagemap mapping other than uv (uv used)")
-            texture = imagemap_texture(p, read_linear_rgb(path), path.suffix.lower() == ".exr", filename,
-                                       self.dialect, tex.where)
+            texture = imagemap_texture(p, *read_image(path), filename, self.dialect, tex.where)
             return Material((1.0, 1.0, 1.0), texture)
         if tex.cls == "checkerboard":
             if p.get_float("uscale", 1.0) != p.get_float("vscale", 1.0):
