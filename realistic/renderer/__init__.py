@@ -9,7 +9,7 @@
 - ``checkpoint``: a render's identity (content hashes) and its checkpoint file.
 - ``sweep``: ``--sweep`` sequences: one camera per frame.
 - ``integrators``: which integrator a scene asks for (``make_integrator``).
-- ``integrator``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces): the fast path.
+- ``direct_lighting``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces): the fast path.
 - ``shade_kernel``: the fast path's shading as an OpenCL kernel (``kernels/shade.cl``), backend "opencl".
 - ``path``: MIS direct lighting and path tracing over any BSDF and light, one embree batch per bounce.
 - ``light_sampler``: every light picked by power, sampled, with densities for MIS.
