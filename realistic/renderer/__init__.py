@@ -13,6 +13,7 @@
 - ``shade_kernel``: the fast path's shading as an OpenCL kernel (``kernels/shade.cl``), backend "opencl".
 - ``path``: MIS direct lighting and path tracing over any BSDF and light, one embree batch per bounce.
 - ``light_sampler``: every light picked by power, sampled, with densities for MIS.
+- ``area_lights``: the area lights' table and points drawn on them by area, for both integrators.
 - ``footprint``: a camera ray's pixel footprint on a surface, as two uv axes for texture filtering.
 - ``film``: per-pixel accumulation of pass sums, in pass-index order (``PassFilm``).
 - ``timing``: per-stage thread-seconds.
