@@ -6,7 +6,6 @@ pbrt-v4's ``aperture`` shape), and ``perspective`` (pinhole or thin lens)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +28,7 @@ from realistic.scene.pbrt.dialect import (
     Dialect,
     v4_builtin_aperture,
 )
-from realistic.scene.pbrt.parser import Params, PbrtScene, resolve_file
+from realistic.scene.pbrt.parser import Directive, Params, PbrtScene, resolve_file
 from realistic.scene.pbrt.values import MAX_WORLD_COORDINATE, located
 
 
@@ -45,20 +44,18 @@ def find_lens_file(name: str, scene_dir: Path, search_paths: list[Path], where: 
                     f'bundled lenses ({", ".join(BUNDLED_LENSES.values())})')
 
 
-def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, spp: int,
-                  lens_sampling: str = "pupil",
-                  lens_edit: Callable[[LensSystem], LensSystem] | None = None,
-                  focus_scene_units: float | None = None,
-                  search_paths: list[Path] | None = None) -> LensCamera | ThinLensCamera:
-    """The scene's camera at the given resolution and sample count, with optional overrides.
-
-    ``focus_scene_units`` refocuses a realistic camera (thick-lens model) on the plane that far
-    from the film; ``lens_edit`` changes the scene's lens (its stop's size or shape) before focusing.
-    """
-    search_paths = list(search_paths or [])
-    directive = parsed.camera
-    if directive is None:
+def camera_directive(parsed: PbrtScene) -> Directive:
+    """The file's Camera directive; a file without one is an error."""
+    if parsed.camera is None:
         raise UserError(f"{parsed.path}: no Camera directive")
+    return parsed.camera
+
+
+def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, spp: int,
+                  search_paths: list[Path] | None = None) -> LensCamera | ThinLensCamera:
+    """The camera the file's Camera directive describes, at the given resolution and sample count."""
+    search_paths = list(search_paths or [])
+    directive = camera_directive(parsed)
     world_from_camera = np.linalg.inv(directive.transform)
     if not np.max(np.abs(world_from_camera[:3, 3])) <= MAX_WORLD_COORDINATE:
         raise UserError(f"{directive.where}: the camera sits beyond {MAX_WORLD_COORDINATE:g} from the origin, more "
@@ -76,9 +73,6 @@ def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, 
         return load_lens(found)
 
     if directive.type == "perspective":
-        if lens_edit is not None or focus_scene_units is not None:
-            raise UserError(f"{directive.where}: the stop and focus options apply to realistic cameras, not "
-                            f'Camera "perspective"')
         with located(directive.where):
             return ThinLensCamera(params.get_float("fov", 90.0), params.get_float("lensradius", 0.0),
                                   params.get_float("focaldistance", 1e6), width, height, spp, world_from_camera)
@@ -121,14 +115,8 @@ def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, 
     with located(film_diagonal_where):
         film_diagonal = validation.film_diagonal_mm(film_diagonal_params.get_float(film_diagonal_name,
                                                                                    DEFAULT_FILM_DIAGONAL_MM))
-    if lens_edit is not None:
-        lens = lens_edit(lens)
     with located(directive.where):
-        camera = LensCamera(lens, film_distance, film_diagonal, width, height, spp, world_from_camera,
-                            convention.origin, lens_sampling)
-    if focus_scene_units is not None:
-        camera = camera.refocused(focus_scene_units * camera.mm_per_unit)
-    return camera
+        return LensCamera(lens, film_distance, film_diagonal, width, height, spp, world_from_camera, convention.origin)
 
 
 def _v3_stop(lens: LensSystem, diameter_mm: float, parsed: PbrtScene, where: str) -> LensSystem:

@@ -14,16 +14,13 @@ from realistic.scene.pbrt.parser import Params, PbrtScene
 from realistic.scene.pbrt.values import located, whole_number
 
 
-def import_pixel_filter(parsed: PbrtScene, dialect: Dialect, override: str | None = None) -> PixelFilter:
-    """The scene's ``PixelFilter`` read in ``dialect`` (its default when the scene names none);
-    ``override`` (a filter name) replaces the scene's with that filter at the dialect's defaults.
+def import_pixel_filter(parsed: PbrtScene, dialect: Dialect) -> PixelFilter:
+    """The scene's ``PixelFilter`` read in ``dialect`` (its default when the scene names none).
 
     A filter name pbrt does not know is a warning and the dialect's default, not an error: pbrt-v2
     itself warns and goes on, and this importer renders what it can of a scene everywhere else
     (unknown shapes, materials and lights are warnings too); bad parameters of a known filter are
     one-line errors naming the file and line."""
-    if override is not None:
-        return dialect.pixel_filter(override)
     directive = parsed.pixel_filter
     if directive is None:
         return dialect.pixel_filter()
@@ -71,22 +68,21 @@ class FilmSettings:
     output_name: str | None
 
 
-def import_film(parsed: PbrtScene, width: int | None = None, height: int | None = None,
-                spp: int | None = None) -> FilmSettings:
+def import_film(parsed: PbrtScene) -> FilmSettings:
     """The file's Film and Sampler settings (pbrt's defaults: 640 x 480, 16 samples), with a
-    warning for what we do not model; ``width``, ``height`` and ``spp`` replace the file's."""
+    warning for what we do not model."""
     film = parsed.film.params if parsed.film else Params()
     film_where = parsed.film.where if parsed.film else str(parsed.path)
     if parsed.film and parsed.film.params.has("cropwindow"):
         parsed.warn(parsed.film.where, "Film cropwindow (the whole image is rendered)")
     if parsed.film:
         _check_film(parsed)
-    if not (width and height):  # the file's resolution is used
-        with located(film_where):
-            width, height = validation.resolution(width or whole_number(film, "xresolution", 640, film_where),
-                                                  height or whole_number(film, "yresolution", 480, film_where))
-    if not spp and parsed.sampler:
+    with located(film_where):
+        width, height = validation.resolution(whole_number(film, "xresolution", 640, film_where),
+                                              whole_number(film, "yresolution", 480, film_where))
+    spp = 16
+    if parsed.sampler:
         with located(parsed.sampler.where):
             spp = validation.samples_per_pixel(whole_number(parsed.sampler.params, "pixelsamples", 16,
                                                             parsed.sampler.where))
-    return FilmSettings(width, height, spp or 16, film.get_string("filename"))
+    return FilmSettings(width, height, spp, film.get_string("filename"))

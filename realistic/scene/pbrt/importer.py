@@ -8,7 +8,6 @@ Everything the renderer cannot honour is reported once with file and line, and t
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,11 +17,10 @@ from realistic.core.image_files import read_linear_rgb
 from realistic.core.transforms import translate
 from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.errors import UserError
-from realistic.optics.lens import LensSystem
 from realistic.scene.lights import EmissiveInstance
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.model import AreaLight, CheckerTexture, Material, Mesh, Scene
-from realistic.scene.pbrt.camera import import_camera
+from realistic.scene.pbrt.camera import camera_directive, import_camera
 from realistic.scene.pbrt.dialect import Dialect, choose_dialect
 from realistic.scene.pbrt.film import import_film, import_pixel_filter
 from realistic.scene.pbrt.imagemap import imagemap_texture
@@ -36,12 +34,13 @@ from realistic.scene.pbrt.values import GREY, MAX_WORLD_COORDINATE, located, rgb
 @dataclass
 class ImportedScene:
     """What a pbrt file describes, ready to render: the scene (with its camera and light samples),
-    the output file the Film names, and what could not be honoured."""
+    the output file the Film names, what could not be honoured, and where the camera was set."""
 
     scene: Scene
     output_name: str | None
     warnings: list[str] = field(default_factory=list)
     dialect: Dialect | None = None  # the pbrt version the file was read as, and why
+    camera_where: str = ""  # the file and line of the Camera directive, for errors about the camera
 
 
 def _texture_name(params: Params, name: str, where: str) -> str:
@@ -290,17 +289,13 @@ def import_world(path: str | Path, search_paths: list[Path] | None = None,
     return _Importer(parsed, search_paths, chosen).run(), parsed, chosen
 
 
-def import_pbrt(path: str | Path, width: int | None = None, height: int | None = None, spp: int | None = None,
-                lens_sampling: str = "pupil", lens_edit: Callable[[LensSystem], LensSystem] | None = None,
-                focus_scene_units: float | None = None, search_paths: list[Path] | None = None,
-                dialect: str = "auto", pixel_filter: str | None = None) -> ImportedScene:
-    """Read a pbrt scene and its camera (``Scene.camera``); resolution and samples default to the
-    file's (``Film`` and ``Sampler``); ``dialect`` as ``realistic.scene.pbrt.dialect`` explains;
-    ``pixel_filter`` names a filter that replaces the scene's (``import_pixel_filter``)."""
+def import_pbrt(path: str | Path, search_paths: list[Path] | None = None, dialect: str = "auto") -> ImportedScene:
+    """Read a pbrt scene and its camera (``Scene.camera``) as the file says: resolution and samples
+    from its ``Film`` and ``Sampler``, its pixel filter; ``dialect`` as ``realistic.scene.pbrt.dialect``
+    explains. The user's overrides are applied afterwards (``realistic.renderer.inputs``)."""
     search_paths = list(search_paths or [])
     scene, parsed, chosen = import_world(path, search_paths, dialect)
-    film = import_film(parsed, width, height, spp)
-    scene.camera = dataclasses.replace(import_camera(parsed, chosen, film.width, film.height, film.spp, lens_sampling,
-                                                     lens_edit, focus_scene_units, search_paths),
-                                       pixel_filter=import_pixel_filter(parsed, chosen, pixel_filter))
-    return ImportedScene(scene, film.output_name, parsed.warnings, chosen)
+    film = import_film(parsed)
+    scene.camera = dataclasses.replace(import_camera(parsed, chosen, film.width, film.height, film.spp, search_paths),
+                                       pixel_filter=import_pixel_filter(parsed, chosen))
+    return ImportedScene(scene, film.output_name, parsed.warnings, chosen, camera_directive(parsed).where)
