@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import realistic.renderer.passes as passes  # noqa: E402
-from realistic.renderer.integrator import DirectLighting  # noqa: E402
+from realistic.renderer.direct_lighting import DirectLighting  # noqa: E402
 from realistic.renderer.path import PathIntegrator  # noqa: E402
 from render import staged_subject  # noqa: E402
 

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from realistic.renderer.integrator import DirectLighting  # noqa: E402
+from realistic.renderer.direct_lighting import DirectLighting  # noqa: E402
 from realistic.renderer.passes import DEFAULT_PASS_SAMPLES  # noqa: E402
 from realistic.renderer.timing import StageClock  # noqa: E402
 from realistic.scene.intersect import Intersector  # noqa: E402

@@ -25,9 +25,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from realistic.renderer.inputs import RenderOptions, build_render_inputs  # noqa: E402
 from realistic.renderer.passes import render_passes  # noqa: E402
 from realistic.scene.mipmap import MipMap  # noqa: E402
-from realistic.scene.pbrt.importer import import_pbrt  # noqa: E402
 
 SCENE = ROOT.parent / "shared" / "scenes" / "pbrt" / "dof-dragons.dgauss.pbrt"
 LENSES = ROOT.parent / "shared" / "lenses"
@@ -73,7 +73,8 @@ def renders(width: int, height: int, spp: int) -> list[dict]:
     if not SCENE.is_file():
         print(f"skipping the render table: {SCENE} not found")
         return []
-    imported = import_pbrt(SCENE, width, height, spp, search_paths=[LENSES])
+    imported = build_render_inputs(RenderOptions(scene=SCENE, resolution=(width, height), spp=spp,
+                                                 search_paths=[LENSES]))
     scene = imported.scene
     floor = scene.instances[0]
     render_passes(scene, scene.camera, "numpy")  # warm-up: imports, BVH, the MIP map

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from realistic.errors import UserError
-from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector

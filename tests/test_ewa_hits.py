@@ -11,7 +11,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.transforms import rotate, scale, translate
 from realistic.optics.formats import load_lens
-from realistic.renderer.integrator import DirectLighting, _facing
+from realistic.renderer.direct_lighting import DirectLighting, _facing
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.shapes import cone, quad, sphere

@@ -14,13 +14,14 @@ from conftest import shared_file
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.optics.paraxial import focus_distance_for_film, paraxial_data, thick_lens
-from realistic.scene.pbrt.importer import import_pbrt
+from realistic.renderer.inputs import RenderInputs, RenderOptions, build_render_inputs
 
 HOMEWORK = ["dgauss", "fisheye", "telephoto", "wide"]
 
 
-def homework_camera(lens, width=8, height=8, spp=1):
-    return import_pbrt(shared_file(f"scenes/pbrt/dof-dragons.{lens}.pbrt"), width, height, spp)
+def homework_camera(lens, width=8, height=8, spp=1) -> RenderInputs:
+    return build_render_inputs(RenderOptions(scene=shared_file(f"scenes/pbrt/dof-dragons.{lens}.pbrt"),
+                                             resolution=(width, height), spp=spp))
 
 
 def pixel_mean_weight(camera):

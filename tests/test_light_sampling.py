@@ -21,7 +21,7 @@ from scipy.stats import qmc
 
 from realistic.core import rng
 from realistic.core.transforms import rotate, translate
-from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, Material, Scene
 from realistic.scene.shapes import quad

@@ -8,7 +8,7 @@ import pytest
 
 from realistic.core.transforms import rotate, translate
 from realistic.renderer.bsdf import BSDFSample, Lambertian, bsdf_for
-from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector

@@ -15,7 +15,7 @@ from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.optics.formats import load_lens
-from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from test_shading_reference import textured_scene

@@ -9,6 +9,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.errors import UserError
 from realistic.optics.paraxial import focus_distance_for_film
+from realistic.renderer.inputs import RenderOptions, build_render_inputs
 from realistic.scene.model import CheckerTexture, ImageTexture
 from realistic.scene.pbrt.importer import import_pbrt
 
@@ -69,8 +70,9 @@ def test_perspective_camera_and_film_settings(tmp_path):
     imported = import_pbrt(write(tmp_path, CAMERA + 'Sampler "random" "integer pixelsamples" 3\nWorldBegin\n'))
     assert isinstance(imported.scene.camera, ThinLensCamera)
     assert (imported.scene.camera.width, imported.scene.camera.height, imported.scene.camera.spp) == (32, 16, 3)
-    overridden = import_pbrt(write(tmp_path, CAMERA + 'WorldBegin\n'), width=8, height=4, spp=2)
-    assert (overridden.scene.camera.width, overridden.scene.camera.height, overridden.scene.camera.spp) == (8, 4, 2)
+    overridden = build_render_inputs(RenderOptions(scene=write(tmp_path, CAMERA + 'WorldBegin\n'), resolution=(8, 4),
+                                                   spp=2)).scene.camera
+    assert (overridden.width, overridden.height, overridden.spp) == (8, 4, 2)
 
 
 def test_missing_lens_and_texture_are_clear_errors(tmp_path):
@@ -84,8 +86,7 @@ def test_missing_lens_and_texture_are_clear_errors(tmp_path):
 @pytest.mark.parametrize("lens", HOMEWORK)
 def test_homework_scene_imports_without_warnings(lens):
     # the lens files live in ../shared/lenses, not beside the scenes: found on the search path
-    imported = import_pbrt(shared_file(f"scenes/pbrt/dof-dragons.{lens}.pbrt"), 16, 16, 1,
-                           search_paths=[shared_file("lenses")])
+    imported = import_pbrt(shared_file(f"scenes/pbrt/dof-dragons.{lens}.pbrt"), search_paths=[shared_file("lenses")])
     assert imported.warnings == []
     assert imported.dialect.name == "v2" and "specfile" in imported.dialect.reason
     assert imported.scene.instances[0].material.texture.v_origin == "top"  # pbrt-v2 looks the floor up so

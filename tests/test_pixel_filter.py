@@ -201,7 +201,7 @@ def test_an_unknown_filter_is_a_warning_and_the_dialect_default(tmp_path):
 
 def test_the_filter_option_replaces_the_scenes_at_the_dialect_defaults(tmp_path):
     path = scene_file(tmp_path, 'PixelFilter "box" "float xwidth" 1\n')
-    assert import_pbrt(path, dialect="v2", pixel_filter="sinc").scene.camera.pixel_filter.sinc_scale == 0.75
+    assert rl.load_scene(str(path), pixel_filter="sinc", pbrt_dialect="v2").camera.pixel_filter.sinc_scale == 0.75
     scene = rl.load_scene(str(path), pixel_filter="lanczos", pbrt_dialect="v4")
     assert scene.camera.pixel_filter.describe().startswith("sinc radius 4x4")
 

@@ -11,7 +11,7 @@ from realistic.core.transforms import rotate, scale, translate
 from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
 from realistic.optics.sampling import rear_surface_depths_mm
 from realistic.optics.tracer import trace_from_film
-from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting
 from realistic.renderer.passes import render, render_passes
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, Material, Scene

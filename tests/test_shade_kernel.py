@@ -20,7 +20,7 @@ from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
-from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting
 from realistic.renderer.passes import render_passes
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, Material, Scene
@@ -221,7 +221,7 @@ def test_the_kernel_vectorises(tmp_path):
 
     script = (
         "import numpy as np\n"
-        "from realistic.renderer.integrator import DirectLighting\n"
+        "from realistic.renderer.direct_lighting import DirectLighting\n"
         "from realistic.scene.intersect import Intersector\n"
         "from test_shade_kernel import busy_scene\n"
         "scene = busy_scene()[0]\n"

@@ -1,6 +1,6 @@
 """The integrator against a plain, slow reference of its shading maths (one ray at a time, float64).
 
-The reference is written from the formulas in ``realistic.renderer.integrator``'s docstring, not
+The reference is written from the formulas in ``realistic.renderer.direct_lighting``'s docstring, not
 from its code: barycentric interpolation of normals and uvs, the light picked by power, the
 area-sampling estimator, the pixel footprint solved as a least-squares 2 x 2 system, and pbrt's EWA
 filter transcribed scalar (``test_textures._ewa_reference``). Only the shadow rays and the texture
@@ -23,7 +23,7 @@ from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.transforms import rotate, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
-from realistic.renderer.integrator import SHADOW_OFFSET, DirectLighting
+from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting
 from realistic.renderer.passes import render_passes
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene

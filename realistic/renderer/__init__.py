@@ -9,10 +9,11 @@
 - ``checkpoint``: a render's identity (content hashes) and its checkpoint file.
 - ``sweep``: ``--sweep`` sequences: one camera per frame.
 - ``integrators``: which integrator a scene asks for (``make_integrator``).
-- ``integrator``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces): the fast path.
+- ``direct_lighting``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces): the fast path.
 - ``shade_kernel``: the fast path's shading as an OpenCL kernel (``kernels/shade.cl``), backend "opencl".
 - ``path``: MIS direct lighting and path tracing over any BSDF and light, one embree batch per bounce.
 - ``light_sampler``: every light picked by power, sampled, with densities for MIS.
+- ``area_lights``: the area lights' table and points drawn on them by area, for both integrators.
 - ``footprint``: a camera ray's pixel footprint on a surface, as two uv axes for texture filtering.
 - ``film``: per-pixel accumulation of pass sums, in pass-index order (``PassFilm``).
 - ``timing``: per-stage thread-seconds.

@@ -3,13 +3,15 @@
 ``RenderOptions`` holds parsed values (numbers, tuples, paths), never command-line strings;
 ``build_render_inputs`` turns them into a ``Scene`` whose ``camera`` and ``light_samples`` are
 ready to render, with what the image header should say about them. SCENE is a pbrt file (it
-brings its own camera, which the options override), a mesh file set on a grid floor
-(``realistic.scene.staging``), or None for the default scene.
+brings its own camera and film, read as the file says), a mesh file set on a grid floor
+(``realistic.scene.staging``), or None for the default scene; ``apply_overrides`` then applies
+the options to either, in one place.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -19,6 +21,7 @@ import numpy as np
 
 from realistic.camera.base import Camera
 from realistic.camera.lens_camera import MM_PER_METRE, LensCamera
+from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm
 from realistic.core.pixel_filter import filter_name
@@ -111,13 +114,9 @@ class RenderOptions:
             raise UserError("--aperture and --fstop both size the stop: give one")
         if self.focus_distance is not None and self.focus_on is not None:
             raise UserError("--focus and --focus-on both set the focus: give one")
-        if self.is_pbrt:
-            given = [flag for name, flag in MESH_ONLY.items() if getattr(self, name) is not None]
-            if given:
-                raise UserError(f"{', '.join(given)} apply to mesh scenes; {self.scene} sets its own camera")
-        elif self.search_paths:
+        if not self.is_pbrt and self.search_paths:
             raise UserError("--search-path applies to pbrt scenes")
-        elif self.pbrt_dialect != "auto":
+        if not self.is_pbrt and self.pbrt_dialect != "auto":
             raise UserError("--pbrt-dialect applies to pbrt scenes")
 
     @property
@@ -146,12 +145,17 @@ class RenderOptions:
 @dataclass
 class RenderInputs:
     """A scene whose ``camera`` and ``light_samples`` are ready to render, the output name the
-    scene suggests, what the EXR header says about them, and what the scene could not honour."""
+    scene suggests, what the EXR header says about them, what the scene could not honour, and
+    what ``apply_overrides`` needs to know of where they came from."""
 
     scene: Scene
     default_out: str
     metadata: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    #: whose default parameters a pixel filter named by the user takes: the file's pbrt, or the newest
+    filter_dialect: Dialect = MESH_FILTER_DIALECT
+    camera_where: str = ""  # a pbrt scene's Camera directive (file:line), for errors about the camera
+    mm_per_unit: float | None = None  # the scene's unit where it fixes one (meshes: metres); None: the camera's
 
     @property
     def camera(self) -> Camera:
@@ -164,8 +168,38 @@ class RenderInputs:
 
 def build_render_inputs(options: RenderOptions) -> RenderInputs:
     """The scene and camera ``options`` describe, focused and made spectral as they ask."""
-    inputs = _pbrt_inputs(options) if options.is_pbrt else _mesh_inputs(options)
+    return apply_overrides(_pbrt_inputs(options) if options.is_pbrt else _mesh_inputs(options), options)
+
+
+def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInputs:
+    """The user's options applied to the scene, camera and film that a scene file (or the mesh
+    staging) gives, the one place they are, for every kind of scene: the film's resolution, samples
+    per pixel and pixel filter, the lens's stop, sampling and focus, the light samples, integrator
+    and depth, and dispersion. Each value was checked once, in ``RenderOptions``."""
+    if options.is_pbrt:
+        given = [flag for name, flag in MESH_ONLY.items() if getattr(options, name) is not None]
+        if given:
+            raise UserError(f"{', '.join(given)} apply to mesh scenes; {options.scene} sets its own camera")
     scene = inputs.scene
+    camera = scene.camera
+    edit = options.stop_edit()
+    if isinstance(camera, ThinLensCamera) and (edit is not None or options.focus_distance is not None):
+        raise UserError(f"{inputs.camera_where}: the stop and focus options apply to realistic cameras, not "
+                        f'Camera "perspective"')
+    if options.resolution is not None:
+        camera = dataclasses.replace(camera, width=options.resolution[0], height=options.resolution[1])
+    if options.spp is not None:
+        camera = dataclasses.replace(camera, spp=options.spp)
+    if options.pixel_filter is not None:  # at the default parameters of the scene's pbrt
+        camera = dataclasses.replace(camera, pixel_filter=inputs.filter_dialect.pixel_filter(options.pixel_filter))
+    if isinstance(camera, LensCamera):
+        camera = dataclasses.replace(camera, lens_sampling=options.lens_sampling)
+        if edit is not None:  # the film stays where the scene's lens focused it
+            camera = dataclasses.replace(camera, lens=edit(camera.lens))
+        if options.focus_distance is not None:
+            mm_per_unit = camera.mm_per_unit if inputs.mm_per_unit is None else inputs.mm_per_unit
+            camera = camera.refocused(options.focus_distance * mm_per_unit)
+    scene.camera = camera
     if options.light_samples is not None:
         scene.light_samples = options.light_samples
     if options.integrator is not None:
@@ -190,37 +224,34 @@ def build_render_inputs(options: RenderOptions) -> RenderInputs:
 
 
 def _pbrt_inputs(options: RenderOptions) -> RenderInputs:
-    width, height = options.resolution or (None, None)
-    imported = import_pbrt(options.scene, width, height, options.spp, options.lens_sampling,
-                           lens_edit=options.stop_edit(), focus_scene_units=options.focus_distance,
-                           search_paths=options.search_paths, dialect=options.pbrt_dialect,
-                           pixel_filter=options.pixel_filter)
+    """The pbrt file's scene and camera as the file says (``apply_overrides`` applies the options)."""
+    imported = import_pbrt(options.scene, options.search_paths, options.pbrt_dialect)
     out = Path(imported.output_name).name if imported.output_name else "render.exr"
     if Path(out).suffix.lower() != ".exr":
         out = str(Path(out).with_suffix(".exr"))
     metadata = {"scene": str(options.scene), "pbrtDialect": imported.dialect.describe()}
-    return RenderInputs(imported.scene, out, metadata, imported.warnings)
+    return RenderInputs(imported.scene, out, metadata, imported.warnings, imported.dialect, imported.camera_where)
 
 
 def _mesh_inputs(options: RenderOptions) -> RenderInputs:
+    """A mesh file (or the default scene) staged on a floor, with a camera placed by the options that
+    only these scenes take (lens, position, target, film diagonal) and framing the subject for the
+    film the options ask for; ``apply_overrides`` applies the rest."""
     width, height = options.resolution or MESH_DEFAULT_RES
     film_diagonal = options.film_diagonal_mm or FULL_FRAME_DIAGONAL_MM
     lens = load_lens(options.lens or DEFAULT_LENS)
-    edit = options.stop_edit()
-    if edit is not None:
-        lens = edit(lens)
     setup = mesh_setup(load_mesh_file(options.scene)) if options.scene else default_setup()
     target = setup.target if options.target is None else options.target
     eye = options.camera_position
     if eye is None:
         film_short_mm = min(film_size_mm(film_diagonal, width, height))
         eye = setup.eye if setup.eye is not None and options.target is None else auto_eye(setup, lens, film_short_mm)
-    camera = LensCamera.looking_at(lens, eye, target, options.focus_distance, film_diagonal, width, height,
-                                   options.spp or MESH_DEFAULT_SPP, options.lens_sampling)
-    if options.pixel_filter is not None:  # at the newest pbrt's default parameters
-        camera = dataclasses.replace(camera, pixel_filter=MESH_FILTER_DIALECT.pixel_filter(options.pixel_filter))
-    setup.scene.camera = camera
+    # focused on the target, or (when the options give a focus, which apply_overrides sets) at infinity,
+    # which every lens reaches however near the target is
+    focus = None if options.focus_distance is None else math.inf
+    setup.scene.camera = LensCamera.looking_at(lens, eye, target, focus, film_diagonal, width, height,
+                                               MESH_DEFAULT_SPP)
     metadata = {"scene": str(options.scene or "default"), "mmPerSceneUnit": MM_PER_METRE,
                 "cameraPosition": ",".join(f"{v:g}" for v in eye),
                 "cameraTarget": ",".join(f"{v:g}" for v in target)}
-    return RenderInputs(setup.scene, "render.exr", metadata)
+    return RenderInputs(setup.scene, "render.exr", metadata, mm_per_unit=MM_PER_METRE)

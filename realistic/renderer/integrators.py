@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from realistic.renderer.bsdf import Lambertian, bsdf_for
-from realistic.renderer.integrator import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, Scene

@@ -2,11 +2,12 @@
 
 ``sample`` picks light j with probability P_j proportional to its power (pbrt's
 ``PowerLightSampler``; powers as pbrt-v3's ``Light::Power``) and one point or direction on it;
-densities are per unit solid angle at the shading point and include P_j. Area lights and emitting
-instances are sampled uniformly by area (solid-angle pdf d^2 / (cos_q A)); point, spot and distant
-lights are deltas (``delta`` True, pdf = P_j); an infinite light with a map is importance sampled
-by a ``Distribution2D`` over its texels' luminance (times sin(theta) for a lat-long map, whose
-texels shrink toward the poles), without one uniformly over the sphere. ``pdf_area``, ``pdf_instance``
+densities are per unit solid angle at the shading point and include P_j. Area lights (their table
+and points: ``renderer.area_lights``) and emitting instances are sampled uniformly by area
+(solid-angle pdf d^2 / (cos_q A)); point, spot and distant lights are deltas (``delta`` True,
+pdf = P_j); an infinite light with a map is importance sampled by a ``Distribution2D`` over its
+texels' luminance (times sin(theta) for a lat-long map, whose texels shrink toward the poles),
+without one uniformly over the sphere. ``pdf_area``, ``pdf_instance``
 and ``pdf_environment`` give the same densities for directions that BSDF sampling found, for MIS.
 
 Colours come back as (N, C): C = 3 for RGB rays, C = 1 spectral values at each ray's wavelength
@@ -24,7 +25,7 @@ from realistic.core.distribution import Distribution2D
 from realistic.core.spectrum import spectral_value
 from realistic.core.transforms import transform_points
 from realistic.core.vectors import dot
-from realistic.core.warp import concentric_disk
+from realistic.renderer.area_lights import AreaLightTable
 from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, SpotLight
 from realistic.scene.model import AreaLight, Scene
 
@@ -168,20 +169,12 @@ class LightSampler:
                 d = np.asarray(light.direction, np.float64)
                 self.position[i] = d / np.linalg.norm(d)
                 self.intensity[i] = light.radiance
-        frames = [light.frame() for light in scene.area_lights]
-        self.area_centre = np.array([f[0] for f in frames], np.float32).reshape(-1, 3)
-        self.area_a = np.array([f[1] for f in frames], np.float32).reshape(-1, 3)
-        self.area_b = np.array([f[2] for f in frames], np.float32).reshape(-1, 3)
-        self.area_normal = np.array([f[3] for f in frames], np.float32).reshape(-1, 3)
-        self.area_size = np.array([light.area() for light in scene.area_lights]).reshape(-1)
-        self.area_disk = np.array([light.shape == "disk" for light in scene.area_lights], bool)
-        self.area_two_sided = np.array([light.two_sided for light in scene.area_lights], bool)
-        self.area_radiance = np.array([light.radiance for light in scene.area_lights], np.float32).reshape(-1, 3)
-        slot_light = np.full(len(frames), -1)
+        self.area_lights = AreaLightTable.of(scene.area_lights)
+        slot_light = np.full(len(self.area_lights), -1)
         for i, slot in enumerate(self.area_slot):
             if slot >= 0:
                 slot_light[slot] = i
-        self.area_probability = self.probability[slot_light] if len(frames) else np.zeros(0)
+        self.area_probability = self.probability[slot_light] if len(self.area_lights) else np.zeros(0)
 
     # ---- sampling ------------------------------------------------------------------------------
     def sample(self, point: np.ndarray, u_pick: np.ndarray, u1: np.ndarray, u2: np.ndarray,
@@ -201,16 +194,11 @@ class LightSampler:
         if len(rows):
             rows = slice(None) if len(rows) == n else rows  # area lights alone: no gathers
             slot = self.area_slot[j[rows]]
-            dx, dy = concentric_disk(u1[rows], u2[rows])
-            disk = self.area_disk[slot]
-            x = np.where(disk, dx, 2.0 * u1[rows] - 1.0).astype(np.float32)[:, None]
-            y = np.where(disk, dy, 2.0 * u2[rows] - 1.0).astype(np.float32)[:, None]
-            q = (np.take(self.area_centre, slot, axis=0) + np.take(self.area_a, slot, axis=0) * x
-                 + np.take(self.area_b, slot, axis=0) * y)
+            q = self.area_lights.points(slot, u1[rows], u2[rows])
             target[rows] = q
-            self._towards_surface(rows, p, q, np.take(self.area_normal, slot, axis=0), self.area_two_sided[slot],
-                                  self.area_size[slot], np.take(self.area_radiance, slot, axis=0),
-                                  wi, distance, rgb, pdf)
+            table = self.area_lights
+            self._towards_surface(rows, p, q, np.take(table.normal, slot, axis=0), table.two_sided[slot],
+                                  table.area[slot], np.take(table.radiance, slot, axis=0), wi, distance, rgb, pdf)
         for i, emitter in self.emitters.items():
             rows = np.flatnonzero(j == i)
             if len(rows):
@@ -283,14 +271,15 @@ class LightSampler:
         """Density with which ``sample`` would pick points ``hit`` on area lights ``slot`` from ``origin``."""
         to = np.asarray(hit, np.float64) - origin
         d2 = np.einsum("ij,ij->i", to, to)
-        cos_q = np.abs(np.einsum("ij,ij->i", to, self.area_normal[slot])) / np.sqrt(np.maximum(d2, 1e-300))
+        cos_q = np.abs(np.einsum("ij,ij->i", to, self.area_lights.normal[slot])) / np.sqrt(np.maximum(d2, 1e-300))
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(cos_q > 0, self.area_probability[slot] * d2 / (cos_q * self.area_size[slot]), 0.0)
+            return np.where(cos_q > 0, self.area_probability[slot] * d2 / (cos_q * self.area_lights.area[slot]), 0.0)
 
     def area_emission(self, slot: np.ndarray, direction: np.ndarray, basis: np.ndarray | None) -> np.ndarray:
         """Radiance (N, C) seen along ``direction`` on area lights ``slot`` (zero on a one-sided back)."""
-        front = (dot(direction, self.area_normal[slot].astype(np.float32)) < 0) | self.area_two_sided[slot]
-        return colour(self.area_radiance[slot] * front[:, None], basis)
+        table = self.area_lights
+        front = (dot(direction, table.normal[slot].astype(np.float32)) < 0) | table.two_sided[slot]
+        return colour(table.radiance[slot] * front[:, None], basis)
 
     def instance_emission(self, light: int, direction: np.ndarray, normal: np.ndarray,
                           basis: np.ndarray | None) -> np.ndarray:

@@ -35,7 +35,7 @@ from realistic.core.spectrum import rgb_basis
 from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot
 from realistic.renderer.bsdf import ShadingFrame, bsdf_for
-from realistic.renderer.integrator import SHADOW_OFFSET, DirectLighting, _facing, _rows
+from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _facing, _rows
 from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector

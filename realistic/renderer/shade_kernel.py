@@ -1,6 +1,6 @@
 """OpenCL host side of direct-lighting shading: ``kernels/shade.cl`` on PoCL, one launch per pass.
 
-``DirectLighting`` (``renderer/integrator.py``) uses this module when the render's backend is
+``DirectLighting`` (``renderer/direct_lighting.py``) uses this module when the render's backend is
 "opencl" (``PassRunner`` passes it on); its numpy code stays the reference, and the tests compare
 the two per hit (``tests/test_shade_kernel.py``). For each camera ray of a pass the kernel computes
 the hit point, the geometric and shading normals, the albedo (constant, grid and checker materials;

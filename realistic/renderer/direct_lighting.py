@@ -38,7 +38,7 @@ import numpy as np
 from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, spectral_value
 from realistic.core.vectors import dot, normalise
-from realistic.core.warp import concentric_disk
+from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
@@ -79,7 +79,7 @@ class DirectLighting:
         self._build_surfaces(scene)
         self._build_lights(scene)
         self._kernel = None
-        if backend == "opencl" and len(self._light_area) and self._light_cdf[-1] > 0:
+        if backend == "opencl" and len(self._lights) and self._light_cdf[-1] > 0:
             self._kernel = self._build_kernel(cl_device)
 
     def _build_surfaces(self, scene: Scene) -> None:
@@ -111,18 +111,10 @@ class DirectLighting:
         self._geom_material = np.array([material_index[id(inst.material)] for inst in scene.instances], np.int64)
 
     def _build_lights(self, scene: Scene) -> None:
-        lights = scene.area_lights
-        frames = [light.frame() for light in lights]
-        self._light_centre = np.array([f[0] for f in frames], np.float32).reshape(-1, 3)
-        self._light_a = np.array([f[1] for f in frames], np.float32).reshape(-1, 3)
-        self._light_b = np.array([f[2] for f in frames], np.float32).reshape(-1, 3)
-        self._light_normal = np.array([f[3] for f in frames], np.float32).reshape(-1, 3)
-        self._light_disk = np.array([light.shape == "disk" for light in lights], bool)
-        self._light_two_sided = np.array([light.two_sided for light in lights], bool)
-        self._light_area = np.array([light.area() for light in lights], np.float64)
-        self._light_radiance = np.array([light.radiance for light in lights], np.float32).reshape(-1, 3)
-        sides = np.where(self._light_two_sided, 2.0, 1.0)
-        power = self._light_area * sides * self._light_radiance.astype(np.float64).mean(axis=1)
+        """The area lights' table, and each one's pick probability, proportional to its power."""
+        self._lights = lights = AreaLightTable.of(scene.area_lights)
+        sides = np.where(lights.two_sided, 2.0, 1.0)
+        power = lights.area * sides * lights.radiance.astype(np.float64).mean(axis=1)
         self._light_probability = power / power.sum() if power.sum() > 0 else power
         self._light_cdf = np.cumsum(self._light_probability)
 
@@ -131,15 +123,15 @@ class DirectLighting:
         path) for more area lights than the kernel's light search reaches."""
         from realistic.renderer.shade_kernel import LIGHT_FLOATS, MAX_LIGHTS, ShadeKernel
 
-        if len(self._light_area) > MAX_LIGHTS:
+        if len(self._lights) > MAX_LIGHTS:
             return None
 
-        rows = np.zeros((len(self._light_area), LIGHT_FLOATS), np.float32)
-        rows[:, 0:3], rows[:, 3:6], rows[:, 6:9] = self._light_centre, self._light_a, self._light_b
-        rows[:, 9:12], rows[:, 12:15] = self._light_normal, self._light_radiance
+        rows = np.zeros((len(self._lights), LIGHT_FLOATS), np.float32)
+        rows[:, 0:3], rows[:, 3:6], rows[:, 6:9] = self._lights.centre, self._lights.a, self._lights.b
+        rows[:, 9:12], rows[:, 12:15] = self._lights.normal, self._lights.radiance
         with np.errstate(divide="ignore"):
-            rows[:, 15] = self._light_area / self._light_probability / np.pi
-        rows[:, 16], rows[:, 17] = self._light_disk, self._light_two_sided
+            rows[:, 15] = self._lights.area / self._light_probability / np.pi
+        rows[:, 16], rows[:, 17] = self._lights.disk, self._lights.two_sided
         kernel = ShadeKernel(faces=self._faces, normals=self._normals, uv=self._uv,
                              geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
                              geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
@@ -197,11 +189,11 @@ class DirectLighting:
             seen = np.flatnonzero(light_id >= 0)
             if len(seen):
                 j = light_id[seen]
-                front = (dot(_rows(direction, seen), _rows(self._light_normal, j)) < 0) | self._light_two_sided[j]
-                out[seen] = colour(_rows(self._light_radiance, j), seen) * front[:, None]
+                front = (dot(_rows(direction, seen), _rows(self._lights.normal, j)) < 0) | self._lights.two_sided[j]
+                out[seen] = colour(_rows(self._lights.radiance, j), seen) * front[:, None]
             surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0))
             out[surface] = 0.0
-            if len(surface) == 0 or len(self._light_area) == 0 or self._light_cdf[-1] <= 0:
+            if len(surface) == 0 or len(self._lights) == 0 or self._light_cdf[-1] <= 0:
                 return out, 0
             point, shadow_origin, shading, ng, rho = self._surface_points(origin, direction, hits, surface, basis)
         total = np.zeros((len(surface), 3 if basis is None else 1), np.float32)
@@ -287,8 +279,8 @@ class DirectLighting:
             seen = np.flatnonzero(hits.geom >= self.instance_count)
             if len(seen):
                 j = hits.geom[seen] - self.instance_count
-                front = (dot(_rows(direction, seen), _rows(self._light_normal, j)) < 0) | self._light_two_sided[j]
-                out[seen] = _rows(self._light_radiance, j) * front[:, None]
+                front = (dot(_rows(direction, seen), _rows(self._lights.normal, j)) < 0) | self._lights.two_sided[j]
+                out[seen] = _rows(self._lights.radiance, j) * front[:, None]
         return out, shadow_rays
 
     def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits) -> np.ndarray:
@@ -371,22 +363,18 @@ class DirectLighting:
         u_pick, u1, u2 = rng.light_uniforms(pixel, sample, k, self.light_samples, self.seed,
                                             pick=len(self._light_cdf) > 1)
         j = np.minimum(np.searchsorted(self._light_cdf, u_pick, side="right"), len(self._light_cdf) - 1)
-        dx, dy = concentric_disk(u1, u2)
-        disk = self._light_disk[j]
-        x = np.where(disk, dx, 2.0 * u1 - 1.0).astype(np.float32)[:, None]
-        y = np.where(disk, dy, 2.0 * u2 - 1.0).astype(np.float32)[:, None]
-        q = _rows(self._light_centre, j) + _rows(self._light_a, j) * x + _rows(self._light_b, j) * y
+        q = self._lights.points(j, u1, u2)
         to_light = q - point
         dist2 = dot(to_light, to_light)
         wi = to_light / np.sqrt(dist2)[:, None]
         cos_p = dot(wi, shading)
-        cos_q = -dot(wi, _rows(self._light_normal, j))
-        cos_q = np.where(self._light_two_sided[j], np.abs(cos_q), cos_q)
+        cos_q = -dot(wi, _rows(self._lights.normal, j))
+        cos_q = np.where(self._lights.two_sided[j], np.abs(cos_q), cos_q)
         live = np.flatnonzero((cos_p > 0) & (cos_q > 0) & (dot(wi, ng) > 0) & (dist2 > 0))
         jl = j[live]
         scale = (cos_p[live] * cos_q[live] / dist2[live]
-                 * (self._light_area[jl] / self._light_probability[jl] / np.pi)).astype(np.float32)
-        emitted = _rows(self._light_radiance, jl)
+                 * (self._lights.area[jl] / self._light_probability[jl] / np.pi)).astype(np.float32)
+        emitted = _rows(self._lights.radiance, jl)
         if basis is not None:
             emitted = spectral_value(emitted, _rows(basis, live))[:, None]
         contribution = _rows(rho, live) * emitted * scale[:, None]
