@@ -59,4 +59,4 @@ def test_public_names_resolve_and_unknown_ones_fail():
 def test_render_stays_the_function_once_the_renderer_is_imported():
     import realistic.renderer.inputs  # noqa: F401  (binds realistic.renderer, never realistic.render)
 
-    assert callable(rl.render) and rl.render.__module__ == "realistic.renderer.passes"
+    assert callable(rl.render) and rl.render.__module__ == "realistic"

@@ -149,7 +149,8 @@ def test_types_without_an_exact_counterpart_warn_with_file_and_line(tmp_path, ki
 def test_a_scene_of_every_material_renders(tmp_path):
     """Until the integrator shades through BSDFs it renders each material's matte equivalent; either
     way every material type must import and render to finite pixels."""
-    from realistic.renderer.passes import render_passes
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.passes import render
     from realistic.scene.pbrt.importer import import_pbrt
 
     brdf = shared_file("scenes/pbrt/brdfs/acryl_blue.brdf")
@@ -163,7 +164,7 @@ def test_a_scene_of_every_material_renders(tmp_path):
                     '"rgb L" [4 4 4]\nTranslate 0 5 0\nRotate 90 1 0 0\nShape "disk" "float radius" 3\nAttributeEnd\n'
                     'MakeNamedMaterial "m" "string type" "matte"\n' + shapes + "WorldEnd\n")
     imported = import_pbrt(path, spp=1)
-    image = render_passes(imported.scene, imported.scene.camera, "numpy").image
+    image = render(RenderJob(imported.scene, (imported.scene.camera,), "numpy"))[0].image
     assert np.all(np.isfinite(image)) and image.max() > 0
 
 

@@ -146,12 +146,14 @@ class RenderOptions:
 @dataclass
 class RenderInputs:
     """A scene whose ``camera`` and ``light_samples`` are ready to render, the output name the
-    scene suggests, what the EXR header says about them, and what the scene could not honour."""
+    scene suggests, what the EXR header says about them (also the scene's ``metadata``), what the
+    scene could not honour, and the embree scene already built for it (by ``focus_on``), if any."""
 
     scene: Scene
     default_out: str
     metadata: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    intersector: Intersector | None = None
 
     @property
     def camera(self) -> Camera:
@@ -174,7 +176,8 @@ def build_render_inputs(options: RenderOptions) -> RenderInputs:
         scene.max_depth = options.max_depth
     if options.focus_on is not None:
         x, y = options.focus_on
-        scene.camera = scene.camera.autofocused(x, y, Intersector(scene).hit_distance)
+        inputs.intersector = Intersector(scene)  # the render reuses it (``passes.ThreadPasses``)
+        scene.camera = scene.camera.autofocused(x, y, inputs.intersector.hit_distance)
         inputs.metadata["focusOn"] = f"{x:g},{y:g}"
     # a pbrt scene renders as pbrt would: dispersion only when asked for, even where a bundled lens
     # with Abbe numbers stands in for the scene's lens file; so does the default scene, which is
@@ -186,6 +189,7 @@ def build_render_inputs(options: RenderOptions) -> RenderInputs:
         if not getattr(scene.camera, "spectral", False):
             raise UserError("--wavelengths-per-sample applies to spectral renders (--dispersion on)")
         scene.camera = dataclasses.replace(scene.camera, wavelengths_per_sample=options.wavelengths_per_sample)
+    scene.metadata = inputs.metadata
     return inputs
 
 
