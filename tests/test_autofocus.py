@@ -83,3 +83,24 @@ def test_focus_on_through_the_cli(tmp_path):
     header = read_exr(out)[1]
     assert header["focusOn"] == "30,30"
     assert float(header["focusDistanceMm"]) == pytest.approx(2737, rel=0.05)
+
+
+def test_focus_on_builds_one_embree_scene_for_autofocus_and_render(tmp_path, monkeypatch):
+    """The autofocus pick's Intersector is the one the render uses: built once, not twice."""
+    from realistic.cli import main
+    from realistic.scene.intersect import Intersector
+
+    built = []
+    build = Intersector.__init__
+
+    def counting(self, *args, **kwargs):
+        built.append(1)
+        build(self, *args, **kwargs)
+
+    monkeypatch.setattr(Intersector, "__init__", counting)
+    assert main(["render", "--backend", "numpy", "--res", "16x16", "--spp", "1", "--focus-on", "8,8",
+                 "--dispersion", "off", "--threads", "2", "--out", str(tmp_path / "af.exr")]) == 0
+    assert len(built) == 1
+    assert main(["render", "--backend", "numpy", "--res", "16x16", "--spp", "1", "--dispersion", "off",
+                 "--threads", "2", "--out", str(tmp_path / "plain.exr")]) == 0
+    assert len(built) == 2  # a render without --focus-on builds its own, once

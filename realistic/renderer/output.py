@@ -44,7 +44,8 @@ class Photographic:
 
     def header(self, camera: Camera) -> Metadata:
         """What the EXR header says of this exposure (its EV where the camera has an f-number)."""
-        header: Metadata = {"shutterSeconds": self.shutter_seconds, "iso": self.iso, "exposureScale": self.scale}
+        header: Metadata = {"shutterSeconds": float(self.shutter_seconds), "iso": float(self.iso),
+                            "exposureScale": self.scale}
         f_number = camera.metadata().get("fNumber")
         if f_number is not None:
             header["exposureValue"] = exposure_value(f_number, self.shutter_seconds)
