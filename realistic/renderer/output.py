@@ -48,7 +48,7 @@ class Photographic:
                             "exposureScale": self.scale}
         f_number = camera.metadata().get("fNumber")
         if f_number is not None:
-            header["exposureValue"] = exposure_value(f_number, self.shutter_seconds)
+            header["exposureValue"] = exposure_value(float(f_number), self.shutter_seconds)
         return header
 
 
