@@ -10,7 +10,6 @@ folder instead, so a finished render is never lost, and a UserError says where.
 
 from __future__ import annotations
 
-import math
 import os
 import tempfile
 from dataclasses import dataclass
@@ -82,9 +81,7 @@ def preview_stops(image: np.ndarray, photographic: Photographic | None, exposure
     """The PNG preview's exposure in stops: ``exposure``, else 0 for a photographic image (it is
     exposed already), else automatic (``image_files.auto_exposure``)."""
     if exposure is not None:
-        if not math.isfinite(exposure):
-            raise UserError(f"exposure must be a finite number, got {exposure!r}")
-        return float(exposure)
+        return validation.finite(exposure, "exposure")
     return 0.0 if photographic is not None else auto_exposure(image)
 
 
