@@ -7,7 +7,7 @@
 Loads the scene once (``build_render_inputs``; the dragons by default, with ``../shared/meshes``
 and ``../shared/scenes/pbrt`` as search paths), renders a reference at ``--reference-spp`` (seed 1)
 and a test image at each of ``--spps`` (seed 2, so its noise is independent of the reference's),
-and prints for each its wall seconds (scene load + ``render_passes``, whose own set-up is included;
+and prints for each its wall seconds (scene load + ``render``, whose own set-up is included;
 Python start-up and imports are not) and
 
     relative RMSE = sqrt(mean((img - ref)^2)) / mean(ref), over all pixels and channels.
@@ -61,7 +61,8 @@ from realistic.cli.values import checked, parse_resolution, parse_spp_list, posi
 from realistic.core import validation  # noqa: E402
 from realistic.renderer.convergence import relative_rmse, two_seed_noise  # noqa: E402
 from realistic.renderer.inputs import RenderInputs, RenderOptions, build_render_inputs  # noqa: E402
-from realistic.renderer.passes import render_passes  # noqa: E402
+from realistic.renderer.job import RenderJob  # noqa: E402
+from realistic.renderer.passes import ThreadPasses, render  # noqa: E402
 
 SHARED = ROOT.parent / "shared"
 DEFAULT_SCENE = ROOT / "scenes" / "dof-dragons" / "dgauss.pbrt"
@@ -134,10 +135,11 @@ def reference_path(folder: Path, scene: Path, res: tuple[int, int], spp: int, ve
 def render_seconds(inputs: RenderInputs, spp: int, seed: int, light_samples: int | None = None
                    ) -> tuple[np.ndarray, float]:
     """The image at ``spp`` (with ``light_samples`` per hit, default the scene's) and the seconds of
-    ``render_passes`` (its set-up included)."""
+    ``render`` (its set-up included)."""
     camera = dataclasses.replace(inputs.camera, spp=spp)
     start = time.perf_counter()
-    image = render_passes(inputs.scene, camera, seed=seed, light_samples=light_samples or inputs.light_samples).image
+    job = RenderJob(inputs.scene, (camera,), seed=seed, light_samples=light_samples or inputs.light_samples)
+    image = render(job, ThreadPasses(pin_threads=True))[0].image
     return image, time.perf_counter() - start
 
 

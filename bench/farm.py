@@ -34,10 +34,12 @@ sys.path.insert(0, str(ROOT))
 
 from distributed import Client, LocalCluster, wait  # noqa: E402
 
-from realistic.renderer.farm import DEFAULT_TASK_SAMPLES  # noqa: E402
+from realistic.renderer.farm import DEFAULT_TASK_SAMPLES, DaskPasses  # noqa: E402
 from realistic.renderer.inputs import RenderOptions, build_render_inputs  # noqa: E402
+from realistic.renderer.job import RenderJob  # noqa: E402
 from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES  # noqa: E402
-from realistic.renderer.passes import default_threads, render_passes  # noqa: E402
+from realistic.renderer.passes import ThreadPasses, render  # noqa: E402
+from realistic.renderer.thread_count import default_threads  # noqa: E402
 
 DRAGON = ROOT.parent / "shared" / "meshes" / "dragon.ply"
 NETWORK_BYTES_PER_S = 125e6  # 1 Gbit/s: an assumption, not measured
@@ -53,8 +55,9 @@ def _noop(i: int) -> int:
 def steady_rate(scene, camera, backend: str, client=None) -> tuple[float, float]:
     """(samples/s, seconds) of a render after an untimed 1 spp one, less this process's set-up (an
     in-process render builds its BVH per call; workers keep theirs)."""
-    render_passes(scene, dataclasses.replace(camera, spp=1), backend, client=client)
-    result = render_passes(scene, camera, backend, client=client)
+    executor = DaskPasses(client) if client is not None else ThreadPasses(pin_threads=True)
+    render(RenderJob(scene, (dataclasses.replace(camera, spp=1),), backend), executor)
+    result = render(RenderJob(scene, (camera,), backend), executor)[0]
     seconds = result.seconds - result.stage_seconds.get("setup", 0.0) - result.stage_seconds.get("exit pupil", 0.0)
     return result.samples_done / seconds, seconds
 
@@ -68,10 +71,10 @@ def empty_task_rate(client: Client, count: int = 2000) -> float:
 def tiny_pass_overhead(scene, camera, backend: str, client: Client, workers: int) -> dict:
     """Seconds of overhead per task: farm task time x workers / tasks, less one pass's compute."""
     tiny = dataclasses.replace(camera, width=128, height=128, spp=4)
-    render_passes(scene, tiny, backend, pass_samples=TINY_PASS, threads=1)  # warm
-    local = render_passes(scene, tiny, backend, pass_samples=TINY_PASS, threads=1)
-    render_passes(scene, tiny, backend, pass_samples=TINY_PASS, client=client, task_samples=TINY_PASS)  # warm
-    farm = render_passes(scene, tiny, backend, pass_samples=TINY_PASS, client=client, task_samples=TINY_PASS)
+    render(RenderJob(scene, (tiny,), backend, pass_samples=TINY_PASS), ThreadPasses(1, pin_threads=True))  # warm
+    local = render(RenderJob(scene, (tiny,), backend, pass_samples=TINY_PASS), ThreadPasses(1, pin_threads=True))[0]
+    render(RenderJob(scene, (tiny,), backend, pass_samples=TINY_PASS), DaskPasses(client, TINY_PASS))  # warm
+    farm = render(RenderJob(scene, (tiny,), backend, pass_samples=TINY_PASS), DaskPasses(client, TINY_PASS))[0]
     tasks = farm.passes_total
     compute = local.seconds / tasks
     per_task = farm.seconds * workers / tasks
@@ -133,7 +136,8 @@ def main() -> None:
     two_percent = math.ceil(49 * overhead / sample_s) if overhead > 0 else 0
     described = dataclasses.replace(scene, camera=None)
     scene_bytes = len(pickle.dumps(described))
-    setup = render_passes(scene, dataclasses.replace(camera, spp=1), args.backend).stage_seconds
+    setup = render(RenderJob(scene, (dataclasses.replace(camera, spp=1),), args.backend),
+                   ThreadPasses(pin_threads=True))[0].stage_seconds
     setup_s = setup.get("setup", 0.0) + setup.get("exit pupil", 0.0)
     task_samples = max(DEFAULT_TASK_SAMPLES, two_percent)
     rows = scaling(farm_rate / args.workers, overhead, task_rate, scene_bytes, setup_s, task_samples)

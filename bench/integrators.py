@@ -19,9 +19,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import realistic.renderer.passes as passes  # noqa: E402
+import realistic.renderer.runner as runner  # noqa: E402
 from realistic.renderer.direct_lighting import DirectLighting  # noqa: E402
+from realistic.renderer.job import RenderJob  # noqa: E402
+from realistic.renderer.passes import ThreadPasses, render  # noqa: E402
 from realistic.renderer.path import PathIntegrator  # noqa: E402
+from realistic.renderer.thread_count import default_threads  # noqa: E402
 from render import staged_subject  # noqa: E402
 
 VARIANTS = {
@@ -32,8 +35,8 @@ VARIANTS = {
 
 
 def run(setup, camera, backend: str, make) -> dict:
-    passes.make_integrator = make  # the bench chooses the integrator the pass runner builds
-    result = passes.render_passes(setup.scene, camera, backend, 0)
+    runner.make_integrator = make  # the bench chooses the integrator the pass runner builds
+    result = render(RenderJob(setup.scene, (camera,), backend), ThreadPasses(pin_threads=True))[0]
     return {"seconds": result.seconds, "samples": result.samples_done, "camera_rays": result.primary_rays,
             "shadow_rays": result.shadow_rays, "shading_s": result.stage_seconds.get("shading", 0.0),
             "embree_s": result.stage_seconds.get("embree", 0.0)}
@@ -47,9 +50,9 @@ def main() -> None:
     args = parser.parse_args()
     width, height = (int(v) for v in args.res.split("x"))
     setup, camera, source, warm = staged_subject("dgauss", width, height, args.spp)
-    passes.render_passes(setup.scene, warm, args.backend)  # kernel build and caches
+    render(RenderJob(setup.scene, (warm,), args.backend))  # kernel build and caches
     print(f"scene: {source}; {width}x{height}, {args.spp} spp, backend {args.backend}, "
-          f"{passes.default_threads()} threads")
+          f"{default_threads()} threads")
     print(f"\n{'integrator':<30}{'wall s':>8}{'shading s':>11}{'embree s':>10}{'shading us/sample':>19}"
           f"{'shadow rays':>13}")
     results = {}

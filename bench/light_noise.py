@@ -84,7 +84,8 @@ def main() -> None:
         sys.exit("--seeds takes two seeds")
     sys.path.insert(0, str(args.root.resolve()))
     from realistic.renderer.inputs import RenderOptions, build_render_inputs
-    from realistic.renderer.passes import render_passes
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.passes import ThreadPasses, render
 
     print(f"{SCENE.relative_to(ROOT)} {args.res[0]}x{args.res[1]}, {args.spp} spp, backend {args.backend}, "
           f"seeds {args.seeds}, code from {args.root}; seconds are wall times on a machine whose load is not "
@@ -98,8 +99,8 @@ def main() -> None:
         images, seconds = [], []
         for seed in args.seeds:
             start = time.perf_counter()
-            images.append(render_passes(inputs.scene, inputs.camera, args.backend, seed,
-                                        light_samples=inputs.light_samples).image)
+            job = RenderJob(inputs.scene, (inputs.camera,), args.backend, seed)
+            images.append(render(job, ThreadPasses(pin_threads=True))[0].image)
             seconds.append(time.perf_counter() - start)
         noise = relative_noise(*images)
         rows.append({"light_samples": light_samples, "relative_noise": noise, "seconds": min(seconds)})

@@ -41,8 +41,11 @@ from realistic.camera.base import SampleBlock  # noqa: E402
 from realistic.camera.lens_camera import LensCamera  # noqa: E402
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm  # noqa: E402
 from realistic.core.transforms import transform_points  # noqa: E402
-from realistic.renderer.pass_plan import plan_passes  # noqa: E402
-from realistic.renderer.passes import DEFAULT_PASS_SAMPLES, PassRunner, default_threads, render_passes  # noqa: E402
+from realistic.renderer.job import PassSettings, RenderJob  # noqa: E402
+from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES, plan_passes  # noqa: E402
+from realistic.renderer.passes import ThreadPasses, render  # noqa: E402
+from realistic.renderer.runner import PassRunner  # noqa: E402
+from realistic.renderer.thread_count import default_threads  # noqa: E402
 from realistic.renderer.timing import STAGES, StageClock  # noqa: E402
 from realistic.scene.intersect import Intersector  # noqa: E402
 from realistic.scene.meshes import MeshObject, load_mesh_file  # noqa: E402
@@ -115,7 +118,7 @@ def recorded_rays(setup, camera, backend: str, pass_samples: int = DEFAULT_PASS_
     """Every primary and shadow ray of the render ``run`` makes (its pass plan, raster order, one
     light sample, seed 0), made again by the renderer's own ``PassRunner`` and kept."""
     recorder = RecordingIntersector(setup.scene)
-    runner = PassRunner(setup.scene, camera, backend, 0, None, 1, False, StageClock(), intersector=recorder)
+    runner = PassRunner(setup.scene, camera, PassSettings(backend), StageClock(), recorder)
     for index, block in enumerate(plan_passes(camera.width * camera.height, camera.spp, pass_samples)):
         runner(index, block)
     return recorder
@@ -170,8 +173,8 @@ def embreex_scene(scene) -> tuple:
 
 def run(setup, camera, backend: str, morton: bool, threads: int | None = None,
         pass_samples: int = DEFAULT_PASS_SAMPLES, pinned: bool = True) -> dict:
-    result = render_passes(setup.scene, camera, backend, 0, morton=morton, threads=threads,
-                           pass_samples=pass_samples, pin_threads=pinned)
+    job = RenderJob(setup.scene, (camera,), backend, seed=0, pass_samples=pass_samples, morton=morton)
+    result = render(job, ThreadPasses(threads, pinned))[0]
     rays = result.primary_rays + result.shadow_rays
     label = f"{'morton' if morton else 'raster'} {pass_samples // 1024}k{'' if pinned else ' free'}"
     return {"label": label, "morton": morton, "pass_samples": pass_samples, "pinned": pinned, "seconds": result.seconds,
@@ -208,7 +211,7 @@ def main() -> None:
     triangles = sum(len(setup.scene.meshes[i.mesh].faces) for i in setup.scene.instances)
     print(f"scene: {source}, {triangles} triangles; {width}x{height}, {args.spp} spp, lens {args.lens}, "
           f"backend {args.backend}, default passes of {DEFAULT_PASS_SAMPLES} samples on {args.threads} thread(s)")
-    render_passes(setup.scene, warm, args.backend)  # warm-up: kernel build and caches
+    render(RenderJob(setup.scene, (warm,), args.backend))  # warm-up: kernel build and caches
     configs = [(False, size, True) for size in args.pass_samples] + [(True, DEFAULT_PASS_SAMPLES, True),
                                                                       (False, DEFAULT_PASS_SAMPLES, False)]
     runs: list[dict] = [{} for _ in configs]

@@ -11,11 +11,11 @@ Python's bytecode cache allowed, as an installed package has it, even where PYTH
 set):
 
 - ``cli s``: wall seconds of ``python -m realistic render SCENE --res --spp --out TMP.exr``;
-- from the library (``build_render_inputs``, ``render_passes`` with an ``on_pass`` callback):
+- from the library (``build_render_inputs``, ``passes.render`` with an ``on_pass`` observer):
   ``setup s`` = process start and imports + scene load + the "exit pupil" and "setup" stages
   (everything before the first camera ray), ``first pass s`` = process start to the first finished
   pass, ``1st frame s`` = to the first whole frame (every pixel's first samples: the first slice),
-  ``render s`` = the rest of ``render_passes``, and samples/s = samples / render s;
+  ``render s`` = the rest of ``render``, and samples/s = samples / render s;
   ``peak MiB`` = that process's peak resident set (``getrusage``'s ru_maxrss), whose interpreter
   baseline (python with numpy and pyopencl imported and embree loaded, nothing else) is measured first.
 
@@ -120,8 +120,9 @@ def measure_in_process(arguments: list[str], launched: float, flat: bool = False
     from realistic.cli import build_parser
     from realistic.cli.scene_arguments import options_from_args
     from realistic.renderer.inputs import build_render_inputs
+    from realistic.renderer.job import RenderJob, RenderObserver
     from realistic.renderer.pass_plan import default_pass_samples, plan_passes
-    from realistic.renderer.passes import render_passes
+    from realistic.renderer.passes import ThreadPasses, render
 
     imported = time.time()
     args = build_parser().parse_args(["render", *arguments])
@@ -140,8 +141,8 @@ def measure_in_process(arguments: list[str], launched: float, flat: bool = False
         if not first_frame and result.passes_done >= frame_passes:
             first_frame.append(time.time())
 
-    result = render_passes(inputs.scene, inputs.camera, args.backend, args.seed, light_samples=inputs.light_samples,
-                           on_pass=on_pass)
+    job = RenderJob(inputs.scene, (inputs.camera,), args.backend, args.seed)
+    result = render(job, ThreadPasses(pin_threads=True), RenderObserver(on_pass=on_pass))[0]
     stages = result.stage_seconds
     before_rays = stages.get("exit pupil", 0.0) + stages.get("setup", 0.0)
     render_s = result.seconds - before_rays
@@ -169,7 +170,7 @@ from realistic.scene import embree
 embree.EmbreeScene()
 peak = lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 bare, imported = peak(), time.perf_counter() - start
-from realistic.renderer.passes import render_passes
+from realistic.renderer.passes import render
 print(json.dumps({"import_s": imported, "peak_rss_mib": bare, "with_renderer_mib": peak()}))
 """
 

@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 from realistic.renderer.direct_lighting import DirectLighting  # noqa: E402
-from realistic.renderer.passes import DEFAULT_PASS_SAMPLES  # noqa: E402
+from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES  # noqa: E402
 from realistic.renderer.timing import StageClock  # noqa: E402
 from realistic.scene.intersect import Intersector  # noqa: E402
 from render import middle_block, staged_subject  # noqa: E402

@@ -57,7 +57,9 @@ from realistic.core.spectrum import (  # noqa: E402
     wavelengths_nm,
 )
 from realistic.renderer.convergence import relative_rmse  # noqa: E402
-from realistic.renderer.passes import render_passes  # noqa: E402
+from realistic.renderer.job import RenderJob  # noqa: E402
+from realistic.renderer.passes import ThreadPasses  # noqa: E402
+from realistic.renderer.passes import render as render_job  # noqa: E402
 
 SHARED_SCENES = ROOT.parent / "shared" / "scenes" / "pbrt"
 SAMPLING_CODE = ("kernels/lens.cl", "realistic/core/rng.py", "realistic/core/spectrum.py",
@@ -87,8 +89,8 @@ def render(scene, spp: int, seed: int) -> tuple[np.ndarray, float, float]:
     import dataclasses
 
     start, cpu = time.perf_counter(), time.process_time()
-    image = render_passes(scene, dataclasses.replace(scene.camera, spp=spp), seed=seed,
-                          light_samples=scene.light_samples).image
+    job = RenderJob(scene, (dataclasses.replace(scene.camera, spp=spp),), seed=seed)
+    image = render_job(job, ThreadPasses(pin_threads=True))[0].image
     return image, time.perf_counter() - start, time.process_time() - cpu
 
 

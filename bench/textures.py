@@ -26,7 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from realistic.renderer.inputs import RenderOptions, build_render_inputs  # noqa: E402
-from realistic.renderer.passes import render_passes  # noqa: E402
+from realistic.renderer.job import RenderJob  # noqa: E402
+from realistic.renderer.passes import ThreadPasses, render  # noqa: E402
 from realistic.scene.mipmap import MipMap  # noqa: E402
 
 SCENE = ROOT.parent / "shared" / "scenes" / "pbrt" / "dof-dragons.dgauss.pbrt"
@@ -77,7 +78,7 @@ def renders(width: int, height: int, spp: int) -> list[dict]:
                                                  search_paths=[LENSES]))
     scene = imported.scene
     floor = scene.instances[0]
-    render_passes(scene, scene.camera, "numpy")  # warm-up: imports, BVH, the MIP map
+    render(RenderJob(scene, (scene.camera,), "numpy"))  # warm-up: imports, BVH, the MIP map
     rows = []
     far_rows = slice(int(0.45 * height), height // 2)  # the floor toward the horizon, between the cones
     for name in ("none (point-sampled)", "bilinear", "trilinear", "ewa"):
@@ -86,7 +87,7 @@ def renders(width: int, height: int, spp: int) -> list[dict]:
         material = dataclasses.replace(floor.material, texture=texture)
         scene.instances[0] = dataclasses.replace(floor, material=material)
         camera = _NoFootprint(scene.camera) if name.startswith("none") else scene.camera
-        result = render_passes(scene, camera, "numpy")
+        result = render(RenderJob(scene, (camera,), "numpy"), ThreadPasses(pin_threads=True))[0]
         rows.append({"filter": name, "resolution": f"{width}x{height}", "spp": spp, "seconds": result.seconds,
                      "shading_s": result.stage_seconds.get("shading", 0.0),
                      "far_floor_std": float(result.image[far_rows, :, 1].std())})

@@ -16,8 +16,13 @@ The Python API, in the order a script uses it::
 - ``LensCamera`` (a real lens) and ``ThinLensCamera`` (pbrt's perspective) implement ``Camera``.
 - ``PixelFilter``: pbrt's pixel filters, for a camera's ``pixel_filter`` (default: a 0.5-pixel box);
   ``load_scene(..., pixel_filter="gaussian")`` picks one by name at pbrt's defaults.
-- ``render(scene, camera=None, spp=None, ...)``: the image; ``render_passes`` adds statistics.
-- ``write_exr(path, image, metadata=None)``, ``read_exr(path)``.
+- ``render(scene, camera=None, spp=None, ...)``: the image.
+- ``render_job(RenderJob(scene, cameras, ...), executor=None, observer=None)``: one ``RenderResult``
+  (image and statistics) per camera, on ``ThreadPasses`` (threads here) or ``DaskPasses`` (a Dask
+  cluster); ``RenderObserver`` reports passes, frames and previews.
+- ``save(result, path, photographic=None)``: the EXR and PNG the ``render`` command writes (header,
+  ``Photographic`` exposure, rescue to the temporary folder); ``write_exr(path, image, metadata=None)``
+  and ``read_exr(path)`` write and read bare images.
 
 Subpackages, lowest layer first (each may import only those above it): ``core`` (random numbers,
 transforms, spectra, files), ``optics`` (the lens and its analysis), ``camera``, ``scene`` (model,
@@ -47,17 +52,27 @@ _EXPORTS = {
     "PixelFilter": "realistic.core.pixel_filter",
     "Scene": "realistic.scene.model",
     "RenderOptions": "realistic.renderer.inputs",
-    "render": "realistic.renderer.passes",
-    "render_passes": "realistic.renderer.passes",
+    "RenderJob": "realistic.renderer.job",
+    "RenderObserver": "realistic.renderer.job",
+    "RenderResult": "realistic.renderer.job",
+    "Checkpointing": "realistic.renderer.job",
+    "ThreadPasses": "realistic.renderer.passes",
+    "DaskPasses": "realistic.renderer.farm",
+    "render_job": "realistic.renderer.passes:render",
+    "Photographic": "realistic.renderer.output",
+    "save": "realistic.renderer.output",
     "write_exr": "realistic.core.image_files",
     "read_exr": "realistic.core.image_files",
 }
 
-__all__ = ["BUNDLED_LENSES", "Camera", "LensCamera", "LensFileError", "LensSystem", "PixelFilter", "RenderOptions",
-           "Scene", "ThinLensCamera", "UserError", "load_lens", "load_scene", "parse_prescription", "read_exr",
-           "render", "render_passes", "write_exr"]
+__all__ = ["BUNDLED_LENSES", "Camera", "Checkpointing", "DaskPasses", "LensCamera", "LensFileError", "LensSystem",
+           "Photographic", "PixelFilter", "RenderJob", "RenderObserver", "RenderOptions", "RenderResult", "Scene",
+           "ThinLensCamera", "ThreadPasses", "UserError", "load_lens", "load_scene", "parse_prescription", "read_exr",
+           "render", "render_job", "save", "write_exr"]
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from realistic.camera.base import Camera
     from realistic.camera.lens_camera import LensCamera
     from realistic.camera.thin_lens import ThinLensCamera
@@ -66,15 +81,20 @@ if TYPE_CHECKING:
     from realistic.optics.formats import BUNDLED_LENSES, load_lens
     from realistic.optics.formats.pbrt_dat import parse_prescription
     from realistic.optics.lens import LensSystem
+    from realistic.renderer.farm import DaskPasses
     from realistic.renderer.inputs import RenderOptions
-    from realistic.renderer.passes import render, render_passes
+    from realistic.renderer.job import Checkpointing, PassExecutor, RenderJob, RenderObserver, RenderResult
+    from realistic.renderer.output import Photographic, save
+    from realistic.renderer.passes import ThreadPasses
+    from realistic.renderer.passes import render as render_job
     from realistic.scene.model import Scene
 
 
 def __getattr__(name: str) -> Any:
     if name not in _EXPORTS:
         raise AttributeError(f"module 'realistic' has no attribute {name!r}")
-    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    module, _, attribute = _EXPORTS[name].partition(":")
+    value = getattr(importlib.import_module(module), attribute or name)
     globals()[name] = value
     return value
 
@@ -91,3 +111,38 @@ def load_scene(path: str | None = None, **options: Any) -> Scene:
     for message in inputs.warnings:
         warnings.warn(message, stacklevel=2)
     return inputs.scene
+
+
+def render(scene: Scene, camera: Camera | None = None, backend: str = "opencl", seed: int = 0, *,
+           spp: int | None = None, client: Any = None, threads: int | None = None, pin_threads: bool = False,
+           task_samples: int | None = None, **job: Any) -> np.ndarray:
+    """The film image (H, W, 3) float32: film irradiance per pixel in units of scene radiance.
+
+    ``camera`` None renders through the scene's own camera (``Scene.camera``: a pbrt file's, or the
+    framing of a loaded mesh); ``spp`` overrides the camera's samples per pixel. ``client`` (a
+    ``dask.distributed.Client``) renders on its workers in tasks of about ``task_samples`` samples,
+    bit-identically; else ``threads`` threads here (None: one per core), each kept on one CPU when
+    ``pin_threads``. ``job`` takes the other ``RenderJob`` fields (``light_samples``, the scene's by
+    default; ``pass_samples``, ``cl_device``, ``max_memory_bytes``, ...). A spectral camera renders
+    through the colour matching functions to linear sRGB (``realistic.core.spectrum``), each sample
+    the mean of its ``wavelengths_per_sample`` rays; others render RGB directly.
+    ``render_job`` returns the statistics too.
+    """
+    import dataclasses
+
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.passes import ThreadPasses
+    from realistic.renderer.passes import render as render_job
+
+    camera = camera if camera is not None else scene.camera
+    if camera is None:
+        raise UserError("no camera: pass one, or load a scene that brings its own")
+    if spp is not None:
+        camera = dataclasses.replace(camera, spp=spp)
+    if client is not None:
+        from realistic.renderer.farm import DaskPasses
+
+        executor: PassExecutor = DaskPasses(client, task_samples)
+    else:
+        executor = ThreadPasses(threads, pin_threads)
+    return render_job(RenderJob(scene, (camera,), backend, seed, **job), executor)[0].image

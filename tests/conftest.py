@@ -77,13 +77,13 @@ def thread_pools(monkeypatch) -> list[tuple[int, bool]]:
     from realistic.renderer import passes
 
     pools = []
-    build = passes._ThreadPasses.__init__
+    start = passes.ThreadPasses.open
 
-    def recording(self, scene, cameras, settings, threads, clock, pin_threads=True):
-        pools.append((threads, pin_threads))
-        build(self, scene, cameras, settings, threads, clock, pin_threads)
+    def recording(self, job, clock):
+        pools.append((self.threads, self.pin_threads))
+        start(self, job, clock)
 
-    monkeypatch.setattr(passes._ThreadPasses, "__init__", recording)
+    monkeypatch.setattr(passes.ThreadPasses, "open", recording)
     return pools
 
 
@@ -110,13 +110,14 @@ def flat_field_brightness(lens, spp: int = 256) -> float:
 
     from realistic.camera.lens_camera import LensCamera
     from realistic.core.transforms import rotate, translate
-    from realistic.renderer.passes import render_passes
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.passes import render
     from realistic.scene.model import AreaLight, Scene
 
     wall = Scene()
     wall.lights.append(AreaLight("quad", (40.0, 40.0), (1.0, 1.0, 1.0), translate(0, 0, 10) @ rotate(180, (0, 1, 0))))
     camera = LensCamera.looking_at(lens, np.zeros(3), np.array([0, 0, 10.0]), 10.0, 43.27, 8, 8, spp)
-    return float(render_passes(wall, camera, "numpy").image[3:5, 3:5].mean())
+    return float(render(RenderJob(wall, (camera,), "numpy"))[0].image[3:5, 3:5].mean())
 
 
 def rays_the_pupil_table_loses(lens, film_distance_mm: float, table, seed: int, count: int = 300_000,

@@ -13,7 +13,8 @@ from conftest import run_fresh
 from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import affinity
-from realistic.renderer.passes import _ThreadPasses, render_passes
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import ThreadPasses, render
 from realistic.renderer.timing import StageClock
 from realistic.scene.staging import default_setup
 
@@ -58,9 +59,10 @@ def test_more_workers_than_cpus_go_round_robin():
 @needs_two_cpus
 @pytest.mark.parametrize("pin", [True, False])
 def test_render_workers_follow_pin_threads(pin, tiny):
-    """The renderer's own pool (``_ThreadPasses``) pins when asked, and leaves the process's CPU set when not."""
+    """The renderer's own pool (``ThreadPasses``) pins when asked, and leaves the process's CPU set when not."""
     scene, camera = tiny
-    passes = _ThreadPasses(scene, [camera], {}, len(CPUS), StageClock(), pin)
+    passes = ThreadPasses(len(CPUS), pin)
+    passes.open(RenderJob(scene, (camera,), "numpy"), StageClock())
     try:
         sets = _cpu_sets_of_pool(passes.pool, len(CPUS))
     finally:
@@ -77,10 +79,11 @@ def test_a_system_that_refuses_pinning_still_renders(monkeypatch, tiny):
         raise PermissionError("not permitted")
 
     scene, camera = tiny
-    free = render_passes(scene, camera, "numpy", pass_samples=256, threads=2, pin_threads=False).image
+    job = RenderJob(scene, (camera,), "numpy", pass_samples=256)
+    free = render(job, ThreadPasses(2, pin_threads=False))[0].image
     monkeypatch.setattr(os, "sched_setaffinity", refuse)
     monkeypatch.setattr(affinity, "_runtime_threads", {threading.get_native_id()})
-    refused = render_passes(scene, camera, "numpy", pass_samples=256, threads=2).image
+    refused = render(job, ThreadPasses(2, pin_threads=True))[0].image
     assert np.array_equal(refused, free)
 
 
@@ -158,7 +161,8 @@ def test_pinning_leaves_the_image_bit_identical(backend, tiny):
     if backend == "opencl":
         pytest.importorskip("pyopencl")
     scene, camera = tiny
-    pinned = render_passes(scene, camera, backend, pass_samples=256, threads=2).image
-    free = render_passes(scene, camera, backend, pass_samples=256, threads=2, pin_threads=False).image
+    job = RenderJob(scene, (camera,), backend, pass_samples=256)
+    pinned = render(job, ThreadPasses(2, pin_threads=True))[0].image
+    free = render(job, ThreadPasses(2, pin_threads=False))[0].image
     assert np.array_equal(pinned, free)
     assert pinned.max() > 0

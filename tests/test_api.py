@@ -30,6 +30,19 @@ def test_readme_example_runs_and_writes_what_it_says(tmp_path, monkeypatch):
     assert scene.camera.lens.name == "dgauss" and names["tele"].lens.name == "telephoto"
 
 
+def test_readme_job_example_saves_what_the_cli_writes(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    section = README.read_text(encoding="utf-8").split("## Python API", 1)[1]
+    first, job_example = re.findall(r"```python\n(.*?)```", section, re.S)[:2]
+    names: dict = {}
+    exec(compile(first.replace("spp=4", "spp=1"), str(README), "exec"), names)
+    exec(compile(job_example, str(README), "exec"), names)
+    image, header = read_exr(tmp_path / "telephoto.exr")
+    assert header["shutterSeconds"] == pytest.approx(1 / 125) and header["iso"] == 400
+    assert header["seed"] == 1 and header["samplesDone"] == header["samplesTotal"] == 160 * 120 * header["spp"]
+    assert (tmp_path / "telephoto.png").is_file() and image.mean() > 0
+
+
 def test_render_uses_the_scene_camera_unless_given_one():
     scene = rl.load_scene(resolution=(8, 6), spp=1, dispersion=False)
     assert rl.render(scene, backend="numpy").shape == (6, 8, 3)
@@ -59,4 +72,4 @@ def test_public_names_resolve_and_unknown_ones_fail():
 def test_render_stays_the_function_once_the_renderer_is_imported():
     import realistic.renderer.inputs  # noqa: F401  (binds realistic.renderer, never realistic.render)
 
-    assert callable(rl.render) and rl.render.__module__ == "realistic.renderer.passes"
+    assert callable(rl.render) and rl.render.__module__ == "realistic"

@@ -7,7 +7,8 @@ from realistic import UserError, load_lens
 from realistic.camera.autofocus import autofocus_distance_mm
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.transforms import rotate, translate
-from realistic.renderer.passes import render_passes
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import render
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, Scene
 
@@ -50,12 +51,12 @@ def edge_width_px(image: np.ndarray) -> tuple[float, float]:
 def test_autofocus_makes_the_edge_sharp():
     scene = edge_scene()
     far = camera(6.0)  # focused well behind the edge: f/2 blurs it over several pixels
-    blurred, edge_x = edge_width_px(render_passes(scene, far, "numpy").image)
+    blurred, edge_x = edge_width_px(render(RenderJob(scene, (far,), "numpy"))[0].image)
     focus_mm = autofocus_distance_mm(far, edge_x - 3, 32, Intersector(scene).hit_distance)
     # within a few % of the thick-lens distance: the real-ray best focus of an f/2 double Gauss sits
     # about 0.06 mm in front of the paraxial one (spherical aberration), a few % in object space
     assert focus_mm == pytest.approx(DEPTH * 1000, rel=0.05)
-    sharp, _ = edge_width_px(render_passes(scene, camera(focus_mm / 1000), "numpy").image)
+    sharp, _ = edge_width_px(render(RenderJob(scene, (camera(focus_mm / 1000),), "numpy"))[0].image)
     # defocused by 6 m vs 1.5 m the blur disk is about 0.49 mm (4.4 pixels) wide; in focus the edge
     # spreads over little more than the pixel it falls in
     assert sharp < 2.0
@@ -82,3 +83,24 @@ def test_focus_on_through_the_cli(tmp_path):
     header = read_exr(out)[1]
     assert header["focusOn"] == "30,30"
     assert float(header["focusDistanceMm"]) == pytest.approx(2737, rel=0.05)
+
+
+def test_focus_on_builds_one_embree_scene_for_autofocus_and_render(tmp_path, monkeypatch):
+    """The autofocus pick's Intersector is the one the render uses: built once, not twice."""
+    from realistic.cli import main
+    from realistic.scene.intersect import Intersector
+
+    built = []
+    build = Intersector.__init__
+
+    def counting(self, *args, **kwargs):
+        built.append(1)
+        build(self, *args, **kwargs)
+
+    monkeypatch.setattr(Intersector, "__init__", counting)
+    assert main(["render", "--backend", "numpy", "--res", "16x16", "--spp", "1", "--focus-on", "8,8",
+                 "--dispersion", "off", "--threads", "2", "--out", str(tmp_path / "af.exr")]) == 0
+    assert len(built) == 1
+    assert main(["render", "--backend", "numpy", "--res", "16x16", "--spp", "1", "--dispersion", "off",
+                 "--threads", "2", "--out", str(tmp_path / "plain.exr")]) == 0
+    assert len(built) == 2  # a render without --focus-on builds its own, once

@@ -274,11 +274,12 @@ def test_the_machine_is_named_by_the_first_processors_model_family_and_the_usabl
 @pytest.mark.parametrize("backend", ["numpy", "opencl"])
 def test_the_ceiling_traces_every_ray_the_render_traced(backend):
     """The ceiling's rays are the render's own, all of them: as many primary and (live) shadow rays as
-    ``render_passes`` reports for the same camera, not one pass's."""
-    from realistic.renderer.passes import render_passes
+    ``render`` reports for the same camera, not one pass's."""
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.passes import render
 
     setup, camera, _, _ = render_bench.staged_subject("dgauss", 24, 16, 4)
-    rendered = render_passes(setup.scene, camera, backend, 0, pass_samples=512)
+    rendered = render(RenderJob(setup.scene, (camera,), backend, seed=0, pass_samples=512))[0]
     recorder = render_bench.recorded_rays(setup, camera, backend, pass_samples=512)
     assert len(recorder.primary) == len(recorder.shadow) > 1  # one closest and one occluded call per pass
     assert sum(len(o) for o, _ in recorder.primary) == rendered.primary_rays > 0

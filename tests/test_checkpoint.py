@@ -19,8 +19,9 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.core.image_files import read_exr
 from realistic.errors import UserError
 from realistic.renderer.checkpoint import RenderIdentity, content_hash, load_checkpoint
+from realistic.renderer.job import Checkpointing, RenderJob, RenderObserver
 from realistic.renderer.pass_plan import plan_passes
-from realistic.renderer.passes import Checkpointing, render_passes
+from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.staging import default_setup
 
 REPO = Path(__file__).resolve().parents[1]
@@ -56,7 +57,7 @@ def test_identity_is_the_same_in_another_process(tiny):
     assert out.stdout.split() == [ours.scene, ours.camera], out.stderr
 
 
-def _interrupted(scene, camera, path, passes_before_stop=2, **options):
+def _interrupted(scene, camera, path, passes_before_stop=2, seed=0):
     calls = []
 
     def stop(result):
@@ -64,18 +65,18 @@ def _interrupted(scene, camera, path, passes_before_stop=2, **options):
         if len(calls) == passes_before_stop:
             raise KeyboardInterrupt
 
-    return render_passes(scene, camera, "numpy", pass_samples=256, threads=2, on_pass=stop,
-                         checkpoint=Checkpointing(path, None), **options)
+    job = RenderJob(scene, (camera,), "numpy", seed, pass_samples=256, checkpoint=Checkpointing(path, None))
+    return render(job, ThreadPasses(2), RenderObserver(on_pass=stop))[0]
 
 
 def test_resume_is_bit_identical_and_removes_the_checkpoint(tiny, tmp_path):
     scene, camera = tiny
     path = tmp_path / "r.exr.partial"
-    whole = render_passes(scene, camera, "numpy", pass_samples=256, threads=2)
+    whole = render(RenderJob(scene, (camera,), "numpy", pass_samples=256), ThreadPasses(threads=2))[0]
     first = _interrupted(scene, camera, path)
     assert first.interrupted and path.is_file() and 0 < first.samples_done < first.samples_total
-    resumed = render_passes(scene, camera, "numpy", pass_samples=256, threads=2,
-                            checkpoint=Checkpointing(path, None, resume=True))
+    resumed = render(RenderJob(scene, (camera,), "numpy", pass_samples=256,
+                               checkpoint=Checkpointing(path, None, resume=True)), ThreadPasses(threads=2))[0]
     assert not resumed.interrupted and resumed.samples_done == resumed.samples_total
     assert np.array_equal(resumed.image, whole.image)
     assert not path.exists()
@@ -91,7 +92,8 @@ def test_a_checkpoint_of_another_render_is_refused_in_one_line(tiny, tmp_path, c
     path = tmp_path / "r.exr.partial"
     _interrupted(scene, camera, path)
     with pytest.raises(UserError) as err:
-        render_passes(scene, change(camera), "numpy", pass_samples=256, checkpoint=Checkpointing(path, None, True))
+        render(RenderJob(scene, (change(camera),), "numpy", pass_samples=256,
+                         checkpoint=Checkpointing(path, None, True)))
     assert f"another {word}" in str(err.value) and "\n" not in str(err.value) and str(path) in str(err.value)
 
 
@@ -100,10 +102,11 @@ def test_another_seed_or_scene_is_refused(tiny, tmp_path):
     path = tmp_path / "r.exr.partial"
     _interrupted(scene, camera, path)
     with pytest.raises(UserError, match="another seed"):
-        render_passes(scene, camera, "numpy", seed=1, pass_samples=256, checkpoint=Checkpointing(path, None, True))
+        render(RenderJob(scene, (camera,), "numpy", seed=1, pass_samples=256,
+                         checkpoint=Checkpointing(path, None, True)))
     other = dataclasses.replace(scene, background=(0.5, 0.5, 0.5))
     with pytest.raises(UserError, match="another scene"):
-        render_passes(other, camera, "numpy", pass_samples=256, checkpoint=Checkpointing(path, None, True))
+        render(RenderJob(other, (camera,), "numpy", pass_samples=256, checkpoint=Checkpointing(path, None, True)))
 
 
 @given(st.binary(max_size=300))
@@ -119,7 +122,7 @@ def test_any_file_is_resumed_or_refused_in_one_line(tmp_path_factory, content):
 def test_resume_without_a_checkpoint_says_so(tiny, tmp_path):
     scene, camera = tiny
     with pytest.raises(UserError, match="no checkpoint to resume"):
-        render_passes(scene, camera, "numpy", checkpoint=Checkpointing(tmp_path / "none.partial", None, True))
+        render(RenderJob(scene, (camera,), "numpy", checkpoint=Checkpointing(tmp_path / "none.partial", None, True)))
 
 
 def _render(out: Path, *extra: str) -> list[str]:

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from kernel_reference import assert_kernel_matches, reference_camera
-from realistic import load_lens
+from realistic import load_lens, render
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import rng
@@ -32,7 +32,6 @@ from realistic.core.transforms import rotate, scale, translate
 from realistic.optics.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM, refractive_index
 from realistic.optics.paraxial import film_distance_for_focus
 from realistic.optics.tracer import trace_from_film
-from realistic.renderer.passes import render
 from realistic.scene.model import AreaLight, Material, Scene
 from realistic.scene.shapes import quad
 

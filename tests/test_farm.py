@@ -18,10 +18,13 @@ import pytest
 distributed = pytest.importorskip("distributed", reason="dask[distributed] is the farm extra")
 
 from realistic import load_lens  # noqa: E402
+from realistic import render as render_image  # noqa: E402
 from realistic.camera.lens_camera import LensCamera  # noqa: E402
 from realistic.cli import main  # noqa: E402
 from realistic.core.image_files import read_exr  # noqa: E402
-from realistic.renderer.passes import render, render_frames, render_passes  # noqa: E402
+from realistic.renderer.farm import DaskPasses  # noqa: E402
+from realistic.renderer.job import RenderJob, RenderObserver  # noqa: E402
+from realistic.renderer.passes import render  # noqa: E402
 from realistic.renderer.sweep import parse_sweep, sweep_cameras  # noqa: E402
 from realistic.scene.staging import default_setup  # noqa: E402
 
@@ -56,7 +59,7 @@ def tiny():
 @pytest.fixture(scope="module")
 def reference(tiny):
     scene, camera = tiny
-    return {backend: render_passes(scene, camera, backend, seed=5, pass_samples=PASS).image
+    return {backend: render(RenderJob(scene, (camera,), backend, seed=5, pass_samples=PASS))[0].image
             for backend in ("numpy", "opencl")}
 
 
@@ -64,7 +67,7 @@ def reference(tiny):
 def test_farm_image_is_bit_identical_to_the_in_process_render(client, tiny, reference, workers):
     scene, camera = tiny
     _scale(client, workers)
-    result = render_passes(scene, camera, "numpy", seed=5, pass_samples=PASS, client=client, task_samples=TASK)
+    result = render(RenderJob(scene, (camera,), "numpy", seed=5, pass_samples=PASS), DaskPasses(client, TASK))[0]
     assert not result.interrupted and result.samples_done == result.samples_total
     assert reference["numpy"].max() > 0 and np.array_equal(result.image, reference["numpy"])
 
@@ -72,7 +75,7 @@ def test_farm_image_is_bit_identical_to_the_in_process_render(client, tiny, refe
 def test_the_opencl_kernel_on_workers_is_bit_identical_too(client, tiny, reference):
     scene, camera = tiny
     _scale(client, 2)
-    image = render(scene, camera, "opencl", seed=5, pass_samples=PASS, client=client, task_samples=TASK)
+    image = render_image(scene, camera, "opencl", seed=5, pass_samples=PASS, client=client, task_samples=TASK)
     assert np.array_equal(image, reference["opencl"])
 
 
@@ -80,8 +83,8 @@ def test_a_spectral_render_with_several_wavelengths_per_sample_is_bit_identical_
     scene, camera = tiny  # dgauss has Abbe numbers: dispersive, 3 rays per sample
     spectral = dataclasses.replace(camera, spectral=True, wavelengths_per_sample=3)
     _scale(client, 2)
-    local = render_passes(scene, spectral, "opencl", seed=5, pass_samples=PASS)
-    farmed = render_passes(scene, spectral, "opencl", seed=5, pass_samples=PASS, client=client, task_samples=TASK)
+    local = render(RenderJob(scene, (spectral,), "opencl", seed=5, pass_samples=PASS))[0]
+    farmed = render(RenderJob(scene, (spectral,), "opencl", seed=5, pass_samples=PASS), DaskPasses(client, TASK))[0]
     assert local.image.max() > 0 and np.array_equal(farmed.image, local.image)
     assert farmed.samples_done == local.samples_done == spectral.sample_count
     assert farmed.primary_rays == local.primary_rays > spectral.sample_count  # up to 3 rays a sample
@@ -93,7 +96,7 @@ def test_each_worker_builds_the_scene_and_camera_once(client, tiny):
     scene, camera = tiny
     _scale(client, 2)
     client.run(lambda: (farm._runners.clear(), farm._scenes.clear()))
-    render_passes(scene, camera, "numpy", seed=5, pass_samples=PASS, client=client, task_samples=PASS)  # 16 tasks
+    render(RenderJob(scene, (camera,), "numpy", seed=5, pass_samples=PASS), DaskPasses(client, PASS))  # 16 tasks
     counts = client.run(lambda: (len(farm._runners), len(farm._scenes)))
     assert all(count in ((0, 0), (1, 1)) for count in counts.values()) and (1, 1) in counts.values()
 
@@ -112,8 +115,8 @@ def test_a_worker_killed_mid_render_costs_only_its_tasks(client, tiny, reference
             os.kill(pids[busy[0]], signal.SIGKILL)
             killed.append(busy[0])
 
-    result = render_passes(scene, camera, "numpy", seed=5, pass_samples=PASS, client=client, task_samples=PASS,
-                           on_pass=kill_a_busy_worker)
+    result = render(RenderJob(scene, (camera,), "numpy", seed=5, pass_samples=PASS), DaskPasses(client, PASS),
+                    RenderObserver(on_pass=kill_a_busy_worker))[0]
     assert killed and not result.interrupted
     assert np.array_equal(result.image, reference["numpy"])
     _scale(client, 2)  # the nanny restarts it
@@ -124,9 +127,9 @@ def test_a_sweep_is_one_job_whose_frames_match_single_renders(client, tiny):
     scene, camera = tiny
     _scale(client, 2)
     cameras = sweep_cameras(camera, parse_sweep("focus=1.5:6:2"))
-    frames = render_frames(scene, cameras, "numpy", seed=5, pass_samples=PASS, client=client, task_samples=TASK)
+    frames = render(RenderJob(scene, cameras, "numpy", seed=5, pass_samples=PASS), DaskPasses(client, TASK))
     for frame, each in zip(frames, cameras):
-        alone = render_passes(scene, each, "numpy", seed=5, pass_samples=PASS).image
+        alone = render(RenderJob(scene, (each,), "numpy", seed=5, pass_samples=PASS))[0].image
         assert np.array_equal(frame.image, alone)
     assert not np.array_equal(frames[0].image, frames[-1].image)
 
@@ -194,7 +197,7 @@ def test_local_workers_ignore_the_terminals_ctrl_c_after_building_the_kernel(tin
 
     scene, camera = tiny
     with farm_client(1, announce=lambda line: None) as client:
-        render(scene, camera, "opencl", pass_samples=4096, client=client)
+        render_image(scene, camera, "opencl", pass_samples=4096, client=client)
         masks = client.run(_ignored_signals)
     assert masks and all(mask & (1 << (signal.SIGINT - 1)) and mask & (1 << (signal.SIGHUP - 1))
                          for mask in masks.values())

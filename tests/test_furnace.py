@@ -11,7 +11,8 @@ import pytest
 
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core.transforms import translate
-from realistic.renderer.passes import render_passes
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import ThreadPasses, render
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.lights import EmissiveInstance, InfiniteLight
@@ -59,7 +60,7 @@ def test_white_furnace_through_a_thin_lens_camera():
     camera = ThinLensCamera(40.0, 0.05, 5.0, 16, 16, 64, translate(0, 0, -5.0))
     scene = _convex_scene(a)
     scene.integrator = "path"
-    image = render_passes(scene, camera, "numpy", 5, threads=1).image[..., 0]
+    image = render(RenderJob(scene, (camera,), "numpy", seed=5), ThreadPasses(threads=1))[0].image[..., 0]
     centre, corner = image[6:10, 6:10], image[0, 0]
     assert abs(centre.mean() - a) < 0.02 and abs(corner - 1.0) < 1e-4
 

@@ -7,8 +7,9 @@ import numpy as np
 
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core.transforms import rotate, translate
+from realistic.renderer.job import RenderJob
 from realistic.renderer.light_sampler import LightSampler
-from realistic.renderer.passes import render_passes
+from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.lights import DistantLight, InfiniteLight, PointLight, SpotLight
 from realistic.scene.model import AreaLight, Material, Scene
 from realistic.scene.shapes import quad, sphere
@@ -25,8 +26,8 @@ def _scene() -> Scene:
 
 def test_path_tracing_is_independent_of_pass_size_and_threads():
     camera = ThinLensCamera(50.0, 0.0, 1.0, 12, 10, 3, translate(0, -4, 1.5) @ rotate(-80, (1, 0, 0)))
-    a = render_passes(_scene(), camera, "numpy", seed=2, pass_samples=37, threads=2).image
-    b = render_passes(_scene(), camera, "numpy", seed=2, pass_samples=1000, threads=1).image
+    a = render(RenderJob(_scene(), (camera,), "numpy", seed=2, pass_samples=37), ThreadPasses(threads=2))[0].image
+    b = render(RenderJob(_scene(), (camera,), "numpy", seed=2, pass_samples=1000), ThreadPasses(threads=1))[0].image
     np.testing.assert_array_equal(a, b)
     assert a.min() > 0  # every pixel sees the sky or a lit surface
 

@@ -150,7 +150,8 @@ def test_a_scene_of_every_material_renders(tmp_path):
     """Until the integrator shades through BSDFs it renders each material's matte equivalent; either
     way every material type must import and render to finite pixels."""
     from realistic.renderer.inputs import RenderOptions, build_render_inputs
-    from realistic.renderer.passes import render_passes
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.passes import render
 
     brdf = shared_file("scenes/pbrt/brdfs/acryl_blue.brdf")
     kinds = ['"matte" "float sigma" 10', '"plastic"', '"metal"', '"mirror"', '"glass"', '"substrate"',
@@ -163,7 +164,7 @@ def test_a_scene_of_every_material_renders(tmp_path):
                     '"rgb L" [4 4 4]\nTranslate 0 5 0\nRotate 90 1 0 0\nShape "disk" "float radius" 3\nAttributeEnd\n'
                     'MakeNamedMaterial "m" "string type" "matte"\n' + shapes + "WorldEnd\n")
     imported = build_render_inputs(RenderOptions(scene=path, spp=1))
-    image = render_passes(imported.scene, imported.scene.camera, "numpy").image
+    image = render(RenderJob(imported.scene, (imported.camera,), "numpy"))[0].image
     assert np.all(np.isfinite(image)) and image.max() > 0
 
 

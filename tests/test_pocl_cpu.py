@@ -201,11 +201,12 @@ def test_the_wide_name_changes_the_speed_not_the_image(opencl_platform, tmp_path
         "from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
         "from realistic.camera.opencl_host import context\n"
         "from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM\n"
-        "from realistic.renderer.passes import render_passes\n"
+        "from realistic.renderer.job import RenderJob\nfrom realistic.renderer.passes import render\n"
         "print('given', pocl_cpu.given_name(context().devices[0]))\n"
         "scene, eye, target = busy_scene()\n"
         "camera = LensCamera.looking_at(load_lens('dgauss'), eye, target, None, FULL_FRAME_DIAGONAL_MM, 48, 32, 8)\n"
-        "np.save(sys.argv[2], render_passes(scene, camera, 'opencl', 3, light_samples=2, pass_samples=2048).image)\n")
+        "job = RenderJob(scene, (camera,), 'opencl', 3, light_samples=2, pass_samples=2048)\n"
+        "np.save(sys.argv[2], render(job)[0].image)\n")
     images = {}
     for name in ("default", "x86-64-v4"):
         output = built_from_source(script, tmp_path / name, name, str(tmp_path / f"{name}.npy"))

@@ -82,10 +82,11 @@ RENDER = (
     "from test_shade_kernel import busy_scene\n"
     "from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
     "from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM\n"
-    "from realistic.renderer.passes import render_passes\n"
+    "from realistic.renderer.job import RenderJob\nfrom realistic.renderer.passes import render\n"
     "scene, eye, target = busy_scene()\n"
     "camera = LensCamera.looking_at(load_lens('dgauss'), eye, target, None, FULL_FRAME_DIAGONAL_MM, 48, 32, 64)\n"
-    "np.save(sys.argv[2], render_passes(scene, camera, 'opencl', 3, light_samples=2, pass_samples=2048).image)\n"
+    "job = RenderJob(scene, (camera,), 'opencl', 3, light_samples=2, pass_samples=2048)\n"
+    "np.save(sys.argv[2], render(job)[0].image)\n"
     "print('options', pocl_interleave.build_options())\n")
 
 

@@ -11,8 +11,10 @@ from realistic import load_lens
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.renderer.film import Film, PassFilm
+from realistic.renderer.job import RenderJob, RenderObserver
 from realistic.renderer.pass_plan import PASS_RAYS, default_pass_samples, plan_passes, progressive_order, slice_bounds
-from realistic.renderer.passes import gather_rows, render_passes
+from realistic.renderer.passes import ThreadPasses, render
+from realistic.renderer.runner import gather_rows
 from realistic.scene.staging import default_setup
 
 
@@ -150,25 +152,27 @@ def test_an_interrupted_render_is_a_whole_noisy_frame(tiny):
         if result.passes_done == 4:
             raise KeyboardInterrupt
 
-    result = render_passes(scene, camera, "numpy", pass_samples=256, threads=1, on_pass=interrupt)
+    result = render(RenderJob(scene, (camera,), "numpy", pass_samples=256), ThreadPasses(threads=1),
+                    RenderObserver(on_pass=interrupt))[0]
     assert result.interrupted and result.passes_done == 4 and result.passes_total == 16
     assert result.samples_done == 32 * 32
-    one_spp = render_passes(scene, dataclasses.replace(camera, spp=1), "numpy", pass_samples=256, threads=1)
+    one_spp = render(RenderJob(scene, (dataclasses.replace(camera, spp=1),), "numpy", pass_samples=256),
+                     ThreadPasses(threads=1))[0]
     assert np.array_equal(result.image, one_spp.image) and np.count_nonzero(result.image) > 0
 
 
 def test_threads_and_pass_order_do_not_change_the_image(tiny):
     scene, camera = tiny
-    one = render_passes(scene, camera, "numpy", pass_samples=96, threads=1).image
-    three = render_passes(scene, camera, "numpy", pass_samples=96, threads=3).image
+    one = render(RenderJob(scene, (camera,), "numpy", pass_samples=96), ThreadPasses(threads=1))[0].image
+    three = render(RenderJob(scene, (camera,), "numpy", pass_samples=96), ThreadPasses(threads=3))[0].image
     assert np.array_equal(one, three) and one.max() > 0
 
 
 def test_previews_are_whole_images_while_rendering(tiny):
     scene, camera = tiny
     previews = []
-    result = render_passes(scene, camera, "numpy", pass_samples=256, threads=1, preview=previews.append,
-                           preview_every=1e-9)
+    result = render(RenderJob(scene, (camera,), "numpy", pass_samples=256), ThreadPasses(threads=1),
+                    RenderObserver(preview=previews.append, preview_every=1e-9))[0]
     assert len(previews) >= 2 and all(p.shape == (32, 32, 3) for p in previews)
     assert np.array_equal(previews[-1], result.image)
     done = [np.count_nonzero(np.any(p != 0, axis=2)) for p in previews]
@@ -180,8 +184,8 @@ def test_a_render_without_a_pass_size_sizes_its_passes_by_rays(tiny):
     passes at four, whose shadow rays would otherwise make each pass five times the rays."""
     scene, camera = tiny
     camera = dataclasses.replace(camera, width=128, height=128, spp=8)
-    one = render_passes(scene, camera, "numpy", light_samples=1, threads=1)
-    four = render_passes(scene, camera, "numpy", light_samples=4, threads=1)
+    one = render(RenderJob(scene, (camera,), "numpy", light_samples=1), ThreadPasses(threads=1))[0]
+    four = render(RenderJob(scene, (camera,), "numpy", light_samples=4), ThreadPasses(threads=1))[0]
     assert one.passes_total == len(plan_passes(128 * 128, 8, default_pass_samples(1, 1))) == 1
     assert four.passes_total == len(plan_passes(128 * 128, 8, default_pass_samples(1, 4))) == 2
 

@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 
 from realistic import load_lens
+from realistic import render as render_image
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.transforms import rotate, scale, translate
 from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
 from realistic.optics.sampling import rear_surface_depths_mm
 from realistic.optics.tracer import trace_from_film
 from realistic.renderer.direct_lighting import DirectLighting
-from realistic.renderer.passes import render, render_passes
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, Material, Scene
 from realistic.scene.shapes import quad
@@ -109,7 +111,7 @@ def camera_looking_down(lens_name: str, stop_mm: float, width: int, height: int,
 
 def test_tiny_aperture_film_irradiance_is_radiance_times_exit_pupil_solid_angle():
     lens, camera = camera_looking_down("dgauss", 1.0, 5, 5, 2048, 1.0)
-    image = render(lit_plane(), camera, "numpy", seed=1, pass_samples=1 << 16)
+    image = render_image(lit_plane(), camera, "numpy", seed=1, pass_samples=1 << 16)
     radiance = RHO / math.pi * disk_irradiance(0.0)
     p = paraxial_data(lens)
     z_exit = camera.film_distance_mm - p.exit_pupil_mm  # film to exit pupil (exit_pupil_mm is + toward film)
@@ -149,7 +151,7 @@ def test_tiny_aperture_falls_off_as_cos4_across_the_film():
     in turn is the cos^4 law to the paraxial exit pupil within the lens's pupil aberration."""
     width = 41
     lens, camera = camera_looking_down("dgauss", 1.0, width, 1, 2048, 30.0)
-    image = render(uniform_emitter_scene(), camera, "numpy", seed=2, pass_samples=1 << 16)[0, :, 0]
+    image = render_image(uniform_emitter_scene(), camera, "numpy", seed=2, pass_samples=1 << 16)[0, :, 0]
     p = paraxial_data(lens)
     z_exit = camera.film_distance_mm - p.exit_pupil_mm
     pixel_mm = camera.film_size_mm[0] / width
@@ -185,7 +187,7 @@ def test_wide_aperture_film_irradiance_matches_quadrature(sampling):
     film = film_distance_for_focus(lens, 1000.0)
     world = translate(0, 0, 1.0) @ rotate(180, (1, 0, 0)) @ scale(1e-3)
     camera = LensCamera(lens, film, 40.0, width, 1, 2048, world, lens_sampling=sampling)
-    image = render(uniform_emitter_scene(), camera, "numpy", seed=4, pass_samples=1 << 17)[0, :, 0]
+    image = render_image(uniform_emitter_scene(), camera, "numpy", seed=4, pass_samples=1 << 17)[0, :, 0]
     pixel_mm = camera.film_size_mm[0] / width
     centre = width // 2
     expected = {k: quadrature_irradiance(lens, film, k * pixel_mm) for k in (0, 7, 13, 19)}
@@ -197,8 +199,8 @@ def test_wide_aperture_film_irradiance_matches_quadrature(sampling):
 
 def test_render_is_independent_of_pass_size_and_thread_count():
     _, camera = camera_looking_down("dgauss", 4.0, 6, 4, 8, 20.0)
-    a = render_passes(lit_plane(), camera, "numpy", seed=9, pass_samples=50, threads=2).image
-    b = render_passes(lit_plane(), camera, "numpy", seed=9, pass_samples=1000, threads=1).image
+    a = render(RenderJob(lit_plane(), (camera,), "numpy", seed=9, pass_samples=50), ThreadPasses(threads=2))[0].image
+    b = render(RenderJob(lit_plane(), (camera,), "numpy", seed=9, pass_samples=1000), ThreadPasses(threads=1))[0].image
     np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-9)
     assert a.max() > 0
 
@@ -218,8 +220,8 @@ def test_a_render_given_no_thread_count_runs_the_default_and_matches_one_thread(
 
     monkeypatch.setattr(passes, "default_threads", lambda: 5)
     _, camera = camera_looking_down("dgauss", 4.0, 6, 4, 8, 20.0)
-    default = render_passes(lit_plane(), camera, "numpy", seed=9, pass_samples=50).image
-    one = render_passes(lit_plane(), camera, "numpy", seed=9, pass_samples=50, threads=1).image
+    default = render(RenderJob(lit_plane(), (camera,), "numpy", seed=9, pass_samples=50))[0].image
+    one = render(RenderJob(lit_plane(), (camera,), "numpy", seed=9, pass_samples=50), ThreadPasses(threads=1))[0].image
     assert [threads for threads, _ in thread_pools] == [5, 1]
     np.testing.assert_array_equal(default, one)  # pass sums are added in pass order: bit-identical
     assert default.max() > 0
@@ -229,10 +231,10 @@ def test_opencl_and_numpy_backends_render_the_same_image():
     from realistic.errors import UserError
 
     _, camera = camera_looking_down("dgauss", 6.0, 40, 30, 16, 20.0)
-    reference = render(lit_plane(), camera, "numpy", seed=5, pass_samples=4096)
+    reference = render_image(lit_plane(), camera, "numpy", seed=5, pass_samples=4096)
     try:
         for _ in range(2):  # passes run on several threads: the generator must not mix them up
-            image = render(lit_plane(), camera, "opencl", seed=5, pass_samples=4096)
+            image = render_image(lit_plane(), camera, "opencl", seed=5, pass_samples=4096)
             np.testing.assert_allclose(image, reference, rtol=1e-3, atol=1e-6)
     except UserError as err:
         pytest.skip(f"OpenCL backend unavailable: {err}")

@@ -16,7 +16,8 @@ from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.cli import main
 from realistic.core.image_files import read_exr
-from realistic.renderer.passes import render_passes
+from realistic.renderer.job import RenderJob, RenderObserver
+from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.staging import default_setup
 
 REPO = Path(__file__).resolve().parents[1]
@@ -145,7 +146,8 @@ def test_interrupt_keeps_the_passes_done():
         if len(calls) == 2:
             raise KeyboardInterrupt
 
-    result = render_passes(setup.scene, camera, "numpy", pass_samples=512, threads=2, on_pass=interrupt)
+    result = render(RenderJob(setup.scene, (camera,), "numpy", pass_samples=512), ThreadPasses(threads=2),
+                    RenderObserver(on_pass=interrupt))[0]
     assert result.interrupted
     assert 2 * 512 <= result.samples_done < result.samples_total
     assert result.samples_done % 512 == 0  # only whole passes

@@ -93,14 +93,14 @@ def test_a_finished_render_is_kept_when_its_folder_vanishes(tmp_path, capsys, mo
 
     folder = tmp_path / "out"
     folder.mkdir()
-    render_passes = passes.render_passes
+    render = passes.render
 
     def render_then_remove_the_folder(*args, **kwargs):
-        result = render_passes(*args, **kwargs)
+        results = render(*args, **kwargs)
         folder.rmdir()
-        return result
+        return results
 
-    monkeypatch.setattr(passes, "render_passes", render_then_remove_the_folder)
+    monkeypatch.setattr(passes, "render", render_then_remove_the_folder)
     status = main(["render", *QUICK, "--res", "8x6", "--spp", "1", "--out", str(folder / "x.exr")])
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert status == 2 and "the render was saved as" in err, err
@@ -214,7 +214,8 @@ def test_api_scene_beyond_single_precision_is_a_user_error():
     from realistic.camera.lens_camera import LensCamera
     from realistic.errors import UserError
     from realistic.optics.formats import load_lens
-    from realistic.renderer.passes import render_passes
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.passes import render
     from realistic.scene.model import Scene
     from realistic.scene.shapes import sphere
 
@@ -222,7 +223,7 @@ def test_api_scene_beyond_single_precision_is_a_user_error():
     scene.add(sphere(1e200, 16))
     camera = LensCamera.looking_at(load_lens("dgauss"), np.zeros(3), np.array([0, 0, 5.0]), width=4, height=4, spp=1)
     with pytest.raises(UserError, match="not finite in single precision"):
-        render_passes(scene, camera, "numpy")
+        render(RenderJob(scene, (camera,), "numpy"))
 
 
 @pytest.mark.parametrize("aspect", [1e-300, 1e-8, 1.0, 1e8, 1e300])
@@ -266,12 +267,13 @@ def test_bench_warm_up_honours_max_memory(monkeypatch):
     from realistic.camera.lens_camera import LensCamera
     from realistic.optics.formats import load_lens
     from realistic.renderer.convergence import measure_sample_counts
+    from realistic.renderer.job import RenderJob
     from realistic.scene.staging import default_setup
 
     monkeypatch.setattr(memory, "available_bytes", lambda: 1)  # the system says nothing fits
     setup = default_setup()
     camera = LensCamera.looking_at(load_lens("dgauss"), setup.eye, setup.target, width=4, height=4, spp=1,
                                    lens_sampling="rear")
-    rows, image = measure_sample_counts(setup.scene, camera, [1, 2], "numpy", progress=False,
-                                        max_memory_bytes=1 << 40)  # ... but the user allows it
+    job = RenderJob(setup.scene, (camera,), "numpy", max_memory_bytes=1 << 40)  # ... but the user allows it
+    rows, image = measure_sample_counts(job, [1, 2], progress=False)
     assert [row["spp"] for row in rows] == [1, 2] and np.all(np.isfinite(image))

@@ -21,7 +21,8 @@ from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
 from realistic.renderer.direct_lighting import DirectLighting
-from realistic.renderer.passes import render_passes
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, Material, Scene
 from realistic.scene.shapes import cone, sphere
@@ -209,8 +210,9 @@ def test_renders_match_between_backends(name):
         (scene, eye, target), light_samples = busy_scene(), 2
     distance = float(np.linalg.norm(np.asarray(target) - np.asarray(eye)))
     camera = ThinLensCamera(40.0, 0.02, distance, 48, 32, 4, look_at(eye, target))
-    images = {backend: render_passes(scene, camera, backend, SEED, light_samples=light_samples, pass_samples=1500,
-                                     threads=2).image for backend in ("numpy", "opencl")}
+    jobs = {backend: RenderJob(scene, (camera,), backend, SEED, light_samples=light_samples, pass_samples=1500)
+            for backend in ("numpy", "opencl")}
+    images = {backend: render(job, ThreadPasses(threads=2))[0].image for backend, job in jobs.items()}
     assert images["numpy"].max() > 0
     np.testing.assert_allclose(images["opencl"], images["numpy"], rtol=1e-5, atol=1e-5 * images["numpy"].max())
 

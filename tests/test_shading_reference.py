@@ -24,7 +24,8 @@ from realistic.core.transforms import rotate, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
 from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting
-from realistic.renderer.passes import render_passes
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene
 from realistic.scene.shapes import cone, quad, sphere
@@ -221,7 +222,7 @@ def test_radiance_per_ray_matches_the_reference(case):
 @pytest.mark.parametrize("morton", [False, True])
 def test_rendered_image_matches_the_reference(case, morton):
     _, scene, camera, backend, _, _, _, image = case
-    got = render_passes(scene, camera, backend, SEED, light_samples=LIGHT_SAMPLES, pass_samples=200, threads=2,
-                        morton=morton).image
+    job = RenderJob(scene, (camera,), backend, SEED, light_samples=LIGHT_SAMPLES, pass_samples=200, morton=morton)
+    got = render(job, ThreadPasses(threads=2))[0].image
     np.testing.assert_allclose(got, image, rtol=1e-5, atol=1e-5 * np.abs(image).max())
 

@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from realistic import load_lens
+from realistic import load_lens, render
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import rng, validation
@@ -27,8 +27,9 @@ from realistic.errors import UserError
 from realistic.optics.paraxial import film_distance_for_focus
 from realistic.renderer.checkpoint import RenderIdentity
 from realistic.renderer.film import pass_sums
+from realistic.renderer.job import PassSettings, RenderJob
 from realistic.renderer.memory import PASS_BYTES_PER_SAMPLE, estimate_peak_bytes
-from realistic.renderer.passes import PassRunner, render
+from realistic.renderer.runner import PassRunner
 from realistic.renderer.timing import StageClock
 from realistic.scene.model import AreaLight, Material, Scene
 from realistic.scene.shapes import quad
@@ -150,7 +151,7 @@ def test_the_film_takes_each_of_a_samples_k_rays_at_one_kth_and_shares_its_sampl
             seen.update(pixel=pixel, sample=sample, wavelength=wavelength_nm)
             return np.ones((len(origin), 3), np.float32), 0
 
-    runner = PassRunner(_grey_scene(), camera, "numpy", 5, None, 1, False, StageClock())
+    runner = PassRunner(_grey_scene(), camera, PassSettings("numpy", seed=5), StageClock())
     runner.integrator = Spy()
     result = runner(0, block)
     rays = camera.generate_rays(block, 5)
@@ -243,7 +244,8 @@ def test_bench_counts_a_spectral_samples_k_rays():
     from realistic.renderer.convergence import measure_sample_counts
 
     scene = _grey_scene()
-    rows = {k: measure_sample_counts(scene, _camera(True, k, width=12, height=12), [2], "numpy", progress=False)[0][0]
+    rows = {k: measure_sample_counts(RenderJob(scene, (_camera(True, k, width=12, height=12),), "numpy"), [2],
+                                     progress=False)[0][0]
             for k in (1, 3)}
     # the same samples, so about the same share of rays vignetted, whatever K
     assert 0.0 <= rows[3]["vignetted_fraction"] < 1.0

@@ -22,7 +22,8 @@ from realistic.errors import UserError
 from realistic.optics.formats import load_lens
 from realistic.optics.paraxial import paraxial_data
 from realistic.renderer.footprint import uv_footprint
-from realistic.renderer.passes import render_passes
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import render
 from realistic.scene.mipmap import MipMap
 from realistic.scene.model import AreaLight, ImageTexture, Instance, Material, Mesh, Scene
 from realistic.scene.pbrt.importer import import_pbrt
@@ -212,7 +213,7 @@ def render_floor(texture: ImageTexture, spp: int, camera_class: type = ThinLensC
     fov = 2 * math.degrees(math.atan(SPREAD * width / 2))
     tilt = (HEIGHT / 2 - HORIZON_ROW) * SPREAD
     camera = camera_class(fov, 0.0, 1.0, width, HEIGHT, spp, look_at(np.array([0, 1.0, 0]), np.array([0, 1 - tilt, 1])))
-    return render_passes(floor_scene(texture), camera, "numpy").image[..., 0]
+    return render(RenderJob(floor_scene(texture), (camera,), "numpy"))[0].image[..., 0]
 
 
 @pytest.fixture(scope="module")

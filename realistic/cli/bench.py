@@ -9,12 +9,13 @@ import argparse
 import json
 from pathlib import Path
 
-from realistic.cli.render import add_farm_arguments, farm_client, report_warnings
+from realistic.cli.render import add_farm_arguments, executor_for, farm_client, report_warnings
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
 from realistic.cli.values import parse_spp_list
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.core.image_files import read_exr
 from realistic.errors import UserError
+from realistic.renderer.job import RenderJob
 from realistic.renderer.thread_count import default_threads
 
 DESCRIPTION = """\
@@ -57,11 +58,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
         reference = read_exr(Path(args.reference))[0]
     inputs = build_render_inputs(options_from_args(args, spp_list[0]))
     report_warnings(inputs.warnings)
+    job = RenderJob(inputs.scene, (inputs.camera,), args.backend, args.seed, args.cl_device, inputs.light_samples,
+                    max_memory_bytes=args.max_memory)
     with farm_client(args) as client:
-        rows, _ = measure_sample_counts(inputs.scene, inputs.camera, spp_list, args.backend, args.seed,
-                                        inputs.light_samples, reference, args.cl_device,
-                                        max_memory_bytes=args.max_memory, client=client, threads=args.threads,
-                                        pin_threads=args.pin_threads)
+        rows, _ = measure_sample_counts(job, spp_list, executor_for(args, client, inputs.intersector), reference)
     against = "reference" if reference is not None else f"{max(spp_list)} spp"
     camera = inputs.camera
     where = (f", {args.workers} workers" if args.workers else ", on the Dask cluster" if client is not None

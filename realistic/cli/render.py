@@ -9,23 +9,25 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import partial
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from realistic.camera.base import Camera
-from realistic.camera.exposure import exposure_scale, exposure_value, parse_shutter
+from realistic.camera.exposure import parse_shutter
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
 from realistic.cli.values import checked, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable
-from realistic.core.image_files import auto_exposure, write_exr, write_png
 from realistic.errors import UserError
+from realistic.renderer.job import Checkpointing, PassExecutor, RenderJob, RenderObserver, RenderResult
 from realistic.renderer.thread_count import default_threads
+
+if TYPE_CHECKING:  # the renderer itself is imported when a command runs
+    from realistic.scene.intersect import Intersector
 
 DESCRIPTION = """\
 SCENE is a pbrt scene file (.pbrt: the classic dof-dragons homework scenes and common simple pbrt
@@ -134,48 +136,25 @@ def report_warnings(warnings: list[str]) -> None:
         print(f"realistic: {warning}", file=sys.stderr)
 
 
-def _photographic(image: np.ndarray, camera: Camera, args: argparse.Namespace) -> tuple[np.ndarray, dict]:
-    """The film irradiance exposed for ``--shutter`` at ``--iso``, and what the header says of it."""
-    shutter = parse_shutter(args.shutter or "1/60")
-    iso = args.iso if args.iso is not None else 100.0
-    scale = exposure_scale(shutter, iso)
-    header = {"shutterSeconds": shutter, "iso": iso, "exposureScale": scale}
-    f_number = camera.metadata().get("fNumber")
-    if f_number is not None:
-        header["exposureValue"] = exposure_value(f_number, shutter)
-    return (image * np.float32(scale)).astype(np.float32), header
+def executor_for(args: argparse.Namespace, client: Any,
+                 intersector: Intersector | None = None) -> PassExecutor:
+    """Where the passes run: on the Dask ``client`` when there is one, else on ``--threads`` threads
+    here (pinned unless ``--no-pin-threads``), reusing ``intersector`` (an ``Intersector`` of the
+    job's scene) when one was built already."""
+    if client is None:
+        from realistic.renderer.passes import ThreadPasses
 
+        return ThreadPasses(args.threads, args.pin_threads, intersector)
+    from realistic.renderer.farm import DaskPasses
 
-def _write_images(out: Path, image: np.ndarray, metadata: dict, exposure: float) -> None:
-    """Write the EXR and its PNG preview; if ``out`` cannot be written now (its folder was removed
-    during the render, the disk filled), save them in the temporary folder instead, so a finished
-    render is never lost, and raise the error saying where they went."""
-    try:
-        write_exr(out, image, metadata)
-        write_png(out.with_suffix(".png"), image, exposure)
-    except UserError as err:
-        handle, rescue = tempfile.mkstemp(prefix=f"realistic-{out.stem}-", suffix=".exr")
-        os.close(handle)
-        rescue = Path(rescue)
-        write_exr(rescue, image, metadata)
-        write_png(rescue.with_suffix(".png"), image, exposure)
-        raise UserError(f"{err}; the render was saved as {rescue} (and its .png) instead") from None
-
-
-def _output_image(image: np.ndarray, camera: Camera, args: argparse.Namespace) -> tuple[np.ndarray, dict, float]:
-    """The image to write (photographic with --shutter/--iso), its extra header, the preview exposure."""
-    header: dict = {}
-    if args.shutter or args.iso:
-        image, header = _photographic(image, camera, args)
-    exposure = args.exposure if args.exposure is not None else (0.0 if args.shutter or args.iso
-                                                                   else auto_exposure(image))
-    return image, header, exposure
+    return DaskPasses(client)
 
 
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.passes import Checkpointing, render_frames, render_passes
+    from realistic.renderer.output import Photographic, save, write_preview
+    from realistic.renderer.passes import render
     from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
     if args.out is not None and Path(args.out).suffix.lower() != ".exr":
@@ -183,6 +162,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     sweep = parse_sweep(args.sweep) if args.sweep else None
     if sweep is not None and args.resume:
         raise UserError("--resume continues one image, not a --sweep sequence")
+    photographic = (Photographic(parse_shutter(args.shutter or "1/60"), 100.0 if args.iso is None else args.iso)
+                    if args.shutter or args.iso else None)
     inputs = build_render_inputs(options_from_args(args, args.spp))
     report_warnings(inputs.warnings)
     if "pbrtDialect" in inputs.metadata:
@@ -197,41 +178,24 @@ def cmd_render(args: argparse.Namespace) -> int:
     if sweep is None:
         checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, args.resume)
         check_writable(checkpoint.path)
+    job = RenderJob(inputs.scene, tuple(cameras), args.backend, args.seed, args.cl_device, inputs.light_samples,
+                    args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep)
     written: dict[int, float] = {}
 
-    def save(index: int, result) -> None:
-        camera = cameras[index]
-        metadata = {**camera.metadata(), **inputs.metadata,
-                    "spp": int(camera.spp), "seed": int(args.seed), "lightSamples": int(inputs.light_samples),
-                    "integrator": inputs.scene.integrator, "maxDepth": int(inputs.scene.max_depth),
-                    "backend": args.backend, "renderSeconds": float(result.seconds),
-                    "exitPupilSeconds": float(result.stage_seconds.get("exit pupil", 0.0)),
-                    "samplesDone": int(result.samples_done), "samplesTotal": int(result.samples_total),
-                    "interrupted": int(result.interrupted)}
-        if sweep is not None:
-            metadata.update({"sweep": args.sweep, "frame": index + 1, "frames": len(cameras)})
-        image, header, exposure = _output_image(result.image, camera, args)
-        _write_images(outs[index], image, {**metadata, **header}, exposure)
-        written[index] = exposure
+    def save_frame(result: RenderResult) -> None:
+        written[result.frame] = save(result, outs[result.frame], photographic, args.exposure)
 
     def preview(image: np.ndarray) -> None:
-        image, _, exposure = _output_image(image, cameras[0], args)
-        write_png(out.with_suffix(".png"), image, exposure)
+        write_preview(out.with_suffix(".png"), image, photographic, args.exposure)
 
-    common = {"pass_samples": args.pass_samples, "threads": args.threads, "progress": True,
-              "max_memory_bytes": args.max_memory, "pin_threads": args.pin_threads}
+    observer = RenderObserver(on_frame=save_frame if sweep is not None else None,
+                              preview=preview if args.preview_every else None, preview_every=args.preview_every,
+                              progress=True)
     with farm_client(args) as client:
-        if sweep is None:
-            results = [render_passes(inputs.scene, cameras[0], args.backend, args.seed, args.cl_device,
-                                     inputs.light_samples, client=client, checkpoint=checkpoint,
-                                     preview=preview if args.preview_every else None,
-                                     preview_every=args.preview_every, **common)]
-        else:
-            results = render_frames(inputs.scene, cameras, args.backend, args.seed, args.cl_device,
-                                    inputs.light_samples, client=client, on_frame=save, **common)
-    for index, result in enumerate(results):
-        if index not in written and (sweep is None or result.samples_done > 0):
-            save(index, result)  # a single image always; a sequence's unfinished frames that have samples
+        results = render(job, executor_for(args, client, inputs.intersector), observer)
+    for result in results:
+        if result.frame not in written and (sweep is None or result.samples_done > 0):
+            save_frame(result)  # a single image always; a sequence's unfinished frames that have samples
     interrupted = any(result.interrupted for result in results)
     if interrupted:
         done = sum(r.samples_done for r in results)

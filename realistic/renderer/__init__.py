@@ -1,11 +1,15 @@
 """Rendering: scene and camera in, film image out. Imports every layer below it.
 
 - ``inputs``: ``RenderOptions`` (typed) to a ``Scene`` with its camera, for the CLI and the API.
-- ``passes``: ``render``, ``render_passes`` and ``render_frames``: sample-id passes on threads or a
-  Dask cluster, added to the film in pass order.
+- ``job``: ``RenderJob`` (what to render, as data), ``RenderResult``, ``RenderObserver`` and the
+  ``PassExecutor`` protocol (where passes run, and what a pass task gets and returns).
+- ``passes``: ``render(job, executor, observer)``: sample-id passes on an executor (``ThreadPasses``:
+  threads in this process), added to the film in pass order.
+- ``runner``: ``PassRunner``, one pass task's work (rays, hits, shading, per-pixel sums), for both executors.
+- ``output``: ``save``: a finished render's EXR (with its header), PNG preview and rescue write.
 - ``pass_plan``: passes as sample-id ranges in progressive (bit-reversed) order.
 - ``thread_count``: the default number of render threads (one per core).
-- ``farm``: passes as Dask tasks (imported only for farm renders; needs the ``farm`` extra).
+- ``farm``: ``DaskPasses``, passes as Dask tasks (imported only for farm renders; needs the ``farm`` extra).
 - ``checkpoint``: a render's identity (content hashes) and its checkpoint file.
 - ``sweep``: ``--sweep`` sequences: one camera per frame.
 - ``integrators``: which integrator a scene asks for (``make_integrator``).

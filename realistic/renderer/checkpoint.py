@@ -101,8 +101,10 @@ class RenderIdentity:
     @classmethod
     def of(cls, scene: object, camera, seed: int, pass_samples: int, backend: str,
            light_samples: int) -> RenderIdentity:
-        """The identity of rendering ``scene`` through ``camera`` (its ``camera`` field not counted)."""
-        scene_fields = {f.name: getattr(scene, f.name) for f in dataclasses.fields(scene) if f.name != "camera"}
+        """The identity of rendering ``scene`` through ``camera`` (its ``camera`` and ``metadata``, which
+        names the file as it was given, not counted)."""
+        scene_fields = {f.name: getattr(scene, f.name) for f in dataclasses.fields(scene)
+                        if f.name not in ("camera", "metadata")}
         camera_hash = content_hash(dataclasses.replace(camera, spp=1) if dataclasses.is_dataclass(camera) else camera)
         return cls(f"{camera.width}x{camera.height}", int(seed), content_hash(scene_fields), camera_hash,
                    int(camera.spp), int(pass_samples), backend, int(light_samples))

@@ -12,10 +12,9 @@ import math
 
 import numpy as np
 
-from realistic.camera.base import Camera
 from realistic.errors import UserError
-from realistic.renderer.passes import render_passes
-from realistic.scene.model import Scene
+from realistic.renderer.job import PassExecutor, RenderJob, RenderObserver
+from realistic.renderer.passes import ThreadPasses, render
 
 
 def rmse(image: np.ndarray, reference: np.ndarray) -> float:
@@ -40,24 +39,22 @@ def two_seed_noise(first: np.ndarray, second: np.ndarray) -> float:
     return rmse(first, second) / math.sqrt(2.0) / mean
 
 
-def measure_sample_counts(scene: Scene, camera: Camera, spp_list: list[int], backend: str = "opencl", seed: int = 0,
-                          light_samples: int = 1, reference: np.ndarray | None = None,
-                          cl_device: str | None = None, progress: bool = True,
-                          max_memory_bytes: int | None = None, client=None,
-                          threads: int | None = None, pin_threads: bool = True) -> tuple[list[dict], np.ndarray]:
-    """Rows of seconds, camera rays/s, vignetted fraction and RMSE per spp, and the last image.
+def measure_sample_counts(job: RenderJob, spp_list: list[int], executor: PassExecutor | None = None,
+                          reference: np.ndarray | None = None,
+                          progress: bool = True) -> tuple[list[dict], np.ndarray]:
+    """Rows of seconds, camera rays/s, vignetted fraction and RMSE per spp, and the last image, of
+    ``job``'s camera rendered at each spp on ``executor`` (None: ``passes.ThreadPasses()``).
 
     An untimed 1 spp render first pays the one-time costs (kernel build, exit-pupil table), so each
-    row times rendering alone. ``client`` (a ``dask.distributed.Client``) renders on its workers,
-    else ``threads`` (None: ``default_threads()``) in this process, each on one CPU unless not ``pin_threads``.
+    row times rendering alone.
     """
-    render_passes(scene, dataclasses.replace(camera, spp=1), backend, seed, cl_device, light_samples,
-                  threads=threads, max_memory_bytes=max_memory_bytes, client=client, pin_threads=pin_threads)
+    camera = job.cameras[0]
+    executor = executor if executor is not None else ThreadPasses()
+    render(dataclasses.replace(job, cameras=(dataclasses.replace(camera, spp=1),)), executor)
     rows, images = [], []
     for spp in spp_list:
-        result = render_passes(scene, dataclasses.replace(camera, spp=spp), backend, seed, cl_device,
-                               light_samples, threads=threads, progress=progress,
-                               max_memory_bytes=max_memory_bytes, client=client, pin_threads=pin_threads)
+        result = render(dataclasses.replace(job, cameras=(dataclasses.replace(camera, spp=spp),)), executor,
+                        RenderObserver(progress=progress))[0]
         if result.interrupted:
             raise UserError(f"interrupted during the {spp} spp render")
         seconds = max(result.seconds, 1e-9)

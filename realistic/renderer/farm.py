@@ -25,12 +25,13 @@ from collections import OrderedDict
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from distributed import Client, LocalCluster, wait
+from distributed import Client, Future, LocalCluster, wait
 
 from realistic.camera.base import Camera, SampleBlock
 from realistic.errors import UserError
 from realistic.renderer.checkpoint import content_hash
-from realistic.renderer.passes import PassResult, PassRunner
+from realistic.renderer.job import PassResult, PassSettings, RenderJob
+from realistic.renderer.runner import PassRunner
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import Scene
@@ -101,7 +102,7 @@ def _terminal_signals_ignored() -> Iterator[None]:
             signal.signal(number, handler)
 
 
-def _runner(scene: Scene, scene_key: str, camera: Camera, runner_key: str, settings: dict) -> PassRunner:
+def _runner(scene: Scene, scene_key: str, camera: Camera, runner_key: str, settings: PassSettings) -> PassRunner:
     """This worker's runner for (scene, camera, settings), built on first use."""
     with _lock:
         runner = _runners.get(runner_key)
@@ -114,8 +115,7 @@ def _runner(scene: Scene, scene_key: str, camera: Camera, runner_key: str, setti
             while len(_scenes) > SCENES_KEPT:
                 _scenes.popitem(last=False)
         camera.prepare()
-        runner = _runners[runner_key] = PassRunner(scene, camera, clock=StageClock(), intersector=intersector,
-                                                   **settings)
+        runner = _runners[runner_key] = PassRunner(scene, camera, settings, StageClock(), intersector)
         while len(_runners) > RUNNERS_KEPT:
             _runners.popitem(last=False)
         if os.environ.get(LOCAL_WORKER):
@@ -140,29 +140,34 @@ def _scene(scene: Scene) -> Scene:
     return scene
 
 
-def run_task(scene: Scene, scene_key: str, camera: Camera, runner_key: str, settings: dict,
+def run_task(scene: Scene, scene_key: str, camera: Camera, runner_key: str, settings: PassSettings,
              passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
     """A task on a worker: passes (plan index, sample block) of one camera."""
     return _runner(scene, scene_key, camera, runner_key, settings).run(passes)
 
 
 class DaskPasses:
-    """Submits tasks of consecutive passes to a Dask client's workers (``passes.render_frames``)."""
+    """Passes as Dask tasks on ``client``'s workers, a few consecutive passes (about ``task_samples``
+    samples) a task (``job.PassExecutor``). Reusable: one job at a time."""
 
-    def __init__(self, client: Client, scene: Scene, cameras: list[Camera], settings: dict, pass_samples: int,
-                 task_samples: int | None = None):
-        self.client, self.settings, self.cameras = client, settings, cameras
-        described = dataclasses.replace(scene, camera=None)
+    def __init__(self, client: Client, task_samples: int | None = None) -> None:
+        self.client, self.task_samples = client, task_samples
+        self.capacity, self.passes_per_task = 2, 1
+
+    def open(self, job: RenderJob, clock: StageClock) -> None:
+        """Send the scene to the cluster (once, as a task's result); stage times stay on the workers."""
+        self.cameras, self.settings = job.cameras, job.settings
+        described = dataclasses.replace(job.scene, camera=None)
         self.scene_key = content_hash(described)
         # a task whose definition holds the scene, not scattered data: if the worker holding it dies,
         # the scheduler makes it again from the definition instead of cancelling every pass
-        self.scene = client.submit(_scene, described, key=f"scene-{self.scene_key}", pure=False)
-        self.runner_keys = [content_hash((self.scene_key, camera, sorted(settings.items()))) for camera in cameras]
-        threads = sum(client.nthreads().values())
+        self.scene = self.client.submit(_scene, described, key=f"scene-{self.scene_key}", pure=False)
+        self.runner_keys = [content_hash((self.scene_key, camera, self.settings)) for camera in job.cameras]
+        threads = sum(self.client.nthreads().values())
         self.capacity = max(2, 2 * threads)  # tasks submitted ahead: every worker busy, one queued each
-        self.passes_per_task = max(1, (task_samples or DEFAULT_TASK_SAMPLES) // pass_samples)
+        self.passes_per_task = max(1, (self.task_samples or DEFAULT_TASK_SAMPLES) // job.pass_size)
 
-    def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]):
+    def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]) -> Future:
         return self.client.submit(run_task, self.scene, self.scene_key, self.cameras[frame], self.runner_keys[frame],
                                   self.settings, passes, pure=False)
 

@@ -145,8 +145,9 @@ class RenderOptions:
 @dataclass
 class RenderInputs:
     """A scene whose ``camera`` and ``light_samples`` are ready to render, the output name the
-    scene suggests, what the EXR header says about them, what the scene could not honour, and
-    what ``apply_overrides`` needs to know of where they came from."""
+    scene suggests, what the EXR header says about them (also the scene's ``metadata``), what the
+    scene could not honour, what ``apply_overrides`` needs to know of where they came from, and the
+    embree scene already built for it (by ``focus_on``), if any."""
 
     scene: Scene
     default_out: str
@@ -156,6 +157,7 @@ class RenderInputs:
     filter_dialect: Dialect = MESH_FILTER_DIALECT
     camera_where: str = ""  # a pbrt scene's Camera directive (file:line), for errors about the camera
     mm_per_unit: float | None = None  # the scene's unit where it fixes one (meshes: metres); None: the camera's
+    intersector: Intersector | None = None
 
     @property
     def camera(self) -> Camera:
@@ -208,7 +210,8 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         scene.max_depth = options.max_depth
     if options.focus_on is not None:
         x, y = options.focus_on
-        scene.camera = scene.camera.autofocused(x, y, Intersector(scene).hit_distance)
+        inputs.intersector = Intersector(scene)  # the render reuses it (``passes.ThreadPasses``)
+        scene.camera = scene.camera.autofocused(x, y, inputs.intersector.hit_distance)
         inputs.metadata["focusOn"] = f"{x:g},{y:g}"
     # a pbrt scene renders as pbrt would: dispersion only when asked for, even where a bundled lens
     # with Abbe numbers stands in for the scene's lens file; so does the default scene, which is
@@ -220,6 +223,7 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         if not getattr(scene.camera, "spectral", False):
             raise UserError("--wavelengths-per-sample applies to spectral renders (--dispersion on)")
         scene.camera = dataclasses.replace(scene.camera, wavelengths_per_sample=options.wavelengths_per_sample)
+    scene.metadata = inputs.metadata
     return inputs
 
 

@@ -174,6 +174,7 @@ class Scene:
     light_samples: int = 1  # light samples per hit the scene asks for
     integrator: str = "directlighting"  # "directlighting" or "path" (``realistic.renderer.integrators``)
     max_depth: int = 5  # bounces of "path"; specular bounces of "directlighting" (pbrt's maxdepth)
+    metadata: dict = field(default_factory=dict)  # what an image header says of the scene's source (file, staging)
 
     @property
     def area_lights(self) -> list[AreaLight]:

@@ -1,0 +1,125 @@
+"""Writing a finished render: the EXR with its header, the PNG preview beside it, and the rescue.
+
+``save(result, path)`` writes what the ``render`` command writes: the image (the film irradiance,
+or a ``Photographic`` exposure of it), a header with the camera's metadata, where the scene came
+from (``Scene.metadata``), the job's settings, the render's statistics and, for a frame of a sweep,
+the sweep and frame number; and an sRGB PNG preview beside it. If the file cannot be written when
+the render ends (its folder was removed meanwhile, the disk filled), both go to the temporary
+folder instead, so a finished render is never lost, and a UserError says where.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from realistic.camera.base import Camera
+from realistic.camera.exposure import exposure_scale, exposure_value
+from realistic.core import validation
+from realistic.core.image_files import Metadata, auto_exposure, write_exr, write_png
+from realistic.errors import UserError
+from realistic.renderer.job import RenderResult
+
+
+@dataclass(frozen=True)
+class Photographic:
+    """A photographic exposure: the film irradiance times ``exposure_scale(shutter, iso)``, so that a
+    metered middle grey reads 0.18 (``camera.exposure``), instead of the irradiance itself."""
+
+    shutter_seconds: float = 1 / 60
+    iso: float = 100.0
+
+    def __post_init__(self) -> None:
+        validation.positive_length(self.shutter_seconds, "shutter time")
+        validation.positive_length(self.iso, "ISO speed")
+
+    @property
+    def scale(self) -> float:
+        return exposure_scale(self.shutter_seconds, self.iso)
+
+    def header(self, camera: Camera) -> Metadata:
+        """What the EXR header says of this exposure (its EV where the camera has an f-number)."""
+        header: Metadata = {"shutterSeconds": float(self.shutter_seconds), "iso": float(self.iso),
+                            "exposureScale": self.scale}
+        f_number = camera.metadata().get("fNumber")
+        if f_number is not None:
+            header["exposureValue"] = exposure_value(float(f_number), self.shutter_seconds)
+        return header
+
+
+def image_metadata(result: RenderResult) -> Metadata:
+    """The EXR header of ``result``: camera, scene source, job settings, statistics, sweep frame."""
+    job, camera = result.job, result.camera
+    if job is None:  # result.camera has already refused this
+        raise UserError("this result carries no render job")
+    scene = job.scene
+    metadata: Metadata = {**camera.metadata(), **scene.metadata,
+                          "spp": int(camera.spp), "seed": int(job.seed),
+                          "lightSamples": int(job.settings.light_samples),
+                          "integrator": scene.integrator, "maxDepth": int(scene.max_depth),
+                          "backend": job.backend, "renderSeconds": float(result.seconds),
+                          "exitPupilSeconds": float(result.stage_seconds.get("exit pupil", 0.0)),
+                          "samplesDone": int(result.samples_done), "samplesTotal": int(result.samples_total),
+                          "interrupted": int(result.interrupted)}
+    if job.sweep is not None:
+        metadata.update({"sweep": job.sweep, "frame": result.frame + 1, "frames": len(job.cameras)})
+    return metadata
+
+
+def exposed(image: np.ndarray, photographic: Photographic | None) -> np.ndarray:
+    """The image to write: ``image`` as is, or its photographic exposure (float32)."""
+    if photographic is None:
+        return image
+    return (image * np.float32(photographic.scale)).astype(np.float32)
+
+
+def preview_stops(image: np.ndarray, photographic: Photographic | None, exposure: float | None) -> float:
+    """The PNG preview's exposure in stops: ``exposure``, else 0 for a photographic image (it is
+    exposed already), else automatic (``image_files.auto_exposure``)."""
+    if exposure is not None:
+        return validation.finite(exposure, "exposure")
+    return 0.0 if photographic is not None else auto_exposure(image)
+
+
+def write_preview(path: Path, image: np.ndarray, photographic: Photographic | None = None,
+                  exposure: float | None = None) -> float:
+    """Write the PNG preview of a film image (in progress or finished) to ``path``; its stops."""
+    image = exposed(image, photographic)
+    stops = preview_stops(image, photographic, exposure)
+    write_png(Path(path), image, stops)
+    return stops
+
+
+def save(result: RenderResult, path: str | os.PathLike, photographic: Photographic | None = None,
+         exposure: float | None = None) -> float:
+    """Write ``result`` to the EXR ``path`` with its header (``image_metadata``) and the PNG preview
+    beside it (``exposure`` stops, None: as ``preview_stops``); returns the preview's stops.
+
+    When ``path`` cannot be written, both are saved in the temporary folder and a UserError names them.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".exr":
+        raise UserError(f"{path}: the output must be an .exr file (the PNG preview goes beside it)")
+    image = exposed(result.image, photographic)
+    metadata = image_metadata(result)
+    if photographic is not None:
+        metadata.update(photographic.header(result.camera))
+    stops = preview_stops(image, photographic, exposure)
+    try:
+        _write(path, image, metadata, stops)
+    except UserError as err:
+        handle, name = tempfile.mkstemp(prefix=f"realistic-{path.stem}-", suffix=".exr")
+        os.close(handle)
+        rescue = Path(name)
+        _write(rescue, image, metadata, stops)
+        raise UserError(f"{err}; the render was saved as {rescue} (and its .png) instead") from None
+    return stops
+
+
+def _write(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> None:
+    write_exr(path, image, metadata)
+    write_png(path.with_suffix(".png"), image, stops)

@@ -1,0 +1,90 @@
+"""One pass task's work, the same on a thread and on a farm worker: sample ids in, per-pixel sums out.
+
+``PassRunner`` turns a pass (a ``SampleBlock`` of sample ids) into rays, embree hits, radiance and
+per-pixel sums (``film.pass_sums``). Both executors (``passes.ThreadPasses`` and
+``farm.DaskPasses``) build their runners here, so neither imports the other.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from realistic.camera.base import Camera, SampleBlock
+from realistic.core.spectrum import rgb_response
+from realistic.renderer.film import pass_sums
+from realistic.renderer.integrators import make_integrator
+from realistic.renderer.job import PassResult, PassSettings
+from realistic.renderer.timing import StageClock
+from realistic.scene.intersect import Intersector
+from realistic.scene.model import Scene
+
+
+def morton_order(pixel: np.ndarray, width: int) -> np.ndarray:
+    """Permutation that visits pixels along a Z-order (Morton) curve over (x, y)."""
+    def spread(v: np.ndarray) -> np.ndarray:
+        v = v.astype(np.uint64) & np.uint64(0xFFFF)
+        for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333), (1, 0x55555555)):
+            v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+        return v
+    code = spread(pixel % width) | (spread(pixel // width) << np.uint64(1))
+    return np.argsort(code, kind="stable")
+
+
+def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """points[rows] as a contiguous (len(rows), 3) float32 array. The kernel's rays are transposed
+    views of its (rows, n) output: gathering from each coordinate's contiguous row straight into the
+    result's column takes 0.9 ms per 97k rays, ``np.take`` along the strided axis 1.4-1.6 ms."""
+    if points.strides[0] < points.strides[1] and points.dtype == np.float32:  # coordinates are contiguous rows
+        gathered = np.empty((len(rows), points.shape[1]), np.float32)
+        for column in range(points.shape[1]):
+            np.take(points[:, column], rows, out=gathered[:, column])
+        return gathered
+    return np.take(points, rows, axis=0).astype(np.float32, copy=False)
+
+
+class PassRunner:
+    """Runs passes of sample ids: rays, hits, shading, per-pixel sums. Built once per camera (and
+    per worker process on a farm); ``intersector`` shares one scene's embree BVH between cameras."""
+
+    def __init__(self, scene: Scene, camera: Camera, settings: PassSettings, clock: StageClock,
+                 intersector: Intersector | None = None):
+        self.camera, self.morton, self.clock = camera, settings.morton, clock
+        self.generate = camera.ray_generator(settings.backend, settings.seed, settings.cl_device)
+        self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
+                                          settings.seed, camera.pixel_spread_radians(), backend=settings.backend,
+                                          cl_device=settings.cl_device)
+
+    def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
+        """The results of passes given as (plan index, sample block)."""
+        return [self(index, block) for index, block in passes]
+
+    def __call__(self, index: int, block: SampleBlock) -> PassResult:
+        with self.clock("ray generation"):
+            rays = self.generate(block)
+        with self.clock("shading"):
+            # a spectral camera's K rays per sample (its wavelengths) come consecutively, sample-major
+            rays_per_sample, rest = divmod(len(rays.weight), block.count)
+            if rest or not rays_per_sample:
+                raise RuntimeError(f"{len(rays.weight)} camera rays for {block.count} samples")
+            sample = block.sample_ids()
+            if rays_per_sample > 1:  # the K rays share the sample id, so the integrator's light samples
+                sample = np.repeat(sample, rays_per_sample)
+            alive = np.flatnonzero(rays.weight != 0)  # a negative filter lobe gives negative weights
+            if self.morton:
+                alive = alive[morton_order(rays.pixel[alive], self.camera.width)]
+            pixel = rays.pixel[alive]
+            origin, direction = gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)
+            wavelength = None if rays.wavelength_nm is None else rays.wavelength_nm[alive]
+        radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, sample[alive],
+                                                         self.clock, wavelength)
+        with self.clock("accumulation"):
+            first_pixel, pixel_count = block.first_pixel, block.pixel_count
+            value = radiance  # the integrator's own array: weighted in place, no second (N, 3) array
+            value *= rays.weight[alive, None].astype(np.float32, copy=False)
+            if wavelength is not None:
+                response = rgb_response(wavelength)
+                if rays_per_sample > 1:  # each of a sample's K wavelengths is 1/K of its estimate
+                    response /= np.float32(rays_per_sample)
+                value *= response
+            sums = pass_sums(pixel, value, first_pixel, pixel_count)
+        return PassResult(index, first_pixel, sums, block.count, len(alive), shadow_rays)
