@@ -32,6 +32,7 @@ from realistic.camera.base import Camera, SampleBlock
 from realistic.core import affinity, validation
 from realistic.core.spectrum import rgb_response
 from realistic.errors import UserError
+from realistic.renderer.backends import backend_for
 from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, save_checkpoint
 from realistic.renderer.film import Film, PassFilm, pass_sums
 from realistic.renderer.integrators import make_integrator
@@ -104,9 +105,10 @@ class PassRunner:
     def __init__(self, scene: Scene, camera: Camera, backend: str, seed: int, cl_device: str | None,
                  light_samples: int, morton: bool, clock: StageClock, intersector: Intersector | None = None):
         self.camera, self.morton, self.clock = camera, morton, clock
-        self.generate = camera.ray_generator(backend, seed, cl_device)
+        kernels = backend_for(backend, cl_device)  # this process's, made once: jobs carry the strings
+        self.generate = kernels.ray_generator(camera, seed)
         self.integrator = make_integrator(scene, intersector or Intersector(scene), light_samples, seed,
-                                          camera.pixel_spread_radians(), backend=backend, cl_device=cl_device)
+                                          camera.pixel_spread_radians(), backend=kernels)
 
     def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
         """The results of passes given as (plan index, sample block)."""
