@@ -1,7 +1,8 @@
 /* Camera ray generation through a real lens: sample id -> world-space ray, weight, pixel.
  *
  * OpenCL 1.2 C, float32, one work item per sample id. The float64 numpy reference is
- * realistic.camera.generate_rays; this kernel follows the same rules (realistic/reference.py):
+ * realistic.camera.lens_camera.LensCamera.generate_rays; this kernel follows the same rules (its
+ * tracer, realistic/optics/tracer.py):
  * root chosen by direction, far hemisphere = miss, clear-aperture and stop clipping, Heckbert
  * refraction, total internal reflection blocks.
  *
@@ -14,7 +15,7 @@
  * known at compile time. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized loop" per kernel, and
  * the built generate_rays.so (POCL_CACHE_DIR, POCL_LEAVE_KERNEL_COMPILER_TEMP_FILES=1) uses ymm.
  *
- * The host (realistic/opencl_host.py) prepends a generated header that defines, per lens and
+ * The host (realistic/camera/opencl_host.py) prepends a generated header that defines, per lens and
  * camera (the resolution, the film's size, the sample count and the settings, focus and the
  * diameter of a round stop, are kernel arguments instead, so a new --res, --spp, focus or f-stop
  * reuses PoCL's cached build rather than compiling for a second or more):
@@ -78,7 +79,7 @@
 #define KRONECKER_3 0x89E18285u
 #endif
 
-#include "common.cl"  /* expanded by the host (realistic.camera.opencl_host.kernel_source) */
+#include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source) */
 
 /* Pixel and sample index within the pixel of work item gid of a launch over a slice of each
  * pixel's samples (realistic.camera.base.SampleBlock): pixels get slice_width samples each, from

@@ -68,7 +68,7 @@
 #define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
 #define FIELD(row, k) ((row)[(k) * unit])
 
-#include "common.cl"  /* expanded by the host (realistic.camera.opencl_host.kernel_source) */
+#include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source) */
 
 /* The light of sample value u: how many entries of the rounded-up CDF are <= u (numpy's
  * searchsorted side="right"), at most count - 1. A branch-free binary search written out in
