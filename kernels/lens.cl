@@ -42,19 +42,12 @@
  *                                 um^-2, A and B literal Cauchy coefficients) and passes index
  *                                 ratios to those calls
  * The kernel argument `settings` holds what changes with the focus (the film distance) and the
- * stop's diameter, float32 at the SET_* offsets below (realistic.camera.opencl_host.setting_values).
- * Products and quotients of these values that were once folded from literals come precomputed in
- * float32, so every ray rounds as it did.
+ * stop's diameter, float32 at the SET_* offsets the generated header defines (declared once, with
+ * what each holds, in realistic.camera.opencl_host.SETTINGS; packed by setting_values): SET_PLANE_Z,
+ * SET_PLANE_Z2, SET_FRONT_VERTEX_Z, SET_REAR_W, SET_SAMPLING (three values), SET_STOP_R2, and from
+ * SET_PUPIL the exit-pupil boxes and areas. Products and quotients of these values that were once
+ * folded from literals come precomputed in float32, so every ray rounds as it did.
  */
-
-#define SET_PLANE_Z 0         /* z of the sampling plane (lens frame: film at z = 0, +z to scene) */
-#define SET_PLANE_Z2 1        /* its square */
-#define SET_FRONT_VERTEX_Z 2  /* z of the front vertex */
-#define SET_REAR_W 3          /* -film distance: z of the film relative to the rear vertex */
-#define SET_SAMPLING 4        /* pupil: PUPIL_INTERVALS / film radius (mm); rear-element disk
-                               * (realistic.optics.sampling): 1 - t_far, clear radius * t_far, clear radius */
-#define SET_STOP_R2 7         /* a round stop's squared radius (mm^2) */
-#define SET_PUPIL 8           /* pupil: boxes (x0, x1, y0, y1) per interval, then their areas (mm^2) */
 
 #define PI_F 3.14159265358979f
 

@@ -19,6 +19,7 @@ from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.device import pocl_interleave
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.tables import Table
 from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
 from realistic.optics.sampling import rear_element_sampler
 
@@ -26,6 +27,14 @@ KERNEL_FILE = "lens.cl"
 #: Output rows of ``generate_rays``: origin xyz, direction xyz, weight (and wavelength when spectral).
 #: A spectral camera's launch has one work item per ray: ``rays_per_sample`` per sample.
 ROWS = 7
+#: ``lens.cl``'s ``settings`` argument (float32), declared once for the kernel's SET_* offsets and
+#: ``setting_values``: the sampling plane's z (lens frame: film at z = 0, +z to the scene) and its
+#: square, the front vertex's z, the film's z relative to the rear vertex (-film distance), the
+#: sampling's three constants (pupil: PUPIL_INTERVALS / film radius, 0, 0; rear-element disk: 1 -
+#: t_far, clear radius * t_far, clear radius), a round stop's squared radius (mm^2); then, from
+#: SET_PUPIL, the exit-pupil boxes (x0, x1, y0, y1) per interval and their areas (mm^2).
+SETTINGS = Table("SET", np.float32, (("plane_z", 1), ("plane_z2", 1), ("front_vertex_z", 1), ("rear_w", 1),
+                                     ("sampling", 3), ("stop_r2", 1)), tail="pupil")
 
 
 def _c_float(value: float) -> str:
@@ -138,6 +147,7 @@ def camera_header(camera: LensCamera) -> str:
         else:
             calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
     lines = [
+        SETTINGS.defines().rstrip("\n"),
         f"#define SPECTRAL {int(camera.spectral)}",
         "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
         *_stop_lines(lens),
@@ -152,9 +162,7 @@ def camera_header(camera: LensCamera) -> str:
 
 
 def setting_values(camera: LensCamera) -> np.ndarray:
-    """``lens.cl``'s ``settings`` argument (float32, at its SET_* offsets): the sampling plane, its
-    square, the front vertex and the film's distance from the rear vertex, the sampling's constants,
-    a round stop's squared radius, and the exit-pupil boxes and areas. Each is rounded to float32
+    """``lens.cl``'s ``settings`` argument (``SETTINGS``, float32). Each value is rounded to float32
     before the products and quotients are taken in float32, as the compiler once folded them from
     literals."""
     f = np.float32
@@ -171,8 +179,9 @@ def setting_values(camera: LensCamera) -> np.ndarray:
         sampling = [f(1) - t_far, clear * t_far, clear]
         tables = []
     stop_r2 = f((float(lens.aperture_mm[lens.stop]) / 2) ** 2)
-    head = np.array([plane_z, plane_z * plane_z, f(vertex_z[0]), f(-camera.film_distance_mm), *sampling, stop_r2],
-                    np.float32)
+    head = SETTINGS.pack(1, plane_z=plane_z, plane_z2=plane_z * plane_z, front_vertex_z=f(vertex_z[0]),
+                         rear_w=f(-camera.film_distance_mm), sampling=np.array(sampling, np.float32),
+                         stop_r2=stop_r2)[0]
     return np.concatenate([head, *tables])  # float32 throughout
 
 

@@ -138,7 +138,7 @@ class DirectLighting:
         """The scene's tables on the backend's OpenCL device (imports pyopencl only here); None (the
         numpy path) for more area lights than the kernel's light search reaches."""
         from realistic.renderer.opencl_backend import OpenCLBackend  # noqa: F811 (at run time too)
-        from realistic.renderer.shade_kernel import LIGHT_FLOATS, MAX_LIGHTS
+        from realistic.renderer.shade_kernel import LIGHTS, MAX_LIGHTS
 
         backend = self.backend
         if not isinstance(backend, OpenCLBackend):
@@ -147,12 +147,11 @@ class DirectLighting:
         if len(self._light_area) > MAX_LIGHTS:
             return None
 
-        rows = np.zeros((len(self._light_area), LIGHT_FLOATS), np.float32)
-        rows[:, 0:3], rows[:, 3:6], rows[:, 6:9] = self._light_centre, self._light_a, self._light_b
-        rows[:, 9:12], rows[:, 12:15] = self._light_normal, self._light_radiance
         with np.errstate(divide="ignore"):
-            rows[:, 15] = self._light_area / self._light_probability / np.pi
-        rows[:, 16], rows[:, 17] = self._light_disk, self._light_two_sided
+            light_scale = self._light_area / self._light_probability / np.pi
+        rows = LIGHTS.pack(len(self._light_area), centre=self._light_centre, a=self._light_a, b=self._light_b,
+                           normal=self._light_normal, radiance=self._light_radiance, scale=light_scale,
+                           disk=self._light_disk, two_sided=self._light_two_sided)
         kernel = backend.shade_kernel(faces=self._faces, normals=self._normals, uv=self._uv,
                                       geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
                                       geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,

@@ -29,12 +29,29 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.tables import Table, constant_defines
 from realistic.scene.model import CheckerTexture, GridTexture, Material
 
 KERNEL_FILE = "shade.cl"
-#: Table row widths, as ``kernels/shade.cl`` defines them.
-GEOM_INTS, GEOM_FLOATS, MATERIAL_FLOATS, LIGHT_FLOATS = 4, 9, 16, 20
-KIND_CONSTANT, KIND_GRID, KIND_CHECKER, KIND_HOST = range(4)
+#: The tables ``kernels/shade.cl`` reads, declared once: their ``#define``s head the kernel source.
+#: Per instance (embree geometry id): its first face, material index and smooth flag (0 or 1).
+GEOM_INTS = Table("GEOM_INT", np.int32, (("face_offset", 1), ("material", 1), ("smooth", 1), ("unused", 1)))
+#: Per instance: the normal matrix (inverse transpose of the linear map), row major.
+GEOM_FLOATS = Table("GEOM_FLOAT", np.float32, (("normal_matrix", 9),))
+#: Per material: its kind (``KINDS``), diffuse colour, and a grid's or checker's cells, line bounds
+#: (low, high: line_width / 2 and 1 - line_width / 2) and colours (a: line or even, b: base or odd).
+MATERIALS = Table("MATERIAL", np.float32, (("kind", 1), ("diffuse", 3), ("cells", 1), ("low", 1), ("high", 1),
+                                           ("colour_a", 3), ("colour_b", 3), ("unused", 3)))
+#: Per area light: centre and half-axes a, b (a point is centre + a x + b y), normal, radiance, the
+#: contribution's scale (area / probability / pi), whether a disk, whether two-sided (0 or 1).
+LIGHTS = Table("LIGHT", np.float32, (("centre", 3), ("a", 3), ("b", 3), ("normal", 3), ("radiance", 3),
+                                     ("scale", 1), ("disk", 1), ("two_sided", 1), ("unused", 2)))
+#: Material kinds: constant colour, grid and checker textures (in the kernel), host albedo.
+KINDS = ("constant", "grid", "checker", "host")
+KIND_CONSTANT, KIND_GRID, KIND_CHECKER, KIND_HOST = range(len(KINDS))
+#: The generated head of ``shade.cl``'s source: every table's defines and the kinds.
+HEADER = "".join(table.defines() for table in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS)) + \
+    constant_defines("KIND", KINDS)
 #: The kernel's light search is written out for at most this many lights.
 MAX_LIGHTS = 65535
 #: Shadow rays per launch (and per embree call) at most: a pass's light samples go in groups of
@@ -56,24 +73,20 @@ def rounded_up_cdf(cdf: np.ndarray) -> np.ndarray:
 
 
 def material_row(material: Material) -> np.ndarray:
-    """A material's MATERIAL_FLOATS row (see ``kernels/shade.cl``)."""
-    row = np.zeros(MATERIAL_FLOATS, np.float32)
-    row[1:4] = np.asarray(material.diffuse, np.float32)
+    """A material's ``MATERIALS`` row."""
+    diffuse = np.asarray(material.diffuse, np.float32)
     texture = material.texture
     if texture is None:
-        row[0] = KIND_CONSTANT
-    elif isinstance(texture, GridTexture):
+        return MATERIALS.pack(1, kind=KIND_CONSTANT, diffuse=diffuse)[0]
+    if isinstance(texture, GridTexture):
         half = texture.line_width / 2
-        row[0] = KIND_GRID
-        row[4:7] = (texture.cells, half, 1 - half)  # float32, as numpy compares float32 uvs with them
-        row[7:10], row[10:13] = texture.line, texture.base
-    elif isinstance(texture, CheckerTexture):
-        row[0] = KIND_CHECKER
-        row[4] = texture.cells
-        row[7:10], row[10:13] = texture.even, texture.odd
-    else:
-        row[0] = KIND_HOST
-    return row
+        # float32, as numpy compares float32 uvs with them
+        return MATERIALS.pack(1, kind=KIND_GRID, diffuse=diffuse, cells=texture.cells, low=half, high=1 - half,
+                              colour_a=texture.line, colour_b=texture.base)[0]
+    if isinstance(texture, CheckerTexture):
+        return MATERIALS.pack(1, kind=KIND_CHECKER, diffuse=diffuse, cells=texture.cells, colour_a=texture.even,
+                              colour_b=texture.odd)[0]
+    return MATERIALS.pack(1, kind=KIND_HOST, diffuse=diffuse)[0]
 
 
 @dataclass
@@ -128,18 +141,20 @@ class ShadeKernel:
         self.instance_count = len(geom_face_offset)
         self.light_count = len(light_cdf)
         self.offset_base = np.float32(1e-2 * extent)  # numpy adds the float64 1e-2 extent to float32 as float32
-        geom_ints = np.zeros((max(self.instance_count, 1), GEOM_INTS), np.int32)
-        geom_ints[:self.instance_count, 0] = geom_face_offset
-        geom_ints[:self.instance_count, 1] = geom_material
-        geom_ints[:self.instance_count, 2] = geom_smooth
-        geom_floats = np.zeros((max(self.instance_count, 1), GEOM_FLOATS), np.float32)
-        geom_floats[:self.instance_count] = np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9)
-        material_rows = np.array([material_row(m) for m in materials] or [np.zeros(MATERIAL_FLOATS)], np.float32)
-        self.host_albedo = np.array([row[0] == KIND_HOST for row in material_rows], bool)
+        rows = max(self.instance_count, 1)  # a zero row where there are no instances
+        geom_ints = GEOM_INTS.pack(rows)
+        geom_ints[:self.instance_count] = GEOM_INTS.pack(self.instance_count, face_offset=geom_face_offset,
+                                                         material=geom_material, smooth=geom_smooth)
+        geom_floats = GEOM_FLOATS.pack(rows)
+        geom_floats[:self.instance_count] = GEOM_FLOATS.pack(
+            self.instance_count, normal_matrix=np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9))
+        material_rows = np.array([material_row(m) for m in materials] or [MATERIALS.pack(1)[0]], np.float32)
+        kinds = material_rows[:, MATERIALS.offset("kind")]
+        self.host_albedo = kinds == KIND_HOST
         # the program variant this scene needs: work no instance or material asks for is compiled out
         self.options = (f"-DPICK_BITS={(len(light_cdf) - 1).bit_length()}",
                         f"-DSMOOTH={int(np.any(geom_smooth))}",
-                        f"-DTEXTURED={int(np.any(np.isin(material_rows[:, 0], (KIND_GRID, KIND_CHECKER))))}",
+                        f"-DTEXTURED={int(np.any(np.isin(kinds, (KIND_GRID, KIND_CHECKER))))}",
                         f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
         self.program = self._program(min(launch_samples, MAX_LAUNCH_SAMPLES))
         self._tables = [device.wrapped_buffer(array, dtype) for array, dtype in (
@@ -153,7 +168,7 @@ class ShadeKernel:
     def _program(self, launch_samples: int) -> cl.Program:
         """The scene's program variant whose work items make ``launch_samples`` light samples each
         (built once per process and count: a render needs one, or two with a remainder)."""
-        return self.device.build_program(kernel_source(KERNEL_FILE), KERNEL_FILE,
+        return self.device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE,
                                          (*self.options, f"-DLAUNCH_SAMPLES={launch_samples}"))
 
     def _state(self) -> _ThreadState:

@@ -22,12 +22,20 @@ import numpy as np
 
 from realistic.core.validation import TEXTURE_WRAPS
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.tables import Table
 from realistic.scene.intersect import Hits
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
 from realistic.scene.model import ImageTexture
 from realistic.scene.textures import st_mapping
 
 KERNEL_FILE = "ewa.cl"
+#: ``ewa_hits``' MAPPING row (float64), declared once for the kernel and ``hit_mapping``: the camera's
+#: spread (radians per pixel), st = (uv * st_scale + st_offset) * (1, t_flip) + (0, t_shift)
+#: (``textures.st_mapping``), and the material's diffuse colour.
+MAPPING = Table("MAPPING", np.float64, (("spread", 1), ("st_scale", 2), ("st_offset", 2), ("t_flip", 1),
+                                        ("t_shift", 1), ("diffuse", 3)))
+#: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size.
+HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 
 
 class SurfaceTables:
@@ -45,11 +53,10 @@ class SurfaceTables:
 
 def hit_mapping(texture: ImageTexture, diffuse: np.ndarray | tuple[float, float, float],
                 spread_radians: float) -> np.ndarray:
-    """``ewa_hits``' MAPPING row: spread, st scale, offset, t flip and shift (``textures.st_mapping``),
-    and the material's diffuse colour (float32 values, exact in float64)."""
+    """``ewa_hits``' ``MAPPING`` row (the diffuse colour's float32 values, exact in float64)."""
     repeats, offset, flip, shift = st_mapping(texture)
-    return np.array([spread_radians, *repeats, *offset, flip[1], shift[1],
-                     *np.asarray(diffuse, np.float32)], np.float64)
+    return MAPPING.pack(1, spread=spread_radians, st_scale=repeats, st_offset=offset, t_flip=flip[1],
+                        t_shift=shift[1], diffuse=np.asarray(diffuse, np.float32))[0]
 
 
 class EwaKernel:
@@ -64,7 +71,7 @@ class EwaKernel:
         self.device = device
         self.context = device.context
         self.queue = device.queue()
-        program = device.build_program(kernel_source(KERNEL_FILE), KERNEL_FILE)
+        program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._kernel, self._hits_kernel = cl.Kernel(program, "ewa"), cl.Kernel(program, "ewa_hits")
         # the texels wrapped, not copied, so they are not held twice
         self._map = [device.wrapped_buffer(mipmap.texels, np.float32)] + [
