@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import atexit
 import os
-from functools import cache, lru_cache
+import threading
+from functools import lru_cache
 
 import numpy as np
 
@@ -170,9 +171,17 @@ class Device:
         return f"Device({self.spec!r}: {self.devices[0].name.strip()})"
 
 
-@cache  # one device per spec asked for: lives as long as the process
+#: The devices made, per (spec, origin): one per spec asked for, living as long as the process.
+_devices: dict[tuple[str | None, str], Device] = {}
+_devices_lock = threading.Lock()
+
+
 def _device_for(spec: str | None, origin: str) -> Device:
-    return Device(spec, origin)
+    """The device for ``spec``, made on first use (under a lock, so render threads share one)."""
+    with _devices_lock:
+        if (spec, origin) not in _devices:
+            _devices[spec, origin] = Device(spec, origin)
+        return _devices[spec, origin]
 
 
 @lru_cache(maxsize=PROGRAM_CACHE_SIZE)

@@ -10,7 +10,7 @@ cameras and textures stay plain data.
 
 from __future__ import annotations
 
-from functools import cache
+import threading
 from typing import Protocol
 
 import numpy as np
@@ -49,15 +49,25 @@ class NumpyBackend:
         return numpy_ewa(mipmap, st, axis0, axis1)
 
 
-@cache  # one backend per process and (name, device spec): a device's programs and texels are reused
+#: One backend per process and (name, device spec), so a device's programs and texels are reused.
+_backends: dict[tuple[str, str | None], Backend] = {}
+_backends_lock = threading.Lock()
+
+
 def backend_for(name: str, cl_device: str | None = None) -> Backend:
     """The backend ``name`` ("opencl" or "numpy") names, on the OpenCL device ``cl_device``
-    (``--cl-device``; None: the default) for "opencl". A bad name, no platform or no matching
-    device is a UserError."""
+    (``--cl-device``; None: the default) for "opencl", made once per process. A bad name, no
+    platform or no matching device is a UserError."""
     check_backend(name)
-    if name == "numpy":
-        return NumpyBackend()
+    with _backends_lock:
+        if (name, cl_device) not in _backends:
+            _backends[name, cl_device] = NumpyBackend() if name == "numpy" else _opencl_backend(cl_device)
+        return _backends[name, cl_device]
+
+
+def _opencl_backend(cl_device: str | None) -> Backend:
+    """A new OpenCL backend on ``cl_device`` (imports pyopencl: only when chosen)."""
     from realistic.device.opencl import Device
-    from realistic.renderer.opencl_backend import OpenCLBackend  # imports pyopencl: only when chosen
+    from realistic.renderer.opencl_backend import OpenCLBackend
 
     return OpenCLBackend(Device.for_spec(cl_device))

@@ -137,7 +137,7 @@ class DirectLighting:
     def _build_kernel(self) -> ShadeKernel | None:
         """The scene's tables on the backend's OpenCL device (imports pyopencl only here); None (the
         numpy path) for more area lights than the kernel's light search reaches."""
-        from realistic.renderer.opencl_backend import OpenCLBackend  # noqa: F811 (at run time too)
+        from realistic.renderer.opencl_backend import OpenCLBackend
         from realistic.renderer.shade_kernel import LIGHTS, MAX_LIGHTS
 
         backend = self.backend
