@@ -129,7 +129,7 @@ class Device:
     @property
     def devices(self) -> list[cl.Device]:
         """The OpenCL devices of the context (one)."""
-        return self.context.devices
+        return list(self.context.devices)
 
     def identity(self) -> tuple[str, ...]:
         """What a binary built here depends on besides its source: each device, its driver, and

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,8 @@ class Table:
 
     def offset(self, name: str) -> int:
         """Column of field ``name``'s first scalar."""
-        return self.dtype.fields[name][1] // np.dtype(self.scalar).itemsize
+        names = [field for field, _ in self.fields]
+        return sum(width for _, width in self.fields[:names.index(name)])
 
     def defines(self) -> str:
         """The kernel's ``#define`` lines for this table."""
@@ -48,10 +50,10 @@ class Table:
             lines.append(f"#define {self.prefix}_{self.tail.upper()} {self.width}")
         return "\n".join(lines) + "\n"
 
-    def pack(self, count: int, **columns: np.ndarray | float) -> np.ndarray:
+    def pack(self, count: int, **columns: ArrayLike) -> np.ndarray:
         """(count, width) rows of ``scalar`` with each named field from ``columns`` (broadcast to
         (count, field width)); fields not given are zero. An unknown name is a ValueError."""
-        unknown = set(columns) - set(self.dtype.names)
+        unknown = set(columns) - {name for name, _ in self.fields}
         if unknown:
             raise ValueError(f"{self.prefix} has no field {', '.join(sorted(unknown))}")
         rows = np.zeros(count, self.dtype)

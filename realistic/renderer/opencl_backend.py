@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 import weakref
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,7 @@ class OpenCLBackend:
         """``MipMap.ewa``'s lookups by ``kernels/ewa.cl`` (the same to float32 rounding)."""
         return self.ewa_kernel(mipmap)(st, axis0, axis1)
 
-    def shade_kernel(self, **tables: object) -> ShadeKernel:
+    def shade_kernel(self, **tables: Any) -> ShadeKernel:
         """``ShadeKernel`` on this device with a scene's ``tables`` (its keyword arguments)."""
         return ShadeKernel(device=self.device, **tables)
 
