@@ -94,11 +94,3 @@ def test_no_import_cycles():
     cycles = [component for component in strongly_connected(import_graph()) if frozenset(component) not in KNOWN_CYCLES]
     assert not cycles, "import cycles: " + "; ".join(" <-> ".join(sorted(c)) for c in cycles)
 
-
-def test_the_device_layer_imports_only_core_and_errors():
-    """``device/`` sits between ``core/`` and ``camera/``: never a camera, scene or renderer module."""
-    graph = import_graph()
-    allowed = ("realistic.core", "realistic.errors", "realistic.device")
-    outside = {(module, target) for module, targets in graph.items() if module.startswith("realistic.device")
-               for target in targets if not target.startswith(allowed)}
-    assert not outside, sorted(outside)
