@@ -5,7 +5,7 @@ from __future__ import annotations
 import platform
 from pathlib import Path
 
-from realistic.camera.pocl_cpu import cpuinfo_fields
+from realistic.device.pocl_cpu import cpuinfo_fields
 from realistic.renderer.thread_count import default_threads
 
 

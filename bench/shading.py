@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
+from realistic.renderer.backends import backend_for  # noqa: E402
 from realistic.renderer.direct_lighting import DirectLighting  # noqa: E402
 from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES  # noqa: E402
 from realistic.renderer.timing import StageClock  # noqa: E402
@@ -42,7 +43,7 @@ def main() -> None:
     width, height = (int(v) for v in args.res.split("x"))
     setup, camera, source, _ = staged_subject("dgauss", width, height, args.spp)
     block = middle_block(camera, DEFAULT_PASS_SAMPLES)
-    rays = camera.ray_generator("opencl")(block)
+    rays = backend_for("opencl").ray_generator(camera, 0)(block)
     alive = np.flatnonzero(rays.weight != 0)
     args_in = (rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32), rays.pixel[alive],
                block.ids()[1][alive])

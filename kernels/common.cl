@@ -1,5 +1,5 @@
 /* Functions kernels/lens.cl and kernels/shade.cl share; each includes it where it needs them
- * (a textual include the host expands: realistic.camera.opencl_host.kernel_source). Random numbers: lowbias32 and the top 24 bits as a float, bit-identical to
+ * (a textual include the host expands: realistic.device.opencl.kernel_source). Random numbers: lowbias32 and the top 24 bits as a float, bit-identical to
  * realistic/core/rng.py, and the pieces of its light-sample Sobol' sequence; the concentric disk map of realistic/core/warp.py (float32 rounding). */
 
 #define QUARTER_PI_F 0.785398163397448f
@@ -53,7 +53,7 @@ inline __attribute__((always_inline)) void sincos_quarter(float x, float *s, flo
     *c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24 + x2 * (-1.0f / 720 + x2 * (1.0f / 40320 + x2 * (-1.0f / 3628800)))));
 }
 
-/* Shirley-Chiu concentric map of [0,1)^2 onto the unit disk, as realistic.sampling.concentric_disk.
+/* Shirley-Chiu concentric map of [0,1)^2 onto the unit disk, as realistic.core.warp.concentric_disk.
  * |a| and |b| are computed by different instruction sequences on purpose: two isomorphic chains
  * from u1 and u2 into one comparison let LLVM's SLP vectoriser pack them (back to the hashes) into
  * 2-wide vectors before PoCL's work-group vectoriser runs, and that stops the latter (LLVM 14

@@ -16,7 +16,8 @@
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #pragma OPENCL FP_CONTRACT OFF  /* a * b + c rounds twice, as in numpy */
 
-#define LUT_SIZE 128
+/* LUT_SIZE, the entries of the weights table `lut`, is a #define the host prepends
+ * (realistic/scene/ewa_kernel.py, from realistic.scene.mipmap.EWA_WEIGHTS). */
 
 inline double3 texel(__global const float *texels, __global const long *base, __global const long *width,
                      __global const long *height, int wrap, int level, int x, int y) {
@@ -163,7 +164,8 @@ __kernel void ewa(__global const float *texels, __global const long *base, __glo
  *     (realistic/scene/textures.py); the EWA lookup above; times the material's diffuse colour.
  * Rows whose hit is not on an instance of `material` are left as they are. MAPPING holds: spread
  * (the camera's radians per pixel), s scale, t scale, s offset, t offset, t flip (+-1), t shift (0
- * or 1), diffuse r, g, b. */
+ * or 1), diffuse r, g, b, at the MAPPING_* offsets the host prepends (realistic/scene/ewa_kernel.py:
+ * MAPPING). */
 
 #define MIN_COSINE 1e-3
 
@@ -239,7 +241,7 @@ __kernel void ewa_hits(__global const float *texels, __global const long *base, 
     double3 edge2 = linear_map(geom_linear + 9 * g, vertex(vertices, c2) - corner0);
 
     /* the footprint's tangent axes (footprint.tangent_axes) and their uv offsets */
-    double w = (double)tfar[i] * mapping[0];
+    double w = (double)tfar[i] * mapping[MAPPING_SPREAD];
     double cosine = dot3(d, normal);
     double3 along = normalise3(d - cosine * normal);
     if (!(dot3(along, along) > 0.5)) {
@@ -252,12 +254,13 @@ __kernel void ewa_hits(__global const float *texels, __global const long *base, 
     double2 axis1 = to_uv(along * (w * stretch), edge1, edge2, duv1, duv2);
 
     /* into the image's st (textures._image) and the lookup */
-    double2 scale = (double2)(mapping[1], mapping[2]), flip = (double2)(1.0, mapping[5]);
-    double2 st = ((double2)(us, vs) * scale + (double2)(mapping[3], mapping[4])) * flip
-               + (double2)(0.0, mapping[6]);
+    double2 scale = (double2)(mapping[MAPPING_ST_SCALE], mapping[MAPPING_ST_SCALE + 1]);
+    double2 flip = (double2)(1.0, mapping[MAPPING_T_FLIP]);
+    double2 st = ((double2)(us, vs) * scale + (double2)(mapping[MAPPING_ST_OFFSET], mapping[MAPPING_ST_OFFSET + 1]))
+                 * flip + (double2)(0.0, mapping[MAPPING_T_SHIFT]);
     double3 value = ewa_lookup(texels, base, width, height, wrap, levels, max_anisotropy, lut, st,
                                axis0 * scale * flip, axis1 * scale * flip);
-    out[3 * i] = (float)mapping[7] * (float)value.x;
-    out[3 * i + 1] = (float)mapping[8] * (float)value.y;
-    out[3 * i + 2] = (float)mapping[9] * (float)value.z;
+    out[3 * i] = (float)mapping[MAPPING_DIFFUSE] * (float)value.x;
+    out[3 * i + 1] = (float)mapping[MAPPING_DIFFUSE + 1] * (float)value.y;
+    out[3 * i + 2] = (float)mapping[MAPPING_DIFFUSE + 2] * (float)value.z;
 }

@@ -1,7 +1,8 @@
 /* Camera ray generation through a real lens: sample id -> world-space ray, weight, pixel.
  *
  * OpenCL 1.2 C, float32, one work item per sample id. The float64 numpy reference is
- * realistic.camera.generate_rays; this kernel follows the same rules (realistic/reference.py):
+ * realistic.camera.lens_camera.LensCamera.generate_rays; this kernel follows the same rules (its
+ * tracer, realistic/optics/tracer.py):
  * root chosen by direction, far hemisphere = miss, clear-aperture and stop clipping, Heckbert
  * refraction, total internal reflection blocks.
  *
@@ -14,7 +15,7 @@
  * known at compile time. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized loop" per kernel, and
  * the built generate_rays.so (POCL_CACHE_DIR, POCL_LEAVE_KERNEL_COMPILER_TEMP_FILES=1) uses ymm.
  *
- * The host (realistic/opencl_host.py) prepends a generated header that defines, per lens and
+ * The host (realistic/camera/opencl_host.py) prepends a generated header that defines, per lens and
  * camera (the resolution, the film's size, the sample count and the settings, focus and the
  * diameter of a round stop, are kernel arguments instead, so a new --res, --spp, focus or f-stop
  * reuses PoCL's cached build rather than compiling for a second or more):
@@ -41,19 +42,12 @@
  *                                 um^-2, A and B literal Cauchy coefficients) and passes index
  *                                 ratios to those calls
  * The kernel argument `settings` holds what changes with the focus (the film distance) and the
- * stop's diameter, float32 at the SET_* offsets below (realistic.camera.opencl_host.setting_values).
- * Products and quotients of these values that were once folded from literals come precomputed in
- * float32, so every ray rounds as it did.
+ * stop's diameter, float32 at the SET_* offsets the generated header defines (declared once, with
+ * what each holds, in realistic.camera.opencl_host.SETTINGS; packed by setting_values): SET_PLANE_Z,
+ * SET_PLANE_Z2, SET_FRONT_VERTEX_Z, SET_REAR_W, SET_SAMPLING (three values), SET_STOP_R2, and from
+ * SET_PUPIL the exit-pupil boxes and areas. Products and quotients of these values that were once
+ * folded from literals come precomputed in float32, so every ray rounds as it did.
  */
-
-#define SET_PLANE_Z 0         /* z of the sampling plane (lens frame: film at z = 0, +z to scene) */
-#define SET_PLANE_Z2 1        /* its square */
-#define SET_FRONT_VERTEX_Z 2  /* z of the front vertex */
-#define SET_REAR_W 3          /* -film distance: z of the film relative to the rear vertex */
-#define SET_SAMPLING 4        /* pupil: PUPIL_INTERVALS / film radius (mm); rear-element disk
-                               * (realistic.optics.sampling): 1 - t_far, clear radius * t_far, clear radius */
-#define SET_STOP_R2 7         /* a round stop's squared radius (mm^2) */
-#define SET_PUPIL 8           /* pupil: boxes (x0, x1, y0, y1) per interval, then their areas (mm^2) */
 
 #define PI_F 3.14159265358979f
 
@@ -78,7 +72,7 @@
 #define KRONECKER_3 0x89E18285u
 #endif
 
-#include "common.cl"  /* expanded by the host (realistic.camera.opencl_host.kernel_source) */
+#include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source) */
 
 /* Pixel and sample index within the pixel of work item gid of a launch over a slice of each
  * pixel's samples (realistic.camera.base.SampleBlock): pixels get slice_width samples each, from

@@ -48,16 +48,11 @@
 #if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO) || !defined(LAUNCH_SAMPLES)
 #error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DLAUNCH_SAMPLES=.."
 #endif
-/* Row strides of the tables the host lays out (realistic/renderer/shade_kernel.py). */
-#define GEOM_INTS 4      /* face offset, material, smooth (0/1), unused */
-#define GEOM_FLOATS 9    /* normal matrix, row major */
-#define MATERIAL_FLOATS 16
-#define LIGHT_FLOATS 20
-/* Material kinds (MATERIAL_FLOATS row: kind, diffuse rgb, cells, low, high, colour a rgb, colour b rgb). */
-#define KIND_CONSTANT 0
-#define KIND_GRID 1      /* a: line, b: base; low, high: line_width / 2 and 1 - line_width / 2 */
-#define KIND_CHECKER 2   /* a: even, b: odd */
-#define KIND_HOST 3      /* albedo from the host's array */
+/* The tables' row widths and field offsets (GEOM_INT_*, GEOM_FLOAT_*, MATERIAL_*, LIGHT_*) and the
+ * material kinds (KIND_*) are #defines the host prepends, generated from the tables it packs
+ * (realistic/renderer/shade_kernel.py: GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS, KINDS). A grid's
+ * colour a is its line, b its base, low and high line_width / 2 and 1 - line_width / 2; a checker's
+ * a is even, b odd; KIND_HOST's albedo comes from the host's array. */
 
 /* Component c of row i of a table of row width w, and field k of a table row. The offsets go
  * through the kernel argument `unit` (always 1), which LLVM cannot see through: with literal
@@ -68,7 +63,7 @@
 #define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
 #define FIELD(row, k) ((row)[(k) * unit])
 
-#include "common.cl"  /* expanded by the host (realistic.camera.opencl_host.kernel_source) */
+#include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source) */
 
 /* The light of sample value u: how many entries of the rounded-up CDF are <= u (numpy's
  * searchsorted side="right"), at most count - 1. A branch-free binary search written out in
@@ -194,22 +189,25 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     float sx = px + gx * eps, sy = py + gy * eps, sz = pz + gz * eps;
 
     /* the triangle and its barycentrics */
-    int face = geom_ints[GEOM_INTS * gs] + (surface ? prim[r] : 0);
-    int material = geom_ints[GEOM_INTS * gs + 1];
+    int face = geom_ints[GEOM_INT_WIDTH * gs + GEOM_INT_FACE_OFFSET] + (surface ? prim[r] : 0);
+    int material = geom_ints[GEOM_INT_WIDTH * gs + GEOM_INT_MATERIAL];
     int i0 = AT(faces, 3, face, 0), i1 = AT(faces, 3, face, 1), i2 = AT(faces, 3, face, 2);
     float b1 = hit_u[r], b2 = hit_v[r];
     float b0 = 1.0f - b1 - b2;
 
     /* shading normal (SMOOTH: whether any instance has varying vertex normals) */
 #if SMOOTH
-    int smooth = geom_ints[GEOM_INTS * gs + 2];
+    int smooth = geom_ints[GEOM_INT_WIDTH * gs + GEOM_INT_SMOOTH];
     float nx = AT(normals, 3, i0, 0) * b0 + AT(normals, 3, i1, 0) * b1 + AT(normals, 3, i2, 0) * b2;
     float ny = AT(normals, 3, i0, 1) * b0 + AT(normals, 3, i1, 1) * b1 + AT(normals, 3, i2, 1) * b2;
     float nz = AT(normals, 3, i0, 2) * b0 + AT(normals, 3, i1, 2) * b1 + AT(normals, 3, i2, 2) * b2;
-    __global const float *m = geom_floats + GEOM_FLOATS * gs;
-    float wx = FIELD(m, 0) * nx + FIELD(m, 1) * ny + FIELD(m, 2) * nz;
-    float wy = FIELD(m, 3) * nx + FIELD(m, 4) * ny + FIELD(m, 5) * nz;
-    float wz = FIELD(m, 6) * nx + FIELD(m, 7) * ny + FIELD(m, 8) * nz;
+    __global const float *m = geom_floats + GEOM_FLOAT_WIDTH * gs;
+    /* the normal matrix, row major, at NM (its offsets fold to constants, as literal ones did) */
+#define NM GEOM_FLOAT_NORMAL_MATRIX
+    float wx = FIELD(m, NM) * nx + FIELD(m, NM + 1) * ny + FIELD(m, NM + 2) * nz;
+    float wy = FIELD(m, NM + 3) * nx + FIELD(m, NM + 4) * ny + FIELD(m, NM + 5) * nz;
+    float wz = FIELD(m, NM + 6) * nx + FIELD(m, NM + 7) * ny + FIELD(m, NM + 8) * nz;
+#undef NM
     float wlen = __builtin_sqrtf(wx * wx + wy * wy + wz * wz);
     int wok = wlen > 0.0f;
     wx = wok ? wx / wlen : 0.0f;
@@ -227,24 +225,26 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
 
     /* albedo (TEXTURED: whether any material has a grid or checker texture; HOST_ALBEDO: whether
      * any material's albedo comes from the host) */
-    __global const float *mat = materials + MATERIAL_FLOATS * material;
-    float rho_r = FIELD(mat, 1), rho_g = FIELD(mat, 2), rho_b = FIELD(mat, 3);
+    __global const float *mat = materials + MATERIAL_WIDTH * material;
+    float rho_r = FIELD(mat, MATERIAL_DIFFUSE), rho_g = FIELD(mat, MATERIAL_DIFFUSE + 1);
+    float rho_b = FIELD(mat, MATERIAL_DIFFUSE + 2);
 #if TEXTURED || HOST_ALBEDO
-    int kind = (int)FIELD(mat, 0);
+    int kind = (int)FIELD(mat, MATERIAL_KIND);
 #endif
 #if TEXTURED
     float tu = AT(uvs, 2, i0, 0) * b0 + AT(uvs, 2, i1, 0) * b1 + AT(uvs, 2, i2, 0) * b2;
     float tv = AT(uvs, 2, i0, 1) * b0 + AT(uvs, 2, i1, 1) * b1 + AT(uvs, 2, i2, 1) * b2;
-    float cu = tu * FIELD(mat, 4), cv = tv * FIELD(mat, 4);
+    float cu = tu * FIELD(mat, MATERIAL_CELLS), cv = tv * FIELD(mat, MATERIAL_CELLS);
     float fu_floor = __builtin_floorf(cu), fv_floor = __builtin_floorf(cv);
     float fu = cu - fu_floor, fv = cv - fv_floor;
-    int on_line = (fu < FIELD(mat, 5)) | (fu > FIELD(mat, 6)) | (fv < FIELD(mat, 5)) | (fv > FIELD(mat, 6));
+    int on_line = (fu < FIELD(mat, MATERIAL_LOW)) | (fu > FIELD(mat, MATERIAL_HIGH))
+                  | (fv < FIELD(mat, MATERIAL_LOW)) | (fv > FIELD(mat, MATERIAL_HIGH));
     float parity_sum = fu_floor + fv_floor;
     int odd = parity_sum - 2.0f * __builtin_floorf(parity_sum * 0.5f) != 0.0f;
     int use_b = kind == KIND_GRID ? !on_line : odd;
-    float tex_r = use_b ? FIELD(mat, 10) : FIELD(mat, 7);
-    float tex_g = use_b ? FIELD(mat, 11) : FIELD(mat, 8);
-    float tex_b = use_b ? FIELD(mat, 12) : FIELD(mat, 9);
+    float tex_r = use_b ? FIELD(mat, MATERIAL_COLOUR_B) : FIELD(mat, MATERIAL_COLOUR_A);
+    float tex_g = use_b ? FIELD(mat, MATERIAL_COLOUR_B + 1) : FIELD(mat, MATERIAL_COLOUR_A + 1);
+    float tex_b = use_b ? FIELD(mat, MATERIAL_COLOUR_B + 2) : FIELD(mat, MATERIAL_COLOUR_A + 2);
     int textured = kind == KIND_GRID || kind == KIND_CHECKER;
     rho_r = textured ? rho_r * tex_r : rho_r;
     rho_g = textured ? rho_g * tex_g : rho_g;
@@ -266,24 +266,25 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         float u_pick, u1, u2;
         light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
         int j = pick_light(cdf, light_count, u_pick, unit);
-        __global const float *light = lights + LIGHT_FLOATS * j;
+        __global const float *light = lights + LIGHT_WIDTH * j;
         float disk_x, disk_y;
         concentric_disk(u1, u2, &disk_x, &disk_y);
-        int disk = FIELD(light, 16) != 0.0f;
+        int disk = FIELD(light, LIGHT_DISK) != 0.0f;
         float lx = disk ? disk_x : 2.0f * u1 - 1.0f;
         float ly = disk ? disk_y : 2.0f * u2 - 1.0f;
-        float qx = FIELD(light, 0) + FIELD(light, 3) * lx + FIELD(light, 6) * ly;
-        float qy = FIELD(light, 1) + FIELD(light, 4) * lx + FIELD(light, 7) * ly;
-        float qz = FIELD(light, 2) + FIELD(light, 5) * lx + FIELD(light, 8) * ly;
+        float qx = FIELD(light, LIGHT_CENTRE) + FIELD(light, LIGHT_A) * lx + FIELD(light, LIGHT_B) * ly;
+        float qy = FIELD(light, LIGHT_CENTRE + 1) + FIELD(light, LIGHT_A + 1) * lx + FIELD(light, LIGHT_B + 1) * ly;
+        float qz = FIELD(light, LIGHT_CENTRE + 2) + FIELD(light, LIGHT_A + 2) * lx + FIELD(light, LIGHT_B + 2) * ly;
         float tx = qx - px, ty = qy - py, tz = qz - pz;
         float dist2 = tx * tx + ty * ty + tz * tz;
         float dist = __builtin_sqrtf(dist2);
         float ix = tx / dist, iy = ty / dist, iz = tz / dist;
         float cos_p = ix * shx + iy * shy + iz * shz;
-        float cos_q = -(ix * FIELD(light, 9) + iy * FIELD(light, 10) + iz * FIELD(light, 11));
-        cos_q = FIELD(light, 17) != 0.0f && cos_q < 0.0f ? -cos_q : cos_q;
+        float cos_q = -(ix * FIELD(light, LIGHT_NORMAL) + iy * FIELD(light, LIGHT_NORMAL + 1)
+                        + iz * FIELD(light, LIGHT_NORMAL + 2));
+        cos_q = FIELD(light, LIGHT_TWO_SIDED) != 0.0f && cos_q < 0.0f ? -cos_q : cos_q;
         int live = surface & (cos_p > 0.0f) & (cos_q > 0.0f) & (ix * gx + iy * gy + iz * gz > 0.0f) & (dist2 > 0.0f);
-        float scale = cos_p * cos_q / dist2 * FIELD(light, 15);
+        float scale = cos_p * cos_q / dist2 * FIELD(light, LIGHT_SCALE);
 
         AT(shadow_origin, 3, o, 0) = live ? sx : 0.0f;
         AT(shadow_origin, 3, o, 1) = live ? sy : 0.0f;
@@ -292,9 +293,9 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         AT(shadow_vector, 3, o, 1) = live ? qy - sy : 0.0f;
         AT(shadow_vector, 3, o, 2) = live ? qz - sz : 0.0f;
         shadow_length[o] = live ? SHADOW_LENGTH : -1.0f;
-        AT(contribution, 3, o, 0) = live ? rho_r * FIELD(light, 12) * scale : 0.0f;
-        AT(contribution, 3, o, 1) = live ? rho_g * FIELD(light, 13) * scale : 0.0f;
-        AT(contribution, 3, o, 2) = live ? rho_b * FIELD(light, 14) * scale : 0.0f;
+        AT(contribution, 3, o, 0) = live ? rho_r * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
+        AT(contribution, 3, o, 1) = live ? rho_g * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
+        AT(contribution, 3, o, 2) = live ? rho_b * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
     }
 }
 

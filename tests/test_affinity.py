@@ -123,11 +123,11 @@ def test_without_a_way_to_pin_placement_is_left_alone(monkeypatch):
 
 _CHILD = """
 import json, os
-from realistic.camera import opencl_host
+from realistic.device.opencl import Device
 from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import affinity
-device = opencl_host.context().devices[0]
+device = Device.for_spec().devices[0]
 pool = sorted(affinity._runtime_threads)
 before = {t: sorted(os.sched_getaffinity(t)) for t in pool}
 with affinity.runtime_threads_spread():

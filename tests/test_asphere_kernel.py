@@ -10,6 +10,7 @@ import pytest
 from kernel_reference import aspherised_dgauss, assert_kernel_matches, camera_for_lens
 from realistic import load_lens
 from realistic.camera.base import SampleBlock
+from realistic.renderer.backends import backend_for
 
 pytestmark = pytest.mark.usefixtures("opencl_platform")
 
@@ -21,7 +22,7 @@ def test_kernel_matches_tracer_for_an_aspheric_lens(sampling):
     if sampling != "pupil":
         camera = dataclasses.replace(camera, lens_sampling=sampling)
     count, seed = camera.sample_count, 11
-    kernel = camera.ray_generator("opencl", seed)(SampleBlock(0, count, camera.spp))
+    kernel = backend_for("opencl").ray_generator(camera, seed)(SampleBlock(0, count, camera.spp))
     reference = camera.generate_rays(SampleBlock(0, count, camera.spp), seed)
     assert_kernel_matches(kernel, reference, camera, seed)
     block = SampleBlock(0, count, camera.spp)

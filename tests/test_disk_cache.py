@@ -72,3 +72,35 @@ def test_the_cache_can_be_turned_off(tmp_path, monkeypatch):
 def test_keys_differ_with_any_part():
     assert disk_cache.cache_key("k", 1.0, b"a") != disk_cache.cache_key("k", 1.0, b"b")
     assert disk_cache.cache_key("k", 0.1 + 0.2) != disk_cache.cache_key("k", 0.3)
+
+
+def test_an_entry_carries_its_key_and_digest_and_a_mismatch_reads_as_absent(cache):
+    """An entry copied under another key, altered in place (its stored digest kept), or truncated is
+    never handed back; a good one is, without the cache's own fields."""
+    disk_cache.store_arrays("kind-a", {"x": np.arange(5.0)})
+    assert list(disk_cache.load_arrays("kind-a")) == ["x"]
+    (cache / "kind-a.npz").rename(cache / "kind-b.npz")
+    assert disk_cache.load_arrays("kind-b") is None  # another key's content
+    disk_cache.store_arrays("kind-c", {"x": np.arange(5.0)})
+    with np.load(cache / "kind-c.npz") as stored:
+        fields = {name: stored[name] for name in stored.files}
+    fields["x"] = fields["x"] + 1  # the content changed, the digest not
+    np.savez(cache / "kind-c.npz", **fields)
+    assert disk_cache.load_arrays("kind-c") is None
+    disk_cache.store_arrays("kind-d", {"x": np.arange(5.0)})
+    data = (cache / "kind-d.npz").read_bytes()
+    (cache / "kind-d.npz").write_bytes(data[:len(data) // 2])
+    assert disk_cache.load_arrays("kind-d") is None
+
+
+def test_another_stops_table_under_this_key_is_rebuilt(cache):
+    """A table copied under another table's key is not read back: the right one is built."""
+    stopped_down = _table(4.0)
+    sampling._cached_table.cache_clear()
+    (stopped_entry,) = cache.glob("exit-pupil-*.npz")
+    wide_open = _table()
+    (wide_entry,) = set(cache.glob("exit-pupil-*.npz")) - {stopped_entry}
+    wide_entry.write_bytes(stopped_entry.read_bytes())
+    sampling._cached_table.cache_clear()
+    again = _table()
+    assert np.array_equal(again.bounds, wide_open.bounds) and not np.array_equal(again.bounds, stopped_down.bounds)

@@ -11,6 +11,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.transforms import rotate, scale, translate
 from realistic.optics.formats import load_lens
+from realistic.renderer.backends import backend_for
 from realistic.renderer.direct_lighting import DirectLighting, _facing
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
@@ -52,7 +53,7 @@ def instanced_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
 
 def hits_of(scene: Scene, eye: np.ndarray, target: np.ndarray, width: int = 96, height: int = 64):
     camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, width, height, 2)
-    rays = camera.ray_generator("numpy", 3)(SampleBlock(0, camera.sample_count, 2))
+    rays = backend_for("numpy").ray_generator(camera, 3)(SampleBlock(0, camera.sample_count, 2))
     alive = np.flatnonzero(rays.weight != 0)
     origin, direction = rays.origin[alive].astype(F32), rays.direction[alive].astype(F32)
     intersector = Intersector(scene)

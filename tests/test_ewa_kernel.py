@@ -4,6 +4,7 @@ transcription of pbrt-v3's loop in test_textures.py): same taps, same weights, f
 import numpy as np
 import pytest
 
+from realistic.renderer.backends import backend_for
 from realistic.scene.mipmap import MipMap
 
 
@@ -27,7 +28,7 @@ def test_the_kernel_equals_the_numpy_reference(opencl_platform, wrap, shape):
     mipmap = MipMap(image, wrap, max_anisotropy=8.0)
     st, axis0, axis1 = ellipses(3000, 11)
     reference = mipmap.ewa(st, axis0, axis1)
-    device = mipmap.ewa(st, axis0, axis1, "opencl")
+    device = backend_for("opencl").ewa(mipmap, st, axis0, axis1)
     assert device.dtype == np.float32 and device.shape == reference.shape
     np.testing.assert_allclose(device, reference, rtol=1e-6, atol=1e-6)
 
@@ -35,7 +36,7 @@ def test_the_kernel_equals_the_numpy_reference(opencl_platform, wrap, shape):
 def test_an_empty_batch(opencl_platform):
     mipmap = MipMap(np.ones((8, 8, 3)))
     empty = np.zeros((0, 2))
-    assert mipmap.ewa(empty, empty, empty, "opencl").shape == (0, 3)
+    assert backend_for("opencl").ewa(mipmap, empty, empty, empty).shape == (0, 3)
 
 
 @pytest.mark.parametrize("backend", ["numpy", "opencl"])
@@ -55,7 +56,8 @@ def test_a_magnified_lookup_reads_the_finest_level_alone(opencl_platform, backen
     major = minor * (1 + 7 * rng.random(500))
     axis0 = np.column_stack([np.cos(angle), np.sin(angle)]) * major[:, None]
     axis1 = np.column_stack([-np.sin(angle), np.cos(angle)]) * minor[:, None]
-    clean, dirty = MipMap(image).ewa(st, axis0, axis1, backend), poisoned.ewa(st, axis0, axis1, backend)
+    ewa = backend_for(backend).ewa
+    clean, dirty = ewa(MipMap(image), st, axis0, axis1), ewa(poisoned, st, axis0, axis1)
     assert np.array_equal(dirty[:400], clean[:400])
     assert np.isnan(dirty[400:]).all() and np.isfinite(clean).all()
 

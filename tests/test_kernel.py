@@ -16,8 +16,11 @@ from realistic.core import rng
 from realistic.core.pixel_filter import PixelFilter
 from realistic.errors import UserError
 from realistic.optics.paraxial import film_distance_for_focus
+from realistic.renderer.backends import backend_for
 
 opencl_host = pytest.importorskip("realistic.camera.opencl_host")
+opencl = pytest.importorskip("realistic.device.opencl")
+Device = opencl.Device
 
 LENSES = ["dgauss", "wide", "fisheye", "telephoto", "dgauss100"]
 SAMPLINGS = ["pupil", "rear"]
@@ -73,7 +76,7 @@ def test_kernel_matches_reference_with_shaped_stops(shape, tmp_path):
 def _check_against_reference(camera: LensCamera) -> None:
     count, seed = camera.sample_count, 11
     assert count >= 100_000
-    kernel = camera.ray_generator("opencl", seed)(SampleBlock(0, count, camera.spp))
+    kernel = backend_for("opencl").ray_generator(camera, seed)(SampleBlock(0, count, camera.spp))
     assert_kernel_matches(kernel, camera.generate_rays(SampleBlock(0, count, camera.spp), seed), camera, seed)
 
 
@@ -151,9 +154,9 @@ def test_kernel_random_numbers_equal_numpy_bit_for_bit():
 
 
 def test_no_platform_is_one_clear_line(monkeypatch):
-    monkeypatch.setattr(opencl_host.cl, "get_platforms", lambda: [])
+    monkeypatch.setattr(opencl.cl, "get_platforms", lambda: [])
     with pytest.raises(UserError) as err:
-        opencl_host.context("no such device anywhere")
+        Device.for_spec("no such device anywhere")
     message = str(err.value)
     assert "\n" not in message
     assert 'pip install "pyopencl[pocl]"' in message and "--backend numpy" in message
@@ -161,14 +164,15 @@ def test_no_platform_is_one_clear_line(monkeypatch):
 
 def test_device_choice_by_index_name_and_environment(monkeypatch):
     monkeypatch.delenv("PYOPENCL_CTX", raising=False)
-    default = opencl_host.context().devices[0]
-    assert opencl_host.context("0:0").devices[0].int_ptr == opencl_host.context("0").devices[0].int_ptr
-    assert opencl_host.context(default.name.strip()[:6]).devices[0].name == default.name
+    default = Device.for_spec().devices[0]
+    assert Device.for_spec("0:0").devices[0].int_ptr == Device.for_spec("0").devices[0].int_ptr
+    assert Device.for_spec(default.name.strip()[:6]).devices[0].name == default.name
+    assert Device.for_spec("0:0") is Device.for_spec("0:0")  # one per process and spec
     with pytest.raises(UserError, match="--cl-device"):
-        opencl_host.context("no such device anywhere")
+        Device.for_spec("no such device anywhere")
     monkeypatch.setenv("PYOPENCL_CTX", "no such device anywhere")
     with pytest.raises(UserError, match="PYOPENCL_CTX"):
-        opencl_host.context()
+        Device.for_spec()
 
 
 def test_program_is_built_once_per_camera_configuration():
@@ -182,7 +186,7 @@ def test_program_is_built_once_per_camera_configuration():
 
 def _telephoto_rays():
     camera = reference_camera("telephoto", "pupil")
-    opencl_host.build_program.cache_clear()  # the in-process cache would hand back the same program
+    opencl.build_program.cache_clear()  # the in-process cache would hand back the same program
     return opencl_host.LensKernel(camera).generate(SampleBlock(0, 30_000, camera.spp), seed=3)
 
 
@@ -203,21 +207,21 @@ def test_a_program_from_cached_binaries_makes_the_rays_a_source_build_makes(monk
     assert list(disk_cache.load_arrays(entry.stem)) == ["built"]
     second = _telephoto_rays()
     assert list(disk_cache.load_arrays(entry.stem)) == ["built"]  # not yet: at exit
-    opencl_host.store_built_binaries()
+    opencl.store_built_binaries()
     assert list(disk_cache.load_arrays(entry.stem)) == ["device0"]
     loaded = _telephoto_rays()
     monkeypatch.setenv("REALISTIC_CACHE_DIR", "off")
     uncached = _telephoto_rays()
-    opencl_host.build_program.cache_clear()
+    opencl.build_program.cache_clear()
     for rays in (second, loaded, uncached):
         _assert_same_rays(rays, first)
 
 
 BUILD = ("import glob, os\n"
-         "from realistic.camera import opencl_host\n"
+         "from realistic.device.opencl import Device\n"
          "from realistic.core import disk_cache\n"
          "source = '__kernel void twice(__global float *a) { a[get_global_id(0)] *= 2.0f; }'\n"
-         "opencl_host.build_program(opencl_host.context(), source, 'twice.cl')\n"
+         "Device.for_spec().build_program(source, 'twice.cl')\n"
          "(entry,) = glob.glob(os.path.join(os.environ['REALISTIC_CACHE_DIR'], 'opencl-program-*.npz'))\n"
          "print(sorted(disk_cache.load_arrays(os.path.basename(entry)[:-4])))\n")
 
@@ -226,6 +230,7 @@ def test_a_second_build_stores_its_binaries_as_the_process_exits(tmp_path):
     """A program's first build from source leaves a mark; the second, in another process, stores
     the binaries when that process exits (``store_built_binaries``), not while it runs."""
     from conftest import run_fresh
+    from realistic.core import disk_cache
 
     def build() -> str:
         return run_fresh(BUILD, timeout=300, REALISTIC_CACHE_DIR=str(tmp_path)).stdout.strip()
@@ -234,7 +239,7 @@ def test_a_second_build_stores_its_binaries_as_the_process_exits(tmp_path):
     assert build() == "['built']"  # during the second process
     (entry,) = tmp_path.glob("opencl-program-*.npz")
     with np.load(entry) as stored:
-        assert stored.files == ["device0"]  # after it
+        assert sorted(stored.files) == sorted(["device0", disk_cache.KEY_FIELD, disk_cache.DIGEST_FIELD])  # after it
 
 
 def test_a_corrupt_or_foreign_cache_entry_is_rebuilt_from_source(monkeypatch, tmp_path):
@@ -246,17 +251,17 @@ def test_a_corrupt_or_foreign_cache_entry_is_rebuilt_from_source(monkeypatch, tm
     for bad in ({"device0": np.frombuffer(b"not a program", np.uint8)}, {"elsewhere": np.zeros(4, np.uint8)}):
         disk_cache.store_arrays(entry.stem, bad)
         _assert_same_rays(_telephoto_rays(), built)
-        opencl_host.store_built_binaries()
+        opencl.store_built_binaries()
         assert list(disk_cache.load_arrays(entry.stem)) == ["device0"]  # replaced by the real binaries
     entry.write_bytes(b"truncated")
     _assert_same_rays(_telephoto_rays(), built)
-    opencl_host.build_program.cache_clear()
+    opencl.build_program.cache_clear()
 
 
 def test_a_kernel_that_does_not_compile_names_its_file_and_the_compiler_message():
     with pytest.raises(RuntimeError, match=r"building broken\.cl failed:(.|\n)*undeclared_name"):
         source = "__kernel void k(__global float *a) { a[0] = undeclared_name; }"
-        opencl_host.build_program(opencl_host.context(), source, "broken.cl")
+        Device.for_spec().build_program(source, "broken.cl")
 
 
 def test_a_new_resolution_or_sample_count_reuses_the_program_and_matches_the_reference():
@@ -307,7 +312,39 @@ def test_pixels_of_a_huge_film_map_to_their_rows_and_columns_exactly():
     16411 x 16417 film (pixel ids past 2^28) every column and row still matches the reference."""
     camera = dataclasses.replace(reference_camera("dgauss", "pupil"), width=16411, height=16417, spp=2)
     block = SampleBlock(camera.sample_count - 40_000, 40_000, camera.spp)
-    kernel = camera.ray_generator("opencl", 3)(block)
+    kernel = backend_for("opencl").ray_generator(camera, 3)(block)
     reference = camera.generate_rays(block, 3)
     assert kernel.pixel.min() > 2**28
     assert_kernel_matches(kernel, reference, camera, 3, block=block)
+
+
+def test_another_lens_binary_under_dgauss_key_is_rebuilt_not_run(monkeypatch, tmp_path):
+    """The reported bug: telephoto's program binary copied under dgauss's cache key ran and gave
+    dgauss wrong rays (exit 0). Each entry carries its key, so the copy is refused and dgauss's
+    program is built from source: its rays are those of a build with the cache off."""
+    import shutil
+
+    from realistic.core import disk_cache
+
+    device = Device.for_spec()
+    telephoto, dgauss = reference_camera("telephoto", "pupil"), reference_camera("dgauss", "pupil")
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", "off")
+    opencl.build_program.cache_clear()
+    block = SampleBlock(0, 20_000, dgauss.spp)
+    uncached = opencl_host.LensKernel(dgauss, device).generate(block, seed=3)
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
+
+    def key(camera: LensCamera) -> str:
+        source, _, options = opencl_host.lens_program(camera)
+        return disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), source.encode(), options)
+
+    for _ in range(2):  # a mark, then the binaries at "exit"
+        opencl.build_program.cache_clear()
+        opencl_host.LensKernel(telephoto, device)
+    opencl.store_built_binaries()
+    assert list(disk_cache.load_arrays(key(telephoto))) == ["device0"]
+    shutil.copy(tmp_path / f"{key(telephoto)}.npz", tmp_path / f"{key(dgauss)}.npz")
+    assert disk_cache.load_arrays(key(dgauss)) is None
+    opencl.build_program.cache_clear()
+    _assert_same_rays(opencl_host.LensKernel(dgauss, device).generate(block, seed=3), uncached)
+    opencl.build_program.cache_clear()

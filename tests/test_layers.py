@@ -13,10 +13,11 @@ PACKAGE = Path(__file__).resolve().parents[1] / "realistic"
 #: Layer -> the layers its modules may import, lowest first.
 ALLOWED = {
     "core": {"errors", "core"},
+    "device": {"errors", "core", "device"},  # the OpenCL device, between core and camera
     "optics": {"errors", "core", "optics"},
-    "camera": {"errors", "core", "optics", "camera"},
-    "scene": {"errors", "core", "optics", "camera", "scene"},
-    "renderer": {"errors", "core", "optics", "camera", "scene", "renderer"},
+    "camera": {"errors", "core", "device", "optics", "camera"},
+    "scene": {"errors", "core", "device", "optics", "camera", "scene"},
+    "renderer": {"errors", "core", "device", "optics", "camera", "scene", "renderer"},
 }
 
 

@@ -15,6 +15,7 @@ from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.optics.formats import load_lens
+from realistic.renderer.backends import backend_for
 from realistic.renderer.direct_lighting import DirectLighting
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
@@ -27,7 +28,7 @@ SEED, SPP, LIGHT_SAMPLES = 7, 2, 2
 def test_light_sampling_through_the_bsdf_interface_matches_direct_lighting(spectral):
     scene, eye, target = textured_scene()
     camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, 24, 16, SPP)
-    rays = camera.ray_generator("numpy", SEED)(SampleBlock(0, camera.sample_count, camera.spp))
+    rays = backend_for("numpy").ray_generator(camera, SEED)(SampleBlock(0, camera.sample_count, camera.spp))
     alive = np.flatnonzero(rays.weight != 0)
     args = (rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32), rays.pixel[alive],
             alive % SPP, None, np.random.default_rng(1).uniform(400, 700, len(alive)) if spectral else None)

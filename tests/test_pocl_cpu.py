@@ -1,4 +1,4 @@
-"""PoCL's CPU device named by its x86-64 level where LLVM calls the CPU "generic" (realistic.camera.pocl_cpu)."""
+"""PoCL's CPU device named by its x86-64 level where LLVM calls the CPU "generic" (realistic.device.pocl_cpu)."""
 
 import ctypes
 import mmap
@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from conftest import built_from_source
-from realistic.camera import pocl_cpu
+from realistic.device import pocl_cpu
 
 LEVEL_NAMES = ["x86-64"] + [name for name, _ in pocl_cpu.X86_64_LEVELS]
 LIBC = ctypes.CDLL(None)
@@ -112,10 +112,12 @@ def test_the_opencl_device_builds_kernels(opencl_platform):
     know, only after ``name_unknown_cpu``)."""
     import pyopencl as cl
 
-    ctx = opencl_platform.context()
-    queue = cl.CommandQueue(ctx)
-    program = opencl_platform.build_program(ctx, "__kernel void square(__global double *a) "
-                                            "{ int i = get_global_id(0); a[i] = a[i] * a[i]; }", "square.cl")
+    from realistic.device.opencl import Device
+
+    device = Device.for_spec()
+    ctx, queue = device.context, device.queue()
+    program = device.build_program("__kernel void square(__global double *a) "
+                                   "{ int i = get_global_id(0); a[i] = a[i] * a[i]; }", "square.cl")
     values = np.arange(64, dtype=np.float64)
     buffer = cl.Buffer(ctx, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=values)
     cl.Kernel(program, "square")(queue, values.shape, None, buffer)
@@ -158,25 +160,26 @@ def test_kernels_built_for_the_wide_name_are_16_lanes_wide_and_use_no_knights_la
         "import dataclasses\nimport numpy as np\n"
         "from kernel_reference import aspherised_dgauss, camera_for_lens\n"
         "from test_shade_kernel import busy_scene\n"
-        "from realistic import load_lens\nfrom realistic.camera import pocl_cpu\n"
-        "from realistic.camera.base import SampleBlock\nfrom realistic.camera.opencl_host import context\n"
+        "from realistic import load_lens\nfrom realistic.device import pocl_cpu\n"
+        "from realistic.camera.base import SampleBlock\nfrom realistic.device.opencl import Device\n"
+        "from realistic.renderer.backends import backend_for\n"
         "from realistic.renderer.direct_lighting import DirectLighting\n"
         "from realistic.scene.intersect import Intersector\n"
         "from realistic.scene.mipmap import MipMap\n"
-        "print('given', pocl_cpu.given_name(context().devices[0]))\n"
+        "print('given', pocl_cpu.given_name(Device.for_spec().devices[0]))\n"
         "for lens in (load_lens('dgauss'), aspherised_dgauss()):\n"
         "    for sampling in ('pupil', 'rear'):\n"
         "        camera = dataclasses.replace(camera_for_lens(lens), lens_sampling=sampling)\n"
-        "        camera.ray_generator('opencl', 1)(SampleBlock(0, 4096, camera.spp))\n"
+        "        backend_for('opencl').ray_generator(camera, 1)(SampleBlock(0, 4096, camera.spp))\n"
         "camera = camera_for_lens(load_lens('dgauss100'), spectral=True)\n"
-        "camera.ray_generator('opencl', 1)(SampleBlock(0, 4096, camera.spp))\n"
+        "backend_for('opencl').ray_generator(camera, 1)(SampleBlock(0, 4096, camera.spp))\n"
         "scene = busy_scene()[0]\n"
         "integrator = DirectLighting(scene, Intersector(scene), 2, backend='opencl')\n"
         "ray = np.array([[0.0, 1.0, 4.0]], np.float32)\n"
         "integrator.radiance(ray, np.array([[0.0, -0.2, -1.0]], np.float32), np.zeros(1, np.int32), "
         "np.zeros(1, np.int64))\n"
         "st = np.full((4, 2), 0.5)\n"
-        "MipMap(np.ones((8, 8, 3))).ewa(st, st * 0.1, st * 0.05, 'opencl')\n")
+        "backend_for('opencl').ewa(MipMap(np.ones((8, 8, 3))), st, st * 0.1, st * 0.05)\n")
     skip_unless_given_the_wide_name(built_from_source(script, tmp_path))
     code = {path: subprocess.run(["objdump", "-d", str(path)], capture_output=True, text=True, check=True).stdout
             for path in tmp_path.glob("pocl/kcache/**/*.so")}  # kcache/../<kernel>/<launch shape>/<kernel>.so
@@ -193,16 +196,16 @@ def test_the_wide_name_changes_the_speed_not_the_image(opencl_platform, tmp_path
     dgauss) is bit for bit the same built for ``WIDE_AMD_CPU`` as for x86-64-v4, where this CPU is
     given the former (each build from source, in a process of its own)."""
     script = (
-        "import sys\nimport numpy as np\nfrom realistic.camera import pocl_cpu\n"
+        "import sys\nimport numpy as np\nfrom realistic.device import pocl_cpu\n"
         "wanted = sys.argv[1]\n"
         "if wanted != 'default':\n"
         "    pocl_cpu.cpu_name = lambda fields: wanted\n"
         "from test_shade_kernel import busy_scene\n"
         "from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
-        "from realistic.camera.opencl_host import context\n"
+        "from realistic.device.opencl import Device\n"
         "from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM\n"
         "from realistic.renderer.job import RenderJob\nfrom realistic.renderer.passes import render\n"
-        "print('given', pocl_cpu.given_name(context().devices[0]))\n"
+        "print('given', pocl_cpu.given_name(Device.for_spec().devices[0]))\n"
         "scene, eye, target = busy_scene()\n"
         "camera = LensCamera.looking_at(load_lens('dgauss'), eye, target, None, FULL_FRAME_DIAGONAL_MM, 48, 32, 8)\n"
         "job = RenderJob(scene, (camera,), 'opencl', 3, light_samples=2, pass_samples=2048)\n"

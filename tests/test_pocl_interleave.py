@@ -1,4 +1,4 @@
-"""PoCL's work-item loops interleaved through LLVM's options (realistic.camera.pocl_interleave)."""
+"""PoCL's work-item loops interleaved through LLVM's options (realistic.device.pocl_interleave)."""
 
 import ctypes
 import ctypes.util
@@ -13,7 +13,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from conftest import built_from_source
-from realistic.camera import pocl_interleave
+from realistic.device import pocl_interleave
+from realistic.device.opencl import Device
 
 
 def mapped_base(library: Path) -> int:
@@ -45,7 +46,7 @@ def test_the_loaded_pocl_places_llvm_where_its_symbol_table_says(opencl_platform
     """PoCL's own LLVM options parser and interleave count: in its static symbol table (pip's PoCL)
     or exported; the exported anchor's symbol value agrees with where the library is mapped, and
     the count is back with the cost model (0) outside ``interleaved()``, ``INTERLEAVE`` inside."""
-    opencl_platform.context()
+    Device.for_spec()
     library = pocl_interleave.loaded_library("libpocl")
     if library is None or pocl_interleave._count is None:
         pytest.skip("the OpenCL platform is not a PoCL whose LLVM options can be set")
@@ -76,7 +77,7 @@ def test_any_file_gives_symbols_or_nothing(tmp_path_factory, data, cut):
 
 
 RENDER = (
-    "import sys\nimport numpy as np\nfrom realistic.camera import pocl_interleave\n"
+    "import sys\nimport numpy as np\nfrom realistic.device import pocl_interleave\n"
     "if sys.argv[1] == 'off':\n"
     "    pocl_interleave.interleave_work_items = lambda device: False\n"
     "from test_shade_kernel import busy_scene\n"
@@ -129,13 +130,13 @@ def test_interleaving_changes_the_code_not_the_image(opencl_platform, tmp_path):
 
 
 RAYS = (
-    "import sys\nimport numpy as np\nfrom realistic.camera import pocl_interleave\n"
+    "import sys\nimport numpy as np\nfrom realistic.device import pocl_interleave\n"
     "if sys.argv[1] == 'off':\n"
     "    pocl_interleave.interleave_work_items = lambda device: False\n"
     "from kernel_reference import aspherised_dgauss, camera_for_lens\n"
-    "from realistic.camera.base import SampleBlock\n"
+    "from realistic.camera.base import SampleBlock\nfrom realistic.renderer.backends import backend_for\n"
     "camera = camera_for_lens(aspherised_dgauss())\n"
-    "rays = camera.ray_generator('opencl', 5)(SampleBlock(0, camera.sample_count, camera.spp))\n"
+    "rays = backend_for('opencl').ray_generator(camera, 5)(SampleBlock(0, camera.sample_count, camera.spp))\n"
     "np.save(sys.argv[2], np.column_stack([rays.origin, rays.direction, rays.weight]))\n"
     "print('options', pocl_interleave.build_options(pocl_interleave.ASPHERIC_INTERLEAVE))\n")
 

@@ -20,6 +20,7 @@ from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
+from realistic.renderer.backends import backend_for
 from realistic.renderer.direct_lighting import DirectLighting
 from realistic.renderer.job import RenderJob
 from realistic.renderer.passes import ThreadPasses, render
@@ -60,7 +61,7 @@ def busy_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
 def rays_of(scene: Scene, eye: np.ndarray, target: np.ndarray, width: int = 40, height: int = 30, spp: int = 2):
     """A lens camera's camera rays (numpy reference) over the whole image: (origin, direction, pixel, sample)."""
     camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, width, height, spp)
-    rays = camera.ray_generator("numpy", SEED)(SampleBlock(0, camera.sample_count, spp))
+    rays = backend_for("numpy").ray_generator(camera, SEED)(SampleBlock(0, camera.sample_count, spp))
     alive = np.flatnonzero(rays.weight != 0)
     return (rays.origin[alive].astype(F32), rays.direction[alive].astype(F32), rays.pixel[alive],
             alive % spp, camera.pixel_spread_radians())

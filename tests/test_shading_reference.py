@@ -23,6 +23,7 @@ from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.transforms import rotate, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
+from realistic.renderer.backends import backend_for
 from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting
 from realistic.renderer.job import RenderJob
 from realistic.renderer.passes import ThreadPasses, render
@@ -189,7 +190,7 @@ def case(request):
     """(name, scene, camera, backend, rays, live rows, reference radiance of the live rays, reference image)."""
     name, backend = request.param
     scene, camera = camera_for(name)
-    rays = camera.ray_generator(backend, SEED)(SampleBlock(0, camera.sample_count, camera.spp))
+    rays = backend_for(backend).ray_generator(camera, SEED)(SampleBlock(0, camera.sample_count, camera.spp))
     assert rays.wavelength_nm is None  # an RGB render: the reference has no spectral path
     alive = np.flatnonzero(rays.weight != 0)
     origin, direction = rays.origin[alive].astype(F32), rays.direction[alive].astype(F32)

@@ -17,7 +17,7 @@ refined film distance exactly, so callers build their camera as for any ``--focu
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
@@ -26,24 +26,42 @@ from realistic.core.transforms import transform_points, transform_vectors
 from realistic.errors import UserError
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus, focus_distance_for_film
-from realistic.optics.sampling import rear_element_sampler
+from realistic.optics.sampling import ExitPupilTable, rear_element_sampler
 from realistic.optics.tracer import trace_from_film
-
-if TYPE_CHECKING:
-    from realistic.camera.lens_camera import LensCamera
 
 BUNDLE = 4096
 GOLDEN = (math.sqrt(5) - 1) / 2
 
 
-def _pixel_film_point(camera: LensCamera, x: float, y: float) -> np.ndarray:
+class FocusableCamera(Protocol):
+    """What autofocus reads of a camera (``camera.lens_camera.LensCamera`` has it all; that module
+    calls this one, so this one names only the attributes it needs)."""
+
+    lens: LensSystem
+    film_distance_mm: float
+    width: int
+    height: int
+
+    @property
+    def pupil(self) -> ExitPupilTable:
+        """The exit-pupil table at this focus."""
+
+    @property
+    def world_from_lens(self) -> np.ndarray:
+        """(4, 4) from the lens frame to world units."""
+
+    def film_points(self, pixel: np.ndarray, u_x: np.ndarray, u_y: np.ndarray) -> np.ndarray:
+        """Film points (N, 2) in mm for pixels and raster offsets from their corner."""
+
+
+def _pixel_film_point(camera: FocusableCamera, x: float, y: float) -> np.ndarray:
     if not (0 <= x < camera.width and 0 <= y < camera.height):
         raise UserError(f"focus pixel ({x:g}, {y:g}) is outside the {camera.width}x{camera.height} image")
     pixel = np.array([int(y) * camera.width + int(x)])
     return camera.film_points(pixel, np.array([x % 1 or 0.5]), np.array([y % 1 or 0.5]))[0]
 
 
-def _chief_ray(camera: LensCamera, film_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _chief_ray(camera: FocusableCamera, film_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Origin and direction (lens frame) of the ray through the middle of the pixel's pupil."""
     rng = np.random.default_rng(0)
     u = np.concatenate([[0.5], rng.random(BUNDLE)])
@@ -60,7 +78,7 @@ def _chief_ray(camera: LensCamera, film_xy: np.ndarray) -> tuple[np.ndarray, np.
     return traced.origin[traced.passed].mean(axis=0), direction / np.linalg.norm(direction)
 
 
-def _depth_mm(camera: LensCamera, origin: np.ndarray, direction: np.ndarray, hit_distance: HitDistance) -> float:
+def _depth_mm(camera: FocusableCamera, origin: np.ndarray, direction: np.ndarray, hit_distance: HitDistance) -> float:
     to_world = camera.world_from_lens
     world_origin = transform_points(to_world, origin)
     world_direction = transform_vectors(to_world, direction)
@@ -87,7 +105,7 @@ def bundle_spread_mm(lens: LensSystem, film_distance_mm: float, film_xy: np.ndar
     return float(np.sqrt(np.mean(np.sum((at - at.mean(axis=0)) ** 2, axis=1))))
 
 
-def autofocus_distance_mm(camera: LensCamera, x: float, y: float, hit_distance: HitDistance) -> float:
+def autofocus_distance_mm(camera: FocusableCamera, x: float, y: float, hit_distance: HitDistance) -> float:
     """Focus distance (mm from the film) at which the point seen at raster (x, y) is sharpest."""
     film_xy = _pixel_film_point(camera, x, y)
     depth = _depth_mm(camera, *_chief_ray(camera, film_xy), hit_distance)

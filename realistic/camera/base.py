@@ -3,8 +3,9 @@
 A render is the set of (pixel, sample) pairs, pixels in raster order (x fastest), samples 0 .. spp - 1
 of each. A ``SampleBlock`` names a batch of them: a run of pixels times a slice of each pixel's
 samples, so a render can be cut into passes of bounded size that each cover the frame evenly. A
-camera turns a block into a ``RayBatch`` of world-space rays; ``ray_generator`` binds the backend
-(OpenCL kernel or numpy reference) and the seed once, so the renderer calls every camera the same way.
+camera turns a block into a ``RayBatch`` of world-space rays (``generate_rays``, the numpy
+reference); a render backend (``realistic.renderer.backends``) binds the OpenCL kernel or the
+reference and the seed once (a ``RayGenerator``), so the renderer calls every camera the same way.
 """
 
 from __future__ import annotations
@@ -117,10 +118,7 @@ class Camera(Protocol):
 
     def prepare(self) -> None:
         """Build ahead what ray generation needs (a lens camera's exit-pupil table), so that a
-        render can time it as a stage of its own; ``ray_generator`` builds it otherwise."""
-
-    def ray_generator(self, backend: str = "opencl", seed: int = 0, cl_device: str | None = None) -> RayGenerator:
-        """The rays of any ``SampleBlock`` from ``backend`` (see ``BACKENDS``) with ``seed``."""
+        render can time it as a stage of its own; ray generation builds it otherwise."""
 
     def metadata(self) -> Metadata:
         """What an image header should say about this camera (lens, stop, focus, film...)."""

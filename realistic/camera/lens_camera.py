@@ -1,7 +1,8 @@
 """The realistic camera: a real lens between the film and the scene, traced surface by surface.
 
 ``LensCamera.generate_rays`` is the float64 numpy reference of the OpenCL kernel's ray generation
-(``realistic.camera.opencl_host``): same random numbers (``realistic.core.rng``), same film
+(``realistic.camera.opencl_host``, reached through a render backend: ``realistic.renderer.backends``):
+same random numbers (``realistic.core.rng``), same film
 mapping, same samplers, same tracing rules.
 
 Film mapping (lens frame, film at z = 0): the film is the resolution's aspect ratio with the given
@@ -42,7 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from realistic.camera.autofocus import autofocus_distance_mm
-from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, SampleBlock, check_backend
+from realistic.camera.base import HitDistance, Metadata, RayBatch, SampleBlock
 from realistic.core import rng, validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm, pixel_pitch_mm
 from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
@@ -208,16 +209,6 @@ class LensCamera:
         length = np.linalg.norm(direction, axis=1, keepdims=True)
         direction = np.divide(direction, length, out=np.zeros_like(direction), where=length > 0)
         return RayBatch(origin, direction, weight, pixel, wavelength)
-
-    def ray_generator(self, backend: str = "opencl", seed: int = 0, cl_device: str | None = None) -> RayGenerator:
-        """The OpenCL kernel's rays (float32) or the numpy reference's (float64) for this camera."""
-        check_backend(backend)
-        if backend == "numpy":
-            return lambda block: self.generate_rays(block, seed)
-        from realistic.camera.opencl_host import LensKernel  # imports pyopencl, so only when chosen
-
-        kernel = LensKernel(self, cl_device)
-        return lambda block: kernel.generate(block, seed)
 
     def metadata(self) -> Metadata:
         lens = self.lens

@@ -1,120 +1,40 @@
-"""OpenCL host side of ray generation: the only module that imports pyopencl.
+"""OpenCL host of ray generation: ``kernels/lens.cl`` built for a ``LensCamera`` on a ``Device``.
 
-It picks a device without prompting, builds ``kernels/lens.cl`` once per process for each camera
-configuration (the lens surfaces, film geometry and sampler are compiled in as constants so PoCL
-vectorises the kernel), reuses its device buffers across launches and copies the rays back into
-numpy arrays.
-
-Device choice, first match wins: the ``device`` argument (``--cl-device``), then the
-``PYOPENCL_CTX`` environment variable, both either ``P`` / ``P:D`` (platform and device indices,
-as pyopencl reads ``PYOPENCL_CTX``) or a case-insensitive part of the platform or device name;
-otherwise the first PoCL device, otherwise the first device found.
+The lens surfaces, film geometry's constants and sampler are compiled in as constants (so PoCL
+vectorises the kernel); the focus and a round stop's diameter are the ``settings`` argument. A
+``LensKernel`` keeps its device buffers across launches and copies the rays back into numpy arrays.
+The device, its context and the program cache are ``realistic.device.opencl``'s.
 """
 
 from __future__ import annotations
 
-import atexit
-import os
 import threading
-from functools import cache, lru_cache
 
 import numpy as np
 
-from realistic.camera import pocl_cpu, pocl_interleave
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
-from realistic.core import affinity, disk_cache
-from realistic.core.data_files import data_file
 from realistic.core.pixel_filter import TABLE_BINS
 from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
-from realistic.errors import UserError
+from realistic.device import pocl_interleave
+from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.tables import Table
 from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
 from realistic.optics.sampling import rear_element_sampler
 
-try:
-    import pyopencl as cl
-except ImportError:  # reported as a UserError when a context is asked for
-    cl = None
-
-NO_PLATFORM = ('no OpenCL platform found: install one with pip install "pyopencl[pocl]" '
-               "(PoCL, OpenCL on the CPU), or use --backend numpy to run the numpy reference")
 KERNEL_FILE = "lens.cl"
-#: Work-group size; launches are padded to a multiple of it so every group runs the same code.
-LOCAL_SIZE = 256
 #: Output rows of ``generate_rays``: origin xyz, direction xyz, weight (and wavelength when spectral).
 #: A spectral camera's launch has one work item per ray: ``rays_per_sample`` per sample.
 ROWS = 7
-
-
-def kernel_source(name: str) -> str:
-    """The text of ``kernels/<name>`` (in a checkout, else where a wheel installs it:
-    ``<prefix>/share/realistic``) with its ``#include "common.cl"`` line replaced by that file.
-
-    The host expands the include rather than the OpenCL compiler, so the program source (the binary
-    cache's key) holds all of it and a change to ``common.cl`` rebuilds every kernel that uses it.
-    """
-    text = data_file(f"kernels/{name}").read_text(encoding="utf-8")
-    lines = [data_file("kernels/common.cl").read_text(encoding="utf-8") if line.startswith('#include "common.cl"')
-             else line for line in text.splitlines(keepends=True)]
-    return "".join(lines)
-
-
-def _all_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
-    if cl is None:
-        raise UserError(NO_PLATFORM)
-    # listing PoCL's devices starts its thread pool: remembered, so a render can spread it over the CPUs
-    found = affinity.record_runtime_threads(_list_devices)
-    if not found:
-        raise UserError(NO_PLATFORM)
-    return found
-
-
-def _list_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
-    try:
-        platforms = cl.get_platforms()
-    except cl.Error:  # PLATFORM_NOT_FOUND_KHR when the ICD loader finds nothing
-        platforms = []
-    return [(p, d, platform, device) for p, platform in enumerate(platforms)
-            for d, device in enumerate(platform.get_devices())]
-
-
-def _match(spec: str, found: list, origin: str):
-    """The device named by ``spec`` (``P``, ``P:D`` or part of a name)."""
-    parts = spec.split(":")
-    if all(part.strip().isdigit() for part in parts) and len(parts) <= 2:
-        p = int(parts[0])
-        d = int(parts[1]) if len(parts) == 2 else 0
-        hits = [entry for entry in found if entry[0] == p and entry[1] == d]
-    else:
-        needle = spec.lower()
-        hits = [entry for entry in found
-                if needle in entry[2].name.lower() or needle in entry[3].name.lower()]
-    if not hits:
-        listing = "; ".join(f"{p}:{d} {platform.name} / {device.name.strip()}" for p, d, platform, device in found)
-        raise UserError(f"no OpenCL device matches {origin} {spec!r} (available: {listing})")
-    return hits[0][3]
-
-
-@cache  # one context per device asked for: lives as long as the process
-def _context_for(spec: str | None, origin: str) -> cl.Context:
-    found = _all_devices()
-    if spec:
-        device = _match(spec, found, origin)
-    else:
-        pocl = [entry for entry in found if pocl_cpu.is_pocl(entry[2].name)]
-        device = (pocl or found)[0][3]
-    pocl_cpu.name_unknown_cpu(device)  # before any build: PoCL 3.0 cannot build for a CPU LLVM 14 calls "generic"
-    pocl_interleave.interleave_work_items(device)  # before any build too
-    return cl.Context([device])
-
-
-def context(device: str | None = None) -> cl.Context:
-    """The OpenCL context for ``device`` (see the module docstring), created once per process."""
-    if device:
-        return _context_for(device, "--cl-device")
-    env = os.environ.get("PYOPENCL_CTX", "").strip()
-    return _context_for(env or None, "PYOPENCL_CTX")
+#: ``lens.cl``'s ``settings`` argument (float32), declared once for the kernel's SET_* offsets and
+#: ``setting_values``: the sampling plane's z (lens frame: film at z = 0, +z to the scene) and its
+#: square, the front vertex's z, the film's z relative to the rear vertex (-film distance), the
+#: sampling's three constants (pupil: PUPIL_INTERVALS / film radius, 0, 0; rear-element disk: 1 -
+#: t_far, clear radius * t_far, clear radius), a round stop's squared radius (mm^2); then, from
+#: SET_PUPIL, the exit-pupil boxes (x0, x1, y0, y1) per interval and their areas (mm^2).
+SETTINGS = Table("SET", np.float32, (("plane_z", 1), ("plane_z2", 1), ("front_vertex_z", 1), ("rear_w", 1),
+                                     ("sampling", 3), ("stop_r2", 1)), tail="pupil")
 
 
 def _c_float(value: float) -> str:
@@ -227,6 +147,7 @@ def camera_header(camera: LensCamera) -> str:
         else:
             calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
     lines = [
+        SETTINGS.defines().rstrip("\n"),
         f"#define SPECTRAL {int(camera.spectral)}",
         "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
         *_stop_lines(lens),
@@ -241,9 +162,7 @@ def camera_header(camera: LensCamera) -> str:
 
 
 def setting_values(camera: LensCamera) -> np.ndarray:
-    """``lens.cl``'s ``settings`` argument (float32, at its SET_* offsets): the sampling plane, its
-    square, the front vertex and the film's distance from the rear vertex, the sampling's constants,
-    a round stop's squared radius, and the exit-pupil boxes and areas. Each is rounded to float32
+    """``lens.cl``'s ``settings`` argument (``SETTINGS``, float32). Each value is rounded to float32
     before the products and quotients are taken in float32, as the compiler once folded them from
     literals."""
     f = np.float32
@@ -260,101 +179,10 @@ def setting_values(camera: LensCamera) -> np.ndarray:
         sampling = [f(1) - t_far, clear * t_far, clear]
         tables = []
     stop_r2 = f((float(lens.aperture_mm[lens.stop]) / 2) ** 2)
-    head = np.array([plane_z, plane_z * plane_z, f(vertex_z[0]), f(-camera.film_distance_mm), *sampling, stop_r2],
-                    np.float32)
+    head = SETTINGS.pack(1, plane_z=plane_z, plane_z2=plane_z * plane_z, front_vertex_z=f(vertex_z[0]),
+                         rear_w=f(-camera.film_distance_mm), sampling=np.array(sampling, np.float32),
+                         stop_r2=stop_r2)[0]
     return np.concatenate([head, *tables])  # float32 throughout
-
-
-def wrapped_buffer(ctx: cl.Context, array: np.ndarray, dtype) -> cl.Buffer:
-    """A read-only buffer over ``array`` as contiguous ``dtype``, not a copy (PoCL on the CPU reads
-    host memory; a USE_HOST_PTR buffer keeps its host array alive); an empty array is wrapped as four
-    zeros, since OpenCL has no empty buffers. The shading and EWA kernels' tables go through here."""
-    data = np.ascontiguousarray(array, dtype).ravel()
-    if data.size == 0:
-        data = np.zeros(4, dtype)
-    return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=data)
-
-
-#: Programs kept built, per context, source and options (lens programs: one per lens, sampling and
-#: filter; shading: one per scene variant; EWA: one): enough for a render, its autofocus and a bench's
-#: sample counts; older ones are dropped (the disk cache's binaries make rebuilding one about 5 ms).
-PROGRAM_CACHE_SIZE = 16
-
-
-@lru_cache(maxsize=PROGRAM_CACHE_SIZE)
-def build_program(ctx: cl.Context, source: str, name: str, options: tuple[str, ...] = ()) -> cl.Program:
-    """``source`` (``kernels/<name>``, expanded by ``kernel_source``, perhaps behind a generated
-    header) built for ``ctx`` with ``options``, once per process: the lens, shading and EWA kernels
-    all build here. A build error names the kernel file.
-
-    The built binaries are kept in the disk cache (``realistic.core.disk_cache``), keyed by the
-    device, its driver, the options and the source: PoCL caches its builds too, but a hit there
-    still runs the preprocessor over the OpenCL headers, 50-80 ms per program on this machine, where
-    loading a binary takes 5 ms; a render builds three. Asking PoCL for a program's binaries makes it
-    compile every kernel once more, for any work-group size (about 0.5 s a program), which pays only
-    for a program built again and again: so the first build leaves a mark, and the second stores the
-    binaries as the process exits (``store_built_binaries``), not before its render. (pyopencl's own
-    binary cache, which it leaves off for PoCL, is not used: it fails with a KeyError on an
-    unwritable folder and waits a minute on a lock file left by a killed process.)
-    """
-    key = disk_cache.cache_key("opencl-program", _device_identity(ctx), source.encode(), options)
-    stored = disk_cache.load_arrays(key)
-    try:
-        program = _from_binaries(ctx, stored, options)
-        if program is None:
-            program = cl.Program(ctx, source).build(options=list(options))
-            _remember(key, program, built_before=stored is not None)
-    except cl.RuntimeError as err:
-        raise RuntimeError(f"building {name} failed:\n{err}") from None
-    return program
-
-
-def _device_identity(ctx: cl.Context) -> tuple[str, ...]:
-    """What a binary built for ``ctx`` depends on besides its source: each device, its driver, and
-    the CPU name ``pocl_cpu`` gave it, if any (the code LLVM makes differs with the name)."""
-    return tuple(f"{d.platform.name} {d.platform.version} | {d.name} {d.version} {d.driver_version}"
-                 + ("" if (cpu := pocl_cpu.given_name(d)) is None else f" | cpu {cpu}") for d in ctx.devices)
-
-
-def _from_binaries(ctx: cl.Context, stored: dict[str, np.ndarray] | None, options: tuple[str, ...]
-                   ) -> cl.Program | None:
-    """The program from a cache entry's binaries, one per device, or None: no entry, a first
-    build's mark, or binaries the driver will not load (a cache entry is never an error)."""
-    names = [f"device{i}" for i in range(len(ctx.devices))]
-    if stored is None or sorted(stored) != names:
-        return None
-    try:
-        return cl.Program(ctx, ctx.devices, [stored[n].tobytes() for n in names]).build(options=list(options))
-    except cl.Error:
-        return None
-
-
-#: Programs built from source for the second time, whose binaries ``store_built_binaries`` stores.
-_unstored: list[tuple[str, cl.Program]] = []
-
-
-def _remember(key: str, program: cl.Program, built_before: bool) -> None:
-    """After a build from source: a mark the first time; from the second on, the binaries at exit."""
-    if not built_before:
-        disk_cache.store_arrays(key, {"built": np.zeros(1, np.uint8)})
-    else:
-        _unstored.append((key, program))
-
-
-@atexit.register  # after pyopencl's own exit handler is registered, so it runs first
-def store_built_binaries() -> None:
-    """Store the binaries of the programs ``build_program`` built from source a second time. Run as
-    the process exits, when the image is written: asking PoCL for binaries compiles every kernel
-    again (about 0.5 s a program). An interrupt or a driver's refusal leaves the rest unstored."""
-    try:
-        while _unstored:
-            key, program = _unstored.pop()
-            binaries = program.get_info(cl.program_info.BINARIES)
-            if all(binaries):
-                disk_cache.store_arrays(key, {f"device{i}": np.frombuffer(b, np.uint8)
-                                              for i, b in enumerate(binaries)})
-    except (KeyboardInterrupt, cl.Error):
-        _unstored.clear()
 
 
 #: PoCL 3.0 compiles a kernel apart for launches of fewer work items than this (its "smallgrid"
@@ -367,15 +195,20 @@ def store_built_binaries() -> None:
 SMALL_GRID_LIMIT = 65536
 
 
-def whole_groups(work_items: int) -> int:
-    """``work_items`` rounded up to whole work groups of ``LOCAL_SIZE``: the launch size of every
-    kernel here, and the row stride of the outputs laid out by it."""
-    return -(-work_items // LOCAL_SIZE) * LOCAL_SIZE
-
-
 def launch_size(work_items: int) -> int:
     """Work items to launch the lens kernel for ``work_items``: whole groups, at least ``SMALL_GRID_LIMIT``."""
     return max(SMALL_GRID_LIMIT, whole_groups(work_items))
+
+
+def _interleave(camera: LensCamera) -> int:
+    """The interleave count the camera's lens kernel is compiled with (``pocl_interleave``)."""
+    return pocl_interleave.ASPHERIC_INTERLEAVE if camera.lens.asphere_count else pocl_interleave.INTERLEAVE
+
+
+def lens_program(camera: LensCamera) -> tuple[str, str, tuple[str, ...]]:
+    """``Device.build_program``'s source, name and options for the camera's lens kernel."""
+    return (camera_header(camera) + kernel_source(KERNEL_FILE), KERNEL_FILE,
+            pocl_interleave.build_options(_interleave(camera)))
 
 
 class LensKernel:
@@ -385,19 +218,18 @@ class LensKernel:
     arguments are shared; PoCL spreads one launch over every core anyway).
     """
 
-    def __init__(self, camera: LensCamera, device: str | None = None):
-        self.camera = camera
-        self.context = context(device)
-        self.queue = cl.CommandQueue(self.context)
-        interleave = pocl_interleave.ASPHERIC_INTERLEAVE if camera.lens.asphere_count else pocl_interleave.INTERLEAVE
-        self.program = build_program(self.context, camera_header(camera) + kernel_source(KERNEL_FILE), KERNEL_FILE,
-                                     pocl_interleave.build_options(interleave))
+    def __init__(self, camera: LensCamera, device: Device | None = None):
+        """``device``: where to build and launch (None: ``Device.for_spec()``, the default device)."""
+        device = device or Device.for_spec()
+        self.camera, self.device = camera, device
+        self.context = device.context
+        self.queue = device.queue()
+        interleave = _interleave(camera)
+        self.program = device.build_program(*lens_program(camera))
         self._generate = cl.Kernel(self.program, "generate_rays")
         self._bits = cl.Kernel(self.program, "sample_bits")
-        world = np.ascontiguousarray(camera.world_from_lens[:3, :4], dtype=np.float32)
-        mf = cl.mem_flags
-        self._world = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=world)
-        self._settings = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=setting_values(camera))
+        self._world = device.copied_buffer(camera.world_from_lens[:3, :4], np.float32)
+        self._settings = device.copied_buffer(setting_values(camera), np.float32)
         w_mm, h_mm = camera.film_size_mm
         # the values the compiler folded when they were literals: 1.0f / WIDTH rounds as float32 does
         self._film = (np.uint32(camera.width), np.float64(1) / np.float64(camera.width),

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from realistic.camera.base import SampleBlock
+from realistic.camera.base import RayGenerator, SampleBlock, check_backend
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import validation
 from realistic.errors import UserError
@@ -60,6 +60,18 @@ def _sphere_hits(origin: np.ndarray, direction: np.ndarray, centre: np.ndarray, 
     return (along > 0) & (np.sum(across * across, axis=1) <= radius * radius)
 
 
+def _ray_generator(camera: LensCamera, backend: str, seed: int) -> RayGenerator:
+    """``backend``'s rays of ``camera``: ``lens.cl``'s on the default device, or the numpy reference's."""
+    check_backend(backend)
+    if backend == "numpy":
+        return lambda block: camera.generate_rays(block, seed)
+    from realistic.camera.opencl_host import LensKernel  # imports pyopencl: only when chosen
+    from realistic.device.opencl import Device
+
+    kernel = LensKernel(camera, Device.for_spec())
+    return lambda block: kernel.generate(block, seed)
+
+
 def point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focus_mm: float | None = None,
                  pixel_mm: float = 0.002, size: int = 64, spp: int = 256, source_radius_mm: float | None = None,
                  seed: int = 0, backend: str = "numpy") -> PointSpread:
@@ -96,7 +108,7 @@ def point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focu
     # Raster position of the landing point (inverse of LensCamera.film_points), then the window's corner.
     x0 = int(round(half_w - landing[0] / pixel_mm - size / 2))
     y0 = int(round(half_h + landing[1] / pixel_mm - size / 2))
-    generate = camera.ray_generator(backend, seed)
+    generate = _ray_generator(camera, backend, seed)
     image = np.zeros((size, size))
     for row in range(size):
         batch = generate(SampleBlock.of_pixels((y0 + row) * width + x0, size, 0, spp))

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from realistic.camera.base import HitDistance, Metadata, RayBatch, RayGenerator, SampleBlock, check_backend
+from realistic.camera.base import HitDistance, Metadata, RayBatch, SampleBlock
 from realistic.core import rng, validation
 from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
 from realistic.core.transforms import transform_points, transform_vectors
@@ -86,11 +86,6 @@ class ThinLensCamera:
         world_direction = transform_vectors(self.world_from_camera, direction)
         world_direction /= np.linalg.norm(world_direction, axis=1, keepdims=True)
         return RayBatch(transform_points(self.world_from_camera, origin), world_direction, weight, pixel)
-
-    def ray_generator(self, backend: str = "opencl", seed: int = 0, cl_device: str | None = None) -> RayGenerator:
-        """numpy rays whatever the backend (there is no lens for a kernel to trace)."""
-        check_backend(backend)
-        return lambda block: self.generate_rays(block, seed)
 
     def prepare(self) -> None:
         """Nothing to build ahead: a thin lens samples its aperture disk directly."""

@@ -14,6 +14,8 @@
 - ``sweep``: ``--sweep`` sequences: one camera per frame.
 - ``integrators``: which integrator a scene asks for (``make_integrator``).
 - ``direct_lighting``: direct lighting in numpy (area lights, shadow rays, Lambertian surfaces): the fast path.
+- ``backends``: the backend object (numpy, or ``opencl_backend``: the kernels on one ``Device``) that
+  the options' ``backend`` and ``cl_device`` strings name, once per process.
 - ``shade_kernel``: the fast path's shading as an OpenCL kernel (``kernels/shade.cl``), backend "opencl".
 - ``path``: MIS direct lighting and path tracing over any BSDF and light, one embree batch per bounce.
 - ``light_sampler``: every light picked by power, sampled, with densities for MIS.

@@ -32,6 +32,7 @@ bit for bit (``tests/test_shade_kernel.py``).
 from __future__ import annotations
 
 from contextlib import nullcontext
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -39,11 +40,16 @@ from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, spectral_value
 from realistic.core.vectors import dot, normalise
 from realistic.renderer.area_lights import AreaLightTable
+from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import ImageTexture, Scene
 from realistic.scene.textures import albedo
+
+if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
+    from realistic.renderer.opencl_backend import OpenCLBackend
+    from realistic.renderer.shade_kernel import ShadeKernel
 
 SHADOW_OFFSET = 1e-4  # relative to the hit point's magnitude (float32 precision of embree)
 
@@ -64,23 +70,25 @@ class DirectLighting:
     """Radiance arriving along camera rays, with direct illumination from the scene's area lights."""
 
     def __init__(self, scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
-                 pixel_spread_radians: float = 0.0, *, backend: str = "numpy", cl_device: str | None = None):
+                 pixel_spread_radians: float = 0.0, *, backend: Backend | str = "numpy"):
         """``pixel_spread_radians``: the camera's (``Camera.pixel_spread_radians``); 0 point-samples
-        image textures (bilinear on their finest level). ``backend`` "opencl" shades RGB rays with
-        ``kernels/shade.cl`` on the OpenCL device ``cl_device`` (``renderer.shade_kernel``); "numpy"
-        with the numpy code here, the reference."""
+        image textures (bilinear on their finest level). An "opencl" ``backend`` (a
+        ``renderer.backends`` object, or its name for the default device) shades RGB rays with
+        ``kernels/shade.cl`` on its device (``renderer.shade_kernel``); "numpy" with the numpy code
+        here, the reference."""
         if light_samples < 1:
             raise ValueError("light_samples must be at least 1")
         self.intersector, self.light_samples, self.seed = intersector, light_samples, seed
         self.pixel_spread_radians = pixel_spread_radians
-        self.backend = backend  # also runs EWA texture lookups on the device (``scene.ewa_kernel``)
+        # also runs EWA texture lookups (``scene.ewa_kernel``)
+        self.backend = backend_for(backend) if isinstance(backend, str) else backend
         self.background = np.asarray(scene.background, dtype=np.float32)
         self.instance_count = len(scene.instances)
         self._build_surfaces(scene)
         self._build_lights(scene)
         self._kernel = None
-        if backend == "opencl" and len(self._lights) and self._light_cdf[-1] > 0:
-            self._kernel = self._build_kernel(cl_device)
+        if self.backend.name == "opencl" and len(self._lights) and self._light_cdf[-1] > 0:
+            self._kernel = self._build_kernel()
 
     def _build_surfaces(self, scene: Scene) -> None:
         """Per-mesh data concatenated once, and per-instance (geometry id) lookups into it."""
@@ -118,48 +126,52 @@ class DirectLighting:
         self._light_probability = power / power.sum() if power.sum() > 0 else power
         self._light_cdf = np.cumsum(self._light_probability)
 
-    def _build_kernel(self, cl_device: str | None):
-        """The scene's tables on the OpenCL device (imports pyopencl only here); None (the numpy
-        path) for more area lights than the kernel's light search reaches."""
-        from realistic.renderer.shade_kernel import LIGHT_FLOATS, MAX_LIGHTS, ShadeKernel
+    def _build_kernel(self) -> ShadeKernel | None:
+        """The scene's tables on the backend's OpenCL device (imports pyopencl only here); None (the
+        numpy path) for more area lights than the kernel's light search reaches."""
+        from realistic.renderer.opencl_backend import OpenCLBackend
+        from realistic.renderer.shade_kernel import LIGHTS, MAX_LIGHTS
+
+        backend = self.backend
+        if not isinstance(backend, OpenCLBackend):
+            raise TypeError(f"the shading kernel runs on an OpenCL backend, not {backend!r}")
 
         if len(self._lights) > MAX_LIGHTS:
             return None
 
-        rows = np.zeros((len(self._lights), LIGHT_FLOATS), np.float32)
-        rows[:, 0:3], rows[:, 3:6], rows[:, 6:9] = self._lights.centre, self._lights.a, self._lights.b
-        rows[:, 9:12], rows[:, 12:15] = self._lights.normal, self._lights.radiance
         with np.errstate(divide="ignore"):
-            rows[:, 15] = self._lights.area / self._light_probability / np.pi
-        rows[:, 16], rows[:, 17] = self._lights.disk, self._lights.two_sided
-        kernel = ShadeKernel(faces=self._faces, normals=self._normals, uv=self._uv,
-                             geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
-                             geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
-                             materials=self._materials, light_rows=rows, light_cdf=self._light_cdf,
-                             extent=self.intersector.extent, device=cl_device, launch_samples=self.light_samples)
-        self._build_device_textures(kernel.host_albedo)
+            light_scale = self._lights.area / self._light_probability / np.pi
+        lights = self._lights
+        rows = LIGHTS.pack(len(lights), centre=lights.centre, a=lights.a, b=lights.b, normal=lights.normal,
+                           radiance=lights.radiance, scale=light_scale, disk=lights.disk, two_sided=lights.two_sided)
+        kernel = backend.shade_kernel(faces=self._faces, normals=self._normals, uv=self._uv,
+                                      geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
+                                      geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
+                                      materials=self._materials, light_rows=rows, light_cdf=self._light_cdf,
+                                      extent=self.intersector.extent, launch_samples=self.light_samples)
+        self._build_device_textures(backend, kernel.host_albedo)
         return kernel
 
-    def _build_device_textures(self, host_albedo: np.ndarray) -> None:
+    def _build_device_textures(self, backend: OpenCLBackend, host_albedo: np.ndarray) -> None:
         """EWA image textures filtered over pixel footprints: their albedo is computed from the hit
         records on the device (``EwaKernel.at_hits``), the rest of the host's materials in numpy."""
         self._device_textures = []
         self._numpy_albedo = host_albedo.copy()  # materials left to ``_albedo``
         if self.pixel_spread_radians <= 0:
             return
-        from realistic.scene.ewa_kernel import SurfaceTables, hit_mapping
+        from realistic.scene.ewa_kernel import hit_mapping
 
         for index, material in enumerate(self._materials):
             texture = material.texture
             if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter == "ewa":
-                ewa = texture.mipmap.device_ewa
+                ewa = backend.ewa_kernel(texture.mipmap)
                 self._device_textures.append((index, ewa, hit_mapping(texture, material.diffuse,
                                                                       self.pixel_spread_radians)))
                 self._numpy_albedo[index] = False
         if self._device_textures:
-            self._surface_tables = SurfaceTables(self._device_textures[0][1].context, self._faces, self._vertices,
-                                                 self._uv, self._geom_face_offset, self._geom_material,
-                                                 self._geom_linear.reshape(-1, 9))
+            self._surface_tables = backend.surface_tables(self._faces, self._vertices, self._uv,
+                                                          self._geom_face_offset, self._geom_material,
+                                                          self._geom_linear.reshape(-1, 9))
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
@@ -236,7 +248,7 @@ class DirectLighting:
                          hits, timed) -> tuple[np.ndarray, int]:
         """``radiance`` of RGB rays through ``kernels/shade.cl``: the kernel shades every surface hit
         and writes all light samples' shadow rays, embree traces them in one call, numpy sums."""
-        from realistic.camera.opencl_host import whole_groups
+        from realistic.device.opencl import whole_groups
         from realistic.renderer.shade_kernel import MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS
 
         n = len(origin)
@@ -339,7 +351,7 @@ class DirectLighting:
             footprint = None
             if isinstance(material.texture, ImageTexture) and self.pixel_spread_radians > 0:
                 footprint = self._footprint(face[rows], geom[rows], direction[rows], normal[rows], distance[rows])
-            rho[rows] = albedo(material, uv, len(rows), footprint, self.backend)
+            rho[rows] = albedo(material, uv, len(rows), footprint, self.backend.ewa)
         return rho
 
     def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from realistic.renderer.backends import Backend
 from realistic.renderer.bsdf import Lambertian, bsdf_for
 from realistic.renderer.direct_lighting import DirectLighting
 from realistic.renderer.path import PathIntegrator
@@ -36,15 +37,14 @@ def is_lambertian(scene: Scene) -> bool:
 
 
 def make_integrator(scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
-                    pixel_spread_radians: float = 0.0, *, backend: str = "numpy",
-                    cl_device: str | None = None) -> DirectLighting:
-    """The integrator ``scene.integrator`` names, at ``scene.max_depth``. ``backend`` "opencl" lets
-    ``DirectLighting`` shade with its OpenCL kernel on ``cl_device``; ``PathIntegrator`` is numpy only."""
+                    pixel_spread_radians: float = 0.0, *, backend: Backend | str = "numpy") -> DirectLighting:
+    """The integrator ``scene.integrator`` names, at ``scene.max_depth``. An "opencl" ``backend``
+    (``renderer.backends``, or its name) lets ``DirectLighting`` shade with its OpenCL kernel;
+    ``PathIntegrator`` is numpy only."""
     if scene.integrator not in INTEGRATORS:
         raise ValueError(f"unknown integrator {scene.integrator!r} (choose {', '.join(INTEGRATORS)})")
     if scene.integrator == "directlighting" and all(isinstance(light, AreaLight) for light in scene.lights) \
             and is_lambertian(scene):
-        return DirectLighting(scene, intersector, light_samples, seed, pixel_spread_radians, backend=backend,
-                              cl_device=cl_device)
+        return DirectLighting(scene, intersector, light_samples, seed, pixel_spread_radians, backend=backend)
     mode = "direct" if scene.integrator == "directlighting" else "path"
     return PathIntegrator(scene, intersector, light_samples, seed, pixel_spread_radians, scene.max_depth, mode)

@@ -11,6 +11,7 @@ import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core.spectrum import rgb_response
+from realistic.renderer.backends import backend_for
 from realistic.renderer.film import pass_sums
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.job import PassResult, PassSettings
@@ -49,10 +50,10 @@ class PassRunner:
     def __init__(self, scene: Scene, camera: Camera, settings: PassSettings, clock: StageClock,
                  intersector: Intersector | None = None):
         self.camera, self.morton, self.clock = camera, settings.morton, clock
-        self.generate = camera.ray_generator(settings.backend, settings.seed, settings.cl_device)
+        kernels = backend_for(settings.backend, settings.cl_device)  # this process's, made once: jobs carry strings
+        self.generate = kernels.ray_generator(camera, settings.seed)
         self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
-                                          settings.seed, camera.pixel_spread_radians(), backend=settings.backend,
-                                          cl_device=settings.cl_device)
+                                          settings.seed, camera.pixel_spread_radians(), backend=kernels)
 
     def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
         """The results of passes given as (plan index, sample block)."""

@@ -28,14 +28,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from realistic.camera import opencl_host
+from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.tables import Table, constant_defines
+from realistic.scene.model import CheckerTexture, GridTexture, Material
 
 KERNEL_FILE = "shade.cl"
-#: Work-group size along the rays; launches are padded to a multiple of it.
-LOCAL_SIZE = opencl_host.LOCAL_SIZE
-#: Table row widths, as ``kernels/shade.cl`` defines them.
-GEOM_INTS, GEOM_FLOATS, MATERIAL_FLOATS, LIGHT_FLOATS = 4, 9, 16, 20
-KIND_CONSTANT, KIND_GRID, KIND_CHECKER, KIND_HOST = range(4)
+#: The tables ``kernels/shade.cl`` reads, declared once: their ``#define``s head the kernel source.
+#: Per instance (embree geometry id): its first face, material index and smooth flag (0 or 1).
+GEOM_INTS = Table("GEOM_INT", np.int32, (("face_offset", 1), ("material", 1), ("smooth", 1), ("unused", 1)))
+#: Per instance: the normal matrix (inverse transpose of the linear map), row major.
+GEOM_FLOATS = Table("GEOM_FLOAT", np.float32, (("normal_matrix", 9),))
+#: Per material: its kind (``KINDS``), diffuse colour, and a grid's or checker's cells, line bounds
+#: (low, high: line_width / 2 and 1 - line_width / 2) and colours (a: line or even, b: base or odd).
+MATERIALS = Table("MATERIAL", np.float32, (("kind", 1), ("diffuse", 3), ("cells", 1), ("low", 1), ("high", 1),
+                                           ("colour_a", 3), ("colour_b", 3), ("unused", 3)))
+#: Per area light: centre and half-axes a, b (a point is centre + a x + b y), normal, radiance, the
+#: contribution's scale (area / probability / pi), whether a disk, whether two-sided (0 or 1).
+LIGHTS = Table("LIGHT", np.float32, (("centre", 3), ("a", 3), ("b", 3), ("normal", 3), ("radiance", 3),
+                                     ("scale", 1), ("disk", 1), ("two_sided", 1), ("unused", 2)))
+#: Material kinds: constant colour, grid and checker textures (in the kernel), host albedo.
+KINDS = ("constant", "grid", "checker", "host")
+KIND_CONSTANT, KIND_GRID, KIND_CHECKER, KIND_HOST = range(len(KINDS))
+#: The generated head of ``shade.cl``'s source: every table's defines and the kinds.
+HEADER = "".join(table.defines() for table in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS)) + \
+    constant_defines("KIND", KINDS)
 #: The kernel's light search is written out for at most this many lights.
 MAX_LIGHTS = 65535
 #: Shadow rays per launch (and per embree call) at most: a pass's light samples go in groups of
@@ -56,27 +72,21 @@ def rounded_up_cdf(cdf: np.ndarray) -> np.ndarray:
     return c32
 
 
-def material_row(material) -> np.ndarray:
-    """A material's MATERIAL_FLOATS row (see ``kernels/shade.cl``)."""
-    from realistic.scene.model import CheckerTexture, GridTexture
-
-    row = np.zeros(MATERIAL_FLOATS, np.float32)
-    row[1:4] = np.asarray(material.diffuse, np.float32)
+def material_row(material: Material) -> np.ndarray:
+    """A material's ``MATERIALS`` row."""
+    diffuse = np.asarray(material.diffuse, np.float32)
     texture = material.texture
     if texture is None:
-        row[0] = KIND_CONSTANT
-    elif isinstance(texture, GridTexture):
+        return MATERIALS.pack(1, kind=KIND_CONSTANT, diffuse=diffuse)[0]
+    if isinstance(texture, GridTexture):
         half = texture.line_width / 2
-        row[0] = KIND_GRID
-        row[4:7] = (texture.cells, half, 1 - half)  # float32, as numpy compares float32 uvs with them
-        row[7:10], row[10:13] = texture.line, texture.base
-    elif isinstance(texture, CheckerTexture):
-        row[0] = KIND_CHECKER
-        row[4] = texture.cells
-        row[7:10], row[10:13] = texture.even, texture.odd
-    else:
-        row[0] = KIND_HOST
-    return row
+        # float32, as numpy compares float32 uvs with them
+        return MATERIALS.pack(1, kind=KIND_GRID, diffuse=diffuse, cells=texture.cells, low=half, high=1 - half,
+                              colour_a=texture.line, colour_b=texture.base)[0]
+    if isinstance(texture, CheckerTexture):
+        return MATERIALS.pack(1, kind=KIND_CHECKER, diffuse=diffuse, cells=texture.cells, colour_a=texture.even,
+                              colour_b=texture.odd)[0]
+    return MATERIALS.pack(1, kind=KIND_HOST, diffuse=diffuse)[0]
 
 
 @dataclass
@@ -94,26 +104,23 @@ class ShadowBatch:
 class _ThreadState:
     """A thread's queue, kernel object and reusable output arrays (with their buffers)."""
 
-    def __init__(self, context):
-        cl = opencl_host.cl
-        self.queue = cl.CommandQueue(context)
-        self.shade: dict[int, object] = {}  # light samples per launch -> that program's kernel object
+    def __init__(self, device: Device):
+        self.queue = device.queue()
+        self.shade: dict[int, cl.Kernel] = {}  # light samples per launch -> that program's kernel object
         self.rows = 0
         self.arrays: dict[str, np.ndarray] = {}
-        self.buffers: dict = {}
+        self.buffers: dict[str, cl.Buffer] = {}
 
-    def outputs(self, context, rows: int) -> None:
+    def outputs(self, device: Device, rows: int) -> None:
         """Output arrays of at least ``rows`` rows (an eighth more, so passes of varying size settle
         on one allocation)."""
         if rows <= self.rows:
             return
-        cl = opencl_host.cl
         rows += rows // 8
-        flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
         for name, width in (("origin", 3), ("vector", 3), ("length", 1), ("contribution", 3)):
             array = np.empty(rows * width, np.float32)
             self.arrays[name] = array
-            self.buffers[name] = cl.Buffer(context, flags, hostbuf=array)
+            self.buffers[name] = device.host_buffer(array, cl.mem_flags.WRITE_ONLY)
         self.rows = rows
 
 
@@ -122,32 +129,35 @@ class ShadeKernel:
 
     def __init__(self, *, faces: np.ndarray, normals: np.ndarray, uv: np.ndarray, geom_face_offset: np.ndarray,
                  geom_material: np.ndarray, geom_smooth: np.ndarray, geom_normal_matrix: np.ndarray,
-                 materials: list, light_rows: np.ndarray, light_cdf: np.ndarray, extent: float,
-                 device: str | None = None, launch_samples: int = 1):
+                 materials: list[Material], light_rows: np.ndarray, light_cdf: np.ndarray, extent: float,
+                 device: Device, launch_samples: int = 1):
         """``launch_samples``: the light samples per launch a render will ask for (at most
         ``MAX_LAUNCH_SAMPLES``), whose program is built here rather than in its first pass (others
         are built on first use)."""
-        self.context = opencl_host.context(device)  # a UserError when there is no OpenCL platform
+        self.device = device
+        self.context = device.context
         if not 0 < len(light_cdf) <= MAX_LIGHTS:
             raise ValueError(f"the shading kernel handles 1 to {MAX_LIGHTS} area lights, not {len(light_cdf)}")
         self.instance_count = len(geom_face_offset)
         self.light_count = len(light_cdf)
         self.offset_base = np.float32(1e-2 * extent)  # numpy adds the float64 1e-2 extent to float32 as float32
-        geom_ints = np.zeros((max(self.instance_count, 1), GEOM_INTS), np.int32)
-        geom_ints[:self.instance_count, 0] = geom_face_offset
-        geom_ints[:self.instance_count, 1] = geom_material
-        geom_ints[:self.instance_count, 2] = geom_smooth
-        geom_floats = np.zeros((max(self.instance_count, 1), GEOM_FLOATS), np.float32)
-        geom_floats[:self.instance_count] = np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9)
-        material_rows = np.array([material_row(m) for m in materials] or [np.zeros(MATERIAL_FLOATS)], np.float32)
-        self.host_albedo = np.array([row[0] == KIND_HOST for row in material_rows], bool)
+        rows = max(self.instance_count, 1)  # a zero row where there are no instances
+        geom_ints = GEOM_INTS.pack(rows)
+        geom_ints[:self.instance_count] = GEOM_INTS.pack(self.instance_count, face_offset=geom_face_offset,
+                                                         material=geom_material, smooth=geom_smooth)
+        geom_floats = GEOM_FLOATS.pack(rows)
+        geom_floats[:self.instance_count] = GEOM_FLOATS.pack(
+            self.instance_count, normal_matrix=np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9))
+        material_rows = np.array([material_row(m) for m in materials] or [MATERIALS.pack(1)[0]], np.float32)
+        kinds = material_rows[:, MATERIALS.offset("kind")]
+        self.host_albedo = kinds == KIND_HOST
         # the program variant this scene needs: work no instance or material asks for is compiled out
         self.options = (f"-DPICK_BITS={(len(light_cdf) - 1).bit_length()}",
                         f"-DSMOOTH={int(np.any(geom_smooth))}",
-                        f"-DTEXTURED={int(np.any(np.isin(material_rows[:, 0], (KIND_GRID, KIND_CHECKER))))}",
+                        f"-DTEXTURED={int(np.any(np.isin(kinds, (KIND_GRID, KIND_CHECKER))))}",
                         f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
         self.program = self._program(min(launch_samples, MAX_LAUNCH_SAMPLES))
-        self._tables = [opencl_host.wrapped_buffer(self.context, array, dtype) for array, dtype in (
+        self._tables = [device.wrapped_buffer(array, dtype) for array, dtype in (
             (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom_ints, np.int32),
             (geom_floats, np.float32), (material_rows, np.float32), (light_rows, np.float32),
             (rounded_up_cdf(light_cdf), np.float32))]
@@ -155,16 +165,16 @@ class ShadeKernel:
         self._local = threading.local()
         self._states: list[_ThreadState] = []  # keeps every thread's buffers alive with the kernel
 
-    def _program(self, launch_samples: int):
+    def _program(self, launch_samples: int) -> cl.Program:
         """The scene's program variant whose work items make ``launch_samples`` light samples each
         (built once per process and count: a render needs one, or two with a remainder)."""
-        return opencl_host.build_program(self.context, opencl_host.kernel_source(KERNEL_FILE), KERNEL_FILE,
+        return self.device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE,
                                          (*self.options, f"-DLAUNCH_SAMPLES={launch_samples}"))
 
     def _state(self) -> _ThreadState:
         state = getattr(self._local, "state", None)
         if state is None:
-            state = self._local.state = _ThreadState(self.context)
+            state = self._local.state = _ThreadState(self.device)
             self._states.append(state)
         return state
 
@@ -178,18 +188,17 @@ class ShadeKernel:
         which the random numbers depend on: ``rng.light_bits``); ``albedo`` (N, 3) the numpy albedo
         where a material's row is KIND_HOST (None when no material is). The arrays returned are this
         thread's, valid until its next call."""
-        cl = opencl_host.cl
         if not 0 < light_samples <= MAX_LAUNCH_SAMPLES:
             raise ValueError(f"a launch makes 1 to {MAX_LAUNCH_SAMPLES} light samples per ray, not {light_samples}")
         total = first_sample + light_samples if total_samples is None else total_samples
         n = len(origin)
-        stride = opencl_host.whole_groups(n)
+        stride = whole_groups(n)
         rows = stride * light_samples
         if n == 0:
             empty = np.zeros((0, 3), np.float32)
             return ShadowBatch(empty, empty, np.zeros(0, np.float32), empty, 0)
         state = self._state()
-        state.outputs(self.context, rows)
+        state.outputs(self.device, rows)
         mf = cl.mem_flags
         inputs = [np.ascontiguousarray(origin, np.float32), np.ascontiguousarray(direction, np.float32),
                   np.ascontiguousarray(t, np.float32), np.ascontiguousarray(u, np.float32),
@@ -200,7 +209,7 @@ class ShadeKernel:
         buffers = [cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a) for a in inputs]
         kernel = state.shade.get(light_samples)
         if kernel is None:
-            kernel = state.shade[light_samples] = opencl_host.cl.Kernel(self._program(light_samples), "shade")
+            kernel = state.shade[light_samples] = cl.Kernel(self._program(light_samples), "shade")
         kernel.set_args(np.uint32(n), np.uint32(stride), np.uint32(first_sample), np.uint32(total),
                         np.uint32(seed & 0xFFFFFFFF),
                         np.uint32(1),
@@ -225,9 +234,8 @@ class ShadeKernel:
     def light_uniforms(self, pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int) -> np.ndarray:
         """The kernel's light-sample random numbers (3 * light_samples, N): u_pick, u1, u2 per light
         sample of ``light_samples`` per camera sample (for tests against ``realistic.core.rng.light_uniforms``)."""
-        cl = opencl_host.cl
         n = len(pixel)
-        stride = max(LOCAL_SIZE, opencl_host.whole_groups(n))
+        stride = max(LOCAL_SIZE, whole_groups(n))
         state = self._state()
         out = np.empty((3 * light_samples, stride), np.float32)
         mf = cl.mem_flags
@@ -241,7 +249,6 @@ class ShadeKernel:
 
     def disk_points(self, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The kernel's concentric map of float32 (u1, u2) (for tests against ``core.warp``)."""
-        cl = opencl_host.cl
         state = self._state()
         mf = cl.mem_flags
         a, b = (np.ascontiguousarray(x, np.float32) for x in (u1, u2))

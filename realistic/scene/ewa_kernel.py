@@ -9,6 +9,9 @@ rounding; ``tests/test_ewa_kernel.py`` checks that.
 records to the albedo, with the uv, the pixel footprint and the st mapping computed on the device
 too (``ewa_hits``; numpy spent three times as long on those as on the lookups). Its reference is
 ``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
+
+An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
+(``realistic.renderer.backends``), keyed by the map: the map itself stays plain data.
 """
 
 from __future__ import annotations
@@ -16,15 +19,23 @@ from __future__ import annotations
 import threading
 
 import numpy as np
-import pyopencl as cl
 
-from realistic.camera.opencl_host import LOCAL_SIZE, build_program, context, kernel_source, whole_groups, wrapped_buffer
 from realistic.core.validation import TEXTURE_WRAPS
+from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.tables import Table
+from realistic.scene.intersect import Hits
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
 from realistic.scene.model import ImageTexture
 from realistic.scene.textures import st_mapping
 
 KERNEL_FILE = "ewa.cl"
+#: ``ewa_hits``' MAPPING row (float64), declared once for the kernel and ``hit_mapping``: the camera's
+#: spread (radians per pixel), st = (uv * st_scale + st_offset) * (1, t_flip) + (0, t_shift)
+#: (``textures.st_mapping``), and the material's diffuse colour.
+MAPPING = Table("MAPPING", np.float64, (("spread", 1), ("st_scale", 2), ("st_offset", 2), ("t_flip", 1),
+                                        ("t_shift", 1), ("diffuse", 3)))
+#: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size.
+HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 
 
 class SurfaceTables:
@@ -32,39 +43,41 @@ class SurfaceTables:
     concatenated vertex indices, float64 vertices (V, 3) in mesh space, float32 uvs (V, 2), and per
     instance (embree geometry id) its first face, material index and linear map (3 x 3)."""
 
-    def __init__(self, context, faces: np.ndarray, vertices: np.ndarray, uv: np.ndarray,
+    def __init__(self, device: Device, faces: np.ndarray, vertices: np.ndarray, uv: np.ndarray,
                  geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_linear: np.ndarray):
         self.instance_count = np.int32(len(geom_face_offset))
-        self.buffers = [wrapped_buffer(context, a, dtype) for a, dtype in
+        self.buffers = [device.wrapped_buffer(a, dtype) for a, dtype in
                         ((faces, np.int32), (vertices, np.float64), (uv, np.float32), (geom_face_offset, np.int32),
                          (geom_material, np.int32), (geom_linear, np.float64))]
 
 
-def hit_mapping(texture: ImageTexture, diffuse, spread_radians: float) -> np.ndarray:
-    """``ewa_hits``' MAPPING row: spread, st scale, offset, t flip and shift (``textures.st_mapping``),
-    and the material's diffuse colour (float32 values, exact in float64)."""
+def hit_mapping(texture: ImageTexture, diffuse: np.ndarray | tuple[float, float, float],
+                spread_radians: float) -> np.ndarray:
+    """``ewa_hits``' ``MAPPING`` row (the diffuse colour's float32 values, exact in float64)."""
     repeats, offset, flip, shift = st_mapping(texture)
-    return np.array([spread_radians, *repeats, *offset, flip[1], shift[1],
-                     *np.asarray(diffuse, np.float32)], np.float64)
+    return MAPPING.pack(1, spread=spread_radians, st_scale=repeats, st_offset=offset, t_flip=flip[1],
+                        t_shift=shift[1], diffuse=np.asarray(diffuse, np.float32))[0]
 
 
 class EwaKernel:
-    """One MIP map's texels on the device, and EWA lookups over them (thread-safe: one lock)."""
+    """One MIP map's texels on a device, and EWA lookups over them (thread-safe: one lock)."""
 
-    def __init__(self, mipmap: MipMap, device: str | None = None):
+    def __init__(self, mipmap: MipMap, device: Device | None = None):
+        """``device``: where the texels go (None: ``Device.for_spec()``, the default device)."""
         sides = np.concatenate([mipmap.level_width, mipmap.level_height])
         if np.any(sides & (sides - 1)):  # the kernel wraps with x & (w - 1)
             raise ValueError(f"MIP map levels must have power-of-two sides, not {sides.tolist()}")
-        self.context = context(device)
-        self.queue = cl.CommandQueue(self.context)
-        program = build_program(self.context, kernel_source(KERNEL_FILE), KERNEL_FILE)
+        device = device or Device.for_spec()
+        self.device = device
+        self.context = device.context
+        self.queue = device.queue()
+        program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._kernel, self._hits_kernel = cl.Kernel(program, "ewa"), cl.Kernel(program, "ewa_hits")
         # the texels wrapped, not copied, so they are not held twice
-        self._map = [wrapped_buffer(self.context, mipmap.texels, np.float32)] + [
-            wrapped_buffer(self.context, a, np.int64)
-            for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
+        self._map = [device.wrapped_buffer(mipmap.texels, np.float32)] + [
+            device.wrapped_buffer(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
         self._map += [np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
-                      np.float64(mipmap.max_anisotropy), wrapped_buffer(self.context, EWA_WEIGHTS, np.float64)]
+                      np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float64)]
         self._lock = threading.Lock()
 
     def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
@@ -73,10 +86,8 @@ class EwaKernel:
         out = np.empty((count, 3), np.float32)
         if count == 0:
             return out
-        mf = cl.mem_flags
-        inputs = [cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                            hostbuf=np.ascontiguousarray(a, dtype=np.float64)) for a in (st, axis0, axis1)]
-        result = cl.Buffer(self.context, mf.WRITE_ONLY, out.nbytes)
+        inputs = [self.device.copied_buffer(a, np.float64) for a in (st, axis0, axis1)]
+        result = self.device.output_buffer(out.nbytes)
         padded = whole_groups(count)
         with self._lock:
             self._kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._map, *inputs, np.int32(count), result)
@@ -84,7 +95,7 @@ class EwaKernel:
         return out
 
     def at_hits(self, surfaces: SurfaceTables, material: int, mapping: np.ndarray, direction: np.ndarray,
-                hits, out: np.ndarray) -> None:
+                hits: Hits, out: np.ndarray) -> None:
         """Write into ``out`` (N, 3) float32 the albedo of the rays (unit ``direction`` (N, 3)) whose
         closest hit (``scene.intersect.Hits``) is on an instance of material index ``material``, whose
         image texture this map is (``hit_mapping``); other rows are left as they are."""
@@ -93,11 +104,11 @@ class EwaKernel:
             return
         if out.dtype != np.float32 or not out.flags.c_contiguous or out.shape != (count, 3):
             raise ValueError(f"at_hits writes a C-contiguous ({count}, 3) float32 array, not {out.dtype} {out.shape}")
-        inputs = [wrapped_buffer(self.context, a, dtype)
+        inputs = [self.device.wrapped_buffer(a, dtype)
                   for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
                                    (hits.geom, np.int32), (hits.normal, np.float32))]
-        result = cl.Buffer(self.context, cl.mem_flags.READ_WRITE | cl.mem_flags.USE_HOST_PTR, hostbuf=out)
+        result = self.device.host_buffer(out, cl.mem_flags.READ_WRITE)
         padded = whole_groups(count)
         with self._lock:
             self._hits_kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._map, *surfaces.buffers,

@@ -19,13 +19,12 @@ clamped to 0 (a magnified lookup) the second level's weight is 0 and its sum is 
 floor(L - 1 + log2(width)). All lookups are numpy over the points; EWA's varying number of texels
 per point is expanded into one flat array of (point, texel) taps and summed with ``np.bincount``;
 that is the reference of ``realistic.scene.ewa_kernel`` (``kernels/ewa.cl``), which the "opencl"
-backend uses for EWA.
+backend uses for EWA. A map is plain data (it pickles): a backend keeps its texels on a device.
 """
 
 from __future__ import annotations
 
 import math
-from functools import cached_property
 
 import numpy as np
 
@@ -112,12 +111,6 @@ class MipMap:
     def level_height(self) -> np.ndarray:
         return self._height
 
-    @cached_property
-    def device_ewa(self):
-        """This map's texels on the OpenCL device (``scene.ewa_kernel.EwaKernel``), made on first use."""
-        from realistic.scene.ewa_kernel import EwaKernel  # pyopencl only where the kernel is used
-        return EwaKernel(self)
-
     def texel(self, level: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Texels (N, 3) at integer (x, y) of per-point ``level``s, outside the image as ``wrap`` says."""
         w, h = self._width[level], self._height[level]
@@ -168,11 +161,9 @@ class MipMap:
         delta = (level - lower)[:, None]
         return self.bilinear(st, lower) * (1 - delta) + self.bilinear(st, upper) * delta
 
-    def ewa(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray, backend: str = "numpy") -> np.ndarray:
-        """Elliptically weighted average (N, 3) over the ellipse with axes ``axis0``, ``axis1`` (N, 2);
-        ``backend`` "opencl" runs ``kernels/ewa.cl`` (same result to float32 rounding)."""
-        if backend == "opencl":
-            return self.device_ewa(st, axis0, axis1)
+    def ewa(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
+        """Elliptically weighted average (N, 3) over the ellipse with axes ``axis0``, ``axis1`` (N, 2)
+        (``scene.ewa_kernel.EwaKernel`` computes the same on the device, to float32 rounding)."""
         swap = (axis0 * axis0).sum(axis=1) < (axis1 * axis1).sum(axis=1)
         major = np.where(swap[:, None], axis1, axis0).astype(np.float64)
         minor = np.where(swap[:, None], axis0, axis1).astype(np.float64)

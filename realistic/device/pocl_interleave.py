@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from realistic.camera import pocl_cpu
+from realistic.device import pocl_cpu
 
 #: Vectors of work items interleaved per iteration of PoCL's work-item loop, and for the longer
 #: kernels of lenses with aspheres.

@@ -1,0 +1,258 @@
+"""The process's OpenCL plumbing: the only module that imports pyopencl (with ``pocl_cpu`` and
+``pocl_interleave``, which only look at its devices).
+
+A ``Device`` owns one OpenCL device's context and the programs built for it; the kernel hosts
+(``camera/opencl_host``, ``renderer/shade_kernel``, ``scene/ewa_kernel``) take one and keep their
+buffers and kernel objects on themselves, never on the scene, camera or texture they were made for.
+``Device.for_spec`` makes one per (process, device spec), lazily.
+
+Device choice, first match wins: the spec (``--cl-device``), then the ``PYOPENCL_CTX`` environment
+variable, both either ``P`` / ``P:D`` (platform and device indices, as pyopencl reads
+``PYOPENCL_CTX``) or a case-insensitive part of the platform or device name; otherwise the first
+PoCL device, otherwise the first device found.
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import threading
+from functools import lru_cache
+
+import numpy as np
+
+from realistic.core import affinity, disk_cache
+from realistic.core.data_files import data_file
+from realistic.device import pocl_cpu, pocl_interleave
+from realistic.errors import UserError
+
+try:
+    import pyopencl as cl
+except ImportError:  # reported as a UserError when a device is asked for
+    cl = None
+
+NO_PLATFORM = ('no OpenCL platform found: install one with pip install "pyopencl[pocl]" '
+               "(PoCL, OpenCL on the CPU), or use --backend numpy to run the numpy reference")
+#: Work-group size; launches are padded to a multiple of it so every group runs the same code.
+LOCAL_SIZE = 256
+#: Programs kept built, per device, source and options (lens programs: one per lens, sampling and
+#: filter; shading: one per scene variant; EWA: one): enough for a render, its autofocus and a bench's
+#: sample counts; older ones are dropped (the disk cache's binaries make rebuilding one about 5 ms).
+PROGRAM_CACHE_SIZE = 16
+#: The disk cache's kind for program binaries.
+CACHE_KIND = "opencl-program"
+
+
+def kernel_source(name: str) -> str:
+    """The text of ``kernels/<name>`` (in a checkout, else where a wheel installs it:
+    ``<prefix>/share/realistic``) with its ``#include "common.cl"`` line replaced by that file.
+
+    The host expands the include rather than the OpenCL compiler, so the program source (the binary
+    cache's key) holds all of it and a change to ``common.cl`` rebuilds every kernel that uses it.
+    """
+    text = data_file(f"kernels/{name}").read_text(encoding="utf-8")
+    lines = [data_file("kernels/common.cl").read_text(encoding="utf-8") if line.startswith('#include "common.cl"')
+             else line for line in text.splitlines(keepends=True)]
+    return "".join(lines)
+
+
+def whole_groups(work_items: int) -> int:
+    """``work_items`` rounded up to whole work groups of ``LOCAL_SIZE``: the launch size of every
+    kernel, and the row stride of the outputs laid out by it."""
+    return -(-work_items // LOCAL_SIZE) * LOCAL_SIZE
+
+
+def _all_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
+    if cl is None:
+        raise UserError(NO_PLATFORM)
+    # listing PoCL's devices starts its thread pool: remembered, so a render can spread it over the CPUs
+    found = affinity.record_runtime_threads(_list_devices)
+    if not found:
+        raise UserError(NO_PLATFORM)
+    return found
+
+
+def _list_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
+    try:
+        platforms = cl.get_platforms()
+    except cl.Error:  # PLATFORM_NOT_FOUND_KHR when the ICD loader finds nothing
+        platforms = []
+    return [(p, d, platform, device) for p, platform in enumerate(platforms)
+            for d, device in enumerate(platform.get_devices())]
+
+
+def _match(spec: str, found: list[tuple[int, int, cl.Platform, cl.Device]], origin: str) -> cl.Device:
+    """The device named by ``spec`` (``P``, ``P:D`` or part of a name)."""
+    parts = spec.split(":")
+    if all(part.strip().isdigit() for part in parts) and len(parts) <= 2:
+        p = int(parts[0])
+        d = int(parts[1]) if len(parts) == 2 else 0
+        hits = [entry for entry in found if entry[0] == p and entry[1] == d]
+    else:
+        needle = spec.lower()
+        hits = [entry for entry in found
+                if needle in entry[2].name.lower() or needle in entry[3].name.lower()]
+    if not hits:
+        listing = "; ".join(f"{p}:{d} {platform.name} / {device.name.strip()}" for p, d, platform, device in found)
+        raise UserError(f"no OpenCL device matches {origin} {spec!r} (available: {listing})")
+    return hits[0][3]
+
+
+class Device:
+    """One OpenCL device of this process: its context and the programs built for it.
+
+    Made by ``Device.for_spec`` (one per process and spec); everything here is safe to share
+    between threads (a caller that launches makes its own queue: ``queue()``).
+    """
+
+    def __init__(self, spec: str | None, origin: str):
+        found = _all_devices()
+        if spec:
+            device = _match(spec, found, origin)
+        else:
+            pocl = [entry for entry in found if pocl_cpu.is_pocl(entry[2].name)]
+            device = (pocl or found)[0][3]
+        pocl_cpu.name_unknown_cpu(device)  # before any build: PoCL 3.0 cannot build for a CPU LLVM 14 calls "generic"
+        pocl_interleave.interleave_work_items(device)  # before any build too
+        self.spec = spec
+        self.context = cl.Context([device])
+
+    @staticmethod
+    def for_spec(spec: str | None = None) -> Device:
+        """The device ``spec`` names (``--cl-device``; None: ``PYOPENCL_CTX``, else the default),
+        made once per process. No platform, or no device matching, is a UserError."""
+        if spec:
+            return _device_for(spec, "--cl-device")
+        env = os.environ.get("PYOPENCL_CTX", "").strip()
+        return _device_for(env or None, "PYOPENCL_CTX")
+
+    @property
+    def devices(self) -> list[cl.Device]:
+        """The OpenCL devices of the context (one)."""
+        return list(self.context.devices)
+
+    def identity(self) -> tuple[str, ...]:
+        """What a binary built here depends on besides its source: each device, its driver, and
+        the CPU name ``pocl_cpu`` gave it, if any (the code LLVM makes differs with the name)."""
+        return tuple(f"{d.platform.name} {d.platform.version} | {d.name} {d.version} {d.driver_version}"
+                     + ("" if (cpu := pocl_cpu.given_name(d)) is None else f" | cpu {cpu}") for d in self.devices)
+
+    def queue(self) -> cl.CommandQueue:
+        """A new command queue on this device (one per launching thread or kernel host)."""
+        return cl.CommandQueue(self.context)
+
+    def build_program(self, source: str, name: str, options: tuple[str, ...] = ()) -> cl.Program:
+        """``source`` built with ``options`` (``build_program``)."""
+        return build_program(self, source, name, options)
+
+    def wrapped_buffer(self, array: np.ndarray, dtype: np.dtype | type) -> cl.Buffer:
+        """A read-only buffer over ``array`` as contiguous ``dtype``, not a copy (PoCL on the CPU reads
+        host memory; a USE_HOST_PTR buffer keeps its host array alive); an empty array is wrapped as
+        four zeros, since OpenCL has no empty buffers. The kernels' tables go through here."""
+        data = np.ascontiguousarray(array, dtype).ravel()
+        if data.size == 0:
+            data = np.zeros(4, dtype)
+        return cl.Buffer(self.context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=data)
+
+    def copied_buffer(self, array: np.ndarray, dtype: np.dtype | type) -> cl.Buffer:
+        """A read-only buffer holding a copy of ``array`` as contiguous ``dtype``."""
+        data = np.ascontiguousarray(array, dtype)
+        return cl.Buffer(self.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=data)
+
+    def host_buffer(self, array: np.ndarray, flags: int) -> cl.Buffer:
+        """A buffer over ``array``'s own memory (USE_HOST_PTR) with ``flags`` (``mem_flags``)."""
+        return cl.Buffer(self.context, flags | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
+
+    def output_buffer(self, nbytes: int) -> cl.Buffer:
+        """A write-only device buffer of ``nbytes``."""
+        return cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, nbytes)
+
+    def __repr__(self) -> str:
+        return f"Device({self.spec!r}: {self.devices[0].name.strip()})"
+
+
+#: The devices made, per (spec, origin): one per spec asked for, living as long as the process.
+_devices: dict[tuple[str | None, str], Device] = {}
+_devices_lock = threading.Lock()
+
+
+def _device_for(spec: str | None, origin: str) -> Device:
+    """The device for ``spec``, made on first use (under a lock, so render threads share one)."""
+    with _devices_lock:
+        if (spec, origin) not in _devices:
+            _devices[spec, origin] = Device(spec, origin)
+        return _devices[spec, origin]
+
+
+@lru_cache(maxsize=PROGRAM_CACHE_SIZE)
+def build_program(device: Device, source: str, name: str, options: tuple[str, ...] = ()) -> cl.Program:
+    """``source`` (``kernels/<name>``, expanded by ``kernel_source``, perhaps behind a generated
+    header) built for ``device`` with ``options``, once per process: the lens, shading and EWA
+    kernels all build here. A build error names the kernel file.
+
+    The built binaries are kept in the disk cache (``realistic.core.disk_cache``), keyed by the
+    device, its driver, the options and the source, and checked against that key and their digest
+    before they are loaded (a binary under another program's key is rebuilt, never run): PoCL caches
+    its builds too, but a hit there still runs the preprocessor over the OpenCL headers, 50-80 ms per
+    program, where loading a binary takes 5 ms; a render builds three. Asking PoCL for a program's
+    binaries makes it compile every kernel once more, for any work-group size (about 0.5 s a
+    program), which pays only for a program built again and again: so the first build leaves a
+    mark, and the second stores the binaries as the process exits (``store_built_binaries``), not
+    before its render. (pyopencl's own binary cache, which it leaves off for PoCL, is not used: it
+    fails with a KeyError on an unwritable folder and waits a minute on a lock file left by a killed
+    process.)
+    """
+    key = disk_cache.cache_key(CACHE_KIND, device.identity(), source.encode(), options)
+    stored = disk_cache.load_arrays(key)
+    try:
+        program = _from_binaries(device, stored, options)
+        if program is None:
+            program = cl.Program(device.context, source).build(options=list(options))
+            _remember(key, program, built_before=stored is not None)
+    except cl.RuntimeError as err:
+        raise RuntimeError(f"building {name} failed:\n{err}") from None
+    return program
+
+
+def _from_binaries(device: Device, stored: dict[str, np.ndarray] | None, options: tuple[str, ...]
+                   ) -> cl.Program | None:
+    """The program from a cache entry's binaries, one per device, or None: no entry, a first
+    build's mark, or binaries the driver will not load (a cache entry is never an error)."""
+    names = [f"device{i}" for i in range(len(device.devices))]
+    if stored is None or sorted(stored) != names:
+        return None
+    try:
+        return cl.Program(device.context, device.devices,
+                          [stored[n].tobytes() for n in names]).build(options=list(options))
+    except cl.Error:
+        return None
+
+
+#: Programs built from source for the second time, whose binaries ``store_built_binaries`` stores.
+_unstored: list[tuple[str, cl.Program]] = []
+
+
+def _remember(key: str, program: cl.Program, built_before: bool) -> None:
+    """After a build from source: a mark the first time; from the second on, the binaries at exit."""
+    if not built_before:
+        disk_cache.store_arrays(key, {"built": np.zeros(1, np.uint8)})
+    else:
+        _unstored.append((key, program))
+
+
+@atexit.register  # after pyopencl's own exit handler is registered, so it runs first
+def store_built_binaries() -> None:
+    """Store the binaries of the programs ``build_program`` built from source a second time. Run as
+    the process exits, when the image is written: asking PoCL for binaries compiles every kernel
+    again (about 0.5 s a program). An interrupt or a driver's refusal leaves the rest unstored."""
+    if cl is None:
+        return
+    try:
+        while _unstored:
+            key, program = _unstored.pop()
+            binaries = program.get_info(cl.program_info.BINARIES)
+            if all(binaries):
+                disk_cache.store_arrays(key, {f"device{i}": np.frombuffer(b, np.uint8)
+                                              for i, b in enumerate(binaries)})
+    except (KeyboardInterrupt, cl.Error):
+        _unstored.clear()

@@ -1,0 +1,73 @@
+"""Render backends: what runs the kernels, picked from the options' strings ``backend`` and ``cl_device``.
+
+The options keep the strings (a job stays picklable for Dask: each worker process makes its own
+backend and device); ``backend_for`` turns them into a backend object, once per process and pair.
+``NumpyBackend`` runs the numpy references; ``OpenCLBackend`` (``renderer/opencl_backend``,
+imported only when chosen, since it imports pyopencl) runs ``kernels/lens.cl``, ``shade.cl`` and
+``ewa.cl`` on one ``Device`` and keeps each MIP map's texels there, keyed by the map, so scenes,
+cameras and textures stay plain data.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Protocol
+
+import numpy as np
+
+from realistic.camera.base import BACKENDS, Camera, RayGenerator, check_backend
+from realistic.scene.mipmap import MipMap
+from realistic.scene.textures import numpy_ewa
+
+__all__ = ["BACKENDS", "Backend", "NumpyBackend", "backend_for"]
+
+
+class Backend(Protocol):
+    """What the renderer asks of a backend."""
+
+    #: "numpy" or "opencl" (``BACKENDS``).
+    name: str
+
+    def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
+        """The camera's rays of any ``SampleBlock`` with ``seed``."""
+
+    def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
+        """``MipMap.ewa``'s lookups (N, 3) (a ``scene.textures.EwaLookup``)."""
+
+
+class NumpyBackend:
+    """The numpy references: ``Camera.generate_rays``, ``MipMap.ewa``, the integrators' numpy shading."""
+
+    name = "numpy"
+
+    def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
+        """``camera.generate_rays`` with ``seed`` (float64)."""
+        return lambda block: camera.generate_rays(block, seed)
+
+    def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
+        """``MipMap.ewa``."""
+        return numpy_ewa(mipmap, st, axis0, axis1)
+
+
+#: One backend per process and (name, device spec), so a device's programs and texels are reused.
+_backends: dict[tuple[str, str | None], Backend] = {}
+_backends_lock = threading.Lock()
+
+
+def backend_for(name: str, cl_device: str | None = None) -> Backend:
+    """The backend ``name`` ("opencl" or "numpy") names, on the OpenCL device ``cl_device``
+    (``--cl-device``; None: the default) for "opencl", made once per process. A bad name, no
+    platform or no matching device is a UserError."""
+    check_backend(name)
+    with _backends_lock:
+        if (name, cl_device) not in _backends:
+            _backends[name, cl_device] = NumpyBackend() if name == "numpy" else _opencl_backend(cl_device)
+        return _backends[name, cl_device]
+
+
+def _opencl_backend(cl_device: str | None) -> Backend:
+    """A new OpenCL backend on ``cl_device`` (imports pyopencl: only when chosen)."""
+    from realistic.device.opencl import Device
+    from realistic.renderer.opencl_backend import OpenCLBackend
+
+    return OpenCLBackend(Device.for_spec(cl_device))

@@ -1,0 +1,61 @@
+"""The "opencl" render backend: the lens, shading and EWA kernels on one ``Device``.
+
+Made by ``renderer.backends.backend_for`` (one per process and device spec). It keeps the per-device
+state of what it is asked about: each MIP map's texels (an ``EwaKernel``) in a weak dictionary keyed
+by the map, so a map is not held alive by the backend, and nothing is stored on the map.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+from typing import Any
+
+import numpy as np
+
+from realistic.camera.base import Camera, RayGenerator
+from realistic.camera.lens_camera import LensCamera
+from realistic.camera.opencl_host import LensKernel
+from realistic.device.opencl import Device
+from realistic.renderer.shade_kernel import ShadeKernel
+from realistic.scene.ewa_kernel import EwaKernel, SurfaceTables
+from realistic.scene.mipmap import MipMap
+
+
+class OpenCLBackend:
+    """Kernels on ``device``: lens rays of a ``LensCamera`` (other cameras' rays are numpy's, there
+    being no lens to trace), EWA lookups, and the shading kernel for ``DirectLighting``."""
+
+    name = "opencl"
+
+    def __init__(self, device: Device):
+        self.device = device
+        self._ewa_kernels: weakref.WeakKeyDictionary[MipMap, EwaKernel] = weakref.WeakKeyDictionary()
+        self._lock = threading.Lock()
+
+    def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
+        """``lens.cl``'s rays (float32) for a ``LensCamera``, the numpy reference's for other cameras."""
+        if not isinstance(camera, LensCamera):
+            return lambda block: camera.generate_rays(block, seed)
+        kernel = LensKernel(camera, self.device)
+        return lambda block: kernel.generate(block, seed)
+
+    def ewa_kernel(self, mipmap: MipMap) -> EwaKernel:
+        """``mipmap``'s texels on this backend's device, made on first use."""
+        with self._lock:
+            kernel = self._ewa_kernels.get(mipmap)
+            if kernel is None:
+                kernel = self._ewa_kernels[mipmap] = EwaKernel(mipmap, self.device)
+            return kernel
+
+    def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
+        """``MipMap.ewa``'s lookups by ``kernels/ewa.cl`` (the same to float32 rounding)."""
+        return self.ewa_kernel(mipmap)(st, axis0, axis1)
+
+    def shade_kernel(self, **tables: Any) -> ShadeKernel:
+        """``ShadeKernel`` on this device with a scene's ``tables`` (its keyword arguments)."""
+        return ShadeKernel(device=self.device, **tables)
+
+    def surface_tables(self, *arrays: np.ndarray) -> SurfaceTables:
+        """``SurfaceTables`` on this device (its arrays, in its order)."""
+        return SurfaceTables(self.device, *arrays)
