@@ -26,6 +26,8 @@ in the frame of a film point on the +x axis; the pupil is symmetric in y, so onl
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from realistic.optics.lens import LensSystem
@@ -69,7 +71,7 @@ class _Passes:
             else self.wavelengths_nm[0]
         passed = trace_from_film(self.lens, self.film_distance_mm, np.tile(origins, (count, 1)),
                                  np.tile(directions, (count, 1)), wavelengths).passed
-        return passed.reshape(count, -1).any(axis=0).reshape(shape)
+        return np.any(passed.reshape(count, -1), axis=0).reshape(shape)
 
 
 def _grid(lo: np.ndarray, hi: np.ndarray, count: int) -> np.ndarray:
@@ -84,8 +86,8 @@ def _found_region(passes: _Passes, film_x: np.ndarray, reach: np.ndarray, grid: 
     xs = _grid(-reach[rows], reach[rows], grid[0])
     ys = _grid(np.zeros(len(rows)), reach[rows], grid[1])
     passed = passes(film_x[rows, None, None], xs[:, :, None], ys[:, None, :])
-    any_x, any_y = passed.any(axis=2), passed.any(axis=1)
-    found = any_x.any(axis=1)
+    any_x, any_y = np.any(passed, axis=2), np.any(passed, axis=1)
+    found = np.any(any_x, axis=1)
     first = np.argmax(any_x, axis=1)
     last = grid[0] - 1 - np.argmax(any_x[:, ::-1], axis=1)
     top = grid[1] - 1 - np.argmax(any_y[:, ::-1], axis=1)
@@ -150,7 +152,7 @@ def _edges(passes: _Passes, film_x: np.ndarray, x_lo: np.ndarray, x_hi: np.ndarr
     return box, pad
 
 
-def _between(edges: np.ndarray, pick, sign: int) -> np.ndarray:
+def _between(edges: np.ndarray, pick: Callable[..., np.ndarray], sign: int) -> np.ndarray:
     """Half the largest step from the extreme sample to its neighbours (R,): how far the extreme
     can lie beyond it between samples. Unsampled neighbours (inf) do not count."""
     count = edges.shape[1]
