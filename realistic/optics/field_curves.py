@@ -10,6 +10,7 @@ distortion (r - f tan theta) / (f tan theta) against an ideal rectilinear lens o
 from __future__ import annotations
 
 import math
+from typing import TypedDict
 
 import numpy as np
 
@@ -20,9 +21,19 @@ from realistic.optics.sampling import ExitPupilTable, camera_weight, exit_pupil_
 from realistic.optics.tracer import trace_from_film
 
 
+class FieldPoint(TypedDict):
+    """The field curves at one film radius (a row of ``lens curves --json``)."""
+
+    film_radius_mm: float
+    relative_illumination: float
+    vignetting: float
+    field_angle_deg: float | None  # None (and no distortion) where no ray passes
+    distortion_percent: float | None
+
+
 def field_curves(lens: LensSystem, film_diagonal_mm: float = FULL_FRAME_DIAGONAL_MM,
                  film_distance_mm: float | None = None,
-                 points: int = 33, samples: int = 20_000, seed: int = 0) -> list[dict]:
+                 points: int = 33, samples: int = 20_000, seed: int = 0) -> list[FieldPoint]:
     """Per film radius (0 to half the diagonal): field angle, relative illumination, vignetting, distortion."""
     if film_distance_mm is None:
         film_distance_mm = film_distance_for_focus(lens, math.inf)
@@ -30,7 +41,7 @@ def field_curves(lens: LensSystem, film_diagonal_mm: float = FULL_FRAME_DIAGONAL
     table = exit_pupil_table(lens, film_distance_mm, film_diagonal_mm)
     rng = np.random.default_rng(seed)
     u1, u2 = rng.random(samples), rng.random(samples)
-    rows = []
+    rows: list[FieldPoint] = []
     for i, radius in enumerate(np.linspace(0.0, film_diagonal_mm / 2 * 0.999, points)):
         film_xy = np.tile([radius, 0.0], (samples, 1))
         film = np.column_stack([film_xy, np.zeros(samples)])
@@ -41,7 +52,7 @@ def field_curves(lens: LensSystem, film_diagonal_mm: float = FULL_FRAME_DIAGONAL
         open_area = float(np.mean(ok) * area[0])
         if i == 0:  # the film centre, which the other radii are relative to
             centre_weight, centre_area = weight, open_area
-        row = {"film_radius_mm": float(radius), "relative_illumination": weight / centre_weight,
+        row: FieldPoint = {"film_radius_mm": float(radius), "relative_illumination": weight / centre_weight,
                "vignetting": open_area / centre_area, "field_angle_deg": None, "distortion_percent": None}
         if ok.any():
             chief = traced.direction[ok].mean(axis=0)
@@ -54,7 +65,7 @@ def field_curves(lens: LensSystem, film_diagonal_mm: float = FULL_FRAME_DIAGONAL
     return rows
 
 
-def vignetting_map(rows: list[dict], width: int, height: int, film_diagonal_mm: float) -> np.ndarray:
+def vignetting_map(rows: list[FieldPoint], width: int, height: int, film_diagonal_mm: float) -> np.ndarray:
     """Relative illumination over a film of ``width`` x ``height`` pixels, interpolated radially."""
     pixel_mm = pixel_pitch_mm(film_diagonal_mm, width, height)
     x = (np.arange(width) + 0.5 - width / 2) * pixel_mm

@@ -97,17 +97,21 @@ def _found_region(passes: _Passes, film_x: np.ndarray, reach: np.ndarray, grid: 
     return found, box, cell
 
 
-def _bisect(passes: _Passes, problems: list[tuple]) -> list[np.ndarray]:
+#: One bisection problem: film x, inside, outside, other, along_x, needed (``_bisect``).
+_Problem = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool, np.ndarray]
+
+
+def _bisect(passes: _Passes, problems: list[_Problem]) -> list[np.ndarray]:
     """Per problem (film_x, inside, outside, other, along_x, needed): the outer end of the final
     bracket between passing ``inside`` and blocked ``outside`` coordinates (x when ``along_x``, else
     y; ``other`` is the fixed coordinate), traced only where ``needed``; elsewhere ``inside`` itself
     (a grid point at the window's edge, or nothing passing). The problems are independent, so every
     step traces all of their pairs at once: one call instead of one per problem."""
     edges, parts = [], []
-    for film_x, inside, outside, other, along_x, needed in problems:
+    for film_x, inside, outside, other, along, needed in problems:
         edges.append(inside.copy())
         parts.append((film_x[needed], inside[needed], outside[needed], other[needed],
-                      np.full(int(np.count_nonzero(needed)), along_x)))
+                      np.full(int(np.count_nonzero(needed)), along)))
     film_x, inside, outside, other, along_x = (np.concatenate(column) for column in zip(*parts))
     for _ in range(BISECTION_STEPS):
         middle = 0.5 * (inside + outside)
