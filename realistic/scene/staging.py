@@ -109,9 +109,9 @@ def default_setup() -> Setup:
     """The default scene, ``scenes/default.pbrt``: its world, and its camera's eye and focus target."""
     path = data_file("scenes/default.pbrt")
     scene, parsed, _ = import_world(path)
-    if parsed.camera is None:
-        raise UserError(f"{path} has no Camera: reinstall the package")
     camera = parsed.camera
+    if camera is None:
+        raise UserError(f"{path} has no Camera: reinstall the package")
     scene.background = (0.02, 0.02, 0.03)  # a dim sky (pbrt files have no background) so the horizon reads
     world_from_camera = np.linalg.inv(camera.transform)
     eye = world_from_camera[:3, 3]
