@@ -142,3 +142,12 @@ def test_distribution_of_zeros_is_uniform_and_rejects_negative_weights():
     np.testing.assert_allclose(d.density, 1.0)
     with pytest.raises(ValueError):
         Distribution2D(np.array([[1.0, -1.0]]))
+
+
+def test_environment_without_a_map_reads_as_a_white_map_of_one_texel():
+    """pbrt's infinite light without a map is one of a single texel of 1: every lookup is white."""
+    uv = np.random.default_rng(3).random((50, 2))
+    bare = InfiniteLight((2.0, 1.0, 0.5))
+    white = InfiniteLight((2.0, 1.0, 0.5), np.ones((1, 1, 3), np.float32))
+    assert np.array_equal(bare.texels(uv), white.texels(uv))
+    assert np.array_equal(bare.texels(uv), np.ones((50, 3)))

@@ -117,5 +117,5 @@ def point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focu
         image[row] = np.bincount(column, weights=np.where(hit, batch.weight, 0.0), minlength=size) / spp
     centre_x = -((x0 + size / 2) / width - 0.5) * width * pixel_mm
     centre_y = ((y0 + size / 2) / height - 0.5) * height * pixel_mm
-    return PointSpread(image, pixel_mm, (centre_x, centre_y), tuple(float(v) for v in centre), radius,
-                       film_distance, spp)
+    source = (float(centre[0]), float(centre[1]), float(centre[2]))
+    return PointSpread(image, pixel_mm, (centre_x, centre_y), source, radius, film_distance, spp)

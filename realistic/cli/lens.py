@@ -75,7 +75,7 @@ def cmd_lens_plot(args: argparse.Namespace) -> int:
 
 def cmd_lens_curves(args: argparse.Namespace) -> int:
     from realistic.optics.drawing import plot_field_curves
-    from realistic.optics.field_curves import field_curves
+    from realistic.optics.field_curves import field_curves, vignetting_map
 
     lens = _load_lens_with_stop(args)
     rows = field_curves(lens, args.film_diagonal, _film_distance(args, lens))
@@ -84,7 +84,9 @@ def cmd_lens_curves(args: argparse.Namespace) -> int:
     if args.json:
         _write_checked(Path(args.json), json.dumps({"lens": lens.name, "curves": rows}, indent=1) + "\n")
     if args.vignetting_map:
-        _write_vignetting_map(Path(args.vignetting_map), lens, rows, args.film_diagonal, args.map_res)
+        width, height = parse_resolution(args.map_res)
+        _write_vignetting_map(Path(args.vignetting_map), lens, vignetting_map(rows, width, height, args.film_diagonal),
+                              args.film_diagonal)
     print("film radius mm  field angle deg  rel. illumination  vignetting  distortion %")
     for r in rows:
         angle = "-" if r["field_angle_deg"] is None else f"{r['field_angle_deg']:.2f}"
@@ -95,14 +97,12 @@ def cmd_lens_curves(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_vignetting_map(path: Path, lens: LensSystem, rows: list[dict], film_diagonal_mm: float, res: str) -> None:
-    """The relative illumination over the film as an EXR (the same value in R, G and B)."""
+def _write_vignetting_map(path: Path, lens: LensSystem, relative: np.ndarray, film_diagonal_mm: float) -> None:
+    """The relative illumination (H, W) over the film as an EXR (the same value in R, G and B)."""
     from realistic.core.image_files import write_exr
-    from realistic.optics.field_curves import vignetting_map
 
-    width, height = parse_resolution(res)
     check_writable(path)
-    image = np.repeat(vignetting_map(rows, width, height, film_diagonal_mm)[:, :, None], 3, axis=2)
+    image = np.repeat(relative[:, :, None], 3, axis=2)
     write_exr(path, image, {"lens": lens.name, "filmDiagonalMm": float(film_diagonal_mm),
                             "content": "relative illumination (vignetting x cos^4), 1 at the film centre"})
 

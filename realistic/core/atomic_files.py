@@ -71,8 +71,9 @@ def _umask() -> int:
     return mask
 
 
-def write_atomically(path: Path, write: Callable[[str], None]) -> None:
-    """Call ``write(temporary_path)`` next to ``path``, then rename; no partial file is left on error."""
+def write_atomically(path: Path, write: Callable[[str], object]) -> None:
+    """Call ``write(temporary_path)`` (its result is ignored) next to ``path``, then rename; no partial file is
+    left on error."""
     path = Path(path)
     remove_stale_temporaries(path)
     try:

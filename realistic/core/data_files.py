@@ -16,7 +16,7 @@ from realistic.errors import UserError
 def data_file(relative: str) -> Path:
     """The path of ``relative`` (e.g. ``kernels/lens.cl``) in a checkout or an installation."""
     candidates = [Path(__file__).resolve().parents[2] / relative]
-    for prefix in (sys.prefix, site.USER_BASE):
+    for prefix in (sys.prefix, site.getuserbase()):
         candidates.append(Path(prefix) / "share" / "realistic" / relative)
     for path in candidates:
         if path.is_file():

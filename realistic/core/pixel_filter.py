@@ -194,24 +194,25 @@ class PixelFilter:
     def y_table(self) -> AxisTable:
         return self._table(self.radius_y)
 
-    def _offsets_1d(self, u: np.ndarray, radius: float, table: AxisTable | None) -> tuple[np.ndarray, np.ndarray]:
-        """Offsets from the pixel centre (pixels, float64) and per-sample weights along one axis."""
+    def _offsets_1d(self, u: np.ndarray, along_x: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Offsets from the pixel centre (pixels, float64) and per-sample weights along x (``along_x``) or y."""
         u = np.asarray(u, np.float32).astype(np.float64)
+        radius = self.radius_x if along_x else self.radius_y
         if self.name == "box":
             return (u - 0.5) * (2 * radius), np.ones_like(u)
         if self.name == "triangle":
             left = u < 0.5
             root = np.sqrt(np.where(left, 2 * u, 2 - 2 * u))
             return radius * np.where(left, root - 1, 1 - root), np.ones_like(u)
+        table = self.x_table if along_x else self.y_table
         offset, sign = table.sample(u)
         return offset, sign * table.ratio
 
     def offsets(self, u_x: np.ndarray, u_y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Film offsets (dx, dy) in pixels from the pixel centre, drawn from |f| with uniform
         float32 ``u_x``, ``u_y``, and each sample's weight sign(f) integral|f| / integral(f)."""
-        tables = (self.x_table, self.y_table) if self.tabulated else (None, None)
-        dx, wx = self._offsets_1d(u_x, self.radius_x, tables[0])
-        dy, wy = self._offsets_1d(u_y, self.radius_y, tables[1])
+        dx, wx = self._offsets_1d(u_x, along_x=True)
+        dy, wy = self._offsets_1d(u_y, along_x=False)
         return dx, dy, wx * wy
 
     def describe(self) -> str:

@@ -52,6 +52,7 @@ rays share the sample's film and lens numbers (and its sample index, so whatever
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 #: frac(phi_4^-k) * 2^32, k = 1..4, phi_4 the real root of x^5 = x + 1.
 KRONECKER_R4 = (0xDB4F0B91, 0xBBE05633, 0xA0F2EC76, 0x89E18285)
@@ -61,18 +62,18 @@ _GOLDEN = 0x9E3779B9
 _TO_UNIT = np.float32(1.0 / (1 << 24))
 
 
-def hash32(x: np.ndarray) -> np.ndarray:
+def hash32(x: ArrayLike) -> np.ndarray:
     """Chris Wellons's lowbias32 integer hash on uint32 arrays."""
-    x = np.asarray(x, dtype=np.uint32)
-    x = x ^ (x >> np.uint32(16))
-    x = x * np.uint32(0x7FEB352D)
-    x = x ^ (x >> np.uint32(15))
-    x = x * np.uint32(0x846CA68B)
-    x = x ^ (x >> np.uint32(16))
-    return x
+    h = np.asarray(x, dtype=np.uint32)
+    h = h ^ (h >> np.uint32(16))
+    h = h * np.uint32(0x7FEB352D)
+    h = h ^ (h >> np.uint32(15))
+    h = h * np.uint32(0x846CA68B)
+    h = h ^ (h >> np.uint32(16))
+    return h
 
 
-def hash_keys(pixel: np.ndarray, sample: np.ndarray, dims: tuple[int, ...], seed: int) -> list[np.ndarray]:
+def hash_keys(pixel: np.ndarray, sample: ArrayLike, dims: tuple[int, ...], seed: int) -> list[np.ndarray]:
     """``hash_key`` at each of ``dims``, hashing (seed, pixel, sample) once."""
     with np.errstate(over="ignore"):
         h = hash32(np.uint32((seed + _GOLDEN) & 0xFFFFFFFF))
@@ -81,7 +82,7 @@ def hash_keys(pixel: np.ndarray, sample: np.ndarray, dims: tuple[int, ...], seed
         return [hash32(h ^ np.uint32(dim)) for dim in dims]
 
 
-def hash_key(pixel: np.ndarray, sample: np.ndarray, dim: int, seed: int) -> np.ndarray:
+def hash_key(pixel: np.ndarray, sample: ArrayLike, dim: int, seed: int) -> np.ndarray:
     """uint32 hash of (pixel, sample, dim, seed); pass sample = 0xFFFFFFFF for per-pixel values."""
     return hash_keys(pixel, sample, (dim,), seed)[0]
 

@@ -118,7 +118,7 @@ def filter_radius(value: float, name: str = "filter radius (pixels)") -> float:
     return positive_length(value, name, MAX_FILTER_RADIUS)
 
 
-def finite(value: float, name: str) -> float:
+def finite(value: object, name: str) -> float:
     """Any finite number (an exposure in stops, a rotation in degrees)."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
         raise UserError(f"{name} must be a finite number, got {value!r}")

@@ -12,14 +12,19 @@ every k (the paraboloid included), so one formula serves the Newton iteration an
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 import numpy as np
+
+#: A squared radius: one float (a lens file's check) or an array of them (a tracer's rays).
+Rho2 = TypeVar("Rho2", float, np.ndarray)
 
 #: The even powers of r that carry a polynomial coefficient (CODE V's A..J, Zemax's PARM 2..9 and beyond).
 COEFFICIENT_POWERS = tuple(range(4, 22, 2))
 COEFFICIENT_COUNT = len(COEFFICIENT_POWERS)
 
 
-def conic_radicand(rho2: np.ndarray, curvature: float, conic: float) -> np.ndarray:
+def conic_radicand(rho2: Rho2, curvature: float, conic: float) -> Rho2:
     """1 - (1 + k) c^2 r^2: the sag is defined where it is >= 0."""
     return 1.0 - (1.0 + conic) * curvature * curvature * rho2
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.optics.asphere import sag_mm
-from realistic.optics.field_curves import meridional_fan
+from realistic.optics.field_curves import FieldPoint, meridional_fan
 from realistic.optics.lens import LensSystem
 from realistic.optics.sampling import exit_pupil_table
 
@@ -80,7 +80,7 @@ def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
     plt.close(fig)
 
 
-def plot_field_curves(name: str, rows: list[dict], out: Path) -> None:
+def plot_field_curves(name: str, rows: list[FieldPoint], out: Path) -> None:
     """Relative illumination, vignetting and distortion against film radius."""
     import matplotlib
 

@@ -25,7 +25,7 @@ from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import paraxial_data
-from realistic.optics.tracer import trace_from_film
+from realistic.optics.tracer import TraceResult, trace_from_film
 
 
 def reversed_lens(lens: LensSystem) -> LensSystem:
@@ -34,17 +34,16 @@ def reversed_lens(lens: LensSystem) -> LensSystem:
     count = lens.surface_count
     medium_in_front = np.concatenate([[1.0], lens.index_d[:-1]])
     abbe_in_front = np.concatenate([[0.0], lens.abbe_v[:-1]])
-    changes = {
-        "name": f"{lens.name} (reversed)", "radius_mm": -lens.radius_mm[::-1].copy(),
-        "thickness_mm": np.concatenate([lens.thickness_mm[:-1][::-1], [0.0]]),
-        "index_d": medium_in_front[::-1].copy(), "abbe_v": abbe_in_front[::-1].copy(),
-        "aperture_mm": lens.aperture_mm[::-1].copy(), "stop": count - 1 - lens.stop,
-    }
-    if getattr(lens, "asphere_count", 0):
-        # Even aspheres (when the lens model has them): the sag changes sign, as the radius does.
-        changes["conic"] = lens.conic[::-1].copy()
-        changes["aspheric_coefficients"] = -lens.aspheric_coefficients[::-1].copy()
-    return dataclasses.replace(lens, **changes)
+    conic, coefficients = lens.conic, lens.aspheric_coefficients
+    if lens.asphere_count:
+        # Even aspheres: the sag changes sign, as the radius does.
+        conic, coefficients = lens.conic[::-1].copy(), -lens.aspheric_coefficients[::-1].copy()
+    return dataclasses.replace(
+        lens, name=f"{lens.name} (reversed)", radius_mm=-lens.radius_mm[::-1].copy(),
+        thickness_mm=np.concatenate([lens.thickness_mm[:-1][::-1], [0.0]]),
+        index_d=medium_in_front[::-1].copy(), abbe_v=abbe_in_front[::-1].copy(),
+        aperture_mm=lens.aperture_mm[::-1].copy(), stop=count - 1 - lens.stop,
+        conic=conic, aspheric_coefficients=coefficients)
 
 
 def pupil_grid(samples_across: int) -> np.ndarray:
@@ -102,7 +101,7 @@ class _Launch:
     wavelength_nm: float
     object_distance_mm: float
 
-    def trace(self, pupil_xy: np.ndarray):
+    def trace(self, pupil_xy: np.ndarray) -> TraceResult:
         targets = np.column_stack([pupil_xy, np.full(len(pupil_xy), self.pupil_z_mm)])
         angle = math.radians(self.field_deg)
         if math.isinf(self.object_distance_mm):

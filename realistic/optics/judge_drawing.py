@@ -14,18 +14,18 @@ from realistic.optics.spot import SpotReport
 WAVELENGTH_COLOURS = ("tab:blue", "tab:green", "tab:red", "tab:purple", "tab:orange")
 
 
-def _pyplot():
+def _use_agg() -> None:
+    """Draw to files only (no display): select the Agg backend before pyplot is imported."""
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def plot_spots(report: SpotReport, out: Path) -> None:
     """One panel per field: ray landings (micrometres from the centroid), coloured by wavelength."""
-    plt = _pyplot()
+    _use_agg()
+    import matplotlib.pyplot as plt
+
     count = len(report.spots)
     fig, axes = plt.subplots(1, count, figsize=(3.2 * count, 3.6), squeeze=False)
     extent = max(s.geometric_radius_mm for s in report.spots) * 1000 * 1.1 or 1.0
@@ -53,7 +53,9 @@ def plot_spots(report: SpotReport, out: Path) -> None:
 
 def plot_mtf(report: MtfReport, out: Path) -> None:
     """Sagittal (dashed) and tangential (solid) geometric MTF per field."""
-    plt = _pyplot()
+    _use_agg()
+    import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for k, field in enumerate(report.fields_deg):
         colour = f"C{k % 10}"

@@ -73,14 +73,18 @@ class LensSystem:
     convention_note: str = ""
     description: str = ""  # the file's own words about the lens: its origin (patent, example), focal length
     stop_shape: StopShape | None = None  # None: the stop is the circle of its aperture diameter
-    conic: np.ndarray | None = None  # (N,) conic constant k; None: all spheres
-    aspheric_coefficients: np.ndarray | None = None  # (N, 9) A4 .. A20 (mm^(1-p) for r^p); None: all 0
+    # (N,) conic constant k; empty (the default): all spheres
+    conic: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    # (N, 9) A4 .. A20 (mm^(1-p) for r^p); empty (the default): all 0
+    aspheric_coefficients: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, COEFFICIENT_COUNT)))
 
     def __post_init__(self) -> None:
+        """Expand the empty defaults of ``conic`` and ``aspheric_coefficients`` to zeros per surface, so
+        that both are always (N,) and (N, 9) arrays."""
         count = len(self.radius_mm)
-        if self.conic is None:
+        if self.conic.size == 0:
             object.__setattr__(self, "conic", np.zeros(count))
-        if self.aspheric_coefficients is None:
+        if self.aspheric_coefficients.size == 0:
             object.__setattr__(self, "aspheric_coefficients", np.zeros((count, COEFFICIENT_COUNT)))
 
     @property

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import TypedDict
 
 import numpy as np
 
@@ -115,13 +116,26 @@ def _image_circle_traced(lens: LensSystem, points: int, samples: int) -> float:
     return 2.0 * float(lo + t * (hi - lo))
 
 
-def library_entry(name: str) -> dict:
+class LibraryEntry(TypedDict):
+    """What ``lens list`` reports for one library lens."""
+
+    name: str
+    file: str
+    focal_length_mm: float
+    f_number: float
+    image_circle_mm: float
+    elements: int
+    aspheres: int
+    source: str
+
+
+def library_entry(name: str) -> LibraryEntry:
     """What ``lens list`` reports for library lens ``name``."""
     lens, header = read_library_lens(name)
     para = paraxial_data(lens)
     return {
         "name": name, "file": bundled_lens_files()[name], "focal_length_mm": para.efl_mm, "f_number": para.f_number,
         "image_circle_mm": image_circle_mm(lens), "elements": element_count(lens),
-        "aspheres": int(getattr(lens, "asphere_count", 0)), "source": header,
+        "aspheres": lens.asphere_count, "source": header,
     }
 

@@ -55,7 +55,7 @@ class MtfReport:
     sagittal: tuple[np.ndarray, ...]
     tangential: tuple[np.ndarray, ...]
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, object]:
         return {"lens": self.lens_name, "focus": self.focus, "film_distance_mm": self.film_distance_mm,
                 "frequencies_lp_mm": self.frequencies_lp_mm.tolist(),
                 "fields": [{"field_deg": f, "sagittal": s.tolist(), "tangential": t.tolist()}

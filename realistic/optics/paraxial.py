@@ -39,7 +39,7 @@ class ParaxialData:
     f_number: float
     track_length_mm: float
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, float]:
         return asdict(self)
 
 

@@ -26,6 +26,8 @@ in the frame of a film point on the +x axis; the pupil is symmetric in y, so onl
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from realistic.optics.lens import LensSystem
@@ -69,7 +71,7 @@ class _Passes:
             else self.wavelengths_nm[0]
         passed = trace_from_film(self.lens, self.film_distance_mm, np.tile(origins, (count, 1)),
                                  np.tile(directions, (count, 1)), wavelengths).passed
-        return passed.reshape(count, -1).any(axis=0).reshape(shape)
+        return np.any(passed.reshape(count, -1), axis=0).reshape(shape)
 
 
 def _grid(lo: np.ndarray, hi: np.ndarray, count: int) -> np.ndarray:
@@ -84,8 +86,8 @@ def _found_region(passes: _Passes, film_x: np.ndarray, reach: np.ndarray, grid: 
     xs = _grid(-reach[rows], reach[rows], grid[0])
     ys = _grid(np.zeros(len(rows)), reach[rows], grid[1])
     passed = passes(film_x[rows, None, None], xs[:, :, None], ys[:, None, :])
-    any_x, any_y = passed.any(axis=2), passed.any(axis=1)
-    found = any_x.any(axis=1)
+    any_x, any_y = np.any(passed, axis=2), np.any(passed, axis=1)
+    found = np.any(any_x, axis=1)
     first = np.argmax(any_x, axis=1)
     last = grid[0] - 1 - np.argmax(any_x[:, ::-1], axis=1)
     top = grid[1] - 1 - np.argmax(any_y[:, ::-1], axis=1)
@@ -95,17 +97,21 @@ def _found_region(passes: _Passes, film_x: np.ndarray, reach: np.ndarray, grid: 
     return found, box, cell
 
 
-def _bisect(passes: _Passes, problems: list[tuple]) -> list[np.ndarray]:
+#: One bisection problem: film x, inside, outside, other, along_x, needed (``_bisect``).
+_Problem = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool, np.ndarray]
+
+
+def _bisect(passes: _Passes, problems: list[_Problem]) -> list[np.ndarray]:
     """Per problem (film_x, inside, outside, other, along_x, needed): the outer end of the final
     bracket between passing ``inside`` and blocked ``outside`` coordinates (x when ``along_x``, else
     y; ``other`` is the fixed coordinate), traced only where ``needed``; elsewhere ``inside`` itself
     (a grid point at the window's edge, or nothing passing). The problems are independent, so every
     step traces all of their pairs at once: one call instead of one per problem."""
     edges, parts = [], []
-    for film_x, inside, outside, other, along_x, needed in problems:
+    for film_x, inside, outside, other, along, needed in problems:
         edges.append(inside.copy())
         parts.append((film_x[needed], inside[needed], outside[needed], other[needed],
-                      np.full(int(np.count_nonzero(needed)), along_x)))
+                      np.full(int(np.count_nonzero(needed)), along)))
     film_x, inside, outside, other, along_x = (np.concatenate(column) for column in zip(*parts))
     for _ in range(BISECTION_STEPS):
         middle = 0.5 * (inside + outside)
@@ -150,7 +156,7 @@ def _edges(passes: _Passes, film_x: np.ndarray, x_lo: np.ndarray, x_hi: np.ndarr
     return box, pad
 
 
-def _between(edges: np.ndarray, pick, sign: int) -> np.ndarray:
+def _between(edges: np.ndarray, pick: Callable[..., np.ndarray], sign: int) -> np.ndarray:
     """Half the largest step from the extreme sample to its neighbours (R,): how far the extreme
     can lie beyond it between samples. Unsampled neighbours (inf) do not count."""
     count = edges.shape[1]

@@ -39,9 +39,9 @@ def read_rays(path: str) -> tuple[np.ndarray, np.ndarray]:
     return np.array(origins, dtype=np.float64).reshape(-1, 3), np.array(directions, dtype=np.float64).reshape(-1, 3)
 
 
-def rays_to_json(result: TraceResult) -> dict:
+def rays_to_json(result: TraceResult) -> dict[str, list[dict[str, object]]]:
     """The trace result in the documented JSON shape, rays in input order."""
-    rays = []
+    rays: list[dict[str, object]] = []
     for origin, direction, surface, reason in zip(result.origin, result.direction, result.blocked_surface,
                                                   result.blocked_reason):
         if reason:

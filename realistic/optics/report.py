@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from realistic.optics.asphere import COEFFICIENT_POWERS
 from realistic.optics.dispersion import D_LINE_NM
@@ -12,30 +13,32 @@ from realistic.optics.sampling import exit_pupil_table, pass_fractions
 
 
 def lens_summary(lens: LensSystem, wavelength_nm: float = D_LINE_NM, film_distance_mm: float | None = None,
-                 sampling_film_diagonal_mm: float | None = None) -> dict:
-    """Surfaces, paraxial data, focusing and (optionally) sampler pass fractions of ``lens``."""
-    summary = {"name": lens.name, "source": lens.source}
+                 sampling_film_diagonal_mm: float | None = None) -> dict[str, object]:
+    """Surfaces, paraxial data, focusing and (optionally) sampler pass fractions of ``lens``: a JSON document."""
+    summary: dict[str, object] = {"name": lens.name, "source": lens.source}
     if lens.convention_note:
         summary["convention_note"] = lens.convention_note
     summary.update(paraxial_data(lens, wavelength_nm).as_dict())
-    summary["film_distance_infinity_mm"] = film_distance_for_focus(lens, math.inf, wavelength_nm)
+    infinity_mm = film_distance_for_focus(lens, math.inf, wavelength_nm)
+    summary["film_distance_infinity_mm"] = infinity_mm
     summary["nearest_focus_from_film_mm"] = nearest_focus_mm(lens, wavelength_nm)
     summary["has_dispersion"] = lens.has_dispersion
     if film_distance_mm is not None:
         summary["film_distance_mm"] = film_distance_mm
         summary["focus_distance_from_film_mm"] = focus_distance_for_film(lens, film_distance_mm, wavelength_nm)
-    summary["surfaces"] = [
+    surfaces: list[dict[str, object]] = [
         {"radius_mm": float(r), "thickness_mm": float(t), "index_d": float(n), "abbe_v": float(v),
          "aperture_mm": float(a), "stop": i == lens.stop}
         for i, (r, t, n, v, a) in enumerate(zip(lens.radius_mm, lens.thickness_mm, lens.index_d,
                                                 lens.abbe_v, lens.aperture_mm))
     ]
     for i in map(int, lens.aspheric.nonzero()[0]):
-        summary["surfaces"][i]["conic"] = float(lens.conic[i])
-        summary["surfaces"][i]["aspheric_coefficients"] = {
+        surfaces[i]["conic"] = float(lens.conic[i])
+        surfaces[i]["aspheric_coefficients"] = {
             f"A{p}": float(a) for p, a in zip(COEFFICIENT_POWERS, lens.aspheric_coefficients[i]) if a != 0}
+    summary["surfaces"] = surfaces
     if sampling_film_diagonal_mm:
-        distance = film_distance_mm if film_distance_mm is not None else summary["film_distance_infinity_mm"]
+        distance = film_distance_mm if film_distance_mm is not None else infinity_mm
         table = exit_pupil_table(lens, distance, sampling_film_diagonal_mm)
         half = sampling_film_diagonal_mm / 2
         summary["pass_fraction"] = {
@@ -45,8 +48,8 @@ def lens_summary(lens: LensSystem, wavelength_nm: float = D_LINE_NM, film_distan
     return summary
 
 
-def format_summary(summary: dict) -> str:
-    """Human-readable text for ``lens info``."""
+def format_summary(summary: dict[str, Any]) -> str:
+    """Human-readable text for ``lens info``, from ``lens_summary``'s document."""
     lines = [f"lens {summary['name']}  ({summary['source']})"]
     if "convention_note" in summary:
         lines.append(f"note: {summary['convention_note']}")

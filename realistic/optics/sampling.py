@@ -145,7 +145,9 @@ PUPIL_CACHE_SIZE = 32
 class _PupilRequest:
     """The key of a cached table (``key``) with the lens it was computed from (not compared)."""
 
-    key: tuple
+    # radii (and asphere terms), gaps, indices, Abbe numbers, apertures; film distance and diagonal,
+    # intervals, wavelengths
+    key: tuple[bytes, bytes, bytes, bytes, bytes, float, float, int, tuple[float, ...]]
     lens: LensSystem = field(compare=False, hash=False)
 
 

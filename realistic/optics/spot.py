@@ -77,7 +77,7 @@ class Spot:
         delta = self.all_points - self.centroid_mm
         return float(np.sqrt(np.max(np.sum(delta * delta, axis=1))))
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, object]:
         return {
             "field_deg": self.field_deg, "centroid_mm": [float(v) for v in self.centroid_mm],
             "rms_radius_mm": self.rms_radius_mm, "geometric_radius_mm": self.geometric_radius_mm,
@@ -118,7 +118,7 @@ class SpotReport:
     film_distance_mm: float  # film plane, mm behind the rear vertex
     spots: tuple[Spot, ...]
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, object]:
         return {"lens": self.lens_name, "focus": self.focus, "film_distance_mm": self.film_distance_mm,
                 "spots": [s.as_dict() for s in self.spots]}
 

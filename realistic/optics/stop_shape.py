@@ -38,7 +38,7 @@ class StopShape:
     source: str = ""
     extent: float = 1.0  # blades: the vertices' circle as a fraction of the stop's diameter
 
-    def key(self) -> tuple:
+    def key(self) -> tuple[int, float, float, bytes, float]:
         """Hashable identity (for caches)."""
         mask = b"" if self.mask is None else self.mask.tobytes() + bytes(str(self.mask.shape), "ascii")
         return (self.blades, self.rotation_deg, self.curvature, mask, self.extent)

@@ -40,6 +40,9 @@ ASPHERE_ITERATIONS = 16
 #: Largest |w + sag| (mm) accepted as a hit on an aspheric surface.
 ASPHERE_TOLERANCE_MM = 1e-9
 
+#: Per-ray vectors as (x, y, z) arrays (structure of arrays, as in the kernel).
+Vectors = tuple[np.ndarray, np.ndarray, np.ndarray]
+
 
 @dataclass(frozen=True)
 class TraceResult:
@@ -55,7 +58,7 @@ class TraceResult:
         return self.blocked_reason == PASSED
 
 
-def intersect_surface(o: tuple, d: tuple, vertex_z: float, radius: float) -> tuple[tuple, tuple, np.ndarray]:
+def intersect_surface(o: Vectors, d: Vectors, vertex_z: float, radius: float) -> tuple[Vectors, Vectors, np.ndarray]:
     """Hit point, unit normal facing the incoming ray, and a miss mask for one surface.
 
     ``o`` and ``d`` are (x, y, z) tuples of arrays (structure of arrays, as in the kernel).
@@ -83,15 +86,15 @@ def intersect_surface(o: tuple, d: tuple, vertex_z: float, radius: float) -> tup
     return (hx, hy, hz), normal, miss
 
 
-def intersect_asphere(o: tuple, d: tuple, vertex_z: float, radius: float, conic: float,
-                      coefficients: np.ndarray) -> tuple[tuple, tuple, np.ndarray]:
+def intersect_asphere(o: Vectors, d: Vectors, vertex_z: float, radius: float, conic: float,
+                      coefficients: np.ndarray) -> tuple[Vectors, Vectors, np.ndarray]:
     """Hit point, unit normal facing the incoming ray, and a failure mask for an aspheric surface."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # judged by the failure mask
         return _asphere_hit(o, d, vertex_z, radius, conic, coefficients)
 
 
-def _asphere_hit(o: tuple, d: tuple, vertex_z: float, radius: float, conic: float,
-                 coefficients: np.ndarray) -> tuple[tuple, tuple, np.ndarray]:
+def _asphere_hit(o: Vectors, d: Vectors, vertex_z: float, radius: float, conic: float,
+                 coefficients: np.ndarray) -> tuple[Vectors, Vectors, np.ndarray]:
     ox, oy, oz = o
     dx, dy, dz = d
     coefficients = significant(coefficients)
@@ -127,7 +130,7 @@ def _asphere_hit(o: tuple, d: tuple, vertex_z: float, radius: float, conic: floa
     return (hx, hy, hz), (nx * scale, ny * scale, scale), fail
 
 
-def refract(d: tuple, normal: tuple, eta: float | np.ndarray) -> tuple[tuple, np.ndarray]:
+def refract(d: Vectors, normal: Vectors, eta: float | np.ndarray) -> tuple[Vectors, np.ndarray]:
     """Heckbert refraction of unit ``d`` at unit ``normal`` (facing it); returns (T, tir mask)."""
     dx, dy, dz = d
     nx, ny, nz = normal
@@ -138,6 +141,11 @@ def refract(d: tuple, normal: tuple, eta: float | np.ndarray) -> tuple[tuple, np
     tx, ty, tz = eta * dx + k * nx, eta * dy + k * ny, eta * dz + k * nz
     inv = 1.0 / np.sqrt(tx * tx + ty * ty + tz * tz)
     return (tx * inv, ty * inv, tz * inv), tir
+
+
+def _rows(v: Vectors, keep: np.ndarray) -> Vectors:
+    """The rays that the mask ``keep`` selects, of each component of ``v``."""
+    return v[0][keep], v[1][keep], v[2][keep]
 
 
 def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarray, directions: np.ndarray,
@@ -156,8 +164,8 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     length = np.sqrt(np.sum(directions * directions, axis=1))
-    o = tuple(origins[:, k].copy() for k in range(3))
-    d = tuple(directions[:, k] / length for k in range(3))
+    o: Vectors = (origins[:, 0].copy(), origins[:, 1].copy(), origins[:, 2].copy())
+    d: Vectors = (directions[:, 0] / length, directions[:, 1] / length, directions[:, 2] / length)
     count = len(origins)
     surface = np.full(count, -1, dtype=np.int64)
     reason = np.zeros(count, dtype=np.int8)
@@ -198,7 +206,7 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
             going = reason[live] == PASSED
             if path is None and not going.all():
                 live = live[going]
-                o, d = tuple(a[going] for a in o), tuple(a[going] for a in d)
+                o, d = _rows(o, going), _rows(d, going)
     origin = np.full((count, 3), np.nan)
     direction = np.full((count, 3), np.nan)
     passing = reason[live] == PASSED  # all of them, unless ``path`` kept every ray

@@ -122,7 +122,10 @@ class InfiniteLight:
         return w / np.linalg.norm(w, axis=1, keepdims=True)
 
     def texels(self, uv: np.ndarray) -> np.ndarray:
-        """Nearest texel (N, 3) of the map at uv (pbrt-v4 reads its map by nearest texel, as here)."""
+        """Nearest texel (N, 3) of the map at uv (pbrt-v4 reads its map by nearest texel, as here); white
+        without a map (pbrt's map of one texel)."""
+        if self.image is None:
+            return np.ones((len(uv), 3), np.float32)
         h, w = self.image.shape[:2]
         x = np.clip((np.asarray(uv[:, 0]) * w).astype(np.int64), 0, w - 1)
         y = np.clip((np.asarray(uv[:, 1]) * h).astype(np.int64), 0, h - 1)

@@ -12,7 +12,8 @@ from __future__ import annotations
 import json
 import re
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from realistic.errors import UserError
@@ -45,7 +46,8 @@ def _one_line(text: str, limit: int = 100) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _chain(err: BaseException):
+def _chain(err: BaseException | None) -> Iterator[BaseException]:
+    """``err`` and the errors it was raised from or while handling, each once."""
     seen = set()
     while err is not None and id(err) not in seen:
         seen.add(id(err))
@@ -168,6 +170,16 @@ def _obj_problem(text: str) -> tuple[int | None, str] | None:
     return None
 
 
+@dataclass
+class _PlyElement:
+    """An ``element`` of a PLY header with its ``property`` lines."""
+
+    name: str
+    count: int
+    properties: list[str] = field(default_factory=list)
+    item_bytes: int = 0  # bytes per item at least (binary; a list property counts only its length field)
+
+
 def _diagnose_ply(path: Path) -> tuple[int | None, str] | None:
     data = read_head(path, DIAGNOSIS_BYTES + 1)
     lines = data.split(b"\n")
@@ -176,7 +188,7 @@ def _diagnose_ply(path: Path) -> tuple[int | None, str] | None:
     end = next((i for i, line in enumerate(lines) if line.strip() == b"end_header"), None)
     if end is None:
         return None, "truncated or malformed header: no 'end_header' line"
-    elements: list[list] = []  # name, count, property names, bytes per item at least (binary)
+    elements: list[_PlyElement] = []
     binary = False
     for number, raw in enumerate(lines[1:end], start=2):
         try:
@@ -192,7 +204,7 @@ def _diagnose_ply(path: Path) -> tuple[int | None, str] | None:
         elif words[0] == "element":
             if len(words) != 3 or not words[2].isdigit():
                 return number, "an element line must be 'element NAME COUNT' with a count of 0 or more"
-            elements.append([words[1], int(words[2]), [], 0])
+            elements.append(_PlyElement(words[1], int(words[2])))
         elif words[0] == "property":
             single = len(words) == 3 and words[1] in _PLY_TYPES
             listed = len(words) == 5 and words[1] == "list" and words[2] in _PLY_TYPES and words[3] in _PLY_TYPES
@@ -200,15 +212,15 @@ def _diagnose_ply(path: Path) -> tuple[int | None, str] | None:
                 return number, "a property line must be 'property TYPE NAME' or 'property list TYPE TYPE NAME'"
             if not elements:
                 return number, "a property before any element"
-            elements[-1][2].append(words[-1])
-            elements[-1][3] += _PLY_TYPES[words[2]] if listed else _PLY_TYPES[words[1]]
+            elements[-1].properties.append(words[-1])
+            elements[-1].item_bytes += _PLY_TYPES[words[2]] if listed else _PLY_TYPES[words[1]]
         elif words[0] not in ("comment", "obj_info"):
             return number, f"unknown header keyword {_one_line(words[0], 30)!r}"
-    vertex = next((e for e in elements if e[0] == "vertex"), None)
-    if vertex is not None and not {"x", "y", "z"} <= set(vertex[2]):
+    vertex = next((e for e in elements if e.name == "vertex"), None)
+    if vertex is not None and not {"x", "y", "z"} <= set(vertex.properties):
         return None, "the vertex element has no x, y and z properties"
     if binary:
-        needed = sum(e[1] * e[3] for e in elements)
+        needed = sum(e.count * e.item_bytes for e in elements)
         available = path.stat().st_size - sum(len(line) + 1 for line in lines[:end + 1])
         if available < needed:
             return None, f"the header declares at least {needed} bytes of data, the file has {available}"
@@ -219,7 +231,7 @@ def _diagnose_ply(path: Path) -> tuple[int | None, str] | None:
     for number, row in enumerate(lines[end + 1:], start=end + 2):
         if _numbers(row.decode("utf-8", errors="replace").split()) is None:
             return number, "a value that is not a number"
-    needed = sum(e[1] for e in elements)
+    needed = sum(e.count for e in elements)
     if len(rows) < needed:
         return None, f"the header declares {needed} rows of data, the file has {len(rows)}"
     return None

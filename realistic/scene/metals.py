@@ -117,7 +117,7 @@ def named_metal(name: str) -> RGBPair:
     nm, n, k = TABLES[name]
     eta, kappa = spectrum_to_rgb(np.asarray(nm), np.array([n, k]))
     kappa = np.maximum(kappa, 0.0)
-    return tuple(float(v) for v in eta), tuple(float(v) for v in kappa)
+    return (float(eta[0]), float(eta[1]), float(eta[2])), (float(kappa[0]), float(kappa[1]), float(kappa[2]))
 
 
 def copper() -> RGBPair:

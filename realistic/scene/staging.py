@@ -94,7 +94,7 @@ def _visible(mesh: Mesh) -> np.ndarray:
     return visible
 
 
-def _resolvable(mesh, transform: np.ndarray, chunk: int = 1 << 16) -> bool:
+def _resolvable(mesh: Mesh, transform: np.ndarray, chunk: int = 1 << 16) -> bool:
     """Whether any triangle keeps a non-zero area in world float32 coordinates (as the intersector sees it)."""
     for start in range(0, len(mesh.faces), chunk):
         corners = mesh.vertices[mesh.faces[start:start + chunk]].reshape(-1, 3)
@@ -107,12 +107,16 @@ def _resolvable(mesh, transform: np.ndarray, chunk: int = 1 << 16) -> bool:
 
 def default_setup() -> Setup:
     """The default scene, ``scenes/default.pbrt``: its world, and its camera's eye and focus target."""
-    scene, parsed, _ = import_world(data_file("scenes/default.pbrt"))
+    path = data_file("scenes/default.pbrt")
+    scene, parsed, _ = import_world(path)
+    camera = parsed.camera
+    if camera is None:
+        raise UserError(f"{path} has no Camera: reinstall the package")
     scene.background = (0.02, 0.02, 0.03)  # a dim sky (pbrt files have no background) so the horizon reads
-    world_from_camera = np.linalg.inv(parsed.camera.transform)
+    world_from_camera = np.linalg.inv(camera.transform)
     eye = world_from_camera[:3, 3]
     forward = world_from_camera[:3, 2] / np.linalg.norm(world_from_camera[:3, 2])
-    target = eye + forward * parsed.camera.params.get_float("focusdistance")
+    target = eye + forward * camera.params.get_float("focusdistance")
     return Setup(scene, target, 0.3, eye=eye)
 
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 from realistic.errors import LensFileError, UserError
@@ -91,7 +92,7 @@ def _radius_mm(value: float, is_radius: bool, unit_mm: float) -> float:
     return unit_mm / value
 
 
-def _commands(text: str):
+def _commands(text: str) -> Iterator[tuple[int, list[str]]]:
     """(line, tokens) per command: ``;`` separates commands, ``!`` starts a comment."""
     for number, raw in enumerate(text_lines(text), start=1):
         for command in raw.split("!", 1)[0].split(";"):
@@ -194,18 +195,20 @@ def _build(surfaces: list[_Surface], defocus: float, path: str, name: str | None
                             "supported (put the stop on a flat dummy air surface)")
     if surfaces[-1].index != 1.0:
         raise LensFileError(path, surfaces[-1].line, "the space before the image surface must be air")
+    apertures = []
     for s in surfaces:
         if s.semi is None:
             raise LensFileError(path, s.line, "surface has no clear aperture (CIR radius)")
+        apertures.append(2 * s.semi)
     surfaces[-1].thickness += defocus
     radius = [0.0 if s is stop else (s.radius if s.radius != 0 else math.inf) for s in surfaces]
     return build_lens(path, [s.line for s in surfaces], radius, [s.thickness for s in surfaces],
-                      [s.index for s in surfaces], [s.abbe for s in surfaces], [2 * s.semi for s in surfaces],
+                      [s.index for s in surfaces], [s.abbe for s in surfaces], apertures,
                       name=name, conic=[s.conic for s in surfaces], coefficients=[s.coefficients for s in surfaces],
                       description=title)
 
 
-def _digits(fraction: float, value: float, decode) -> str:
+def _digits(fraction: float, value: float, decode: Callable[[str], float]) -> str:
     """The shortest digit string d of ``fraction`` (no leading zero) with decode(d) == value exactly, or ''."""
     for count in range(1, 18):
         digits = str(round(fraction * 10**count))

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import json
 import math
-from json.decoder import scanstring
+from typing import NamedTuple
 
 from realistic.errors import LensFileError
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
@@ -49,7 +49,7 @@ def _surface_lines(text: str) -> list[int]:
         i = _skip(text, i)
         if text[i] == "}":
             return lines
-        key, i = scanstring(text, i + 1)
+        key, i = decoder.raw_decode(text, i)  # an object's key: a JSON string
         i = _skip(text, _skip(text, i) + 1)  # past ":"
         if key == "surfaces" and text[i] == "[":
             lines = []
@@ -94,7 +94,19 @@ def _index(value: object, path: str, line: int) -> float:
     return _number(value, path, line, "ior")
 
 
-def _surface(item: object, path: str, line: int) -> tuple[float, ...]:
+class _Surface(NamedTuple):
+    """One surface object's values, in ``build_lens``'s units (aperture as a diameter)."""
+
+    radius: float
+    thickness: float
+    index_d: float
+    abbe: float
+    aperture: float
+    conic: float
+    coefficients: list[float]
+
+
+def _surface(item: object, path: str, line: int) -> _Surface:
     if not isinstance(item, dict):
         raise LensFileError(path, line, "each surface must be an object with radius, thickness, ior, semi_aperture")
     unknown = [key for key in item if key not in SURFACE_KEYS]
@@ -108,11 +120,12 @@ def _surface(item: object, path: str, line: int) -> tuple[float, ...]:
     coefficients = item.get("aspheric_coefficients", [])
     if not isinstance(coefficients, list):
         raise LensFileError(path, line, "aspheric_coefficients must be a list of numbers (A4, A6, ...)")
-    return (_scalar(item["radius"], path, line, "radius"), _number(item["thickness"], path, line, "thickness"),
-            _index(item["ior"], path, line), _number(item.get("abbe_number", 0), path, line, "abbe_number"),
-            2 * _scalar(item["semi_aperture"], path, line, "semi_aperture"),
-            _scalar(item.get("conic_constant", 0), path, line, "conic_constant"),
-            [_number(a, path, line, "aspheric coefficient") for a in coefficients])
+    return _Surface(_scalar(item["radius"], path, line, "radius"),
+                    _number(item["thickness"], path, line, "thickness"),
+                    _index(item["ior"], path, line), _number(item.get("abbe_number", 0), path, line, "abbe_number"),
+                    2 * _scalar(item["semi_aperture"], path, line, "semi_aperture"),
+                    _scalar(item.get("conic_constant", 0), path, line, "conic_constant"),
+                    [_number(a, path, line, "aspheric coefficient") for a in coefficients])
 
 
 def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) -> LensSystem:
@@ -136,8 +149,9 @@ def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) 
     rows = [_surface(item, path, line) for item, line in zip(surfaces, lines)]
     label = document.get("name")
     description = document.get("description")
-    columns = [[row[k] for row in rows] for k in range(7)]
-    return build_lens(path, lines, *columns[:5], conic=columns[5], coefficients=columns[6],
+    return build_lens(path, lines, [s.radius for s in rows], [s.thickness for s in rows], [s.index_d for s in rows],
+                      [s.abbe for s in rows], [s.aperture for s in rows], conic=[s.conic for s in rows],
+                      coefficients=[s.coefficients for s in rows],
                       name=name or (label.strip() if isinstance(label, str) and label.strip() else None),
                       description=description.strip() if isinstance(description, str) else "")
 
@@ -146,9 +160,9 @@ def format_json_lens(lens: LensSystem) -> str:
     """``lens`` as an isetlens/omni JSON document (floats written exactly: repr round-trips)."""
     surfaces = []
     for i in range(lens.surface_count):
-        surface = {"radius": float(lens.radius_mm[i]), "thickness": float(lens.thickness_mm[i]),
-                   "ior": 0.0 if i == lens.stop else float(lens.index_d[i]),
-                   "semi_aperture": float(lens.aperture_mm[i]) / 2}
+        surface: dict[str, float | list[float]] = {
+            "radius": float(lens.radius_mm[i]), "thickness": float(lens.thickness_mm[i]),
+            "ior": 0.0 if i == lens.stop else float(lens.index_d[i]), "semi_aperture": float(lens.aperture_mm[i]) / 2}
         if lens.abbe_v[i] > 0:
             surface["abbe_number"] = float(lens.abbe_v[i])
         if lens.aspheric[i]:

@@ -67,19 +67,19 @@ def bsdf_for(material: SurfaceMaterial, hits: HitParameters) -> BSDF:
     if isinstance(material, Plastic):
         kd, ks = colour(hits, material.diffuse), colour(hits, material.specular)
         a = alpha(scalar(hits, material.roughness), material.rule)
-        eta = np.float32(material.eta)
-        coat = MicrofacetReflection(ks, a, a, lambda c, rows: fresnel.dielectric(c, eta)[:, None])
+        coat_eta = np.float32(material.eta)
+        coat = MicrofacetReflection(ks, a, a, lambda c, rows: fresnel.dielectric(c, coat_eta)[:, None])
         return WeightedSum([Lambertian(kd), coat], [np.ones_like(kd)] * 2, [kd.mean(axis=1), ks.mean(axis=1)])
     if isinstance(material, CoatedDiffuse):
         base = CoatedLambertian(colour(hits, material.reflectance), material.eta)
         a = alpha(scalar(hits, material.roughness), material.rule)
-        eta = np.float32(material.eta)
+        coat_eta = np.float32(material.eta)
         coat = MicrofacetReflection(np.ones_like(base.albedo), a, a,
-                                    lambda c, rows: fresnel.dielectric(c, eta)[:, None])
+                                    lambda c, rows: fresnel.dielectric(c, coat_eta)[:, None])
 
         def chances(wo: np.ndarray) -> list[np.ndarray]:
             """Each lobe's share of the albedo at wo: the coat's F(cos_o), the base the rest."""
-            f = fresnel.dielectric(np.abs(wo[:, 2]), eta)
+            f = fresnel.dielectric(np.abs(wo[:, 2]), coat_eta)
             return [(1 - f) * base.albedo_estimate, f]
 
         return WeightedSum([base, coat], [np.ones_like(base.albedo)] * 2, chances)

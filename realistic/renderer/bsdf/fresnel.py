@@ -8,9 +8,10 @@ Formulas as pbrt-v3 ``src/core/reflection.cpp`` (``FrDielectric``, ``FrConductor
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
-def dielectric(cos_i: np.ndarray, eta: np.ndarray | float) -> np.ndarray:
+def dielectric(cos_i: np.ndarray, eta: ArrayLike) -> np.ndarray:
     """Reflectance (N,) of a boundary between outside (index 1) and inside (index ``eta``) for
     light arriving at cosine ``cos_i`` with the normal (negative: from inside); 1 beyond the
     critical angle."""
@@ -57,7 +58,7 @@ def schlick(cos_i: np.ndarray, r0: np.ndarray) -> np.ndarray:
 
 def reflect_z(w: np.ndarray) -> np.ndarray:
     """Mirror directions (N, 3) about the local normal +z."""
-    return (w * np.float32([-1.0, -1.0, 1.0])).astype(np.float32)
+    return (w * np.array([-1.0, -1.0, 1.0], np.float32)).astype(np.float32)
 
 
 def refract_z(wo: np.ndarray, eta: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:

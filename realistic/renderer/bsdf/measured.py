@@ -16,6 +16,7 @@ theta_h, theta_d and phi_d (phi_d folded into [0, pi)); indices are floor(sqrt(t
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import Protocol
 
 import numpy as np
 
@@ -28,8 +29,15 @@ NEIGHBOURS = 8
 CHUNK = 65_536
 
 
+class _NearestNeighbours(Protocol):
+    """What ``irregular_lookup`` asks of scipy's ``cKDTree``: distances and indices (N, k) of each point's
+    k nearest samples, nearest first."""
+
+    def query(self, x: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]: ...
+
+
 @lru_cache(maxsize=16)
-def _tree(samples: IrregularSamples):
+def _tree(samples: IrregularSamples) -> _NearestNeighbours:
     """The samples' kd-tree, built once per file (scipy is imported here, when a scene needs it)."""
     from scipy.spatial import cKDTree
 
