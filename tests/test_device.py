@@ -11,7 +11,9 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import NumpyBackend, backend_for
-from realistic.renderer.passes import render_passes
+from realistic.renderer.farm import DaskPasses
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import render
 from realistic.scene.model import ImageTexture
 from test_ewa_hits import instanced_scene
 
@@ -45,14 +47,14 @@ def test_an_ewa_scene_pickles_after_an_opencl_render_and_a_dask_worker_renders_i
     distributed = pytest.importorskip("distributed", reason="dask[distributed] is the farm extra")
     scene, camera = ewa_scene_and_camera()
     assert ewa_maps(scene)
-    image = render_passes(scene, camera, "opencl", seed=5, pass_samples=PASS).image
+    image = render(RenderJob(scene, (camera,), "opencl", seed=5, pass_samples=PASS))[0].image
     assert image.max() > 0
     assert pickle.loads(pickle.dumps(scene)).instances  # raised "cannot pickle 'pyopencl._cl.Context'" before
     cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None)
     try:
         with distributed.Client(cluster) as client:
-            farmed = render_passes(scene, camera, "opencl", seed=5, pass_samples=PASS, client=client,
-                                   task_samples=2 * PASS).image
+            farmed = render(RenderJob(scene, (camera,), "opencl", seed=5, pass_samples=PASS),
+                            DaskPasses(client, task_samples=2 * PASS))[0].image
     finally:
         cluster.close()
     assert np.array_equal(farmed, image)
@@ -74,7 +76,7 @@ def test_the_cl_device_reaches_the_ewa_kernel(monkeypatch):
     monkeypatch.setattr(opencl_backend, "EwaKernel", recording)
     scene, camera = ewa_scene_and_camera()
     spec = "0:0"
-    render_passes(scene, camera, "opencl", seed=5, pass_samples=PASS, cl_device=spec)
+    render(RenderJob(scene, (camera,), "opencl", seed=5, cl_device=spec, pass_samples=PASS))
     maps = ewa_maps(scene)
     assert {id(m) for m, _ in made} == {id(m) for m in maps}
     assert all(device is Device.for_spec(spec) for _, device in made)
