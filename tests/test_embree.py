@@ -20,6 +20,7 @@ import time
 import numpy as np
 import pytest
 
+from conftest import run_fresh
 from realistic.errors import UserError
 from realistic.scene import embree, packet_loop
 from realistic.scene.embree import EmbreeScene
@@ -261,6 +262,30 @@ def test_a_trace_releases_the_gil():
     worker.join()
     assert span[0] > 0.05, "the batch traced too fast to tell"
     assert np.max(np.diff(wakes)) < span[0] / 2
+
+
+#: One closest-hit and one occlusion query in a process of its own: its answers, and the closest
+#: loop's cache hits and misses (numba's dispatcher statistics)
+ONE_TRACE = """
+import numpy as np
+from realistic.scene import packet_loop
+from realistic.scene.embree import EmbreeScene
+scene = EmbreeScene()
+scene.add_triangles(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]]), 4)
+scene.commit()
+origin, direction = np.array([[0.25, 0.25, 2]], np.float32), np.array([[0, 0, -1]], np.float32)
+hits, blocked = scene.intersect(origin, direction), scene.occluded(origin, direction, np.array([3], np.float32))
+stats = packet_loop.closest_loop().stats
+print(hits.geom[0], hits.t[0], blocked[0], sum(stats.cache_hits.values()), sum(stats.cache_misses.values()))
+"""
+
+
+def test_the_loops_one_process_caches_trace_in_another(tmp_path):
+    """The cached code holds no address of the process that compiled it (embree's function is an
+    argument): another process, its libraries mapped elsewhere, loads it and gets the same answers."""
+    compiled = run_fresh(ONE_TRACE, NUMBA_CACHE_DIR=str(tmp_path)).stdout.split()
+    loaded = run_fresh(ONE_TRACE, NUMBA_CACHE_DIR=str(tmp_path)).stdout.split()
+    assert compiled == ["4", "2.0", "True", "0", "1"] and loaded == ["4", "2.0", "True", "1", "0"]
 
 
 def test_the_loaded_library_passes_the_start_up_check():

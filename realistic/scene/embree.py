@@ -91,6 +91,7 @@ class Library:
     occluded16: Callable[..., None]
 
     def version(self) -> str:
+        """The library's version, as "major.minor.patch"."""
         return ".".join(str(self.lib.rtcGetDeviceProperty(self.device, p))
                         for p in (_VERSION_MAJOR, _VERSION_MINOR, _VERSION_PATCH))
 
@@ -139,8 +140,8 @@ def mismatch(library: Library, problems: list[str]) -> str:
 #: The probe: a triangle (geometry PROBE_GEOM) placed by an identity instance (PROBE_INSTANCE), hit
 #: by lane 0 of a packet from above at t = 1, barycentrics (0.25, 0.25)
 PROBE_GEOM, PROBE_INSTANCE = 5, 3
-#: Instance levels the probe packet has room for: an embree built with up to this many writes no
-#: more than RTCRayHit16's rows with instID and instPrimID rows for each level
+#: Instance levels the probe packet has rows for (instID and instPrimID each), so that an embree built
+#: with up to this many cannot write past it
 PROBE_LEVELS = 256
 PROBE_ROWS = RAY_ROWS + packet_loop.HIT_ROWS + 2 * PROBE_LEVELS
 SENTINEL = 0x5EE0F00D
@@ -173,8 +174,8 @@ def probe_packet(library: Library) -> np.ndarray:
 def configuration_problems(library: Library) -> list[str]:
     """What differs between ``library`` and the embree the packet loops are written for (nothing
     when it is that one): the version, back-face culling, triangle support, and the probe's packet
-    (``probe_packet``): lane 0's hit in RTCRayHit16's rows (geomID, primID, instID, and instPrimID
-    0 for a plain instance in the row after it), and every other word as it was."""
+    (``probe_packet``): lane 0's hit in RTCRayHit16's rows (tfar, geomID, primID, instID, and
+    instPrimID 0, a plain instance's, in the row after instID), and every other word as it was."""
     lib, device = library.lib, library.device
     version = lib.rtcGetDeviceProperty(device, _VERSION)
     if version not in TESTED_VERSIONS:
@@ -187,11 +188,16 @@ def configuration_problems(library: Library) -> list[str]:
     if problems:
         return problems
     packet = probe_packet(library)
-    hit = packet[[GEOM, PRIM, INST, INST_PRIM], 0]
-    if packet.view(np.float32)[TFAR, 0] != 1 or list(hit) != [PROBE_GEOM, 0, PROBE_INSTANCE, 0]:
-        problems.append(f"the probe's hit came back as tfar {packet.view(np.float32)[TFAR, 0]}, geomID, primID, "
-                        f"instID, instPrimID {[int(x) for x in hit]} where 1.0, {[PROBE_GEOM, 0, PROBE_INSTANCE, 0]} "
-                        "are expected")
+    hit = [float(packet.view(np.float32)[TFAR, 0]), *(int(x) for x in packet[[GEOM, PRIM, INST], 0])]
+    if hit != [1.0, PROBE_GEOM, 0, PROBE_INSTANCE]:
+        problems.append(f"the probe's hit came back as tfar, geomID, primID, instID {hit} where "
+                        f"{[1.0, PROBE_GEOM, 0, PROBE_INSTANCE]} are expected")
+    instance_prim = int(packet[INST_PRIM, 0])
+    if instance_prim == SENTINEL:
+        problems.append(f"it wrote no instPrimID row (row {INST_PRIM}): built without instance arrays")
+    elif instance_prim != 0:
+        problems.append(f"row {INST_PRIM} came back {instance_prim} where instPrimID 0 is expected "
+                        "(RTC_MAX_INSTANCE_LEVEL_COUNT > 1)")
     beyond = np.flatnonzero(np.any(packet[ROWS:] != SENTINEL, axis=1))
     if len(beyond):
         problems.append(f"it wrote row {ROWS + beyond[-1]} of the packet, past RTCRayHit16's {ROWS} rows "

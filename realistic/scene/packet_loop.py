@@ -12,10 +12,12 @@ They are numba functions (``njit(nogil=True, cache=True)``), compiled on the fir
 process; numba is imported then, not with the package, so ``import realistic`` and ``--help`` stay
 quick. embree's packet function reaches them as an argument, a ctypes function object whose address
 numba reads at each call, so the compiled code holds no address of the process that compiled it and
-numba can cache it on disk. numba keeps that cache in ``__pycache__`` beside this file where that is
-writable, else (an installed, read-only package) in the user's cache directory
-(``~/.cache/numba``, ``$NUMBA_CACHE_DIR`` if set); where neither is writable the loops are compiled
-in every process, uncached.
+numba can cache it on disk: in ``$NUMBA_CACHE_DIR`` if set, else in ``__pycache__`` beside this
+file where that is writable, else (an installed, read-only package) in the user's cache directory
+(``~/.cache/numba`` on Linux); where none is writable the loops are compiled in every process,
+uncached. That first trace is the loops' start-up cost: numba's import, and its
+first compile or cache load, which imports numba's own typing and lowering modules (and scipy's
+linalg, when installed, for its BLAS check); ``bench/embree_loop.py`` measures it, cold and warm.
 
 Packet rows (``embree4/rtcore_ray.h``, ``RTCRayHit16``): org_x, org_y, org_z, tnear, dir_x, dir_y,
 dir_z, time, tfar, mask, id, flags (``RTCRay16`` ends here), then the hit's Ng_x, Ng_y, Ng_z, u, v,
