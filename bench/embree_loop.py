@@ -25,6 +25,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -53,7 +54,7 @@ def record(path: Path, res: str, spp: int) -> dict:
     width, height = (int(v) for v in res.split("x"))
     setup, camera, _, _ = staged_subject("dgauss", width, height, spp)
     recorder = recorded_rays(setup, camera, "numpy")
-    arrays = {"primary_origin": np.concatenate([o for o, _ in recorder.primary]),
+    arrays: dict[str, Any] = {"primary_origin": np.concatenate([o for o, _ in recorder.primary]),
               "primary_direction": np.concatenate([d for _, d in recorder.primary]),
               "shadow_origin": np.concatenate([o for o, _, _ in recorder.shadow]),
               "shadow_direction": np.concatenate([d for _, d, _ in recorder.shadow]),
