@@ -69,6 +69,7 @@ def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, orig
     rows are cleared (Ng, u, v 0; ids -1, invalid) before the call, then copied to t, u, v, prim,
     geom, instance ((N,) arrays) and normal ((N, 3)); a miss keeps tfar as t."""
     floats = packet.view(np.float32)
+    valid, rayhit = packet[VALID:].ctypes.data, packet.ctypes.data
     count = origin.shape[0]
     for base in range(0, count, PACKET):
         lanes = min(PACKET, count - base)
@@ -86,7 +87,7 @@ def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, orig
             packet[PRIM, lane] = -1
             packet[GEOM, lane] = -1
             packet[INST, lane] = -1
-        function(packet[VALID:].ctypes.data, scene, packet.ctypes.data, 0)
+        function(valid, scene, rayhit, 0)
         for lane in range(lanes):
             i = base + lane
             t[i] = floats[TFAR, lane]
@@ -105,6 +106,7 @@ def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, ori
     ``blocked`` is True where tfar ends negative: embree's -inf for an occluded ray, or a negative
     distance (a NaN distance stays unblocked)."""
     floats = packet.view(np.float32)
+    valid, rayhit = packet[VALID:].ctypes.data, packet.ctypes.data
     count = origin.shape[0]
     for base in range(0, count, PACKET):
         lanes = min(PACKET, count - base)
@@ -118,7 +120,7 @@ def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, ori
             floats[TFAR, lane] = distance[i]
             if distance[i] >= 0:
                 packet[VALID, lane] = -1
-        function(packet[VALID:].ctypes.data, scene, packet.ctypes.data, 0)
+        function(valid, scene, rayhit, 0)
         for lane in range(lanes):
             blocked[base + lane] = floats[TFAR, lane] < 0
 
