@@ -1,252 +1,155 @@
-"""Native loops that trace a whole batch of rays through embree's 16-ray packets in one ctypes call.
+"""Loops that trace a whole batch of rays through embree's 16-ray packets in one call, the GIL released.
 
 embree 4 traces at most 16 rays per call (``rtcIntersect16``, ``rtcOccluded16``) and wants each
 packet as rows of 16 lanes. Called per packet from Python, the calls cost about as much as the
-traversal and released and took back the GIL every 16 rays: beside a thread running Python,
-tracing fell from 2.0 to 0.9 M rays/s (the other thread slowed as well). Packing the rows in numpy
-cost another 40 % of the traversal. These loops read the caller's (N, 3) float32 origins and
-directions, fill one packet at a time on the stack, call embree, and write the hits to the
-caller's arrays; a batch is one ctypes call, which releases the GIL once.
+traversal and released and took back the GIL every 16 rays, which convoyed the render threads;
+packing the rows in numpy cost much of the traversal again. These loops read the caller's (N, 3)
+float32 origins and directions, fill one packet at a time, call embree, and write the hits to the
+caller's arrays: a batch is one call, with the GIL released throughout, so several render threads
+trace at once.
 
-The loops are LLVM IR (``closest_ir``, ``occluded_ir``, written out by the functions below). On
-Linux x86-64 they run as ``SHIPPED``, the IR compiled by llvmlite 0.50 for generic x86-64 (position
-independent, no relocations), copied to a page mapped read+execute; ``tests/test_embree.py``
-compiles the IR again and checks the bytes. Loading llvmlite's LLVM costs 70 MiB of resident
-memory, so it is imported only on other platforms, where it compiles the IR for the host at start-up.
+They are numba functions (``njit(nogil=True, cache=True)``), compiled on the first trace of a
+process; numba is imported then, not with the package, so ``import realistic`` and ``--help`` stay
+quick. embree's packet function reaches them as an argument, a ctypes function object whose address
+numba reads at each call, so the compiled code holds no address of the process that compiled it and
+numba can cache it on disk: in ``$NUMBA_CACHE_DIR`` if set, else in ``__pycache__`` beside this
+file where that is writable, else (an installed, read-only package) in the user's cache directory
+(``~/.cache/numba`` on Linux); where none is writable the loops are compiled in every process,
+uncached. That first trace is the loops' start-up cost: numba's import, and its
+first compile or cache load, which imports numba's own typing and lowering modules (and scipy's
+linalg, when installed, for its BLAS check); ``bench/embree_loop.py`` measures it, cold and warm.
 
 Packet rows (``embree4/rtcore_ray.h``, ``RTCRayHit16``): org_x, org_y, org_z, tnear, dir_x, dir_y,
-dir_z, time, tfar, mask, id, flags, then the hit's Ng_x, Ng_y, Ng_z, u, v, primID, geomID, instID
-(and instPrimID); ``RTCRay16`` is the first twelve.
+dir_z, time, tfar, mask, id, flags (``RTCRay16`` ends here), then the hit's Ng_x, Ng_y, Ng_z, u, v,
+primID, geomID, ``RTC_MAX_INSTANCE_LEVEL_COUNT`` rows of instID and, when embree is built with
+instance arrays, as many rows of instPrimID. ``ROWS`` is that count for the configuration embree
+4.4 is built with by default and as the embreex wheel ships it (one instance level, instance
+arrays on); ``scene/embree`` checks the library it loads against it before any loop runs.
 """
 
 from __future__ import annotations
 
 import ctypes
-import functools
-import mmap
-import platform
-import sys
 import threading
+from collections.abc import Callable
 
-from realistic.errors import UserError
+import numpy as np
 
 PACKET = 16  # rays per rtcIntersect16 / rtcOccluded16 call
-ROWS = 21  # rows of RTCRayHit16; RTCRay16 is the first twelve
-TFAR, NG, U, V, PRIM, GEOM, INST = 8, 12, 15, 16, 17, 18, 19  # row numbers
+RAY_ROWS = 12  # rows of RTCRay16
+HIT_ROWS = 7  # RTCHit16's rows before instID: Ng_x, Ng_y, Ng_z, u, v, primID, geomID
+INSTANCE_LEVELS = 1  # RTC_MAX_INSTANCE_LEVEL_COUNT the loops are written for
+ROWS = RAY_ROWS + HIT_ROWS + 2 * INSTANCE_LEVELS  # RTCRayHit16 with instID and instPrimID rows
+TNEAR, TIME, TFAR, MASK, ID, FLAGS = 3, 7, 8, 9, 10, 11  # row numbers
+NG, U, V, PRIM, GEOM, INST = 12, 15, 16, 17, 18, 19
+INST_PRIM = INST + INSTANCE_LEVELS
+VALID = ROWS  # the packet buffer's row after RTCRayHit16: the valid mask (-1 traced, 0 not)
+ALIGNMENT = 64  # bytes: RTCRayHit16 is RTC_ALIGN(64), and embree loads the valid mask as one vector
 
-_vp, _i64 = ctypes.c_void_p, ctypes.c_int64
-#: closest(function, scene, origin, direction, count, tfar, t, u, v, prim, geom, instance, normal)
-ClosestLoop = ctypes.CFUNCTYPE(None, _vp, _vp, _vp, _vp, _i64, ctypes.c_float, _vp, _vp, _vp, _vp, _vp, _vp, _vp)
-#: occluded(function, scene, origin, direction, count, distance, blocked)
-OccludedLoop = ctypes.CFUNCTYPE(None, _vp, _vp, _vp, _vp, _i64, _vp, _vp)
-
-
-def _store(row: int, value: str, kind: str, tag: str) -> str:
-    """packet[row][lane] = value (kind "float" or "i32")."""
-    return (f"  %{tag}_k = add i64 %lane, {row * PACKET}\n"
-            f"  %{tag}_p = getelementptr {kind}, ptr %packet, i64 %{tag}_k\n"
-            f"  store {kind} {value}, ptr %{tag}_p\n")
+#: rtcIntersect16 and rtcOccluded16: (const int* valid, RTCScene, RTCRayHit16* or RTCRay16*, arguments*)
+PacketFunction = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)
 
 
-def _copy_in(array: str, index: str, row: int, tag: str) -> str:
-    """packet[row][lane] = array[index] (32-bit words)."""
-    return (f"  %{tag}_a = getelementptr i32, ptr {array}, i64 {index}\n"
-            f"  %{tag}_x = load i32, ptr %{tag}_a\n" + _store(row, f"%{tag}_x", "i32", tag))
+def packet_buffer(rows: int = ROWS + 1) -> np.ndarray:
+    """A (rows, 16) int32 packet, 64-byte aligned, its ray rows that no trace changes already set:
+    tnear and time 0, every mask bit, id and flags 0. The loops take ``ROWS + 1`` rows (the last
+    is the valid mask); each call gets its own, so threads share none."""
+    raw = np.empty(rows * PACKET + ALIGNMENT // 4, np.int32)
+    start = (-raw.ctypes.data % ALIGNMENT) // 4
+    packet = raw[start:start + rows * PACKET].reshape(rows, PACKET)
+    packet[[TNEAR, TIME, ID, FLAGS]] = 0  # float 0.0 is int 0
+    packet[MASK] = -1
+    return packet
 
 
-def _copy_out(row: int, array: str, index: str, tag: str) -> str:
-    """array[index] = packet[row][out_lane] (32-bit words)."""
-    return (f"  %{tag}_k = add i64 %out_lane, {row * PACKET}\n"
-            f"  %{tag}_p = getelementptr i32, ptr %packet, i64 %{tag}_k\n"
-            f"  %{tag}_x = load i32, ptr %{tag}_p\n"
-            f"  %{tag}_a = getelementptr i32, ptr {array}, i64 {index}\n"
-            f"  store i32 %{tag}_x, ptr %{tag}_a\n")
+def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, origin: np.ndarray, direction: np.ndarray,
+             tfar: np.float32, t: np.ndarray, u: np.ndarray, v: np.ndarray, prim: np.ndarray, geom: np.ndarray,
+             instance: np.ndarray, normal: np.ndarray) -> None:
+    """Closest hits of ``origin``/``direction`` ((N, 3) float32) within [0, tfar]: each lane's hit
+    rows are cleared (Ng, u, v 0; ids -1, invalid) before the call, then copied to t, u, v, prim,
+    geom, instance ((N,) arrays) and normal ((N, 3)); a miss keeps tfar as t."""
+    floats = packet.view(np.float32)
+    valid, rayhit = packet[VALID:].ctypes.data, packet.ctypes.data
+    count = origin.shape[0]
+    for base in range(0, count, PACKET):
+        lanes = min(PACKET, count - base)
+        for lane in range(PACKET):
+            packet[VALID, lane] = -1 if lane < lanes else 0
+        for lane in range(lanes):
+            i = base + lane
+            for axis in range(3):
+                floats[axis, lane] = origin[i, axis]
+                floats[4 + axis, lane] = direction[i, axis]
+                floats[NG + axis, lane] = 0.0
+            floats[TFAR, lane] = tfar
+            floats[U, lane] = 0.0
+            floats[V, lane] = 0.0
+            packet[PRIM, lane] = -1
+            packet[GEOM, lane] = -1
+            packet[INST, lane] = -1
+        function(valid, scene, rayhit, 0)
+        for lane in range(lanes):
+            i = base + lane
+            t[i] = floats[TFAR, lane]
+            u[i] = floats[U, lane]
+            v[i] = floats[V, lane]
+            prim[i] = packet[PRIM, lane]
+            geom[i] = packet[GEOM, lane]
+            instance[i] = packet[INST, lane]
+            for axis in range(3):
+                normal[i, axis] = floats[NG + axis, lane]
 
 
-def _ray_in() -> str:
-    """A lane's ray: origin and direction from the caller's (N, 3) arrays, tnear and time 0, every
-    mask bit, id and flags 0."""
-    lines = "  %i3 = mul i64 %i, 3\n  %i3y = add i64 %i3, 1\n  %i3z = add i64 %i3, 2\n"
-    for axis, index in enumerate(("%i3", "%i3y", "%i3z")):
-        lines += _copy_in("%origin", index, axis, f"origin{axis}") + _copy_in("%direction", index, 4 + axis,
-                                                                              f"direction{axis}")
-    return (lines + _store(3, "0.0", "float", "tnear") + _store(7, "0.0", "float", "time")
-            + _store(9, "-1", "i32", "mask") + _store(10, "0", "i32", "id") + _store(11, "0", "i32", "flags"))
+def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, origin: np.ndarray, direction: np.ndarray,
+              distance: np.ndarray, blocked: np.ndarray) -> None:
+    """Occlusion of each ray within [0, distance]: a ray whose distance is not >= 0 is not traced.
+    ``blocked`` is True where tfar ends negative: embree's -inf for an occluded ray, or a negative
+    distance (a NaN distance stays unblocked)."""
+    floats = packet.view(np.float32)
+    valid, rayhit = packet[VALID:].ctypes.data, packet.ctypes.data
+    count = origin.shape[0]
+    for base in range(0, count, PACKET):
+        lanes = min(PACKET, count - base)
+        for lane in range(PACKET):
+            packet[VALID, lane] = 0
+        for lane in range(lanes):
+            i = base + lane
+            for axis in range(3):
+                floats[axis, lane] = origin[i, axis]
+                floats[4 + axis, lane] = direction[i, axis]
+            floats[TFAR, lane] = distance[i]
+            if distance[i] >= 0:
+                packet[VALID, lane] = -1
+        function(valid, scene, rayhit, 0)
+        for lane in range(lanes):
+            blocked[base + lane] = floats[TFAR, lane] < 0
 
 
-def _loop(name: str, parameters: str, pack_lane: str, unpack_lane: str) -> str:
-    """For each packet of 16 rays: pack the lanes below ``count`` (``pack_lane`` sets ``%active``,
-    the lane's valid flag), call embree's ``function`` on the packet, unpack the same lanes."""
-    return f"""define void @{name}(ptr %function, ptr %scene, ptr %origin, ptr %direction, i64 %count{parameters}) {{
-entry:
-  %packet = alloca [{ROWS * PACKET} x float], align 64
-  %valid = alloca [{PACKET} x i32], align 64
-  %empty = icmp eq i64 %count, 0
-  br i1 %empty, label %done, label %packets
-packets:
-  %base = phi i64 [0, %entry], [%next_base, %unpacked]
-  br label %pack
-pack:
-  %lane = phi i64 [0, %packets], [%next_lane, %pack_next]
-  %i = add i64 %base, %lane
-  %in_range = icmp ult i64 %i, %count
-  br i1 %in_range, label %pack_lane, label %pack_idle
-pack_idle:
-  %idle_valid = getelementptr i32, ptr %valid, i64 %lane
-  store i32 0, ptr %idle_valid
-  br label %pack_next
-pack_lane:
-{pack_lane}  %mask = select i1 %active, i32 -1, i32 0
-  %lane_valid = getelementptr i32, ptr %valid, i64 %lane
-  store i32 %mask, ptr %lane_valid
-  br label %pack_next
-pack_next:
-  %next_lane = add i64 %lane, 1
-  %more_lanes = icmp ult i64 %next_lane, {PACKET}
-  br i1 %more_lanes, label %pack, label %trace
-trace:
-  call void %function(ptr %valid, ptr %scene, ptr %packet, ptr null)
-  br label %unpack
-unpack:
-  %out_lane = phi i64 [0, %trace], [%next_out_lane, %unpack_next]
-  %j = add i64 %base, %out_lane
-  %written = icmp ult i64 %j, %count
-  br i1 %written, label %unpack_lane, label %unpack_next
-unpack_lane:
-{unpack_lane}  br label %unpack_next
-unpack_next:
-  %next_out_lane = add i64 %out_lane, 1
-  %more_out = icmp ult i64 %next_out_lane, {PACKET}
-  br i1 %more_out, label %unpack, label %unpacked
-unpacked:
-  %next_base = add i64 %base, {PACKET}
-  %more = icmp ult i64 %next_base, %count
-  br i1 %more, label %packets, label %done
-done:
-  ret void
-}}
-"""
-
-
-def closest_ir() -> str:
-    """``closest``: tfar the same for every ray, the hit rows cleared (ids invalid) before the call;
-    afterwards t, u, v, prim, geom, instance ((N,) arrays) and normal ((N, 3)) per ray."""
-    pack = _ray_in() + _store(TFAR, "%tfar", "float", "tfar") + "  %active = icmp eq i64 0, 0\n"
-    for row in range(NG, V + 1):
-        pack += _store(row, "0.0", "float", f"hit{row}")
-    for row in (PRIM, GEOM, INST):
-        pack += _store(row, "-1", "i32", f"id{row}")
-    unpack = "".join(_copy_out(row, array, "%j", f"out{row}") for row, array in
-                     ((TFAR, "%t"), (U, "%u"), (V, "%v"), (PRIM, "%prim"), (GEOM, "%geom"), (INST, "%instance")))
-    unpack += "  %j3 = mul i64 %j, 3\n  %j3y = add i64 %j3, 1\n  %j3z = add i64 %j3, 2\n"
-    unpack += "".join(_copy_out(NG + axis, "%normal", index, f"normal{axis}")
-                      for axis, index in enumerate(("%j3", "%j3y", "%j3z")))
-    return _loop("closest", ", float %tfar, ptr %t, ptr %u, ptr %v, ptr %prim, ptr %geom, ptr %instance, ptr %normal",
-                 pack, unpack)
-
-
-def occluded_ir() -> str:
-    """``occluded``: tfar per ray from ``distance``; a lane whose distance is not >= 0 is not traced.
-    ``blocked`` (N bytes) is 1 where tfar ends negative: embree's -inf for an occluded ray, or a
-    negative distance (NaN stays unblocked)."""
-    pack = (_ray_in() + "  %distance_i = getelementptr float, ptr %distance, i64 %i\n"
-            "  %tfar = load float, ptr %distance_i\n" + _store(TFAR, "%tfar", "float", "tfar")
-            + "  %active = fcmp oge float %tfar, 0.0\n")
-    unpack = (f"  %end_k = add i64 %out_lane, {TFAR * PACKET}\n"
-              "  %end_p = getelementptr float, ptr %packet, i64 %end_k\n"
-              "  %end = load float, ptr %end_p\n"
-              "  %blocked_i1 = fcmp olt float %end, 0.0\n"
-              "  %blocked_i8 = zext i1 %blocked_i1 to i8\n"
-              "  %blocked_j = getelementptr i8, ptr %blocked, i64 %j\n"
-              "  store i8 %blocked_i8, ptr %blocked_j\n")
-    return _loop("occluded", ", ptr %distance, ptr %blocked", pack, unpack)
-
-
-#: Each loop's IR compiled alone by llvmlite 0.50 for x86_64-unknown-linux-gnu, cpu "x86-64", PIC:
-#: its object file's .text (the function at offset 0).
-SHIPPED = {
-    "closest": bytes.fromhex(
-        "554889e54157415641554154534883e4c04881ec40060000488974244848897c24404d85c00f84900200004d89c64989"
-        "cf4989d4488b7538488b7d304c8b45284c8b55204c8b5d184c8b6d104983c7084983c4084883c60831dbf30f1144243c"
-        "eb4866666666662e0f1f8400000000004883c3104981c7c00000004981c4c00000004881c6c00000004883c7404983c0"
-        "404983c2404983c3404983c5404983c1404c39f30f83110200004c895c24504c895424584c8944246048897c24684889"
-        "7424704c894c247831c031c9e9050100006666666666662e0f1f840000000000418b5404f889948cc0000000418b5407"
-        "f889948cc0010000418b5404fc89948c00010000418b5407fc89948c00020000418b140489948c40010000418b140789"
-        "948c40020000c7848c8001000000000000c7848c8002000000000000c7848c00030000ffffffffc7848c400300000000"
-        "0000c7848c8003000000000000f30f11848cc0020000c7848cc003000000000000c7848c0004000000000000c7848c40"
-        "04000000000000c7848c8004000000000000c7848cc004000000000000c7848c00050000ffffffffc7848c40050000ff"
-        "ffffffc7848c80050000ffffffffc7848c80000000ffffffff48ffc14883c00c4883f910731a488d140b4c39f20f82fd"
-        "feffffc7848c8000000000000000ebd9488dbc2480000000488b742448488d9424c000000031c9ff542440f30f104424"
-        "3c488b7424704889f031c94c8b4c2478488b7c24684c8b4424604c8b5424584c8b5c2450eb1b662e0f1f840000000000"
-        "48ffc14883c00c4883f9100f831ffeffff488d140b4c39f273e68b948cc0020000418914898b948c800400004189548d"
-        "008b948cc00400004189148b8b948c000500004189148a8b948c40050000418914888b948c8005000089148f8b948cc0"
-        "0300008950f88b948c000400008950fc8b948c400400008910eb85488d65d85b415c415d415e415f5dc3"),
-    "occluded": bytes.fromhex(
-        "554889e54157415641554154534883e4c04881ec00060000488974243048897c24284d85c00f846b0100004d89c64989"
-        "cf4989d44c8b6d104983c7084983c40831db0f57c9eb2c660f1f8400000000004883c3104983c1404981c7c000000049"
-        "81c4c00000004983c5104c39f30f832301000031c031c9e9ac0000000f1f4000418b5404f889948c80000000418b5407"
-        "f889948c80010000418b5404fc89948cc0000000418b5407fc89948cc0010000418b140489948c00010000418b140789"
-        "948c00020000c7848c4001000000000000c7848c4002000000000000c7848cc0020000ffffffffc7848c000300000000"
-        "0000c7848c4003000000000000f3410f100489f30f11848c800200000f2ec1ba0000000083d2ff89548c4048ffc14883"
-        "c00c4883f9107318488d140b4c39f20f824bffffffc7448c4000000000ebdc90488d7c2440488b742430488d94248000"
-        "000031c94c894c2438ff5424280f57c94c8b4c243831c0eb140f1f800000000048ffc04883f8100f83d3feffff488d0c"
-        "034c39f173ea0f2e8c8480020000410f97440500ebda488d65d85b415c415d415e415f5dc3"),
-}
-_IR = {"closest": closest_ir, "occluded": occluded_ir}
-_TYPES = {"closest": ClosestLoop, "occluded": OccludedLoop}
 _lock = threading.Lock()
+_compiled: list[Callable[..., None]] = []
 
 
-def closest_loop() -> ClosestLoop:
-    """The closest-hit loop, as a ctypes function (calling it releases the GIL)."""
-    return _loop_function("closest")
+def closest_loop() -> Callable[..., None]:
+    """``_closest`` compiled: (function, scene, packet, origin, direction, tfar, t, u, v, prim, geom,
+    instance, normal), the packet from ``packet_buffer``; it runs with the GIL released."""
+    return _loops()[0]
 
 
-def occluded_loop() -> OccludedLoop:
-    """The occlusion loop, as a ctypes function (calling it releases the GIL)."""
-    return _loop_function("occluded")
+def occluded_loop() -> Callable[..., None]:
+    """``_occluded`` compiled: (function, scene, packet, origin, direction, distance, blocked)."""
+    return _loops()[1]
 
 
-def _loop_function(name: str):
+def _loops() -> list[Callable[..., None]]:
+    """The loops as numba dispatchers (numba imported and the loops bound on the first call; each
+    is compiled, or loaded from numba's cache, on its first call)."""
     with _lock:
-        return _loaded(name)[-1]
+        if not _compiled:
+            import numba
 
-
-@functools.cache
-def _loaded(name: str) -> tuple:
-    if sys.platform == "linux" and platform.machine() == "x86_64":
-        return executable_code(SHIPPED[name], _TYPES[name])
-    return compiled_for_host(name)
-
-
-def executable_code(code: bytes, function_type) -> tuple:
-    """``code`` copied to fresh pages that are then made read+execute (never writable and
-    executable at once); returns the pages and the function (the pages must outlive it)."""
-    size = -(-len(code) // mmap.PAGESIZE) * mmap.PAGESIZE
-    pages = mmap.mmap(-1, size, prot=mmap.PROT_READ | mmap.PROT_WRITE)
-    pages.write(code)
-    start = ctypes.c_char.from_buffer(pages)
-    address = ctypes.addressof(start)
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.mprotect.argtypes = [_vp, ctypes.c_size_t, ctypes.c_int]
-    if libc.mprotect(address, size, mmap.PROT_READ | mmap.PROT_EXEC) != 0:
-        raise UserError(f"this system refuses executable memory (mprotect: errno {ctypes.get_errno()}); "
-                        "the renderer's ray tracing loop needs one page of it")
-    return pages, start, function_type(address)
-
-
-def compiled_for_host(name: str) -> tuple:
-    """Loop ``name`` compiled for this machine by llvmlite; returns its engine (which owns the
-    code) and the function."""
-    try:
-        import llvmlite.binding as llvm
-    except ImportError as error:
-        raise UserError("this platform needs llvmlite for the ray tracing loop: pip install llvmlite "
-                        f"({error})") from None
-    llvm.initialize_native_target()
-    llvm.initialize_native_asmprinter()
-    module = llvm.parse_assembly(_IR[name]())
-    module.verify()
-    engine = llvm.create_mcjit_compiler(module, llvm.Target.from_default_triple().create_target_machine())
-    engine.finalize_object()
-    return engine, _TYPES[name](engine.get_function_address(name))
+            for loop in (_closest, _occluded):
+                try:
+                    _compiled.append(numba.njit(nogil=True, cache=True)(loop))
+                except RuntimeError:  # numba found no writable cache directory
+                    _compiled.append(numba.njit(nogil=True)(loop))
+        return _compiled
