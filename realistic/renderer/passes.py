@@ -35,7 +35,7 @@ from realistic.renderer.pass_plan import plan_passes
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
-from realistic.scene.intersect import Intersector
+from realistic.scene.intersect import Intersector, prepare_tracing
 
 __all__ = ["ThreadPasses", "render"]
 
@@ -63,6 +63,7 @@ class ThreadPasses:
         for camera in job.cameras:
             check_memory(job.scene, camera, job.pass_size, self.threads, job.max_memory_bytes)
         self.job, self.clock = job, clock
+        prepare_tracing()  # numba's loops load while the cameras and kernels are prepared
         self.intersector = self.given_intersector
         self.runners: dict[int, PassRunner] = {}
         self.placement = ExitStack()

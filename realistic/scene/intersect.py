@@ -28,6 +28,7 @@ import numpy as np
 
 from realistic.core.transforms import transform_points
 from realistic.errors import UserError
+from realistic.scene import packet_loop
 from realistic.scene.embree import EmbreeScene
 from realistic.scene.model import Scene
 from realistic.scene.shapes import light_mesh
@@ -52,6 +53,12 @@ class Hits:
     normal: np.ndarray  # (N, 3) float32
 
 
+def prepare_tracing() -> None:
+    """Start loading the ray-tracing loops in the background (``packet_loop.warm_up``), for a
+    caller that will trace soon and has other set-up to do first."""
+    packet_loop.warm_up()
+
+
 class Intersector:
     """Closest-hit and occlusion queries on batches of rays against one scene.
 
@@ -63,6 +70,7 @@ class Intersector:
         if not scene.instances and not scene.lights:
             raise UserError("the scene is empty: nothing to render")
         self.instance_count = len(scene.instances)
+        prepare_tracing()  # the loops load while the BVH builds
         self._embree = EmbreeScene()
         children = self._shared_meshes(scene) if share else {}
         # per global geometry id: the map of an instanced hit's normal to the world, transposed
