@@ -209,7 +209,11 @@ def test_the_header_after_a_resume_counts_the_passes_that_waited(scene, tmp_path
     (["--exposure", "1e308"], "exposure must be between -64 and 64"),
     (["--exposure", "-1e308"], "exposure must be between"),
 ])
-def test_photographic_options_are_refused_before_any_work(tmp_path, capsys, args, message):
+def test_photographic_options_are_refused_before_any_work(tmp_path, capsys, monkeypatch, args, message):
+    def no_work(*args, **kwargs):
+        raise AssertionError("rendered before the options were checked")
+
+    monkeypatch.setattr(passes, "render", no_work)
     out = tmp_path / "r.exr"
     status = main(["render", *QUICK, "--res", "8x6", "--out", str(out), *args])
     err = capsys.readouterr().err

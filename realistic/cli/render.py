@@ -84,7 +84,8 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--checkpoint-every", type=positive("checkpoint interval (seconds)"), default=60.0,
                         metavar="SECONDS",
                         help="save the film to OUT.exr.partial this often, and when interrupted (default: "
-                             "%(default)g; removed when the render completes)")
+                             "%(default)g; removed once the complete image is written; without --resume an "
+                             "existing one is refused, not replaced)")
     parser.add_argument("--resume", action="store_true",
                         help="continue from OUT.exr.partial (refused if made for another scene, camera, seed or "
                              "resolution)")

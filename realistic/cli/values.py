@@ -16,12 +16,13 @@ from realistic.errors import UserError
 from realistic.optics.formats import BUNDLED_LENSES
 
 Value = TypeVar("Value")
+Checked = TypeVar("Checked")
 
 
-def checked(convert: Callable[[str], Value], check: Callable[[Value], Value]) -> Callable[[str], Value]:
+def checked(convert: Callable[[str], Value], check: Callable[[Value], Checked]) -> Callable[[str], Checked]:
     """An argparse type: ``convert`` the text, then apply the library's own check of the quantity
     (``realistic.core.validation``), so the CLI refuses exactly what the library would."""
-    def parse(text: str) -> Value:
+    def parse(text: str) -> Checked:
         try:
             value = convert(text)
         except ValueError:

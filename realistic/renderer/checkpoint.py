@@ -20,6 +20,7 @@ import dataclasses
 import enum
 import hashlib
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -149,9 +150,9 @@ def save_checkpoint(path: Path, identity: RenderIdentity, film: PassFilm) -> Non
 def refuse_unless_resuming(path: Path) -> None:
     """UserError (one line) if a checkpoint is at ``path``: a render that does not resume it would
     replace the work it holds."""
-    if Path(path).exists():
+    if os.path.lexists(path):  # False for a name the system refuses: its write says why
         raise UserError(f"{path}: a checkpoint of an earlier render is there: continue it with --resume "
-                        "(resume=True), or remove the file to start afresh")
+                        "or remove the file to start afresh")
 
 
 def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlock]) -> PassFilm:
@@ -165,9 +166,10 @@ def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlo
     for name, label in _NAMES.items():
         theirs, ours = header.get(name), getattr(identity, name)
         if type(theirs) is not type(ours) or theirs != ours:
-            show = (lambda v: str(v)[:12]) if name in ("scene", "camera") else (lambda v: str(v)[:40])
-            raise UserError(f"{path}: cannot resume: the checkpoint is for another {label} ({show(theirs)}, this "
-                            f"render has {show(ours)}); remove it or render without --resume")
+            width = 12 if name in ("scene", "camera") else 40  # the file's text, escaped: it is untrusted
+            shown = (theirs if isinstance(theirs, str) and theirs.isprintable() else ascii(theirs))[:width]
+            raise UserError(f"{path}: cannot resume: the checkpoint is for another {label} ({shown}, this "
+                            f"render has {str(ours)[:width]}); remove it or render without --resume")
     film = PassFilm(Film(width, height, identity.spp), passes)
     problem = _fill(film, header, saved)
     if problem:
@@ -188,13 +190,14 @@ def _read(path: Path, pixels: int) -> tuple[dict, dict[str, np.ndarray]]:
             if not isinstance(header, dict) or not str(header.get("format")).startswith("realistic checkpoint"):
                 raise ValueError("not a checkpoint")
             if header["format"] != FORMAT:
-                raise ValueError(f"{str(header['format'])[:40]}, this version reads {FORMAT}")
+                raise ValueError(f"{ascii(header['format'])[1:-1][:40]}, this version reads {FORMAT}")
             waiting = [f"waiting_{index}" for index in data["waiting_index"].tolist()] \
                 if "waiting_index" in data.files and data["waiting_index"].ndim == 1 else []
             names = ["sums", "samples", "waiting_index", "waiting_first_pixel", *waiting]
             saved = {name: data[name] for name in names if name in data.files}
     except Exception as err:  # numpy's and zipfile's readers raise many types for a damaged file
-        reason = str(err).splitlines()[0][:120] if str(err).strip() else type(err).__name__
+        text = " ".join(str(err).split())
+        reason = (text if text.isprintable() else ascii(text))[:120] if text else type(err).__name__
         raise UserError(f"{path}: cannot resume: not a readable checkpoint ({reason})") from None
     return header, saved
 
@@ -204,7 +207,7 @@ def _fill(film: PassFilm, header: dict, saved: dict[str, np.ndarray]) -> str | N
     passes, pixels = film.passes, film.film.width * film.film.height
     next_pass = header.get("next_pass")
     if type(next_pass) is not int or not 0 <= next_pass <= len(passes):
-        return f"pass index {str(next_pass)[:20]} is not 0 to {len(passes)}"
+        return f"pass index {ascii(next_pass)[:20]} is not 0 to {len(passes)}"
     missing = [name for name in ("sums", "samples", "waiting_index", "waiting_first_pixel") if name not in saved]
     if missing:
         return f"no {missing[0]}"
