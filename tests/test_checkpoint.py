@@ -158,6 +158,8 @@ def test_sigkill_then_resume_is_bit_identical_to_an_uninterrupted_render(tmp_pat
     resumed = subprocess.run(_render(out, "--resume"), cwd=REPO, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     assert np.array_equal(read_exr(out)[0], read_exr(whole)[0]) and not partial.exists()
+    header = read_exr(out)[1]  # and the header is true: complete, every sample counted
+    assert header["interrupted"] == 0 and header["samplesDone"] == header["samplesTotal"] == 64 * 64 * 64
 
 
 def test_cli_refuses_a_checkpoint_for_another_seed_in_one_line(tmp_path):

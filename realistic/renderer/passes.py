@@ -199,17 +199,17 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
     bar = _progress_bar(sum(f.result.passes_total for f in frames), sum(f.result.passes_done for f in frames)) \
         if observer.progress else None
     state = {"checkpoint": time.monotonic(), "preview": time.monotonic()}
-    failed: list[str] = []  # the last checkpoint save's error, reported once until one succeeds
+    failing = {"checkpoint": False}  # a failing checkpoint is reported once, until a save succeeds
 
     def save(path: Path, identity: RenderIdentity) -> None:
         try:
             save_checkpoint(path, identity, frames[0].film)
         except UserError as err:
-            if not failed:
+            if not failing["checkpoint"]:
                 print(f"realistic: warning: checkpoint not saved ({err}); rendering on", file=sys.stderr)
-            failed[:] = [str(err)]
+            failing["checkpoint"] = True
         else:
-            failed.clear()
+            failing["checkpoint"] = False
 
     def take(index: int, results: list[PassResult]) -> None:
         frame = frames[index]
@@ -260,7 +260,7 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
         interrupted = True
         if observer.progress:
             print(f"\nrealistic: interrupted: finishing the {sum(in_flight.values())} passes in flight, then "
-                  "writing what is done (interrupt again to stop at once and keep nothing)", file=sys.stderr)
+                  "writing what is done (interrupt again to stop at once and write no image)", file=sys.stderr)
         for index, results in executor.finish_in_flight(pending):
             take(index, results)
     if checkpoint is not None and identity is not None:
