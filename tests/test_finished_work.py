@@ -258,3 +258,30 @@ def test_a_closed_standard_output_is_no_traceback():
     run = subprocess.run([sys.executable, "-m", "realistic", "lens", "list"], cwd=REPO, stdout=None,
                          stderr=subprocess.PIPE, text=True, timeout=120, preexec_fn=lambda: os.close(1))
     assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
+
+
+@pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
+def test_an_interrupted_rerender_keeps_the_complete_image_and_its_samples_in_the_checkpoint(tmp_path):
+    """The issue's case: a complete image at --out, the same render again interrupted at once."""
+    from conftest import sigint_by_default
+
+    out = tmp_path / "r.exr"
+    command = [sys.executable, "-m", "realistic", "render", *QUICK, "--res", "48x48", "--spp", "256", "--out", str(out)]
+    assert subprocess.run(command, cwd=REPO, capture_output=True, timeout=120).returncode == 0
+    complete = out.read_bytes()
+    samples = read_exr(out)[1]["samplesDone"]
+    command[command.index("--spp") + 1] = "4096"
+    command += ["--light-samples", "64"]  # samples 65 times as slow: it stops far short of the first's
+    process = subprocess.Popen(command, cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                               preexec_fn=sigint_by_default)
+    seen = b""
+    while b"1/" not in seen:  # a pass done
+        chunk = os.read(process.stderr.fileno(), 256)
+        assert chunk, seen
+        seen += chunk
+    process.send_signal(signal.SIGINT)
+    _, rest = process.communicate(timeout=120)
+    err = (seen + rest).decode()
+    assert process.returncode == 130 and "Traceback" not in err, err
+    assert f"{out} holds {samples} samples" in err and "kept it" in err
+    assert out.read_bytes() == complete and (tmp_path / "r.exr.partial").is_file()
