@@ -16,6 +16,7 @@ import realistic as rl
 from realistic.cli import main
 from realistic.core import image_files
 from realistic.core.image_files import read_exr
+from realistic.renderer import checkpoint as checkpoint_module
 from realistic.renderer import output, passes
 from realistic.renderer.checkpoint import RenderIdentity, save_checkpoint
 from realistic.renderer.film import Film, PassFilm
@@ -165,16 +166,21 @@ def test_a_full_disk_at_the_end_rescues_the_image_and_keeps_the_checkpoint(scene
 
 
 def test_a_checkpoint_on_a_full_disk_is_reported_and_the_render_goes_on(scene, tmp_path, monkeypatch, capsys):
-    def full(*args, **kwargs):
-        raise rl.UserError("r.exr.partial: cannot write: No space left on device")
+    write_atomically = checkpoint_module.write_atomically
 
-    monkeypatch.setattr(passes, "save_checkpoint", full)
+    def full(path, write):
+        def no_space(temporary: str) -> None:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        write_atomically(path, no_space)
+
+    monkeypatch.setattr(checkpoint_module, "write_atomically", full)
     job = RenderJob(scene, (scene.camera,), "numpy", pass_samples=16,
                     checkpoint=Checkpointing(tmp_path / "r.exr.partial", 0.0))
     result = render(job, ThreadPasses(1))[0]
     assert not result.interrupted and result.samples_done == result.samples_total
     err = capsys.readouterr().err
     assert err.count("checkpoint not saved") == 1 and "No space left on device" in err
+    assert list(tmp_path.iterdir()) == []  # no temporaries left behind
 
 
 def test_the_header_after_a_resume_counts_the_passes_that_waited(scene, tmp_path):
