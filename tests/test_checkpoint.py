@@ -20,6 +20,7 @@ from realistic.core.image_files import read_exr
 from realistic.errors import UserError
 from realistic.renderer.checkpoint import RenderIdentity, content_hash, load_checkpoint
 from realistic.renderer.job import Checkpointing, RenderJob, RenderObserver
+from realistic.renderer.output import save
 from realistic.renderer.pass_plan import plan_passes
 from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.staging import default_setup
@@ -69,7 +70,7 @@ def _interrupted(scene, camera, path, passes_before_stop=2, seed=0):
     return render(job, ThreadPasses(2), RenderObserver(on_pass=stop))[0]
 
 
-def test_resume_is_bit_identical_and_removes_the_checkpoint(tiny, tmp_path):
+def test_resume_is_bit_identical_and_the_saved_image_removes_the_checkpoint(tiny, tmp_path):
     scene, camera = tiny
     path = tmp_path / "r.exr.partial"
     whole = render(RenderJob(scene, (camera,), "numpy", pass_samples=256), ThreadPasses(threads=2))[0]
@@ -79,6 +80,8 @@ def test_resume_is_bit_identical_and_removes_the_checkpoint(tiny, tmp_path):
                                checkpoint=Checkpointing(path, None, resume=True)), ThreadPasses(threads=2))[0]
     assert not resumed.interrupted and resumed.samples_done == resumed.samples_total
     assert np.array_equal(resumed.image, whole.image)
+    assert path.exists()  # until the image is written: a failed write must not lose the work
+    save(resumed, tmp_path / "r.exr")
     assert not path.exists()
 
 
@@ -155,6 +158,8 @@ def test_sigkill_then_resume_is_bit_identical_to_an_uninterrupted_render(tmp_pat
     resumed = subprocess.run(_render(out, "--resume"), cwd=REPO, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     assert np.array_equal(read_exr(out)[0], read_exr(whole)[0]) and not partial.exists()
+    header = read_exr(out)[1]  # and the header is true: complete, every sample counted
+    assert header["interrupted"] == 0 and header["samplesDone"] == header["samplesTotal"] == 64 * 64 * 64
 
 
 def test_cli_refuses_a_checkpoint_for_another_seed_in_one_line(tmp_path):

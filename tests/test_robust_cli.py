@@ -3,6 +3,7 @@ resource guards refuse before work; signals keep what was rendered; files are ne
 stranded. Each case is a reproducible report from trying the CLI as a new user would."""
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -97,7 +98,7 @@ def test_a_finished_render_is_kept_when_its_folder_vanishes(tmp_path, capsys, mo
 
     def render_then_remove_the_folder(*args, **kwargs):
         results = render(*args, **kwargs)
-        folder.rmdir()
+        shutil.rmtree(folder)  # with the render's final checkpoint in it
         return results
 
     monkeypatch.setattr(passes, "render", render_then_remove_the_folder)

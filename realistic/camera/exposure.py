@@ -22,23 +22,24 @@ MIDDLE_GREY = 0.18
 
 
 def parse_shutter(text: str) -> float:
-    """Shutter time in seconds from ``"0.01"`` or ``"1/125"``."""
+    """Shutter time in seconds from ``"0.01"`` or ``"1/125"``, within ``validation.shutter_seconds``."""
     try:
         if "/" in text:
             numerator, denominator = text.split("/", 1)
             seconds = float(numerator) / float(denominator)
         else:
             seconds = float(text)
-    except (ValueError, ZeroDivisionError):
+    except (ValueError, ZeroDivisionError, OverflowError):
         seconds = math.nan
     if not (seconds > 0 and math.isfinite(seconds)):
         raise UserError(f"shutter time {text!r} is not a positive number of seconds (e.g. 1/125 or 0.008)")
-    return seconds
+    return validation.shutter_seconds(seconds)
 
 
 def exposure_scale(shutter_s: float, iso: float) -> float:
     """Factor from film irradiance to image value for shutter time ``shutter_s`` at ISO ``iso``."""
-    iso = validation.positive_length(iso, "ISO speed")
+    shutter_s = validation.shutter_seconds(shutter_s)
+    iso = validation.iso_speed(iso)
     return shutter_s * iso * MIDDLE_GREY * 4.0 / (math.pi * METER_CALIBRATION_K)
 
 

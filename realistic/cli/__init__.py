@@ -16,7 +16,7 @@ import os
 import signal
 import sys
 import threading
-from typing import NoReturn
+from typing import NoReturn, TextIO
 
 from realistic.cli.bench import add_bench_command
 from realistic.cli.lens import add_lens_commands
@@ -42,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: Options whose value may look like an option (``--res -64x48``, ``--target -1,0,2``): such a value
 #: is joined to its option so that the value's own check, not argparse, says what is wrong.
-VALUE_OPTIONS = ("--res", "--map-res", "--camera-pos", "--target", "--focus-on")
+VALUE_OPTIONS = ("--res", "--map-res", "--camera-pos", "--target", "--focus-on", "--exposure")
 #: Signals that stop a render the way Ctrl-C does: finish the passes in flight, write what is done.
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
@@ -61,14 +61,67 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+class _StdoutFailed(Exception):
+    """Standard output refused a write or flush (``error``): not an OSError, so that only ``main``
+    takes it for what it is."""
+
+    def __init__(self, error: OSError) -> None:
+        super().__init__(str(error))
+        self.error = error
+
+
+class _GuardedStdout:
+    """``sys.stdout`` while a command runs: the stream itself, except that its write and flush
+    failing (``| head`` closed the pipe, ``> /dev/full``) raise ``_StdoutFailed``."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except OSError as err:
+            raise _StdoutFailed(err) from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except OSError as err:
+            raise _StdoutFailed(err) from None
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._stream, name)
+
+
+def _stdout_lost(stream: TextIO, err: OSError) -> int:
+    """After standard output failed: point it at /dev/null, so that its flush at exit does not fail
+    again, and say so unless the reader just stopped reading (a broken pipe); exit status 1."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, stream.fileno())
+        os.close(devnull)
+    except (OSError, AttributeError, ValueError):  # not a file descriptor (an embedding's stream)
+        pass
+    if not isinstance(err, BrokenPipeError):
+        print(f"realistic: error: cannot write to standard output: {err.strerror or err}", file=sys.stderr)
+    return 1
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run one command; a user error is one line and exit status 2, an interrupt exit status 130."""
+    """Run one command; a user error is one line and exit status 2, an interrupt exit status 130,
+    standard output failing (a closed pipe, a full disk) exit status 1, never a traceback."""
     argv = _join_dash_values(sys.argv[1:] if argv is None else list(argv))
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous = {number: signal.signal(number, _interrupt) for number in STOP_SIGNALS} if in_main_thread else {}
+    stdout = sys.stdout
+    if stdout is not None:
+        sys.stdout = _GuardedStdout(stdout)  # type: ignore[assignment]
     try:
         args = build_parser().parse_args(argv)
-        return args.run(args)
+        status = args.run(args)
+        if sys.stdout is not None:
+            sys.stdout.flush()  # here, not at exit, where a failure would be a traceback
+        return status
     except UserError as err:
         print(f"realistic: error: {err}", file=sys.stderr)
         return 2
@@ -78,6 +131,10 @@ def main(argv: list[str] | None = None) -> int:
             os._exit(130)
         print("realistic: interrupted before the image was written: nothing written", file=sys.stderr)
         return 130
+    except _StdoutFailed as failed:
+        return _stdout_lost(stdout, failed.error)
     finally:
+        if sys.stdout is not None and isinstance(sys.stdout, _GuardedStdout):
+            sys.stdout = stdout
         for number, handler in previous.items():
             signal.signal(number, handler)

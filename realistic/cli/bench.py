@@ -11,7 +11,7 @@ from pathlib import Path
 
 from realistic.cli.render import add_farm_arguments, executor_for, farm_client, report_warnings
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
-from realistic.cli.values import parse_spp_list
+from realistic.cli.values import checked_plot, parse_spp_list
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.core.image_files import read_exr
 from realistic.errors import UserError
@@ -47,8 +47,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from realistic.renderer.inputs import build_render_inputs
 
     spp_list = parse_spp_list(args.spp)
-    plot = Path(args.plot)
-    check_writable(plot)
+    plot = checked_plot(Path(args.plot))
     if args.json:
         check_writable(Path(args.json))
     reference = None

@@ -13,18 +13,13 @@ import numpy as np
 
 from realistic.cli.lens_convert import add_convert_command
 from realistic.cli.lens_judge import add_judge_commands
-from realistic.cli.values import LENS_HELP, checked, parse_resolution, positive
+from realistic.cli.values import LENS_HELP, checked, checked_exr, checked_plot, parse_resolution, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.formats import load_lens
 from realistic.optics.lens import LensSystem
-
-
-def _write_checked(path: Path, text: str) -> None:
-    check_writable(path)
-    write_text_atomically(path, text)
 
 
 def _load_lens_with_stop(args: argparse.Namespace) -> LensSystem:
@@ -44,15 +39,18 @@ def cmd_lens_trace(args: argparse.Namespace) -> int:
     from realistic.optics.ray_json import rays_to_json, read_rays
     from realistic.optics.tracer import trace_from_film
 
+    output = None if args.output in (None, "-") else Path(args.output)
+    if output is not None:
+        check_writable(output)
     lens = _load_lens_with_stop(args)
     origins, directions = read_rays(args.input)
     result = trace_from_film(lens, args.film_distance, origins, directions, args.wavelength)
     rays = rays_to_json(result)["rays"]
     text = '{"rays": [\n' + ",\n".join(json.dumps(ray) for ray in rays) + "\n]}"
-    if args.output in (None, "-"):
+    if output is None:
         print(text)
     else:
-        _write_checked(Path(args.output), text + "\n")
+        write_text_atomically(output, text + "\n")
     return 0
 
 
@@ -67,7 +65,7 @@ def cmd_lens_plot(args: argparse.Namespace) -> int:
     from realistic.optics.drawing import plot_cross_section
 
     lens = _load_lens_with_stop(args)
-    out = Path(args.out or f"{lens.name}.png")
+    out = checked_plot(Path(args.out or f"{lens.name}.png"))
     plot_cross_section(lens, _film_distance(args, lens), out, args.film_diagonal)
     print(f"wrote {out}")
     return 0
@@ -78,15 +76,19 @@ def cmd_lens_curves(args: argparse.Namespace) -> int:
     from realistic.optics.field_curves import field_curves, vignetting_map
 
     lens = _load_lens_with_stop(args)
+    out = checked_plot(Path(args.out or f"{lens.name}-curves.png"))
+    if args.json:
+        check_writable(Path(args.json))
+    map_size = parse_resolution(args.map_res)
+    if args.vignetting_map:
+        checked_exr(Path(args.vignetting_map))
     rows = field_curves(lens, args.film_diagonal, _film_distance(args, lens))
-    out = Path(args.out or f"{lens.name}-curves.png")
     plot_field_curves(lens.name, rows, out)
     if args.json:
-        _write_checked(Path(args.json), json.dumps({"lens": lens.name, "curves": rows}, indent=1) + "\n")
+        write_text_atomically(Path(args.json), json.dumps({"lens": lens.name, "curves": rows}, indent=1) + "\n")
     if args.vignetting_map:
-        width, height = parse_resolution(args.map_res)
-        _write_vignetting_map(Path(args.vignetting_map), lens, vignetting_map(rows, width, height, args.film_diagonal),
-                              args.film_diagonal)
+        _write_vignetting_map(Path(args.vignetting_map), lens,
+                              vignetting_map(rows, *map_size, args.film_diagonal), args.film_diagonal)
     print("film radius mm  field angle deg  rel. illumination  vignetting  distortion %")
     for r in rows:
         angle = "-" if r["field_angle_deg"] is None else f"{r['field_angle_deg']:.2f}"
@@ -101,7 +103,6 @@ def _write_vignetting_map(path: Path, lens: LensSystem, relative: np.ndarray, fi
     """The relative illumination (H, W) over the film as an EXR (the same value in R, G and B)."""
     from realistic.core.image_files import write_exr
 
-    check_writable(path)
     image = np.repeat(relative[:, :, None], 3, axis=2)
     write_exr(path, image, {"lens": lens.name, "filmDiagonalMm": float(film_diagonal_mm),
                             "content": "relative illumination (vignetting x cos^4), 1 at the film centre"})

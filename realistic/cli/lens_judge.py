@@ -11,7 +11,7 @@ import json
 import math
 from pathlib import Path
 
-from realistic.cli.values import LENS_HELP, checked, positive
+from realistic.cli.values import LENS_HELP, checked, checked_exr, checked_plot, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.errors import UserError
@@ -37,8 +37,7 @@ def _load(args: argparse.Namespace) -> LensSystem:
 
 def _outputs(args: argparse.Namespace, default_plot: str) -> Path:
     """The plot's path; both outputs are checked before any tracing, so a bad path fails at once."""
-    out = Path(args.out or default_plot)
-    check_writable(out)
+    out = checked_plot(Path(args.out or default_plot))
     if args.json:
         check_writable(Path(args.json))
     return out
@@ -105,8 +104,7 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
     from realistic.core.image_files import write_exr
 
     lens = _load(args)
-    out = Path(args.out or f"{lens.name}-psf.exr")
-    check_writable(out)
+    out = checked_exr(Path(args.out or f"{lens.name}-psf.exr"))
     psf = point_spread(lens, args.depth * 1000.0, args.field, None if args.focus is None else args.focus * 1000.0,
                        args.pixel_um / 1000.0, args.size, args.spp, seed=args.seed, backend=args.backend)
     image = psf.image[:, :, None].repeat(3, axis=2)

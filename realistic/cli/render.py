@@ -11,7 +11,6 @@ import os
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
-from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,7 +20,7 @@ from realistic.camera.exposure import parse_shutter
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
 from realistic.cli.values import checked, positive
 from realistic.core import validation
-from realistic.core.atomic_files import check_writable
+from realistic.core.atomic_files import check_writable, signals_deferred
 from realistic.errors import UserError
 from realistic.renderer.job import Checkpointing, PassExecutor, RenderJob, RenderObserver, RenderResult
 from realistic.renderer.thread_count import default_threads
@@ -71,12 +70,12 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", metavar="FILE.exr",
                         help="output EXR; the PNG preview is written beside it (default: the scene's film "
                              "file name, else render.exr)")
-    parser.add_argument("--exposure", type=checked(float, partial(validation.finite, name="exposure")), metavar="EV",
+    parser.add_argument("--exposure", type=checked(float, validation.exposure_stops), metavar="EV",
                         help="PNG preview exposure in stops (default: automatic, or 0 with --shutter/--iso)")
-    parser.add_argument("--shutter", metavar="SECONDS",
+    parser.add_argument("--shutter", type=checked(str, parse_shutter), metavar="SECONDS",
                         help="shutter time (e.g. 1/125): with --iso, the EXR holds a photographic exposure, "
                              "calibrated so a metered middle grey reads 0.18, instead of film irradiance")
-    parser.add_argument("--iso", type=positive("ISO speed"),
+    parser.add_argument("--iso", type=checked(float, validation.iso_speed),
                         help="ISO speed (default with --shutter: 100)")
     parser.add_argument("--sweep", metavar="NAME=START:STOP:N",
                         help="render N frames with NAME (focus, aperture, fstop, film-distance) going from START to "
@@ -85,7 +84,8 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--checkpoint-every", type=positive("checkpoint interval (seconds)"), default=60.0,
                         metavar="SECONDS",
                         help="save the film to OUT.exr.partial this often, and when interrupted (default: "
-                             "%(default)g; removed when the render completes)")
+                             "%(default)g; removed once the complete image is written; without --resume an "
+                             "existing one is refused, not replaced)")
     parser.add_argument("--resume", action="store_true",
                         help="continue from OUT.exr.partial (refused if made for another scene, camera, seed or "
                              "resolution)")
@@ -151,18 +151,20 @@ def executor_for(args: argparse.Namespace, client: Any,
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from realistic.renderer.checkpoint import checkpoint_path
+    from realistic.renderer.checkpoint import checkpoint_path, refuse_unless_resuming
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.output import Photographic, save, write_preview
+    from realistic.renderer.output import BetterImageKept, Photographic, save, write_preview
     from realistic.renderer.passes import render
     from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
     if args.out is not None and Path(args.out).suffix.lower() != ".exr":
         raise UserError(f"{args.out}: the output must be an .exr file (the PNG preview goes beside it)")
+    if args.out is not None and not args.sweep and not args.resume:
+        refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
     sweep = parse_sweep(args.sweep) if args.sweep else None
     if sweep is not None and args.resume:
         raise UserError("--resume continues one image, not a --sweep sequence")
-    photographic = (Photographic(parse_shutter(args.shutter or "1/60"), 100.0 if args.iso is None else args.iso)
+    photographic = (Photographic(args.shutter or 1 / 60, 100.0 if args.iso is None else args.iso)
                     if args.shutter or args.iso else None)
     inputs = build_render_inputs(options_from_args(args, args.spp))
     report_warnings(inputs.warnings)
@@ -183,7 +185,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     written: dict[int, float] = {}
 
     def save_frame(result: RenderResult) -> None:
-        written[result.frame] = save(result, outs[result.frame], photographic, args.exposure)
+        try:
+            written[result.frame] = save(result, outs[result.frame], photographic, args.exposure)
+        except BetterImageKept as err:
+            print(f"realistic: {err}", file=sys.stderr)
 
     def preview(image: np.ndarray) -> None:
         write_preview(out.with_suffix(".png"), image, photographic, args.exposure)
@@ -193,16 +198,23 @@ def cmd_render(args: argparse.Namespace) -> int:
                               progress=True)
     with farm_client(args) as client:
         results = render(job, executor_for(args, client, inputs.intersector), observer)
-    for result in results:
-        if result.frame not in written and (sweep is None or result.samples_done > 0):
-            save_frame(result)  # a single image always; a sequence's unfinished frames that have samples
     interrupted = any(result.interrupted for result in results)
+    try:
+        with signals_deferred():  # an interrupt now waits until every file is written
+            for result in results:
+                if result.frame not in written and (sweep is None or result.samples_done > 0):
+                    save_frame(result)  # a single image always; a sequence's unfinished frames that have samples
+    except KeyboardInterrupt:
+        interrupted = True
     if interrupted:
         done = sum(r.samples_done for r in results)
         total = sum(r.samples_total for r in results)
-        where = out if sweep is None else f"{len(written)} frames named like {outs[0]}"
-        kept = f"; the checkpoint {checkpoint.path} lets --resume continue" if checkpoint is not None else ""
-        print(f"realistic: interrupted: wrote the {done} of {total} samples taken to {where}{kept}", file=sys.stderr)
+        where = (f"{len(written)} frames named like {outs[0]}" if sweep is not None
+                 else out if written else "no file (the one there holds more)")
+        resume = f"; the checkpoint {checkpoint.path} lets --resume continue" \
+            if checkpoint is not None and checkpoint.path.is_file() else ""
+        print(f"realistic: interrupted: wrote the {done} of {total} samples taken to {where}{resume}",
+              file=sys.stderr)
         return 130
     result, camera = results[-1], cameras[-1]
     rays = sum(r.primary_rays + r.shadow_rays for r in results)

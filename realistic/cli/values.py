@@ -5,21 +5,24 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 from functools import partial
+from pathlib import Path
 from typing import TypeVar
 
 import numpy as np
 
 from realistic.core import validation
+from realistic.core.atomic_files import check_writable
 from realistic.errors import UserError
 from realistic.optics.formats import BUNDLED_LENSES
 
 Value = TypeVar("Value")
+Checked = TypeVar("Checked")
 
 
-def checked(convert: Callable[[str], Value], check: Callable[[Value], Value]) -> Callable[[str], Value]:
+def checked(convert: Callable[[str], Value], check: Callable[[Value], Checked]) -> Callable[[str], Checked]:
     """An argparse type: ``convert`` the text, then apply the library's own check of the quantity
     (``realistic.core.validation``), so the CLI refuses exactly what the library would."""
-    def parse(text: str) -> Value:
+    def parse(text: str) -> Checked:
         try:
             value = convert(text)
         except ValueError:
@@ -73,6 +76,21 @@ def parse_spp_list(text: str) -> list[int]:
     if not values or any(v < 1 for v in values):
         raise UserError(f"--spp {text!r} is not a comma-separated list of positive integers")
     return [validation.samples_per_pixel(v) for v in values]
+
+
+def checked_plot(path: Path) -> Path:
+    """``path`` after ``check_writable``, with a suffix matplotlib can save (png, pdf, svg, ...):
+    checked before the work, since matplotlib refuses an unknown one only when it saves."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    check_writable(path, {f".{name}" for name in FigureCanvasBase.get_supported_filetypes()})
+    return path
+
+
+def checked_exr(path: Path) -> Path:
+    """``path`` after ``check_writable``, named ``.exr`` (what is written there is OpenEXR)."""
+    check_writable(path, {".exr"})
+    return path
 
 
 #: Help for a LENS argument (every command that takes one).

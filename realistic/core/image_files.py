@@ -66,7 +66,10 @@ def write_png(path: Path, image: np.ndarray, exposure_stops: float) -> None:
 
     encoded = srgb_encode(image.astype(np.float32) * np.float32(2.0**exposure_stops))
     rgb = np.round(encoded * 255).astype(np.uint8)
-    write_atomically(path, lambda name: iio.imwrite(name, rgb, plugin="pillow", extension=".png"))
+    # encoded in memory, then written: Pillow writing to a file reports a full disk only when the
+    # file object is collected ("Exception ignored"), after a truncated file would be renamed in place
+    encoded_png = iio.imwrite("<bytes>", rgb, plugin="pillow", extension=".png")
+    write_atomically(path, lambda name: Path(name).write_bytes(encoded_png))
 
 
 #: Suffixes read through imageio's OpenCV plugin: the formats whose bit depth or float values Pillow

@@ -175,3 +175,37 @@ def threads(count: int) -> int:
 def pass_samples(count: int) -> int:
     """Sample ids per render pass: 1 to ``MAX_PASS_SAMPLES``."""
     return _in_range(_integer(count, "pass size (samples)"), "pass size (samples)", 1, MAX_PASS_SAMPLES)
+
+
+#: Shutter times from a nanosecond to about eleven days: real shutters span 1/32000 s to hours.
+MIN_SHUTTER_SECONDS, MAX_SHUTTER_SECONDS = 1e-9, 1e6
+#: ISO speeds: the most sensitive cameras reach a few million; below 1 no film or sensor goes.
+MIN_ISO, MAX_ISO = 1.0, 1e7
+#: Preview exposure in stops: 2^64 is about 1.8e19, already beyond any scene's dynamic range, and
+#: film values times it stay within float32.
+MAX_EXPOSURE_STOPS = 64.0
+
+
+def _bounded(value: float, name: str, low: float, high: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise UserError(f"{name} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise UserError(f"{name} must be a finite number, got {value!r}")
+    if not low <= value <= high:
+        raise UserError(f"{name} must be between {low:g} and {high:g}, got {value:g}")
+    return float(value)
+
+
+def shutter_seconds(value: float) -> float:
+    """A shutter time in seconds, ``MIN_SHUTTER_SECONDS`` to ``MAX_SHUTTER_SECONDS``."""
+    return _bounded(value, "shutter time (seconds)", MIN_SHUTTER_SECONDS, MAX_SHUTTER_SECONDS)
+
+
+def iso_speed(value: float) -> float:
+    """An ISO speed, ``MIN_ISO`` to ``MAX_ISO``."""
+    return _bounded(value, "ISO speed", MIN_ISO, MAX_ISO)
+
+
+def exposure_stops(value: float) -> float:
+    """An exposure adjustment in stops, within +-``MAX_EXPOSURE_STOPS``."""
+    return _bounded(value, "exposure", -MAX_EXPOSURE_STOPS, MAX_EXPOSURE_STOPS)

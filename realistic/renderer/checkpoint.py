@@ -6,6 +6,12 @@ hashes of the scene and the camera, the seed, resolution, spp, pass size, backen
 Resuming refuses, in one line, a checkpoint whose identity differs in any of them. It is an
 uncompressed NumPy ``.npz`` written atomically (``core.atomic_files``), so a kill mid-write leaves
 the previous checkpoint whole.
+
+A checkpoint is untrusted input (it may have been edited, truncated or made by anyone): every field
+is checked on load against the render's own pass plan (the pass index in range, each pixel's sample
+count exactly what the passes taken give it, sums finite and within ``MAX_SUM``, each waiting pass's
+shape), and anything else is a one-line UserError naming the file. A render without ``resume``
+refuses to start over an existing checkpoint (``refuse_unless_resuming``) rather than replace it.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ import dataclasses
 import enum
 import hashlib
 import json
-import zipfile
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +33,9 @@ from realistic.renderer.film import Film, PassFilm
 
 #: 2: passes are slices of every pixel's samples (``pass_plan``); a format-1 plan numbered other passes.
 FORMAT = "realistic checkpoint 2"
+#: Largest film sum a checkpoint may hold: far beyond any render (a pixel's value is its sum over
+#: its samples) and far from float64's overflow, so adding passes to it stays finite.
+MAX_SUM = 1e30
 
 
 def content_hash(value: object) -> str:
@@ -138,35 +147,105 @@ def save_checkpoint(path: Path, identity: RenderIdentity, film: PassFilm) -> Non
     write_atomically(Path(path), write)
 
 
+def refuse_unless_resuming(path: Path) -> None:
+    """UserError (one line) if a checkpoint is at ``path``: a render that does not resume it would
+    replace the work it holds."""
+    if os.path.lexists(path):  # False for a name the system refuses: its write says why
+        raise UserError(f"{path}: a checkpoint of an earlier render is there: continue it with --resume "
+                        "or remove the file to start afresh")
+
+
 def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlock]) -> PassFilm:
-    """The film saved at ``path``; UserError (one line) if it is missing, unreadable or made for another render."""
+    """The film saved at ``path``; UserError (one line) if it is missing, unreadable, made for another
+    render, or holds anything the render's pass plan ``passes`` does not give."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no checkpoint to resume (render without --resume to start)")
+    width, height = (int(v) for v in identity.resolution.split("x"))
+    header, saved = _read(path, width * height)
+    for name, label in _NAMES.items():
+        theirs, ours = header.get(name), getattr(identity, name)
+        if type(theirs) is not type(ours) or theirs != ours:
+            width = 12 if name in ("scene", "camera") else 40  # the file's text, escaped: it is untrusted
+            shown = (theirs if isinstance(theirs, str) and theirs.isprintable() else ascii(theirs))[:width]
+            raise UserError(f"{path}: cannot resume: the checkpoint is for another {label} ({shown}, this "
+                            f"render has {str(ours)[:width]}); remove it or render without --resume")
+    film = PassFilm(Film(width, height, identity.spp), passes)
+    problem = _fill(film, header, saved)
+    if problem:
+        raise UserError(f"{path}: cannot resume: the checkpoint is damaged ({problem}); remove it to start afresh")
+    return film
+
+
+def _read(path: Path, pixels: int) -> tuple[dict, dict[str, np.ndarray]]:
+    """The header and arrays of the checkpoint at ``path`` for a film of ``pixels`` pixels."""
     try:
         with np.load(path, allow_pickle=False) as data:
+            if not hasattr(data, "files"):
+                raise ValueError("not an .npz archive")
+            # the members' sizes before any is read: a few arrays of the film's size at most
+            if sum(info.file_size for info in data.zip.infolist()) > 72 * pixels + (1 << 20):
+                raise ValueError("larger than a checkpoint of this film")
             header = json.loads(str(data["header"]))
             if not isinstance(header, dict) or not str(header.get("format")).startswith("realistic checkpoint"):
                 raise ValueError("not a checkpoint")
             if header["format"] != FORMAT:
-                raise ValueError(f"{header['format']}, this version reads {FORMAT}")
-            saved = {name: data[name] for name in data.files}
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
-        reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+                raise ValueError(f"{ascii(header['format'])[1:-1][:40]}, this version reads {FORMAT}")
+            waiting = [f"waiting_{index}" for index in data["waiting_index"].tolist()] \
+                if "waiting_index" in data.files and data["waiting_index"].ndim == 1 else []
+            names = ["sums", "samples", "waiting_index", "waiting_first_pixel", *waiting]
+            saved = {name: data[name] for name in names if name in data.files}
+    except Exception as err:  # numpy's and zipfile's readers raise many types for a damaged file
+        text = " ".join(str(err).split())
+        reason = (text if text.isprintable() else ascii(text))[:120] if text else type(err).__name__
         raise UserError(f"{path}: cannot resume: not a readable checkpoint ({reason})") from None
-    for name, label in _NAMES.items():
-        theirs, ours = header.get(name), getattr(identity, name)
-        if theirs != ours:
-            show = (lambda v: str(v)[:12]) if name in ("scene", "camera") else str
-            raise UserError(f"{path}: cannot resume: the checkpoint is for another {label} ({show(theirs)}, this "
-                            f"render has {show(ours)}); remove it or render without --resume")
-    width, height = (int(v) for v in identity.resolution.split("x"))
-    film = PassFilm(Film(width, height, identity.spp), passes)
-    try:
-        film.film.sums[:], film.film.samples[:] = saved["sums"], saved["samples"]
-        film.next_pass = int(header["next_pass"])
-        for index, first_pixel in zip(saved["waiting_index"], saved["waiting_first_pixel"], strict=True):
-            film.waiting[int(index)] = (int(first_pixel), saved[f"waiting_{index}"])
-    except (KeyError, ValueError, TypeError) as err:
-        raise UserError(f"{path}: cannot resume: the checkpoint is damaged ({type(err).__name__})") from None
-    return film
+    return header, saved
+
+
+def _fill(film: PassFilm, header: dict, saved: dict[str, np.ndarray]) -> str | None:
+    """Put the checkpoint's state into the fresh ``film``; what is wrong with it, or None."""
+    passes, pixels = film.passes, film.film.width * film.film.height
+    next_pass = header.get("next_pass")
+    if type(next_pass) is not int or not 0 <= next_pass <= len(passes):
+        return f"pass index {ascii(next_pass)[:20]} is not 0 to {len(passes)}"
+    missing = [name for name in ("sums", "samples", "waiting_index", "waiting_first_pixel") if name not in saved]
+    if missing:
+        return f"no {missing[0]}"
+    sums, samples = saved["sums"], saved["samples"]
+    problem = _sums_problem(sums, (pixels, 3), "film sums")
+    if problem:
+        return problem
+    if samples.shape != (pixels,) or samples.dtype.kind not in "iu":
+        return "sample counts of the wrong shape or type"
+    expected = np.zeros(pixels, np.int64)
+    for block in passes[:next_pass]:
+        expected[block.first_pixel:block.first_pixel + block.pixel_count] += block.samples_per_pixel()
+    if not np.array_equal(samples, expected):
+        return f"sample counts are not those of its {next_pass} passes"
+    if np.any(sums[expected == 0] != 0):
+        return "sums in pixels without samples"
+    index, first = saved["waiting_index"], saved["waiting_first_pixel"]
+    if index.ndim != 1 or first.shape != index.shape or index.dtype.kind not in "iu" or first.dtype.kind not in "iu":
+        return "waiting passes of the wrong shape or type"
+    if len(set(index.tolist())) != len(index) or np.any(index <= next_pass) or np.any(index >= len(passes)):
+        return "waiting pass indices out of range or repeated"
+    film.film.sums[:], film.film.samples[:] = sums, samples
+    film.next_pass = next_pass
+    for number, first_pixel in zip(index.tolist(), first.tolist(), strict=True):
+        block, waiting = passes[number], saved.get(f"waiting_{number}")
+        if first_pixel != block.first_pixel or waiting is None:
+            return f"waiting pass {number} does not start at its pixel or has no sums"
+        problem = _sums_problem(waiting, (block.pixel_count, 3), f"waiting pass {number}")
+        if problem:
+            return problem
+        film.waiting[number] = (first_pixel, waiting.astype(np.float64))
+    return None
+
+
+def _sums_problem(sums: np.ndarray, shape: tuple[int, int], what: str) -> str | None:
+    """What is wrong with film sums that must have ``shape``, or None."""
+    if sums.shape != shape or sums.dtype != np.float64:
+        return f"{what} of the wrong shape or type"
+    if not np.all(np.isfinite(sums)) or np.any(np.abs(sums) > MAX_SUM):
+        return f"{what} not finite or beyond {MAX_SUM:g}"
+    return None

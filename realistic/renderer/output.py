@@ -3,9 +3,13 @@
 ``save(result, path)`` writes what the ``render`` command writes: the image (the film irradiance,
 or a ``Photographic`` exposure of it), a header with the camera's metadata, where the scene came
 from (``Scene.metadata``), the job's settings, the render's statistics and, for a frame of a sweep,
-the sweep and frame number; and an sRGB PNG preview beside it. If the file cannot be written when
-the render ends (its folder was removed meanwhile, the disk filled), both go to the temporary
-folder instead, so a finished render is never lost, and a UserError says where.
+the sweep and frame number; and an sRGB PNG preview beside it. Finished work is never lost:
+
+- interrupts wait until both files are written (``atomic_files.signals_deferred``);
+- if the file cannot be written when the render ends (its folder was removed meanwhile, the disk
+  filled), both go to the temporary folder instead, and a UserError says where;
+- an interrupted render does not replace an image of at least as many samples (``BetterImageKept``);
+- the job's checkpoint is removed only once the complete image has been written where it was asked.
 """
 
 from __future__ import annotations
@@ -20,7 +24,8 @@ import numpy as np
 from realistic.camera.base import Camera
 from realistic.camera.exposure import exposure_scale, exposure_value
 from realistic.core import validation
-from realistic.core.image_files import Metadata, auto_exposure, write_exr, write_png
+from realistic.core.atomic_files import signals_deferred
+from realistic.core.image_files import Metadata, auto_exposure, read_exr, write_exr, write_png
 from realistic.errors import UserError
 from realistic.renderer.job import RenderResult
 
@@ -34,8 +39,8 @@ class Photographic:
     iso: float = 100.0
 
     def __post_init__(self) -> None:
-        validation.positive_length(self.shutter_seconds, "shutter time")
-        validation.positive_length(self.iso, "ISO speed")
+        validation.shutter_seconds(self.shutter_seconds)
+        validation.iso_speed(self.iso)
 
     @property
     def scale(self) -> float:
@@ -81,7 +86,7 @@ def preview_stops(image: np.ndarray, photographic: Photographic | None, exposure
     """The PNG preview's exposure in stops: ``exposure``, else 0 for a photographic image (it is
     exposed already), else automatic (``image_files.auto_exposure``)."""
     if exposure is not None:
-        return validation.finite(exposure, "exposure")
+        return validation.exposure_stops(exposure)
     return 0.0 if photographic is not None else auto_exposure(image)
 
 
@@ -94,12 +99,32 @@ def write_preview(path: Path, image: np.ndarray, photographic: Photographic | No
     return stops
 
 
+class BetterImageKept(UserError):
+    """An interrupted render was not written: the file there already holds at least as many samples."""
+
+
+def samples_in(path: Path) -> int | None:
+    """The ``samplesDone`` an existing EXR at ``path`` says it holds (None: no such file, or not a
+    render of ours)."""
+    if not path.is_file():
+        return None
+    try:
+        done = read_exr(path)[1].get("samplesDone")
+    except UserError:
+        return None
+    return int(done) if isinstance(done, (int, np.integer)) else None
+
+
 def save(result: RenderResult, path: str | os.PathLike, photographic: Photographic | None = None,
          exposure: float | None = None) -> float:
     """Write ``result`` to the EXR ``path`` with its header (``image_metadata``) and the PNG preview
     beside it (``exposure`` stops, None: as ``preview_stops``); returns the preview's stops.
 
-    When ``path`` cannot be written, both are saved in the temporary folder and a UserError names them.
+    An interrupted ``result`` does not replace an image at ``path`` that holds as many samples or
+    more: BetterImageKept (a UserError) says so and nothing is written. When ``path`` cannot be
+    written, both files are saved in the temporary folder and a UserError names them. Interrupts
+    wait until the files are written. Once a complete image is at ``path``, the job's checkpoint
+    (``job.checkpoint``) is removed.
     """
     path = Path(path)
     if path.suffix.lower() != ".exr":
@@ -109,15 +134,38 @@ def save(result: RenderResult, path: str | os.PathLike, photographic: Photograph
     if photographic is not None:
         metadata.update(photographic.header(result.camera))
     stops = preview_stops(image, photographic, exposure)
-    try:
-        _write(path, image, metadata, stops)
-    except UserError as err:
-        handle, name = tempfile.mkstemp(prefix=f"realistic-{path.stem}-", suffix=".exr")
-        os.close(handle)
-        rescue = Path(name)
-        _write(rescue, image, metadata, stops)
-        raise UserError(f"{err}; the render was saved as {rescue} (and its .png) instead") from None
+    job = result.job
+    checkpoint = job.checkpoint if job is not None else None
+    with signals_deferred():
+        theirs = samples_in(path) if result.interrupted else None
+        if theirs is not None and theirs >= result.samples_done:
+            kept = f"; the checkpoint {checkpoint.path} keeps this render's" if checkpoint is not None else ""
+            raise BetterImageKept(f"{path} holds {theirs} samples, this interrupted render {result.samples_done}: "
+                                  f"kept it{kept}")
+        try:
+            _write(path, image, metadata, stops)
+        except UserError as err:
+            kept = f"; the checkpoint {checkpoint.path} is kept" if checkpoint is not None else ""
+            raise UserError(f"{err}; {_rescue(path, image, metadata, stops)}{kept}") from None
+        if checkpoint is not None and not result.interrupted:
+            checkpoint.path.unlink(missing_ok=True)
     return stops
+
+
+def _rescue(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> str:
+    """Write the image to the temporary folder; what became of it, for the error line."""
+    try:
+        handle, name = tempfile.mkstemp(prefix=f"realistic-{path.stem[:64]}-", suffix=".exr")
+    except OSError as err:
+        return f"the rescue copy in {tempfile.gettempdir()} failed too ({err.strerror or err})"
+    os.close(handle)
+    rescue = Path(name)
+    try:
+        _write(rescue, image, metadata, stops)
+    except UserError as err:
+        rescue.unlink(missing_ok=True)
+        return f"the rescue copy failed too ({err})"
+    return f"the render was saved as {rescue} (and its .png) instead"
 
 
 def _write(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> None:

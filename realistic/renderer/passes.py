@@ -10,7 +10,10 @@ or ``farm.DaskPasses``, tasks of a few passes each on a Dask cluster's workers. 
 pass sums to the film in pass-index order (``film.PassFilm``), so the image is bit-identical
 whatever ran where. Ctrl-C stops submitting passes, lets the passes in flight finish, and returns
 what has accumulated (``RenderResult.interrupted``). With a checkpoint (``job.Checkpointing``) the
-film is saved there every ``every_seconds`` and on interrupt, and ``resume`` continues from it.
+film is saved there every ``every_seconds``, on interrupt and when the passes are done (a save that
+fails, on a full disk say, is reported and the render goes on), and ``resume`` continues from it;
+``output.save`` removes it once the complete image is written, and a render without ``resume``
+refuses to replace one.
 """
 
 from __future__ import annotations
@@ -22,12 +25,14 @@ from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core import affinity, validation
-from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, save_checkpoint
+from realistic.errors import UserError
+from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, refuse_unless_resuming, save_checkpoint
 from realistic.renderer.film import Film, PassFilm
 from realistic.renderer.job import PassExecutor, PassResult, RenderJob, RenderObserver, RenderResult, TaskHandle
 from realistic.renderer.memory import check_memory
@@ -35,7 +40,8 @@ from realistic.renderer.pass_plan import plan_passes
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
-from realistic.scene.intersect import Intersector, prepare_tracing
+from realistic.scene.embree import prepare_tracing
+from realistic.scene.intersect import Intersector
 
 __all__ = ["ThreadPasses", "render"]
 
@@ -133,9 +139,12 @@ def render(job: RenderJob, executor: PassExecutor | None = None,
 
     A first KeyboardInterrupt finishes the passes in flight and returns what has accumulated
     (``RenderResult.interrupted``); a second one while they finish propagates at once. A job with a
-    checkpoint saves it every ``every_seconds`` and on interrupt, starts from it when ``resume``,
-    and removes it when the image completes.
+    checkpoint saves it every ``every_seconds``, on interrupt and at the end, starts from it when ``resume``
+    (without it, an existing checkpoint is refused rather than replaced), and leaves it for
+    ``output.save`` to remove once the complete image is written.
     """
+    if job.checkpoint is not None and not job.checkpoint.resume:
+        refuse_unless_resuming(job.checkpoint.path)
     executor = executor if executor is not None else ThreadPasses()
     observer = observer if observer is not None else RenderObserver()
     start = time.perf_counter()
@@ -173,7 +182,8 @@ def _frames(job: RenderJob, clock: StageClock) -> tuple[list[_Frame], RenderIden
     if job.checkpoint.resume:
         frame = frames[0]
         frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan)
-        frame.result.samples_done = int(frame.film.film.samples.sum())
+        frame.result.samples_done = int(frame.film.film.samples.sum()) + sum(frame.plan[i].count
+                                                                            for i in frame.film.waiting)
         frame.result.passes_done = frame.film.passes_taken
     return frames, identity
 
@@ -191,6 +201,17 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
     bar = _progress_bar(sum(f.result.passes_total for f in frames), sum(f.result.passes_done for f in frames)) \
         if observer.progress else None
     state = {"checkpoint": time.monotonic(), "preview": time.monotonic()}
+    failing = {"checkpoint": False}  # a failing checkpoint is reported once, until a save succeeds
+
+    def save(path: Path, identity: RenderIdentity) -> None:
+        try:
+            save_checkpoint(path, identity, frames[0].film)
+        except UserError as err:
+            if not failing["checkpoint"]:
+                print(f"realistic: warning: checkpoint not saved ({err}); rendering on", file=sys.stderr)
+            failing["checkpoint"] = True
+        else:
+            failing["checkpoint"] = False
 
     def take(index: int, results: list[PassResult]) -> None:
         frame = frames[index]
@@ -216,7 +237,7 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
         now = time.monotonic()
         if checkpoint is not None and identity is not None and checkpoint.every_seconds is not None \
                 and now - state["checkpoint"] >= checkpoint.every_seconds:
-            save_checkpoint(checkpoint.path, identity, frames[0].film)
+            save(checkpoint.path, identity)
             state["checkpoint"] = now
         if observer.preview is not None and observer.preview_every is not None \
                 and now - state["preview"] >= observer.preview_every:
@@ -241,15 +262,13 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
         interrupted = True
         if observer.progress:
             print(f"\nrealistic: interrupted: finishing the {sum(in_flight.values())} passes in flight, then "
-                  "writing what is done (interrupt again to stop at once and keep nothing)", file=sys.stderr)
+                  "writing what is done (interrupt again to stop at once and write no image)", file=sys.stderr)
         for index, results in executor.finish_in_flight(pending):
             take(index, results)
-        if checkpoint is not None and identity is not None:
-            save_checkpoint(checkpoint.path, identity, frames[0].film)
+    if checkpoint is not None and identity is not None:
+        save(checkpoint.path, identity)  # finished or not: it stays until ``output.save`` has written the image
     if bar is not None:
         bar.close()
-    if checkpoint is not None and not interrupted and frames[0].complete:
-        checkpoint.path.unlink(missing_ok=True)
     return frames, interrupted
 
 

@@ -28,8 +28,7 @@ import numpy as np
 
 from realistic.core.transforms import transform_points
 from realistic.errors import UserError
-from realistic.scene import packet_loop
-from realistic.scene.embree import EmbreeScene
+from realistic.scene.embree import EmbreeScene, prepare_tracing
 from realistic.scene.model import Scene
 from realistic.scene.shapes import light_mesh
 
@@ -51,12 +50,6 @@ class Hits:
     prim: np.ndarray  # (N,) int32
     geom: np.ndarray  # (N,) int32
     normal: np.ndarray  # (N, 3) float32
-
-
-def prepare_tracing() -> None:
-    """Start loading the ray-tracing loops in the background (``packet_loop.warm_up``), for a
-    caller that will trace soon and has other set-up to do first."""
-    packet_loop.warm_up()
 
 
 class Intersector:
