@@ -311,3 +311,24 @@ def test_pixels_of_a_huge_film_map_to_their_rows_and_columns_exactly():
     reference = camera.generate_rays(block, 3)
     assert kernel.pixel.min() > 2**28
     assert_kernel_matches(kernel, reference, camera, 3, block=block)
+
+
+@pytest.mark.parametrize(("name", "sampling", "spectral"), [("dgauss", "pupil", False), ("wide", "rear", False),
+                                                            ("dgauss100", "rear", True),
+                                                            ("phone-us10101561", "pupil", False)])
+def test_rays_per_work_item_leave_every_ray_bit_identical(name, sampling, spectral):
+    """A work item tracing 2 or 4 rays side by side computes each as one ray per work item does."""
+    camera = reference_camera(name, sampling, spectral=spectral)
+    block = SampleBlock(777, 50_000, camera.spp)
+    one = opencl_host.LensKernel(camera, rays_per_item=1).generate(block, seed=4)
+    for per_item in (2, 4):
+        several = opencl_host.LensKernel(camera, rays_per_item=per_item).generate(block, seed=4)
+        _assert_same_rays(several, one)
+        assert np.array_equal(several.wavelength_nm, one.wavelength_nm) if spectral else several.wavelength_nm is None
+
+
+def test_rays_per_work_item_are_chosen_among_the_choices_and_kept():
+    camera = reference_camera("telephoto", "rear")
+    first = opencl_host.LensKernel(camera)
+    assert first.rays_per_item in opencl_host.rays_per_item_choices(camera)
+    assert opencl_host.LensKernel(camera).program is first.program

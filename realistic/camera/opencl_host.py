@@ -16,14 +16,15 @@ from __future__ import annotations
 import atexit
 import os
 import threading
+import time
+from collections.abc import Callable
 from functools import cache, lru_cache
 
 import numpy as np
 
-from realistic.camera import pocl_cpu, pocl_interleave
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
-from realistic.core import affinity, disk_cache
+from realistic.core import disk_cache
 from realistic.core.data_files import data_file
 from realistic.core.pixel_filter import TABLE_BINS
 from realistic.core.rng import wavelength_step
@@ -40,6 +41,13 @@ except ImportError:  # reported as a UserError when a context is asked for
 NO_PLATFORM = ('no OpenCL platform found: install one with pip install "pyopencl[pocl]" '
                "(PoCL, OpenCL on the CPU), or use --backend numpy to run the numpy reference")
 KERNEL_FILE = "lens.cl"
+#: What clang says when the OpenCL driver's LLVM names the processor "generic": the PoCL that pip
+#: installs (3.0, LLVM 14) does so for processors newer than LLVM 14 (AMD family 1Ah, Zen 5), and
+#: then no kernel builds; PoCL 3.0 documents no setting for the name.
+UNKNOWN_CPU = "unknown target CPU 'generic'"
+UNKNOWN_CPU_ADVICE = ("the OpenCL driver's compiler does not know this processor (\"unknown target CPU 'generic'\": "
+                      "PoCL 3.0's LLVM 14 predates it), so no kernel can be built: use --backend numpy, or an "
+                      "OpenCL platform whose LLVM knows this CPU")
 #: Work-group size; launches are padded to a multiple of it so every group runs the same code.
 LOCAL_SIZE = 256
 #: Output rows of ``generate_rays``: origin xyz, direction xyz, weight (and wavelength when spectral).
@@ -63,8 +71,7 @@ def kernel_source(name: str) -> str:
 def _all_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
     if cl is None:
         raise UserError(NO_PLATFORM)
-    # listing PoCL's devices starts its thread pool: remembered, so a render can spread it over the CPUs
-    found = affinity.record_runtime_threads(_list_devices)
+    found = _list_devices()
     if not found:
         raise UserError(NO_PLATFORM)
     return found
@@ -102,10 +109,8 @@ def _context_for(spec: str | None, origin: str) -> cl.Context:
     if spec:
         device = _match(spec, found, origin)
     else:
-        pocl = [entry for entry in found if pocl_cpu.is_pocl(entry[2].name)]
+        pocl = [entry for entry in found if "portable computing language" in entry[2].name.lower()]
         device = (pocl or found)[0][3]
-    pocl_cpu.name_unknown_cpu(device)  # before any build: PoCL 3.0 cannot build for a CPU LLVM 14 calls "generic"
-    pocl_interleave.interleave_work_items(device)  # before any build too
     return cl.Context([device])
 
 
@@ -122,25 +127,26 @@ def _c_float(value: float) -> str:
     return repr(float(np.float32(value))) + "f"
 
 
-def _index_ratios(camera: LensCamera) -> tuple[list[str], list[str]]:
-    """Per surface, rear first, the index ratio (incident over transmitted) as a C expression, and
-    the statements that compute the dispersive glasses' indices from ``il2`` (1 / lambda^2, um^-2).
+def _index_ratios(camera: LensCamera) -> list[str]:
+    """Per surface, rear first, the index ratio (incident over transmitted) as a C expression of
+    ``il2`` (1 / lambda^2, um^-2), the macro parameter of the ray's wavelength.
 
     A ratio between media of constant index (no V number, or a non-spectral camera) is a literal
-    computed in float64, as at the d line; otherwise it is n_i * (1 / n_(i-1)) per ray.
+    computed in float64, as at the d line; otherwise it is n_i * (1 / n_(i-1)) per ray, a dispersive
+    glass's index n = A + B il2 computed where it is used (the compiler computes it once per ray).
     """
     lens = camera.lens
     index = refractive_index(lens.index_d, lens.abbe_v, D_LINE_NM)
     a, b = cauchy_coefficients(lens.index_d, lens.abbe_v)
     dispersive = (b != 0) & camera.spectral
-    prologue = [f"const float n{k} = {_c_float(a[k])} + {_c_float(b[k])} * il2; const float inv{k} = 1.0f / n{k};"
-                for k in np.flatnonzero(dispersive)]
 
     def n(k: int) -> str:
-        return "1.0f" if k < 0 else (f"n{k}" if dispersive[k] else _c_float(index[k]))
+        if k < 0:
+            return "1.0f"
+        return f"({_c_float(a[k])} + {_c_float(b[k])} * (il2))" if dispersive[k] else _c_float(index[k])
 
     def inv(k: int) -> str:
-        return f"inv{k}" if k >= 0 and dispersive[k] else _c_float(1.0 / (index[k] if k >= 0 else 1.0))
+        return f"(1.0f / {n(k)})" if k >= 0 and dispersive[k] else _c_float(1.0 / (index[k] if k >= 0 else 1.0))
 
     ratios = []
     for i in range(lens.surface_count - 1, -1, -1):
@@ -148,7 +154,7 @@ def _index_ratios(camera: LensCamera) -> tuple[list[str], list[str]]:
             ratios.append(f"{n(i)} * {inv(i - 1)}")
         else:
             ratios.append(_c_float(index[i] / (index[i - 1] if i > 0 else 1.0)))
-    return ratios, prologue
+    return ratios
 
 
 def _stop_lines(lens) -> list[str]:
@@ -205,13 +211,25 @@ def _filter_lines(camera: LensCamera) -> list[str]:
     return lines
 
 
+#: Rays each work item of the lens kernel may trace side by side (``kernels/lens.cl``, "several rays
+#: per work item"), for a lens of spheres and planes and for one with aspheres (whose kernel is three
+#: times as long); the other choice is 1 (``LensKernel``).
+RAYS_PER_ITEM = 4
+ASPHERIC_RAYS_PER_ITEM = 2
+
+
+def rays_per_item_choices(camera: LensCamera) -> tuple[int, int]:
+    """The rays per work item ``LensKernel`` chooses between for ``camera``: several, or one."""
+    return (ASPHERIC_RAYS_PER_ITEM if camera.lens.asphere_count else RAYS_PER_ITEM), 1
+
+
 def camera_header(camera: LensCamera) -> str:
     """The generated ``#define`` block that specialises ``lens.cl`` to one lens and camera (see its
     header); the focus and a round stop's diameter are ``setting_values`` instead, so a camera
     refocused or stopped down reuses the build."""
     lens = camera.lens
-    ratios, calls = _index_ratios(camera)
-    for eta, i in zip(ratios, range(lens.surface_count - 1, -1, -1)):
+    calls = []
+    for eta, i in zip(_index_ratios(camera), range(lens.surface_count - 1, -1, -1)):
         gap = lens.thickness_mm[i - 1] if i > 0 else 0.0
         ap2 = (lens.aperture_mm[i] / 2) ** 2
         radius = lens.radius_mm[i]
@@ -228,7 +246,8 @@ def camera_header(camera: LensCamera) -> str:
             calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
     lines = [
         f"#define SPECTRAL {int(camera.spectral)}",
-        "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
+        *(f"#define SURFACE_{k}(r, il2) {call}" for k, call in enumerate(calls)),
+        "#define TRACE_SURFACES(EACH) " + " ".join(f"EACH(SURFACE_{k})" for k in range(len(calls))),
         *_stop_lines(lens),
         *_wavelength_lines(camera),
         *_filter_lines(camera),
@@ -305,15 +324,16 @@ def build_program(ctx: cl.Context, source: str, name: str, options: tuple[str, .
             program = cl.Program(ctx, source).build(options=list(options))
             _remember(key, program, built_before=stored is not None)
     except cl.RuntimeError as err:
+        if UNKNOWN_CPU in str(err):
+            raise UserError(UNKNOWN_CPU_ADVICE) from None
         raise RuntimeError(f"building {name} failed:\n{err}") from None
     return program
 
 
 def _device_identity(ctx: cl.Context) -> tuple[str, ...]:
-    """What a binary built for ``ctx`` depends on besides its source: each device, its driver, and
-    the CPU name ``pocl_cpu`` gave it, if any (the code LLVM makes differs with the name)."""
+    """What a binary built for ``ctx`` depends on besides its source: each device and its driver."""
     return tuple(f"{d.platform.name} {d.platform.version} | {d.name} {d.version} {d.driver_version}"
-                 + ("" if (cpu := pocl_cpu.given_name(d)) is None else f" | cpu {cpu}") for d in ctx.devices)
+                 for d in ctx.devices)
 
 
 def _from_binaries(ctx: cl.Context, stored: dict[str, np.ndarray] | None, options: tuple[str, ...]
@@ -360,7 +380,7 @@ def store_built_binaries() -> None:
 #: PoCL 3.0 compiles a kernel apart for launches of fewer work items than this (its "smallgrid"
 #: variant) and for the others (measured: 32768 work items take the first, 65536 the second). Every
 #: launch of the lens kernel has at least this many work items (``launch_size``), so it is compiled
-#: once, not twice (0.5 s, uncached), at the cost of the padding work items in a small launch, which
+#: once, not twice (0.5 s, uncached), at the cost of the padding rays in a small launch, which
 #: compute as much as real ones (65536 rays take about half a millisecond). The shading and EWA
 #: kernels are not padded: a pass's hits can number far fewer, and their padding cost more than a
 #: second compile saves (EWA on 20000 hits: 5.6 ms padded, 3.2 ms not).
@@ -373,27 +393,46 @@ def whole_groups(work_items: int) -> int:
     return -(-work_items // LOCAL_SIZE) * LOCAL_SIZE
 
 
-def launch_size(work_items: int) -> int:
-    """Work items to launch the lens kernel for ``work_items``: whole groups, at least ``SMALL_GRID_LIMIT``."""
-    return max(SMALL_GRID_LIMIT, whole_groups(work_items))
+def launch_size(rays: int, per_item: int = 1) -> int:
+    """Rays to launch the lens kernel for ``rays``, ``per_item`` rays per work item: whole groups
+    of work items, at least ``SMALL_GRID_LIMIT`` of them."""
+    return per_item * max(SMALL_GRID_LIMIT, whole_groups(-(-rays // per_item)))
+
+
+#: Launches timed per choice of rays per work item (the fastest counts).
+TIMED_LAUNCHES = 3
+#: Rays per work item chosen in this process, by disk-cache key (a refocused camera asks again).
+_chosen: dict[str, int] = {}
+
+
+def _seconds(run: Callable[[], object]) -> float:
+    """Wall-clock seconds ``run()`` takes."""
+    start = time.perf_counter()
+    run()
+    return time.perf_counter() - start
 
 
 class LensKernel:
     """``lens.cl`` built for one camera; each launch writes straight into the arrays it returns.
 
+    Each work item traces ``rays_per_item`` rays: given, or else the faster of
+    ``rays_per_item_choices`` as timed on this device the first time this lens, camera and kernel
+    source are built, then kept in the disk cache. Several rays per work item are what let PoCL's
+    vectoriser overlap their latencies (``kernels/lens.cl``), but LLVM's SLP vectoriser, which PoCL
+    3.0 runs before it, sometimes packs the rays into short vectors instead, and then the kernel
+    runs at a third of the speed of one ray per work item: which happens depends on the kernel's
+    variant and on the processor. Every ray is computed the same either way.
+
     Safe to call from several threads: launches are serialised on one lock (the kernel object's
     arguments are shared; PoCL spreads one launch over every core anyway).
     """
 
-    def __init__(self, camera: LensCamera, device: str | None = None):
+    def __init__(self, camera: LensCamera, device: str | None = None, rays_per_item: int | None = None):
         self.camera = camera
         self.context = context(device)
         self.queue = cl.CommandQueue(self.context)
-        interleave = pocl_interleave.ASPHERIC_INTERLEAVE if camera.lens.asphere_count else pocl_interleave.INTERLEAVE
-        self.program = build_program(self.context, camera_header(camera) + kernel_source(KERNEL_FILE), KERNEL_FILE,
-                                     pocl_interleave.build_options(interleave))
-        self._generate = cl.Kernel(self.program, "generate_rays")
-        self._bits = cl.Kernel(self.program, "sample_bits")
+        self._lock = threading.Lock()
+        self._rows = ROWS + int(camera.spectral)
         world = np.ascontiguousarray(camera.world_from_lens[:3, :4], dtype=np.float32)
         mf = cl.mem_flags
         self._world = cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=world)
@@ -403,29 +442,57 @@ class LensKernel:
         self._film = (np.uint32(camera.width), np.float64(1) / np.float64(camera.width),
                       np.float32(1) / np.float32(camera.width),
                       np.float32(1) / np.float32(camera.height), np.float32(w_mm), np.float32(h_mm))
-        self._lock = threading.Lock()
-        self._rows = ROWS + int(camera.spectral)
-        # PoCL compiles a kernel at its first launch (every launch is as large: ``launch_size``):
-        # this one compiles it interleaved
-        with pocl_interleave.interleaved(interleave):
-            self.generate(SampleBlock(0, 1, camera.spp))
+        self.rays_per_item = rays_per_item or self._fastest_rays_per_item()
+        self._build(self.rays_per_item)
 
-    def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1) -> tuple[tuple[np.uint32, ...], int]:
+    def _build(self, rays_per_item: int) -> None:
+        """Build (or take from the caches) the program tracing ``rays_per_item`` rays per work item."""
+        source = f"#define RAYS_PER_ITEM {rays_per_item}\n" + camera_header(self.camera) + kernel_source(KERNEL_FILE)
+        self.rays_per_item = rays_per_item
+        self.program = build_program(self.context, source, KERNEL_FILE)
+        self._generate = cl.Kernel(self.program, "generate_rays")
+        self._bits = cl.Kernel(self.program, "sample_bits")
+
+    def _fastest_rays_per_item(self) -> int:
+        """The faster of ``rays_per_item_choices`` for this camera on this device: from the disk
+        cache, or timed on launches of equal work (PoCL compiles each at its first launch, untimed)."""
+        key = disk_cache.cache_key("lens-rays-per-item", _device_identity(self.context),
+                                   camera_header(self.camera) + kernel_source(KERNEL_FILE))
+        if key in _chosen:
+            return _chosen[key]
+        stored = disk_cache.load_arrays(key)
+        if stored is not None and "rays_per_item" in stored:
+            return _chosen.setdefault(key, int(stored["rays_per_item"][0]))
+        choices = rays_per_item_choices(self.camera)
+        block = SampleBlock(0, max(choices) * SMALL_GRID_LIMIT // self.camera.rays_per_sample, self.camera.spp)
+        seconds = {}
+        for choice in choices:
+            self._build(choice)
+            self.generate(block)
+            seconds[choice] = min(_seconds(lambda: self.generate(block)) for _ in range(TIMED_LAUNCHES))
+        fastest = _chosen[key] = min(seconds, key=seconds.__getitem__)
+        disk_cache.store_arrays(key, {"rays_per_item": np.array([fastest])})
+        return fastest
+
+    def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1, per_item: int = 1
+                       ) -> tuple[tuple[np.uint32, ...], int]:
         """The kernel's (first pixel, offset, slice start, slice width) arguments and the padded
-        launch size (``rays_per_sample`` work items per sample), checking the uint32 limits for the
-        work items up to the last work group's end (those padded beyond it compute rays nobody reads)."""
+        launch's rays (``rays_per_sample`` per sample, ``per_item`` per work item), checking the
+        uint32 limits for the rays up to the last work group's end (those padded beyond it compute
+        rays nobody reads)."""
         used = whole_groups(block.count * rays_per_sample)
         first_pixel, offset = divmod(block.first, block.samples)
         if offset + used >= 2**32 or first_pixel + (offset + used) // block.samples >= 2**31 \
                 or block.first_sample + block.samples >= 2**32:
             raise ValueError(f"sample block {block} exceeds the kernel's 32-bit indices")
         return tuple(np.uint32(v) for v in (first_pixel, offset, block.first_sample, block.samples)), \
-            launch_size(used)
+            launch_size(used, per_item)
 
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
         """Rays of the block's samples, as ``LensCamera.generate_rays`` makes them (float32): a
         spectral camera's ``rays_per_sample`` rays of each sample consecutively."""
-        address, padded = self._launch_layout(block, self.camera.rays_per_sample)
+        per_item = self.rays_per_item
+        address, padded = self._launch_layout(block, self.camera.rays_per_sample, per_item)
         count = block.count * self.camera.rays_per_sample
         out = np.empty((self._rows, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
@@ -434,7 +501,7 @@ class LensKernel:
         flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
         with self._lock:
             buffers = [cl.Buffer(self.context, flags, hostbuf=array) for array in (out, pixels)]
-            self._generate(self.queue, (padded,), (LOCAL_SIZE,), *address,
+            self._generate(self.queue, (padded // per_item,), (LOCAL_SIZE,), *address,
                            np.uint32(seed & 0xFFFFFFFF), self._world, self._settings, *self._film, np.uint32(padded),
                            *buffers)
             for array, buffer in zip((out, pixels), buffers):
