@@ -399,8 +399,14 @@ def launch_size(rays: int, per_item: int = 1) -> int:
     return per_item * max(SMALL_GRID_LIMIT, whole_groups(-(-rays // per_item)))
 
 
-#: Launches timed per choice of rays per work item (the fastest counts).
-TIMED_LAUNCHES = 3
+#: Rounds of timed launches, one per choice of rays per work item each, taken in turn (the fastest
+#: of each choice's counts), and the rays each launch makes.
+TIMED_ROUNDS = 5
+TIMED_RAYS = 4 * SMALL_GRID_LIMIT
+#: One ray per work item is chosen only where its fastest launch takes less than this fraction of
+#: the other's: where SLP packed the rays it takes about a third, and a busy machine's noise in
+#: launches of a few milliseconds does not flip the choice.
+ONE_RAY_MARGIN = 0.8
 #: Rays per work item chosen in this process, by disk-cache key (a refocused camera asks again).
 _chosen: dict[str, int] = {}
 
@@ -454,8 +460,9 @@ class LensKernel:
         self._bits = cl.Kernel(self.program, "sample_bits")
 
     def _fastest_rays_per_item(self) -> int:
-        """The faster of ``rays_per_item_choices`` for this camera on this device: from the disk
-        cache, or timed on launches of equal work (PoCL compiles each at its first launch, untimed)."""
+        """The faster of ``rays_per_item_choices`` for this camera on this device (see
+        ``ONE_RAY_MARGIN``): from the disk cache, or timed on launches of equal work, taken in turn
+        (PoCL compiles each at its first launch, untimed)."""
         key = disk_cache.cache_key("lens-rays-per-item", _device_identity(self.context),
                                    camera_header(self.camera) + kernel_source(KERNEL_FILE))
         if key in _chosen:
@@ -463,16 +470,19 @@ class LensKernel:
         stored = disk_cache.load_arrays(key)
         if stored is not None and "rays_per_item" in stored:
             return _chosen.setdefault(key, int(stored["rays_per_item"][0]))
-        choices = rays_per_item_choices(self.camera)
-        block = SampleBlock(0, max(choices) * SMALL_GRID_LIMIT // self.camera.rays_per_sample, self.camera.spp)
-        seconds = {}
-        for choice in choices:
+        several, one = rays_per_item_choices(self.camera)
+        block = SampleBlock(0, TIMED_RAYS // self.camera.rays_per_sample, self.camera.spp)
+        fastest = {several: np.inf, one: np.inf}
+        for choice in fastest:
             self._build(choice)
             self.generate(block)
-            seconds[choice] = min(_seconds(lambda: self.generate(block)) for _ in range(TIMED_LAUNCHES))
-        fastest = _chosen[key] = min(seconds, key=seconds.__getitem__)
-        disk_cache.store_arrays(key, {"rays_per_item": np.array([fastest])})
-        return fastest
+        for _ in range(TIMED_ROUNDS):
+            for choice in fastest:
+                self._build(choice)
+                fastest[choice] = min(fastest[choice], _seconds(lambda: self.generate(block)))
+        chosen = _chosen[key] = one if fastest[one] < ONE_RAY_MARGIN * fastest[several] else several
+        disk_cache.store_arrays(key, {"rays_per_item": np.array([chosen])})
+        return chosen
 
     def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1, per_item: int = 1
                        ) -> tuple[tuple[np.uint32, ...], int]:
