@@ -44,7 +44,7 @@ def measure_sample_counts(scene: Scene, camera: Camera, spp_list: list[int], bac
                           light_samples: int = 1, reference: np.ndarray | None = None,
                           cl_device: str | None = None, progress: bool = True,
                           max_memory_bytes: int | None = None, client=None,
-                          threads: int | None = None, pin_threads: bool = True) -> tuple[list[dict], np.ndarray]:
+                          threads: int | None = None, pin_threads: bool = False) -> tuple[list[dict], np.ndarray]:
     """Rows of seconds, camera rays/s, vignetted fraction and RMSE per spp, and the last image.
 
     An untimed 1 spp render first pays the one-time costs (kernel build, exit-pupil table), so each

@@ -22,7 +22,6 @@ import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -146,8 +145,7 @@ class PassRunner:
 
 class _ThreadPasses:
     """Passes on threads of this process, one pass per task, one runner per camera (built on first use).
-    ``pin_threads``: each worker on its own CPU and the OpenCL runtime's pool spread over them while
-    the render runs (``core.affinity``)."""
+    ``pin_threads``: each worker on its own CPU (``core.affinity``)."""
 
     def __init__(self, scene: Scene, cameras: list[Camera], settings: dict, threads: int, clock: StageClock,
                  pin_threads: bool = True):
@@ -156,9 +154,6 @@ class _ThreadPasses:
         self.intersector: Intersector | None = None
         self.capacity = max(1, threads)
         self.passes_per_task = 1
-        self.placement = ExitStack()
-        if pin_threads:
-            self.placement.enter_context(affinity.runtime_threads_spread())
         self.pool = ThreadPoolExecutor(max_workers=self.capacity,
                                        initializer=affinity.worker_pinner() if pin_threads else None)
         self.finished: queue.SimpleQueue = queue.SimpleQueue()  # futures, as they finish
@@ -198,7 +193,6 @@ class _ThreadPasses:
     def close(self, finished: bool) -> None:
         # a second interrupt while passes finish leaves them running: the caller stops at once
         self.pool.shutdown(wait=finished, cancel_futures=not finished)
-        self.placement.close()
 
 
 @dataclass
@@ -232,7 +226,7 @@ def render_frames(scene: Scene, cameras: list[Camera], backend: str = "opencl", 
                   max_memory_bytes: int | None = None, client=None, task_samples: int | None = None,
                   checkpoint: Checkpointing | None = None,
                   preview: Callable[[np.ndarray], None] | None = None,
-                  preview_every: float | None = None, pin_threads: bool = True) -> list[RenderResult]:
+                  preview_every: float | None = None, pin_threads: bool = False) -> list[RenderResult]:
     """Render one image per camera as one job (on a farm every frame's passes are in one graph, so
     workers stay busy across frame boundaries); ``on_frame(i, result)`` is called as frame i
     completes. Other options as ``render_passes``; ``checkpoint`` needs exactly one camera."""
@@ -373,7 +367,7 @@ def render_passes(scene: Scene, camera: Camera, backend: str = "opencl", seed: i
                   progress: bool = False, on_pass: Callable[[RenderResult], None] | None = None,
                   max_memory_bytes: int | None = None, *, client=None, task_samples: int | None = None,
                   checkpoint: Checkpointing | None = None, preview: Callable[[np.ndarray], None] | None = None,
-                  preview_every: float | None = None, pin_threads: bool = True) -> RenderResult:
+                  preview_every: float | None = None, pin_threads: bool = False) -> RenderResult:
     """Render and return the image with statistics; ``on_pass`` is called after each pass is added.
     ``pass_samples`` None sizes passes by rays (``pass_plan.default_pass_samples``), ``threads``
     None runs ``default_threads()``; ``pin_threads`` keeps each render thread on one CPU (Linux;
