@@ -1,7 +1,8 @@
 """Throughput of camera ray generation: the OpenCL kernel against numpy in float64 and float32.
 
 For each bundled lens and both lens samplers it prints kernel rays/s at 1M and 16M rays per launch
-(copy back to host included, the one-time build reported separately), the float64 numpy reference
+(copy back to host included, the one-time build reported separately, with the rays each work item
+traces: ``LensKernel`` times its choices at a configuration's first build), the float64 numpy reference
 (``LensCamera.generate_rays``) and a float32 numpy version of the same mathematics (below, written for
 this benchmark), and the fraction of rays that pass the lens. numpy runs on one core in chunks
 of at most 1M rays and is measured on fewer rays than the kernel (``--numpy-rays``) and
@@ -154,7 +155,8 @@ def bench_one(name: str, sampling: str, sizes: list[int], numpy_rays: int, repea
     kernel = LensKernel(camera)
     kernel.generate(SampleBlock(0, 256, camera.spp), 0)  # PoCL compiles the work-group function at the first launch
     build_s = time.perf_counter() - start
-    row = {"lens": name, "sampling": sampling, "build_s": build_s, "kernel_rays_per_s": {}, "pass_fraction": None}
+    row = {"lens": name, "sampling": sampling, "build_s": build_s, "rays_per_item": kernel.rays_per_item,
+           "kernel_rays_per_s": {}, "pass_fraction": None}
     for size in sizes:
         kernel.generate(SampleBlock(size, size, camera.spp), 0)  # warm: buffers of this size
         block = SampleBlock(0, size, camera.spp)
@@ -181,7 +183,8 @@ def main(argv: list[str] | None = None) -> None:
 
     rows = []
     sizes_m = [f"{s / 2**20:g}M" for s in args.sizes]
-    header = (f"{'lens':<10} {'sampler':<6} {'build s':>7} " + " ".join(f"{'cl ' + m + ' M/s':>12}" for m in sizes_m)
+    header = (f"{'lens':<10} {'sampler':<6} {'build s':>7} {'/item':>5} "
+              + " ".join(f"{'cl ' + m + ' M/s':>12}" for m in sizes_m)
               + f" {'np64 M/s':>9} {'np32 M/s':>9} {'cl/np32':>8} {'pass':>6}")
     print(header)
     print("-" * len(header))
@@ -191,7 +194,8 @@ def main(argv: list[str] | None = None) -> None:
             rows.append(row)
             kernel = [row["kernel_rays_per_s"][str(s)] / 1e6 for s in args.sizes]
             f32 = row["numpy_f32_rays_per_s"]
-            print(f"{name:<10} {sampling:<6} {row['build_s']:>7.2f} " + " ".join(f"{k:>12.1f}" for k in kernel)
+            print(f"{name:<10} {sampling:<6} {row['build_s']:>7.2f} {row['rays_per_item']:>5} "
+                  + " ".join(f"{k:>12.1f}" for k in kernel)
                   + f" {row['numpy_f64_rays_per_s'] / 1e6:>9.2f}"
                   + (f" {f32 / 1e6:>9.2f} {min(kernel) / (f32 / 1e6):>7.1f}x" if f32 else f" {'-':>9} {'-':>8}")
                   + f" {row['pass_fraction']:>6.3f}", flush=True)

@@ -57,19 +57,25 @@ inline __attribute__((always_inline)) void sincos_quarter(float x, float *s, flo
  * |a| and |b| are computed by different instruction sequences on purpose: two isomorphic chains
  * from u1 and u2 into one comparison let LLVM's SLP vectoriser pack them (back to the hashes) into
  * 2-wide vectors before PoCL's work-group vectoriser runs, and that stops the latter (LLVM 14
- * cannot widen instructions that already have a vector type). */
+ * cannot widen instructions that already have a vector type). The choices are bit masks rather
+ * than comparisons and selects for the same reason: a kernel that maps several samples (lens.cl,
+ * several rays per work item) gave SLP their comparisons to pack side by side. a and b are
+ * multiples of 2^-23, so the sign of |b| - |a| is exactly whether |a| > |b|, and den is 0 only
+ * where a = b = 0 (then the ratio is 0, not 0 / 0). */
 inline __attribute__((always_inline)) void concentric_disk(float u1, float u2, float *x, float *y) {
     float a = 2.0f * u1 - 1.0f;
     float b = 2.0f * u2 - 1.0f;
     float abs_a = a < 0.0f ? -a : a;
     float abs_b = as_float(as_uint(b) & 0x7FFFFFFFu);
-    int first = abs_a > abs_b;
-    float num = first ? b : a;
-    float den = first ? a : b;
-    float ratio = den != 0.0f ? num / den : 0.0f;
+    int first = -(int)(as_uint(abs_b - abs_a) >> 31);  /* all ones where |a| > |b| */
+    float num = as_float((as_int(b) & first) | (as_int(a) & ~first));
+    float den = as_float((as_int(a) & first) | (as_int(b) & ~first));
+    uint magnitude = as_uint(den) << 1;
+    int nonzero = -(int)((magnitude | (0u - magnitude)) >> 31);
+    float ratio = as_float(as_int(num / den) & nonzero);
     float s, c;
     sincos_quarter(QUARTER_PI_F * ratio, &s, &c);
     /* first: phi = pi/4 b/a, (cos, sin); else phi = pi/2 - pi/4 a/b, (cos, sin) = (sin, cos) */
-    *x = den * (first ? c : s);
-    *y = den * (first ? s : c);
+    *x = den * as_float((as_int(c) & first) | (as_int(s) & ~first));
+    *y = den * as_float((as_int(s) & first) | (as_int(c) & ~first));
 }

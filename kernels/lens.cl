@@ -36,11 +36,14 @@
  *                                 when 2, FILTER_BINS and tables FILTER_CDF_X/Y[FILTER_BINS + 1]
  *                                 (CDF of |f| per axis) and FILTER_WEIGHT_X/Y[FILTER_BINS]
  *                                 (sign(f) * integral|f| / integral f of each bin)
- *   TRACE_SURFACES(r, il2)        the surfaces, rear first, as calls to sphere()/plane()/asphere()
- *                                 with literal constants; when SPECTRAL, it first computes each
- *                                 dispersive glass's index A + B il2 (il2 = 1 / lambda^2 in
- *                                 um^-2, A and B literal Cauchy coefficients) and passes index
- *                                 ratios to those calls
+ *   RAYS_PER_ITEM                 rays each work item traces side by side (1, 2 or 4; see
+ *                                 "several rays per work item")
+ *   SURFACE_k(r, il2)             surface k, rear first (k = 0), as a call to sphere()/plane()/
+ *                                 asphere()/stop() with literal constants; when SPECTRAL, its
+ *                                 index ratio is computed from each dispersive glass's index
+ *                                 A + B il2 (il2 = 1 / lambda^2 in um^-2, A and B literal Cauchy
+ *                                 coefficients)
+ *   TRACE_SURFACES(EACH)          EACH(SURFACE_0) EACH(SURFACE_1) ...: every surface, rear first
  * The kernel argument `settings` holds what changes with the focus (the film distance) and the
  * stop's diameter, float32 at the SET_* offsets the generated header defines (declared once, with
  * what each holds, in realistic.camera.opencl_host.SETTINGS; packed by setting_values): SET_PLANE_Z,
@@ -382,28 +385,46 @@ inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
 }
 #endif
 
-/* ------------------------------------------------------------------ kernels */
+/* ------------------------------------------------------------------ several rays per work item
+ * PoCL makes the loop over a work group's work items SIMD with LLVM's loop vectoriser, whose cost
+ * model runs a body as long as this kernel's one vector of work items at a time: each surface's
+ * chain of dependent square roots and divisions then waits on the one before, and the kernel is
+ * bound by their latency. So each work item traces RAYS_PER_ITEM rays (the host's
+ * realistic.camera.opencl_host.rays_per_item), and the generated TRACE_SURFACES(EACH) meets each
+ * surface with all of them (EACH_RAY) before the next: that many independent chains in flight.
+ * Work item i of n traces rays i, i + n, i + 2n, ...: their outputs are not adjacent, so LLVM's
+ * SLP vectoriser finds no consecutive stores to pack the twin chains into short vectors from
+ * (which would stop the loop vectoriser, see concentric_disk). Each ray's arithmetic is unchanged. */
+#if RAYS_PER_ITEM == 4
+#define EACH_RAY(STEP) STEP(0) STEP(1) STEP(2) STEP(3)
+#define EACH_RAY_SURFACE(SURFACE) SURFACE(&r0, il2_0) SURFACE(&r1, il2_1) SURFACE(&r2, il2_2) SURFACE(&r3, il2_3)
+#elif RAYS_PER_ITEM == 2
+#define EACH_RAY(STEP) STEP(0) STEP(1)
+#define EACH_RAY_SURFACE(SURFACE) SURFACE(&r0, il2_0) SURFACE(&r1, il2_1)
+#else
+#define EACH_RAY(STEP) STEP(0)
+#define EACH_RAY_SURFACE(SURFACE) SURFACE(&r0, il2_0)
+#endif
 
-/* Rays of the sample block the host lays out (sample_address): one per sample, or when SPECTRAL
- * WAVELENGTHS_PER_SAMPLE consecutive ones per sample (ray_of_sample). out holds 7 rows of `stride`
- * floats: origin x, y, z, direction x, y, z, weight
- * (world space; a blocked ray has weight 0 and zero origin and direction), and when SPECTRAL an
- * eighth: the wavelength in nm. world is the camera-to-world matrix, rows of (m0 m1 m2 t). */
-__kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint seed, __constant float *world,
-                            __constant float *settings, uint width, double pixel_rows, float inv_width, float inv_height, float film_w_mm, float film_h_mm,
-                            uint stride, __global float *out, __global int *pixel_out) {
-    uint gid = get_global_id(0);
-    uint pixel, sample, sample_gid, stratum;
+/* Ray gid of the launch up to the lens: its pixel, weight, wavelength (when SPECTRAL) and 1 /
+ * lambda^2 in um^-2 (il2, 0 when not SPECTRAL: the indices are literals), and the ray leaving the
+ * film toward the rear surface. */
+inline __attribute__((always_inline)) void start_ray(uint gid, uint first_pixel, uint offset, uint slice_start,
+                                                    uint slice_width, uint seed, __constant float *settings,
+                                                    uint width, double pixel_rows, float inv_width,
+                                                    float inv_height, float film_w_mm, float film_h_mm, Ray *r,
+                                                    uint *pixel, float *weight, float *lambda, float *il2) {
+    uint sample, sample_gid, stratum;
     ray_of_sample(gid, &sample_gid, &stratum);
-    sample_address(first_pixel, offset, slice_start, slice_width, sample_gid, &pixel, &sample);
+    sample_address(first_pixel, offset, slice_start, slice_width, sample_gid, pixel, &sample);
     uint b0, b1, b2, b3, b4;
-    stratified(pixel, sample, seed, &b0, &b1, &b2, &b3, &b4);
+    stratified(*pixel, sample, seed, &b0, &b1, &b2, &b3, &b4);
 
     /* pixel / width without an integer division (no vector form: PoCL scalarised it, -10% rays/s):
      * pixel_rows = 1 / width in double; (pixel + 0.5) / width is at least 0.5 / width from an
      * integer and its error below 2^-21 for pixel < 2^31, so truncation is exact. */
-    uint py_i = (uint)(((double)pixel + 0.5) * pixel_rows);
-    uint px_i = pixel - py_i * width;
+    uint py_i = (uint)(((double)*pixel + 0.5) * pixel_rows);
+    uint px_i = *pixel - py_i * width;
     float filter_wx, filter_wy;
     float off_x = filter_offset_x(to_unit(b0), &filter_wx);
     float off_y = filter_offset_y(to_unit(b1), &filter_wy);
@@ -417,43 +438,72 @@ __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uin
     float len2 = ddx * ddx + ddy * ddy + plane_z2;
     float inv_len = 1.0f / __builtin_sqrtf(len2);
     /* cos^4(theta) A / Z^2 with cos(theta) = Z / |delta|. */
-    float weight = area * plane_z2 / (len2 * len2) * (filter_wx * filter_wy);
+    *weight = area * plane_z2 / (len2 * len2) * (filter_wx * filter_wy);
 
-    Ray r;
-    r.ox = fx;
-    r.oy = fy;
-    r.w = settings[SET_REAR_W];
-    r.dx = ddx * inv_len;
-    r.dy = ddy * inv_len;
-    r.dz = settings[SET_PLANE_Z] * inv_len;
-    r.alive = 1;
+    r->ox = fx;
+    r->oy = fy;
+    r->w = settings[SET_REAR_W];
+    r->dx = ddx * inv_len;
+    r->dy = ddy * inv_len;
+    r->dz = settings[SET_PLANE_Z] * inv_len;
+    r->alive = 1;
 #if SPECTRAL
-    float lambda_nm = wavelength_nm(to_unit(b4 / WAVELENGTHS_PER_SAMPLE + stratum * LAMBDA_STRATUM_STEP));
-    float il2 = 1.0e6f / (lambda_nm * lambda_nm);
+    *lambda = wavelength_nm(to_unit(b4 / WAVELENGTHS_PER_SAMPLE + stratum * LAMBDA_STRATUM_STEP));
+    *il2 = 1.0e6f / (*lambda * *lambda);
 #else
-    float il2 = 0.0f;  /* unused: the indices are literals */
+    *lambda = 0.0f;
+    *il2 = 0.0f;
 #endif
-    TRACE_SURFACES(&r, il2);
+}
 
-    float oz = r.w + settings[SET_FRONT_VERTEX_Z];
-    float wx = world[0] * r.ox + world[1] * r.oy + world[2] * oz + world[3];
-    float wy = world[4] * r.ox + world[5] * r.oy + world[6] * oz + world[7];
-    float wz = world[8] * r.ox + world[9] * r.oy + world[10] * oz + world[11];
-    float vx = world[0] * r.dx + world[1] * r.dy + world[2] * r.dz;
-    float vy = world[4] * r.dx + world[5] * r.dy + world[6] * r.dz;
-    float vz = world[8] * r.dx + world[9] * r.dy + world[10] * r.dz;
+/* Ray gid's outputs, from the ray leaving the front surface (see generate_rays). */
+inline __attribute__((always_inline)) void finish_ray(uint gid, const Ray *r, uint pixel, float weight, float lambda,
+                                                     __constant float *world, __constant float *settings,
+                                                     uint stride, __global float *out, __global int *pixel_out) {
+    float oz = r->w + settings[SET_FRONT_VERTEX_Z];
+    float wx = world[0] * r->ox + world[1] * r->oy + world[2] * oz + world[3];
+    float wy = world[4] * r->ox + world[5] * r->oy + world[6] * oz + world[7];
+    float wz = world[8] * r->ox + world[9] * r->oy + world[10] * oz + world[11];
+    float vx = world[0] * r->dx + world[1] * r->dy + world[2] * r->dz;
+    float vy = world[4] * r->dx + world[5] * r->dy + world[6] * r->dz;
+    float vz = world[8] * r->dx + world[9] * r->dy + world[10] * r->dz;
     float scale = 1.0f / __builtin_sqrtf(vx * vx + vy * vy + vz * vz);
-    out[gid] = r.alive ? wx : 0.0f;
-    out[stride + gid] = r.alive ? wy : 0.0f;
-    out[2 * stride + gid] = r.alive ? wz : 0.0f;
-    out[3 * stride + gid] = r.alive ? vx * scale : 0.0f;
-    out[4 * stride + gid] = r.alive ? vy * scale : 0.0f;
-    out[5 * stride + gid] = r.alive ? vz * scale : 0.0f;
-    out[6 * stride + gid] = r.alive ? weight : 0.0f;
+    out[gid] = r->alive ? wx : 0.0f;
+    out[stride + gid] = r->alive ? wy : 0.0f;
+    out[2 * stride + gid] = r->alive ? wz : 0.0f;
+    out[3 * stride + gid] = r->alive ? vx * scale : 0.0f;
+    out[4 * stride + gid] = r->alive ? vy * scale : 0.0f;
+    out[5 * stride + gid] = r->alive ? vz * scale : 0.0f;
+    out[6 * stride + gid] = r->alive ? weight : 0.0f;
 #if SPECTRAL
-    out[7 * stride + gid] = lambda_nm;
+    out[7 * stride + gid] = lambda;
 #endif
     pixel_out[gid] = (int)pixel;
+}
+
+/* ------------------------------------------------------------------ kernels */
+
+/* Rays of the sample block the host lays out (sample_address): one per sample, or when SPECTRAL
+ * WAVELENGTHS_PER_SAMPLE consecutive ones per sample (ray_of_sample), RAYS_PER_ITEM per work item
+ * (stride = RAYS_PER_ITEM x the launch's work items). out holds 7 rows of `stride` floats: origin
+ * x, y, z, direction x, y, z, weight
+ * (world space; a blocked ray has weight 0 and zero origin and direction), and when SPECTRAL an
+ * eighth: the wavelength in nm. world is the camera-to-world matrix, rows of (m0 m1 m2 t). */
+__kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint seed, __constant float *world,
+                            __constant float *settings, uint width, double pixel_rows, float inv_width, float inv_height, float film_w_mm, float film_h_mm,
+                            uint stride, __global float *out, __global int *pixel_out) {
+    uint item = get_global_id(0), items = stride / RAYS_PER_ITEM;
+#define START_RAY(j) \
+    Ray r##j; \
+    uint pixel_##j; \
+    float weight_##j, lambda_##j, il2_##j; \
+    start_ray(item + j * items, first_pixel, offset, slice_start, slice_width, seed, settings, width, pixel_rows, \
+              inv_width, inv_height, film_w_mm, film_h_mm, &r##j, &pixel_##j, &weight_##j, &lambda_##j, &il2_##j);
+#define FINISH_RAY(j) \
+    finish_ray(item + j * items, &r##j, pixel_##j, weight_##j, lambda_##j, world, settings, stride, out, pixel_out);
+    EACH_RAY(START_RAY)
+    TRACE_SURFACES(EACH_RAY_SURFACE)
+    EACH_RAY(FINISH_RAY)
 }
 
 /* Debug: the stratified uint32 values of each sample, 4 rows of `stride` (and the wavelength's

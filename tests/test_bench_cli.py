@@ -40,8 +40,8 @@ def test_bench_against_a_reference_image(tmp_path, capsys):
     assert rows[0]["rmse"] > rows[1]["rmse"] > 0
 
 
-@pytest.mark.parametrize(("flags", "pinned"), [([], True), (["--no-pin-threads"], False)])
-def test_bench_renders_pin_their_threads_unless_told_not_to(tmp_path, capsys, thread_pools, flags, pinned):
+@pytest.mark.parametrize(("flags", "pinned"), [([], False), (["--pin-threads"], True)])
+def test_bench_renders_pin_their_threads_when_told_to(tmp_path, capsys, thread_pools, flags, pinned):
     assert main(["bench", *TINY, "--spp", "1,2", *flags, "--json", str(tmp_path / "b.json"),
                  "--plot", str(tmp_path / "p.png")]) == 0
     assert [pin for _, pin in thread_pools] == [pinned] * 3  # the untimed 1 spp render, then 1 and 2 spp

@@ -195,7 +195,7 @@ def test_spectral_kernel_still_vectorises(opencl_platform, tmp_path, wavelengths
               "from realistic.camera.base import SampleBlock\nfrom realistic.camera.opencl_host import LensKernel\n"
               "camera = LensCamera(load_lens('dgauss100'), 75.0, 43.27, 64, 48, spp=4, spectral=True, "
               f"wavelengths_per_sample={wavelengths})\n"
-              "LensKernel(camera).generate(SampleBlock(0, 4096, camera.spp), 0)\n")
+              "LensKernel(camera, rays_per_item=1).generate(SampleBlock(0, 4096, camera.spp), 0)\n")
     # PoCL compiles from source into tmp_path, not a binary from realistic's disk cache
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path), "REALISTIC_CACHE_DIR": "off"}
     subprocess.run([sys.executable, "-c", script], check=True, env=env, cwd=REPO, timeout=120)

@@ -326,25 +326,48 @@ def test_another_lens_binary_under_dgauss_key_is_rebuilt_not_run(monkeypatch, tm
 
     from realistic.core import disk_cache
 
+    per_item = opencl_host.RAYS_PER_ITEM  # given, so no timed choice builds other programs
+
     device = Device.for_spec()
     telephoto, dgauss = reference_camera("telephoto", "pupil"), reference_camera("dgauss", "pupil")
     monkeypatch.setenv("REALISTIC_CACHE_DIR", "off")
     opencl.build_program.cache_clear()
     block = SampleBlock(0, 20_000, dgauss.spp)
-    uncached = opencl_host.LensKernel(dgauss, device).generate(block, seed=3)
+    uncached = opencl_host.LensKernel(dgauss, device, per_item).generate(block, seed=3)
     monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
 
     def key(camera: LensCamera) -> str:
-        source, _, options = opencl_host.lens_program(camera)
-        return disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), source.encode(), options)
+        source, _ = opencl_host.lens_program(camera, per_item)
+        return disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), source.encode(), ())
 
     for _ in range(2):  # a mark, then the binaries at "exit"
         opencl.build_program.cache_clear()
-        opencl_host.LensKernel(telephoto, device)
+        opencl_host.LensKernel(telephoto, device, per_item)
     opencl.store_built_binaries()
     assert list(disk_cache.load_arrays(key(telephoto))) == ["device0"]
     shutil.copy(tmp_path / f"{key(telephoto)}.npz", tmp_path / f"{key(dgauss)}.npz")
     assert disk_cache.load_arrays(key(dgauss)) is None
     opencl.build_program.cache_clear()
-    _assert_same_rays(opencl_host.LensKernel(dgauss, device).generate(block, seed=3), uncached)
+    _assert_same_rays(opencl_host.LensKernel(dgauss, device, per_item).generate(block, seed=3), uncached)
     opencl.build_program.cache_clear()
+
+
+@pytest.mark.parametrize(("name", "sampling", "spectral"), [("dgauss", "pupil", False), ("wide", "rear", False),
+                                                            ("dgauss100", "rear", True),
+                                                            ("phone-us10101561", "pupil", False)])
+def test_rays_per_work_item_leave_every_ray_bit_identical(name, sampling, spectral):
+    """A work item tracing 2 or 4 rays side by side computes each as one ray per work item does."""
+    camera = reference_camera(name, sampling, spectral=spectral)
+    block = SampleBlock(777, 50_000, camera.spp)
+    one = opencl_host.LensKernel(camera, rays_per_item=1).generate(block, seed=4)
+    for per_item in (2, 4):
+        several = opencl_host.LensKernel(camera, rays_per_item=per_item).generate(block, seed=4)
+        _assert_same_rays(several, one)
+        assert np.array_equal(several.wavelength_nm, one.wavelength_nm) if spectral else several.wavelength_nm is None
+
+
+def test_rays_per_work_item_are_chosen_among_the_choices_and_kept():
+    camera = reference_camera("telephoto", "rear")
+    first = opencl_host.LensKernel(camera)
+    assert first.rays_per_item in opencl_host.rays_per_item_choices(camera)
+    assert opencl_host.LensKernel(camera).program is first.program

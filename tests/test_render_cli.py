@@ -81,8 +81,8 @@ def test_threads_renders_on_that_many_threads_in_process_whatever_the_environmen
     np.testing.assert_array_equal(images["1"], images["4"])
 
 
-@pytest.mark.parametrize(("flags", "pinned"), [([], True), (["--no-pin-threads"], False)])
-def test_render_threads_keep_to_one_cpu_unless_told_not_to(tmp_path, capsys, thread_pools, flags, pinned):
+@pytest.mark.parametrize(("flags", "pinned"), [([], False), (["--pin-threads"], True)])
+def test_render_threads_keep_to_one_cpu_when_told_to(tmp_path, capsys, thread_pools, flags, pinned):
     assert run_cli([*FAST, *flags, "--out", str(tmp_path / "p.exr")], capsys)[0] == 0
     assert [pin for _, pin in thread_pools] == [pinned]
 

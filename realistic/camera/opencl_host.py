@@ -9,15 +9,17 @@ The device, its context and the program cache are ``realistic.device.opencl``'s.
 from __future__ import annotations
 
 import threading
+import time
+from collections.abc import Callable
 
 import numpy as np
 
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
+from realistic.core import disk_cache
 from realistic.core.pixel_filter import TABLE_BINS
 from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
-from realistic.device import pocl_interleave
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table
 from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
@@ -42,25 +44,26 @@ def _c_float(value: float) -> str:
     return repr(float(np.float32(value))) + "f"
 
 
-def _index_ratios(camera: LensCamera) -> tuple[list[str], list[str]]:
-    """Per surface, rear first, the index ratio (incident over transmitted) as a C expression, and
-    the statements that compute the dispersive glasses' indices from ``il2`` (1 / lambda^2, um^-2).
+def _index_ratios(camera: LensCamera) -> list[str]:
+    """Per surface, rear first, the index ratio (incident over transmitted) as a C expression of
+    ``il2`` (1 / lambda^2, um^-2), the macro parameter of the ray's wavelength.
 
     A ratio between media of constant index (no V number, or a non-spectral camera) is a literal
-    computed in float64, as at the d line; otherwise it is n_i * (1 / n_(i-1)) per ray.
+    computed in float64, as at the d line; otherwise it is n_i * (1 / n_(i-1)) per ray, a dispersive
+    glass's index n = A + B il2 computed where it is used (the compiler computes it once per ray).
     """
     lens = camera.lens
     index = refractive_index(lens.index_d, lens.abbe_v, D_LINE_NM)
     a, b = cauchy_coefficients(lens.index_d, lens.abbe_v)
     dispersive = (b != 0) & camera.spectral
-    prologue = [f"const float n{k} = {_c_float(a[k])} + {_c_float(b[k])} * il2; const float inv{k} = 1.0f / n{k};"
-                for k in np.flatnonzero(dispersive)]
 
     def n(k: int) -> str:
-        return "1.0f" if k < 0 else (f"n{k}" if dispersive[k] else _c_float(index[k]))
+        if k < 0:
+            return "1.0f"
+        return f"({_c_float(a[k])} + {_c_float(b[k])} * (il2))" if dispersive[k] else _c_float(index[k])
 
     def inv(k: int) -> str:
-        return f"inv{k}" if k >= 0 and dispersive[k] else _c_float(1.0 / (index[k] if k >= 0 else 1.0))
+        return f"(1.0f / {n(k)})" if k >= 0 and dispersive[k] else _c_float(1.0 / (index[k] if k >= 0 else 1.0))
 
     ratios = []
     for i in range(lens.surface_count - 1, -1, -1):
@@ -68,7 +71,7 @@ def _index_ratios(camera: LensCamera) -> tuple[list[str], list[str]]:
             ratios.append(f"{n(i)} * {inv(i - 1)}")
         else:
             ratios.append(_c_float(index[i] / (index[i - 1] if i > 0 else 1.0)))
-    return ratios, prologue
+    return ratios
 
 
 def _stop_lines(lens) -> list[str]:
@@ -125,13 +128,25 @@ def _filter_lines(camera: LensCamera) -> list[str]:
     return lines
 
 
+#: Rays each work item of the lens kernel may trace side by side (``kernels/lens.cl``, "several rays
+#: per work item"), for a lens of spheres and planes and for one with aspheres (whose kernel is three
+#: times as long); the other choice is 1 (``LensKernel``).
+RAYS_PER_ITEM = 4
+ASPHERIC_RAYS_PER_ITEM = 2
+
+
+def rays_per_item_choices(camera: LensCamera) -> tuple[int, int]:
+    """The rays per work item ``LensKernel`` chooses between for ``camera``: several, or one."""
+    return (ASPHERIC_RAYS_PER_ITEM if camera.lens.asphere_count else RAYS_PER_ITEM), 1
+
+
 def camera_header(camera: LensCamera) -> str:
     """The generated ``#define`` block that specialises ``lens.cl`` to one lens and camera (see its
     header); the focus and a round stop's diameter are ``setting_values`` instead, so a camera
     refocused or stopped down reuses the build."""
     lens = camera.lens
-    ratios, calls = _index_ratios(camera)
-    for eta, i in zip(ratios, range(lens.surface_count - 1, -1, -1)):
+    calls = []
+    for eta, i in zip(_index_ratios(camera), range(lens.surface_count - 1, -1, -1)):
         gap = lens.thickness_mm[i - 1] if i > 0 else 0.0
         ap2 = (lens.aperture_mm[i] / 2) ** 2
         radius = lens.radius_mm[i]
@@ -149,7 +164,8 @@ def camera_header(camera: LensCamera) -> str:
     lines = [
         SETTINGS.defines().rstrip("\n"),
         f"#define SPECTRAL {int(camera.spectral)}",
-        "#define TRACE_SURFACES(r, il2) { " + " ".join(calls) + " }",
+        *(f"#define SURFACE_{k}(r, il2) {call}" for k, call in enumerate(calls)),
+        "#define TRACE_SURFACES(EACH) " + " ".join(f"EACH(SURFACE_{k})" for k in range(len(calls))),
         *_stop_lines(lens),
         *_wavelength_lines(camera),
         *_filter_lines(camera),
@@ -188,46 +204,68 @@ def setting_values(camera: LensCamera) -> np.ndarray:
 #: PoCL 3.0 compiles a kernel apart for launches of fewer work items than this (its "smallgrid"
 #: variant) and for the others (measured: 32768 work items take the first, 65536 the second). Every
 #: launch of the lens kernel has at least this many work items (``launch_size``), so it is compiled
-#: once, not twice (0.5 s, uncached), at the cost of the padding work items in a small launch, which
+#: once, not twice (0.5 s, uncached), at the cost of the padding rays in a small launch, which
 #: compute as much as real ones (65536 rays take about half a millisecond). The shading and EWA
 #: kernels are not padded: a pass's hits can number far fewer, and their padding cost more than a
 #: second compile saves (EWA on 20000 hits: 5.6 ms padded, 3.2 ms not).
 SMALL_GRID_LIMIT = 65536
 
 
-def launch_size(work_items: int) -> int:
-    """Work items to launch the lens kernel for ``work_items``: whole groups, at least ``SMALL_GRID_LIMIT``."""
-    return max(SMALL_GRID_LIMIT, whole_groups(work_items))
+def launch_size(rays: int, per_item: int = 1) -> int:
+    """Rays to launch the lens kernel for ``rays``, ``per_item`` rays per work item: whole groups
+    of work items, at least ``SMALL_GRID_LIMIT`` of them."""
+    return per_item * max(SMALL_GRID_LIMIT, whole_groups(-(-rays // per_item)))
 
 
-def _interleave(camera: LensCamera) -> int:
-    """The interleave count the camera's lens kernel is compiled with (``pocl_interleave``)."""
-    return pocl_interleave.ASPHERIC_INTERLEAVE if camera.lens.asphere_count else pocl_interleave.INTERLEAVE
+def lens_program(camera: LensCamera, rays_per_item: int) -> tuple[str, str]:
+    """``Device.build_program``'s source and name for the camera's lens kernel, tracing
+    ``rays_per_item`` rays per work item."""
+    return (f"#define RAYS_PER_ITEM {rays_per_item}\n" + camera_header(camera) + kernel_source(KERNEL_FILE),
+            KERNEL_FILE)
 
 
-def lens_program(camera: LensCamera) -> tuple[str, str, tuple[str, ...]]:
-    """``Device.build_program``'s source, name and options for the camera's lens kernel."""
-    return (camera_header(camera) + kernel_source(KERNEL_FILE), KERNEL_FILE,
-            pocl_interleave.build_options(_interleave(camera)))
+#: Rounds of timed launches, one per choice of rays per work item each, taken in turn (the fastest
+#: of each choice's counts), and the rays each launch makes.
+TIMED_ROUNDS = 5
+TIMED_RAYS = 4 * SMALL_GRID_LIMIT
+#: One ray per work item is chosen only where its fastest launch takes less than this fraction of
+#: the other's: where SLP packed the rays it takes about a third, and a busy machine's noise in
+#: launches of a few milliseconds does not flip the choice.
+ONE_RAY_MARGIN = 0.8
+#: Rays per work item chosen in this process, by disk-cache key (a refocused camera asks again).
+_chosen: dict[str, int] = {}
+
+
+def _seconds(run: Callable[[], object]) -> float:
+    """Wall-clock seconds ``run()`` takes."""
+    start = time.perf_counter()
+    run()
+    return time.perf_counter() - start
 
 
 class LensKernel:
     """``lens.cl`` built for one camera; each launch writes straight into the arrays it returns.
 
+    Each work item traces ``rays_per_item`` rays: given, or else the faster of
+    ``rays_per_item_choices`` as timed on this device the first time this lens, camera and kernel
+    source are built, then kept in the disk cache. Several rays per work item are what let PoCL's
+    vectoriser overlap their latencies (``kernels/lens.cl``), but LLVM's SLP vectoriser, which PoCL
+    3.0 runs before it, sometimes packs the rays into short vectors instead, and then the kernel
+    runs at a third of the speed of one ray per work item: which happens depends on the kernel's
+    variant and on the processor. Every ray is computed the same either way.
+
     Safe to call from several threads: launches are serialised on one lock (the kernel object's
     arguments are shared; PoCL spreads one launch over every core anyway).
     """
 
-    def __init__(self, camera: LensCamera, device: Device | None = None):
+    def __init__(self, camera: LensCamera, device: Device | None = None, rays_per_item: int | None = None):
         """``device``: where to build and launch (None: ``Device.for_spec()``, the default device)."""
         device = device or Device.for_spec()
         self.camera, self.device = camera, device
         self.context = device.context
         self.queue = device.queue()
-        interleave = _interleave(camera)
-        self.program = device.build_program(*lens_program(camera))
-        self._generate = cl.Kernel(self.program, "generate_rays")
-        self._bits = cl.Kernel(self.program, "sample_bits")
+        self._lock = threading.Lock()
+        self._rows = ROWS + int(camera.spectral)
         self._world = device.copied_buffer(camera.world_from_lens[:3, :4], np.float32)
         self._settings = device.copied_buffer(setting_values(camera), np.float32)
         w_mm, h_mm = camera.film_size_mm
@@ -235,29 +273,60 @@ class LensKernel:
         self._film = (np.uint32(camera.width), np.float64(1) / np.float64(camera.width),
                       np.float32(1) / np.float32(camera.width),
                       np.float32(1) / np.float32(camera.height), np.float32(w_mm), np.float32(h_mm))
-        self._lock = threading.Lock()
-        self._rows = ROWS + int(camera.spectral)
-        # PoCL compiles a kernel at its first launch (every launch is as large: ``launch_size``):
-        # this one compiles it interleaved
-        with pocl_interleave.interleaved(interleave):
-            self.generate(SampleBlock(0, 1, camera.spp))
+        self.rays_per_item = rays_per_item or self._fastest_rays_per_item()
+        self._build(self.rays_per_item)
 
-    def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1) -> tuple[tuple[np.uint32, ...], int]:
+    def _build(self, rays_per_item: int) -> None:
+        """Build (or take from the caches) the program tracing ``rays_per_item`` rays per work item."""
+        self.rays_per_item = rays_per_item
+        self.program = self.device.build_program(*lens_program(self.camera, rays_per_item))
+        self._generate = cl.Kernel(self.program, "generate_rays")
+        self._bits = cl.Kernel(self.program, "sample_bits")
+
+    def _fastest_rays_per_item(self) -> int:
+        """The faster of ``rays_per_item_choices`` for this camera on this device (see
+        ``ONE_RAY_MARGIN``): from the disk cache, or timed on launches of equal work, taken in turn
+        (PoCL compiles each at its first launch, untimed)."""
+        key = disk_cache.cache_key("lens-rays-per-item", self.device.identity(),
+                                   camera_header(self.camera) + kernel_source(KERNEL_FILE))
+        if key in _chosen:
+            return _chosen[key]
+        stored = disk_cache.load_arrays(key)
+        several, one = rays_per_item_choices(self.camera)
+        if stored is not None and "rays_per_item" in stored and int(stored["rays_per_item"][0]) in (several, one):
+            return _chosen.setdefault(key, int(stored["rays_per_item"][0]))
+        block = SampleBlock(0, TIMED_RAYS // self.camera.rays_per_sample, self.camera.spp)
+        fastest = {several: np.inf, one: np.inf}
+        for choice in fastest:
+            self._build(choice)
+            self.generate(block)
+        for _ in range(TIMED_ROUNDS):
+            for choice in fastest:
+                self._build(choice)
+                fastest[choice] = min(fastest[choice], _seconds(lambda: self.generate(block)))
+        chosen = _chosen[key] = one if fastest[one] < ONE_RAY_MARGIN * fastest[several] else several
+        disk_cache.store_arrays(key, {"rays_per_item": np.array([chosen])})
+        return chosen
+
+    def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1, per_item: int = 1
+                       ) -> tuple[tuple[np.uint32, ...], int]:
         """The kernel's (first pixel, offset, slice start, slice width) arguments and the padded
-        launch size (``rays_per_sample`` work items per sample), checking the uint32 limits for the
-        work items up to the last work group's end (those padded beyond it compute rays nobody reads)."""
+        launch's rays (``rays_per_sample`` per sample, ``per_item`` per work item), checking the
+        uint32 limits for the rays up to the last work group's end (those padded beyond it compute
+        rays nobody reads)."""
         used = whole_groups(block.count * rays_per_sample)
         first_pixel, offset = divmod(block.first, block.samples)
         if offset + used >= 2**32 or first_pixel + (offset + used) // block.samples >= 2**31 \
                 or block.first_sample + block.samples >= 2**32:
             raise ValueError(f"sample block {block} exceeds the kernel's 32-bit indices")
         return tuple(np.uint32(v) for v in (first_pixel, offset, block.first_sample, block.samples)), \
-            launch_size(used)
+            launch_size(used, per_item)
 
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
         """Rays of the block's samples, as ``LensCamera.generate_rays`` makes them (float32): a
         spectral camera's ``rays_per_sample`` rays of each sample consecutively."""
-        address, padded = self._launch_layout(block, self.camera.rays_per_sample)
+        per_item = self.rays_per_item
+        address, padded = self._launch_layout(block, self.camera.rays_per_sample, per_item)
         count = block.count * self.camera.rays_per_sample
         out = np.empty((self._rows, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
@@ -266,7 +335,7 @@ class LensKernel:
         flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
         with self._lock:
             buffers = [cl.Buffer(self.context, flags, hostbuf=array) for array in (out, pixels)]
-            self._generate(self.queue, (padded,), (LOCAL_SIZE,), *address,
+            self._generate(self.queue, (padded // per_item,), (LOCAL_SIZE,), *address,
                            np.uint32(seed & 0xFFFFFFFF), self._world, self._settings, *self._film, np.uint32(padded),
                            *buffers)
             for array, buffer in zip((out, pixels), buffers):

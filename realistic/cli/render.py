@@ -100,7 +100,7 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
 
 
 def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--threads``, ``--workers``, ``--scheduler`` and ``--no-pin-threads`` (shared by ``render`` and ``bench``)."""
+    """``--threads``, ``--workers``, ``--scheduler`` and ``--pin-threads`` (shared by ``render`` and ``bench``)."""
     farm = parser.add_mutually_exclusive_group()
     farm.add_argument("--threads", type=checked(int, validation.threads), metavar="N",
                       help="render on N threads in this process (default: one per core, "
@@ -111,9 +111,9 @@ def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
     farm.add_argument("--scheduler", metavar="ADDRESS",
                       help="render on the Dask cluster whose scheduler is at ADDRESS, e.g. tcp://host:8786 "
                            "(default: $DASK_SCHEDULER_ADDRESS when set)")
-    parser.add_argument("--no-pin-threads", dest="pin_threads", action="store_false",
-                        help="let the system move this process's render threads between CPUs (default on Linux: "
-                             "each keeps to one CPU, which rendered the dragons 10-14 %% faster on two cores)")
+    parser.add_argument("--pin-threads", action="store_true",
+                        help="keep each of this process's render threads on one CPU (Linux; default: the system "
+                             "places them)")
 
 
 @contextmanager

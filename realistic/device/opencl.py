@@ -1,5 +1,4 @@
-"""The process's OpenCL plumbing: the only module that imports pyopencl (with ``pocl_cpu`` and
-``pocl_interleave``, which only look at its devices).
+"""The process's OpenCL plumbing: the only module that imports pyopencl.
 
 A ``Device`` owns one OpenCL device's context and the programs built for it; the kernel hosts
 (``camera/opencl_host``, ``renderer/shade_kernel``, ``scene/ewa_kernel``) take one and keep their
@@ -21,9 +20,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from realistic.core import affinity, disk_cache
+from realistic.core import disk_cache
 from realistic.core.data_files import data_file
-from realistic.device import pocl_cpu, pocl_interleave
 from realistic.errors import UserError
 
 try:
@@ -33,6 +31,13 @@ except ImportError:  # reported as a UserError when a device is asked for
 
 NO_PLATFORM = ('no OpenCL platform found: install one with pip install "pyopencl[pocl]" '
                "(PoCL, OpenCL on the CPU), or use --backend numpy to run the numpy reference")
+#: What clang says when the OpenCL driver's LLVM names the processor "generic": the PoCL that pip
+#: installs (3.0, LLVM 14) does so for processors newer than LLVM 14 (AMD family 1Ah, Zen 5), and
+#: then no kernel builds; PoCL 3.0 documents no setting for the name.
+UNKNOWN_CPU = "unknown target CPU 'generic'"
+UNKNOWN_CPU_ADVICE = ("the OpenCL driver's compiler does not know this processor (\"unknown target CPU 'generic'\": "
+                      "PoCL 3.0's LLVM 14 predates it), so no kernel can be built: use --backend numpy, or an "
+                      "OpenCL platform whose LLVM knows this CPU")
 #: Work-group size; launches are padded to a multiple of it so every group runs the same code.
 LOCAL_SIZE = 256
 #: Programs kept built, per device, source and options (lens programs: one per lens, sampling and
@@ -65,8 +70,7 @@ def whole_groups(work_items: int) -> int:
 def _all_devices() -> list[tuple[int, int, cl.Platform, cl.Device]]:
     if cl is None:
         raise UserError(NO_PLATFORM)
-    # listing PoCL's devices starts its thread pool: remembered, so a render can spread it over the CPUs
-    found = affinity.record_runtime_threads(_list_devices)
+    found = _list_devices()
     if not found:
         raise UserError(NO_PLATFORM)
     return found
@@ -110,10 +114,8 @@ class Device:
         if spec:
             device = _match(spec, found, origin)
         else:
-            pocl = [entry for entry in found if pocl_cpu.is_pocl(entry[2].name)]
+            pocl = [entry for entry in found if "portable computing language" in entry[2].name.lower()]
             device = (pocl or found)[0][3]
-        pocl_cpu.name_unknown_cpu(device)  # before any build: PoCL 3.0 cannot build for a CPU LLVM 14 calls "generic"
-        pocl_interleave.interleave_work_items(device)  # before any build too
         self.spec = spec
         self.context = cl.Context([device])
 
@@ -132,10 +134,9 @@ class Device:
         return list(self.context.devices)
 
     def identity(self) -> tuple[str, ...]:
-        """What a binary built here depends on besides its source: each device, its driver, and
-        the CPU name ``pocl_cpu`` gave it, if any (the code LLVM makes differs with the name)."""
+        """What a binary built here depends on besides its source: each device and its driver."""
         return tuple(f"{d.platform.name} {d.platform.version} | {d.name} {d.version} {d.driver_version}"
-                     + ("" if (cpu := pocl_cpu.given_name(d)) is None else f" | cpu {cpu}") for d in self.devices)
+                     for d in self.devices)
 
     def queue(self) -> cl.CommandQueue:
         """A new command queue on this device (one per launching thread or kernel host)."""
@@ -210,6 +211,8 @@ def build_program(device: Device, source: str, name: str, options: tuple[str, ..
             program = cl.Program(device.context, source).build(options=list(options))
             _remember(key, program, built_before=stored is not None)
     except cl.RuntimeError as err:
+        if UNKNOWN_CPU in str(err):
+            raise UserError(UNKNOWN_CPU_ADVICE) from None
         raise RuntimeError(f"building {name} failed:\n{err}") from None
     return program
 

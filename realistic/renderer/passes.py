@@ -23,7 +23,6 @@ import sys
 import time
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
-from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,9 +50,10 @@ class ThreadPasses:
     one runner per camera (built on first use), all sharing one embree scene: ``intersector`` when
     given (one already built for the scene of the jobs it runs, e.g. by autofocus), else one built
     on first use in each job.
-    ``pin_threads``: each worker on its own CPU and the OpenCL runtime's pool spread over them while
-    the render runs (Linux, ``core.affinity``). ``open`` refuses a job whose estimated peak memory
-    exceeds ``job.max_memory_bytes`` (``renderer.memory``). Reusable: one job at a time."""
+    ``pin_threads``: each worker on its own CPU (Linux, ``core.affinity``; threads this process did
+    not create, such as the OpenCL runtime's, are left where the system puts them). ``open``
+    refuses a job whose estimated peak memory exceeds ``job.max_memory_bytes``
+    (``renderer.memory``). Reusable: one job at a time."""
 
     def __init__(self, threads: int | None = None, pin_threads: bool = False,
                  intersector: Intersector | None = None) -> None:
@@ -72,9 +72,6 @@ class ThreadPasses:
         prepare_tracing()  # numba's loops load while the cameras and kernels are prepared
         self.intersector = self.given_intersector
         self.runners: dict[int, PassRunner] = {}
-        self.placement = ExitStack()
-        if self.pin_threads:
-            self.placement.enter_context(affinity.runtime_threads_spread())
         self.pool = ThreadPoolExecutor(max_workers=self.threads,
                                        initializer=affinity.worker_pinner() if self.pin_threads else None)
         self.finished: queue.SimpleQueue[Future] = queue.SimpleQueue()  # futures, as they finish
@@ -114,7 +111,6 @@ class ThreadPasses:
     def close(self, finished: bool) -> None:
         # a second interrupt while passes finish leaves them running: the caller stops at once
         self.pool.shutdown(wait=finished, cancel_futures=not finished)
-        self.placement.close()
         self.runners = {}
 
 
