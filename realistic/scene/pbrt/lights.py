@@ -45,7 +45,7 @@ def _colour(params: Params, name: str, default: tuple, where: str, warn: Callabl
     if p.type in ("spectrum", "blackbody", "xyz") or len(p.values) not in (1, 3):
         warn(where, f'a spectral light "{name}" (rendered white)')
         return (1.0, 1.0, 1.0)
-    values = _finite(params.get_floats(name), name, where)
+    values = _finite(params.get_floats(name, []), name, where)
     return tuple(values * 3 if len(values) == 1 else values)
 
 
@@ -184,8 +184,10 @@ def import_integrator(parsed: PbrtScene, default: str) -> tuple[str, int]:
     if directive is None:
         return default, DEFAULT_MAX_DEPTH
     value = directive.params.get_float("maxdepth", DEFAULT_MAX_DEPTH)
+    if not (math.isfinite(value) and value == int(value)):
+        raise UserError(f"{directive.where}: Integrator maximum path depth must be a whole number, got {value!r}")
     try:
-        depth = validation.max_depth(int(value) if math.isfinite(value) and value == int(value) else value)
+        depth = validation.max_depth(int(value))
     except UserError as err:
         raise UserError(f"{directive.where}: Integrator {err}") from None
     kind = directive.type
