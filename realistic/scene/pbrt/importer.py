@@ -8,7 +8,7 @@ Everything the renderer cannot honour is reported once with file and line, and t
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -38,9 +38,9 @@ class ImportedScene:
 
     scene: Scene
     output_name: str | None
-    warnings: list[str] = field(default_factory=list)
-    dialect: Dialect | None = None  # the pbrt version the file was read as, and why
-    camera_where: str = ""  # the file and line of the Camera directive, for errors about the camera
+    warnings: list[str]
+    dialect: Dialect  # the pbrt version the file was read as, and why
+    camera_where: str  # the file and line of the Camera directive, for errors about the camera
 
 
 def _texture_name(params: Params, name: str, where: str) -> str:
