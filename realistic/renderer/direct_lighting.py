@@ -45,6 +45,7 @@ from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
+from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.model import ImageTexture, Material, Scene
 from realistic.scene.textures import albedo
 
@@ -58,6 +59,14 @@ SHADOW_OFFSET = 1e-4  # relative to the hit point's magnitude (float32 precision
 def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     """a[index] for row gathers; np.take is about 3x faster than fancy indexing on (N, 3) arrays."""
     return np.take(a, index, axis=0)
+
+
+def _matte(material: SurfaceMaterial) -> Material:
+    """``material``, which ``DirectLighting``'s own shading needs matte (``integrators.make_integrator``
+    gives scenes of other materials to ``PathIntegrator``, which shades them by their BSDFs)."""
+    if not isinstance(material, Material):
+        raise TypeError(f"DirectLighting shades matte materials only, not {type(material).__name__}")
+    return material
 
 
 def _facing(normal: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -111,7 +120,7 @@ class DirectLighting:
         self._geom_linear = np.array([inst.transform[:3, :3] for inst in scene.instances]).reshape(-1, 3, 3)
         self._geom_normal_matrix = np.array([np.linalg.inv(inst.transform[:3, :3]).T for inst in scene.instances],
                                             dtype=np.float32).reshape(-1, 3, 3)
-        self._materials: list[Material] = []
+        self._materials: list[SurfaceMaterial] = []
         material_index: dict[int, int] = {}
         for inst in scene.instances:
             if id(inst.material) not in material_index:
@@ -148,7 +157,8 @@ class DirectLighting:
         kernel = backend.shade_kernel(faces=self._faces, normals=self._normals, uv=self._uv,
                                       geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
                                       geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
-                                      materials=self._materials, light_rows=rows, light_cdf=self._light_cdf,
+                                      materials=[_matte(m) for m in self._materials], light_rows=rows,
+                                      light_cdf=self._light_cdf,
                                       extent=self.intersector.extent, launch_samples=self.light_samples)
         self._build_device_textures(backend, kernel.host_albedo)
         return kernel
@@ -162,7 +172,7 @@ class DirectLighting:
             return
         from realistic.scene.ewa_kernel import hit_mapping
 
-        for index, material in enumerate(self._materials):
+        for index, material in enumerate(map(_matte, self._materials)):
             texture = material.texture
             if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter == "ewa":
                 ewa = backend.ewa_kernel(texture.mipmap)
@@ -341,10 +351,11 @@ class DirectLighting:
         """Albedo (N, 3) of camera-ray hits; image textures filtered over the rays' footprints."""
         rho = np.empty((len(face), 3), np.float32)
         material_of = self._geom_material[geom]
-        for index, material in enumerate(self._materials):
+        for index, surface_material in enumerate(self._materials):
             rows = np.flatnonzero(material_of == index)
             if len(rows) == 0:
                 continue
+            material = _matte(surface_material)
             uv = None
             if material.texture is not None:
                 f, b = face[rows], bary[rows]
