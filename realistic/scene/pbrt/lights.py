@@ -18,7 +18,15 @@ import numpy as np
 from realistic.core import validation
 from realistic.core.image_files import read_linear_rgb
 from realistic.errors import UserError
-from realistic.scene.lights import DistantLight, InfiniteLight, PointLight, SpotLight, equal_area_square_to_sphere
+from realistic.scene.lights import (
+    DistantLight,
+    InfiniteLight,
+    Light,
+    PointLight,
+    SpotLight,
+    equal_area_square_to_sphere,
+)
+from realistic.scene.model import RGB
 from realistic.scene.pbrt.dialect import Dialect
 from realistic.scene.pbrt.parser import Directive, Params, PbrtScene
 
@@ -37,7 +45,7 @@ def _finite(values: list[float], name: str, where: str) -> list[float]:
     return values
 
 
-def _colour(params: Params, name: str, default: tuple, where: str, warn: Callable[[str, str], None]) -> tuple:
+def _colour(params: Params, name: str, default: RGB, where: str, warn: Callable[[str, str], None]) -> RGB:
     """An RGB parameter (one value: grey); spectra pbrt would integrate render white with a warning."""
     p = params.items.get(name)
     if p is None:
@@ -46,10 +54,10 @@ def _colour(params: Params, name: str, default: tuple, where: str, warn: Callabl
         warn(where, f'a spectral light "{name}" (rendered white)')
         return (1.0, 1.0, 1.0)
     values = _finite(params.get_floats(name, []), name, where)
-    return tuple(values * 3 if len(values) == 1 else values)
+    return (values[0], values[0], values[0]) if len(values) == 1 else (values[0], values[1], values[2])
 
 
-def _point(params: Params, name: str, default: tuple, where: str) -> np.ndarray:
+def _point(params: Params, name: str, default: tuple[float, float, float], where: str) -> np.ndarray:
     values = params.get_floats(name)
     if values is None:
         return np.array(default, np.float64)
@@ -78,7 +86,7 @@ class _LightImporter:
         value = _scalar(params, name, -1.0, where)
         return value if value > 0 else None
 
-    def light(self, directive: Directive) -> object | None:
+    def light(self, directive: Directive) -> Light | None:
         p, where, kind = directive.params, directive.where, directive.type
         m = np.asarray(directive.transform, np.float64)
         if kind == "point":
@@ -165,10 +173,10 @@ class _LightImporter:
         return total
 
 
-def import_lights(parsed: PbrtScene, dialect: Dialect, find: Callable[..., Path]) -> list:
+def import_lights(parsed: PbrtScene, dialect: Dialect, find: Callable[..., Path]) -> list[Light]:
     """The scene's ``LightSource`` lights (unsupported ones reported on ``parsed`` and skipped)."""
     importer = _LightImporter(dialect, parsed.warn, find)
-    lights = []
+    lights: list[Light] = []
     for directive in parsed.lights:
         light = importer.light(directive)
         if light is not None:
