@@ -101,9 +101,9 @@ def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, 
                 if not focus > 0:
                     raise UserError(f"{focus_name} must be a positive number of metres, got {focus:g}")
                 film_distance = film_distance_for_focus(lens, focus * convention.camera_units_mm)
-            case str(film_distance_name), _:  # the classic camera: the film where the file puts it, the lens's stop
-                film_distance = params.get_required_float(film_distance_name)  # unless the file gives one
-                if params.has(convention.stop_diameter):
+            case str(film_distance_name), _:  # the classic camera: the film where the file puts it
+                film_distance = params.get_required_float(film_distance_name)
+                if params.has(convention.stop_diameter):  # else the lens's own stop
                     lens = lens.with_stop_diameter(params.get_required_float(convention.stop_diameter))
         world_from_camera = world_from_camera @ scale(1.0 / convention.camera_units_mm)
     if convention.film_diagonal_on_camera is not None:
