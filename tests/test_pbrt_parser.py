@@ -5,7 +5,7 @@ import pytest
 
 from conftest import shared_file
 from realistic.errors import UserError
-from realistic.scene.pbrt.parser import parse_pbrt
+from realistic.scene.pbrt.parser import Param, Params, parse_pbrt
 
 
 def write(tmp_path, text, name="scene.pbrt"):
@@ -112,3 +112,20 @@ def test_homework_scene_camera_and_instances():
     np.testing.assert_allclose(xs, -0.6 + 0.26 * np.arange(11), atol=1e-12)
     assert [name for name, _, _ in scene.instances][:3] == ["dragon-b", "dragon-a", "dragon-b"]
     assert scene.warnings == []
+
+
+def test_typed_getters_give_the_default_only_when_a_parameter_gives_no_value():
+    """``get_float``/``get_floats``/``get_string`` fall back to the default for a missing or empty
+    parameter; ``get_required_float`` refuses both in one line naming the parameter."""
+    params = Params({"empty": Param("float", "empty", (), "scene.pbrt:3"),
+                     "two": Param("float", "two", (1.5, 2.5), "scene.pbrt:4"),
+                     "word": Param("string", "word", ("box",), "scene.pbrt:5")})
+    assert params.get_float("empty", 7.0) == 7.0 and params.get_float("missing") is None
+    assert params.get_float("two", 7.0) == 1.5 and params.get_floats("two", []) == [1.5, 2.5]
+    assert params.get_string("word", "x") == "box" and params.get_string("missing", "x") == "x"
+    assert params.get_required_float("two") == 1.5
+    for name in ("empty", "missing"):
+        with pytest.raises(UserError, match=f'^"{name}" needs a number$'):
+            params.get_required_float(name)
+    with pytest.raises(UserError, match='scene.pbrt:5: "word" expects numbers'):
+        params.get_floats("word")

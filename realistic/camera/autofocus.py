@@ -37,10 +37,18 @@ class FocusableCamera(Protocol):
     """What autofocus reads of a camera (``camera.lens_camera.LensCamera`` has it all; that module
     calls this one, so this one names only the attributes it needs)."""
 
-    lens: LensSystem
-    film_distance_mm: float
-    width: int
-    height: int
+    # Read-only (properties), as the frozen dataclass that implements them holds them.
+    @property
+    def lens(self) -> LensSystem: ...
+
+    @property
+    def film_distance_mm(self) -> float: ...
+
+    @property
+    def width(self) -> int: ...
+
+    @property
+    def height(self) -> int: ...
 
     @property
     def pupil(self) -> ExitPupilTable:

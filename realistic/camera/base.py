@@ -11,8 +11,8 @@ reference and the seed once (a ``RayGenerator``), so the renderer calls every ca
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Protocol
+from dataclasses import Field, dataclass
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -100,9 +100,18 @@ class Camera(Protocol):
     (pbrt's perspective camera). Cameras are immutable: ``dataclasses.replace`` makes variants.
     """
 
-    width: int
-    height: int
-    spp: int
+    #: Every camera is a dataclass, so that ``dataclasses.replace`` applies to it.
+    __dataclass_fields__: ClassVar[dict[str, Field[Any]]]
+
+    # Read-only (properties), as the frozen dataclasses that implement them hold them.
+    @property
+    def width(self) -> int: ...
+
+    @property
+    def height(self) -> int: ...
+
+    @property
+    def spp(self) -> int: ...
 
     @property
     def sample_count(self) -> int:

@@ -23,6 +23,7 @@ from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENG
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table
 from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
+from realistic.optics.lens import LensSystem
 from realistic.optics.sampling import rear_element_sampler
 
 KERNEL_FILE = "lens.cl"
@@ -74,7 +75,7 @@ def _index_ratios(camera: LensCamera) -> list[str]:
     return ratios
 
 
-def _stop_lines(lens) -> list[str]:
+def _stop_lines(lens: LensSystem) -> list[str]:
     """``STOP_INSIDE(x, y)`` (and a mask table) for the lens's stop, as realistic.optics.stop_shape defines it."""
     diameter = float(lens.aperture_mm[lens.stop])
     shape = lens.stop_shape

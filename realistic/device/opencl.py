@@ -27,7 +27,9 @@ from realistic.errors import UserError
 try:
     import pyopencl as cl
 except ImportError:  # reported as a UserError when a device is asked for
-    cl = None
+    # mypy gives ``cl`` the module's type from the import and cannot spell "the module or None" so that
+    # annotations such as ``cl.Platform`` stay types; every use runs after ``_all_devices`` checked it.
+    cl = None  # type: ignore[assignment]
 
 NO_PLATFORM = ('no OpenCL platform found: install one with pip install "pyopencl[pocl]" '
                "(PoCL, OpenCL on the CPU), or use --backend numpy to run the numpy reference")
@@ -254,7 +256,7 @@ def store_built_binaries() -> None:
         while _unstored:
             key, program = _unstored.pop()
             binaries = program.get_info(cl.program_info.BINARIES)
-            if all(binaries):
+            if isinstance(binaries, list) and all(binaries):  # get_info is typed as returning object
                 disk_cache.store_arrays(key, {f"device{i}": np.frombuffer(b, np.uint8)
                                               for i, b in enumerate(binaries)})
     except (KeyboardInterrupt, cl.Error):

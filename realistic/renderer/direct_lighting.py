@@ -31,7 +31,8 @@ bit for bit (``tests/test_shade_kernel.py``).
 
 from __future__ import annotations
 
-from contextlib import nullcontext
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -43,8 +44,9 @@ from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.timing import StageClock
-from realistic.scene.intersect import Intersector
-from realistic.scene.model import ImageTexture, Scene
+from realistic.scene.intersect import Hits, Intersector
+from realistic.scene.materials import SurfaceMaterial
+from realistic.scene.model import ImageTexture, Material, Scene
 from realistic.scene.textures import albedo
 
 if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
@@ -57,6 +59,14 @@ SHADOW_OFFSET = 1e-4  # relative to the hit point's magnitude (float32 precision
 def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     """a[index] for row gathers; np.take is about 3x faster than fancy indexing on (N, 3) arrays."""
     return np.take(a, index, axis=0)
+
+
+def _matte(material: SurfaceMaterial) -> Material:
+    """``material``, which ``DirectLighting``'s own shading needs matte (``integrators.make_integrator``
+    gives scenes of other materials to ``PathIntegrator``, which shades them by their BSDFs)."""
+    if not isinstance(material, Material):
+        raise TypeError(f"DirectLighting shades matte materials only, not {type(material).__name__}")
+    return material
 
 
 def _facing(normal: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -86,7 +96,7 @@ class DirectLighting:
         self.instance_count = len(scene.instances)
         self._build_surfaces(scene)
         self._build_lights(scene)
-        self._kernel = None
+        self._kernel: ShadeKernel | None = None
         if self.backend.name == "opencl" and len(self._lights) and self._light_cdf[-1] > 0:
             self._kernel = self._build_kernel()
 
@@ -110,8 +120,8 @@ class DirectLighting:
         self._geom_linear = np.array([inst.transform[:3, :3] for inst in scene.instances]).reshape(-1, 3, 3)
         self._geom_normal_matrix = np.array([np.linalg.inv(inst.transform[:3, :3]).T for inst in scene.instances],
                                             dtype=np.float32).reshape(-1, 3, 3)
-        self._materials = []
-        material_index = {}
+        self._materials: list[SurfaceMaterial] = []
+        material_index: dict[int, int] = {}
         for inst in scene.instances:
             if id(inst.material) not in material_index:
                 material_index[id(inst.material)] = len(self._materials)
@@ -147,7 +157,8 @@ class DirectLighting:
         kernel = backend.shade_kernel(faces=self._faces, normals=self._normals, uv=self._uv,
                                       geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
                                       geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
-                                      materials=self._materials, light_rows=rows, light_cdf=self._light_cdf,
+                                      materials=[_matte(m) for m in self._materials], light_rows=rows,
+                                      light_cdf=self._light_cdf,
                                       extent=self.intersector.extent, launch_samples=self.light_samples)
         self._build_device_textures(backend, kernel.host_albedo)
         return kernel
@@ -161,7 +172,7 @@ class DirectLighting:
             return
         from realistic.scene.ewa_kernel import hit_mapping
 
-        for index, material in enumerate(self._materials):
+        for index, material in enumerate(map(_matte, self._materials)):
             texture = material.texture
             if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter == "ewa":
                 ewa = backend.ewa_kernel(texture.mipmap)
@@ -184,7 +195,7 @@ class DirectLighting:
         with timed("embree"):
             hits = self.intersector.closest(origin, direction)
         if self._kernel is not None and wavelength_nm is None:
-            return self._radiance_kernel(origin, direction, pixel, sample, hits, timed)
+            return self._radiance_kernel(self._kernel, origin, direction, pixel, sample, hits, timed)
         with timed("shading"):
             basis = None if wavelength_nm is None else rgb_basis(wavelength_nm)
 
@@ -225,7 +236,7 @@ class DirectLighting:
             out[surface] = total / np.float32(self.light_samples)
         return out, shadow_rays
 
-    def _surface_points(self, origin: np.ndarray, direction: np.ndarray, hits, surface: np.ndarray,
+    def _surface_points(self, origin: np.ndarray, direction: np.ndarray, hits: Hits, surface: np.ndarray,
                         basis: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """Of the rays ``surface``, which hit instances: hit points, shadow-ray origins, shading and
         geometric normals (facing the rays), and albedos (spectral values at ``basis``'s rows, if given)."""
@@ -244,8 +255,9 @@ class DirectLighting:
         shadow_origin = point + ng * eps[:, None].astype(np.float32)
         return point, shadow_origin, shading, ng, rho
 
-    def _radiance_kernel(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
-                         hits, timed) -> tuple[np.ndarray, int]:
+    def _radiance_kernel(self, kernel: ShadeKernel, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray,
+                         sample: np.ndarray, hits: Hits, timed: Callable[[str], AbstractContextManager[object]]
+                         ) -> tuple[np.ndarray, int]:
         """``radiance`` of RGB rays through ``kernels/shade.cl``: the kernel shades every surface hit
         and writes all light samples' shadow rays, embree traces them in one call, numpy sums."""
         from realistic.device.opencl import whole_groups
@@ -255,7 +267,7 @@ class DirectLighting:
         if n == 0:
             return np.zeros((0, 3), np.float32), 0
         with timed("shading"):
-            albedo = self._host_albedo(origin, direction, hits) if self._kernel.host_albedo.any() else None
+            albedo = self._host_albedo(origin, direction, hits) if kernel.host_albedo.any() else None
             out = np.zeros((n, 3), np.float32)
             # light samples per launch
             group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // whole_groups(n)))  # the kernel's stride
@@ -263,7 +275,7 @@ class DirectLighting:
         for first in range(0, self.light_samples, group):
             count = min(group, self.light_samples - first)
             with timed("shading"):
-                batch = self._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
+                batch = kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                            hits.normal, pixel, sample, albedo, count, self.seed, first,
                                            self.light_samples)
             with timed("embree"):
@@ -295,7 +307,7 @@ class DirectLighting:
                 out[seen] = _rows(self._lights.radiance, j) * front[:, None]
         return out, shadow_rays
 
-    def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits) -> np.ndarray:
+    def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits: Hits) -> np.ndarray:
         """Albedo (N, 3) of the surface hits whose material the shading kernel leaves to the host
         (image textures): EWA-filtered ones on the device (``_build_device_textures``), the others by
         ``_albedo``; other rows are zero, unread by the kernel."""
@@ -314,7 +326,7 @@ class DirectLighting:
                                         hits.t[rows])
         return albedo
 
-    def _triangles(self, hits, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _triangles(self, hits: Hits, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The hit triangles' vertex indices (n, 3) and barycentrics (n, 3) of the hits ``rows``."""
         u, v = hits.u[rows], hits.v[rows]
         face = _rows(self._faces, self._geom_face_offset[hits.geom[rows]] + hits.prim[rows])
@@ -339,10 +351,11 @@ class DirectLighting:
         """Albedo (N, 3) of camera-ray hits; image textures filtered over the rays' footprints."""
         rho = np.empty((len(face), 3), np.float32)
         material_of = self._geom_material[geom]
-        for index, material in enumerate(self._materials):
+        for index, surface_material in enumerate(self._materials):
             rows = np.flatnonzero(material_of == index)
             if len(rows) == 0:
                 continue
+            material = _matte(surface_material)
             uv = None
             if material.texture is not None:
                 f, b = face[rows], bary[rows]

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -57,7 +56,7 @@ class RenderOptions:
     from the film plane.
     """
 
-    scene: str | os.PathLike | None = None
+    scene: str | None = None  # (the Python API may pass an os.PathLike: ``__post_init__`` makes it a str)
     lens: str | None = None
     aperture_mm: float | None = None
     f_number: float | None = None
@@ -80,7 +79,7 @@ class RenderOptions:
     wavelengths_per_sample: int | None = None  # spectral renders: rays per sample (None: the camera's default)
     pbrt_dialect: str = "auto"  # pbrt scenes: which pbrt's conventions (realistic.scene.pbrt.dialect)
     pixel_filter: str | None = None  # a filter name replacing the scene's, at pbrt's default parameters
-    search_paths: list[str | os.PathLike] = field(default_factory=list)
+    search_paths: list[Path] = field(default_factory=list)  # (str folders too: made Paths)
 
     def __post_init__(self) -> None:
         """Each value through its one check (``realistic.core.validation``), as the CLI's are."""
@@ -121,7 +120,7 @@ class RenderOptions:
 
     @property
     def is_pbrt(self) -> bool:
-        return bool(self.scene) and self.scene.lower().endswith(".pbrt")
+        return self.scene is not None and self.scene.lower().endswith(".pbrt")
 
     def stop_edit(self) -> Callable[[LensSystem], LensSystem] | None:
         """The change to the lens's stop that the aperture, f-number and shape options ask for (None: none)."""
@@ -161,6 +160,9 @@ class RenderInputs:
 
     @property
     def camera(self) -> Camera:
+        """The scene's camera, which both scene builders here set."""
+        if self.scene.camera is None:
+            raise ValueError("render inputs whose scene has no camera")
         return self.scene.camera
 
     @property
@@ -170,7 +172,9 @@ class RenderInputs:
 
 def build_render_inputs(options: RenderOptions) -> RenderInputs:
     """The scene and camera ``options`` describe, focused and made spectral as they ask."""
-    return apply_overrides(_pbrt_inputs(options) if options.is_pbrt else _mesh_inputs(options), options)
+    if options.scene is not None and options.is_pbrt:
+        return apply_overrides(_pbrt_inputs(options, options.scene), options)
+    return apply_overrides(_mesh_inputs(options), options)
 
 
 def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInputs:
@@ -183,7 +187,7 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         if given:
             raise UserError(f"{', '.join(given)} apply to mesh scenes; {options.scene} sets its own camera")
     scene = inputs.scene
-    camera = scene.camera
+    camera = inputs.camera
     edit = options.stop_edit()
     if isinstance(camera, ThinLensCamera) and (edit is not None or options.focus_distance is not None):
         raise UserError(f"{inputs.camera_where}: the stop and focus options apply to realistic cameras, not "
@@ -201,7 +205,6 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         if options.focus_distance is not None:
             mm_per_unit = camera.mm_per_unit if inputs.mm_per_unit is None else inputs.mm_per_unit
             camera = camera.refocused(options.focus_distance * mm_per_unit)
-    scene.camera = camera
     if options.light_samples is not None:
         scene.light_samples = options.light_samples
     if options.integrator is not None:
@@ -211,25 +214,26 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
     if options.focus_on is not None:
         x, y = options.focus_on
         inputs.intersector = Intersector(scene)  # the render reuses it (``passes.ThreadPasses``)
-        scene.camera = scene.camera.autofocused(x, y, inputs.intersector.hit_distance)
+        camera = camera.autofocused(x, y, inputs.intersector.hit_distance)
         inputs.metadata["focusOn"] = f"{x:g},{y:g}"
     # a pbrt scene renders as pbrt would: dispersion only when asked for, even where a bundled lens
     # with Abbe numbers stands in for the scene's lens file; so does the default scene, which is
     # scenes/default.pbrt and renders as that file does
     pbrt_like = options.is_pbrt or not options.scene
     dispersion = False if options.dispersion is None and pbrt_like else options.dispersion
-    scene.camera = scene.camera.with_dispersion(dispersion)
+    camera = camera.with_dispersion(dispersion)
     if options.wavelengths_per_sample is not None:
-        if not getattr(scene.camera, "spectral", False):
+        if not getattr(camera, "spectral", False):
             raise UserError("--wavelengths-per-sample applies to spectral renders (--dispersion on)")
-        scene.camera = dataclasses.replace(scene.camera, wavelengths_per_sample=options.wavelengths_per_sample)
+        camera = dataclasses.replace(camera, wavelengths_per_sample=options.wavelengths_per_sample)
+    scene.camera = camera
     scene.metadata = inputs.metadata
     return inputs
 
 
-def _pbrt_inputs(options: RenderOptions) -> RenderInputs:
-    """The pbrt file's scene and camera as the file says (``apply_overrides`` applies the options)."""
-    imported = import_pbrt(options.scene, options.search_paths, options.pbrt_dialect)
+def _pbrt_inputs(options: RenderOptions, path: str) -> RenderInputs:
+    """The pbrt file ``path``'s scene and camera as the file says (``apply_overrides`` applies the options)."""
+    imported = import_pbrt(path, options.search_paths, options.pbrt_dialect)
     out = Path(imported.output_name).name if imported.output_name else "render.exr"
     if Path(out).suffix.lower() != ".exr":
         out = str(Path(out).with_suffix(".exr"))

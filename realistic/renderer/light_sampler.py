@@ -190,9 +190,9 @@ class LightSampler:
         j = np.minimum(np.searchsorted(self.cdf, u_pick, side="right"), len(self.cdf) - 1)
         kind = self.kind[j]
         u1, u2 = np.asarray(u1, np.float64), np.asarray(u2, np.float64)
-        rows = np.flatnonzero(kind == AREA)
-        if len(rows):
-            rows = slice(None) if len(rows) == n else rows  # area lights alone: no gathers
+        area_rows = np.flatnonzero(kind == AREA)
+        if len(area_rows):
+            rows = slice(None) if len(area_rows) == n else area_rows  # area lights alone: no gathers
             slot = self.area_slot[j[rows]]
             q = self.area_lights.points(slot, u1[rows], u2[rows])
             target[rows] = q
@@ -253,7 +253,11 @@ class LightSampler:
         return LightSample(wi, target, distance, colour(rgb, basis), pdf, delta, valid)
 
     @staticmethod
-    def _towards_surface(rows, p, q, normal, two_sided, area, radiance, wi, distance, rgb, pdf) -> None:
+    def _towards_surface(rows: slice | np.ndarray, p: np.ndarray, q: np.ndarray, normal: np.ndarray,
+                         two_sided: np.ndarray, area: np.ndarray, radiance: np.ndarray, wi: np.ndarray,
+                         distance: np.ndarray, rgb: np.ndarray, pdf: np.ndarray) -> None:
+        """Fill ``wi``, ``distance``, ``rgb`` and ``pdf`` at ``rows`` for points ``q`` sampled on
+        surfaces (by area, ``area`` each) seen from ``p``."""
         to_light = np.asarray(q - p[rows], np.float32)
         d2 = dot(to_light, to_light)
         d = np.sqrt(np.maximum(d2, np.float32(1e-30)))

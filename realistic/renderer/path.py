@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from contextlib import nullcontext
+from functools import cached_property
 
 import numpy as np
 
@@ -34,14 +35,15 @@ from realistic.core import rng
 from realistic.core.spectrum import rgb_basis
 from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot
-from realistic.renderer.bsdf import ShadingFrame, bsdf_for
+from realistic.renderer.bsdf import BSDF, HitParameters, ShadingFrame, bsdf_for
 from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _facing, _rows
 from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
-from realistic.scene.intersect import Intersector
+from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.lights import EmissiveInstance
-from realistic.scene.model import ImageTexture, Scene
-from realistic.scene.textures import evaluate
+from realistic.scene.materials import SurfaceMaterial
+from realistic.scene.model import ImageTexture, Scene, Texture
+from realistic.scene.textures import Footprint, evaluate
 
 BOUNCE_DIMENSION = 4 + 3 * MAX_LIGHT_SAMPLES
 MODES = ("direct", "path")
@@ -55,28 +57,34 @@ class SurfaceParameters:
     texture lookup that needs them (``footprint`` may return None: point-sampled), so untextured
     materials cost neither."""
 
-    def __init__(self, count: int, uv: Callable[[], np.ndarray], footprint: Callable[[], object],
+    def __init__(self, count: int, uv: Callable[[], np.ndarray], footprint: Callable[[], Footprint | None],
                  basis: np.ndarray | None):
         self.count, self.basis = count, basis
-        self._uv, self._footprint, self._cache = uv, footprint, {}
+        self._uv_of, self._footprint_of = uv, footprint
 
-    def _get(self, name: str):
-        if name not in self._cache:
-            self._cache[name] = (self._uv if name == "uv" else self._footprint)()
-        return self._cache[name]
+    @cached_property
+    def _uv(self) -> np.ndarray:
+        return self._uv_of()
+
+    @cached_property
+    def _footprint(self) -> Footprint | None:
+        return self._footprint_of()
 
     def colour(self, value: object) -> np.ndarray:
         if isinstance(value, tuple | list | np.ndarray | float | int):
             rgb = np.broadcast_to(np.asarray(value, np.float32), (self.count, 3))
+        elif isinstance(value, Texture):
+            rgb = evaluate(value, self._uv, self._footprint if isinstance(value, ImageTexture) else None)
         else:
-            footprint = self._get("footprint") if isinstance(value, ImageTexture) else None
-            rgb = evaluate(value, self._get("uv"), footprint)
+            raise TypeError(f"unknown texture {value!r}")
         return colour(rgb, self.basis)
 
     def scalar(self, value: object) -> np.ndarray:
         if isinstance(value, float | int):
             return np.full(self.count, value, np.float32)
-        return evaluate(value, self._get("uv"), None).mean(axis=1).astype(np.float32)
+        if not isinstance(value, Texture):
+            raise TypeError(f"unknown texture {value!r}")
+        return evaluate(value, self._uv, None).mean(axis=1).astype(np.float32)
 
 
 def power_heuristic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -91,7 +99,7 @@ class PathIntegrator(DirectLighting):
 
     def __init__(self, scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
                  pixel_spread_radians: float = 0.0, max_depth: int = 5, mode: str = "path", mis: bool = True,
-                 bsdf_factory=bsdf_for):
+                 bsdf_factory: Callable[[SurfaceMaterial, HitParameters], BSDF] = bsdf_for):
         super().__init__(scene, intersector, light_samples, seed, pixel_spread_radians)
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
@@ -165,8 +173,9 @@ class PathIntegrator(DirectLighting):
         return np.where(specular[weight_rows], 1.0,
                         power_heuristic(prev_pdf[weight_rows], prev_lights * light_pdf))
 
-    def _emission(self, hits, path, o, d, beta, basis, specular, prev_pdf, prev_point, prev_lights, depth,
-                  out) -> None:
+    def _emission(self, hits: Hits, path: np.ndarray, o: np.ndarray, d: np.ndarray, beta: np.ndarray,
+                  basis: np.ndarray | None, specular: np.ndarray, prev_pdf: np.ndarray, prev_point: np.ndarray,
+                  prev_lights: int, depth: int, out: np.ndarray) -> None:
         """Add what the rays see of emitters, MIS-weighted against the light samples that could find it."""
         pick = (lambda rows: None) if basis is None else (lambda rows: basis[rows])
         miss = np.flatnonzero(hits.geom < 0)
@@ -196,7 +205,9 @@ class PathIntegrator(DirectLighting):
                                    self.lights.pdf_instance(light, prev_point[rows], point, normal), prev_lights)
                 out[path[rows]] += beta[rows] * le * weight[:, None].astype(np.float32)
 
-    def _shade(self, hits, surface, path, o, d, beta, basis, pixel, sample, depth) -> dict:
+    def _shade(self, hits: Hits, surface: np.ndarray, path: np.ndarray, o: np.ndarray, d: np.ndarray,
+               beta: np.ndarray, basis: np.ndarray | None, pixel: np.ndarray, sample: np.ndarray, depth: int
+               ) -> dict:
         """Next-event estimation and one BSDF sample at the surface hits ``surface``: the next bounce,
         and the shadow rays (``shadow``: starts, vectors, lengths, ray rows, contributions if free)."""
         ray = path[surface]
@@ -222,7 +233,8 @@ class PathIntegrator(DirectLighting):
                 u_light = rng.light_uniforms(px, sx, k, self.light_samples, self.seed)
             else:
                 u_light = [rng.uniform(px, sx, dim, self.seed) for dim in (base + 4, base + 5, base + 6)]
-            ls = self.lights.sample(point, *u_light, sb)
+            u_pick, u1, u2 = u_light
+            ls = self.lights.sample(point, u_pick, u1, u2, sb)
             samples.append((ls, frame.to_local(ls.wi)))
         u_bsdf = np.column_stack([rng.uniform(px, sx, base, self.seed), rng.uniform(px, sx, base + 1, self.seed)])
         u_lobe = rng.uniform(px, sx, base + 2, self.seed)
@@ -242,11 +254,12 @@ class PathIntegrator(DirectLighting):
             material = self._materials[index]
             f, b = face[rows], bary[rows]
 
-            def uv(f=f, b=b) -> np.ndarray:
+            def uv(f: np.ndarray = f, b: np.ndarray = b) -> np.ndarray:
                 return (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
                         + _rows(self._uv, f[:, 2]) * b[:, 2:])
 
-            def footprint(rows=rows):  # camera rays only: deeper bounces have no pixel footprint here
+            # camera rays only: deeper bounces have no pixel footprint here
+            def footprint(rows: slice | np.ndarray = rows) -> Footprint | None:
                 if depth > 0 or self.pixel_spread_radians <= 0:
                     return None
                 return self._footprint(face[rows], geom[rows], ds[rows], ng[rows], t[rows])
@@ -264,7 +277,8 @@ class PathIntegrator(DirectLighting):
                 throughput[rows] = np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))
                                             [:, None], 0.0)
         beta_s = beta[surface]
-        shadow = {"start": [], "vector": [], "length": [], "rows": [], "contribution": []}
+        shadow: dict[str, list[np.ndarray]] = {"start": [], "vector": [], "length": [], "rows": [],
+                                               "contribution": []}
         for k, (ls, local) in enumerate(samples):
             side_g = dot(ls.wi, ng)
             usable = ls.valid & (side_g * local[:, 2] > 0)

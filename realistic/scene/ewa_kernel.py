@@ -74,10 +74,12 @@ class EwaKernel:
         program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._kernel, self._hits_kernel = cl.Kernel(program, "ewa"), cl.Kernel(program, "ewa_hits")
         # the texels wrapped, not copied, so they are not held twice
-        self._map = [device.wrapped_buffer(mipmap.texels, np.float32)] + [
-            device.wrapped_buffer(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)]
-        self._map += [np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
-                      np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float64)]
+        # the map's kernel arguments: its buffers, then its scalars
+        self._map: list[cl.Buffer | np.generic] = [
+            device.wrapped_buffer(mipmap.texels, np.float32),
+            *(device.wrapped_buffer(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)),
+            np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
+            np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float64)]
         self._lock = threading.Lock()
 
     def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from realistic.core import validation
 from realistic.errors import UserError
 from realistic.scene.metals import copper
-from realistic.scene.model import RGB, CheckerTexture, GridTexture, ImageTexture, Material
+from realistic.scene.surfaces import RGB, CheckerTexture, GridTexture, ImageTexture, Material
 
 ROUGHNESS_RULES = ("alpha", "pbrt-v3", "sqrt", "blinn")
 

@@ -20,8 +20,10 @@ from __future__ import annotations
 import contextlib
 import logging
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -29,6 +31,9 @@ from realistic.errors import UserError
 from realistic.scene.mesh_diagnosis import no_triangles_message, unreadable_message
 from realistic.scene.mesh_text_checks import check_ascii_stl, check_obj_text
 from realistic.scene.model import RGB, Mesh
+
+if TYPE_CHECKING:  # imported where used at run time (1.5 s with the scipy it imports); no cycle involved
+    import trimesh
 
 FORMATS = ("obj", "ply", "stl", "glb", "gltf", "off")
 #: Largest |coordinate| accepted, in file units, as given and as placed by the file's transforms. Real
@@ -49,22 +54,25 @@ class MeshObject:
     source: str = ""  # the file it came from, for messages
 
 
-def _colour(geometry) -> RGB | None:
+def _colour(geometry: trimesh.Trimesh) -> RGB | None:
     """The object's diffuse colour (OBJ Kd, glTF base colour, PLY/OFF face or vertex colours)."""
+    import trimesh.visual  # loaded already: only trimesh's meshes come here
+
     visual = geometry.visual
     material = getattr(visual, "material", None)
     if material is not None:
         rgba = np.asarray(material.main_color, dtype=float)
-    elif getattr(visual, "kind", None) is not None:
+    elif isinstance(visual, trimesh.visual.ColorVisuals) and visual.kind is not None:
         rgba = np.asarray(visual.main_color, dtype=float)
     else:
         return None
     if tuple(int(c) for c in rgba[:3]) == _NO_COLOUR:
         return None
-    return tuple(float(c) / 255.0 for c in rgba[:3])
+    red, green, blue = (float(c) / 255.0 for c in rgba[:3])
+    return red, green, blue
 
 
-def _mesh(geometry, name: str) -> Mesh:
+def _mesh(geometry: trimesh.Trimesh, name: str) -> Mesh:
     vertices = np.asarray(geometry.vertices, dtype=np.float64)
     faces = np.asarray(geometry.faces, dtype=np.int64)
     # trimesh keeps normals read from the file in its cache; computing them would need scipy.
@@ -79,7 +87,7 @@ def _mesh(geometry, name: str) -> Mesh:
 
 
 @contextlib.contextmanager
-def _quiet():
+def _quiet() -> Iterator[None]:
     """No numpy floating-point warnings or other warnings from trimesh reach the user; checks follow."""
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
@@ -108,7 +116,8 @@ def load_mesh_file(path: str | Path) -> list[MeshObject]:
     logging.getLogger("trimesh").setLevel(logging.ERROR)
     try:
         with _quiet():
-            loaded = trimesh.load(str(path), force="scene", process=False)
+            # load's return type covers all its ``force`` values; "scene" returns a Scene
+            loaded = cast(trimesh.Scene, trimesh.load(str(path), force="scene", process=False))
             objects = []
             for node in loaded.graph.nodes_geometry:
                 transform, name = loaded.graph[node]
@@ -117,7 +126,7 @@ def load_mesh_file(path: str | Path) -> list[MeshObject]:
                     continue
                 mesh = _mesh(geometry, str(name))
                 transform = np.asarray(transform, dtype=np.float64)
-                _check_object(path, name, mesh, transform)
+                _check_object(path, str(name), mesh, transform)
                 objects.append(MeshObject(mesh, transform, _colour(geometry), str(path)))
             if extension == "stl" and objects:
                 check_ascii_stl(path)
@@ -222,7 +231,7 @@ def _check_path(path: Path) -> None:
         raise UserError(f"{path}: unsupported mesh format {path.suffix!r} (supported: {', '.join(FORMATS)})")
 
 
-def _check_object(path: Path, name, mesh: Mesh, transform: np.ndarray) -> None:
+def _check_object(path: Path, name: str, mesh: Mesh, transform: np.ndarray) -> None:
     vertices, faces = mesh.vertices, mesh.faces
     if vertices.ndim != 2 or vertices.shape[1] != 3:
         count = vertices.shape[1] if vertices.ndim == 2 else 0

@@ -12,20 +12,27 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from realistic.core import validation
 from realistic.core.transforms import transform_points
-from realistic.errors import UserError
-from realistic.scene.mipmap import MipMap
+from realistic.scene.materials import SurfaceMaterial
+
+# The matte material and the textures live in ``scene.surfaces`` (which ``scene.materials`` builds
+# on); named here too, where the scene's users have always found them.
+from realistic.scene.surfaces import RGB as RGB
+from realistic.scene.surfaces import CheckerTexture as CheckerTexture
+from realistic.scene.surfaces import GridTexture as GridTexture
+from realistic.scene.surfaces import ImageTexture as ImageTexture
+from realistic.scene.surfaces import Material as Material
+from realistic.scene.surfaces import Texture as Texture
 
 if TYPE_CHECKING:
     from realistic.camera.base import Camera
 
-RGB = tuple[float, float, float]
+#: What an instance is made of when its maker names no material: matte grey.
+DEFAULT_MATERIAL = Material()
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,83 +47,12 @@ class Mesh:
 
 
 @dataclass(frozen=True, eq=False)
-class ImageTexture:
-    """An RGB image (linear, rows top to bottom) repeated over uv, looked up through a MIP map.
-
-    ``v_origin`` says which row v = 0 is: "bottom" (pbrt-v3 and v4 flip images on load) or "top"
-    (pbrt-v1 and v2 look up the file's first row at v = 0); the pbrt dialect decides. ``filter``
-    ("point", "bilinear", "trilinear", "ewa"), ``max_anisotropy`` and ``wrap`` ("repeat", "black",
-    "clamp") are pbrt's imagemap parameters; the defaults are pbrt-v3's. A lookup without a
-    footprint reads level 0 bilinearly whatever the filter.
-    """
-
-    pixels: np.ndarray  # (H, W, 3) float32, linear
-    scale: tuple[float, float] = (1.0, 1.0)  # repetitions of the image per unit of u, v
-    v_origin: str = "bottom"
-    filter: str = "ewa"
-    max_anisotropy: float = 8.0
-    wrap: str = "repeat"
-    offset: tuple[float, float] = (0.0, 0.0)  # pbrt's udelta, vdelta: added to the scaled u, v
-
-    def __post_init__(self) -> None:
-        validation.texture_filter(self.filter)
-        validation.texture_wrap(self.wrap)
-        validation.max_anisotropy(self.max_anisotropy)
-        for name, value in zip(("uscale", "vscale", "udelta", "vdelta"), (*self.scale, *self.offset)):
-            validation.finite(value, f"image texture {name}")
-
-    @cached_property
-    def mipmap(self) -> MipMap:
-        """The MIP map of ``pixels``, built on first use and kept."""
-        return MipMap(self.pixels, self.wrap, self.max_anisotropy)
-
-
-@dataclass(frozen=True)
-class GridTexture:
-    """Thin lines of ``line`` colour on ``base`` colour, ``cells`` cells per unit of u and v."""
-
-    base: RGB = (0.8, 0.8, 0.8)
-    line: RGB = (0.1, 0.1, 0.1)
-    cells: float = 10.0
-    line_width: float = 0.04  # fraction of a cell
-
-
-@dataclass(frozen=True)
-class CheckerTexture:
-    """Alternating squares, ``cells`` per unit of u and v."""
-
-    even: RGB = (0.8, 0.8, 0.8)
-    odd: RGB = (0.2, 0.2, 0.2)
-    cells: float = 10.0
-
-
-Texture = ImageTexture | GridTexture | CheckerTexture
-
-
-@dataclass(frozen=True)
-class Material:
-    """Matte reflector: albedo = ``diffuse`` times the texture's colour when there is one.
-
-    ``sigma`` is the Oren-Nayar roughness in degrees (the standard deviation of the facet slope
-    angle, pbrt's ``matte`` sigma); 0 is Lambertian. Other materials: ``realistic.scene.materials``.
-    """
-
-    diffuse: RGB = (0.5, 0.5, 0.5)
-    texture: Texture | None = None
-    sigma: float = 0.0
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= validation.finite(self.sigma, "matte sigma (degrees)") <= 90.0:
-            raise UserError(f"matte sigma (degrees) must be between 0 and 90, got {self.sigma:g}")
-
-
-@dataclass(frozen=True, eq=False)
 class Instance:
     """One placement of a mesh (``Scene.meshes[mesh]``) in the world."""
 
     mesh: int
     transform: np.ndarray = field(default_factory=lambda: np.eye(4))
-    material: Material = Material()
+    material: SurfaceMaterial = DEFAULT_MATERIAL
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,7 +123,7 @@ class Scene:
         return len(self.meshes) - 1
 
     def add(self, mesh: Mesh | int, transform: np.ndarray | None = None,
-            material: Material = Material()) -> Instance:
+            material: SurfaceMaterial = DEFAULT_MATERIAL) -> Instance:
         """Place a mesh (a new one, or the index of a stored one) in the world."""
         index = self.add_mesh(mesh) if isinstance(mesh, Mesh) else mesh
         instance = Instance(index, np.eye(4) if transform is None else np.asarray(transform, float), material)

@@ -33,10 +33,12 @@ def evaluate(texture: Texture, uv: np.ndarray, footprint: Footprint | None = Non
         f = (uv * texture.cells) % 1.0
         half = texture.line_width / 2
         on_line = np.any((f < half) | (f > 1 - half), axis=1)
-        return np.where(on_line[:, None], np.float32(texture.line), np.float32(texture.base)).astype(np.float32)
+        return np.where(on_line[:, None], np.asarray(texture.line, np.float32),
+                        np.asarray(texture.base, np.float32)).astype(np.float32)
     if isinstance(texture, CheckerTexture):
         parity = (np.floor(uv[:, 0] * texture.cells) + np.floor(uv[:, 1] * texture.cells)) % 2
-        return np.where(parity[:, None] == 0, np.float32(texture.even), np.float32(texture.odd)).astype(np.float32)
+        return np.where(parity[:, None] == 0, np.asarray(texture.even, np.float32),
+                        np.asarray(texture.odd, np.float32)).astype(np.float32)
     if isinstance(texture, ImageTexture):
         return _image(texture, uv, footprint, ewa)
     raise TypeError(f"unknown texture {texture!r}")

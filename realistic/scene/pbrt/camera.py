@@ -90,20 +90,21 @@ def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, 
                 parsed.warn(directive.where, f'"{name}" is not a realistic-camera parameter in pbrt-{dialect.name} '
                                              f"(ignored)")
         lens = scene_lens(convention.lens_file)
-        if convention.film_distance is None:  # pbrt-v3/v4: focused by distance, with their default stop
-            lens = _v3_stop(lens, params.get_float(convention.stop_diameter, PBRT3_DEFAULT_APERTURE_MM), parsed,
-                            directive.where)
-            if convention.stop_shape is not None and params.has(convention.stop_shape):
-                lens = lens.with_stop_shape(_v4_aperture(params.get_string(convention.stop_shape), lens, parsed,
-                                                         directive.where, search_paths))
-            focus = params.get_float(convention.focus_distance, PBRT3_DEFAULT_FOCUS_M)
-            if not focus > 0:
-                raise UserError(f"{convention.focus_distance} must be a positive number of metres, got {focus:g}")
-            film_distance = film_distance_for_focus(lens, focus * convention.camera_units_mm)
-        else:  # the classic camera: the film where the file puts it, the lens's own stop unless given
-            film_distance = params.get_float(convention.film_distance)
-            if params.has(convention.stop_diameter):
-                lens = lens.with_stop_diameter(params.get_float(convention.stop_diameter))
+        match convention.film_distance, convention.focus_distance:
+            case None, str(focus_name):  # pbrt-v3/v4: focused by distance, with their default stop
+                lens = _v3_stop(lens, params.get_float(convention.stop_diameter, PBRT3_DEFAULT_APERTURE_MM), parsed,
+                                directive.where)
+                if convention.stop_shape is not None and params.has(convention.stop_shape):
+                    lens = lens.with_stop_shape(_v4_aperture(params.get_string(convention.stop_shape), lens, parsed,
+                                                             directive.where, search_paths))
+                focus = params.get_float(focus_name, PBRT3_DEFAULT_FOCUS_M)
+                if not focus > 0:
+                    raise UserError(f"{focus_name} must be a positive number of metres, got {focus:g}")
+                film_distance = film_distance_for_focus(lens, focus * convention.camera_units_mm)
+            case str(film_distance_name), _:  # the classic camera: the film where the file puts it
+                film_distance = params.get_required_float(film_distance_name)
+                if params.has(convention.stop_diameter):  # else the lens's own stop
+                    lens = lens.with_stop_diameter(params.get_required_float(convention.stop_diameter))
         world_from_camera = world_from_camera @ scale(1.0 / convention.camera_units_mm)
     if convention.film_diagonal_on_camera is not None:
         film_diagonal_where, film_diagonal_params = directive.where, params

@@ -78,12 +78,12 @@ from realistic.optics.stop_shape import StopShape, bladed_stop, polygon_stop, tr
 from realistic.scene.pbrt.parser import Params, PbrtScene
 
 DIALECTS = ("auto", "v1", "v2", "v3", "v4")
-_V4_DIRECTIVES = ("ColorSpace", "Option", "Attribute", "Import")
-_V2_DIRECTIVES = ("SurfaceIntegrator", "VolumeIntegrator", "Renderer")
-_V3_DIRECTIVES = ("Integrator", "MakeNamedMedium")
-_HOMEWORK_CAMERA = ("specfile", "filmdistance", "filmdiag", "aperture_diameter")
-_V3_CAMERA = ("lensfile", "aperturediameter", "focusdistance")
-_V4_CAMERA = ("aperture",)
+_V4_DIRECTIVES: tuple[str, ...] = ("ColorSpace", "Option", "Attribute", "Import")
+_V2_DIRECTIVES: tuple[str, ...] = ("SurfaceIntegrator", "VolumeIntegrator", "Renderer")
+_V3_DIRECTIVES: tuple[str, ...] = ("Integrator", "MakeNamedMedium")
+_HOMEWORK_CAMERA: tuple[str, ...] = ("specfile", "filmdistance", "filmdiag", "aperture_diameter")
+_V3_CAMERA: tuple[str, ...] = ("lensfile", "aperturediameter", "focusdistance")
+_V4_CAMERA: tuple[str, ...] = ("aperture",)
 #: Each filter's default radius (pixels), as every version's ``Create...Filter`` sets it.
 _DEFAULT_RADIUS = {"box": 0.5, "triangle": 2.0, "gaussian": 2.0, "mitchell": 2.0, "sinc": 4.0}
 #: A gaussian wider than this is flat over any allowed radius (1 / (2 sigma^2) stays normal).

@@ -10,7 +10,7 @@ from realistic.core import validation
 from realistic.core.pixel_filter import PixelFilter, filter_name
 from realistic.errors import UserError
 from realistic.scene.pbrt.dialect import Dialect
-from realistic.scene.pbrt.parser import Params, PbrtScene
+from realistic.scene.pbrt.parser import Directive, Params, PbrtScene
 from realistic.scene.pbrt.values import located, whole_number
 
 
@@ -43,9 +43,8 @@ V4_OTHER_FILMS = ("gbuffer", "spectral")
 V4_SENSOR_DEFAULTS = {"iso": 100.0, "whitebalance": 0.0, "sensor": "cie1931"}
 
 
-def _check_film(parsed: PbrtScene) -> None:
+def _check_film(parsed: PbrtScene, film: Directive) -> None:
     """Warn, with the Film's file and line, about a film type or sensor setting we do not model."""
-    film = parsed.film
     if film.type in V4_OTHER_FILMS:
         parsed.warn(film.where, f'Film "{film.type}" (its RGB image is rendered; the other channels are not)')
     elif film.type not in RGB_FILMS:
@@ -76,7 +75,7 @@ def import_film(parsed: PbrtScene) -> FilmSettings:
     if parsed.film and parsed.film.params.has("cropwindow"):
         parsed.warn(parsed.film.where, "Film cropwindow (the whole image is rendered)")
     if parsed.film:
-        _check_film(parsed)
+        _check_film(parsed, parsed.film)
     with located(film_where):
         width, height = validation.resolution(whole_number(film, "xresolution", 640, film_where),
                                               whole_number(film, "yresolution", 480, film_where))

@@ -8,7 +8,7 @@ Everything the renderer cannot honour is reported once with file and line, and t
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +19,7 @@ from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.errors import UserError
 from realistic.scene.lights import EmissiveInstance
 from realistic.scene.materials import SurfaceMaterial
-from realistic.scene.model import AreaLight, CheckerTexture, Material, Mesh, Scene
+from realistic.scene.model import RGB, AreaLight, CheckerTexture, Material, Mesh, Scene
 from realistic.scene.pbrt.camera import camera_directive, import_camera
 from realistic.scene.pbrt.dialect import Dialect, choose_dialect
 from realistic.scene.pbrt.film import import_film, import_pixel_filter
@@ -38,9 +38,9 @@ class ImportedScene:
 
     scene: Scene
     output_name: str | None
-    warnings: list[str] = field(default_factory=list)
-    dialect: Dialect | None = None  # the pbrt version the file was read as, and why
-    camera_where: str = ""  # the file and line of the Camera directive, for errors about the camera
+    warnings: list[str]
+    dialect: Dialect  # the pbrt version the file was read as, and why
+    camera_where: str  # the file and line of the Camera directive, for errors about the camera
 
 
 def _texture_name(params: Params, name: str, where: str) -> str:
@@ -128,11 +128,11 @@ class _Importer:
             base = (self.texture_material(_texture_name(p, textures[0].name, textures[0].where), tex.where,
                                           (*using, name)) if textures else Material((1, 1, 1)))
             colour = np.prod([base.diffuse] + constants, axis=0)
-            return Material(tuple(float(c) for c in colour), base.texture)
+            return Material((float(colour[0]), float(colour[1]), float(colour[2])), base.texture)
         self.warn(tex.where, f'Texture "{tex.cls}", rendered as grey')
         return Material(GREY)
 
-    def _constant_of(self, params: Params, key: str, where: str) -> tuple:
+    def _constant_of(self, params: Params, key: str, where: str) -> RGB:
         q = params.items.get(key)
         if q is not None and q.type == "texture":
             self.warn(where, f"checkerboard {key} given as a texture (grey used)")
@@ -142,7 +142,7 @@ class _Importer:
     def add_shape(self, shape: ShapeRecord, world: np.ndarray) -> None:
         if not self.shape_meshes.usable(shape):
             return
-        if shape.area_light is not None and self.add_area_light(shape, world):
+        if shape.area_light is not None and self.add_area_light(shape, shape.area_light, world):
             return
         self.add_instances(shape, world)
 
@@ -173,9 +173,9 @@ class _Importer:
             self.mesh_index[id(mesh)] = self.scene.add_mesh(mesh)
         return self.mesh_index[id(mesh)]
 
-    def add_area_light(self, shape: ShapeRecord, world: np.ndarray) -> bool:
-        """Add the shape's area light; False when the shape is to be drawn as an ordinary shape instead."""
-        declaration = shape.area_light
+    def add_area_light(self, shape: ShapeRecord, declaration: Declaration, world: np.ndarray) -> bool:
+        """Add the shape's area light (``declaration``, its AreaLightSource); False when the shape is to be
+        drawn as an ordinary shape instead."""
         where = declaration.where
         if declaration.type not in ("area", "diffuse"):
             self.warn(where, f'AreaLightSource "{declaration.type}" (shape rendered unlit)')
@@ -188,7 +188,7 @@ class _Importer:
             if declaration.params.has(name):
                 self.warn(where, f'area light "{name}" (ignored; L and scale set its radiance)')
         light_scale = rgb(declaration.params, "scale", (1.0, 1.0, 1.0)) or (1.0, 1.0, 1.0)
-        radiance = tuple(a * b for a, b in zip(radiance, light_scale))
+        radiance = (radiance[0] * light_scale[0], radiance[1] * light_scale[1], radiance[2] * light_scale[2])
         samples = whole_number(declaration.params, "nsamples", 1, where)
         if samples > MAX_LIGHT_SAMPLES:
             self.warn(where, f"nsamples {samples} (at most {MAX_LIGHT_SAMPLES} are taken)")

@@ -75,7 +75,7 @@ def tokenize(text: str, path: Path) -> Iterator[Token]:
     """Tokens of ``text``; a stray character or a number beyond a double's range is a syntax error at its line."""
     line = 1
     for match in _TOKEN.finditer(text):
-        kind = match.lastgroup
+        kind = match.lastgroup or "bad"  # never None: every alternative of _TOKEN is a named group
         if kind == "newline":
             line += 1
         elif kind in ("space", "comment"):

@@ -18,7 +18,15 @@ import numpy as np
 from realistic.core import validation
 from realistic.core.image_files import read_linear_rgb
 from realistic.errors import UserError
-from realistic.scene.lights import DistantLight, InfiniteLight, PointLight, SpotLight, equal_area_square_to_sphere
+from realistic.scene.lights import (
+    DistantLight,
+    InfiniteLight,
+    Light,
+    PointLight,
+    SpotLight,
+    equal_area_square_to_sphere,
+)
+from realistic.scene.model import RGB
 from realistic.scene.pbrt.dialect import Dialect
 from realistic.scene.pbrt.parser import Directive, Params, PbrtScene
 
@@ -37,7 +45,7 @@ def _finite(values: list[float], name: str, where: str) -> list[float]:
     return values
 
 
-def _colour(params: Params, name: str, default: tuple, where: str, warn: Callable[[str, str], None]) -> tuple:
+def _colour(params: Params, name: str, default: RGB, where: str, warn: Callable[[str, str], None]) -> RGB:
     """An RGB parameter (one value: grey); spectra pbrt would integrate render white with a warning."""
     p = params.items.get(name)
     if p is None:
@@ -45,11 +53,11 @@ def _colour(params: Params, name: str, default: tuple, where: str, warn: Callabl
     if p.type in ("spectrum", "blackbody", "xyz") or len(p.values) not in (1, 3):
         warn(where, f'a spectral light "{name}" (rendered white)')
         return (1.0, 1.0, 1.0)
-    values = _finite(params.get_floats(name), name, where)
-    return tuple(values * 3 if len(values) == 1 else values)
+    values = _finite(params.get_floats(name, []), name, where)
+    return (values[0], values[0], values[0]) if len(values) == 1 else (values[0], values[1], values[2])
 
 
-def _point(params: Params, name: str, default: tuple, where: str) -> np.ndarray:
+def _point(params: Params, name: str, default: tuple[float, float, float], where: str) -> np.ndarray:
     values = params.get_floats(name)
     if values is None:
         return np.array(default, np.float64)
@@ -78,7 +86,7 @@ class _LightImporter:
         value = _scalar(params, name, -1.0, where)
         return value if value > 0 else None
 
-    def light(self, directive: Directive) -> object | None:
+    def light(self, directive: Directive) -> Light | None:
         p, where, kind = directive.params, directive.where, directive.type
         m = np.asarray(directive.transform, np.float64)
         if kind == "point":
@@ -165,10 +173,10 @@ class _LightImporter:
         return total
 
 
-def import_lights(parsed: PbrtScene, dialect: Dialect, find: Callable[..., Path]) -> list:
+def import_lights(parsed: PbrtScene, dialect: Dialect, find: Callable[..., Path]) -> list[Light]:
     """The scene's ``LightSource`` lights (unsupported ones reported on ``parsed`` and skipped)."""
     importer = _LightImporter(dialect, parsed.warn, find)
-    lights = []
+    lights: list[Light] = []
     for directive in parsed.lights:
         light = importer.light(directive)
         if light is not None:
@@ -184,8 +192,10 @@ def import_integrator(parsed: PbrtScene, default: str) -> tuple[str, int]:
     if directive is None:
         return default, DEFAULT_MAX_DEPTH
     value = directive.params.get_float("maxdepth", DEFAULT_MAX_DEPTH)
+    if not (math.isfinite(value) and value == int(value)):
+        raise UserError(f"{directive.where}: Integrator maximum path depth must be a whole number, got {value!r}")
     try:
-        depth = validation.max_depth(int(value) if math.isfinite(value) and value == int(value) else value)
+        depth = validation.max_depth(int(value))
     except UserError as err:
         raise UserError(f"{directive.where}: Integrator {err}") from None
     kind = directive.type

@@ -29,6 +29,7 @@ from realistic.core.validation import finite
 from realistic.errors import UserError
 from realistic.scene.materials import (
     CoatedDiffuse,
+    Colour,
     Conductor,
     Dielectric,
     DiffuseTransmission,
@@ -36,13 +37,14 @@ from realistic.scene.materials import (
     Mirror,
     Mix,
     Plastic,
+    Scalar,
     ScaledTexture,
     Substrate,
     SurfaceMaterial,
 )
 from realistic.scene.measured import float_file_numbers, load_measured, spectrum_to_rgb
 from realistic.scene.metals import TABLES, copper, named_metal
-from realistic.scene.model import Material
+from realistic.scene.model import RGB, Material
 from realistic.scene.pbrt.parser import Declaration, Params
 
 #: Copper (``realistic.scene.metals``), the default metal of pbrt-v2/v3 ``metal`` and pbrt-v4
@@ -55,7 +57,8 @@ MAX_MIX_DEPTH = 16
 class MaterialContext(Protocol):
     """What the importer lends: warnings, textures as colour x texture, files, named materials."""
 
-    dialect_name: str
+    @property
+    def dialect_name(self) -> str: ...
 
     def warn(self, where: str, message: str) -> None: ...
 
@@ -84,7 +87,8 @@ class _Reader:
     def has(self, name: str) -> bool:
         return self.params.has(name)
 
-    def colour(self, name: str, default: tuple) -> object:
+    def colour(self, name: str, default: RGB) -> Colour:
+        """The colour parameter ``name``: a constant, a texture or a spectrum as RGB; ``default`` when absent."""
         p = self.params.items.get(name)
         if p is None:
             return default
@@ -95,10 +99,10 @@ class _Reader:
         if p.type in ("blackbody", "xyz") or len(p.values) not in (1, 3):
             self.context.warn(self.where, f'"{p.type} {name}" in Material "{self.declaration.type}" (the default used)')
             return default
-        values = self.params.get_floats(name)
-        return tuple(float(v) for v in (values * 3 if len(values) == 1 else values))
+        values = self.params.get_floats(name, [])
+        return (values[0], values[0], values[0]) if len(values) == 1 else (values[0], values[1], values[2])
 
-    def spectrum(self, name: str, default: tuple) -> tuple:
+    def spectrum(self, name: str, default: RGB) -> RGB:
         """A "spectrum" parameter: (wavelength, value) pairs or a .spd file of them, as RGB."""
         p = self.params.items[name]
         if len(p.values) == 1 and isinstance(p.values[0], str):
@@ -115,16 +119,18 @@ class _Reader:
             except (OSError, ValueError) as err:
                 raise UserError(f"{self.where}: spectrum file {path}: {err}") from None
         else:
-            values = self.params.get_floats(name)
+            values = self.params.get_floats(name, [])
         if len(values) < 2 or len(values) % 2:
             raise UserError(f'{self.where}: "spectrum {name}" needs (wavelength, value) pairs, got {len(values)} '
                             f"numbers")
         pairs = np.asarray(values, np.float64).reshape(-1, 2)
         if not np.all(np.isfinite(pairs)) or np.any(np.diff(pairs[:, 0]) <= 0):
             raise UserError(f'{self.where}: "spectrum {name}" wavelengths must increase and values be finite')
-        return tuple(float(c) for c in spectrum_to_rgb(pairs[:, 0], pairs[None, :, 1])[0])
+        red, green, blue = (float(c) for c in spectrum_to_rgb(pairs[:, 0], pairs[None, :, 1])[0])
+        return red, green, blue
 
-    def texture(self, name: str) -> object:
+    def texture(self, name: str) -> Colour:
+        """The texture parameter ``name`` as a colour: the texture, scaled by its colour unless white."""
         texture_name = self.params.get_string(name)
         if not texture_name:
             raise UserError(f'{self.where}: "texture {name}" needs the name of a texture')
@@ -133,14 +139,16 @@ class _Reader:
             return made.diffuse
         return made.texture if made.diffuse == (1.0, 1.0, 1.0) else ScaledTexture(made.texture, made.diffuse)
 
-    def scalar(self, name: str, default: float) -> object:
+    def scalar(self, name: str, default: Scalar) -> Scalar:
+        """The scalar parameter ``name``: a number or a texture (a constant texture's mean); ``default`` when absent."""
         p = self.params.items.get(name)
         if p is None:
             return default
         if p.type == "texture":
             value = self.texture(name)
             return float(np.mean(value)) if isinstance(value, tuple) else value
-        return finite(self.params.get_float(name, default), f'"{name}" of Material "{self.declaration.type}"')
+        number = self.params.get_float(name)
+        return default if number is None else finite(number, f'"{name}" of Material "{self.declaration.type}"')
 
     def flag(self, name: str, default: bool) -> bool:
         p = self.params.items.get(name)
@@ -154,7 +162,7 @@ class _Reader:
             return "alpha"
         return "pbrt-v3" if self.context.dialect_name == "v3" else "sqrt"
 
-    def roughness_pair(self, default: float) -> tuple[object, object]:
+    def roughness_pair(self, default: float) -> tuple[Scalar, Scalar]:
         r = self.scalar("roughness", default)
         return self.scalar("uroughness", r), self.scalar("vroughness", r)
 
@@ -180,23 +188,25 @@ def build_material(declaration: Declaration, context: MaterialContext, depth: in
         if kind == "uber":
             r.approximate("plastic (its Kr, Kt and opacity ignored)")
             if context.dialect_name == "v3":  # pbrt-v3 uber.cpp: FresnelDielectric(1, eta), eta default 1.5
-                eta = r.scalar("eta", r.scalar("index", 1.5))
-                eta = eta if isinstance(eta, float) and eta > 0 else 1.5
+                given = r.scalar("eta", r.scalar("index", 1.5))
+                eta = given if isinstance(given, float) and given > 0 else 1.5
         rough = r.scalar("roughness", 0.1)
         return Plastic(r.colour("Kd", (0.25,) * 3), r.colour("Ks", (0.25,) * 3), rough, r.rule(), eta)
     if kind == "coateddiffuse":
         r.approximate("a diffuse base under a thin coat (the layer's thickness, albedo and g ignored)")
         ru, _ = r.roughness_pair(0.0)
-        eta = r.scalar("eta", 1.5)
+        coat_eta = r.scalar("eta", 1.5)
         return CoatedDiffuse(r.colour("reflectance", (0.5,) * 3), ru, r.rule(),
-                             eta if isinstance(eta, float) and eta > 0 else 1.5)
+                             coat_eta if isinstance(coat_eta, float) and coat_eta > 0 else 1.5)
     if kind in ("metal", "conductor", "coatedconductor", "shinymetal"):
         return _conductor(r)
     if kind == "mirror":
         return Mirror(r.colour("Kr", (0.9,) * 3))
     if kind in ("glass", "dielectric", "thindielectric"):
-        eta = r.scalar("eta", r.scalar("index", 1.5) if not _v4(context) else 1.5)
-        if not isinstance(eta, float):
+        given = r.scalar("eta", r.scalar("index", 1.5) if not _v4(context) else 1.5)
+        if isinstance(given, float):
+            eta = given
+        else:
             context.warn(declaration.where, f'textured or spectral eta of Material "{kind}" (1.5 used)')
             eta = 1.5
         ru, rv = r.roughness_pair(0.0)
@@ -233,15 +243,16 @@ def build_material(declaration: Declaration, context: MaterialContext, depth: in
     return Material((0.5, 0.5, 0.5))
 
 
-def _times(colour: object, scale: float) -> object:
+def _times(colour: Colour, scale: float) -> Colour:
+    """``colour`` times a constant ``scale``."""
     if isinstance(colour, tuple):
-        return tuple(c * scale for c in colour)
+        return _rgb_product(colour, (scale, scale, scale))
     if isinstance(colour, ScaledTexture):
-        return ScaledTexture(colour.texture, tuple(c * scale for c in colour.scale))
-    return ScaledTexture(colour, (scale,) * 3) if scale != 1.0 else colour
+        return ScaledTexture(colour.texture, _rgb_product(colour.scale, (scale, scale, scale)))
+    return ScaledTexture(colour, (scale, scale, scale)) if scale != 1.0 else colour
 
 
-def _product(a: object, b: object) -> object:
+def _product(a: Colour, b: Colour) -> Colour:
     """The product of two colours (a texture times a constant; of two textures only the first is kept)."""
     if isinstance(b, tuple):
         return _times_rgb(a, b)
@@ -250,12 +261,17 @@ def _product(a: object, b: object) -> object:
     return a
 
 
-def _times_rgb(colour: object, rgb: tuple) -> object:
+def _times_rgb(colour: Colour, rgb: RGB) -> Colour:
+    """``colour`` times the constant ``rgb``."""
     if isinstance(colour, tuple):
-        return tuple(x * y for x, y in zip(colour, rgb))
+        return _rgb_product(colour, rgb)
     if isinstance(colour, ScaledTexture):
-        return ScaledTexture(colour.texture, tuple(x * y for x, y in zip(colour.scale, rgb)))
+        return ScaledTexture(colour.texture, _rgb_product(colour.scale, rgb))
     return ScaledTexture(colour, rgb)
+
+
+def _rgb_product(a: RGB, b: RGB) -> RGB:
+    return a[0] * b[0], a[1] * b[1], a[2] * b[2]
 
 
 def _matte(r: _Reader, name: str, default: float) -> Material:
@@ -285,9 +301,9 @@ def _conductor(r: _Reader) -> Conductor:
             r.context.warn(r.where, f'a textured reflectance of Material "{kind}" (its mean 0.5 used)')
             reflectance = (0.5,) * 3
         rr = np.clip(np.asarray(reflectance, np.float64), 0.0, 0.9999)
-        k = tuple(float(v) for v in 2 * np.sqrt(rr) / np.sqrt(1 - rr))
+        k_red, k_green, k_blue = (float(v) for v in 2 * np.sqrt(rr) / np.sqrt(1 - rr))
         ru, rv = r.roughness_pair(0.1 if kind == "shinymetal" else 0.0)
-        return Conductor((1.0, 1.0, 1.0), k, ru, rv, r.rule())
+        return Conductor((1.0, 1.0, 1.0), (k_red, k_green, k_blue), ru, rv, r.rule())
     eta = r.colour(prefix + "eta", COPPER_ETA)
     k = r.colour(prefix + "k", COPPER_K)
     ru, rv = r.roughness_pair(0.0 if _v4(r.context) else 0.01)
@@ -317,16 +333,15 @@ def _mix(r: _Reader, depth: int) -> SurfaceMaterial:
         raise UserError(f'{r.where}: Material "mix" nested more than {MAX_MIX_DEPTH} deep (a mix made of itself?)')
     p = r.params.items.get("materials")
     if p is not None:  # pbrt-v4: two names; amount is the chance of the second
-        names = [v for v in p.values if isinstance(v, str)]
+        names: list[str | None] = [v for v in p.values if isinstance(v, str)]
         if len(names) != 2:
             raise UserError(f'{r.where}: Material "mix" needs two "materials", got {len(names)}')
-        first, second = names
         swap = False
     else:  # pbrt-v1/v2/v3: amount weights namedmaterial1
-        first, second = r.params.get_string("namedmaterial1"), r.params.get_string("namedmaterial2")
+        names = [r.params.get_string("namedmaterial1"), r.params.get_string("namedmaterial2")]
         swap = True
-    parts = []
-    for name in (first, second):
+    parts: list[SurfaceMaterial] = []
+    for name in names:
         declaration = r.context.named_material(name) if name else None
         if declaration is None:
             raise UserError(f'{r.where}: Material "mix" names material "{name}", which is not defined')

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import overload
 
 import numpy as np
 
@@ -26,11 +27,15 @@ PARAM_TYPES = {"integer", "float", "point", "point2", "point3", "vector", "vecto
                "normal3", "color", "rgb", "spectrum", "xyz", "blackbody", "string", "bool", "texture"}
 
 
+#: One value of a parameter: a quoted string (or a bare word), a number, or a bool of a "bool" parameter.
+ParamValue = str | float | bool
+
+
 @dataclass(frozen=True)
 class Param:
     type: str
     name: str
-    values: tuple
+    values: tuple[ParamValue, ...]
     where: str
 
 
@@ -43,17 +48,37 @@ class Params:
     def has(self, name: str) -> bool:
         return name in self.items
 
+    @overload
+    def get_floats(self, name: str) -> list[float] | None: ...
+    @overload
+    def get_floats(self, name: str, default: list[float]) -> list[float]: ...
+
     def get_floats(self, name: str, default: list[float] | None = None) -> list[float] | None:
+        """The numbers of ``name``, ``default`` when it is not given; a syntax error when they are not numbers."""
         p = self.items.get(name)
         if p is None:
             return default
-        if not all(isinstance(v, float) for v in p.values):
+        floats = [v for v in p.values if isinstance(v, float)]
+        if len(floats) != len(p.values):
             raise PbrtSyntaxError(*_split_where(p.where), f'"{p.name}" expects numbers')
-        return list(p.values)
+        return floats
+
+    @overload
+    def get_float(self, name: str) -> float | None: ...
+    @overload
+    def get_float(self, name: str, default: float) -> float: ...
 
     def get_float(self, name: str, default: float | None = None) -> float | None:
+        """The first number of ``name``, ``default`` when it gives none."""
         values = self.get_floats(name)
         return default if not values else values[0]
+
+    def get_required_float(self, name: str) -> float:
+        """The first number of ``name``, a parameter the directive must give: a UserError when it gives none."""
+        values = self.get_floats(name, [])
+        if not values:
+            raise UserError(f'"{name}" needs a number')
+        return values[0]
 
     def with_defaults(self, defaults: dict[str, Param]) -> Params:
         """These parameters, and each of ``defaults`` that they do not give (pbrt-v4's ``Attribute``
@@ -63,7 +88,13 @@ class Params:
             return self
         return Params({**defaults, **self.items})
 
+    @overload
+    def get_string(self, name: str) -> str | None: ...
+    @overload
+    def get_string(self, name: str, default: str) -> str: ...
+
     def get_string(self, name: str, default: str | None = None) -> str | None:
+        """The first string of ``name``, ``default`` when it gives none; a syntax error when it is not a string."""
         p = self.items.get(name)
         if p is None or not p.values:
             return default
@@ -225,7 +256,7 @@ class _Parser:
         self.current_object: str | None = None
         self.named_materials = self.scene.named_materials
         self.frames: list[_Frame] = []
-        self.finished_imports: list[_Frame] = []  # in the order they ended
+        self.finished_imports: list[tuple[str, tuple[_State, int]]] = []  # (label, restore), as they ended
         self.last: Token | None = None
 
     # ---- token access -------------------------------------------------------------------------
@@ -242,7 +273,7 @@ class _Parser:
                 return None
             finished = self.frames.pop()
             if finished.restore is not None:
-                self.finished_imports.append(finished)
+                self.finished_imports.append((finished.label, finished.restore))
         return None
 
     def end_imports(self) -> None:
@@ -250,16 +281,17 @@ class _Parser:
         end) give back the graphics state they were given: pbrt-v4 ``src/pbrt/parser.cpp`` parses an
         Import with a copy of the state (``BasicSceneBuilder::CopyForImport``) and keeps only its
         shapes, instances, named materials and textures."""
-        for frame in self.finished_imports:  # innermost first, so the outermost's state is the one kept
-            self.end_of(frame)
+        for label, restore in self.finished_imports:  # innermost first, so the outermost's state is the one kept
+            self.end_of(label, restore)
         self.finished_imports.clear()
 
-    def end_of(self, frame: _Frame) -> None:
-        state, depth = frame.restore
+    def end_of(self, label: str, restore: tuple[_State, int]) -> None:
+        """Close the blocks an imported file (``label``) left open and give back the state it was given."""
+        state, depth = restore
         while len(self.stack) > depth:
             kind, _, where = self.stack.pop()
             self.scene.warn(where, f"{kind}Begin without a matching {kind}End in the imported file "
-                                   f"{frame.label} (closed at its end)")
+                                   f"{label} (closed at its end)")
             if kind == "Object":
                 self.current_object = None
         self.state = state
@@ -292,7 +324,7 @@ class _Parser:
 
     def numbers(self, directive: Token, count: int) -> list[float]:
         """``count`` numbers, bare or inside one pair of brackets."""
-        bracketed = self.peek() is not None and self.peek().kind == "["
+        bracketed = (token := self.peek()) is not None and token.kind == "["
         if bracketed:
             self.advance()
         values = [self.number(directive) for _ in range(count)]
@@ -317,8 +349,10 @@ class _Parser:
             params.items[parts[1]] = Param(parts[0], parts[1], tuple(values), token.where())
         return params
 
-    def param_values(self, declaration: Token) -> list:
+    def param_values(self, declaration: Token) -> list[str | float] | list[bool]:
+        """The values after a parameter's declaration: one bare, or a bracketed list; bools for a "bool" one."""
         first = self.next(f"a value for {declaration.text}")
+        values: list[str | float]
         if _bare_bool(first):  # pbrt-v4 writes bool values unquoted (src/pbrt/parser.cpp, parseParameters)
             values = [first.text]
         elif first.kind in ("string", "number"):
@@ -341,7 +375,7 @@ class _Parser:
         return values
 
     @staticmethod
-    def _booleans(declaration: Token, values: list) -> list[bool]:
+    def _booleans(declaration: Token, values: list[str | float]) -> list[bool]:
         for value in values:
             if value not in ("true", "false"):
                 shown = f'"{value}"' if isinstance(value, str) else f"{value:g}"
@@ -435,8 +469,9 @@ class _Parser:
         self.apply(rotate(angle, axis))
 
     def d_LookAt(self, token: Token) -> None:
-        v = np.array(self.numbers(token, 9))
-        eye, target, up = v[0:3], v[3:6], v[6:9]
+        n = self.numbers(token, 9)
+        v = np.array(n)
+        eye, target, up = v[0:3], v[3:6], (n[6], n[7], n[8])
         if np.array_equal(eye, target):
             raise ValueError("LookAt eye and target coincide")
         if not np.any(np.cross(up, target - eye)):

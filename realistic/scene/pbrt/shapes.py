@@ -134,11 +134,11 @@ class ShapeMeshes:
         if not np.all(np.isfinite(vertices)):
             raise UserError(f'{where}: {kind} "point P" has a value that is not a finite number')
         default = [float(i) for i in range(corners)] if len(vertices) == corners else []  # pbrt's default
-        indices = p.get_floats("indices", default)
-        if len(indices) == 0 or len(indices) % corners:
-            raise UserError(f'{where}: {kind} "integer indices" needs {corners} per {unit}, got {len(indices)} '
+        given = p.get_floats("indices", default)
+        if len(given) == 0 or len(given) % corners:
+            raise UserError(f'{where}: {kind} "integer indices" needs {corners} per {unit}, got {len(given)} '
                             f"values")
-        indices = np.asarray(indices, dtype=np.float64)
+        indices = np.asarray(given, dtype=np.float64)
         bad = (indices != np.floor(indices)) | (indices < 0) | (indices >= len(vertices))
         if np.any(bad):
             raise UserError(f"{where}: {kind} index {indices[np.argmax(bad)]:g} is not a point number (0 to "

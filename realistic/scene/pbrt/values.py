@@ -7,24 +7,25 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 from realistic.errors import LensFileError, UserError
+from realistic.scene.model import RGB
 from realistic.scene.pbrt.lexer import PbrtSyntaxError
 from realistic.scene.pbrt.parser import Params
 
-GREY = (0.5, 0.5, 0.5)
+GREY: RGB = (0.5, 0.5, 0.5)
 #: Farthest a shape or the camera may reach from the world origin: the renderer intersects in single
 #: precision, where products of larger coordinates overflow (float32 holds up to 3.4e38).
 MAX_WORLD_COORDINATE = 1e18
 
 
-def rgb(params: Params, name: str, default: tuple | None) -> tuple | None:
+def rgb(params: Params, name: str, default: RGB | None) -> RGB | None:
     """An RGB triple (one value: grey); None for what we cannot read as RGB (spectra, other counts)."""
     p = params.items.get(name)
     if p is None:
         return default
     if p.type in ("spectrum", "blackbody", "xyz") or len(p.values) not in (1, 3):
         return None
-    values = params.get_floats(name)  # a syntax error naming the parameter when they are not numbers
-    return tuple(values * 3 if len(values) == 1 else values)
+    values = params.get_floats(name, [])  # a syntax error naming the parameter when they are not numbers
+    return (values[0], values[0], values[0]) if len(values) == 1 else (values[0], values[1], values[2])
 
 
 def whole_number(params: Params, name: str, default: float, where: str) -> int:
