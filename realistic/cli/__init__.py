@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     previous = {number: signal.signal(number, _interrupt) for number in STOP_SIGNALS} if in_main_thread else {}
     stdout = sys.stdout
     if stdout is not None:
-        sys.stdout = _GuardedStdout(stdout)  # type: ignore[assignment]
+        sys.stdout = _GuardedStdout(stdout)
     try:
         args = build_parser().parse_args(argv)
         status = args.run(args)

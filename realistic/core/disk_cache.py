@@ -18,6 +18,7 @@ import io
 import os
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -94,8 +95,9 @@ def store_arrays(key: str, arrays: dict[str, np.ndarray]) -> None:
     if KEY_FIELD in arrays or DIGEST_FIELD in arrays:
         raise ValueError(f"{KEY_FIELD} and {DIGEST_FIELD} are the cache's own array names")
     buffer = io.BytesIO()
-    np.savez(buffer, **arrays, **{KEY_FIELD: np.frombuffer(key.encode("ascii"), np.uint8),
-                                  DIGEST_FIELD: np.frombuffer(content_digest(arrays).encode("ascii"), np.uint8)})
+    entries: dict[str, Any] = {**arrays, KEY_FIELD: np.frombuffer(key.encode("ascii"), np.uint8),
+                               DIGEST_FIELD: np.frombuffer(content_digest(arrays).encode("ascii"), np.uint8)}
+    np.savez(buffer, **entries)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         write_atomically(folder / f"{key}.npz", lambda temporary: Path(temporary).write_bytes(buffer.getvalue()))

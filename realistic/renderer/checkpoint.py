@@ -23,13 +23,15 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 
-from realistic.camera.base import SampleBlock
+from realistic.camera.base import Camera, SampleBlock
 from realistic.core.atomic_files import write_atomically
 from realistic.errors import UserError
 from realistic.renderer.film import Film, PassFilm
+from realistic.scene.model import Scene
 
 #: 2: passes are slices of every pixel's samples (``pass_plan``); a format-1 plan numbered other passes.
 FORMAT = "realistic checkpoint 2"
@@ -47,7 +49,13 @@ def content_hash(value: object) -> str:
     return digest.hexdigest()
 
 
-def _feed(digest, value: object, seen: set[int]) -> None:
+class _Digest(Protocol):
+    """What ``_feed`` needs of a hashlib object."""
+
+    def update(self, data: bytes, /) -> None: ...
+
+
+def _feed(digest: _Digest, value: object, seen: set[int]) -> None:
     put = digest.update
     if value is None or isinstance(value, (bool, int, float, complex, str, bytes, np.generic)):
         put(f"{type(value).__name__}:{value!r};".encode())
@@ -108,13 +116,13 @@ class RenderIdentity:
     light_samples: int
 
     @classmethod
-    def of(cls, scene: object, camera, seed: int, pass_samples: int, backend: str,
+    def of(cls, scene: Scene, camera: Camera, seed: int, pass_samples: int, backend: str,
            light_samples: int) -> RenderIdentity:
         """The identity of rendering ``scene`` through ``camera`` (its ``camera`` and ``metadata``, which
         names the file as it was given, not counted)."""
         scene_fields = {f.name: getattr(scene, f.name) for f in dataclasses.fields(scene)
                         if f.name not in ("camera", "metadata")}
-        camera_hash = content_hash(dataclasses.replace(camera, spp=1) if dataclasses.is_dataclass(camera) else camera)
+        camera_hash = content_hash(dataclasses.replace(camera, spp=1))
         return cls(f"{camera.width}x{camera.height}", int(seed), content_hash(scene_fields), camera_hash,
                    int(camera.spp), int(pass_samples), backend, int(light_samples))
 
@@ -142,7 +150,8 @@ def save_checkpoint(path: Path, identity: RenderIdentity, film: PassFilm) -> Non
 
     def write(temporary: str) -> None:
         with open(temporary, "wb") as handle:
-            np.savez(handle, header=np.array(header), **arrays)
+            entries: dict[str, Any] = {"header": np.array(header), **arrays}
+            np.savez(handle, **entries)
 
     write_atomically(Path(path), write)
 

@@ -294,8 +294,9 @@ class EmbreeScene:
         origin, direction = _rays(origin, direction)
         self._require_committed()
         n = len(origin)
-        hits = RayHits(*(np.empty(n, dtype) for dtype in (np.float32, np.float32, np.float32, np.int32, np.int32,
-                                                          np.int32)), np.empty((n, 3), np.float32))
+        hits = RayHits(t=np.empty(n, np.float32), u=np.empty(n, np.float32), v=np.empty(n, np.float32),
+                       prim=np.empty(n, np.int32), geom=np.empty(n, np.int32), instance=np.empty(n, np.int32),
+                       normal=np.empty((n, 3), np.float32))
         packet_loop.closest_loop()(self._embree.intersect16, self._handle, packet_loop.packet_buffer(), origin,
                                    direction, np.float32(tfar), hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                    hits.instance, hits.normal)
