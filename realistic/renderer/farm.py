@@ -22,7 +22,7 @@ import os
 import signal
 import threading
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from distributed import Client, Future, LocalCluster, wait
@@ -53,7 +53,7 @@ _lock = threading.Lock()
 
 @contextmanager
 def farm_client(workers: int | None = None, scheduler: str | None = None,
-                announce=print) -> Iterator[Client]:
+                announce: Callable[[str], object] = print) -> Iterator[Client]:
     """A client of the scheduler at ``scheduler``, or of a new LocalCluster of ``workers`` single-
     threaded worker processes (its dashboard link passed to ``announce``), closed on exit."""
     if scheduler:

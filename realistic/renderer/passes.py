@@ -25,6 +25,7 @@ from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -41,6 +42,9 @@ from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
 from realistic.scene.embree import prepare_tracing
 from realistic.scene.intersect import Intersector
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 __all__ = ["ThreadPasses", "render"]
 
@@ -281,7 +285,7 @@ def _finish(frame: _Frame, start: float, clock: StageClock) -> RenderResult:
     return result
 
 
-def _progress_bar(passes: int, done: int):
-    from tqdm import tqdm
+def _progress_bar(passes: int, done: int) -> tqdm:
+    from tqdm import tqdm  # imported by renders that show a bar only
 
     return tqdm(total=passes, initial=done, unit="pass", desc="render", leave=False, dynamic_ncols=True)
