@@ -203,12 +203,11 @@ def setting_values(camera: LensCamera) -> np.ndarray:
 
 
 #: PoCL 3.0 compiles a kernel apart for launches of fewer work items than this (its "smallgrid"
-#: variant) and for the others (measured: 32768 work items take the first, 65536 the second). Every
-#: launch of the lens kernel has at least this many work items (``launch_size``), so it is compiled
-#: once, not twice (0.5 s, uncached), at the cost of the padding rays in a small launch, which
-#: compute as much as real ones (65536 rays take about half a millisecond). The shading and EWA
-#: kernels are not padded: a pass's hits can number far fewer, and their padding cost more than a
-#: second compile saves (EWA on 20000 hits: 5.6 ms padded, 3.2 ms not).
+#: variant) and for the others (32768 work items take the first, 65536 the second). Every launch of
+#: the lens kernel has at least this many work items (``launch_size``), so it is compiled once, not
+#: twice, at the cost of the padding rays in a small launch, which compute as much as real ones. The
+#: shading and EWA kernels are not padded: a pass's hits can number far fewer, and their padding
+#: would cost more than a second compile saves.
 SMALL_GRID_LIMIT = 65536
 
 

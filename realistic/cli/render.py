@@ -139,7 +139,7 @@ def report_warnings(warnings: list[str]) -> None:
 def executor_for(args: argparse.Namespace, client: Any,
                  intersector: Intersector | None = None) -> PassExecutor:
     """Where the passes run: on the Dask ``client`` when there is one, else on ``--threads`` threads
-    here (pinned unless ``--no-pin-threads``), reusing ``intersector`` (an ``Intersector`` of the
+    here (pinned with ``--pin-threads``), reusing ``intersector`` (an ``Intersector`` of the
     job's scene) when one was built already."""
     if client is None:
         from realistic.renderer.passes import ThreadPasses

@@ -8,7 +8,7 @@ idles until the next load balance. Pinned, a worker always runs on its own CPU.
 Only threads this process creates are placed (the render's ``ThreadPoolExecutor``). The OpenCL
 runtime's thread pool belongs to PoCL, which documents one way to place it: ``POCL_AFFINITY=1`` in
 the environment before PoCL loads pins each of its threads to the CPU of its index, for the life of
-the process; a user who wants that sets it (docs/architecture.md says what it measured). Unpinned
+the process; a user who wants that sets it (``bench/render.py``'s "free" row measures pinning). Unpinned
 threads keep the process's CPU set. Where threads cannot be pinned (not Linux), or the process may
 run on a single CPU, placement is left to the system.
 """

@@ -55,6 +55,6 @@ def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
 def transform_vectors(matrix: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """Directions (N, 3) or (3,) through ``matrix`` (no translation; not renormalised).
 
-    einsum, not ``@``: a matrix product this large goes to OpenBLAS, whose threads then spin for
-    about 0.1 s on cores the render needs (2.6 % of a dragon render's CPU time); einsum runs here."""
+    einsum, not ``@``: a matrix product this large goes to OpenBLAS, whose threads then spin on
+    cores the render needs; einsum runs in this thread."""
     return np.einsum("ij,...j->...i", matrix[:3, :3], vectors)

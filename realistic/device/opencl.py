@@ -44,7 +44,7 @@ UNKNOWN_CPU_ADVICE = ("the OpenCL driver's compiler does not know this processor
 LOCAL_SIZE = 256
 #: Programs kept built, per device, source and options (lens programs: one per lens, sampling and
 #: filter; shading: one per scene variant; EWA: one): enough for a render, its autofocus and a bench's
-#: sample counts; older ones are dropped (the disk cache's binaries make rebuilding one about 5 ms).
+#: sample counts; older ones are dropped (the disk cache's binaries make rebuilding one cheap).
 PROGRAM_CACHE_SIZE = 16
 #: The disk cache's kind for program binaries.
 CACHE_KIND = "opencl-program"
@@ -196,10 +196,10 @@ def build_program(device: Device, source: str, name: str, options: tuple[str, ..
     The built binaries are kept in the disk cache (``realistic.core.disk_cache``), keyed by the
     device, its driver, the options and the source, and checked against that key and their digest
     before they are loaded (a binary under another program's key is rebuilt, never run): PoCL caches
-    its builds too, but a hit there still runs the preprocessor over the OpenCL headers, 50-80 ms per
-    program, where loading a binary takes 5 ms; a render builds three. Asking PoCL for a program's
-    binaries makes it compile every kernel once more, for any work-group size (about 0.5 s a
-    program), which pays only for a program built again and again: so the first build leaves a
+    its builds too, but a hit there still runs the preprocessor over the OpenCL headers, many times
+    what loading a binary costs, and a render builds three. Asking PoCL for a program's binaries
+    makes it compile every kernel once more, for any work-group size, which pays only for a program
+    built again and again: so the first build leaves a
     mark, and the second stores the binaries as the process exits (``store_built_binaries``), not
     before its render. (pyopencl's own binary cache, which it leaves off for PoCL, is not used: it
     fails with a KeyError on an unwritable folder and waits a minute on a lock file left by a killed
@@ -249,7 +249,7 @@ def _remember(key: str, program: cl.Program, built_before: bool) -> None:
 def store_built_binaries() -> None:
     """Store the binaries of the programs ``build_program`` built from source a second time. Run as
     the process exits, when the image is written: asking PoCL for binaries compiles every kernel
-    again (about 0.5 s a program). An interrupt or a driver's refusal leaves the rest unstored."""
+    again. An interrupt or a driver's refusal leaves the rest unstored."""
     if cl is None:
         return
     try:

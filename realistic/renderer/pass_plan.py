@@ -20,8 +20,9 @@ from realistic.camera.base import SampleBlock
 
 #: Camera plus shadow rays a pass traces by default. Memory in flight and a pass's fixed costs (kernel
 #: launches, embree calls, Python) both go with it: 2^19 rays is 2^18 samples of one camera ray and one
-#: shadow ray each, 104,857 at four light samples. Against 2^18: bench/render.py's dragon 4-16 % more
-#: samples/s, bench/scenes.py's dragons (four light samples) 5-10 % more, their peak RSS 216 -> 249 MiB.
+#: shadow ray each, 104,857 at four light samples: large enough that the fixed costs are small against
+#: the tracing, small enough that the rays in flight stay a modest part of a render's memory
+#: (bench/render.py and bench/scenes.py measure both sides).
 PASS_RAYS = 1 << 19
 
 

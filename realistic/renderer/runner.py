@@ -34,7 +34,7 @@ def morton_order(pixel: np.ndarray, width: int) -> np.ndarray:
 def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """points[rows] as a contiguous (len(rows), 3) float32 array. The kernel's rays are transposed
     views of its (rows, n) output: gathering from each coordinate's contiguous row straight into the
-    result's column takes 0.9 ms per 97k rays, ``np.take`` along the strided axis 1.4-1.6 ms."""
+    result's column reads memory in order, where ``np.take`` along the strided axis does not."""
     if points.strides[0] < points.strides[1] and points.dtype == np.float32:  # coordinates are contiguous rows
         gathered = np.empty((len(rows), points.shape[1]), np.float32)
         for column in range(points.shape[1]):

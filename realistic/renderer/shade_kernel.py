@@ -59,7 +59,7 @@ MAX_LIGHTS = 65535
 #: about as much again in embree's ray structs).
 MAX_SHADOW_ROWS = 1 << 19
 #: Light samples per launch at most: a work item's loop over them is unrolled when the program is
-#: built, and PoCL's build (uncached) grows by about 0.4 s per light sample unrolled.
+#: built, and PoCL's uncached build grows with every light sample unrolled.
 MAX_LAUNCH_SAMPLES = 4
 
 

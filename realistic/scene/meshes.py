@@ -32,7 +32,7 @@ from realistic.scene.mesh_diagnosis import no_triangles_message, unreadable_mess
 from realistic.scene.mesh_text_checks import check_ascii_stl, check_obj_text
 from realistic.scene.model import RGB, Mesh
 
-if TYPE_CHECKING:  # imported where used at run time (1.5 s with the scipy it imports); no cycle involved
+if TYPE_CHECKING:  # imported where used at run time (slow, with the scipy it imports); no cycle involved
     import trimesh
 
 FORMATS = ("obj", "ply", "stl", "glb", "gltf", "off")
@@ -109,7 +109,7 @@ def load_mesh_file(path: str | Path) -> list[MeshObject]:
                     raise UserError(f"{path}: no triangle has a non-zero area (every face has repeated or "
                                     "collinear vertices)")
             return objects
-    import trimesh  # about 1.5 s with the scipy it imports: only for what the fast path above does not read
+    import trimesh  # slow to import, with scipy: only for what the fast path above does not read
 
     if extension == "obj":
         check_obj_text(path)
@@ -152,7 +152,7 @@ _PLY_FOR_TRIMESH = ("red", "green", "blue", "alpha", "texcoord")
 
 def read_ply(path: Path) -> Mesh | None:
     """The mesh of a PLY file, ASCII or binary, read with plyfile (milliseconds for a scanner's binary
-    triangles, without the 1.5 s trimesh import): vertex x, y, z with optional normals (nx, ny, nz) and
+    triangles, without trimesh's slow import): vertex x, y, z with optional normals (nx, ny, nz) and
     uv, and faces triangulated as trimesh does. None for what plyfile cannot parse and for anything else
     (colours, per-face uv, other elements, no triangle), which trimesh then reads or diagnoses. The
     result is what trimesh gives for the same file (``tests/test_meshes_ply.py``)."""
