@@ -222,7 +222,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, args.resume)
         check_writable(checkpoint.path)
     job = RenderJob(inputs.scene, tuple(cameras), args.backend, args.seed, args.cl_device, inputs.light_samples,
-                    args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep)
+                    args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep,
+                    keep_images=sweep is None)  # a sequence's frames are written as they complete
     written: dict[int, float] = {}
 
     def save_frame(result: RenderResult) -> None:

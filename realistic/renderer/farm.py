@@ -211,12 +211,15 @@ class DaskPasses:
         # a task whose definition holds the scene, not scattered data: if the worker holding it dies,
         # the scheduler makes it again from the definition instead of cancelling every pass
         self.scene = self.client.submit(_scene, described, key=f"scene-{self.scene_key}", pure=False)
-        self.runner_keys = [content_hash((self.scene_key, camera, self.settings)) for camera in job.cameras]
+        self.runner_keys: dict[int, str] = {}  # frame -> its runner's key, as its frame starts
         threads = sum(self.client.nthreads().values())
         self.capacity = max(2, 2 * threads)  # tasks submitted ahead: every worker busy, one queued each
         self.passes_per_task = max(1, (self.task_samples or DEFAULT_TASK_SAMPLES) // job.pass_size)
 
     def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]) -> Future:
+        """A task of frame ``frame``'s passes; its camera is prepared on the worker (``_runner``)."""
+        if frame not in self.runner_keys:
+            self.runner_keys = {frame: content_hash((self.scene_key, self.cameras[frame], self.settings))}
         return self.client.submit(run_task, self.scene, self.scene_key, self.cameras[frame], self.runner_keys[frame],
                                   self.settings, passes, pure=False)
 

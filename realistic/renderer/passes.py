@@ -11,6 +11,11 @@ pass sums to the film in pass-index order (``film.PassFilm``), so the image is b
 whatever ran where. Ctrl-C stops submitting passes, lets the passes in flight finish, and returns
 what has accumulated (``RenderResult.interrupted``). With a checkpoint (``job.Checkpointing``) the
 film is saved there every ``every_seconds`` and on interrupt, and ``resume`` continues from it.
+
+A sequence (several cameras, e.g. ``--sweep``) streams: a frame's camera is prepared (its exit-pupil
+table) and its film allocated when its first pass is submitted, its film is released once it is
+complete and handed to ``observer.on_frame``, and with ``job.keep_images`` False its image is not
+kept either, so a long sequence starts at once and holds a frame or two at a time.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ from __future__ import annotations
 import queue
 import sys
 import time
-from collections import deque
+from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -38,6 +43,10 @@ from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 
 __all__ = ["ThreadPasses", "render"]
+
+#: The image of a result not (or no longer) held: a frame streamed away (``RenderJob.keep_images``).
+_EMPTY = np.zeros((0, 0, 3), np.float32)
+_EMPTY.flags.writeable = False
 
 
 class ThreadPasses:
@@ -73,11 +82,16 @@ class ThreadPasses:
         self.finished: queue.SimpleQueue[Future] = queue.SimpleQueue()  # futures, as they finish
 
     def runner(self, frame: int) -> PassRunner:
+        """Frame ``frame``'s runner, its camera prepared now. ``render`` submits frames in order, so
+        the runners of earlier frames get no more tasks: they are dropped (tasks running keep theirs)."""
         if frame not in self.runners:
+            camera = self.job.cameras[frame]
+            with self.clock("exit pupil"):  # the lens's sampling tables (``Camera.prepare``)
+                camera.prepare()
             with self.clock("setup"):  # ray generator, BVH build, shading tables
                 self.intersector = self.intersector or Intersector(self.job.scene)
-                self.runners[frame] = PassRunner(self.job.scene, self.job.cameras[frame], self.job.settings,
-                                                 self.clock, self.intersector)
+                self.runners = {frame: PassRunner(self.job.scene, camera, self.job.settings, self.clock,
+                                                  self.intersector)}
         return self.runners[frame]
 
     def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]) -> Future:
@@ -113,16 +127,23 @@ class ThreadPasses:
 
 @dataclass
 class _Frame:
-    """One image of a job: its plan, film and statistics."""
+    """One image of a job: its plan, statistics, and its film from its first pass until it is
+    finished (``_finish``)."""
 
     camera: Camera
     plan: list[SampleBlock]
-    film: PassFilm
     result: RenderResult
+    film: PassFilm | None = None
 
     @property
     def complete(self) -> bool:
-        return self.film.next_pass == len(self.plan)
+        return self.result.passes_done == len(self.plan)
+
+    def started(self) -> PassFilm:
+        """The film, allocated on first use."""
+        if self.film is None:
+            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp), self.plan)
+        return self.film
 
 
 def render(job: RenderJob, executor: PassExecutor | None = None,
@@ -149,54 +170,64 @@ def render(job: RenderJob, executor: PassExecutor | None = None,
     results = []
     for frame in frames:
         frame.result.interrupted = interrupted or not frame.complete
-        results.append(_finish(frame, start, clock))
+        results.append(_finish(frame, start, clock, job.keep_images))
     return results
 
 
-def _frames(job: RenderJob, clock: StageClock) -> tuple[list[_Frame], RenderIdentity | None]:
-    """Each camera's plan, film and result (the first one's from its checkpoint when resuming), and
-    the identity its checkpoint carries."""
-    with clock("exit pupil"):  # the lens's sampling tables (``Camera.prepare``)
-        for camera in job.cameras:
-            camera.prepare()
+def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
+    """Each camera's plan and result (the first one's film from its checkpoint when resuming), and
+    the identity its checkpoint carries. Cameras are prepared as their frames start (``ThreadPasses.
+    runner``, ``farm._runner``), not here: a long sweep would build every exit-pupil table first."""
+    plans: dict[tuple[int, int], list[SampleBlock]] = {}  # the frames of a sweep share one plan
     frames = []
     for index, camera in enumerate(job.cameras):
-        plan = plan_passes(camera.width * camera.height, camera.spp, job.pass_size)
-        result = RenderResult(np.zeros((camera.height, camera.width, 3), np.float32), 0, camera.sample_count,
-                              0, 0, 0.0, False, passes_total=len(plan), job=job, frame=index)
-        frames.append(_Frame(camera, plan, PassFilm(Film(camera.width, camera.height, camera.spp), plan), result))
+        key = (camera.width * camera.height, camera.spp)
+        if key not in plans:
+            plans[key] = plan_passes(*key, job.pass_size)
+        plan = plans[key]
+        result = RenderResult(_EMPTY, 0, camera.sample_count, 0, 0, 0.0, False, passes_total=len(plan), job=job,
+                              frame=index)
+        frames.append(_Frame(camera, plan, result))
     if job.checkpoint is None:
         return frames, None
     identity = RenderIdentity.of(job.scene, job.cameras[0], job.seed, job.pass_size, job.backend,
                                  job.settings.light_samples)
+    frame = frames[0]
     if job.checkpoint.resume:
-        frame = frames[0]
         frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan)
         frame.result.samples_done = int(frame.film.film.samples.sum())
         frame.result.passes_done = frame.film.passes_taken
+    frame.started()  # saved on interrupt even before its first pass
     return frames, identity
+
+
+def _tasks(frames: list[_Frame], passes_per_task: int) -> Iterator[tuple[int, list[int]]]:
+    """(frame, plan indices) of every task still to run, frame by frame, made as they are taken."""
+    for index, frame in enumerate(frames):
+        todo = [i for i in range(len(frame.plan)) if frame.film is None or not frame.film.has(i)]
+        for lo in range(0, len(todo), passes_per_task):
+            yield index, todo[lo:lo + passes_per_task]
 
 
 def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock: StageClock,
          start: float) -> tuple[list[_Frame], bool]:
     """The frames with every pass the executor ran added, and whether an interrupt stopped them."""
-    frames, identity = _frames(job, clock)
+    frames, identity = _frames(job)
     checkpoint = job.checkpoint
-    tasks: deque[tuple[int, list[int]]] = deque()
-    for index, frame in enumerate(frames):
-        todo = [i for i in range(len(frame.plan)) if not frame.film.has(i)]
-        for lo in range(0, len(todo), executor.passes_per_task):
-            tasks.append((index, todo[lo:lo + executor.passes_per_task]))
+    tasks = _tasks(frames, executor.passes_per_task)
     bar = _progress_bar(sum(f.result.passes_total for f in frames), sum(f.result.passes_done for f in frames)) \
         if observer.progress else None
     state = {"checkpoint": time.monotonic(), "preview": time.monotonic()}
 
     def take(index: int, results: list[PassResult]) -> None:
         frame = frames[index]
+        film = frame.film
+        if film is None:
+            return  # a retried task's duplicate of a frame already finished
         for done in results:
-            if frame.film.has(done.index):
+            if film.has(done.index):
                 continue  # a retried task's duplicate
-            frame.film.add(done.index, done.first_pixel, done.sums)
+            film.add(done.index, done.first_pixel, done.sums)
             frame.result.samples_done += done.count
             frame.result.primary_rays += done.primary_rays
             frame.result.shadow_rays += done.shadow_rays
@@ -208,30 +239,39 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
                 bar.update(1)
         if observer.on_pass is not None:
             observer.on_pass(frame.result)
-        if frame.complete and observer.on_frame is not None:
-            observer.on_frame(_finish(frame, start, clock))
+        if frame.complete and frame.film is not None:
+            finished = _finish(frame, start, clock, True)  # the film released
+            if observer.on_frame is not None:
+                observer.on_frame(finished)
+            if not job.keep_images:
+                finished.image = _EMPTY
 
     def periodic() -> None:
         now = time.monotonic()
         if checkpoint is not None and identity is not None and checkpoint.every_seconds is not None \
                 and now - state["checkpoint"] >= checkpoint.every_seconds:
-            save_checkpoint(checkpoint.path, identity, frames[0].film)
+            save_checkpoint(checkpoint.path, identity, frames[0].started())
             state["checkpoint"] = now
         if observer.preview is not None and observer.preview_every is not None \
                 and now - state["preview"] >= observer.preview_every:
-            observer.preview(frames[_current(frames)].film.image())
+            film = frames[_current(frames)].film
+            if film is not None:
+                observer.preview(film.image())
             state["preview"] = now
 
     pending: dict[TaskHandle, int] = {}  # task -> frame
     in_flight: dict[TaskHandle, int] = {}  # task -> passes it holds
     interrupted = False
     try:
-        while tasks or pending:
-            while tasks and len(pending) < executor.capacity:
-                index, chunk = tasks.popleft()
+        while True:
+            while len(pending) < executor.capacity and (next_task := next(tasks, None)) is not None:
+                index, chunk = next_task
+                frames[index].started()
                 plan = frames[index].plan
                 task = executor.submit(index, [(i, plan[i]) for i in chunk])
                 pending[task], in_flight[task] = index, len(chunk)
+            if not pending:
+                break
             for task in executor.wait_first(set(pending)):
                 in_flight.pop(task)
                 take(pending.pop(task), task.result())
@@ -244,7 +284,7 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
         for index, results in executor.finish_in_flight(pending):
             take(index, results)
         if checkpoint is not None and identity is not None:
-            save_checkpoint(checkpoint.path, identity, frames[0].film)
+            save_checkpoint(checkpoint.path, identity, frames[0].started())
     if bar is not None:
         bar.close()
     if checkpoint is not None and not interrupted and frames[0].complete:
@@ -257,9 +297,16 @@ def _current(frames: list[_Frame]) -> int:
     return next((i for i, frame in enumerate(frames) if not frame.complete), len(frames) - 1)
 
 
-def _finish(frame: _Frame, start: float, clock: StageClock) -> RenderResult:
+def _finish(frame: _Frame, start: float, clock: StageClock, keep_images: bool) -> RenderResult:
+    """The frame's result with its image and times; a complete frame's film is released. A frame
+    never started gets a black image when ``keep_images`` (else it stays empty)."""
     result = frame.result
-    result.image = frame.film.image()
+    if frame.film is not None:
+        result.image = frame.film.image()
+        if frame.complete:
+            frame.film = None
+    elif result.image is _EMPTY and keep_images and not frame.complete:
+        result.image = np.zeros((frame.camera.height, frame.camera.width, 3), np.float32)
     result.seconds = time.perf_counter() - start
     result.stage_seconds = dict(clock.seconds)
     return result
