@@ -69,8 +69,11 @@ class ThreadPasses:
         self.passes_per_task = 1
 
     def open(self, job: RenderJob, clock: StageClock) -> None:
-        for camera in job.cameras:
-            check_memory(job.scene, camera, job.pass_size, self.threads, job.max_memory_bytes)
+        frames = len(job.cameras)
+        alike = {(c.width, c.height, c.spp, c.rays_per_sample): c for c in job.cameras}  # a sweep's are alike
+        for camera in alike.values():
+            check_memory(job.scene, camera, job.pass_size, self.threads, job.max_memory_bytes, frames,
+                         frames if job.keep_images else 0)
         self.job, self.clock = job, clock
         self.intersector = self.given_intersector
         self.runners: dict[int, PassRunner] = {}
@@ -163,6 +166,8 @@ def render(job: RenderJob, executor: PassExecutor | None = None,
     executor.open(job, clock)  # refuses what will not fit before any work
     finished = False
     try:
+        with clock("exit pupil"):  # the first frame's lens tables, as set-up: an interrupt here writes nothing
+            job.cameras[0].prepare()  # (later frames' as they start: ``ThreadPasses.runner``, ``farm._runner``)
         frames, interrupted = _run(job, executor, observer, clock, start)
         finished = True
     finally:
@@ -254,9 +259,10 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
             state["checkpoint"] = now
         if observer.preview is not None and observer.preview_every is not None \
                 and now - state["preview"] >= observer.preview_every:
-            film = frames[_current(frames)].film
-            if film is not None:
-                observer.preview(film.image())
+            frame = frames[_current(frames)]  # its film, or once finished its image (empty if not kept)
+            image = frame.film.image() if frame.film is not None else frame.result.image
+            if image.size:
+                observer.preview(image)
             state["preview"] = now
 
     pending: dict[TaskHandle, int] = {}  # task -> frame
