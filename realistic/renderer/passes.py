@@ -51,7 +51,7 @@ _EMPTY.flags.writeable = False
 
 class ThreadPasses:
     """Passes on ``threads`` threads of this process (None: ``default_threads()``), one pass per task,
-    one runner per camera (built on first use), all sharing one embree scene: ``intersector`` when
+    one runner per frame (built as the frame starts), all sharing one embree scene: ``intersector`` when
     given (one already built for the scene of the jobs it runs, e.g. by autofocus), else one built
     on first use in each job.
     ``pin_threads``: each worker on its own CPU and the OpenCL runtime's pool spread over them while
