@@ -152,13 +152,14 @@ def test_cli_sweep_writes_numbered_frames(tmp_path, capsys):
     assert [read_exr(tmp_path / f"f_000{i}.exr")[1]["frame"] for i in (1, 2)] == [1, 2]
 
 
-def test_an_unreachable_scheduler_is_one_line(capsys, monkeypatch):
+def test_an_unreachable_scheduler_is_one_line_after_the_plain_tcp_warning(capsys, monkeypatch):
     from realistic.renderer import farm
 
     monkeypatch.setattr(farm, "CONNECT_TIMEOUT", "1s")
     assert main(["render", "--backend", "numpy", "--res", "8x8", "--scheduler", "tcp://127.0.0.1:9"]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err
+    warning, error = capsys.readouterr().err.splitlines()
+    assert "tcp://127.0.0.1:9 is neither encrypted nor authenticated: whoever runs that scheduler" in warning
+    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in error
 
 
 def test_help_and_plain_renders_do_not_import_dask(tmp_path):

@@ -71,3 +71,63 @@ def test_frames_are_numbered_from_one_beside_the_output():
     assert frame_path(Path("shots/out.exr"), 0) == Path("shots/out_0001.exr")
     assert frame_path(Path("out.exr"), 23) == Path("out_0024.exr")
     assert math.isclose(parse_sweep("FOCUS=2:2:1").values[0], 2.0)
+
+
+def _counting_prepares(monkeypatch) -> list[float]:
+    """Patch ``LensCamera.prepare`` to record each camera's film distance as it is prepared."""
+    prepared: list[float] = []
+    original = LensCamera.prepare
+
+    def prepare(camera: LensCamera) -> None:
+        prepared.append(camera.film_distance_mm)
+        original(camera)
+
+    monkeypatch.setattr(LensCamera, "prepare", prepare)
+    return prepared
+
+
+def test_a_sweep_prepares_each_frame_as_it_starts_and_streams_its_frames(monkeypatch):
+    """``--sweep focus=1:5:1000`` built every exit-pupil table before the first frame (issue 32)."""
+    from realistic.renderer.job import RenderJob, RenderObserver
+    from realistic.renderer.passes import ThreadPasses, render
+    from realistic.scene.staging import default_setup
+
+    setup = default_setup()
+    camera = LensCamera.looking_at(load_lens("dgauss"), setup.eye, setup.target, None, 43.27, 8, 6, 1)
+    cameras = sweep_cameras(camera, parse_sweep("focus=1:5:4"))
+    prepared = _counting_prepares(monkeypatch)
+    seen: list[tuple[int, int, int]] = []
+
+    def on_frame(result) -> None:
+        seen.append((result.frame, len(set(prepared)), result.image.shape[0]))
+
+    results = render(RenderJob(setup.scene, cameras, "numpy", keep_images=False), ThreadPasses(1),
+                     RenderObserver(on_frame=on_frame))
+    assert seen == [(0, 1, 6), (1, 2, 6), (2, 3, 6), (3, 4, 6)]  # each frame handed on before the next is prepared
+    assert sorted(set(prepared)) == sorted(c.film_distance_mm for c in cameras)
+    assert all(r.image.size == 0 and r.samples_done == r.samples_total for r in results)  # not kept
+
+
+def test_the_cli_writes_each_sweep_frame_before_preparing_the_next(tmp_path, monkeypatch, capsys):
+    from realistic.cli import main
+
+    prepared = _counting_prepares(monkeypatch)
+    written: dict[str, int] = {}
+    import realistic.renderer.output as output
+
+    original_save = output.save
+
+    def save(result, path, *args, **kwargs):
+        written[Path(path).name] = len(set(prepared))
+        return original_save(result, path, *args, **kwargs)
+
+    monkeypatch.setattr(output, "save", save)
+    assert main(["render", "--backend", "numpy", "--res", "8x6", "--spp", "1", "--threads", "1",
+                 "--sweep", "focus=1:5:3", "--out", str(tmp_path / "s.exr")]) == 0
+    assert written == {"s_0001.exr": 1, "s_0002.exr": 2, "s_0003.exr": 3}
+
+
+def test_a_sweep_longer_than_the_bound_is_refused_in_one_line():
+    with pytest.raises(UserError, match=r"COUNT must be between 1 and 10000, got 10001"):
+        parse_sweep("focus=1:5:10001")
+    assert len(parse_sweep("focus=1:5:1000").values) == 1000

@@ -7,7 +7,6 @@ The renderer is imported when the command runs, so ``--help`` and the lens comma
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -52,9 +51,11 @@ it is sRGB.
 
 Passes are ordered so that any prefix of them is spread over the whole frame. They run on threads
 in this process, one per core unless --threads says how many; --workers N renders
-on N worker processes of a Dask LocalCluster on this machine, --scheduler (or
-DASK_SCHEDULER_ADDRESS) on an existing Dask cluster; the image is bit-identical to an in-process
-render. --sweep renders a sequence (OUT_0001.exr, ...) as one job. Renders save a checkpoint
+on N worker processes of a Dask LocalCluster on this machine (at most one per CPU), --scheduler
+on an existing Dask cluster (never one named only by DASK_SCHEDULER_ADDRESS: a scheduler and its
+workers can run code as you; tls:// addresses with --tls-ca-file, --tls-cert and --tls-key
+authenticate it); the image is bit-identical to an in-process render. --sweep renders a sequence
+(OUT_0001.exr, ...) as one job, each frame written as it completes. Renders save a checkpoint
 (OUT.exr.partial) every --checkpoint-every seconds and when interrupted; --resume continues one.
 docs/farm.md has the details.
 """
@@ -105,29 +106,70 @@ def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
     farm.add_argument("--threads", type=checked(int, validation.threads), metavar="N",
                       help="render on N threads in this process (default: one per core, "
                            f"{default_threads()} here)")
-    farm.add_argument("--workers", type=checked(int, validation.workers), metavar="N",
-                      help="render on a Dask LocalCluster of N worker processes on this machine (default: threads "
-                           "in this process)")
+    farm.add_argument("--workers", type=checked(int, local_workers), metavar="N",
+                      help="render on a Dask LocalCluster of N worker processes on this machine, at most one per "
+                           f"CPU ({default_threads()} here), listening on 127.0.0.1 only (default: threads in this "
+                           "process)")
     farm.add_argument("--scheduler", metavar="ADDRESS",
-                      help="render on the Dask cluster whose scheduler is at ADDRESS, e.g. tcp://host:8786 "
-                           "(default: $DASK_SCHEDULER_ADDRESS when set)")
+                      help="render on the Dask cluster whose scheduler is at ADDRESS, e.g. tls://host:8786 with the "
+                           "--tls options, or tcp://host:8786 (unencrypted, unauthenticated); its scheduler and "
+                           "workers can run code as you, so name only a cluster you trust (DASK_SCHEDULER_ADDRESS "
+                           "is never used)")
+    tls = parser.add_argument_group("TLS for --scheduler tls://...", "PEM files, as dask's Security takes them")
+    tls.add_argument("--tls-ca-file", metavar="FILE", help="the CA certificate that signed the cluster's certificates")
+    tls.add_argument("--tls-cert", metavar="FILE", help="this client's certificate")
+    tls.add_argument("--tls-key", metavar="FILE", help="this client's private key")
     parser.add_argument("--pin-threads", action="store_true",
                         help="keep each of this process's render threads on one CPU (Linux; default: the system "
                              "places them)")
 
 
+def local_workers(count: int) -> int:
+    """``--workers``: 1 to one per CPU this process may run on (``farm.check_local_workers``; dask
+    is imported only when the option is given)."""
+    from realistic.renderer.farm import check_local_workers
+
+    return check_local_workers(count)
+
+
+def farm_security(args: argparse.Namespace) -> Any:
+    """The ``distributed.security.Security`` that ``--tls-ca-file``, ``--tls-cert`` and ``--tls-key``
+    make (None without them), checked against ``--scheduler`` before any work (one-line UserErrors)."""
+    files = (args.tls_ca_file, args.tls_cert, args.tls_key)
+    tls = bool(args.scheduler) and args.scheduler.lower().startswith("tls://")
+    if not any(files):
+        if tls:
+            raise UserError(f"--scheduler {args.scheduler}: a tls:// scheduler needs --tls-ca-file, --tls-cert and "
+                            "--tls-key")
+        return None
+    if not all(files):
+        raise UserError("--tls-ca-file, --tls-cert and --tls-key go together")
+    if not tls:
+        raise UserError("--tls-ca-file, --tls-cert and --tls-key are for a --scheduler tls://... address")
+    from realistic.renderer.farm import tls_security
+
+    return tls_security(*files)
+
+
 @contextmanager
 def farm_client(args: argparse.Namespace) -> Iterator[object | None]:
-    """The Dask client that ``--workers`` / ``--scheduler`` / ``$DASK_SCHEDULER_ADDRESS`` ask for, or
-    None (render on threads); dask is imported only here, and only when one is asked for."""
-    place_named = args.workers or args.threads  # the command line says where to render: not the environment
-    scheduler = args.scheduler or (None if place_named else os.environ.get("DASK_SCHEDULER_ADDRESS") or None)
-    if not args.workers and not scheduler:
+    """The Dask client that ``--workers`` or ``--scheduler`` asks for, or None (render on threads);
+    dask is imported only here, and only when one is asked for. Only the command line names a
+    cluster: ``DASK_SCHEDULER_ADDRESS`` in the environment is never used (its scheduler and workers
+    could run code as the user)."""
+    if not args.workers and not args.scheduler:
         yield None
         return
+    security = farm_security(args)
     from realistic.renderer.farm import farm_client as open_client
 
-    with open_client(args.workers, scheduler, lambda line: print(f"realistic: {line}", file=sys.stderr)) as client:
+    def announce(line: str) -> None:
+        print(f"realistic: {line}", file=sys.stderr)
+
+    if args.scheduler and security is None:
+        announce(f"{args.scheduler} is neither encrypted nor authenticated: whoever runs that scheduler or its "
+                 "workers can run code as you (a tls:// address with the --tls options authenticates it)")
+    with open_client(args.workers, args.scheduler, announce, security) as client:
         yield client
 
 
@@ -161,6 +203,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise UserError(f"{args.out}: the output must be an .exr file (the PNG preview goes beside it)")
     if args.out is not None and not args.sweep and not args.resume:
         refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
+    farm_security(args)  # TLS options checked before any work
     sweep = parse_sweep(args.sweep) if args.sweep else None
     if sweep is not None and args.resume:
         raise UserError("--resume continues one image, not a --sweep sequence")
@@ -181,7 +224,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, args.resume)
         check_writable(checkpoint.path)
     job = RenderJob(inputs.scene, tuple(cameras), args.backend, args.seed, args.cl_device, inputs.light_samples,
-                    args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep)
+                    args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep,
+                    keep_images=sweep is None)  # a sequence's frames are written as they complete
     written: dict[int, float] = {}
 
     def save_frame(result: RenderResult) -> None:

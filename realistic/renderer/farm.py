@@ -26,17 +26,21 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from distributed import Client, Future, LocalCluster, wait
+from distributed.security import Security
 
 from realistic.camera.base import Camera, SampleBlock
+from realistic.core import validation
 from realistic.errors import UserError
 from realistic.renderer.checkpoint import content_hash
 from realistic.renderer.job import PassResult, PassSettings, RenderJob
 from realistic.renderer.runner import PassRunner
+from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import Scene
 
-#: Samples per task by default: 4 passes of 2^18, 0.5-1 s on an idle core (docs/farm.md).
+#: Samples per task by default: 4 passes of 2^18, long enough that the scheduler's cost per task is small
+#: against its work (docs/farm.md).
 DEFAULT_TASK_SAMPLES = 1 << 20
 #: Runners (camera + integrator) and BVHs each worker keeps, most recently used first.
 RUNNERS_KEPT = 8
@@ -45,6 +49,8 @@ SCENES_KEPT = 2
 LOCAL_WORKER = "REALISTIC_LOCAL_WORKER"
 #: How long a client waits to reach a scheduler before the render is refused.
 CONNECT_TIMEOUT = "15s"
+#: Where a LocalCluster started here listens (scheduler, workers, dashboard) unless asked otherwise.
+LOOPBACK = "127.0.0.1"
 
 _runners: OrderedDict[str, PassRunner] = OrderedDict()
 _scenes: OrderedDict[str, Intersector] = OrderedDict()
@@ -52,13 +58,23 @@ _lock = threading.Lock()
 
 
 @contextmanager
-def farm_client(workers: int | None = None, scheduler: str | None = None,
-                announce: Callable[[str], object] = print) -> Iterator[Client]:
+def farm_client(workers: int | None = None, scheduler: str | None = None, announce: Callable[[str], object] = print,
+                security: Security | None = None, host: str = LOOPBACK) -> Iterator[Client]:
     """A client of the scheduler at ``scheduler``, or of a new LocalCluster of ``workers`` single-
-    threaded worker processes (its dashboard link passed to ``announce``), closed on exit."""
+    threaded worker processes (its dashboard link passed to ``announce``), closed on exit.
+
+    Only what the caller names is used: never ``DASK_SCHEDULER_ADDRESS`` or another address from
+    the environment, since a scheduler and its workers can run code as this user (the client
+    unpickles their results). A ``tls://`` scheduler needs ``security`` (a ``distributed.security.
+    Security`` with the CA that signed the cluster's certificates and this client's certificate and
+    key), and ``security`` needs a ``tls://`` scheduler. A LocalCluster's scheduler, workers and
+    dashboard listen on ``host`` only (loopback unless asked), and it has at most as many
+    workers as ``check_local_workers`` allows.
+    """
     if scheduler:
+        _check_scheme(scheduler, security)
         try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT, security=security)
         except (OSError, TimeoutError, ValueError) as err:
             raise UserError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
         try:
@@ -66,9 +82,11 @@ def farm_client(workers: int | None = None, scheduler: str | None = None,
         finally:
             client.close()
         return
+    if workers is not None:
+        check_local_workers(workers)
     with _terminal_signals_ignored():  # worker processes started now inherit the ignoring
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR, env={LOCAL_WORKER: "1"})
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host=host,
+                               dashboard_address=f"{host}:0", silence_logs=logging.ERROR, env={LOCAL_WORKER: "1"})
         client = Client(cluster)
     dashboard = (f"dashboard {client.dashboard_link}" if importlib.util.find_spec("bokeh")
                  else f"dashboard at {client.dashboard_link} once bokeh is installed (the farm extra brings it)")
@@ -78,6 +96,38 @@ def farm_client(workers: int | None = None, scheduler: str | None = None,
     finally:
         client.close()
         cluster.close()
+
+
+def check_local_workers(workers: int) -> int:
+    """``workers`` if a LocalCluster here may have that many, else a one-line UserError: at most one
+    single-threaded worker process per CPU this process may run on (``default_threads``); more
+    only compete for the same CPUs, each with its own interpreter, embree scene and kernels, and
+    starting hundreds takes minutes."""
+    validation.workers(workers)
+    limit = default_threads()
+    if workers > limit:
+        raise UserError(f"{workers} workers: a LocalCluster here has at most {limit} (one per CPU this process "
+                        "may run on); for more, start a Dask cluster on more machines and use --scheduler")
+    return workers
+
+
+def tls_security(ca_file: str, cert: str, key: str) -> Security:
+    """Dask's TLS security for a client: the CA file that signed the cluster's certificates, and this
+    client's certificate and private key (PEM files); encryption required."""
+    for name, path in (("--tls-ca-file", ca_file), ("--tls-cert", cert), ("--tls-key", key)):
+        if not os.path.isfile(path):
+            raise UserError(f"{name} {path}: not a readable file")
+    return Security(tls_ca_file=ca_file, tls_client_cert=cert, tls_client_key=key, require_encryption=True)
+
+
+def _check_scheme(scheduler: str, security: Security | None) -> None:
+    """A ``tls://`` address with security, any other without (one-line UserErrors)."""
+    tls = scheduler.lower().startswith("tls://")
+    if tls and security is None:
+        raise UserError(f"{scheduler}: a tls:// scheduler needs --tls-ca-file, --tls-cert and --tls-key (in the API, "
+                        "a distributed.security.Security)")
+    if security is not None and not tls:
+        raise UserError(f"{scheduler}: TLS certificates are used with a tls:// scheduler address only")
 
 
 @contextmanager
@@ -162,12 +212,15 @@ class DaskPasses:
         # a task whose definition holds the scene, not scattered data: if the worker holding it dies,
         # the scheduler makes it again from the definition instead of cancelling every pass
         self.scene = self.client.submit(_scene, described, key=f"scene-{self.scene_key}", pure=False)
-        self.runner_keys = [content_hash((self.scene_key, camera, self.settings)) for camera in job.cameras]
+        self.runner_keys: dict[int, str] = {}  # frame -> its runner's key, as its frame starts
         threads = sum(self.client.nthreads().values())
         self.capacity = max(2, 2 * threads)  # tasks submitted ahead: every worker busy, one queued each
         self.passes_per_task = max(1, (self.task_samples or DEFAULT_TASK_SAMPLES) // job.pass_size)
 
     def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]) -> Future:
+        """A task of frame ``frame``'s passes; its camera is prepared on the worker (``_runner``)."""
+        if frame not in self.runner_keys:
+            self.runner_keys = {frame: content_hash((self.scene_key, self.cameras[frame], self.settings))}
         return self.client.submit(run_task, self.scene, self.scene_key, self.cameras[frame], self.runner_keys[frame],
                                   self.settings, passes, pure=False)
 

@@ -73,6 +73,9 @@ class RenderJob:
     max_memory_bytes: int | None = None  # refuse a render estimated above this (None: what is available)
     checkpoint: Checkpointing | None = None  # single images only
     sweep: str | None = None  # the sweep that made the cameras, as the image header names it
+    # False: a complete frame's image is dropped once ``RenderObserver.on_frame`` has had it (its
+    # result comes back with a 0x0 image), so a long sequence holds no finished frames
+    keep_images: bool = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", tuple(self.cameras))

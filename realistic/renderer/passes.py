@@ -14,6 +14,11 @@ film is saved there every ``every_seconds``, on interrupt and when the passes ar
 fails, on a full disk say, is reported and the render goes on), and ``resume`` continues from it;
 ``output.save`` removes it once the complete image is written, and a render without ``resume``
 refuses to replace one.
+
+A sequence (several cameras, e.g. ``--sweep``) streams: a frame's camera is prepared (its exit-pupil
+table) and its film allocated when its first pass is submitted, its film is released once it is
+complete and handed to ``observer.on_frame``, and with ``job.keep_images`` False its image is not
+kept either, so a long sequence starts at once and holds a frame or two at a time.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from __future__ import annotations
 import queue
 import sys
 import time
-from collections import deque
+from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,10 +53,14 @@ if TYPE_CHECKING:
 
 __all__ = ["ThreadPasses", "render"]
 
+#: The image of a result not (or no longer) held: a frame streamed away (``RenderJob.keep_images``).
+_EMPTY = np.zeros((0, 0, 3), np.float32)
+_EMPTY.flags.writeable = False
+
 
 class ThreadPasses:
     """Passes on ``threads`` threads of this process (None: ``default_threads()``), one pass per task,
-    one runner per camera (built on first use), all sharing one embree scene: ``intersector`` when
+    one runner per frame (built as the frame starts), all sharing one embree scene: ``intersector`` when
     given (one already built for the scene of the jobs it runs, e.g. by autofocus), else one built
     on first use in each job.
     ``pin_threads``: each worker on its own CPU (Linux, ``core.affinity``; threads this process did
@@ -70,8 +79,11 @@ class ThreadPasses:
         self.passes_per_task = 1
 
     def open(self, job: RenderJob, clock: StageClock) -> None:
-        for camera in job.cameras:
-            check_memory(job.scene, camera, job.pass_size, self.threads, job.max_memory_bytes)
+        frames = len(job.cameras)
+        alike = {(c.width, c.height, c.spp, c.rays_per_sample): c for c in job.cameras}  # a sweep's are alike
+        for camera in alike.values():
+            check_memory(job.scene, camera, job.pass_size, self.threads, job.max_memory_bytes, frames,
+                         frames if job.keep_images else 0)
         self.job, self.clock = job, clock
         prepare_tracing()  # numba's loops load while the cameras and kernels are prepared
         self.intersector = self.given_intersector
@@ -81,11 +93,16 @@ class ThreadPasses:
         self.finished: queue.SimpleQueue[Future] = queue.SimpleQueue()  # futures, as they finish
 
     def runner(self, frame: int) -> PassRunner:
+        """Frame ``frame``'s runner, its camera prepared now. ``render`` submits frames in order, so
+        the runners of earlier frames get no more tasks: they are dropped (tasks running keep theirs)."""
         if frame not in self.runners:
+            camera = self.job.cameras[frame]
+            with self.clock("exit pupil"):  # the lens's sampling tables (``Camera.prepare``)
+                camera.prepare()
             with self.clock("setup"):  # ray generator, BVH build, shading tables
                 self.intersector = self.intersector or Intersector(self.job.scene)
-                self.runners[frame] = PassRunner(self.job.scene, self.job.cameras[frame], self.job.settings,
-                                                 self.clock, self.intersector)
+                self.runners = {frame: PassRunner(self.job.scene, camera, self.job.settings, self.clock,
+                                                  self.intersector)}
         return self.runners[frame]
 
     def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]) -> Future:
@@ -120,16 +137,23 @@ class ThreadPasses:
 
 @dataclass
 class _Frame:
-    """One image of a job: its plan, film and statistics."""
+    """One image of a job: its plan, statistics, and its film from its first pass until it is
+    finished (``_finish``)."""
 
     camera: Camera
     plan: list[SampleBlock]
-    film: PassFilm
     result: RenderResult
+    film: PassFilm | None = None
 
     @property
     def complete(self) -> bool:
-        return self.film.next_pass == len(self.plan)
+        return self.result.passes_done == len(self.plan)
+
+    def started(self) -> PassFilm:
+        """The film, allocated on first use."""
+        if self.film is None:
+            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp), self.plan)
+        return self.film
 
 
 def render(job: RenderJob, executor: PassExecutor | None = None,
@@ -152,6 +176,8 @@ def render(job: RenderJob, executor: PassExecutor | None = None,
     executor.open(job, clock)  # refuses what will not fit before any work
     finished = False
     try:
+        with clock("exit pupil"):  # the first frame's lens tables, as set-up: an interrupt here writes nothing
+            job.cameras[0].prepare()  # (later frames' as they start: ``ThreadPasses.runner``, ``farm._runner``)
         frames, interrupted = _run(job, executor, observer, clock, start)
         finished = True
     finally:
@@ -159,53 +185,63 @@ def render(job: RenderJob, executor: PassExecutor | None = None,
     results = []
     for frame in frames:
         frame.result.interrupted = interrupted or not frame.complete
-        results.append(_finish(frame, start, clock))
+        results.append(_finish(frame, start, clock, job.keep_images))
     return results
 
 
-def _frames(job: RenderJob, clock: StageClock) -> tuple[list[_Frame], RenderIdentity | None]:
-    """Each camera's plan, film and result (the first one's from its checkpoint when resuming), and
-    the identity its checkpoint carries."""
-    with clock("exit pupil"):  # the lens's sampling tables (``Camera.prepare``)
-        for camera in job.cameras:
-            camera.prepare()
+def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
+    """Each camera's plan and result (the first one's film from its checkpoint when resuming), and
+    the identity its checkpoint carries. Cameras are prepared as their frames start (``ThreadPasses.
+    runner``, ``farm._runner``), not here: a long sweep would build every exit-pupil table first."""
+    plans: dict[tuple[int, int], list[SampleBlock]] = {}  # the frames of a sweep share one plan
     frames = []
     for index, camera in enumerate(job.cameras):
-        plan = plan_passes(camera.width * camera.height, camera.spp, job.pass_size)
-        result = RenderResult(np.zeros((camera.height, camera.width, 3), np.float32), 0, camera.sample_count,
-                              0, 0, 0.0, False, passes_total=len(plan), job=job, frame=index)
-        frames.append(_Frame(camera, plan, PassFilm(Film(camera.width, camera.height, camera.spp), plan), result))
+        key = (camera.width * camera.height, camera.spp)
+        if key not in plans:
+            plans[key] = plan_passes(*key, job.pass_size)
+        plan = plans[key]
+        result = RenderResult(_EMPTY, 0, camera.sample_count, 0, 0, 0.0, False, passes_total=len(plan), job=job,
+                              frame=index)
+        frames.append(_Frame(camera, plan, result))
     if job.checkpoint is None:
         return frames, None
     identity = RenderIdentity.of(job.scene, job.cameras[0], job.seed, job.pass_size, job.backend,
                                  job.settings.light_samples)
+    frame = frames[0]
     if job.checkpoint.resume:
-        frame = frames[0]
         frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan)
         frame.result.samples_done = int(frame.film.film.samples.sum()) + sum(frame.plan[i].count
                                                                             for i in frame.film.waiting)
         frame.result.passes_done = frame.film.passes_taken
+    frame.started()  # saved on interrupt even before its first pass
     return frames, identity
+
+
+def _tasks(frames: list[_Frame], passes_per_task: int) -> Iterator[tuple[int, list[int]]]:
+    """(frame, plan indices) of every task still to run, frame by frame, made as they are taken."""
+    for index, frame in enumerate(frames):
+        todo = [i for i in range(len(frame.plan)) if frame.film is None or not frame.film.has(i)]
+        for lo in range(0, len(todo), passes_per_task):
+            yield index, todo[lo:lo + passes_per_task]
 
 
 def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock: StageClock,
          start: float) -> tuple[list[_Frame], bool]:
     """The frames with every pass the executor ran added, and whether an interrupt stopped them."""
-    frames, identity = _frames(job, clock)
+    frames, identity = _frames(job)
     checkpoint = job.checkpoint
-    tasks: deque[tuple[int, list[int]]] = deque()
-    for index, frame in enumerate(frames):
-        todo = [i for i in range(len(frame.plan)) if not frame.film.has(i)]
-        for lo in range(0, len(todo), executor.passes_per_task):
-            tasks.append((index, todo[lo:lo + executor.passes_per_task]))
+    tasks = _tasks(frames, executor.passes_per_task)
     bar = _progress_bar(sum(f.result.passes_total for f in frames), sum(f.result.passes_done for f in frames)) \
         if observer.progress else None
     state = {"checkpoint": time.monotonic(), "preview": time.monotonic()}
     failing = {"checkpoint": False}  # a failing checkpoint is reported once, until a save succeeds
 
     def save(path: Path, identity: RenderIdentity) -> None:
+        frame = frames[0]
+        if frame.film is None and frame.complete:
+            return  # saved as it completed, before its film was released
         try:
-            save_checkpoint(path, identity, frames[0].film)
+            save_checkpoint(path, identity, frame.started())
         except UserError as err:
             if not failing["checkpoint"]:
                 print(f"realistic: warning: checkpoint not saved ({err}); rendering on", file=sys.stderr)
@@ -215,10 +251,13 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
 
     def take(index: int, results: list[PassResult]) -> None:
         frame = frames[index]
+        film = frame.film
+        if film is None:
+            return  # a retried task's duplicate of a frame already finished
         for done in results:
-            if frame.film.has(done.index):
+            if film.has(done.index):
                 continue  # a retried task's duplicate
-            frame.film.add(done.index, done.first_pixel, done.sums)
+            film.add(done.index, done.first_pixel, done.sums)
             frame.result.samples_done += done.count
             frame.result.primary_rays += done.primary_rays
             frame.result.shadow_rays += done.shadow_rays
@@ -230,8 +269,14 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
                 bar.update(1)
         if observer.on_pass is not None:
             observer.on_pass(frame.result)
-        if frame.complete and observer.on_frame is not None:
-            observer.on_frame(_finish(frame, start, clock))
+        if frame.complete and frame.film is not None:
+            if checkpoint is not None and identity is not None:
+                save(checkpoint.path, identity)  # it stays until ``output.save`` has written the image
+            finished = _finish(frame, start, clock, True)  # the film released
+            if observer.on_frame is not None:
+                observer.on_frame(finished)
+            if not job.keep_images:
+                finished.image = _EMPTY
 
     def periodic() -> None:
         now = time.monotonic()
@@ -241,19 +286,25 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
             state["checkpoint"] = now
         if observer.preview is not None and observer.preview_every is not None \
                 and now - state["preview"] >= observer.preview_every:
-            observer.preview(frames[_current(frames)].film.image())
+            frame = frames[_current(frames)]  # its film, or once finished its image (empty if not kept)
+            image = frame.film.image() if frame.film is not None else frame.result.image
+            if image.size:
+                observer.preview(image)
             state["preview"] = now
 
     pending: dict[TaskHandle, int] = {}  # task -> frame
     in_flight: dict[TaskHandle, int] = {}  # task -> passes it holds
     interrupted = False
     try:
-        while tasks or pending:
-            while tasks and len(pending) < executor.capacity:
-                index, chunk = tasks.popleft()
+        while True:
+            while len(pending) < executor.capacity and (next_task := next(tasks, None)) is not None:
+                index, chunk = next_task
+                frames[index].started()
                 plan = frames[index].plan
                 task = executor.submit(index, [(i, plan[i]) for i in chunk])
                 pending[task], in_flight[task] = index, len(chunk)
+            if not pending:
+                break
             for task in executor.wait_first(set(pending)):
                 in_flight.pop(task)
                 take(pending.pop(task), task.result())
@@ -266,7 +317,7 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
         for index, results in executor.finish_in_flight(pending):
             take(index, results)
     if checkpoint is not None and identity is not None:
-        save(checkpoint.path, identity)  # finished or not: it stays until ``output.save`` has written the image
+        save(checkpoint.path, identity)  # an unfinished film (a finished one was saved as it completed)
     if bar is not None:
         bar.close()
     return frames, interrupted
@@ -277,9 +328,16 @@ def _current(frames: list[_Frame]) -> int:
     return next((i for i, frame in enumerate(frames) if not frame.complete), len(frames) - 1)
 
 
-def _finish(frame: _Frame, start: float, clock: StageClock) -> RenderResult:
+def _finish(frame: _Frame, start: float, clock: StageClock, keep_images: bool) -> RenderResult:
+    """The frame's result with its image and times; a complete frame's film is released. A frame
+    never started gets a black image when ``keep_images`` (else it stays empty)."""
     result = frame.result
-    result.image = frame.film.image()
+    if frame.film is not None:
+        result.image = frame.film.image()
+        if frame.complete:
+            frame.film = None
+    elif result.image is _EMPTY and keep_images and not frame.complete:
+        result.image = np.zeros((frame.camera.height, frame.camera.width, 3), np.float32)
     result.seconds = time.perf_counter() - start
     result.stage_seconds = dict(clock.seconds)
     return result

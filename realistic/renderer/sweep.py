@@ -23,8 +23,9 @@ from realistic.errors import UserError
 from realistic.optics.paraxial import stop_diameter_for_f_number
 
 QUANTITIES = ("focus", "aperture", "fstop", "film-distance")
-#: Frames in one sequence: enough for minutes of film at 24 frames/s.
-MAX_FRAMES = 100_000
+#: Frames in one sequence: seven minutes of film at 24 frames/s. Every frame's camera is made (its
+#: focus solved) before the first frame renders, so this also bounds the wait for the first frame.
+MAX_FRAMES = 10_000
 
 
 @dataclass(frozen=True)
