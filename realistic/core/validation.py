@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import unicodedata
 
 from realistic.errors import UserError
 
@@ -175,3 +176,20 @@ def threads(count: int) -> int:
 def pass_samples(count: int) -> int:
     """Sample ids per render pass: 1 to ``MAX_PASS_SAMPLES``."""
     return _in_range(_integer(count, "pass size (samples)"), "pass size (samples)", 1, MAX_PASS_SAMPLES)
+
+
+def _escaped(character: str) -> str:
+    code = ord(character)
+    return f"\\x{code:02x}" if code < 0x100 else (f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}")
+
+
+def printable_text(text: str, multiline: bool = False) -> str:
+    """``text`` safe to print on a terminal or write into another file: control and format characters
+    (escape sequences, carriage returns, bidirectional overrides) and line or paragraph separators
+    become visible escapes such as ``\\x1b``; with ``multiline``, line ends (CR, LF, CRLF) stay, as LF.
+    A lens name with a newline could otherwise add a row to a ``.dat`` written from it."""
+    if multiline:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return "".join(c if c == "\t" or (c == "\n" and multiline) or
+                   not (unicodedata.category(c)[0] == "C" or unicodedata.category(c) in ("Zl", "Zp"))
+                   else _escaped(c) for c in text)
