@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import reprlib
 
@@ -11,6 +12,12 @@ from realistic.core.input_files import decode_text, parse_json, read_input
 from realistic.errors import UserError
 from realistic.optics.lens import MAX_LENGTH_MM
 from realistic.optics.tracer import REASONS, TraceResult
+
+
+def _shown(value: object) -> str:
+    """A JSON value as its JSON text (``null``, ``true``), shortened: containers by ``reprlib``, which
+    also bounds their depth."""
+    return reprlib.repr(value) if isinstance(value, (list, dict)) else json.dumps(value)[:40]
 
 
 def read_rays(path: str) -> tuple[np.ndarray, np.ndarray]:
@@ -25,11 +32,16 @@ def read_rays(path: str) -> tuple[np.ndarray, np.ndarray]:
     for i, ray in enumerate(rays):
         vectors = []
         for key in ("origin", "direction"):
-            value = ray.get(key) if isinstance(ray, dict) else None
+            if not isinstance(ray, dict):
+                raise UserError(f'{path}: rays[{i}] must be an object with "origin" and "direction", got '
+                                f"{_shown(ray)}")
+            if key not in ray:
+                raise UserError(f'{path}: rays[{i}] has no "{key}"')
+            value = ray[key]
             if (not isinstance(value, list) or len(value) != 3
                     or not all(isinstance(x, float) and math.isfinite(x) for x in value)):
                 raise UserError(f"{path}: rays[{i}].{key} must be a list of 3 finite numbers, got "
-                                f"{reprlib.repr(value)}")
+                                f"{_shown(value)}")
             vectors.append(value)
         origin, direction = vectors
         if max(abs(x) for x in origin) > MAX_LENGTH_MM:
