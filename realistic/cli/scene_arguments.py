@@ -102,7 +102,8 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
     """The parsed command line as ``RenderOptions``; ``spp`` None keeps the scene's own."""
     from realistic.renderer.inputs import RenderOptions  # the renderer loads only when a command runs
 
-    for path, what in ((args.scene, "scene or mesh file"), (args.aperture_mask, "aperture mask image")):
+    scene = "scene file" if args.scene and args.scene.lower().endswith((".pbrt", ".pbrt.gz")) else "mesh file"
+    for path, what in ((args.scene, scene), (args.aperture_mask, "aperture mask image")):
         if path:
             input_file(path, what)  # a FIFO would block, a directory is no scene: each says what it is
     return RenderOptions(

@@ -25,42 +25,53 @@ _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
 
 
-def input_file(path: str | Path, what: str) -> Path:
-    """``path`` when it names a regular file (links followed), else a UserError saying what it is:
-    missing, a directory, a FIFO, a device or a socket (``what`` names the expected file)."""
+def file_error(path: str, line: int | None, message: str) -> UserError:
+    """A UserError ``path:line: message`` (the default kind of error of this module's functions)."""
+    return UserError(f"{path}:{line}: {message}" if line is not None else f"{path}: {message}")
+
+
+#: Makes the error for a file, a line (or None) and a message: ``file_error``, or ``LensFileError``.
+ErrorKind = Callable[[str, int | None, str], UserError]
+
+
+def input_file(path: str | Path, what: str, missing: str = "", error: ErrorKind = file_error) -> Path:
+    """``path`` when it names a regular file (links followed), else ``error`` saying what it is:
+    missing (``missing`` is added to "no such WHAT"), a directory, a FIFO, a device or a socket
+    (``what`` names the expected file)."""
     path = Path(path)
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
-        raise UserError(f"{path}: no such {what}") from None
+        raise error(str(path), None, f"no such {what}{missing}") from None
     except (OSError, ValueError) as err:  # a name too long, a NUL byte, a folder we may not enter
-        raise UserError(f"{path}: cannot read {what}: {getattr(err, 'strerror', None) or err}") from None
+        raise error(str(path), None, f"cannot read {what}: {getattr(err, 'strerror', None) or err}") from None
     if not stat.S_ISREG(mode):
-        kind = next((words for test, words in _KINDS if test(mode)), "not a regular file")
-        raise UserError(f"{path}: is {kind}, not a {what}")
+        kind = next((words for test, words in _KINDS if test(mode)), "a special file")
+        raise error(str(path), None, f"is {kind}, not a {what}")
     return path
 
 
-def read_input(path: str | Path, what: str, limit: int = MAX_INPUT_BYTES) -> bytes:
+def read_input(path: str | Path, what: str, missing: str = "", error: ErrorKind = file_error,
+               limit: int = MAX_INPUT_BYTES) -> bytes:
     """The bytes of the regular file ``path`` (``input_file``), at most ``limit`` of them."""
-    path = input_file(path, what)
+    path = input_file(path, what, missing, error)
     try:
         with open(path, "rb") as stream:
             data = stream.read(limit + 1)
     except OSError as err:
-        raise UserError(f"{path}: cannot read {what}: {err.strerror or err}") from None
+        raise error(str(path), None, f"cannot read {what}: {err.strerror or err}") from None
     if len(data) > limit:
-        raise UserError(f"{path}: {what} is larger than {limit // 2**20} MiB")
+        raise error(str(path), None, f"{what} is larger than {limit // 2**20} MiB")
     return data
 
 
-def decode_text(data: bytes, path: str | Path, what: str) -> str:
-    """UTF-8 text (a byte-order mark dropped), or a UserError naming the first byte that is not UTF-8."""
+def decode_text(data: bytes, path: str | Path, what: str, error: ErrorKind = file_error) -> str:
+    """UTF-8 text (a byte-order mark dropped), or ``error`` naming the first byte that is not UTF-8."""
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
         line = data.count(b"\n", 0, err.start) + 1
-        raise UserError(f"{path}:{line}: {what} is not UTF-8 text (byte 0x{data[err.start]:02x})") from None
+        raise error(str(path), line, f"{what} is not UTF-8 text (byte 0x{data[err.start]:02x})") from None
 
 
 class _NumberOutOfRange(ValueError):
@@ -84,13 +95,7 @@ def _line_of(text: str, literal: str) -> int:
     return text.count("\n", 0, match.start()) + 1 if match else 1
 
 
-def file_error(path: str, line: int | None, message: str) -> UserError:
-    """A UserError ``path:line: message`` (``parse_json``'s default kind of error)."""
-    return UserError(f"{path}:{line}: {message}" if line is not None else f"{path}: {message}")
-
-
-def parse_json(text: str, path: str | Path,
-               error: Callable[[str, int | None, str], UserError] = file_error) -> object:
+def parse_json(text: str, path: str | Path, error: ErrorKind = file_error) -> object:
     """The JSON document ``text`` from ``path``, numbers as floats, or ``error(path, line, message)``
     (a lens reader passes ``LensFileError``): invalid JSON, nesting too deep for the reader, or a
     number a double cannot hold (``1e400``, a 400-digit integer) rather than a silent infinity.

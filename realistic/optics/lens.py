@@ -174,7 +174,9 @@ MAX_CONIC = 1e6
 @dataclass(frozen=True)
 class _Limits:
     """The range of one prescription quantity: ``low`` <= |value| <= ``high`` unless it is 0 and
-    ``zero`` allows that (the stop's radius, air's index) or inf and ``infinite`` does (a flat radius)."""
+    ``zero`` allows that (the stop's radius, air's index) or inf and ``infinite`` does (a flat radius).
+    ``signed`` quantities (radius, conic) take either sign; the others' negative values are refused
+    earlier, with their own words."""
 
     name: str
     unit: str
@@ -182,6 +184,7 @@ class _Limits:
     high: float
     zero: bool = False
     infinite: bool = False
+    signed: bool = False
     advice: str = ""
 
     def problem(self, value: float) -> str | None:
@@ -192,19 +195,19 @@ class _Limits:
         if (size == 0 and self.zero) or (math.isinf(value) and self.infinite) or self.low <= size <= self.high:
             return None
         bound = f"between {self.low:g} and {self.high:g}" if self.low > 0 else f"at most {self.high:g}"
-        sign = "in magnitude " if self.name in ("radius", "conic constant") else ""
+        sign = "in magnitude " if self.signed else ""
         return f"{self.name} {value:g}{self.unit} is out of range: it must be {sign}{bound}{self.unit}{self.advice}"
 
 
 #: One range per quantity of a prescription row, checked for every format in ``build_lens``.
 LIMITS = {
-    "radius": _Limits("radius", " mm", 0.0, MAX_RADIUS_MM, zero=True, infinite=True,
+    "radius": _Limits("radius", " mm", 0.0, MAX_RADIUS_MM, zero=True, infinite=True, signed=True,
                       advice=" (0 for the stop, inf for a flat surface)"),
     "thickness": _Limits("thickness", " mm", MIN_LENGTH_MM, MAX_LENGTH_MM, zero=True),
     "index": _Limits("index", "", 1.0, MAX_INDEX, zero=True, advice=" (0, 1 or blank for air)"),
     "abbe": _Limits("Abbe number", "", MIN_ABBE, MAX_ABBE, zero=True, advice=" (0 for no dispersion)"),
     "aperture": _Limits("aperture diameter", " mm", MIN_LENGTH_MM, MAX_LENGTH_MM),
-    "conic": _Limits("conic constant", "", 0.0, MAX_CONIC, zero=True),
+    "conic": _Limits("conic constant", "", 0.0, MAX_CONIC, zero=True, signed=True),
 }
 
 

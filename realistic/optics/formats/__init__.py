@@ -11,7 +11,6 @@ Readers import the lens model (``realistic.optics.lens``) and never the reverse.
 
 from __future__ import annotations
 
-import os
 from importlib import resources
 from pathlib import Path
 
@@ -60,18 +59,11 @@ def load_lens(name_or_path: str | Path) -> LensSystem:
     if key in bundled:
         return parse_text(bundled_lens_text(key), f"{key} ({bundled[key]})", Path(bundled[key]).suffix, name=key)
     path = Path(key)
-    try:
-        exists = os.path.lexists(path)
-    except ValueError:  # a NUL byte in the name
-        exists = False
-    if not exists:
-        names = ", ".join(bundled)
-        raise LensFileError(key, None, f"no such lens file, and not a bundled lens name ({names}; "
-                                       f"'realistic lens list' describes them)")
-    data = read_input(path, "lens file")
+    data = read_input(path, "lens file", f", and not a bundled lens name ({', '.join(bundled)}; 'realistic lens "
+                      f"list' describes them)", LensFileError)
     if path.suffix.lower() == ".zmx":
         return parse_zmx(decode_zmx(data, key), key)
-    text = decode_text(data, key, "the lens file")
+    text = decode_text(data, key, "the lens file", LensFileError)
     return parse_text(text, key, path.suffix.lower())
 
 
