@@ -167,7 +167,7 @@ def film_distance_for_focus(lens: LensSystem, focus_distance_mm: float,
         return f - t.rear_principal_from_rear_vertex_mm
     span = focus_distance_mm - t.principal_gap_mm
     if not (span > 4 * f and span > 0):
-        raise UserError(f"{lens.source or lens.name}: focus distance {focus_distance_mm:g} mm is closer than the "
+        raise UserError(f"{lens_label(lens)}: focus distance {focus_distance_mm:g} mm is closer than the "
                         f"lens '{lens.name}' can focus (nearest: {nearest_focus_mm(lens, wavelength_nm):.6g} mm "
                         f"from the film)")
     # the root near f as 2 f span / (span + sqrt(span (span - 4 f))): the product of the roots is
