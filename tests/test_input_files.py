@@ -5,6 +5,7 @@ that inflates without end are refused in one line; lens-side messages say what i
 import gzip
 import os
 import struct
+import warnings
 import zlib
 from pathlib import Path
 
@@ -88,3 +89,18 @@ def test_lens_film_distance_is_bounded(capsys):
     """``--film-distance 1e300`` traced with overflow warnings and printed a 300-digit distance."""
     assert main(["lens", "info", "dgauss", "--film-distance", "1e300"]) == 2
     assert "film distance (mm) must be at most 1e+06" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args,words", [
+    (["lens", "info", "dgauss", "--wavelength", "1e-300"], "wavelength (nm) must be at least 200"),
+    (["lens", "info", "dgauss", "--wavelength", "1e300"], "wavelength (nm) must be at most 2000"),
+    (["lens", "curves", "dgauss", "--aperture", "1e-9"], "no ray from the film centre passes the lens"),
+])
+def test_lens_commands_refuse_before_numpy_warns_or_divides(tmp_path, capsys, args, words):
+    """``--wavelength 1e-300`` printed numpy RuntimeWarnings (division by zero) before its result; a
+    stop too small for any traced ray to pass made ``lens curves`` a ZeroDivisionError traceback."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(args + (["--out", str(tmp_path / "c.png")] if args[1] == "curves" else [])) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err

@@ -120,7 +120,8 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
         parser.add_argument("lens", metavar="LENS", help=LENS_HELP)
         parser.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                             help="stop diameter in mm (default: the file's)")
-        parser.add_argument("--wavelength", type=positive("wavelength (nm)"), default=D_LINE_NM, metavar="NM",
+        parser.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM,
+                            metavar="NM",
                             help="wavelength in nm (default: the d line, %(default).2f)")
 
     info = lens_commands.add_parser("info", help="surface table, paraxial data, pupils and focusing")

@@ -57,6 +57,19 @@ def positive_length(value: float, name: str, maximum: float = math.inf) -> float
     return float(value)
 
 
+#: Wavelengths the lens commands trace at: the glasses' Cauchy fit from n_d and V_d means something
+#: from the near ultraviolet to the near infrared, and nothing far beyond (1e-300 nm divided by zero).
+MIN_WAVELENGTH_NM, MAX_WAVELENGTH_NM = 200.0, 2000.0
+
+
+def wavelength_nm(value: float) -> float:
+    """A wavelength in nm from ``MIN_WAVELENGTH_NM`` to ``MAX_WAVELENGTH_NM``."""
+    value = positive_length(value, "wavelength (nm)", MAX_WAVELENGTH_NM)
+    if value < MIN_WAVELENGTH_NM:
+        raise UserError(f"wavelength (nm) must be at least {MIN_WAVELENGTH_NM:g}, got {value:g}")
+    return value
+
+
 def resolution(width: int, height: int) -> tuple[int, int]:
     width = _in_range(_integer(width, "resolution width"), "resolution width", 1, MAX_IMAGE_SIDE)
     height = _in_range(_integer(height, "resolution height"), "resolution height", 1, MAX_IMAGE_SIDE)
