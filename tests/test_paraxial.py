@@ -122,7 +122,7 @@ def test_focus_at_infinity_is_the_back_focal_distance():
 
 def test_focus_too_close_is_a_clear_error():
     lens = load_lens("dgauss")
-    with pytest.raises(UserError, match="closer than dgauss can focus"):
+    with pytest.raises(UserError, match="closer than the lens 'dgauss' can focus"):
         film_distance_for_focus(lens, 100.0)
     with pytest.raises(UserError, match="nothing is in focus"):
         focus_distance_for_film(lens, 30.0)

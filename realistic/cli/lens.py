@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,10 @@ from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.formats import load_lens
-from realistic.optics.lens import LensSystem
+from realistic.optics.lens import MAX_LENGTH_MM, LensSystem
+
+#: ``--film-distance``: a positive length within the lens model's range (``optics.lens.MAX_LENGTH_MM``).
+FILM_DISTANCE = checked(float, partial(validation.positive_length, name="film distance (mm)", maximum=MAX_LENGTH_MM))
 
 
 def _load_lens_with_stop(args: argparse.Namespace) -> LensSystem:
@@ -117,13 +121,14 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
         parser.add_argument("lens", metavar="LENS", help=LENS_HELP)
         parser.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                             help="stop diameter in mm (default: the file's)")
-        parser.add_argument("--wavelength", type=positive("wavelength (nm)"), default=D_LINE_NM, metavar="NM",
+        parser.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM,
+                            metavar="NM",
                             help="wavelength in nm (default: the d line, %(default).2f)")
 
     info = lens_commands.add_parser("info", help="surface table, paraxial data, pupils and focusing")
     lens_arguments(info)
     info.add_argument("--json", action="store_true", help="print one JSON object")
-    info.add_argument("--film-distance", type=positive("film distance (mm)"), metavar="MM",
+    info.add_argument("--film-distance", type=FILM_DISTANCE, metavar="MM",
                       help="rear vertex to film distance: also report the object distance in focus")
     info.add_argument("--sampling", type=checked(float, validation.film_diagonal_mm), metavar="FILM_DIAGONAL_MM",
                       nargs="?", const=35.0,
@@ -138,7 +143,7 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
                     'leaving the front surface or {"blocked_by": {"surface": i, "reason": ...}} per ray, '
                     "surfaces counted from 0 at the front.")
     lens_arguments(trace)
-    trace.add_argument("--film-distance", type=positive("film distance (mm)"), required=True, metavar="MM",
+    trace.add_argument("--film-distance", type=FILM_DISTANCE, required=True, metavar="MM",
                        help="rear vertex to film distance in mm")
     trace.add_argument("--input", required=True, metavar="RAYS.json", help="rays to trace")
     trace.add_argument("--output", metavar="OUT.json", help="where to write the result (default: stdout)")

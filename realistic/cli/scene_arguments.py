@@ -13,6 +13,7 @@ from realistic.camera.lens_camera import LENS_SAMPLINGS
 from realistic.cli.values import LENS_HELP, checked, parse_pixel, parse_resolution, parse_vector, positive
 from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.input_files import input_file
 from realistic.core.pixel_filter import FILTER_ALIASES, FILTER_NAMES, filter_name
 from realistic.core.spectrum import DEFAULT_WAVELENGTHS_PER_SAMPLE
 from realistic.core.validation import finite
@@ -101,6 +102,10 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
     """The parsed command line as ``RenderOptions``; ``spp`` None keeps the scene's own."""
     from realistic.renderer.inputs import RenderOptions  # the renderer loads only when a command runs
 
+    scene = "scene file" if args.scene and args.scene.lower().endswith((".pbrt", ".pbrt.gz")) else "mesh file"
+    for path, what in ((args.scene, scene), (args.aperture_mask, "aperture mask image")):
+        if path:
+            input_file(path, what)  # a FIFO would block, a directory is no scene: each says what it is
     return RenderOptions(
         scene=args.scene, lens=args.lens, aperture_mm=args.aperture, f_number=args.fstop, blades=args.blades,
         blade_rotation_deg=args.blade_rotation, blade_curvature=args.blade_curvature,

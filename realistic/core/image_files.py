@@ -80,6 +80,33 @@ _OPENCV_SUFFIXES = frozenset({".png", ".pfm", ".hdr", ".tif", ".tiff"})
 _DEEP_PILLOW_MODES = ("I", "F")
 
 
+#: Most pixels an input image may have: 16384 x 8192, the largest environment maps in use (2 GiB as
+#: float32 RGB). A header may claim far more than its file holds (a "decompression bomb").
+MAX_INPUT_PIXELS = 1 << 27
+
+
+def _check_pixel_count(path: Path) -> None:
+    """Refuse an image whose header claims more than ``MAX_INPUT_PIXELS``, before decoding it. The
+    header is read by Pillow, which opens lazily; a format Pillow does not know is left to its reader."""
+    import warnings
+
+    from PIL import Image, UnidentifiedImageError
+
+    too_many = UserError(f"{path}: the image claims more pixels than {MAX_INPUT_PIXELS:,} (16384 x 8192), "
+                         f"the most an input image may have")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # the check below decides
+            with Image.open(path) as image:
+                width, height = image.size
+    except Image.DecompressionBombError:  # Pillow's own limit, which lies above ours
+        raise too_many from None
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError):
+        return
+    if width * height > MAX_INPUT_PIXELS:
+        raise too_many
+
+
 def read_image(path: str | Path) -> tuple[np.ndarray, bool]:
     """(linear RGB float32 (H, W, 3), whether the file stored linear float values): EXR and other float
     images as stored; integer images divided by their type's maximum (so 8- and 16-bit keep every level)
@@ -89,6 +116,7 @@ def read_image(path: str | Path) -> tuple[np.ndarray, bool]:
         raise UserError(f"{path}: no such texture file")
     if path.suffix.lower() == ".exr":
         return read_exr(path)[0], True
+    _check_pixel_count(path)
     try:
         pixels = _read_with_imageio(path)
     except Exception as err:  # imageio, Pillow and OpenCV raise many types for unreadable files

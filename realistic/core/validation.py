@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import unicodedata
 
 from realistic.errors import UserError
 
@@ -54,6 +55,19 @@ def positive_length(value: float, name: str, maximum: float = math.inf) -> float
     if value > maximum:
         raise UserError(f"{name} must be at most {maximum:g}, got {value:g}")
     return float(value)
+
+
+#: Wavelengths the lens commands trace at: the glasses' Cauchy fit from n_d and V_d means something
+#: from the near ultraviolet to the near infrared, and nothing far beyond (1e-300 nm divided by zero).
+MIN_WAVELENGTH_NM, MAX_WAVELENGTH_NM = 200.0, 2000.0
+
+
+def wavelength_nm(value: float) -> float:
+    """A wavelength in nm from ``MIN_WAVELENGTH_NM`` to ``MAX_WAVELENGTH_NM``."""
+    value = positive_length(value, "wavelength (nm)", MAX_WAVELENGTH_NM)
+    if value < MIN_WAVELENGTH_NM:
+        raise UserError(f"wavelength (nm) must be at least {MIN_WAVELENGTH_NM:g}, got {value:g}")
+    return value
 
 
 def resolution(width: int, height: int) -> tuple[int, int]:
@@ -209,3 +223,20 @@ def iso_speed(value: float) -> float:
 def exposure_stops(value: float) -> float:
     """An exposure adjustment in stops, within +-``MAX_EXPOSURE_STOPS``."""
     return _bounded(value, "exposure", -MAX_EXPOSURE_STOPS, MAX_EXPOSURE_STOPS)
+
+
+def _escaped(character: str) -> str:
+    code = ord(character)
+    return f"\\x{code:02x}" if code < 0x100 else (f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}")
+
+
+def printable_text(text: str, multiline: bool = False) -> str:
+    """``text`` safe to print on a terminal or write into another file: control and format characters
+    (escape sequences, carriage returns, bidirectional overrides) and line or paragraph separators
+    become visible escapes such as ``\\x1b``; with ``multiline``, line ends (CR, LF, CRLF) stay, as LF.
+    A lens name with a newline could otherwise add a row to a ``.dat`` written from it."""
+    if multiline:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return "".join(c if c == "\t" or (c == "\n" and multiline) or
+                   not (unicodedata.category(c)[0] == "C" or unicodedata.category(c) in ("Zl", "Zp"))
+                   else _escaped(c) for c in text)

@@ -15,8 +15,9 @@ from typing import TypedDict
 import numpy as np
 
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, pixel_pitch_mm
+from realistic.errors import UserError
 from realistic.optics.lens import LensSystem
-from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
+from realistic.optics.paraxial import film_distance_for_focus, lens_label, paraxial_data
 from realistic.optics.sampling import ExitPupilTable, camera_weight, exit_pupil_table
 from realistic.optics.tracer import trace_from_film
 
@@ -52,6 +53,9 @@ def field_curves(lens: LensSystem, film_diagonal_mm: float = FULL_FRAME_DIAGONAL
         open_area = float(np.mean(ok) * area[0])
         if i == 0:  # the film centre, which the other radii are relative to
             centre_weight, centre_area = weight, open_area
+            if not ok.any():
+                raise UserError(f"{lens_label(lens)}: no ray from the film centre passes the lens (stop "
+                                f"{lens.stop_diameter_mm:g} mm), so there is no illumination to compare with")
         row: FieldPoint = {"film_radius_mm": float(radius), "relative_illumination": weight / centre_weight,
                "vignetting": open_area / centre_area, "field_angle_deg": None, "distortion_percent": None}
         if ok.any():

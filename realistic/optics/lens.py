@@ -45,6 +45,8 @@ from realistic.optics.stop_shape import StopShape
 
 #: Most surfaces a prescription may have (stop included); real lenses have well under 50.
 MAX_SURFACES = 1024
+#: Largest float32: lens values are written into the OpenCL kernel as float32 literals.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def too_many_surfaces(count: int, at_least: bool = False) -> str:
@@ -79,9 +81,13 @@ class LensSystem:
     aspheric_coefficients: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, COEFFICIENT_COUNT)))
 
     def __post_init__(self) -> None:
-        """Expand the empty defaults of ``conic`` and ``aspheric_coefficients`` to zeros per surface, so
-        that both are always (N,) and (N, 9) arrays."""
+        """Make the text printable (``validation.printable_text``: it reaches terminals and the files
+        ``lens convert`` writes) and expand the empty defaults of ``conic`` and
+        ``aspheric_coefficients`` to zeros per surface, so that both are always (N,) and (N, 9) arrays."""
         count = len(self.radius_mm)
+        object.__setattr__(self, "name", validation.printable_text(self.name))
+        object.__setattr__(self, "source", validation.printable_text(self.source))
+        object.__setattr__(self, "description", validation.printable_text(self.description, multiline=True))
         if self.conic.size == 0:
             object.__setattr__(self, "conic", np.zeros(count))
         if self.aspheric_coefficients.size == 0:
@@ -152,6 +158,71 @@ class LensSystem:
         return dataclasses.replace(self, stop_shape=shape)
 
 
+#: Lens lengths (radii, thicknesses, apertures) in mm: from a picometre to a kilometre. The OpenCL
+#: kernel holds them (and the squared semi-apertures) in float32, whose range this keeps far inside.
+MIN_LENGTH_MM, MAX_LENGTH_MM = 1e-9, 1e6
+#: A radius beyond this is flat in float32 arithmetic at any aperture: ``inf`` says so exactly.
+MAX_RADIUS_MM = 1e12
+#: Refractive indices (besides 0 or 1 for air): from 1 to beyond germanium's 4.
+MAX_INDEX = 10.0
+#: Abbe numbers (besides 0, no dispersion): below 1 the Cauchy fit bends n_d below 1 inside the visible.
+MIN_ABBE, MAX_ABBE = 1.0, 1000.0
+#: Conic constants: real hyperboloids and ellipsoids stay within a few hundred.
+MAX_CONIC = 1e6
+
+
+@dataclass(frozen=True)
+class _Limits:
+    """The range of one prescription quantity: ``low`` <= |value| <= ``high`` unless it is 0 and
+    ``zero`` allows that (the stop's radius, air's index) or inf and ``infinite`` does (a flat radius).
+    ``signed`` quantities (radius, conic) take either sign; the others' negative values are refused
+    earlier, with their own words."""
+
+    name: str
+    unit: str
+    low: float
+    high: float
+    zero: bool = False
+    infinite: bool = False
+    signed: bool = False
+    advice: str = ""
+
+    def problem(self, value: float) -> str | None:
+        """Why ``value`` is out of range, or None."""
+        size = abs(value)
+        if math.isnan(value) or (math.isinf(value) and not self.infinite):
+            return f"{self.name} must be a finite number, got {value:g}"
+        if (size == 0 and self.zero) or (math.isinf(value) and self.infinite) or self.low <= size <= self.high:
+            return None
+        bound = f"between {self.low:g} and {self.high:g}" if self.low > 0 else f"at most {self.high:g}"
+        sign = "in magnitude " if self.signed else ""
+        return f"{self.name} {value:g}{self.unit} is out of range: it must be {sign}{bound}{self.unit}{self.advice}"
+
+
+#: One range per quantity of a prescription row, checked for every format in ``build_lens``.
+LIMITS = {
+    "radius": _Limits("radius", " mm", 0.0, MAX_RADIUS_MM, zero=True, infinite=True, signed=True,
+                      advice=" (0 for the stop, inf for a flat surface)"),
+    "thickness": _Limits("thickness", " mm", MIN_LENGTH_MM, MAX_LENGTH_MM, zero=True),
+    "index": _Limits("index", "", 1.0, MAX_INDEX, zero=True, advice=" (0, 1 or blank for air)"),
+    "abbe": _Limits("Abbe number", "", MIN_ABBE, MAX_ABBE, zero=True, advice=" (0 for no dispersion)"),
+    "aperture": _Limits("aperture diameter", " mm", MIN_LENGTH_MM, MAX_LENGTH_MM),
+    "conic": _Limits("conic constant", "", 0.0, MAX_CONIC, zero=True, signed=True),
+}
+
+
+def _check_coefficients(path: str, line: int, aperture: float, coefficients: list[float]) -> None:
+    """Each polynomial term A_p h^p at the clear semi-diameter h must be a length the kernel holds
+    (at most ``MAX_LENGTH_MM``), and each coefficient a float32 number."""
+    half = aperture / 2
+    for power, a in zip(COEFFICIENT_POWERS, coefficients):
+        term = abs(a) * half ** power if a else 0.0  # (a power of h <= 5e5 stays finite)
+        if not (abs(a) <= FLOAT32_MAX and term <= MAX_LENGTH_MM):
+            raise LensFileError(path, line, f"aspheric coefficient A{power} {a:g} is out of range: its term "
+                                f"A{power} r^{power} at the clear semi-diameter {half:g} mm must be at most "
+                                f"{MAX_LENGTH_MM:g} mm")
+
+
 def _check_asphere(path: str, line: int, radius: float, aperture: float, conic: float,
                    coefficients: list[float]) -> None:
     """An aspheric surface's own rules: finite values, at most nine coefficients, not the stop,
@@ -161,6 +232,7 @@ def _check_asphere(path: str, line: int, radius: float, aperture: float, conic: 
                             f"(A4 .. A20, the coefficients of r^{COEFFICIENT_POWERS[0]} .. r^{COEFFICIENT_POWERS[-1]})")
     if not all(math.isfinite(x) for x in [conic, *coefficients]):
         raise LensFileError(path, line, "the conic constant and aspheric coefficients must be finite numbers")
+    _check_coefficients(path, line, aperture, coefficients)
     if radius == 0 and (conic != 0 or any(coefficients)):
         raise LensFileError(path, line, "the aperture stop (radius 0) cannot be aspheric")
     c = 1.0 / radius if radius != 0 and math.isfinite(radius) else 0.0
@@ -201,6 +273,10 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
             raise LensFileError(path, line, f"Abbe number {abbe[i]:g} must not be negative")
         if aperture[i] <= 0:
             raise LensFileError(path, line, f"aperture diameter {aperture[i]:g} mm must be > 0")
+        problem = next(filter(None, (limits.problem(value) for limits, value in zip(LIMITS.values(),
+                                                                                  (*values, conic[i])))), None)
+        if problem:
+            raise LensFileError(path, line, problem)
         if conic[i] != 0 or any(coefficients[i]) or len(coefficients[i]) > COEFFICIENT_COUNT:
             _check_asphere(path, line, radius[i], aperture[i], conic[i], coefficients[i])
         elif radius[i] != 0 and math.isfinite(radius[i]) and aperture[i] / 2 > abs(radius[i]):

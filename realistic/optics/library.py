@@ -57,8 +57,10 @@ def image_circle_mm(lens: LensSystem, points: int = 9, samples: int = 4000) -> f
     """
     key = cache_key("image-circle", IMAGE_CIRCLE_VERSION, _lens_key(lens), points, samples)
     stored = load_arrays(key)
-    if stored is not None and "diameter_mm" in stored:
-        return float(stored["diameter_mm"])
+    if stored is not None and set(stored) == {"diameter_mm"} and stored["diameter_mm"].shape == ():
+        diameter = float(stored["diameter_mm"])  # an entry is trusted only within what the search returns
+        if 0 <= diameter <= _search_diagonal_mm(lens):
+            return diameter
     diameter = _image_circle_traced(lens, points, samples)
     store_arrays(key, {"diameter_mm": np.asarray(diameter)})
     return diameter
@@ -78,10 +80,14 @@ def _lens_key(lens: LensSystem) -> bytes:
     return b"".join(np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in arrays) + shape
 
 
+def _search_diagonal_mm(lens: LensSystem) -> float:
+    """The film diagonal the image circle is searched in: 8 x EFL, at most 1000 mm."""
+    return min(8.0 * abs(paraxial_data(lens).efl_mm), 1000.0)
+
+
 def _image_circle_traced(lens: LensSystem, points: int, samples: int) -> float:
     """The image-circle diameter by a coarse scan and a bisection of relative illumination."""
-    efl = abs(paraxial_data(lens).efl_mm)
-    film_diagonal = min(8.0 * efl, 1000.0)
+    film_diagonal = _search_diagonal_mm(lens)
     film_distance = film_distance_for_focus(lens, math.inf)
     table = exit_pupil_table(lens, film_distance, film_diagonal)
     rng = np.random.default_rng(0)

@@ -166,11 +166,14 @@ def film_distance_for_focus(lens: LensSystem, focus_distance_mm: float,
     if math.isinf(focus_distance_mm):
         return f - t.rear_principal_from_rear_vertex_mm
     span = focus_distance_mm - t.principal_gap_mm
-    disc = span * (span - 4 * f)
-    if not (span > 4 * f and disc > 0):
-        raise UserError(f"focus distance {focus_distance_mm:g} mm is closer than {lens.name} can focus "
-                        f"(nearest: {nearest_focus_mm(lens, wavelength_nm):.6g} mm from the film)")
-    image_distance = 0.5 * (span - math.sqrt(disc))
+    if not (span > 4 * f and span > 0):
+        raise UserError(f"{lens_label(lens)}: focus distance {focus_distance_mm:g} mm is closer than the "
+                        f"lens '{lens.name}' can focus (nearest: {nearest_focus_mm(lens, wavelength_nm):.6g} mm "
+                        f"from the film)")
+    # the root near f as 2 f span / (span + sqrt(span (span - 4 f))): the product of the roots is
+    # f span, and this form keeps the digits that span - sqrt(...) cancels for a far focus (1e20 mm);
+    # the square root is taken as a product, which does not overflow
+    image_distance = 2 * f * span / (span + math.sqrt(span) * math.sqrt(span - 4 * f))
     return image_distance - t.rear_principal_from_rear_vertex_mm
 
 

@@ -176,14 +176,55 @@ def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm
     return _cached_table(_PupilRequest(key, lens))
 
 
+def _disk_key(request: _PupilRequest) -> str:
+    """The disk-cache key of a table."""
+    return cache_key("exit-pupil", SEARCH_VERSION, *request.key)
+
+
+#: A dark interval's row, as ``_build_exit_pupil_table`` writes it (x0 > x1: no area).
+DARK_BOUNDS = (1.0, -1.0, 1.0, -1.0)
+
+
+def _trusted_table(stored: dict[str, np.ndarray], request: _PupilRequest) -> ExitPupilTable | None:
+    """The table a cache entry holds, when it is one ``_build_exit_pupil_table`` could have made for
+    this request, else None (rebuild). The entry's digest proves only that it was stored whole: a file
+    written by hand or by another program can hold zeros, NaN or boxes of any size, and the kernel
+    trusts the table (a NaN or empty box crashed it). Checked: names, shapes and dtypes; the plane and
+    film radius this lens and film give; every dark row exactly ``DARK_BOUNDS`` with no padding; every
+    lit row a finite box symmetric in y, padding >= 0, within the reach of the rear-element sampler
+    at the interval's outer radius grown by its padding."""
+    film_distance_mm, film_diagonal_mm, intervals = request.key[5:8]
+    names = ("plane_z_mm", "film_radius_mm", "bounds", "padding_mm")
+    shapes = ((), (), (intervals, 4), (intervals, 2))
+    if set(stored) != set(names) or any(stored[n].shape != shape or stored[n].dtype != np.float64
+                                        for n, shape in zip(names, shapes)):
+        return None
+    rear = rear_element_sampler(request.lens, film_distance_mm)
+    film_radius = film_diagonal_mm / 2
+    if float(stored["plane_z_mm"]) != rear.plane_z_mm or float(stored["film_radius_mm"]) != film_radius:
+        return None
+    bounds, padding = stored["bounds"], stored["padding_mm"]
+    if not (np.all(np.isfinite(bounds)) and np.all(np.isfinite(padding)) and np.all(padding >= 0)):
+        return None
+    dark = np.all(bounds == DARK_BOUNDS, axis=1)
+    reach = rear.radius_mm(np.linspace(0.0, film_radius, intervals + 1)[1:])
+    limit = (reach[:, None] + padding[:, [0, 0, 1, 1]]) * (1 + 1e-9)
+    lit_ok = (bounds[:, 0] < bounds[:, 1]) & (bounds[:, 2] == -bounds[:, 3]) & (bounds[:, 2] < bounds[:, 3]) \
+        & np.all(np.abs(bounds) <= limit, axis=1)
+    if not np.all(np.where(dark, np.all(padding == 0, axis=1), lit_ok)):
+        return None
+    return ExitPupilTable(rear.plane_z_mm, film_radius, bounds, padding)
+
+
 @lru_cache(maxsize=PUPIL_CACHE_SIZE)
 def _cached_table(request: _PupilRequest) -> ExitPupilTable:
-    """The table from memory, else from the disk cache (``realistic.core.disk_cache``), else built."""
-    key = cache_key("exit-pupil", SEARCH_VERSION, *request.key)
+    """The table from memory, else from the disk cache (``realistic.core.disk_cache``) when it passes
+    ``_trusted_table``, else built."""
+    key = _disk_key(request)
     stored = load_arrays(key)
-    if stored is not None and {"plane_z_mm", "film_radius_mm", "bounds", "padding_mm"} <= stored.keys():
-        return ExitPupilTable(float(stored["plane_z_mm"]), float(stored["film_radius_mm"]), stored["bounds"],
-                              stored["padding_mm"])
+    trusted = _trusted_table(stored, request) if stored is not None else None
+    if trusted is not None:
+        return trusted
     film_distance_mm, film_diagonal_mm, intervals, wavelengths_nm = request.key[5:]
     table = _build_exit_pupil_table(request.lens, film_distance_mm, film_diagonal_mm, intervals, wavelengths_nm)
     store_arrays(key, {"plane_z_mm": np.asarray(table.plane_z_mm), "film_radius_mm": np.asarray(table.film_radius_mm),
@@ -238,7 +279,7 @@ def _build_exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diag
     grow = padding.max(axis=1) + spread
     x0, x1, y1 = lo[:, 0] - grow[:, 0], hi[:, 1] + grow[:, 1], hi[:, 2] + grow[:, 2]
     none = ~np.isfinite(x0)
-    bounds = np.where(none[:, None], [1.0, -1.0, 1.0, -1.0], np.stack([x0, x1, -y1, y1], axis=1))
+    bounds = np.where(none[:, None], DARK_BOUNDS, np.stack([x0, x1, -y1, y1], axis=1))
     grown = np.where(none[:, None], 0.0, np.stack([np.maximum(grow[:, 0], grow[:, 1]), grow[:, 2]], axis=1))
     return ExitPupilTable(rear.plane_z_mm, film_radius, bounds, grown)
 

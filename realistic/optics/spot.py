@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from realistic.core import validation
 from realistic.errors import UserError
 from realistic.optics.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM
 from realistic.optics.forward_trace import ImageRays, trace_object_point
@@ -42,8 +43,9 @@ def parse_wavelengths(text: str) -> list[float]:
             value = float(item)
         except ValueError:
             value = math.nan
-        if not (200 <= value <= 2000):
-            raise UserError(f"wavelength {item!r} is neither F, d, C nor a number of nm in 200..2000")
+        if not (validation.MIN_WAVELENGTH_NM <= value <= validation.MAX_WAVELENGTH_NM):
+            raise UserError(f"wavelength {item!r} is neither F, d, C nor a number of nm in "
+                            f"{validation.MIN_WAVELENGTH_NM:g}..{validation.MAX_WAVELENGTH_NM:g}")
         result.append(value)
     if not result:
         raise UserError("no wavelengths given")

@@ -14,6 +14,7 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+from realistic.core.input_files import decode_text, read_input
 from realistic.errors import LensFileError, UserError
 from realistic.optics.formats.codev import format_codev, parse_codev
 from realistic.optics.formats.json_lens import format_json_lens, parse_json_lens
@@ -58,25 +59,11 @@ def load_lens(name_or_path: str | Path) -> LensSystem:
     if key in bundled:
         return parse_text(bundled_lens_text(key), f"{key} ({bundled[key]})", Path(bundled[key]).suffix, name=key)
     path = Path(key)
-    try:
-        is_dir, is_file, exists = path.is_dir(), path.is_file(), path.exists()
-    except (OSError, ValueError) as err:  # a name too long for the system, say
-        raise LensFileError(key, None, f"cannot read: {getattr(err, 'strerror', None) or err}") from None
-    if is_dir:
-        raise LensFileError(key, None, "is a directory, not a lens file")
-    if exists and not is_file:
-        raise LensFileError(key, None, "is not a regular file (a lens file is a .dat or .zmx prescription)")
-    if not is_file:
-        names = ", ".join(bundled)
-        raise LensFileError(key, None, f"no such lens file, and not a bundled lens name ({names}; "
-                                       f"'realistic lens list' describes them)")
-    try:
-        data = path.read_bytes()
-        if path.suffix.lower() == ".zmx":
-            return parse_zmx(decode_zmx(data, key), key)
-        text = data.decode("utf-8-sig")
-    except (OSError, UnicodeDecodeError) as err:
-        raise LensFileError(key, None, f"cannot read: {err}") from None
+    data = read_input(path, "lens file", f", and not a bundled lens name ({', '.join(bundled)}; 'realistic lens "
+                      f"list' describes them)", LensFileError)
+    if path.suffix.lower() == ".zmx":
+        return parse_zmx(decode_zmx(data, key), key)
+    text = decode_text(data, key, "the lens file", LensFileError)
     return parse_text(text, key, path.suffix.lower())
 
 

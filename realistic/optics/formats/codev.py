@@ -53,8 +53,10 @@ class _Surface:
 
 
 def _number(token: str | None, path: str, line: int, what: str) -> float:
+    if token is None:
+        raise LensFileError(path, line, f"{what} has no value")
     try:
-        value = float(token) if token is not None else math.nan
+        value = float(token)
     except ValueError:
         value = math.nan
     if not math.isfinite(value):

@@ -26,6 +26,7 @@ import json
 import math
 from typing import NamedTuple
 
+from realistic.core.input_files import parse_json
 from realistic.errors import LensFileError
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
 
@@ -130,12 +131,7 @@ def _surface(item: object, path: str, line: int) -> _Surface:
 
 def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) -> LensSystem:
     """Parse an isetlens/omni JSON prescription into a validated LensSystem (LensFileError with file:line)."""
-    try:
-        document = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise LensFileError(path, err.lineno, f"not valid JSON: {err.msg}") from None
-    except RecursionError:
-        raise LensFileError(path, None, "not valid JSON: nested too deeply") from None
+    document = parse_json(text, path, LensFileError)
     if not isinstance(document, dict):
         raise LensFileError(path, 1, "the document must be an object with a \"surfaces\" list")
     surfaces = document.get("surfaces")

@@ -57,13 +57,21 @@ class Token:
         return f"{self.path}:{self.line}"
 
 
+#: Most text a gzip-compressed scene file may inflate to (a few hundred MB is a very large scene).
+MAX_GZIP_TEXT_BYTES = 1 << 30
+
+
 def read_scene_text(path: Path) -> str:
     """The text of a scene file (gzip-compressed when its name ends in .gz, as pbrt-v4's
     ``Tokenizer::CreateFromFile`` reads it), or a UserError naming it."""
     try:
-        data = path.read_bytes()
-        if path.suffix.lower() == ".gz":
-            data = gzip.decompress(data)
+        if path.suffix.lower() == ".gz":  # read only up to the cap: a small file can inflate to gigabytes
+            with gzip.open(path) as stream:
+                data = stream.read(MAX_GZIP_TEXT_BYTES + 1)
+            if len(data) > MAX_GZIP_TEXT_BYTES:
+                raise UserError(f"{path}: decompresses to more than {MAX_GZIP_TEXT_BYTES >> 30} GiB of scene text")
+        else:
+            data = path.read_bytes()
     except OSError as err:  # gzip.BadGzipFile is one
         raise UserError(f"{path}: cannot read scene file: {err.strerror or err}") from None
     except (EOFError, zlib.error) as err:
