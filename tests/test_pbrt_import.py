@@ -112,3 +112,20 @@ def test_pbrt_v3_realistic_camera_works_in_metres(tmp_path):
     rays = camera.generate_rays(SampleBlock(0, 64, camera.spp), 0)
     ok = rays.weight > 0
     assert ok.any() and np.all(np.abs(rays.origin[ok]) < 0.2)  # within the lens, in metres
+
+
+def test_a_gzipped_scene_given_to_render_is_read_as_pbrt(tmp_path):
+    """A top-level ``scene.pbrt.gz`` is a pbrt scene, as an included one is (it was called an
+    unsupported mesh format): it imports to the same scene as the uncompressed file."""
+    import gzip
+
+    from realistic.core.data_files import data_file
+
+    plain = data_file("scenes/default.pbrt")
+    packed = tmp_path / "default.pbrt.gz"
+    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    assert RenderOptions(scene=str(packed)).is_pbrt
+    a = build_render_inputs(RenderOptions(scene=str(plain), resolution=(32, 24), spp=1))
+    b = build_render_inputs(RenderOptions(scene=str(packed), resolution=(32, 24), spp=1))
+    assert len(a.scene.instances) == len(b.scene.instances) > 0
+    assert a.camera.width == b.camera.width == 32

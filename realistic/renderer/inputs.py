@@ -120,7 +120,7 @@ class RenderOptions:
 
     @property
     def is_pbrt(self) -> bool:
-        return self.scene is not None and self.scene.lower().endswith(".pbrt")
+        return self.scene is not None and self.scene.lower().endswith((".pbrt", ".pbrt.gz"))
 
     def stop_edit(self) -> Callable[[LensSystem], LensSystem] | None:
         """The change to the lens's stop that the aperture, f-number and shape options ask for (None: none)."""
