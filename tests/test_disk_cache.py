@@ -104,3 +104,18 @@ def test_another_stops_table_under_this_key_is_rebuilt(cache):
     sampling._cached_table.cache_clear()
     again = _table()
     assert np.array_equal(again.bounds, wide_open.bounds) and not np.array_equal(again.bounds, stopped_down.bounds)
+
+
+def test_a_full_disk_skips_the_entry_without_an_error(cache, monkeypatch):
+    """A cache write that fails for want of space (ENOSPC; at exit, where the program binaries are
+    stored, this printed a traceback) leaves no entry and raises nothing."""
+    import errno
+    from pathlib import Path
+
+    def full(self, data):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_bytes", full)
+    disk_cache.store_arrays("k" * 64, {"values": np.arange(3)})
+    assert disk_cache.load_arrays("k" * 64) is None
+    assert not [p for p in cache.iterdir() if p.suffix == ".npz"]

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from realistic.core.atomic_files import write_atomically
+from realistic.errors import UserError
 
 OFF = "off"
 #: Names of the arrays every entry carries besides its own: its key and its content's digest.
@@ -87,8 +88,8 @@ def load_arrays(key: str) -> dict[str, np.ndarray] | None:
 
 
 def store_arrays(key: str, arrays: dict[str, np.ndarray]) -> None:
-    """Store ``arrays`` under ``key`` (atomically) with the key and their digest; a folder that
-    cannot be written is skipped."""
+    """Store ``arrays`` under ``key`` (atomically) with the key and their digest; a folder or disk
+    that cannot take it (unwritable, full) is skipped: a cache is never an error, at exit neither."""
     folder = cache_dir()
     if folder is None:
         return
@@ -101,5 +102,5 @@ def store_arrays(key: str, arrays: dict[str, np.ndarray]) -> None:
     try:
         folder.mkdir(parents=True, exist_ok=True)
         write_atomically(folder / f"{key}.npz", lambda temporary: Path(temporary).write_bytes(buffer.getvalue()))
-    except OSError:
+    except (OSError, UserError):  # a full or unwritable disk: the entry is skipped, as a cache may be
         return
