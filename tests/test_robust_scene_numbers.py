@@ -4,6 +4,10 @@ a traceback (issue 32). Each regression below imports or renders silently wrong 
 
 import dataclasses
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -148,7 +152,6 @@ def test_a_v4_file_with_world_begin_and_no_world_end_is_not_reported(tmp_path):
 
 @pytest.mark.parametrize("world", [
     'ObjectBegin "a"\nScale 0 0 0\nShape "sphere"\nObjectEnd\nObjectInstance "a"\n',
-    'ObjectBegin "a"\nShape "sphere"\nObjectEnd\nScale 0 0 0\nObjectInstance "a"\n',
     'Transform [0 0 0 0  0 0 0 0  0 0 0 0  0 0 0 1]\nShape "sphere"\n',
     'ConcatTransform [1 0 0 .5  0 1 0 0  0 0 1 0  0 0 0 1]\nShape "sphere"\n',
     'Scale 1 0 1\nShape "trianglemesh" "integer indices" [0 1 2] "point P" [0 0 0 1 0 0 0 1 0]\n',
@@ -158,6 +161,13 @@ def test_a_shape_under_a_singular_or_projective_transform_is_skipped_with_its_li
     imported = import_pbrt(path)
     assert imported.scene.instances == []  # nothing the intersector would have to invert
     assert any(w.startswith(line_of(path, "Shape")) and "singular" in w for w in imported.warnings)
+
+
+def test_an_instance_under_a_singular_transform_is_skipped_at_its_line(tmp_path):
+    path = scene_file(tmp_path, 'ObjectBegin "a"\nShape "sphere"\nObjectEnd\nScale 0 0 0\nObjectInstance "a"\n')
+    imported = import_pbrt(path)
+    assert imported.scene.instances == []
+    assert any(w.startswith(line_of(path, "ObjectInstance")) and "singular" in w for w in imported.warnings)
 
 
 # ---- 1. a film with NaN or infinite pixels is reported ------------------------------------------
@@ -223,3 +233,16 @@ def test_any_numbers_import_finite_or_fail_in_one_line_at_their_file(tmp_path, l
         assert "\n" not in message and message.startswith(f"{path}:")
         return
     assert _finite_scene(imported)
+
+
+def test_rendering_an_object_flattened_by_scale_0_warns_instead_of_a_traceback(tmp_path):
+    """On f91acd8 this render ended in numpy's LinAlgError when the intersector inverted the instance."""
+    path = scene_file(tmp_path, 'LightSource "point" "rgb I" [10 10 10] "point from" [0 0 4]\n'
+                                'ObjectBegin "a"\nScale 0 0 0\nShape "sphere"\nObjectEnd\nObjectInstance "a"\n'
+                                'Shape "sphere" "float radius" .5\nWorldEnd\n')
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    done = subprocess.run([sys.executable, "-m", "realistic", "render", str(path), "--spp", "1", "--backend", "numpy",
+                           "--out", str(tmp_path / "out.exr")], capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "Traceback" not in done.stderr
+    assert f'{line_of(path, "Shape")}: unsupported: Shape "sphere" under a transform that is singular' in done.stderr

@@ -278,7 +278,11 @@ class _Importer:
     def run(self) -> Scene:
         for shape in self.parsed.shapes:
             self.add_shape(shape, np.eye(4))
-        for name, world, _ in self.parsed.instances:
+        for name, world, where in self.parsed.instances:
+            if not _is_placeable(world):
+                self.warn(where, f'ObjectInstance "{name}" under a transform that is singular (a Scale by 0, say) '
+                                 f"or projective (skipped)")
+                continue
             for shape in self.parsed.objects[name]:
                 self.add_shape(shape, world)
         self.scene.lights.extend(import_lights(self.parsed, self.dialect, self.find))
