@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import numbers
 import unicodedata
+from collections.abc import Sequence
 
 from realistic.errors import UserError
 
@@ -240,3 +241,47 @@ def printable_text(text: str, multiline: bool = False) -> str:
     return "".join(c if c == "\t" or (c == "\n" and multiline) or
                    not (unicodedata.category(c)[0] == "C" or unicodedata.category(c) in ("Zl", "Zp"))
                    else _escaped(c) for c in text)
+
+
+#: Largest component of an emitted RGB (a light's radiance or intensity after its scale): the
+#: renderer accumulates in float32 (largest 3.4e38), and 1e32 leaves six orders for a pixel's sum
+#: of samples and a light's sampling weight before a pixel overflows.
+MAX_EMISSION = 1e32
+
+
+def _rgb(values: Sequence[float], name: str) -> tuple[float, ...]:
+    if isinstance(values, str) or not isinstance(values, Sequence) or len(values) != 3:
+        raise UserError(f"{name} must be an RGB triple, got {values!r}")
+    return tuple(finite(v, name) for v in values)
+
+
+def emission(values: Sequence[float], name: str) -> tuple[float, float, float]:
+    """An emitted RGB (radiance or intensity, after any scale): three finite components from 0 to
+    ``MAX_EMISSION``. pbrt does not check these; a negative or overflowing value renders NaN, inf or
+    black pixels, so it is refused here."""
+    triple = _rgb(values, name)
+    for v in triple:
+        if not 0.0 <= v <= MAX_EMISSION:
+            raise UserError(f"{name} must be between 0 and {MAX_EMISSION:g}, got {v:g}")
+    return triple[0], triple[1], triple[2]
+
+
+def reflectance(values: Sequence[float], name: str) -> tuple[float, float, float]:
+    """A diffuse reflectance (albedo) RGB: three finite components in [0, 1], the range in which a
+    surface neither emits nor absorbs negative light (pbrt-v4 clamps a diffuse reflectance to it;
+    see ``scene/pbrt/materials.py``)."""
+    triple = _rgb(values, name)
+    for v in triple:
+        if not 0.0 <= v <= 1.0:
+            raise UserError(f"{name} must be between 0 and 1, got {v:g}")
+    return triple[0], triple[1], triple[2]
+
+
+#: Film distance behind the lens's rear vertex, in mm: real bellows reach about a metre; beyond
+#: 10 m the image of any lens is a blur the single-precision tracer cannot place.
+MAX_FILM_DISTANCE_MM = 10_000.0
+
+
+def film_distance_mm(value: float) -> float:
+    """A film distance: positive, finite, at most ``MAX_FILM_DISTANCE_MM``."""
+    return positive_length(value, "film distance (mm)", MAX_FILM_DISTANCE_MM)

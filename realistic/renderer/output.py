@@ -15,6 +15,7 @@ the sweep and frame number; and an sRGB PNG preview beside it. Finished work is 
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -130,6 +131,7 @@ def save(result: RenderResult, path: str | os.PathLike, photographic: Photograph
     if path.suffix.lower() != ".exr":
         raise UserError(f"{path}: the output must be an .exr file (the PNG preview goes beside it)")
     image = exposed(result.image, photographic)
+    report_non_finite(path, image)
     metadata = image_metadata(result)
     if photographic is not None:
         metadata.update(photographic.header(result.camera))
@@ -150,6 +152,17 @@ def save(result: RenderResult, path: str | os.PathLike, photographic: Photograph
         if checkpoint is not None and not result.interrupted:
             checkpoint.path.unlink(missing_ok=True)
     return stops
+
+
+def report_non_finite(path: Path, image: np.ndarray) -> int:
+    """Warn on stderr, in one line, when ``image`` has NaN or infinite pixels (a scene's numbers or an
+    exposure beyond float32); they are written as they are. Returns how many there are."""
+    bad = int(np.count_nonzero(~np.all(np.isfinite(image), axis=-1)))
+    if bad:
+        pixels = image.shape[0] * image.shape[1]
+        print(f"realistic: warning: {path}: {bad} of {pixels} pixels are NaN or infinite (written as they are)",
+              file=sys.stderr)
+    return bad
 
 
 def _rescue(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> str:

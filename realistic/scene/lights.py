@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from realistic.core import validation
 from realistic.scene.model import RGB, AreaLight
 
 SPOT_FALLOFFS = ("quartic", "smoothstep")
@@ -30,6 +31,9 @@ class PointLight:
 
     intensity: RGB
     position: np.ndarray  # (3,) world
+
+    def __post_init__(self) -> None:
+        validation.emission(self.intensity, "point light intensity")
 
     def power(self, scene_radius: float) -> float:
         """Mean-channel power (pbrt-v3 ``PointLight::Power``: 4 pi I)."""
@@ -50,6 +54,9 @@ class SpotLight:
     cos_total_width: float
     cos_falloff_start: float
     falloff_kind: str = "quartic"
+
+    def __post_init__(self) -> None:
+        validation.emission(self.intensity, "spot light intensity")
 
     @property
     def position(self) -> np.ndarray:
@@ -75,6 +82,9 @@ class DistantLight:
     radiance: RGB
     direction: np.ndarray  # (3,) unit, toward the light
 
+    def __post_init__(self) -> None:
+        validation.emission(self.radiance, "distant light radiance")
+
     def power(self, scene_radius: float) -> float:
         """pbrt-v3 ``DistantLight::Power``: L pi r^2 over the scene's bounding disk."""
         return math.pi * scene_radius ** 2 * float(np.mean(self.radiance))
@@ -90,6 +100,7 @@ class InfiniteLight:
     light_to_world: np.ndarray = field(default_factory=lambda: np.eye(4))
 
     def __post_init__(self) -> None:
+        validation.emission(self.radiance, "infinite light radiance")
         if self.mapping not in MAPPINGS:
             raise ValueError(f"unknown environment mapping {self.mapping!r}")
 
@@ -140,6 +151,9 @@ class EmissiveInstance:
     instance: int
     radiance: RGB
     two_sided: bool = False
+
+    def __post_init__(self) -> None:
+        validation.emission(self.radiance, "area light radiance")
 
     def power(self, area: float) -> float:
         return math.pi * area * (2.0 if self.two_sided else 1.0) * float(np.mean(self.radiance))

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from realistic.core import validation
 from realistic.core.transforms import transform_points
 from realistic.scene.materials import SurfaceMaterial
 
@@ -70,6 +71,9 @@ class AreaLight:
     transform: np.ndarray = field(default_factory=lambda: np.eye(4))
     reverse_orientation: bool = False
     two_sided: bool = False
+
+    def __post_init__(self) -> None:
+        validation.emission(self.radiance, "area light radiance")
 
     def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """World (centre, axis a, axis b, unit emitting normal); a point is c + a x + b y.

@@ -83,5 +83,9 @@ class Material:
     sigma: float = 0.0
 
     def __post_init__(self) -> None:
+        if self.texture is None:  # an albedo; with a texture, a factor on the texture's colour
+            validation.reflectance(self.diffuse, "matte Kd")
+        elif not all(validation.finite(c, "matte Kd") >= 0 for c in self.diffuse):
+            raise UserError(f"matte Kd must not be negative, got {self.diffuse}")
         if not 0.0 <= validation.finite(self.sigma, "matte sigma (degrees)") <= 90.0:
             raise UserError(f"matte sigma (degrees) must be between 0 and 90, got {self.sigma:g}")

@@ -31,6 +31,16 @@ from realistic.scene.pbrt.dialect import (
 from realistic.scene.pbrt.parser import Directive, Params, PbrtScene, resolve_file
 from realistic.scene.pbrt.values import MAX_WORLD_COORDINATE, located
 
+#: Camera parameters pbrt honours and we do not, with what is rendered instead (pbrt-v3
+#: src/core/camera.cpp and src/cameras/perspective.cpp, pbrt-v4 src/pbrt/cameras.cpp).
+NOT_HONOURED = {
+    "screenwindow": "ignored: the image spans the film's full field",
+    "frameaspectratio": "ignored: the aspect ratio is the resolution's",
+}
+#: The perspective camera's parameters that are read (``ThinLensCamera``), and the shutter times,
+#: which matter only to moving transforms (reported where a file moves one: ``ActiveTransform``).
+PERSPECTIVE_PARAMETERS = frozenset({"fov", "lensradius", "focaldistance", "shutteropen", "shutterclose"})
+
 
 def find_lens_file(name: str, scene_dir: Path, search_paths: list[Path], where: str) -> str:
     """A lens named by a scene: next to the scene or in a search path, else a bundled lens of that name."""
@@ -72,7 +82,11 @@ def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, 
                                          f'(the bundled "{found}" prescription stands in for it)')
         return load_lens(found)
 
+    for name in sorted(set(params.items) & set(NOT_HONOURED)):
+        parsed.warn(directive.where, f'Camera "{name}" ({NOT_HONOURED[name]})')
     if directive.type == "perspective":
+        for name in sorted(set(params.items) - set(NOT_HONOURED) - PERSPECTIVE_PARAMETERS):
+            parsed.warn(directive.where, f'"{name}" is not a perspective-camera parameter (ignored)')
         with located(directive.where):
             return ThinLensCamera(params.get_float("fov", 90.0), params.get_float("lensradius", 0.0),
                                   params.get_float("focaldistance", 1e6), width, height, spp, world_from_camera)
@@ -102,7 +116,7 @@ def import_camera(parsed: PbrtScene, dialect: Dialect, width: int, height: int, 
                     raise UserError(f"{focus_name} must be a positive number of metres, got {focus:g}")
                 film_distance = film_distance_for_focus(lens, focus * convention.camera_units_mm)
             case str(film_distance_name), _:  # the classic camera: the film where the file puts it
-                film_distance = params.get_required_float(film_distance_name)
+                film_distance = validation.film_distance_mm(params.get_required_float(film_distance_name))
                 if params.has(convention.stop_diameter):  # else the lens's own stop
                     lens = lens.with_stop_diameter(params.get_required_float(convention.stop_diameter))
         world_from_camera = world_from_camera @ scale(1.0 / convention.camera_units_mm)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from realistic.core import validation
 from realistic.core.image_files import read_image
 from realistic.core.transforms import translate
 from realistic.core.validation import MAX_LIGHT_SAMPLES
@@ -41,6 +42,14 @@ class ImportedScene:
     warnings: list[str]
     dialect: Dialect  # the pbrt version the file was read as, and why
     camera_where: str  # the file and line of the Camera directive, for errors about the camera
+
+
+def _is_placeable(transform: np.ndarray) -> bool:
+    """Whether a shape can be put in the world by ``transform``: affine (bottom row 0 0 0 1, as the
+    intersector's 3x4 instance matrices are) and invertible (its normals are the inverse's transpose)."""
+    with np.errstate(all="ignore"):
+        return bool(np.array_equal(transform[3], [0.0, 0.0, 0.0, 1.0]) and np.all(np.isfinite(transform))
+                    and np.isfinite(np.linalg.cond(transform[:3, :3])) and np.linalg.cond(transform[:3, :3]) < 1e15)
 
 
 def _texture_name(params: Params, name: str, where: str) -> str:
@@ -158,8 +167,13 @@ class _Importer:
                 meshes = []
             self.stored[id(shape)] = [(self._mesh_index(mesh), local, box_corners(mesh.vertices))
                                       for mesh, local in meshes]
+        placed = world @ shape.transform
+        if not _is_placeable(placed):
+            self.warn(shape.where, f'Shape "{shape.type}" under a transform that is singular (a Scale by 0, '
+                                   f"say) or projective (skipped: it has no area, or no affine place)")
+            return
         for index, local, corners in self.stored[id(shape)]:
-            transform = world @ shape.transform @ local
+            transform = placed @ local
             reach = reach_of(transform, corners)
             if reach > MAX_WORLD_COORDINATE:
                 self.warn(shape.where, f'Shape "{shape.type}" reaching {reach:.3g} from the origin, beyond the '
@@ -189,6 +203,8 @@ class _Importer:
                 self.warn(where, f'area light "{name}" (ignored; L and scale set its radiance)')
         light_scale = rgb(declaration.params, "scale", (1.0, 1.0, 1.0)) or (1.0, 1.0, 1.0)
         radiance = (radiance[0] * light_scale[0], radiance[1] * light_scale[1], radiance[2] * light_scale[2])
+        with located(where):
+            radiance = validation.emission(radiance, "area light L (times its scale)")
         samples = whole_number(declaration.params, "nsamples", 1, where)
         if samples > MAX_LIGHT_SAMPLES:
             self.warn(where, f"nsamples {samples} (at most {MAX_LIGHT_SAMPLES} are taken)")
@@ -262,7 +278,11 @@ class _Importer:
     def run(self) -> Scene:
         for shape in self.parsed.shapes:
             self.add_shape(shape, np.eye(4))
-        for name, world, _ in self.parsed.instances:
+        for name, world, where in self.parsed.instances:
+            if not _is_placeable(world):
+                self.warn(where, f'ObjectInstance "{name}" under a transform that is singular (a Scale by 0, say) '
+                                 f"or projective (skipped)")
+                continue
             for shape in self.parsed.objects[name]:
                 self.add_shape(shape, world)
         self.scene.lights.extend(import_lights(self.parsed, self.dialect, self.find))
@@ -282,6 +302,11 @@ def import_world(path: str | Path, search_paths: list[Path] | None = None,
         chosen = choose_dialect(parsed, dialect)
         parsed.warn(parsed.directives["TransformBegin"], "TransformBegin/End (deprecated in pbrt-v4, which reads "
                                                          "them as AttributeBegin/End; so do we)")
+    if parsed.world_begin is None and (parsed.shapes or parsed.lights or parsed.instances):
+        # pbrt-v3 (src/core/api.cpp) and pbrt-v4 (src/pbrt/scene.cpp) both check VERIFY_WORLD: v3 ignores
+        # a world directive outside the world block, v4 stops; only WorldEnd is gone from v4 files
+        parsed.warn(str(parsed.path), "no WorldBegin (pbrt ignores or refuses shapes and lights outside the "
+                                      "world block; they are rendered as read, under the camera's transforms)")
     if parsed.world_begin is not None and parsed.world_end is None and not chosen.is_v4:  # v4 has no WorldEnd
         parsed.warn(str(parsed.path), f"no WorldEnd after the WorldBegin at {parsed.world_begin} (pbrt-v3 would "
                     f"render nothing; the world is rendered as read, but the file may be cut short)")

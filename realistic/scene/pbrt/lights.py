@@ -29,6 +29,7 @@ from realistic.scene.lights import (
 from realistic.scene.model import RGB
 from realistic.scene.pbrt.dialect import Dialect
 from realistic.scene.pbrt.parser import Directive, Params, PbrtScene
+from realistic.scene.pbrt.values import located
 
 #: Integrators pbrt names that we render with path tracing (pbrt-v2/v3/v4 integrator lists).
 PATH_FALLBACKS = ("volpath", "bdpt", "mlt", "sppm", "lightpath", "simplepath", "simplevolpath", "randomwalk",
@@ -178,7 +179,9 @@ def import_lights(parsed: PbrtScene, dialect: Dialect, find: Callable[..., Path]
     importer = _LightImporter(dialect, parsed.warn, find)
     lights: list[Light] = []
     for directive in parsed.lights:
-        light = importer.light(directive)
+        # a light's emission is judged by its constructor (an overflow there, not as a numpy warning)
+        with located(directive.where), np.errstate(over="ignore", invalid="ignore"):
+            light = importer.light(directive)
         if light is not None:
             lights.append(light)
     return lights

@@ -282,10 +282,24 @@ def _matte(r: _Reader, name: str, default: float) -> Material:
         sigma = 0.0
     sigma = min(abs(sigma), 90.0)
     if isinstance(colour, tuple):
-        return Material(colour, None, sigma)
+        return Material(_albedo(r, name, colour), None, sigma)
     if isinstance(colour, ScaledTexture):
         return Material(colour.scale, colour.texture, sigma)
     return Material((1.0, 1.0, 1.0), colour, sigma)
+
+
+def _albedo(r: _Reader, name: str, colour: RGB) -> RGB:
+    """A constant diffuse reflectance clamped to [0, 1], with a warning when that changes it: pbrt-v4
+    clamps it so (``src/pbrt/materials.h``, DiffuseMaterial::GetBxDF: Clamp(r, 0, 1)); pbrt-v3 clamps
+    only below 0 (``src/materials/matte.cpp``: Kd->Evaluate(*si).Clamp()), which lets a surface reflect
+    more light than it receives. A value that is not finite is refused."""
+    for value in colour:
+        finite(value, f'matte "{name}"')
+    clamped = (min(max(colour[0], 0.0), 1.0), min(max(colour[1], 0.0), 1.0), min(max(colour[2], 0.0), 1.0))
+    if clamped != tuple(colour):
+        shown = " ".join(f"{c:g}" for c in colour)
+        r.context.warn(r.where, f'matte "{name}" [{shown}] outside [0, 1] (clamped to it, as pbrt-v4 does)')
+    return clamped
 
 
 def _conductor(r: _Reader) -> Conductor:

@@ -510,6 +510,10 @@ class _Parser:
 
     def d_Camera(self, token: Token) -> None:
         camera = self._directive(token)
+        if not np.array_equal(self.state.ctm[3], [0.0, 0.0, 0.0, 1.0]):  # pbrt's cameras are affine
+            row = " ".join(f"{v:g}" for v in self.state.ctm[3])
+            raise ValueError(f"the camera transform is projective (its bottom row is {row}, not 0 0 0 1), which "
+                             f"no camera model here or in pbrt places")
         try:
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                 world_from_camera = np.linalg.inv(self.state.ctm)
