@@ -129,3 +129,25 @@ def test_typed_getters_give_the_default_only_when_a_parameter_gives_no_value():
             params.get_required_float(name)
     with pytest.raises(UserError, match='scene.pbrt:5: "word" expects numbers'):
         params.get_floats("word")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "directory"])
+def test_an_include_that_is_a_fifo_or_a_directory_says_so(tmp_path, kind):
+    """An Include naming a FIFO (opening it would block) or a directory is one line at the Include
+    saying what the name is; it was reported as "no such file" and skipped."""
+    import os
+
+    from realistic.errors import UserError
+
+    target = tmp_path / "part.pbrt"
+    if kind == "fifo":
+        os.mkfifo(target)
+    else:
+        target.mkdir()
+    scene = tmp_path / "scene.pbrt"
+    scene.write_text('WorldBegin\nInclude "part.pbrt"\nWorldEnd\n')
+    with pytest.raises(UserError) as raised:
+        parse_pbrt(scene)
+    message = str(raised.value)
+    assert message.startswith(f"{scene}:2:") and ("FIFO" if kind == "fifo" else "a directory") in message
+    assert "\n" not in message

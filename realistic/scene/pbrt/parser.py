@@ -16,6 +16,7 @@ from typing import overload
 
 import numpy as np
 
+from realistic.core.input_files import input_file
 from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.errors import UserError
 from realistic.scene.pbrt.lexer import PbrtSyntaxError, Token, read_scene_text, tokenize
@@ -214,12 +215,25 @@ def _is_file(path: Path) -> bool:
 
 
 def resolve_file(name: str, directory: Path, search_paths: list[Path]) -> Path | None:
-    """A file a scene names: relative to the naming file's folder, else in a search path."""
-    for folder in [directory, *search_paths]:
-        candidate = folder / name
+    """A file a scene names: relative to the naming file's folder, else in a search path; None
+    where there is none. A name that is found only as something else (a directory, a FIFO, a
+    device) is a UserError saying what it is (``core.input_files``): opening a FIFO would block."""
+    candidates = [folder / name for folder in [directory, *search_paths]]
+    for candidate in candidates:
         if _is_file(candidate):
             return candidate
+    for candidate in candidates:
+        if _exists(candidate):
+            input_file(candidate, "file")  # raises: it exists and is not a regular file
     return None
+
+
+def _exists(path: Path) -> bool:
+    """``path.exists()``, False for names the system cannot even look up."""
+    try:
+        return path.exists()
+    except (OSError, ValueError):
+        return False
 
 
 def _identity(path: Path) -> str:
@@ -433,7 +447,10 @@ class _Parser:
         name = self.string(token)
         # pbrt-v3/v4 resolve a relative name against the first scene file's folder (ResolveFilename,
         # src/pbrt/util/file.cpp); pbrt-v1/v2 and most scenes mean the including file's: try both
-        path = resolve_file(name, token.path.parent, [self.scene.path.parent, *self.search_paths])
+        try:
+            path = resolve_file(name, token.path.parent, [self.scene.path.parent, *self.search_paths])
+        except UserError as err:
+            raise PbrtSyntaxError(token.path, token.line, f'{token.text} "{name}": {err}') from None
         if path is None:
             self.scene.warn(token.where(), f'{token.text} "{name}": no such file in {token.path.parent} or the '
                                        f'search paths (skipped)')
