@@ -106,3 +106,37 @@ def test_check_writable_accepts_new_and_regular_files(tmp_path):
     (tmp_path / "old.png").write_bytes(b"x")
     check_writable(tmp_path / "old.png", {".png"})
     check_writable(tmp_path / "OLD.PNG", {".png"})
+
+
+def test_a_plot_that_fails_halfway_leaves_the_old_file_whole(tmp_path):
+    """Plots go through ``save_figure`` (matplotlib wrote the target itself before): a figure whose
+    writer fails after writing part of the file leaves the file that was there as it was, and no
+    temporary beside it."""
+    from realistic.core.atomic_files import save_figure
+
+    class Failing:
+        def savefig(self, fname: str, *, dpi: int, format: str) -> object:  # noqa: A002 (matplotlib's name)
+            Path(fname).write_bytes(b"\x89PNG half")
+            raise RuntimeError("the renderer stopped")
+
+    target = tmp_path / "plot.png"
+    target.write_bytes(b"the old plot")
+    with pytest.raises(RuntimeError):
+        save_figure(Failing(), target, 120)
+    assert target.read_bytes() == b"the old plot"
+    assert [p.name for p in tmp_path.iterdir()] == ["plot.png"]
+
+
+def test_a_plot_is_written_in_the_format_its_suffix_names(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from realistic.core.atomic_files import save_figure
+
+    fig = plt.figure()
+    for suffix, magic in ((".png", b"\x89PNG"), (".pdf", b"%PDF"), (".svg", b"<?xml")):
+        save_figure(fig, tmp_path / f"plot{suffix}", 60)
+        assert (tmp_path / f"plot{suffix}").read_bytes().startswith(magic)
+    plt.close(fig)

@@ -21,6 +21,7 @@ import threading
 from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Protocol
 
 from realistic.errors import UserError
 
@@ -151,6 +152,19 @@ def write_atomically(path: Path, write: Callable[[str], object]) -> None:
             if isinstance(err, OSError):
                 raise UserError(f"{path}: cannot write: {err.strerror or err}") from None
             raise
+
+
+class Figure(Protocol):
+    """What ``save_figure`` needs of a matplotlib figure."""
+
+    def savefig(self, fname: str, *, dpi: int, format: str) -> object: ...  # noqa: A002 (matplotlib's name)
+
+
+def save_figure(figure: Figure, path: Path, dpi: int) -> None:
+    """A matplotlib ``figure`` written to ``path`` as ``write_atomically`` writes (no partial file, no
+    non-regular target replaced, interrupts wait), in the format the path's suffix names."""
+    path = Path(path)
+    write_atomically(path, lambda temporary: figure.savefig(temporary, dpi=dpi, format=path.suffix[1:].lower()))
 
 
 def write_text_atomically(path: Path, text: str) -> None:

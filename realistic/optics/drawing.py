@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from realistic.core.atomic_files import save_figure
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.optics.asphere import sag_mm
 from realistic.optics.field_curves import FieldPoint, meridional_fan
@@ -76,7 +77,7 @@ def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
     ax.set_title(f"{lens.name}: film distance {film_distance_mm:.3f} mm; fans from 0, 50 and 90 % of the "
                  f"image circle ({reach:.1f} mm)")
     fig.tight_layout()
-    fig.savefig(out, dpi=150)
+    save_figure(fig, out, 150)
     plt.close(fig)
 
 
@@ -101,5 +102,5 @@ def plot_field_curves(name: str, rows: list[FieldPoint], out: Path) -> None:
     right.axhline(0, color="grey", lw=0.5)
     fig.suptitle(f"{name}: field curves")
     fig.tight_layout()
-    fig.savefig(out, dpi=120)
+    save_figure(fig, out, 120)
     plt.close(fig)

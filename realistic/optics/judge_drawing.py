@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from realistic.core.atomic_files import save_figure
 from realistic.optics.mtf import MtfReport
 from realistic.optics.spot import SpotReport
 
@@ -47,7 +48,7 @@ def plot_spots(report: SpotReport, out: Path) -> None:
     fig.suptitle(f"{report.lens_name}: spots at {report.focus} focus "
                  f"(film {report.film_distance_mm:.4f} mm behind the rear vertex)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(out, dpi=120)
+    save_figure(fig, out, 120)
     plt.close(fig)
 
 
@@ -69,5 +70,5 @@ def plot_mtf(report: MtfReport, out: Path) -> None:
     ax.legend(fontsize=7)
     ax.set_title(f"{report.lens_name}: geometric MTF at {report.focus} focus", fontsize=9)
     fig.tight_layout()
-    fig.savefig(out, dpi=120)
+    save_figure(fig, out, 120)
     plt.close(fig)

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from realistic.core.atomic_files import save_figure
 from realistic.errors import UserError
 
 
@@ -35,5 +36,5 @@ def plot_convergence(rows: list[dict], out: Path, title: str) -> None:
         ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())  # decade labels only
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(out, dpi=120)
+    save_figure(fig, out, 120)
     plt.close(fig)
