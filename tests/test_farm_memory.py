@@ -128,3 +128,25 @@ def test_a_render_of_many_emitting_spheres_peaks_within_its_estimate():
     peak, estimate = map(int, out.stdout.split())
     assert peak <= estimate, (peak / 2**30, estimate / 2**30)
     assert estimate > memory.BASE_BYTES + 40 * len(sphere(0.02).faces) * memory.EMITTER_BYTES_PER_TRIANGLE
+
+
+def test_a_farm_refuses_before_sending_a_job_its_workers_cannot_hold():
+    """Each Dask worker holds the scene and its passes: a job beyond a worker's ``memory_limit`` is
+    refused in one line naming that limit, before the scene is sent (it was not checked at all)."""
+    distributed = pytest.importorskip("distributed", reason="dask[distributed] is the farm extra")
+    from realistic.renderer.farm import DaskPasses
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.timing import StageClock
+
+    scene = _spheres(40, emitting=False, shared=False)  # 40 unshared spheres: well over 64 MiB of geometry
+    job = RenderJob(scene, (_camera(),), "numpy")
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, memory_limit="64MiB",
+                                       dashboard_address=None)
+    try:
+        with distributed.Client(cluster) as client:
+            with pytest.raises(UserError, match="memory_limit") as refused:
+                DaskPasses(client).open(job, StageClock())
+            assert "\n" not in str(refused.value) and "0.1 GiB" in str(refused.value)
+            assert not client.who_has()  # nothing was sent
+    finally:
+        cluster.close()

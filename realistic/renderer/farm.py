@@ -33,6 +33,7 @@ from realistic.core import validation
 from realistic.errors import UserError
 from realistic.renderer.checkpoint import content_hash
 from realistic.renderer.job import PassResult, PassSettings, RenderJob
+from realistic.renderer.memory import check_memory
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
@@ -206,6 +207,7 @@ class DaskPasses:
 
     def open(self, job: RenderJob, clock: StageClock) -> None:
         """Send the scene to the cluster (once, as a task's result); stage times stay on the workers."""
+        self._check_worker_memory(job)
         self.cameras, self.settings = job.cameras, job.settings
         described = dataclasses.replace(job.scene, camera=None)
         self.scene_key = content_hash(described)
@@ -216,6 +218,20 @@ class DaskPasses:
         threads = sum(self.client.nthreads().values())
         self.capacity = max(2, 2 * threads)  # tasks submitted ahead: every worker busy, one queued each
         self.passes_per_task = max(1, (self.task_samples or DEFAULT_TASK_SAMPLES) // job.pass_size)
+
+    def _check_worker_memory(self, job: RenderJob) -> None:
+        """Refuse, before anything is sent, a job that would not fit in a worker: each holds the scene,
+        a runner and its threads' passes in flight, within its ``memory_limit`` (the smallest of the
+        cluster's, and ``job.max_memory_bytes`` if smaller)."""
+        workers = self.client.scheduler_info().get("workers", {}).values()
+        limits = [int(worker["memory_limit"]) for worker in workers if worker.get("memory_limit")]
+        source = "a worker of this cluster may use (its memory_limit)"
+        if job.max_memory_bytes is not None and (not limits or job.max_memory_bytes < min(limits)):
+            limits, source = [job.max_memory_bytes], "allowed by --max-memory"
+        threads = max(self.client.nthreads().values(), default=1)
+        alike = {(c.width, c.height, c.spp, c.rays_per_sample): c for c in job.cameras}  # a sweep's are alike
+        for camera in alike.values():
+            check_memory(job.scene, camera, job.pass_size, threads, min(limits, default=None), limit_source=source)
 
     def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]) -> Future:
         """A task of frame ``frame``'s passes; its camera is prepared on the worker (``_runner``)."""

@@ -149,10 +149,11 @@ _ADVICE = {
 
 
 def check_memory(scene: Scene, camera: Camera, pass_samples: int, threads: int, limit_bytes: int | None,
-                 frames: int = 1, kept_images: int = 0) -> None:
+                 frames: int = 1, kept_images: int = 0, limit_source: str = "allowed by --max-memory") -> None:
     """Refuse, in one line with the estimate, what it goes to and the limit, a render that would not
-    fit in memory: more than ``limit_bytes`` (None: what the system has available now), and never
-    more than the machine has at all, whatever ``limit_bytes`` says."""
+    fit in memory: more than ``limit_bytes`` (None: what the system has available now; its name in
+    the message: ``limit_source``), and never more than the machine has at all, whatever
+    ``limit_bytes`` says."""
     parts = memory_parts(scene, camera, pass_samples, threads, frames, kept_images)
     need = sum(parts.values())
     machine = machine_bytes()
@@ -162,7 +163,7 @@ def check_memory(scene: Scene, camera: Camera, pass_samples: int, threads: int, 
     elif limit_bytes > machine:
         limit, source, raise_hint = machine, "this machine has in all (memory and swap)", ""
     else:
-        limit, source = limit_bytes, "allowed by --max-memory"
+        limit, source = limit_bytes, limit_source
     if need <= limit:
         return
     largest = sorted((name for name in parts if name in _ADVICE), key=parts.__getitem__, reverse=True)
