@@ -74,6 +74,18 @@ def fresh_disk_cache(tmp_path_factory):
 
 
 @pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """A disk cache of the test's own (``REALISTIC_CACHE_DIR``), with the exit-pupil tables' cache in
+    this process emptied before and after, so that each table is read from disk or built."""
+    from realistic.optics import sampling
+
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
+    sampling._cached_table.cache_clear()
+    yield tmp_path
+    sampling._cached_table.cache_clear()
+
+
+@pytest.fixture
 def thread_pools(monkeypatch) -> list[tuple[int, bool]]:
     """(threads, pin_threads) of each pool in-process renders start while the test runs, in order."""
     from realistic.renderer import passes

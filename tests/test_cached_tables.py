@@ -17,14 +17,6 @@ from realistic.optics.paraxial import film_distance_for_focus
 INTERVALS = 8  # a small table: each rebuild is one pupil search
 
 
-@pytest.fixture()
-def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
-    sampling._cached_table.cache_clear()
-    yield tmp_path
-    sampling._cached_table.cache_clear()
-
-
 def _table(lens_name: str = "dgauss") -> sampling.ExitPupilTable:
     lens = load_lens(lens_name)
     sampling._cached_table.cache_clear()

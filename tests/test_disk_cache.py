@@ -1,20 +1,11 @@
 """The exit-pupil table's disk cache: a stored table is the built one, a bad entry is rebuilt."""
 
 import numpy as np
-import pytest
 
 from realistic.core import disk_cache
 from realistic.optics import sampling
 from realistic.optics.formats import load_lens
 from realistic.optics.paraxial import film_distance_for_focus
-
-
-@pytest.fixture()
-def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
-    sampling._cached_table.cache_clear()
-    yield tmp_path
-    sampling._cached_table.cache_clear()
 
 
 def _table(stop_divisor: float = 1.0):
