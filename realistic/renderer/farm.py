@@ -33,7 +33,7 @@ from realistic.core import validation
 from realistic.errors import UserError
 from realistic.renderer.checkpoint import content_hash
 from realistic.renderer.job import PassResult, PassSettings, RenderJob
-from realistic.renderer.memory import check_memory
+from realistic.renderer.memory import check_job_memory
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
@@ -229,9 +229,7 @@ class DaskPasses:
         if job.max_memory_bytes is not None and (not limits or job.max_memory_bytes < min(limits)):
             limits, source = [job.max_memory_bytes], "allowed by --max-memory"
         threads = max(self.client.nthreads().values(), default=1)
-        alike = {(c.width, c.height, c.spp, c.rays_per_sample): c for c in job.cameras}  # a sweep's are alike
-        for camera in alike.values():
-            check_memory(job.scene, camera, job.pass_size, threads, min(limits, default=None), limit_source=source)
+        check_job_memory(job, threads, min(limits, default=None), limit_source=source)
 
     def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]) -> Future:
         """A task of frame ``frame``'s passes; its camera is prepared on the worker (``_runner``)."""

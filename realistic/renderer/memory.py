@@ -28,6 +28,7 @@ import numpy as np
 
 from realistic.camera.base import Camera
 from realistic.errors import UserError
+from realistic.renderer.job import RenderJob
 from realistic.scene.intersect import SHARE_MIN_FACES
 from realistic.scene.lights import EmissiveInstance, InfiniteLight
 from realistic.scene.model import ImageTexture, Scene
@@ -171,3 +172,12 @@ def check_memory(scene: Scene, camera: Camera, pass_samples: int, threads: int, 
     raise UserError(f"a {camera.width}x{camera.height} render of this scene needs about {need / 2**30:.1f} GiB "
                     f"(GiB: {detail}), more than the {limit / 2**30:.1f} GiB {source}; try "
                     f"{_ADVICE[largest[0]]}{raise_hint}")
+
+
+def check_job_memory(job: RenderJob, threads: int, limit_bytes: int | None, frames: int = 1, kept_images: int = 0,
+                     limit_source: str = "allowed by --max-memory") -> None:
+    """``check_memory`` for every kind of frame ``job`` renders (a sweep's frames are alike, so one
+    check serves them), on ``threads`` threads, holding ``frames`` films and ``kept_images`` images."""
+    alike = {(c.width, c.height, c.spp, c.rays_per_sample): c for c in job.cameras}
+    for camera in alike.values():
+        check_memory(job.scene, camera, job.pass_size, threads, limit_bytes, frames, kept_images, limit_source)

@@ -40,7 +40,7 @@ from realistic.errors import UserError
 from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, refuse_unless_resuming, save_checkpoint
 from realistic.renderer.film import Film, PassFilm
 from realistic.renderer.job import PassExecutor, PassResult, RenderJob, RenderObserver, RenderResult, TaskHandle
-from realistic.renderer.memory import check_memory
+from realistic.renderer.memory import check_job_memory
 from realistic.renderer.pass_plan import plan_passes
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.thread_count import default_threads
@@ -80,10 +80,7 @@ class ThreadPasses:
 
     def open(self, job: RenderJob, clock: StageClock) -> None:
         frames = len(job.cameras)
-        alike = {(c.width, c.height, c.spp, c.rays_per_sample): c for c in job.cameras}  # a sweep's are alike
-        for camera in alike.values():
-            check_memory(job.scene, camera, job.pass_size, self.threads, job.max_memory_bytes, frames,
-                         frames if job.keep_images else 0)
+        check_job_memory(job, self.threads, job.max_memory_bytes, frames, frames if job.keep_images else 0)
         self.job, self.clock = job, clock
         prepare_tracing()  # numba's loops load while the cameras and kernels are prepared
         self.intersector = self.given_intersector
