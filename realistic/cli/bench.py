@@ -9,12 +9,12 @@ import argparse
 import json
 from pathlib import Path
 
-from realistic.cli.render import add_farm_arguments, executor_for, farm_client, report_warnings
+from realistic.cli.render import add_farm_arguments, executor_for, farm_client, farm_security, report_warnings
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
 from realistic.cli.values import checked_plot, parse_spp_list
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.core.image_files import read_exr
-from realistic.errors import UserError
+from realistic.core.input_files import input_file
 from realistic.renderer.job import RenderJob
 from realistic.renderer.thread_count import default_threads
 
@@ -50,16 +50,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
     plot = checked_plot(Path(args.plot))
     if args.json:
         check_writable(Path(args.json))
+    security = farm_security(args)  # TLS options checked before any work
     reference = None
     if args.reference:
-        if not Path(args.reference).is_file():
-            raise UserError(f"{args.reference}: no such reference image")
-        reference = read_exr(Path(args.reference))[0]
+        reference = read_exr(input_file(args.reference, "reference image"))[0]
     inputs = build_render_inputs(options_from_args(args, spp_list[0]))
     report_warnings(inputs.warnings)
     job = RenderJob(inputs.scene, (inputs.camera,), args.backend, args.seed, args.cl_device, inputs.light_samples,
                     max_memory_bytes=args.max_memory)
-    with farm_client(args) as client:
+    with farm_client(args, security) as client:
         rows, _ = measure_sample_counts(job, spp_list, executor_for(args, client, inputs.intersector), reference)
     against = "reference" if reference is not None else f"{max(spp_list)} spp"
     camera = inputs.camera

@@ -152,15 +152,15 @@ def farm_security(args: argparse.Namespace) -> Any:
 
 
 @contextmanager
-def farm_client(args: argparse.Namespace) -> Iterator[object | None]:
-    """The Dask client that ``--workers`` or ``--scheduler`` asks for, or None (render on threads);
-    dask is imported only here, and only when one is asked for. Only the command line names a
-    cluster: ``DASK_SCHEDULER_ADDRESS`` in the environment is never used (its scheduler and workers
-    could run code as the user)."""
+def farm_client(args: argparse.Namespace, security: Any) -> Iterator[object | None]:
+    """The Dask client that ``--workers`` or ``--scheduler`` asks for (with ``security``, what
+    ``farm_security`` made of the TLS options), or None (render on threads); dask is imported only
+    here, and only when one is asked for. Only the command line names a cluster:
+    ``DASK_SCHEDULER_ADDRESS`` in the environment is never used (its scheduler and workers could run
+    code as the user)."""
     if not args.workers and not args.scheduler:
         yield None
         return
-    security = farm_security(args)
     from realistic.renderer.farm import farm_client as open_client
 
     def announce(line: str) -> None:
@@ -195,15 +195,15 @@ def executor_for(args: argparse.Namespace, client: Any,
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path, refuse_unless_resuming
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.output import BetterImageKept, Photographic, save, write_preview
+    from realistic.renderer.output import BetterImageKept, Photographic, exr_output, save, write_preview
     from realistic.renderer.passes import render
     from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
-    if args.out is not None and Path(args.out).suffix.lower() != ".exr":
-        raise UserError(f"{args.out}: the output must be an .exr file (the PNG preview goes beside it)")
+    if args.out is not None:
+        exr_output(args.out)
     if args.out is not None and not args.sweep and not args.resume:
         refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
-    farm_security(args)  # TLS options checked before any work
+    security = farm_security(args)  # TLS options checked before any work
     sweep = parse_sweep(args.sweep) if args.sweep else None
     if sweep is not None and args.resume:
         raise UserError("--resume continues one image, not a --sweep sequence")
@@ -240,7 +240,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     observer = RenderObserver(on_frame=save_frame if sweep is not None else None,
                               preview=preview if args.preview_every else None, preview_every=args.preview_every,
                               progress=True)
-    with farm_client(args) as client:
+    with farm_client(args, security) as client:
         results = render(job, executor_for(args, client, inputs.intersector), observer)
     interrupted = any(result.interrupted for result in results)
     try:

@@ -116,6 +116,14 @@ def samples_in(path: Path) -> int | None:
     return int(done) if isinstance(done, (int, np.integer)) else None
 
 
+def exr_output(path: str | os.PathLike) -> Path:
+    """``path`` as a render's output: an ``.exr`` file (the PNG preview goes beside it)."""
+    path = Path(path)
+    if path.suffix.lower() != ".exr":
+        raise UserError(f"{path}: the output must be an .exr file (the PNG preview goes beside it)")
+    return path
+
+
 def save(result: RenderResult, path: str | os.PathLike, photographic: Photographic | None = None,
          exposure: float | None = None) -> float:
     """Write ``result`` to the EXR ``path`` with its header (``image_metadata``) and the PNG preview
@@ -127,9 +135,7 @@ def save(result: RenderResult, path: str | os.PathLike, photographic: Photograph
     wait until the files are written. Once a complete image is at ``path``, the job's checkpoint
     (``job.checkpoint``) is removed.
     """
-    path = Path(path)
-    if path.suffix.lower() != ".exr":
-        raise UserError(f"{path}: the output must be an .exr file (the PNG preview goes beside it)")
+    path = exr_output(path)
     image = exposed(result.image, photographic)
     report_non_finite(path, image)
     metadata = image_metadata(result)
