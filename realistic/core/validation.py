@@ -249,32 +249,26 @@ def printable_text(text: str, multiline: bool = False) -> str:
 MAX_EMISSION = 1e32
 
 
-def _rgb(values: Sequence[float], name: str) -> tuple[float, ...]:
+def _rgb_within(values: Sequence[float], name: str, high: float) -> tuple[float, float, float]:
+    """Three finite components, each from 0 to ``high`` (``_bounded``'s messages)."""
     if isinstance(values, str) or not isinstance(values, Sequence) or len(values) != 3:
         raise UserError(f"{name} must be an RGB triple, got {values!r}")
-    return tuple(finite(v, name) for v in values)
+    red, green, blue = (_bounded(finite(v, name), name, 0.0, high) for v in values)
+    return red, green, blue
 
 
 def emission(values: Sequence[float], name: str) -> tuple[float, float, float]:
     """An emitted RGB (radiance or intensity, after any scale): three finite components from 0 to
     ``MAX_EMISSION``. pbrt does not check these; a negative or overflowing value renders NaN, inf or
     black pixels, so it is refused here."""
-    triple = _rgb(values, name)
-    for v in triple:
-        if not 0.0 <= v <= MAX_EMISSION:
-            raise UserError(f"{name} must be between 0 and {MAX_EMISSION:g}, got {v:g}")
-    return triple[0], triple[1], triple[2]
+    return _rgb_within(values, name, MAX_EMISSION)
 
 
 def reflectance(values: Sequence[float], name: str) -> tuple[float, float, float]:
     """A diffuse reflectance (albedo) RGB: three finite components in [0, 1], the range in which a
     surface neither emits nor absorbs negative light (pbrt-v4 clamps a diffuse reflectance to it;
     see ``scene/pbrt/materials.py``)."""
-    triple = _rgb(values, name)
-    for v in triple:
-        if not 0.0 <= v <= 1.0:
-            raise UserError(f"{name} must be between 0 and 1, got {v:g}")
-    return triple[0], triple[1], triple[2]
+    return _rgb_within(values, name, 1.0)
 
 
 #: Film distance behind the lens's rear vertex, in mm: real bellows reach about a metre; beyond
