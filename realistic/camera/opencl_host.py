@@ -243,6 +243,11 @@ def _seconds(run: Callable[[], object]) -> float:
     return time.perf_counter() - start
 
 
+#: A lens program as ``LensKernel._build`` makes it: its rays per work item, the program, and its
+#: ``generate_rays`` and ``sample_bits`` kernels.
+_Built = tuple[int, "cl.Program", "cl.Kernel", "cl.Kernel"]
+
+
 class LensKernel:
     """``lens.cl`` built for one camera; each launch writes straight into the arrays it returns.
 
@@ -273,15 +278,17 @@ class LensKernel:
         self._film = (np.uint32(camera.width), np.float64(1) / np.float64(camera.width),
                       np.float32(1) / np.float32(camera.width),
                       np.float32(1) / np.float32(camera.height), np.float32(w_mm), np.float32(h_mm))
-        self.rays_per_item = rays_per_item or self._fastest_rays_per_item()
-        self._build(self.rays_per_item)
+        self._use(self._build(rays_per_item or self._fastest_rays_per_item()))
 
-    def _build(self, rays_per_item: int) -> None:
-        """Build (or take from the caches) the program tracing ``rays_per_item`` rays per work item."""
-        self.rays_per_item = rays_per_item
-        self.program = self.device.build_program(*lens_program(self.camera, rays_per_item))
-        self._generate = cl.Kernel(self.program, "generate_rays")
-        self._bits = cl.Kernel(self.program, "sample_bits")
+    def _build(self, rays_per_item: int) -> _Built:
+        """The program tracing ``rays_per_item`` rays per work item (built, or from the caches) and
+        its two kernels."""
+        program = self.device.build_program(*lens_program(self.camera, rays_per_item))
+        return rays_per_item, program, cl.Kernel(program, "generate_rays"), cl.Kernel(program, "sample_bits")
+
+    def _use(self, built: _Built) -> None:
+        """Launch the program ``_build`` made from now on."""
+        self.rays_per_item, self.program, self._generate, self._bits = built
 
     def _fastest_rays_per_item(self) -> int:
         """The faster of ``rays_per_item_choices`` for this camera on this device (see
@@ -296,13 +303,14 @@ class LensKernel:
         if stored is not None and "rays_per_item" in stored and int(stored["rays_per_item"][0]) in (several, one):
             return _chosen.setdefault(key, int(stored["rays_per_item"][0]))
         block = SampleBlock(0, TIMED_RAYS // self.camera.rays_per_sample, self.camera.spp)
+        built = {choice: self._build(choice) for choice in (several, one)}  # each built once
         fastest = {several: np.inf, one: np.inf}
         for choice in fastest:
-            self._build(choice)
+            self._use(built[choice])
             self.generate(block)
         for _ in range(TIMED_ROUNDS):
             for choice in fastest:
-                self._build(choice)
+                self._use(built[choice])
                 fastest[choice] = min(fastest[choice], _seconds(lambda: self.generate(block)))
         chosen = _chosen[key] = one if fastest[one] < ONE_RAY_MARGIN * fastest[several] else several
         disk_cache.store_arrays(key, {"rays_per_item": np.array([chosen])})
