@@ -247,3 +247,15 @@ def test_overflowing_coordinates_print_no_numpy_warning(tmp_path):
     assert result.stderr.count("\n") == 1 and "beyond the" in result.stderr
     assert "RuntimeWarning" not in result.stderr and "Traceback" not in result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["overflow.obj"]
+
+
+def test_a_mesh_path_that_is_a_fifo_says_so_without_opening_it(tmp_path):
+    """A FIFO named as the mesh is said to be one (``core.input_files``), not opened (that blocks)."""
+    import os
+
+    from realistic.scene.meshes import load_mesh_file
+
+    fifo = tmp_path / "mesh.obj"
+    os.mkfifo(fifo)
+    with pytest.raises(UserError, match=r"mesh\.obj: is a named pipe \(FIFO\), not a mesh file$"):
+        load_mesh_file(fifo)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from realistic.core.atomic_files import write_atomically
+from realistic.core.input_files import input_file
 from realistic.errors import UserError
 
 Metadata = dict[str, str | int | float]
@@ -111,9 +112,7 @@ def read_image(path: str | Path) -> tuple[np.ndarray, bool]:
     """(linear RGB float32 (H, W, 3), whether the file stored linear float values): EXR and other float
     images as stored; integer images divided by their type's maximum (so 8- and 16-bit keep every level)
     and sRGB-decoded. Grey is repeated into RGB, alpha dropped."""
-    path = Path(path)
-    if not path.is_file():
-        raise UserError(f"{path}: no such texture file")
+    path = input_file(path, "texture file")
     if path.suffix.lower() == ".exr":
         return read_exr(path)[0], True
     _check_pixel_count(path)

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from realistic.core.input_files import input_file
 from realistic.errors import UserError
 from realistic.scene.mesh_diagnosis import no_triangles_message, unreadable_message
 from realistic.scene.mesh_text_checks import check_ascii_stl, check_obj_text
@@ -218,12 +219,7 @@ def _triangulated(lists: np.ndarray) -> np.ndarray:
 
 
 def _check_path(path: Path) -> None:
-    if path.is_dir():
-        raise UserError(f"{path}: is a directory, not a mesh file")
-    if not path.exists():
-        raise UserError(f"{path}: no such mesh file")
-    if not path.is_file():
-        raise UserError(f"{path}: not a regular file")
+    input_file(path, "mesh file")  # missing, a directory, a FIFO or a device: said as such
     if path.stat().st_size == 0:
         raise UserError(f"{path}: the mesh file is empty")
     extension = path.suffix.lower().lstrip(".")
