@@ -376,24 +376,3 @@ def test_the_library_is_the_one_embreex_ships() -> None:
     assert any("embree4" in path.name for path in embree.library_candidates())
     assert embree.embree_library().path == embree.library_candidates()[0]
 
-
-def test_warming_up_compiles_both_loops_for_the_renderers_argument_types():
-    """``prepare_tracing`` loads the loops on a thread of its own; afterwards each is compiled once,
-    for exactly the types a trace then passes (a trace adds no second signature), and the thread
-    raised nothing (run in a fresh process, so the loops start uncompiled)."""
-    script = (
-        "import threading, numpy as np\n"
-        "from realistic.scene import embree, packet_loop\n"
-        "failures = []\n"
-        "threading.excepthook = lambda hook: failures.append(hook.exc_value)\n"
-        "embree.prepare_tracing()\n"
-        "packet_loop._warming[0].join()\n"
-        "assert not failures, failures\n"
-        "signatures = [len(loop.signatures) for loop in packet_loop._loops()]\n"
-        "scene = embree.EmbreeScene()\n"
-        "scene.add_triangles(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]]), 0)\n"
-        "scene.commit()\n"
-        "rays = np.array([[0.2, 0.2, 1]], np.float32), np.array([[0, 0, -1]], np.float32)\n"
-        "assert scene.intersect(*rays).geom[0] == 0 and scene.occluded(*rays, np.array([2], np.float32))[0]\n"
-        "print(signatures, [len(loop.signatures) for loop in packet_loop._loops()])\n")
-    assert run_fresh(script).stdout.split() == ["[1,", "1]", "[1,", "1]"]

@@ -45,7 +45,6 @@ from realistic.renderer.pass_plan import plan_passes
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
-from realistic.scene.embree import prepare_tracing
 from realistic.scene.intersect import Intersector
 
 if TYPE_CHECKING:
@@ -82,7 +81,6 @@ class ThreadPasses:
         frames = len(job.cameras)
         check_job_memory(job, self.threads, job.max_memory_bytes, frames, frames if job.keep_images else 0)
         self.job, self.clock = job, clock
-        prepare_tracing()  # numba's loops load while the cameras and kernels are prepared
         self.intersector = self.given_intersector
         self.runners: dict[int, PassRunner] = {}
         self.pool = ThreadPoolExecutor(max_workers=self.threads,

@@ -131,13 +131,6 @@ def embree_library() -> Library:
                     + (f" ({'; '.join(unloadable)})" if unloadable else ""))
 
 
-def prepare_tracing() -> None:
-    """Start loading the packet loops in the background (``packet_loop.warm_up``), typed by this
-    process's embree, for a caller that will trace soon and has other set-up to do first."""
-    library = embree_library()
-    packet_loop.warm_up(library.intersect16, library.occluded16)
-
-
 def mismatch(library: Library, problems: list[str]) -> str:
     """One line: the library, its version, and what differs from what the packet loops are written for."""
     return (f"embree {library.version()} at {library.path} is not the build the ray loops are written for "

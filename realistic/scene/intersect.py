@@ -28,7 +28,7 @@ import numpy as np
 
 from realistic.core.transforms import transform_points
 from realistic.errors import UserError
-from realistic.scene.embree import EmbreeScene, prepare_tracing
+from realistic.scene.embree import EmbreeScene
 from realistic.scene.model import Scene
 from realistic.scene.shapes import light_mesh
 
@@ -63,7 +63,6 @@ class Intersector:
         if not scene.instances and not scene.lights:
             raise UserError("the scene is empty: nothing to render")
         self.instance_count = len(scene.instances)
-        prepare_tracing()  # the loops load while the BVH builds
         self._embree = EmbreeScene()
         children = self._shared_meshes(scene) if share else {}
         # per global geometry id: the map of an instanced hit's normal to the world, transposed

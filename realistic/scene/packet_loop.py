@@ -127,31 +127,6 @@ def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, ori
 
 _lock = threading.Lock()
 _compiled: list[Callable[..., None]] = []
-_warming: list[threading.Thread] = []
-
-
-def warm_up(intersect16: Callable[..., None], occluded16: Callable[..., None]) -> None:
-    """Start loading the loops (numba's import, then their compile or cache load) on a thread of
-    its own, once per process, so that this start-up cost overlaps the rest of a render's set-up
-    (exit-pupil tables, kernel builds, the BVH); a trace that comes first waits for it (numba
-    compiles under its own lock). ``intersect16``/``occluded16`` are embree's packet functions, as
-    the traces will pass them (the loops are typed by them; no ray reaches them here). The thread is
-    not a daemon: the interpreter never exits halfway through an import."""
-    with _lock:
-        if _warming:
-            return
-        _warming.append(threading.Thread(target=_compile_loops, args=(intersect16, occluded16),
-                                         name="realistic-packet-loops"))
-    _warming[0].start()
-
-
-def _compile_loops(intersect16: Callable[..., None], occluded16: Callable[..., None]) -> None:
-    """Each loop called on no rays, which compiles it (or loads it from numba's cache) for the
-    argument types the renderer passes."""
-    rays, floats, ids = np.empty((0, 3), np.float32), np.empty(0, np.float32), np.empty(0, np.int32)
-    closest_loop()(intersect16, 0, packet_buffer(), rays, rays, np.float32(0), floats, floats, floats, ids, ids, ids,
-                   rays)
-    occluded_loop()(occluded16, 0, packet_buffer(), rays, rays, floats, np.empty(0, np.bool_))
 
 
 def closest_loop() -> Callable[..., None]:
