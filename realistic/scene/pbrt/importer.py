@@ -44,12 +44,17 @@ class ImportedScene:
     camera_where: str  # the file and line of the Camera directive, for errors about the camera
 
 
+#: The largest condition number of a shape's placement (its 3x3 part) that still has an inverse
+#: in float64: beyond it the placement is singular for every purpose here.
+MAX_PLACEMENT_CONDITION = 1e15
+
+
 def _is_placeable(transform: np.ndarray) -> bool:
     """Whether a shape can be put in the world by ``transform``: affine (bottom row 0 0 0 1, as the
     intersector's 3x4 instance matrices are) and invertible (its normals are the inverse's transpose)."""
     with np.errstate(all="ignore"):
         return bool(np.array_equal(transform[3], [0.0, 0.0, 0.0, 1.0]) and np.all(np.isfinite(transform))
-                    and np.isfinite(np.linalg.cond(transform[:3, :3])) and np.linalg.cond(transform[:3, :3]) < 1e15)
+                    and np.linalg.cond(transform[:3, :3]) < MAX_PLACEMENT_CONDITION)  # False for inf and NaN
 
 
 def _texture_name(params: Params, name: str, where: str) -> str:
