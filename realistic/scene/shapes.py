@@ -71,6 +71,19 @@ def cone(radius: float, height: float, segments: int = DEFAULT_SEGMENTS) -> Mesh
     return Mesh(vertices, faces, n / np.linalg.norm(n, axis=1, keepdims=True), uv, "cone")
 
 
+def cylinder(radius: float, z0: float, z1: float, segments: int = DEFAULT_SEGMENTS) -> Mesh:
+    """pbrt's cylinder about z from ``z0`` to ``z1`` (no caps), wound outward."""
+    phi = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    ring = np.column_stack([np.cos(phi), np.sin(phi)])
+    vertices = np.vstack([np.column_stack([ring * radius, np.full(segments, z)]) for z in (z0, z1)])
+    normals = np.vstack([np.column_stack([ring, np.zeros(segments)])] * 2)
+    i = np.arange(segments)
+    j = (i + 1) % segments
+    faces = np.concatenate([np.column_stack([i, j, j + segments]),
+                            np.column_stack([i, j + segments, i + segments])])
+    return Mesh(vertices, faces, normals, None, "cylinder")
+
+
 def light_mesh(light: AreaLight) -> Mesh:
     """An area light's emitter tessellated in its object space (so camera rays see it)."""
     if light.shape == "disk":

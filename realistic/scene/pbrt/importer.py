@@ -78,6 +78,9 @@ class _Importer:
         # a mesh file's meshes are stored once (the intersector then builds each once for all its
         # instances): mesh identity -> scene mesh index
         self.mesh_index: dict[int, int] = {}
+        # per mesh index: its object-space area, and its copy wound the other way (emitting quadrics)
+        self.object_areas: dict[int, float] = {}
+        self.reversed_meshes: dict[int, int] = {}
 
     def warn(self, where: str, message: str) -> None:
         self.parsed.warn(where, message)
@@ -262,23 +265,50 @@ class _Importer:
         inst = self.scene.instances[index]
         mesh = self.scene.meshes[inst.mesh]
         linear = np.asarray(inst.transform, np.float64)[:3, :3]
+        if shape.type in QUADRICS:  # outward in object space: only ReverseOrientation turns them
+            area = self._area(inst.mesh, linear)
+            if shape.reverse_orientation:
+                self.scene.instances[index] = dataclasses.replace(inst, mesh=self._reversed(inst.mesh))
+            return area
         with np.errstate(all="ignore"):
             corners = (mesh.vertices @ linear.T)[mesh.faces]
             winding = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
             area = float(np.linalg.norm(winding, axis=1).sum() / 2)
-        if mesh.normals is not None and shape.type not in QUADRICS and np.linalg.det(linear) != 0:
+        if mesh.normals is not None and np.linalg.det(linear) != 0:
             with np.errstate(all="ignore"):
                 shading = (mesh.normals @ np.linalg.inv(linear))[mesh.faces].sum(axis=1)
             flip = np.einsum("ij,ij->i", winding, shading) < 0
         else:
-            swaps = shape.type not in QUADRICS and np.linalg.det(linear) < 0
-            flip = np.full(len(mesh.faces), bool(swaps))
+            flip = np.full(len(mesh.faces), bool(np.linalg.det(linear) < 0))
         flip ^= shape.reverse_orientation
         if np.any(flip):
             faces = np.where(flip[:, None], mesh.faces[:, ::-1], mesh.faces)
             rewound = self.scene.add_mesh(dataclasses.replace(mesh, faces=faces))
             self.scene.instances[index] = dataclasses.replace(inst, mesh=rewound)
         return area if np.isfinite(area) else np.inf
+
+    def _area(self, mesh_index: int, linear: np.ndarray) -> float:
+        """World area of mesh ``mesh_index`` under ``linear``: its object area times the square of the
+        scale when ``linear`` is a rotation times a uniform scale (the common placement of a shape, and
+        cheap for a thousand equal spheres), else summed over its transformed triangles; inf on overflow."""
+        mesh = self.scene.meshes[mesh_index]
+        with np.errstate(all="ignore"):
+            gram = linear.T @ linear
+            scale2 = float(np.trace(gram) / 3)
+            if 0 < scale2 < np.inf and np.allclose(gram, scale2 * np.eye(3), rtol=0, atol=1e-12 * scale2):
+                if mesh_index not in self.object_areas:
+                    self.object_areas[mesh_index] = triangle_area(mesh.vertices, mesh.faces)
+                area = self.object_areas[mesh_index] * scale2
+            else:
+                area = triangle_area(mesh.vertices @ linear.T, mesh.faces)
+        return area if np.isfinite(area) else np.inf
+
+    def _reversed(self, mesh_index: int) -> int:
+        """The index of mesh ``mesh_index`` with every face's winding reversed, stored once."""
+        if mesh_index not in self.reversed_meshes:
+            mesh = self.scene.meshes[mesh_index]
+            self.reversed_meshes[mesh_index] = self.scene.add_mesh(dataclasses.replace(mesh, faces=mesh.faces[:, ::-1]))
+        return self.reversed_meshes[mesh_index]
 
     def run(self) -> Scene:
         for shape in self.parsed.shapes:
@@ -328,3 +358,10 @@ def import_pbrt(path: str | Path, search_paths: list[Path] | None = None, dialec
     scene.camera = dataclasses.replace(import_camera(parsed, chosen, film.width, film.height, film.spp, search_paths),
                                        pixel_filter=import_pixel_filter(parsed, chosen))
     return ImportedScene(scene, film.output_name, parsed.warnings, chosen, camera_directive(parsed).where)
+
+
+def triangle_area(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """The summed area of a mesh's triangles."""
+    corners = vertices[faces]
+    return float(np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1).sum()
+                 / 2)

@@ -14,8 +14,8 @@ from realistic.core.transforms import translate
 from realistic.errors import UserError
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import Mesh
-from realistic.scene.pbrt.parser import Params, ShapeRecord
-from realistic.scene.shapes import cone, disk, sphere
+from realistic.scene.pbrt.parser import ShapeRecord
+from realistic.scene.shapes import cone, cylinder, disk, sphere
 
 #: Shapes pbrt defines by an equation, whose front is their object-space outside.
 QUADRICS = ("sphere", "cone", "cylinder")
@@ -51,6 +51,9 @@ class ShapeMeshes:
         self.warn, self.find = warn, find
         # a mesh file named by several shapes is loaded once: path -> its objects
         self.loaded: dict[Path, list[tuple[Mesh, np.ndarray]]] = {}
+        # an analytic shape is tessellated once per size: (type, sizes) -> its mesh, so that a thousand
+        # equal spheres are one mesh placed a thousand times (embree then shares it: intersect.py)
+        self.tessellated: dict[tuple[str, tuple[float, ...]], Mesh] = {}
 
     def usable(self, shape: ShapeRecord) -> bool:
         """False (with a warning) for an analytic shape whose sizes leave nothing we can render."""
@@ -93,19 +96,29 @@ class ShapeMeshes:
         if shape.type == "disk":
             if p.get_float("innerradius", 0.0):
                 self.warn(shape.where, "disk innerradius (rendered as a full disk)")
-            return [(disk(p.get_float("radius", 1.0)), translate(0, 0, p.get_float("height", 0.0)))]
+            return [(self._once("disk", disk, p.get_float("radius", 1.0)),
+                     translate(0, 0, p.get_float("height", 0.0)))]
         if shape.type == "sphere":
             if p.has("zmin") or p.has("zmax") or p.get_float("phimax", 360.0) != 360.0:
                 self.warn(shape.where, "partial sphere (zmin, zmax, phimax; rendered whole)")
-            return [(sphere(p.get_float("radius", 1.0)), np.eye(4))]
+            return [(self._once("sphere", sphere, p.get_float("radius", 1.0)), np.eye(4))]
         if shape.type == "cone":
             if p.get_float("phimax", 360.0) != 360.0:
                 self.warn(shape.where, "partial cone (phimax; rendered whole)")
-            return [(cone(p.get_float("radius", 1.0), p.get_float("height", 1.0)), np.eye(4))]
+            return [(self._once("cone", cone, p.get_float("radius", 1.0), p.get_float("height", 1.0)), np.eye(4))]
         if shape.type == "cylinder":
-            return [(self.cylinder(p), np.eye(4))]
+            z0, z1 = p.get_float("zmin", -1.0), p.get_float("zmax", 1.0)
+            return [(self._once("cylinder", cylinder, p.get_float("radius", 1.0), min(z0, z1), max(z0, z1)),
+                     np.eye(4))]
         self.warn(shape.where, f'Shape "{shape.type}" (skipped)')
         return []
+
+    def _once(self, kind: str, tessellate: Callable[..., Mesh], *sizes: float) -> Mesh:
+        """``tessellate(*sizes)``, made once per ``kind`` and sizes for the whole import."""
+        key = (kind, sizes)
+        if key not in self.tessellated:
+            self.tessellated[key] = tessellate(*sizes)
+        return self.tessellated[key]
 
     def triangle_mesh(self, shape: ShapeRecord) -> Mesh:
         """pbrt's trianglemesh: bad points or indices are errors; uv or N that do not fit are dropped
@@ -173,15 +186,3 @@ class ShapeMeshes:
             return None
         return np.asarray(values, dtype=np.float64).reshape(-1, width)
 
-    def cylinder(self, params: Params, segments: int = 256) -> Mesh:
-        radius, z0, z1 = params.get_float("radius", 1.0), params.get_float("zmin", -1.0), params.get_float("zmax", 1.0)
-        z0, z1 = min(z0, z1), max(z0, z1)  # as pbrt
-        phi = np.linspace(0, 2 * np.pi, segments, endpoint=False)
-        ring = np.column_stack([np.cos(phi), np.sin(phi)])
-        vertices = np.vstack([np.column_stack([ring * radius, np.full(segments, z)]) for z in (z0, z1)])
-        normals = np.vstack([np.column_stack([ring, np.zeros(segments)])] * 2)
-        i = np.arange(segments)
-        j = (i + 1) % segments
-        faces = np.concatenate([np.column_stack([i, j, j + segments]),
-                                np.column_stack([i, j + segments, i + segments])])
-        return Mesh(vertices, faces, normals, None, "cylinder")
