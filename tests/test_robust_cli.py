@@ -53,6 +53,9 @@ def refused(args: list[str], tmp_path: Path, capsys) -> str:
     (["--threads", "2", "--workers", "2"], "not allowed with argument"),
     (["--aperture", "nan"], "aperture diameter must be a positive number of mm"),
     (["--aperture", "1000"], "aperture diameter 1000 mm is wider than dgauss's widest element (25.2 mm)"),
+    (["--aperture", "1e-300"], "aperture diameter must be at least 0.001 mm"),  # was an all-black image, exit 0
+    (["--fstop", "1e308"], "f-number must be at most 10000"),  # the same
+    (["--sweep", "fstop=2:1e308:3"], "f-number must be at most 10000"),
     (["--iso", "-100"], "ISO speed"),
     (["--max-memory", "lots"], "is not a positive size"),
     (["--target", "-1,0"], "is not three finite numbers"),

@@ -31,7 +31,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     stop = parser.add_mutually_exclusive_group()
     stop.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                       help="stop diameter in mm (default: the scene's or lens's)")
-    stop.add_argument("--fstop", type=positive("f-number"), metavar="N",
+    stop.add_argument("--fstop", type=checked(float, validation.f_number), metavar="N",
                       help="f-number: sizes the stop for this paraxial f-number (EFL / entrance pupil)")
     parser.add_argument("--blades", type=checked(int, validation.blades), metavar="N",
                         help="shape the stop as N diaphragm blades (a regular N-gon inscribed in the stop's circle; "

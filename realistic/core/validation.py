@@ -31,6 +31,10 @@ MAX_LIGHT_SAMPLES = 1024
 MAX_FILM_DIAGONAL_MM = 1000.0
 #: Diaphragm blades: real lenses have 5 to 18; the kernel unrolls one test per blade.
 MIN_BLADES, MAX_BLADES = 3, 64
+#: The stop's diameter and f-number: pinhole cameras reach f/500 and a stop of a few micrometres;
+#: far beyond, no light passes and the image is black (a 1e-300 mm stop is 0 in the kernel's floats).
+MIN_STOP_DIAMETER_MM = 1e-3
+MAX_F_NUMBER = 1e4
 #: Pixel filter radius in pixels: pbrt's widest default is 4 (sinc); beyond 16 a filter is a blur.
 MAX_FILTER_RADIUS = 16.0
 
@@ -121,7 +125,16 @@ def stop_diameter_mm(value: float) -> float:
     if not (is_number and value > 0 and math.isfinite(value)):
         shown = f"{value:g}" if is_number else repr(value)
         raise UserError(f"aperture diameter must be a positive number of mm, got {shown}")
+    if value < MIN_STOP_DIAMETER_MM:
+        raise UserError(f"aperture diameter must be at least {MIN_STOP_DIAMETER_MM:g} mm (a stop smaller than a "
+                        f"micrometre passes no light), got {value:g}")
     return float(value)
+
+
+def f_number(value: float) -> float:
+    """An f-number to size the stop for: positive, finite and at most ``MAX_F_NUMBER`` (whether the
+    lens opens that wide is the lens's to say: ``paraxial.stop_diameter_for_f_number``)."""
+    return positive_length(value, "f-number", MAX_F_NUMBER)
 
 
 def film_diagonal_mm(value: float) -> float:

@@ -199,7 +199,7 @@ def stop_diameter_for_f_number(lens: LensSystem, f_number: float, wavelength_nm:
     stop's. A number faster than the lens file's own stop allows is an error: the other elements'
     apertures were designed around that stop.
     """
-    f_number = validation.positive_length(f_number, "f-number")
+    f_number = validation.f_number(f_number)
     widest = paraxial_data(lens, wavelength_nm).f_number
     if f_number < widest * (1 - 1e-9):
         raise UserError(f"f/{f_number:g} is faster than {lens.name} opens (f/{widest:.3g} at its stop of "

@@ -106,9 +106,10 @@ class RenderOptions:
             self.pixel_filter = filter_name(self.pixel_filter)
         if self.aperture_mm is not None:
             validation.stop_diameter_mm(self.aperture_mm)
-        for name, value in (("focus distance", self.focus_distance), ("f-number", self.f_number)):
-            if value is not None:
-                validation.positive_length(value, name)
+        if self.focus_distance is not None:
+            validation.positive_length(self.focus_distance, "focus distance")
+        if self.f_number is not None:
+            validation.f_number(self.f_number)
         if self.aperture_mm is not None and self.f_number is not None:
             raise UserError("--aperture and --fstop both size the stop: give one")
         if self.focus_distance is not None and self.focus_on is not None:

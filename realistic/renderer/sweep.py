@@ -56,9 +56,10 @@ def parse_sweep(text: str) -> Sweep:
         if not (math.isfinite(value) and value > 0):
             raise UserError(f"--sweep {text!r}: {name} values must be positive finite numbers, got {value:g}")
     values = (start,) if count == 1 else tuple(float(v) for v in np.linspace(start, stop, count))
-    if name == "aperture":
+    check = {"aperture": validation.stop_diameter_mm, "fstop": validation.f_number}.get(name)
+    if check is not None:
         for value in (start, stop):
-            validation.stop_diameter_mm(value)
+            check(value)
     return Sweep(name, values)
 
 
