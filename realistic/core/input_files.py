@@ -47,7 +47,8 @@ def input_file(path: str | Path, what: str, missing: str = "", error: ErrorKind 
         raise error(str(path), None, f"cannot read {what}: {getattr(err, 'strerror', None) or err}") from None
     if not stat.S_ISREG(mode):
         kind = next((words for test, words in _KINDS if test(mode)), "a special file")
-        raise error(str(path), None, f"is {kind}, not a {what}")
+        article = "an" if what[:1] in "aeiou" else "a"
+        raise error(str(path), None, f"is {kind}, not {article} {what}")
     return path
 
 
