@@ -81,7 +81,7 @@ def test_a_fifo_output_is_refused_without_blocking(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["lens", "plot", "dgauss", "--out", "{tmp}/x.txt"], "x.txt: cannot write the image: the name must end in"),
+    (["lens", "plot", "dgauss", "--out", "{tmp}/x.txt"], "x.txt: cannot be written: the name must end in"),
     (["lens", "curves", "dgauss", "--out", "{tmp}/x.exr"], "the name must end in"),
     (["lens", "spot", "dgauss", "--out", "{tmp}/x"], "the name must end in"),
     (["lens", "mtf", "dgauss", "--out", "{tmp}/x.json"], "the name must end in"),

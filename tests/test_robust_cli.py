@@ -89,7 +89,7 @@ def test_pbrt_film_diagonal_is_checked_like_the_option(tmp_path, capsys, diagona
 
 def test_unwritable_place_is_refused_before_rendering(tmp_path, capsys):
     err = refused(["render", *QUICK, "--res", "8x8", "--out", "/proc/r.exr"], tmp_path, capsys)
-    assert "/proc/r.exr: cannot write the image" in err
+    assert "/proc/r.exr: cannot be written" in err
 
 
 def test_a_finished_render_is_kept_when_its_folder_vanishes(tmp_path, capsys, monkeypatch):

@@ -63,20 +63,20 @@ def check_writable(path: Path, suffixes: Collection[str] | None = None) -> None:
     end in one of ``suffixes`` (lower case, with the dot) when they are given."""
     path = Path(path)
     if suffixes is not None and path.suffix.lower() not in suffixes:
-        raise UserError(f"{path}: cannot write the image: the name must end in {', '.join(sorted(suffixes))}")
+        raise UserError(f"{path}: cannot be written: the name must end in {', '.join(sorted(suffixes))}")
     folder = _folder(path)
     try:
         if path.is_dir():
-            raise UserError(f"{path}: cannot write the image: it is a directory")
+            raise UserError(f"{path}: cannot be written: it is a directory")
         if not folder.is_dir():
-            raise UserError(f"{path}: cannot write the image: directory {folder} does not exist")
+            raise UserError(f"{path}: cannot be written: directory {folder} does not exist")
         refuse_unless_regular(path)
         if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
-            raise UserError(f"{path}: cannot write the image: permission denied")
+            raise UserError(f"{path}: cannot be written: permission denied")
         with tempfile.NamedTemporaryFile(dir=folder, prefix=_temporary_prefix(path), suffix=".probe"):
             pass
     except OSError as err:
-        raise UserError(f"{path}: cannot write the image: {err.strerror or err}") from None
+        raise UserError(f"{path}: cannot be written: {err.strerror or err}") from None
 
 
 def refuse_unless_regular(path: Path) -> None:
