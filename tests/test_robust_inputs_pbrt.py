@@ -381,3 +381,19 @@ def test_zmx_curvature_must_be_finite():
     text = "SURF 0\n DISZ INFINITY\nSURF 1\n CURV INFINITY\n DISZ 1\n DIAM 5\nSURF 2\n"
     assert error_of(parse_zmx, text, "x.zmx") == ("x.zmx:4: CURV INFINITY is not a finite curvature "
                                                   "(a flat surface is CURV 0)")
+
+
+def test_a_missing_texture_file_is_named_once_at_the_texture_line(tmp_path):
+    """The error was prefixed twice: the Material's line, then the Texture's."""
+    world = ('WorldBegin\nTexture "t" "spectrum" "imagemap" "string filename" "nope.png"\n'
+             'Material "matte" "texture Kd" "t"\nShape "sphere"\nWorldEnd\n')
+    path = write(tmp_path, "t.pbrt", CAMERA + world)
+    message = error_of(import_pbrt, path)
+    assert message.count(".pbrt:") == 1 and 'texture file "nope.png" not found' in message, message
+
+
+def test_a_number_too_large_for_a_double_is_shown_shortened(tmp_path):
+    radius = "1" + "0" * 500
+    path = write(tmp_path, "n.pbrt", CAMERA + f'WorldBegin\nShape "sphere" "float radius" {radius}\nWorldEnd\n')
+    message = error_of(import_pbrt, path)
+    assert "(501 characters) is too large for a double" in message and len(message) < 200, message

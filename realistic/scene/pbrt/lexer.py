@@ -98,5 +98,7 @@ def tokenize(text: str, path: Path) -> Iterator[Token]:
             yield Token("]", "]", path, line)
         else:
             if kind == "number" and not math.isfinite(float(match.group())):
-                raise PbrtSyntaxError(path, line, f"number {match.group()} is too large for a double")
+                text = match.group()
+                shown = text if len(text) <= 24 else f"{text[:16]}... ({len(text)} characters)"
+                raise PbrtSyntaxError(path, line, f"number {shown} is too large for a double")
             yield Token(kind, match.group(), path, line)

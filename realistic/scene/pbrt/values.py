@@ -3,6 +3,7 @@ the directive they came from; shared by the camera, film, shape and scene-assemb
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -36,15 +37,20 @@ def whole_number(params: Params, name: str, default: float, where: str) -> int:
     return int(value)
 
 
+#: A message that starts with a file and line number ("scene.pbrt:12: ...").
+_LOCATED = re.compile(r"^[^\n]+?:\d+: ")
+
+
 @contextmanager
 def located(where: str) -> Iterator[None]:
-    """Prefix ``where`` (a scene file:line) to a UserError that does not already name a file and line."""
+    """Prefix ``where`` (a scene file:line) to a UserError that does not already name a file and line
+    (its own, or another's: a texture's line where a material uses it)."""
     try:
         yield
     except (LensFileError, PbrtSyntaxError):
         raise
     except UserError as err:
         message = str(err)
-        if message.startswith(f"{where}:"):
+        if message.startswith(f"{where}:") or _LOCATED.match(message):
             raise
         raise UserError(f"{where}: {message}") from None
