@@ -397,3 +397,10 @@ def test_a_number_too_large_for_a_double_is_shown_shortened(tmp_path):
     path = write(tmp_path, "n.pbrt", CAMERA + f'WorldBegin\nShape "sphere" "float radius" {radius}\nWorldEnd\n')
     message = error_of(import_pbrt, path)
     assert "(501 characters) is too large for a double" in message and len(message) < 200, message
+
+
+def test_a_second_world_begin_is_an_error_at_its_line(tmp_path):
+    """Accepted silently before (pbrt-v3 and pbrt-v4 refuse a WorldBegin inside the world)."""
+    path = write(tmp_path, "w.pbrt", CAMERA + 'WorldBegin\nShape "sphere"\nWorldBegin\nWorldEnd\n')
+    message = error_of(import_pbrt, path)
+    assert message.startswith(f"{path}:4: WorldBegin again (the world began at {path}:2)"), message

@@ -607,10 +607,13 @@ class _Parser:
         self.scene.warn(token.where(), "TransformTimes (motion blur is not rendered)")
 
     def d_WorldBegin(self, token: Token) -> None:
+        if self.scene.world_begin is not None:  # an error in pbrt-v3 src/core/api.cpp and pbrt-v4 src/pbrt/scene.cpp (VERIFY_OPTIONS)
+            raise PbrtSyntaxError(token.path, token.line, f"WorldBegin again (the world began at "
+                                                          f"{self.scene.world_begin})")
         self.named_frames["world"] = np.eye(4)
         self.state.ctm = np.eye(4)
         self.state.start_active = True  # pbrt-v4 scene.cpp: WorldBegin makes all transforms active
-        self.scene.world_begin = self.scene.world_begin or token.where()
+        self.scene.world_begin = token.where()
 
     def d_WorldEnd(self, token: Token) -> None:
         self.close_open_blocks("before WorldEnd")
