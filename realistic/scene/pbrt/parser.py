@@ -607,7 +607,8 @@ class _Parser:
         self.scene.warn(token.where(), "TransformTimes (motion blur is not rendered)")
 
     def d_WorldBegin(self, token: Token) -> None:
-        if self.scene.world_begin is not None:  # an error in pbrt-v3 src/core/api.cpp and pbrt-v4 src/pbrt/scene.cpp (VERIFY_OPTIONS)
+        # an error in pbrt-v3 (src/core/api.cpp) and pbrt-v4 (src/pbrt/scene.cpp): VERIFY_OPTIONS
+        if self.scene.world_begin is not None:
             raise PbrtSyntaxError(token.path, token.line, f"WorldBegin again (the world began at "
                                                           f"{self.scene.world_begin})")
         self.named_frames["world"] = np.eye(4)
