@@ -53,11 +53,14 @@ for v3/v4 files whose pbrt would path-trace: the renderer's own scenes keep thei
 and ``--integrator path`` asks for the rest.
 
 ``auto`` decides from what the file uses: v4-only directives (``ColorSpace``, ``Option``,
-``Attribute``, ``Import``), ``Film "rgb"`` or the realistic camera's ``aperture`` mean v4; the
-classic homework camera (``specfile``, ``filmdistance``, ``filmdiag``, ``aperture_diameter``) or
-v2-only directives (``SurfaceIntegrator``, ``VolumeIntegrator``, ``Renderer``) mean v2; pbrt-v3's
-realistic camera parameters (``lensfile``, ``aperturediameter``, ``focusdistance``) or
-``Integrator``/``MakeNamedMedium`` mean v3 (or v4). A file with no signal is read as v3; one with
+``Attribute``, ``Import``), ``Film "rgb"``, the realistic camera's ``aperture``, v4's materials
+(``diffuse``, ``conductor``, ``coateddiffuse``, a ``measured`` .bsdf, ...) or its ``scale`` texture's
+``tex``/``scale`` mean v4; the classic homework camera (``specfile``, ``filmdistance``, ``filmdiag``,
+``aperture_diameter``), v2-only directives (``SurfaceIntegrator``, ``VolumeIntegrator``,
+``Renderer``), ``shinymetal`` or a ``measured`` .brdf/.merl table mean v2; pbrt-v3's realistic
+camera parameters (``lensfile``, ``aperturediameter``, ``focusdistance``), ``disney``, ``fourier``,
+an area light's ``samples``, or ``Integrator``/``MakeNamedMedium`` mean v3 (or v4). Parameters
+whose names differ between versions are listed in ``ParameterNames``. A file with no signal is read as v3; one with
 signals of two versions is read as the newest, with a warning (v3's signals are v4's too, so they do
 not clash with v4's). v1 is never chosen automatically: nothing in a file tells it from v2, and v1
 and v2 share their conventions.
@@ -75,7 +78,7 @@ from realistic.core import validation
 from realistic.core.pixel_filter import PixelFilter, filter_name
 from realistic.errors import UserError
 from realistic.optics.stop_shape import StopShape, bladed_stop, polygon_stop, transmission_stop
-from realistic.scene.pbrt.parser import Params, PbrtScene
+from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRecord
 
 DIALECTS = ("auto", "v1", "v2", "v3", "v4")
 _V4_DIRECTIVES: tuple[str, ...] = ("ColorSpace", "Option", "Attribute", "Import")
@@ -84,6 +87,12 @@ _V3_DIRECTIVES: tuple[str, ...] = ("Integrator", "MakeNamedMedium")
 _HOMEWORK_CAMERA: tuple[str, ...] = ("specfile", "filmdistance", "filmdiag", "aperture_diameter")
 _V3_CAMERA: tuple[str, ...] = ("lensfile", "aperturediameter", "focusdistance")
 _V4_CAMERA: tuple[str, ...] = ("aperture",)
+#: Materials only one version's files name (each version's src/materials/ or src/pbrt/materials.cpp):
+#: pbrt-v1/v2's shinymetal, pbrt-v3's disney and fourier, pbrt-v4's renamed and layered ones; the
+#: measured material is pbrt-v2's for its .brdf/.merl tables and pbrt-v4's for RGL .bsdf files.
+_MATERIAL_VERSION = {"shinymetal": "v2", "disney": "v3", "fourier": "v3", "diffuse": "v4", "conductor": "v4",
+                     "dielectric": "v4", "thindielectric": "v4", "coateddiffuse": "v4", "coatedconductor": "v4",
+                     "diffusetransmission": "v4"}
 #: Each filter's default radius (pixels), as every version's ``Create...Filter`` sets it.
 _DEFAULT_RADIUS = {"box": 0.5, "triangle": 2.0, "gaussian": 2.0, "mitchell": 2.0, "sinc": 4.0}
 #: A gaussian wider than this is flat over any allowed radius (1 / (2 sigma^2) stays normal).
@@ -165,6 +174,29 @@ CLASSIC_LIGHTS = LightConventions(True, False, "quartic", "mapname", "latlong")
 PBRT4_LIGHTS = LightConventions(False, True, "smoothstep", "filename", "equal-area")
 
 
+@dataclass(frozen=True)
+class ParameterNames:
+    """Parameters whose names differ between pbrt versions (each read from that version's source):
+
+    - the ``scale`` texture's two factors: ``tex1`` and ``tex2`` in pbrt-v1/v2/v3
+      (pbrt-v3 ``src/textures/scale.cpp``, CreateScaleFloatTexture/CreateScaleSpectrumTexture),
+      ``tex`` and ``scale`` in pbrt-v4 (``src/pbrt/textures.cpp``, SpectrumScaledTexture::Create and
+      FloatScaledTexture::Create); a factor not given is 1;
+    - an area light's sample count: ``nsamples`` in pbrt-v1/v2 (pbrt-v2 ``src/lights/diffuse.cpp``,
+      CreateAreaLight), ``samples`` in pbrt-v3, which still reads ``nsamples`` when ``samples`` is
+      not given (pbrt-v3 ``src/lights/diffuse.cpp``: FindOneInt("samples", FindOneInt("nsamples",
+      1))); pbrt-v4's lights take none (its integrators sample one light per bounce).
+    """
+
+    scale_factors: tuple[str, str]
+    light_samples: tuple[str, ...]  # the names read, first match wins
+
+
+CLASSIC_NAMES = ParameterNames(("tex1", "tex2"), ("nsamples",))
+PBRT3_NAMES = ParameterNames(("tex1", "tex2"), ("samples", "nsamples"))
+PBRT4_NAMES = ParameterNames(("tex", "scale"), ())
+
+
 _IMAGEMAP = {"v1": ImagemapConventions("trilinear", "ewa", "gamma exponent"),
              "v2": ImagemapConventions("trilinear", "ewa", "gamma exponent"),
              "v3": ImagemapConventions("trilinear", "ewa", "gamma sRGB"),
@@ -203,6 +235,11 @@ class Dialect:
     def lights(self) -> LightConventions:
         """The light parameters' conventions in this version."""
         return PBRT4_LIGHTS if self.is_v4 else CLASSIC_LIGHTS
+
+    @property
+    def names(self) -> ParameterNames:
+        """The parameter names that differ between versions, as this version spells them."""
+        return {"v1": CLASSIC_NAMES, "v2": CLASSIC_NAMES, "v3": PBRT3_NAMES}.get(self.name, PBRT4_NAMES)
 
     @property
     def is_v4(self) -> bool:
@@ -254,6 +291,20 @@ def _signals(parsed: PbrtScene) -> dict[str, list[str]]:
         found[version] += [f"{name} at {parsed.directives[name]}" for name in names if name in parsed.directives]
     if parsed.film is not None and parsed.film.type == "rgb":
         found["v4"].append(f'Film "rgb" at {parsed.film.where}')
+    for declaration in _materials(parsed):
+        made_for = _MATERIAL_VERSION.get(declaration.type)
+        if declaration.type == "measured":
+            given = declaration.params.items.peek("filename")
+            filename = given.values[0] if given is not None and given.values else ""
+            made_for = "v4" if isinstance(filename, str) and filename.lower().endswith(".bsdf") else "v2"
+        if made_for is not None:
+            found[made_for].append(f'Material "{declaration.type}" at {declaration.where}')
+    for texture in parsed.textures.values():
+        if texture.cls == "scale" and any(texture.params.items.peek(name) for name in ("tex", "scale")):
+            found["v4"].append(f'scale texture\'s "tex"/"scale" at {texture.where}')
+    for light in {id(shape.area_light): shape.area_light for shape in _shapes(parsed) if shape.area_light}.values():
+        if light.params.items.peek("samples"):
+            found["v3"].append(f'area light "samples" at {light.where}')
     camera = parsed.camera
     if camera is not None and camera.type == "realistic":
         for version, names in (("v2", _HOMEWORK_CAMERA), ("v3", _V3_CAMERA), ("v4", _V4_CAMERA)):
@@ -261,6 +312,17 @@ def _signals(parsed: PbrtScene) -> dict[str, list[str]]:
             if used:
                 found[version].append(f"realistic camera's {', '.join(used)} at {camera.where}")
     return found
+
+
+def _shapes(parsed: PbrtScene) -> list[ShapeRecord]:
+    return parsed.shapes + [shape for shapes in parsed.objects.values() for shape in shapes]
+
+
+def _materials(parsed: PbrtScene) -> list[Declaration]:
+    """Every material the file declares: by Material, and named ones (each once)."""
+    declared = {id(material): material for material in parsed.materials}
+    declared.update((id(material), material) for material in parsed.named_materials.values())
+    return list(declared.values())
 
 
 def choose_dialect(parsed: PbrtScene, requested: str = "auto") -> Dialect:

@@ -137,7 +137,7 @@ class _Importer:
             even, odd = (self._constant_of(p, k, tex.where) for k in ("tex1", "tex2"))
             return Material((1.0, 1.0, 1.0), CheckerTexture(even, odd, p.get_float("uscale", 1.0)))
         if tex.cls == "scale":
-            parts = [p.items.get(k) for k in ("tex1", "tex2")]
+            parts = [p.items.get(k) for k in self.dialect.names.scale_factors]
             textures = [q for q in parts if q is not None and q.type == "texture"]
             constants = [(rgb(p, q.name, None) or GREY) for q in parts if q is not None and q.type != "texture"]
             if len(textures) > 1:
@@ -213,9 +213,10 @@ class _Importer:
         radiance = (radiance[0] * light_scale[0], radiance[1] * light_scale[1], radiance[2] * light_scale[2])
         with located(where):
             radiance = validation.emission(radiance, "area light L (times its scale)")
-        samples = whole_number(declaration.params, "nsamples", 1, where)
+        names = [name for name in self.dialect.names.light_samples if declaration.params.has(name)]
+        samples = whole_number(declaration.params, names[0], 1, where) if names else 1
         if samples > MAX_LIGHT_SAMPLES:
-            self.warn(where, f"nsamples {samples} (at most {MAX_LIGHT_SAMPLES} are taken)")
+            self.warn(where, f"{names[0]} {samples} (at most {MAX_LIGHT_SAMPLES} are taken)")
             samples = MAX_LIGHT_SAMPLES
         self.scene.light_samples = max(self.scene.light_samples, samples)
         twosided = declaration.params.items.get("twosided")
@@ -357,6 +358,7 @@ def import_pbrt(path: str | Path, search_paths: list[Path] | None = None, dialec
     film = import_film(parsed)
     scene.camera = dataclasses.replace(import_camera(parsed, chosen, film.width, film.height, film.spp, search_paths),
                                        pixel_filter=import_pixel_filter(parsed, chosen))
+    parsed.report_unused_parameters()
     return ImportedScene(scene, film.output_name, parsed.warnings, chosen, camera_directive(parsed).where)
 
 

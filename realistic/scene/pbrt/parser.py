@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import overload
+from typing import Any, overload
 
 import numpy as np
 
@@ -40,11 +40,65 @@ class Param:
     where: str
 
 
+class ParamDict(dict[str, Param]):
+    """A directive's parameters by name, remembering every name looked up (``get``, ``[]``, ``in``),
+    as pbrt-v4 marks each parameter ``lookedUp`` and reports the rest (``ParameterDictionary::
+    ReportUnused``, src/pbrt/paramdict.cpp). A lookup also counts for ``sources``: the dicts this
+    one was merged from (an entity's own parameters under pbrt-v4's Attribute defaults)."""
+
+    def __init__(self, items: dict[str, Param] | None = None, sources: tuple[ParamDict, ...] = ()):
+        super().__init__(items or {})
+        self.looked_up: set[str] = set()
+        self.naming: set[str] = set()  # parameters that say what the directive makes: read when it is parsed
+        self.sources = sources
+
+    def _note(self, name: object) -> None:
+        if isinstance(name, str):
+            self.looked_up.add(name)
+            for source in self.sources:
+                source._note(name)
+
+    def mark_naming(self, name: str) -> None:
+        """``name`` says what the directive makes (MakeNamedMaterial's "type"): read when the file
+        is parsed, it neither counts as the entity being built nor is ever unused."""
+        self.naming.add(name)
+        for source in self.sources:
+            source.mark_naming(name)
+
+    def get(self, name: str, default: Any = None) -> Any:
+        self._note(name)
+        return super().get(name, default)
+
+    def __getitem__(self, name: str) -> Param:
+        self._note(name)
+        return super().__getitem__(name)
+
+    def __contains__(self, name: object) -> bool:
+        self._note(name)
+        return super().__contains__(name)
+
+    def peek(self, name: str) -> Param | None:
+        """The parameter ``name`` without counting the lookup: for reading what a directive says about
+        the file (which pbrt wrote it) without building what it declares."""
+        return super().get(name)
+
+    def unused(self) -> list[Param]:
+        """The parameters no lookup asked for, when any lookup was made (an entity never built, such
+        as a material no shape uses, was not looked at, so nothing in it is called unused)."""
+        if not self.looked_up - self.naming:
+            return []
+        return [param for name, param in super().items() if name not in self.looked_up | self.naming]
+
+
 @dataclass
 class Params:
     """A directive's parameter list with typed getters (unknown names stay available for reporting)."""
 
-    items: dict[str, Param] = field(default_factory=dict)
+    items: ParamDict = field(default_factory=ParamDict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.items, ParamDict):
+            self.items = ParamDict(self.items)
 
     def has(self, name: str) -> bool:
         return name in self.items
@@ -87,7 +141,7 @@ class Params:
         parameters followed by the graphics state's attributes, and a lookup takes the first match)."""
         if not defaults:
             return self
-        return Params({**defaults, **self.items})
+        return Params(ParamDict({**defaults, **self.items}, sources=(self.items,)))
 
     @overload
     def get_string(self, name: str) -> str | None: ...
@@ -164,10 +218,19 @@ class PbrtScene:
     lights: list[Directive] = field(default_factory=list)
     textures: dict[str, TextureDef] = field(default_factory=dict)
     named_materials: dict[str, Declaration] = field(default_factory=dict)  # for mix materials' parts
+    materials: list[Declaration] = field(default_factory=list)  # every Material directive, used or not
     warnings: list[str] = field(default_factory=list)
     world_begin: str | None = None  # where WorldBegin was, if anywhere
     directives: dict[str, str] = field(default_factory=dict)  # each directive name -> where it first appeared
     world_end: str | None = None  # where WorldEnd was, if anywhere
+    parameter_lists: list[ParamDict] = field(default_factory=list)  # every directive's, for unused ones
+
+    def report_unused_parameters(self) -> None:
+        """Warn, at its file and line, of each parameter of a directive we built that nothing read:
+        a misspelt name, another pbrt version's name, or one we do not implement."""
+        for params in self.parameter_lists:
+            for param in params.unused():
+                self.warn(param.where, f'"{param.name}": parameter not used here (ignored)')
 
     def warn(self, where: str, message: str) -> None:
         """Report something not honoured, once per distinct message."""
@@ -354,6 +417,7 @@ class _Parser:
 
     def params(self) -> Params:
         params = Params()
+        self.scene.parameter_lists.append(params.items)
         while (token := self.peek()) is not None and token.kind == "string":
             self.advance()
             parts = str(token.value).split()
@@ -688,10 +752,12 @@ class _Parser:
         kind = self.string(token)
         self.state.material = Declaration(kind, self.params().with_defaults(self.state.defaults("material")),
                                           token.where())
+        self.scene.materials.append(self.state.material)
 
     def d_MakeNamedMaterial(self, token: Token) -> None:
         name = self.string(token)
         params = self.params().with_defaults(self.state.defaults("material"))
+        params.items.mark_naming("type")
         self.named_materials[name] = Declaration(params.get_string("type", "matte"), params, token.where())
 
     def d_NamedMaterial(self, token: Token) -> None:
