@@ -22,7 +22,8 @@ def test_a_misspelt_parameter_is_reported_once_at_its_first_line(tmp_path):
 def test_parameters_every_directive_reads_are_not_reported(tmp_path):
     world = ('Material "matte" "rgb Kd" [0.5 0.5 0.5] "float sigma" 10\n'
              'LightSource "point" "rgb I" [1 1 1] "point from" [0 2 0]\n'
-             'AttributeBegin\nAreaLightSource "diffuse" "rgb L" [1 1 1]\nShape "disk" "float radius" 0.5\nAttributeEnd\n'
+             'AttributeBegin\nAreaLightSource "diffuse" "rgb L" [1 1 1]\n'
+             'Shape "disk" "float radius" 0.5\nAttributeEnd\n'
              'Shape "trianglemesh" "point P" [0 0 0 1 0 0 0 1 0] "integer indices" [0 1 2]\n')
     head = 'Film "image" "integer xresolution" 8 "integer yresolution" 8\nSampler "random" "integer pixelsamples" 4\n'
     assert _warnings(tmp_path, world, head) == []
