@@ -18,6 +18,7 @@ import sys
 import threading
 from typing import NoReturn, TextIO
 
+from realistic import __version__
 from realistic.cli.bench import add_bench_command
 from realistic.cli.lens import add_lens_commands
 from realistic.cli.render import add_render_command
@@ -33,6 +34,7 @@ class OneLineParser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="realistic", description="Render through real multi-element lenses.")
+    parser.add_argument("--version", action="version", version=f"realistic {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add_lens_commands(commands)
     add_render_command(commands)

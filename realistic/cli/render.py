@@ -7,6 +7,7 @@ The renderer is imported when the command runs, so ``--help`` and the lens comma
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -68,9 +69,9 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     add_scene_arguments(parser)
     parser.add_argument("--spp", type=checked(int, validation.samples_per_pixel), metavar="N",
                         help=f"samples per pixel, 1 to {validation.MAX_SPP} (default: the scene's, else 16)")
-    parser.add_argument("--out", metavar="FILE.exr",
-                        help="output EXR; the PNG preview is written beside it (default: the scene's film "
-                             "file name, else render.exr)")
+    parser.add_argument("-o", "--out", "--outfile", dest="out", metavar="FILE.exr",
+                        help="output image (-o and --outfile as pbrt-v4 names it); the PNG preview is written "
+                             "beside it (default: the scene's film file name, else render.exr)")
     parser.add_argument("--exposure", type=checked(float, validation.exposure_stops), metavar="EV",
                         help="PNG preview exposure in stops (default: automatic, or 0 with --shutter/--iso)")
     parser.add_argument("--shutter", type=checked(str, parse_shutter), metavar="SECONDS",
@@ -88,14 +89,17 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
                              "%(default)g; removed once the complete image is written; without --resume an "
                              "existing one is refused, not replaced)")
     parser.add_argument("--resume", action="store_true",
-                        help="continue from OUT.exr.partial (refused if made for another scene, camera, seed or "
-                             "resolution)")
+                        help="continue from OUT.exr.partial, or without one render from the start (refused if "
+                             "made for another scene, camera, seed, resolution or crop)")
     parser.add_argument("--preview-every", type=positive("preview interval (seconds)"), metavar="SECONDS",
                         help="rewrite the PNG preview this often while rendering (default: only at the end)")
     parser.add_argument("--pass-samples", type=checked(int, validation.pass_samples), metavar="N",
                         help="sample ids per pass (default: about 2^19 camera and shadow rays' worth, 262144 "
                              "samples at one light sample, 104857 at four); checkpoints hold whole passes, and a farm "
                              "task is about 2^20 samples of passes")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress bar and no information lines; warnings and errors still print (pbrt-v4's "
+                             "--quiet)")
     add_farm_arguments(parser)
     parser.set_defaults(run=cmd_render)
 
@@ -103,9 +107,9 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
 def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
     """``--threads``, ``--workers``, ``--scheduler`` and ``--pin-threads`` (shared by ``render`` and ``bench``)."""
     farm = parser.add_mutually_exclusive_group()
-    farm.add_argument("--threads", type=checked(int, validation.threads), metavar="N",
-                      help="render on N threads in this process (default: one per core, "
-                           f"{default_threads()} here)")
+    farm.add_argument("--threads", "--nthreads", dest="threads", type=checked(int, validation.threads), metavar="N",
+                      help="render on N threads in this process (--nthreads as pbrt-v4 names it; default: one per "
+                           f"core, {default_threads()} here)")
     farm.add_argument("--workers", type=checked(int, local_workers), metavar="N",
                       help="render on a Dask LocalCluster of N worker processes on this machine, at most one per "
                            f"CPU ({default_threads()} here), listening on 127.0.0.1 only (default: threads in this "
@@ -209,10 +213,15 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise UserError("--resume continues one image, not a --sweep sequence")
     photographic = (Photographic(args.shutter or 1 / 60, 100.0 if args.iso is None else args.iso)
                     if args.shutter or args.iso else None)
+    def info(line: str) -> None:
+        """An information line on stderr, unless ``--quiet``."""
+        if not args.quiet:
+            print(f"realistic: {line}", file=sys.stderr)
+
     inputs = build_render_inputs(options_from_args(args, args.spp))
     report_warnings(inputs.warnings)
     if "pbrtDialect" in inputs.metadata:
-        print(f"realistic: {args.scene}: read as {inputs.metadata['pbrtDialect']}", file=sys.stderr)
+        info(f"{args.scene}: read as {inputs.metadata['pbrtDialect']}")
     out = Path(args.out or inputs.default_out)
     cameras = sweep_cameras(inputs.camera, sweep) if sweep is not None else [inputs.camera]
     outs = [frame_path(out, i) for i in range(len(cameras))] if sweep is not None else [out]
@@ -221,7 +230,11 @@ def cmd_render(args: argparse.Namespace) -> int:
         check_writable(path.with_suffix(".png"))
     checkpoint = None
     if sweep is None:
-        checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, args.resume)
+        resume = args.resume
+        if resume and not os.path.lexists(checkpoint_path(out)):  # a checkpoint for another render is refused
+            info(f"{checkpoint_path(out)}: no checkpoint to resume: rendering from the start")
+            resume = False
+        checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, resume)
         check_writable(checkpoint.path)
     job = RenderJob(inputs.scene, tuple(cameras), args.backend, args.seed, args.cl_device, inputs.light_samples,
                     args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep,
@@ -239,7 +252,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     observer = RenderObserver(on_frame=save_frame if sweep is not None else None,
                               preview=preview if args.preview_every else None, preview_every=args.preview_every,
-                              progress=True)
+                              progress=not args.quiet)
     with farm_client(args, security) as client:
         results = render(job, executor_for(args, client, inputs.intersector), observer)
     interrupted = any(result.interrupted for result in results)
@@ -265,6 +278,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     seconds = max(r.seconds for r in results)
     names = (f"{outs[0]} .. {outs[-1]} ({len(outs)} frames)" if sweep is not None
              else f"{out} and {out.with_suffix('.png')}")
+    if args.quiet:
+        return 0
     wavelengths = camera.metadata().get("wavelengthsPerSample")
     spectral = f" x {wavelengths} wavelengths" if wavelengths else ""
     print(f"{names}: {camera.width}x{camera.height}, {camera.spp} spp{spectral}, "
