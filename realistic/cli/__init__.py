@@ -49,11 +49,18 @@ VALUE_OPTIONS = ("--res", "--map-res", "--camera-pos", "--target", "--focus-on",
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
+#: Options of four values that pbrt-v4 takes as one comma-separated word (``--cropwindow 0,.5,0,1``,
+#: its ``cmd/pbrt.cpp``) and pbrt-v3 as four words: the word is split into the four.
+FOUR_VALUE_OPTIONS = ("--cropwindow", "--pixelbounds")
+
+
 def _join_dash_values(argv: list[str]) -> list[str]:
     joined: list[str] = []
     for token in argv:
         if joined and joined[-1] in VALUE_OPTIONS and token[:1] == "-" and token[1:2].isdigit():
             joined[-1] = f"{joined[-1]}={token}"
+        elif joined and joined[-1] in FOUR_VALUE_OPTIONS and "," in token:
+            joined.extend(token.split(","))
         else:
             joined.append(token)
     return joined

@@ -11,6 +11,7 @@ import os
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -22,6 +23,7 @@ from realistic.cli.values import checked, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, signals_deferred
 from realistic.errors import UserError
+from realistic.renderer.crop import PixelBounds
 from realistic.renderer.job import Checkpointing, PassExecutor, RenderJob, RenderObserver, RenderResult
 from realistic.renderer.thread_count import default_threads
 
@@ -97,6 +99,18 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
                         help="sample ids per pass (default: about 2^19 camera and shadow rays' worth, 262144 "
                              "samples at one light sample, 104857 at four); checkpoints hold whole passes, and a farm "
                              "task is about 2^20 samples of passes")
+    crop = parser.add_mutually_exclusive_group()
+    crop.add_argument("--cropwindow", nargs=4, type=checked(float, partial(validation.finite, name="crop window")),
+                      metavar=("X0", "X1", "Y0", "Y1"),
+                      help="render only this part of the image, in fractions of it (0 0.5 0 1: the left half; y "
+                           "down), as pbrt-v4's --cropwindow (also written x0,x1,y0,y1): its pixels run from "
+                           "ceil(x0 * width) to ceil(x1 * width) - 1, likewise in y; the image holds them alone and "
+                           "the EXR's data window says where they lie in the full image")
+    crop.add_argument("--pixelbounds", nargs=4, type=checked(int, int),
+                      metavar=("X0", "X1", "Y0", "Y1"),
+                      help="render only pixels X0 to X1 - 1 and Y0 to Y1 - 1, as pbrt-v4's --pixelbounds (also "
+                           "written x0,x1,y0,y1); a crop's pixels are bit-identical to the same pixels of the whole "
+                           "render")
     parser.add_argument("--quiet", action="store_true",
                         help="no progress bar and no information lines; warnings and errors still print (pbrt-v4's "
                              "--quiet)")
@@ -208,6 +222,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     if args.out is not None and not args.sweep and not args.resume:
         refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
     security = farm_security(args)  # TLS options checked before any work
+    crop_window = validation.crop_window(*args.cropwindow) if args.cropwindow else None  # before the scene is read
     sweep = parse_sweep(args.sweep) if args.sweep else None
     if sweep is not None and args.resume:
         raise UserError("--resume continues one image, not a --sweep sequence")
@@ -236,9 +251,12 @@ def cmd_render(args: argparse.Namespace) -> int:
             resume = False
         checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, resume)
         check_writable(checkpoint.path)
+    width, height = inputs.camera.width, inputs.camera.height
+    crop = (PixelBounds.of_crop_window(crop_window, width, height) if crop_window is not None
+            else PixelBounds(*args.pixelbounds) if args.pixelbounds else None)  # RenderJob checks them
     job = RenderJob(inputs.scene, tuple(cameras), args.backend, args.seed, args.cl_device, inputs.light_samples,
                     args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep,
-                    keep_images=sweep is None)  # a sequence's frames are written as they complete
+                    keep_images=sweep is None, crop=crop)  # a sequence's frames are written as they complete
     written: dict[int, float] = {}
 
     def save_frame(result: RenderResult) -> None:
@@ -282,7 +300,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         return 0
     wavelengths = camera.metadata().get("wavelengthsPerSample")
     spectral = f" x {wavelengths} wavelengths" if wavelengths else ""
-    print(f"{names}: {camera.width}x{camera.height}, {camera.spp} spp{spectral}, "
+    size = f"{camera.width}x{camera.height}" if crop is None else f"pixels {crop} of {camera.width}x{camera.height}"
+    print(f"{names}: {size}, {camera.spp} spp{spectral}, "
           f"{camera.metadata()['pixelFilter']} filter, {seconds:.1f} s "
           f"(exit pupil {result.stage_seconds.get('exit pupil', 0.0):.2f} s), "
           f"{rays / max(seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {written[len(outs) - 1]:+.2f} EV")
