@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import partial
@@ -99,6 +100,11 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
                         help="sample ids per pass (default: about 2^19 camera and shadow rays' worth, 262144 "
                              "samples at one light sample, 104857 at four); checkpoints hold whole passes, and a farm "
                              "task is about 2^20 samples of passes")
+    parser.add_argument("--display", "--display-server", dest="display", type=checked(str, validation.display_address),
+                        metavar="HOST:PORT",
+                        help="show the image in tev (github.com/Tom94/tev, listening on 127.0.0.1:14158 by default) as "
+                             "it renders, after each pass, as pbrt-v4's --display-server does; the render goes on "
+                             "whether tev is there or not")
     crop = parser.add_mutually_exclusive_group()
     crop.add_argument("--cropwindow", nargs=4, type=checked(float, partial(validation.finite, name="crop window")),
                       metavar=("X0", "X1", "Y0", "Y1"),
@@ -196,6 +202,11 @@ def report_warnings(warnings: list[str]) -> None:
         print(f"realistic: {warning}", file=sys.stderr)
 
 
+def report_warnings_of_display(warning: str) -> None:
+    """A display's warning (from its thread): one line on stderr, ``--quiet`` or not."""
+    print(f"realistic: warning: {warning}", file=sys.stderr, flush=True)
+
+
 def executor_for(args: argparse.Namespace, client: Any,
                  intersector: Intersector | None = None) -> PassExecutor:
     """Where the passes run: on the Dask ``client`` when there is one, else on ``--threads`` threads
@@ -212,8 +223,9 @@ def executor_for(args: argparse.Namespace, client: Any,
 
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path, refuse_unless_resuming
+    from realistic.renderer.display import TevDisplay
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.output import BetterImageKept, Photographic, exr_output, save, write_preview
+    from realistic.renderer.output import BetterImageKept, Photographic, exposed, exr_output, save, write_preview
     from realistic.renderer.passes import render
     from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
@@ -258,18 +270,33 @@ def cmd_render(args: argparse.Namespace) -> int:
                     args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep,
                     keep_images=sweep is None, crop=crop)  # a sequence's frames are written as they complete
     written: dict[int, float] = {}
+    display = None
+    if args.display is not None:  # tev shows what the EXR holds: the crop, exposed as it is written
+        shown = crop or PixelBounds.whole(width, height)
+        host, port = args.display
+        display = TevDisplay(host, port, str(out), shown.width, shown.height, report_warnings_of_display)
 
     def save_frame(result: RenderResult) -> None:
+        if display is not None and result.image.size:
+            display.show(exposed(result.image, photographic))
         try:
             written[result.frame] = save(result, outs[result.frame], photographic, args.exposure)
         except BetterImageKept as err:
             print(f"realistic: {err}", file=sys.stderr)
 
+    png_written = [time.monotonic()]
+
     def preview(image: np.ndarray) -> None:
-        write_preview(out.with_suffix(".png"), image, photographic, args.exposure)
+        """The image so far to tev (after each pass) and to the PNG (every --preview-every seconds)."""
+        if display is not None:
+            display.show(exposed(image, photographic))
+        if args.preview_every and time.monotonic() - png_written[0] >= args.preview_every:
+            write_preview(out.with_suffix(".png"), image, photographic, args.exposure)
+            png_written[0] = time.monotonic()
 
     observer = RenderObserver(on_frame=save_frame if sweep is not None else None,
-                              preview=preview if args.preview_every else None, preview_every=args.preview_every,
+                              preview=preview if args.preview_every or display is not None else None,
+                              preview_every=0.0 if display is not None else args.preview_every,
                               progress=not args.quiet)
     with farm_client(args, security) as client:
         results = render(job, executor_for(args, client, inputs.intersector), observer)
@@ -281,6 +308,8 @@ def cmd_render(args: argparse.Namespace) -> int:
                     save_frame(result)  # a single image always; a sequence's unfinished frames that have samples
     except KeyboardInterrupt:
         interrupted = True
+    if display is not None:
+        display.close()
     if interrupted:
         done = sum(r.samples_done for r in results)
         total = sum(r.samples_total for r in results)

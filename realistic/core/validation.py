@@ -302,3 +302,16 @@ def pixel_bounds(x0: int, x1: int, y0: int, y1: int, width: int, height: int) ->
         raise UserError(f"pixel bounds {shown} are not x0 x1 y0 y1 with 0 <= x0 < x1 <= {width} and "
                         f"0 <= y0 < y1 <= {height} (the image is {width}x{height})")
     return values[0], values[1], values[2], values[3]
+
+
+def display_address(text: str) -> tuple[str, int]:
+    """A display server's ``HOST:PORT`` (``--display``; ``[::1]:14158`` for an IPv6 host): the host
+    and a port from 1 to 65535, as tev listens on (its default: ``127.0.0.1:14158``)."""
+    host, colon, port = str(text).rpartition(":")
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    if not colon or not host or not port.isascii() or not port.isdigit() or not 1 <= int(port) <= 65535 \
+            or not host.isprintable() or any(c.isspace() or c in "[]/" for c in host):
+        raise UserError(f"display address '{printable_text(str(text))}' is not HOST:PORT with a port from 1 to "
+                        "65535 (e.g. 127.0.0.1:14158, where tev listens by default)")
+    return host, int(port)
