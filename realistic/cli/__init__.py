@@ -3,7 +3,7 @@
 One module per command group, each holding argument definitions and output only:
 
 - ``lens``: ``lens info | trace | plot | curves`` (``realistic.optics``).
-- ``render``: render a scene to EXR and PNG (``realistic.renderer``).
+- ``render``: render a scene to EXR and PNG (``realistic.renderer``), with pbrt-v4's option names.
 - ``bench``: render a scene at several sample counts, time and convergence.
 - ``scene_arguments``: the arguments ``render`` and ``bench`` share, turned into ``RenderOptions``.
 - ``values``: text to numbers, resolutions, vectors; one-line errors.

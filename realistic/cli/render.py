@@ -1,4 +1,5 @@
-"""The ``render`` subcommand: render a pbrt scene, a mesh or the default scene to EXR and PNG.
+"""The ``render`` subcommand: render a pbrt scene, a mesh or the default scene to EXR and PNG,
+optionally cropped (``renderer.crop``) and shown live in tev (``renderer.display``).
 
 Argument definitions and output only; the scene and camera come from ``realistic.renderer.inputs``.
 The renderer is imported when the command runs, so ``--help`` and the lens commands start fast.
@@ -51,7 +52,12 @@ stratified wavelengths sharing its film, lens and light samples, which turns the
 one wavelength per sample into plain luminance noise, at K times the camera rays.
 
 The EXR holds the film irradiance (float32 RGB, metadata in the header); the PNG preview beside
-it is sRGB.
+it is sRGB. -o/--outfile, --nthreads, --spp, --seed, --quiet, --cropwindow, --pixelbounds and
+--display(-server) are named and behave as pbrt-v4's. A crop (--cropwindow in fractions of the
+image, --pixelbounds in pixels) renders those pixels only, each bit-identical to the same pixel of
+the whole render; the image holds the crop, and the EXR's data window places it in the full image.
+--display HOST:PORT shows the render in tev (https://github.com/Tom94/tev; start it first, it
+listens on 127.0.0.1:14158) as the passes come in.
 
 Passes are ordered so that any prefix of them is spread over the whole frame. They run on threads
 in this process, one per core unless --threads says how many; --workers N renders
