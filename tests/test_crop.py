@@ -157,3 +157,17 @@ def test_a_checkpoint_resumes_its_crop_and_refuses_another(tiny, tmp_path):
     assert np.array_equal(resumed.image, whole.image)
     save(resumed, tmp_path / "c.exr")
     assert not path.exists()
+
+
+def test_a_crop_on_a_dask_farm_is_the_crop_rendered_here(tiny):
+    distributed = pytest.importorskip("distributed", reason="dask[distributed] is the farm extra")
+    from realistic.renderer.farm import DaskPasses
+
+    scene, camera = tiny
+    bounds = PixelBounds(3, 17, 2, 9)
+    here = render(RenderJob(scene, (camera,), "numpy", seed=2, pass_samples=50, crop=bounds), ThreadPasses(2))[0]
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None)
+    with cluster, distributed.Client(cluster) as client:
+        there = render(RenderJob(scene, (camera,), "numpy", seed=2, pass_samples=50, crop=bounds),
+                       DaskPasses(client))[0]
+    assert np.array_equal(there.image, here.image) and there.image.shape == (7, 14, 3)
