@@ -1,11 +1,15 @@
 """The part of the image a render takes: pbrt-v4's film pixel bounds (``--pixelbounds``, or a
 ``--cropwindow`` in NDC turned into pixels as pbrt-v4's ``film.cpp`` does).
 
-A cropped render takes, for each pixel of its bounds, the very sample ids the whole image would
-(``pass_plan.plan_passes`` keeps the whole image's slices), so those pixels are bit-identical to
-the same pixels of an uncropped render with the same seed. Its image holds the bounds only; the EXR
-says where they lie: data window = the bounds, display window = the full resolution, as pbrt-v4's
-``Image::Write`` sets them from ``ImageMetadata::pixelBounds`` and ``fullResolution``.
+A cropped render runs the passes of the whole image's plan that hold pixels of its bounds, and
+traces and shades the rays of those pixels only (``runner.PassRunner``: the camera makes a pass's
+rays in one kernel launch, and those of other pixels are dropped; making a ray costs little beside
+tracing and shading it, and far less than a launch per row of the crop would). Each pixel of the
+bounds thus takes the very samples, grouped in the very passes, of the whole render: its float64
+sums are added in the same order, and it is bit-identical to the same pixel of an uncropped render
+with the same seed. Its image holds the bounds only; the EXR says where they lie: data window =
+the bounds, display window = the full resolution, as pbrt-v4's ``Image::Write`` sets them from
+``ImageMetadata::pixelBounds`` and ``fullResolution``.
 """
 
 from __future__ import annotations
@@ -13,6 +17,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
+from realistic.camera.base import SampleBlock
 from realistic.core import validation
 from realistic.errors import UserError
 
@@ -53,12 +60,20 @@ class PixelBounds:
     def height(self) -> int:
         return self.y1 - self.y0
 
-    def spans(self, image_width: int) -> list[tuple[int, int]]:
-        """(first pixel, pixel count) of each run of consecutive pixel indices (``y * image_width + x``)
-        in the bounds: one per row, or one in all when the rows are whole."""
-        if self.x0 == 0 and self.x1 == image_width:
-            return [(self.y0 * image_width, self.height * image_width)]
-        return [(y * image_width + self.x0, self.width) for y in range(self.y0, self.y1)]
+    def contains(self, pixel: np.ndarray, image_width: int) -> np.ndarray:
+        """Whether each pixel index (``y * image_width + x``) lies in the bounds."""
+        y, x = np.divmod(pixel, image_width)
+        return (x >= self.x0) & (x < self.x1) & (y >= self.y0) & (y < self.y1)
+
+    def samples_in(self, block: SampleBlock, image_width: int) -> int:
+        """How many of ``block``'s samples belong to pixels in the bounds."""
+        pixels = np.arange(block.first_pixel, block.first_pixel + block.pixel_count, dtype=np.int64)
+        return int(block.samples_per_pixel()[self.contains(pixels, image_width)].sum())
+
+    def passes(self, plan: list[SampleBlock], image_width: int) -> list[SampleBlock]:
+        """The passes of the whole image's ``plan`` that hold samples of pixels in the bounds, in
+        order: a crop renders those passes, tracing the rays of its own pixels only."""
+        return [block for block in plan if self.samples_in(block, image_width)]
 
     def __str__(self) -> str:
         return f"{self.x0} {self.x1} {self.y0} {self.y1}"

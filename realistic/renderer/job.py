@@ -35,6 +35,7 @@ class PassSettings:
     seed: int = 0
     light_samples: int = 1
     morton: bool = False
+    crop: PixelBounds | None = None  # trace only these pixels' rays (None: all)
 
 
 @dataclass(frozen=True)
@@ -99,7 +100,7 @@ class RenderJob:
     def settings(self) -> PassSettings:
         """What each pass runner needs besides the scene and camera."""
         light_samples = self.scene.light_samples if self.light_samples is None else self.light_samples
-        return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton)
+        return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton, self.crop)
 
     @property
     def pass_size(self) -> int:

@@ -60,26 +60,17 @@ def slice_bounds(pixels: int, spp: int, pass_samples: int) -> list[int]:
     return bounds
 
 
-def plan_passes(pixels: int, spp: int, pass_samples: int = DEFAULT_PASS_SAMPLES,
-                spans: list[tuple[int, int]] | None = None) -> list[SampleBlock]:
+def plan_passes(pixels: int, spp: int, pass_samples: int = DEFAULT_PASS_SAMPLES) -> list[SampleBlock]:
     """The passes of a render of ``pixels`` pixels at ``spp`` samples each, in progressive order:
-    slices (``slice_bounds``) outermost, runs of about pass_samples / slice width pixels inside.
-
-    ``spans``: the (first pixel, pixel count) runs rendered, all ``pixels`` by default; a crop's rows
-    (``crop.PixelBounds.spans``), each cut into runs of its own. The slices are always those of all
-    ``pixels``, so a pixel's samples fall into the same slices, and its float64 sums are added in the
-    same order, in a crop as in the whole image: a crop's pixels are bit-identical to the whole
-    render's."""
+    slices (``slice_bounds``) outermost, runs of about pass_samples / slice width pixels inside."""
     if pass_samples < 1:
         raise ValueError(f"pass_samples must be >= 1, got {pass_samples}")
-    spans = [(0, pixels)] if spans is None else spans
     bounds = slice_bounds(pixels, spp, pass_samples)
     plan = []
     for first_sample, end in zip(bounds[:-1], bounds[1:]):
         samples = end - first_sample
         run = max(1, pass_samples // samples)
-        runs = [(start, min(run, first + count - start)) for first, count in spans
-                for start in range(first, first + count, run)]
-        plan += [SampleBlock.of_pixels(runs[i][0], runs[i][1], first_sample, samples)
-                 for i in progressive_order(len(runs))]
+        starts = np.arange(0, pixels, run, dtype=np.int64)
+        plan += [SampleBlock.of_pixels(int(starts[i]), int(min(run, pixels - starts[i])), first_sample, samples)
+                 for i in progressive_order(len(starts))]
     return plan

@@ -195,8 +195,9 @@ def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
     for index, camera in enumerate(job.cameras):
         key = (camera.width, camera.height, camera.spp)
         if key not in plans:
-            spans = job.crop.spans(camera.width) if job.crop is not None else None
-            plans[key] = plan_passes(camera.width * camera.height, camera.spp, job.pass_size, spans)
+            plans[key] = plan_passes(camera.width * camera.height, camera.spp, job.pass_size)
+            if job.crop is not None:
+                plans[key] = job.crop.passes(plans[key], camera.width)
         plan = plans[key]
         samples = job.crop.width * job.crop.height * camera.spp if job.crop is not None else camera.sample_count
         result = RenderResult(_EMPTY, 0, samples, 0, 0, 0.0, False, passes_total=len(plan), job=job, frame=index)
@@ -208,11 +209,17 @@ def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
     frame = frames[0]
     if job.checkpoint.resume:
         frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan, job.crop)
-        frame.result.samples_done = int(frame.film.film.samples.sum()) + sum(frame.plan[i].count
-                                                                            for i in frame.film.waiting)
+        frame.result.samples_done = sum(_samples_of(job, frame.plan[i], frame.camera)
+                                        for i in range(frame.film.next_pass)) \
+            + sum(_samples_of(job, frame.plan[i], frame.camera) for i in frame.film.waiting)
         frame.result.passes_done = frame.film.passes_taken
     frame.started()  # saved on interrupt even before its first pass
     return frames, identity
+
+
+def _samples_of(job: RenderJob, block: SampleBlock, camera: Camera) -> int:
+    """The samples a pass takes: all of its block's, or in a crop those of the crop's pixels."""
+    return block.count if job.crop is None else job.crop.samples_in(block, camera.width)
 
 
 def _tasks(frames: list[_Frame], passes_per_task: int) -> Iterator[tuple[int, list[int]]]:
