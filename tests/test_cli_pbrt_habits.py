@@ -79,3 +79,12 @@ def test_resume_still_refuses_a_checkpoint_it_cannot_continue(tmp_path, box_file
     err = capsys.readouterr().err
     assert "cannot resume" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_quiet_leaves_out_the_farms_information_line(tmp_path, box_file, capsys):
+    pytest.importorskip("distributed", reason="dask[distributed] is the farm extra")
+    out = tmp_path / "f.exr"
+    assert main(["render", str(box_file), *FAST, "-o", str(out), "--workers", "1", "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+    assert main(["render", str(box_file), *FAST, "-o", str(tmp_path / "g.exr"), "--workers", "1"]) == 0
+    assert "LocalCluster" in capsys.readouterr().err

@@ -182,12 +182,12 @@ def farm_security(args: argparse.Namespace) -> Any:
 
 
 @contextmanager
-def farm_client(args: argparse.Namespace, security: Any) -> Iterator[object | None]:
+def farm_client(args: argparse.Namespace, security: Any, quiet: bool = False) -> Iterator[object | None]:
     """The Dask client that ``--workers`` or ``--scheduler`` asks for (with ``security``, what
     ``farm_security`` made of the TLS options), or None (render on threads); dask is imported only
     here, and only when one is asked for. Only the command line names a cluster:
     ``DASK_SCHEDULER_ADDRESS`` in the environment is never used (its scheduler and workers could run
-    code as the user)."""
+    code as the user). ``quiet``: the cluster's information line is not printed (the warning is)."""
     if not args.workers and not args.scheduler:
         yield None
         return
@@ -199,7 +199,7 @@ def farm_client(args: argparse.Namespace, security: Any) -> Iterator[object | No
     if args.scheduler and security is None:
         announce(f"{args.scheduler} is neither encrypted nor authenticated: whoever runs that scheduler or its "
                  "workers can run code as you (a tls:// address with the --tls options authenticates it)")
-    with open_client(args.workers, args.scheduler, announce, security) as client:
+    with open_client(args.workers, args.scheduler, (lambda line: None) if quiet else announce, security) as client:
         yield client
 
 
@@ -304,7 +304,7 @@ def cmd_render(args: argparse.Namespace) -> int:
                               preview=preview if args.preview_every or display is not None else None,
                               preview_every=0.0 if display is not None else args.preview_every,
                               progress=not args.quiet)
-    with farm_client(args, security) as client:
+    with farm_client(args, security, args.quiet) as client:
         results = render(job, executor_for(args, client, inputs.intersector), observer)
     interrupted = any(result.interrupted for result in results)
     try:
