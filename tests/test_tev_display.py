@@ -176,3 +176,13 @@ def test_addresses_as_tev_takes_them():
     assert display_address("127.0.0.1:14158") == ("127.0.0.1", 14158)
     assert display_address("[::1]:14158") == ("::1", 14158)
     assert display_address("render-box.local:1") == ("render-box.local", 1)
+
+
+def test_a_sequence_shows_each_frame_and_ends_with_the_last(tmp_path, capsys):
+    tev = FakeTev()
+    out = tmp_path / "seq.exr"
+    assert main(["render", *FAST, "--sweep", "fstop=4:8:2", "-o", str(out), "--display", f"127.0.0.1:{tev.port}"]) == 0
+    tev.close()
+    create, *updates = tev.packets
+    assert create["name"] == str(out) and create["size"] == (150, 20)
+    assert np.array_equal(applied(updates, create["size"]), read_exr(tmp_path / "seq_0002.exr")[0])
