@@ -3,7 +3,7 @@
 One module per command group, each holding argument definitions and output only:
 
 - ``lens``: ``lens info | trace | plot | curves`` (``realistic.optics``).
-- ``render``: render a scene to EXR and PNG (``realistic.renderer``).
+- ``render``: render a scene to EXR and PNG (``realistic.renderer``), with pbrt-v4's option names.
 - ``bench``: render a scene at several sample counts, time and convergence.
 - ``scene_arguments``: the arguments ``render`` and ``bench`` share, turned into ``RenderOptions``.
 - ``values``: text to numbers, resolutions, vectors; one-line errors.
@@ -18,6 +18,7 @@ import sys
 import threading
 from typing import NoReturn, TextIO
 
+from realistic import __version__
 from realistic.cli.bench import add_bench_command
 from realistic.cli.lens import add_lens_commands
 from realistic.cli.render import add_render_command
@@ -33,6 +34,7 @@ class OneLineParser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="realistic", description="Render through real multi-element lenses.")
+    parser.add_argument("--version", action="version", version=f"realistic {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add_lens_commands(commands)
     add_render_command(commands)
@@ -47,11 +49,18 @@ VALUE_OPTIONS = ("--res", "--map-res", "--camera-pos", "--target", "--focus-on",
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
+#: Options of four values that pbrt-v4 takes as one comma-separated word (``--cropwindow 0,.5,0,1``,
+#: its ``cmd/pbrt.cpp``) and pbrt-v3 as four words: the word is split into the four.
+FOUR_VALUE_OPTIONS = ("--cropwindow", "--pixelbounds")
+
+
 def _join_dash_values(argv: list[str]) -> list[str]:
     joined: list[str] = []
     for token in argv:
         if joined and joined[-1] in VALUE_OPTIONS and token[:1] == "-" and token[1:2].isdigit():
             joined[-1] = f"{joined[-1]}={token}"
+        elif joined and joined[-1] in FOUR_VALUE_OPTIONS and "," in token:
+            joined.extend(token.split(","))
         else:
             joined.append(token)
     return joined

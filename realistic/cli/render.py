@@ -1,4 +1,5 @@
-"""The ``render`` subcommand: render a pbrt scene, a mesh or the default scene to EXR and PNG.
+"""The ``render`` subcommand: render a pbrt scene, a mesh or the default scene to EXR and PNG,
+optionally cropped (``renderer.crop``) and shown live in tev (``renderer.display``).
 
 Argument definitions and output only; the scene and camera come from ``realistic.renderer.inputs``.
 The renderer is imported when the command runs, so ``--help`` and the lens commands start fast.
@@ -7,9 +8,12 @@ The renderer is imported when the command runs, so ``--help`` and the lens comma
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,6 +25,7 @@ from realistic.cli.values import checked, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, signals_deferred
 from realistic.errors import UserError
+from realistic.renderer.crop import PixelBounds
 from realistic.renderer.job import Checkpointing, PassExecutor, RenderJob, RenderObserver, RenderResult
 from realistic.renderer.thread_count import default_threads
 
@@ -47,7 +52,12 @@ stratified wavelengths sharing its film, lens and light samples, which turns the
 one wavelength per sample into plain luminance noise, at K times the camera rays.
 
 The EXR holds the film irradiance (float32 RGB, metadata in the header); the PNG preview beside
-it is sRGB.
+it is sRGB. -o/--outfile, --nthreads, --spp, --seed, --quiet, --cropwindow, --pixelbounds and
+--display(-server) are named and behave as pbrt-v4's. A crop (--cropwindow in fractions of the
+image, --pixelbounds in pixels) renders those pixels only, each bit-identical to the same pixel of
+the whole render; the image holds the crop, and the EXR's data window places it in the full image.
+--display HOST:PORT shows the render in tev (https://github.com/Tom94/tev; start it first, it
+listens on 127.0.0.1:14158) as the passes come in.
 
 Passes are ordered so that any prefix of them is spread over the whole frame. They run on threads
 in this process, one per core unless --threads says how many; --workers N renders
@@ -68,9 +78,9 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     add_scene_arguments(parser)
     parser.add_argument("--spp", type=checked(int, validation.samples_per_pixel), metavar="N",
                         help=f"samples per pixel, 1 to {validation.MAX_SPP} (default: the scene's, else 16)")
-    parser.add_argument("--out", metavar="FILE.exr",
-                        help="output EXR; the PNG preview is written beside it (default: the scene's film "
-                             "file name, else render.exr)")
+    parser.add_argument("-o", "--out", "--outfile", dest="out", metavar="FILE.exr",
+                        help="output image (-o and --outfile as pbrt-v4 names it); the PNG preview is written "
+                             "beside it (default: the scene's film file name, else render.exr)")
     parser.add_argument("--exposure", type=checked(float, validation.exposure_stops), metavar="EV",
                         help="PNG preview exposure in stops (default: automatic, or 0 with --shutter/--iso)")
     parser.add_argument("--shutter", type=checked(str, parse_shutter), metavar="SECONDS",
@@ -88,14 +98,34 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
                              "%(default)g; removed once the complete image is written; without --resume an "
                              "existing one is refused, not replaced)")
     parser.add_argument("--resume", action="store_true",
-                        help="continue from OUT.exr.partial (refused if made for another scene, camera, seed or "
-                             "resolution)")
+                        help="continue from OUT.exr.partial, or without one render from the start (refused if "
+                             "made for another scene, camera, seed, resolution or crop)")
     parser.add_argument("--preview-every", type=positive("preview interval (seconds)"), metavar="SECONDS",
                         help="rewrite the PNG preview this often while rendering (default: only at the end)")
     parser.add_argument("--pass-samples", type=checked(int, validation.pass_samples), metavar="N",
                         help="sample ids per pass (default: about 2^19 camera and shadow rays' worth, 262144 "
                              "samples at one light sample, 104857 at four); checkpoints hold whole passes, and a farm "
                              "task is about 2^20 samples of passes")
+    parser.add_argument("--display", "--display-server", dest="display", type=checked(str, validation.display_address),
+                        metavar="HOST:PORT",
+                        help="show the image in tev (github.com/Tom94/tev, listening on 127.0.0.1:14158 by default) as "
+                             "it renders, after each pass, as pbrt-v4's --display-server does; the render goes on "
+                             "whether tev is there or not")
+    crop = parser.add_mutually_exclusive_group()
+    crop.add_argument("--cropwindow", nargs=4, type=checked(float, partial(validation.finite, name="crop window")),
+                      metavar=("X0", "X1", "Y0", "Y1"),
+                      help="render only this part of the image, in fractions of it (0 0.5 0 1: the left half; y "
+                           "down), as pbrt-v4's --cropwindow (also written x0,x1,y0,y1): its pixels run from "
+                           "ceil(x0 * width) to ceil(x1 * width) - 1, likewise in y; the image holds them alone and "
+                           "the EXR's data window says where they lie in the full image")
+    crop.add_argument("--pixelbounds", nargs=4, type=checked(int, int),
+                      metavar=("X0", "X1", "Y0", "Y1"),
+                      help="render only pixels X0 to X1 - 1 and Y0 to Y1 - 1, as pbrt-v4's --pixelbounds (also "
+                           "written x0,x1,y0,y1); a crop's pixels are bit-identical to the same pixels of the whole "
+                           "render")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress bar and no information lines; warnings and errors still print (pbrt-v4's "
+                             "--quiet)")
     add_farm_arguments(parser)
     parser.set_defaults(run=cmd_render)
 
@@ -103,9 +133,9 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
 def add_farm_arguments(parser: argparse.ArgumentParser) -> None:
     """``--threads``, ``--workers``, ``--scheduler`` and ``--pin-threads`` (shared by ``render`` and ``bench``)."""
     farm = parser.add_mutually_exclusive_group()
-    farm.add_argument("--threads", type=checked(int, validation.threads), metavar="N",
-                      help="render on N threads in this process (default: one per core, "
-                           f"{default_threads()} here)")
+    farm.add_argument("--threads", "--nthreads", dest="threads", type=checked(int, validation.threads), metavar="N",
+                      help="render on N threads in this process (--nthreads as pbrt-v4 names it; default: one per "
+                           f"core, {default_threads()} here)")
     farm.add_argument("--workers", type=checked(int, local_workers), metavar="N",
                       help="render on a Dask LocalCluster of N worker processes on this machine, at most one per "
                            f"CPU ({default_threads()} here), listening on 127.0.0.1 only (default: threads in this "
@@ -152,12 +182,12 @@ def farm_security(args: argparse.Namespace) -> Any:
 
 
 @contextmanager
-def farm_client(args: argparse.Namespace, security: Any) -> Iterator[object | None]:
+def farm_client(args: argparse.Namespace, security: Any, quiet: bool = False) -> Iterator[object | None]:
     """The Dask client that ``--workers`` or ``--scheduler`` asks for (with ``security``, what
     ``farm_security`` made of the TLS options), or None (render on threads); dask is imported only
     here, and only when one is asked for. Only the command line names a cluster:
     ``DASK_SCHEDULER_ADDRESS`` in the environment is never used (its scheduler and workers could run
-    code as the user)."""
+    code as the user). ``quiet``: the cluster's information line is not printed (the warning is)."""
     if not args.workers and not args.scheduler:
         yield None
         return
@@ -169,13 +199,18 @@ def farm_client(args: argparse.Namespace, security: Any) -> Iterator[object | No
     if args.scheduler and security is None:
         announce(f"{args.scheduler} is neither encrypted nor authenticated: whoever runs that scheduler or its "
                  "workers can run code as you (a tls:// address with the --tls options authenticates it)")
-    with open_client(args.workers, args.scheduler, announce, security) as client:
+    with open_client(args.workers, args.scheduler, (lambda line: None) if quiet else announce, security) as client:
         yield client
 
 
 def report_warnings(warnings: list[str]) -> None:
     for warning in warnings:
         print(f"realistic: {warning}", file=sys.stderr)
+
+
+def report_warnings_of_display(warning: str) -> None:
+    """A display's warning (from its thread): one line on stderr, ``--quiet`` or not."""
+    print(f"realistic: warning: {warning}", file=sys.stderr, flush=True)
 
 
 def executor_for(args: argparse.Namespace, client: Any,
@@ -194,8 +229,9 @@ def executor_for(args: argparse.Namespace, client: Any,
 
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path, refuse_unless_resuming
+    from realistic.renderer.display import TevDisplay
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.output import BetterImageKept, Photographic, exr_output, save, write_preview
+    from realistic.renderer.output import BetterImageKept, Photographic, exposed, exr_output, save, write_preview
     from realistic.renderer.passes import render
     from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
@@ -204,15 +240,21 @@ def cmd_render(args: argparse.Namespace) -> int:
     if args.out is not None and not args.sweep and not args.resume:
         refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
     security = farm_security(args)  # TLS options checked before any work
+    crop_window = validation.crop_window(*args.cropwindow) if args.cropwindow else None  # before the scene is read
     sweep = parse_sweep(args.sweep) if args.sweep else None
     if sweep is not None and args.resume:
         raise UserError("--resume continues one image, not a --sweep sequence")
     photographic = (Photographic(args.shutter or 1 / 60, 100.0 if args.iso is None else args.iso)
                     if args.shutter or args.iso else None)
+    def info(line: str) -> None:
+        """An information line on stderr, unless ``--quiet``."""
+        if not args.quiet:
+            print(f"realistic: {line}", file=sys.stderr)
+
     inputs = build_render_inputs(options_from_args(args, args.spp))
     report_warnings(inputs.warnings)
     if "pbrtDialect" in inputs.metadata:
-        print(f"realistic: {args.scene}: read as {inputs.metadata['pbrtDialect']}", file=sys.stderr)
+        info(f"{args.scene}: read as {inputs.metadata['pbrtDialect']}")
     out = Path(args.out or inputs.default_out)
     cameras = sweep_cameras(inputs.camera, sweep) if sweep is not None else [inputs.camera]
     outs = [frame_path(out, i) for i in range(len(cameras))] if sweep is not None else [out]
@@ -221,26 +263,48 @@ def cmd_render(args: argparse.Namespace) -> int:
         check_writable(path.with_suffix(".png"))
     checkpoint = None
     if sweep is None:
-        checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, args.resume)
+        resume = args.resume
+        if resume and not os.path.lexists(checkpoint_path(out)):  # a checkpoint for another render is refused
+            info(f"{checkpoint_path(out)}: no checkpoint to resume: rendering from the start")
+            resume = False
+        checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, resume)
         check_writable(checkpoint.path)
+    width, height = inputs.camera.width, inputs.camera.height
+    crop = (PixelBounds.of_crop_window(crop_window, width, height) if crop_window is not None
+            else PixelBounds(*args.pixelbounds) if args.pixelbounds else None)  # RenderJob checks them
     job = RenderJob(inputs.scene, tuple(cameras), args.backend, args.seed, args.cl_device, inputs.light_samples,
                     args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep,
-                    keep_images=sweep is None)  # a sequence's frames are written as they complete
+                    keep_images=sweep is None, crop=crop)  # a sequence's frames are written as they complete
     written: dict[int, float] = {}
+    display = None
+    if args.display is not None:  # tev shows what the EXR holds: the crop, exposed as it is written
+        shown = crop or PixelBounds.whole(width, height)
+        host, port = args.display
+        display = TevDisplay(host, port, str(out), shown.width, shown.height, report_warnings_of_display)
 
     def save_frame(result: RenderResult) -> None:
+        if display is not None and result.image.size:
+            display.show(exposed(result.image, photographic))
         try:
             written[result.frame] = save(result, outs[result.frame], photographic, args.exposure)
         except BetterImageKept as err:
             print(f"realistic: {err}", file=sys.stderr)
 
+    png_written = [time.monotonic()]
+
     def preview(image: np.ndarray) -> None:
-        write_preview(out.with_suffix(".png"), image, photographic, args.exposure)
+        """The image so far to tev (after each pass) and to the PNG (every --preview-every seconds)."""
+        if display is not None:
+            display.show(exposed(image, photographic))
+        if args.preview_every and time.monotonic() - png_written[0] >= args.preview_every:
+            write_preview(out.with_suffix(".png"), image, photographic, args.exposure)
+            png_written[0] = time.monotonic()
 
     observer = RenderObserver(on_frame=save_frame if sweep is not None else None,
-                              preview=preview if args.preview_every else None, preview_every=args.preview_every,
-                              progress=True)
-    with farm_client(args, security) as client:
+                              preview=preview if args.preview_every or display is not None else None,
+                              preview_every=0.0 if display is not None else args.preview_every,
+                              progress=not args.quiet)
+    with farm_client(args, security, args.quiet) as client:
         results = render(job, executor_for(args, client, inputs.intersector), observer)
     interrupted = any(result.interrupted for result in results)
     try:
@@ -250,6 +314,8 @@ def cmd_render(args: argparse.Namespace) -> int:
                     save_frame(result)  # a single image always; a sequence's unfinished frames that have samples
     except KeyboardInterrupt:
         interrupted = True
+    if display is not None:
+        display.close()
     if interrupted:
         done = sum(r.samples_done for r in results)
         total = sum(r.samples_total for r in results)
@@ -265,9 +331,12 @@ def cmd_render(args: argparse.Namespace) -> int:
     seconds = max(r.seconds for r in results)
     names = (f"{outs[0]} .. {outs[-1]} ({len(outs)} frames)" if sweep is not None
              else f"{out} and {out.with_suffix('.png')}")
+    if args.quiet:
+        return 0
     wavelengths = camera.metadata().get("wavelengthsPerSample")
     spectral = f" x {wavelengths} wavelengths" if wavelengths else ""
-    print(f"{names}: {camera.width}x{camera.height}, {camera.spp} spp{spectral}, "
+    size = f"{camera.width}x{camera.height}" if crop is None else f"pixels {crop} of {camera.width}x{camera.height}"
+    print(f"{names}: {size}, {camera.spp} spp{spectral}, "
           f"{camera.metadata()['pixelFilter']} filter, {seconds:.1f} s "
           f"(exit pupil {result.stage_seconds.get('exit pupil', 0.0):.2f} s), "
           f"{rays / max(seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {written[len(outs) - 1]:+.2f} EV")

@@ -14,11 +14,18 @@ from realistic.errors import UserError
 Metadata = dict[str, str | int | float]
 
 
-def write_exr(path: Path, image: np.ndarray, metadata: Metadata | None = None) -> None:
-    """float32 RGB OpenEXR (ZIP) with ``metadata`` as extra header attributes."""
+def write_exr(path: Path, image: np.ndarray, metadata: Metadata | None = None,
+              window: tuple[int, int, int, int] | None = None) -> None:
+    """float32 RGB OpenEXR (ZIP) with ``metadata`` as extra header attributes. ``window`` (x, y, full
+    width, full height): the image is the part of a larger one at pixel (x, y), as a cropped render
+    is: its data window starts there, its display window is the full image (pbrt-v4's way)."""
     import OpenEXR
 
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **(metadata or {})}
+    if window is not None:
+        x, y, width, height = window
+        header["dataWindow"] = ((x, y), (x + image.shape[1] - 1, y + image.shape[0] - 1))
+        header["displayWindow"] = ((0, 0), (width - 1, height - 1))
     pixels = np.ascontiguousarray(image, dtype=np.float32)
     write_atomically(path, lambda name: OpenEXR.File(header, {"RGB": pixels}).write(name))
 

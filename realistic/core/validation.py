@@ -292,3 +292,39 @@ MAX_FILM_DISTANCE_MM = 10_000.0
 def film_distance_mm(value: float) -> float:
     """A film distance: positive, finite, at most ``MAX_FILM_DISTANCE_MM``."""
     return positive_length(value, "film distance (mm)", MAX_FILM_DISTANCE_MM)
+
+
+def crop_window(x0: float, x1: float, y0: float, y1: float) -> tuple[float, float, float, float]:
+    """A crop window in NDC, as pbrt-v4's ``--cropwindow x0,x1,y0,y1`` takes it (fractions of the
+    image, y down): each in [0, 1], x0 < x1 and y0 < y1. pbrt clamps a Film's cropwindow into
+    [0, 1]; a value outside it here is a mistake to name, not to guess around."""
+    values = tuple(finite(v, f"crop window {name}") for v, name in zip((x0, x1, y0, y1), ("x0", "x1", "y0", "y1")))
+    if not all(0.0 <= v <= 1.0 for v in values) or not (values[0] < values[1] and values[2] < values[3]):
+        shown = " ".join(f"{v:g}" for v in values)
+        raise UserError(f"crop window {shown} is not x0 x1 y0 y1 with 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1")
+    return values[0], values[1], values[2], values[3]
+
+
+def pixel_bounds(x0: int, x1: int, y0: int, y1: int, width: int, height: int) -> tuple[int, int, int, int]:
+    """Pixel bounds x0 x1 y0 y1 (``--pixelbounds``, pbrt-v4's Film ``pixelbounds``: pixels x0 .. x1 - 1
+    and y0 .. y1 - 1) within a ``width`` x ``height`` image, not empty. pbrt clamps bounds beyond the
+    image with a warning; here they are refused in one line naming the resolution."""
+    values = tuple(_integer(v, f"pixel bounds {name}") for v, name in zip((x0, x1, y0, y1), ("x0", "x1", "y0", "y1")))
+    if not (0 <= values[0] < values[1] <= width and 0 <= values[2] < values[3] <= height):
+        shown = " ".join(str(v) for v in values)
+        raise UserError(f"pixel bounds {shown} are not x0 x1 y0 y1 with 0 <= x0 < x1 <= {width} and "
+                        f"0 <= y0 < y1 <= {height} (the image is {width}x{height})")
+    return values[0], values[1], values[2], values[3]
+
+
+def display_address(text: str) -> tuple[str, int]:
+    """A display server's ``HOST:PORT`` (``--display``; ``[::1]:14158`` for an IPv6 host): the host
+    and a port from 1 to 65535, as tev listens on (its default: ``127.0.0.1:14158``)."""
+    host, colon, port = str(text).rpartition(":")
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    if not colon or not host or not port.isascii() or not port.isdigit() or not 1 <= int(port) <= 65535 \
+            or not host.isprintable() or any(c.isspace() or c in "[]/" for c in host):
+        raise UserError(f"display address '{printable_text(str(text))}' is not HOST:PORT with a port from 1 to "
+                        "65535 (e.g. 127.0.0.1:14158, where tev listens by default)")
+    return host, int(port)

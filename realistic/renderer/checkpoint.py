@@ -2,7 +2,7 @@
 
 A checkpoint (``OUT.exr.partial``, beside the output) holds the film sums and sample counts of the
 passes added in order, the sums of passes finished out of order, and the render's identity: content
-hashes of the scene and the camera, the seed, resolution, spp, pass size, backend and light samples.
+hashes of the scene and the camera, the seed, resolution, spp, pass size, backend, light samples and crop.
 Resuming refuses, in one line, a checkpoint whose identity differs in any of them. It is an
 uncompressed NumPy ``.npz`` written atomically (``core.atomic_files``), so a kill mid-write leaves
 the previous checkpoint whole.
@@ -30,6 +30,7 @@ import numpy as np
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core.atomic_files import write_atomically
 from realistic.errors import UserError
+from realistic.renderer.crop import PixelBounds
 from realistic.renderer.film import Film, PassFilm
 from realistic.scene.model import Scene
 
@@ -114,22 +115,23 @@ class RenderIdentity:
     pass_samples: int
     backend: str
     light_samples: int
+    crop: str = ""  # the pixel bounds "x0 x1 y0 y1" of a cropped render; "" for the whole image
 
     @classmethod
     def of(cls, scene: Scene, camera: Camera, seed: int, pass_samples: int, backend: str,
-           light_samples: int) -> RenderIdentity:
+           light_samples: int, crop: PixelBounds | None = None) -> RenderIdentity:
         """The identity of rendering ``scene`` through ``camera`` (its ``camera`` and ``metadata``, which
-        names the file as it was given, not counted)."""
+        names the file as it was given, not counted), cropped to ``crop`` when given."""
         scene_fields = {f.name: getattr(scene, f.name) for f in dataclasses.fields(scene)
                         if f.name not in ("camera", "metadata")}
         camera_hash = content_hash(dataclasses.replace(camera, spp=1))
         return cls(f"{camera.width}x{camera.height}", int(seed), content_hash(scene_fields), camera_hash,
-                   int(camera.spp), int(pass_samples), backend, int(light_samples))
+                   int(camera.spp), int(pass_samples), backend, int(light_samples), "" if crop is None else str(crop))
 
 
 #: How a mismatch is named in the refusal.
 _NAMES = {"resolution": "resolution", "seed": "seed", "scene": "scene", "camera": "camera", "spp": "spp",
-          "pass_samples": "pass size", "backend": "backend", "light_samples": "light samples"}
+          "pass_samples": "pass size", "backend": "backend", "light_samples": "light samples", "crop": "crop"}
 
 
 def checkpoint_path(out: Path) -> Path:
@@ -164,22 +166,25 @@ def refuse_unless_resuming(path: Path) -> None:
                         "or remove the file to start afresh")
 
 
-def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlock]) -> PassFilm:
-    """The film saved at ``path``; UserError (one line) if it is missing, unreadable, made for another
-    render, or holds anything the render's pass plan ``passes`` does not give."""
+def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlock],
+                    crop: PixelBounds | None = None) -> PassFilm:
+    """The film saved at ``path`` (showing ``crop``, the render's); UserError (one line) if it is
+    missing, unreadable, made for another render, or holds anything the render's pass plan ``passes``
+    does not give."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no checkpoint to resume (render without --resume to start)")
     width, height = (int(v) for v in identity.resolution.split("x"))
     header, saved = _read(path, width * height)
     for name, label in _NAMES.items():
-        theirs, ours = header.get(name), getattr(identity, name)
+        # a checkpoint from before crops existed names none: it is of the whole image
+        theirs, ours = header.get(name, "" if name == "crop" else None), getattr(identity, name)
         if type(theirs) is not type(ours) or theirs != ours:
             width = 12 if name in ("scene", "camera") else 40  # the file's text, escaped: it is untrusted
             shown = (theirs if isinstance(theirs, str) and theirs.isprintable() else ascii(theirs))[:width]
-            raise UserError(f"{path}: cannot resume: the checkpoint is for another {label} ({shown}, this "
-                            f"render has {str(ours)[:width]}); remove it or render without --resume")
-    film = PassFilm(Film(width, height, identity.spp), passes)
+            raise UserError(f"{path}: cannot resume: the checkpoint is for another {label} ({shown or 'none'}, "
+                            f"this render has {str(ours)[:width] or 'none'}); remove it or render without --resume")
+    film = PassFilm(Film(width, height, identity.spp, crop), passes)
     problem = _fill(film, header, saved)
     if problem:
         raise UserError(f"{path}: cannot resume: the checkpoint is damaged ({problem}); remove it to start afresh")

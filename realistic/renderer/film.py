@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from realistic.camera.base import SampleBlock
+from realistic.renderer.crop import PixelBounds
 
 
 def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_count: int) -> np.ndarray:
@@ -26,8 +27,9 @@ class Film:
     the film irradiance estimate E = mean(weight * radiance).
     """
 
-    def __init__(self, width: int, height: int, spp: int):
+    def __init__(self, width: int, height: int, spp: int, bounds: PixelBounds | None = None):
         self.width, self.height, self.spp = width, height, spp
+        self.bounds = PixelBounds.whole(width, height) if bounds is None else bounds  # what ``image`` shows
         self.sums = np.zeros((width * height, 3), np.float64)
         self.samples = np.zeros(width * height, np.int64)
 
@@ -37,10 +39,13 @@ class Film:
         self.samples[block.first_pixel:block.first_pixel + block.pixel_count] += block.samples_per_pixel()
 
     def image(self) -> np.ndarray:
-        """(height, width, 3) float32 film values; pixels with no samples yet are 0."""
-        value = np.divide(self.sums, self.samples[:, None], out=np.zeros_like(self.sums),
-                          where=self.samples[:, None] > 0)
-        return value.reshape(self.height, self.width, 3).astype(np.float32)
+        """(height, width, 3) float32 film values of ``bounds`` (the whole film unless cropped);
+        pixels with no samples yet are 0."""
+        b = self.bounds
+        sums = self.sums.reshape(self.height, self.width, 3)[b.y0:b.y1, b.x0:b.x1]
+        samples = self.samples.reshape(self.height, self.width, 1)[b.y0:b.y1, b.x0:b.x1]
+        value = np.divide(sums, samples, out=np.zeros(sums.shape), where=samples > 0)
+        return value.astype(np.float32)
 
 
 class PassFilm:
@@ -78,7 +83,7 @@ class PassFilm:
         """The image of every pass taken so far, waiting ones included (``Film.image``)."""
         if not self.waiting:
             return self.film.image()
-        film = Film(self.film.width, self.film.height, self.film.spp)
+        film = Film(self.film.width, self.film.height, self.film.spp, self.film.bounds)
         film.sums[:], film.samples[:] = self.film.sums, self.film.samples
         for index in sorted(self.waiting):
             film.add(self.passes[index], *self.waiting[index])

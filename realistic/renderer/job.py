@@ -2,7 +2,7 @@
 
 ``RenderJob`` holds everything a render needs that is data: the scene, one camera per frame, the
 backend and OpenCL device by name, seed, light samples, pass size, Morton order, the memory limit,
-checkpointing, and the sweep that made the frames. What happens while it runs (progress, previews,
+checkpointing, the sweep that made the frames, and the crop. What happens while it runs (progress, previews,
 callbacks) is a ``RenderObserver``; where its passes run is a ``PassExecutor``
 (``passes.ThreadPasses`` in this process, ``farm.DaskPasses`` on a Dask cluster). ``passes.render``
 runs a job on an executor and returns one ``RenderResult`` per frame.
@@ -20,6 +20,7 @@ import numpy as np
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core import validation
 from realistic.errors import UserError
+from realistic.renderer.crop import PixelBounds
 from realistic.renderer.pass_plan import default_pass_samples
 from realistic.renderer.timing import StageClock
 from realistic.scene.model import Scene
@@ -34,6 +35,7 @@ class PassSettings:
     seed: int = 0
     light_samples: int = 1
     morton: bool = False
+    crop: PixelBounds | None = None  # trace only these pixels' rays (None: all)
 
 
 @dataclass(frozen=True)
@@ -76,6 +78,8 @@ class RenderJob:
     # False: a complete frame's image is dropped once ``RenderObserver.on_frame`` has had it (its
     # result comes back with a 0x0 image), so a long sequence holds no finished frames
     keep_images: bool = True
+    # only these pixels of each frame (``crop.PixelBounds``; None: all): the image holds them alone
+    crop: PixelBounds | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", tuple(self.cameras))
@@ -86,6 +90,9 @@ class RenderJob:
             validation.light_samples(self.light_samples)
         if self.pass_samples is not None:
             validation.pass_samples(self.pass_samples)
+        if self.crop is not None:
+            for camera in self.cameras:
+                self.crop.within(camera.width, camera.height)
         if self.checkpoint is not None and len(self.cameras) != 1:
             raise UserError("checkpoints are for single images, not sequences")
 
@@ -93,7 +100,7 @@ class RenderJob:
     def settings(self) -> PassSettings:
         """What each pass runner needs besides the scene and camera."""
         light_samples = self.scene.light_samples if self.light_samples is None else self.light_samples
-        return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton)
+        return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton, self.crop)
 
     @property
     def pass_size(self) -> int:

@@ -150,11 +150,12 @@ def save(result: RenderResult, path: str | os.PathLike, photographic: Photograph
             kept = f"; the checkpoint {checkpoint.path} keeps this render's" if checkpoint is not None else ""
             raise BetterImageKept(f"{path} holds {theirs} samples, this interrupted render {result.samples_done}: "
                                   f"kept it{kept}")
+        window = _window(result)
         try:
-            _write(path, image, metadata, stops)
+            _write(path, image, metadata, stops, window)
         except UserError as err:
             kept = f"; the checkpoint {checkpoint.path} is kept" if checkpoint is not None else ""
-            raise UserError(f"{err}; {_rescue(path, image, metadata, stops)}{kept}") from None
+            raise UserError(f"{err}; {_rescue(path, image, metadata, stops, window)}{kept}") from None
         if checkpoint is not None and not result.interrupted:
             checkpoint.path.unlink(missing_ok=True)
     return stops
@@ -171,7 +172,14 @@ def report_non_finite(path: Path, image: np.ndarray) -> int:
     return bad
 
 
-def _rescue(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> str:
+def _window(result: RenderResult) -> tuple[int, int, int, int] | None:
+    """Where a cropped result lies in its full image (``write_exr``'s ``window``); None uncropped."""
+    crop = result.job.crop if result.job is not None else None
+    return None if crop is None else (crop.x0, crop.y0, result.camera.width, result.camera.height)
+
+
+def _rescue(path: Path, image: np.ndarray, metadata: Metadata, stops: float,
+            window: tuple[int, int, int, int] | None) -> str:
     """Write the image to the temporary folder; what became of it, for the error line."""
     try:
         handle, name = tempfile.mkstemp(prefix=f"realistic-{path.stem[:64]}-", suffix=".exr")
@@ -180,13 +188,14 @@ def _rescue(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> 
     os.close(handle)
     rescue = Path(name)
     try:
-        _write(rescue, image, metadata, stops)
+        _write(rescue, image, metadata, stops, window)
     except UserError as err:
         rescue.unlink(missing_ok=True)
         return f"the rescue copy failed too ({err})"
     return f"the render was saved as {rescue} (and its .png) instead"
 
 
-def _write(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> None:
-    write_exr(path, image, metadata)
+def _write(path: Path, image: np.ndarray, metadata: Metadata, stops: float,
+           window: tuple[int, int, int, int] | None) -> None:
+    write_exr(path, image, metadata, window)
     write_png(path.with_suffix(".png"), image, stops)

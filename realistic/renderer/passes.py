@@ -38,6 +38,7 @@ from realistic.camera.base import Camera, SampleBlock
 from realistic.core import affinity, validation
 from realistic.errors import UserError
 from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, refuse_unless_resuming, save_checkpoint
+from realistic.renderer.crop import PixelBounds
 from realistic.renderer.film import Film, PassFilm
 from realistic.renderer.job import PassExecutor, PassResult, RenderJob, RenderObserver, RenderResult, TaskHandle
 from realistic.renderer.memory import check_job_memory
@@ -138,6 +139,7 @@ class _Frame:
     camera: Camera
     plan: list[SampleBlock]
     result: RenderResult
+    crop: PixelBounds | None = None
     film: PassFilm | None = None
 
     @property
@@ -147,7 +149,7 @@ class _Frame:
     def started(self) -> PassFilm:
         """The film, allocated on first use."""
         if self.film is None:
-            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp), self.plan)
+            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp, self.crop), self.plan)
         return self.film
 
 
@@ -188,28 +190,36 @@ def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
     """Each camera's plan and result (the first one's film from its checkpoint when resuming), and
     the identity its checkpoint carries. Cameras are prepared as their frames start (``ThreadPasses.
     runner``, ``farm._runner``), not here: a long sweep would build every exit-pupil table first."""
-    plans: dict[tuple[int, int], list[SampleBlock]] = {}  # the frames of a sweep share one plan
+    plans: dict[tuple[int, int, int], list[SampleBlock]] = {}  # the frames of a sweep share one plan
     frames = []
     for index, camera in enumerate(job.cameras):
-        key = (camera.width * camera.height, camera.spp)
+        key = (camera.width, camera.height, camera.spp)
         if key not in plans:
-            plans[key] = plan_passes(*key, job.pass_size)
+            plans[key] = plan_passes(camera.width * camera.height, camera.spp, job.pass_size)
+            if job.crop is not None:
+                plans[key] = job.crop.passes(plans[key], camera.width)
         plan = plans[key]
-        result = RenderResult(_EMPTY, 0, camera.sample_count, 0, 0, 0.0, False, passes_total=len(plan), job=job,
-                              frame=index)
-        frames.append(_Frame(camera, plan, result))
+        samples = job.crop.width * job.crop.height * camera.spp if job.crop is not None else camera.sample_count
+        result = RenderResult(_EMPTY, 0, samples, 0, 0, 0.0, False, passes_total=len(plan), job=job, frame=index)
+        frames.append(_Frame(camera, plan, result, job.crop))
     if job.checkpoint is None:
         return frames, None
     identity = RenderIdentity.of(job.scene, job.cameras[0], job.seed, job.pass_size, job.backend,
-                                 job.settings.light_samples)
+                                 job.settings.light_samples, job.crop)
     frame = frames[0]
     if job.checkpoint.resume:
-        frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan)
-        frame.result.samples_done = int(frame.film.film.samples.sum()) + sum(frame.plan[i].count
-                                                                            for i in frame.film.waiting)
+        frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan, job.crop)
+        frame.result.samples_done = sum(_samples_of(job, frame.plan[i], frame.camera)
+                                        for i in range(frame.film.next_pass)) \
+            + sum(_samples_of(job, frame.plan[i], frame.camera) for i in frame.film.waiting)
         frame.result.passes_done = frame.film.passes_taken
     frame.started()  # saved on interrupt even before its first pass
     return frames, identity
+
+
+def _samples_of(job: RenderJob, block: SampleBlock, camera: Camera) -> int:
+    """The samples a pass takes: all of its block's, or in a crop those of the crop's pixels."""
+    return block.count if job.crop is None else job.crop.samples_in(block, camera.width)
 
 
 def _tasks(frames: list[_Frame], passes_per_task: int) -> Iterator[tuple[int, list[int]]]:
@@ -332,7 +342,8 @@ def _finish(frame: _Frame, start: float, clock: StageClock, keep_images: bool) -
         if frame.complete:
             frame.film = None
     elif result.image is _EMPTY and keep_images and not frame.complete:
-        result.image = np.zeros((frame.camera.height, frame.camera.width, 3), np.float32)
+        bounds = frame.crop or PixelBounds.whole(frame.camera.width, frame.camera.height)
+        result.image = np.zeros((bounds.height, bounds.width, 3), np.float32)
     result.seconds = time.perf_counter() - start
     result.stage_seconds = dict(clock.seconds)
     return result

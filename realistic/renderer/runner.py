@@ -49,7 +49,7 @@ class PassRunner:
 
     def __init__(self, scene: Scene, camera: Camera, settings: PassSettings, clock: StageClock,
                  intersector: Intersector | None = None):
-        self.camera, self.morton, self.clock = camera, settings.morton, clock
+        self.camera, self.morton, self.clock, self.crop = camera, settings.morton, clock, settings.crop
         kernels = backend_for(settings.backend, settings.cl_device)  # this process's, made once: jobs carry strings
         self.generate = kernels.ray_generator(camera, settings.seed)
         self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
@@ -71,6 +71,8 @@ class PassRunner:
             if rays_per_sample > 1:  # the K rays share the sample id, so the integrator's light samples
                 sample = np.repeat(sample, rays_per_sample)
             alive = np.flatnonzero(rays.weight != 0)  # a negative filter lobe gives negative weights
+            if self.crop is not None:  # a crop's pixels only: the pass's other rays are made, not traced
+                alive = alive[self.crop.contains(rays.pixel[alive], self.camera.width)]
             if self.morton:
                 alive = alive[morton_order(rays.pixel[alive], self.camera.width)]
             pixel = rays.pixel[alive]
@@ -88,4 +90,5 @@ class PassRunner:
                     response /= np.float32(rays_per_sample)
                 value *= response
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
-        return PassResult(index, first_pixel, sums, block.count, len(alive), shadow_rays)
+        count = block.count if self.crop is None else self.crop.samples_in(block, self.camera.width)
+        return PassResult(index, first_pixel, sums, count, len(alive), shadow_rays)
