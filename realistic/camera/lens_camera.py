@@ -97,7 +97,9 @@ def film_diagonal_for_fov_mm(lens: LensSystem, film_distance_mm: float, fov_deg:
                              height: int) -> float:
     """The diagonal of a ``width`` x ``height`` film whose shorter side spans ``fov_deg`` through
     ``lens`` at ``film_distance_mm``, as pbrt's perspective camera's ``fov`` spans its shorter image
-    side: half that side is the image distance (film to rear principal plane, thick-lens model)
+    side (pbrt-v3 src/cameras/perspective.cpp, ``CreatePerspectiveCamera``: the screen window's
+    shorter side is [-1, 1], which ``Perspective(fov, ...)`` maps to tan(fov / 2); pbrt-v4 keeps
+    it): half that side is the image distance (film to rear principal plane, thick-lens model)
     times tan(fov / 2), exact for a distortion-free lens."""
     image_distance_mm = film_distance_mm + thick_lens(lens).rear_principal_from_rear_vertex_mm
     short_mm = 2 * image_distance_mm * math.tan(math.radians(fov_deg) / 2)

@@ -34,6 +34,7 @@ from realistic.errors import UserError
 from realistic.optics.formats import load_lens
 from realistic.optics.stop_shape import StopShape, bladed_stop, mask_stop
 from realistic.renderer.integrators import INTEGRATORS
+from realistic.renderer.passes import scene_intersector
 from realistic.scene.intersect import Intersector
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import Scene
@@ -216,7 +217,7 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         scene.max_depth = options.max_depth
     if options.focus_on is not None:
         x, y = options.focus_on
-        inputs.intersector = Intersector(scene)  # the render reuses it (``passes.ThreadPasses``)
+        inputs.intersector = scene_intersector(scene)  # the render reuses it (``passes.ThreadPasses``)
         camera = camera.autofocused(x, y, inputs.intersector.hit_distance)
         inputs.metadata["focusOn"] = f"{x:g},{y:g}"
     # a pbrt scene renders as pbrt would: dispersion only when asked for, even where a bundled lens
