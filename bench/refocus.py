@@ -19,21 +19,22 @@ import os
 import statistics
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import realistic as rl  # noqa: E402
+from realistic.camera.base import Camera  # noqa: E402
 from realistic.camera.lens_camera import LensCamera  # noqa: E402
 
 DEFAULT_SCENE = ROOT.parent / "shared" / "meshes" / "dragon.ply"
 
 
-def seconds(run: Callable[[], object]) -> float:
+def seconds(scene: rl.Scene, camera: Camera) -> float:
+    """Wall-clock seconds of one render of ``scene`` through ``camera``."""
     start = time.perf_counter()
-    run()
+    rl.render(scene, camera)
     return time.perf_counter() - start
 
 
@@ -50,17 +51,16 @@ def main() -> None:
     camera = scene.camera
     if not isinstance(camera, LensCamera):
         raise SystemExit("the scene's camera has no lens to refocus")
-    first = seconds(lambda: rl.render(scene, camera))
+    first = seconds(scene, camera)
     timings: dict[str, list[float]] = {"re-render, with_focus": [], "re-render, with_stop": [],
                                        "re-render, with_focus, copied Scene (BVH rebuilt)": []}
     for k in range(args.repeats):
         focus = camera.focus_distance * (1.1 + 0.1 * k)
         f_number = 4.0 + k
-        timings["re-render, with_focus"].append(seconds(lambda: rl.render(scene, camera.with_focus(focus))))
-        timings["re-render, with_stop"].append(seconds(lambda: rl.render(scene, camera.with_stop(f_number=f_number))))
-        copied = copy.copy(scene)
+        timings["re-render, with_focus"].append(seconds(scene, camera.with_focus(focus)))
+        timings["re-render, with_stop"].append(seconds(scene, camera.with_stop(f_number=f_number)))
         timings["re-render, with_focus, copied Scene (BVH rebuilt)"].append(
-            seconds(lambda: rl.render(copied, camera.with_focus(focus * 1.01))))
+            seconds(copy.copy(scene), camera.with_focus(focus * 1.01)))
     rows = [{"row": "first render", "seconds": [first], "median_s": first}]
     rows += [{"row": label, "seconds": values, "median_s": statistics.median(values)}
              for label, values in timings.items()]

@@ -4,6 +4,7 @@ sized to the lens, and a re-render after a focus or stop change that rebuilds ne
 embree BVH nor a kernel program."""
 
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -187,3 +188,19 @@ def test_a_refocused_or_stopped_rerender_rebuilds_no_bvh_and_no_kernel(monkeypat
     assert first.shape == refocused.shape == stopped.shape == (12, 16, 3)
     assert not np.array_equal(first, refocused) and stopped.mean() < first.mean()
 
+
+
+def test_every_lens_command_takes_the_focus_in_metres_from_the_film(tmp_path, capsys):
+    lens = load_lens("dgauss")
+    report, plot = tmp_path / "spot.json", tmp_path / "spot.png"
+    for focus, film in (("2", film_distance_for_focus(lens, 2000.0)), ("inf", film_distance_for_focus(lens, math.inf)),
+                        ("paraxial", paraxial_data(lens).bfl_mm)):
+        assert main(["lens", "spot", "dgauss", "--focus", focus, "--field", "0", "--samples", "8",
+                     "--json", str(report), "--out", str(plot)]) == 0
+        assert json.loads(report.read_text())["film_distance_mm"] == pytest.approx(film, rel=1e-12)
+    psf = tmp_path / "psf.exr"
+    assert main(["lens", "psf", "dgauss", "--depth", "3", "--focus", "2", "--size", "4", "--spp", "1",
+                 "--out", str(psf)]) == 0
+    assert float(read_exr(psf)[1]["filmDistanceMm"]) == pytest.approx(film_distance_for_focus(lens, 2000.0))
+    assert main(["lens", "curves", "dgauss", "--focus", "inf", "--out", str(tmp_path / "c.png")]) == 0
+    capsys.readouterr()
