@@ -135,8 +135,8 @@ class ThinLensCamera:
                   shape: StopShape | None = None) -> ThinLensCamera:
         """Refused: pbrt's thin lens has a radius in scene units but no focal length or stop to size
         in mm; ``with_lens`` puts a real lens there first."""
-        raise UserError(f"the stop options (--fstop, --aperture, --blades, --aperture-mask) {NOT_A_LENS}: "
-                        f"give --lens too (with_lens)")
+        raise UserError('the stop options (--fstop, --aperture, --blades, --aperture-mask) need a real lens, and '
+                        'this camera is pbrt\'s perspective: give --lens too (with_lens)')
 
     def with_lens(self, lens: LensSystem | str, *, film_diagonal_mm: FilmDiagonal = None) -> LensCamera:
         """A real lens in place of the thin lens, at the same pose (film centre at the pinhole, camera
