@@ -204,3 +204,12 @@ def test_every_lens_command_takes_the_focus_in_metres_from_the_film(tmp_path, ca
     assert float(read_exr(psf)[1]["filmDistanceMm"]) == pytest.approx(film_distance_for_focus(lens, 2000.0))
     assert main(["lens", "curves", "dgauss", "--focus", "inf", "--out", str(tmp_path / "c.png")]) == 0
     capsys.readouterr()
+
+
+def test_render_focus_takes_inf_and_the_film_distance_in_mm():
+    at_infinity = build_render_inputs(RenderOptions(focus_distance=math.inf, resolution=(8, 8))).camera
+    assert at_infinity.film_distance_mm == film_distance_for_focus(at_infinity.lens, math.inf)
+    placed = build_render_inputs(RenderOptions(film_distance_mm=37.0, resolution=(8, 8))).camera
+    assert placed.film_distance_mm == 37.0
+    with pytest.raises(UserError, match="--focus and --film-distance-mm each set the focus"):
+        RenderOptions(focus_distance=2.0, film_distance_mm=37.0)

@@ -14,6 +14,12 @@ format puts it (``origin``): the film centre (pbrt-v3, meshes) or the front lens
 classic homework). ``world_from_camera`` carries the scene's unit; refocusing moves the film and,
 with the front-vertex convention, the whole camera frame with it.
 
+A camera is adjusted as a photographer would, each change a new frozen camera at the same pose:
+``with_lens`` (another lens; the film kept unless most of it falls outside the new lens's image
+circle, or given, or ``"auto"``: sized to the lens), ``with_focus`` (scene units from the film
+plane, as ``--focus``), ``with_stop`` (f-number or diameter, and shape). The CLI's options call the
+same methods (``realistic.renderer.inputs.apply_overrides``).
+
 The film position of a sample is drawn from the camera's pixel filter (``pixel_filter``,
 ``realistic.core.pixel_filter``: filter importance sampling), and the filter's sign-and-normalisation
 factor multiplies the sample's weight; the default 0.5-pixel box is plain jittering in the pixel.
