@@ -5,7 +5,8 @@
 In one process (the Python API, as a notebook uses it): the first render of a scene (embree BVH,
 kernel programs, exit-pupil table), then, alternating, re-renders of the same Scene object through
 ``camera.with_focus(d)`` and ``camera.with_stop(f_number=N)`` (new focus distances and f-numbers
-each round, so no exit-pupil table comes from memory), and the same refocus on a copy of the Scene
+each round, so no exit-pupil table comes from memory; the disk cache has those an earlier run of
+this bench built, as ``REALISTIC_CACHE_DIR`` says), and the same refocus on a copy of the Scene
 (a new object: its BVH is built again), which is what a re-render cost before the intersector was
 kept per Scene. Prints the median seconds of each; writes bench/results/refocus.json.
 """
