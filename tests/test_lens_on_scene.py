@@ -4,6 +4,7 @@ sized to the lens, and a re-render after a focus or stop change that rebuilds ne
 embree BVH nor a kernel program."""
 
 import dataclasses
+import gc
 import json
 import math
 
@@ -213,3 +214,16 @@ def test_render_focus_takes_inf_and_the_film_distance_in_mm():
     assert placed.film_distance_mm == 37.0
     with pytest.raises(UserError, match="--focus and --film-distance-mm each set the focus"):
         RenderOptions(focus_distance=2.0, film_distance_mm=37.0)
+
+
+def test_a_scene_keeps_its_intersector_until_its_geometry_changes_or_it_goes():
+    scene = rl.load_scene(resolution=(8, 8), spp=1)
+    first = passes.scene_intersector(scene)
+    assert passes.scene_intersector(scene) is first
+    scene.add(scene.meshes[0], np.eye(4))  # one more instance: another BVH
+    second = passes.scene_intersector(scene)
+    assert second is not first and second.instance_count == first.instance_count + 1
+    key = id(scene)
+    del scene
+    gc.collect()
+    assert key not in passes._intersectors
