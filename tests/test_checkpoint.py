@@ -88,7 +88,7 @@ def test_resume_is_bit_identical_and_the_saved_image_removes_the_checkpoint(tiny
 @pytest.mark.parametrize("change, word", [
     (lambda c: dataclasses.replace(c, width=33), "resolution"),
     (lambda c: dataclasses.replace(c, spp=8), "spp"),
-    (lambda c: c.refocused(2500.0), "camera"),
+    (lambda c: c.refocused_mm(2500.0), "camera"),
 ])
 def test_a_checkpoint_of_another_render_is_refused_in_one_line(tiny, tmp_path, change, word):
     scene, camera = tiny

@@ -2,6 +2,7 @@
 the same way to a pbrt scene's camera and to a staged mesh's: the importer gives what the file says,
 the options replace it."""
 
+import numpy as np
 import pytest
 
 from conftest import shared_file
@@ -55,9 +56,12 @@ def test_the_stop_changes_and_the_focus_follows_the_thick_lens_model(tmp_path, s
     assert focused.film_distance_mm == film_distance_for_focus(focused.lens, 2.5 * focused.mm_per_unit)
 
 
-def test_stop_and_focus_options_on_a_perspective_camera_name_its_line(tmp_path):
-    path = _scene(tmp_path, 'Camera "perspective" "float fov" 40\nWorldBegin\nShape "sphere"\nWorldEnd\n')
-    with pytest.raises(UserError, match=r"s\.pbrt:4: the stop and focus options apply to realistic cameras"):
-        build_render_inputs(RenderOptions(scene=path, focus_distance=2.0))
-    with pytest.raises(UserError, match="--lens apply to mesh scenes"):
-        build_render_inputs(RenderOptions(scene=path, lens="wide"))
+def test_stop_options_on_a_perspective_camera_name_its_line_and_the_focus_is_its_focal_distance(tmp_path):
+    path = _scene(tmp_path, 'Camera "perspective" "float fov" 40 "float lensradius" 0.1\n'
+                            'WorldBegin\nShape "sphere"\nWorldEnd\n')
+    with pytest.raises(UserError, match=r"s\.pbrt:4: the stop options .* give --lens too"):
+        build_render_inputs(RenderOptions(scene=path, f_number=4.0))
+    assert build_render_inputs(RenderOptions(scene=path, focus_distance=2.0)).camera.focal_distance == 2.0
+    assert isinstance(build_render_inputs(RenderOptions(scene=path, lens="wide", f_number=4.0)).camera, LensCamera)
+    with pytest.raises(UserError, match="--camera-pos apply to mesh scenes"):
+        build_render_inputs(RenderOptions(scene=path, camera_position=np.ones(3)))

@@ -188,8 +188,8 @@ def test_renders_a_pbrt_homework_scene_with_overrides(tmp_path, capsys, monkeypa
 
 def test_pbrt_scene_rejects_mesh_only_options(tmp_path, capsys):
     scene = shared_file("scenes/pbrt/dof-dragons.dgauss.pbrt")
-    status, _, err = run_cli([str(scene), *FAST, "--lens", "wide", "--out", str(tmp_path / "x.exr")], capsys)
-    assert status == 2 and "--lens apply to mesh scenes" in err
+    status, _, err = run_cli([str(scene), *FAST, "--target", "0,0,0", "--out", str(tmp_path / "x.exr")], capsys)
+    assert status == 2 and "--target apply to mesh scenes" in err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -17,6 +17,8 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from realistic.errors import UserError
+from realistic.optics.lens import LensSystem
+from realistic.optics.stop_shape import StopShape
 
 #: Ray generation backends: the OpenCL kernel, or the float64 numpy reference (never a fallback).
 BACKENDS = ("opencl", "numpy")
@@ -141,6 +143,16 @@ class Camera(Protocol):
 
     def autofocused(self, x: float, y: float, hit_distance: HitDistance) -> Camera:
         """Refocused on what raster point (x, y) sees (``hit_distance``: the scene along a ray)."""
+
+    def with_focus(self, distance: float) -> Camera:
+        """Focused ``distance`` scene units from the film plane (``--focus``)."""
+
+    def with_stop(self, *, f_number: float | None = None, aperture_mm: float | None = None,
+                  shape: StopShape | None = None) -> Camera:
+        """The stop sized for an f-number or a diameter, and shaped (``--fstop``, ``--aperture``, ``--blades``)."""
+
+    def with_lens(self, lens: LensSystem | str, *, film_diagonal_mm: float | str | None = None) -> Camera:
+        """A real lens at this camera's pose (``--lens``, ``--film-diagonal``)."""
 
 
 def check_backend(backend: str) -> None:

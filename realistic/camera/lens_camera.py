@@ -14,6 +14,12 @@ format puts it (``origin``): the film centre (pbrt-v3, meshes) or the front lens
 classic homework). ``world_from_camera`` carries the scene's unit; refocusing moves the film and,
 with the front-vertex convention, the whole camera frame with it.
 
+A camera is adjusted as a photographer would, each change a new frozen camera at the same pose:
+``with_lens`` (another lens; the film kept unless most of it falls outside the new lens's image
+circle, or given, or ``"auto"``: sized to the lens), ``with_focus`` (scene units from the film
+plane, as ``--focus``), ``with_stop`` (f-number or diameter, and shape). The CLI's options call the
+same methods (``realistic.renderer.inputs.apply_overrides``).
+
 The film position of a sample is drawn from the camera's pixel filter (``pixel_filter``,
 ``realistic.core.pixel_filter``: filter importance sampling), and the filter's sign-and-normalisation
 factor multiplies the sample's weight; the default 0.5-pixel box is plain jittering in the pixel.
@@ -45,15 +51,31 @@ import numpy as np
 from realistic.camera.autofocus import autofocus_distance_mm
 from realistic.camera.base import HitDistance, Metadata, RayBatch, SampleBlock
 from realistic.core import rng, validation
-from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm, pixel_pitch_mm
+from realistic.core.film_geometry import (
+    FULL_FRAME_DIAGONAL_MM,
+    MOSTLY_OUTSIDE,
+    film_size_mm,
+    fraction_outside_circle,
+    pixel_pitch_mm,
+)
 from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
 from realistic.core.spectrum import DEFAULT_WAVELENGTHS_PER_SAMPLE, LAMBDA_MAX_NM, LAMBDA_MIN_NM, wavelengths_nm
 from realistic.core.transforms import look_at, scale, transform_points, transform_vectors
 from realistic.errors import UserError
 from realistic.optics.dispersion import D_LINE_NM
+from realistic.optics.formats import load_lens
 from realistic.optics.lens import LensSystem
-from realistic.optics.paraxial import film_distance_for_focus, focus_distance_for_film, paraxial_data, thick_lens
+from realistic.optics.library import image_circle_mm
+from realistic.optics.paraxial import (
+    film_distance_for_focus,
+    focus_distance_for_film,
+    nearest_focus_mm,
+    paraxial_data,
+    stop_diameter_for_f_number,
+    thick_lens,
+)
 from realistic.optics.sampling import ExitPupilTable, camera_weight, exit_pupil_table, rear_element_sampler
+from realistic.optics.stop_shape import StopShape
 from realistic.optics.tracer import trace_from_film
 
 LENS_SAMPLINGS = ("pupil", "rear")
@@ -61,6 +83,42 @@ LENS_SAMPLINGS = ("pupil", "rear")
 ORIGINS = ("film", "front_vertex")
 #: World units of the mesh scenes and the Python API's default: metres.
 MM_PER_METRE = 1000.0
+#: ``film_diagonal_mm="auto"`` (``--film-diagonal auto``): the film sized to the lens (``auto_film_diagonal_mm``).
+AUTO_FILM = "auto"
+#: A film diagonal as the API and the options take it: mm, ``AUTO_FILM``, or None (the camera's own).
+FilmDiagonal = float | str | None
+#: How far beyond its nearest focus a lens is focused when it replaces one that focused nearer.
+NEAREST_FOCUS_MARGIN = 1.01
+
+
+def auto_film_diagonal_mm(lens: LensSystem) -> float:
+    """The film a lens covers: its image circle's diameter (``optics.library.image_circle_mm``, where
+    the relative illumination is still a tenth of the centre's) as the film diagonal, at most full
+    frame: a lens drawing a larger circle (a medium- or large-format design) renders the full-frame
+    part of it, as a 35 mm camera would show it, rather than its darkened rim."""
+    return min(image_circle_mm(lens), FULL_FRAME_DIAGONAL_MM)
+
+
+def film_diagonal_for_fov_mm(lens: LensSystem, film_distance_mm: float, fov_deg: float, width: int,
+                             height: int) -> float:
+    """The diagonal of a ``width`` x ``height`` film whose shorter side spans ``fov_deg`` through
+    ``lens`` at ``film_distance_mm``, as pbrt's perspective camera's ``fov`` spans its shorter image
+    side (pbrt-v3 src/cameras/perspective.cpp, ``CreatePerspectiveCamera``: the screen window's
+    shorter side is [-1, 1], which ``Perspective(fov, ...)`` maps to tan(fov / 2); pbrt-v4 keeps
+    it): half that side is the image distance (film to rear principal plane, thick-lens model)
+    times tan(fov / 2), exact for a distortion-free lens."""
+    image_distance_mm = film_distance_mm + thick_lens(lens).rear_principal_from_rear_vertex_mm
+    short_mm = 2 * image_distance_mm * math.tan(math.radians(fov_deg) / 2)
+    return short_mm * math.hypot(width, height) / min(width, height)
+
+
+def film_diagonal_value(value: FilmDiagonal) -> FilmDiagonal:
+    """A film diagonal option checked: None, ``AUTO_FILM``, or a diagonal in mm (``validation``)."""
+    if value is None or value == AUTO_FILM:
+        return value
+    if isinstance(value, str):
+        raise UserError(f"film diagonal must be a number of mm or {AUTO_FILM!r}, got {value!r}")
+    return validation.film_diagonal_mm(value)
 
 
 @dataclass(frozen=True, eq=False)
@@ -215,6 +273,7 @@ class LensCamera:
         return {"lens": lens.name, "lensSource": lens.source, "apertureDiameterMm": float(lens.stop_diameter_mm),
                 "fNumber": float(paraxial_data(lens).f_number),
                 "focusDistanceMm": float(focus_distance_for_film(lens, self.film_distance_mm)),
+                "focusDistanceSceneUnits": float(self.focus_distance),
                 "filmDistanceMm": float(self.film_distance_mm), "filmDiagonalMm": float(self.film_diagonal_mm),
                 "lensSampling": self.lens_sampling,
                 "stopShape": lens.stop_shape.describe() if lens.stop_shape else "circle",
@@ -232,12 +291,75 @@ class LensCamera:
         bounds follow)."""
         return dataclasses.replace(self, spectral=self.lens.has_dispersion if spectral is None else spectral)
 
-    def refocused(self, focus_distance_mm: float) -> LensCamera:
-        """The camera with its film moved (thick-lens model) to focus ``focus_distance_mm`` from the film."""
+    def refocused_mm(self, focus_distance_mm: float) -> LensCamera:
+        """The camera with its film moved (thick-lens model) to focus ``focus_distance_mm`` from the
+        film (the lens frame's unit; ``with_focus`` takes scene units)."""
         return dataclasses.replace(self, film_distance_mm=film_distance_for_focus(self.lens, focus_distance_mm))
+
+    @property
+    def focus_distance(self) -> float:
+        """Distance in focus, in scene units from the film plane (inf at the rear focal point)."""
+        return focus_distance_for_film(self.lens, self.film_distance_mm) / self.mm_per_unit
+
+    def with_focus(self, distance: float) -> LensCamera:
+        """The camera focused ``distance`` scene units from the film plane (``math.inf``: infinity),
+        the unit of ``--focus``; the film moves (thick-lens model), the pose stays."""
+        return self.refocused_mm(validation.focus_distance(distance) * self.mm_per_unit)
+
+    def with_stop(self, *, f_number: float | None = None, aperture_mm: float | None = None,
+                  shape: StopShape | None = None) -> LensCamera:
+        """The camera with its lens's stop sized for paraxial ``f_number`` (EFL over the entrance
+        pupil) or to ``aperture_mm`` (one of them at most), and cut to ``shape`` when given; the
+        film stays where it was, so the focus does too."""
+        if f_number is not None and aperture_mm is not None:
+            raise UserError("f_number (--fstop) and aperture_mm (--aperture) both size the stop: give one")
+        if f_number is None and aperture_mm is None and shape is None:
+            raise UserError("with_stop needs f_number, aperture_mm or shape")
+        lens = self.lens
+        if aperture_mm is not None:
+            lens = lens.with_stop_diameter(aperture_mm)
+        if f_number is not None:
+            lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, f_number))
+        if shape is not None:
+            lens = lens.with_stop_shape(shape)
+        return dataclasses.replace(self, lens=lens)
+
+    def with_lens(self, lens: LensSystem | str, *, film_diagonal_mm: FilmDiagonal = None) -> LensCamera:
+        """The same pose, resolution, sampling and focus distance (from the film plane) through
+        ``lens`` (a LensSystem, or a bundled name or file for ``load_lens``); camera space keeps its
+        origin convention, so a homework scene's front lens vertex stays where the scene put it.
+        The film: ``film_diagonal_mm`` in mm, ``"auto"`` (``auto_film_diagonal_mm``), or None: this
+        camera's, unless most of it lies outside the new lens's image circle, then "auto". A focus
+        nearer than the new lens reaches becomes its nearest."""
+        lens = load_lens(lens) if isinstance(lens, str) else lens
+        focus_mm = max(self.focus_distance * self.mm_per_unit, NEAREST_FOCUS_MARGIN * nearest_focus_mm(lens))
+        camera = dataclasses.replace(self, lens=lens, film_distance_mm=film_distance_for_focus(lens, focus_mm))
+        film = film_diagonal_value(film_diagonal_mm)
+        if film is None:
+            return camera.with_film(AUTO_FILM) if camera.frame_outside_image_circle() > MOSTLY_OUTSIDE else camera
+        return camera.with_film(film)
+
+    def with_film(self, film_diagonal_mm: float | str) -> LensCamera:
+        """The camera with a film of ``film_diagonal_mm`` (mm, or ``"auto"``: ``auto_film_diagonal_mm``)."""
+        film = film_diagonal_value(film_diagonal_mm)
+        diagonal = auto_film_diagonal_mm(self.lens) if film == AUTO_FILM else float(film)  # type: ignore[arg-type]
+        return dataclasses.replace(self, film_diagonal_mm=diagonal)
+
+    def frame_outside_image_circle(self) -> float:
+        """Fraction of the frame outside the lens's image circle (``optics.library.image_circle_mm``)."""
+        return fraction_outside_circle(self.film_diagonal_mm, self.width, self.height, image_circle_mm(self.lens))
+
+    def coverage_warning(self) -> str | None:
+        """A warning, with the film diagonal to use, when most of the frame lies outside the image circle."""
+        outside = self.frame_outside_image_circle()
+        if outside <= MOSTLY_OUTSIDE:
+            return None
+        return (f"{outside:.0%} of the {self.film_diagonal_mm:g} mm film lies outside the image circle of "
+                f"{self.lens.name} ({image_circle_mm(self.lens):.3g} mm) and renders dark: try --film-diagonal "
+                f"{auto_film_diagonal_mm(self.lens):.3g} (or auto)")
 
     def autofocused(self, x: float, y: float, hit_distance: HitDistance) -> LensCamera:
         """Refocused on what raster point (x, y) sees; ``hit_distance(origin, direction)`` (world
         space) gives the distance to the scene along a ray, None for a miss."""
-        return self.refocused(autofocus_distance_mm(self, x, y, hit_distance))
+        return self.refocused_mm(autofocus_distance_mm(self, x, y, hit_distance))
 

@@ -14,17 +14,30 @@ is the angle across the shorter side. Camera space looks down +z, +x is image ri
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from realistic.camera.base import HitDistance, Metadata, RayBatch, SampleBlock
+from realistic.camera.lens_camera import (
+    MM_PER_METRE,
+    NEAREST_FOCUS_MARGIN,
+    FilmDiagonal,
+    LensCamera,
+    film_diagonal_for_fov_mm,
+    film_diagonal_value,
+)
 from realistic.core import rng, validation
 from realistic.core.pixel_filter import PIXEL_BOX, PixelFilter
-from realistic.core.transforms import transform_points, transform_vectors
+from realistic.core.transforms import scale, transform_points, transform_vectors
 from realistic.core.warp import concentric_disk
 from realistic.errors import UserError
+from realistic.optics.formats import load_lens
+from realistic.optics.lens import LensSystem
+from realistic.optics.paraxial import film_distance_for_focus, nearest_focus_mm
+from realistic.optics.stop_shape import StopShape
 
 NOT_A_LENS = "needs a lens camera; this scene's camera is pbrt's perspective"
 
@@ -106,5 +119,48 @@ class ThinLensCamera:
             raise UserError(f"--dispersion on {NOT_A_LENS}")
         return self
 
+    def camera_direction(self, x: float, y: float) -> np.ndarray:
+        """The pinhole ray's camera-space direction (z = 1) through raster point (x, y) (pixels)."""
+        half_x, half_y = self.screen_window()
+        tan_half = math.tan(math.radians(self.fov_deg) / 2)
+        return np.array([(2 * x / self.width - 1) * half_x * tan_half, (1 - 2 * y / self.height) * half_y * tan_half,
+                         1.0])
+
+    def with_focus(self, distance: float) -> ThinLensCamera:
+        """The thin lens focused ``distance`` scene units along the view axis (pbrt's
+        ``focaldistance``; a pinhole, with no lens radius, is sharp everywhere anyway)."""
+        return dataclasses.replace(self, focal_distance=validation.positive_length(distance, "focus distance"))
+
+    def with_stop(self, *, f_number: float | None = None, aperture_mm: float | None = None,
+                  shape: StopShape | None = None) -> ThinLensCamera:
+        """Refused: pbrt's thin lens has a radius in scene units but no focal length or stop to size
+        in mm; ``with_lens`` puts a real lens there first."""
+        raise UserError('the stop options (--fstop, --aperture, --blades, --aperture-mask) need a real lens, and '
+                        'this camera is pbrt\'s perspective: give --lens too (with_lens)')
+
+    def with_lens(self, lens: LensSystem | str, *, film_diagonal_mm: FilmDiagonal = None) -> LensCamera:
+        """A real lens in place of the thin lens, at the same pose (film centre at the pinhole, camera
+        space in metres as pbrt-v3/v4's realistic camera reads it), resolution, samples and filter,
+        focused where the thin lens was (at infinity for a pinhole). The film: ``film_diagonal_mm``
+        in mm or ``"auto"``, or None: the one that keeps this camera's field of view along the
+        shorter image side (``film_diagonal_for_fov_mm``, pbrt's ``fov`` convention)."""
+        lens = load_lens(lens) if isinstance(lens, str) else lens
+        focus_mm = self.focal_distance * MM_PER_METRE if self.lens_radius > 0 else math.inf
+        focus_mm = max(focus_mm, NEAREST_FOCUS_MARGIN * nearest_focus_mm(lens))
+        film_distance = film_distance_for_focus(lens, focus_mm)
+        film = film_diagonal_value(film_diagonal_mm)
+        fov_film = film_diagonal_for_fov_mm(lens, film_distance, self.fov_deg, self.width, self.height)
+        camera = LensCamera(lens, film_distance, validation.film_diagonal_mm(fov_film), self.width, self.height,
+                            self.spp, self.world_from_camera @ scale(1.0 / MM_PER_METRE), "film",
+                            pixel_filter=self.pixel_filter)
+        return camera if film is None else camera.with_film(film)
+
     def autofocused(self, x: float, y: float, hit_distance: HitDistance) -> ThinLensCamera:
-        raise UserError(f"--focus-on {NOT_A_LENS}")
+        """Focused (``with_focus``) on the depth along the view axis of what the pinhole ray through
+        raster point (x, y) hits; ``hit_distance(origin, direction)`` is the scene along a world ray."""
+        direction = transform_vectors(self.world_from_camera, self.camera_direction(x, y)[None, :])[0]
+        length = float(np.linalg.norm(direction))
+        distance = hit_distance(self.world_from_camera[:3, 3], direction / length)
+        if distance is None:
+            raise UserError(f"--focus-on {x:g},{y:g}: the view through that point hits nothing to focus on")
+        return self.with_focus(distance / length)  # camera-space depth: the direction has z = 1

@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from realistic.camera.lens_camera import MM_PER_METRE
 from realistic.cli.lens_convert import add_convert_command
 from realistic.cli.lens_judge import add_judge_commands
-from realistic.cli.values import LENS_HELP, checked, checked_exr, checked_plot, parse_resolution, positive
+from realistic.cli.values import LENS_HELP, checked, checked_exr, checked_plot, parse_resolution
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
@@ -22,8 +24,12 @@ from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.formats import load_lens
 from realistic.optics.lens import MAX_LENGTH_MM, LensSystem
 
-#: ``--film-distance``: a positive length within the lens model's range (``optics.lens.MAX_LENGTH_MM``).
+#: ``--film-distance-mm``: a positive length within the lens model's range (``optics.lens.MAX_LENGTH_MM``).
 FILM_DISTANCE = checked(float, partial(validation.positive_length, name="film distance (mm)", maximum=MAX_LENGTH_MM))
+#: ``--film-distance-mm`` and its old name, kept as an alias.
+FILM_DISTANCE_FLAGS = ("--film-distance-mm", "--film-distance")
+#: ``--focus`` of the lens commands: metres from the film (a lens command's scene unit), or inf.
+FOCUS_HELP = "distance in focus, in metres from the film plane (the unit of render's --focus on a mesh), or inf"
 
 
 def _load_lens_with_stop(args: argparse.Namespace) -> LensSystem:
@@ -59,10 +65,10 @@ def cmd_lens_trace(args: argparse.Namespace) -> int:
 
 
 def _film_distance(args: argparse.Namespace, lens: LensSystem) -> float:
-    """Film distance for ``--focus`` (mm from the film; default infinity)."""
+    """Film distance for ``--focus`` (metres from the film; default infinity)."""
     from realistic.optics.paraxial import film_distance_for_focus
 
-    return film_distance_for_focus(lens, args.focus if args.focus else float("inf"), args.wavelength)
+    return film_distance_for_focus(lens, args.focus * MM_PER_METRE, args.wavelength)
 
 
 def cmd_lens_plot(args: argparse.Namespace) -> int:
@@ -128,12 +134,13 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
     info = lens_commands.add_parser("info", help="surface table, paraxial data, pupils and focusing")
     lens_arguments(info)
     info.add_argument("--json", action="store_true", help="print one JSON object")
-    info.add_argument("--film-distance", type=FILM_DISTANCE, metavar="MM",
-                      help="rear vertex to film distance: also report the object distance in focus")
+    info.add_argument(*FILM_DISTANCE_FLAGS, dest="film_distance", type=FILM_DISTANCE, metavar="MM",
+                      help="rear vertex to film distance in mm: also report the object distance in focus")
     info.add_argument("--sampling", type=checked(float, validation.film_diagonal_mm), metavar="FILM_DIAGONAL_MM",
-                      nargs="?", const=35.0,
+                      nargs="?", const=FULL_FRAME_DIAGONAL_MM,
                       help="also report the fraction of rays that pass with rear-element and exit-pupil "
-                           "sampling at the centre, middle and corner of a film of this diagonal (default 35)")
+                           f"sampling at the centre, middle and corner of a film of this diagonal (default "
+                           f"{FULL_FRAME_DIAGONAL_MM}, full frame)")
     info.set_defaults(run=cmd_lens_info)
 
     trace = lens_commands.add_parser(
@@ -143,7 +150,7 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
                     'leaving the front surface or {"blocked_by": {"surface": i, "reason": ...}} per ray, '
                     "surfaces counted from 0 at the front.")
     lens_arguments(trace)
-    trace.add_argument("--film-distance", type=FILM_DISTANCE, required=True, metavar="MM",
+    trace.add_argument(*FILM_DISTANCE_FLAGS, dest="film_distance", type=FILM_DISTANCE, required=True, metavar="MM",
                        help="rear vertex to film distance in mm")
     trace.add_argument("--input", required=True, metavar="RAYS.json", help="rays to trace")
     trace.add_argument("--output", metavar="OUT.json", help="where to write the result (default: stdout)")
@@ -151,8 +158,8 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
 
     def field_arguments(parser: argparse.ArgumentParser) -> None:
         lens_arguments(parser)
-        parser.add_argument("--focus", type=positive("focus distance (mm)"), metavar="MM",
-                            help="object distance in focus, mm from the film (default: infinity)")
+        parser.add_argument("--focus", type=checked(float, validation.focus_distance), default=math.inf, metavar="M",
+                            help=f"{FOCUS_HELP} (default: inf)")
         parser.add_argument("--film-diagonal", type=checked(float, validation.film_diagonal_mm),
                             default=FULL_FRAME_DIAGONAL_MM, metavar="MM",
                             help="film diagonal in mm (default: %(default)s, full frame)")

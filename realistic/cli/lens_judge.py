@@ -11,6 +11,7 @@ import json
 import math
 from pathlib import Path
 
+from realistic.camera.lens_camera import MM_PER_METRE
 from realistic.cli.values import LENS_HELP, checked, checked_exr, checked_plot, positive
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, write_text_atomically
@@ -105,7 +106,8 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
 
     lens = _load(args)
     out = checked_exr(Path(args.out or f"{lens.name}-psf.exr"))
-    psf = point_spread(lens, args.depth * 1000.0, args.field, None if args.focus is None else args.focus * 1000.0,
+    psf = point_spread(lens, args.depth * MM_PER_METRE, args.field,
+                       None if args.focus is None else args.focus * MM_PER_METRE,
                        args.pixel_um / 1000.0, args.size, args.spp, seed=args.seed, backend=args.backend)
     image = psf.image[:, :, None].repeat(3, axis=2)
     write_exr(out, image, {
@@ -124,7 +126,7 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
 
 def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     """Register ``list``, ``spot``, ``mtf`` and ``psf`` under ``lens``."""
-    from realistic.optics.spot import FOCUS_MODES, parse_wavelengths
+    from realistic.optics.spot import parse_wavelengths
 
     listing = lens_commands.add_parser("list", help="the bundled lens library: focal length, f-number, image "
                                                     "circle, elements, aspheres, source")
@@ -139,8 +141,10 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
                             metavar="DEG,...", help="field angles in degrees (default: 0,10,20)")
         parser.add_argument("--wavelengths", type=checked(str, parse_wavelengths), default=parse_wavelengths("F,d,C"),
                             metavar="F,d,C", help="Fraunhofer line names or nm (default: F,d,C)")
-        parser.add_argument("--focus", choices=FOCUS_MODES, default="paraxial",
-                            help="film at the d line's paraxial focus, or at the best (least RMS) focus")
+        parser.add_argument("--focus", type=checked(str, _judge_focus), default="paraxial", metavar="M|paraxial|best",
+                            help="the film focused this many metres from the film plane (or inf), as render's "
+                                 "--focus on a mesh; or at the d line's paraxial focus, or the best (least RMS) "
+                                 "focus, of the objects at infinity (default: paraxial)")
         parser.add_argument("--samples", type=checked(int, _pupil_samples), default=samples, metavar="N",
                             help=f"pupil grid samples across the diameter (default {samples})")
         parser.add_argument("--json", metavar="JSON", help="also write the numbers as JSON")
@@ -166,8 +170,8 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
                      help="distance of the point from the film, in metres")
     psf.add_argument("--field", type=checked(float, _field_angle), default=0.0, metavar="DEG",
                      help="angle of the point off the axis, seen from the entrance pupil (default 0)")
-    psf.add_argument("--focus", type=positive("focus distance (m)"), metavar="M",
-                     help="focus distance from the film in metres (default: the point's depth)")
+    psf.add_argument("--focus", type=checked(float, validation.focus_distance), metavar="M",
+                     help="focus distance in metres from the film plane, or inf (default: the point's depth)")
     psf.add_argument("--pixel-um", type=positive("pixel size (um)"), default=2.0, metavar="UM",
                      help="pixel pitch in micrometres (default 2)")
     psf.add_argument("--size", type=checked(int, _window_size), default=64, metavar="PX",
@@ -179,6 +183,20 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
                      help="camera rays from the float64 reference or the OpenCL kernel (default numpy)")
     psf.add_argument("--out", metavar="EXR", help="output image (default: LENS-psf.exr)")
     psf.set_defaults(run=cmd_lens_psf)
+
+
+def _judge_focus(text: str) -> str | float:
+    """``--focus`` of spot and mtf: a mode of ``optics.spot.FOCUS_MODES``, else metres (or inf) as mm."""
+    from realistic.optics.spot import FOCUS_MODES
+
+    if text in FOCUS_MODES:
+        return text
+    try:
+        metres = float(text)
+    except ValueError:
+        raise UserError(f"focus {text!r} is not a distance in metres, inf, or one of {', '.join(FOCUS_MODES)}") \
+            from None
+    return validation.focus_distance(metres) * MM_PER_METRE
 
 
 def _pupil_samples(n: int) -> int:

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from realistic.camera.base import BACKENDS
-from realistic.camera.lens_camera import LENS_SAMPLINGS
+from realistic.camera.lens_camera import AUTO_FILM, LENS_SAMPLINGS, film_diagonal_value
 from realistic.cli.values import LENS_HELP, checked, parse_pixel, parse_resolution, parse_vector, positive
 from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
@@ -27,7 +27,9 @@ if TYPE_CHECKING:
 def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     """The arguments that choose what to render (shared by ``render`` and ``bench``)."""
     parser.add_argument("scene", nargs="?", metavar="SCENE", help="pbrt scene or mesh file; omit for the default scene")
-    parser.add_argument("--lens", help=f"mesh scenes: {LENS_HELP} (default: dgauss)")
+    parser.add_argument("--lens", help=f"{LENS_HELP}; on a pbrt scene it replaces the camera's lens at the same "
+                                       "pose (a perspective camera's field of view is kept) (default: the scene's, "
+                                       "else dgauss)")
     stop = parser.add_mutually_exclusive_group()
     stop.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                       help="stop diameter in mm (default: the scene's or lens's)")
@@ -44,8 +46,11 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--aperture-mask", metavar="IMAGE",
                         help="shape the stop by an image (PNG, EXR...) spanning its diameter; level >= 0.5 is open")
     focus = parser.add_mutually_exclusive_group()
-    focus.add_argument("--focus", type=positive("focus distance"), metavar="DIST",
-                       help="focus distance in scene units from the film plane (default: the target's or the scene's)")
+    focus.add_argument("--focus", type=checked(float, validation.focus_distance), metavar="DIST",
+                       help="focus distance in scene units (metres for meshes and the default scene) from the film "
+                            "plane, or inf (default: the target's or the scene's)")
+    focus.add_argument("--film-distance-mm", type=checked(float, validation.film_distance_mm), metavar="MM",
+                       help="rear lens vertex to film distance in mm, instead of --focus")
     focus.add_argument("--focus-on", metavar="X,Y",
                        help="autofocus on what the pixel (X, Y) sees: its depth, then a real-ray search for "
                             "the sharpest film distance")
@@ -55,8 +60,10 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--res", metavar="WxH",
                         help=f"resolution, each side 1 to {validation.MAX_IMAGE_SIDE} "
                              "(default: the scene's, else 300x300)")
-    parser.add_argument("--film-diagonal", type=checked(float, validation.film_diagonal_mm), metavar="MM",
-                        help=f"mesh scenes: film diagonal in mm (default: {FULL_FRAME_DIAGONAL_MM}, full frame)")
+    parser.add_argument("--film-diagonal", type=checked(_film_diagonal_text, film_diagonal_value), metavar="MM|auto",
+                        help="film diagonal in mm, or auto: the lens's image circle, at most "
+                             f"{FULL_FRAME_DIAGONAL_MM} mm (full frame) (default: a pbrt scene's film, else auto; "
+                             "auto also where a new --lens leaves most of a pbrt scene's film dark)")
     parser.add_argument("--search-path", action="append", default=[], metavar="DIR",
                         help="pbrt scenes: where else to look for files the scene names (meshes, textures, "
                              "Includes, lenses), after the scene's own folder; repeatable")
@@ -98,6 +105,11 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
                              f"(default: {DEFAULT_WAVELENGTHS_PER_SAMPLE})")
 
 
+def _film_diagonal_text(text: str) -> float | str:
+    """``--film-diagonal``'s text: ``auto``, else a number (``film_diagonal_value`` checks it)."""
+    return AUTO_FILM if text.strip().lower() == AUTO_FILM else float(text)
+
+
 def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOptions:
     """The parsed command line as ``RenderOptions``; ``spp`` None keeps the scene's own."""
     from realistic.renderer.inputs import RenderOptions  # the renderer loads only when a command runs
@@ -109,7 +121,7 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
     return RenderOptions(
         scene=args.scene, lens=args.lens, aperture_mm=args.aperture, f_number=args.fstop, blades=args.blades,
         blade_rotation_deg=args.blade_rotation, blade_curvature=args.blade_curvature,
-        aperture_mask=args.aperture_mask, focus_distance=args.focus,
+        aperture_mask=args.aperture_mask, focus_distance=args.focus, film_distance_mm=args.film_distance_mm,
         focus_on=parse_pixel(args.focus_on) if args.focus_on else None,
         camera_position=parse_vector(args.camera_pos, "camera position") if args.camera_pos else None,
         target=parse_vector(args.target, "target") if args.target else None,

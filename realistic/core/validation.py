@@ -67,6 +67,13 @@ def positive_length(value: float, name: str, maximum: float = math.inf) -> float
 MIN_WAVELENGTH_NM, MAX_WAVELENGTH_NM = 200.0, 2000.0
 
 
+def focus_distance(value: float) -> float:
+    """A focus distance (scene units from the film plane): a positive length, or ``inf``."""
+    if value == math.inf:
+        return math.inf
+    return positive_length(value, "focus distance")
+
+
 def wavelength_nm(value: float) -> float:
     """A wavelength in nm from ``MIN_WAVELENGTH_NM`` to ``MAX_WAVELENGTH_NM``."""
     value = positive_length(value, "wavelength (nm)", MAX_WAVELENGTH_NM)

@@ -16,7 +16,7 @@ import numpy as np
 
 from realistic.core import validation
 from realistic.optics.lens import LensSystem
-from realistic.optics.spot import Spot, film_distance_for, spots_at, trace_fields
+from realistic.optics.spot import Spot, film_distance_for, focus_label, spots_at, trace_fields
 
 #: Frequencies evaluated at once (bounds the (rays x frequencies) phase array).
 _CHUNK = 64
@@ -63,7 +63,7 @@ class MtfReport:
 
 
 def lens_mtf(lens: LensSystem, fields_deg: list[float], wavelengths_nm: list[float], max_frequency_lp_mm: float,
-             focus: str = "paraxial", samples_across: int = 128, frequency_count: int = 101) -> MtfReport:
+             focus: str | float = "paraxial", samples_across: int = 128, frequency_count: int = 101) -> MtfReport:
     """Geometric MTF from 0 to ``max_frequency_lp_mm`` of objects at infinity at ``fields_deg``."""
     max_frequency_lp_mm = validation.positive_length(max_frequency_lp_mm, "maximum frequency (lp/mm)")
     traced = trace_fields(lens, fields_deg, wavelengths_nm, samples_across)
@@ -71,5 +71,5 @@ def lens_mtf(lens: LensSystem, fields_deg: list[float], wavelengths_nm: list[flo
     spots = spots_at(traced, fields_deg, wavelengths_nm, film)
     nu = np.linspace(0.0, max_frequency_lp_mm, frequency_count)
     curves = [spot_mtf(s, nu) for s in spots]
-    return MtfReport(lens.name, focus, film, nu, tuple(fields_deg), tuple(c[0] for c in curves),
+    return MtfReport(lens.name, focus_label(focus), film, nu, tuple(fields_deg), tuple(c[0] for c in curves),
                      tuple(c[1] for c in curves))

@@ -24,7 +24,7 @@ from realistic.errors import UserError
 from realistic.optics.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM
 from realistic.optics.forward_trace import ImageRays, trace_object_point
 from realistic.optics.lens import LensSystem
-from realistic.optics.paraxial import paraxial_data
+from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
 
 #: Fraunhofer lines by name (nm), for ``--wavelengths F,d,C``.
 NAMED_WAVELENGTHS_NM = {"F": LAMBDA_F_UM * 1000, "d": LAMBDA_D_UM * 1000, "C": LAMBDA_C_UM * 1000}
@@ -132,13 +132,21 @@ def trace_fields(lens: LensSystem, fields_deg: list[float], wavelengths_nm: list
             for f in fields_deg]
 
 
-def film_distance_for(lens: LensSystem, traced: list[list[ImageRays]], focus: str) -> float:
-    """The film plane of ``focus``: the d line's paraxial back focus, or best focus of ``traced``."""
+def film_distance_for(lens: LensSystem, traced: list[list[ImageRays]], focus: str | float) -> float:
+    """The film plane of ``focus``: the d line's paraxial back focus, best focus of ``traced``, or
+    (a number) the film that focuses that object distance, mm from the film (thick-lens model)."""
+    if not isinstance(focus, str):
+        return film_distance_for_focus(lens, focus)
     if focus not in FOCUS_MODES:
         raise UserError(f"focus must be one of {', '.join(FOCUS_MODES)}, got {focus!r}")
     if focus == "paraxial":
         return paraxial_data(lens).bfl_mm
     return best_focus_mm(traced)
+
+
+def focus_label(focus: str | float) -> str:
+    """How a report names ``focus``: the mode, or the distance in focus (mm from the film)."""
+    return focus if isinstance(focus, str) else f"{focus:g} mm"
 
 
 def spots_at(traced: list[list[ImageRays]], fields_deg: list[float], wavelengths_nm: list[float],
@@ -153,8 +161,9 @@ def spots_at(traced: list[list[ImageRays]], fields_deg: list[float], wavelengths
 
 
 def spot_diagram(lens: LensSystem, fields_deg: list[float], wavelengths_nm: list[float],
-                 focus: str = "paraxial", samples_across: int = 64) -> SpotReport:
-    """Spots of objects at infinity at ``fields_deg`` on the paraxial or best-focus film plane."""
+                 focus: str | float = "paraxial", samples_across: int = 64) -> SpotReport:
+    """Spots of objects at infinity at ``fields_deg`` on the paraxial or best-focus film plane, or
+    on the film focused ``focus`` mm away (``film_distance_for``)."""
     traced = trace_fields(lens, fields_deg, wavelengths_nm, samples_across)
     film = film_distance_for(lens, traced, focus)
-    return SpotReport(lens.name, focus, film, spots_at(traced, fields_deg, wavelengths_nm, film))
+    return SpotReport(lens.name, focus_label(focus), film, spots_at(traced, fields_deg, wavelengths_nm, film))

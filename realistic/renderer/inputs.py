@@ -10,31 +10,37 @@ the options to either, in one place.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from realistic.camera.base import Camera
-from realistic.camera.lens_camera import MM_PER_METRE, LensCamera
-from realistic.camera.thin_lens import ThinLensCamera
+from realistic.camera.lens_camera import (
+    AUTO_FILM,
+    MM_PER_METRE,
+    FilmDiagonal,
+    LensCamera,
+    auto_film_diagonal_mm,
+    film_diagonal_value,
+)
 from realistic.core import validation
-from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM, film_size_mm
+from realistic.core.film_geometry import film_size_mm
 from realistic.core.pixel_filter import filter_name
 from realistic.errors import UserError
 from realistic.optics.formats import load_lens
-from realistic.optics.lens import LensSystem
-from realistic.optics.paraxial import stop_diameter_for_f_number
-from realistic.optics.stop_shape import bladed_stop, mask_stop
+from realistic.optics.stop_shape import StopShape, bladed_stop, mask_stop
 from realistic.renderer.integrators import INTEGRATORS
+from realistic.renderer.passes import scene_intersector
 from realistic.scene.intersect import Intersector
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import Scene
 from realistic.scene.pbrt.dialect import Dialect
 from realistic.scene.pbrt.importer import import_pbrt
+from realistic.scene.pbrt.values import located
 from realistic.scene.staging import auto_eye, default_setup, mesh_setup
 
 MESH_DEFAULT_RES = (300, 300)
@@ -42,18 +48,17 @@ MESH_DEFAULT_SPP = 16
 #: Whose default filter parameters ``--filter`` takes on a mesh scene: the newest pbrt's.
 MESH_FILTER_DIALECT = Dialect("v4", "--filter on a mesh scene")
 DEFAULT_LENS = "dgauss"
-#: Options that only a mesh or the default scene can use (a pbrt scene sets its own camera).
-MESH_ONLY = {"lens": "--lens", "camera_position": "--camera-pos", "target": "--target",
-             "film_diagonal_mm": "--film-diagonal"}
+#: Options that only a mesh or the default scene can use (a pbrt scene places its own camera).
+MESH_ONLY = {"camera_position": "--camera-pos", "target": "--target"}
 
 
 @dataclass
 class RenderOptions:
     """What the user asked for; None keeps the scene's own value (or the mesh scenes' default).
 
-    Lengths: ``aperture_mm`` and ``film_diagonal_mm`` in mm; ``focus_distance``, ``camera_position``
-    and ``target`` in scene units (metres for meshes and the default scene), the focus measured
-    from the film plane.
+    Lengths: ``aperture_mm``, ``film_diagonal_mm`` and ``film_distance_mm`` in mm;
+    ``focus_distance`` (``inf`` allowed), ``camera_position`` and ``target`` in scene units (metres
+    for meshes and the default scene), the focus measured from the film plane.
     """
 
     scene: str | None = None  # (the Python API may pass an os.PathLike: ``__post_init__`` makes it a str)
@@ -65,11 +70,12 @@ class RenderOptions:
     blade_curvature: float = 0.0
     aperture_mask: str | None = None
     focus_distance: float | None = None
+    film_distance_mm: float | None = None  # rear lens vertex to film, mm (focuses as --focus does)
     focus_on: tuple[float, float] | None = None
     camera_position: np.ndarray | None = None
     target: np.ndarray | None = None
     resolution: tuple[int, int] | None = None
-    film_diagonal_mm: float | None = None
+    film_diagonal_mm: FilmDiagonal = None  # mm, "auto" (sized to the lens), or None: the scene's (meshes: auto)
     spp: int | None = None
     light_samples: int | None = None
     integrator: str | None = None  # "directlighting" or "path" (realistic.renderer.integrators)
@@ -98,8 +104,7 @@ class RenderOptions:
             validation.max_depth(self.max_depth)
         if self.resolution is not None:
             validation.resolution(*self.resolution)
-        if self.film_diagonal_mm is not None:
-            validation.film_diagonal_mm(self.film_diagonal_mm)
+        self.film_diagonal_mm = film_diagonal_value(self.film_diagonal_mm)
         if self.blades is not None:
             validation.blades(self.blades)
         if self.pixel_filter is not None:
@@ -107,13 +112,17 @@ class RenderOptions:
         if self.aperture_mm is not None:
             validation.stop_diameter_mm(self.aperture_mm)
         if self.focus_distance is not None:
-            validation.positive_length(self.focus_distance, "focus distance")
+            validation.focus_distance(self.focus_distance)
         if self.f_number is not None:
             validation.f_number(self.f_number)
+        if self.film_distance_mm is not None:
+            validation.film_distance_mm(self.film_distance_mm)
         if self.aperture_mm is not None and self.f_number is not None:
             raise UserError("--aperture and --fstop both size the stop: give one")
-        if self.focus_distance is not None and self.focus_on is not None:
-            raise UserError("--focus and --focus-on both set the focus: give one")
+        focus_given = [flag for flag, value in (("--focus", self.focus_distance), ("--focus-on", self.focus_on),
+                                                ("--film-distance-mm", self.film_distance_mm)) if value is not None]
+        if len(focus_given) > 1:
+            raise UserError(f"{' and '.join(focus_given)} each set the focus: give one")
         if not self.is_pbrt and self.search_paths:
             raise UserError("--search-path applies to pbrt scenes")
         if not self.is_pbrt and self.pbrt_dialect != "auto":
@@ -123,23 +132,13 @@ class RenderOptions:
     def is_pbrt(self) -> bool:
         return self.scene is not None and self.scene.lower().endswith((".pbrt", ".pbrt.gz"))
 
-    def stop_edit(self) -> Callable[[LensSystem], LensSystem] | None:
-        """The change to the lens's stop that the aperture, f-number and shape options ask for (None: none)."""
+    def stop_shape(self) -> StopShape | None:
+        """The stop's shape the blade or mask options ask for (None: the lens's own)."""
         if self.blades is not None and self.aperture_mask:
             raise UserError("--blades and --aperture-mask both shape the stop: give one")
-        shape = (bladed_stop(self.blades, self.blade_rotation_deg, self.blade_curvature) if self.blades is not None
-                 else mask_stop(self.aperture_mask) if self.aperture_mask else None)
-        if self.aperture_mm is None and self.f_number is None and shape is None:
-            return None
-
-        def edit(lens: LensSystem) -> LensSystem:
-            if self.aperture_mm is not None:
-                lens = lens.with_stop_diameter(self.aperture_mm)
-            if self.f_number is not None:
-                lens = lens.with_stop_diameter(stop_diameter_for_f_number(lens, self.f_number))
-            return lens.with_stop_shape(shape) if shape is not None else lens
-
-        return edit
+        if self.blades is not None:
+            return bladed_stop(self.blades, self.blade_rotation_deg, self.blade_curvature)
+        return mask_stop(self.aperture_mask) if self.aperture_mask else None
 
 
 @dataclass
@@ -156,7 +155,6 @@ class RenderInputs:
     #: whose default parameters a pixel filter named by the user takes: the file's pbrt, or the newest
     filter_dialect: Dialect = MESH_FILTER_DIALECT
     camera_where: str = ""  # a pbrt scene's Camera directive (file:line), for errors about the camera
-    mm_per_unit: float | None = None  # the scene's unit where it fixes one (meshes: metres); None: the camera's
     intersector: Intersector | None = None
 
     @property
@@ -181,31 +179,36 @@ def build_render_inputs(options: RenderOptions) -> RenderInputs:
 def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInputs:
     """The user's options applied to the scene, camera and film that a scene file (or the mesh
     staging) gives, the one place they are, for every kind of scene: the film's resolution, samples
-    per pixel and pixel filter, the lens's stop, sampling and focus, the light samples, integrator
-    and depth, and dispersion. Each value was checked once, in ``RenderOptions``."""
+    per pixel and pixel filter, the lens (a pbrt scene's camera keeps its pose), the film, the stop,
+    sampling and focus (through the cameras' ``with_lens``, ``with_stop`` and ``with_focus``, as
+    the API calls them), the light samples, integrator and depth, and dispersion. Each value was
+    checked once, in ``RenderOptions``."""
     if options.is_pbrt:
         given = [flag for name, flag in MESH_ONLY.items() if getattr(options, name) is not None]
         if given:
-            raise UserError(f"{', '.join(given)} apply to mesh scenes; {options.scene} sets its own camera")
+            raise UserError(f"{', '.join(given)} apply to mesh scenes; {options.scene} places its own camera")
     scene = inputs.scene
     camera = inputs.camera
-    edit = options.stop_edit()
-    if isinstance(camera, ThinLensCamera) and (edit is not None or options.focus_distance is not None):
-        raise UserError(f"{inputs.camera_where}: the stop and focus options apply to realistic cameras, not "
-                        f'Camera "perspective"')
     if options.resolution is not None:
         camera = dataclasses.replace(camera, width=options.resolution[0], height=options.resolution[1])
     if options.spp is not None:
         camera = dataclasses.replace(camera, spp=options.spp)
     if options.pixel_filter is not None:  # at the default parameters of the scene's pbrt
         camera = dataclasses.replace(camera, pixel_filter=inputs.filter_dialect.pixel_filter(options.pixel_filter))
-    if isinstance(camera, LensCamera):
-        camera = dataclasses.replace(camera, lens_sampling=options.lens_sampling)
-        if edit is not None:  # the film stays where the scene's lens focused it
-            camera = dataclasses.replace(camera, lens=edit(camera.lens))
+    with located(inputs.camera_where) if inputs.camera_where else contextlib.nullcontext():
+        if options.is_pbrt:
+            camera = _lens_and_film(inputs, camera, options)
+        shape = options.stop_shape()
+        if options.aperture_mm is not None or options.f_number is not None or shape is not None:
+            camera = camera.with_stop(f_number=options.f_number, aperture_mm=options.aperture_mm, shape=shape)
+        if isinstance(camera, LensCamera):
+            camera = dataclasses.replace(camera, lens_sampling=options.lens_sampling)
         if options.focus_distance is not None:
-            mm_per_unit = camera.mm_per_unit if inputs.mm_per_unit is None else inputs.mm_per_unit
-            camera = camera.refocused(options.focus_distance * mm_per_unit)
+            camera = camera.with_focus(options.focus_distance)
+        if options.film_distance_mm is not None:
+            if not isinstance(camera, LensCamera):
+                raise UserError('--film-distance-mm needs a real lens (--lens): Camera "perspective" has none')
+            camera = dataclasses.replace(camera, film_distance_mm=options.film_distance_mm)
     if options.light_samples is not None:
         scene.light_samples = options.light_samples
     if options.integrator is not None:
@@ -214,7 +217,7 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         scene.max_depth = options.max_depth
     if options.focus_on is not None:
         x, y = options.focus_on
-        inputs.intersector = Intersector(scene)  # the render reuses it (``passes.ThreadPasses``)
+        inputs.intersector = scene_intersector(scene)  # the render reuses it (``passes.ThreadPasses``)
         camera = camera.autofocused(x, y, inputs.intersector.hit_distance)
         inputs.metadata["focusOn"] = f"{x:g},{y:g}"
     # a pbrt scene renders as pbrt would: dispersion only when asked for, even where a bundled lens
@@ -227,9 +230,33 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         if not getattr(camera, "spectral", False):
             raise UserError("--wavelengths-per-sample applies to spectral renders (--dispersion on)")
         camera = dataclasses.replace(camera, wavelengths_per_sample=options.wavelengths_per_sample)
+    if isinstance(camera, LensCamera):
+        coverage = camera.coverage_warning()
+        if coverage is not None:
+            inputs.warnings.append(coverage)
     scene.camera = camera
     scene.metadata = inputs.metadata
     return inputs
+
+
+def _lens_and_film(inputs: RenderInputs, camera: Camera, options: RenderOptions) -> Camera:
+    """A pbrt scene's camera with the lens and film the options give (``with_lens``: same pose);
+    where a new lens leaves most of the scene's film outside its image circle, the film is sized
+    to the lens, and a line says so."""
+    if options.lens is None:
+        if options.film_diagonal_mm is None:
+            return camera
+        if not isinstance(camera, LensCamera):
+            raise UserError('--film-diagonal needs a real lens (--lens): Camera "perspective" has a field of view, '
+                            "not a film")
+        return camera.with_film(options.film_diagonal_mm)
+    replaced = camera.with_lens(options.lens, film_diagonal_mm=options.film_diagonal_mm)
+    if (options.film_diagonal_mm is None and isinstance(camera, LensCamera) and isinstance(replaced, LensCamera)
+            and replaced.film_diagonal_mm != camera.film_diagonal_mm):
+        inputs.warnings.append(f"the scene's {camera.film_diagonal_mm:g} mm film lies mostly outside the image "
+                               f"circle of {replaced.lens.name}: the film is sized to the lens "
+                               f"({replaced.film_diagonal_mm:.3g} mm; --film-diagonal sets it)")
+    return replaced
 
 
 def _pbrt_inputs(options: RenderOptions, path: str) -> RenderInputs:
@@ -247,8 +274,9 @@ def _mesh_inputs(options: RenderOptions) -> RenderInputs:
     only these scenes take (lens, position, target, film diagonal) and framing the subject for the
     film the options ask for; ``apply_overrides`` applies the rest."""
     width, height = options.resolution or MESH_DEFAULT_RES
-    film_diagonal = options.film_diagonal_mm or FULL_FRAME_DIAGONAL_MM
     lens = load_lens(options.lens or DEFAULT_LENS)
+    film = options.film_diagonal_mm
+    film_diagonal = auto_film_diagonal_mm(lens) if film is None or film == AUTO_FILM else float(film)
     setup = mesh_setup(load_mesh_file(options.scene)) if options.scene else default_setup()
     target = setup.target if options.target is None else options.target
     eye = options.camera_position
@@ -257,10 +285,10 @@ def _mesh_inputs(options: RenderOptions) -> RenderInputs:
         eye = setup.eye if setup.eye is not None and options.target is None else auto_eye(setup, lens, film_short_mm)
     # focused on the target, or (when the options give a focus, which apply_overrides sets) at infinity,
     # which every lens reaches however near the target is
-    focus = None if options.focus_distance is None else math.inf
+    focus = None if options.focus_distance is None and options.film_distance_mm is None else math.inf
     setup.scene.camera = LensCamera.looking_at(lens, eye, target, focus, film_diagonal, width, height,
                                                MESH_DEFAULT_SPP)
     metadata = {"scene": str(options.scene or "default"), "mmPerSceneUnit": MM_PER_METRE,
                 "cameraPosition": ",".join(f"{v:g}" for v in eye),
                 "cameraTarget": ",".join(f"{v:g}" for v in target)}
-    return RenderInputs(setup.scene, "render.exr", metadata, mm_per_unit=MM_PER_METRE)
+    return RenderInputs(setup.scene, "render.exr", metadata)

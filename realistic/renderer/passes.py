@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import queue
 import sys
+import threading
 import time
+import weakref
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -47,22 +49,56 @@ from realistic.renderer.runner import PassRunner
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
+from realistic.scene.model import Scene
 
 if TYPE_CHECKING:
     from tqdm import tqdm
 
-__all__ = ["ThreadPasses", "render"]
+__all__ = ["ThreadPasses", "render", "scene_intersector"]
 
 #: The image of a result not (or no longer) held: a frame streamed away (``RenderJob.keep_images``).
 _EMPTY = np.zeros((0, 0, 3), np.float32)
 _EMPTY.flags.writeable = False
 
 
+#: Per live Scene object (by id): its geometry's signature, the objects named there (held so that
+#: their ids stay theirs), and the Intersector built for it. Entries go when their Scene does.
+_intersectors: dict[int, tuple[tuple, list, Intersector]] = {}
+_intersectors_lock = threading.Lock()
+
+
+def _geometry_signature(scene: Scene) -> tuple[tuple, list]:
+    """What an Intersector is built from, by identity: each instance, its transform and mesh, each
+    mesh's arrays, each light; and those objects."""
+    held: list = [*scene.instances, *scene.meshes, *scene.lights]
+    held += [inst.transform for inst in scene.instances] + [array for mesh in scene.meshes
+                                                           for array in (mesh.vertices, mesh.faces)]
+    return (tuple(inst.mesh for inst in scene.instances), tuple(map(id, held))), held
+
+
+def scene_intersector(scene: Scene) -> Intersector:
+    """The embree scene of ``scene``, built by its first render and reused by every later render of
+    the same Scene object, so that a re-render after ``camera.with_focus`` or ``with_stop``
+    rebuilds no BVH. Kept beside the Scene (weakly: dropped with it), never on it, since a Scene
+    pickles to farm workers. Rebuilt when an instance, mesh array or light was added, removed or
+    replaced; arrays edited in place are not noticed (replace them instead)."""
+    signature, held = _geometry_signature(scene)
+    with _intersectors_lock:
+        known = _intersectors.get(id(scene))
+        if known is not None and known[0] == signature:
+            return known[2]
+        intersector = Intersector(scene)
+        if known is None:
+            weakref.finalize(scene, _intersectors.pop, id(scene), None)
+        _intersectors[id(scene)] = (signature, held, intersector)
+        return intersector
+
+
 class ThreadPasses:
     """Passes on ``threads`` threads of this process (None: ``default_threads()``), one pass per task,
     one runner per frame (built as the frame starts), all sharing one embree scene: ``intersector`` when
-    given (one already built for the scene of the jobs it runs, e.g. by autofocus), else one built
-    on first use in each job.
+    given (one already built for the scene of the jobs it runs, e.g. by autofocus), else the
+    scene's own (``scene_intersector``: built once per Scene object, reused by later renders).
     ``pin_threads``: each worker on its own CPU (Linux, ``core.affinity``; threads this process did
     not create, such as the OpenCL runtime's, are left where the system puts them). ``open``
     refuses a job whose estimated peak memory exceeds ``job.max_memory_bytes``
@@ -96,7 +132,7 @@ class ThreadPasses:
             with self.clock("exit pupil"):  # the lens's sampling tables (``Camera.prepare``)
                 camera.prepare()
             with self.clock("setup"):  # ray generator, BVH build, shading tables
-                self.intersector = self.intersector or Intersector(self.job.scene)
+                self.intersector = self.intersector or scene_intersector(self.job.scene)
                 self.runners = {frame: PassRunner(self.job.scene, camera, self.job.settings, self.clock,
                                                   self.intersector)}
         return self.runners[frame]

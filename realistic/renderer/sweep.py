@@ -20,7 +20,6 @@ from realistic.camera.base import Camera
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import validation
 from realistic.errors import UserError
-from realistic.optics.paraxial import stop_diameter_for_f_number
 
 QUANTITIES = ("focus", "aperture", "fstop", "film-distance")
 #: Frames in one sequence: seven minutes of film at 24 frames/s. Every frame's camera is made (its
@@ -73,12 +72,11 @@ def sweep_cameras(camera: Camera, sweep: Sweep) -> list[Camera]:
 
 def _with(camera: LensCamera, quantity: str, value: float) -> LensCamera:
     if quantity == "focus":
-        return camera.refocused(value * camera.mm_per_unit)
+        return camera.with_focus(value)
     if quantity == "aperture":
-        return dataclasses.replace(camera, lens=camera.lens.with_stop_diameter(value))
+        return camera.with_stop(aperture_mm=value)
     if quantity == "fstop":
-        return dataclasses.replace(camera, lens=camera.lens.with_stop_diameter(
-            stop_diameter_for_f_number(camera.lens, value)))
+        return camera.with_stop(f_number=value)
     return dataclasses.replace(camera, film_distance_mm=validation.positive_length(value, "film distance (mm)"))
 
 
