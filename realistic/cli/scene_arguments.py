@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 from realistic.camera.base import BACKENDS
 from realistic.camera.lens_camera import AUTO_FILM, LENS_SAMPLINGS, film_diagonal_value
-from realistic.cli.values import LENS_HELP, checked, parse_pixel, parse_resolution, parse_vector, positive
+from realistic.cli.values import LENS_HELP, checked, parse_pixel, parse_resolution, parse_vector
 from realistic.core import validation
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.input_files import input_file
