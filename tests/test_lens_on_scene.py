@@ -61,11 +61,16 @@ def test_a_homework_scene_through_another_lens_stop_and_focus(tmp_path, capsys):
     assert float(header["fNumber"]) == pytest.approx(4.0, rel=1e-6)
     assert float(header["focusDistanceSceneUnits"]) == pytest.approx(3.0, rel=1e-6)
     assert float(header["focusDistanceMm"]) == pytest.approx(3 * 5000, rel=1e-6)  # the file's Scale 5000
-    # the bundled "telephoto" (Sigler, f/5.6) cannot open to f/4: said in one line, nothing written
+    # issue 33's own example: the bundled "telephoto" (Sigler, f/5.6) cannot open to f/4, so it takes its
+    # widest, f/5.42, as a camera does, and says so
+    out = tmp_path / "sigler.exr"
     status, err = render_cli([str(scene), "--search-path", str(lenses), *SMALL, "--lens", "telephoto", "--fstop", "4",
-                              "--out", str(tmp_path / "no.exr")], capsys)
-    assert status == 2 and "f/4 is faster than telephoto opens" in err and err.count("\n") == 1
-    assert not (tmp_path / "no.exr").exists()
+                              "--focus", "3", "--out", str(out)], capsys)
+    assert status == 0 and "--fstop 4 is faster than telephoto opens: f/5.42 is used" in err, err
+    image, header = read_exr(out)
+    assert header["lens"] == "telephoto" and float(header["fNumber"]) == pytest.approx(5.42, abs=0.005)
+    assert float(header["focusDistanceSceneUnits"]) == pytest.approx(3.0, rel=1e-6)
+    assert float(np.mean(image)) > 0
 
 
 def test_the_phone_lens_on_a_homework_scene_gets_a_film_it_covers(tmp_path, capsys):
