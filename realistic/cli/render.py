@@ -40,8 +40,10 @@ light, or nothing for the default scene (a row of spheres and cones receding in 
 For a mesh or the default scene, scene units are metres: the mesh is scaled so its largest side
 is 1 m, the camera frame's origin is the film centre (pbrt-v3 convention), and --focus is the
 distance in metres from the film plane to the plane in focus (thick-lens focusing), by default
-the distance to the target. A pbrt scene brings its own camera, resolution and samples: --res,
---spp, --aperture, --focus (scene units from the film) and --light-samples override it.
+the distance to the target. A pbrt scene brings its own camera, resolution and samples; --lens,
+--film-diagonal, --fstop/--aperture, --blades, --focus (scene units from the film), --focus-on,
+--res, --spp and --light-samples change them, keeping the camera's pose (a perspective camera
+given a --lens keeps its field of view unless --film-diagonal is given).
 
 With --dispersion on (the default for a mesh or the default scene through a lens whose prescription
 has Abbe numbers; pbrt scenes render without it unless asked, as pbrt does), each camera
