@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from realistic.camera.exposure import parse_shutter
+from realistic.camera.exposure import meter_reading, parse_exposure, parse_shutter
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
 from realistic.cli.values import checked, positive
 from realistic.core import validation
@@ -47,7 +47,10 @@ stratified wavelengths sharing its film, lens and light samples, which turns the
 one wavelength per sample into plain luminance noise, at K times the camera rays.
 
 The EXR holds the film irradiance (float32 RGB, metadata in the header); the PNG preview beside
-it is sRGB.
+it is sRGB, exposed by an averaging meter (--exposure auto). --out x.png writes that PNG alone (8
+bits, or 16 with --png-bits 16), --out x.pfm the float image alone. With --shutter/--iso the
+meter's reading is printed: the EV the scene wants, the EV the settings give, and the shutter
+that would meter correctly.
 
 Passes are ordered so that any prefix of them is spread over the whole frame. They run on threads
 in this process, one per core unless --threads says how many; --workers N renders
@@ -69,10 +72,13 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--spp", type=checked(int, validation.samples_per_pixel), metavar="N",
                         help=f"samples per pixel, 1 to {validation.MAX_SPP} (default: the scene's, else 16)")
     parser.add_argument("--out", metavar="FILE.exr",
-                        help="output EXR; the PNG preview is written beside it (default: the scene's film "
-                             "file name, else render.exr)")
-    parser.add_argument("--exposure", type=checked(float, validation.exposure_stops), metavar="EV",
-                        help="PNG preview exposure in stops (default: automatic, or 0 with --shutter/--iso)")
+                        help="output: an EXR (the PNG preview is written beside it), a PNG or a PFM (that file "
+                             "alone) (default: the scene's film file name, else render.exr)")
+    parser.add_argument("--exposure", type=checked(str, parse_exposure), metavar="EV|auto",
+                        help="PNG exposure in stops, or auto: an averaging meter maps the scene to middle grey "
+                             "(default: auto, or 0 with --shutter/--iso)")
+    parser.add_argument("--png-bits", type=int, choices=(8, 16), default=8,
+                        help="bits per sample of the PNG (default: %(default)s)")
     parser.add_argument("--shutter", type=checked(str, parse_shutter), metavar="SECONDS",
                         help="shutter time (e.g. 1/125): with --iso, the EXR holds a photographic exposure, "
                              "calibrated so a metered middle grey reads 0.18, instead of film irradiance")
@@ -195,12 +201,19 @@ def executor_for(args: argparse.Namespace, client: Any,
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path, refuse_unless_resuming
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.output import BetterImageKept, Photographic, exr_output, save, write_preview
+    from realistic.renderer.output import (
+        BetterImageKept,
+        Photographic,
+        render_output,
+        save,
+        write_preview,
+        written_files,
+    )
     from realistic.renderer.passes import render
     from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
     if args.out is not None:
-        exr_output(args.out)
+        render_output(args.out)
     if args.out is not None and not args.sweep and not args.resume:
         refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
     security = farm_security(args)  # TLS options checked before any work
@@ -217,8 +230,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     cameras = sweep_cameras(inputs.camera, sweep) if sweep is not None else [inputs.camera]
     outs = [frame_path(out, i) for i in range(len(cameras))] if sweep is not None else [out]
     for path in outs:
-        check_writable(path)
-        check_writable(path.with_suffix(".png"))
+        for file in written_files(path):
+            check_writable(file)
     checkpoint = None
     if sweep is None:
         checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, args.resume)
@@ -230,12 +243,12 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     def save_frame(result: RenderResult) -> None:
         try:
-            written[result.frame] = save(result, outs[result.frame], photographic, args.exposure)
+            written[result.frame] = save(result, outs[result.frame], photographic, args.exposure, args.png_bits)
         except BetterImageKept as err:
             print(f"realistic: {err}", file=sys.stderr)
 
     def preview(image: np.ndarray) -> None:
-        write_preview(out.with_suffix(".png"), image, photographic, args.exposure)
+        write_preview(out.with_suffix(".png"), image, photographic, args.exposure, args.png_bits)
 
     observer = RenderObserver(on_frame=save_frame if sweep is not None else None,
                               preview=preview if args.preview_every else None, preview_every=args.preview_every,
@@ -264,11 +277,17 @@ def cmd_render(args: argparse.Namespace) -> int:
     rays = sum(r.primary_rays + r.shadow_rays for r in results)
     seconds = max(r.seconds for r in results)
     names = (f"{outs[0]} .. {outs[-1]} ({len(outs)} frames)" if sweep is not None
-             else f"{out} and {out.with_suffix('.png')}")
+             else " and ".join(str(path) for path in written_files(out)))
     wavelengths = camera.metadata().get("wavelengthsPerSample")
     spectral = f" x {wavelengths} wavelengths" if wavelengths else ""
     print(f"{names}: {camera.width}x{camera.height}, {camera.spp} spp{spectral}, "
           f"{camera.metadata()['pixelFilter']} filter, {seconds:.1f} s "
           f"(exit pupil {result.stage_seconds.get('exit pupil', 0.0):.2f} s), "
           f"{rays / max(seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {written[len(outs) - 1]:+.2f} EV")
+    if photographic is not None:
+        f_number = camera.metadata().get("fNumber")
+        reading = meter_reading(result.image, photographic.shutter_seconds, photographic.iso,
+                                None if f_number is None else float(f_number))
+        print(f"realistic: {reading.describe() if reading is not None else 'meter: the image is black'}",
+              file=sys.stderr)
     return 0
