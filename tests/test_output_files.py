@@ -18,6 +18,7 @@ from realistic.camera.exposure import MeterReading, exposure_scale, meter_readin
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.cli import main
+from realistic.core import rng
 from realistic.core.image_files import SRGB_CHROMATICITIES, read_exr, srgb_encode, write_exr
 from realistic.core.transforms import look_at
 from realistic.renderer.job import RenderJob, RenderResult
@@ -115,24 +116,30 @@ def test_world_to_ndc_sends_a_point_to_the_pixel_whose_ray_reaches_it(tmp_path):
 
 
 def test_a_lens_camera_s_world_to_ndc_is_its_paraxial_projection(tmp_path):
-    lens = rl.load_lens("dgauss")
+    # a small stop, so that each ray is nearly its film point's chief ray: a point anywhere along
+    # it images near that film point, and exactly so near the axis in the plane in focus
+    lens = rl.load_lens("dgauss").with_stop_diameter(0.25)
+    width, height = 240, 160
     eye, target = np.array([0.2, 1.0, 4.0]), np.array([0.0, 0.5, 0.0])
-    camera = LensCamera.looking_at(lens, eye, target, width=32, height=24, spp=1, lens_sampling="rear")
+    camera = LensCamera.looking_at(lens, eye, target, width=width, height=height, spp=1)
     camera_from_world, ndc_from_world = _header_matrices(camera, tmp_path)
     focus = float(np.linalg.norm(target - eye))
     np.testing.assert_allclose((camera_from_world @ [*target, 1])[:3], [0, 0, focus], atol=1e-5)
-    rays = camera.generate_rays(SampleBlock(0, 32 * 24, 1), seed=1)
-    lit = rays.weight > 0
-    origin, direction, pixel = rays.origin[lit], rays.direction[lit], rays.pixel[lit]
-    # where each ray crosses the plane in focus: the film point's image there, blurred only by aberrations
-    o_cam = origin @ camera_from_world[:3, :3].T + camera_from_world[:3, 3]
-    d_cam = direction @ camera_from_world[:3, :3].T
-    points = origin + direction * ((focus - o_cam[:, 2]) / d_cam[:, 2])[:, None]
-    raster = _raster(ndc_from_world, points, 32, 24)
-    centre = np.column_stack([pixel % 32 + 0.5, pixel // 32 + 0.5])
-    near_axis = np.hypot(centre[:, 0] - 16, centre[:, 1] - 12) < 6
-    assert near_axis.sum() > 50
-    assert np.max(np.abs(raster - centre)[near_axis]) < 0.6  # the pixel, within distortion and aberration
+    block = SampleBlock(0, width * height, 1)
+    rays = camera.generate_rays(block, seed=1)
+    pixel, sample = block.ids()
+    u = rng.stratified4(pixel, sample, 1)
+    film = camera.filtered_film_points(pixel, u[0], u[1])[0]  # each ray's film point (mm)
+    film_w, film_h = camera.film_size_mm
+    raster = np.column_stack([width * (0.5 - film[:, 0] / film_w), height * (0.5 + film[:, 1] / film_h)])
+    near_axis = (rays.weight > 0) & (np.hypot(raster[:, 0] - width / 2, raster[:, 1] - height / 2) < 20)
+    assert near_axis.sum() > 500
+    origin, direction, raster = rays.origin[near_axis], rays.direction[near_axis], raster[near_axis]
+    along_z = (direction @ camera_from_world[:3, :3].T)[:, 2]
+    origin_z = origin @ camera_from_world[2, :3] + camera_from_world[2, 3]
+    for depth, pixels in ((focus, 0.02), (1.0, 0.1), (20.0, 0.1)):  # camera-space z, world units
+        points = origin + direction * ((depth - origin_z) / along_z)[:, None]
+        assert np.max(np.abs(_raster(ndc_from_world, points, width, height) - raster)) < pixels, depth
 
 
 def _scene(rng: np.random.Generator) -> np.ndarray:

@@ -25,8 +25,9 @@ src/pbrt/util/image.cpp, and ``ProjectiveCamera::InitMetadata``, src/pbrt/camera
   (the shorter image side spans screen [-1, 1], the longer [-a, a] with a the aspect ratio, y up), so
   raster x = (2 ndc_x - 1 + a_x) / (2 a_x) * width and raster y = (a_y - 2 ndc_y + 1) / (2 a_y) *
   height. pbrt-v4 writes it for projective cameras only; a lens camera here gets its paraxial
-  equivalent, a pinhole at the front principal point with the image distance (film to rear
-  principal plane) as focal length: exact on the axis and in focus, off by the lens's distortion;
+  equivalent: a pinhole at the entrance pupil (where chief rays aim, so points at any depth land
+  where their blur is centred), scaled so that the plane in focus has the thick lens's Gaussian
+  magnification; off by the lens's distortion only;
 - both matrices as pbrt-v4 stores them: its column-vector matrix (p' = M p) row by row, m[i][j] =
   M[i][j]; Imath, which multiplies row vectors, reads the transpose;
 - ``renderTimeSeconds`` (float) and ``samplesPerPixel`` (int) as pbrt-v4 names them;
@@ -66,7 +67,7 @@ from realistic.core.transforms import scale, translate
 from realistic.core.version import __version__
 from realistic.errors import UserError
 from realistic.optics.lens import LensSystem
-from realistic.optics.paraxial import thick_lens
+from realistic.optics.paraxial import focus_distance_for_film, paraxial_data, thick_lens
 from realistic.renderer.job import RenderResult
 
 #: The image files a render writes, by suffix (lower case).
@@ -118,15 +119,23 @@ def prescription_sha256(lens: LensSystem) -> str:
 def _projection(camera: Camera) -> tuple[np.ndarray, float, float]:
     """(world-from-camera in world units, field of view across the shorter image side in degrees,
     camera-space z of the projection centre) of ``camera`` (module docstring): a lens camera's frame
-    is in mm (its ``mm_per_unit`` is taken out) and its projection is its paraxial pinhole."""
+    is in mm (its ``mm_per_unit`` is taken out) and its projection is its paraxial pinhole at the
+    entrance pupil, focal length the image distance times the plane in focus's distance from the
+    pupil over its distance from the front principal plane."""
     if isinstance(camera, ThinLensCamera):
         return camera.world_from_camera, camera.fov_deg, 0.0
     if not isinstance(camera, LensCamera):
         raise UserError(f"no camera transform is known for a {type(camera).__name__}")
-    lens = thick_lens(camera.lens)
+    lens, pupil = thick_lens(camera.lens), paraxial_data(camera.lens)
     image_distance = camera.film_distance_mm + lens.rear_principal_from_rear_vertex_mm
-    fov_deg = math.degrees(2 * math.atan(min(camera.film_size_mm) / 2 / image_distance))
-    centre_mm = camera.film_distance_mm + lens.front_principal_from_rear_vertex_mm - camera.camera_origin_mm
+    front_principal = camera.film_distance_mm + lens.front_principal_from_rear_vertex_mm
+    entrance_pupil = camera.film_distance_mm + pupil.track_length_mm - pupil.entrance_pupil_mm
+    focus = focus_distance_for_film(camera.lens, camera.film_distance_mm)
+    # seen from the entrance pupil, the plane in focus keeps its Gaussian magnification
+    focal = image_distance if math.isinf(focus) else \
+        image_distance * (focus - entrance_pupil) / (focus - front_principal)
+    fov_deg = math.degrees(2 * math.atan(min(camera.film_size_mm) / 2 / focal))
+    centre_mm = entrance_pupil - camera.camera_origin_mm
     return camera.world_from_camera @ scale(camera.mm_per_unit), fov_deg, centre_mm / camera.mm_per_unit
 
 
@@ -137,8 +146,7 @@ def camera_from_world(camera: Camera) -> np.ndarray:
 
 def ndc_from_world(camera: Camera) -> np.ndarray:
     """(4, 4) pbrt-v4's ``NDCFromWorld`` (module docstring) of ``camera``: a perspective camera's as
-    pbrt-v4 makes it; a lens camera's paraxial pinhole at its front principal point, whose field
-    across the film's shorter side is that side over the image distance."""
+    pbrt-v4 makes it; a lens camera's paraxial pinhole at its entrance pupil."""
     world_from_camera, fov_deg, centre = _projection(camera)
     inverse_tan = 1 / math.tan(math.radians(fov_deg) / 2)
     perspective = np.array([[1.0, 0, 0, 0], [0, 1, 0, 0],
