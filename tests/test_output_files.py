@@ -67,6 +67,19 @@ def test_the_exr_header_holds_standard_attributes_as_numbers(tmp_path):
     lens = result.camera.lens
     assert header["lens"] == lens.name and header["lensSha256"] == prescription_sha256(lens)
     assert header["samplesPerPixel"] == 2 and header["samplesDone"] == 8 * 6 * 2
+    assert kinds["aperture"] == kinds["focus"] == "float"
+    assert header["aperture"] == pytest.approx(header["fNumber"]) and header["focus"] == pytest.approx(
+        header["focusDistanceMm"] / 1000)
+
+
+def test_a_photographic_exposure_is_in_openexr_s_terms_and_auto_meters_its_preview(tmp_path):
+    result = _api_render()
+    photographic = rl.Photographic(1 / 125, 400)
+    assert rl.save(result, tmp_path / "r.exr", photographic) == 0.0  # as the camera exposed it
+    header = read_exr(tmp_path / "r.exr")[1]
+    assert header["expTime"] == pytest.approx(1 / 125) and header["isoSpeed"] == 400
+    stops = rl.save(result, tmp_path / "r.exr", photographic, exposure="auto")
+    assert stops == pytest.approx(metered_stops(result.image * np.float32(photographic.scale)))
 
 
 def test_the_prescription_hash_is_the_surface_table_s():

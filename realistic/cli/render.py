@@ -278,12 +278,13 @@ def cmd_render(args: argparse.Namespace) -> int:
     seconds = max(r.seconds for r in results)
     names = (f"{outs[0]} .. {outs[-1]} ({len(outs)} frames)" if sweep is not None
              else " and ".join(str(path) for path in written_files(out)))
+    png_exposure = f", preview exposure {written[len(outs) - 1]:+.2f} EV" if out.suffix.lower() != ".pfm" else ""
     wavelengths = camera.metadata().get("wavelengthsPerSample")
     spectral = f" x {wavelengths} wavelengths" if wavelengths else ""
     print(f"{names}: {camera.width}x{camera.height}, {camera.spp} spp{spectral}, "
           f"{camera.metadata()['pixelFilter']} filter, {seconds:.1f} s "
           f"(exit pupil {result.stage_seconds.get('exit pupil', 0.0):.2f} s), "
-          f"{rays / max(seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {written[len(outs) - 1]:+.2f} EV")
+          f"{rays / max(seconds, 1e-9) / 1e6:.2f} M rays/s{png_exposure}")
     if photographic is not None:
         f_number = camera.metadata().get("fNumber")
         reading = meter_reading(result.image, photographic.shutter_seconds, photographic.iso,

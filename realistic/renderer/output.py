@@ -31,7 +31,8 @@ src/pbrt/util/image.cpp, and ``ProjectiveCamera::InitMetadata``, src/pbrt/camera
 - both matrices as pbrt-v4 stores them: its column-vector matrix (p' = M p) row by row, m[i][j] =
   M[i][j]; Imath, which multiplies row vectors, reads the transpose;
 - ``renderTimeSeconds`` (float) and ``samplesPerPixel`` (int) as pbrt-v4 names them;
-- ``software`` (the renderer and its version), ``lens`` and ``lensSha256`` (``prescription_sha256``).
+- ``software`` (the renderer and its version), ``lens`` and ``lensSha256`` (``prescription_sha256``);
+- OpenEXR's photographic ``aperture`` (f-number), ``focus`` (metres), ``expTime`` and ``isoSpeed``.
 
 Finished work is never lost:
 
@@ -96,9 +97,11 @@ class Photographic:
         return exposure_scale(self.shutter_seconds, self.iso)
 
     def header(self, camera: Camera) -> Metadata:
-        """What the EXR header says of this exposure (its EV where the camera has an f-number)."""
+        """What the EXR header says of this exposure (its EV where the camera has an f-number), also
+        as OpenEXR's standard ``expTime`` (seconds) and ``isoSpeed``."""
         header: Metadata = {"shutterSeconds": float(self.shutter_seconds), "iso": float(self.iso),
-                            "exposureScale": self.scale}
+                            "exposureScale": self.scale, "expTime": float(self.shutter_seconds),
+                            "isoSpeed": float(self.iso)}
         f_number = camera.metadata().get("fNumber")
         if f_number is not None:
             header["exposureValue"] = exposure_value(float(f_number), self.shutter_seconds)
@@ -158,12 +161,15 @@ def ndc_from_world(camera: Camera) -> np.ndarray:
 
 def standard_metadata(camera: Camera) -> Metadata:
     """The EXR attributes other tools know (module docstring): the camera's matrices, the
-    renderer, and the lens prescription's hash for a lens camera."""
+    renderer, and for a lens camera the prescription's hash and OpenEXR's standard ``aperture``
+    (the f-number) and ``focus`` (the focus distance from the film, metres)."""
     metadata: Metadata = {"software": f"realistic {__version__}",
                           "worldToCamera": camera_from_world(camera).astype(np.float32),
                           "worldToNDC": ndc_from_world(camera).astype(np.float32)}
     if isinstance(camera, LensCamera):
-        metadata["lensSha256"] = prescription_sha256(camera.lens)
+        metadata.update({"lensSha256": prescription_sha256(camera.lens),
+                         "aperture": float(paraxial_data(camera.lens).f_number),
+                         "focus": float(focus_distance_for_film(camera.lens, camera.film_distance_mm)) / 1000.0})
     return metadata
 
 
