@@ -270,3 +270,16 @@ def test_the_cli_refuses_other_image_types(tmp_path, capsys):
     assert main(["render", *CLI, "--out", str(tmp_path / "x.tif")]) == 2
     assert "x.tif: the output must be an .exr file (the PNG preview goes beside it), a .png or a .pfm" in \
         capsys.readouterr().err
+
+
+@pytest.mark.parametrize("named,written", [("shot.png", "shot.png"), ("shot.pfm", "shot.pfm"),
+                                           ("shot.tga", "shot.exr")])
+def test_a_pbrt_scene_s_film_file_name_is_the_output(tmp_path, monkeypatch, named, written):
+    scene = tmp_path / "s.pbrt"
+    scene.write_text(f'Film "image" "integer xresolution" [8] "integer yresolution" [6] "string filename" "{named}"\n'
+                     'Sampler "random" "integer pixelsamples" 1\nCamera "perspective" "float fov" 40\n'
+                     'WorldBegin\nShape "sphere"\nWorldEnd\n')
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", str(scene), "--backend", "numpy", "--threads", "1"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["s.pbrt", written] + (
+        ["shot.png"] if written.endswith(".exr") else []))

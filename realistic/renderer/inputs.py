@@ -30,6 +30,7 @@ from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import stop_diameter_for_f_number
 from realistic.optics.stop_shape import bladed_stop, mask_stop
 from realistic.renderer.integrators import INTEGRATORS
+from realistic.renderer.output import OUTPUT_SUFFIXES
 from realistic.scene.intersect import Intersector
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import Scene
@@ -235,7 +236,7 @@ def _pbrt_inputs(options: RenderOptions, path: str) -> RenderInputs:
     """The pbrt file ``path``'s scene and camera as the file says (``apply_overrides`` applies the options)."""
     imported = import_pbrt(path, options.search_paths, options.pbrt_dialect)
     out = Path(imported.output_name).name if imported.output_name else "render.exr"
-    if Path(out).suffix.lower() != ".exr":
+    if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:  # pbrt-v4 writes the file named, of a type it knows
         out = str(Path(out).with_suffix(".exr"))
     metadata = {"scene": str(options.scene), "pbrtDialect": imported.dialect.describe()}
     return RenderInputs(imported.scene, out, metadata, imported.warnings, imported.dialect, imported.camera_where)
