@@ -216,7 +216,7 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         x, y = options.focus_on
         inputs.intersector = Intersector(scene)  # the render reuses it (``passes.ThreadPasses``)
         camera = camera.autofocused(x, y, inputs.intersector.hit_distance)
-        inputs.metadata["focusOn"] = f"{x:g},{y:g}"
+        inputs.metadata["focusOn"] = np.array([x, y], np.float32)  # a V2f in the EXR header
     # a pbrt scene renders as pbrt would: dispersion only when asked for, even where a bundled lens
     # with Abbe numbers stands in for the scene's lens file; so does the default scene, which is
     # scenes/default.pbrt and renders as that file does
