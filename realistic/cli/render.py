@@ -232,6 +232,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     for path in outs:
         for file in written_files(path):
             check_writable(file)
+    if args.preview_every:
+        check_writable(out.with_suffix(".png"))  # beside a PFM too
     checkpoint = None
     if sweep is None:
         checkpoint = Checkpointing(checkpoint_path(out), args.checkpoint_every, args.resume)
