@@ -59,9 +59,10 @@ def exposure_value(f_number: float, shutter_s: float) -> float:
 
 #: The film is linear sRGB (Rec. 709 primaries): luminance is Y of its RGB.
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)
-#: How far above the median of the lit pixels a pixel counts in the meter's average, in stops: a
-#: light source or a specular highlight in view clips in the image (middle grey 0.18 leaves 2.5
-#: stops to white) and moves the reading by at most 2^3 times its share of the frame.
+#: How far above the lit pixels' log-average (geometric mean) luminance a pixel counts in the
+#: meter's average, in stops: a light source or a specular highlight in view clips in the image
+#: (middle grey 0.18 leaves 2.5 stops to white) and moves the reading by at most 2^3 times its share
+#: of the frame.
 METER_HEADROOM_STOPS = 3.0
 #: ``--exposure auto``: the preview exposed by the meter (``metered_stops``).
 AUTO = "auto"
@@ -70,18 +71,20 @@ AUTO = "auto"
 def metered_log2(image: np.ndarray) -> float | None:
     """log2 of an averaging meter's reading of the linear RGB ``image`` (H, W, 3): the mean
     luminance of its lit pixels (positive and finite), each counted at most ``METER_HEADROOM_STOPS``
-    above their median. None when no pixel is lit.
+    above their log-average. None when no pixel is lit.
 
     An arithmetic mean, as a reflected-light meter integrates light and ISO 2720's K assumes, so a
-    uniform field reads its own value; robust, so that near-identical scenes meter alike (where the
-    97th percentile the preview used to take jumped by 13 stops): a small highlight moves it by its
-    share of the frame times 2^3 at most, a few black pixels not at all. Unlit pixels are left out
-    so that a frame the lens's image circle does not fill meters what the lens shows."""
+    uniform field reads its own value and a dark backdrop behind a bright subject does not blow the
+    subject out; with a ceiling, so that near-identical scenes meter alike (where the 97th
+    percentile the preview used to take jumped by 13 stops): a small highlight moves the reading by
+    its share of the frame times 2^3 at most, and the log-average the ceiling follows moves by that
+    share times the highlight's stops. A few black pixels do not count at all: unlit pixels are
+    left out, so that a frame the lens's image circle does not fill meters what the lens shows."""
     luminance = np.asarray(image, dtype=np.float64).reshape(-1, 3) @ np.asarray(LUMINANCE_WEIGHTS)
     lit = luminance[np.isfinite(luminance) & (luminance > 0)]
     if lit.size == 0:
         return None
-    ceiling = float(np.median(lit)) * 2.0**METER_HEADROOM_STOPS
+    ceiling = 2.0 ** (float(np.mean(np.log2(lit))) + METER_HEADROOM_STOPS)
     return math.log2(float(np.mean(np.minimum(lit, ceiling))))
 
 
