@@ -14,7 +14,14 @@ import pytest
 
 import realistic as rl
 from realistic.camera.base import SampleBlock
-from realistic.camera.exposure import MeterReading, exposure_scale, meter_reading, metered_stops, parse_exposure
+from realistic.camera.exposure import (
+    MeterReading,
+    exposure_scale,
+    format_shutter,
+    meter_reading,
+    metered_stops,
+    parse_exposure,
+)
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.cli import main
@@ -198,6 +205,11 @@ def test_a_meter_reading_against_shutter_and_iso_is_the_iso_2720_relation():
     assert "6.4 stops under" in reading.describe()
     assert float(image[0, 0, 0]) * exposure_scale(reading.metered_shutter_s, iso) == pytest.approx(0.18, rel=1e-6)
     assert meter_reading(np.zeros((2, 2, 3), np.float32), 0.01, 100, n) is None
+
+
+def test_shutter_times_read_as_a_photographer_writes_them():
+    assert [format_shutter(t) for t in (1 / 125, 1 / 2.5, 1.64, 32.4, 1 / 1000)] == \
+        ["1/125", "1/2.5", "1.6", "32", "1/1000"]
 
 
 def test_exposure_parses_auto_or_stops():

@@ -164,8 +164,8 @@ def meter_reading(image: np.ndarray, shutter_s: float, iso: float, f_number: flo
 
 
 def format_shutter(seconds: float) -> str:
-    """A shutter time as a photographer writes it: ``1/125`` below a second (to the nearest whole
-    denominator), ``2.5`` above."""
+    """A shutter time as a photographer writes it, to two digits or whole numbers: ``1/125`` and
+    ``1/2.5`` below a second, ``1.6`` and ``30`` above."""
     if seconds < 1:
         return f"1/{1 / seconds:.0f}" if 1 / seconds >= 10 else f"1/{1 / seconds:.2g}"
-    return f"{seconds:.3g}"
+    return f"{seconds:.0f}" if seconds >= 10 else f"{seconds:.2g}"
