@@ -36,9 +36,8 @@ import importlib
 import warnings
 from typing import TYPE_CHECKING, Any
 
+from realistic.core.version import __version__ as __version__
 from realistic.errors import LensFileError, UserError
-
-__version__ = "0.1.0"
 
 #: Public name -> module that defines it (imported on first use).
 _EXPORTS = {

@@ -81,7 +81,7 @@ def test_focus_on_through_the_cli(tmp_path):
     assert main(["render", "--backend", "numpy", "--res", "60x60", "--spp", "1", "--focus-on", "30,30",
                  "--dispersion", "off", "--out", str(out)]) == 0
     header = read_exr(out)[1]
-    assert header["focusOn"] == "30,30"
+    assert header["focusOn"].dtype == np.float32 and header["focusOn"].tolist() == [30, 30]  # a V2f
     assert float(header["focusDistanceMm"]) == pytest.approx(2737, rel=0.05)
 
 

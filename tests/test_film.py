@@ -8,7 +8,7 @@ import pytest
 
 from realistic.camera.base import SampleBlock
 from realistic.core.atomic_files import check_writable, write_atomically
-from realistic.core.image_files import auto_exposure, read_exr, srgb_encode, write_exr, write_png
+from realistic.core.image_files import read_exr, srgb_encode, write_exr, write_png
 from realistic.errors import UserError
 from realistic.renderer.film import Film, pass_sums
 
@@ -87,14 +87,6 @@ def test_png_preview_is_srgb_encoded_with_exposure(tmp_path):
     pixels = np.asarray(Image.open(tmp_path / "a.png"))
     assert pixels.shape == (2, 2, 3)
     assert pixels[0, 0, 0] == round(float(srgb_encode(np.float32(0.5))) * 255) == 188
-
-
-def test_auto_exposure_maps_bright_pixels_below_white():
-    image = np.zeros((10, 10, 3), np.float32)
-    image[:, :5] = 3.0
-    stops = auto_exposure(image)
-    assert 3.0 * 2**stops == pytest.approx(0.8, rel=1e-3)
-    assert auto_exposure(np.zeros((2, 2, 3), np.float32)) == 0.0
 
 
 def test_failed_write_leaves_no_file(tmp_path):

@@ -111,7 +111,7 @@ def bad_inputs(tmp_path):
         "bad resolution": (["--res", "big"], "WIDTHxHEIGHT"),
         "zero spp": (["--spp", "0"], "samples per pixel"),
         "unwritable output": (["--out", str(tmp_path / "no" / "dir" / "x.exr")], "does not exist"),
-        "not exr": (["--out", str(tmp_path / "x.png")], ".exr"),
+        "not exr": (["--out", str(tmp_path / "x.tif")], ".exr file (the PNG preview goes beside it), a .png or a .pfm"),
     }
 
 

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from realistic.camera.exposure import parse_shutter
+from realistic.camera.exposure import meter_reading, parse_exposure, parse_shutter
 from realistic.cli.scene_arguments import add_scene_arguments, options_from_args
 from realistic.cli.values import checked, positive
 from realistic.core import validation
@@ -54,12 +54,15 @@ stratified wavelengths sharing its film, lens and light samples, which turns the
 one wavelength per sample into plain luminance noise, at K times the camera rays.
 
 The EXR holds the film irradiance (float32 RGB, metadata in the header); the PNG preview beside
-it is sRGB. -o/--outfile, --nthreads, --spp, --seed, --quiet, --cropwindow, --pixelbounds and
---display(-server) are named and behave as pbrt-v4's. A crop (--cropwindow in fractions of the
-image, --pixelbounds in pixels) renders those pixels only, each bit-identical to the same pixel of
-the whole render; the image holds the crop, and the EXR's data window places it in the full image.
---display HOST:PORT shows the render in tev (https://github.com/Tom94/tev; start it first, it
-listens on 127.0.0.1:14158) as the passes come in.
+it is sRGB, exposed by an averaging meter (--exposure auto). --out x.png writes that PNG alone (8
+bits, or 16 with --png-bits 16), --out x.pfm the float image alone. With --shutter/--iso the
+meter's reading is printed: the EV the scene wants, the EV the settings give, and the shutter
+that would meter correctly. -o/--outfile, --nthreads, --spp, --seed, --quiet, --cropwindow,
+--pixelbounds and --display(-server) are named and behave as pbrt-v4's. A crop (--cropwindow in
+fractions of the image, --pixelbounds in pixels) renders those pixels only, each bit-identical to
+the same pixel of the whole render; the image holds the crop, and the EXR's data window places it
+in the full image. --display HOST:PORT shows the render in tev (https://github.com/Tom94/tev;
+start it first, it listens on 127.0.0.1:14158) as the passes come in.
 
 Passes are ordered so that any prefix of them is spread over the whole frame. They run on threads
 in this process, one per core unless --threads says how many; --workers N renders
@@ -80,11 +83,15 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     add_scene_arguments(parser)
     parser.add_argument("--spp", type=checked(int, validation.samples_per_pixel), metavar="N",
                         help=f"samples per pixel, 1 to {validation.MAX_SPP} (default: the scene's, else 16)")
-    parser.add_argument("-o", "--out", "--outfile", dest="out", metavar="FILE.exr",
-                        help="output image (-o and --outfile as pbrt-v4 names it); the PNG preview is written "
-                             "beside it (default: the scene's film file name, else render.exr)")
-    parser.add_argument("--exposure", type=checked(float, validation.exposure_stops), metavar="EV",
-                        help="PNG preview exposure in stops (default: automatic, or 0 with --shutter/--iso)")
+    parser.add_argument("-o", "--out", "--outfile", dest="out", metavar="FILE",
+                        help="output (-o and --outfile as pbrt-v4 names it): an EXR (the PNG preview is written "
+                             "beside it), a PNG or a PFM (that file alone) (default: the scene's film file name, "
+                             "else render.exr)")
+    parser.add_argument("--exposure", type=checked(str, parse_exposure), metavar="EV|auto",
+                        help="PNG exposure in stops, or auto: an averaging meter maps the scene to middle grey "
+                             "(default: auto, or 0 with --shutter/--iso)")
+    parser.add_argument("--png-bits", type=int, choices=(8, 16), default=8,
+                        help="bits per sample of the PNG (default: %(default)s)")
     parser.add_argument("--shutter", type=checked(str, parse_shutter), metavar="SECONDS",
                         help="shutter time (e.g. 1/125): with --iso, the EXR holds a photographic exposure, "
                              "calibrated so a metered middle grey reads 0.18, instead of film irradiance")
@@ -233,12 +240,20 @@ def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path, refuse_unless_resuming
     from realistic.renderer.display import TevDisplay
     from realistic.renderer.inputs import build_render_inputs
-    from realistic.renderer.output import BetterImageKept, Photographic, exposed, exr_output, save, write_preview
+    from realistic.renderer.output import (
+        BetterImageKept,
+        Photographic,
+        exposed,
+        render_output,
+        save,
+        write_preview,
+        written_files,
+    )
     from realistic.renderer.passes import render
     from realistic.renderer.sweep import frame_path, parse_sweep, sweep_cameras
 
     if args.out is not None:
-        exr_output(args.out)
+        render_output(args.out)
     if args.out is not None and not args.sweep and not args.resume:
         refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
     security = farm_security(args)  # TLS options checked before any work
@@ -261,8 +276,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     cameras = sweep_cameras(inputs.camera, sweep) if sweep is not None else [inputs.camera]
     outs = [frame_path(out, i) for i in range(len(cameras))] if sweep is not None else [out]
     for path in outs:
-        check_writable(path)
-        check_writable(path.with_suffix(".png"))
+        for file in written_files(path):
+            check_writable(file)
+    if args.preview_every:
+        check_writable(out.with_suffix(".png"))  # beside a PFM too
     checkpoint = None
     if sweep is None:
         resume = args.resume
@@ -288,7 +305,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         if display is not None and result.image.size:
             display.show(exposed(result.image, photographic))
         try:
-            written[result.frame] = save(result, outs[result.frame], photographic, args.exposure)
+            written[result.frame] = save(result, outs[result.frame], photographic, args.exposure, args.png_bits)
         except BetterImageKept as err:
             print(f"realistic: {err}", file=sys.stderr)
 
@@ -299,7 +316,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         if display is not None:
             display.show(exposed(image, photographic))
         if args.preview_every and time.monotonic() - png_written[0] >= args.preview_every:
-            write_preview(out.with_suffix(".png"), image, photographic, args.exposure)
+            write_preview(out.with_suffix(".png"), image, photographic, args.exposure, args.png_bits)
             png_written[0] = time.monotonic()
 
     observer = RenderObserver(on_frame=save_frame if sweep is not None else None,
@@ -332,14 +349,21 @@ def cmd_render(args: argparse.Namespace) -> int:
     rays = sum(r.primary_rays + r.shadow_rays for r in results)
     seconds = max(r.seconds for r in results)
     names = (f"{outs[0]} .. {outs[-1]} ({len(outs)} frames)" if sweep is not None
-             else f"{out} and {out.with_suffix('.png')}")
+             else " and ".join(str(path) for path in written_files(out)))
     if args.quiet:
         return 0
+    png_exposure = f", preview exposure {written[len(outs) - 1]:+.2f} EV" if out.suffix.lower() != ".pfm" else ""
     wavelengths = camera.metadata().get("wavelengthsPerSample")
     spectral = f" x {wavelengths} wavelengths" if wavelengths else ""
     size = f"{camera.width}x{camera.height}" if crop is None else f"pixels {crop} of {camera.width}x{camera.height}"
     print(f"{names}: {size}, {camera.spp} spp{spectral}, "
           f"{camera.metadata()['pixelFilter']} filter, {seconds:.1f} s "
           f"(exit pupil {result.stage_seconds.get('exit pupil', 0.0):.2f} s), "
-          f"{rays / max(seconds, 1e-9) / 1e6:.2f} M rays/s, preview exposure {written[len(outs) - 1]:+.2f} EV")
+          f"{rays / max(seconds, 1e-9) / 1e6:.2f} M rays/s{png_exposure}")
+    if photographic is not None:
+        f_number = camera.metadata().get("fNumber")
+        reading = meter_reading(result.image, photographic.shutter_seconds, photographic.iso,
+                                None if f_number is None else float(f_number))
+        print(f"realistic: {reading.describe() if reading is not None else 'meter: the image is black'}",
+              file=sys.stderr)
     return 0

@@ -1,5 +1,5 @@
-"""Image files: OpenEXR with metadata and PNG previews (written atomically); EXR (OpenEXR) and other
-images (imageio) read at their stored bit depth or float values."""
+"""Image files: OpenEXR with metadata, PNG (8- and 16-bit sRGB) and PFM outputs (written atomically);
+EXR (OpenEXR) and other images (imageio) read at their stored bit depth or float values."""
 
 from __future__ import annotations
 
@@ -11,23 +11,47 @@ from realistic.core.atomic_files import write_atomically
 from realistic.core.input_files import input_file
 from realistic.errors import UserError
 
-Metadata = dict[str, str | int | float]
+#: EXR header attributes by value: str -> string, int -> int, float -> float, an (N,) float array
+#: -> V2f or V3f, a (4, 4) float array -> M44f, the 8-tuple under ``chromaticities`` -> chromaticities.
+Metadata = dict[str, str | int | float | tuple[float, ...] | np.ndarray]
+
+#: CIE xy of the red, green and blue primaries and the white point of linear sRGB / Rec. 709 (D65):
+#: the colour space of every image the renderer writes (its film integrates to linear sRGB).
+SRGB_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
 
 
 def write_exr(path: Path, image: np.ndarray, metadata: Metadata | None = None,
               window: tuple[int, int, int, int] | None = None) -> None:
-    """float32 RGB OpenEXR (ZIP) with ``metadata`` as extra header attributes. ``window`` (x, y, full
-    width, full height): the image is the part of a larger one at pixel (x, y), as a cropped render
-    is: its data window starts there, its display window is the full image (pbrt-v4's way)."""
+    """float32 RGB OpenEXR (ZIP) with ``metadata`` as extra header attributes (typed as ``Metadata``
+    says; vectors and matrices as float32) and the standard ``chromaticities`` of linear sRGB unless
+    ``metadata`` gives others. pbrt-v4 (``Image::WriteEXR``, src/pbrt/util/image.cpp) leaves sRGB's
+    out because macOS Preview then re-encodes the pixels; OpenEXR's default is the same primaries,
+    so writing them only says explicitly what a reader assumes. ``window`` (x, y, full width, full
+    height): the image is the part of a larger one at pixel (x, y), as a cropped render is: its data
+    window starts there, its display window is the full image (pbrt-v4's way)."""
     import OpenEXR
 
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **(metadata or {})}
+    attributes = {name: _attribute(value) for name, value in (metadata or {}).items()}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
+              "chromaticities": SRGB_CHROMATICITIES, **attributes}
     if window is not None:
         x, y, width, height = window
         header["dataWindow"] = ((x, y), (x + image.shape[1] - 1, y + image.shape[0] - 1))
         header["displayWindow"] = ((0, 0), (width - 1, height - 1))
     pixels = np.ascontiguousarray(image, dtype=np.float32)
     write_atomically(path, lambda name: OpenEXR.File(header, {"RGB": pixels}).write(name))
+
+
+def _attribute(value: str | int | float | tuple[float, ...] | np.ndarray) -> object:
+    """A header value as OpenEXR's binding types it: numpy scalars as Python numbers, float arrays
+    as float32 (V2f, V3f, M44f rather than their double forms)."""
+    if isinstance(value, np.ndarray):
+        return np.ascontiguousarray(value, dtype=np.float32)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    return value
 
 
 def read_exr(path: Path) -> tuple[np.ndarray, dict]:
@@ -60,24 +84,45 @@ def srgb_decode(encoded: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 
 
-def auto_exposure(image: np.ndarray) -> float:
-    """Exposure in stops that maps the 97th percentile of luminance to 0.8 (0 for a black image)."""
-    luminance = image @ np.array([0.2126, 0.7152, 0.0722], np.float32)
-    bright = float(np.percentile(luminance, 97))
-    return float(np.log2(0.8 / bright)) if bright > 0 else 0.0
+#: Bits per sample a PNG may be written with.
+PNG_BITS = (8, 16)
 
 
-def write_png(path: Path, image: np.ndarray, exposure_stops: float) -> None:
-    """8-bit sRGB PNG preview of linear ``image`` scaled by 2^exposure_stops (imageio's Pillow plugin,
-    the same library that reads images)."""
+def check_png_bits(bits: int) -> int:
+    """A PNG's bits per sample: 8 or 16 (``PNG_BITS``)."""
+    if bits not in PNG_BITS:
+        raise UserError(f"PNG bits per sample must be 8 or 16, got {bits!r}")
+    return bits
+
+
+def encoded_png(image: np.ndarray, exposure_stops: float, bits: int = 8) -> bytes:
+    """PNG bytes of linear ``image`` scaled by 2^exposure_stops, sRGB-encoded (clipped to [0, 1]) to
+    ``bits`` (8 or 16) per sample: 8 through imageio's Pillow plugin, 16 through its OpenCV plugin
+    (Pillow writes no 16-bit RGB)."""
     import imageio.v3 as iio
 
+    check_png_bits(bits)
     encoded = srgb_encode(image.astype(np.float32) * np.float32(2.0**exposure_stops))
-    rgb = np.round(encoded * 255).astype(np.uint8)
+    top = (1 << bits) - 1
+    samples = np.round(encoded * top).astype(np.uint8 if bits == 8 else np.uint16)
+    return bytes(iio.imwrite("<bytes>", samples, plugin="pillow" if bits == 8 else "opencv", extension=".png"))
+
+
+def write_png(path: Path, image: np.ndarray, exposure_stops: float, bits: int = 8) -> None:
+    """sRGB PNG of linear ``image`` scaled by 2^exposure_stops (``encoded_png``), written atomically."""
     # encoded in memory, then written: Pillow writing to a file reports a full disk only when the
     # file object is collected ("Exception ignored"), after a truncated file would be renamed in place
-    encoded_png = iio.imwrite("<bytes>", rgb, plugin="pillow", extension=".png")
-    write_atomically(path, lambda name: Path(name).write_bytes(encoded_png))
+    data = encoded_png(image, exposure_stops, bits)
+    write_atomically(path, lambda name: Path(name).write_bytes(data))
+
+
+def write_pfm(path: Path, image: np.ndarray) -> None:
+    """Linear RGB ``image`` as a PFM (Portable Float Map) as pbrt-v4 writes it (``Image::WritePFM``):
+    ``PF``, the width and height, scale -1 (little-endian float32), rows from the bottom up."""
+    pixels = np.ascontiguousarray(np.asarray(image, dtype="<f4")[::-1])
+    height, width = pixels.shape[:2]
+    data = f"PF\n{width} {height}\n-1.0\n".encode("ascii") + pixels.tobytes()
+    write_atomically(path, lambda name: Path(name).write_bytes(data))
 
 
 #: Suffixes read through imageio's OpenCV plugin: the formats whose bit depth or float values Pillow

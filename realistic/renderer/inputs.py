@@ -35,6 +35,7 @@ from realistic.optics.formats import load_lens
 from realistic.optics.paraxial import paraxial_data
 from realistic.optics.stop_shape import StopShape, bladed_stop, mask_stop
 from realistic.renderer.integrators import INTEGRATORS
+from realistic.renderer.output import OUTPUT_SUFFIXES
 from realistic.renderer.passes import scene_intersector
 from realistic.scene.intersect import Intersector
 from realistic.scene.meshes import load_mesh_file
@@ -221,7 +222,7 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         x, y = options.focus_on
         inputs.intersector = scene_intersector(scene)  # the render reuses it (``passes.ThreadPasses``)
         camera = camera.autofocused(x, y, inputs.intersector.hit_distance)
-        inputs.metadata["focusOn"] = f"{x:g},{y:g}"
+        inputs.metadata["focusOn"] = np.array([x, y], np.float32)  # a V2f in the EXR header
     # a pbrt scene renders as pbrt would: dispersion only when asked for, even where a bundled lens
     # with Abbe numbers stands in for the scene's lens file; so does the default scene, which is
     # scenes/default.pbrt and renders as that file does
@@ -278,7 +279,7 @@ def _pbrt_inputs(options: RenderOptions, path: str) -> RenderInputs:
     """The pbrt file ``path``'s scene and camera as the file says (``apply_overrides`` applies the options)."""
     imported = import_pbrt(path, options.search_paths, options.pbrt_dialect)
     out = Path(imported.output_name).name if imported.output_name else "render.exr"
-    if Path(out).suffix.lower() != ".exr":
+    if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:  # pbrt-v4 writes the file named, of a type it knows
         out = str(Path(out).with_suffix(".exr"))
     metadata = {"scene": str(options.scene), "pbrtDialect": imported.dialect.describe()}
     return RenderInputs(imported.scene, out, metadata, imported.warnings, imported.dialect, imported.camera_where)
