@@ -75,10 +75,12 @@ def test_render_brightness_follows_the_exposure_value(tmp_path):
     assert values["c"] == pytest.approx(2 * values["a"], rel=1e-5)  # one EV less: twice the light
 
 
-def test_fstop_faster_than_the_lens_is_one_line(tmp_path, capsys):
+def test_fstop_faster_than_the_lens_takes_the_widest_with_a_warning(tmp_path, capsys):
+    """The CLI sets the lens's widest stop, as a camera does, and says so; the API refuses."""
     from realistic.cli import main
 
-    assert main(["render", "--backend", "numpy", "--fstop", "1.4", "--out", str(tmp_path / "x.exr")]) == 2
-    err = capsys.readouterr().err
-    assert "faster than dgauss opens" in err and err.count("\n") == 1
-    assert list(tmp_path.iterdir()) == []
+    assert main(["render", "--backend", "numpy", "--res", "16x12", "--spp", "1", "--fstop", "1.4",
+                 "--out", str(tmp_path / "x.exr")]) == 0
+    assert "--fstop 1.4 is faster than dgauss opens: f/2.03 is used" in capsys.readouterr().err
+    with pytest.raises(UserError, match="faster than dgauss opens"):
+        stop_diameter_for_f_number(load_lens("dgauss"), 1.4)
