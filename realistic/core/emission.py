@@ -91,9 +91,8 @@ def blackbody(nm: np.ndarray, temperature: float, version: str) -> np.ndarray:
 def sampled(wavelengths_nm: np.ndarray, values: np.ndarray, version: str) -> np.ndarray:
     """A tabulated spectrum at ``CIE_NM``: linear between its samples, and beyond its ends constant
     (pbrt-v2/v3 ``InterpolateSpectrumSamples``) or 0 (pbrt-v4 ``PiecewiseLinearSpectrum``)."""
-    outside = None if version == "v4" else np.nan
-    at = np.interp(CIE_NM, wavelengths_nm, values, left=outside, right=outside)
-    return np.nan_to_num(at, nan=0.0) if version == "v4" else at
+    outside = 0.0 if version == "v4" else None
+    return np.interp(CIE_NM, wavelengths_nm, values, left=outside, right=outside)
 
 
 def named_illuminant(name: str) -> np.ndarray | None:
@@ -129,11 +128,13 @@ PBRT4_RGB_FROM_XYZ = _pbrt4_srgb_from_xyz()
 def recorded_rgb(values: np.ndarray, version: str) -> np.ndarray:
     """The RGB a light of spectrum ``values`` (at ``CIE_NM``) records on ``version``'s film, relative
     to an RGB light recording its RGB. pbrt-v4: luminance normalised (a spectrum with none is an error)."""
-    xyz = spectrum_xyz(values)
-    if version == "v4":
+    if version == "v4":  # only the ratio counts: scaled to a peak of 1 first, so that no sum overflows
+        peak = float(np.max(values))
+        xyz = spectrum_xyz(np.asarray(values, np.float64) / peak) if peak > 0 else np.zeros(3)
         if not xyz[1] > 0:
             raise UserError("a spectrum with no luminance (pbrt-v4 divides a light's spectrum by its luminance)")
         return PBRT4_RGB_FROM_XYZ @ (xyz / xyz[1])
+    xyz = spectrum_xyz(values)
     if version == "v3":
         xyz = xyz * (CIE_NM[-1] - CIE_NM[0]) / (CIE_Y_INTEGRAL * len(CIE_NM))
     else:
