@@ -1,5 +1,5 @@
 """Spectral light values (``blackbody``, ``spectrum``, ``xyz``) reach the scene as the RGB each pbrt
-version's film records for them (``realistic.core.emission``), checked against values derived here:
+version's film records for them (``realistic.core.pbrt_spectra``), checked against values derived here:
 CIE 1931 chromaticities of Planck's law integrated in this file and published illuminant white points,
 pbrt-v4's luminance normalisation (a spectral light has the luminance of RGB (1, 1, 1) at the same
 scale), each version's white for a flat spectrum, and one-line errors at the parameter's line."""

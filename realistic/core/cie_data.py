@@ -3,7 +3,7 @@ matching functions at every nanometre from 360 to 830 nm (``CIE_X``, ``CIE_Y``, 
 hold the same tables in ``src/core/spectrum.cpp``, but for one ``CIE_Y`` entry that differs by 6.3e-5 of a
 peak of 1) and the standard illuminants pbrt-v4 names (``CIE_Illum_A``, ``CIE_Illum_D5000``,
 ``ACES_Illum_D60``, ``CIE_Illum_D6500``, ``CIE_Illum_F1`` .. ``CIE_Illum_F12``), every 5 nm from their first
-wavelength. Data only; ``realistic.core.emission`` evaluates them."""
+wavelength. Data only; ``realistic.core.pbrt_spectra`` evaluates them."""
 
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from realistic.core.emission import CIE_NM, blackbody, named_illuminant, recorded_rgb, sampled, xyz_rgb
+from realistic.core.pbrt_spectra import CIE_NM, blackbody, named_illuminant, recorded_rgb, sampled, xyz_rgb
 from realistic.errors import LensFileError, UserError
 from realistic.scene.measured import float_file_numbers
 from realistic.scene.model import RGB
@@ -69,7 +69,7 @@ def spectral_rgb(param: Param, spectra: str, find: Callable[[str, Path, str, str
                  warn: Callable[[str, str], None]) -> RGB:
     """The RGB that pbrt version ``spectra`` ("v2", "v3" or "v4": ``Dialect.spectra``) records for a
     light's ``blackbody``, ``spectrum`` or ``xyz`` parameter, relative to an RGB light recording its
-    own RGB (``realistic.core.emission``). pbrt-v4 reads ``blackbody [T]`` and named illuminants or
+    own RGB (``realistic.core.pbrt_spectra``). pbrt-v4 reads ``blackbody [T]`` and named illuminants or
     tabulated pairs, in increasing wavelength; pbrt-v2/v3 ``blackbody [T scale]``, pairs (sorted, as
     their ``FromSampled`` sorts them) and ``xyz``; both read pairs from a file named in the spectrum.
     Components below 0 (colours outside sRGB) are clipped to 0 with a warning: lights emit none."""

@@ -1,6 +1,8 @@
-"""Emission given as a spectrum (pbrt's ``blackbody`` and ``spectrum`` light parameters) as the linear
-sRGB that each pbrt version's film records for it, on the scale on which an RGB light records its
-own RGB: the renderer then treats it as that RGB light.
+"""pbrt's spectra as RGB, per version: a light's emission given as a spectrum (``blackbody`` and
+``spectrum`` parameters) as the linear sRGB that each pbrt version's film records for it, on the
+scale on which an RGB light records its own RGB (the renderer then treats it as that RGB light);
+and pbrt-v2/v3's RGB of any sampled spectrum (``sampled_rgb``: reflectances, indices, measured
+BRDFs), as their ``RGBSpectrum::FromSampled`` computes it.
 
 pbrt-v4 (``src/pbrt/lights.cpp``, every ``...Light::Create``: ``scale /= SpectrumToPhotometric(L)``)
 divides a light's spectrum by its luminance, the inner product with y bar over 360-830 nm
@@ -41,8 +43,8 @@ from realistic.core.cie_data import (
 )
 from realistic.errors import UserError
 
-#: The pbrt versions whose spectrum-to-RGB conversions differ (pbrt-v1 reads spectra as pbrt-v2).
-VERSIONS = ("v2", "v3", "v4")
+#: Whose spectrum-to-RGB conversion each pbrt dialect follows (pbrt-v1 reads spectra as pbrt-v2).
+CONVERSION_OF_DIALECT = {"v1": "v2", "v2": "v2", "v3": "v3", "v4": "v4"}
 #: The CIE tables' wavelengths (nm) and matching functions (471, 3).
 CIE_NM = np.arange(CIE_LAMBDA_MIN_NM, CIE_LAMBDA_MAX_NM + 1, dtype=np.float64)
 CMF = np.column_stack([CIE_X, CIE_Y, CIE_Z])
@@ -134,12 +136,26 @@ def recorded_rgb(values: np.ndarray, version: str) -> np.ndarray:
         if not xyz[1] > 0:
             raise UserError("a spectrum with no luminance (pbrt-v4 divides a light's spectrum by its luminance)")
         return PBRT4_RGB_FROM_XYZ @ (xyz / xyz[1])
-    xyz = spectrum_xyz(values)
+    return _pbrt3_rgb(spectrum_xyz(values), version)
+
+
+def _pbrt3_rgb(sums: np.ndarray, version: str) -> np.ndarray:
+    """pbrt-v2/v3 ``RGBSpectrum::FromSampled``'s RGB of the inner products ``sums`` (..., 3) with the
+    CIE tables: divided by the sum of y bar (v2) or times 470 / (``CIE_Y_integral`` x 471) (v3)."""
     if version == "v3":
-        xyz = xyz * (CIE_NM[-1] - CIE_NM[0]) / (CIE_Y_INTEGRAL * len(CIE_NM))
+        xyz = sums * (CIE_NM[-1] - CIE_NM[0]) / (CIE_Y_INTEGRAL * len(CIE_NM))
     else:
-        xyz = xyz / float(np.sum(CMF[:, 1]))
-    return PBRT3_RGB_FROM_XYZ @ xyz
+        xyz = sums / float(np.sum(CMF[:, 1]))
+    return xyz @ PBRT3_RGB_FROM_XYZ.T
+
+
+def sampled_rgb(wavelengths_nm: np.ndarray, values: np.ndarray, version: str) -> np.ndarray:
+    """pbrt-v2/v3's RGB (M, 3) of spectra ``values`` (M, W) sampled at increasing ``wavelengths_nm``
+    (W,): ``RGBSpectrum::FromSampled``, linear between samples and constant beyond the ends, so that
+    a flat spectrum 1 is (1.205, 0.948, 0.909) in pbrt-v2 (0.998 times that in pbrt-v3)."""
+    unit = np.eye(len(wavelengths_nm))
+    weights = np.array([np.interp(CIE_NM, wavelengths_nm, row) for row in unit])  # (W, 471) interpolation
+    return _pbrt3_rgb(np.asarray(values, np.float64) @ (weights @ CMF), version)
 
 
 def xyz_rgb(xyz: np.ndarray) -> np.ndarray:
