@@ -150,6 +150,26 @@ def test_v3_blackbody_is_normalised_at_its_peak_and_scaled_by_its_second_value(t
     assert 0.5 < luminance < 0.998
 
 
+def test_v3_blackbody_xyz_is_plancks_law_over_its_peak_summed_as_from_sampled(tmp_path):
+    h, c, k, temperature = 6.62606957e-34, 299792458.0, 1.3806488e-23, 4000.0  # pbrt-v3's constants
+
+    def planck(metres):
+        return 2 * h * c * c / (metres**5 * np.expm1(h * c / (metres * k * temperature)))
+
+    spectrum = planck(np.arange(360, 831) * 1e-9) / planck(2.8977721e-3 / temperature)
+    xyz = np.array([spectrum @ CIE_X, spectrum @ CIE_Y, spectrum @ CIE_Z]) * 470 / (106.856895 * 471)
+    rgb = area_rgb(tmp_path, f'"blackbody L" [{temperature} 1]', "v3")
+    assert np.allclose(np.linalg.solve(PBRT3_RGB_FROM_XYZ, rgb), xyz, rtol=1e-9)
+
+
+@pytest.mark.parametrize("temperature", ["1", "1e30", "1e300"])
+def test_extreme_v3_blackbodies_are_black(tmp_path, temperature):
+    # with its peak far from the visible, the peak-normalised spectrum is all but 0 there (pbrt-v3's float
+    # arithmetic gives zeros at 1 K and 1e30 K; beyond float's range it would give NaN)
+    rgb = area_rgb(tmp_path, f'"blackbody L" [{temperature} 1]', "v3")
+    assert np.all(rgb >= 0) and np.all(rgb < 1e-30)
+
+
 def test_v2_blackbody_is_one_at_555_nm(tmp_path):
     # pbrt-v2 Blackbody: norm = 555^5 (exp(c2 / (555 T)) - 1), so at any T the spectrum is 1 at 555 nm,
     # and a very hot one falls as lambda^-4 (Rayleigh-Jeans): luminance near the flat spectrum's y
@@ -200,6 +220,7 @@ def test_spectral_area_lights_on_meshes_emit_the_converted_rgb(tmp_path):
     ("v4", '"blackbody L" [3000 1]', "one temperature in pbrt-v4"),
     ("v3", '"blackbody L" [3000]', "[temperature scale]"),
     ("v4", '"blackbody L" [1e-3]', "no luminance"),
+    ("v4", '"blackbody L" [1e300]', "no luminance"),
     ("v2", '"blackbody L" [1 1]', "too low"),
     ("v4", '"spectrum L" [400 1 500]', "pairs, got 3"),
     ("v4", '"spectrum L" [400 1 500 -2]', "negative value"),

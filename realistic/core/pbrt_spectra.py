@@ -65,14 +65,15 @@ PBRT3_RGB_FROM_XYZ = np.array([[3.240479, -1.537150, -0.498535],
 SRGB_PRIMARIES = ((0.64, 0.33), (0.3, 0.6), (0.15, 0.06))
 
 
-def _log_expm1(x: np.ndarray) -> np.ndarray:
-    """log(exp(x) - 1) for x > 0 without overflow."""
-    return np.where(x > 1.0, x + np.log1p(-np.exp(-np.minimum(x, 1e300))), np.log(np.expm1(np.minimum(x, 1.0))))
-
-
 def _log_planck(nm: np.ndarray, temperature: float, c2: float) -> np.ndarray:
-    """log of Planck's law at ``nm`` up to an additive constant: -5 log(lambda) - log(exp(c2 / (lambda T)) - 1)."""
-    return -5.0 * np.log(nm) - _log_expm1(c2 / (nm * temperature))
+    """log of Planck's law at ``nm`` up to an additive constant: -5 log(lambda) - log(exp(x) - 1) with
+    x = c2 / (lambda T), taken from log x so that neither a large nor a tiny x overflows or vanishes:
+    x + log(1 - exp(-x)) above 1, log x + log(expm1(x) / x) (about x / 2 when tiny) below."""
+    log_x = math.log(c2) - np.log(nm) - math.log(temperature)
+    with np.errstate(all="ignore"):  # np.where computes both branches; each is used only where it is sound
+        x = np.exp(np.minimum(log_x, 700.0))
+        small = np.where(x > 1e-8, np.log(np.expm1(np.minimum(x, 1.0)) / np.maximum(x, 1e-8)), x / 2)
+        return -5.0 * np.log(nm) - np.where(log_x > 0.0, np.exp(log_x) + np.log1p(-np.exp(-x)), log_x + small)
 
 
 def blackbody(nm: np.ndarray, temperature: float, version: str) -> np.ndarray:
@@ -82,11 +83,12 @@ def blackbody(nm: np.ndarray, temperature: float, version: str) -> np.ndarray:
         raise UserError(f"blackbody temperature must be a positive number of kelvin, got {temperature:g}")
     nm = np.asarray(nm, np.float64)
     c2, at = (C2_V2_NM_K, 555.0) if version == "v2" else (C2_NM_K, WIEN_M_K / temperature * 1e9)
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):
         values = np.exp(_log_planck(nm, temperature, c2) - _log_planck(np.array(at), temperature, c2))
     if not np.all(np.isfinite(values)):
-        raise UserError(f"blackbody temperature {temperature:g} K is too low for pbrt-{version}'s normalisation at "
-                        f"555 nm (its spectrum overflows)")
+        at_what = "at 555 nm" if version == "v2" else "at its peak"
+        raise UserError(f"blackbody temperature {temperature:g} K is too low for pbrt-{version}'s normalisation "
+                        f"{at_what} (its spectrum overflows)")
     return values
 
 

@@ -93,7 +93,10 @@ def spectral_rgb(param: Param, spectra: str, find: Callable[[str, Path, str, str
             return _emitted(xyz_rgb(np.array(numbers)), label, where, warn)
         else:
             values = _spectrum_values(param, label, spectra, find)
-        return _emitted(recorded_rgb(values, spectra), label, where, warn)
+        try:
+            return _emitted(recorded_rgb(values, spectra), label, where, warn)
+        except UserError as err:
+            raise UserError(f"{label}: {err}") from None
 
 
 def _numbers(param: Param, label: str) -> list[float]:
