@@ -219,6 +219,7 @@ def test_spectral_area_lights_on_meshes_emit_the_converted_rgb(tmp_path):
     ("v4", '"blackbody L" [1e999]', "too large for a double"),
     ("v4", '"blackbody L" [3000 1]', "one temperature in pbrt-v4"),
     ("v3", '"blackbody L" [3000]', "[temperature scale]"),
+    ("v3", '"blackbody L" [3000 -1]', "must not be negative"),
     ("v4", '"blackbody L" [1e-3]', "no luminance"),
     ("v4", '"blackbody L" [1e300]', "no luminance"),
     ("v2", '"blackbody L" [1 1]', "too low"),

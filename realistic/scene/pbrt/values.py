@@ -83,6 +83,8 @@ def spectral_rgb(param: Param, spectra: str, find: Callable[[str, Path, str, str
                                 f'[temperature scale] is written "blackbody {name}" [T] "float scale" [scale])')
             if spectra != "v4" and len(numbers) != 2:
                 raise UserError(f"{label} takes [temperature scale] in pbrt-{spectra} (got {len(numbers)} numbers)")
+            if spectra != "v4" and numbers[1] < 0:
+                raise UserError(f"{label} scale must not be negative, got {numbers[1]:g}")
             values = blackbody(CIE_NM, numbers[0], spectra) * (numbers[1] if spectra != "v4" else 1.0)
         elif kind == "xyz":
             if spectra == "v4":
