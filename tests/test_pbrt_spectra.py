@@ -266,3 +266,23 @@ def test_any_spectral_parameter_imports_or_fails_in_one_line(tmp_path, version, 
     (emitter,) = imported.scene.lights
     emitted = np.array(emitter.intensity if isinstance(emitter, PointLight) else emitter.radiance)
     assert np.all(np.isfinite(emitted)) and np.all(emitted >= 0)
+
+
+def test_a_rendered_white_surface_under_a_blackbody_has_the_lights_colour(tmp_path):
+    # a grey diffuse plane reflects every channel alike: each pixel's RGB is the light's RGB times one number
+    from realistic.renderer.inputs import RenderOptions, build_render_inputs
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.passes import render
+
+    path = tmp_path / "lit.pbrt"
+    path.write_text('Film "rgb" "integer xresolution" 8 "integer yresolution" 8\nLookAt 0 0 -4 0 0 0 0 1 0\n'
+                    'Camera "perspective" "float fov" 30\nWorldBegin\nAttributeBegin\nAreaLightSource "diffuse" '
+                    '"blackbody L" [3000]\nTranslate 0 0 -6\nShape "disk" "float radius" 3\nAttributeEnd\n'
+                    'Material "diffuse" "rgb reflectance" [0.5 0.5 0.5]\n'
+                    'Shape "trianglemesh" "point3 P" [-5 -5 0 5 -5 0 5 5 0 -5 5 0] "integer indices" [0 1 2 0 2 3]\n')
+    imported = build_render_inputs(RenderOptions(scene=path, spp=2))
+    image = render(RenderJob(imported.scene, (imported.camera,), "numpy"))[0].image
+    light = area_rgb(tmp_path, '"blackbody L" [3000]')
+    lit = image.reshape(-1, 3)
+    lit = lit[lit[:, 1] > 0]
+    assert len(lit) > 0 and np.allclose(lit / lit[:, 1:2], light / light[1], rtol=1e-4)
