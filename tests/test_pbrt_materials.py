@@ -63,7 +63,9 @@ def test_metal_and_conductor(tmp_path):
     assert m == Conductor((0.2, 0.9, 1.1), (3.9, 2.4, 2.1), 0.02, 0.02, "blinn") and not warnings
     m, _, _ = _one(tmp_path, 'Material "metal" "spectrum eta" [400 1.5 500 1.5 600 1.5 700 1.5] '
                              '"float uroughness" .1 "float vroughness" .2', "v3")
-    assert np.allclose(m.eta, 1.5, rtol=1e-3) and (m.roughness_u, m.roughness_v, m.rule) == (0.1, 0.2, "pbrt-v3")
+    # pbrt-v3's FromSampled: a flat 1.5 as 1.5 x the unadapted sRGB of E, (1.205, 0.948, 0.909) x 470 / 471
+    assert np.allclose(m.eta, 1.5 * np.array([1.205, 0.948, 0.909]) * 470 / 471, rtol=1e-3)
+    assert (m.roughness_u, m.roughness_v, m.rule) == (0.1, 0.2, "pbrt-v3")
     m, warnings, path = _one(tmp_path, 'Material "conductor" "spectrum eta" "metal-CuZn-eta" '
                                        '"spectrum k" "metal-CuZn-k"', "v4")
     assert isinstance(m, Conductor) and m.roughness_u == 0.0 and m.rule == "sqrt"
@@ -169,7 +171,7 @@ def test_a_scene_of_every_material_renders(tmp_path):
 
 
 def test_copper_is_pbrts_tabulated_copper_and_the_default_metal(tmp_path):
-    from realistic.scene.metals import COPPER_K, COPPER_N, copper
+    from realistic.scene.metals import COPPER_K, COPPER_N, COPPER_NM, copper
 
     eta, k = copper()
     # RGB of a spectrum lies within its range where the colour matching functions are positive-ish:
@@ -180,7 +182,13 @@ def test_copper_is_pbrts_tabulated_copper_and_the_default_metal(tmp_path):
     m, warnings, _ = _one(tmp_path, 'Material "conductor" "spectrum eta" "metal-Cu-eta" "spectrum k" "metal-Cu-k"',
                           "v4")
     assert (m.eta, m.k) == (eta, k) == (Conductor().eta, Conductor().k) and not warnings
-    assert _one(tmp_path, 'Material "metal"', "v3")[0] == Conductor(roughness_u=0.01, roughness_v=0.01, rule="pbrt-v3")
+    # pbrt-v3 metal.cpp makes its default by Spectrum::FromSampled of the same tables: as a file writing them
+    pairs = " ".join(f"{w} {v}" for w, v in zip(COPPER_NM, COPPER_N))
+    kpairs = " ".join(f"{w} {v}" for w, v in zip(COPPER_NM, COPPER_K))
+    written, _, _ = _one(tmp_path, f'Material "metal" "spectrum eta" [{pairs}] "spectrum k" [{kpairs}]', "v3")
+    default = _one(tmp_path, 'Material "metal"', "v3")[0]
+    assert np.allclose(default.eta, written.eta, rtol=1e-12) and np.allclose(default.k, written.k, rtol=1e-12)
+    assert default.eta != eta and (default.roughness_u, default.rule) == (0.01, "pbrt-v3")
 
 
 def test_uber_coat_index_per_version(tmp_path):

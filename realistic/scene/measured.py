@@ -14,11 +14,12 @@ Both as pbrt-v2 ``src/materials/measured.cpp`` (``MeasuredMaterial``) reads them
   red, then green, then blue, scaled by 1/1500, 1.15/1500, 1.66/1500 and clamped at 0. Index order:
   phi_d fastest, then theta_d, then theta_h.
 
-Spectra to RGB: pbrt-v2 ``RGBSpectrum::FromSampled`` interpolates the samples linearly (constant
-beyond the ends) and integrates them against the CIE matching functions; here the same integral
-uses the project's colour matching functions and white balance (``core.spectrum``: a flat
-spectrum 1 gives RGB (1, 1, 1), as it does on the spectral film), where pbrt-v2 applies the sRGB
-matrix to unadapted XYZ (a flat 1 gives about (1.20, 0.95, 0.91)).
+Spectra to RGB as pbrt-v2 turns them (``RGBSpectrum::FromSampled``, ``src/core/spectrum.h``;
+``realistic.core.pbrt_spectra.sampled_rgb``): the samples interpolated linearly (constant beyond
+the ends), summed against its 1 nm CIE tables over the sum of y bar, and ``XYZToRGB``'s sRGB matrix
+applied to that unadapted XYZ, so that a flat 1 gives about (1.205, 0.948, 0.909), as in pbrt-v2
+(a white-balanced conversion to (1, 1, 1) shifted the measured dragons' hue by about 10 %, issue 34).
+``spectrum_to_rgb`` is the project's own white-balanced conversion, for pbrt-v4's tabulated spectra.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from realistic.core.pbrt_spectra import sampled_rgb
 from realistic.core.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, RGB_FROM_XYZ, cie_xyz
 from realistic.errors import UserError
 
@@ -72,7 +74,8 @@ def _phi(w: np.ndarray) -> np.ndarray:
 
 
 def spectrum_to_rgb(wavelengths_nm: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """RGB (M, 3) of sampled spectra ``values`` (M, W) at increasing ``wavelengths_nm`` (W,)."""
+    """RGB (M, 3) of sampled spectra ``values`` (M, W) at increasing ``wavelengths_nm`` (W,), white
+    balanced: a flat spectrum 1 is (1, 1, 1) (``realistic.core.spectrum.RGB_FROM_XYZ``)."""
     grid = np.arange(LAMBDA_MIN_NM, LAMBDA_MAX_NM + 0.5, 1.0)
     weights = np.zeros((len(wavelengths_nm), len(grid)))  # linear interpolation as a matrix
     for j in range(len(wavelengths_nm)):
@@ -130,7 +133,7 @@ def read_irregular(path: Path) -> IrregularSamples:
     theta_i, phi_i, theta_o, phi_o = rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3]
     wi = np.column_stack([np.sin(theta_i) * np.cos(phi_i), np.sin(theta_i) * np.sin(phi_i), np.cos(theta_i)])
     wo = np.column_stack([np.sin(theta_o) * np.cos(phi_o), np.sin(theta_o) * np.sin(phi_o), np.cos(theta_o)])
-    return IrregularSamples(brdf_remap(wo, wi), spectrum_to_rgb(wavelengths, rows[:, 4:]))
+    return IrregularSamples(brdf_remap(wo, wi), sampled_rgb(wavelengths, rows[:, 4:], "v2"))
 
 
 def read_halfangle(path: Path) -> HalfangleTable:

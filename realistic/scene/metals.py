@@ -6,8 +6,9 @@ Silver, aluminium, gold (on the same 56 wavelengths), magnesium oxide and titani
 ``src/pbrt/util/spectrum.cpp`` (``Ag_eta``, ``Ag_k``, ``Al_eta``, ``Al_k``, ``Au_eta``, ``Au_k``,
 ``MgO_eta``, ``MgO_k``, ``TiO2_eta``, ``TiO2_k``), the named spectra "metal-<name>-eta" and
 "metal-<name>-k" of pbrt-v4 ``conductor``. pbrt-v4's brass ("metal-CuZn-...") is not tabulated
-here. Every table is turned into RGB by the same integral as every sampled spectrum here
-(``realistic.scene.measured.spectrum_to_rgb``).
+here. Every table is turned into RGB by the same integral as every pbrt-v4 sampled spectrum here
+(``realistic.scene.measured.spectrum_to_rgb``); pbrt-v1/v2/v3 files convert copper as those
+versions do (``realistic.scene.pbrt.materials``).
 """
 
 from __future__ import annotations

@@ -44,7 +44,11 @@ normalises point and spot lights to ``power`` (k_e = 4 pi, and 2 pi ((1 - cos_st
 cos_end) / 2)) and distant and infinite lights to ``illuminance`` (k_e = pi for a constant light;
 the map's upper-hemisphere illuminance for an image), uses smoothstep between the cone angles and
 reads an equal-area map from ``filename``. RGB values render as given in every version (pbrt-v4
-divides an RGB illuminant by its illuminant's luminance, which cancels).
+divides an RGB illuminant by its illuminant's luminance, D65's, which its film records as RGB (1, 1,
+1)). Spectral values (``blackbody``, ``spectrum``) render as the RGB each version's film records
+(``Dialect.spectra``; the conversions in ``realistic.core.pbrt_spectra``): pbrt-v4 normalises them to
+the luminance of RGB (1, 1, 1); pbrt-v2 and pbrt-v3 integrate them unnormalised and convert with the
+unadapted sRGB matrix, their blackbodies normalised at 555 nm (v2) or at their peak (v3).
 
 Integrators: the scene's ``Integrator`` (v3/v4) or ``SurfaceIntegrator`` (v1/v2) with ``integer
 maxdepth`` (default 5 in every version). A file with none renders with direct lighting, as
@@ -75,6 +79,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.core import validation
+from realistic.core.pbrt_spectra import CONVERSION_OF_DIALECT
 from realistic.core.pixel_filter import PixelFilter, filter_name
 from realistic.errors import UserError
 from realistic.optics.stop_shape import StopShape, bladed_stop, polygon_stop, transmission_stop
@@ -240,6 +245,12 @@ class Dialect:
     def names(self) -> ParameterNames:
         """The parameter names that differ between versions, as this version spells them."""
         return {"v1": CLASSIC_NAMES, "v2": CLASSIC_NAMES, "v3": PBRT3_NAMES}.get(self.name, PBRT4_NAMES)
+
+    @property
+    def spectra(self) -> str:
+        """Whose spectrum-to-RGB conversion this version's light spectra follow: "v2" (pbrt-v1 and v2,
+        ``src/core/spectrum.h``), "v3" or "v4" (``realistic.core.pbrt_spectra``)."""
+        return CONVERSION_OF_DIALECT[self.name]
 
     @property
     def is_v4(self) -> bool:

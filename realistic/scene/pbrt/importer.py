@@ -29,7 +29,15 @@ from realistic.scene.pbrt.lights import import_integrator, import_lights
 from realistic.scene.pbrt.materials import build_material
 from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.scene.pbrt.shapes import QUADRICS, ShapeMeshes, box_corners, is_sound, reach_of
-from realistic.scene.pbrt.values import GREY, MAX_WORLD_COORDINATE, located, rgb, whole_number
+from realistic.scene.pbrt.values import (
+    GREY,
+    MAX_WORLD_COORDINATE,
+    SPECTRAL_TYPES,
+    located,
+    rgb,
+    spectral_rgb,
+    whole_number,
+)
 
 
 @dataclass
@@ -202,9 +210,12 @@ class _Importer:
         if declaration.type not in ("area", "diffuse"):
             self.warn(where, f'AreaLightSource "{declaration.type}" (shape rendered unlit)')
             return False
+        emitted = declaration.params.items.get("L")
         radiance = rgb(declaration.params, "L", (1.0, 1.0, 1.0))
-        if radiance is None:
-            self.warn(where, "spectral area light L (rendered white)")
+        if emitted is not None and emitted.type in SPECTRAL_TYPES:  # as the file's pbrt records it
+            radiance = spectral_rgb(emitted, self.dialect.spectra, self.find, self.warn)
+        elif radiance is None:
+            self.warn(where, f"area light L of {len(emitted.values) if emitted else 0} values (rendered white)")
             radiance = (1.0, 1.0, 1.0)
         for name in ("filename", "power"):  # pbrt-v4 DiffuseAreaLight: image emission, photometric power
             if declaration.params.has(name):

@@ -4,7 +4,8 @@ Parameter names, defaults and frames follow pbrt-v3 ``src/lights/{point,spot,dis
 and pbrt-v4 ``src/pbrt/lights.cpp`` (``...Light::Create``); what differs between versions (scale,
 power, spot falloff, the environment map's parameter and parameterisation) comes from
 ``Dialect.lights``. ``goniometric`` and ``projection`` lights are reported, with file and line, and
-left dark. Spectra other than RGB (``blackbody``, sampled spectra) render white, with a warning.
+left dark. Spectral values (``blackbody``, ``spectrum``, v1-v3's ``xyz``) render as the RGB the
+file's pbrt version records for them (``realistic.scene.pbrt.values.spectral_rgb``).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from realistic.scene.lights import (
 from realistic.scene.model import RGB
 from realistic.scene.pbrt.dialect import Dialect
 from realistic.scene.pbrt.parser import Directive, Params, PbrtScene
-from realistic.scene.pbrt.values import located
+from realistic.scene.pbrt.values import SPECTRAL_TYPES, located, spectral_rgb
 
 #: Integrators pbrt names that we render with path tracing (pbrt-v2/v3/v4 integrator lists).
 PATH_FALLBACKS = ("volpath", "bdpt", "mlt", "sppm", "lightpath", "simplepath", "simplevolpath", "randomwalk",
@@ -47,12 +48,12 @@ def _finite(values: list[float], name: str, where: str) -> list[float]:
 
 
 def _colour(params: Params, name: str, default: RGB, where: str, warn: Callable[[str, str], None]) -> RGB:
-    """An RGB parameter (one value: grey); spectra pbrt would integrate render white with a warning."""
+    """An RGB parameter (one value: grey); other counts render white with a warning."""
     p = params.items.get(name)
     if p is None:
         return default
-    if p.type in ("spectrum", "blackbody", "xyz") or len(p.values) not in (1, 3):
-        warn(where, f'a spectral light "{name}" (rendered white)')
+    if len(p.values) not in (1, 3):
+        warn(where, f'a light "{name}" of {len(p.values)} values (rendered white)')
         return (1.0, 1.0, 1.0)
     values = _finite(params.get_floats(name, []), name, where)
     return (values[0], values[0], values[0]) if len(values) == 1 else (values[0], values[1], values[2])
@@ -73,11 +74,18 @@ def _scalar(params: Params, name: str, default: float, where: str) -> float:
 
 class _LightImporter:
     def __init__(self, dialect: Dialect, warn: Callable[[str, str], None], find: Callable[..., Path]):
-        self.conventions, self.warn, self.find = dialect.lights, warn, find
+        self.conventions, self.spectra, self.warn, self.find = dialect.lights, dialect.spectra, warn, find
+
+    def colour(self, params: Params, name: str, where: str) -> np.ndarray:
+        """An emission parameter (default white): RGB as given, a spectrum as the RGB pbrt records for it."""
+        p = params.items.get(name)
+        if p is not None and p.type in SPECTRAL_TYPES:
+            return np.array(spectral_rgb(p, self.spectra, self.find, self.warn))
+        return np.array(_colour(params, name, (1.0, 1.0, 1.0), where, self.warn))
 
     def scale(self, params: Params, where: str) -> np.ndarray:
         if self.conventions.scale_is_spectrum:
-            return np.array(_colour(params, "scale", (1.0, 1.0, 1.0), where, self.warn))
+            return self.colour(params, "scale", where)
         return np.full(3, _scalar(params, "scale", 1.0, where))
 
     def photometric(self, params: Params, name: str, where: str) -> float | None:
@@ -91,7 +99,7 @@ class _LightImporter:
         p, where, kind = directive.params, directive.where, directive.type
         m = np.asarray(directive.transform, np.float64)
         if kind == "point":
-            intensity = np.array(_colour(p, "I", (1.0, 1.0, 1.0), where, self.warn)) * self.scale(p, where)
+            intensity = self.colour(p, "I", where) * self.scale(p, where)
             power = self.photometric(p, "power", where)
             if power is not None:
                 intensity *= power / (4 * math.pi)
@@ -100,7 +108,7 @@ class _LightImporter:
         if kind == "spot":
             return self.spot(p, m, where)
         if kind == "distant":
-            radiance = np.array(_colour(p, "L", (1.0, 1.0, 1.0), where, self.warn)) * self.scale(p, where)
+            radiance = self.colour(p, "L", where) * self.scale(p, where)
             illuminance = self.photometric(p, "illuminance", where)
             if illuminance is not None:
                 radiance *= illuminance
@@ -117,7 +125,7 @@ class _LightImporter:
         return None
 
     def spot(self, p: Params, m: np.ndarray, where: str) -> SpotLight:
-        intensity = np.array(_colour(p, "I", (1.0, 1.0, 1.0), where, self.warn)) * self.scale(p, where)
+        intensity = self.colour(p, "I", where) * self.scale(p, where)
         cone = _scalar(p, "coneangle", 30.0, where)
         delta = _scalar(p, "conedeltaangle", 5.0, where)
         if not 0 < cone <= 180 or not 0 <= delta <= cone:
@@ -140,7 +148,7 @@ class _LightImporter:
 
     def infinite(self, directive: Directive, m: np.ndarray) -> InfiniteLight:
         p, where = directive.params, directive.where
-        radiance = np.array(_colour(p, "L", (1.0, 1.0, 1.0), where, self.warn)) * self.scale(p, where)
+        radiance = self.colour(p, "L", where) * self.scale(p, where)
         name = p.get_string(self.conventions.map_parameter)
         image = None
         if name:

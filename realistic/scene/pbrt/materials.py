@@ -25,6 +25,7 @@ from typing import Protocol
 
 import numpy as np
 
+from realistic.core.pbrt_spectra import CONVERSION_OF_DIALECT, sampled_rgb
 from realistic.core.validation import finite
 from realistic.errors import UserError
 from realistic.scene.materials import (
@@ -126,8 +127,12 @@ class _Reader:
         pairs = np.asarray(values, np.float64).reshape(-1, 2)
         if not np.all(np.isfinite(pairs)) or np.any(np.diff(pairs[:, 0]) <= 0):
             raise UserError(f'{self.where}: "spectrum {name}" wavelengths must increase and values be finite')
-        red, green, blue = (float(c) for c in spectrum_to_rgb(pairs[:, 0], pairs[None, :, 1])[0])
-        return red, green, blue
+        conversion = CONVERSION_OF_DIALECT[self.context.dialect_name]
+        if conversion == "v4":  # evaluated spectrally by pbrt-v4; white balanced here (a flat 1 is white)
+            rgb = spectrum_to_rgb(pairs[:, 0], pairs[None, :, 1])[0]
+        else:  # pbrt-v1/v2/v3 files: their own RGBSpectrum::FromSampled
+            rgb = sampled_rgb(pairs[:, 0], pairs[None, :, 1], conversion)[0]
+        return float(rgb[0]), float(rgb[1]), float(rgb[2])
 
     def texture(self, name: str) -> Colour:
         """The texture parameter ``name`` as a colour: the texture, scaled by its colour unless white."""
@@ -318,13 +323,27 @@ def _conductor(r: _Reader) -> Conductor:
         k_red, k_green, k_blue = (float(v) for v in 2 * np.sqrt(rr) / np.sqrt(1 - rr))
         ru, rv = r.roughness_pair(0.1 if kind == "shinymetal" else 0.0)
         return Conductor((1.0, 1.0, 1.0), (k_red, k_green, k_blue), ru, rv, r.rule())
-    eta = r.colour(prefix + "eta", COPPER_ETA)
-    k = r.colour(prefix + "k", COPPER_K)
+    copper_eta, copper_k = _copper(r.context.dialect_name)
+    eta = r.colour(prefix + "eta", copper_eta)
+    k = r.colour(prefix + "k", copper_k)
     ru, rv = r.roughness_pair(0.0 if _v4(r.context) else 0.01)
     if kind == "coatedconductor":
         ru = r.scalar("conductor.uroughness", r.scalar("conductor.roughness", 0.0))
         rv = r.scalar("conductor.vroughness", r.scalar("conductor.roughness", 0.0))
     return Conductor(eta, k, ru, rv, r.rule())
+
+
+def _copper(dialect_name: str) -> tuple[RGB, RGB]:
+    """The default metal, copper, as the dialect's pbrt turns its tables into RGB: pbrt-v2/v3
+    ``metal.cpp`` by ``Spectrum::FromSampled(CopperWavelengths, CopperN, ...)``, pbrt-v4 spectrally
+    (white balanced here)."""
+    conversion = CONVERSION_OF_DIALECT[dialect_name]
+    if conversion == "v4":
+        return COPPER_ETA, COPPER_K
+    nm, n, k = TABLES["Cu"]
+    eta_rgb, k_rgb = sampled_rgb(np.asarray(nm), np.array([n, k]), conversion)
+    return (float(eta_rgb[0]), float(eta_rgb[1]), float(eta_rgb[2])), (float(k_rgb[0]), float(k_rgb[1]),
+                                                                        float(k_rgb[2]))
 
 
 def _measured(r: _Reader) -> SurfaceMaterial:
