@@ -289,3 +289,20 @@ def test_a_rendered_white_surface_under_a_blackbody_has_the_lights_colour(tmp_pa
     lit = image.reshape(-1, 3)
     lit = lit[lit[:, 1] > 0]
     assert len(lit) > 0 and np.allclose(lit / lit[:, 1:2], light / light[1], rtol=1e-4)
+
+
+@pytest.mark.parametrize("dialect,scale", [("v2", '"blackbody scale" [3000 1]'), ("v3", '"blackbody scale" [3000 1]'),
+                                           ("v3", '"rgb scale" [1 0.5 0.25]'), ("v4", '"float scale" 2')])
+def test_an_area_lights_scale_is_read_as_its_point_lights(tmp_path, dialect, scale):
+    """An area light's ``scale`` is read as the version reads a LightSource's (a spectrum in v1-v3, a
+    float in v4): a blackbody scale on an area light was taken as 1."""
+    path = tmp_path / "s.pbrt"
+    path.write_text('Camera "perspective"\nWorldBegin\n'
+                    f'LightSource "point" "rgb I" [1 1 1] {scale}\n'
+                    f'AttributeBegin\nAreaLightSource "diffuse" "rgb L" [1 1 1] {scale}\nShape "disk"\nAttributeEnd\n'
+                    "WorldEnd\n")
+    lights = import_pbrt(path, dialect=dialect).scene.lights
+    point = next(light for light in lights if isinstance(light, PointLight))
+    area = next(light for light in lights if isinstance(light, AreaLight))
+    np.testing.assert_allclose(area.radiance, point.intensity, rtol=1e-12)
+    assert not np.allclose(area.radiance, 1.0)

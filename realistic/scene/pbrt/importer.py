@@ -26,6 +26,7 @@ from realistic.scene.pbrt.dialect import Dialect, choose_dialect
 from realistic.scene.pbrt.film import import_film, import_pixel_filter
 from realistic.scene.pbrt.imagemap import imagemap_texture
 from realistic.scene.pbrt.lights import import_integrator, import_lights
+from realistic.scene.pbrt.lights import light_scale as light_scale_of
 from realistic.scene.pbrt.materials import build_material
 from realistic.scene.pbrt.parser import Declaration, Params, PbrtScene, ShapeRecord, parse_pbrt, resolve_file
 from realistic.scene.pbrt.shapes import QUADRICS, ShapeMeshes, box_corners, is_sound, reach_of
@@ -220,7 +221,7 @@ class _Importer:
         for name in ("filename", "power"):  # pbrt-v4 DiffuseAreaLight: image emission, photometric power
             if declaration.params.has(name):
                 self.warn(where, f'area light "{name}" (ignored; L and scale set its radiance)')
-        light_scale = rgb(declaration.params, "scale", (1.0, 1.0, 1.0)) or (1.0, 1.0, 1.0)
+        light_scale = light_scale_of(declaration.params, where, self.dialect, self.warn, self.find)
         radiance = (radiance[0] * light_scale[0], radiance[1] * light_scale[1], radiance[2] * light_scale[2])
         with located(where):
             radiance = validation.emission(radiance, "area light L (times its scale)")

@@ -182,6 +182,14 @@ class _LightImporter:
         return total
 
 
+def light_scale(params: Params, where: str, dialect: Dialect, warn: Callable[[str, str], None],
+                find: Callable[..., Path]) -> tuple[float, float, float]:
+    """A light's ``scale`` as its pbrt version reads it (a spectrum in v1-v3, blackbodies included; a
+    float in v4): shared by ``LightSource`` lights and area lights."""
+    red, green, blue = _LightImporter(dialect, warn, find).scale(params, where)
+    return float(red), float(green), float(blue)
+
+
 def import_lights(parsed: PbrtScene, dialect: Dialect, find: Callable[..., Path]) -> list[Light]:
     """The scene's ``LightSource`` lights (unsupported ones reported on ``parsed`` and skipped)."""
     importer = _LightImporter(dialect, parsed.warn, find)
