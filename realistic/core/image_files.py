@@ -14,13 +14,16 @@ from realistic.errors import UserError
 Metadata = dict[str, str | int | float]
 
 
-def write_exr(path: Path, image: np.ndarray, metadata: Metadata | None = None) -> None:
-    """float32 RGB OpenEXR (ZIP) with ``metadata`` as extra header attributes."""
+def write_exr(path: Path, image: np.ndarray, metadata: Metadata | None = None,
+              channels: dict[str, np.ndarray] | None = None) -> None:
+    """float32 RGB OpenEXR (ZIP) with ``metadata`` as extra header attributes, and ``channels``
+    (name -> (H, W) image, such as "Albedo.R" or "P.Z": layers by OpenEXR's dotted names) beside R, G, B."""
     import OpenEXR
 
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **(metadata or {})}
-    pixels = np.ascontiguousarray(image, dtype=np.float32)
-    write_atomically(path, lambda name: OpenEXR.File(header, {"RGB": pixels}).write(name))
+    pixels = {"RGB": np.ascontiguousarray(image, dtype=np.float32)}
+    pixels.update({name: np.ascontiguousarray(value, dtype=np.float32) for name, value in (channels or {}).items()})
+    write_atomically(path, lambda name: OpenEXR.File(header, pixels).write(name))
 
 
 def read_exr(path: Path) -> tuple[np.ndarray, dict]:

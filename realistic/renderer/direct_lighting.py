@@ -40,6 +40,7 @@ import numpy as np
 from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, spectral_value
 from realistic.core.vectors import dot, normalise
+from realistic.renderer.aov import FirstHits
 from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.footprint import uv_footprint
@@ -235,6 +236,29 @@ class DirectLighting:
         with timed("shading"):
             out[surface] = total / np.float32(self.light_samples)
         return out, shadow_rays
+
+    def first_hits(self, origin: np.ndarray, direction: np.ndarray) -> FirstHits:
+        """What the camera rays hit first (``renderer.aov``): points, normals facing the rays, and
+        albedo (``first_albedo``; 0 on area lights, which have no material)."""
+        hits = self.intersector.closest(origin, direction)
+        n = len(origin)
+        hit = hits.geom >= 0
+        point, normal, rho = (np.zeros((n, 3), np.float32) for _ in range(3))
+        rows = np.flatnonzero(hit)
+        d = _rows(np.asarray(direction, np.float32), rows)
+        point[rows] = _rows(np.asarray(origin, np.float32), rows) + hits.t[rows, None] * d
+        normal[rows] = _facing(_rows(hits.normal, rows), d)
+        surface = np.flatnonzero(hit & (hits.geom < self.instance_count))
+        if len(surface):
+            rho[surface] = self.first_albedo(hits, surface, _rows(np.asarray(direction, np.float32), surface),
+                                             _rows(normal, surface))
+        return FirstHits(hit, point, normal, rho)
+
+    def first_albedo(self, hits: Hits, surface: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
+        """Albedo (n, 3) of the camera-ray hits ``surface`` (rows of ``hits`` on instances): the matte
+        materials' reflectance, image textures filtered over the rays' footprints as when shading."""
+        face, bary = self._triangles(hits, surface)
+        return self._albedo(face, bary, hits.geom[surface], direction, ng, hits.t[surface])
 
     def _surface_points(self, origin: np.ndarray, direction: np.ndarray, hits: Hits, surface: np.ndarray,
                         basis: np.ndarray | None = None) -> tuple[np.ndarray, ...]:

@@ -20,6 +20,7 @@ import numpy as np
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core import validation
 from realistic.errors import UserError
+from realistic.renderer.aov import parse_aovs
 from realistic.renderer.pass_plan import default_pass_samples
 from realistic.renderer.timing import StageClock
 from realistic.scene.model import Scene
@@ -34,11 +35,13 @@ class PassSettings:
     seed: int = 0
     light_samples: int = 1
     morton: bool = False
+    aovs: tuple[str, ...] = ()  # ``renderer.aov`` names, in ``AOV_NAMES`` order
 
 
 @dataclass(frozen=True)
 class PassResult:
-    """One pass's per-pixel sums (``film.pass_sums``) and ray counts; ``index`` is its plan index."""
+    """One pass's per-pixel sums (``film.pass_sums``: the radiance's 3 columns, then the AOVs'
+    (``aov.AovLayout``)) and ray counts; ``index`` is its plan index."""
 
     index: int
     first_pixel: int
@@ -76,9 +79,12 @@ class RenderJob:
     # False: a complete frame's image is dropped once ``RenderObserver.on_frame`` has had it (its
     # result comes back with a 0x0 image), so a long sequence holds no finished frames
     keep_images: bool = True
+    # first-hit outputs written beside the image (``renderer.aov``): names or "depth,normal"
+    aovs: tuple[str, ...] | str = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", tuple(self.cameras))
+        object.__setattr__(self, "aovs", parse_aovs(self.aovs))
         if not self.cameras:
             raise UserError("nothing to render: no cameras")
         validation.seed(self.seed)
@@ -93,7 +99,8 @@ class RenderJob:
     def settings(self) -> PassSettings:
         """What each pass runner needs besides the scene and camera."""
         light_samples = self.scene.light_samples if self.light_samples is None else self.light_samples
-        return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton)
+        return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton,
+                            parse_aovs(self.aovs))
 
     @property
     def pass_size(self) -> int:
@@ -119,6 +126,10 @@ class RenderResult:
     passes_total: int = 0
     job: RenderJob | None = None
     frame: int = 0
+    # the AOVs' EXR channels (``aov.AovLayout.images``): name -> (H, W) float32
+    aovs: dict[str, np.ndarray] = field(default_factory=dict)
+    # the film image when ``image`` holds its denoised version (``renderer.denoise``), else None
+    noisy: np.ndarray | None = None
 
     @property
     def camera(self) -> Camera:

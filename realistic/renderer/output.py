@@ -142,6 +142,7 @@ def save(result: RenderResult, path: str | os.PathLike, photographic: Photograph
     if photographic is not None:
         metadata.update(photographic.header(result.camera))
     stops = preview_stops(image, photographic, exposure)
+    layers = layer_channels(result, photographic)
     job = result.job
     checkpoint = job.checkpoint if job is not None else None
     with signals_deferred():
@@ -151,10 +152,10 @@ def save(result: RenderResult, path: str | os.PathLike, photographic: Photograph
             raise BetterImageKept(f"{path} holds {theirs} samples, this interrupted render {result.samples_done}: "
                                   f"kept it{kept}")
         try:
-            _write(path, image, metadata, stops)
+            _write(path, image, metadata, stops, layers)
         except UserError as err:
             kept = f"; the checkpoint {checkpoint.path} is kept" if checkpoint is not None else ""
-            raise UserError(f"{err}; {_rescue(path, image, metadata, stops)}{kept}") from None
+            raise UserError(f"{err}; {_rescue(path, image, metadata, stops, layers)}{kept}") from None
         if checkpoint is not None and not result.interrupted:
             checkpoint.path.unlink(missing_ok=True)
     return stops
@@ -171,7 +172,18 @@ def report_non_finite(path: Path, image: np.ndarray) -> int:
     return bad
 
 
-def _rescue(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> str:
+def layer_channels(result: RenderResult, photographic: Photographic | None) -> dict[str, np.ndarray]:
+    """The EXR channels written beside R, G, B: the AOVs (``renderer.aov``) as they are, and for a
+    denoised image the film's own as "Noisy.R", "Noisy.G", "Noisy.B", exposed as the image is."""
+    layers = dict(result.aovs)
+    if result.noisy is not None:
+        noisy = exposed(result.noisy, photographic)
+        layers.update({f"Noisy.{name}": noisy[..., index] for index, name in enumerate("RGB")})
+    return layers
+
+
+def _rescue(path: Path, image: np.ndarray, metadata: Metadata, stops: float,
+            layers: dict[str, np.ndarray] | None = None) -> str:
     """Write the image to the temporary folder; what became of it, for the error line."""
     try:
         handle, name = tempfile.mkstemp(prefix=f"realistic-{path.stem[:64]}-", suffix=".exr")
@@ -180,13 +192,14 @@ def _rescue(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> 
     os.close(handle)
     rescue = Path(name)
     try:
-        _write(rescue, image, metadata, stops)
+        _write(rescue, image, metadata, stops, layers)
     except UserError as err:
         rescue.unlink(missing_ok=True)
         return f"the rescue copy failed too ({err})"
     return f"the render was saved as {rescue} (and its .png) instead"
 
 
-def _write(path: Path, image: np.ndarray, metadata: Metadata, stops: float) -> None:
-    write_exr(path, image, metadata)
+def _write(path: Path, image: np.ndarray, metadata: Metadata, stops: float,
+           layers: dict[str, np.ndarray] | None = None) -> None:
+    write_exr(path, image, metadata, layers)
     write_png(path.with_suffix(".png"), image, stops)

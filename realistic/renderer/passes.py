@@ -37,6 +37,7 @@ import numpy as np
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core import affinity, validation
 from realistic.errors import UserError
+from realistic.renderer.aov import AovLayout
 from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, refuse_unless_resuming, save_checkpoint
 from realistic.renderer.film import Film, PassFilm
 from realistic.renderer.job import PassExecutor, PassResult, RenderJob, RenderObserver, RenderResult, TaskHandle
@@ -138,6 +139,7 @@ class _Frame:
     camera: Camera
     plan: list[SampleBlock]
     result: RenderResult
+    layout: AovLayout
     film: PassFilm | None = None
 
     @property
@@ -147,7 +149,8 @@ class _Frame:
     def started(self) -> PassFilm:
         """The film, allocated on first use."""
         if self.film is None:
-            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp), self.plan)
+            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp, self.layout.columns),
+                                 self.plan)
         return self.film
 
 
@@ -197,14 +200,14 @@ def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
         plan = plans[key]
         result = RenderResult(_EMPTY, 0, camera.sample_count, 0, 0, 0.0, False, passes_total=len(plan), job=job,
                               frame=index)
-        frames.append(_Frame(camera, plan, result))
+        frames.append(_Frame(camera, plan, result, AovLayout(job.settings.aovs)))
     if job.checkpoint is None:
         return frames, None
     identity = RenderIdentity.of(job.scene, job.cameras[0], job.seed, job.pass_size, job.backend,
-                                 job.settings.light_samples)
+                                 job.settings.light_samples, job.settings.aovs)
     frame = frames[0]
     if job.checkpoint.resume:
-        frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan)
+        frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan, frame.layout.columns)
         frame.result.samples_done = int(frame.film.film.samples.sum()) + sum(frame.plan[i].count
                                                                             for i in frame.film.waiting)
         frame.result.passes_done = frame.film.passes_taken
@@ -271,7 +274,7 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
             if observer.on_frame is not None:
                 observer.on_frame(finished)
             if not job.keep_images:
-                finished.image = _EMPTY
+                finished.image, finished.aovs = _EMPTY, {}
 
     def periodic() -> None:
         now = time.monotonic()
@@ -329,6 +332,7 @@ def _finish(frame: _Frame, start: float, clock: StageClock, keep_images: bool) -
     result = frame.result
     if frame.film is not None:
         result.image = frame.film.image()
+        result.aovs = frame.layout.images(frame.film.sums(), frame.camera.width, frame.camera.height)
         if frame.complete:
             frame.film = None
     elif result.image is _EMPTY and keep_images and not frame.complete:

@@ -11,6 +11,7 @@ import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core.spectrum import rgb_response
+from realistic.renderer.aov import AovLayout, CameraFrame
 from realistic.renderer.backends import backend_for
 from realistic.renderer.film import pass_sums
 from realistic.renderer.integrators import make_integrator
@@ -54,6 +55,8 @@ class PassRunner:
         self.generate = kernels.ray_generator(camera, settings.seed)
         self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
                                           settings.seed, camera.pixel_spread_radians(), backend=kernels)
+        self.aovs = AovLayout(settings.aovs)
+        self.frame = CameraFrame.of(camera.world_from_camera)
 
     def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
         """The results of passes given as (plan index, sample block)."""
@@ -88,4 +91,10 @@ class PassRunner:
                     response /= np.float32(rays_per_sample)
                 value *= response
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
+        if self.aovs.aovs:
+            with self.clock("first hits"):  # traced again: the integrators keep their hits to themselves
+                hits = self.integrator.first_hits(origin, direction)
+                sign = np.sign(rays.weight[alive])
+                values = self.aovs.values(hits, sign, self.frame)
+                sums = np.column_stack([sums, pass_sums(pixel, values, first_pixel, pixel_count)])
         return PassResult(index, first_pixel, sums, block.count, len(alive), shadow_rays)
