@@ -14,8 +14,9 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core.image_files import read_exr
 from realistic.core.transforms import translate
+from realistic.core.validation import aovs as parse_aovs
 from realistic.errors import UserError
-from realistic.renderer.aov import AovLayout, CameraFrame, parse_aovs
+from realistic.renderer.aov import AovLayout, CameraFrame
 from realistic.renderer.checkpoint import checkpoint_path
 from realistic.renderer.job import Checkpointing, RenderJob
 from realistic.renderer.output import save

@@ -27,33 +27,12 @@ bit-identical whatever the executor), the farm and checkpoints with the radiance
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 
-from realistic.errors import UserError
-
-#: The AOVs a render can add, in the order their channels are laid out.
-AOV_NAMES = ("albedo", "position", "depth", "normal")
 #: Film columns before the AOVs': the radiance's R, G, B sums.
 RADIANCE_COLUMNS = 3
-
-
-def parse_aovs(value: str | Iterable[str] | None) -> tuple[str, ...]:
-    """AOV names from "depth,normal" or a sequence of names: each known, none repeated, sorted in
-    ``AOV_NAMES`` order; () for None or "". A UserError names an unknown or repeated one."""
-    if value is None:
-        return ()
-    names = [part.strip() for part in value.split(",")] if isinstance(value, str) else list(value)
-    if isinstance(value, str) and names == [""]:
-        return ()
-    for name in names:
-        if not isinstance(name, str) or name not in AOV_NAMES:
-            raise UserError(f"unknown AOV {name!r} (choose from {', '.join(AOV_NAMES)}, comma-separated)")
-        if names.count(name) > 1:
-            raise UserError(f"AOV {name!r} is named twice")
-    return tuple(name for name in AOV_NAMES if name in names)
 
 
 @dataclass(frozen=True)

@@ -114,7 +114,7 @@ class RenderIdentity:
     pass_samples: int
     backend: str
     light_samples: int
-    aovs: str = ""  # comma-separated, in ``aov.AOV_NAMES`` order; "" for none
+    aovs: str = ""  # comma-separated, in ``validation.AOV_NAMES`` order; "" for none
 
     @classmethod
     def of(cls, scene: Scene, camera: Camera, seed: int, pass_samples: int, backend: str,

@@ -20,7 +20,6 @@ import numpy as np
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core import validation
 from realistic.errors import UserError
-from realistic.renderer.aov import parse_aovs
 from realistic.renderer.pass_plan import default_pass_samples
 from realistic.renderer.timing import StageClock
 from realistic.scene.model import Scene
@@ -35,7 +34,7 @@ class PassSettings:
     seed: int = 0
     light_samples: int = 1
     morton: bool = False
-    aovs: tuple[str, ...] = ()  # ``renderer.aov`` names, in ``AOV_NAMES`` order
+    aovs: tuple[str, ...] = ()  # ``renderer.aov`` names, in ``validation.AOV_NAMES`` order
 
 
 @dataclass(frozen=True)
@@ -84,7 +83,7 @@ class RenderJob:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", tuple(self.cameras))
-        object.__setattr__(self, "aovs", parse_aovs(self.aovs))
+        object.__setattr__(self, "aovs", validation.aovs(self.aovs))
         if not self.cameras:
             raise UserError("nothing to render: no cameras")
         validation.seed(self.seed)
@@ -100,7 +99,7 @@ class RenderJob:
         """What each pass runner needs besides the scene and camera."""
         light_samples = self.scene.light_samples if self.light_samples is None else self.light_samples
         return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton,
-                            parse_aovs(self.aovs))
+                            validation.aovs(self.aovs))
 
     @property
     def pass_size(self) -> int:
