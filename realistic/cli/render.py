@@ -96,6 +96,14 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
                         help="sample ids per pass (default: about 2^19 camera and shadow rays' worth, 262144 "
                              "samples at one light sample, 104857 at four); checkpoints hold whole passes, and a farm "
                              "task is about 2^20 samples of passes")
+    parser.add_argument("--aov", type=checked(str, validation.aovs), default=(), metavar="LIST",
+                        help=f"also write what the camera rays first hit, as EXR channels with pbrt-v4's GBuffer "
+                             f"names: comma-separated from {', '.join(validation.AOV_NAMES)} (depth and position in "
+                             f"camera space, scene units; normal in camera space)")
+    parser.add_argument("--denoise", action="store_true",
+                        help="denoise the image with Open Image Denoise, guided by the albedo and normal AOVs "
+                             "(computed for it); the film's own image is kept as the EXR's Noisy layer "
+                             "(needs the denoise extra: pip install 'realistic[denoise]')")
     add_farm_arguments(parser)
     parser.set_defaults(run=cmd_render)
 
@@ -194,6 +202,7 @@ def executor_for(args: argparse.Namespace, client: Any,
 
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path, refuse_unless_resuming
+    from realistic.renderer.denoise import GUIDE_AOVS, check_available, denoised
     from realistic.renderer.inputs import build_render_inputs
     from realistic.renderer.output import BetterImageKept, Photographic, exr_output, save, write_preview
     from realistic.renderer.passes import render
@@ -203,6 +212,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         exr_output(args.out)
     if args.out is not None and not args.sweep and not args.resume:
         refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
+    if args.denoise:
+        check_available()
     security = farm_security(args)  # TLS options checked before any work
     sweep = parse_sweep(args.sweep) if args.sweep else None
     if sweep is not None and args.resume:
@@ -225,12 +236,14 @@ def cmd_render(args: argparse.Namespace) -> int:
         check_writable(checkpoint.path)
     job = RenderJob(inputs.scene, tuple(cameras), args.backend, args.seed, args.cl_device, inputs.light_samples,
                     args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep,
-                    keep_images=sweep is None)  # a sequence's frames are written as they complete
+                    keep_images=sweep is None,  # a sequence's frames are written as they complete
+                    aovs=tuple({*args.aov, *(GUIDE_AOVS if args.denoise else ())}))
     written: dict[int, float] = {}
 
     def save_frame(result: RenderResult) -> None:
         try:
-            written[result.frame] = save(result, outs[result.frame], photographic, args.exposure)
+            written[result.frame] = save(denoised(result) if args.denoise else result, outs[result.frame],
+                                         photographic, args.exposure)
         except BetterImageKept as err:
             print(f"realistic: {err}", file=sys.stderr)
 
