@@ -68,69 +68,74 @@ class CameraFrame:
         return np.asarray(world, np.float64) @ self.rotation.T
 
 
+#: Each quantity's three channels, in film column order.
+CHANNELS = {"albedo": ("Albedo.R", "Albedo.G", "Albedo.B"), "position": ("P.X", "P.Y", "P.Z"),
+            "normal": ("N.X", "N.Y", "N.Z")}
+
+
 @dataclass(frozen=True)
 class AovLayout:
-    """The film columns of a set of AOVs (after the radiance's 3) and the EXR channels they make."""
+    """The film columns of a set of AOVs (after the radiance's 3) and the EXR channels they make.
+
+    Each quantity takes three columns of world-space sums (depth alone too: the camera's z is a
+    mix of the world's three); camera space is applied to the per-pixel averages (``images``), as
+    an affine map commutes with a weighted mean and a rotation with a normalisation."""
 
     aovs: tuple[str, ...]
 
     @property
-    def groups(self) -> tuple[tuple[str, tuple[str, ...]], ...]:
-        """(quantity, its channel names) in column order: quantities "albedo", "position", "normal"."""
-        groups: list[tuple[str, tuple[str, ...]]] = []
-        if "albedo" in self.aovs:
-            groups.append(("albedo", ("Albedo.R", "Albedo.G", "Albedo.B")))
-        if "position" in self.aovs:
-            groups.append(("position", ("P.X", "P.Y", "P.Z")))
-        elif "depth" in self.aovs:
-            groups.append(("position", ("P.Z",)))
-        if "normal" in self.aovs:
-            groups.append(("normal", ("N.X", "N.Y", "N.Z")))
-        return tuple(groups)
+    def quantities(self) -> tuple[str, ...]:
+        """"albedo", "position", "normal" as the AOVs need them, in column order."""
+        wanted = {"albedo": "albedo", "position": "position", "depth": "position", "normal": "normal"}
+        return tuple(q for q in CHANNELS if any(wanted[name] == q for name in self.aovs))
 
     @property
     def channel_names(self) -> tuple[str, ...]:
-        return tuple(name for _, names in self.groups for name in names)
+        """The EXR channels, in order: depth alone is "P.Z" (pbrt-v4 has no other depth channel)."""
+        names: list[str] = []
+        for quantity in self.quantities:
+            depth_only = quantity == "position" and "position" not in self.aovs
+            names += ["P.Z"] if depth_only else CHANNELS[quantity]
+        return tuple(names)
 
     @property
     def columns(self) -> int:
-        """Film columns in all: radiance, the AOVs' channels, and the two weight sums (every sample's
-        and the hitting samples') when there are AOVs."""
-        return RADIANCE_COLUMNS + (len(self.channel_names) + 2 if self.aovs else 0)
+        """Film columns in all: radiance, three per quantity, and the two weight sums (every
+        sample's and the hitting samples') when there are AOVs."""
+        return RADIANCE_COLUMNS + (3 * len(self.quantities) + 2 if self.aovs else 0)
 
-    def values(self, hits: FirstHits, sign: np.ndarray, frame: CameraFrame) -> np.ndarray:
+    def values(self, hits: FirstHits, sign: np.ndarray) -> np.ndarray:
         """Per-sample values (N, columns - 3) float64 whose per-pixel sums are the AOV columns:
-        each channel times the sample's filter sign (0 where nothing was hit), then the sign and
-        the sign where something was hit."""
-        sign = np.asarray(sign, np.float64)
-        hit_sign = np.where(hits.hit, sign, 0.0)
-        parts = []
-        for quantity, names in self.groups:
-            if quantity == "albedo":
-                value = np.asarray(hits.albedo, np.float64)
-            elif quantity == "position":
-                value = frame.points(hits.point)[:, 3 - len(names):]
-            else:
-                value = frame.directions(hits.normal)
-            parts.append(np.where(hits.hit[:, None], value, 0.0) * hit_sign[:, None])
-        return np.column_stack([*parts, sign, hit_sign])
+        each quantity (world space) times the sample's filter sign where it hit something (misses
+        add nothing), then the sign and the sign where something was hit."""
+        out = np.empty((len(hits.hit), self.columns - RADIANCE_COLUMNS), np.float64)
+        out[:, -2] = sign
+        out[:, -1] = np.where(hits.hit, out[:, -2], 0.0)
+        sources = {"albedo": hits.albedo, "position": hits.point, "normal": hits.normal}
+        for index, quantity in enumerate(self.quantities):
+            block = out[:, 3 * index:3 * index + 3]
+            block[:] = sources[quantity]
+            block *= out[:, -1:]
+        return out
 
-    def images(self, sums: np.ndarray, width: int, height: int) -> dict[str, np.ndarray]:
-        """EXR channel name -> (height, width) float32 image, from the film's sums (pixels, columns)."""
+    def images(self, sums: np.ndarray, width: int, height: int, frame: CameraFrame) -> dict[str, np.ndarray]:
+        """EXR channel name -> (height, width) float32 image from the film's sums (pixels, columns):
+        albedo over every sample's weight, position over the hitting samples' (then in ``frame``'s
+        camera space), normals normalised (then rotated into camera space); 0 where undefined."""
         if not self.aovs:
             return {}
-        every, hitting = sums[:, -2], sums[:, -1]
-        out: dict[str, np.ndarray] = {}
-        column = RADIANCE_COLUMNS
-        for quantity, names in self.groups:
-            block = sums[:, column:column + len(names)]
-            column += len(names)
-            if quantity == "normal":
-                length = np.linalg.norm(block, axis=1, keepdims=True)
-                value = np.divide(block, length, out=np.zeros_like(block), where=length > 0)
+        every, hitting = sums[:, -2:-1], sums[:, -1:]
+        values: dict[str, np.ndarray] = {}
+        for index, quantity in enumerate(self.quantities):
+            block = sums[:, RADIANCE_COLUMNS + 3 * index:RADIANCE_COLUMNS + 3 * index + 3]
+            if quantity == "albedo":
+                value = np.divide(block, every, out=np.zeros_like(block), where=every != 0)
+            elif quantity == "position":
+                seen = hitting != 0
+                mean = np.divide(block, hitting, out=np.zeros_like(block), where=seen)
+                value = np.where(seen, frame.points(mean), 0.0)
             else:
-                weight = (every if quantity == "albedo" else hitting)[:, None]
-                value = np.divide(block, weight, out=np.zeros_like(block), where=weight != 0)
-            for index, name in enumerate(names):
-                out[name] = value[:, index].reshape(height, width).astype(np.float32)
-        return out
+                length = np.linalg.norm(block, axis=1, keepdims=True)
+                value = frame.directions(np.divide(block, length, out=np.zeros_like(block), where=length > 0))
+            values.update(zip(CHANNELS[quantity], value.T, strict=True))
+        return {name: values[name].reshape(height, width).astype(np.float32) for name in self.channel_names}

@@ -37,7 +37,7 @@ import numpy as np
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core import affinity, validation
 from realistic.errors import UserError
-from realistic.renderer.aov import AovLayout
+from realistic.renderer.aov import AovLayout, CameraFrame
 from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, refuse_unless_resuming, save_checkpoint
 from realistic.renderer.film import Film, PassFilm
 from realistic.renderer.job import PassExecutor, PassResult, RenderJob, RenderObserver, RenderResult, TaskHandle
@@ -332,7 +332,8 @@ def _finish(frame: _Frame, start: float, clock: StageClock, keep_images: bool) -
     result = frame.result
     if frame.film is not None:
         result.image = frame.film.image()
-        result.aovs = frame.layout.images(frame.film.sums(), frame.camera.width, frame.camera.height)
+        result.aovs = frame.layout.images(frame.film.sums(), frame.camera.width, frame.camera.height,
+                                          CameraFrame.of(frame.camera.world_from_camera))
         if frame.complete:
             frame.film = None
     elif result.image is _EMPTY and keep_images and not frame.complete:

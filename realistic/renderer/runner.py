@@ -11,7 +11,7 @@ import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core.spectrum import rgb_response
-from realistic.renderer.aov import AovLayout, CameraFrame
+from realistic.renderer.aov import AovLayout
 from realistic.renderer.backends import backend_for
 from realistic.renderer.film import pass_sums
 from realistic.renderer.integrators import make_integrator
@@ -56,7 +56,6 @@ class PassRunner:
         self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
                                           settings.seed, camera.pixel_spread_radians(), backend=kernels)
         self.aovs = AovLayout(settings.aovs)
-        self.frame = CameraFrame.of(camera.world_from_camera)
 
     def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
         """The results of passes given as (plan index, sample block)."""
@@ -94,7 +93,6 @@ class PassRunner:
         if self.aovs.aovs:
             with self.clock("first hits"):  # traced again: the integrators keep their hits to themselves
                 hits = self.integrator.first_hits(origin, direction)
-                sign = np.sign(rays.weight[alive])
-                values = self.aovs.values(hits, sign, self.frame)
+                values = self.aovs.values(hits, np.sign(rays.weight[alive]))
                 sums = np.column_stack([sums, pass_sums(pixel, values, first_pixel, pixel_count)])
         return PassResult(index, first_pixel, sums, block.count, len(alive), shadow_rays)
