@@ -107,16 +107,17 @@ class AovLayout:
     def values(self, hits: FirstHits, sign: np.ndarray) -> np.ndarray:
         """Per-sample values (N, columns - 3) float64 whose per-pixel sums are the AOV columns:
         each quantity (world space) times the sample's filter sign where it hit something (misses
-        add nothing), then the sign and the sign where something was hit."""
-        out = np.empty((len(hits.hit), self.columns - RADIANCE_COLUMNS), np.float64)
-        out[:, -2] = sign
-        out[:, -1] = np.where(hits.hit, out[:, -2], 0.0)
+        add nothing), then the sign and the sign where something was hit. A transposed view of a
+        (columns - 3, N) array: each column is contiguous, as the per-pixel sums read it."""
+        out = np.empty((self.columns - RADIANCE_COLUMNS, len(hits.hit)), np.float64)
+        out[-2] = sign
+        np.multiply(out[-2], hits.hit, out=out[-1])
         sources = {"albedo": hits.albedo, "position": hits.point, "normal": hits.normal}
         for index, quantity in enumerate(self.quantities):
-            block = out[:, 3 * index:3 * index + 3]
-            block[:] = sources[quantity]
-            block *= out[:, -1:]
-        return out
+            block = out[3 * index:3 * index + 3]
+            block[:] = sources[quantity].T
+            block *= out[-1]
+        return out.T
 
     def images(self, sums: np.ndarray, width: int, height: int, frame: CameraFrame) -> dict[str, np.ndarray]:
         """EXR channel name -> (height, width) float32 image from the film's sums (pixels, columns):

@@ -186,15 +186,17 @@ class DirectLighting:
                                                           self._geom_linear.reshape(-1, 9))
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
-                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, int]:
+                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
+                 hits: Hits | None = None) -> tuple[np.ndarray, int]:
         """RGB radiance (N, 3) float32 along unit-direction rays, and the number of shadow rays traced.
 
         With ``wavelength_nm`` (N,), the spectral radiance at each ray's wavelength, in all three columns.
+        ``hits``: the rays' closest hits when already traced (``first_hits`` took them), else traced here.
         """
         timed = clock or (lambda _stage: nullcontext())
-        with timed("embree"):
-            hits = self.intersector.closest(origin, direction)
+        if hits is None:
+            with timed("embree"):
+                hits = self.intersector.closest(origin, direction)
         if self._kernel is not None and wavelength_nm is None:
             return self._radiance_kernel(self._kernel, origin, direction, pixel, sample, hits, timed)
         with timed("shading"):
@@ -237,10 +239,10 @@ class DirectLighting:
             out[surface] = total / np.float32(self.light_samples)
         return out, shadow_rays
 
-    def first_hits(self, origin: np.ndarray, direction: np.ndarray) -> FirstHits:
-        """What the camera rays hit first (``renderer.aov``): points, normals facing the rays, and
-        albedo (``first_albedo``; 0 on area lights, which have no material)."""
-        hits = self.intersector.closest(origin, direction)
+    def first_hits(self, origin: np.ndarray, direction: np.ndarray, hits: Hits) -> FirstHits:
+        """What the camera rays, whose closest ``hits`` are traced, hit first (``renderer.aov``):
+        points, normals facing the rays, and albedo (``first_albedo``; 0 on area lights, which
+        have no material)."""
         n = len(origin)
         hit = hits.geom >= 0
         point, normal, rho = (np.zeros((n, 3), np.float32) for _ in range(3))

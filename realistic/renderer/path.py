@@ -119,10 +119,11 @@ class PathIntegrator(DirectLighting):
                 self._instance_light[light.instance] = i
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
-                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, int]:
+                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
+                 hits: Hits | None = None) -> tuple[np.ndarray, int]:
         """RGB radiance (N, 3) float32 (spectral values in all columns with ``wavelength_nm``) and the
-        number of shadow rays traced."""
+        number of shadow rays traced; ``hits``: the camera rays' closest hits when already traced."""
+        camera_hits = hits
         timed = clock or (lambda _stage: nullcontext())
         n = len(origin)
         basis_all = None if wavelength_nm is None else rgb_basis(wavelength_nm)
@@ -142,8 +143,11 @@ class PathIntegrator(DirectLighting):
         for depth in range(last + 1):
             if len(path) == 0:
                 break
-            with timed("embree"):
-                hits = self.intersector.closest(o, d)
+            if depth == 0 and camera_hits is not None:
+                hits = camera_hits
+            else:
+                with timed("embree"):
+                    hits = self.intersector.closest(o, d)
             with timed("shading"):
                 basis = None if basis_all is None else basis_all[path]
                 prev_lights = self.light_samples if depth == 1 else 1

@@ -78,8 +78,15 @@ class PassRunner:
             pixel = rays.pixel[alive]
             origin, direction = gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)
             wavelength = None if rays.wavelength_nm is None else rays.wavelength_nm[alive]
+        hits, aov_values = None, None
+        if self.aovs.aovs:  # the camera rays' hits, traced once for the AOVs and the integrator
+            with self.clock("embree"):
+                hits = self.integrator.intersector.closest(origin, direction)
+            with self.clock("first hits"):
+                first = self.integrator.first_hits(origin, direction, hits)
+                aov_values = self.aovs.values(first, np.sign(rays.weight[alive]))
         radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, sample[alive],
-                                                         self.clock, wavelength)
+                                                         self.clock, wavelength, hits)
         with self.clock("accumulation"):
             first_pixel, pixel_count = block.first_pixel, block.pixel_count
             value = radiance  # the integrator's own array: weighted in place, no second (N, 3) array
@@ -90,9 +97,6 @@ class PassRunner:
                     response /= np.float32(rays_per_sample)
                 value *= response
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
-        if self.aovs.aovs:
-            with self.clock("first hits"):  # traced again: the integrators keep their hits to themselves
-                hits = self.integrator.first_hits(origin, direction)
-                values = self.aovs.values(hits, np.sign(rays.weight[alive]))
-                sums = np.column_stack([sums, pass_sums(pixel, values, first_pixel, pixel_count)])
+            if aov_values is not None:
+                sums = np.column_stack([sums, pass_sums(pixel, aov_values, first_pixel, pixel_count)])
         return PassResult(index, first_pixel, sums, block.count, len(alive), shadow_rays)
