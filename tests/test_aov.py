@@ -73,9 +73,13 @@ def test_depth_alone_is_pbrt_v4s_p_z_channel():
     np.testing.assert_allclose(aovs["P.Z"], 3.0, rtol=1e-6)
 
 
-def test_a_lens_camera_gives_depth_in_scene_units_from_its_film():
-    """Camera space of a lens camera is in mm; the AOVs are in the scene's units (metres here)."""
+@pytest.mark.parametrize("spectral", [False, True])
+def test_a_lens_camera_gives_depth_in_scene_units_from_its_film(spectral):
+    """Camera space of a lens camera is in mm; the AOVs are in the scene's units (metres here). A
+    spectral camera's rays of each wavelength count as samples of their own."""
     camera = LensCamera.looking_at(load_lens("dgauss"), np.zeros(3), np.array([0.0, 0.0, 4.0]), None, 43.27, 8, 6, 4)
+    camera = camera.with_dispersion(spectral)
+    assert camera.spectral == spectral
     scene = Scene()
     scene.add(quad(1000.0, 1000.0), translate(0, 0, 4.0) @ FACING_CAMERA, Material((0.5, 0.5, 0.5)))
     frame = CameraFrame.of(camera.world_from_camera)
@@ -211,6 +215,14 @@ def test_aovs_on_a_dask_farm_are_the_same_bits_as_in_process():
     assert sorted(farm.aovs) == sorted(local.aovs)
     for name in local.aovs:
         np.testing.assert_array_equal(farm.aovs[name], local.aovs[name])
+
+
+def test_a_pass_with_no_rays_left_gives_float64_sums():
+    """np.bincount of no weights is int64: a wholly vignetted pass's sums are float64 all the same."""
+    from realistic.renderer.film import pass_sums
+
+    sums = pass_sums(np.zeros(0, np.int64), np.zeros((0, 5)), 10, 4)
+    assert sums.dtype == np.float64 and sums.shape == (4, 5) and not sums.any()
 
 
 def test_a_pass_whose_sums_are_not_the_plans_is_refused_on_arrival():

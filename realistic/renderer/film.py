@@ -13,11 +13,11 @@ from realistic.camera.base import SampleBlock
 
 
 def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_count: int) -> np.ndarray:
-    """Sums (pixel_count, columns) of ``value`` rows (N, columns) per pixel, pixels first_pixel ..
-    + pixel_count - 1."""
+    """Sums (pixel_count, columns) float64 of ``value`` rows (N, columns) per pixel, pixels
+    first_pixel .. + pixel_count - 1 (float64 with no rows too, where ``np.bincount`` gives int64)."""
     local = pixel - first_pixel
     return np.column_stack([np.bincount(local, weights=value[:, c], minlength=pixel_count)
-                            for c in range(value.shape[1])])
+                            for c in range(value.shape[1])]).astype(np.float64, copy=False)
 
 
 class Film:
