@@ -5,10 +5,12 @@ split between two planes (or a plane and nothing) by an edge through its centre,
 albedo are the same mixture of the two sides."""
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import shared_file
 from realistic import load_lens
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
@@ -18,6 +20,7 @@ from realistic.core.validation import aovs as parse_aovs
 from realistic.errors import UserError
 from realistic.renderer.aov import AovLayout, CameraFrame
 from realistic.renderer.checkpoint import checkpoint_path
+from realistic.renderer.inputs import RenderOptions, build_render_inputs
 from realistic.renderer.job import Checkpointing, RenderJob
 from realistic.renderer.output import save
 from realistic.renderer.passes import ThreadPasses, render
@@ -26,6 +29,7 @@ from realistic.scene.model import AreaLight, Scene
 from realistic.scene.shapes import quad
 from realistic.scene.surfaces import Material
 
+REPO = Path(__file__).resolve().parents[1]
 ALL = "depth,normal,albedo,position"
 FACING_CAMERA = np.diag([1.0, 1.0, -1.0, 1.0])  # a quad turned to face -z, toward a camera at the origin
 
@@ -138,6 +142,20 @@ def test_aovs_do_not_change_the_image_and_are_the_same_bits_for_any_threads_and_
     assert plain.aovs == {} and sorted(one.aovs) == sorted(three.aovs)
     for name in one.aovs:
         np.testing.assert_array_equal(one.aovs[name], three.aovs[name])
+
+
+def test_the_dragons_textures_give_the_same_image_with_aovs_through_the_shading_kernel():
+    """With the OpenCL shading kernel, image-textured albedo is computed once for the AOVs and the
+    kernel: the image is the same bits as without AOVs, and the albedo is within the textures' range."""
+    meshes, pbrt = shared_file("meshes"), shared_file("scenes/pbrt")
+    inputs = build_render_inputs(RenderOptions(scene=str(REPO / "scenes" / "dof-dragons" / "dgauss.pbrt"),
+                                               resolution=(48, 32), search_paths=[str(meshes), str(pbrt)]))
+    camera = dataclasses.replace(inputs.camera, spp=2)
+    plain = render(RenderJob(inputs.scene, (camera,), "opencl", seed=2), ThreadPasses(2))[0]
+    with_aovs = render(RenderJob(inputs.scene, (camera,), "opencl", seed=2, aovs="albedo,normal"), ThreadPasses(2))[0]
+    np.testing.assert_array_equal(plain.image, with_aovs.image)
+    albedo = np.stack([with_aovs.aovs[f"Albedo.{c}"] for c in "RGB"])
+    assert albedo.max() > 0 and albedo.min() >= 0 and albedo.max() <= 1
 
 
 def test_aovs_are_written_as_exr_channels_with_pbrt_v4s_names(tmp_path):

@@ -120,9 +120,11 @@ class PathIntegrator(DirectLighting):
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
-                 hits: Hits | None = None) -> tuple[np.ndarray, int]:
+                 hits: Hits | None = None, albedo: np.ndarray | None = None) -> tuple[np.ndarray, int]:
         """RGB radiance (N, 3) float32 (spectral values in all columns with ``wavelength_nm``) and the
-        number of shadow rays traced; ``hits``: the camera rays' closest hits when already traced."""
+        number of shadow rays traced; ``hits``: the camera rays' closest hits when already traced
+        (``albedo``, the shading kernel's input in ``DirectLighting``, has no use here: BSDFs are
+        evaluated at every hit)."""
         camera_hits = hits
         timed = clock or (lambda _stage: nullcontext())
         n = len(origin)

@@ -78,15 +78,17 @@ class PassRunner:
             pixel = rays.pixel[alive]
             origin, direction = gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)
             wavelength = None if rays.wavelength_nm is None else rays.wavelength_nm[alive]
-        hits, aov_values = None, None
-        if self.aovs.aovs:  # the camera rays' hits, traced once for the AOVs and the integrator
+        hits, albedo, aov_values = None, None, None
+        if self.aovs.aovs:  # the camera rays' hits and albedo, found once for the AOVs and the integrator
             with self.clock("embree"):
                 hits = self.integrator.intersector.closest(origin, direction)
             with self.clock("first hits"):
-                first = self.integrator.first_hits(origin, direction, hits)
+                with_albedo = "albedo" in self.aovs.quantities
+                first = self.integrator.first_hits(origin, direction, hits, with_albedo)
+                albedo = first.albedo if with_albedo else None
                 aov_values = self.aovs.values(first, np.sign(rays.weight[alive]))
         radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, sample[alive],
-                                                         self.clock, wavelength, hits)
+                                                         self.clock, wavelength, hits, albedo)
         with self.clock("accumulation"):
             first_pixel, pixel_count = block.first_pixel, block.pixel_count
             value = radiance  # the integrator's own array: weighted in place, no second (N, 3) array
