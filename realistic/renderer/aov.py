@@ -18,7 +18,7 @@ background has depth, position and normal 0, and a pixel partly on background ke
 what it does see while its albedo is diluted by the misses. Each sample counts with its pixel-filter
 weight's sign (the camera's weight is sign(f) |integral f| / integral f times positive radiometric
 factors, and pbrt-v4's GBuffer sums use the filter weight alone): the magnitude cancels in every
-ratio above. Vignetted samples (weight 0) carry no hit and count in neither sum.
+ratio above. Vignetted samples (weight 0, never traced) count in neither sum.
 
 Per pass the runner adds, per pixel, float64 sums of these per-sample values (``AovLayout.values``)
 as extra columns after the radiance's three, so they go through ``film.PassFilm`` (plan order,
@@ -62,9 +62,11 @@ class CameraFrame:
         return cls(np.linalg.inv(linear), matrix[:3, 3].copy())
 
     def points(self, world: np.ndarray) -> np.ndarray:
+        """World points (N, 3) in camera space, float64."""
         return (np.asarray(world, np.float64) - self.origin) @ self.rotation.T
 
     def directions(self, world: np.ndarray) -> np.ndarray:
+        """World directions (N, 3) in camera space, float64."""
         return np.asarray(world, np.float64) @ self.rotation.T
 
 
