@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/converge.py [--scene scenes/dof-dragons/dgauss.pbrt] [--res 512x512]
         [--spps 4,8,16,32,64,128,256] [--reference-spp 1024] [--target 0.02] [--noise-points 2]
-        [--light-samples N] [--search-path DIR ...]
+        [--light-samples N] [--denoise] [--search-path DIR ...]
 
 Loads the scene once (``build_render_inputs``; the dragons by default, with ``../shared/meshes``
 and ``../shared/scenes/pbrt`` as search paths), renders a reference at ``--reference-spp`` (seed 1)
@@ -26,6 +26,13 @@ the issue's machine for the dragons through dgauss at 512x512 (64 spp: 29.5 s wa
 0.073 against its own converged image), our time to 0.073 and the ratio ours / pbrt-v3. Those
 figures are constants: on another processor the ratio compares the machines as well as the
 renderers, so the table and the JSON name the processor this run had (``machine.describe``).
+
+``--denoise`` renders each count once more with the albedo and normal AOVs and denoises it with
+Open Image Denoise (``renderer.denoise``, the ``denoise`` extra): its wall seconds (the AOVs' extra
+first-hit trace and the denoiser included), its relative RMSE against the same (undenoised)
+reference, and the time to ``--target`` with and without the denoiser, interpolated the same way.
+A denoiser trades variance for bias: its error stops falling with spp once its bias dominates, so
+its time to a low target may be "not reached".
 
 ``--light-samples N`` renders the tests with N light samples per hit instead of the scene's (the
 reference keeps the scene's; both estimators converge to the same image): where the lens's depth of
@@ -60,6 +67,7 @@ import machine  # noqa: E402
 from realistic.cli.values import checked, parse_resolution, parse_spp_list, positive  # noqa: E402
 from realistic.core import validation  # noqa: E402
 from realistic.renderer.convergence import relative_rmse, two_seed_noise  # noqa: E402
+from realistic.renderer.denoise import GUIDE_AOVS, check_available, denoised  # noqa: E402
 from realistic.renderer.inputs import RenderInputs, RenderOptions, build_render_inputs  # noqa: E402
 from realistic.renderer.job import RenderJob  # noqa: E402
 from realistic.renderer.passes import ThreadPasses, render  # noqa: E402
@@ -143,6 +151,18 @@ def render_seconds(inputs: RenderInputs, spp: int, seed: int, light_samples: int
     return image, time.perf_counter() - start
 
 
+def denoised_seconds(inputs: RenderInputs, spp: int, seed: int, light_samples: int | None = None
+                     ) -> tuple[np.ndarray, float]:
+    """The image at ``spp`` rendered with the denoiser's AOVs and denoised, and the seconds of
+    ``render`` and the denoiser together."""
+    camera = dataclasses.replace(inputs.camera, spp=spp)
+    start = time.perf_counter()
+    job = RenderJob(inputs.scene, (camera,), seed=seed, light_samples=light_samples or inputs.light_samples,
+                    aovs=GUIDE_AOVS)
+    image = denoised(render(job, ThreadPasses(pin_threads=True))[0]).image
+    return image, time.perf_counter() - start
+
+
 def reference(inputs: RenderInputs, path: Path, spp: int) -> np.ndarray:
     """The cached reference image, rendered and saved when absent."""
     if path.is_file():
@@ -178,6 +198,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="light samples per hit of the test renders (default: the scene's, 4 for the "
                              "dragons, as pbrt-v3 was measured); the reference keeps the scene's: both converge to "
                              "the same image")
+    parser.add_argument("--denoise", action="store_true",
+                        help="also time each count with its albedo and normal AOVs and Open Image Denoise, and the "
+                             "time to --target with the denoiser (needs the denoise extra)")
     parser.add_argument("--search-path", type=Path, action="append", metavar="DIR",
                         help="pbrt search path (default for the dragons: ../shared/meshes, ../shared/scenes/pbrt)")
     return parser
@@ -191,6 +214,8 @@ def main() -> None:
     missing = [p for p in (args.scene, *search_paths) if not p.exists()]
     if missing:
         raise SystemExit(f"converge: {missing[0]} not found (the dragons need ../shared data)")
+    if args.denoise:
+        check_available()
     out = ROOT / "bench" / "results"
     out.mkdir(parents=True, exist_ok=True)
 
@@ -207,7 +232,8 @@ def main() -> None:
           f"{args.reference_spp} spp (seed {REFERENCE_SEED}), tests seed {TEST_SEED}, scene load {load_s:.2f} s; "
           f"the machine's load is not controlled; processor: {machine.describe()}")
     print("relative RMSE = sqrt(mean((img - ref)^2)) / mean(ref)")
-    print(f"{'spp':>5}{'render s':>10}{'wall s':>9}{'rel RMSE':>10}{'noise':>8}")
+    denoiser = f"{'denoised s':>12}{'wall s':>9}{'rel RMSE':>10}" if args.denoise else ""
+    print(f"{'spp':>5}{'render s':>10}{'wall s':>9}{'rel RMSE':>10}{'noise':>8}{denoiser}")
     rows = []
     for spp in args.spps:
         image, seconds = render_seconds(inputs, spp, TEST_SEED, light_samples)
@@ -215,7 +241,12 @@ def main() -> None:
                      "rel_rmse": relative_rmse(image, ref)})
         if spp in args.spps[-args.noise_points:]:
             rows[-1]["noise"] = two_seed_noise(image, render_seconds(inputs, spp, NOISE_SEED, light_samples)[0])
-        noise = f"{rows[-1]['noise']:>8.4f}" if "noise" in rows[-1] else ""
+        noise = f"{rows[-1]['noise']:>8.4f}" if "noise" in rows[-1] else f"{'':>8}"
+        if args.denoise:
+            clean, clean_s = denoised_seconds(inputs, spp, TEST_SEED, light_samples)
+            rows[-1].update({"denoised_s": clean_s, "denoised_wall_s": load_s + clean_s,
+                             "denoised_rel_rmse": relative_rmse(clean, ref)})
+            noise += f"{clean_s:>12.2f}{load_s + clean_s:>9.2f}{rows[-1]['denoised_rel_rmse']:>10.4f}"
         print(f"{spp:>5}{seconds:>10.2f}{load_s + seconds:>9.2f}{rows[-1]['rel_rmse']:>10.4f}{noise}", flush=True)
     walls, errors = [r["wall_s"] for r in rows], [r["rel_rmse"] for r in rows]
     to_target = time_to_error(walls, errors, args.target)
@@ -223,6 +254,14 @@ def main() -> None:
     ratio = None if to_pbrt is None else to_pbrt / PBRT_V3["wall_s"]
     print("(noise: each render's own relative RMSE, from two seeds, no reference)")
     print(f"\ntime to relative RMSE {args.target:g}: {_format_time(to_target)} (measured against the reference)")
+    to_target_denoised = None
+    if args.denoise:
+        to_target_denoised = time_to_error([r["denoised_wall_s"] for r in rows],
+                                           [r["denoised_rel_rmse"] for r in rows], args.target)
+        speedup = "" if to_target is None or to_target_denoised is None else \
+            f", {to_target / to_target_denoised:.2f}x sooner"
+        print(f"time to relative RMSE {args.target:g} with Open Image Denoise: {_format_time(to_target_denoised)}"
+              f"{speedup}")
     measured = [r for r in rows if "noise" in r]
     c, q = noise_power_law([r["spp"] for r in measured], [r["noise"] for r in measured])
     spps, render_s = [r["spp"] for r in rows], [r["render_s"] for r in rows]
@@ -254,7 +293,8 @@ def main() -> None:
               "reference_spp": args.reference_spp,
               "reference_seed": REFERENCE_SEED, "test_seed": TEST_SEED, "noise_seed": NOISE_SEED,
               "source_hash": version, "load_s": load_s, "rows": rows, "target": args.target,
-              "time_to_target_s": to_target, "pbrt_v3": PBRT_V3,
+              "time_to_target_s": to_target, "denoise": args.denoise,
+              "time_to_target_denoised_s": to_target_denoised, "pbrt_v3": PBRT_V3,
               "noise_law": {"c": c, "q": q, "spp_to_target": law_spp, "seconds_to_target": law_s,
                             "inverse_n_spp_to_target": bound_spp, "inverse_n_seconds_to_target": bound_s,
                             "pbrt_v3_seconds_to_target": pbrt_s, "pbrt_v3_over_ours": pbrt_s / law_s},

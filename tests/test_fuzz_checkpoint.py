@@ -1,6 +1,7 @@
 """Checkpoints are untrusted input (issue 32): every field of an edited or damaged checkpoint is
 checked on load; what loads renders on to a finite, complete image, anything else is one line."""
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -11,6 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from realistic.errors import UserError
+from realistic.renderer.aov import AovLayout
 from realistic.renderer.checkpoint import FORMAT, RenderIdentity, load_checkpoint, save_checkpoint
 from realistic.renderer.film import Film, PassFilm
 from realistic.renderer.pass_plan import plan_passes
@@ -151,3 +153,63 @@ def test_any_damaged_byte_loads_or_is_refused_in_one_line(tmp_path_factory, data
     cut = data.draw(st.integers(len(content) // 2, len(content)))
     path.write_bytes(bytes(content[:cut]))
     _loads_and_renders_on_or_refuses(path)
+
+
+AOVS = ("depth", "normal")
+AOV_COLUMNS = AovLayout(AOVS).columns
+AOV_IDENTITY = dataclasses.replace(IDENTITY, aovs=",".join(AOVS))
+
+
+def _valid_aov_parts() -> tuple[dict, dict[str, np.ndarray]]:
+    """``_valid_parts`` of a render with AOVs: each film row holds ``AOV_COLUMNS`` sums."""
+    header, arrays = _valid_parts()
+    rng = np.random.default_rng(2)
+    for name in ["sums", *(name for name in arrays if name.startswith("waiting_") and name[8:].isdigit())]:
+        rows = len(arrays[name])
+        extra = rng.random((rows, AOV_COLUMNS - 3)) * (arrays[name][:, :1] != 0)  # none where no samples
+        arrays[name] = np.column_stack([arrays[name], extra])
+    return {**header, "aovs": AOV_IDENTITY.aovs}, arrays
+
+
+def _aov_loads_and_renders_on_or_refuses(path: Path) -> None:
+    try:
+        film = load_checkpoint(path, AOV_IDENTITY, PLAN, AOV_COLUMNS)
+    except UserError as err:
+        assert "\n" not in str(err) and str(path) in str(err), str(err)
+        return
+    for index in range(len(PLAN)):
+        if not film.has(index):
+            film.add(index, PLAN[index].first_pixel, np.ones((PLAN[index].pixel_count, AOV_COLUMNS)))
+    assert film.next_pass == len(PLAN) and np.all(np.isfinite(film.film.sums))
+
+
+def test_a_checkpoint_with_aovs_loads_whole_and_only_for_the_same_aovs(tmp_path):
+    header, arrays = _valid_aov_parts()
+    path = _write(tmp_path / "x.partial", header, arrays)
+    film = load_checkpoint(path, AOV_IDENTITY, PLAN, AOV_COLUMNS)
+    np.testing.assert_array_equal(film.film.sums, arrays["sums"])
+    with pytest.raises(UserError, match="another set of AOVs"):
+        load_checkpoint(path, IDENTITY, PLAN)
+    with pytest.raises(UserError, match="film sums of the wrong shape"):
+        load_checkpoint(path, dataclasses.replace(IDENTITY, aovs=AOV_IDENTITY.aovs), PLAN, AOV_COLUMNS - 1)
+    old_header, old_arrays = _valid_parts()  # written before AOVs: no "aovs" in its header
+    old_header.pop("aovs")
+    assert load_checkpoint(_write(tmp_path / "old.partial", old_header, old_arrays), IDENTITY, PLAN).next_pass == 3
+
+
+@given(st.sampled_from(NAMES), ARRAYS | st.none())
+def test_any_array_of_a_checkpoint_with_aovs_loads_or_is_refused_in_one_line(tmp_path_factory, name, array):
+    header, arrays = _valid_aov_parts()
+    if array is None:
+        arrays.pop(name, None)
+    else:
+        arrays[name] = array
+    _aov_loads_and_renders_on_or_refuses(_write(tmp_path_factory.mktemp("cp") / "x.partial", header, arrays))
+
+
+@given(st.sampled_from(["sums", "waiting_4"]), st.data())
+def test_any_value_in_an_aov_column_loads_or_is_refused_in_one_line(tmp_path_factory, name, data):
+    header, arrays = _valid_aov_parts()
+    row = data.draw(st.integers(0, len(arrays[name]) - 1))
+    arrays[name][row, data.draw(st.integers(3, AOV_COLUMNS - 1))] = data.draw(SPECIAL)
+    _aov_loads_and_renders_on_or_refuses(_write(tmp_path_factory.mktemp("cp") / "x.partial", header, arrays))

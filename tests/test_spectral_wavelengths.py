@@ -147,7 +147,7 @@ def test_the_film_takes_each_of_a_samples_k_rays_at_one_kth_and_shares_its_sampl
     seen = {}
 
     class Spy:  # radiance 1 everywhere; records what the renderer asks
-        def radiance(self, origin, direction, pixel, sample, clock=None, wavelength_nm=None):
+        def radiance(self, origin, direction, pixel, sample, clock=None, wavelength_nm=None, hits=None, albedo=None):
             seen.update(pixel=pixel, sample=sample, wavelength=wavelength_nm)
             return np.ones((len(origin), 3), np.float32), 0
 

@@ -116,6 +116,10 @@ class Camera(Protocol):
     def spp(self) -> int: ...
 
     @property
+    def world_from_camera(self) -> np.ndarray:
+        """(4, 4) from camera space (+z toward the scene) to world units."""
+
+    @property
     def sample_count(self) -> int:
         """width * height * spp: the sample ids a render of this camera covers."""
 

@@ -135,6 +135,14 @@ def add_render_command(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--quiet", action="store_true",
                         help="no progress bar and no information lines; warnings and errors still print (pbrt-v4's "
                              "--quiet)")
+    parser.add_argument("--aov", type=checked(str, validation.aovs), default=(), metavar="LIST",
+                        help=f"also write what the camera rays first hit, as EXR channels with pbrt-v4's GBuffer "
+                             f"names: comma-separated from {', '.join(validation.AOV_NAMES)} (depth and position in "
+                             f"camera space, scene units; normal in camera space)")
+    parser.add_argument("--denoise", action="store_true",
+                        help="denoise the image with Open Image Denoise, guided by the albedo and normal AOVs "
+                             "(computed for it); the film's own image is kept as the EXR's Noisy layer "
+                             "(needs the denoise extra: pip install 'realistic[denoise]')")
     add_farm_arguments(parser)
     parser.set_defaults(run=cmd_render)
 
@@ -238,6 +246,7 @@ def executor_for(args: argparse.Namespace, client: Any,
 
 def cmd_render(args: argparse.Namespace) -> int:
     from realistic.renderer.checkpoint import checkpoint_path, refuse_unless_resuming
+    from realistic.renderer.denoise import GUIDE_AOVS, check_available, denoised
     from realistic.renderer.display import TevDisplay
     from realistic.renderer.inputs import build_render_inputs
     from realistic.renderer.output import (
@@ -256,6 +265,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         render_output(args.out)
     if args.out is not None and not args.sweep and not args.resume:
         refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
+    if args.denoise:
+        check_available()
     security = farm_security(args)  # TLS options checked before any work
     crop_window = validation.crop_window(*args.cropwindow) if args.cropwindow else None  # before the scene is read
     sweep = parse_sweep(args.sweep) if args.sweep else None
@@ -293,7 +304,8 @@ def cmd_render(args: argparse.Namespace) -> int:
             else PixelBounds(*args.pixelbounds) if args.pixelbounds else None)  # RenderJob checks them
     job = RenderJob(inputs.scene, tuple(cameras), args.backend, args.seed, args.cl_device, inputs.light_samples,
                     args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep,
-                    keep_images=sweep is None, crop=crop)  # a sequence's frames are written as they complete
+                    keep_images=sweep is None, crop=crop,  # a sequence's frames are written as they complete
+                    aovs=tuple({*args.aov, *(GUIDE_AOVS if args.denoise else ())}))
     written: dict[int, float] = {}
     display = None
     if args.display is not None:  # tev shows what the EXR holds: the crop, exposed as it is written
@@ -305,7 +317,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         if display is not None and result.image.size:
             display.show(exposed(result.image, photographic))
         try:
-            written[result.frame] = save(result, outs[result.frame], photographic, args.exposure, args.png_bits)
+            written[result.frame] = save(denoised(result) if args.denoise else result, outs[result.frame],
+                                         photographic, args.exposure, args.png_bits)
         except BetterImageKept as err:
             print(f"realistic: {err}", file=sys.stderr)
 

@@ -21,14 +21,16 @@ SRGB_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
 
 
 def write_exr(path: Path, image: np.ndarray, metadata: Metadata | None = None,
-              window: tuple[int, int, int, int] | None = None) -> None:
+              window: tuple[int, int, int, int] | None = None,
+              channels: dict[str, np.ndarray] | None = None) -> None:
     """float32 RGB OpenEXR (ZIP) with ``metadata`` as extra header attributes (typed as ``Metadata``
     says; vectors and matrices as float32) and the standard ``chromaticities`` of linear sRGB unless
     ``metadata`` gives others. pbrt-v4 (``Image::WriteEXR``, src/pbrt/util/image.cpp) leaves sRGB's
     out because macOS Preview then re-encodes the pixels; OpenEXR's default is the same primaries,
     so writing them only says explicitly what a reader assumes. ``window`` (x, y, full width, full
     height): the image is the part of a larger one at pixel (x, y), as a cropped render is: its data
-    window starts there, its display window is the full image (pbrt-v4's way)."""
+    window starts there, its display window is the full image (pbrt-v4's way). ``channels`` (name ->
+    (H, W) image, such as "Albedo.R" or "P.Z": layers by OpenEXR's dotted names) go beside R, G, B."""
     import OpenEXR
 
     attributes = {name: _attribute(value) for name, value in (metadata or {}).items()}
@@ -38,8 +40,9 @@ def write_exr(path: Path, image: np.ndarray, metadata: Metadata | None = None,
         x, y, width, height = window
         header["dataWindow"] = ((x, y), (x + image.shape[1] - 1, y + image.shape[0] - 1))
         header["displayWindow"] = ((0, 0), (width - 1, height - 1))
-    pixels = np.ascontiguousarray(image, dtype=np.float32)
-    write_atomically(path, lambda name: OpenEXR.File(header, {"RGB": pixels}).write(name))
+    pixels = {"RGB": np.ascontiguousarray(image, dtype=np.float32)}
+    pixels.update({name: np.ascontiguousarray(value, dtype=np.float32) for name, value in (channels or {}).items()})
+    write_atomically(path, lambda name: OpenEXR.File(header, pixels).write(name))
 
 
 def _attribute(value: str | int | float | tuple[float, ...] | np.ndarray) -> object:

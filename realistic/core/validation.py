@@ -212,6 +212,26 @@ def pass_samples(count: int) -> int:
     return _in_range(_integer(count, "pass size (samples)"), "pass size (samples)", 1, MAX_PASS_SAMPLES)
 
 
+#: First-hit outputs a render can add (``renderer.aov``), in the order their channels are laid out.
+AOV_NAMES = ("albedo", "position", "depth", "normal")
+
+
+def aovs(value: str | Sequence[str] | None) -> tuple[str, ...]:
+    """AOV names from "depth,normal" or a sequence of names: each one of ``AOV_NAMES``, none
+    repeated, returned in ``AOV_NAMES`` order; () for None or ""."""
+    if value is None:
+        return ()
+    names = [part.strip() for part in value.split(",")] if isinstance(value, str) else list(value)
+    if isinstance(value, str) and names == [""]:
+        return ()
+    for name in names:
+        if not isinstance(name, str) or name not in AOV_NAMES:
+            raise UserError(f"unknown AOV {name!r} (choose from {', '.join(AOV_NAMES)}, comma-separated)")
+        if names.count(name) > 1:
+            raise UserError(f"AOV {name!r} is named twice")
+    return tuple(name for name in AOV_NAMES if name in names)
+
+
 #: Shutter times from a nanosecond to about eleven days: real shutters span 1/32000 s to hours.
 MIN_SHUTTER_SECONDS, MAX_SHUTTER_SECONDS = 1e-9, 1e6
 #: ISO speeds: the most sensitive cameras reach a few million; below 1 no film or sensor goes.

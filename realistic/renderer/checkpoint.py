@@ -116,22 +116,27 @@ class RenderIdentity:
     backend: str
     light_samples: int
     crop: str = ""  # the pixel bounds "x0 x1 y0 y1" of a cropped render; "" for the whole image
+    aovs: str = ""  # comma-separated, in ``validation.AOV_NAMES`` order; "" for none
 
     @classmethod
     def of(cls, scene: Scene, camera: Camera, seed: int, pass_samples: int, backend: str,
-           light_samples: int, crop: PixelBounds | None = None) -> RenderIdentity:
+           light_samples: int, crop: PixelBounds | None = None, aovs: tuple[str, ...] = ()) -> RenderIdentity:
         """The identity of rendering ``scene`` through ``camera`` (its ``camera`` and ``metadata``, which
         names the file as it was given, not counted), cropped to ``crop`` when given."""
         scene_fields = {f.name: getattr(scene, f.name) for f in dataclasses.fields(scene)
                         if f.name not in ("camera", "metadata")}
         camera_hash = content_hash(dataclasses.replace(camera, spp=1))
         return cls(f"{camera.width}x{camera.height}", int(seed), content_hash(scene_fields), camera_hash,
-                   int(camera.spp), int(pass_samples), backend, int(light_samples), "" if crop is None else str(crop))
+                   int(camera.spp), int(pass_samples), backend, int(light_samples), "" if crop is None else str(crop),
+                   ",".join(aovs))
 
 
 #: How a mismatch is named in the refusal.
 _NAMES = {"resolution": "resolution", "seed": "seed", "scene": "scene", "camera": "camera", "spp": "spp",
-          "pass_samples": "pass size", "backend": "backend", "light_samples": "light samples", "crop": "crop"}
+          "pass_samples": "pass size", "backend": "backend", "light_samples": "light samples", "crop": "crop",
+          "aovs": "set of AOVs"}
+#: What a field missing from a checkpoint's header means: one written before crops or AOVs had none.
+_ABSENT = {"crop": "", "aovs": ""}
 
 
 def checkpoint_path(out: Path) -> Path:
@@ -167,38 +172,38 @@ def refuse_unless_resuming(path: Path) -> None:
 
 
 def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlock],
-                    crop: PixelBounds | None = None) -> PassFilm:
-    """The film saved at ``path`` (showing ``crop``, the render's); UserError (one line) if it is
-    missing, unreadable, made for another render, or holds anything the render's pass plan ``passes``
-    does not give."""
+                    crop: PixelBounds | None = None, columns: int = 3) -> PassFilm:
+    """The film (of ``columns`` sums per pixel: ``aov.AovLayout.columns``; showing ``crop``, the
+    render's) saved at ``path``; UserError (one line) if it is missing, unreadable, made for another
+    render, or holds anything the render's pass plan ``passes`` does not give."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no checkpoint to resume (render without --resume to start)")
     width, height = (int(v) for v in identity.resolution.split("x"))
-    header, saved = _read(path, width * height)
+    header, saved = _read(path, width * height, columns)
     for name, label in _NAMES.items():
-        # a checkpoint from before crops existed names none: it is of the whole image
-        theirs, ours = header.get(name, "" if name == "crop" else None), getattr(identity, name)
+        theirs, ours = header.get(name, _ABSENT.get(name)), getattr(identity, name)
         if type(theirs) is not type(ours) or theirs != ours:
             width = 12 if name in ("scene", "camera") else 40  # the file's text, escaped: it is untrusted
             shown = (theirs if isinstance(theirs, str) and theirs.isprintable() else ascii(theirs))[:width]
             raise UserError(f"{path}: cannot resume: the checkpoint is for another {label} ({shown or 'none'}, "
                             f"this render has {str(ours)[:width] or 'none'}); remove it or render without --resume")
-    film = PassFilm(Film(width, height, identity.spp, crop), passes)
+    film = PassFilm(Film(width, height, identity.spp, crop, columns), passes)
     problem = _fill(film, header, saved)
     if problem:
         raise UserError(f"{path}: cannot resume: the checkpoint is damaged ({problem}); remove it to start afresh")
     return film
 
 
-def _read(path: Path, pixels: int) -> tuple[dict, dict[str, np.ndarray]]:
-    """The header and arrays of the checkpoint at ``path`` for a film of ``pixels`` pixels."""
+def _read(path: Path, pixels: int, columns: int) -> tuple[dict, dict[str, np.ndarray]]:
+    """The header and arrays of the checkpoint at ``path`` for a film of ``pixels`` pixels of
+    ``columns`` sums each."""
     try:
         with np.load(path, allow_pickle=False) as data:
             if not hasattr(data, "files"):
                 raise ValueError("not an .npz archive")
             # the members' sizes before any is read: a few arrays of the film's size at most
-            if sum(info.file_size for info in data.zip.infolist()) > 72 * pixels + (1 << 20):
+            if sum(info.file_size for info in data.zip.infolist()) > 24 * columns * pixels + (1 << 20):
                 raise ValueError("larger than a checkpoint of this film")
             header = json.loads(str(data["header"]))
             if not isinstance(header, dict) or not str(header.get("format")).startswith("realistic checkpoint"):
@@ -218,7 +223,7 @@ def _read(path: Path, pixels: int) -> tuple[dict, dict[str, np.ndarray]]:
 
 def _fill(film: PassFilm, header: dict, saved: dict[str, np.ndarray]) -> str | None:
     """Put the checkpoint's state into the fresh ``film``; what is wrong with it, or None."""
-    passes, pixels = film.passes, film.film.width * film.film.height
+    passes, pixels, columns = film.passes, film.film.width * film.film.height, film.film.sums.shape[1]
     next_pass = header.get("next_pass")
     if type(next_pass) is not int or not 0 <= next_pass <= len(passes):
         return f"pass index {ascii(next_pass)[:20]} is not 0 to {len(passes)}"
@@ -226,7 +231,7 @@ def _fill(film: PassFilm, header: dict, saved: dict[str, np.ndarray]) -> str | N
     if missing:
         return f"no {missing[0]}"
     sums, samples = saved["sums"], saved["samples"]
-    problem = _sums_problem(sums, (pixels, 3), "film sums")
+    problem = _sums_problem(sums, (pixels, columns), "film sums")
     if problem:
         return problem
     if samples.shape != (pixels,) or samples.dtype.kind not in "iu":
@@ -249,7 +254,7 @@ def _fill(film: PassFilm, header: dict, saved: dict[str, np.ndarray]) -> str | N
         block, waiting = passes[number], saved.get(f"waiting_{number}")
         if first_pixel != block.first_pixel or waiting is None:
             return f"waiting pass {number} does not start at its pixel or has no sums"
-        problem = _sums_problem(waiting, (block.pixel_count, 3), f"waiting pass {number}")
+        problem = _sums_problem(waiting, (block.pixel_count, columns), f"waiting pass {number}")
         if problem:
             return problem
         film.waiting[number] = (first_pixel, waiting.astype(np.float64))

@@ -40,6 +40,7 @@ import numpy as np
 from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, spectral_value
 from realistic.core.vectors import dot, normalise
+from realistic.renderer.aov import FirstHits
 from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.footprint import uv_footprint
@@ -185,17 +186,20 @@ class DirectLighting:
                                                           self._geom_linear.reshape(-1, 9))
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
-                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, int]:
+                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
+                 hits: Hits | None = None, albedo: np.ndarray | None = None) -> tuple[np.ndarray, int]:
         """RGB radiance (N, 3) float32 along unit-direction rays, and the number of shadow rays traced.
 
         With ``wavelength_nm`` (N,), the spectral radiance at each ray's wavelength, in all three columns.
+        ``hits``: the rays' closest hits when already traced, else traced here; ``albedo``: their
+        ``first_hits`` albedo (N, 3) when already computed, which the shading kernel then reads.
         """
         timed = clock or (lambda _stage: nullcontext())
-        with timed("embree"):
-            hits = self.intersector.closest(origin, direction)
+        if hits is None:
+            with timed("embree"):
+                hits = self.intersector.closest(origin, direction)
         if self._kernel is not None and wavelength_nm is None:
-            return self._radiance_kernel(self._kernel, origin, direction, pixel, sample, hits, timed)
+            return self._radiance_kernel(self._kernel, origin, direction, pixel, sample, hits, timed, albedo)
         with timed("shading"):
             basis = None if wavelength_nm is None else rgb_basis(wavelength_nm)
 
@@ -236,6 +240,35 @@ class DirectLighting:
             out[surface] = total / np.float32(self.light_samples)
         return out, shadow_rays
 
+    def first_hits(self, origin: np.ndarray, direction: np.ndarray, hits: Hits, with_albedo: bool = True
+                   ) -> FirstHits:
+        """What the camera rays, whose closest ``hits`` are traced, hit first (``renderer.aov``):
+        points, normals facing the rays, and albedo (0 on area lights, which have no material; 0
+        everywhere unless ``with_albedo``).
+        With the shading kernel, image-textured materials' albedo is ``_host_albedo``'s, which
+        ``radiance`` then takes instead of computing it again; the others' is ``first_albedo``'s."""
+        n = len(origin)
+        hit = hits.geom >= 0
+        point, normal, rho = (np.zeros((n, 3), np.float32) for _ in range(3))
+        rows = np.flatnonzero(hit)
+        d = _rows(np.asarray(direction, np.float32), rows)
+        point[rows] = _rows(np.asarray(origin, np.float32), rows) + hits.t[rows, None] * d
+        normal[rows] = _facing(_rows(hits.normal, rows), d)
+        surface = np.flatnonzero(hit & (hits.geom < self.instance_count)) if with_albedo else rows[:0]
+        if self._kernel is not None and self._kernel.host_albedo.any() and len(surface):
+            rho[:] = self._host_albedo(origin, direction, hits)
+            surface = surface[~self._kernel.host_albedo[self._geom_material[hits.geom[surface]]]]
+        if len(surface):
+            rho[surface] = self.first_albedo(hits, surface, _rows(np.asarray(direction, np.float32), surface),
+                                             _rows(normal, surface))
+        return FirstHits(hit, point, normal, rho)
+
+    def first_albedo(self, hits: Hits, surface: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
+        """Albedo (n, 3) of the camera-ray hits ``surface`` (rows of ``hits`` on instances): the matte
+        materials' reflectance, image textures filtered over the rays' footprints as when shading."""
+        face, bary = self._triangles(hits, surface)
+        return self._albedo(face, bary, hits.geom[surface], direction, ng, hits.t[surface])
+
     def _surface_points(self, origin: np.ndarray, direction: np.ndarray, hits: Hits, surface: np.ndarray,
                         basis: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """Of the rays ``surface``, which hit instances: hit points, shadow-ray origins, shading and
@@ -256,10 +289,11 @@ class DirectLighting:
         return point, shadow_origin, shading, ng, rho
 
     def _radiance_kernel(self, kernel: ShadeKernel, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray,
-                         sample: np.ndarray, hits: Hits, timed: Callable[[str], AbstractContextManager[object]]
-                         ) -> tuple[np.ndarray, int]:
+                         sample: np.ndarray, hits: Hits, timed: Callable[[str], AbstractContextManager[object]],
+                         albedo: np.ndarray | None = None) -> tuple[np.ndarray, int]:
         """``radiance`` of RGB rays through ``kernels/shade.cl``: the kernel shades every surface hit
-        and writes all light samples' shadow rays, embree traces them in one call, numpy sums."""
+        and writes all light samples' shadow rays, embree traces them in one call, numpy sums.
+        ``albedo``: the rays' albedo from ``first_hits`` (its host rows are ``_host_albedo``'s)."""
         from realistic.device.opencl import whole_groups
         from realistic.renderer.shade_kernel import MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS
 
@@ -267,7 +301,10 @@ class DirectLighting:
         if n == 0:
             return np.zeros((0, 3), np.float32), 0
         with timed("shading"):
-            albedo = self._host_albedo(origin, direction, hits) if kernel.host_albedo.any() else None
+            if not kernel.host_albedo.any():
+                albedo = None  # the kernel holds every material's albedo
+            elif albedo is None:
+                albedo = self._host_albedo(origin, direction, hits)
             out = np.zeros((n, 3), np.float32)
             # light samples per launch
             group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // whole_groups(n)))  # the kernel's stride

@@ -14,23 +14,25 @@ from realistic.renderer.crop import PixelBounds
 
 
 def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_count: int) -> np.ndarray:
-    """Sums (pixel_count, 3) of ``value`` rows per pixel, pixels first_pixel .. + pixel_count - 1."""
+    """Sums (pixel_count, columns) float64 of ``value`` rows (N, columns) per pixel, pixels
+    first_pixel .. + pixel_count - 1 (float64 with no rows too, where ``np.bincount`` gives int64)."""
     local = pixel - first_pixel
     return np.column_stack([np.bincount(local, weights=value[:, c], minlength=pixel_count)
-                            for c in range(3)])
+                            for c in range(value.shape[1])]).astype(np.float64, copy=False)
 
 
 class Film:
     """Accumulates contributions of sample blocks; pixel value = sum / samples taken.
 
     Every sample counts, vignetted ones included (their contribution is 0), so a pixel's value is
-    the film irradiance estimate E = mean(weight * radiance).
+    the film irradiance estimate E = mean(weight * radiance). ``columns`` beyond the radiance's 3
+    hold the AOVs' sums (``aov.AovLayout``).
     """
 
-    def __init__(self, width: int, height: int, spp: int, bounds: PixelBounds | None = None):
+    def __init__(self, width: int, height: int, spp: int, bounds: PixelBounds | None = None, columns: int = 3):
         self.width, self.height, self.spp = width, height, spp
         self.bounds = PixelBounds.whole(width, height) if bounds is None else bounds  # what ``image`` shows
-        self.sums = np.zeros((width * height, 3), np.float64)
+        self.sums = np.zeros((width * height, columns), np.float64)
         self.samples = np.zeros(width * height, np.int64)
 
     def add(self, block: SampleBlock, first_pixel: int, sums: np.ndarray) -> None:
@@ -42,7 +44,7 @@ class Film:
         """(height, width, 3) float32 film values of ``bounds`` (the whole film unless cropped);
         pixels with no samples yet are 0."""
         b = self.bounds
-        sums = self.sums.reshape(self.height, self.width, 3)[b.y0:b.y1, b.x0:b.x1]
+        sums = self.sums[:, :3].reshape(self.height, self.width, 3)[b.y0:b.y1, b.x0:b.x1]
         samples = self.samples.reshape(self.height, self.width, 1)[b.y0:b.y1, b.x0:b.x1]
         value = np.divide(sums, samples, out=np.zeros(sums.shape), where=samples > 0)
         return value.astype(np.float32)
@@ -62,7 +64,16 @@ class PassFilm:
         self.waiting: dict[int, tuple[int, np.ndarray]] = {}  # index -> (first pixel, sums)
 
     def add(self, index: int, first_pixel: int, sums: np.ndarray) -> None:
-        """Take pass ``index``'s sums (from ``pass_sums``) starting at pixel ``first_pixel``."""
+        """Take pass ``index``'s sums (from ``pass_sums``) starting at pixel ``first_pixel``; a
+        RuntimeError for a pass index, first pixel or sums' shape that is not the plan's (a result
+        from a worker is checked here, on arrival, before anything is added)."""
+        if not 0 <= index < len(self.passes):
+            raise RuntimeError(f"pass {index} is not in the plan of {len(self.passes)} passes")
+        block = self.passes[index]
+        shape = (block.pixel_count, self.film.sums.shape[1])
+        if first_pixel != block.first_pixel or sums.shape != shape or sums.dtype != np.float64:
+            raise RuntimeError(f"pass {index}: sums {sums.dtype}{sums.shape} from pixel {first_pixel}, "
+                               f"expected float64{shape} from pixel {block.first_pixel}")
         if self.has(index):
             return  # a retried task's duplicate
         self.waiting[index] = (first_pixel, sums)
@@ -83,8 +94,18 @@ class PassFilm:
         """The image of every pass taken so far, waiting ones included (``Film.image``)."""
         if not self.waiting:
             return self.film.image()
-        film = Film(self.film.width, self.film.height, self.film.spp, self.film.bounds)
+        film = Film(self.film.width, self.film.height, self.film.spp, self.film.bounds, self.film.sums.shape[1])
         film.sums[:], film.samples[:] = self.film.sums, self.film.samples
         for index in sorted(self.waiting):
             film.add(self.passes[index], *self.waiting[index])
         return film.image()
+
+    def sums(self) -> np.ndarray:
+        """The film's sums (pixels, columns) of every pass taken so far, waiting ones included."""
+        if not self.waiting:
+            return self.film.sums
+        sums = self.film.sums.copy()
+        for index in sorted(self.waiting):
+            first_pixel, waiting = self.waiting[index]
+            sums[first_pixel:first_pixel + len(waiting)] += waiting
+        return sums

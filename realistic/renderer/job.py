@@ -36,11 +36,13 @@ class PassSettings:
     light_samples: int = 1
     morton: bool = False
     crop: PixelBounds | None = None  # trace only these pixels' rays (None: all)
+    aovs: tuple[str, ...] = ()  # ``renderer.aov`` names, in ``validation.AOV_NAMES`` order
 
 
 @dataclass(frozen=True)
 class PassResult:
-    """One pass's per-pixel sums (``film.pass_sums``) and ray counts; ``index`` is its plan index."""
+    """One pass's per-pixel sums (``film.pass_sums``: the radiance's 3 columns, then the AOVs'
+    (``aov.AovLayout``)) and ray counts; ``index`` is its plan index."""
 
     index: int
     first_pixel: int
@@ -80,9 +82,12 @@ class RenderJob:
     keep_images: bool = True
     # only these pixels of each frame (``crop.PixelBounds``; None: all): the image holds them alone
     crop: PixelBounds | None = None
+    # first-hit outputs written beside the image (``renderer.aov``): names or "depth,normal"
+    aovs: tuple[str, ...] | str = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", tuple(self.cameras))
+        object.__setattr__(self, "aovs", validation.aovs(self.aovs))
         if not self.cameras:
             raise UserError("nothing to render: no cameras")
         validation.seed(self.seed)
@@ -100,7 +105,8 @@ class RenderJob:
     def settings(self) -> PassSettings:
         """What each pass runner needs besides the scene and camera."""
         light_samples = self.scene.light_samples if self.light_samples is None else self.light_samples
-        return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton, self.crop)
+        return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton, self.crop,
+                            validation.aovs(self.aovs))
 
     @property
     def pass_size(self) -> int:
@@ -126,6 +132,10 @@ class RenderResult:
     passes_total: int = 0
     job: RenderJob | None = None
     frame: int = 0
+    # the AOVs' EXR channels (``aov.AovLayout.images``): name -> (H, W) float32
+    aovs: dict[str, np.ndarray] = field(default_factory=dict)
+    # the film image when ``image`` holds its denoised version (``renderer.denoise``), else None
+    noisy: np.ndarray | None = None
 
     @property
     def camera(self) -> Camera:

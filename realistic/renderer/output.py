@@ -262,6 +262,7 @@ class _Image:
     stops: float
     png_bits: int
     window: tuple[int, int, int, int] | None  # a crop's place in its full image (``write_exr``)
+    layers: dict[str, np.ndarray]  # EXR channels beside R, G, B (``layer_channels``)
 
 
 def save(result: RenderResult, path: str | os.PathLike, photographic: Photographic | None = None,
@@ -284,7 +285,8 @@ def save(result: RenderResult, path: str | os.PathLike, photographic: Photograph
         metadata.update(photographic.header(result.camera))
     kind = path.suffix.lower()
     stops = 0.0 if kind == ".pfm" else preview_stops(pixels, photographic, exposure)
-    image = _Image(pixels, metadata, stops, check_png_bits(png_bits), _window(result))
+    image = _Image(pixels, metadata, stops, check_png_bits(png_bits), _window(result),
+                   layer_channels(result, photographic))
     job = result.job
     checkpoint = job.checkpoint if job is not None else None
     with signals_deferred():
@@ -331,6 +333,16 @@ def _window(result: RenderResult) -> tuple[int, int, int, int] | None:
     return None if crop is None else (crop.x0, crop.y0, result.camera.width, result.camera.height)
 
 
+def layer_channels(result: RenderResult, photographic: Photographic | None) -> dict[str, np.ndarray]:
+    """The EXR channels written beside R, G, B: the AOVs (``renderer.aov``) as they are, and for a
+    denoised image the film's own as "Noisy.R", "Noisy.G", "Noisy.B", exposed as the image is."""
+    layers = dict(result.aovs)
+    if result.noisy is not None:
+        noisy = exposed(result.noisy, photographic)
+        layers.update({f"Noisy.{name}": noisy[..., index] for index, name in enumerate("RGB")})
+    return layers
+
+
 def _rescue(path: Path, image: _Image) -> str:
     """Write the image to the temporary folder; what became of it, for the error line."""
     try:
@@ -351,7 +363,7 @@ def _rescue(path: Path, image: _Image) -> str:
 def _write(path: Path, image: _Image) -> None:
     kind = path.suffix.lower()
     if kind == ".exr":
-        write_exr(path, image.pixels, image.metadata, image.window)
+        write_exr(path, image.pixels, image.metadata, image.window, image.layers)
         write_png(path.with_suffix(".png"), image.pixels, image.stops, image.png_bits)
     elif kind == ".png":
         write_png(path, image.pixels, image.stops, image.png_bits)

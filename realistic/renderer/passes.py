@@ -39,6 +39,7 @@ import numpy as np
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core import affinity, validation
 from realistic.errors import UserError
+from realistic.renderer.aov import AovLayout, CameraFrame
 from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, refuse_unless_resuming, save_checkpoint
 from realistic.renderer.crop import PixelBounds
 from realistic.renderer.film import Film, PassFilm
@@ -175,6 +176,7 @@ class _Frame:
     camera: Camera
     plan: list[SampleBlock]
     result: RenderResult
+    layout: AovLayout
     crop: PixelBounds | None = None
     film: PassFilm | None = None
 
@@ -185,7 +187,8 @@ class _Frame:
     def started(self) -> PassFilm:
         """The film, allocated on first use."""
         if self.film is None:
-            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp, self.crop), self.plan)
+            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp, self.crop,
+                                      self.layout.columns), self.plan)
         return self.film
 
 
@@ -237,14 +240,14 @@ def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
         plan = plans[key]
         samples = job.crop.width * job.crop.height * camera.spp if job.crop is not None else camera.sample_count
         result = RenderResult(_EMPTY, 0, samples, 0, 0, 0.0, False, passes_total=len(plan), job=job, frame=index)
-        frames.append(_Frame(camera, plan, result, job.crop))
+        frames.append(_Frame(camera, plan, result, AovLayout(job.settings.aovs), job.crop))
     if job.checkpoint is None:
         return frames, None
     identity = RenderIdentity.of(job.scene, job.cameras[0], job.seed, job.pass_size, job.backend,
-                                 job.settings.light_samples, job.crop)
+                                 job.settings.light_samples, job.crop, job.settings.aovs)
     frame = frames[0]
     if job.checkpoint.resume:
-        frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan, job.crop)
+        frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan, job.crop, frame.layout.columns)
         frame.result.samples_done = sum(_samples_of(job, frame.plan[i], frame.camera)
                                         for i in range(frame.film.next_pass)) \
             + sum(_samples_of(job, frame.plan[i], frame.camera) for i in frame.film.waiting)
@@ -317,7 +320,7 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
             if observer.on_frame is not None:
                 observer.on_frame(finished)
             if not job.keep_images:
-                finished.image = _EMPTY
+                finished.image, finished.aovs = _EMPTY, {}
 
     def periodic() -> None:
         now = time.monotonic()
@@ -373,12 +376,15 @@ def _finish(frame: _Frame, start: float, clock: StageClock, keep_images: bool) -
     """The frame's result with its image and times; a complete frame's film is released. A frame
     never started gets a black image when ``keep_images`` (else it stays empty)."""
     result = frame.result
+    bounds = frame.crop or PixelBounds.whole(frame.camera.width, frame.camera.height)
     if frame.film is not None:
         result.image = frame.film.image()
+        aovs = frame.layout.images(frame.film.sums(), frame.camera.width, frame.camera.height,
+                                   CameraFrame.of(frame.camera.world_from_camera))
+        result.aovs = {name: image[bounds.y0:bounds.y1, bounds.x0:bounds.x1] for name, image in aovs.items()}
         if frame.complete:
             frame.film = None
     elif result.image is _EMPTY and keep_images and not frame.complete:
-        bounds = frame.crop or PixelBounds.whole(frame.camera.width, frame.camera.height)
         result.image = np.zeros((bounds.height, bounds.width, 3), np.float32)
     result.seconds = time.perf_counter() - start
     result.stage_seconds = dict(clock.seconds)

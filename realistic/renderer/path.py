@@ -49,6 +49,12 @@ BOUNCE_DIMENSION = 4 + 3 * MAX_LIGHT_SAMPLES
 MODES = ("direct", "path")
 #: Bounces after which Russian roulette may end a path (pbrt-v3 ``PathIntegrator``: bounces > 3).
 ROULETTE_AFTER = 3
+#: BSDF samples of a first hit's albedo estimate, as pbrt-v4's ``nRhoSamples`` (cpu/integrators.cpp):
+#: the centres of a 4 x 4 grid of (u0, u1), each with its own lobe choice, the same at every hit so
+#: the estimate is exact for a Lambertian BSDF and noise-free across a surface.
+RHO_SAMPLES = 16
+_RHO_U = np.array([((k % 4 + 0.5) / 4, (k // 4 + 0.5) / 4) for k in range(RHO_SAMPLES)], np.float32)
+_RHO_LOBE = np.array([((7 * k) % RHO_SAMPLES + 0.5) / RHO_SAMPLES for k in range(RHO_SAMPLES)], np.float32)
 
 
 class SurfaceParameters:
@@ -113,10 +119,13 @@ class PathIntegrator(DirectLighting):
                 self._instance_light[light.instance] = i
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
-                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, int]:
+                 clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
+                 hits: Hits | None = None, albedo: np.ndarray | None = None) -> tuple[np.ndarray, int]:
         """RGB radiance (N, 3) float32 (spectral values in all columns with ``wavelength_nm``) and the
-        number of shadow rays traced."""
+        number of shadow rays traced; ``hits``: the camera rays' closest hits when already traced
+        (``albedo``, the shading kernel's input in ``DirectLighting``, has no use here: BSDFs are
+        evaluated at every hit)."""
+        camera_hits = hits
         timed = clock or (lambda _stage: nullcontext())
         n = len(origin)
         basis_all = None if wavelength_nm is None else rgb_basis(wavelength_nm)
@@ -136,8 +145,11 @@ class PathIntegrator(DirectLighting):
         for depth in range(last + 1):
             if len(path) == 0:
                 break
-            with timed("embree"):
-                hits = self.intersector.closest(o, d)
+            if depth == 0 and camera_hits is not None:
+                hits = camera_hits
+            else:
+                with timed("embree"):
+                    hits = self.intersector.closest(o, d)
             with timed("shading"):
                 basis = None if basis_all is None else basis_all[path]
                 prev_lights = self.light_samples if depth == 1 else 1
@@ -163,6 +175,42 @@ class PathIntegrator(DirectLighting):
         result = np.empty((n, 3), np.float32)
         result[:] = out
         return result, shadow_rays
+
+    def first_albedo(self, hits: Hits, surface: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
+        """Albedo (n, 3) of the camera-ray hits ``surface``: each material's BSDF's directional
+        albedo rho(wo) = E[f |cos wi| / pdf], estimated with the ``RHO_SAMPLES`` fixed samples
+        (pbrt-v4 ``BSDF::rho`` as its integrators fill a ``VisibleSurface``); a Lambertian gives its
+        reflectance exactly."""
+        geom, t = hits.geom[surface], hits.t[surface]
+        face, bary = self._triangles(hits, surface)
+        frame = ShadingFrame(self._shading_normal(face, bary, geom, ng))
+        wo = frame.to_local(-direction)
+        rho = np.zeros((len(surface), 3), np.float32)
+        material_of = self._geom_material[geom]
+        for index in np.unique(material_of):
+            rows = np.flatnonzero(material_of == index)
+            f, b = face[rows], bary[rows]
+
+            def uv(f: np.ndarray = f, b: np.ndarray = b) -> np.ndarray:
+                return (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
+                        + _rows(self._uv, f[:, 2]) * b[:, 2:])
+
+            def footprint(rows: np.ndarray = rows) -> Footprint | None:
+                if self.pixel_spread_radians <= 0:
+                    return None
+                return self._footprint(face[rows], geom[rows], direction[rows], ng[rows], t[rows])
+
+            bsdf = self.bsdf_factory(self._materials[index], SurfaceParameters(len(rows), uv, footprint, None))
+            total = np.zeros((len(rows), 3), np.float64)
+            for k in range(RHO_SAMPLES):
+                s = bsdf.sample(wo[rows], np.broadcast_to(_RHO_U[k], (len(rows), 2)),
+                                np.full(len(rows), _RHO_LOBE[k], np.float32))
+                ok = s.valid & (s.pdf > 0)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    total += np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))[:, None],
+                                      0.0)
+            rho[rows] = total / RHO_SAMPLES
+        return rho
 
     def _mis(self, weight_rows: np.ndarray, specular: np.ndarray, prev_pdf: np.ndarray, light_pdf: np.ndarray,
              prev_lights: int) -> np.ndarray:

@@ -11,6 +11,7 @@ import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
 from realistic.core.spectrum import rgb_response
+from realistic.renderer.aov import AovLayout
 from realistic.renderer.backends import backend_for
 from realistic.renderer.film import pass_sums
 from realistic.renderer.integrators import make_integrator
@@ -54,6 +55,7 @@ class PassRunner:
         self.generate = kernels.ray_generator(camera, settings.seed)
         self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
                                           settings.seed, camera.pixel_spread_radians(), backend=kernels)
+        self.aovs = AovLayout(settings.aovs)
 
     def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
         """The results of passes given as (plan index, sample block)."""
@@ -78,8 +80,17 @@ class PassRunner:
             pixel = rays.pixel[alive]
             origin, direction = gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)
             wavelength = None if rays.wavelength_nm is None else rays.wavelength_nm[alive]
+        hits, albedo, aov_values = None, None, None
+        if self.aovs.aovs:  # the camera rays' hits and albedo, found once for the AOVs and the integrator
+            with self.clock("embree"):
+                hits = self.integrator.intersector.closest(origin, direction)
+            with self.clock("first hits"):
+                with_albedo = "albedo" in self.aovs.quantities
+                first = self.integrator.first_hits(origin, direction, hits, with_albedo)
+                albedo = first.albedo if with_albedo else None
+                aov_values = self.aovs.values(first, np.sign(rays.weight[alive]))
         radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, sample[alive],
-                                                         self.clock, wavelength)
+                                                         self.clock, wavelength, hits, albedo)
         with self.clock("accumulation"):
             first_pixel, pixel_count = block.first_pixel, block.pixel_count
             value = radiance  # the integrator's own array: weighted in place, no second (N, 3) array
@@ -90,5 +101,7 @@ class PassRunner:
                     response /= np.float32(rays_per_sample)
                 value *= response
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
+            if aov_values is not None:
+                sums = np.column_stack([sums, pass_sums(pixel, aov_values, first_pixel, pixel_count)])
         count = block.count if self.crop is None else self.crop.samples_in(block, self.camera.width)
         return PassResult(index, first_pixel, sums, count, len(alive), shadow_rays)
