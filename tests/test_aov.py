@@ -248,7 +248,7 @@ def test_a_pass_whose_sums_are_not_the_plans_is_refused_on_arrival():
     from realistic.renderer.pass_plan import plan_passes
 
     plan = plan_passes(12, 4, 6)
-    film = PassFilm(Film(4, 3, 4, AovLayout(("albedo",)).columns), plan)
+    film = PassFilm(Film(4, 3, 4, columns=AovLayout(("albedo",)).columns), plan)
     with pytest.raises(RuntimeError, match="expected float64"):
         film.add(0, plan[0].first_pixel, np.zeros((plan[0].pixel_count, 3)))  # the radiance's columns alone
     with pytest.raises(RuntimeError, match="not in the plan"):

@@ -173,7 +173,7 @@ def _valid_aov_parts() -> tuple[dict, dict[str, np.ndarray]]:
 
 def _aov_loads_and_renders_on_or_refuses(path: Path) -> None:
     try:
-        film = load_checkpoint(path, AOV_IDENTITY, PLAN, AOV_COLUMNS)
+        film = load_checkpoint(path, AOV_IDENTITY, PLAN, columns=AOV_COLUMNS)
     except UserError as err:
         assert "\n" not in str(err) and str(path) in str(err), str(err)
         return
@@ -186,12 +186,12 @@ def _aov_loads_and_renders_on_or_refuses(path: Path) -> None:
 def test_a_checkpoint_with_aovs_loads_whole_and_only_for_the_same_aovs(tmp_path):
     header, arrays = _valid_aov_parts()
     path = _write(tmp_path / "x.partial", header, arrays)
-    film = load_checkpoint(path, AOV_IDENTITY, PLAN, AOV_COLUMNS)
+    film = load_checkpoint(path, AOV_IDENTITY, PLAN, columns=AOV_COLUMNS)
     np.testing.assert_array_equal(film.film.sums, arrays["sums"])
     with pytest.raises(UserError, match="another set of AOVs"):
         load_checkpoint(path, IDENTITY, PLAN)
     with pytest.raises(UserError, match="film sums of the wrong shape"):
-        load_checkpoint(path, dataclasses.replace(IDENTITY, aovs=AOV_IDENTITY.aovs), PLAN, AOV_COLUMNS - 1)
+        load_checkpoint(path, dataclasses.replace(IDENTITY, aovs=AOV_IDENTITY.aovs), PLAN, columns=AOV_COLUMNS - 1)
     old_header, old_arrays = _valid_parts()  # written before AOVs: no "aovs" in its header
     old_header.pop("aovs")
     assert load_checkpoint(_write(tmp_path / "old.partial", old_header, old_arrays), IDENTITY, PLAN).next_pass == 3

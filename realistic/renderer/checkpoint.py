@@ -171,7 +171,7 @@ def refuse_unless_resuming(path: Path) -> None:
                         "or remove the file to start afresh")
 
 
-def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlock],
+def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlock], *,
                     crop: PixelBounds | None = None, columns: int = 3) -> PassFilm:
     """The film (of ``columns`` sums per pixel: ``aov.AovLayout.columns``; showing ``crop``, the
     render's) saved at ``path``; UserError (one line) if it is missing, unreadable, made for another
@@ -188,7 +188,7 @@ def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlo
             shown = (theirs if isinstance(theirs, str) and theirs.isprintable() else ascii(theirs))[:width]
             raise UserError(f"{path}: cannot resume: the checkpoint is for another {label} ({shown or 'none'}, "
                             f"this render has {str(ours)[:width] or 'none'}); remove it or render without --resume")
-    film = PassFilm(Film(width, height, identity.spp, crop, columns), passes)
+    film = PassFilm(Film(width, height, identity.spp, bounds=crop, columns=columns), passes)
     problem = _fill(film, header, saved)
     if problem:
         raise UserError(f"{path}: cannot resume: the checkpoint is damaged ({problem}); remove it to start afresh")

@@ -29,7 +29,7 @@ class Film:
     hold the AOVs' sums (``aov.AovLayout``).
     """
 
-    def __init__(self, width: int, height: int, spp: int, bounds: PixelBounds | None = None, columns: int = 3):
+    def __init__(self, width: int, height: int, spp: int, *, bounds: PixelBounds | None = None, columns: int = 3):
         self.width, self.height, self.spp = width, height, spp
         self.bounds = PixelBounds.whole(width, height) if bounds is None else bounds  # what ``image`` shows
         self.sums = np.zeros((width * height, columns), np.float64)
@@ -94,7 +94,8 @@ class PassFilm:
         """The image of every pass taken so far, waiting ones included (``Film.image``)."""
         if not self.waiting:
             return self.film.image()
-        film = Film(self.film.width, self.film.height, self.film.spp, self.film.bounds, self.film.sums.shape[1])
+        film = Film(self.film.width, self.film.height, self.film.spp, bounds=self.film.bounds,
+                    columns=self.film.sums.shape[1])
         film.sums[:], film.samples[:] = self.film.sums, self.film.samples
         for index in sorted(self.waiting):
             film.add(self.passes[index], *self.waiting[index])

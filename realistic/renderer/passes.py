@@ -187,8 +187,8 @@ class _Frame:
     def started(self) -> PassFilm:
         """The film, allocated on first use."""
         if self.film is None:
-            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp, self.crop,
-                                      self.layout.columns), self.plan)
+            self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp, bounds=self.crop,
+                                      columns=self.layout.columns), self.plan)
         return self.film
 
 
@@ -247,7 +247,8 @@ def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
                                  job.settings.light_samples, job.crop, job.settings.aovs)
     frame = frames[0]
     if job.checkpoint.resume:
-        frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan, job.crop, frame.layout.columns)
+        frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan, crop=job.crop,
+                                     columns=frame.layout.columns)
         frame.result.samples_done = sum(_samples_of(job, frame.plan[i], frame.camera)
                                         for i in range(frame.film.next_pass)) \
             + sum(_samples_of(job, frame.plan[i], frame.camera) for i in frame.film.waiting)
