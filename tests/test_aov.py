@@ -254,3 +254,14 @@ def test_a_pass_whose_sums_are_not_the_plans_is_refused_on_arrival():
     with pytest.raises(RuntimeError, match="not in the plan"):
         film.add(len(plan), 0, np.zeros((1, 8)))
     assert film.passes_taken == 0
+
+
+def test_aovs_into_a_png_or_pfm_are_refused_before_any_work(tmp_path, capsys):
+    """A PNG or PFM holds the image alone: the AOVs asked for would be dropped without a word."""
+    from realistic.cli import main
+
+    for name in ("x.png", "x.pfm"):
+        assert main(["render", "--aov", "depth", "--res", "8x8", "--out", str(tmp_path / name)]) == 2
+        err = capsys.readouterr().err
+        assert "--aov writes EXR channels" in err and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []

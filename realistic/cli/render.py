@@ -263,6 +263,8 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     if args.out is not None:
         render_output(args.out)
+        if args.aov and Path(args.out).suffix.lower() != ".exr":
+            raise UserError(f"--aov writes EXR channels: {args.out} would hold the image alone (give an .exr --out)")
     if args.out is not None and not args.sweep and not args.resume:
         refuse_unless_resuming(checkpoint_path(Path(args.out)))  # now, before the scene is read; render() does too
     if args.denoise:
