@@ -10,12 +10,23 @@ are one pixel step long, as pbrt's ray differentials are, so the texture filters
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from realistic.core.vectors import dot, normalise
 
 #: Grazing hits: the along-ray axis is stretched by at most 1 / this (pbrt's EWA clamps it anyway).
 MIN_COSINE = 1e-3
+
+
+def differential_scale(spp: int, floor: float) -> float:
+    """The fraction of a pixel a camera ray's footprint spans at ``spp`` samples per pixel: pbrt
+    shrinks each camera ray's differentials by 1/sqrt(spp), since spp samples already cover the
+    pixel (pbrt-v2 src/renderers/samplerrenderer.cpp and pbrt-v3 src/core/integrator.cpp:
+    ``ScaleDifferentials(1 / sqrt(samplesPerPixel))``), and pbrt-v4 keeps at least 1/8 of a pixel
+    (src/pbrt/cpu/integrators.cpp: ``max(.125, 1 / sqrt(SamplesPerPixel()))``): ``floor``."""
+    return max(floor, 1.0 / math.sqrt(spp))
 
 
 def tangent_axes(direction: np.ndarray, normal: np.ndarray, width: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

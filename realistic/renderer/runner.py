@@ -14,6 +14,7 @@ from realistic.core.spectrum import rgb_response
 from realistic.renderer.aov import AovLayout
 from realistic.renderer.backends import backend_for
 from realistic.renderer.film import pass_sums
+from realistic.renderer.footprint import differential_scale
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.job import PassResult, PassSettings
 from realistic.renderer.timing import StageClock
@@ -53,8 +54,9 @@ class PassRunner:
         self.camera, self.morton, self.clock, self.crop = camera, settings.morton, clock, settings.crop
         kernels = backend_for(settings.backend, settings.cl_device)  # this process's, made once: jobs carry strings
         self.generate = kernels.ray_generator(camera, settings.seed)
+        spread = camera.pixel_spread_radians() * differential_scale(camera.spp, scene.differential_floor)
         self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
-                                          settings.seed, camera.pixel_spread_radians(), backend=kernels)
+                                          settings.seed, spread, backend=kernels)
         self.aovs = AovLayout(settings.aovs)
 
     def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:

@@ -114,6 +114,9 @@ class Scene:
     light_samples: int = 1  # light samples per hit the scene asks for
     integrator: str = "directlighting"  # "directlighting" or "path" (``realistic.renderer.integrators``)
     max_depth: int = 5  # bounces of "path"; specular bounces of "directlighting" (pbrt's maxdepth)
+    # the least scale of a camera ray's pixel footprint at high spp (``footprint.differential_scale``):
+    # pbrt-v4's 1/8, 0 for a pbrt-v1..v3 file (its pbrt shrinks footprints by 1/sqrt(spp) without bound)
+    differential_floor: float = 0.125
     metadata: dict = field(default_factory=dict)  # what an image header says of the scene's source (file, staging)
 
     @property

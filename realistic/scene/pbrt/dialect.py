@@ -253,6 +253,12 @@ class Dialect:
         return CONVERSION_OF_DIALECT[self.name]
 
     @property
+    def differential_floor(self) -> float:
+        """The least fraction of a pixel a camera ray's texture footprint keeps at high spp
+        (``renderer.footprint.differential_scale``): pbrt-v4's 1/8, none before."""
+        return 0.125 if self.is_v4 else 0.0
+
+    @property
     def is_v4(self) -> bool:
         return self.name == "v4"
 

@@ -335,6 +335,7 @@ class _Importer:
                 self.add_shape(shape, world)
         self.scene.lights.extend(import_lights(self.parsed, self.dialect, self.find))
         self.scene.integrator, self.scene.max_depth = import_integrator(self.parsed, self.dialect.default_integrator)
+        self.scene.differential_floor = self.dialect.differential_floor
         return self.scene
 
 
