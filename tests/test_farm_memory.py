@@ -150,3 +150,13 @@ def test_a_farm_refuses_before_sending_a_job_its_workers_cannot_hold():
             assert not client.who_has()  # nothing was sent
     finally:
         cluster.close()
+
+
+def test_aov_columns_are_counted_per_pixel_and_per_ray_in_flight():
+    """The AOVs' film columns and per-ray values were not in the estimate."""
+    camera = _camera()
+    plain = memory_parts(_spheres(1, False), camera, 262144, 2)
+    with_aovs = memory_parts(_spheres(1, False), camera, 262144, 2, aov_columns=14)
+    pixels = camera.width * camera.height
+    assert with_aovs["film"] - plain["film"] == memory.AOV_BYTES_PER_COLUMN * 14 * pixels
+    assert with_aovs["passes in flight"] > plain["passes in flight"]

@@ -28,6 +28,7 @@ import numpy as np
 
 from realistic.camera.base import Camera
 from realistic.errors import UserError
+from realistic.renderer.aov import RADIANCE_COLUMNS, AovLayout
 from realistic.renderer.job import RenderJob
 from realistic.scene.intersect import SHARE_MIN_FACES
 from realistic.scene.lights import EmissiveInstance, InfiniteLight
@@ -37,6 +38,7 @@ BASE_BYTES = 350 * 2**20
 FILM_BYTES_PER_PIXEL = 80
 IMAGE_BYTES_PER_PIXEL = 12  # a finished frame's float32 RGB image
 PASS_BYTES_PER_SAMPLE = 600  # per camera ray in flight
+AOV_BYTES_PER_COLUMN = 12  # per AOV film column: a float64 sum per pixel (or ray in flight) and its float32 image
 SCENE_BYTES_PER_TRIANGLE = 192  # per instanced triangle: embree's copy and BVH, shading tables (150 measured)
 AREA_LIGHT_TRIANGLES = 256
 EMITTER_BYTES_PER_TRIANGLE = 176  # per emitting triangle and runner: corners, edges, normal, CDF (142 measured)
@@ -48,9 +50,10 @@ _SIZE = re.compile(r"^\s*(\d+(?:\.\d*)?)\s*([kmgt]?)i?b?\s*$", re.IGNORECASE)
 
 
 def memory_parts(scene: Scene, camera: Camera, pass_samples: int, threads: int, frames: int = 1,
-                 kept_images: int = 0) -> dict[str, int]:
+                 kept_images: int = 0, aov_columns: int = 0) -> dict[str, int]:
     """Bytes a render of ``scene`` through ``camera`` (one of ``frames`` alike) holds at its peak, by
-    what they go to; ``kept_images`` finished frames' images are held to the end."""
+    what they go to; ``kept_images`` finished frames' images are held to the end; ``aov_columns``
+    film columns beyond the radiance's hold AOV sums (``aov.AovLayout``)."""
     pixels = camera.width * camera.height
     alive = min(frames, FRAMES_ALIVE)
     in_flight = min(pass_samples * max(1, threads), camera.sample_count) * camera.rays_per_sample
@@ -65,15 +68,16 @@ def memory_parts(scene: Scene, camera: Camera, pass_samples: int, threads: int, 
         "geometry": sum(_mesh_bytes(mesh) for mesh in scene.meshes) + SCENE_BYTES_PER_TRIANGLE * triangles,
         "light tables": alive * EMITTER_BYTES_PER_TRIANGLE * emitting + ENVIRONMENT_BYTES_PER_TEXEL * texels,
         "textures": TEXTURE_FACTOR * sum(texture.pixels.nbytes for texture in _image_textures(scene)),
-        "film": alive * FILM_BYTES_PER_PIXEL * pixels + IMAGE_BYTES_PER_PIXEL * pixels * kept_images,
-        "passes in flight": PASS_BYTES_PER_SAMPLE * in_flight,
+        "film": alive * (FILM_BYTES_PER_PIXEL + AOV_BYTES_PER_COLUMN * aov_columns) * pixels
+        + IMAGE_BYTES_PER_PIXEL * pixels * kept_images,
+        "passes in flight": (PASS_BYTES_PER_SAMPLE + AOV_BYTES_PER_COLUMN * aov_columns) * in_flight,
     }
 
 
 def estimate_peak_bytes(scene: Scene, camera: Camera, pass_samples: int, threads: int, frames: int = 1,
-                        kept_images: int = 0) -> int:
+                        kept_images: int = 0, aov_columns: int = 0) -> int:
     """Bytes a render of ``scene`` through ``camera`` holds at its peak (``memory_parts`` summed)."""
-    return sum(memory_parts(scene, camera, pass_samples, threads, frames, kept_images).values())
+    return sum(memory_parts(scene, camera, pass_samples, threads, frames, kept_images, aov_columns).values())
 
 
 def _traced_triangles(scene: Scene) -> int:
@@ -150,12 +154,13 @@ _ADVICE = {
 
 
 def check_memory(scene: Scene, camera: Camera, pass_samples: int, threads: int, limit_bytes: int | None,
-                 frames: int = 1, kept_images: int = 0, limit_source: str = "allowed by --max-memory") -> None:
+                 frames: int = 1, kept_images: int = 0, limit_source: str = "allowed by --max-memory",
+                 aov_columns: int = 0) -> None:
     """Refuse, in one line with the estimate, what it goes to and the limit, a render that would not
     fit in memory: more than ``limit_bytes`` (None: what the system has available now; its name in
     the message: ``limit_source``), and never more than the machine has at all, whatever
     ``limit_bytes`` says."""
-    parts = memory_parts(scene, camera, pass_samples, threads, frames, kept_images)
+    parts = memory_parts(scene, camera, pass_samples, threads, frames, kept_images, aov_columns)
     need = sum(parts.values())
     machine = machine_bytes()
     raise_hint = ", or raise --max-memory if the estimate is too cautious"
@@ -179,5 +184,7 @@ def check_job_memory(job: RenderJob, threads: int, limit_bytes: int | None, fram
     """``check_memory`` for every kind of frame ``job`` renders (a sweep's frames are alike, so one
     check serves them), on ``threads`` threads, holding ``frames`` films and ``kept_images`` images."""
     alike = {(c.width, c.height, c.spp, c.rays_per_sample): c for c in job.cameras}
+    aov_columns = AovLayout(job.settings.aovs).columns - RADIANCE_COLUMNS
     for camera in alike.values():
-        check_memory(job.scene, camera, job.pass_size, threads, limit_bytes, frames, kept_images, limit_source)
+        check_memory(job.scene, camera, job.pass_size, threads, limit_bytes, frames, kept_images, limit_source,
+                     aov_columns)
