@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from realistic.core import validation
 from realistic.errors import UserError
-from realistic.renderer.output import report_non_finite
+from realistic.renderer.output import report_image_problems
 from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, SpotLight
 from realistic.scene.model import AreaLight, Material
 from realistic.scene.pbrt.importer import import_pbrt
@@ -175,10 +175,10 @@ def test_an_instance_under_a_singular_transform_is_skipped_at_its_line(tmp_path)
 def test_nan_and_infinite_pixels_are_counted_in_one_warning(tmp_path, capsys):
     image = np.ones((4, 5, 3), np.float32)
     image[0, 0, 1], image[2, 3] = np.nan, np.inf
-    assert report_non_finite(tmp_path / "x.exr", image) == 2
+    assert report_image_problems(tmp_path / "x.exr", image) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "2 of 20 pixels are NaN or infinite" in err
-    assert report_non_finite(tmp_path / "x.exr", np.ones((2, 2, 3))) == 0
+    assert report_image_problems(tmp_path / "x.exr", np.ones((2, 2, 3))) == 0
     assert capsys.readouterr().err == ""
 
 
@@ -246,3 +246,15 @@ def test_rendering_an_object_flattened_by_scale_0_warns_instead_of_a_traceback(t
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr
     assert f'{line_of(path, "Shape")}: unsupported: Shape "sphere" under a transform that is singular' in done.stderr
+
+
+def test_an_all_black_image_is_reported(tmp_path, capsys):
+    """A scene whose light reaches nothing rendered an all-black image with exit 0 and no word."""
+    from realistic.cli import main
+
+    path = tmp_path / "dark.pbrt"
+    path.write_text('Camera "perspective"\nFilm "image" "integer xresolution" 8 "integer yresolution" 6\n'
+                    'WorldBegin\nShape "sphere" "float radius" 1\nWorldEnd\n')
+    assert main(["render", str(path), "--spp", "1", "--backend", "numpy", "--out", str(tmp_path / "d.exr")]) == 0
+    assert "every pixel is black after 48 samples" in capsys.readouterr().err
+    assert report_image_problems(tmp_path / "x.exr", np.zeros((2, 2, 3)), samples_done=0) == 0  # nothing taken yet

@@ -279,7 +279,7 @@ def save(result: RenderResult, path: str | os.PathLike, photographic: Photograph
     """
     path = render_output(path)
     pixels = exposed(result.image, photographic)
-    report_non_finite(path, pixels)
+    report_image_problems(path, pixels, result.samples_done)
     metadata = image_metadata(result)
     if photographic is not None:
         metadata.update(photographic.header(result.camera))
@@ -316,13 +316,19 @@ def _refuse_to_replace_better(path: Path, result: RenderResult, checkpoint: Path
                               f"{result.samples_done}: kept it{kept}")
 
 
-def report_non_finite(path: Path, image: np.ndarray) -> int:
+def report_image_problems(path: Path, image: np.ndarray, samples_done: int = 1) -> int:
     """Warn on stderr, in one line, when ``image`` has NaN or infinite pixels (a scene's numbers or an
-    exposure beyond float32); they are written as they are. Returns how many there are."""
+    exposure beyond float32; they are written as they are), or when every pixel is black although
+    ``samples_done`` samples were taken (no light reached the film: a scene without lights, a lens
+    that passes nothing, a camera inside an object). Returns how many pixels are not finite."""
     bad = int(np.count_nonzero(~np.all(np.isfinite(image), axis=-1)))
+    pixels = image.shape[0] * image.shape[1]
     if bad:
-        pixels = image.shape[0] * image.shape[1]
         print(f"realistic: warning: {path}: {bad} of {pixels} pixels are NaN or infinite (written as they are)",
+              file=sys.stderr)
+    elif samples_done > 0 and pixels and not np.any(image):
+        print(f"realistic: warning: {path}: every pixel is black after {samples_done} samples: no light reached "
+              f"the film (are there lights, does the lens pass light, is the camera inside something?)",
               file=sys.stderr)
     return bad
 
