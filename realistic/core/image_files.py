@@ -60,16 +60,26 @@ def auto_exposure(image: np.ndarray) -> float:
     return float(np.log2(0.8 / bright)) if bright > 0 else 0.0
 
 
-def write_png(path: Path, image: np.ndarray, exposure_stops: float) -> None:
-    """8-bit sRGB PNG preview of linear ``image`` scaled by 2^exposure_stops (imageio's Pillow plugin,
-    the same library that reads images)."""
+def preview_pixels(image: np.ndarray, exposure_stops: float) -> np.ndarray:
+    """8-bit sRGB pixels (H, W, 3) uint8 of linear ``image`` scaled by 2^exposure_stops: what the PNG
+    preview holds, and what a notebook shows."""
+    encoded = srgb_encode(image.astype(np.float32) * np.float32(2.0**exposure_stops))
+    return np.round(encoded * 255).astype(np.uint8)
+
+
+def png_bytes(image: np.ndarray, exposure_stops: float) -> bytes:
+    """The PNG file of ``preview_pixels`` in memory (imageio's Pillow plugin, the same library that
+    reads images)."""
     import imageio.v3 as iio
 
-    encoded = srgb_encode(image.astype(np.float32) * np.float32(2.0**exposure_stops))
-    rgb = np.round(encoded * 255).astype(np.uint8)
+    return bytes(iio.imwrite("<bytes>", preview_pixels(image, exposure_stops), plugin="pillow", extension=".png"))
+
+
+def write_png(path: Path, image: np.ndarray, exposure_stops: float) -> None:
+    """8-bit sRGB PNG preview of linear ``image`` scaled by 2^exposure_stops (``png_bytes``)."""
     # encoded in memory, then written: Pillow writing to a file reports a full disk only when the
     # file object is collected ("Exception ignored"), after a truncated file would be renamed in place
-    encoded_png = iio.imwrite("<bytes>", rgb, plugin="pillow", extension=".png")
+    encoded_png = png_bytes(image, exposure_stops)
     write_atomically(path, lambda name: Path(name).write_bytes(encoded_png))
 
 
