@@ -30,7 +30,9 @@ except the lens's, which are millimetres as everywhere::
   film, default the target's distance; ``fstop`` or ``aperture_mm``; ``film_diagonal`` in mm;
   ``mm_per_unit``, default 1000; ``dispersion``), or ``thinlens``/``perspective`` (``fov`` in
   degrees across the shorter side, ``eye``, ``target``, ``lens_radius``, ``focus``); both
-  ``width``, ``height``, ``spp``.
+  ``width``, ``height``, ``spp``. Both look as ``LensCamera.looking_at`` does, with pbrt's ``LookAt``
+  (a left-handed view: from +z toward the origin with +y up, world +x is on the image's left, where
+  right-handed Mitsuba shows it on the right).
 - ``integrator`` (``directlighting`` or ``path``), ``max_depth``, ``light_samples``, ``background``.
 
 Every value is checked once where it enters, by the check the CLI and the pbrt importer use
@@ -114,11 +116,12 @@ class _Entry:
     values read one by one, each error naming its key path."""
 
     def __init__(self, value: object, path: str, known: Sequence[str]) -> None:
+        where = f"{path}: " if path else "the description: "
         if not isinstance(value, Mapping):
-            raise UserError(f"{path}: must be a dict, got {_type_name(value)}")
+            raise UserError(f"{where}must be a dict, got {_type_name(value)}")
         for key in value:
             if key not in known:
-                raise UserError(f"{path}: unknown key {key!r} (known: {', '.join(known)})")
+                raise UserError(f"{where}unknown key {key!r} (known: {', '.join(known)})")
         self.values: Mapping[str, Any] = value
         self.path = path
 
