@@ -42,9 +42,9 @@ class Image(np.ndarray):
     def __array_wrap__(self, array: np.ndarray, context: Any = None, return_scalar: bool = False) -> Any:
         """Results that are still (H, W, 3) stay images; others (a mean, one channel) are plain arrays."""
         if _is_image(array) and not return_scalar:
-            return super().__array_wrap__(array, context, return_scalar)
+            return array.view(type(self))
         plain = array.view(np.ndarray)
-        return plain[()] if return_scalar else plain
+        return plain[()] if return_scalar or plain.ndim == 0 else plain  # (numpy 1 has no return_scalar)
 
     def __repr__(self) -> str:
         if not _is_image(self):  # a slice of pixels
