@@ -83,6 +83,19 @@ def test_emitting_spheres_and_rectangles_are_lights():
     assert isinstance(quad, AreaLight) and quad.shape == "quad" and quad.area() == pytest.approx(6)
 
 
+def test_a_mesh_file_is_placed_by_its_transform_and_may_emit(tmp_path):
+    (tmp_path / "tri.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                      "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                                      "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    move = [[2, 0, 0, 1], [0, 2, 0, 2], [0, 0, 2, 3], [0, 0, 0, 1]]
+    scene = rl.load_dict({"shapes": [{"type": "mesh", "filename": tmp_path / "tri.ply", "transform": move,
+                                      "emission": [1, 1, 1]}]})
+    np.testing.assert_allclose(np.array(scene.bounds()), [[1, 2, 3], [3, 4, 3]])
+    assert isinstance(scene.lights[0], EmissiveInstance) and scene.lights[0].instance == 0
+    with pytest.raises(rl.UserError, match=r"^shapes\[0\]\.filename: .*missing\.ply"):
+        rl.load_dict({"shapes": [{"type": "mesh", "filename": str(tmp_path / "missing.ply")}]})
+
+
 def test_a_thin_lens_camera_and_the_scene_settings():
     scene = rl.load_dict({"camera": {"type": "perspective", "fov": 30, "eye": [0, 0, 5], "lens_radius": 0.1,
                                      "width": 8, "height": 4, "spp": 1},

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -203,10 +204,12 @@ def _vector_of(value: object, count: int) -> list[float]:
     return [validation.finite(v, "each entry") for v in value]
 
 
-def _text(value: object) -> str:
-    if not isinstance(value, str):
-        raise UserError(f"must be a string, got {value!r}")
-    return value
+def _file_name(value: object) -> str:
+    """A file name (a string or a path) or a bundled lens's name."""
+    name = os.fspath(value) if isinstance(value, os.PathLike) else value
+    if not isinstance(name, str):
+        raise UserError(f"must be a string or a path, got {value!r}")
+    return name
 
 
 class _Materials:
@@ -339,7 +342,7 @@ def _shape(scene: Scene, value: object, path: str, materials: _Materials) -> Non
         placed: list[tuple[Mesh, np.ndarray, RGB | None]] = [
             (sphere(entry.read("radius", _length("sphere radius"), 1.0)), _placement(entry, oriented=False), None)]
     else:
-        filename = entry.read("filename", _text, None)
+        filename = entry.read("filename", _file_name, None)
         if filename is None:
             raise UserError(f"{path}: a mesh needs its filename")
         with _at(entry.key("filename")):
@@ -408,7 +411,7 @@ def _camera(value: object) -> Camera:
         radius = entry.read("lens_radius", lambda v: validation.finite(v, "lens radius"), 0.0)
         with _at("camera"):
             return ThinLensCamera(fov, radius, focus, width, height, spp, look_at(eye, target))
-    lens = entry.read("lens", lambda v: load_lens(_text(v)), None) or load_lens("dgauss")
+    lens = entry.read("lens", lambda v: load_lens(_file_name(v)), None) or load_lens("dgauss")
     if entry.has("fstop") and entry.has("aperture_mm"):
         raise UserError("camera: fstop and aperture_mm both size the stop: give one")
     lens = entry.read("aperture_mm", lambda v: lens.with_stop_diameter(validation.stop_diameter_mm(v)), lens)
@@ -451,6 +454,6 @@ def load_dict(description: Mapping[str, Any]) -> Scene:
 
 
 def _integrator(value: object) -> str:
-    if value not in INTEGRATORS:
+    if not isinstance(value, str) or value not in INTEGRATORS:
         raise UserError(f"must be one of {', '.join(INTEGRATORS)}, got {value!r}")
     return str(value)
