@@ -169,14 +169,15 @@ KEYS = sorted({*SCENE_KEYS, *SHAPE_COMMON, *(k for keys in SHAPE_KEYS.values() f
 TYPES = sorted({*SHAPE_KEYS, *LIGHT_KEYS, *CAMERA_KEYS, "diffuse", "conductor", "mix", "dielectric", "plastic"})
 SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-10**20, 10**20), st.floats(allow_nan=True),
                     st.sampled_from(TYPES), st.text(max_size=8), st.sampled_from(["dgauss", "floor", "metal-Au-eta"]))
-VALUES = st.recursive(SCALARS, lambda inner: st.one_of(
-    st.lists(inner, max_size=5), st.dictionaries(st.sampled_from([*KEYS, "type"]), inner, max_size=6)), max_leaves=25)
+ANY_KEY = st.sampled_from([*KEYS, "type"])
+VALUES = st.recursive(SCALARS, lambda inner: st.lists(inner, max_size=5) | st.dictionaries(ANY_KEY, inner, max_size=6),
+                      max_leaves=25)
 
 
 @given(description=st.dictionaries(st.sampled_from(KEYS), VALUES, max_size=5)
        | st.builds(lambda shapes, camera, materials: {"shapes": shapes, "camera": camera, "materials": materials},
-                   st.lists(st.dictionaries(st.sampled_from([*KEYS, "type"]), VALUES, max_size=6), max_size=3),
-                   st.dictionaries(st.sampled_from([*KEYS, "type"]), VALUES, max_size=6),
+                   st.lists(st.dictionaries(ANY_KEY, VALUES, max_size=6), max_size=3),
+                   st.dictionaries(ANY_KEY, VALUES, max_size=6),
                    st.dictionaries(st.sampled_from(["floor", "x"]), VALUES, max_size=2)))
 def test_any_description_gives_a_scene_or_a_one_line_user_error(description, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # a string taken for a mesh or lens file names nothing of the project's
