@@ -9,6 +9,10 @@ The Python API, in the order a script uses it::
     camera = rl.LensCamera.looking_at(rl.load_lens("telephoto"), eye=(4, 1, 4), target=(0, 0.3, 0),
                                       width=320, height=240)
     rl.write_exr("dragon.exr", rl.render(scene, camera, spp=16))
+    scene = rl.load_dict({"shapes": [{"type": "sphere", "radius": 0.5}],
+                          "lights": [{"type": "distant", "direction": (1, 1, 1)}],
+                          "camera": {"type": "lens", "lens": "dgauss", "eye": (0, 0, 4), "target": (0, 0, 0)}})
+    rl.show(rl.render(scene, spp=4))        # or leave the image last in a notebook cell
 
 - ``load_lens(name_or_path)``: a bundled prescription (``BUNDLED_LENSES``) or a lens file.
 - ``load_scene(path=None, **options)``: a pbrt scene (with its camera), a mesh file, or (None) the
@@ -16,8 +20,12 @@ The Python API, in the order a script uses it::
 - ``LensCamera`` (a real lens) and ``ThinLensCamera`` (pbrt's perspective) implement ``Camera``.
 - ``PixelFilter``: pbrt's pixel filters, for a camera's ``pixel_filter`` (default: a 0.5-pixel box);
   ``load_scene(..., pixel_filter="gaussian")`` picks one by name at pbrt's defaults.
-- ``render(scene, camera=None, spp=None, ...)``: the image.
-- ``render_job(RenderJob(scene, cameras, ...), executor=None, observer=None)``: one ``RenderResult``
+- ``load_dict(description)``: a scene and its camera from one plain dict (shapes, meshes,
+  materials, lights, camera; ``realistic.renderer.from_dict`` lists the keys).
+- ``render(scene, camera=None, spp=None, ...)``: the image, an ``Image``: the (H, W, 3) float32
+  array that a notebook displays tone-mapped; ``show(image_or_result, exposure=None)`` draws one
+  with matplotlib.
+- ``render_job(RenderJob(scene, cameras, ...), executor=None, observer=None, spp=None)``: one ``RenderResult``
   (image and statistics) per camera, on ``ThreadPasses`` (threads here) or ``DaskPasses`` (a Dask
   cluster); ``RenderObserver`` reports passes, frames and previews.
 - ``save(result, path, photographic=None)``: the EXR and PNG the ``render`` command writes (header,
@@ -57,21 +65,21 @@ _EXPORTS = {
     "Checkpointing": "realistic.renderer.job",
     "ThreadPasses": "realistic.renderer.passes",
     "DaskPasses": "realistic.renderer.farm",
-    "render_job": "realistic.renderer.passes:render",
+    "Image": "realistic.renderer.image",
+    "show": "realistic.renderer.image",
+    "load_dict": "realistic.renderer.from_dict",
     "Photographic": "realistic.renderer.output",
     "save": "realistic.renderer.output",
     "write_exr": "realistic.core.image_files",
     "read_exr": "realistic.core.image_files",
 }
 
-__all__ = ["BUNDLED_LENSES", "Camera", "Checkpointing", "DaskPasses", "LensCamera", "LensFileError", "LensSystem",
-           "Photographic", "PixelFilter", "RenderJob", "RenderObserver", "RenderOptions", "RenderResult", "Scene",
-           "ThinLensCamera", "ThreadPasses", "UserError", "load_lens", "load_scene", "parse_prescription", "read_exr",
-           "render", "render_job", "save", "write_exr"]
+__all__ = ["BUNDLED_LENSES", "Camera", "Checkpointing", "DaskPasses", "Image", "LensCamera", "LensFileError",
+           "LensSystem", "Photographic", "PixelFilter", "RenderJob", "RenderObserver", "RenderOptions", "RenderResult",
+           "Scene", "ThinLensCamera", "ThreadPasses", "UserError", "load_dict", "load_lens", "load_scene",
+           "parse_prescription", "read_exr", "render", "render_job", "save", "show", "write_exr"]
 
 if TYPE_CHECKING:
-    import numpy as np
-
     from realistic.camera.base import Camera
     from realistic.camera.lens_camera import LensCamera
     from realistic.camera.thin_lens import ThinLensCamera
@@ -81,11 +89,12 @@ if TYPE_CHECKING:
     from realistic.optics.formats.pbrt_dat import parse_prescription
     from realistic.optics.lens import LensSystem
     from realistic.renderer.farm import DaskPasses
+    from realistic.renderer.from_dict import load_dict
+    from realistic.renderer.image import Image, show
     from realistic.renderer.inputs import RenderOptions
     from realistic.renderer.job import Checkpointing, PassExecutor, RenderJob, RenderObserver, RenderResult
     from realistic.renderer.output import Photographic, save
     from realistic.renderer.passes import ThreadPasses
-    from realistic.renderer.passes import render as render_job
     from realistic.scene.model import Scene
 
 
@@ -114,8 +123,9 @@ def load_scene(path: str | None = None, **options: Any) -> Scene:
 
 def render(scene: Scene, camera: Camera | None = None, backend: str = "opencl", seed: int = 0, *,
            spp: int | None = None, client: Any = None, threads: int | None = None, pin_threads: bool = False,
-           task_samples: int | None = None, **job: Any) -> np.ndarray:
-    """The film image (H, W, 3) float32: film irradiance per pixel in units of scene radiance.
+           task_samples: int | None = None, **job: Any) -> Image:
+    """The film image (H, W, 3) float32: film irradiance per pixel in units of scene radiance, as an
+    ``Image`` (an ndarray that a notebook displays tone-mapped).
 
     ``camera`` None renders through the scene's own camera (``Scene.camera``: a pbrt file's, or the
     framing of a loaded mesh); ``spp`` overrides the camera's samples per pixel. ``client`` (a
@@ -127,21 +137,33 @@ def render(scene: Scene, camera: Camera | None = None, backend: str = "opencl", 
     the mean of its ``wavelengths_per_sample`` rays; others render RGB directly.
     ``render_job`` returns the statistics too.
     """
-    import dataclasses
-
+    from realistic.renderer.image import Image
     from realistic.renderer.job import RenderJob
     from realistic.renderer.passes import ThreadPasses
-    from realistic.renderer.passes import render as render_job
 
     camera = camera if camera is not None else scene.camera
     if camera is None:
         raise UserError("no camera: pass one, or load a scene that brings its own")
-    if spp is not None:
-        camera = dataclasses.replace(camera, spp=spp)
     if client is not None:
         from realistic.renderer.farm import DaskPasses
 
         executor: PassExecutor = DaskPasses(client, task_samples)
     else:
         executor = ThreadPasses(threads, pin_threads)
-    return render_job(RenderJob(scene, (camera,), backend, seed, **job), executor)[0].image
+    return Image.of(render_job(RenderJob(scene, (camera,), backend, seed, **job), executor, spp=spp)[0].image)
+
+
+def render_job(job: RenderJob, executor: PassExecutor | None = None, observer: RenderObserver | None = None, *,
+               spp: int | None = None) -> list[RenderResult]:
+    """Every frame of ``job`` rendered on ``executor`` (None: ``ThreadPasses()``), one ``RenderResult``
+    each, as ``realistic.renderer.passes.render`` explains; ``spp`` overrides every camera's samples
+    per pixel."""
+    import dataclasses
+
+    from realistic.core import validation
+    from realistic.renderer.passes import render as run
+
+    if spp is not None:
+        spp = validation.samples_per_pixel(spp)
+        job = dataclasses.replace(job, cameras=tuple(dataclasses.replace(camera, spp=spp) for camera in job.cameras))
+    return run(job, executor, observer)

@@ -172,6 +172,13 @@ class LensCamera:
         return cls(lens, film_distance, film_diagonal_mm, width, height, spp,
                    look_at(eye, target) @ scale(1.0 / mm_per_unit), "film", lens_sampling)
 
+    def __repr__(self) -> str:
+        """One line, no arrays: lens, film, focus (scene units from the film) and f-number."""
+        focus = focus_distance_for_film(self.lens, self.film_distance_mm) / self.mm_per_unit
+        spectral = ", spectral" if self.spectral else ""
+        return (f"LensCamera({self.lens.name!r}, {self.width}x{self.height}, {self.spp} spp, focus {focus:.4g}, "
+                f"f/{paraxial_data(self.lens).f_number:.3g}, film {self.film_diagonal_mm:.4g} mm{spectral})")
+
     @property
     def camera_origin_mm(self) -> float:
         """Distance from the film to camera space's origin, toward the scene."""

@@ -65,6 +65,12 @@ class ThinLensCamera:
         validation.samples_per_pixel(self.spp)
         object.__setattr__(self, "world_from_camera", np.asarray(self.world_from_camera, dtype=np.float64))
 
+    def __repr__(self) -> str:
+        """One line, no arrays: field of view, film, and the thin lens (scene units) if any."""
+        lens = (f"lens radius {self.lens_radius:.4g}, focus {self.focal_distance:.4g}" if self.lens_radius > 0
+                else "pinhole")
+        return f"ThinLensCamera(fov {self.fov_deg:.4g} deg, {self.width}x{self.height}, {self.spp} spp, {lens})"
+
     @property
     def sample_count(self) -> int:
         return self.width * self.height * self.spp

@@ -98,24 +98,29 @@ def check_png_bits(bits: int) -> int:
     return bits
 
 
-def encoded_png(image: np.ndarray, exposure_stops: float, bits: int = 8) -> bytes:
-    """PNG bytes of linear ``image`` scaled by 2^exposure_stops, sRGB-encoded (clipped to [0, 1]) to
-    ``bits`` (8 or 16) per sample: 8 through imageio's Pillow plugin, 16 through its OpenCV plugin
-    (Pillow writes no 16-bit RGB)."""
-    import imageio.v3 as iio
-
+def preview_pixels(image: np.ndarray, exposure_stops: float, bits: int = 8) -> np.ndarray:
+    """sRGB pixels (H, W, 3) of linear ``image`` scaled by 2^exposure_stops, clipped to [0, 1] and
+    quantised to ``bits`` (8: uint8, 16: uint16): what a PNG holds, and what a notebook shows."""
     check_png_bits(bits)
     encoded = srgb_encode(image.astype(np.float32) * np.float32(2.0**exposure_stops))
     top = (1 << bits) - 1
-    samples = np.round(encoded * top).astype(np.uint8 if bits == 8 else np.uint16)
+    return np.round(encoded * top).astype(np.uint8 if bits == 8 else np.uint16)
+
+
+def png_bytes(image: np.ndarray, exposure_stops: float, bits: int = 8) -> bytes:
+    """The PNG file of ``preview_pixels`` in memory: 8 bits through imageio's Pillow plugin, 16 through
+    its OpenCV plugin (Pillow writes no 16-bit RGB)."""
+    import imageio.v3 as iio
+
+    samples = preview_pixels(image, exposure_stops, bits)
     return bytes(iio.imwrite("<bytes>", samples, plugin="pillow" if bits == 8 else "opencv", extension=".png"))
 
 
 def write_png(path: Path, image: np.ndarray, exposure_stops: float, bits: int = 8) -> None:
-    """sRGB PNG of linear ``image`` scaled by 2^exposure_stops (``encoded_png``), written atomically."""
+    """sRGB PNG of linear ``image`` scaled by 2^exposure_stops (``png_bytes``), written atomically."""
     # encoded in memory, then written: Pillow writing to a file reports a full disk only when the
     # file object is collected ("Exception ignored"), after a truncated file would be renamed in place
-    data = encoded_png(image, exposure_stops, bits)
+    data = png_bytes(image, exposure_stops, bits)
     write_atomically(path, lambda name: Path(name).write_bytes(data))
 
 

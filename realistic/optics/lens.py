@@ -93,6 +93,13 @@ class LensSystem:
         if self.aspheric_coefficients.size == 0:
             object.__setattr__(self, "aspheric_coefficients", np.zeros((count, COEFFICIENT_COUNT)))
 
+    def __repr__(self) -> str:
+        """One line, no arrays: the name, surfaces, stop and length (``lens info`` says the rest)."""
+        glass = ", dispersive" if self.has_dispersion else ""
+        aspheres = f", {self.asphere_count} aspheric" if self.asphere_count else ""
+        return (f"LensSystem({self.name!r}, {self.surface_count} surfaces{aspheres}, stop {self.stop_diameter_mm:.4g} "
+                f"mm, track {self.track_length_mm:.4g} mm{glass})")
+
     @property
     def surface_count(self) -> int:
         return len(self.radius_mm)

@@ -7,6 +7,8 @@
   threads in this process), added to the film in pass order.
 - ``runner``: ``PassRunner``, one pass task's work (rays, hits, shading, per-pixel sums), for both executors.
 - ``output``: ``save``: a finished render's EXR (with its header), PNG preview and rescue write.
+- ``image``: ``Image``, the API's film image that a notebook displays tone-mapped, and ``show``.
+- ``from_dict``: ``load_dict``, a scene and its camera from one plain description (the API's).
 - ``pass_plan``: passes as sample-id ranges in progressive (bit-reversed) order.
 - ``thread_count``: the default number of render threads (one per core).
 - ``farm``: ``DaskPasses``, passes as Dask tasks (imported only for farm renders; needs the ``farm`` extra).

@@ -137,6 +137,13 @@ class RenderResult:
     # the film image when ``image`` holds its denoised version (``renderer.denoise``), else None
     noisy: np.ndarray | None = None
 
+    def __repr__(self) -> str:
+        """One line, no arrays."""
+        done = ("complete" if self.samples_done == self.samples_total
+                else f"{self.samples_done} of {self.samples_total} samples")
+        return (f"RenderResult(frame {self.frame}, {self.image.shape[1]}x{self.image.shape[0]}, {done}, "
+                f"{self.seconds:.3g} s{', interrupted' if self.interrupted else ''})")
+
     @property
     def camera(self) -> Camera:
         """The camera this frame was rendered through."""

@@ -11,6 +11,7 @@ are sampled analytically by the integrator and also tessellated so camera rays c
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -45,6 +46,12 @@ class Mesh:
     normals: np.ndarray | None = None  # (V, 3) unit
     uv: np.ndarray | None = None  # (V, 2)
     name: str = ""
+
+    def __repr__(self) -> str:
+        """One line, no arrays."""
+        extras = "".join(f", {what}" for what, there in (("normals", self.normals is not None),
+                                                          ("uv", self.uv is not None)) if there)
+        return f"Mesh({self.name!r}, {len(self.vertices):,} vertices, {len(self.faces):,} triangles{extras})"
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,6 +125,14 @@ class Scene:
     # pbrt-v4's 1/8, 0 for a pbrt-v1..v3 file (its pbrt shrinks footprints by 1/sqrt(spp) without bound)
     differential_floor: float = 0.125
     metadata: dict = field(default_factory=dict)  # what an image header says of the scene's source (file, staging)
+
+    def __repr__(self) -> str:
+        """One line, no arrays: what the scene holds, how it is lit and seen."""
+        triangles = sum(len(self.meshes[instance.mesh].faces) for instance in self.instances)
+        lights = ", ".join(f"{count} {kind}" for kind, count in
+                           sorted(Counter(type(light).__name__ for light in self.lights).items())) or "no lights"
+        return (f"Scene({len(self.instances)} instances of {len(self.meshes)} meshes, {triangles:,} triangles, "
+                f"{lights}, {self.integrator}, camera {self.camera!r})")
 
     @property
     def area_lights(self) -> list[AreaLight]:
