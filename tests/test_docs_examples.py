@@ -194,3 +194,122 @@ def test_documented_block_runs(block: Block, tmp_path: Path, request: pytest.Fix
         assert done.returncode != 0, f"{block.id} passes now: remove it from KNOWN_FAILURES"
         assert failure in done.stderr, output
         pytest.xfail(f"fails as known: {failure}")
+
+
+def _read(document: str) -> str:
+    """A document's text with its line breaks and runs of spaces as single spaces."""
+    return " ".join((ROOT / document).read_text(encoding="utf-8").split())
+
+
+def _layers() -> int:
+    return sum((entry / "__init__.py").is_file() for entry in (ROOT / "realistic").iterdir())
+
+
+def _kernels_named() -> bool:
+    layout = _read("README.md").split("## Layout", 1)[1]
+    return all(f"`{kernel.name}`" in layout for kernel in (ROOT / "kernels").glob("*.cl"))
+
+
+def _library_lenses() -> int:
+    from realistic.optics.formats import BUNDLED_LENSES, bundled_lens_files
+
+    return len(bundled_lens_files()) - len(BUNDLED_LENSES)
+
+
+def _aspheric_short_names() -> int:
+    from realistic.optics.formats import BUNDLED_LENSES, load_lens
+
+    return sum(load_lens(name).asphere_count > 0 for name in BUNDLED_LENSES)
+
+
+def _without_dispersion() -> set[str]:
+    from realistic.optics.formats import bundled_lens_files, load_lens
+
+    return {name for name in bundled_lens_files() if not load_lens(name).has_dispersion}
+
+
+def _dgauss100_gap() -> float:
+    from realistic.optics.formats import load_lens
+
+    return load_lens("dgauss100").film_gap_mm
+
+
+def _parser_default(option: str) -> object:
+    from realistic.cli import build_parser
+
+    return getattr(build_parser().parse_args(["render"]), option)
+
+
+def _slices(pixels: int, spp: int) -> list[int]:
+    from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES, slice_bounds
+
+    return slice_bounds(pixels, spp, DEFAULT_PASS_SAMPLES)
+
+
+def _first_pass_pixels(pixels: int, spp: int) -> int:
+    from realistic.renderer.pass_plan import plan_passes
+
+    return plan_passes(pixels, spp)[0].pixel_count
+
+
+def _task_passes() -> int:
+    from realistic.renderer.farm import DEFAULT_TASK_SAMPLES
+    from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES
+
+    return DEFAULT_TASK_SAMPLES // DEFAULT_PASS_SAMPLES
+
+
+def _constant(module: str, name: str) -> object:
+    return getattr(__import__(module, fromlist=[name]), name)
+
+
+#: (document, phrase, what the phrase says, computed): numbers the documents state that the code fixes.
+FACTS = [
+    ("README.md", "the package in seven layers", 7, _layers),
+    ("README.md", "`kernels/` holds the OpenCL kernels (`lens.cl`", True, _kernels_named),
+    ("README.md", "The library holds 18 more prescriptions", 18, _library_lenses),
+    ("README.md", "three bundled aspheric lenses", 3, _aspheric_short_names),
+    ("README.md", "every bundled lens but `wide`, `fisheye`, `telephoto` and `tessar.100mm`",
+     {"wide", "fisheye", "telephoto", "tessar.100mm"}, _without_dispersion),
+    ("README.md", "its 72.228 mm film gap", 72.228, _dgauss100_gap),
+    ("README.md", "(`--wavelengths-per-sample`, default 3)", 3,
+     lambda: _constant("realistic.core.spectrum", "DEFAULT_WAVELENGTHS_PER_SAMPLE")),
+    ("README.md", "`--maxdepth N` (pbrt's `maxdepth`, default 5)", 5,
+     lambda: _constant("realistic.scene.pbrt.lights", "DEFAULT_MAX_DEPTH")),
+    ("docs/farm.md", "by default 2^19 camera and shadow rays' worth: 262,144 samples at one light sample",
+     (2 ** 19, 262_144), lambda: (_constant("realistic.renderer.pass_plan", "PASS_RAYS"),
+                                  _constant("realistic.renderer.pass_plan", "DEFAULT_PASS_SAMPLES"))),
+    ("docs/farm.md", "the slices are samples [0,1), [1,2), [2,4) ... [32,64), the first pass a whole 1-spp frame",
+     ([0, 1, 2, 4, 8, 16, 32, 64], 512 * 512), lambda: (_slices(512 * 512, 64), _first_pass_pixels(512 * 512, 64))),
+    ("docs/farm.md", "At 3840x2160 and 1,024 spp that is 11 x 199 MB", (11, 199),
+     lambda: (len(_slices(3840 * 2160, 1024)) - 1, round(3840 * 2160 * 24 / 1e6))),
+    ("docs/farm.md", "(4 passes of the default size at one light sample)", 4, _task_passes),
+    ("docs/farm.md", "(up to 262,144 pixels in a 1-sample slice", 262_144,
+     lambda: _constant("realistic.renderer.pass_plan", "DEFAULT_PASS_SAMPLES")),
+    ("docs/farm.md", "Every `--checkpoint-every` seconds (default 60", 60, lambda: _parser_default("checkpoint_every")),
+    ("docs/farm.md", "A sweep has at most 10,000 frames (`sweep.MAX_FRAMES`", 10_000,
+     lambda: _constant("realistic.renderer.sweep", "MAX_FRAMES")),
+]
+
+
+@pytest.mark.parametrize(("document", "phrase", "stated", "computed"), FACTS,
+                         ids=[f"{document}:{phrase[:40]}" for document, phrase, _, _ in FACTS])
+def test_documented_number_holds(document: str, phrase: str, stated: object, computed: object) -> None:
+    assert phrase in _read(document), f"{document} no longer says {phrase!r}: update FACTS"
+    assert computed() == stated, f"{document} says {phrase!r}; the code gives {computed()!r}"
+
+
+def test_lens_library_table_is_what_lens_list_computes() -> None:
+    """docs/lenses.md's table (EFL, f-number, image circle, elements) against ``lens list``'s numbers,
+    each to the digits the table prints, and no aspheric surface, as the page says."""
+    from realistic.optics.library import library_entry
+
+    rows = re.findall(r"^\| `([^`]+)` \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \| (\d+) \|",
+                      (ROOT / "docs" / "lenses.md").read_text(encoding="utf-8"), re.MULTILINE)
+    assert len(rows) == _library_lenses()
+    for name, efl, f_number, circle, elements in rows:
+        entry = library_entry(name)
+        computed = (f"{entry['focal_length_mm']:.2f}", f"{entry['f_number']:.2f}", f"{entry['image_circle_mm']:.1f}",
+                    str(entry["elements"]))
+        assert (efl, f_number, circle, elements) == computed, name
+        assert entry["aspheres"] == 0, name
