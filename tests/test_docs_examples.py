@@ -14,6 +14,7 @@ commands that fail today, each with the message it fails with (an entry whose bl
 so that it is removed when the fix lands).
 """
 
+import importlib
 import os
 import re
 import shutil
@@ -131,7 +132,7 @@ def tls_scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str
         tls_client_key=files["key"], require_encryption=True)
     cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, protocol="tls://",
                                        host=host, scheduler_port=int(port), security=security,
-                                       dashboard_address=None)
+                                       dashboard_address=":0")  # any free port: 8787 may be taken
     yield files
     cluster.close()
 
@@ -259,8 +260,11 @@ def _task_passes() -> int:
     return DEFAULT_TASK_SAMPLES // DEFAULT_PASS_SAMPLES
 
 
-def _constant(module: str, name: str) -> object:
-    return getattr(__import__(module, fromlist=[name]), name)
+def _constant(module: str, names: str) -> object:
+    """``module``'s constant ``names``, or a tuple of them for a comma-separated list."""
+    imported = importlib.import_module(module)
+    values = tuple(getattr(imported, name.strip()) for name in names.split(","))
+    return values if len(values) > 1 else values[0]
 
 
 #: (document, phrase, what the phrase says, computed): numbers the documents state that the code fixes.
@@ -289,6 +293,31 @@ FACTS = [
     ("docs/farm.md", "Every `--checkpoint-every` seconds (default 60", 60, lambda: _parser_default("checkpoint_every")),
     ("docs/farm.md", "A sweep has at most 10,000 frames (`sweep.MAX_FRAMES`", 10_000,
      lambda: _constant("realistic.renderer.sweep", "MAX_FRAMES")),
+    *[("docs/robustness.md", phrase, stated, lambda module=module, name=name: _constant(module, name))
+      for phrase, stated, module, name in [
+          ("| image side | 1 to 65,536 pixels |", 65_536, "realistic.core.validation", "MAX_IMAGE_SIDE"),
+          ("| pixels | below 2^31 |", 2 ** 31 - 1, "realistic.core.validation", "MAX_PIXELS"),
+          ("| samples per pixel | 1 to 2^24 |", 2 ** 24, "realistic.core.validation", "MAX_SPP"),
+          ("| seed | 0 to 2^32 - 1 |", 2 ** 32 - 1, "realistic.core.validation", "MAX_SEED"),
+          ("| light samples | 1 to 1024 |", 1024, "realistic.core.validation", "MAX_LIGHT_SAMPLES"),
+          ("| maxanisotropy | 1 to 1024 |", 1024, "realistic.core.validation", "MAX_ANISOTROPY"),
+          ("| film diagonal | above 0, at most 1000 mm |", 1000, "realistic.core.validation",
+           "MAX_FILM_DIAGONAL_MM"),
+          ("| blades | 3 to 64 |", (3, 64), "realistic.core.validation", "MIN_BLADES, MAX_BLADES"),
+          ("| pixel filter radius | above 0, at most 16 pixels |", 16, "realistic.core.validation",
+           "MAX_FILTER_RADIUS"),
+          ("at most 1024 (`optics.lens.MAX_SURFACES`)", 1024, "realistic.optics.lens", "MAX_SURFACES"),
+          ("depth at most 64 (`MAX_INCLUDE_DEPTH`)", 64, "realistic.scene.pbrt.parser", "MAX_INCLUDE_DEPTH"),
+          ("shapes beyond 1e18 are skipped", 1e18, "realistic.scene.pbrt.values", "MAX_WORLD_COORDINATE"),
+          ("magnitude at most 1e12 (`scene.meshes.MAX_COORDINATE`)", 1e12, "realistic.scene.meshes",
+           "MAX_COORDINATE"),
+          ("| shutter time | 1e-9 to 1e6 s |", (1e-9, 1e6), "realistic.core.validation",
+           "MIN_SHUTTER_SECONDS, MAX_SHUTTER_SECONDS"),
+          ("| ISO speed | 1 to 1e7 |", (1, 1e7), "realistic.core.validation", "MIN_ISO, MAX_ISO"),
+          ("| preview exposure | -64 to +64 stops |", 64, "realistic.core.validation", "MAX_EXPOSURE_STOPS"),
+          ("magnitude at most 1e30 (`checkpoint.MAX_SUM`)", 1e30, "realistic.renderer.checkpoint", "MAX_SUM"),
+          ("| sweep frames | 1 to 10,000 (`sweep.MAX_FRAMES`) |", 10_000, "realistic.renderer.sweep", "MAX_FRAMES"),
+      ]],
 ]
 
 
