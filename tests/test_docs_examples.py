@@ -260,6 +260,13 @@ def _first_pass_pixels(pixels: int, spp: int) -> int:
     return plan_passes(pixels, spp)[0].pixel_count
 
 
+def _frames(out: str, count: int) -> tuple[str, str]:
+    """The first and last frame files of a ``count``-frame sweep to ``out``."""
+    from realistic.renderer.sweep import frame_path
+
+    return frame_path(Path(out), 0).name, frame_path(Path(out), count - 1).name
+
+
 def _task_passes() -> int:
     from realistic.renderer.farm import DEFAULT_TASK_SAMPLES
     from realistic.renderer.pass_plan import DEFAULT_PASS_SAMPLES
@@ -297,6 +304,10 @@ FACTS = [
     ("docs/farm.md", "(4 passes of the default size at one light sample)", 4, _task_passes),
     ("docs/farm.md", "(up to 262,144 pixels in a 1-sample slice", 262_144,
      lambda: _constant("realistic.renderer.pass_plan", "DEFAULT_PASS_SAMPLES")),
+    ("README.md", "--sweep focus=0.5:5:8 --out pull.exr # pull_0001.exr .. pull_0008.exr",
+     ("pull_0001.exr", "pull_0008.exr"), lambda: _frames("pull.exr", 8)),
+    ("docs/farm.md", "(`render.exr` by default): `render_0001.exr` to `render_0006.exr`",
+     ("render_0001.exr", "render_0006.exr"), lambda: _frames("render.exr", 6)),
     ("docs/farm.md", "Every `--checkpoint-every` seconds (default 60", 60, lambda: _parser_default("checkpoint_every")),
     ("docs/farm.md", "A sweep has at most 10,000 frames (`sweep.MAX_FRAMES`", 10_000,
      lambda: _constant("realistic.renderer.sweep", "MAX_FRAMES")),
