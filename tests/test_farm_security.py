@@ -23,6 +23,7 @@ from distributed.security import Security  # noqa: E402
 from realistic.cli import main  # noqa: E402
 from realistic.core.image_files import read_exr  # noqa: E402
 from realistic.renderer.thread_count import default_threads  # noqa: E402
+from tls_helpers import certificates  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = ["render", "--backend", "numpy", "--res", "12x8", "--spp", "1", "--pass-samples", "64"]
@@ -72,36 +73,18 @@ def test_workers_beyond_the_machine_are_refused_at_once(tmp_path, capsys):
     assert not list(tmp_path.iterdir())
 
 
-def _openssl(*args: str) -> None:
-    subprocess.run(["openssl", *args], check=True, capture_output=True, timeout=60)
-
-
-def _certificates(folder: Path, name: str) -> dict[str, str]:
-    """A CA and a certificate it signed for 127.0.0.1 (server and client use), as PEM files."""
-    ca_key, ca, key, request, cert = (str(folder / f"{name}-{part}.pem")
-                                      for part in ("ca-key", "ca", "key", "req", "cert"))
-    _openssl("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", ca_key, "-out", ca, "-days", "2",
-             "-subj", f"/CN={name} test CA")
-    _openssl("req", "-newkey", "rsa:2048", "-nodes", "-keyout", key, "-out", request, "-subj", "/CN=127.0.0.1")
-    extensions = folder / f"{name}-ext.cnf"
-    extensions.write_text("subjectAltName=IP:127.0.0.1\nextendedKeyUsage=serverAuth,clientAuth\n")
-    _openssl("x509", "-req", "-in", request, "-CA", ca, "-CAkey", ca_key, "-CAcreateserial", "-out", cert,
-             "-days", "2", "-extfile", str(extensions))
-    return {"ca": ca, "cert": cert, "key": key}
-
-
 @pytest.fixture(scope="module")
 def tls_cluster(tmp_path_factory):
     if shutil.which("openssl") is None:
         pytest.skip("the openssl command makes the test certificates")
     folder = tmp_path_factory.mktemp("tls")
-    files = _certificates(folder, "farm")
+    files = certificates(folder, "farm")
     security = Security(tls_ca_file=files["ca"], tls_scheduler_cert=files["cert"], tls_scheduler_key=files["key"],
                         tls_worker_cert=files["cert"], tls_worker_key=files["key"], tls_client_cert=files["cert"],
                         tls_client_key=files["key"], require_encryption=True)
     cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, protocol="tls://",
                                        host="127.0.0.1", security=security, dashboard_address=None)
-    yield cluster, files, _certificates(folder, "stranger")
+    yield cluster, files, certificates(folder, "stranger")
     cluster.close()
 
 
