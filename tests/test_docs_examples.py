@@ -9,9 +9,7 @@ the Python blocks above it in its file, as a reader runs them. A block naming th
 ``tls://127.0.0.1:8786`` gets one there, with certificates under the names the block gives.
 
 What is run is what is documented: a slow example is made smaller in the document, never here.
-``EXCLUDED`` lists the blocks that cannot run here and why; ``KNOWN_FAILURES`` the documented
-commands that fail today, each with the message it fails with (an entry whose block passes fails,
-so that it is removed when the fix lands).
+``EXCLUDED`` lists the blocks that cannot run here and why.
 """
 
 import importlib
@@ -51,11 +49,6 @@ EXCLUDED = {
 #: (document, text the block holds) -> the message it fails with today. Both: ``--resume`` without a
 #: checkpoint is refused, which h-cli is changing (issue 33); the resume line ends its block, so every
 #: command above it has run when the block fails there.
-KNOWN_FAILURES = {
-    ("README.md", "--checkpoint-every 60 --resume"): "no checkpoint to resume",
-    ("farm.md", "--resume   # after a crash"): "no checkpoint to resume",
-}
-
 TLS_SCHEDULER = "tls://127.0.0.1:8786"
 #: The certificate files the TLS examples name, made for the test's scheduler.
 TLS_FILES = {"ca": "ca.pem", "cert": "client.pem", "key": "client-key.pem"}
@@ -114,8 +107,8 @@ BLOCKS = [block for path in DOCUMENTS for block in fenced_blocks(path)]
 
 
 def test_every_listed_block_exists() -> None:
-    """Each exclusion and known failure picks exactly one block, so none outlives its block."""
-    for key in [*EXCLUDED, *KNOWN_FAILURES]:
+    """Each exclusion picks exactly one block, so none outlives its block."""
+    for key in EXCLUDED:
         assert sum(block.holds(key) for block in BLOCKS) == 1, f"{key} should pick one block"
 
 
@@ -195,13 +188,7 @@ def test_documented_block_runs(block: Block, tmp_path: Path, request: pytest.Fix
             shutil.copy(files[part], repo / name)
     done = run(block, repo)
     output = f"{block.id} ({block.language}) exited {done.returncode}:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
-    failure = next((message for key, message in KNOWN_FAILURES.items() if block.holds(key)), None)
-    if failure is None:
-        assert done.returncode == 0, output
-    else:
-        assert done.returncode != 0, f"{block.id} passes now: remove it from KNOWN_FAILURES"
-        assert failure in done.stderr, output
-        pytest.xfail(f"fails as known: {failure}")
+    assert done.returncode == 0, output
 
 
 def _read(document: str) -> str:
