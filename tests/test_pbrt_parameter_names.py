@@ -20,21 +20,15 @@ def _albedo(imported) -> tuple[float, ...]:
     return tuple(round(c, 6) for c in imported.scene.instances[-1].material.diffuse)
 
 
-def test_pbrt_v4_scale_texture_multiplies_tex_by_scale(tmp_path):
+@pytest.mark.parametrize("version,factors,material", [
+    ("v4", '"texture tex" "c" "float scale" 0.5', 'Material "diffuse" "texture reflectance" "s"'),
+    ("v3", '"texture tex1" "c" "rgb tex2" [0.5 0.5 0.5]', 'Material "matte" "texture Kd" "s"')])
+def test_a_scale_texture_multiplies_its_versions_two_factors(tmp_path, version, factors, material):
     world = ('Texture "c" "spectrum" "constant" "rgb value" [0.2 0.4 0.6]\n'
-             'Texture "s" "spectrum" "scale" "texture tex" "c" "float scale" 0.5\n'
-             'Material "diffuse" "texture reflectance" "s"\nShape "sphere"\n')
+             f'Texture "s" "spectrum" "scale" {factors}\n{material}\nShape "sphere"\n')
     imported = _import(tmp_path, world)
-    assert imported.dialect.name == "v4" and _albedo(imported) == (0.1, 0.2, 0.3)
+    assert imported.dialect.name == version and _albedo(imported) == (0.1, 0.2, 0.3)
     assert not [w for w in imported.warnings if "not used here" in w]
-
-
-def test_pbrt_v3_scale_texture_multiplies_tex1_by_tex2(tmp_path):
-    world = ('Texture "c" "spectrum" "constant" "rgb value" [0.2 0.4 0.6]\n'
-             'Texture "s" "spectrum" "scale" "texture tex1" "c" "rgb tex2" [0.5 0.5 0.5]\n'
-             'Material "matte" "texture Kd" "s"\nShape "sphere"\n')
-    imported = _import(tmp_path, world)
-    assert imported.dialect.name == "v3" and _albedo(imported) == (0.1, 0.2, 0.3)
 
 
 def test_another_versions_scale_names_are_reported_not_read(tmp_path):
