@@ -42,7 +42,8 @@
  *                                 asphere()/stop() with literal constants; when SPECTRAL, its
  *                                 index ratio is computed from each dispersive glass's index
  *                                 A + B il2 (il2 = 1 / lambda^2 in um^-2, A and B literal Cauchy
- *                                 coefficients)
+ *                                 coefficients), or a catalogue glass's Sellmeier or Schott formula
+ *                                 written in il2 (realistic.optics.dispersion)
  *   TRACE_SURFACES(EACH)          EACH(SURFACE_0) EACH(SURFACE_1) ...: every surface, rear first
  * The kernel argument `settings` holds what changes with the focus (the film distance) and the
  * stop's diameter, float32 at the SET_* offsets the generated header defines (declared once, with

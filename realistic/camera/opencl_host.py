@@ -22,7 +22,7 @@ from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table
-from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
+from realistic.optics.dispersion import D_LINE_NM, GlassFormula, cauchy_coefficients
 from realistic.optics.lens import LensSystem
 from realistic.optics.sampling import rear_element_sampler
 
@@ -51,16 +51,21 @@ def _index_ratios(camera: LensCamera) -> list[str]:
 
     A ratio between media of constant index (no V number, or a non-spectral camera) is a literal
     computed in float64, as at the d line; otherwise it is n_i * (1 / n_(i-1)) per ray, a dispersive
-    glass's index n = A + B il2 computed where it is used (the compiler computes it once per ray).
+    glass's index n = A + B il2 (Cauchy) or its catalogue formula (``_glass_index``) computed where it
+    is used (the compiler computes it once per ray).
     """
     lens = camera.lens
-    index = refractive_index(lens.index_d, lens.abbe_v, D_LINE_NM)
+    index = lens.index_at(D_LINE_NM)
     a, b = cauchy_coefficients(lens.index_d, lens.abbe_v)
-    dispersive = (b != 0) & camera.spectral
+    catalogue = np.array([g is not None for g in lens.glass])
+    dispersive = ((b != 0) | catalogue) & camera.spectral
 
     def n(k: int) -> str:
         if k < 0:
             return "1.0f"
+        glass = lens.glass[k]
+        if dispersive[k] and glass is not None:
+            return _glass_index(glass)
         return f"({_c_float(a[k])} + {_c_float(b[k])} * (il2))" if dispersive[k] else _c_float(index[k])
 
     def inv(k: int) -> str:
@@ -73,6 +78,17 @@ def _index_ratios(camera: LensCamera) -> list[str]:
         else:
             ratios.append(_c_float(index[i] / (index[i - 1] if i > 0 else 1.0)))
     return ratios
+
+
+def _glass_index(glass: GlassFormula) -> str:
+    """A catalogue glass's index as a C expression of ``il2``: the formula of
+    ``realistic.optics.dispersion.GlassFormula.index``, term for term, in float32."""
+    c = [_c_float(v) for v in glass.coefficients]
+    if glass.formula == "sellmeier":
+        terms = " + ".join(f"{c[i]} / (1.0f - {c[i + 3]} * (il2))" for i in range(3))
+        return f"__builtin_sqrtf(1.0f + {terms})"
+    return (f"__builtin_sqrtf({c[0]} + {c[1]} / (il2) + (il2) * ({c[2]} + (il2) * ({c[3]} + (il2) * "
+            f"({c[4]} + (il2) * {c[5]}))))")
 
 
 def _stop_lines(lens: LensSystem) -> list[str]:

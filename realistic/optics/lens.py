@@ -17,7 +17,13 @@ Frames and units (shared by every module of the package):
 A prescription row is ``radius thickness n_d [V_d] aperture``: signed radius of curvature (> 0:
 centre of curvature on the film side, i.e. convex toward the scene; 0: the planar aperture stop;
 ``inf``: a flat refracting surface), distance to the next surface, index of the medium behind the
-surface (0, 1 or blank: air), optional Abbe number, clear aperture diameter.
+surface (0, 1 or blank: air), optional Abbe number, clear aperture diameter. A radius of 0 is the
+stop only where the media on its two sides are the same (air); where they differ it is a flat
+refracting face, as ``inf`` is (a plano-convex lens's flat face). A reader whose format marks the
+stop itself passes ``stop`` to ``build_lens``, and every other radius 0 is then a plane.
+
+A medium may be a catalogue glass (``realistic.optics.glass``): its maker's dispersion formula then
+gives n(lambda), and n_d and V_d are the formula's own (``realistic.optics.dispersion``).
 
 A surface may be an even asphere (``realistic.optics.asphere``): a conic constant k and the
 coefficients A4 .. A20 of r^4 .. r^20 beside its base radius. A surface with k = 0 and every
@@ -41,6 +47,7 @@ import numpy as np
 from realistic.core import validation
 from realistic.errors import LensFileError, UserError
 from realistic.optics.asphere import COEFFICIENT_COUNT, COEFFICIENT_POWERS, conic_radicand
+from realistic.optics.dispersion import GlassFormula, refractive_index
 from realistic.optics.stop_shape import StopShape
 
 #: Most surfaces a prescription may have (stop included); real lenses have well under 50.
@@ -79,11 +86,13 @@ class LensSystem:
     conic: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     # (N, 9) A4 .. A20 (mm^(1-p) for r^p); empty (the default): all 0
     aspheric_coefficients: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, COEFFICIENT_COUNT)))
+    # per surface, the catalogue glass behind it (None: n_d and V_d only); empty (the default): none
+    glass: tuple[GlassFormula | None, ...] = ()
 
     def __post_init__(self) -> None:
         """Make the text printable (``validation.printable_text``: it reaches terminals and the files
-        ``lens convert`` writes) and expand the empty defaults of ``conic`` and
-        ``aspheric_coefficients`` to zeros per surface, so that both are always (N,) and (N, 9) arrays."""
+        ``lens convert`` writes) and expand the empty defaults of ``conic``, ``aspheric_coefficients``
+        and ``glass`` per surface, so that they are always (N,) and (N, 9) arrays and an N-tuple."""
         count = len(self.radius_mm)
         object.__setattr__(self, "name", validation.printable_text(self.name))
         object.__setattr__(self, "source", validation.printable_text(self.source))
@@ -92,6 +101,8 @@ class LensSystem:
             object.__setattr__(self, "conic", np.zeros(count))
         if self.aspheric_coefficients.size == 0:
             object.__setattr__(self, "aspheric_coefficients", np.zeros((count, COEFFICIENT_COUNT)))
+        if not self.glass:
+            object.__setattr__(self, "glass", (None,) * count)
 
     @property
     def surface_count(self) -> int:
@@ -129,7 +140,12 @@ class LensSystem:
 
     @property
     def has_dispersion(self) -> bool:
-        return bool(np.any(self.abbe_v > 0))
+        return bool(np.any(self.abbe_v > 0)) or any(g is not None for g in self.glass)
+
+    def index_at(self, wavelength_nm: float | np.ndarray) -> np.ndarray:
+        """Index of the medium behind each surface at ``wavelength_nm`` (``dispersion.refractive_index``):
+        a catalogue glass's formula, else Cauchy from n_d and V_d."""
+        return refractive_index(self.index_d, self.abbe_v, wavelength_nm, self.glass)
 
     def vertex_offset_from_rear_mm(self) -> np.ndarray:
         """Axial position of each vertex measured from the rear vertex, + toward the scene."""
@@ -247,14 +263,21 @@ def _check_asphere(path: str, line: int, radius: float, aperture: float, conic: 
 def build_lens(path: str, lines: list[int], radius: list[float], thickness: list[float], index: list[float],
                abbe: list[float], aperture: list[float], name: str | None = None, note: str = "",
                conic: list[float] | None = None, coefficients: list[list[float]] | None = None,
-               description: str = "") -> LensSystem:
+               description: str = "", glass: list[GlassFormula | None] | None = None,
+               stop: int | None = None) -> LensSystem:
     """Validate per-surface values (prescription conventions) into a LensSystem.
 
     ``lines[i]`` is the file line that errors about surface i name; every parser feeds this one
     constructor so that all lens files obey the same rules. ``conic`` and ``coefficients`` (per
     surface: k, and up to nine coefficients A4, A6, ... of r^4, r^6, ...) make surfaces aspheric.
+    ``glass`` (per surface, None where the row's n_d and V_d stand) sets a medium's index and V_d
+    from a catalogue formula. ``stop`` marks the stop row where the format says which it is; without
+    it the stop is the radius-0 row with the same medium on both sides.
     """
     count = len(lines)
+    glass = [None] * count if glass is None else list(glass)
+    index = [float(g.n_d) if g is not None else n for g, n in zip(glass, index)]
+    abbe = [float(g.abbe_v) if g is not None else v for g, v in zip(glass, abbe)]
     conic = [0.0] * count if conic is None else list(conic)
     coefficients = [[] for _ in range(count)] if coefficients is None else [list(a) for a in coefficients]
     if len(lines) > MAX_SURFACES:
@@ -283,18 +306,19 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
             raise LensFileError(path, line, f"aperture diameter {aperture[i]:g} mm is larger than the "
                                 f"sphere of radius {radius[i]:g} mm allows (semi-diameter > |R|)")
 
+    index = [1.0 if n in (0.0, 1.0) else n for n in index]
+    abbe = [0.0 if n == 1.0 else v for n, v in zip(index, abbe)]
+    radius = _flat_faces(radius, index, abbe, glass, stop)
     stops = [i for i, r in enumerate(radius) if r == 0]
     if not stops:
-        raise LensFileError(path, None, "no aperture stop (a row with radius 0)")
+        raise LensFileError(path, None, "no aperture stop (a row with radius 0 and the same medium on both sides)")
     if len(stops) > 1:
-        raise LensFileError(path, lines[stops[1]], f"a second aperture stop (radius 0); the first is "
-                            f"on line {lines[stops[0]]}")
+        raise LensFileError(path, lines[stops[1]], f"a second aperture stop (radius 0 with air on both sides); "
+                            f"the first is on line {lines[stops[0]]}")
     stop = stops[0]
-    index = [1.0 if n in (0.0, 1.0) else n for n in index]
     before_stop = index[stop - 1] if stop > 0 else 1.0
     if index[stop] != 1.0 or before_stop != 1.0:
         raise LensFileError(path, lines[stop], "the aperture stop (radius 0) must sit in air")
-    abbe = [0.0 if n == 1.0 else v for n, v in zip(index, abbe)]
     refracting = [i for i, r in enumerate(radius)
                   if r != 0 and index[i] != (index[i - 1] if i > 0 else 1.0)]
     if not refracting:
@@ -306,6 +330,19 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
         radius_mm=np.array(radius), thickness_mm=np.array(thickness), index_d=np.array(index),
         abbe_v=np.array(abbe), aperture_mm=np.array(aperture), stop=stop,
         source=path, convention_note=note, description=description, conic=np.array(conic, dtype=np.float64),
+        glass=tuple(None if index[i] == 1.0 else g for i, g in enumerate(glass)),
         aspheric_coefficients=np.array([a + [0.0] * (COEFFICIENT_COUNT - len(a)) for a in coefficients],
                                        dtype=np.float64).reshape(count, COEFFICIENT_COUNT),
     )
+
+
+def _flat_faces(radius: list[float], index: list[float], abbe: list[float], glass: list[GlassFormula | None],
+                stop: int | None) -> list[float]:
+    """The radii with each radius 0 that is not the stop made ``inf``, a plane: every one but ``stop``
+    when the format marks it, else those between different media (a flat glass face)."""
+    def medium(i: int) -> tuple[float, float, GlassFormula | None]:
+        return (index[i], abbe[i], glass[i]) if i >= 0 else (1.0, 0.0, None)
+
+    flat = [i for i, r in enumerate(radius) if r == 0 and (i != stop if stop is not None else
+                                                           medium(i) != medium(i - 1))]
+    return [math.inf if i in flat else r for i, r in enumerate(radius)]

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.optics.asphere import conic_radicand, sag_and_slope, significant
-from realistic.optics.dispersion import D_LINE_NM, refractive_index
+from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
 
 PASSED, MISS, APERTURE, STOP, TIR, ASPHERE = 0, 1, 2, 3, 4, 5
@@ -154,7 +154,8 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     """Trace rays starting at or behind the rear element through the lens, rear surface first.
 
     ``wavelength_nm`` is one wavelength for all rays or one per ray (N,); each glass's index
-    follows it (``realistic.optics.dispersion``), media without a V number keep n_d.
+    follows it (a catalogue glass's formula or Cauchy, ``LensSystem.index_at``); media without a V number or
+    catalogue glass keep n_d.
 
     With ``path`` given, the hit point (N, 3) on each surface is appended to it, rear surface
     first (for drawing ray fans). Without it, a ray blocked at a surface is not traced further
@@ -173,7 +174,7 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     vertex_z = lens.vertex_z_mm(film_distance_mm)
     if np.ndim(wavelength_nm):
         wavelength_nm = np.broadcast_to(wavelength_nm, (count,))
-    index = refractive_index(lens.index_d, lens.abbe_v, wavelength_nm)  # (media,) or (media, count)
+    index = lens.index_at(wavelength_nm)  # (media,) or (media, count)
     aspheric = lens.aspheric
 
     def block(mask: np.ndarray, i: int, why: int) -> None:
