@@ -70,11 +70,18 @@ def test_lens_units_convert_to_millimetres(dgauss, unit):
     assert_same_lens(parse_zmx(zmx_text(dgauss, unit), "x.zmx"), dgauss, rel=1e-9)
 
 
-def test_catalogue_glass_with_nd_vd_on_the_line_is_read_and_noted(dgauss):
+def test_glass_of_a_catalogue_we_lack_with_nd_vd_on_the_line_is_read_and_noted(dgauss):
+    text = zmx_text(dgauss).replace("GLAS ___BLANK 1 0 1.67 47.1", "GLAS K-LAK8 0 0 1.67 47.1", 1)
+    lens = parse_zmx(text.replace("GCAT SCHOTT", "GCAT SCHOTT SUMITA"), "x.zmx")
+    assert_same_lens(lens, dgauss)
+    assert "K-LAK8 (line " in lens.convention_note
+
+
+def test_catalogue_glass_comes_from_the_catalogue_not_the_line(dgauss):
     text = zmx_text(dgauss).replace("GLAS ___BLANK 1 0 1.67 47.1", "GLAS N-LAK8 0 0 1.67 47.1", 1)
     lens = parse_zmx(text, "x.zmx")
-    assert_same_lens(lens, dgauss)
-    assert "N-LAK8 (line " in lens.convention_note
+    assert lens.glass[0] is not None and lens.glass[0].label == "N-LAK8 (Schott)"
+    assert lens.index_d[0] == pytest.approx(1.713, abs=1e-5)  # the data sheet's n_d, not the line's 1.67
 
 
 def test_clear_aperture_clap_takes_precedence_over_diam(dgauss):
@@ -99,11 +106,11 @@ def replace_line(text: str, number: int, new: str) -> str:
 UNSUPPORTED = {
     "odd asphere": (3, "TYPE", "  TYPE ODDASPH", "surface type ODDASPH"),
     "toroid": (3, "TYPE", "  TYPE TOROIDAL", "surface type TOROIDAL"),
-    "coordinate break": (4, "TYPE", "  TYPE COORDBRK", "surface type COORDBRK"),
-    "paraxial": (2, "TYPE", "  TYPE PARAXIAL", "surface type PARAXIAL"),
+    "coordinate break": (4, "TYPE", "  TYPE COORDBRK", "TYPE COORDBRK: coordinate breaks"),
+    "paraxial": (2, "TYPE", "  TYPE PARAXIAL", "TYPE PARAXIAL: a paraxial (ideal thin) lens cannot be traced"),
     "conic not a number": (3, "CONI", "  CONI abc", "CONI 'abc' is not a number"),
     "mirror": (1, "GLAS", "  GLAS MIRROR 0 0", "mirror"),
-    "catalogue glass": (1, "GLAS", "  GLAS N-BK7 0 0", "catalogue glass 'N-BK7'"),
+    "unknown glass": (1, "GLAS", "  GLAS N-BK77 0 0", "glass 'N-BK77' is in none of the catalogues"),
     "blank glass without values": (1, "GLAS", "  GLAS ___BLANK 1 0", "model glass ___BLANK"),
     "negative index": (1, "GLAS", "  GLAS ___BLANK 1 0 0.5 40 0 0 0 0 0 0", "must be >= 1"),
     "obscuration": (3, "CONI", "  OBSC 0 5 0", "obscuration"),

@@ -47,7 +47,7 @@ import numpy as np
 from realistic.core import validation
 from realistic.errors import LensFileError, UserError
 from realistic.optics.asphere import COEFFICIENT_COUNT, COEFFICIENT_POWERS, conic_radicand
-from realistic.optics.dispersion import GlassFormula, refractive_index
+from realistic.optics.dispersion import D_LINE_NM, GlassFormula, refractive_index
 from realistic.optics.stop_shape import StopShape
 
 #: Most surfaces a prescription may have (stop included); real lenses have well under 50.
@@ -141,6 +141,21 @@ class LensSystem:
     @property
     def has_dispersion(self) -> bool:
         return bool(np.any(self.abbe_v > 0)) or any(g is not None for g in self.glass)
+
+    def dispersion_warning(self, wavelengths_nm: list[float]) -> str | None:
+        """Why a trace at ``wavelengths_nm`` shows less colour than the lens has: a glass with neither
+        V_d nor a catalogue formula keeps n_d at every wavelength; None when nothing is missing or
+        only the d line is asked for."""
+        constant = [i for i in range(self.surface_count)
+                    if self.index_d[i] != 1 and self.abbe_v[i] == 0 and self.glass[i] is None]
+        if not constant or all(abs(w - D_LINE_NM) < 1e-9 for w in wavelengths_nm):
+            return None
+        data = "dispersion data (an Abbe number or a catalogue glass)"
+        if len(constant) == np.count_nonzero(self.index_d != 1):
+            return f"{self.name}: no glass has {data}: every wavelength asked for traces as the d line"
+        which = "surface" + ("s " if len(constant) > 1 else " ") + ", ".join(map(str, constant))
+        return (f"{self.name}: the glass behind {which} has no {data}, so it keeps n_d at every wavelength: "
+                f"the colours differ less than in the real lens")
 
     def index_at(self, wavelength_nm: float | np.ndarray) -> np.ndarray:
         """Index of the medium behind each surface at ``wavelength_nm`` (``dispersion.refractive_index``):

@@ -4,7 +4,8 @@ The document is ``{"name": ..., "description": ..., "surfaces": [...]}`` with th
 scene side to the film side, lengths in millimetres (isetlens ``data/lens/*.json``; pbrt-v4-iset
 ``src/pbrt/cameras.cpp``, OmniCamera::Create, reads the same keys). Per surface:
 
-- ``radius``: signed radius of curvature, 0 for the aperture stop (as in pbrt's ``.dat`` files);
+- ``radius``: signed radius of curvature, 0 for the aperture stop (as in pbrt's ``.dat`` files) or,
+  between different media, a flat face (``realistic.optics.lens``);
   pbrt-v4's omni camera also accepts an ``[x, y]`` pair, read here only when both are equal.
 - ``thickness``: distance to the next surface; the last one's is the film gap (0: focus decides).
 - ``ior``: index of the medium behind the surface, 0 or 1 for air; omni's per-wavelength form
@@ -28,6 +29,8 @@ from __future__ import annotations
 import json
 import math
 from typing import NamedTuple
+
+import numpy as np
 
 from realistic.core.input_files import parse_json
 from realistic.errors import LensFileError
@@ -178,9 +181,13 @@ def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) 
 def format_json_lens(lens: LensSystem) -> str:
     """``lens`` as an isetlens/omni JSON document (floats written exactly: repr round-trips)."""
     surfaces = []
+    before = np.concatenate([[1.0], lens.index_d[:-1]])
     for i in range(lens.surface_count):
+        radius = float(lens.radius_mm[i])
+        flat_face = math.isinf(radius) and (lens.index_d[i] != before[i] or lens.glass[i] != (
+            lens.glass[i - 1] if i else None))
         surface: dict[str, str | float | list[float]] = {
-            "radius": float(lens.radius_mm[i]), "thickness": float(lens.thickness_mm[i]),
+            "radius": 0.0 if flat_face else radius, "thickness": float(lens.thickness_mm[i]),
             "ior": 0.0 if i == lens.stop else float(lens.index_d[i]), "semi_aperture": float(lens.aperture_mm[i]) / 2}
         if lens.abbe_v[i] > 0:
             surface["abbe_number"] = float(lens.abbe_v[i])
