@@ -199,3 +199,32 @@ def test_spectral_kernel_uses_the_catalogue_formula(opencl_platform):
     kernel = opencl_platform.LensKernel(camera).generate(SampleBlock(0, count, camera.spp), seed)
     ref = camera.generate_rays(SampleBlock(0, count, camera.spp), seed)
     assert assert_kernel_matches(kernel, ref, camera, seed).mean() > 0.3
+
+
+# ------------------------------------------------------------------ zero-thickness gaps
+
+def test_zemax_stop_on_the_lens_vertex_is_a_zero_gap():
+    touching = parse_zmx(ZMX_SINGLET.format(glass="N-BK7").replace("DISZ 5\n", "DISZ 0\n"), "touching.zmx")
+    apart = parse_zmx(ZMX_SINGLET.format(glass="N-BK7"), "apart.zmx")
+    assert touching.thickness_mm[0] == 0 and touching.stop == 0
+    # the stop's place changes the pupils, never the focal length
+    assert paraxial_data(touching).efl_mm == pytest.approx(paraxial_data(apart).efl_mm, rel=1e-14)
+    film = paraxial_data(touching).bfl_mm
+    directions = np.array([[x, 0.0, film] for x in (0.0, 1.0, 2.0)])
+    assert trace_from_film(touching, film, np.zeros((3, 3)), directions).passed.all()
+
+
+def test_zero_gap_where_the_surfaces_would_cross_is_refused_at_its_line():
+    # R = +40 bulges toward the scene, so a stop 0 mm behind its vertex would cut through it
+    with pytest.raises(LensFileError, match=r"b.dat:2: thickness 0 mm: .* cross inside their clear apertures"):
+        parse_prescription("20 3 1.5 10\n40 0 0 10\n0 30 0 8\n", "b.dat")
+    assert parse_prescription("20 3 1.5 10\n-40 0 0 10\n0 30 0 8\n", "b.dat").stop == 2
+
+
+def test_kernel_traces_zero_gaps_as_the_reference_does(opencl_platform):
+    lens = parse_zmx(ZMX_SINGLET.format(glass="N-BK7").replace("DISZ 5\n", "DISZ 0\n"), "touching.zmx")
+    camera = dataclasses.replace(camera_for_lens(lens), lens_sampling="rear")
+    count, seed = camera.sample_count, 3
+    kernel = opencl_platform.LensKernel(camera).generate(SampleBlock(0, count, camera.spp), seed)
+    ref = camera.generate_rays(SampleBlock(0, count, camera.spp), seed)
+    assert assert_kernel_matches(kernel, ref, camera, seed).mean() > 0.02

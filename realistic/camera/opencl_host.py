@@ -165,19 +165,21 @@ def camera_header(camera: LensCamera) -> str:
     calls = []
     for eta, i in zip(_index_ratios(camera), range(lens.surface_count - 1, -1, -1)):
         gap = lens.thickness_mm[i - 1] if i > 0 else 0.0
+        ahead = int(i == lens.surface_count - 1 or lens.thickness_mm[i] != 0)
         ap2 = (lens.aperture_mm[i] / 2) ** 2
         radius = lens.radius_mm[i]
         refracts = int(eta != "1.0f")
         if i == lens.stop:
-            calls.append(f"stop(r, {_c_float(gap)}, settings[SET_STOP_R2]);")
+            calls.append(f"stop(r, {_c_float(gap)}, settings[SET_STOP_R2], {ahead});")
         elif lens.aspheric[i]:
             c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0
             shape = ", ".join(_c_float(v) for v in (c, lens.conic[i], *lens.aspheric_coefficients[i]))
-            calls.append(f"asphere(r, {shape}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
+            calls.append(f"asphere(r, {shape}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)}, {ahead});")
         elif radius == 0 or not np.isfinite(radius):
-            calls.append(f"plane(r, {_c_float(ap2)}, {eta}, 1, {_c_float(gap)});")
+            calls.append(f"plane(r, {_c_float(ap2)}, {eta}, 1, {_c_float(gap)}, {ahead});")
         else:
-            calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
+            calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)}, "
+                         f"{ahead});")
     lines = [
         SETTINGS.defines().rstrip("\n"),
         f"#define SPECTRAL {int(camera.spectral)}",

@@ -29,6 +29,9 @@ A surface may be an even asphere (``realistic.optics.asphere``): a conic constan
 coefficients A4 .. A20 of r^4 .. r^20 beside its base radius. A surface with k = 0 and every
 coefficient 0 is a sphere and is traced exactly as one; paraxial analysis uses the base curvature.
 
+Two surfaces may be 0 mm apart (a stop on a lens vertex) where they touch without crossing inside
+their clear apertures; the tracer then meets the second wherever the ray meets it.
+
 A lens has at most ``MAX_SURFACES`` surfaces: real photographic lenses have well under 50, and the
 tracer's cost grows with the count, so a file with thousands of rows is refused (the readers stop
 at the first row past the limit, so even a huge file is refused quickly). The limit leaves room for
@@ -46,7 +49,7 @@ import numpy as np
 
 from realistic.core import validation
 from realistic.errors import LensFileError, UserError
-from realistic.optics.asphere import COEFFICIENT_COUNT, COEFFICIENT_POWERS, conic_radicand
+from realistic.optics.asphere import COEFFICIENT_COUNT, COEFFICIENT_POWERS, conic_radicand, sag_mm
 from realistic.optics.dispersion import D_LINE_NM, GlassFormula, refractive_index
 from realistic.optics.stop_shape import StopShape
 
@@ -301,8 +304,8 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
         values = (radius[i], thickness[i], index[i], abbe[i], aperture[i])
         if any(math.isnan(x) for x in values) or any(math.isinf(x) for x in values[1:]):
             raise LensFileError(path, line, "values must be finite numbers (only a radius may be inf)")
-        if i < len(lines) - 1 and thickness[i] <= 0:
-            raise LensFileError(path, line, f"thickness {thickness[i]:g} mm to the next surface must be > 0")
+        if i < len(lines) - 1 and thickness[i] < 0:
+            raise LensFileError(path, line, f"thickness {thickness[i]:g} mm to the next surface must not be negative")
         if i == len(lines) - 1 and thickness[i] < 0:
             raise LensFileError(path, line, f"film gap {thickness[i]:g} mm must not be negative")
         if index[i] < 0 or 0 < index[i] < 1:
@@ -324,6 +327,7 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
     index = [1.0 if n in (0.0, 1.0) else n for n in index]
     abbe = [0.0 if n == 1.0 else v for n, v in zip(index, abbe)]
     radius = _flat_faces(radius, index, abbe, glass, stop)
+    _check_touching(path, lines, radius, thickness, aperture, conic, coefficients)
     stops = [i for i, r in enumerate(radius) if r == 0]
     if not stops:
         raise LensFileError(path, None, "no aperture stop (a row with radius 0 and the same medium on both sides)")
@@ -361,3 +365,26 @@ def _flat_faces(radius: list[float], index: list[float], abbe: list[float], glas
     flat = [i for i, r in enumerate(radius) if r == 0 and (i != stop if stop is not None else
                                                            medium(i) != medium(i - 1))]
     return [math.inf if i in flat else r for i, r in enumerate(radius)]
+
+
+#: Heights (fractions of the smaller clear semi-diameter) at which two surfaces 0 mm apart are compared.
+TOUCHING_SAMPLES = 65
+
+
+def _check_touching(path: str, lines: list[int], radius: list[float], thickness: list[float],
+                    aperture: list[float], conic: list[float], coefficients: list[list[float]]) -> None:
+    """Surfaces 0 mm apart (a stop on a lens vertex, a dummy surface) touch at the vertex only: the
+    front one may nowhere lie behind the rear one inside both clear apertures, or a ray would have
+    to travel backwards between them (the tracer, like the kernel, meets surfaces in order)."""
+    def sag(i: int, rho2: np.ndarray) -> np.ndarray:
+        c = 1.0 / radius[i] if radius[i] != 0 and math.isfinite(radius[i]) else 0.0
+        return sag_mm(rho2, c, conic[i], np.array(coefficients[i] or [0.0]))
+
+    for i in range(len(lines) - 1):
+        if thickness[i] != 0:
+            continue
+        rho = np.linspace(0.0, min(aperture[i], aperture[i + 1]) / 2, TOUCHING_SAMPLES)
+        behind = np.flatnonzero(sag(i, rho * rho) > sag(i + 1, rho * rho) + 1e-12)
+        if len(behind):
+            raise LensFileError(path, lines[i], f"thickness 0 mm: this surface and the next (line {lines[i + 1]}) "
+                                f"cross inside their clear apertures (at height {rho[behind[0]]:.4g} mm)")

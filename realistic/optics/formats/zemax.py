@@ -18,9 +18,10 @@ Mapping: SURF 0 (object) and the last SURF (image) are not lens surfaces; SURF 1
 prescription rows in order, and the last lens surface's ``DISZ`` becomes the film gap. Zemax's
 ``GLAS`` and ``DISZ`` of a surface describe the space after it, as our columns do. The ``STOP``
 surface must be flat with air on both sides: it becomes the radius-0 stop. A curved or glass stop
-surface is rejected rather than approximated: our stop is its own flat surface and thicknesses must
-be > 0, so splitting it off would change the lens (put the stop on a flat dummy air surface in
-Zemax). Semi-diameters are kept as the file gives them.
+surface is rejected rather than approximated: our stop is its own flat surface, so splitting it off
+would move the aperture (put the stop on a flat dummy air surface in Zemax). A ``DISZ 0`` gap (a stop
+on a lens vertex) is kept when the two surfaces only touch (``realistic.optics.lens``). Semi-diameters
+are kept as the file gives them.
 
 Rejected with the line that holds them: other surface types (coordinate breaks, paraxial and ideal
 surfaces, which real rays cannot trace, TOROIDAL, ODDASPH, ...), a non-zero r^2 term, mirrors, tilts
