@@ -9,7 +9,7 @@ import pytest
 from kernel_reference import assert_kernel_matches, camera_for_lens
 from realistic import load_lens
 from realistic.camera.base import SampleBlock
-from realistic.errors import LensFileError
+from realistic.errors import LensFileError, UserError
 from realistic.optics.dispersion import LAMBDA_C_UM, LAMBDA_D_UM, LAMBDA_F_UM
 from realistic.optics.formats import format_lens, parse_text
 from realistic.optics.formats.codev import parse_codev
@@ -225,6 +225,75 @@ def test_kernel_traces_zero_gaps_as_the_reference_does(opencl_platform):
     lens = parse_zmx(ZMX_SINGLET.format(glass="N-BK7").replace("DISZ 5\n", "DISZ 0\n"), "touching.zmx")
     camera = dataclasses.replace(camera_for_lens(lens), lens_sampling="rear")
     count, seed = camera.sample_count, 3
+    kernel = opencl_platform.LensKernel(camera).generate(SampleBlock(0, count, camera.spp), seed)
+    ref = camera.generate_rays(SampleBlock(0, count, camera.spp), seed)
+    assert assert_kernel_matches(kernel, ref, camera, seed).mean() > 0.02
+
+
+# ------------------------------------------------------------------ a curved stop
+
+ZMX_STOP_ON_LENS = """VERS 190513 80 123
+MODE SEQ
+UNIT MM X W X CM MR CPMM
+SURF 0
+  TYPE STANDARD
+  CURV 0.0
+  DISZ INFINITY
+SURF 1
+  STOP
+  TYPE STANDARD
+  CURV 0.02
+  DISZ 6
+  GLAS N-BK7 0 0 1.5168 64.17 0 0 0 0 0 0
+  DIAM 8
+SURF 2
+  TYPE STANDARD
+  CURV -0.005
+  DISZ 90
+  DIAM 12.5
+SURF 3
+  TYPE STANDARD
+  CURV 0.0
+  DISZ 0
+  DIAM 20
+"""
+
+
+def test_zemax_curved_stop_on_a_lens_face_refracts_and_stops():
+    lens = parse_zmx(ZMX_STOP_ON_LENS, "singlet.zmx")
+    assert lens.stop == 0 and lens.radius_mm[0] == 50.0 and not lens.stop_is_flat_in_air
+    # thick-lens focal length of the singlet: the stop surface refracts as any other
+    n, r1, r2, t = find_glass("N-BK7").n_d, 50.0, -200.0, 6.0
+    power = (n - 1) * (1 / r1 - 1 / r2 + (n - 1) * t / (n * r1 * r2))
+    assert paraxial_data(lens).efl_mm == pytest.approx(1 / power, rel=1e-12)
+    # the stop's clear semi-diameter (8 mm) is met on the curved face: a fan from the film centre
+    # passes where it meets that face inside 8 mm and is stopped there (reason "stop") outside
+    film = paraxial_data(lens).bfl_mm
+    aims = np.array([[h, 0.0, film] for h in np.linspace(0.0, 12.0, 121)])
+    paths: list[np.ndarray] = []
+    traced = trace_from_film(lens, film, np.zeros((121, 3)), aims, path=paths)
+    height = np.hypot(paths[-1][:, 0], paths[-1][:, 1])  # hits on surface 0 (the path runs rear first)
+    stopped = (traced.blocked_reason == 3) & (traced.blocked_surface == 0)
+    assert traced.passed.any() and stopped.any() and (traced.passed | stopped).all()
+    assert np.all(height[traced.passed] <= 8.0) and np.all(height[stopped] > 8.0)
+    np.testing.assert_allclose(paths[-1][:, 2], lens.vertex_z_mm(film)[0] - 50.0 + np.sqrt(2500.0 - height**2))
+
+
+def test_curved_stop_round_trips_through_formats_that_mark_the_stop():
+    lens = parse_zmx(ZMX_STOP_ON_LENS, "singlet.zmx")
+    for suffix in (".zmx", ".seq"):
+        text = format_lens(lens, suffix)
+        again = parse_zmx(text) if suffix == ".zmx" else parse_text(text, "a.seq", suffix)
+        assert again.stop == 0 and again.radius_mm[0] == 50.0 and again.glass == lens.glass, suffix
+    for suffix in (".dat", ".json"):
+        with pytest.raises(UserError, match="stop is curved"):
+            format_lens(lens, suffix)
+
+
+def test_kernel_traces_a_curved_stop_as_the_reference_does(opencl_platform):
+    lens = parse_zmx(ZMX_STOP_ON_LENS, "singlet.zmx").with_stop_diameter(12.0)
+    camera = dataclasses.replace(camera_for_lens(lens, spectral=True), lens_sampling="rear")
+    count, seed = camera.sample_count, 9
     kernel = opencl_platform.LensKernel(camera).generate(SampleBlock(0, count, camera.spp), seed)
     ref = camera.generate_rays(SampleBlock(0, count, camera.spp), seed)
     assert assert_kernel_matches(kernel, ref, camera, seed).mean() > 0.02

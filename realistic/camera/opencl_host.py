@@ -169,7 +169,11 @@ def camera_header(camera: LensCamera) -> str:
         ap2 = (lens.aperture_mm[i] / 2) ** 2
         radius = lens.radius_mm[i]
         refracts = int(eta != "1.0f")
-        if i == lens.stop:
+        if i == lens.stop and not lens.stop_is_flat_in_air:  # a round stop (``with_stop_shape``) on its surface
+            kind = "plane" if radius == 0 else "sphere"
+            shape = "" if radius == 0 else f"{_c_float(radius)}, "
+            calls.append(f"{kind}(r, {shape}settings[SET_STOP_R2], {eta}, {refracts}, {_c_float(gap)}, {ahead});")
+        elif i == lens.stop:
             calls.append(f"stop(r, {_c_float(gap)}, settings[SET_STOP_R2], {ahead});")
         elif lens.aspheric[i]:
             c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0

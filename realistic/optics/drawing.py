@@ -48,7 +48,8 @@ def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
             top = lens.aperture_mm.max() / 2 * 1.05
             ax.plot([z, z], [half, top], "k", lw=2)
             ax.plot([z, z], [-half, -top], "k", lw=2)
-            continue
+            if lens.stop_is_flat_in_air:
+                continue
         rho = np.linspace(-half, half, 101)
         ax.plot(surface_profile(lens, film_distance_mm, i, rho), rho, "k", lw=1)
         if lens.index_d[i] > 1 and i + 1 < lens.surface_count:  # glass behind: close the element's rim

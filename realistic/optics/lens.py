@@ -20,7 +20,9 @@ centre of curvature on the film side, i.e. convex toward the scene; 0: the plana
 surface (0, 1 or blank: air), optional Abbe number, clear aperture diameter. A radius of 0 is the
 stop only where the media on its two sides are the same (air); where they differ it is a flat
 refracting face, as ``inf`` is (a plano-convex lens's flat face). A reader whose format marks the
-stop itself passes ``stop`` to ``build_lens``, and every other radius 0 is then a plane.
+stop itself passes ``stop`` to ``build_lens``, and every other radius 0 is then a plane; such a stop
+may also be curved or have glass on one side (Zemax's STOP on a lens's first face): it then refracts
+as any surface, and its clear aperture is the stop (``stop_is_flat_in_air`` is False).
 
 A medium may be a catalogue glass (``realistic.optics.glass``): its maker's dispersion formula then
 gives n(lambda), and n_d and V_d are the formula's own (``realistic.optics.dispersion``).
@@ -142,6 +144,13 @@ class LensSystem:
         return float(self.aperture_mm[self.stop])
 
     @property
+    def stop_is_flat_in_air(self) -> bool:
+        """True for the usual stop, a plane (radius 0) with air on both sides; False for a curved or
+        refracting stop surface, which only formats that mark the stop (.zmx, .seq) can hold."""
+        before = self.index_d[self.stop - 1] if self.stop > 0 else 1.0
+        return bool(self.radius_mm[self.stop] == 0 and self.index_d[self.stop] == 1.0 and before == 1.0)
+
+    @property
     def has_dispersion(self) -> bool:
         return bool(np.any(self.abbe_v > 0)) or any(g is not None for g in self.glass)
 
@@ -188,7 +197,11 @@ class LensSystem:
         return dataclasses.replace(self, aperture_mm=aperture)
 
     def with_stop_shape(self, shape: StopShape | None) -> LensSystem:
-        """The same lens with its stop cut to ``shape`` (``realistic.optics.stop_shape``), scaled to its diameter."""
+        """The same lens with its stop cut to ``shape`` (``realistic.optics.stop_shape``), scaled to its diameter.
+        A shape needs a flat stop in air (the kernel cuts it on a plane)."""
+        if shape is not None and not self.stop_is_flat_in_air:
+            raise UserError(f"{self.name}: a shaped stop needs a flat stop in air, and this lens's stop (surface "
+                            f"{self.stop}) is curved or has glass on one side")
         return dataclasses.replace(self, stop_shape=shape)
 
 
@@ -328,18 +341,11 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
     abbe = [0.0 if n == 1.0 else v for n, v in zip(index, abbe)]
     radius = _flat_faces(radius, index, abbe, glass, stop)
     _check_touching(path, lines, radius, thickness, aperture, conic, coefficients)
-    stops = [i for i, r in enumerate(radius) if r == 0]
-    if not stops:
-        raise LensFileError(path, None, "no aperture stop (a row with radius 0 and the same medium on both sides)")
-    if len(stops) > 1:
-        raise LensFileError(path, lines[stops[1]], f"a second aperture stop (radius 0 with air on both sides); "
-                            f"the first is on line {lines[stops[0]]}")
-    stop = stops[0]
-    before_stop = index[stop - 1] if stop > 0 else 1.0
-    if index[stop] != 1.0 or before_stop != 1.0:
-        raise LensFileError(path, lines[stop], "the aperture stop (radius 0) must sit in air")
-    refracting = [i for i, r in enumerate(radius)
-                  if r != 0 and index[i] != (index[i - 1] if i > 0 else 1.0)]
+    if stop is None:
+        stop = _implicit_stop(path, lines, radius, index)
+    elif conic[stop] != 0 or any(coefficients[stop]):
+        raise LensFileError(path, lines[stop], "the aperture stop cannot be aspheric")
+    refracting = [i for i in range(count) if index[i] != (index[i - 1] if i > 0 else 1.0)]
     if not refracting:
         raise LensFileError(path, None, "no refracting surface (every row is the stop or has air on both sides): "
                             "the lens would not form an image")
@@ -353,6 +359,21 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
         aspheric_coefficients=np.array([a + [0.0] * (COEFFICIENT_COUNT - len(a)) for a in coefficients],
                                        dtype=np.float64).reshape(count, COEFFICIENT_COUNT),
     )
+
+
+def _implicit_stop(path: str, lines: list[int], radius: list[float], index: list[float]) -> int:
+    """The one radius-0 row (flat faces already made planes), which must sit in air."""
+    stops = [i for i, r in enumerate(radius) if r == 0]
+    if not stops:
+        raise LensFileError(path, None, "no aperture stop (a row with radius 0 and the same medium on both sides)")
+    if len(stops) > 1:
+        raise LensFileError(path, lines[stops[1]], f"a second aperture stop (radius 0 with air on both sides); "
+                            f"the first is on line {lines[stops[0]]}")
+    stop = stops[0]
+    before_stop = index[stop - 1] if stop > 0 else 1.0
+    if index[stop] != 1.0 or before_stop != 1.0:
+        raise LensFileError(path, lines[stop], "the aperture stop (radius 0) must sit in air")
+    return stop
 
 
 def _flat_faces(radius: list[float], index: list[float], abbe: list[float], glass: list[GlassFormula | None],

@@ -206,7 +206,7 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
                 r2 = o[0] * o[0] + o[1] * o[1]
                 block(~(r2 <= (lens.aperture_mm[i] / 2) ** 2), i,
                       STOP if i == lens.stop else ASPHERE if aspheric[i] else APERTURE)
-            if i != lens.stop:
+            if i != lens.stop or not lens.stop_is_flat_in_air:
                 n_front = index[i - 1] if i > 0 else 1.0
                 eta = index[i] / n_front
                 d, tir = refract(d, normal, eta[..., live] if np.ndim(eta) else eta)

@@ -7,7 +7,8 @@ rather than guessed), ``DIM M|C|I`` (mm, cm, inch), ``SO`` (object), ``S radius 
 surface), ``SPH``/``CON``/``ASP`` with ``K`` (conic) and ``A`` .. ``J`` (coefficients of r^4 ..
 r^20), ``RDY``/``CUY``/``THI`` without qualifiers (change the current surface). Commands are one
 per line or separated by ``;``; ``!`` starts a comment. CODE V's radius 0 is a flat surface; on the
-``STO`` surface it becomes the planar stop.
+``STO`` surface it becomes the planar stop; a curved ``STO`` surface, or one with glass on a side,
+stays that surface, whose aperture is the stop.
 
 Glass: a fictitious glass code ``NNNNNN.VVVV`` (n_d = 1 + 0.NNNNNN, V_d = 100 x 0.VVVV, as CODE V
 writes model glasses; ``517642.6417`` is n_d 1.517642, V_d 64.17), a catalogue glass
@@ -202,9 +203,6 @@ def _build(surfaces: list[_Surface], defocus: float, path: str, name: str | None
         raise LensFileError(path, stops[1].line if stops else None,
                             "a second STO" if stops else "no stop surface (STO)")
     stop = stops[0]
-    if stop.radius != 0:
-        raise LensFileError(path, stop.line, "the STO surface is curved: only a flat stop surface in air is "
-                            "supported (put the stop on a flat dummy air surface)")
     if surfaces[-1].index != 1.0 or surfaces[-1].glass is not None:
         raise LensFileError(path, surfaces[-1].line, "the space before the image surface must be air")
     apertures = []
@@ -213,7 +211,7 @@ def _build(surfaces: list[_Surface], defocus: float, path: str, name: str | None
             raise LensFileError(path, s.line, "surface has no clear aperture (CIR radius)")
         apertures.append(2 * s.semi)
     surfaces[-1].thickness += defocus
-    radius = [0.0 if s is stop else (s.radius if s.radius != 0 else math.inf) for s in surfaces]
+    radius = [s.radius if s.radius != 0 or s is stop else math.inf for s in surfaces]
     return build_lens(path, [s.line for s in surfaces], radius, [s.thickness for s in surfaces],
                       [s.index for s in surfaces], [s.abbe for s in surfaces], apertures,
                       name=name, conic=[s.conic for s in surfaces], coefficients=[s.coefficients for s in surfaces],
@@ -248,7 +246,7 @@ def format_codev(lens: LensSystem) -> str:
     lines = ["RDM", "DIM M", f"TIT '{title}'", "SO 0.0 1e20"]
     for i in range(lens.surface_count):
         radius = float(lens.radius_mm[i])
-        radius = 0.0 if i == lens.stop or math.isinf(radius) else radius
+        radius = 0.0 if math.isinf(radius) else radius
         catalogue = lens.glass[i]
         glass = "" if lens.index_d[i] == 1 else " " + (
             f"{catalogue.name}_{catalogue.catalogue.upper()}" if catalogue is not None

@@ -33,7 +33,7 @@ from typing import NamedTuple
 import numpy as np
 
 from realistic.core.input_files import parse_json
-from realistic.errors import LensFileError
+from realistic.errors import LensFileError, UserError
 from realistic.optics.dispersion import GlassFormula
 from realistic.optics.glass.catalogue import catalogue_stem, find_glass, unknown_glass
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
@@ -180,6 +180,9 @@ def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) 
 
 def format_json_lens(lens: LensSystem) -> str:
     """``lens`` as an isetlens/omni JSON document (floats written exactly: repr round-trips)."""
+    if not lens.stop_is_flat_in_air:
+        raise UserError(f"{lens.name}: its stop is curved or has glass on one side, and in a .json prescription "
+                        f"the stop is a radius-0 surface in air: convert to .zmx or .seq")
     surfaces = []
     before = np.concatenate([[1.0], lens.index_d[:-1]])
     for i in range(lens.surface_count):

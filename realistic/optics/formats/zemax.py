@@ -17,11 +17,10 @@ without BOM) or ASCII/UTF-8.
 Mapping: SURF 0 (object) and the last SURF (image) are not lens surfaces; SURF 1 .. N-1 become the
 prescription rows in order, and the last lens surface's ``DISZ`` becomes the film gap. Zemax's
 ``GLAS`` and ``DISZ`` of a surface describe the space after it, as our columns do. The ``STOP``
-surface must be flat with air on both sides: it becomes the radius-0 stop. A curved or glass stop
-surface is rejected rather than approximated: our stop is its own flat surface, so splitting it off
-would move the aperture (put the stop on a flat dummy air surface in Zemax). A ``DISZ 0`` gap (a stop
-on a lens vertex) is kept when the two surfaces only touch (``realistic.optics.lens``). Semi-diameters
-are kept as the file gives them.
+surface is the stop: a flat one in air becomes the radius-0 stop; a curved one, or one with glass on
+a side (a STOP on a singlet's first face), stays that surface, which refracts and whose aperture is
+the stop (``realistic.optics.lens``). A ``DISZ 0`` gap (a stop on a lens vertex) is kept when the two
+surfaces only touch. Semi-diameters are kept as the file gives them.
 
 Rejected with the line that holds them: other surface types (coordinate breaks, paraxial and ideal
 surfaces, which real rays cannot trace, TOROIDAL, ODDASPH, ...), a non-zero r^2 term, mirrors, tilts
@@ -245,13 +244,6 @@ def parse_zmx(text: str, path: str = "<string>") -> LensSystem:
     if len(stops) > 1:
         raise LensFileError(path, stops[1].stop_line, f"a second STOP; the first is on line {stops[0].stop_line}")
     stop = stops[0]
-    if stop.curvature != 0:
-        raise LensFileError(path, stop.curvature_line, "the STOP surface is curved: only a flat stop surface "
-                            "in air is supported (put the stop on a flat dummy air surface)")
-    before = surfaces[stop.number - 1].index
-    if stop.index != 1.0 or before != 1.0 or stop.glass is not None or surfaces[stop.number - 1].glass:
-        raise LensFileError(path, stop.stop_line, "the STOP surface has glass on one side: only a flat stop "
-                            "surface in air is supported (put the stop on a flat dummy air surface)")
     apertures = []
     for s in lens:
         semi = next((d for d in (s.clear_semi_diameter, s.semi_diameter, s.mechanical_semi_diameter)
@@ -260,7 +252,7 @@ def parse_zmx(text: str, path: str = "<string>") -> LensSystem:
             raise LensFileError(path, s.line, f"SURF {s.number} has no DIAM or MEMA (semi-diameter)")
         apertures.append(2 * semi * unit_mm)
 
-    radius = [0.0 if s is stop else math.inf if s.curvature == 0 else unit_mm / s.curvature for s in lens]
+    radius = [(0.0 if s is stop else math.inf) if s.curvature == 0 else unit_mm / s.curvature for s in lens]
     coefficients = [_coefficients(s, unit_mm, path) for s in lens]
     catalogue = [name for s in lens for name in s.catalogue]
     note = (f"catalogue glasses read from the n_d/V_d on their GLAS lines: {', '.join(catalogue)}"
