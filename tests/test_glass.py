@@ -18,6 +18,7 @@ from realistic.optics.formats.pbrt_dat import parse_prescription
 from realistic.optics.formats.zemax import parse_zmx
 from realistic.optics.glass.catalogue import find_glass
 from realistic.optics.paraxial import paraxial_data
+from realistic.optics.report import format_summary, lens_summary
 from realistic.optics.tracer import trace_from_film
 
 # (glass, catalogue, n_C, n_d, n_F, V_d) as each maker's data sheet prints them (indices to 1e-5, V_d to 0.01)
@@ -297,3 +298,10 @@ def test_kernel_traces_a_curved_stop_as_the_reference_does(opencl_platform):
     kernel = opencl_platform.LensKernel(camera).generate(SampleBlock(0, count, camera.spp), seed)
     ref = camera.generate_rays(SampleBlock(0, count, camera.spp), seed)
     assert assert_kernel_matches(kernel, ref, camera, seed).mean() > 0.02
+
+
+def test_lens_info_names_catalogue_glasses_and_a_curved_stop():
+    summary = lens_summary(parse_zmx(ZMX_STOP_ON_LENS, "singlet.zmx"))
+    assert summary["surfaces"][0]["glass"] == "N-BK7 (Schott)" and "glass" not in summary["surfaces"][1]
+    text = format_summary(summary)
+    assert "50.0000*" in text and "N-BK7 (Schott)" in text and "the aperture stop, on a curved surface" in text
