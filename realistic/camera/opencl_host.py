@@ -82,11 +82,20 @@ def _index_ratios(camera: LensCamera) -> list[str]:
 
 def _glass_index(glass: GlassFormula) -> str:
     """A catalogue glass's index as a C expression of ``il2``: the formula of
-    ``realistic.optics.dispersion.GlassFormula.index``, term for term, in float32."""
-    c = [_c_float(v) for v in glass.coefficients]
+    ``realistic.optics.dispersion.GlassFormula.index`` in float32. Sellmeier's three terms
+    B / (1 - C il2) are summed as one fraction 1 + P(il2) / Q(il2), Q the product of their
+    denominators (coefficients in float64 here): written as three like terms, LLVM's SLP vectoriser
+    packed them into a vector, which stops PoCL's work-group vectoriser (the whole kernel ran
+    scalar; see the header of ``kernels/lens.cl``)."""
+    k = glass.coefficients
     if glass.formula == "sellmeier":
-        terms = " + ".join(f"{c[i]} / (1.0f - {c[i + 3]} * (il2))" for i in range(3))
-        return f"__builtin_sqrtf(1.0f + {terms})"
+        factors = [np.array([1.0, -k[3 + i]]) for i in range(3)]  # 1 - C_i il2, lowest power first
+        q = np.polynomial.polynomial.polymul(np.polynomial.polynomial.polymul(factors[0], factors[1]), factors[2])
+        p = sum(k[i] * np.polynomial.polynomial.polymul(*(factors[j] for j in range(3) if j != i)) for i in range(3))
+        pc, qc = [_c_float(v) for v in p], [_c_float(v) for v in q]
+        return (f"__builtin_sqrtf(1.0f + ({pc[0]} + (il2) * ({pc[1]} + (il2) * {pc[2]})) / "
+                f"(1.0f + (il2) * ({qc[1]} + (il2) * ({qc[2]} + (il2) * {qc[3]}))))")
+    c = [_c_float(v) for v in k]
     return (f"__builtin_sqrtf({c[0]} + {c[1]} / (il2) + (il2) * ({c[2]} + (il2) * ({c[3]} + (il2) * "
             f"({c[4]} + (il2) * {c[5]}))))")
 
