@@ -21,6 +21,7 @@ from realistic.optics.formats.codev import parse_codev
 from realistic.optics.formats.json_lens import parse_json_lens
 from realistic.optics.formats.pbrt_dat import parse_prescription
 from realistic.optics.formats.zemax import parse_zmx
+from realistic.optics.forward_trace import reversed_lens
 from realistic.optics.glass.catalogue import find_glass
 from realistic.optics.paraxial import paraxial_data
 from realistic.optics.report import format_summary, lens_summary
@@ -336,3 +337,15 @@ def test_spectral_kernel_with_catalogue_glasses_still_vectorises(opencl_platform
     code = subprocess.run(["objdump", "-d", str(so)], capture_output=True, text=True, check=True).stdout
     assert code.count("%ymm") + code.count("%zmm") > 500, "the work-group loop is not vectorised"
     assert "call" not in code, "a builtin call stops PoCL's vectoriser"
+
+
+@pytest.mark.parametrize("wavelength_um", [LAMBDA_F_UM, LAMBDA_D_UM, LAMBDA_C_UM])
+def test_focal_length_at_each_line_follows_the_catalogue_index(wavelength_um):
+    lens = parse_zmx(ZMX_STOP_ON_LENS, "singlet.zmx")
+    n, r1, r2, t = float(find_glass("N-BK7").index(wavelength_um)), 50.0, -200.0, 6.0
+    power = (n - 1) * (1 / r1 - 1 / r2 + (n - 1) * t / (n * r1 * r2))
+    assert paraxial_data(lens, wavelength_um * 1000.0).efl_mm == pytest.approx(1 / power, rel=1e-12)
+    # seen from the film (spot and MTF trace the reversed lens), the glass moves with its medium
+    back = reversed_lens(lens)
+    assert back.glass == (lens.glass[0], None) and back.index_d[0] == lens.index_d[0]
+    assert paraxial_data(back, wavelength_um * 1000.0).efl_mm == pytest.approx(1 / power, rel=1e-12)
