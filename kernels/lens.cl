@@ -42,7 +42,8 @@
  *                                 asphere()/stop() with literal constants; when SPECTRAL, its
  *                                 index ratio is computed from each dispersive glass's index
  *                                 A + B il2 (il2 = 1 / lambda^2 in um^-2, A and B literal Cauchy
- *                                 coefficients)
+ *                                 coefficients), or a catalogue glass's Sellmeier or Schott formula
+ *                                 written in il2 (realistic.optics.dispersion)
  *   TRACE_SURFACES(EACH)          EACH(SURFACE_0) EACH(SURFACE_1) ...: every surface, rear first
  * The kernel argument `settings` holds what changes with the focus (the film distance) and the
  * stop's diameter, float32 at the SET_* offsets the generated header defines (declared once, with
@@ -163,11 +164,14 @@ inline __attribute__((always_inline)) void refract(Ray *r, float nx, float ny, f
 
 /* A spherical surface of radius R (vertex at w = 0, centre at w = -R), clear semi-aperture
  * squared AP2, index ratio ETA (incident over transmitted; a literal, or per ray when SPECTRAL),
- * REFRACTS 0 when the ratio is exactly 1, then GAP mm on to the next surface.
+ * REFRACTS 0 when the ratio is exactly 1, then GAP mm on to the next surface. AHEAD 0 (here and in
+ * asphere, plane and stop): the surface touches the one the ray left (0 mm apart, a shape the host
+ * has checked never to lie behind it), so a hit is not required to be ahead (rounding puts the
+ * vertex's own hits a hair behind).
  * The quadratic t^2 + 2 b t + c = 0 is written about the vertex, c = |o|^2 + 2 R w, so that c
  * does not cancel R^2, and its roots are taken in the cancellation-free form q, c / q. */
 inline __attribute__((always_inline)) void sphere(Ray *r, const float R, const float AP2, const float ETA,
-                                                 const int REFRACTS, const float GAP) {
+                                                 const int REFRACTS, const float GAP, const int AHEAD) {
     float b = r->ox * r->dx + r->oy * r->dy + (r->w + R) * r->dz;
     float c = r->ox * r->ox + r->oy * r->oy + r->w * (r->w + 2.0f * R);
     float disc = b * b - c;
@@ -179,7 +183,7 @@ inline __attribute__((always_inline)) void sphere(Ray *r, const float R, const f
     float hy = r->oy + t * r->dy;
     float hw = r->w + t * r->dz;
     float cz = hw + R;  /* hit minus centre, axial */
-    r->alive = r->alive & (disc >= 0.0f) & (t > 0.0f) & (cz * R > 0.0f) & (hx * hx + hy * hy <= AP2);
+    r->alive = r->alive & (disc >= 0.0f) & ((t > 0.0f) | !AHEAD) & (cz * R > 0.0f) & (hx * hx + hy * hy <= AP2);
     float s = (hx * r->dx + hy * r->dy + cz * r->dz > 0.0f ? -1.0f : 1.0f) * (1.0f / (R < 0.0f ? -R : R));
     if (REFRACTS) refract(r, hx * s, hy * s, cz * s, ETA);
     r->ox = hx;
@@ -215,7 +219,8 @@ inline __attribute__((always_inline)) void sphere(Ray *r, const float R, const f
 inline __attribute__((always_inline)) void asphere(Ray *r, const float C, const float K, const float A4, const float A6,
                                                   const float A8, const float A10, const float A12, const float A14,
                                                   const float A16, const float A18, const float A20, const float AP2,
-                                                  const float ETA, const int REFRACTS, const float GAP) {
+                                                  const float ETA, const int REFRACTS, const float GAP,
+                                                  const int AHEAD) {
     const float CK = (1.0f + K) * C;
     const float CCK = CK * C;
     float a = C * (r->dx * r->dx + r->dy * r->dy) + CK * r->dz * r->dz;
@@ -249,7 +254,7 @@ inline __attribute__((always_inline)) void asphere(Ray *r, const float C, const 
     q = __builtin_sqrtf(q2 > 0.0f ? q2 : 0.0f);
     f = hw + C * rho / (1.0f + q) + ASPHERE_POLY(rho);
     float af = f < 0.0f ? -f : f;
-    r->alive = r->alive & (af <= ASPHERE_TOLERANCE_MM) & (q2 >= 0.0f) & (t > 0.0f) & (rho <= AP2);
+    r->alive = r->alive & (af <= ASPHERE_TOLERANCE_MM) & (q2 >= 0.0f) & ((t > 0.0f) | !AHEAD) & (rho <= AP2);
     float slope2 = 2.0f * (C / (2.0f * q) + ASPHERE_DPOLY(rho));
     float nx = hx * slope2, ny = hy * slope2;
     float s = (nx * r->dx + ny * r->dy + r->dz > 0.0f ? -1.0f : 1.0f) / __builtin_sqrtf(nx * nx + ny * ny + 1.0f);
@@ -261,11 +266,11 @@ inline __attribute__((always_inline)) void asphere(Ray *r, const float C, const 
 
 /* A plane at the vertex: the aperture stop (REFRACTS = 0) or a flat refracting surface. */
 inline __attribute__((always_inline)) void plane(Ray *r, const float AP2, const float ETA, const int REFRACTS,
-                                                const float GAP) {
+                                                const float GAP, const int AHEAD) {
     float t = -r->w / r->dz;
     float hx = r->ox + t * r->dx;
     float hy = r->oy + t * r->dy;
-    r->alive = r->alive & (t > 0.0f) & (hx * hx + hy * hy <= AP2);
+    r->alive = r->alive & ((t > 0.0f) | !AHEAD) & (hx * hx + hy * hy <= AP2);
     if (REFRACTS) refract(r, 0.0f, 0.0f, r->dz > 0.0f ? -1.0f : (r->dz < 0.0f ? 1.0f : 0.0f), ETA);
     r->ox = hx;
     r->oy = hy;
@@ -287,11 +292,11 @@ inline int stop_mask(float x, float y) {
 /* The aperture stop: a plane whose opening is STOP_INSIDE(x, y), generated by the host: the circle
  * of squared radius STOP_R2 (a setting), the sides (half-planes) or arcs (disks) of a bladed stop, or
  * the mask. */
-inline __attribute__((always_inline)) void stop(Ray *r, const float GAP, const float STOP_R2) {
+inline __attribute__((always_inline)) void stop(Ray *r, const float GAP, const float STOP_R2, const int AHEAD) {
     float t = -r->w / r->dz;
     float hx = r->ox + t * r->dx;
     float hy = r->oy + t * r->dy;
-    r->alive = r->alive & (t > 0.0f) & STOP_INSIDE(hx, hy);
+    r->alive = r->alive & ((t > 0.0f) | !AHEAD) & STOP_INSIDE(hx, hy);
     r->ox = hx;
     r->oy = hy;
     r->w = -GAP;

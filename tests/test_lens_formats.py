@@ -213,7 +213,7 @@ def test_codev_reads_units_glass_codes_aspheres_and_defocus():
 
 
 @pytest.mark.parametrize("old, new, fragment", [
-    ("S 0 0.6 516800.6417", "S 0 0.6 'N-BK7_SCHOTT'", "catalogue"),
+    ("S 0 0.6 516800.6417", "S 0 0.6 'N-BK77_SCHOTT'", "none of the catalogues"),
     ("S 0 0.6 516800.6417", "S 0 0.6 REFL", "mirror"),
     ("  A 1.0E-4; B -2.0E-6", "  XDE 0.1", "decentres"),
     ("  A 1.0E-4; B -2.0E-6", "  REX 1.0", "non-circular"),

@@ -81,7 +81,7 @@ BAD_FILES = {
     "columns": ("10 2 1.5 8\n0 3 0\n-10 0 1 8\n", 2, "found 3"),
     "mixed columns": ("10 2 1.5 60 8\n0 3 0 6\n-10 0 1 0 8\n", 2, "earlier rows have 5"),
     "no stop": ("10 2 1.5 8\n-10 0 1 8\n", None, "no aperture stop"),
-    "two stops": ("0 2 0 8\n10 2 1.5 8\n0 3 0 6\n-10 0 1 8\n", 3, "second aperture stop"),
+    "two stops": ("0 2 0 8\n10 2 1.5 8\n-10 2 0 8\n0 3 0 6\n", 4, "second aperture stop"),
     "zero thickness": ("10 2 1.5 8\n0 0 0 6\n-10 0 1 8\n", 2, "thickness 0"),
     "negative thickness": ("10 2 1.5 8\n0 -1 0 6\n-10 0 1 8\n", 2, "thickness -1"),
     "index below one": ("10 2 0.8 8\n0 3 0 6\n-10 0 1 8\n", 1, "index 0.8"),
@@ -103,8 +103,9 @@ def test_malformed_files_name_file_line_and_value(kind, tmp_path):
 
 
 def test_stop_must_sit_in_air():
+    # radius 0 between glass and air is a flat face; between two glasses of one index, a stop in glass
     with pytest.raises(LensFileError, match="must sit in air"):
-        parse_prescription("10 2 1.5 8\n0 3 0 6\n-10 0 1 8\n")
+        parse_prescription("10 2 1.5 8\n0 3 1.5 6\n-10 0 1 8\n")
 
 
 @pytest.mark.parametrize("kind", [k for k in BAD_FILES if BAD_FILES[k][2]])

@@ -22,7 +22,7 @@ from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table
-from realistic.optics.dispersion import D_LINE_NM, cauchy_coefficients, refractive_index
+from realistic.optics.dispersion import D_LINE_NM, GlassFormula, cauchy_coefficients
 from realistic.optics.lens import LensSystem
 from realistic.optics.sampling import rear_element_sampler
 
@@ -51,16 +51,21 @@ def _index_ratios(camera: LensCamera) -> list[str]:
 
     A ratio between media of constant index (no V number, or a non-spectral camera) is a literal
     computed in float64, as at the d line; otherwise it is n_i * (1 / n_(i-1)) per ray, a dispersive
-    glass's index n = A + B il2 computed where it is used (the compiler computes it once per ray).
+    glass's index n = A + B il2 (Cauchy) or its catalogue formula (``_glass_index``) computed where it
+    is used (the compiler computes it once per ray).
     """
     lens = camera.lens
-    index = refractive_index(lens.index_d, lens.abbe_v, D_LINE_NM)
+    index = lens.index_at(D_LINE_NM)
     a, b = cauchy_coefficients(lens.index_d, lens.abbe_v)
-    dispersive = (b != 0) & camera.spectral
+    catalogue = np.array([g is not None for g in lens.glass])
+    dispersive = ((b != 0) | catalogue) & camera.spectral
 
     def n(k: int) -> str:
         if k < 0:
             return "1.0f"
+        glass = lens.glass[k]
+        if dispersive[k] and glass is not None:
+            return _glass_index(glass)
         return f"({_c_float(a[k])} + {_c_float(b[k])} * (il2))" if dispersive[k] else _c_float(index[k])
 
     def inv(k: int) -> str:
@@ -73,6 +78,26 @@ def _index_ratios(camera: LensCamera) -> list[str]:
         else:
             ratios.append(_c_float(index[i] / (index[i - 1] if i > 0 else 1.0)))
     return ratios
+
+
+def _glass_index(glass: GlassFormula) -> str:
+    """A catalogue glass's index as a C expression of ``il2``: the formula of
+    ``realistic.optics.dispersion.GlassFormula.index`` in float32. Sellmeier's three terms
+    B / (1 - C il2) are summed as one fraction 1 + P(il2) / Q(il2), Q the product of their
+    denominators (coefficients in float64 here): written as three like terms, LLVM's SLP vectoriser
+    packed them into a vector, which stops PoCL's work-group vectoriser (the whole kernel ran
+    scalar; see the header of ``kernels/lens.cl``)."""
+    k = glass.coefficients
+    if glass.formula == "sellmeier":
+        factors = [np.array([1.0, -k[3 + i]]) for i in range(3)]  # 1 - C_i il2, lowest power first
+        q = np.polynomial.polynomial.polymul(np.polynomial.polynomial.polymul(factors[0], factors[1]), factors[2])
+        p = sum(k[i] * np.polynomial.polynomial.polymul(*(factors[j] for j in range(3) if j != i)) for i in range(3))
+        pc, qc = [_c_float(v) for v in p], [_c_float(v) for v in q]
+        return (f"__builtin_sqrtf(1.0f + ({pc[0]} + (il2) * ({pc[1]} + (il2) * {pc[2]})) / "
+                f"(1.0f + (il2) * ({qc[1]} + (il2) * ({qc[2]} + (il2) * {qc[3]}))))")
+    c = [_c_float(v) for v in k]
+    return (f"__builtin_sqrtf({c[0]} + {c[1]} / (il2) + (il2) * ({c[2]} + (il2) * ({c[3]} + (il2) * "
+            f"({c[4]} + (il2) * {c[5]}))))")
 
 
 def _stop_lines(lens: LensSystem) -> list[str]:
@@ -149,19 +174,25 @@ def camera_header(camera: LensCamera) -> str:
     calls = []
     for eta, i in zip(_index_ratios(camera), range(lens.surface_count - 1, -1, -1)):
         gap = lens.thickness_mm[i - 1] if i > 0 else 0.0
+        ahead = int(i == lens.surface_count - 1 or lens.thickness_mm[i] != 0)
         ap2 = (lens.aperture_mm[i] / 2) ** 2
         radius = lens.radius_mm[i]
         refracts = int(eta != "1.0f")
-        if i == lens.stop:
-            calls.append(f"stop(r, {_c_float(gap)}, settings[SET_STOP_R2]);")
+        if i == lens.stop and not lens.stop_is_flat_in_air:  # a round stop (``with_stop_shape``) on its surface
+            kind = "plane" if radius == 0 else "sphere"
+            shape = "" if radius == 0 else f"{_c_float(radius)}, "
+            calls.append(f"{kind}(r, {shape}settings[SET_STOP_R2], {eta}, {refracts}, {_c_float(gap)}, {ahead});")
+        elif i == lens.stop:
+            calls.append(f"stop(r, {_c_float(gap)}, settings[SET_STOP_R2], {ahead});")
         elif lens.aspheric[i]:
             c = 1.0 / radius if radius != 0 and np.isfinite(radius) else 0.0
             shape = ", ".join(_c_float(v) for v in (c, lens.conic[i], *lens.aspheric_coefficients[i]))
-            calls.append(f"asphere(r, {shape}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
+            calls.append(f"asphere(r, {shape}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)}, {ahead});")
         elif radius == 0 or not np.isfinite(radius):
-            calls.append(f"plane(r, {_c_float(ap2)}, {eta}, 1, {_c_float(gap)});")
+            calls.append(f"plane(r, {_c_float(ap2)}, {eta}, 1, {_c_float(gap)}, {ahead});")
         else:
-            calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)});")
+            calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)}, "
+                         f"{ahead});")
     lines = [
         SETTINGS.defines().rstrip("\n"),
         f"#define SPECTRAL {int(camera.spectral)}",

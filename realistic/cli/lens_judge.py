@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 from realistic.camera.lens_camera import MM_PER_METRE
@@ -44,6 +45,12 @@ def _outputs(args: argparse.Namespace, default_plot: str) -> Path:
     return out
 
 
+def _warn_dispersion(lens: LensSystem, wavelengths_nm: list[float]) -> None:
+    warning = lens.dispersion_warning(wavelengths_nm)
+    if warning:
+        print(f"realistic: warning: {warning}", file=sys.stderr)
+
+
 def _write(path: str | None, text: str) -> None:
     if path:
         write_text_atomically(Path(path), text)
@@ -69,6 +76,7 @@ def cmd_lens_spot(args: argparse.Namespace) -> int:
 
     lens = _load(args)
     out = _outputs(args, f"{lens.name}-spot.png")
+    _warn_dispersion(lens, args.wavelengths)
     report = spot_diagram(lens, args.field, args.wavelengths, args.focus, args.samples)
     _write(args.json, json.dumps(report.as_dict(), indent=1) + "\n")
     plot_spots(report, out)
@@ -87,6 +95,7 @@ def cmd_lens_mtf(args: argparse.Namespace) -> int:
 
     lens = _load(args)
     out = _outputs(args, f"{lens.name}-mtf.png")
+    _warn_dispersion(lens, args.wavelengths)
     report = lens_mtf(lens, args.field, args.wavelengths, args.max_frequency, args.focus, args.samples)
     _write(args.json, json.dumps(report.as_dict(), indent=1) + "\n")
     plot_mtf(report, out)

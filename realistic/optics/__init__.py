@@ -9,7 +9,9 @@ frame with the film at z = 0 and +z toward the scene.
   CODE V ``.seq``) and the bundled prescriptions; ``load_lens`` dispatches there. Readers import
   the model, never the reverse.
 - ``stop_shape``: the aperture stop's shape (circle, blades, image mask).
-- ``dispersion``: refractive index against wavelength from n_d and V_d.
+- ``dispersion``: refractive index against wavelength: catalogue formulas (Sellmeier, Schott), or
+  Cauchy from n_d and V_d.
+- ``glass/``: the Schott, Ohara, Hoya and CDGM catalogues (glass name to formula).
 - ``paraxial``: first-order data (EFL, BFL, pupils, f-number) and thick-lens focusing.
 - ``tracer``: the float64 real-ray tracer (film to scene), the production tracer and the kernel's
   oracle.

@@ -48,7 +48,8 @@ def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
             top = lens.aperture_mm.max() / 2 * 1.05
             ax.plot([z, z], [half, top], "k", lw=2)
             ax.plot([z, z], [-half, -top], "k", lw=2)
-            continue
+            if lens.stop_is_flat_in_air:
+                continue
         rho = np.linspace(-half, half, 101)
         ax.plot(surface_profile(lens, film_distance_mm, i, rho), rho, "k", lw=1)
         if lens.index_d[i] > 1 and i + 1 < lens.surface_count:  # glass behind: close the element's rim
@@ -68,11 +69,13 @@ def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
     # surface 8 reaches 71 mm at its stated clear aperture), which would otherwise shrink the lens.
     vertex_z = lens.vertex_z_mm(film_distance_mm)
     near, far = min(0.0, vertex_z.min()), vertex_z.max() + 0.6 * lens.track_length_mm
-    ax.set_xlim(near - 0.05 * (far - near), far + 0.05 * (far - near))
+    # As optics programs draw a lens: the scene on the left, the film on the right, the axis horizontal
+    # (the lens frame's +z points to the scene, so its axis runs right to left).
+    ax.set_xlim(far + 0.05 * (far - near), near - 0.05 * (far - near))
     ax.axvline(0.0, color="grey", lw=2)
     ax.axhline(0.0, color="grey", lw=0.5, ls="--")
     ax.set_aspect("equal")
-    ax.set_xlabel("z (mm, film at 0, scene to the right)")
+    ax.set_xlabel("z (mm, film at 0 on the right, scene to the left)")
     ax.set_ylabel("height (mm)")
     ax.set_title(f"{lens.name}: film distance {film_distance_mm:.3f} mm; fans from 0, 50 and 90 % of the "
                  f"image circle ({reach:.1f} mm)")

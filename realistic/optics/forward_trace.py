@@ -43,6 +43,7 @@ def reversed_lens(lens: LensSystem) -> LensSystem:
         thickness_mm=np.concatenate([lens.thickness_mm[:-1][::-1], [0.0]]),
         index_d=medium_in_front[::-1].copy(), abbe_v=abbe_in_front[::-1].copy(),
         aperture_mm=lens.aperture_mm[::-1].copy(), stop=count - 1 - lens.stop,
+        glass=((None, *lens.glass[:-1]))[::-1],
         conic=conic, aspheric_coefficients=coefficients)
 
 

@@ -17,11 +17,22 @@ Frames and units (shared by every module of the package):
 A prescription row is ``radius thickness n_d [V_d] aperture``: signed radius of curvature (> 0:
 centre of curvature on the film side, i.e. convex toward the scene; 0: the planar aperture stop;
 ``inf``: a flat refracting surface), distance to the next surface, index of the medium behind the
-surface (0, 1 or blank: air), optional Abbe number, clear aperture diameter.
+surface (0, 1 or blank: air), optional Abbe number, clear aperture diameter. A radius of 0 is the
+stop only where the media on its two sides are the same (air); where they differ it is a flat
+refracting face, as ``inf`` is (a plano-convex lens's flat face). A reader whose format marks the
+stop itself passes ``stop`` to ``build_lens``, and every other radius 0 is then a plane; such a stop
+may also be curved or have glass on one side (Zemax's STOP on a lens's first face): it then refracts
+as any surface, and its clear aperture is the stop (``stop_is_flat_in_air`` is False).
+
+A medium may be a catalogue glass (``realistic.optics.glass``): its maker's dispersion formula then
+gives n(lambda), and n_d and V_d are the formula's own (``realistic.optics.dispersion``).
 
 A surface may be an even asphere (``realistic.optics.asphere``): a conic constant k and the
 coefficients A4 .. A20 of r^4 .. r^20 beside its base radius. A surface with k = 0 and every
 coefficient 0 is a sphere and is traced exactly as one; paraxial analysis uses the base curvature.
+
+Two surfaces may be 0 mm apart (a stop on a lens vertex) where they touch without crossing inside
+their clear apertures; the tracer then meets the second wherever the ray meets it.
 
 A lens has at most ``MAX_SURFACES`` surfaces: real photographic lenses have well under 50, and the
 tracer's cost grows with the count, so a file with thousands of rows is refused (the readers stop
@@ -40,7 +51,8 @@ import numpy as np
 
 from realistic.core import validation
 from realistic.errors import LensFileError, UserError
-from realistic.optics.asphere import COEFFICIENT_COUNT, COEFFICIENT_POWERS, conic_radicand
+from realistic.optics.asphere import COEFFICIENT_COUNT, COEFFICIENT_POWERS, conic_radicand, sag_mm
+from realistic.optics.dispersion import D_LINE_NM, GlassFormula, refractive_index
 from realistic.optics.stop_shape import StopShape
 
 #: Most surfaces a prescription may have (stop included); real lenses have well under 50.
@@ -79,11 +91,13 @@ class LensSystem:
     conic: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     # (N, 9) A4 .. A20 (mm^(1-p) for r^p); empty (the default): all 0
     aspheric_coefficients: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, COEFFICIENT_COUNT)))
+    # per surface, the catalogue glass behind it (None: n_d and V_d only); empty (the default): none
+    glass: tuple[GlassFormula | None, ...] = ()
 
     def __post_init__(self) -> None:
         """Make the text printable (``validation.printable_text``: it reaches terminals and the files
-        ``lens convert`` writes) and expand the empty defaults of ``conic`` and
-        ``aspheric_coefficients`` to zeros per surface, so that both are always (N,) and (N, 9) arrays."""
+        ``lens convert`` writes) and expand the empty defaults of ``conic``, ``aspheric_coefficients``
+        and ``glass`` per surface, so that they are always (N,) and (N, 9) arrays and an N-tuple."""
         count = len(self.radius_mm)
         object.__setattr__(self, "name", validation.printable_text(self.name))
         object.__setattr__(self, "source", validation.printable_text(self.source))
@@ -92,6 +106,8 @@ class LensSystem:
             object.__setattr__(self, "conic", np.zeros(count))
         if self.aspheric_coefficients.size == 0:
             object.__setattr__(self, "aspheric_coefficients", np.zeros((count, COEFFICIENT_COUNT)))
+        if not self.glass:
+            object.__setattr__(self, "glass", (None,) * count)
 
     def __repr__(self) -> str:
         """One line, no arrays: the name, surfaces, stop and length (``lens info`` says the rest)."""
@@ -135,8 +151,35 @@ class LensSystem:
         return float(self.aperture_mm[self.stop])
 
     @property
+    def stop_is_flat_in_air(self) -> bool:
+        """True for the usual stop, a plane (radius 0) with air on both sides; False for a curved or
+        refracting stop surface, which only formats that mark the stop (.zmx, .seq) can hold."""
+        before = self.index_d[self.stop - 1] if self.stop > 0 else 1.0
+        return bool(self.radius_mm[self.stop] == 0 and self.index_d[self.stop] == 1.0 and before == 1.0)
+
+    @property
     def has_dispersion(self) -> bool:
-        return bool(np.any(self.abbe_v > 0))
+        return bool(np.any(self.abbe_v > 0)) or any(g is not None for g in self.glass)
+
+    def dispersion_warning(self, wavelengths_nm: list[float]) -> str | None:
+        """Why a trace at ``wavelengths_nm`` shows less colour than the lens has: a glass with neither
+        V_d nor a catalogue formula keeps n_d at every wavelength; None when nothing is missing or
+        only the d line is asked for."""
+        constant = [i for i in range(self.surface_count)
+                    if self.index_d[i] != 1 and self.abbe_v[i] == 0 and self.glass[i] is None]
+        if not constant or all(abs(w - D_LINE_NM) < 1e-9 for w in wavelengths_nm):
+            return None
+        data = "dispersion data (an Abbe number or a catalogue glass)"
+        if len(constant) == np.count_nonzero(self.index_d != 1):
+            return f"{self.name}: no glass has {data}: every wavelength asked for traces as the d line"
+        which = "surface" + ("s " if len(constant) > 1 else " ") + ", ".join(map(str, constant))
+        return (f"{self.name}: the glass behind {which} has no {data}, so it keeps n_d at every wavelength: "
+                f"the colours differ less than in the real lens")
+
+    def index_at(self, wavelength_nm: float | np.ndarray) -> np.ndarray:
+        """Index of the medium behind each surface at ``wavelength_nm`` (``dispersion.refractive_index``):
+        a catalogue glass's formula, else Cauchy from n_d and V_d."""
+        return refractive_index(self.index_d, self.abbe_v, wavelength_nm, self.glass)
 
     def vertex_offset_from_rear_mm(self) -> np.ndarray:
         """Axial position of each vertex measured from the rear vertex, + toward the scene."""
@@ -161,7 +204,11 @@ class LensSystem:
         return dataclasses.replace(self, aperture_mm=aperture)
 
     def with_stop_shape(self, shape: StopShape | None) -> LensSystem:
-        """The same lens with its stop cut to ``shape`` (``realistic.optics.stop_shape``), scaled to its diameter."""
+        """The same lens with its stop cut to ``shape`` (``realistic.optics.stop_shape``), scaled to its diameter.
+        A shape needs a flat stop in air (the kernel cuts it on a plane)."""
+        if shape is not None and not self.stop_is_flat_in_air:
+            raise UserError(f"{self.name}: a shaped stop needs a flat stop in air, and this lens's stop (surface "
+                            f"{self.stop}) is curved or has glass on one side")
         return dataclasses.replace(self, stop_shape=shape)
 
 
@@ -254,14 +301,21 @@ def _check_asphere(path: str, line: int, radius: float, aperture: float, conic: 
 def build_lens(path: str, lines: list[int], radius: list[float], thickness: list[float], index: list[float],
                abbe: list[float], aperture: list[float], name: str | None = None, note: str = "",
                conic: list[float] | None = None, coefficients: list[list[float]] | None = None,
-               description: str = "") -> LensSystem:
+               description: str = "", glass: list[GlassFormula | None] | None = None,
+               stop: int | None = None) -> LensSystem:
     """Validate per-surface values (prescription conventions) into a LensSystem.
 
     ``lines[i]`` is the file line that errors about surface i name; every parser feeds this one
     constructor so that all lens files obey the same rules. ``conic`` and ``coefficients`` (per
     surface: k, and up to nine coefficients A4, A6, ... of r^4, r^6, ...) make surfaces aspheric.
+    ``glass`` (per surface, None where the row's n_d and V_d stand) sets a medium's index and V_d
+    from a catalogue formula. ``stop`` marks the stop row where the format says which it is; without
+    it the stop is the radius-0 row with the same medium on both sides.
     """
     count = len(lines)
+    glass = [None] * count if glass is None else list(glass)
+    index = [float(g.n_d) if g is not None else n for g, n in zip(glass, index)]
+    abbe = [float(g.abbe_v) if g is not None else v for g, v in zip(glass, abbe)]
     conic = [0.0] * count if conic is None else list(conic)
     coefficients = [[] for _ in range(count)] if coefficients is None else [list(a) for a in coefficients]
     if len(lines) > MAX_SURFACES:
@@ -270,8 +324,8 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
         values = (radius[i], thickness[i], index[i], abbe[i], aperture[i])
         if any(math.isnan(x) for x in values) or any(math.isinf(x) for x in values[1:]):
             raise LensFileError(path, line, "values must be finite numbers (only a radius may be inf)")
-        if i < len(lines) - 1 and thickness[i] <= 0:
-            raise LensFileError(path, line, f"thickness {thickness[i]:g} mm to the next surface must be > 0")
+        if i < len(lines) - 1 and thickness[i] < 0:
+            raise LensFileError(path, line, f"thickness {thickness[i]:g} mm to the next surface must not be negative")
         if i == len(lines) - 1 and thickness[i] < 0:
             raise LensFileError(path, line, f"film gap {thickness[i]:g} mm must not be negative")
         if index[i] < 0 or 0 < index[i] < 1:
@@ -290,20 +344,15 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
             raise LensFileError(path, line, f"aperture diameter {aperture[i]:g} mm is larger than the "
                                 f"sphere of radius {radius[i]:g} mm allows (semi-diameter > |R|)")
 
-    stops = [i for i, r in enumerate(radius) if r == 0]
-    if not stops:
-        raise LensFileError(path, None, "no aperture stop (a row with radius 0)")
-    if len(stops) > 1:
-        raise LensFileError(path, lines[stops[1]], f"a second aperture stop (radius 0); the first is "
-                            f"on line {lines[stops[0]]}")
-    stop = stops[0]
     index = [1.0 if n in (0.0, 1.0) else n for n in index]
-    before_stop = index[stop - 1] if stop > 0 else 1.0
-    if index[stop] != 1.0 or before_stop != 1.0:
-        raise LensFileError(path, lines[stop], "the aperture stop (radius 0) must sit in air")
     abbe = [0.0 if n == 1.0 else v for n, v in zip(index, abbe)]
-    refracting = [i for i, r in enumerate(radius)
-                  if r != 0 and index[i] != (index[i - 1] if i > 0 else 1.0)]
+    radius = _flat_faces(radius, index, abbe, glass, stop)
+    _check_touching(path, lines, radius, thickness, aperture, conic, coefficients)
+    if stop is None:
+        stop = _implicit_stop(path, lines, radius, index)
+    elif conic[stop] != 0 or any(coefficients[stop]):
+        raise LensFileError(path, lines[stop], "the aperture stop cannot be aspheric")
+    refracting = [i for i in range(count) if index[i] != (index[i - 1] if i > 0 else 1.0)]
     if not refracting:
         raise LensFileError(path, None, "no refracting surface (every row is the stop or has air on both sides): "
                             "the lens would not form an image")
@@ -313,6 +362,57 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
         radius_mm=np.array(radius), thickness_mm=np.array(thickness), index_d=np.array(index),
         abbe_v=np.array(abbe), aperture_mm=np.array(aperture), stop=stop,
         source=path, convention_note=note, description=description, conic=np.array(conic, dtype=np.float64),
+        glass=tuple(None if index[i] == 1.0 else g for i, g in enumerate(glass)),
         aspheric_coefficients=np.array([a + [0.0] * (COEFFICIENT_COUNT - len(a)) for a in coefficients],
                                        dtype=np.float64).reshape(count, COEFFICIENT_COUNT),
     )
+
+
+def _implicit_stop(path: str, lines: list[int], radius: list[float], index: list[float]) -> int:
+    """The one radius-0 row (flat faces already made planes), which must sit in air."""
+    stops = [i for i, r in enumerate(radius) if r == 0]
+    if not stops:
+        raise LensFileError(path, None, "no aperture stop (a row with radius 0 and the same medium on both sides)")
+    if len(stops) > 1:
+        raise LensFileError(path, lines[stops[1]], f"a second aperture stop (radius 0 with air on both sides); "
+                            f"the first is on line {lines[stops[0]]}")
+    stop = stops[0]
+    before_stop = index[stop - 1] if stop > 0 else 1.0
+    if index[stop] != 1.0 or before_stop != 1.0:
+        raise LensFileError(path, lines[stop], "the aperture stop (radius 0) must sit in air")
+    return stop
+
+
+def _flat_faces(radius: list[float], index: list[float], abbe: list[float], glass: list[GlassFormula | None],
+                stop: int | None) -> list[float]:
+    """The radii with each radius 0 that is not the stop made ``inf``, a plane: every one but ``stop``
+    when the format marks it, else those between different media (a flat glass face)."""
+    def medium(i: int) -> tuple[float, float, GlassFormula | None]:
+        return (index[i], abbe[i], glass[i]) if i >= 0 else (1.0, 0.0, None)
+
+    flat = [i for i, r in enumerate(radius) if r == 0 and (i != stop if stop is not None else
+                                                           medium(i) != medium(i - 1))]
+    return [math.inf if i in flat else r for i, r in enumerate(radius)]
+
+
+#: Heights (fractions of the smaller clear semi-diameter) at which two surfaces 0 mm apart are compared.
+TOUCHING_SAMPLES = 65
+
+
+def _check_touching(path: str, lines: list[int], radius: list[float], thickness: list[float],
+                    aperture: list[float], conic: list[float], coefficients: list[list[float]]) -> None:
+    """Surfaces 0 mm apart (a stop on a lens vertex, a dummy surface) touch at the vertex only: the
+    front one may nowhere lie behind the rear one inside both clear apertures, or a ray would have
+    to travel backwards between them (the tracer, like the kernel, meets surfaces in order)."""
+    def sag(i: int, rho2: np.ndarray) -> np.ndarray:
+        c = 1.0 / radius[i] if radius[i] != 0 and math.isfinite(radius[i]) else 0.0
+        return sag_mm(rho2, c, conic[i], np.array(coefficients[i] or [0.0]))
+
+    for i in range(len(lines) - 1):
+        if thickness[i] != 0:
+            continue
+        rho = np.linspace(0.0, min(aperture[i], aperture[i + 1]) / 2, TOUCHING_SAMPLES)
+        behind = np.flatnonzero(sag(i, rho * rho) > sag(i + 1, rho * rho) + 1e-12)
+        if len(behind):
+            raise LensFileError(path, lines[i], f"thickness 0 mm: this surface and the next (line {lines[i + 1]}) "
+                                f"cross inside their clear apertures (at height {rho[behind[0]]:.4g} mm)")

@@ -18,7 +18,7 @@ import numpy as np
 
 from realistic.core import validation
 from realistic.errors import UserError
-from realistic.optics.dispersion import D_LINE_NM, refractive_index
+from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
 
 
@@ -61,7 +61,7 @@ class _Surfaces:
 
 
 def _surfaces(lens: LensSystem, wavelength_nm: float) -> _Surfaces:
-    n_after = refractive_index(lens.index_d, lens.abbe_v, wavelength_nm)
+    n_after = lens.index_at(wavelength_nm)
     n_before = np.concatenate([[1.0], n_after[:-1]])
     return _Surfaces(lens.curvature_per_mm, n_before, n_after, lens.thickness_mm[:-1],
                      lens.stop, lens.stop_diameter_mm / 2)

@@ -32,6 +32,9 @@ def lens_summary(lens: LensSystem, wavelength_nm: float = D_LINE_NM, film_distan
         for i, (r, t, n, v, a) in enumerate(zip(lens.radius_mm, lens.thickness_mm, lens.index_d,
                                                 lens.abbe_v, lens.aperture_mm))
     ]
+    for i, glass in enumerate(lens.glass):
+        if glass is not None:
+            surfaces[i]["glass"] = glass.label
     for i in map(int, lens.aspheric.nonzero()[0]):
         surfaces[i]["conic"] = float(lens.conic[i])
         surfaces[i]["aspheric_coefficients"] = {
@@ -54,12 +57,14 @@ def format_summary(summary: dict[str, Any]) -> str:
     if "convention_note" in summary:
         lines.append(f"note: {summary['convention_note']}")
     lines.append("")
-    lines.append("  #      radius   thickness     n_d      V_d   aperture")
+    lines.append("  #      radius   thickness     n_d      V_d   aperture  glass")
     for i, s in enumerate(summary["surfaces"]):
-        radius = "stop" if s["stop"] else f"{s['radius_mm']:.4f}"
+        radius = "stop" if s["stop"] and s["radius_mm"] == 0 else f"{s['radius_mm']:.4f}" + "*" * s["stop"]
         abbe = f"{s['abbe_v']:.1f}" if s["abbe_v"] else "-"
         lines.append(f"{i:3d} {radius:>11} {s['thickness_mm']:11.4f} {s['index_d']:7.4f} {abbe:>8} "
-                     f"{s['aperture_mm']:10.3f}")
+                     f"{s['aperture_mm']:10.3f}  {s.get('glass', '')}".rstrip())
+    if any(s["stop"] and s["radius_mm"] != 0 for s in summary["surfaces"]):
+        lines.append("  * the aperture stop, on a curved surface")
     aspheres = [(i, s) for i, s in enumerate(summary["surfaces"]) if "conic" in s]
     if aspheres:
         lines.append("")

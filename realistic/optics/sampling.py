@@ -170,6 +170,8 @@ def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm
     shape = lens.radius_mm.tobytes()
     if lens.aspheric.any():  # spherical lenses keep their keys (and cached tables)
         shape += ASPHERE_KEY + lens.conic.tobytes() + lens.aspheric_coefficients.tobytes()
+    if any(g is not None for g in lens.glass):  # a catalogue formula, not Cauchy, away from the d line
+        shape += repr(lens.glass).encode()
     key = (shape, lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),
            lens.abbe_v.tobytes(), lens.aperture_mm.tobytes(), film_distance_mm, film_diagonal_mm,
            intervals, wavelengths_nm)

@@ -15,6 +15,9 @@ Rules (the kernel follows the same ones):
   plane's root when the ray misses that branch). Its normal is the sag's gradient (2 x s', 2 y s', 1). A ray the
   iteration does not bring to the surface (|F| above ``ASPHERE_TOLERANCE_MM``, or outside the
   conic's domain), or that meets it outside the clear aperture, is blocked with reason ``asphere``.
+* A surface 0 mm from the one the ray left (``build_lens`` has checked that it nowhere lies behind
+  it) is met wherever the ray meets it: rounding may put the hit a hair behind the ray's start near
+  the vertex, so its hit is not required to be ahead (``ahead``).
 * A hit farther from the axis than half the clear aperture blocks the ray (``stop`` at the stop,
   ``aperture`` elsewhere); a shaped stop (``realistic.optics.stop_shape``) blocks what falls outside its
   opening.
@@ -29,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.optics.asphere import conic_radicand, sag_and_slope, significant
-from realistic.optics.dispersion import D_LINE_NM, refractive_index
+from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
 
 PASSED, MISS, APERTURE, STOP, TIR, ASPHERE = 0, 1, 2, 3, 4, 5
@@ -58,16 +61,18 @@ class TraceResult:
         return self.blocked_reason == PASSED
 
 
-def intersect_surface(o: Vectors, d: Vectors, vertex_z: float, radius: float) -> tuple[Vectors, Vectors, np.ndarray]:
+def intersect_surface(o: Vectors, d: Vectors, vertex_z: float, radius: float,
+                      ahead: bool = True) -> tuple[Vectors, Vectors, np.ndarray]:
     """Hit point, unit normal facing the incoming ray, and a miss mask for one surface.
 
-    ``o`` and ``d`` are (x, y, z) tuples of arrays (structure of arrays, as in the kernel).
+    ``o`` and ``d`` are (x, y, z) tuples of arrays (structure of arrays, as in the kernel); ``ahead``
+    False: a touching surface (module docstring), whose hit need not be ahead of ``o``.
     """
     ox, oy, oz = o
     dx, dy, dz = d
     if radius == 0 or not np.isfinite(radius):
         t = (vertex_z - oz) / dz
-        miss = ~(t > 0)
+        miss = ~(t > 0) & ahead
         hit = (ox + t * dx, oy + t * dy, oz + t * dz)
         return hit, (np.zeros_like(dz), np.zeros_like(dz), -np.sign(dz)), miss
     centre_z = vertex_z - radius
@@ -79,7 +84,7 @@ def intersect_surface(o: Vectors, d: Vectors, vertex_z: float, radius: float) ->
     use_near = (dz > 0) == (radius < 0)
     t = np.where(use_near, -b - root, -b + root)
     hx, hy, hz = ox + t * dx, oy + t * dy, oz + t * dz
-    miss = (disc < 0) | ~(t > 0) | ((hz - centre_z) * radius <= 0)
+    miss = (disc < 0) | (~(t > 0) & ahead) | ((hz - centre_z) * radius <= 0)
     # (hit - centre) / |R| is the outward unit normal; flip it to face the incoming ray.
     scale = np.where(hx * dx + hy * dy + (hz - centre_z) * dz > 0, -1.0, 1.0) / abs(radius)
     normal = (hx * scale, hy * scale, (hz - centre_z) * scale)
@@ -87,14 +92,15 @@ def intersect_surface(o: Vectors, d: Vectors, vertex_z: float, radius: float) ->
 
 
 def intersect_asphere(o: Vectors, d: Vectors, vertex_z: float, radius: float, conic: float,
-                      coefficients: np.ndarray) -> tuple[Vectors, Vectors, np.ndarray]:
-    """Hit point, unit normal facing the incoming ray, and a failure mask for an aspheric surface."""
+                      coefficients: np.ndarray, ahead: bool = True) -> tuple[Vectors, Vectors, np.ndarray]:
+    """Hit point, unit normal facing the incoming ray, and a failure mask for an aspheric surface
+    (``ahead`` as in ``intersect_surface``)."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # judged by the failure mask
-        return _asphere_hit(o, d, vertex_z, radius, conic, coefficients)
+        return _asphere_hit(o, d, vertex_z, radius, conic, coefficients, ahead)
 
 
 def _asphere_hit(o: Vectors, d: Vectors, vertex_z: float, radius: float, conic: float,
-                 coefficients: np.ndarray) -> tuple[Vectors, Vectors, np.ndarray]:
+                 coefficients: np.ndarray, ahead: bool) -> tuple[Vectors, Vectors, np.ndarray]:
     ox, oy, oz = o
     dx, dy, dz = d
     coefficients = significant(coefficients)
@@ -123,7 +129,7 @@ def _asphere_hit(o: Vectors, d: Vectors, vertex_z: float, radius: float, conic: 
     rho2 = hx * hx + hy * hy
     sag, slope = sag_and_slope(rho2, c, conic, coefficients)
     f = hz - vertex_z + sag
-    fail = ~(np.abs(f) <= ASPHERE_TOLERANCE_MM) | ~(conic_radicand(rho2, c, conic) >= 0) | ~(t > 0)
+    fail = ~(np.abs(f) <= ASPHERE_TOLERANCE_MM) | ~(conic_radicand(rho2, c, conic) >= 0) | (~(t > 0) & ahead)
     slope2 = 2.0 * slope
     nx, ny = hx * slope2, hy * slope2
     scale = np.where(nx * dx + ny * dy + dz > 0, -1.0, 1.0) / np.sqrt(nx * nx + ny * ny + 1.0)
@@ -154,7 +160,8 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     """Trace rays starting at or behind the rear element through the lens, rear surface first.
 
     ``wavelength_nm`` is one wavelength for all rays or one per ray (N,); each glass's index
-    follows it (``realistic.optics.dispersion``), media without a V number keep n_d.
+    follows it (a catalogue glass's formula or Cauchy, ``LensSystem.index_at``); media without a V number or
+    catalogue glass keep n_d.
 
     With ``path`` given, the hit point (N, 3) on each surface is appended to it, rear surface
     first (for drawing ray fans). Without it, a ray blocked at a surface is not traced further
@@ -173,7 +180,7 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     vertex_z = lens.vertex_z_mm(film_distance_mm)
     if np.ndim(wavelength_nm):
         wavelength_nm = np.broadcast_to(wavelength_nm, (count,))
-    index = refractive_index(lens.index_d, lens.abbe_v, wavelength_nm)  # (media,) or (media, count)
+    index = lens.index_at(wavelength_nm)  # (media,) or (media, count)
     aspheric = lens.aspheric
 
     def block(mask: np.ndarray, i: int, why: int) -> None:
@@ -183,12 +190,13 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
 
     with np.errstate(invalid="ignore", divide="ignore"):
         for i in range(lens.surface_count - 1, -1, -1):
+            ahead = i == lens.surface_count - 1 or lens.thickness_mm[i] != 0
             if aspheric[i]:
                 o, normal, fail = intersect_asphere(o, d, vertex_z[i], lens.radius_mm[i], lens.conic[i],
-                                                    lens.aspheric_coefficients[i])
+                                                    lens.aspheric_coefficients[i], ahead)
                 block(fail, i, ASPHERE)
             else:
-                o, normal, miss = intersect_surface(o, d, vertex_z[i], lens.radius_mm[i])
+                o, normal, miss = intersect_surface(o, d, vertex_z[i], lens.radius_mm[i], ahead)
                 block(miss, i, MISS)
             if path is not None:
                 path.append(np.stack(o, axis=1))
@@ -198,7 +206,7 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
                 r2 = o[0] * o[0] + o[1] * o[1]
                 block(~(r2 <= (lens.aperture_mm[i] / 2) ** 2), i,
                       STOP if i == lens.stop else ASPHERE if aspheric[i] else APERTURE)
-            if i != lens.stop:
+            if i != lens.stop or not lens.stop_is_flat_in_air:
                 n_front = index[i - 1] if i > 0 else 1.0
                 eta = index[i] / n_front
                 d, tir = refract(d, normal, eta[..., live] if np.ndim(eta) else eta)

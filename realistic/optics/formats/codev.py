@@ -7,11 +7,14 @@ rather than guessed), ``DIM M|C|I`` (mm, cm, inch), ``SO`` (object), ``S radius 
 surface), ``SPH``/``CON``/``ASP`` with ``K`` (conic) and ``A`` .. ``J`` (coefficients of r^4 ..
 r^20), ``RDY``/``CUY``/``THI`` without qualifiers (change the current surface). Commands are one
 per line or separated by ``;``; ``!`` starts a comment. CODE V's radius 0 is a flat surface; on the
-``STO`` surface it becomes the planar stop.
+``STO`` surface it becomes the planar stop; a curved ``STO`` surface, or one with glass on a side,
+stays that surface, whose aperture is the stop.
 
 Glass: a fictitious glass code ``NNNNNN.VVVV`` (n_d = 1 + 0.NNNNNN, V_d = 100 x 0.VVVV, as CODE V
-writes model glasses; ``517642.6417`` is n_d 1.517642, V_d 64.17), or none for air. Catalogue
-names cannot be looked up and are refused, as are mirrors (``REFL``), decentres and tilts,
+writes model glasses; ``517642.6417`` is n_d 1.517642, V_d 64.17), a catalogue glass
+``NAME_CATALOGUE`` (``NBK7_SCHOTT``, ``SLAH58_OHARA``; looked up in ``realistic.optics.glass``, in
+any catalogue when the suffix is absent), or none for air. Unknown glass names are refused with the
+closest catalogue names, as are mirrors (``REFL``), decentres and tilts,
 non-circular apertures and obscurations, and other surface shapes, each with file:line.
 Everything else (wavelengths, fields, pupil, title, solves) is ignored.
 """
@@ -25,7 +28,9 @@ from dataclasses import dataclass, field
 
 from realistic.errors import LensFileError, UserError
 from realistic.optics.asphere import COEFFICIENT_COUNT
+from realistic.optics.dispersion import GlassFormula
 from realistic.optics.formats.pbrt_dat import text_lines
+from realistic.optics.glass.catalogue import catalogue_stem, find_glass, unknown_glass
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
 
 UNIT_MM = {"M": 1.0, "MM": 1.0, "C": 10.0, "CM": 10.0, "I": 25.4, "IN": 25.4}
@@ -46,6 +51,7 @@ class _Surface:
     thickness: float
     index: float = 1.0
     abbe: float = 0.0
+    glass: GlassFormula | None = None
     semi: float | None = None
     stop: bool = False
     conic: float = 0.0
@@ -64,16 +70,21 @@ def _number(token: str | None, path: str, line: int, what: str) -> float:
     return value
 
 
-def _glass(token: str, path: str, line: int) -> tuple[float, float]:
-    """(n_d, V_d) of a fictitious glass code, refusing catalogue names and mirrors."""
+def _glass(token: str, path: str, line: int) -> tuple[float, float, GlassFormula | None]:
+    """(n_d, V_d, catalogue glass) of a fictitious glass code or a catalogue name; mirrors are refused."""
     name = token.strip("'\"")
     if name.upper() == "REFL":
         raise LensFileError(path, line, "mirror surfaces (REFL) are not supported")
     match = _GLASS_CODE.match(name)
-    if not match or match.group(1).startswith("0"):
-        raise LensFileError(path, line, f"glass {name!r}: catalogue glasses cannot be looked up here; give a "
-                            f"fictitious glass code such as 517642.6417 (n_d 1.517642, V_d 64.17)")
-    return _index_of(match.group(1)), _abbe_of(match.group(2) or "")
+    if match and not match.group(1).startswith("0"):
+        return _index_of(match.group(1)), _abbe_of(match.group(2) or ""), None
+    glass_name, _, suffix = name.rpartition("_")
+    stem = catalogue_stem(suffix) if glass_name else None
+    glass = find_glass(glass_name, stem) if stem else find_glass(name)
+    if glass is None:
+        raise LensFileError(path, line, unknown_glass(name) + " (or give a fictitious glass code such as "
+                            "517642.6417: n_d 1.517642, V_d 64.17)")
+    return 0.0, 0.0, glass
 
 
 def _index_of(digits: str) -> float:
@@ -150,7 +161,7 @@ def parse_codev(text: str, path: str = "<string>", name: str | None = None) -> L
                 raise LensFileError(path, line, too_many_surfaces(MAX_SURFACES + 1, at_least=True))
             surface = _Surface(line, radius, thickness * unit_mm)
             if len(args) > 2:
-                surface.index, surface.abbe = _glass(args[2], path, line)
+                surface.index, surface.abbe, surface.glass = _glass(args[2], path, line)
             surfaces.append(surface)
         elif command == "STO":
             current(line, "STO").stop = True
@@ -192,10 +203,7 @@ def _build(surfaces: list[_Surface], defocus: float, path: str, name: str | None
         raise LensFileError(path, stops[1].line if stops else None,
                             "a second STO" if stops else "no stop surface (STO)")
     stop = stops[0]
-    if stop.radius != 0:
-        raise LensFileError(path, stop.line, "the STO surface is curved: only a flat stop surface in air is "
-                            "supported (put the stop on a flat dummy air surface)")
-    if surfaces[-1].index != 1.0:
+    if surfaces[-1].index != 1.0 or surfaces[-1].glass is not None:
         raise LensFileError(path, surfaces[-1].line, "the space before the image surface must be air")
     apertures = []
     for s in surfaces:
@@ -203,11 +211,11 @@ def _build(surfaces: list[_Surface], defocus: float, path: str, name: str | None
             raise LensFileError(path, s.line, "surface has no clear aperture (CIR radius)")
         apertures.append(2 * s.semi)
     surfaces[-1].thickness += defocus
-    radius = [0.0 if s is stop else (s.radius if s.radius != 0 else math.inf) for s in surfaces]
+    radius = [s.radius if s.radius != 0 or s is stop else math.inf for s in surfaces]
     return build_lens(path, [s.line for s in surfaces], radius, [s.thickness for s in surfaces],
                       [s.index for s in surfaces], [s.abbe for s in surfaces], apertures,
                       name=name, conic=[s.conic for s in surfaces], coefficients=[s.coefficients for s in surfaces],
-                      description=title)
+                      description=title, glass=[s.glass for s in surfaces], stop=surfaces.index(stop))
 
 
 def _digits(fraction: float, value: float, decode: Callable[[str], float]) -> str:
@@ -238,8 +246,11 @@ def format_codev(lens: LensSystem) -> str:
     lines = ["RDM", "DIM M", f"TIT '{title}'", "SO 0.0 1e20"]
     for i in range(lens.surface_count):
         radius = float(lens.radius_mm[i])
-        radius = 0.0 if i == lens.stop or math.isinf(radius) else radius
-        glass = "" if lens.index_d[i] == 1 else " " + _glass_code(float(lens.index_d[i]), float(lens.abbe_v[i]))
+        radius = 0.0 if math.isinf(radius) else radius
+        catalogue = lens.glass[i]
+        glass = "" if lens.index_d[i] == 1 else " " + (
+            f"{catalogue.name}_{catalogue.catalogue.upper()}" if catalogue is not None
+            else _glass_code(float(lens.index_d[i]), float(lens.abbe_v[i])))
         lines.append(f"S {radius!r} {float(lens.thickness_mm[i])!r}{glass}")
         if i == lens.stop:
             lines.append("  STO")

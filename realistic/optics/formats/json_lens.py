@@ -4,7 +4,8 @@ The document is ``{"name": ..., "description": ..., "surfaces": [...]}`` with th
 scene side to the film side, lengths in millimetres (isetlens ``data/lens/*.json``; pbrt-v4-iset
 ``src/pbrt/cameras.cpp``, OmniCamera::Create, reads the same keys). Per surface:
 
-- ``radius``: signed radius of curvature, 0 for the aperture stop (as in pbrt's ``.dat`` files);
+- ``radius``: signed radius of curvature, 0 for the aperture stop (as in pbrt's ``.dat`` files) or,
+  between different media, a flat face (``realistic.optics.lens``);
   pbrt-v4's omni camera also accepts an ``[x, y]`` pair, read here only when both are equal.
 - ``thickness``: distance to the next surface; the last one's is the film gap (0: focus decides).
 - ``ior``: index of the medium behind the surface, 0 or 1 for air; omni's per-wavelength form
@@ -14,6 +15,9 @@ scene side to the film side, lengths in millimetres (isetlens ``data/lens/*.json
 - ``aspheric_coefficients``: A4, A6, ... A20, the coefficients of r^4 .. r^20 in mm^(1-p). Neither
   isetlens nor omni defines a key for these; this is the name this package reads and writes.
 - ``abbe_number``: V_d of the medium behind the surface (this package's key, for dispersion).
+- ``glass``: a catalogue glass name for the medium behind the surface (``"N-BK7"``, or with its
+  catalogue, ``"N-BK7 (Schott)"``), looked up in ``realistic.optics.glass``; its formula then gives
+  the index (this package's key; ``ior`` may be 0 beside it).
 - ``transform``: only absent, null or the identity is accepted (no tilts or decentres).
 
 Unknown surface keys are refused (a misspelt ``conic_constant`` must not silently give a sphere).
@@ -26,12 +30,16 @@ import json
 import math
 from typing import NamedTuple
 
+import numpy as np
+
 from realistic.core.input_files import parse_json
-from realistic.errors import LensFileError
+from realistic.errors import LensFileError, UserError
+from realistic.optics.dispersion import GlassFormula
+from realistic.optics.glass.catalogue import catalogue_stem, find_glass, unknown_glass
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
 
 SURFACE_KEYS = ("radius", "thickness", "ior", "semi_aperture", "conic_constant", "aspheric_coefficients",
-                "abbe_number", "transform")
+                "abbe_number", "transform", "glass")
 IDENTITY = [[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, 0]]
 
 
@@ -105,6 +113,23 @@ class _Surface(NamedTuple):
     aperture: float
     conic: float
     coefficients: list[float]
+    glass: GlassFormula | None
+
+
+def _catalogue_glass(value: object, path: str, line: int) -> GlassFormula | None:
+    """The glass a ``glass`` value names (``"N-BK7"`` or ``"N-BK7 (Schott)"``), None when absent."""
+    if value is None:
+        return None
+    if not isinstance(value, str):
+        raise LensFileError(path, line, f"glass must be a glass name, got {json.dumps(value)[:40]}")
+    name, _, rest = value.partition("(")
+    stem = catalogue_stem(rest.rstrip(") ")) if rest else None
+    if rest and stem is None:
+        raise LensFileError(path, line, f"glass {value!r}: unknown catalogue {rest.rstrip(') ')!r}")
+    glass = find_glass(name.strip(), stem)
+    if glass is None:
+        raise LensFileError(path, line, unknown_glass(name.strip()))
+    return glass
 
 
 def _surface(item: object, path: str, line: int) -> _Surface:
@@ -126,7 +151,8 @@ def _surface(item: object, path: str, line: int) -> _Surface:
                     _index(item["ior"], path, line), _number(item.get("abbe_number", 0), path, line, "abbe_number"),
                     2 * _scalar(item["semi_aperture"], path, line, "semi_aperture"),
                     _scalar(item.get("conic_constant", 0), path, line, "conic_constant"),
-                    [_number(a, path, line, "aspheric coefficient") for a in coefficients])
+                    [_number(a, path, line, "aspheric coefficient") for a in coefficients],
+                    _catalogue_glass(item.get("glass"), path, line))
 
 
 def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) -> LensSystem:
@@ -147,20 +173,30 @@ def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) 
     description = document.get("description")
     return build_lens(path, lines, [s.radius for s in rows], [s.thickness for s in rows], [s.index_d for s in rows],
                       [s.abbe for s in rows], [s.aperture for s in rows], conic=[s.conic for s in rows],
-                      coefficients=[s.coefficients for s in rows],
+                      coefficients=[s.coefficients for s in rows], glass=[s.glass for s in rows],
                       name=name or (label.strip() if isinstance(label, str) and label.strip() else None),
                       description=description.strip() if isinstance(description, str) else "")
 
 
 def format_json_lens(lens: LensSystem) -> str:
     """``lens`` as an isetlens/omni JSON document (floats written exactly: repr round-trips)."""
+    if not lens.stop_is_flat_in_air:
+        raise UserError(f"{lens.name}: its stop is curved or has glass on one side, and in a .json prescription "
+                        f"the stop is a radius-0 surface in air: convert to .zmx or .seq")
     surfaces = []
+    before = np.concatenate([[1.0], lens.index_d[:-1]])
     for i in range(lens.surface_count):
-        surface: dict[str, float | list[float]] = {
-            "radius": float(lens.radius_mm[i]), "thickness": float(lens.thickness_mm[i]),
+        radius = float(lens.radius_mm[i])
+        flat_face = math.isinf(radius) and (lens.index_d[i] != before[i] or lens.glass[i] != (
+            lens.glass[i - 1] if i else None))
+        surface: dict[str, str | float | list[float]] = {
+            "radius": 0.0 if flat_face else radius, "thickness": float(lens.thickness_mm[i]),
             "ior": 0.0 if i == lens.stop else float(lens.index_d[i]), "semi_aperture": float(lens.aperture_mm[i]) / 2}
         if lens.abbe_v[i] > 0:
             surface["abbe_number"] = float(lens.abbe_v[i])
+        glass = lens.glass[i]
+        if glass is not None:
+            surface["glass"] = glass.label
         if lens.aspheric[i]:
             coefficients = [float(a) for a in lens.aspheric_coefficients[i]]
             while coefficients and coefficients[-1] == 0:

@@ -134,6 +134,9 @@ def parse_prescription(text: str, path: str = "<string>", name: str | None = Non
 def format_prescription(lens: LensSystem) -> str:
     """``lens`` as a pbrt-style ``.dat`` table (5 columns when a glass has a V number), floats
     written exactly. Aspheres cannot be written: the format has no column for them."""
+    if not lens.stop_is_flat_in_air:
+        raise UserError(f"{lens.name}: its stop is curved or has glass on one side, and in a .dat prescription "
+                        f"the stop is a flat row in air: convert to .zmx or .seq")
     if lens.aspheric.any():
         surface = int(lens.aspheric.argmax())
         raise UserError(f"{lens.name}: surface {surface} is aspheric and a .dat prescription has no columns for "

@@ -5,22 +5,26 @@ aspheres (``CONI`` conic constant; ``PARM 2`` .. ``PARM 8`` the coefficients of 
 unit^(1-p), converted to mm; ``PARM 1``, the r^2 term, must be 0 since it would move the paraxial
 curvature away from CURV), with ``CURV`` in 1/unit,
 ``DISZ`` thickness to the next surface, ``DIAM`` semi-diameter, or ``CLAP 0 max`` whose hard
-circular aperture takes precedence over DIAM), in ``UNIT`` MM, CM, IN or METER, with model
-glasses ``GLAS ___BLANK code pickup n_d V_d ...``. A
-catalogue glass (``GLAS N-BK7 ...``) cannot be looked up here: it is read from the n_d and V_d the
-line carries in the same fields (the lens notes which glasses were read so), and rejected when the
-line has none. Files are UTF-16 (Zemax's default, with or without BOM) or ASCII/UTF-8.
+circular aperture takes precedence over DIAM; ``MEMA``, the mechanical semi-diameter, stands in
+when neither is given; ``FLAP``, the flat annulus beyond the clear aperture, changes nothing the
+light meets), in ``UNIT`` MM, CM, IN or METER, with model glasses ``GLAS ___BLANK code pickup n_d
+V_d ...`` and catalogue glasses (``GLAS N-BK7 ...``) looked up in ``realistic.optics.glass``, in the
+catalogues the ``GCAT`` line lists first. A glass none of our catalogues holds is refused with the
+closest names, unless ``GCAT`` lists a catalogue we lack and the line carries n_d and V_d: then those
+are read (the lens notes which glasses were read so). Files are UTF-16 (Zemax's default, with or
+without BOM) or ASCII/UTF-8.
 
 Mapping: SURF 0 (object) and the last SURF (image) are not lens surfaces; SURF 1 .. N-1 become the
 prescription rows in order, and the last lens surface's ``DISZ`` becomes the film gap. Zemax's
 ``GLAS`` and ``DISZ`` of a surface describe the space after it, as our columns do. The ``STOP``
-surface must be flat with air on both sides: it becomes the radius-0 stop. A curved or glass stop
-surface is rejected rather than approximated: our stop is its own flat surface and thicknesses must
-be > 0, so splitting it off would change the lens (put the stop on a flat dummy air surface in
-Zemax). Semi-diameters are kept as the file gives them.
+surface is the stop: a flat one in air becomes the radius-0 stop; a curved one, or one with glass on
+a side (a STOP on a singlet's first face), stays that surface, which refracts and whose aperture is
+the stop (``realistic.optics.lens``). A ``DISZ 0`` gap (a stop on a lens vertex) is kept when the two
+surfaces only touch. Semi-diameters are kept as the file gives them.
 
-Rejected with the line that holds them: other surface types (TOROIDAL, COORDBRK, PARAXIAL, ODDASPH,
-...), a non-zero r^2 term, mirrors, tilts and decentres (``SCBD``/``SCAD``, ``OBDC``), obscurations and
+Rejected with the line that holds them: other surface types (coordinate breaks, paraxial and ideal
+surfaces, which real rays cannot trace, TOROIDAL, ODDASPH, ...), a non-zero r^2 term, mirrors, tilts
+and decentres (``SCBD``/``SCAD``, ``OBDC``), obscurations and
 non-circular apertures, glass in object or image space, a curved image surface, non-sequential mode.
 Everything else (fields, wavelengths, solves, tolerances, display settings) is ignored.
 """
@@ -34,7 +38,9 @@ import numpy as np
 
 from realistic.errors import LensFileError, UserError
 from realistic.optics.asphere import COEFFICIENT_POWERS
+from realistic.optics.dispersion import GlassFormula
 from realistic.optics.formats.pbrt_dat import text_lines
+from realistic.optics.glass.catalogue import catalogue_stem, find_glass, unknown_glass
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
 
 #: Surface types read: spheres and conics, and even aspheres with PARM 1..8 on r^2 .. r^16.
@@ -45,6 +51,11 @@ EVENASPH_TERMS = 8
 UNIT_MM = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "M": 1000.0, "METER": 1000.0}
 
 #: Surface keywords for apertures we cannot model (only circular apertures are supported).
+#: Why each surface type real rays cannot trace is refused.
+REFUSED_TYPES = {"COORDBRK": "coordinate breaks (tilts and decentres) are not supported",
+                 "PARAXIAL": "a paraxial (ideal thin) lens cannot be traced with real rays",
+                 "PARAXIAL_XY": "a paraxial (ideal thin) lens cannot be traced with real rays"}
+
 UNSUPPORTED_APERTURES = {"OBSC": "circular obscuration", "SQAP": "rectangular aperture",
                          "ELAP": "elliptical aperture", "UDAP": "user-defined aperture",
                          "SPID": "spider obscuration"}
@@ -63,12 +74,14 @@ class _Surface:
     abbe: float = 0.0
     glass_line: int = 0
     semi_diameter: float | None = None
+    mechanical_semi_diameter: float | None = None
     clear_semi_diameter: float | None = None
     stop_line: int = 0
     kind: str = "STANDARD"
     conic: float = 0.0
     parms: dict[int, tuple[float, int]] = field(default_factory=dict)  # PARM n: (value, line)
     catalogue: list[str] = field(default_factory=list)
+    glass: GlassFormula | None = None
 
 
 def decode_zmx(data: bytes, path: str) -> str:
@@ -102,8 +115,9 @@ def _number(token: str | None, path: str, line: int, what: str) -> float:
     return value
 
 
-def _glass(tokens: list[str], surface: _Surface, path: str, line: int) -> None:
-    """Apply a ``GLAS name code pickup n_d V_d ...`` line to the space after the surface."""
+def _glass(tokens: list[str], surface: _Surface, path: str, line: int, catalogues: list[str]) -> None:
+    """Apply a ``GLAS name code pickup n_d V_d ...`` line to the space after the surface;
+    ``catalogues``: the ``GCAT`` line's names, in its order."""
     name = tokens[1] if len(tokens) > 1 else ""
     if name.upper() == "MIRROR":
         raise LensFileError(path, line, "mirror surfaces (GLAS MIRROR) are not supported")
@@ -112,10 +126,17 @@ def _glass(tokens: list[str], surface: _Surface, path: str, line: int) -> None:
         surface.index, surface.abbe = 1.0, 0.0
         return
     has_model = len(tokens) >= 6 and _number(tokens[4], path, line, "n_d") > 0
+    if name != "___BLANK":
+        ours = [stem for stem in map(catalogue_stem, catalogues) if stem]
+        glass = next(filter(None, (find_glass(name, stem) for stem in ours)), None) or find_glass(name)
+        if glass is not None:
+            surface.glass = glass
+            return
+        if not (has_model and len(ours) < len(catalogues)):
+            raise LensFileError(path, line, unknown_glass(name))
     if not has_model:
-        what = "model glass ___BLANK has" if name == "___BLANK" else f"catalogue glass {name!r} has"
-        raise LensFileError(path, line, f"{what} no n_d and V_d on the line, and glass catalogues are not "
-                            f"supported: give it as a model glass (GLAS ___BLANK 1 0 n_d V_d ...)")
+        raise LensFileError(path, line, "model glass ___BLANK has no n_d and V_d on the line "
+                            "(GLAS ___BLANK 1 0 n_d V_d ...)")
     nd, vd = _number(tokens[4], path, line, "n_d"), _number(tokens[5], path, line, "V_d")
     if nd < 1 or vd < 0 or not (math.isfinite(nd) and math.isfinite(vd)):
         raise LensFileError(path, line, f"glass n_d {nd:g} must be >= 1 and V_d {vd:g} >= 0")
@@ -124,11 +145,13 @@ def _glass(tokens: list[str], surface: _Surface, path: str, line: int) -> None:
         surface.catalogue.append(f"{name} (line {line})")
 
 
-def _surface_keyword(tokens: list[str], surface: _Surface, path: str, line: int) -> None:
-    """Apply one keyword line inside a ``SURF`` block."""
+def _surface_keyword(tokens: list[str], surface: _Surface, path: str, line: int, catalogues: list[str]) -> None:
+    """Apply one keyword line inside a ``SURF`` block (``catalogues``: the ``GCAT`` line's names)."""
     keyword, args = tokens[0], tokens[1:]
     first = args[0] if args else None
     if keyword == "TYPE":
+        if first in REFUSED_TYPES:
+            raise LensFileError(path, line, f"TYPE {first}: {REFUSED_TYPES[first]}")
         if first not in SURFACE_TYPES:
             raise LensFileError(path, line, f"surface type {first} is not supported (only TYPE STANDARD and "
                                 f"TYPE EVENASPH)")
@@ -144,9 +167,11 @@ def _surface_keyword(tokens: list[str], surface: _Surface, path: str, line: int)
     elif keyword == "DISZ":
         surface.thickness = _number(first, path, line, "DISZ")
     elif keyword == "GLAS":
-        _glass(tokens, surface, path, line)
+        _glass(tokens, surface, path, line, catalogues)
     elif keyword == "DIAM":
         surface.semi_diameter = _number(first, path, line, "DIAM")
+    elif keyword == "MEMA":
+        surface.mechanical_semi_diameter = _number(first, path, line, "MEMA")
     elif keyword == "CLAP":
         low, high = _number(first, path, line, "CLAP minimum"), _number(args[1] if len(args) > 1 else None,
                                                                          path, line, "CLAP maximum")
@@ -169,6 +194,7 @@ def _read_surfaces(text: str, path: str) -> tuple[list[_Surface], float]:
     """The SURF blocks in file order and the lens unit in millimetres."""
     surfaces: list[_Surface] = []
     unit_mm = 1.0
+    catalogues: list[str] = []
     for number, raw in enumerate(text_lines(text), start=1):
         tokens = raw.split()
         if not tokens:
@@ -179,6 +205,8 @@ def _read_surfaces(text: str, path: str) -> tuple[list[_Surface], float]:
             if unit not in UNIT_MM:
                 raise LensFileError(path, number, f"lens unit {unit!r} is not supported (MM, CM, IN or METER)")
             unit_mm = UNIT_MM[unit]
+        elif keyword == "GCAT":
+            catalogues = tokens[1:]
         elif keyword == "MODE" and tokens[1:2] != ["SEQ"]:
             raise LensFileError(path, number, f"MODE {' '.join(tokens[1:])} is not supported (sequential only)")
         elif keyword == "SURF":
@@ -189,7 +217,7 @@ def _read_surfaces(text: str, path: str) -> tuple[list[_Surface], float]:
                 raise LensFileError(path, number, too_many_surfaces(MAX_SURFACES + 1, at_least=True))
             surfaces.append(_Surface(len(surfaces), number))
         elif surfaces:
-            _surface_keyword(tokens, surfaces[-1], path, number)
+            _surface_keyword(tokens, surfaces[-1], path, number, catalogues)
     return surfaces, unit_mm
 
 
@@ -200,9 +228,9 @@ def parse_zmx(text: str, path: str = "<string>") -> LensSystem:
         raise LensFileError(path, None, f"{len(surfaces)} SURF blocks: need an object surface, at least "
                             f"one lens surface and an image surface")
     obj, lens, image = surfaces[0], surfaces[1:-1], surfaces[-1]
-    if obj.index != 1.0:
+    if obj.index != 1.0 or obj.glass is not None:
         raise LensFileError(path, obj.glass_line, "object space must be air")
-    if lens[-1].index != 1.0:
+    if lens[-1].index != 1.0 or lens[-1].glass is not None:
         raise LensFileError(path, lens[-1].glass_line, "the space before the image surface must be air")
     if image.curvature != 0:
         raise LensFileError(path, image.curvature_line, "a curved image surface is not supported")
@@ -216,28 +244,23 @@ def parse_zmx(text: str, path: str = "<string>") -> LensSystem:
     if len(stops) > 1:
         raise LensFileError(path, stops[1].stop_line, f"a second STOP; the first is on line {stops[0].stop_line}")
     stop = stops[0]
-    if stop.curvature != 0:
-        raise LensFileError(path, stop.curvature_line, "the STOP surface is curved: only a flat stop surface "
-                            "in air is supported (put the stop on a flat dummy air surface)")
-    before = surfaces[stop.number - 1].index
-    if stop.index != 1.0 or before != 1.0:
-        raise LensFileError(path, stop.stop_line, "the STOP surface has glass on one side: only a flat stop "
-                            "surface in air is supported (put the stop on a flat dummy air surface)")
     apertures = []
     for s in lens:
-        semi = s.clear_semi_diameter if s.clear_semi_diameter is not None else s.semi_diameter
+        semi = next((d for d in (s.clear_semi_diameter, s.semi_diameter, s.mechanical_semi_diameter)
+                     if d is not None), None)
         if semi is None:
-            raise LensFileError(path, s.line, f"SURF {s.number} has no DIAM (semi-diameter)")
+            raise LensFileError(path, s.line, f"SURF {s.number} has no DIAM or MEMA (semi-diameter)")
         apertures.append(2 * semi * unit_mm)
 
-    radius = [0.0 if s is stop else math.inf if s.curvature == 0 else unit_mm / s.curvature for s in lens]
+    radius = [(0.0 if s is stop else math.inf) if s.curvature == 0 else unit_mm / s.curvature for s in lens]
     coefficients = [_coefficients(s, unit_mm, path) for s in lens]
     catalogue = [name for s in lens for name in s.catalogue]
     note = (f"catalogue glasses read from the n_d/V_d on their GLAS lines: {', '.join(catalogue)}"
             if catalogue else "")
     return build_lens(path, [s.line for s in lens], radius, [s.thickness * unit_mm for s in lens],
                       [s.index for s in lens], [s.abbe for s in lens],
-                      apertures, note=note, conic=[s.conic for s in lens], coefficients=coefficients)
+                      apertures, note=note, conic=[s.conic for s in lens], coefficients=coefficients,
+                      glass=[s.glass for s in lens], stop=lens.index(stop))
 
 
 def _coefficients(surface: _Surface, unit_mm: float, path: str) -> list[float]:
@@ -268,6 +291,9 @@ def format_zmx(lens: LensSystem) -> str:
                         f"(up to r^16) cannot hold: convert to .json or .seq")
     lines = ["VERS 190513 80 123", "MODE SEQ", f"NAME {lens.name}", "UNIT MM X W X CM MR CPMM",
              "SURF 0", "  TYPE STANDARD", "  CURV 0.0", "  DISZ INFINITY"]
+    used = sorted({g.catalogue.upper() for g in lens.glass if g is not None})
+    if used:
+        lines.insert(4, "GCAT " + " ".join(used))
     for i in range(lens.surface_count):
         radius = float(lens.radius_mm[i])
         curvature = 0.0 if radius == 0 or math.isinf(radius) else 1.0 / radius
@@ -278,7 +304,10 @@ def format_zmx(lens: LensSystem) -> str:
             terms = [0.0, *lens.aspheric_coefficients[i, :EVENASPH_TERMS - 1]]
             lines += [f"  PARM {k} {float(a)!r}" for k, a in enumerate(terms, start=1)]
         lines.append(f"  DISZ {float(lens.thickness_mm[i])!r}")
-        if lens.index_d[i] != 1:
+        glass = lens.glass[i]
+        if glass is not None:
+            lines.append(f"  GLAS {glass.name} 0 0 {float(lens.index_d[i])!r} {float(lens.abbe_v[i])!r} 0 0 0 0 0 0")
+        elif lens.index_d[i] != 1:
             lines.append(f"  GLAS ___BLANK 1 0 {float(lens.index_d[i])!r} {float(lens.abbe_v[i])!r} 0 0 0 0 0 0")
         lines.append(f"  DIAM {float(lens.aperture_mm[i]) / 2!r}")
     lines += [f"SURF {lens.surface_count + 1}", "  TYPE STANDARD", "  CURV 0.0", "  DISZ 0",
