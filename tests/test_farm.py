@@ -22,7 +22,7 @@ from realistic import render as render_image  # noqa: E402
 from realistic.camera.lens_camera import LensCamera  # noqa: E402
 from realistic.cli import main  # noqa: E402
 from realistic.core.image_files import read_exr  # noqa: E402
-from realistic.renderer.farm import DaskPasses  # noqa: E402
+from realistic.renderer.farm import DaskPasses, close_local_cluster  # noqa: E402
 from realistic.renderer.job import RenderJob, RenderObserver  # noqa: E402
 from realistic.renderer.passes import render  # noqa: E402
 from realistic.renderer.sweep import parse_sweep, sweep_cameras  # noqa: E402
@@ -38,7 +38,7 @@ def client():
     cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None)
     with distributed.Client(cluster) as client:
         yield client
-    cluster.close()
+    close_local_cluster(cluster)  # a worker a test killed and its nanny restarted can trip dask's watcher
 
 
 def _scale(client, workers: int) -> None:

@@ -96,7 +96,19 @@ def farm_client(workers: int | None = None, scheduler: str | None = None, announ
         yield client
     finally:
         client.close()
+        close_local_cluster(cluster)
+
+
+def close_local_cluster(cluster: LocalCluster) -> None:
+    """Close a LocalCluster, its worker processes stopped. A worker that died and was restarted by
+    its nanny during the render can make the cluster's worker-status watcher fail with a KeyError,
+    which ``close`` then raises (SpecCluster._update_worker_status looks up a worker it never
+    recorded: dask/distributed#5407); the processes are gone by then, so that error is dropped
+    rather than turned into a traceback after the render's work."""
+    try:
         cluster.close()
+    except KeyError:
+        pass
 
 
 def check_local_workers(workers: int) -> int:
