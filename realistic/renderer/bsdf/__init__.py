@@ -14,8 +14,9 @@ Conventions shared by every BSDF (``base.BSDF``):
   RGB into the rays' channels through ``hits.colour`` of the three unit colours.
 - Reflection lobes are two-sided (pbrt's ``SameHemisphere``): they reflect a pair of directions on
   either side, so flipping the shading normal toward the viewer changes nothing for them. Glass
-  (``dielectric``) tells inside from outside by the sign of ``wo[:, 2]``: for it the integrator
-  must keep the surface's outward normal, unflipped.
+  (``dielectric``) tells inside from outside by the sign of ``wo[:, 2]``, so
+  the integrator hands every BSDF the frame of the surface's outward normal, never turned toward
+  the viewer (``PathIntegrator._outward_normals``), as pbrt does.
 - ``has_specular`` / ``only_specular`` say whether ``sample`` may / always returns specular samples.
 
 Modules: ``base`` (the protocol, the sample record, the frame), ``lambertian`` (and the cosine
