@@ -1,5 +1,6 @@
 """Glass in the path integrator against closed forms: where refracted rays go and how much light a
-lossless dielectric lets through.
+lossless dielectric lets through (smooth: all of it; pbrt-v4's single-scattering rough glass: at
+most all of it).
 
 Rays are followed bounce by bounce through ``PathIntegrator._shade`` (the integrator's own
 next-bounce step), with the glass's Kr or Kt set to 0 so that only transmitted (or only reflected)
@@ -152,3 +153,16 @@ def test_smooth_glass_sphere_in_a_white_furnace_reads_one(where):
     origin, direction = (_outside_rays if where == "outside" else _inside_rays)(N)
     mean, error = _furnace(Dielectric(ETA), origin, direction)
     assert abs(mean - 1.0) < 4 * error + 2e-3
+
+
+@pytest.mark.parametrize("where", ["outside", "inside"])
+@pytest.mark.parametrize("alpha", [0.01, 0.05, 0.3])
+def test_rough_glass_sphere_in_a_white_furnace_gains_nothing_and_tends_to_one(where, alpha):
+    """pbrt-v4's rough dielectric is single-scattering: each bounce keeps G / G1 <= 1 of the light
+    (what would scatter again among the microfacets is lost), so the furnace reads at most 1, and
+    1 in the smooth limit (within 1 % at alpha 0.01)."""
+    origin, direction = (_outside_rays if where == "outside" else _inside_rays)(N)
+    mean, error = _furnace(Dielectric(ETA, roughness_u=alpha, roughness_v=alpha), origin, direction)
+    assert mean < 1.0 + 4 * error
+    if alpha <= 0.01:
+        assert mean > 0.99 - 4 * error
