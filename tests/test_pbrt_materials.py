@@ -20,7 +20,7 @@ from realistic.scene.materials import (
     Substrate,
 )
 from realistic.scene.model import CheckerTexture, Material
-from realistic.scene.pbrt.importer import import_world
+from realistic.scene.pbrt.importer import import_pbrt, import_world
 
 
 def _one(tmp_path, body, dialect):
@@ -95,7 +95,9 @@ def test_rough_glass_parameters_per_version(tmp_path):
     assert m == Dielectric(1.5, roughness_u=0.1, roughness_v=0.2, rule="pbrt-v3") and not warnings
     m, _, _ = _one(tmp_path, 'Material "glass" "float uroughness" .1 "bool remaproughness" "false"', "v3")
     assert m == Dielectric(1.5, roughness_u=0.1, roughness_v=0.0, rule="alpha")
-    assert _one(tmp_path, 'Material "glass" "float roughness" .3', "v3")[0] == Dielectric(1.5)
+    m, path = _one(tmp_path, 'Material "glass" "float roughness" .3 "bool remaproughness" "true"', "v3")[::2]
+    unused = [w for w in import_pbrt(path, dialect="v3").warnings if "not used" in w]
+    assert m == Dielectric(1.5) and len(unused) == 1 and '"roughness"' in unused[0]  # remaproughness is read
     m, _, _ = _one(tmp_path, 'Material "dielectric" "float roughness" .3 "float vroughness" .1', "v4")
     assert m == Dielectric(1.5, roughness_u=0.3, roughness_v=0.1, rule="sqrt")
     assert _one(tmp_path, 'Material "thindielectric" "float roughness" .3', "v4")[0] == Dielectric(1.5, thin=True)

@@ -221,9 +221,10 @@ def build_material(declaration: Declaration, context: MaterialContext, depth: in
         # pbrt-v4 DielectricMaterial::Create: u/vroughness default to roughness (0); pbrt-v3
         # CreateGlassMaterial (src/materials/glass.cpp): uroughness and vroughness only, default 0
         ru, rv = r.roughness_pair(0.0) if _v4(context) else (r.scalar("uroughness", 0.0), r.scalar("vroughness", 0.0))
+        rule = r.rule()  # read (used) whatever the roughness, as pbrt reads it
         if ru == rv == 0.0:
             return Dielectric(eta, kr, kt)
-        return Dielectric(eta, kr, kt, False, ru, rv, r.rule())
+        return Dielectric(eta, kr, kt, False, ru, rv, rule)
     if kind == "substrate":
         ru, rv = r.roughness_pair(0.1)
         return Substrate(r.colour("Kd", (0.5,) * 3), r.colour("Ks", (0.5,) * 3), ru, rv, r.rule())
