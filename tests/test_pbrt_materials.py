@@ -20,7 +20,7 @@ from realistic.scene.materials import (
     Substrate,
 )
 from realistic.scene.model import CheckerTexture, Material
-from realistic.scene.pbrt.importer import import_world
+from realistic.scene.pbrt.importer import import_pbrt, import_world
 
 
 def _one(tmp_path, body, dialect):
@@ -85,7 +85,23 @@ def test_mirror_glass_dielectric_thin(tmp_path):
     assert _one(tmp_path, 'Material "dielectric" "float eta" 1.7', "v4")[0] == Dielectric(1.7)
     assert _one(tmp_path, 'Material "thindielectric"', "v4")[0] == Dielectric(1.5, thin=True)
     m, warnings, _ = _one(tmp_path, 'Material "dielectric" "float roughness" .3', "v4")
-    assert m == Dielectric(1.5) and any("rendered as smooth glass" in w for w in warnings)
+    assert m == Dielectric(1.5, roughness_u=0.3, roughness_v=0.3, rule="sqrt") and not warnings
+
+
+def test_rough_glass_parameters_per_version(tmp_path):
+    """pbrt-v3 glass.cpp reads uroughness and vroughness (no roughness); pbrt-v4 DielectricMaterial
+    reads roughness as their default; pbrt-v2 glass and pbrt-v4 thindielectric are smooth."""
+    m, warnings, _ = _one(tmp_path, 'Material "glass" "float uroughness" .1 "float vroughness" .2', "v3")
+    assert m == Dielectric(1.5, roughness_u=0.1, roughness_v=0.2, rule="pbrt-v3") and not warnings
+    m, _, _ = _one(tmp_path, 'Material "glass" "float uroughness" .1 "bool remaproughness" "false"', "v3")
+    assert m == Dielectric(1.5, roughness_u=0.1, roughness_v=0.0, rule="alpha")
+    m, path = _one(tmp_path, 'Material "glass" "float roughness" .3 "bool remaproughness" "true"', "v3")[::2]
+    unused = [w for w in import_pbrt(path, dialect="v3").warnings if "not used" in w]
+    assert m == Dielectric(1.5) and len(unused) == 1 and '"roughness"' in unused[0]  # remaproughness is read
+    m, _, _ = _one(tmp_path, 'Material "dielectric" "float roughness" .3 "float vroughness" .1', "v4")
+    assert m == Dielectric(1.5, roughness_u=0.3, roughness_v=0.1, rule="sqrt")
+    assert _one(tmp_path, 'Material "thindielectric" "float roughness" .3', "v4")[0] == Dielectric(1.5, thin=True)
+    assert _one(tmp_path, 'Material "glass" "float uroughness" .3', "v2")[0] == Dielectric(1.5)
 
 
 def test_substrate_translucent_diffusetransmission(tmp_path):

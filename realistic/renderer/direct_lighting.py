@@ -370,18 +370,23 @@ class DirectLighting:
         return face, np.column_stack([1.0 - u - v, u, v])
 
     def _shading_normal(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray, ng: np.ndarray) -> np.ndarray:
+        """Shading normals (N, 3): the interpolated vertex normals turned to ``ng``'s side, else ``ng``."""
         shading = ng.copy()
-        smooth = np.flatnonzero(self._geom_smooth[geom])
-        if len(smooth):
-            f, b = face[smooth], bary[smooth]
-            n = (_rows(self._normals, f[:, 0]) * b[:, :1] + _rows(self._normals, f[:, 1]) * b[:, 1:2]
-                 + _rows(self._normals, f[:, 2]) * b[:, 2:])
-            n = normalise(np.einsum("nij,nj->ni", self._geom_normal_matrix[geom[smooth]], n))
-            flip = dot(n, ng[smooth]) < 0
-            n[flip] *= -1
-            good = dot(n, n) > 0.5
-            shading[smooth[good]] = n[good]
+        rows, n = self._vertex_normals(face, bary, geom)
+        n[dot(n, ng[rows]) < 0] *= -1
+        shading[rows] = n
         return shading
+
+    def _vertex_normals(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The rows on smooth meshes with a usable interpolated normal, and those unit world normals
+        as the mesh orients them."""
+        smooth = np.flatnonzero(self._geom_smooth[geom])
+        f, b = face[smooth], bary[smooth]
+        n = (_rows(self._normals, f[:, 0]) * b[:, :1] + _rows(self._normals, f[:, 1]) * b[:, 1:2]
+             + _rows(self._normals, f[:, 2]) * b[:, 2:])
+        n = normalise(np.einsum("nij,nj->ni", self._geom_normal_matrix[geom[smooth]], n))
+        good = dot(n, n) > 0.5
+        return smooth[good], n[good]
 
     def _albedo(self, face: np.ndarray, bary: np.ndarray, geom: np.ndarray, direction: np.ndarray,
                 normal: np.ndarray, distance: np.ndarray) -> np.ndarray:

@@ -34,9 +34,9 @@ import numpy as np
 from realistic.core import rng
 from realistic.core.spectrum import rgb_basis
 from realistic.core.validation import MAX_LIGHT_SAMPLES
-from realistic.core.vectors import dot
+from realistic.core.vectors import dot, normalise
 from realistic.renderer.bsdf import BSDF, HitParameters, ShadingFrame, bsdf_for
-from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _facing, _rows
+from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _rows
 from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
@@ -113,6 +113,8 @@ class PathIntegrator(DirectLighting):
             raise ValueError("max_depth must be at least 0")
         self.max_depth, self.mode, self.mis, self.bsdf_factory = max_depth, mode, mis, bsdf_factory
         self.lights = LightSampler(scene, intersector.extent)
+        # instances whose transform mirrors: their world winding faces inward (see ``_outward_normals``)
+        self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
         self._instance_light = np.full(max(self.instance_count, 1), -1, np.int64)
         for i, light in enumerate(scene.lights):
             if isinstance(light, EmissiveInstance):
@@ -183,7 +185,7 @@ class PathIntegrator(DirectLighting):
         reflectance exactly."""
         geom, t = hits.geom[surface], hits.t[surface]
         face, bary = self._triangles(hits, surface)
-        frame = ShadingFrame(self._shading_normal(face, bary, geom, ng))
+        frame = ShadingFrame(self._outward_normals(hits, surface, face, bary)[1])
         wo = frame.to_local(-direction)
         rho = np.zeros((len(surface), 3), np.float32)
         material_of = self._geom_material[geom]
@@ -211,6 +213,29 @@ class PathIntegrator(DirectLighting):
                                       0.0)
             rho[rows] = total / RHO_SAMPLES
         return rho
+
+    def _outward_normals(self, hits: Hits, surface: np.ndarray, face: np.ndarray, bary: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Geometric and shading normals (n, 3) of the hits ``surface`` on the surface's outer side,
+        not turned toward the ray: glass tells entering from leaving by the side of wo (pbrt-v3
+        ``FresnelSpecular``/``MicrofacetTransmission`` in ``src/core/reflection.cpp``, pbrt-v4
+        ``DielectricBxDF`` in ``src/pbrt/bxdfs.h``/``.cpp`` take the sign of cos(theta_o) in the
+        shading frame), and the reflection lobes are two-sided (``renderer.bsdf``).
+
+        Orientation as pbrt gives a triangle's (pbrt-v3 ``src/shapes/triangle.cpp``, pbrt-v4
+        ``src/pbrt/shapes.h``): the world winding's normal (embree's), reversed under a mirroring
+        transform (``transformSwapsHandedness``); where the mesh has vertex normals, the geometric
+        normal is turned to the interpolated one instead, which is the shading normal
+        (``SetShadingGeometry`` with ``orientationIsAuthoritative``, pbrt-v3
+        ``src/core/interaction.cpp``)."""
+        geom = hits.geom[surface]
+        ng = normalise(_rows(hits.normal, surface).astype(np.float32))
+        ng[self._geom_swaps[geom]] *= -1
+        shading = ng.copy()
+        rows, n = self._vertex_normals(face, bary, geom)
+        ng[rows[dot(ng[rows], n) < 0]] *= -1
+        shading[rows] = n
+        return ng, shading
 
     def _mis(self, weight_rows: np.ndarray, specular: np.ndarray, prev_pdf: np.ndarray, light_pdf: np.ndarray,
              prev_lights: int) -> np.ndarray:
@@ -265,9 +290,8 @@ class PathIntegrator(DirectLighting):
         geom = hits.geom[surface]
         t = hits.t[surface]
         point = _rows(o, surface) + t[:, None] * ds
-        ng = _facing(_rows(hits.normal, surface), ds)
         face, bary = self._triangles(hits, surface)
-        shading = self._shading_normal(face, bary, geom, ng)
+        ng, shading = self._outward_normals(hits, surface, face, bary)
         frame = ShadingFrame(shading)
         wo = frame.to_local(-ds)
         magnitude = np.abs(point).max(axis=1)

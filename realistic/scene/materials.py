@@ -146,20 +146,30 @@ class Mirror:
 
 @dataclass(frozen=True)
 class Dielectric:
-    """Glass: specular reflection and refraction weighted by the dielectric Fresnel equations for
-    the index ``eta`` (outside 1), tinted by ``reflectance`` (Kr) and ``transmittance`` (Kt).
-    ``thin``: pbrt-v4's ``thindielectric``, a slab whose inner reflections are summed and whose
-    transmission goes straight through."""
+    """Glass: reflection and refraction weighted by the dielectric Fresnel equations for the index
+    ``eta`` (outside 1), tinted by ``reflectance`` (Kr) and ``transmittance`` (Kt); smooth where
+    ``roughness_u`` and ``roughness_v`` are 0, else GGX microfacets (pbrt-v4's ``DielectricBxDF``;
+    the rule turns roughness into alpha as for the other materials). ``thin``: pbrt-v4's
+    ``thindielectric``, a smooth slab whose inner reflections are summed and whose transmission
+    goes straight through."""
 
     eta: float = 1.5
     reflectance: Colour = (1.0, 1.0, 1.0)
     transmittance: Colour = (1.0, 1.0, 1.0)
     thin: bool = False
+    roughness_u: Scalar = 0.0
+    roughness_v: Scalar = 0.0
+    rule: str = "alpha"
 
     def __post_init__(self) -> None:
         _scalar(self.eta, "dielectric eta", 1e-3, 1e3)
         _colour(self.reflectance, "dielectric Kr")
         _colour(self.transmittance, "dielectric Kt")
+        _scalar(self.roughness_u, "dielectric uroughness")
+        _scalar(self.roughness_v, "dielectric vroughness")
+        _rule(self.rule)
+        if self.thin and not self.roughness_u == self.roughness_v == 0.0:
+            raise UserError("a thin dielectric is smooth: its roughness must be 0")
 
 
 @dataclass(frozen=True)

@@ -14,16 +14,17 @@ Conventions shared by every BSDF (``base.BSDF``):
   RGB into the rays' channels through ``hits.colour`` of the three unit colours.
 - Reflection lobes are two-sided (pbrt's ``SameHemisphere``): they reflect a pair of directions on
   either side, so flipping the shading normal toward the viewer changes nothing for them. Glass
-  (``dielectric``) tells inside from outside by the sign of ``wo[:, 2]``: for it the integrator
-  must keep the surface's outward normal, unflipped.
+  (``dielectric``, ``rough_dielectric``) tells inside from outside by the sign of ``wo[:, 2]``, so
+  the integrator hands every BSDF the frame of the surface's outward normal, never turned toward
+  the viewer (``PathIntegrator._outward_normals``), as pbrt does.
 - ``has_specular`` / ``only_specular`` say whether ``sample`` may / always returns specular samples.
 
 Modules: ``base`` (the protocol, the sample record, the frame), ``lambertian`` (and the cosine
 sampling the diffuse lobes share), ``oren_nayar``, ``fresnel`` (reflectances, reflection and
 refraction), ``microfacet`` (GGX and the roughness rules), ``conductor`` (metals, mirror, the coat
-of plastic), ``dielectric`` (glass, thin slabs), ``substrate`` (FresnelBlend),
-``diffuse_transmission``, ``mix`` (weighted sums: plastic and pbrt's mix), ``measured`` (pbrt-v2's
-measured BRDFs), ``factory``.
+of plastic), ``dielectric`` (glass, thin slabs), ``rough_dielectric`` (pbrt-v4's rough glass),
+``substrate`` (FresnelBlend), ``diffuse_transmission``, ``mix`` (weighted sums: plastic and pbrt's
+mix), ``measured`` (pbrt-v2's measured BRDFs), ``factory``.
 """
 
 from realistic.renderer.bsdf.base import BSDF, BSDFSample, HitParameters, ShadingFrame

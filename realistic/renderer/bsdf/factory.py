@@ -20,6 +20,7 @@ from realistic.renderer.bsdf.measured import MeasuredBRDF
 from realistic.renderer.bsdf.microfacet import alpha
 from realistic.renderer.bsdf.mix import WeightedSum
 from realistic.renderer.bsdf.oren_nayar import OrenNayar
+from realistic.renderer.bsdf.rough_dielectric import RoughDielectric
 from realistic.renderer.bsdf.substrate import FresnelBlend
 from realistic.scene.materials import (
     CoatedDiffuse,
@@ -94,8 +95,15 @@ def bsdf_for(material: SurfaceMaterial, hits: HitParameters) -> BSDF:
         zero = np.zeros(len(kr), np.float32)
         return MicrofacetReflection(kr, zero, zero)
     if isinstance(material, Dielectric):
-        kr = colour(hits, material.reflectance)
-        return DielectricBSDF(material.eta, kr, colour(hits, material.transmittance), material.thin)
+        kr, kt = colour(hits, material.reflectance), colour(hits, material.transmittance)
+        if material.thin or material.roughness_u == material.roughness_v == 0.0:
+            return DielectricBSDF(material.eta, kr, kt, material.thin)
+        ru, rv = scalar(hits, material.roughness_u), scalar(hits, material.roughness_v)
+        # smooth where both are 0 before the remapping (pbrt-v3 GlassMaterial's isSpecular; the
+        # pbrt-v3 polynomial maps 0 to alpha 0.05)
+        smooth = (ru == 0) & (rv == 0)
+        ax, ay = (np.where(smooth, 0.0, alpha(r, material.rule)).astype(np.float32) for r in (ru, rv))
+        return RoughDielectric(material.eta, kr, kt, ax, ay)
     if isinstance(material, Substrate):
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)

@@ -12,8 +12,9 @@ normal), reproduced here as index 1 / 1.5; pbrt-v3 ``uber`` uses ``FresnelDielec
 Where a type has no exact counterpart, the closest material is rendered and a warning names the
 file and line (once per message): ``uber`` as plastic, ``translucent`` as diffuse transmission,
 pbrt-v4 ``coateddiffuse`` as a diffuse base under an infinitely thin coat, ``coatedconductor`` as its
-conductor, rough ``glass``/``dielectric`` as smooth, the subsurface, ``hair`` and ``fourier``
-types as matte. Bump maps and displacement are ignored with a warning.
+conductor, the subsurface, ``hair`` and ``fourier`` types as matte. Bump maps and displacement are
+ignored with a warning. Rough ``glass`` (pbrt-v3) and ``dielectric`` (pbrt-v4) are rendered with
+pbrt-v4's rough ``DielectricBxDF``; pbrt-v1/v2 glass and ``thindielectric`` are smooth.
 """
 
 from __future__ import annotations
@@ -214,10 +215,16 @@ def build_material(declaration: Declaration, context: MaterialContext, depth: in
         else:
             context.warn(declaration.where, f'textured or spectral eta of Material "{kind}" (1.5 used)')
             eta = 1.5
-        ru, rv = r.roughness_pair(0.0)
-        if (isinstance(ru, float) and ru > 0) or (isinstance(rv, float) and rv > 0) or not isinstance(ru, float):
-            r.approximate("smooth glass (its roughness ignored)")
-        return Dielectric(eta, r.colour("Kr", (1.0,) * 3), r.colour("Kt", (1.0,) * 3), kind == "thindielectric")
+        kr, kt = r.colour("Kr", (1.0,) * 3), r.colour("Kt", (1.0,) * 3)
+        if kind == "thindielectric" or context.dialect_name in ("v1", "v2"):  # smooth only
+            return Dielectric(eta, kr, kt, kind == "thindielectric")
+        # pbrt-v4 DielectricMaterial::Create: u/vroughness default to roughness (0); pbrt-v3
+        # CreateGlassMaterial (src/materials/glass.cpp): uroughness and vroughness only, default 0
+        ru, rv = r.roughness_pair(0.0) if _v4(context) else (r.scalar("uroughness", 0.0), r.scalar("vroughness", 0.0))
+        rule = r.rule()  # read (used) whatever the roughness, as pbrt reads it
+        if ru == rv == 0.0:
+            return Dielectric(eta, kr, kt)
+        return Dielectric(eta, kr, kt, False, ru, rv, rule)
     if kind == "substrate":
         ru, rv = r.roughness_pair(0.1)
         return Substrate(r.colour("Kd", (0.5,) * 3), r.colour("Ks", (0.5,) * 3), ru, rv, r.rule())
