@@ -266,7 +266,8 @@ class LensCamera:
         wavelength = wavelengths_nm(u[4]) if self.spectral else None
         traced = trace_from_film(self.lens, self.film_distance_mm, film, targets - film,
                                  D_LINE_NM if wavelength is None else wavelength.astype(np.float64))
-        weight = np.where(traced.passed, camera_weight(film, targets, area, sampler.plane_z_mm) * filter_weight, 0.0)
+        weight = np.where(traced.passed, camera_weight(film, targets, area, sampler.plane_z_mm) * filter_weight
+                          * traced.transmittance, 0.0)
         to_world = self.world_from_lens
         passed = traced.passed[:, None]
         origin = np.where(passed, transform_points(to_world, traced.origin), 0.0)
