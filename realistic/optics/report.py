@@ -106,7 +106,7 @@ def format_summary(summary: dict[str, Any]) -> str:
         ("exit pupil (from last vertex)", summary["exit_pupil_mm"], "mm"),
         ("exit pupil diameter", summary["exit_pupil_diameter_mm"], "mm"),
         ("f-number", summary["f_number"], ""),
-        *((f"T-stop, {'uncoated' if name == 'none' else name.upper() + '-coated'} "
+        *((f"T-stop, {'uncoated' if name == 'none' else 'MgF2-coated'} "
            f"(transmits {summary['transmittance_on_axis'][name]:.1%} on axis)", value, "")
           for name, value in summary["t_stop"].items()),
         ("track length", summary["track_length_mm"], "mm"),
