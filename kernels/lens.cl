@@ -185,22 +185,26 @@ inline __attribute__((always_inline)) void transmit_bare(Ray *r, const float ETA
     r->T = r->T * (1.0f - 0.5f * (rs * rs + rp * rp));
 }
 
-/* cos(x) for 0 <= x < 2.5 pi: the nearest quarter turn k, then sincos_quarter of the rest. */
+/* cos(x) for 0 <= x <= 2 pi (the layer's phase for any wavelength above lambda0 / 2) as -cos(x - pi)
+ * by its Taylor polynomial to the 18th power (error below 4e-9 for |x - pi| <= pi). One polynomial, not
+ * sincos_quarter's pair and a choice of quadrant: the pair's twin chains were packed into 2-wide
+ * vectors by LLVM's SLP vectoriser, and the choice became a switch; either stops PoCL's work-group
+ * vectoriser. */
 inline __attribute__((always_inline)) float cos_phase(float x) {
-    int k = (int)(x * (2.0f / PI_F) + 0.5f);
-    float s, c;
-    sincos_quarter(x - (float)k * (0.5f * PI_F), &s, &c);
-    int q = k & 3;
-    return q == 0 ? c : (q == 1 ? -s : (q == 2 ? -c : s));
+    float y = x - PI_F;
+    float y2 = y * y;
+    return -(1.0f + y2 * (-0.5f + y2 * (1.0f / 24 + y2 * (-1.0f / 720 + y2 * (1.0f / 40320 + y2 * (-1.0f / 3628800 +
+        y2 * (1.0f / 479001600 + y2 * (-1.0f / 87178291200.0f + y2 * (1.0f / 20922789888000.0f +
+        y2 * (-1.0f / 6402373705728000.0f))))))))));
 }
 
-/* Reflectance of a film between two media whose amplitude coefficients are a (entering the film) and
- * b (leaving it), at phase difference 2 delta of cosine cp: the Airy sum |(a + b e^2id) / (1 + a b e^2id)|^2. */
-#define AIRY_R(a, b, cp) (((a) * (a) + (b) * (b) + 2.0f * (a) * (b) * (cp)) / \
-    (1.0f + (a) * (a) * (b) * (b) + 2.0f * (a) * (b) * (cp)))
-
 /* A quarter-wave layer of index COATING_INDEX between media N0 (the ray's) and N2, at the phase
- * factor PHASE = pi lambda0 / lambda (2 delta = PHASE cos theta_layer). */
+ * factor PHASE = pi lambda0 / lambda (2 delta = PHASE cos theta_layer). With a, b the amplitude
+ * reflection coefficients entering and leaving the film, the Airy sum gives
+ * R = (a^2 + b^2 + 2 a b cos 2delta) / D and T = (1 - a^2)(1 - b^2) / D, D = 1 + a^2 b^2 + 2 a b cos 2delta
+ * (lossless: R + T = 1). s takes T's form and p R's, and the four coefficients are written each in
+ * its own form, on purpose: as twins, LLVM's SLP vectoriser packed s and p into 2-wide vectors,
+ * which stops PoCL's work-group vectoriser ("instruction return type cannot be vectorized"). */
 inline __attribute__((always_inline)) void transmit_layer(Ray *r, const float N0, const float N2, const float PHASE) {
     float c0 = r->c1, c2 = r->c2;
     float q = N0 * (1.0f / COATING_INDEX);
@@ -208,11 +212,15 @@ inline __attribute__((always_inline)) void transmit_layer(Ray *r, const float N0
     float cl = __builtin_sqrtf(cl2 > 0.0f ? cl2 : 0.0f);
     float n0c0 = N0 * c0, nlcl = COATING_INDEX * cl, n2c2 = N2 * c2;
     float as = (n0c0 - nlcl) / (n0c0 + nlcl);
-    float bs = (nlcl - n2c2) / (nlcl + n2c2);
+    float bs = 1.0f - 2.0f * n2c2 / (nlcl + n2c2);
     float ap = (COATING_INDEX * c0 - N0 * cl) * (1.0f / (COATING_INDEX * c0 + N0 * cl));
-    float bp = (N2 * cl - COATING_INDEX * c2) * (1.0f / (N2 * cl + COATING_INDEX * c2));
+    float bp = 2.0f * (N2 * cl) / (N2 * cl + COATING_INDEX * c2) - 1.0f;
     float cp = cos_phase(PHASE * cl);
-    r->T = r->T * (1.0f - 0.5f * (AIRY_R(as, bs, cp) + AIRY_R(ap, bp, cp)));
+    float as2 = as * as, bs2 = bs * bs;
+    float ts = (1.0f - as2) * (1.0f - bs2) / (1.0f + as2 * bs2 + 2.0f * as * bs * cp);
+    float abp = ap * bp;
+    float rp = (ap * ap + bp * bp + 2.0f * abp * cp) / (1.0f + abp * abp + 2.0f * cp * abp);
+    r->T = r->T * (0.5f * (ts + (1.0f - rp)));
 }
 
 /* A spherical surface of radius R (vertex at w = 0, centre at w = -R), clear semi-aperture
