@@ -153,3 +153,15 @@ def test_the_image_centre_dims_by_the_on_axis_transmittance():
     ratio = bare.weight.sum() / ideal.weight.sum()
     axial = on_axis_transmittance(lens.with_coating("none"))
     assert axial * 0.97 < ratio < axial  # obliquity only adds loss (stop-size rays at f/2: a few %)
+
+
+def test_ideal_leaves_the_reference_weight_untouched():
+    """Under ``ideal`` (the default) every ray's transmittance is exactly 1, the factor the reference's
+    weight takes: its weights, and so its images, are the ones from before coatings, bit for bit."""
+    lens = load_lens("dgauss")
+    slope = np.linspace(-0.3, 0.3, 201)
+    directions = np.column_stack([slope, 0.5 * slope, np.ones_like(slope)])
+    traced = trace_from_film(lens, 60.0, np.zeros((201, 3)), directions, np.linspace(380.0, 780.0, 201))
+    assert np.count_nonzero(traced.passed) > 20 and np.all(traced.transmittance == 1.0)
+    assert np.all(trace_from_film(lens.with_coating("none"), 60.0, np.zeros((201, 3)), directions
+                                  ).transmittance[traced.passed] < 1.0)
