@@ -4,7 +4,7 @@
  * realistic.camera.lens_camera.LensCamera.generate_rays; this kernel follows the same rules (its
  * tracer, realistic/optics/tracer.py):
  * root chosen by direction, far hemisphere = miss, clear-aperture and stop clipping, Heckbert
- * refraction, total internal reflection blocks.
+ * refraction, total internal reflection blocks, each coated surface's Fresnel transmittance.
  *
  * Written so that PoCL's work-group vectoriser turns the work-item loop into SIMD code
  * (../shared/DESIGN.md, "Facts measured on this machine"): no calls to OpenCL builtin math
@@ -44,7 +44,11 @@
  *                                 A + B il2 (il2 = 1 / lambda^2 in um^-2, A and B literal Cauchy
  *                                 coefficients), or a catalogue glass's Sellmeier or Schott formula
  *                                 written in il2 (realistic.optics.dispersion)
+ *                                 followed, where the lens's coating loses light there, by
+ *                                 transmit_bare() or transmit_layer() (see "coatings")
  *   TRACE_SURFACES(EACH)          EACH(SURFACE_0) EACH(SURFACE_1) ...: every surface, rear first
+ *   COATED                        1: some surface loses light (the weight carries Ray.T);
+ *                                 COATING_INDEX the layer's index
  * The kernel argument `settings` holds what changes with the focus (the film distance) and the
  * stop's diameter, float32 at the SET_* offsets the generated header defines (declared once, with
  * what each holds, in realistic.camera.opencl_host.SETTINGS; packed by setting_values): SET_PLANE_Z,
@@ -149,6 +153,8 @@ typedef struct {
     float ox, oy, w;
     float dx, dy, dz;
     int alive;
+    float c1, c2;  /* cosines of incidence and refraction at the last refracting surface */
+    float T;       /* product of the surfaces' transmittances so far (used when COATED) */
 } Ray;
 
 /* Heckbert refraction of the unit direction at the unit normal (nx, ny, nz), which faces it. */
@@ -156,10 +162,65 @@ inline __attribute__((always_inline)) void refract(Ray *r, float nx, float ny, f
     float c1 = -(r->dx * nx + r->dy * ny + r->dz * nz);
     float c2sq = 1.0f - eta * eta * (1.0f - c1 * c1);
     r->alive = r->alive & (c2sq >= 0.0f);
-    float k = eta * c1 - __builtin_sqrtf(c2sq > 0.0f ? c2sq : 0.0f);
+    float c2 = __builtin_sqrtf(c2sq > 0.0f ? c2sq : 0.0f);
+    float k = eta * c1 - c2;
+    r->c1 = c1;
+    r->c2 = c2;
     r->dx = eta * r->dx + k * nx;
     r->dy = eta * r->dy + k * ny;
     r->dz = eta * r->dz + k * nz;
+}
+
+/* ------------------------------------------------------------------ coatings
+ * The fraction (Ts + Tp) / 2 of light a surface transmits (realistic.optics.coating, whose float64
+ * formulas these are), from the cosines refract() left in the ray. The host writes a call after a
+ * surface's only where the lens's coating makes the surface lose light (COATED is then 1). */
+
+/* A bare interface of index ratio ETA (incident over transmitted): the Fresnel equations with
+ * rs = (eta c1 - c2) / (eta c1 + c2), rp = (c1 - eta c2) / (c1 + eta c2). */
+inline __attribute__((always_inline)) void transmit_bare(Ray *r, const float ETA) {
+    float a = ETA * r->c1, b = ETA * r->c2;
+    float rs = (a - r->c2) / (a + r->c2);
+    float rp = (r->c1 - b) * (1.0f / (r->c1 + b));
+    r->T = r->T * (1.0f - 0.5f * (rs * rs + rp * rp));
+}
+
+/* cos(x) for 0 <= x <= 2 pi (the layer's phase for any wavelength above lambda0 / 2) as -cos(x - pi)
+ * by its Taylor polynomial to the 18th power (error below 4e-9 for |x - pi| <= pi). One polynomial, not
+ * sincos_quarter's pair and a choice of quadrant: the pair's twin chains were packed into 2-wide
+ * vectors by LLVM's SLP vectoriser, and the choice became a switch; either stops PoCL's work-group
+ * vectoriser. */
+inline __attribute__((always_inline)) float cos_phase(float x) {
+    float y = x - PI_F;
+    float y2 = y * y;
+    return -(1.0f + y2 * (-0.5f + y2 * (1.0f / 24 + y2 * (-1.0f / 720 + y2 * (1.0f / 40320 + y2 * (-1.0f / 3628800 +
+        y2 * (1.0f / 479001600 + y2 * (-1.0f / 87178291200.0f + y2 * (1.0f / 20922789888000.0f +
+        y2 * (-1.0f / 6402373705728000.0f))))))))));
+}
+
+/* A quarter-wave layer of index COATING_INDEX between media N0 (the ray's) and N2, at the phase
+ * factor PHASE = pi lambda0 / lambda (2 delta = PHASE cos theta_layer). With a, b the amplitude
+ * reflection coefficients entering and leaving the film, the Airy sum gives
+ * R = (a^2 + b^2 + 2 a b cos 2delta) / D and T = (1 - a^2)(1 - b^2) / D, D = 1 + a^2 b^2 + 2 a b cos 2delta
+ * (lossless: R + T = 1). s takes T's form and p R's, and the four coefficients are written each in
+ * its own form, on purpose: as twins, LLVM's SLP vectoriser packed s and p into 2-wide vectors,
+ * which stops PoCL's work-group vectoriser ("instruction return type cannot be vectorized"). */
+inline __attribute__((always_inline)) void transmit_layer(Ray *r, const float N0, const float N2, const float PHASE) {
+    float c0 = r->c1, c2 = r->c2;
+    float q = N0 * (1.0f / COATING_INDEX);
+    float cl2 = 1.0f - q * q * (1.0f - c0 * c0);
+    float cl = __builtin_sqrtf(cl2 > 0.0f ? cl2 : 0.0f);
+    float n0c0 = N0 * c0, nlcl = COATING_INDEX * cl, n2c2 = N2 * c2;
+    float as = (n0c0 - nlcl) / (n0c0 + nlcl);
+    float bs = 1.0f - 2.0f * n2c2 / (nlcl + n2c2);
+    float ap = (COATING_INDEX * c0 - N0 * cl) * (1.0f / (COATING_INDEX * c0 + N0 * cl));
+    float bp = 2.0f * (N2 * cl) / (N2 * cl + COATING_INDEX * c2) - 1.0f;
+    float cp = cos_phase(PHASE * cl);
+    float as2 = as * as, bs2 = bs * bs;
+    float ts = (1.0f - as2) * (1.0f - bs2) / (1.0f + as2 * bs2 + 2.0f * as * bs * cp);
+    float abp = ap * bp;
+    float rp = (ap * ap + bp * bp + 2.0f * abp * cp) / (1.0f + abp * abp + 2.0f * cp * abp);
+    r->T = r->T * (0.5f * (ts + (1.0f - rp)));
 }
 
 /* A spherical surface of radius R (vertex at w = 0, centre at w = -R), clear semi-aperture
@@ -452,6 +513,7 @@ inline __attribute__((always_inline)) void start_ray(uint gid, uint first_pixel,
     r->dy = ddy * inv_len;
     r->dz = settings[SET_PLANE_Z] * inv_len;
     r->alive = 1;
+    r->T = 1.0f;
 #if SPECTRAL
     *lambda = wavelength_nm(to_unit(b4 / WAVELENGTHS_PER_SAMPLE + stratum * LAMBDA_STRATUM_STEP));
     *il2 = 1.0e6f / (*lambda * *lambda);
@@ -479,6 +541,9 @@ inline __attribute__((always_inline)) void finish_ray(uint gid, const Ray *r, ui
     out[3 * stride + gid] = r->alive ? vx * scale : 0.0f;
     out[4 * stride + gid] = r->alive ? vy * scale : 0.0f;
     out[5 * stride + gid] = r->alive ? vz * scale : 0.0f;
+#if COATED
+    weight = weight * r->T;
+#endif
     out[6 * stride + gid] = r->alive ? weight : 0.0f;
 #if SPECTRAL
     out[7 * stride + gid] = lambda;

@@ -371,3 +371,33 @@ def test_rays_per_work_item_are_chosen_among_the_choices_and_kept():
     first = opencl_host.LensKernel(camera)
     assert first.rays_per_item in opencl_host.rays_per_item_choices(camera)
     assert opencl_host.LensKernel(camera).program is first.program
+
+
+@pytest.mark.parametrize("coating", ["none", "mgf2"])
+@pytest.mark.parametrize(("name", "spectral"), [("dgauss", False), ("dgauss", True), ("wide", True)])
+def test_kernel_weight_matches_reference_with_each_coating(name, spectral, coating):
+    """Each surface's Fresnel transmittance (bare, or through the MgF2 layer at the ray's wavelength)
+    enters the kernel's weight as it enters the float64 reference's, to float32 precision."""
+    camera = camera_for_lens(load_lens(name).with_coating(coating), spectral=spectral)
+    _check_against_reference(camera)
+    kernel = backend_for("opencl").ray_generator(camera, 5)(SampleBlock(0, 20_000, camera.spp))
+    ideal = dataclasses.replace(camera, lens=load_lens(name))
+    plain = backend_for("opencl").ray_generator(ideal, 5)(SampleBlock(0, 20_000, camera.spp))
+    lit = plain.weight > 0
+    loss = 1 - kernel.weight[lit] / plain.weight[lit]  # the same rays, less the light the surfaces reflect
+    assert np.all(loss > 0) and np.all(loss < 1)
+
+
+def test_ideal_coating_leaves_the_kernel_source_and_rays_unchanged():
+    """``ideal`` (the default) writes no transmission call and COATED 0, so the kernel computes what it
+    computed before coatings existed: a lens's rays equal, bit for bit, those of the lens made ideal
+    from another coating."""
+    lens = load_lens("dgauss")
+    header = opencl_host.camera_header(camera_for_lens(lens))
+    assert "transmit_" not in header and "#define COATED 0" in header
+    again = camera_for_lens(lens.with_coating("mgf2").with_coating("ideal"))
+    assert opencl_host.camera_header(again) == header
+    block = SampleBlock(0, 30_000, again.spp)
+    a = backend_for("opencl").ray_generator(camera_for_lens(lens), 2)(block)
+    b = backend_for("opencl").ray_generator(again, 2)(block)
+    assert np.array_equal(a.weight, b.weight) and np.array_equal(a.direction, b.direction)

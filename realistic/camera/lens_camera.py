@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -266,7 +267,8 @@ class LensCamera:
         wavelength = wavelengths_nm(u[4]) if self.spectral else None
         traced = trace_from_film(self.lens, self.film_distance_mm, film, targets - film,
                                  D_LINE_NM if wavelength is None else wavelength.astype(np.float64))
-        weight = np.where(traced.passed, camera_weight(film, targets, area, sampler.plane_z_mm) * filter_weight, 0.0)
+        weight = np.where(traced.passed, camera_weight(film, targets, area, sampler.plane_z_mm) * filter_weight
+                          * traced.transmittance, 0.0)
         to_world = self.world_from_lens
         passed = traced.passed[:, None]
         origin = np.where(passed, transform_points(to_world, traced.origin), 0.0)
@@ -277,12 +279,14 @@ class LensCamera:
 
     def metadata(self) -> Metadata:
         lens = self.lens
+        coating = lens.coating[0] if len(set(lens.coating)) == 1 else ",".join(lens.coating)  # one, or per surface
         return {"lens": lens.name, "lensSource": lens.source, "apertureDiameterMm": float(lens.stop_diameter_mm),
                 "fNumber": float(paraxial_data(lens).f_number),
                 "focusDistanceMm": float(focus_distance_for_film(lens, self.film_distance_mm)),
                 "focusDistanceSceneUnits": float(self.focus_distance),
                 "filmDistanceMm": float(self.film_distance_mm), "filmDiagonalMm": float(self.film_diagonal_mm),
                 "lensSampling": self.lens_sampling,
+                **({"coating": coating} if coating != "ideal" else {}),
                 "stopShape": lens.stop_shape.describe() if lens.stop_shape else "circle",
                 "dispersion": "on" if self.spectral else "off", "pixelFilter": self.pixel_filter.describe(),
                 **({"wavelengthsPerSample": int(self.wavelengths_per_sample)} if self.spectral else {})}
@@ -292,6 +296,10 @@ class LensCamera:
         rear principal plane, thick-lens model), what a texture footprint grows by per unit distance."""
         image_distance_mm = self.film_distance_mm + thick_lens(self.lens).rear_principal_from_rear_vertex_mm
         return self.film_size_mm[0] / self.width / max(image_distance_mm, self.film_distance_mm)
+
+    def with_coating(self, coating: str | Sequence[str]) -> LensCamera:
+        """The camera with ``coating`` on every lens surface, or one per surface (``LensSystem.with_coating``)."""
+        return dataclasses.replace(self, lens=self.lens.with_coating(coating))
 
     def with_dispersion(self, spectral: bool | None) -> LensCamera:
         """Spectral sampling on or off; None: on when the lens has Abbe numbers (its exit-pupil

@@ -22,6 +22,7 @@ from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table
+from realistic.optics.coating import BARE, DESIGN_WAVELENGTH_NM, LAYER, MGF2_INDEX
 from realistic.optics.dispersion import D_LINE_NM, GlassFormula, cauchy_coefficients
 from realistic.optics.lens import LensSystem
 from realistic.optics.sampling import rear_element_sampler
@@ -45,9 +46,10 @@ def _c_float(value: float) -> str:
     return repr(float(np.float32(value))) + "f"
 
 
-def _index_ratios(camera: LensCamera) -> list[str]:
-    """Per surface, rear first, the index ratio (incident over transmitted) as a C expression of
-    ``il2`` (1 / lambda^2, um^-2), the macro parameter of the ray's wavelength.
+def _index_ratios(camera: LensCamera) -> list[tuple[str, str, str]]:
+    """Per surface, rear first, the index ratio (incident over transmitted) and the incident and
+    transmitted media's indices, as C expressions of ``il2`` (1 / lambda^2, um^-2), the macro
+    parameter of the ray's wavelength.
 
     A ratio between media of constant index (no V number, or a non-spectral camera) is a literal
     computed in float64, as at the d line; otherwise it is n_i * (1 / n_(i-1)) per ray, a dispersive
@@ -74,10 +76,26 @@ def _index_ratios(camera: LensCamera) -> list[str]:
     ratios = []
     for i in range(lens.surface_count - 1, -1, -1):
         if dispersive[i] or (i > 0 and dispersive[i - 1]):
-            ratios.append(f"{n(i)} * {inv(i - 1)}")
+            ratio = f"{n(i)} * {inv(i - 1)}"
         else:
-            ratios.append(_c_float(index[i] / (index[i - 1] if i > 0 else 1.0)))
+            ratio = _c_float(index[i] / (index[i - 1] if i > 0 else 1.0))
+        ratios.append((ratio, n(i), n(i - 1)))
     return ratios
+
+
+def _transmission(camera: LensCamera, i: int, eta: str, n_in: str, n_out: str) -> str:
+    """The call after surface ``i``'s that multiplies the ray's transmittance by its coating's
+    (``realistic.optics.coating``), or nothing where it transmits all."""
+    model = camera.lens.interface_models[i]
+    if model == BARE:
+        return f" transmit_bare(r, {eta});"
+    if model == LAYER:
+        # pi lambda0 / lambda: 1 / lambda is sqrt(il2) / 1000 per ray, or the d line's
+        factor = np.pi * DESIGN_WAVELENGTH_NM
+        phase = (f"({_c_float(factor * 1e-3)} * __builtin_sqrtf(il2))" if camera.spectral
+                 else _c_float(factor / D_LINE_NM))
+        return f" transmit_layer(r, {n_in}, {n_out}, {phase});"
+    return ""
 
 
 def _glass_index(glass: GlassFormula) -> str:
@@ -172,7 +190,7 @@ def camera_header(camera: LensCamera) -> str:
     refocused or stopped down reuses the build."""
     lens = camera.lens
     calls = []
-    for eta, i in zip(_index_ratios(camera), range(lens.surface_count - 1, -1, -1)):
+    for (eta, n_in, n_out), i in zip(_index_ratios(camera), range(lens.surface_count - 1, -1, -1)):
         gap = lens.thickness_mm[i - 1] if i > 0 else 0.0
         ahead = int(i == lens.surface_count - 1 or lens.thickness_mm[i] != 0)
         ap2 = (lens.aperture_mm[i] / 2) ** 2
@@ -193,9 +211,13 @@ def camera_header(camera: LensCamera) -> str:
         else:
             calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)}, "
                          f"{ahead});")
+        if refracts and not (i == lens.stop and lens.stop_is_flat_in_air):
+            calls[-1] += _transmission(camera, i, eta, n_in, n_out)
     lines = [
         SETTINGS.defines().rstrip("\n"),
         f"#define SPECTRAL {int(camera.spectral)}",
+        f"#define COATED {int(bool(lens.interface_models.any()))}",
+        f"#define COATING_INDEX {_c_float(MGF2_INDEX)}",
         *(f"#define SURFACE_{k}(r, il2) {call}" for k, call in enumerate(calls)),
         "#define TRACE_SURFACES(EACH) " + " ".join(f"EACH(SURFACE_{k})" for k in range(len(calls))),
         *_stop_lines(lens),

@@ -17,6 +17,7 @@ from realistic.core.input_files import input_file
 from realistic.core.pixel_filter import FILTER_ALIASES, FILTER_NAMES, filter_name
 from realistic.core.spectrum import DEFAULT_WAVELENGTHS_PER_SAMPLE
 from realistic.core.validation import finite
+from realistic.optics.coating import COATINGS
 from realistic.renderer.memory import parse_size
 from realistic.scene.pbrt.dialect import DIALECTS
 
@@ -98,6 +99,10 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dispersion", choices=("on", "off"),
                         help="spectral rendering with the glasses' dispersion (default: off for pbrt scenes, as "
                              "pbrt renders them, and the default scene; for meshes on when the lens has Abbe numbers)")
+    parser.add_argument("--coating", choices=COATINGS,
+                        help="lens surfaces' coating: ideal transmits everything, none loses the Fresnel "
+                             "reflection of bare glass at each surface, mgf2 a single-layer quarter-wave MgF2 "
+                             "anti-reflection coating on each glass-air surface (default: ideal)")
     parser.add_argument("--wavelengths-per-sample", type=checked(int, validation.wavelengths_per_sample), metavar="K",
                         help="spectral renders: trace each camera sample at K wavelengths, one per 1/K of the "
                              "wavelength density, sharing its film, lens and light samples (less colour noise, "
@@ -131,4 +136,4 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
         dispersion=None if args.dispersion is None else args.dispersion == "on",
         wavelengths_per_sample=args.wavelengths_per_sample,
         search_paths=[Path(p) for p in args.search_path], pbrt_dialect=args.pbrt_dialect,
-        pixel_filter=args.filter)
+        pixel_filter=args.filter, coating=args.coating)

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -52,6 +53,7 @@ import numpy as np
 from realistic.core import validation
 from realistic.errors import LensFileError, UserError
 from realistic.optics.asphere import COEFFICIENT_COUNT, COEFFICIENT_POWERS, conic_radicand, sag_mm
+from realistic.optics.coating import COATINGS, interface_models
 from realistic.optics.dispersion import D_LINE_NM, GlassFormula, refractive_index
 from realistic.optics.stop_shape import StopShape
 
@@ -93,6 +95,8 @@ class LensSystem:
     aspheric_coefficients: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, COEFFICIENT_COUNT)))
     # per surface, the catalogue glass behind it (None: n_d and V_d only); empty (the default): none
     glass: tuple[GlassFormula | None, ...] = ()
+    # per surface, its coating (``realistic.optics.coating.COATINGS``); empty (the default): all ideal
+    coating: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         """Make the text printable (``validation.printable_text``: it reaches terminals and the files
@@ -108,6 +112,8 @@ class LensSystem:
             object.__setattr__(self, "aspheric_coefficients", np.zeros((count, COEFFICIENT_COUNT)))
         if not self.glass:
             object.__setattr__(self, "glass", (None,) * count)
+        if not self.coating:
+            object.__setattr__(self, "coating", ("ideal",) * count)
 
     def __repr__(self) -> str:
         """One line, no arrays: the name, surfaces, stop and length (``lens info`` says the rest)."""
@@ -210,6 +216,22 @@ class LensSystem:
             raise UserError(f"{self.name}: a shaped stop needs a flat stop in air, and this lens's stop (surface "
                             f"{self.stop}) is curved or has glass on one side")
         return dataclasses.replace(self, stop_shape=shape)
+
+    def with_coating(self, coating: str | Sequence[str]) -> LensSystem:
+        """The same lens with ``coating`` (one of ``COATINGS``) on every surface, or one per surface, front first."""
+        names = (coating,) * self.surface_count if isinstance(coating, str) else tuple(coating)
+        if len(names) != self.surface_count:
+            raise UserError(f"{self.name}: {len(names)} coatings given for {self.surface_count} surfaces")
+        for name in names:
+            if name not in COATINGS:
+                raise UserError(f"unknown coating {name!r}: choose one of {', '.join(COATINGS)}")
+        return dataclasses.replace(self, coating=names)
+
+    @property
+    def interface_models(self) -> np.ndarray:
+        """Per surface, what it does to a ray's weight (``realistic.optics.coating.interface_models``)."""
+        front = np.concatenate([[1.0], self.index_d[:-1]])
+        return interface_models(self.coating, self.index_d, front)
 
 
 #: Lens lengths (radii, thicknesses, apertures) in mm: from a picometre to a kilometre. The OpenCL

@@ -5,11 +5,30 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from realistic.optics.asphere import COEFFICIENT_POWERS
 from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus, focus_distance_for_film, nearest_focus_mm, paraxial_data
 from realistic.optics.sampling import exit_pupil_table, pass_fractions
+from realistic.optics.tracer import trace_from_film
+
+#: The coatings ``lens info`` gives the T-stop for (``ideal``'s is the f-number).
+T_STOP_COATINGS = ("none", "mgf2")
+
+
+def on_axis_transmittance(lens: LensSystem, wavelength_nm: float = D_LINE_NM) -> float:
+    """Fraction of the light the lens's surfaces (``LensSystem.coating``) transmit along the axis, where
+    every surface is met at normal incidence."""
+    film_distance = film_distance_for_focus(lens, math.inf, wavelength_nm)
+    traced = trace_from_film(lens, film_distance, np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), wavelength_nm)
+    return float(traced.transmittance[0])
+
+
+def t_stop(lens: LensSystem, wavelength_nm: float = D_LINE_NM) -> float:
+    """The T-stop: the f-number of a lossless lens as bright on axis, N / sqrt(transmittance)."""
+    return paraxial_data(lens, wavelength_nm).f_number / math.sqrt(on_axis_transmittance(lens, wavelength_nm))
 
 
 def lens_summary(lens: LensSystem, wavelength_nm: float = D_LINE_NM, film_distance_mm: float | None = None,
@@ -23,6 +42,9 @@ def lens_summary(lens: LensSystem, wavelength_nm: float = D_LINE_NM, film_distan
     summary["film_distance_infinity_mm"] = infinity_mm
     summary["nearest_focus_from_film_mm"] = nearest_focus_mm(lens, wavelength_nm)
     summary["has_dispersion"] = lens.has_dispersion
+    summary["t_stop"] = {name: t_stop(lens.with_coating(name), wavelength_nm) for name in T_STOP_COATINGS}
+    summary["transmittance_on_axis"] = {name: on_axis_transmittance(lens.with_coating(name), wavelength_nm)
+                                        for name in T_STOP_COATINGS}
     if film_distance_mm is not None:
         summary["film_distance_mm"] = film_distance_mm
         summary["focus_distance_from_film_mm"] = focus_distance_for_film(lens, film_distance_mm, wavelength_nm)
@@ -84,6 +106,9 @@ def format_summary(summary: dict[str, Any]) -> str:
         ("exit pupil (from last vertex)", summary["exit_pupil_mm"], "mm"),
         ("exit pupil diameter", summary["exit_pupil_diameter_mm"], "mm"),
         ("f-number", summary["f_number"], ""),
+        *((f"T-stop, {'uncoated' if name == 'none' else 'MgF2-coated'} "
+           f"(transmits {summary['transmittance_on_axis'][name]:.1%} on axis)", value, "")
+          for name, value in summary["t_stop"].items()),
         ("track length", summary["track_length_mm"], "mm"),
         ("film distance for infinity", summary["film_distance_infinity_mm"], "mm"),
         ("nearest focus (from film)", summary["nearest_focus_from_film_mm"], "mm"),

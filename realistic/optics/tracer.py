@@ -23,6 +23,9 @@ Rules (the kernel follows the same ones):
   opening.
 * Refraction in Heckbert's form T = eta I + (eta c1 - c2) N, N facing the incoming ray,
   c1 = -I.N, c2 = sqrt(1 - eta^2 (1 - c1^2)); a negative radicand is total internal reflection.
+* At each refracting surface the ray keeps the fraction (Ts + Tp) / 2 that its coating
+  (``LensSystem.coating``, ``realistic.optics.coating``) transmits at its incidence cosine c1, its
+  wavelength and the two media's indices: ``TraceResult.transmittance``, 1 under ``ideal``.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.optics.asphere import conic_radicand, sag_and_slope, significant
+from realistic.optics.coating import IDEAL, transmittance
 from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.lens import LensSystem
 
@@ -55,6 +59,7 @@ class TraceResult:
     direction: np.ndarray  # (N, 3) unit direction into the scene
     blocked_surface: np.ndarray  # (N,) surface index from 0 at the front, -1 when the ray passed
     blocked_reason: np.ndarray  # (N,) PASSED, MISS, APERTURE, STOP, TIR or ASPHERE
+    transmittance: np.ndarray  # (N,) product of the surfaces' Fresnel transmittances (1 under ``ideal``)
 
     @property
     def passed(self) -> np.ndarray:
@@ -136,11 +141,16 @@ def _asphere_hit(o: Vectors, d: Vectors, vertex_z: float, radius: float, conic: 
     return (hx, hy, hz), (nx * scale, ny * scale, scale), fail
 
 
+def incidence_cosine(d: Vectors, normal: Vectors) -> np.ndarray:
+    """cos of the angle between unit ``d`` and unit ``normal`` facing it."""
+    return -(d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2])
+
+
 def refract(d: Vectors, normal: Vectors, eta: float | np.ndarray) -> tuple[Vectors, np.ndarray]:
     """Heckbert refraction of unit ``d`` at unit ``normal`` (facing it); returns (T, tir mask)."""
     dx, dy, dz = d
     nx, ny, nz = normal
-    c1 = -(dx * nx + dy * ny + dz * nz)
+    c1 = incidence_cosine(d, normal)
     c2sq = 1.0 - eta * eta * (1.0 - c1 * c1)
     tir = c2sq < 0
     k = eta * c1 - np.sqrt(np.maximum(c2sq, 0.0))
@@ -182,6 +192,8 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
         wavelength_nm = np.broadcast_to(wavelength_nm, (count,))
     index = lens.index_at(wavelength_nm)  # (media,) or (media, count)
     aspheric = lens.aspheric
+    models = lens.interface_models
+    transmitted = np.ones(count)
 
     def block(mask: np.ndarray, i: int, why: int) -> None:
         fresh = live[mask & (reason[live] == PASSED)]
@@ -209,6 +221,10 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
             if i != lens.stop or not lens.stop_is_flat_in_air:
                 n_front = index[i - 1] if i > 0 else 1.0
                 eta = index[i] / n_front
+                if models[i] != IDEAL:
+                    n_in, n_out = (np.asarray(n)[..., live] if np.ndim(n) else n for n in (index[i], n_front))
+                    lam = np.asarray(wavelength_nm)[live] if np.ndim(wavelength_nm) else wavelength_nm
+                    transmitted[live] *= transmittance(models[i], n_in, n_out, incidence_cosine(d, normal), lam)
                 d, tir = refract(d, normal, eta[..., live] if np.ndim(eta) else eta)
                 block(tir, i, TIR)
             going = reason[live] == PASSED
@@ -220,4 +236,4 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     passing = reason[live] == PASSED  # all of them, unless ``path`` kept every ray
     origin[live[passing]] = np.stack(o, axis=1)[passing]
     direction[live[passing]] = np.stack(d, axis=1)[passing]
-    return TraceResult(origin, direction, surface, reason)
+    return TraceResult(origin, direction, surface, reason, transmitted)

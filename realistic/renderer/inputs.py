@@ -31,6 +31,7 @@ from realistic.core import validation
 from realistic.core.film_geometry import film_size_mm
 from realistic.core.pixel_filter import filter_name
 from realistic.errors import UserError
+from realistic.optics.coating import COATINGS
 from realistic.optics.formats import load_lens
 from realistic.optics.paraxial import paraxial_data
 from realistic.optics.stop_shape import StopShape, bladed_stop, mask_stop
@@ -87,6 +88,7 @@ class RenderOptions:
     wavelengths_per_sample: int | None = None  # spectral renders: rays per sample (None: the camera's default)
     pbrt_dialect: str = "auto"  # pbrt scenes: which pbrt's conventions (realistic.scene.pbrt.dialect)
     pixel_filter: str | None = None  # a filter name replacing the scene's, at pbrt's default parameters
+    coating: str | None = None  # every lens surface's coating (realistic.optics.coating), None: the lens's own
     search_paths: list[Path] = field(default_factory=list)  # (str folders too: made Paths)
 
     def __post_init__(self) -> None:
@@ -111,6 +113,8 @@ class RenderOptions:
             validation.blades(self.blades)
         if self.pixel_filter is not None:
             self.pixel_filter = filter_name(self.pixel_filter)
+        if self.coating is not None and self.coating not in COATINGS:
+            raise UserError(f"unknown coating {self.coating!r} (choose {', '.join(COATINGS)})")
         if self.aperture_mm is not None:
             validation.stop_diameter_mm(self.aperture_mm)
         if self.focus_distance is not None:
@@ -206,6 +210,10 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
             camera = camera.with_stop(f_number=f_number, aperture_mm=options.aperture_mm, shape=shape)
         if isinstance(camera, LensCamera):
             camera = dataclasses.replace(camera, lens_sampling=options.lens_sampling)
+        if options.coating is not None:
+            if not isinstance(camera, LensCamera):
+                raise UserError("--coating needs a real lens (--lens)")
+            camera = camera.with_coating(options.coating)
         if options.focus_distance is not None:
             camera = camera.with_focus(options.focus_distance)
         if options.film_distance_mm is not None:
