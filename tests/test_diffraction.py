@@ -106,7 +106,7 @@ def test_box_integration_keeps_the_energy_and_moves_with_the_edges() -> None:
     psf = np.zeros((8, 8))
     psf[4, 4] = 1.0  # one cell of side 1 centred on the reference point
     edges = np.array([-1.0, -0.25, 0.25, 1.0])
-    pixels = box_integrate(psf, 1.0, 4, edges)
+    pixels = box_integrate(psf, (1.0, 1.0), 4, edges)
     assert pixels.sum() == pytest.approx(1.0)
     assert pixels[1, 1] == pytest.approx(0.25)  # the middle half of the cell in each axis
     assert pixels[0, 1] == pytest.approx(0.125)

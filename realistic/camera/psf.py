@@ -74,7 +74,7 @@ class DiffractionSpread:
     film_distance_mm: float
     wavelength_nm: float
     fft_size: int
-    fft_spacing_mm: float
+    fft_spacing_mm: tuple[float, float]  # the FFT's samples along film x and y
     strehl: float
     opd_rms_waves: float
 
@@ -110,22 +110,23 @@ def fft_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, 
     film_distance = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
     distance = _object_distance(lens, depth_mm, film_distance)
     first = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance)
-    wave_l = wavelength_nm * 1e-6 * first.scale_mm  # lambda L: FFT field = lambda L / cell
-    spacing = min(first.spacing_mm, wave_l / (2 * size * pixel_mm))
+    wave_l = wavelength_nm * 1e-6 * np.array(first.scale_mm)  # lambda L (x, y): FFT field = lambda L / cell
+    spacing = min(first.spacing_mm, float(wave_l.min()) / (2 * size * pixel_mm))
     front = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance,
                       reference_mm=first.reference_mm, spacing_mm=spacing)
     n = front.opd_waves.shape[0]
-    fft_size = max(2 * n, math.ceil(FFT_SAMPLES_PER_PIXEL * wave_l / (spacing * pixel_mm)))
+    fft_size = max(2 * n, math.ceil(FFT_SAMPLES_PER_PIXEL * float(wave_l.max()) / (spacing * pixel_mm)))
     fft_size += fft_size % 2
     if fft_size > MAX_FFT_SIZE:
         raise UserError(f"the diffraction PSF needs a {fft_size}-point FFT (more than {MAX_FFT_SIZE}) for "
                         f"{size} pixels of {pixel_mm * 1000:g} um: use fewer or larger pixels")
     pupil = pupil_function(front.opd_waves)
     psf = fft_psf(pupil, fft_size)
-    du = wave_l / (fft_size * spacing)
+    du = wave_l / (fft_size * spacing)  # along x, y
     edges = (np.arange(size + 1) - size / 2) * pixel_mm
-    image = box_integrate(psf, du, fft_size // 2, edges)[:, ::-1] / pixel_mm**2
-    return DiffractionSpread(image, pixel_mm, front.reference_mm, film_distance, wavelength_nm, fft_size, du,
+    image = box_integrate(psf, (float(du[1]), float(du[0])), fft_size // 2, edges)[:, ::-1] / pixel_mm**2
+    return DiffractionSpread(image, pixel_mm, front.reference_mm, film_distance, wavelength_nm, fft_size,
+                             (float(du[0]), float(du[1])),
                              strehl_ratio(pupil), front.rms_waves)
 
 

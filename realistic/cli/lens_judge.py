@@ -152,7 +152,8 @@ def _fft_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
         "lens": lens.name, "content": "diffraction PSF (FFT): film irradiance per unit power reaching the film",
         "pixelMm": psf.pixel_mm, "windowCentreFilmMm": f"{psf.centre_film_mm[0]:.6g},{psf.centre_film_mm[1]:.6g}",
         "filmDistanceMm": psf.film_distance_mm, "wavelengthNm": psf.wavelength_nm, "fftSize": psf.fft_size,
-        "fftSpacingMm": psf.fft_spacing_mm, "strehl": psf.strehl, "opdRmsWaves": psf.opd_rms_waves,
+        "fftSpacingMm": ",".join(f"{v:.6g}" for v in psf.fft_spacing_mm), "strehl": psf.strehl,
+        "opdRmsWaves": psf.opd_rms_waves,
         "enclosed": psf.enclosed})
     print(f"{lens.name}: FFT PSF of a point {args.depth:g} m from the film at {args.field:g} deg, "
           f"{psf.wavelength_nm:g} nm, film {psf.film_distance_mm:.4f} mm; window centre "

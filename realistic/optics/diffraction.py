@@ -5,7 +5,8 @@ entrance-pupil plane) and zero-padded to M x M. In the Fraunhofer approximation 
 at a film point u (mm from the reference point) is the Fourier transform of P at u / (lambda L),
 where L is the length that turns pupil heights into image-space direction sines (sin theta' =
 h / L: the focal length for an object at infinity, by the sine condition; ``Wavefront.scale_mm``
-measures it from the real rays). So the FFT samples the PSF at spacing
+measures it from the real rays, along x and y apart, since off the axis they differ). So the FFT
+samples the PSF at spacing
 
     du = lambda L / (M dh)   ( = lambda N_w n / M with N_w = L / D the working f-number and D = n dh ),
 
@@ -89,16 +90,18 @@ def otf_along(otf: np.ndarray, axis: int, shifts: np.ndarray) -> np.ndarray:
     return np.where(inside, value, 0.0)
 
 
-def box_integrate(psf: np.ndarray, spacing: float, centre_index: float, edges: np.ndarray) -> np.ndarray:
-    """Integrals of a sampled PSF (each sample the value over its cell of side ``spacing``) over the
-    pixels bounded by ``edges`` (same units as ``spacing``, measured from the sample at
-    ``centre_index``) along both axes: a summed-area table read at fractional positions."""
+def box_integrate(psf: np.ndarray, spacing: tuple[float, float], centre_index: float, edges: np.ndarray
+                  ) -> np.ndarray:
+    """Integrals of a sampled PSF (each sample the value over its cell, ``spacing`` (rows, columns)
+    apart) over the pixels bounded by ``edges`` (same units as ``spacing``, measured from the sample
+    at ``centre_index``) along both axes: a summed-area table read at fractional positions."""
     size = psf.shape[0]
     table = np.zeros((size + 1, size + 1))
     table[1:, 1:] = psf.cumsum(axis=0).cumsum(axis=1)
-    position = np.clip(edges / spacing + centre_index + 0.5, 0.0, size)  # in table coordinates
+    rows_at = np.clip(edges / spacing[0] + centre_index + 0.5, 0.0, size)  # in table coordinates
+    columns_at = np.clip(edges / spacing[1] + centre_index + 0.5, 0.0, size)
     cells = np.arange(size + 1, dtype=np.float64)
     # Bilinear reading of the piecewise-linear integral along rows, then along columns.
-    rows = np.array([np.interp(position, cells, table[:, j]) for j in range(size + 1)]).T
-    full = np.array([np.interp(position, cells, rows[i]) for i in range(len(position))])
+    rows = np.array([np.interp(rows_at, cells, table[:, j]) for j in range(size + 1)]).T
+    full = np.array([np.interp(columns_at, cells, rows[i]) for i in range(len(rows_at))])
     return full[1:, 1:] - full[:-1, 1:] - full[1:, :-1] + full[:-1, :-1]

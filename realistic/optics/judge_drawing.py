@@ -67,7 +67,7 @@ def plot_mtf(report: MtfReport, out: Path) -> None:
         ax.plot(report.frequencies_lp_mm, report.diffraction_limit, color="black", linestyle=":",
                 label="diffraction limit")
     ax.set_xlabel("spatial frequency (lp/mm)")
-    ax.set_ylabel(f"{report.model} MTF")
+    ax.set_ylabel("MTF")
     ax.set_ylim(0, 1.02)
     ax.set_xlim(0, report.frequencies_lp_mm[-1])
     ax.grid(alpha=0.3)

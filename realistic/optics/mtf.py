@@ -94,9 +94,9 @@ def fft_field_mtf(lens: LensSystem, field_deg: float, wavelengths_nm: list[float
     tangential = np.zeros(len(frequencies_lp_mm), dtype=np.complex128)
     for front in fronts:
         otf = fft_otf(pupil_function(front.opd_waves))
-        shifts = frequencies_lp_mm * front.wavelength_nm * 1e-6 * front.scale_mm / front.spacing_mm
-        sagittal += otf_along(otf, 1, shifts)  # columns run along x
-        tangential += otf_along(otf, 0, shifts)
+        shifts = frequencies_lp_mm * front.wavelength_nm * 1e-6 / front.spacing_mm
+        sagittal += otf_along(otf, 1, shifts * front.scale_mm[0])  # columns run along x
+        tangential += otf_along(otf, 0, shifts * front.scale_mm[1])
     return np.abs(sagittal) / len(fronts), np.abs(tangential) / len(fronts)
 
 

@@ -52,8 +52,9 @@ class Wavefront:
 
     ``spacing_mm`` is the grid's cell size on the entrance-pupil plane (its rows run along +y,
     columns along +x); ``reference_mm`` the reference point on the film (x, y, mm); ``scale_mm``
-    the least-squares slope of pupil height against the image-space direction sine of the passing
-    rays (the focal length, for an object at infinity and a lens obeying the sine condition).
+    per axis (x, y) the least-squares slope of pupil height against the image-space direction sine
+    of the passing rays (the focal length, for an object at infinity and a lens obeying the sine
+    condition; off the axis the two differ, as the beam meets the film obliquely).
     """
 
     opd_waves: np.ndarray
@@ -62,7 +63,7 @@ class Wavefront:
     field_deg: float
     film_distance_mm: float
     reference_mm: tuple[float, float]
-    scale_mm: float  # L: pupil height h gives the image-space direction sine h / L
+    scale_mm: tuple[float, float]  # (L_x, L_y): pupil height h gives the image-space direction sine h / L
     pupil_xy_mm: np.ndarray  # (n, n, 2) grid cell centres on the entrance-pupil plane
 
     @property
@@ -184,14 +185,15 @@ def wavefront(lens: LensSystem, field_deg: float, wavelength_nm: float, film_dis
     total = opl[passed] + t  # image space is air
     h = flat[passed] - flat[passed].mean(axis=0)
     sines = d[:, :2] - d[:, :2].mean(axis=0)
-    turn = float(np.sum(h * sines))
-    if turn == 0:
+    turn = np.sum(h * sines, axis=0)
+    if not np.all(turn != 0):
         raise UserError(f"{lens.name}: the beam at {field_deg:g} deg does not converge (no focal length)")
-    scale = abs(float(np.sum(h * h)) / turn)
+    scale = np.abs(np.sum(h * h, axis=0) / turn)
     opd = np.full(count * count, np.nan)
     opd[passed] = (total - total.mean()) / (wavelength_nm * 1e-6)
     return Wavefront(opd.reshape(count, count), spacing, wavelength_nm, field_deg, film_distance_mm,
-                     (float(ref[0]), float(ref[1])), scale, grid)
+                     (float(ref[0]), float(ref[1])),
+                     (float(scale[0]), float(scale[1])), grid)
 
 
 def noll_indices(j: int) -> tuple[int, int]:
