@@ -198,3 +198,19 @@ def test_fft_mtf_tends_to_the_geometric_mtf_when_the_aberration_is_many_waves(na
                          model="geometric")
     assert fft.sagittal[0][1] == pytest.approx(geometric.sagittal[0][1], abs=0.03)  # 5 lp/mm
     assert fft.tangential[0][1] == pytest.approx(geometric.tangential[0][1], abs=0.03)
+
+
+def test_a_wavefront_steeper_than_half_a_wave_per_sample_is_flagged(tmp_path: Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    c = np.arange(8, dtype=np.float64)
+    x, y = np.meshgrid(c, c)
+    grid = np.stack([x, y], axis=-1)
+
+    def front(opd: np.ndarray) -> Wavefront:
+        return Wavefront(opd, 1.0, D_NM, 0.0, 1.0, (0.0, 0.0), (100.0, 100.0), grid)
+
+    assert front(0.4 * x).undersampled_fraction == 0.0
+    assert front(0.6 * x).undersampled_fraction == pytest.approx(0.5)  # the x steps, not the y ones
+    assert main(["lens", "mtf", "dgauss", "--field", "15", "--samples", "16", "--out", str(tmp_path / "m.png")]) == 0
+    err = capsys.readouterr().err
+    assert "raise --samples" in err and err.count("\n") == 1

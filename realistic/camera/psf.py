@@ -77,6 +77,7 @@ class DiffractionSpread:
     fft_spacing_mm: tuple[float, float]  # the FFT's samples along film x and y
     strehl: float
     opd_rms_waves: float
+    undersampled: float  # ``Wavefront.undersampled_fraction``
 
     @property
     def enclosed(self) -> float:
@@ -127,7 +128,7 @@ def fft_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, 
     image = box_integrate(psf, (float(du[1]), float(du[0])), fft_size // 2, edges)[:, ::-1] / pixel_mm**2
     return DiffractionSpread(image, pixel_mm, front.reference_mm, film_distance, wavelength_nm, fft_size,
                              (float(du[0]), float(du[1])),
-                             strehl_ratio(pupil), front.rms_waves)
+                             strehl_ratio(pupil), front.rms_waves, front.undersampled_fraction)
 
 
 def _sphere_hits(origin: np.ndarray, direction: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:

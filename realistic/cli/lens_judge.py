@@ -52,6 +52,16 @@ def _warn_dispersion(lens: LensSystem, wavelengths_nm: list[float]) -> None:
         print(f"realistic: warning: {warning}", file=sys.stderr)
 
 
+#: Fraction of pupil-sample steps over half a wave above which the FFT model warns.
+MAX_UNDERSAMPLED = 0.02
+
+
+def _warn_pupil_sampling(undersampled: float, where: str) -> None:
+    if undersampled > MAX_UNDERSAMPLED:
+        print(f"realistic: warning: the wavefront changes by more than half a wave between {undersampled:.0%} of "
+              f"neighbouring pupil samples {where}: the FFT aliases; raise --samples", file=sys.stderr)
+
+
 def _write(path: str | None, text: str) -> None:
     if path:
         write_text_atomically(Path(path), text)
@@ -107,6 +117,8 @@ def cmd_lens_mtf(args: argparse.Namespace) -> int:
     print("field deg  " + "  ".join(f"S/T@{nu[i]:g}" for i in picks))
     for field, s, t in zip(report.fields_deg, report.sagittal, report.tangential):
         print(f"{field:9g}  " + "  ".join(f"{s[i]:.3f}/{t[i]:.3f}" for i in picks))
+    for field, step in zip(report.fields_deg, report.undersampled):
+        _warn_pupil_sampling(step, f"at {field:g} deg")
     if report.diffraction_limit is not None:
         print("diff. lim  " + "  ".join(f"{report.diffraction_limit[i]:11.3f}" for i in picks))
     print("wrote " + ", ".join(str(p) for p in (out, args.json) if p))
@@ -155,6 +167,7 @@ def _fft_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
         "fftSpacingMm": ",".join(f"{v:.6g}" for v in psf.fft_spacing_mm), "strehl": psf.strehl,
         "opdRmsWaves": psf.opd_rms_waves,
         "enclosed": psf.enclosed})
+    _warn_pupil_sampling(psf.undersampled, f"at {args.field:g} deg")
     print(f"{lens.name}: FFT PSF of a point {args.depth:g} m from the film at {args.field:g} deg, "
           f"{psf.wavelength_nm:g} nm, film {psf.film_distance_mm:.4f} mm; window centre "
           f"({psf.centre_film_mm[0]:.4f}, {psf.centre_film_mm[1]:.4f}) mm, {args.size} px of {args.pixel_um:g} um; "
@@ -178,6 +191,7 @@ def cmd_lens_wavefront(args: argparse.Namespace) -> int:
     front = wavefront(lens, args.field, args.wavelength, film, args.samples)
     coefficients = zernike_fit(front, args.terms)
     strehl = strehl_ratio(pupil_function(front.opd_waves))
+    _warn_pupil_sampling(front.undersampled_fraction, f"at {args.field:g} deg")
     summary = {"lens": lens.name, "field_deg": args.field, "wavelength_nm": args.wavelength,
                "film_distance_mm": film, "reference_mm": list(front.reference_mm),
                "opd_rms_waves": front.rms_waves, "opd_peak_to_valley_waves": front.peak_to_valley_waves,

@@ -72,6 +72,7 @@ class MtfReport:
     tangential: tuple[np.ndarray, ...]
     model: str = "geometric"
     diffraction_limit: np.ndarray | None = None
+    undersampled: tuple[float, ...] = ()  # FFT model: per field, the worst ``Wavefront.undersampled_fraction``
 
     def as_dict(self) -> dict[str, object]:
         limit = None if self.diffraction_limit is None else self.diffraction_limit.tolist()
@@ -83,8 +84,9 @@ class MtfReport:
 
 
 def fft_field_mtf(lens: LensSystem, field_deg: float, wavelengths_nm: list[float], film_distance_mm: float,
-                  frequencies_lp_mm: np.ndarray, samples_across: int) -> tuple[np.ndarray, np.ndarray]:
-    """(sagittal, tangential) FFT MTF of one field at infinity, wavelengths with equal power."""
+                  frequencies_lp_mm: np.ndarray, samples_across: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """(sagittal, tangential, worst ``Wavefront.undersampled_fraction``) of the FFT MTF of one field at
+    infinity, wavelengths with equal power."""
     fronts = [wavefront(lens, field_deg, w, film_distance_mm, samples_across) for w in wavelengths_nm]
     reference = np.mean([f.reference_mm for f in fronts], axis=0)
     if len(fronts) > 1:
@@ -97,7 +99,8 @@ def fft_field_mtf(lens: LensSystem, field_deg: float, wavelengths_nm: list[float
         shifts = frequencies_lp_mm * front.wavelength_nm * 1e-6 / front.spacing_mm
         sagittal += otf_along(otf, 1, shifts * front.scale_mm[0])  # columns run along x
         tangential += otf_along(otf, 0, shifts * front.scale_mm[1])
-    return np.abs(sagittal) / len(fronts), np.abs(tangential) / len(fronts)
+    worst = max(front.undersampled_fraction for front in fronts)
+    return np.abs(sagittal) / len(fronts), np.abs(tangential) / len(fronts), worst
 
 
 def lens_mtf(lens: LensSystem, fields_deg: list[float], wavelengths_nm: list[float], max_frequency_lp_mm: float,
@@ -115,10 +118,10 @@ def lens_mtf(lens: LensSystem, fields_deg: list[float], wavelengths_nm: list[flo
     if model == "geometric":
         spots = spots_at(traced, fields_deg, wavelengths_nm, film)
         curves = [spot_mtf(s, nu) for s in spots]
-        limit = None
-    else:
-        curves = [fft_field_mtf(lens, f, wavelengths_nm, film, nu, samples_across) for f in fields_deg]
-        f_number = paraxial_data(lens).f_number
-        limit = np.mean([diffraction_limited_mtf(nu * w * 1e-6 * f_number) for w in wavelengths_nm], axis=0)
-    return MtfReport(lens.name, focus_label(focus), film, nu, tuple(fields_deg), tuple(c[0] for c in curves),
-                     tuple(c[1] for c in curves), model, limit)
+        return MtfReport(lens.name, focus_label(focus), film, nu, tuple(fields_deg), tuple(c[0] for c in curves),
+                         tuple(c[1] for c in curves))
+    fft = [fft_field_mtf(lens, f, wavelengths_nm, film, nu, samples_across) for f in fields_deg]
+    f_number = paraxial_data(lens).f_number
+    limit = np.mean([diffraction_limited_mtf(nu * w * 1e-6 * f_number) for w in wavelengths_nm], axis=0)
+    return MtfReport(lens.name, focus_label(focus), film, nu, tuple(fields_deg), tuple(c[0] for c in fft),
+                     tuple(c[1] for c in fft), model, limit, tuple(c[2] for c in fft))

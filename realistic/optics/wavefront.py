@@ -77,6 +77,14 @@ class Wavefront:
         return float(np.sqrt(np.mean((w - w.mean()) ** 2)))
 
     @property
+    def undersampled_fraction(self) -> float:
+        """Fraction of neighbouring passing cells whose OPD differs by more than half a wave (the
+        phase's Nyquist limit): where it is more than a few percent the FFT aliases."""
+        steps = np.concatenate([np.abs(np.diff(self.opd_waves, axis=axis)).ravel() for axis in (0, 1)])
+        steps = steps[np.isfinite(steps)]
+        return float(np.mean(steps > 0.5)) if steps.size else 0.0
+
+    @property
     def peak_to_valley_waves(self) -> float:
         w = self.opd_waves[self.passed]
         return float(w.max() - w.min())
