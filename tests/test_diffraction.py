@@ -115,3 +115,13 @@ def test_box_integration_keeps_the_energy_and_moves_with_the_edges() -> None:
 def test_empty_pupil_is_refused() -> None:
     with pytest.raises(UserError):
         fft_psf(np.zeros((4, 4), dtype=np.complex128), 8)
+
+
+def test_strehl_is_the_peak_wherever_a_tilt_moves_it() -> None:
+    # A pure tilt only moves the Airy pattern: its peak (the Strehl ratio) stays 1, though the PSF at
+    # the reference point falls to (2 J1(x) / x)^2.
+    n = 128
+    c = (np.arange(n) - (n - 1) / 2) / (n / 2)
+    x, _ = np.meshgrid(c, c, indexing="xy")
+    tilted = np.where(np.isfinite(disk_pupil(n)), 0.37 * x, np.nan)  # 0.37 waves at the rim
+    assert strehl_ratio(pupil_function(tilted)) == pytest.approx(1.0, abs=1e-3)
