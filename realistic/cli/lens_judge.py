@@ -296,8 +296,8 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
                        metavar="NM", help="wavelength in nm (default: the d line, %(default).2f)")
     front.add_argument("--focus", type=checked(str, _judge_focus), default="paraxial", metavar="M|paraxial|best",
                        help="film plane, as spot's --focus (default: paraxial)")
-    front.add_argument("--samples", type=checked(int, _pupil_samples), default=64, metavar="N",
-                       help="pupil samples across the diameter (default 64)")
+    front.add_argument("--samples", type=checked(int, _pupil_samples), default=128, metavar="N",
+                       help="pupil samples across the diameter (default 128)")
     front.add_argument("--terms", type=checked(int, _zernike_terms), default=22, metavar="J",
                        help="Noll Zernike terms fitted (default 22, through secondary spherical)")
     front.add_argument("--json", metavar="JSON", help="also write the numbers as JSON")
