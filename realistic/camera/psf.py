@@ -1,4 +1,13 @@
-"""The point-spread function on the film, rendered with the camera's own rays.
+"""The point-spread function on the film: by diffraction of the pupil function (``fft_point_spread``),
+or rendered with the camera's own rays (``point_spread``, the geometric model described below).
+
+The FFT model traces the wavefront of the point (``realistic.optics.wavefront``) at one wavelength
+and transforms its pupil function (``realistic.optics.diffraction``); the window is centred on the
+centroid of the rays' landings (the reference sphere's centre), the FFT samples at a quarter pixel
+or finer are integrated over each pixel, and the image is irradiance per unit power reaching the
+film (1/mm^2: the window's sum times the pixel area is the fraction of the light inside it).
+
+The geometric model:
 
 A point at ``depth_mm`` from the film and ``field_deg`` off the axis (the chief ray's angle seen
 from the entrance pupil, toward +y) is modelled as a small sphere of unit radiance. A
@@ -24,9 +33,16 @@ from realistic.camera.base import RayGenerator, SampleBlock, check_backend
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import validation
 from realistic.errors import UserError
+from realistic.optics.diffraction import box_integrate, fft_psf, pupil_function, strehl_ratio
 from realistic.optics.forward_trace import trace_object_point
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
+from realistic.optics.wavefront import wavefront
+
+#: Largest FFT side for the diffraction PSF (a complex128 array of this side squared is held).
+MAX_FFT_SIZE = 4096
+#: FFT samples per pixel side, at least (each pixel integrates them).
+FFT_SAMPLES_PER_PIXEL = 4
 
 
 @dataclass(frozen=True)
@@ -45,6 +61,74 @@ class PointSpread:
     def flux(self) -> float:
         """Integral of the irradiance over the window (mm^2 per unit radiance)."""
         return float(self.image.sum() * self.pixel_mm**2)
+
+
+@dataclass(frozen=True)
+class DiffractionSpread:
+    """An FFT PSF window: irradiance per unit power (1/mm^2), (size, size), rows along +y, columns along -x
+    (the layout of ``PointSpread``), centred on ``centre_film_mm``."""
+
+    image: np.ndarray
+    pixel_mm: float
+    centre_film_mm: tuple[float, float]
+    film_distance_mm: float
+    wavelength_nm: float
+    fft_size: int
+    fft_spacing_mm: tuple[float, float]  # the FFT's samples along film x and y
+    strehl: float
+    opd_rms_waves: float
+    undersampled: float  # ``Wavefront.undersampled_fraction``
+
+    @property
+    def enclosed(self) -> float:
+        """Fraction of the light that reaches the film landing inside the window."""
+        return float(self.image.sum() * self.pixel_mm**2)
+
+
+def _object_distance(lens: LensSystem, depth_mm: float, film_distance_mm: float) -> float:
+    """Distance of a point ``depth_mm`` from the film to the paraxial entrance pupil."""
+    pupil_z = film_distance_mm + lens.track_length_mm - paraxial_data(lens).entrance_pupil_mm
+    front_z = film_distance_mm + lens.track_length_mm
+    if depth_mm <= front_z:
+        raise UserError(f"depth {depth_mm:g} mm is not in front of the lens (its front vertex is "
+                        f"{front_z:.6g} mm from the film)")
+    return depth_mm - pupil_z
+
+
+def fft_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focus_mm: float | None = None,
+                     pixel_mm: float = 0.002, size: int = 64, wavelength_nm: float = 587.5618,
+                     samples_across: int = 64) -> DiffractionSpread:
+    """Diffraction PSF of a point ``depth_mm`` from the film (see the module docstring).
+
+    The pupil is sampled with ``samples_across`` cells across its paraxial diameter, or finer where
+    the window needs it (the FFT's field, lambda L / cell, spans at least twice the window), and
+    zero-padded until the PSF samples are a quarter pixel or finer.
+    """
+    validation.positive_length(depth_mm, "depth (mm)")
+    validation.positive_length(pixel_mm, "pixel size (mm)")
+    if not (isinstance(size, int) and 1 <= size <= 4096):
+        raise UserError(f"PSF window size must be 1..4096 pixels, got {size!r}")
+    film_distance = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
+    distance = _object_distance(lens, depth_mm, film_distance)
+    first = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance)
+    wave_l = wavelength_nm * 1e-6 * np.array(first.scale_mm)  # lambda L (x, y): FFT field = lambda L / cell
+    spacing = min(first.spacing_mm, float(wave_l.min()) / (2 * size * pixel_mm))
+    front = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance,
+                      reference_mm=first.reference_mm, spacing_mm=spacing)
+    n = front.opd_waves.shape[0]
+    fft_size = max(2 * n, math.ceil(FFT_SAMPLES_PER_PIXEL * float(wave_l.max()) / (spacing * pixel_mm)))
+    fft_size += fft_size % 2
+    if fft_size > MAX_FFT_SIZE:
+        raise UserError(f"the diffraction PSF needs a {fft_size}-point FFT (more than {MAX_FFT_SIZE}) for "
+                        f"{size} pixels of {pixel_mm * 1000:g} um: use fewer or larger pixels")
+    pupil = pupil_function(front.opd_waves)
+    psf = fft_psf(pupil, fft_size)
+    du = wave_l / (fft_size * spacing)  # along x, y
+    edges = (np.arange(size + 1) - size / 2) * pixel_mm
+    image = box_integrate(psf, (float(du[1]), float(du[0])), fft_size // 2, edges)[:, ::-1] / pixel_mm**2
+    return DiffractionSpread(image, pixel_mm, front.reference_mm, film_distance, wavelength_nm, fft_size,
+                             (float(du[0]), float(du[1])),
+                             strehl_ratio(pupil), front.rms_waves, front.undersampled_fraction)
 
 
 def _sphere_hits(origin: np.ndarray, direction: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:

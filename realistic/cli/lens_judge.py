@@ -1,7 +1,7 @@
-"""The ``lens`` subcommands that judge lenses: ``list``, ``spot``, ``mtf`` and ``psf``.
+"""The ``lens`` subcommands that judge lenses: ``list``, ``spot``, ``mtf``, ``psf`` and ``wavefront``.
 
-Argument definitions and output; the numbers come from ``realistic.optics`` (library, spot, mtf)
-and ``realistic.camera.psf``.
+Argument definitions and output; the numbers come from ``realistic.optics`` (library, spot, mtf,
+wavefront, diffraction) and ``realistic.camera.psf``.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from realistic.cli.values import LENS_HELP, checked, checked_exr, checked_plot, 
 from realistic.core import validation
 from realistic.core.atomic_files import check_writable, write_text_atomically
 from realistic.errors import UserError
+from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.formats import bundled_lens_files, load_lens
 from realistic.optics.lens import LensSystem
 
@@ -49,6 +50,16 @@ def _warn_dispersion(lens: LensSystem, wavelengths_nm: list[float]) -> None:
     warning = lens.dispersion_warning(wavelengths_nm)
     if warning:
         print(f"realistic: warning: {warning}", file=sys.stderr)
+
+
+#: Fraction of pupil-sample steps over half a wave above which the FFT model warns.
+MAX_UNDERSAMPLED = 0.02
+
+
+def _warn_pupil_sampling(undersampled: float, where: str) -> None:
+    if undersampled > MAX_UNDERSAMPLED:
+        print(f"realistic: warning: the wavefront changes by more than half a wave between {undersampled:.0%} of "
+              f"neighbouring pupil samples {where}: the FFT aliases; raise --samples", file=sys.stderr)
 
 
 def _write(path: str | None, text: str) -> None:
@@ -96,15 +107,20 @@ def cmd_lens_mtf(args: argparse.Namespace) -> int:
     lens = _load(args)
     out = _outputs(args, f"{lens.name}-mtf.png")
     _warn_dispersion(lens, args.wavelengths)
-    report = lens_mtf(lens, args.field, args.wavelengths, args.max_frequency, args.focus, args.samples)
+    report = lens_mtf(lens, args.field, args.wavelengths, args.max_frequency, args.focus, args.samples,
+                      model=args.model)
     _write(args.json, json.dumps(report.as_dict(), indent=1) + "\n")
     plot_mtf(report, out)
     nu = report.frequencies_lp_mm
     picks = sorted({min(range(len(nu)), key=lambda i: abs(nu[i] - f * nu[-1])) for f in (0.1, 0.3, 0.5, 1.0)})
-    print(f"{lens.name}: geometric MTF, film {report.film_distance_mm:.4f} mm behind the rear vertex")
+    print(f"{lens.name}: {report.model} MTF, film {report.film_distance_mm:.4f} mm behind the rear vertex")
     print("field deg  " + "  ".join(f"S/T@{nu[i]:g}" for i in picks))
     for field, s, t in zip(report.fields_deg, report.sagittal, report.tangential):
         print(f"{field:9g}  " + "  ".join(f"{s[i]:.3f}/{t[i]:.3f}" for i in picks))
+    for field, step in zip(report.fields_deg, report.undersampled):
+        _warn_pupil_sampling(step, f"at {field:g} deg")
+    if report.diffraction_limit is not None:
+        print("diff. lim  " + "  ".join(f"{report.diffraction_limit[i]:11.3f}" for i in picks))
     print("wrote " + ", ".join(str(p) for p in (out, args.json) if p))
     return 0
 
@@ -115,6 +131,8 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
 
     lens = _load(args)
     out = checked_exr(Path(args.out or f"{lens.name}-psf.exr"))
+    if args.model == "fft":
+        return _fft_psf(args, lens, out)
     psf = point_spread(lens, args.depth * MM_PER_METRE, args.field,
                        None if args.focus is None else args.focus * MM_PER_METRE,
                        args.pixel_um / 1000.0, args.size, args.spp, seed=args.seed, backend=args.backend)
@@ -130,6 +148,67 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
           f"{psf.centre_film_mm[1]:.4f}) mm, "
           f"{args.size} px of {args.pixel_um:g} um; flux {psf.flux:.6g} mm^2, peak {peak:.6g}")
     print(f"wrote {out}")
+    return 0
+
+
+def _fft_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
+    """``lens psf --model fft``: the diffraction PSF at ``--wavelength`` as an EXR."""
+    from realistic.camera.psf import fft_point_spread
+    from realistic.core.image_files import write_exr
+
+    _warn_dispersion(lens, [args.wavelength])
+    psf = fft_point_spread(lens, args.depth * MM_PER_METRE, args.field,
+                           None if args.focus is None else args.focus * MM_PER_METRE,
+                           args.pixel_um / 1000.0, args.size, args.wavelength, args.samples)
+    write_exr(out, psf.image[:, :, None].repeat(3, axis=2), {
+        "lens": lens.name, "content": "diffraction PSF (FFT): film irradiance per unit power reaching the film",
+        "pixelMm": psf.pixel_mm, "windowCentreFilmMm": f"{psf.centre_film_mm[0]:.6g},{psf.centre_film_mm[1]:.6g}",
+        "filmDistanceMm": psf.film_distance_mm, "wavelengthNm": psf.wavelength_nm, "fftSize": psf.fft_size,
+        "fftSpacingMm": ",".join(f"{v:.6g}" for v in psf.fft_spacing_mm), "strehl": psf.strehl,
+        "opdRmsWaves": psf.opd_rms_waves,
+        "enclosed": psf.enclosed})
+    _warn_pupil_sampling(psf.undersampled, f"at {args.field:g} deg")
+    print(f"{lens.name}: FFT PSF of a point {args.depth:g} m from the film at {args.field:g} deg, "
+          f"{psf.wavelength_nm:g} nm, film {psf.film_distance_mm:.4f} mm; window centre "
+          f"({psf.centre_film_mm[0]:.4f}, {psf.centre_film_mm[1]:.4f}) mm, {args.size} px of {args.pixel_um:g} um; "
+          f"OPD RMS {psf.opd_rms_waves:.4f} waves, Strehl {psf.strehl:.4f}, {psf.enclosed:.4f} of the light "
+          f"in the window")
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_lens_wavefront(args: argparse.Namespace) -> int:
+    from realistic.optics.diffraction import pupil_function, strehl_ratio
+    from realistic.optics.spot import film_distance_for, trace_fields
+    from realistic.optics.wavefront import noll_indices, term_name, wavefront, zernike_fit
+
+    lens = _load(args)
+    if args.json:
+        check_writable(Path(args.json))
+    _warn_dispersion(lens, [args.wavelength])
+    traced = trace_fields(lens, [args.field], [args.wavelength], args.samples) if args.focus == "best" else []
+    film = film_distance_for(lens, traced, args.focus)
+    front = wavefront(lens, args.field, args.wavelength, film, args.samples)
+    coefficients = zernike_fit(front, args.terms)
+    strehl = strehl_ratio(pupil_function(front.opd_waves))
+    _warn_pupil_sampling(front.undersampled_fraction, f"at {args.field:g} deg")
+    summary = {"lens": lens.name, "field_deg": args.field, "wavelength_nm": args.wavelength,
+               "film_distance_mm": film, "reference_mm": list(front.reference_mm),
+               "opd_rms_waves": front.rms_waves, "opd_peak_to_valley_waves": front.peak_to_valley_waves,
+               "strehl": strehl, "marechal_strehl": math.exp(-(2 * math.pi * front.rms_waves) ** 2),
+               "zernike_ordering": "Noll, unit RMS over the unit disk",
+               "zernike_waves": {str(j + 1): float(c) for j, c in enumerate(coefficients)}}
+    _write(args.json, json.dumps(summary, indent=1) + "\n")
+    print(f"{lens.name}: wavefront at {args.field:g} deg, {args.wavelength:g} nm, film {film:.4f} mm behind the "
+          f"rear vertex, reference sphere about ({front.reference_mm[0]:.5f}, {front.reference_mm[1]:.5f}) mm")
+    print(f"OPD RMS {front.rms_waves:.4f} waves, P-V {front.peak_to_valley_waves:.4f} waves, Strehl {strehl:.4f} "
+          f"(Marechal {summary['marechal_strehl']:.4f})")
+    print("Noll j  n  m  term                  waves")
+    for j, c in enumerate(coefficients, start=1):
+        n, m = noll_indices(j)
+        print(f"{j:6d} {n:2d} {m:2d}  {term_name(j):<20} {c:9.5f}")
+    if args.json:
+        print(f"wrote {args.json}")
     return 0
 
 
@@ -164,15 +243,26 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     spot.add_argument("--out", metavar="PNG", help="plot (default: LENS-spot.png)")
     spot.set_defaults(run=cmd_lens_spot)
 
-    mtf = lens_commands.add_parser("mtf", help="geometric MTF, sagittal and tangential, from the traced spot")
-    common(mtf, 128)
+    mtf = lens_commands.add_parser("mtf", help="MTF, sagittal and tangential: by diffraction of the wavefront "
+                                               "(FFT, with the diffraction limit) or from the traced spot")
+    common(mtf, 256)
+    mtf.add_argument("--model", choices=("fft", "geometric"), default="fft",
+                     help="FFT of the pupil function with the diffraction limit, or geometric from the spot "
+                          "(default fft)")
     mtf.add_argument("--max-frequency", type=positive("maximum frequency (lp/mm)"), default=100.0, metavar="LP/MM",
                      help="highest spatial frequency plotted (default 100 lp/mm)")
     mtf.add_argument("--out", metavar="PNG", help="plot (default: LENS-mtf.png)")
     mtf.set_defaults(run=cmd_lens_mtf)
 
-    psf = lens_commands.add_parser("psf", help="point-spread function on the film, rendered with camera rays (EXR)")
+    psf = lens_commands.add_parser("psf", help="point-spread function on the film (EXR): by diffraction (FFT) "
+                                               "or rendered with camera rays")
     psf.add_argument("lens", metavar="LENS", help=LENS_HELP)
+    psf.add_argument("--model", choices=("fft", "geometric"), default="fft",
+                     help="FFT of the pupil function at --wavelength, or rendered with camera rays (default fft)")
+    psf.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM, metavar="NM",
+                     help="wavelength of the FFT model in nm (default: the d line, %(default).2f)")
+    psf.add_argument("--samples", type=checked(int, _pupil_samples), default=64, metavar="N",
+                     help="FFT model: pupil samples across the diameter, at least (default 64)")
     psf.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                      help="stop diameter in mm (default: the file's)")
     psf.add_argument("--depth", type=positive("depth (m)"), required=True, metavar="M",
@@ -186,12 +276,32 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     psf.add_argument("--size", type=checked(int, _window_size), default=64, metavar="PX",
                      help="window side in pixels (default 64)")
     psf.add_argument("--spp", type=checked(int, validation.samples_per_pixel), default=256, metavar="N",
-                     help="camera samples per pixel (default 256)")
-    psf.add_argument("--seed", type=checked(int, validation.seed), default=0, help="random seed (default 0)")
+                     help="geometric model: camera samples per pixel (default 256)")
+    psf.add_argument("--seed", type=checked(int, validation.seed), default=0,
+                     help="geometric model: random seed (default 0)")
     psf.add_argument("--backend", choices=("numpy", "opencl"), default="numpy",
-                     help="camera rays from the float64 reference or the OpenCL kernel (default numpy)")
+                     help="geometric model: camera rays from the float64 reference or the OpenCL kernel "
+                          "(default numpy)")
     psf.add_argument("--out", metavar="EXR", help="output image (default: LENS-psf.exr)")
     psf.set_defaults(run=cmd_lens_psf)
+
+    front = lens_commands.add_parser("wavefront", help="OPD over the pupil of one field and wavelength from real "
+                                                       "rays: RMS, Strehl and the Zernike (Noll) fit")
+    front.add_argument("lens", metavar="LENS", help=LENS_HELP)
+    front.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
+                       help="stop diameter in mm (default: the file's)")
+    front.add_argument("--field", type=checked(float, _field_angle), default=0.0, metavar="DEG",
+                       help="field angle of the object at infinity in degrees (default 0)")
+    front.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM,
+                       metavar="NM", help="wavelength in nm (default: the d line, %(default).2f)")
+    front.add_argument("--focus", type=checked(str, _judge_focus), default="paraxial", metavar="M|paraxial|best",
+                       help="film plane, as spot's --focus (default: paraxial)")
+    front.add_argument("--samples", type=checked(int, _pupil_samples), default=128, metavar="N",
+                       help="pupil samples across the diameter (default 128)")
+    front.add_argument("--terms", type=checked(int, _zernike_terms), default=22, metavar="J",
+                       help="Noll Zernike terms fitted (default 22, through secondary spherical)")
+    front.add_argument("--json", metavar="JSON", help="also write the numbers as JSON")
+    front.set_defaults(run=cmd_lens_wavefront)
 
 
 def _judge_focus(text: str) -> str | float:
@@ -212,6 +322,12 @@ def _pupil_samples(n: int) -> int:
     if not 2 <= n <= 1024:
         raise UserError(f"pupil samples {n} must be 2..1024")
     return n
+
+
+def _zernike_terms(j: int) -> int:
+    if not 1 <= j <= 66:
+        raise UserError(f"Zernike terms {j} must be 1..66")
+    return j
 
 
 def _field_angle(deg: float) -> float:
