@@ -192,6 +192,15 @@ def focus_distance_for_film(lens: LensSystem, film_distance_mm: float,
     return object_distance + t.front_principal_from_rear_vertex_mm + film_distance_mm
 
 
+class FasterThanLens(UserError):
+    """An f-number faster than the lens opens; ``widest`` is the fastest it does (the CLI takes that,
+    as a camera does, where the API refuses)."""
+
+    def __init__(self, message: str, lens_name: str, widest: float):
+        super().__init__(message)
+        self.lens_name, self.widest = lens_name, widest
+
+
 def stop_diameter_for_f_number(lens: LensSystem, f_number: float, wavelength_nm: float = D_LINE_NM) -> float:
     """Stop diameter (mm) that gives the paraxial ``f_number`` (EFL over entrance pupil diameter).
 
@@ -202,6 +211,6 @@ def stop_diameter_for_f_number(lens: LensSystem, f_number: float, wavelength_nm:
     f_number = validation.f_number(f_number)
     widest = paraxial_data(lens, wavelength_nm).f_number
     if f_number < widest * (1 - 1e-9):
-        raise UserError(f"f/{f_number:g} is faster than {lens.name} opens (f/{widest:.3g} at its stop of "
-                        f"{lens.stop_diameter_mm:g} mm)")
+        raise FasterThanLens(f"f/{f_number:g} is faster than {lens.name} opens (f/{widest:.3g} at its stop of "
+                             f"{lens.stop_diameter_mm:g} mm)", lens.name, widest)
     return lens.stop_diameter_mm * widest / f_number

@@ -33,7 +33,7 @@ from realistic.core.pixel_filter import filter_name
 from realistic.errors import UserError
 from realistic.optics.coating import COATINGS
 from realistic.optics.formats import load_lens
-from realistic.optics.paraxial import paraxial_data
+from realistic.optics.paraxial import FasterThanLens
 from realistic.optics.stop_shape import StopShape, bladed_stop, mask_stop
 from realistic.renderer.integrators import INTEGRATORS
 from realistic.renderer.output import OUTPUT_SUFFIXES
@@ -205,9 +205,8 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
         if options.is_pbrt:
             camera = _lens_and_film(inputs, camera, options)
         shape = options.stop_shape()
-        f_number = _reachable_f_number(camera, options.f_number, inputs.warnings)
-        if options.aperture_mm is not None or f_number is not None or shape is not None:
-            camera = camera.with_stop(f_number=f_number, aperture_mm=options.aperture_mm, shape=shape)
+        if options.aperture_mm is not None or options.f_number is not None or shape is not None:
+            camera = _with_stop(camera, options, shape, inputs.warnings)
         if isinstance(camera, LensCamera):
             camera = dataclasses.replace(camera, lens_sampling=options.lens_sampling)
         if options.coating is not None:
@@ -250,17 +249,17 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
     return inputs
 
 
-def _reachable_f_number(camera: Camera, f_number: float | None, warnings: list[str]) -> float | None:
-    """``f_number``, or the lens's widest where it asks for more than the lens opens, with a line in
-    ``warnings`` (a camera set to f/4 with an f/5.6 lens takes f/5.6; pbrt clamps an
-    ``aperturediameter`` wider than the lens's stop alike). The API's ``with_stop`` refuses it."""
-    if f_number is None or not isinstance(camera, LensCamera):
-        return f_number
-    widest = paraxial_data(camera.lens).f_number
-    if f_number >= widest * (1 - 1e-9):
-        return f_number
-    warnings.append(f"--fstop {f_number:g} is faster than {camera.lens.name} opens: f/{widest:.3g} is used")
-    return widest
+def _with_stop(camera: Camera, options: RenderOptions, shape: StopShape | None, warnings: list[str]) -> Camera:
+    """``camera.with_stop`` with the options' stop; where ``--fstop`` asks for more than the lens
+    opens, the lens's widest, with a line in ``warnings`` (a camera set to f/4 with an f/5.6 lens
+    takes f/5.6; pbrt clamps an ``aperturediameter`` wider than the lens's stop alike). The API's
+    ``with_stop`` refuses it."""
+    try:
+        return camera.with_stop(f_number=options.f_number, aperture_mm=options.aperture_mm, shape=shape)
+    except FasterThanLens as err:
+        warnings.append(f"--fstop {options.f_number:g} is faster than {err.lens_name} opens: f/{err.widest:.3g} is "
+                        f"used")
+        return camera.with_stop(f_number=err.widest, aperture_mm=options.aperture_mm, shape=shape)
 
 
 def _lens_and_film(inputs: RenderInputs, camera: Camera, options: RenderOptions) -> Camera:
