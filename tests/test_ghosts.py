@@ -28,12 +28,12 @@ def _lens(rows: list[tuple[float, float, float, float]], coating: str = "none") 
     return lens.with_coating(coating)
 
 
-def _plate(thickness: float = 5.0, index: float = 1.6) -> LensSystem:
+def plate(thickness: float = 5.0, index: float = 1.6) -> LensSystem:
     """A stop, then a plane-parallel plate, bare."""
     return _lens([(0.0, 5.0, 1.0, 10.0), (math.inf, thickness, index, 20.0), (math.inf, 30.0, 1.0, 20.0)])
 
 
-def _collimated(lens: LensSystem, film_distance: float, radius: float, angle_deg: float = 0.0,
+def collimated_bundle(lens: LensSystem, film_distance: float, radius: float, angle_deg: float = 0.0,
                 across: int = 41) -> tuple[np.ndarray, np.ndarray]:
     """A square grid of parallel rays over a disk of ``radius`` about the front vertex's axis point,
     heading toward the film at ``angle_deg`` to the axis (toward -y), launched in front of the lens.
@@ -70,8 +70,8 @@ def test_every_pair_of_reflecting_surfaces_is_listed_brightest_first() -> None:
 
 
 def test_bad_paths_and_thresholds_are_user_errors() -> None:
-    lens = _plate()
-    origins, directions = _collimated(lens, 30.0, 1.0)
+    lens = plate()
+    origins, directions = collimated_bundle(lens, 30.0, 1.0)
     for path in (GhostPath(2, 1), GhostPath(1, 1), GhostPath(0, 3), GhostPath(-1, 2)):
         with pytest.raises(UserError, match="first < second"):
             trace_ghost(lens, 30.0, path, origins, directions)
@@ -88,12 +88,12 @@ def test_plate_ghost_is_r1_r2_of_the_direct_image() -> None:
     """At normal incidence the plate's one ghost carries R1 R2 of the direct image's light, with
     R = ((n - 1) / (n + 1))^2 at each face (Fresnel), and ghost_paths' throughput is T1 R2 R1 T2."""
     n = 1.6
-    lens = _plate(index=n)
+    lens = plate(index=n)
     r = ((n - 1) / (n + 1)) ** 2
     (ghost,) = ghost_paths(lens, wavelength_nm=WAVELENGTH, threshold=0.0)
     assert (ghost.first, ghost.second) == (1, 2)
     assert ghost.throughput == pytest.approx((1 - r) ** 2 * r * r, rel=1e-13)
-    origins, directions = _collimated(lens, 30.0, 4.0)
+    origins, directions = collimated_bundle(lens, 30.0, 4.0)
     direct = trace_direct(lens, 30.0, origins, directions, WAVELENGTH)
     traced = trace_ghost(lens, 30.0, ghost, origins, directions, WAVELENGTH)
     assert direct.passed.all() and traced.passed.all()
@@ -111,7 +111,7 @@ def test_ghost_of_a_plate_behind_a_lens_focuses_2t_over_n_nearer() -> None:
     lens = lens.with_coating(("ideal", "ideal", "ideal", "none", "none"))
     bfl = paraxial_data(lens, WAVELENGTH).bfl_mm
     film = bfl  # film at the direct paraxial focus: z = 0
-    origins, directions = _collimated(lens, film, 0.3, across=21)
+    origins, directions = collimated_bundle(lens, film, 0.3, across=21)
 
     def best_focus_z(trace: GhostTrace) -> float:
         assert trace.passed.all()
@@ -196,7 +196,7 @@ def test_direct_light_ghosts_and_lost_light_add_up_to_the_light_entering(coating
     lens = _lens([(40.0, 5.0, 1.6, 20.0), (-30.0, 2.0, 1.75, 20.0), (-90.0, 4.0, 1.0, 20.0),
                   (0.0, 40.0, 1.0, 12.0)], coating)
     film = 40.0
-    origins, directions = _collimated(lens, film, 13.0, angle, across=61)
+    origins, directions = collimated_bundle(lens, film, 13.0, angle, across=61)
     budget = _Budget(lens, film, origins, directions)
     assert budget.interfaces >= 15  # every branch up to two reflections
     assert budget.lost["barrel"].max() > 0.5 and budget.lost["scene"].max() > 0.01
@@ -225,7 +225,7 @@ def _centroid(trace: GhostTrace) -> np.ndarray:
 def test_on_axis_ghosts_of_dgauss_are_centred_on_the_axis() -> None:
     lens = load_lens("dgauss").with_coating("none")
     film = paraxial_data(lens).bfl_mm
-    origins, directions = _collimated(lens, film, lens.aperture_mm[0] / 2)
+    origins, directions = collimated_bundle(lens, film, lens.aperture_mm[0] / 2)
     paths = ghost_paths(lens)
     assert len(paths) > 10
     for path in paths:
@@ -239,7 +239,7 @@ def test_off_axis_ghosts_of_dgauss_lie_on_the_line_through_the_image_and_the_cen
     some on the image's side and some (the point-symmetric ones) on the other."""
     lens = load_lens("dgauss").with_coating("none")
     film = paraxial_data(lens).bfl_mm
-    origins, directions = _collimated(lens, film, lens.aperture_mm[0] / 2, 8.0)
+    origins, directions = collimated_bundle(lens, film, lens.aperture_mm[0] / 2, 8.0)
     image = _centroid(trace_direct(lens, film, origins, directions))
     assert abs(image[0]) < 1e-9 and abs(image[1]) > 3.0
     sides = []
@@ -254,6 +254,6 @@ def test_off_axis_ghosts_of_dgauss_lie_on_the_line_through_the_image_and_the_cen
 
 
 def test_direct_path_steps_refract_at_every_surface() -> None:
-    lens = _plate()
+    lens = plate()
     assert path_steps(lens, None) == [(0, False), (1, False), (2, False)]
     assert path_steps(lens, GhostPath(1, 2)) == [(0, False), (1, False), (2, True), (1, True), (2, False)]
