@@ -12,7 +12,7 @@ import pytest
 from realistic import load_lens
 from realistic.errors import UserError
 from realistic.optics.coating import IDEAL, reflect_transmit
-from realistic.optics.ghosts import GhostPath, GhostTrace, ghost_paths, path_steps, trace_direct, trace_ghost
+from realistic.optics.ghosts import GhostPath, GhostTrace, ghost_paths, path_steps, summarise, trace_direct, trace_ghost
 from realistic.optics.lens import LensSystem, build_lens
 from realistic.optics.paraxial import paraxial_data
 from realistic.optics.tracer import Vectors, incidence_cosine, intersect_surface, refract
@@ -122,6 +122,9 @@ def test_ghost_of_a_plate_behind_a_lens_focuses_2t_over_n_nearer() -> None:
     (ghost,) = ghost_paths(lens, wavelength_nm=WAVELENGTH, threshold=0.0)
     ghost_z = best_focus_z(trace_ghost(lens, film, ghost, origins, directions, WAVELENGTH))
     assert ghost_z == pytest.approx(2 * t / n, abs=2e-3)
+    # ``lens ghosts``'s focus, from the stop's whole 4 mm bundle: both foci move by the same spherical aberration
+    direct_row, ghost_row = summarise(lens, film, [ghost], wavelength_nm=WAVELENGTH)
+    assert ghost_row.focus_mm - direct_row.focus_mm == pytest.approx(2 * t / n, abs=1e-2)
 
 
 # ------------------------------------------------------------------ energy
@@ -257,3 +260,31 @@ def test_direct_path_steps_refract_at_every_surface() -> None:
     lens = plate()
     assert path_steps(lens, None) == [(0, False), (1, False), (2, False)]
     assert path_steps(lens, GhostPath(1, 2)) == [(0, False), (1, False), (2, True), (1, True), (2, False)]
+
+
+# ------------------------------------------------------------------ the command
+
+def test_lens_ghosts_lists_the_ghosts_above_the_threshold(capsys: pytest.CaptureFixture[str]) -> None:
+    from realistic.cli import main
+
+    assert main(["lens", "ghosts", "dgauss", "--threshold", "2e-3", "--field", "10"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    lens = load_lens("dgauss").with_coating("none")
+    expected = ghost_paths(lens, threshold=2e-3)
+    rows = [line.split() for line in lines if line.split()[1:2] == ["then"]]
+    assert [(int(r[0]), int(r[2])) for r in rows] == [(p.second, p.first) for p in expected]
+    assert [float(r[3]) for r in rows] == pytest.approx([p.throughput for p in expected], rel=1e-3)
+    direct = next(line.split() for line in lines if line.split()[:1] == ["direct"])
+    assert float(direct[-2]) < -5 and float(direct[-1]) == 1.0  # the image of a light at 10 deg lies toward -y
+
+
+@pytest.mark.parametrize(("flag", "value", "message"), [("--threshold", "2", "ghost threshold"),
+                                                         ("--field", "95", "field angle"),
+                                                         ("--coating", "ideal", "invalid choice")])
+def test_lens_ghosts_refuses_bad_values_in_one_line(capsys: pytest.CaptureFixture[str], flag: str, value: str,
+                                                    message: str) -> None:
+    from realistic.cli import main
+
+    assert main(["lens", "ghosts", "dgauss", flag, value]) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and message in error[0]

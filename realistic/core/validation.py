@@ -90,6 +90,14 @@ def ghost_threshold(value: float) -> float:
     return value
 
 
+def field_angle_deg(value: float) -> float:
+    """A field angle in degrees: finite, strictly between -90 and 90."""
+    value = finite(value, "field angle (deg)")
+    if not abs(value) < 90:
+        raise UserError(f"field angle {value:g} deg must be between -90 and 90")
+    return value
+
+
 def resolution(width: int, height: int) -> tuple[int, int]:
     width = _in_range(_integer(width, "resolution width"), "resolution width", 1, MAX_IMAGE_SIDE)
     height = _in_range(_integer(height, "resolution height"), "resolution height", 1, MAX_IMAGE_SIDE)

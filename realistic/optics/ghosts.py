@@ -210,3 +210,71 @@ def trace_direct(lens: LensSystem, film_distance_mm: float, origins: np.ndarray,
     """``trace_ghost`` for the ordinary path: every surface refracts, the weight is the product of
     the transmittances (the image a camera ray traced back from the film would find)."""
     return _trace(lens, film_distance_mm, path_steps(lens, None), origins, directions, wavelength_nm)
+
+
+def collimated_rays(lens: LensSystem, film_distance_mm: float, field_deg: float, across: int = 64
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(origins, directions) of a square grid of parallel rays from a point at infinity ``field_deg``
+    off the axis (toward +y on the scene side, so its image lies toward -y), covering the front
+    surface's clear aperture and launched in front of it. The grid is mirror-symmetric in x."""
+    field_deg = validation.field_angle_deg(field_deg)
+    half = (across - 1) / 2
+    g = (np.arange(across) - half) / half
+    x, y = np.meshgrid(g, g)
+    keep = x * x + y * y <= 1.0
+    angle = math.radians(field_deg)
+    height = float(lens.aperture_mm.max())  # in front of any sag of the front surface
+    radius = lens.aperture_mm[0] / 2 + height * abs(math.tan(angle))  # the beam's shift across the sag
+    origins = np.column_stack([x[keep] * radius, y[keep] * radius + math.tan(angle) * height,
+                               np.full(keep.sum(), lens.vertex_z_mm(film_distance_mm)[0] + height)])
+    return origins, np.broadcast_to([0.0, -math.sin(angle), -math.cos(angle)], origins.shape).copy()
+
+
+@dataclass(frozen=True)
+class GhostSummary:
+    """One row of ``summarise``: a path (None: the direct image) and its image on the film.
+
+    ``focus_mm``: the lens-frame z (film at 0, + toward the scene) where the image of an on-axis point
+    at infinity along the path is smallest (least weighted mean squared distance from the axis), NaN
+    where no ray passes; ``spot_rms_mm`` and ``centroid_mm``: the weighted RMS radius about the
+    centroid and the centroid (x, y) of the image on the film of a point at the field angle;
+    ``light``: the fraction of that bundle's light (the grid of ``collimated_rays``) that arrives,
+    to be read against the direct image's.
+    """
+
+    path: GhostPath | None
+    focus_mm: float
+    spot_rms_mm: float
+    centroid_mm: tuple[float, float]
+    light: float
+
+
+def _best_focus_z(trace: GhostTrace) -> float:
+    """The z of least weighted mean squared distance from the axis of the rays that passed."""
+    w = trace.weight[trace.passed]
+    if not w.sum() > 0:
+        return math.nan
+    slope = trace.direction[trace.passed, :2] / trace.direction[trace.passed, 2:3]
+    return float(-np.sum(w[:, None] * trace.film_xy[trace.passed] * slope) / np.sum(w[:, None] * slope * slope))
+
+
+def summarise(lens: LensSystem, film_distance_mm: float, paths: list[GhostPath], field_deg: float = 0.0,
+              wavelength_nm: float = GHOST_WAVELENGTH_NM, across: int = 64) -> list[GhostSummary]:
+    """The direct image and each of ``paths`` on the film (``GhostSummary``), traced with grids of
+    ``across`` rays across the front aperture (``collimated_rays``)."""
+    axial = collimated_rays(lens, film_distance_mm, 0.0, across)
+    field = axial if field_deg == 0 else collimated_rays(lens, film_distance_mm, field_deg, across)
+    rows = []
+    for path in [None, *paths]:
+        traced = [trace_direct(lens, film_distance_mm, *rays, wavelength_nm) if path is None
+                  else trace_ghost(lens, film_distance_mm, path, *rays, wavelength_nm) for rays in (axial, field)]
+        spot = traced[1]
+        w = spot.weight[spot.passed]
+        if w.sum() > 0:
+            centroid = np.sum(w[:, None] * spot.film_xy[spot.passed], axis=0) / w.sum()
+            rms = float(np.sqrt(np.sum(w * np.sum((spot.film_xy[spot.passed] - centroid) ** 2, axis=1)) / w.sum()))
+        else:
+            centroid, rms = np.full(2, math.nan), math.nan
+        rows.append(GhostSummary(path, _best_focus_z(traced[0]), rms, (float(centroid[0]), float(centroid[1])),
+                                 float(spot.weight.sum() / len(spot.weight))))
+    return rows
