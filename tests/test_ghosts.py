@@ -288,3 +288,20 @@ def test_lens_ghosts_refuses_bad_values_in_one_line(capsys: pytest.CaptureFixtur
     assert main(["lens", "ghosts", "dgauss", flag, value]) == 2
     error = capsys.readouterr().err.strip().splitlines()
     assert len(error) == 1 and message in error[0]
+
+
+def test_one_wavelength_per_ray_traces_as_each_wavelength_alone() -> None:
+    lens = load_lens("dgauss").with_coating("mgf2")
+    film = paraxial_data(lens).bfl_mm
+    origins, directions = collimated_bundle(lens, film, lens.aperture_mm[0] / 2, 5.0, across=21)
+    wavelengths = np.where(np.arange(len(origins)) % 2 == 0, 450.0, 650.0)
+    path = ghost_paths(lens, threshold=0.0)[0]
+    mixed = trace_ghost(lens, film, path, origins, directions, wavelengths)
+    for wavelength in (450.0, 650.0):
+        alone = trace_ghost(lens, film, path, origins, directions, wavelength)
+        rows = wavelengths == wavelength
+        np.testing.assert_array_equal(mixed.passed[rows], alone.passed[rows])
+        np.testing.assert_allclose(mixed.weight[rows], alone.weight[rows], rtol=1e-14, atol=0)
+        np.testing.assert_allclose(mixed.film_xy[rows], alone.film_xy[rows], rtol=1e-14, atol=1e-14)
+    blue, red = (trace_ghost(lens, film, path, origins, directions, w).film_xy for w in (450.0, 650.0))
+    assert np.nanmax(np.abs(blue - red)) > 1e-3  # dispersion moves the ghost
