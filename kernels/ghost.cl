@@ -17,7 +17,7 @@
  * the ray's axial position w is kept relative to the vertex of the surface about to be met, so float32
  * keeps precision at the scale of the sag rather than of the lens-frame z.
  *
- * Unlike lens.cl, this kernel loops over its steps (one program serves every path of every lens);
+ * Unlike lens.cl, this kernel loops over its steps (one program serves every path of the lens);
  * the work-group vectoriser does not widen it, and the flare's rays are far fewer than the camera's.
  *
  * The host's header also defines KIND_*, ACTION_*, MODEL_*, COATING_INDEX, ASPHERE_ITERATIONS,
@@ -194,30 +194,45 @@ inline void step(Ray *r, __constant float *s, float phase) {
     r->w = hw + s[STEP_SHIFT];
 }
 
-/* Rays i < count: in holds 6 rows of `stride` floats, origin x, y, w (relative to the first step's
- * vertex) and direction x, y, z (unit); out holds 7 rows: film x, y, direction x, y, z at the film,
- * weight, and 1 where the ray passed (0, and the rest 0, where it did not). steps: `step_count` rows of STEP_WIDTH. */
+/* Ray i's state from the input rows (see trace_path). */
+inline void load(Ray *r, uint i, uint stride, __global const float *in) {
+    r->ox = in[i];
+    r->oy = in[stride + i];
+    r->w = in[2 * stride + i];
+    r->dx = in[3 * stride + i];
+    r->dy = in[4 * stride + i];
+    r->dz = in[5 * stride + i];
+    r->weight = 1.0f;
+    r->alive = 1;
+}
+
+/* Ray i's crossing of the film plane into the output rows (see trace_path). */
+inline void store(Ray *r, uint i, uint stride, __global float *out) {
+    float t = -r->w / r->dz;  /* w is now the axial position relative to the film plane */
+    int alive = r->alive & (t > 0.0f);
+    out[i] = alive ? r->ox + t * r->dx : 0.0f;
+    out[stride + i] = alive ? r->oy + t * r->dy : 0.0f;
+    out[2 * stride + i] = alive ? r->dx : 0.0f;
+    out[3 * stride + i] = alive ? r->dy : 0.0f;
+    out[4 * stride + i] = alive ? r->dz : 0.0f;
+    out[5 * stride + i] = alive ? r->weight : 0.0f;
+    out[6 * stride + i] = alive ? 1.0f : 0.0f;
+}
+
+/* Rays of a launch of stride / RAYS_PER_ITEM work items: in holds 6 rows of `stride` floats, origin
+ * x, y, w (relative to the first step's vertex) and direction x, y, z (unit); out holds 7 rows: film
+ * x, y, direction x, y, z at the film, weight, and 1 where the ray passed (0, and the rest 0, where
+ * it did not). steps: `step_count` rows of STEP_WIDTH. Work item i of n traces rays i, i + n, ...
+ * (RAYS_PER_ITEM of them) through each step before the next: independent chains of square roots and
+ * divisions for the processor to overlap, where one ray's would wait on each other (the loop over
+ * steps keeps PoCL's work-group vectoriser out). Rays past `count` are padding, traced and dropped. */
 __kernel void trace_path(uint count, uint step_count, __constant float *steps, float phase, uint stride,
                          __global const float *in, __global float *out) {
-    uint i = get_global_id(0);
-    if (i >= count) return;
-    Ray r;
-    r.ox = in[i];
-    r.oy = in[stride + i];
-    r.w = in[2 * stride + i];
-    r.dx = in[3 * stride + i];
-    r.dy = in[4 * stride + i];
-    r.dz = in[5 * stride + i];
-    r.weight = 1.0f;
-    r.alive = 1;
-    for (uint k = 0; k < step_count; k++) step(&r, steps + k * STEP_WIDTH, phase);
-    float t = -r.w / r.dz;  /* w is now the axial position relative to the film plane */
-    r.alive = r.alive & (t > 0.0f);
-    out[i] = r.alive ? r.ox + t * r.dx : 0.0f;
-    out[stride + i] = r.alive ? r.oy + t * r.dy : 0.0f;
-    out[2 * stride + i] = r.alive ? r.dx : 0.0f;
-    out[3 * stride + i] = r.alive ? r.dy : 0.0f;
-    out[4 * stride + i] = r.alive ? r.dz : 0.0f;
-    out[5 * stride + i] = r.alive ? r.weight : 0.0f;
-    out[6 * stride + i] = r.alive ? 1.0f : 0.0f;
+    uint items = stride / RAYS_PER_ITEM, i = get_global_id(0);
+    Ray r[RAYS_PER_ITEM];
+    for (uint j = 0; j < RAYS_PER_ITEM; j++) load(&r[j], i + j * items, stride, in);
+    for (uint k = 0; k < step_count; k++) {
+        for (uint j = 0; j < RAYS_PER_ITEM; j++) step(&r[j], steps + k * STEP_WIDTH, phase);
+    }
+    for (uint j = 0; j < RAYS_PER_ITEM; j++) store(&r[j], i + j * items, stride, out);
 }

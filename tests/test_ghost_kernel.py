@@ -102,3 +102,18 @@ def test_kernel_gives_the_plate_ghost_r1_r2_of_the_direct_image() -> None:
     (ghost,) = ghost_paths(lens, threshold=0.0)
     ratio = kernel.trace(30.0, ghost, origins, directions).weight / kernel.trace(30.0, None, origins, directions).weight
     np.testing.assert_allclose(ratio, ((n - 1) / (n + 1)) ** 4, rtol=1e-5)
+
+
+def test_rays_per_work_item_change_nothing() -> None:
+    """Each work item's rays are traced apart (kernels/ghost.cl): 1 or 4 per item, every ray's
+    result is the same bit for bit, for counts that do and do not fill the last work item."""
+    lens = load_lens("dgauss").with_coating("none")
+    film = paraxial_data(lens).bfl_mm
+    origins, directions = collimated_bundle(lens, film, lens.aperture_mm[0] / 2, 3.0, across=31)
+    path = ghost_paths(lens)[0]
+    one, four = GhostKernel(lens, rays_per_item=1), GhostKernel(lens, rays_per_item=4)
+    for count in (len(origins), 1001, 3):
+        a, b = (k.trace(film, path, origins[:count], directions[:count]) for k in (one, four))
+        for field in ("film_xy", "direction", "weight", "passed"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+    assert len(four.trace(film, path, origins[:0], directions[:0]).weight) == 0

@@ -38,6 +38,8 @@ ACTIONS = ("pass", "refract", "reflect")
 #: Newton steps on an asphere, and the largest |F| (mm) accepted as a hit: ``kernels/lens.cl``'s.
 ASPHERE_ITERATIONS = 6
 ASPHERE_TOLERANCE_MM = 1e-4
+#: Rays each work item traces side by side (``kernels/ghost.cl``, ``trace_path``).
+RAYS_PER_ITEM = 4
 #: Rows of the kernel's input (origin x, y, w; direction) and output (film x, y; direction; weight; passed).
 IN_ROWS, OUT_ROWS = 6, 7
 
@@ -93,11 +95,13 @@ class GhostKernel:
     """``ghost.cl`` built for one lens on ``device``; ``trace`` is ``ghosts.trace_ghost`` in float32.
     Safe to call from several threads (launches are serialised on one lock)."""
 
-    def __init__(self, lens: LensSystem, device: Device | None = None):
-        """``device``: where to build and launch (None: ``Device.for_spec()``, the default device)."""
-        self.lens, self.device = lens, device or Device.for_spec()
+    def __init__(self, lens: LensSystem, device: Device | None = None, rays_per_item: int = RAYS_PER_ITEM):
+        """``device``: where to build and launch (None: ``Device.for_spec()``, the default device);
+        ``rays_per_item``: rays each work item traces side by side (``kernels/ghost.cl``)."""
+        self.lens, self.device, self.rays_per_item = lens, device or Device.for_spec(), rays_per_item
         self.queue = self.device.queue()
-        program = self.device.build_program(ghost_header(lens) + kernel_source(KERNEL_FILE), KERNEL_FILE)
+        program = self.device.build_program(f"#define RAYS_PER_ITEM {rays_per_item}\n" + ghost_header(lens)
+                                            + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._kernel = cl.Kernel(program, "trace_path")
         self._lock = threading.Lock()
 
@@ -112,7 +116,7 @@ class GhostKernel:
         count = len(origins)
         if count == 0:
             return GhostTrace(np.zeros((0, 2)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, bool))
-        stride = whole_groups(count)
+        stride = self.rays_per_item * whole_groups(-(-count // self.rays_per_item))
         rays = np.zeros((IN_ROWS, stride), np.float32)
         rays[0:2, :count] = origins[:, :2].T
         # the axial position relative to the first surface's vertex, taken in float64
@@ -124,8 +128,8 @@ class GhostKernel:
             table = self.device.copied_buffer(steps, np.float32)
             given = self.device.copied_buffer(rays, np.float32)
             result = self.device.output_buffer(out.nbytes)
-            self._kernel(self.queue, (stride,), (LOCAL_SIZE,), np.uint32(count), np.uint32(len(steps)), table,
-                         phase, np.uint32(stride), given, result)
+            self._kernel(self.queue, (stride // self.rays_per_item,), (LOCAL_SIZE,), np.uint32(count),
+                         np.uint32(len(steps)), table, phase, np.uint32(stride), given, result)
             cl.enqueue_copy(self.queue, out, result)
         passed = out[6, :count] > 0
         film = np.where(passed[:, None], out[0:2, :count].T, np.nan)
