@@ -12,7 +12,8 @@
  * realistic.device.tables.Table whose STEP_* offsets the host prepends as #defines), one row per
  * surface met, in order: the surface's shape, clear aperture, what the ray does there (STEP_ACTION:
  * ACTION_PASS, ACTION_REFRACT or ACTION_REFLECT), the coating model (MODEL_*: realistic.optics.coating),
- * the indices on the ray's side and the far side at the launch's wavelength, and the axial shift from
+ * the media on the ray's side and the far side (rows of the media table: each medium's index
+ * tabulated over the launch's wavelengths, so every ray has its own), and the axial shift from
  * this surface's vertex to the next one's (to the film plane after the last). As in kernels/lens.cl,
  * the ray's axial position w is kept relative to the vertex of the surface about to be met, so float32
  * keeps precision at the scale of the sag rather than of the lens-frame z.
@@ -20,7 +21,8 @@
  * Unlike lens.cl, this kernel loops over its steps (one program serves every path of the lens);
  * the work-group vectoriser does not widen it, and the flare's rays are far fewer than the camera's.
  *
- * The host's header also defines KIND_*, ACTION_*, MODEL_*, COATING_INDEX, ASPHERE_ITERATIONS,
+ * The host's header also defines KIND_*, ACTION_*, MODEL_*, COATING_INDEX, PI_LAMBDA0 (pi times the
+ * layer's design wavelength, nm), ASPHERE_ITERATIONS,
  * ASPHERE_TERMS, ASPHERE_TOLERANCE_MM and the stop's opening STOP_INSIDE(x, y)
  * (realistic.camera.opencl_host.stop_lines: a round stop's squared radius STOP_R2 is the stop row's
  * STEP_AP2, read through the row `s` in scope where it is used).
@@ -31,6 +33,9 @@ typedef struct {
     float dx, dy, dz;
     float weight;
     int alive;
+    uint node;    /* the ray's wavelength: media table node below it, */
+    float frac;   /* its place between that node and the next, */
+    float phase;  /* and pi lambda0 / lambda (reflectance's PHASE) */
 } Ray;
 
 /* The fraction of unpolarised light reflected by an interface from index N0 into N2 at incidence
@@ -164,12 +169,16 @@ inline void meet(Ray *r, __constant float *s, float *hx, float *hy, float *hw, f
     r->alive = r->alive & ok & ((t > 0.0f) | !ahead) & inside;
 }
 
-/* One step: meet the surface, then pass, refract (weight x T) or reflect (weight x R). */
-inline void step(Ray *r, __constant float *s, float phase) {
+/* One step: meet the surface, then pass, refract (weight x T) or reflect (weight x R), with the
+ * indices of the media on the ray's side and the far side at the ray's wavelength (see trace_path). */
+inline void step(Ray *r, __constant float *s, __global const float *media, uint nodes) {
     float hx, hy, hw, nx, ny, nz;
     meet(r, s, &hx, &hy, &hw, &nx, &ny, &nz);
     int action = (int)s[STEP_ACTION];
-    float n0 = s[STEP_N_FROM], n2 = s[STEP_N_TO];
+    __global const float *from = media + (uint)s[STEP_MEDIUM_FROM] * nodes + r->node;
+    __global const float *to = media + (uint)s[STEP_MEDIUM_TO] * nodes + r->node;
+    float n0 = from[0] + r->frac * (from[1] - from[0]), n2 = to[0] + r->frac * (to[1] - to[0]);
+    float phase = r->phase;
     float c1 = -(r->dx * nx + r->dy * ny + r->dz * nz);
     float R = reflectance((int)s[STEP_MODEL], n0, n2, c1, phase);
     if (action == ACTION_REFLECT) {
@@ -195,7 +204,15 @@ inline void step(Ray *r, __constant float *s, float phase) {
 }
 
 /* Ray i's state from the input rows (see trace_path). */
-inline void load(Ray *r, uint i, uint stride, __global const float *in) {
+inline void load(Ray *r, uint i, uint stride, __global const float *in, uint nodes, float lambda0,
+                 float inv_spacing) {
+    float lambda = in[6 * stride + i];
+    float u = (lambda - lambda0) * inv_spacing;
+    float k = floor(u);
+    k = k < 0.0f ? 0.0f : (k > (float)(nodes - 2) ? (float)(nodes - 2) : k);
+    r->node = (uint)k;
+    r->frac = u - k;
+    r->phase = PI_LAMBDA0 / lambda;
     r->ox = in[i];
     r->oy = in[stride + i];
     r->w = in[2 * stride + i];
@@ -219,20 +236,23 @@ inline void store(Ray *r, uint i, uint stride, __global float *out) {
     out[6 * stride + i] = alive ? 1.0f : 0.0f;
 }
 
-/* Rays of a launch of stride / RAYS_PER_ITEM work items: in holds 6 rows of `stride` floats, origin
- * x, y, w (relative to the first step's vertex) and direction x, y, z (unit); out holds 7 rows: film
- * x, y, direction x, y, z at the film, weight, and 1 where the ray passed (0, and the rest 0, where
- * it did not). steps: `step_count` rows of STEP_WIDTH. Work item i of n traces rays i, i + n, ...
- * (RAYS_PER_ITEM of them) through each step before the next: independent chains of square roots and
- * divisions for the processor to overlap, where one ray's would wait on each other (the loop over
- * steps keeps PoCL's work-group vectoriser out). Rays past `count` are padding, traced and dropped. */
-__kernel void trace_path(uint count, uint step_count, __constant float *steps, float phase, uint stride,
-                         __global const float *in, __global float *out) {
+/* Rays of a launch of stride / RAYS_PER_ITEM work items: in holds 7 rows of `stride` floats, origin
+ * x, y, w (relative to the first step's vertex), direction x, y, z (unit) and wavelength (nm); out
+ * holds 7 rows: film x, y, direction x, y, z at the film, weight, and 1 where the ray passed (0, and
+ * the rest 0, where it did not). steps: `step_count` rows of STEP_WIDTH. media: each medium's index
+ * (row STEP_MEDIUM_FROM / _TO of `nodes`) at wavelengths lambda0 + k / inv_spacing, interpolated
+ * linearly at each ray's. Work item i of n traces rays i, i + n, ... (RAYS_PER_ITEM of them) through
+ * each step before the next: independent chains of square roots and divisions for the processor to
+ * overlap, where one ray's would wait on each other (the loop over steps keeps PoCL's work-group
+ * vectoriser out). Rays past `count` are padding, traced and dropped. */
+__kernel void trace_path(uint count, uint step_count, __constant float *steps, __global const float *media,
+                         uint nodes, float lambda0, float inv_spacing, uint stride, __global const float *in,
+                         __global float *out) {
     uint items = stride / RAYS_PER_ITEM, i = get_global_id(0);
     Ray r[RAYS_PER_ITEM];
-    for (uint j = 0; j < RAYS_PER_ITEM; j++) load(&r[j], i + j * items, stride, in);
+    for (uint j = 0; j < RAYS_PER_ITEM; j++) load(&r[j], i + j * items, stride, in, nodes, lambda0, inv_spacing);
     for (uint k = 0; k < step_count; k++) {
-        for (uint j = 0; j < RAYS_PER_ITEM; j++) step(&r[j], steps + k * STEP_WIDTH, phase);
+        for (uint j = 0; j < RAYS_PER_ITEM; j++) step(&r[j], steps + k * STEP_WIDTH, media, nodes);
     }
     for (uint j = 0; j < RAYS_PER_ITEM; j++) store(&r[j], i + j * items, stride, out);
 }

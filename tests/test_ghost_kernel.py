@@ -11,8 +11,10 @@ import pytest
 
 from realistic import load_lens
 from realistic.camera.ghost_host import GhostKernel
+from realistic.optics.dispersion import D_LINE_NM
 from realistic.optics.ghosts import GhostPath, GhostTrace, ghost_paths, trace_direct, trace_ghost
-from realistic.optics.lens import LensSystem
+from realistic.optics.glass.catalogue import find_glass
+from realistic.optics.lens import LensSystem, build_lens
 from realistic.optics.paraxial import paraxial_data
 from realistic.optics.stop_shape import bladed_stop
 from test_ghosts import collimated_bundle, plate
@@ -33,9 +35,9 @@ EDGE = 1e-5
 
 
 def _reference(lens: LensSystem, film: float, path: GhostPath | None, origins: np.ndarray,
-               directions: np.ndarray) -> GhostTrace:
-    return (trace_direct(lens, film, origins, directions) if path is None
-            else trace_ghost(lens, film, path, origins, directions))
+               directions: np.ndarray, wavelengths: float | np.ndarray = D_LINE_NM) -> GhostTrace:
+    return (trace_direct(lens, film, origins, directions, wavelengths) if path is None
+            else trace_ghost(lens, film, path, origins, directions, wavelengths))
 
 
 def _assert_matches(lens: LensSystem, film: float, path: GhostPath | None, origins: np.ndarray,
@@ -117,3 +119,36 @@ def test_rays_per_work_item_change_nothing() -> None:
         for field in ("film_xy", "direction", "weight", "passed"):
             np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
     assert len(four.trace(film, path, origins[:0], directions[:0]).weight) == 0
+
+
+def _catalogue_doublet() -> LensSystem:
+    """An achromat of N-BK7 and N-SF5 (Schott's Sellmeier formulas) before the stop."""
+    glass = [find_glass("N-BK7"), find_glass("N-SF5"), None, None]
+    lens = build_lens("doublet.dat", [1, 2, 3, 4], [60.0, -40.0, -150.0, 0.0], [6.0, 2.5, 3.0, 80.0],
+                      [1.5, 1.6, 1.0, 1.0], [0.0] * 4, [24.0, 24.0, 24.0, 16.0], glass=glass)
+    assert all(g is not None for g in lens.glass[:2])
+    return lens
+
+
+@pytest.mark.parametrize("name", ["dgauss", "doublet"])
+def test_kernel_traces_one_wavelength_per_ray_as_the_reference(name: str) -> None:
+    """Each ray's own wavelength (a spectral camera's), through Cauchy and catalogue glasses: the
+    kernel's indices, interpolated in its table of each medium, give the reference's traces."""
+    lens = (load_lens(name) if name == "dgauss" else _catalogue_doublet()).with_coating("mgf2")
+    film = paraxial_data(lens).bfl_mm
+    origins, directions = collimated_bundle(lens, film, lens.aperture_mm[0] / 2, 4.0)
+    wavelengths = np.random.default_rng(5).uniform(380.0, 780.0, len(origins))
+    kernel = GhostKernel(lens)
+    for path in [None, *ghost_paths(lens, threshold=1e-5)[:6]]:
+        ref = _reference(lens, film, path, origins, directions, wavelengths)
+        got = kernel.trace(film, path, origins, directions, wavelengths)
+        both = ref.passed & got.passed
+        assert both.any() and np.count_nonzero(ref.passed != got.passed) <= 0.01 * len(origins) + 2, path
+        near = np.hypot(*ref.film_xy[both].T) <= FILM_REACH_MM
+        error = np.hypot(*(got.film_xy[both] - ref.film_xy[both]).T)[near]
+        assert np.all(error <= POSITION_TOLERANCE * np.maximum(np.hypot(*ref.film_xy[both][near].T), 1.0)), path
+        np.testing.assert_allclose(got.weight[both], ref.weight[both], rtol=0, atol=WEIGHT_TOLERANCE)
+    blue = kernel.trace(film, None, origins, directions, 400.0)
+    red = kernel.trace(film, None, origins, directions, 700.0)
+    both = blue.passed & red.passed
+    assert np.max(np.abs(blue.film_xy[both] - red.film_xy[both])) > 1e-3  # the glasses disperse

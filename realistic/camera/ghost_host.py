@@ -28,11 +28,13 @@ KERNEL_FILE = "ghost.cl"
 #: aperture (``ap2``, the squared semi-diameter; ``stop`` 1 at the aperture stop, whose opening is
 #: ``STOP_INSIDE``), ``ahead`` (0 where it touches the surface met before, as in ``lens.cl``), what the
 #: ray does there (``action``: ``ACTIONS``), the coating model (``realistic.optics.coating``), the
-#: indices on the ray's side and the far side, and the axial distance from this vertex to the next
-#: one's (to the film plane after the last), + toward the scene.
+#: media on the ray's side and the far side (rows of ``media_table``: 0 the air in front of the lens,
+#: k + 1 the medium behind surface k), and the axial distance from this vertex to the next one's (to
+#: the film plane after the last), + toward the scene.
 STEPS = Table("STEP", np.float32, (("kind", 1), ("radius", 1), ("curvature", 1), ("conic", 1),
                                    ("asphere", COEFFICIENT_COUNT), ("ap2", 1), ("stop", 1), ("ahead", 1),
-                                   ("action", 1), ("model", 1), ("n_from", 1), ("n_to", 1), ("shift", 1)))
+                                   ("action", 1), ("model", 1), ("medium_from", 1), ("medium_to", 1),
+                                   ("shift", 1)))
 KINDS = ("plane", "sphere", "asphere")
 ACTIONS = ("pass", "refract", "reflect")
 #: Newton steps on an asphere, and the largest |F| (mm) accepted as a hit: ``kernels/lens.cl``'s.
@@ -40,8 +42,12 @@ ASPHERE_ITERATIONS = 6
 ASPHERE_TOLERANCE_MM = 1e-4
 #: Rays each work item traces side by side (``kernels/ghost.cl``, ``trace_path``).
 RAYS_PER_ITEM = 4
-#: Rows of the kernel's input (origin x, y, w; direction) and output (film x, y; direction; weight; passed).
-IN_ROWS, OUT_ROWS = 6, 7
+#: Rows of the kernel's input (origin x, y, w; direction; wavelength) and output (film x, y; direction;
+#: weight; passed).
+IN_ROWS, OUT_ROWS = 7, 7
+#: Spacing (nm) of the media's indices tabulated for a launch (``media_table``): linear interpolation
+#: between nodes this close is off by under 1e-7 in n for the glasses' formulas (n'' ~ 1e-6 per nm^2).
+INDEX_SPACING_NM = 0.5
 
 
 def _c_float(value: float) -> str:
@@ -56,27 +62,39 @@ def ghost_header(lens: LensSystem) -> str:
     lines = [STEPS.defines(), constant_defines("KIND", KINDS), constant_defines("ACTION", ACTIONS),
              "#define MODEL_IDEAL 0\n#define MODEL_BARE 1\n#define MODEL_LAYER 2\n",
              f"#define COATING_INDEX {_c_float(MGF2_INDEX)}\n",
+             f"#define PI_LAMBDA0 {_c_float(math.pi * DESIGN_WAVELENGTH_NM)}\n",
              f"#define ASPHERE_ITERATIONS {ASPHERE_ITERATIONS}\n#define ASPHERE_TERMS {COEFFICIENT_COUNT}\n",
              f"#define ASPHERE_TOLERANCE_MM {_c_float(ASPHERE_TOLERANCE_MM)}\n",
              "#define STOP_R2 (s[STEP_AP2])\n", "\n".join(stop_lines(lens)) + "\n"]
     return "".join(lines)
 
 
-def step_table(lens: LensSystem, film_distance_mm: float, path: GhostPath | None,
-               wavelength_nm: float) -> np.ndarray:
-    """``STEPS`` rows (float32) of ``path`` (None: the direct path) at ``wavelength_nm``."""
+def media_table(lens: LensSystem, wavelengths_nm: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Each medium's index (rows: air in front, then the medium behind each surface) at nodes
+    ``INDEX_SPACING_NM`` apart covering ``wavelengths_nm`` (at least two), with the first node's
+    wavelength and the spacing: the kernel interpolates each ray's index linearly between them."""
+    low, high = float(np.min(wavelengths_nm)), float(np.max(wavelengths_nm))
+    nodes = max(2, math.ceil((high - low) / INDEX_SPACING_NM) + 1)
+    wavelengths = low + INDEX_SPACING_NM * np.arange(nodes)
+    behind = np.broadcast_to(lens.index_at(wavelengths).reshape(lens.surface_count, -1), (lens.surface_count, nodes))
+    return np.concatenate([np.ones((1, nodes)), behind]), low, INDEX_SPACING_NM
+
+
+def step_table(lens: LensSystem, film_distance_mm: float, path: GhostPath | None, media: np.ndarray) -> np.ndarray:
+    """``STEPS`` rows (float32) of ``path`` (None: the direct path), for the indices ``media``
+    (``media_table``: a surface between media that are the same at every node, with no coating, is
+    passed straight through)."""
     steps = path_steps(lens, path)
     surfaces = np.array([surface for surface, _ in steps])
     reflects = np.array([reflects for _, reflects in steps])
-    behind = lens.index_at(wavelength_nm)
-    front = np.concatenate([[1.0], behind[:-1]])
     # the ray travels toward the film before the first reflection and after the second
     toward_film = (np.cumsum(reflects) - reflects) % 2 == 0
-    n_from = np.where(toward_film, front[surfaces], behind[surfaces])
-    n_to = np.where(toward_film, behind[surfaces], front[surfaces])
+    medium_from = np.where(toward_film, surfaces, surfaces + 1)
+    medium_to = np.where(toward_film, surfaces + 1, surfaces)
     models = lens.interface_models[surfaces]
+    same = np.all(media[medium_from] == media[medium_to], axis=1)
     action = np.where(reflects, ACTIONS.index("reflect"),
-                      np.where((n_from == n_to) & (models == IDEAL), ACTIONS.index("pass"), ACTIONS.index("refract")))
+                      np.where(same & (models == IDEAL), ACTIONS.index("pass"), ACTIONS.index("refract")))
     radius = lens.radius_mm[surfaces]
     flat = (radius == 0) | ~np.isfinite(radius)
     kind = np.where(lens.aspheric[surfaces], KINDS.index("asphere"), np.where(flat, 0, KINDS.index("sphere")))
@@ -87,8 +105,8 @@ def step_table(lens: LensSystem, film_distance_mm: float, path: GhostPath | None
                       curvature=np.where(flat, 0.0, 1.0 / np.where(flat, 1.0, radius)),
                       conic=lens.conic[surfaces], asphere=lens.aspheric_coefficients[surfaces],
                       ap2=(lens.aperture_mm[surfaces] / 2) ** 2, stop=surfaces == lens.stop,
-                      ahead=(previous < 0) | (gaps != 0), action=action, model=models, n_from=n_from, n_to=n_to,
-                      shift=vertex_z[:-1] - vertex_z[1:])
+                      ahead=(previous < 0) | (gaps != 0), action=action, model=models, medium_from=medium_from,
+                      medium_to=medium_to, shift=vertex_z[:-1] - vertex_z[1:])
 
 
 class GhostKernel:
@@ -106,30 +124,35 @@ class GhostKernel:
         self._lock = threading.Lock()
 
     def trace(self, film_distance_mm: float, path: GhostPath | None, origins: np.ndarray, directions: np.ndarray,
-              wavelength_nm: float = GHOST_WAVELENGTH_NM) -> GhostTrace:
+              wavelength_nm: float | np.ndarray = GHOST_WAVELENGTH_NM) -> GhostTrace:
         """Rays (lens frame, float64 or float32, N x 3 each) along ``path`` (None: the direct path)
-        onto the film, at one wavelength, as ``ghosts.trace_ghost`` traces them."""
+        onto the film, at one wavelength or one per ray (N,), as ``ghosts.trace_ghost`` traces them."""
         lens = self.lens
-        steps = step_table(lens, film_distance_mm, path, wavelength_nm)
         origins = np.asarray(origins, np.float64).reshape(-1, 3)
         directions = np.asarray(directions, np.float64).reshape(-1, 3)
         count = len(origins)
         if count == 0:
             return GhostTrace(np.zeros((0, 2)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, bool))
+        wavelengths = np.broadcast_to(np.asarray(wavelength_nm, np.float64), (count,))
+        media, first_nm, spacing_nm = media_table(lens, wavelengths)
+        steps = step_table(lens, film_distance_mm, path, media)
         stride = self.rays_per_item * whole_groups(-(-count // self.rays_per_item))
         rays = np.zeros((IN_ROWS, stride), np.float32)
         rays[0:2, :count] = origins[:, :2].T
         # the axial position relative to the first surface's vertex, taken in float64
         rays[2, :count] = origins[:, 2] - lens.vertex_z_mm(film_distance_mm)[path_steps(lens, path)[0][0]]
         rays[3:6, :count] = (directions / np.linalg.norm(directions, axis=1, keepdims=True)).T
+        rays[6] = first_nm  # (the padding's too)
+        rays[6, :count] = wavelengths
         out = np.empty((OUT_ROWS, stride), np.float32)
-        phase = np.float32(math.pi * DESIGN_WAVELENGTH_NM / wavelength_nm)
         with self._lock:
             table = self.device.copied_buffer(steps, np.float32)
+            indices = self.device.copied_buffer(media, np.float32)
             given = self.device.copied_buffer(rays, np.float32)
             result = self.device.output_buffer(out.nbytes)
             self._kernel(self.queue, (stride // self.rays_per_item,), (LOCAL_SIZE,), np.uint32(count),
-                         np.uint32(len(steps)), table, phase, np.uint32(stride), given, result)
+                         np.uint32(len(steps)), table, indices, np.uint32(media.shape[1]), np.float32(first_nm),
+                         np.float32(1.0 / spacing_nm), np.uint32(stride), given, result)
             cl.enqueue_copy(self.queue, out, result)
         passed = out[6, :count] > 0
         film = np.where(passed[:, None], out[0:2, :count].T, np.nan)
