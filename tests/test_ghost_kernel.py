@@ -152,3 +152,16 @@ def test_kernel_traces_one_wavelength_per_ray_as_the_reference(name: str) -> Non
     red = kernel.trace(film, None, origins, directions, 700.0)
     both = blue.passed & red.passed
     assert np.max(np.abs(blue.film_xy[both] - red.film_xy[both])) > 1e-3  # the glasses disperse
+
+
+def test_kernel_meets_a_stop_touching_a_flat_face_as_the_reference() -> None:
+    """A stop 0 mm behind a plano-convex lens's flat face: the ray meets it where it leaves the face
+    (not required to be ahead), on every pass, in both traces."""
+    lens = build_lens("touching.dat", [1, 2, 3], [50.0, 0.0, 0.0], [5.0, 0.0, 45.0], [1.5, 1.0, 1.0], [0.0] * 3,
+                      [20.0, 20.0, 12.0]).with_coating("none")
+    assert lens.stop == 2 and lens.thickness_mm[1] == 0
+    film = paraxial_data(lens).bfl_mm
+    origins, directions = collimated_bundle(lens, film, 9.0, 3.0)
+    kernel = GhostKernel(lens)
+    passed = [_assert_matches(lens, film, path, origins, directions, kernel) for path in [None, GhostPath(0, 1)]]
+    assert min(passed) > 0.2 * len(origins)
