@@ -131,7 +131,7 @@ def ghost_paths(lens: LensSystem, *, wavelength_nm: float = GHOST_WAVELENGTH_NM,
     return [path for path in _all_paths(lens, wavelength_nm) if path.throughput >= threshold]
 
 
-def _unit_rows(array: np.ndarray, name: str, count: int | None = None) -> np.ndarray:
+def _rows_of_three(array: np.ndarray, name: str, count: int | None = None) -> np.ndarray:
     """``array`` as (N, 3) float64 (N = ``count`` when given), or a UserError naming it."""
     rows = np.asarray(array, dtype=np.float64)
     if rows.ndim != 2 or rows.shape[1] != 3 or (count is not None and len(rows) != count):
@@ -143,8 +143,8 @@ def _unit_rows(array: np.ndarray, name: str, count: int | None = None) -> np.nda
 def _trace(lens: LensSystem, film_distance_mm: float, steps: list[Step], origins: np.ndarray,
            directions: np.ndarray, wavelength_nm: float | np.ndarray) -> GhostTrace:
     """Rays from the scene side along ``steps`` to the film (``trace_ghost``)."""
-    origins = _unit_rows(origins, "origins")
-    directions = _unit_rows(directions, "directions", len(origins))
+    origins = _rows_of_three(origins, "origins")
+    directions = _rows_of_three(directions, "directions", len(origins))
     count = len(origins)
     length = np.sqrt(np.sum(directions * directions, axis=1))
     o: Vectors = (origins[:, 0], origins[:, 1], origins[:, 2])
