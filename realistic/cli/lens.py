@@ -15,6 +15,7 @@ import numpy as np
 
 from realistic.camera.lens_camera import MM_PER_METRE
 from realistic.cli.lens_convert import add_convert_command
+from realistic.cli.lens_ghosts import add_ghosts_command
 from realistic.cli.lens_judge import add_judge_commands
 from realistic.cli.values import LENS_HELP, checked, checked_exr, checked_plot, parse_resolution
 from realistic.core import validation
@@ -179,3 +180,4 @@ def add_lens_commands(commands: argparse._SubParsersAction) -> None:
     curves.set_defaults(run=cmd_lens_curves)
     add_convert_command(lens_commands)
     add_judge_commands(lens_commands)
+    add_ghosts_command(lens_commands)

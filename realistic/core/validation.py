@@ -82,6 +82,22 @@ def wavelength_nm(value: float) -> float:
     return value
 
 
+def ghost_threshold(value: float) -> float:
+    """A ghost's least on-axis throughput to be listed (``realistic.optics.ghosts``): from 0 to 1."""
+    value = finite(value, "ghost threshold")
+    if not 0.0 <= value <= 1.0:
+        raise UserError(f"ghost threshold must be between 0 and 1 (a fraction of the light), got {value:g}")
+    return value
+
+
+def field_angle_deg(value: float) -> float:
+    """A field angle in degrees: finite, strictly between -90 and 90."""
+    value = finite(value, "field angle (deg)")
+    if not abs(value) < 90:
+        raise UserError(f"field angle {value:g} deg must be between -90 and 90")
+    return value
+
+
 def resolution(width: int, height: int) -> tuple[int, int]:
     width = _in_range(_integer(width, "resolution width"), "resolution width", 1, MAX_IMAGE_SIDE)
     height = _in_range(_integer(height, "resolution height"), "resolution height", 1, MAX_IMAGE_SIDE)
