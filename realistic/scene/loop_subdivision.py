@@ -251,8 +251,10 @@ def _limit_normals(limit: np.ndarray, faces: np.ndarray, topology: _Topology) ->
     """pbrt's limit normals, S x T of its tangent masks on each point's ordered one-ring of limit
     points (``_tangent_masks``). A point where S x T vanishes (a degenerate ring) takes the sum of
     its triangles' area normals, oriented as pbrt's are (against the counter-clockwise winding), and
-    +z where those cancel too."""
+    +z where those cancel too. The points are scaled to at most 1 first: a direction does not
+    depend on it, and products of large coordinates do not overflow."""
     n_points = len(limit)
+    limit = limit / (np.abs(limit).max(initial=0.0) or 1.0)
     fans = _fans(faces, topology, n_points)
     next_point = np.roll(faces, -1, axis=1).ravel()
     previous_point = np.roll(faces, -2, axis=1).ravel()
