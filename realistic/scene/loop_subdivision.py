@@ -132,11 +132,14 @@ def _topology(faces: np.ndarray, n_points: int) -> _Topology:
     start = faces.ravel()
     end = np.roll(faces, -1, axis=1).ravel()
     key = np.minimum(start, end) * n_points + np.maximum(start, end)
-    unique, edge_of, counts = np.unique(key, return_inverse=True, return_counts=True)
-    edges = np.column_stack([unique // n_points, unique % n_points])
     # half-edges sorted by edge: the two of an edge with two faces sit side by side
-    order = np.argsort(edge_of, kind="stable")
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    order = np.argsort(key, kind="stable")
+    ordered = key[order]
+    first = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1]]))
+    counts = np.diff(np.append(first, len(key)))
+    edge_of = np.empty(len(key), dtype=np.int64)
+    edge_of[order] = np.repeat(np.arange(len(first)), counts)
+    edges = np.column_stack([ordered[first] // n_points, ordered[first] % n_points])
     paired = first[counts == 2]
     twin = np.full(len(start), -1, dtype=np.int64)
     twin[order[paired]], twin[order[paired + 1]] = order[paired + 1], order[paired]
