@@ -9,7 +9,7 @@ from collections import defaultdict
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from realistic.errors import UserError
@@ -397,7 +397,6 @@ def test_points_no_triangle_uses_are_dropped():
     assert np.allclose(subdivided.vertices, loop_subdivide(vertices, faces, 1).vertices)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(3, 7), st.lists(st.tuples(st.integers(0, 6), st.integers(0, 6), st.integers(0, 6)),
                                    min_size=1, max_size=10), st.integers(0, 2), st.integers(0, 2 ** 32 - 1))
 def test_random_small_meshes_subdivide_or_are_refused_in_one_line(points, triangles, levels, seed):
@@ -413,7 +412,6 @@ def test_random_small_meshes_subdivide_or_are_refused_in_one_line(points, triang
     assert np.allclose(np.linalg.norm(subdivided.normals, axis=1), 1)
 
 
-@settings(max_examples=40, deadline=None)
 @given(st.sets(st.integers(0, 19), min_size=1), st.integers(0, 2))
 def test_any_piece_of_an_icosahedron_subdivides_unless_a_point_joins_two_fans(kept, levels):
     vertices, faces = ICOSAHEDRON
