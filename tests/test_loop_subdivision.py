@@ -485,6 +485,14 @@ def test_levels_that_would_exhaust_memory_are_lowered_with_a_warning(tmp_path, m
                                  f"(subdivided 2 times)"]
 
 
+@pytest.mark.parametrize("levels", ["2.5", "-0.5"])
+def test_levels_that_are_not_a_whole_number_are_an_error_at_the_line(tmp_path, levels):
+    path = pbrt_file(tmp_path, f'"integer levels" {levels}')
+    with pytest.raises(UserError) as err:
+        import_pbrt(path)
+    assert str(err.value) == f'{path}:5: loopsubdiv "levels" must be a whole number, got {float(levels):g}'
+
+
 def test_negative_levels_subdivide_none_as_pbrt_does(tmp_path):
     assert len(the_mesh(import_pbrt(pbrt_file(tmp_path, '"integer levels" -2'))).faces) == 8
 

@@ -18,7 +18,7 @@ from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import Mesh
 from realistic.scene.pbrt.dialect import ParameterNames
 from realistic.scene.pbrt.parser import ShapeRecord
-from realistic.scene.pbrt.values import located, whole_number
+from realistic.scene.pbrt.values import located
 from realistic.scene.shapes import cone, cylinder, disk, sphere
 
 #: Shapes pbrt defines by an equation, whose front is their object-space outside.
@@ -140,13 +140,13 @@ class ShapeMeshes:
         given = [name for name in self.names.subdivision_levels if shape.params.has(name)]
         name = given[0] if given else self.names.subdivision_levels[0]
         value = shape.params.get_float(name, 3.0)
-        if not np.isfinite(value):
+        if not (np.isfinite(value) and value == int(value)):
             raise UserError(f'{shape.where}: loopsubdiv "{name}" must be a whole number, got {value:g}')
-        levels = max(whole_number(shape.params, name, 3.0, shape.where), 0)
+        levels = max(int(value), 0)
         fitting = levels_that_fit(len(faces), levels)
         if fitting < levels:
-            self.warn(shape.where, f'loopsubdiv "{name}" {levels} would make 4^{levels} x {len(faces):,} triangles '
-                                   f"(subdivided {fitting} times)")
+            self.warn(shape.where, f'loopsubdiv "{name}" {value:g} would make 4^{value:g} x {len(faces):,} '
+                                   f"triangles (subdivided {fitting} times)")
         with located(shape.where):
             subdivided = loop_subdivide(vertices, faces, fitting)
         return Mesh(subdivided.vertices, subdivided.faces, subdivided.normals, None, shape.type)
