@@ -3,6 +3,7 @@
 - ``model``: ``Scene`` and its plain parts (meshes, instances, materials, textures, area lights).
 - ``lights``: point, spot, distant and infinite lights (environment maps) and emitting instances.
 - ``shapes``: analytic shapes tessellated into meshes.
+- ``loop_subdivision``: pbrt's Loop subdivision (loopsubdiv) to the limit surface, with pbrt's normals.
 - ``meshes``: mesh files through trimesh (OBJ, PLY, STL, GLB/GLTF, OFF), refusing what would render wrong;
   ``mesh_text_checks`` reads the text trimesh would misread, ``mesh_diagnosis`` says why a file is
   unreadable.

@@ -190,16 +190,22 @@ class ParameterNames:
     - an area light's sample count: ``nsamples`` in pbrt-v1/v2 (pbrt-v2 ``src/lights/diffuse.cpp``,
       CreateAreaLight), ``samples`` in pbrt-v3, which still reads ``nsamples`` when ``samples`` is
       not given (pbrt-v3 ``src/lights/diffuse.cpp``: FindOneInt("samples", FindOneInt("nsamples",
-      1))); pbrt-v4's lights take none (its integrators sample one light per bounce).
+      1))); pbrt-v4's lights take none (its integrators sample one light per bounce);
+    - loopsubdiv's number of levels (default 3 in all): ``nlevels`` in pbrt-v1/v2 (pbrt-v2
+      ``src/shapes/loopsubdiv.cpp``, CreateLoopSubdivShape), ``levels`` in pbrt-v3, which still reads
+      ``nlevels`` when ``levels`` is not given (pbrt-v3 ``src/shapes/loopsubdiv.cpp``, CreateLoopSubdiv:
+      FindOneInt("levels", FindOneInt("nlevels", 3))), ``levels`` alone in pbrt-v4 (``src/pbrt/shapes.cpp``,
+      Shape::Create; its ``--upgrade`` renames ``nlevels``, ``src/pbrt/parser.cpp``).
     """
 
     scale_factors: tuple[str, str]
     light_samples: tuple[str, ...]  # the names read, first match wins
+    subdivision_levels: tuple[str, ...]  # the names read, first match wins
 
 
-CLASSIC_NAMES = ParameterNames(("tex1", "tex2"), ("nsamples",))
-PBRT3_NAMES = ParameterNames(("tex1", "tex2"), ("samples", "nsamples"))
-PBRT4_NAMES = ParameterNames(("tex", "scale"), ())
+CLASSIC_NAMES = ParameterNames(("tex1", "tex2"), ("nsamples",), ("nlevels",))
+PBRT3_NAMES = ParameterNames(("tex1", "tex2"), ("samples", "nsamples"), ("levels", "nlevels"))
+PBRT4_NAMES = ParameterNames(("tex", "scale"), (), ("levels",))
 
 
 _IMAGEMAP = {"v1": ImagemapConventions("trilinear", "ewa", "gamma exponent"),

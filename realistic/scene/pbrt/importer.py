@@ -81,7 +81,7 @@ class _Importer:
         self.dialect = dialect
         self.scene = Scene()
         self.materials: dict[int, SurfaceMaterial] = {}
-        self.shape_meshes = ShapeMeshes(self.warn, self.find)
+        self.shape_meshes = ShapeMeshes(self.warn, self.find, dialect.names)
         # shape record -> (mesh index, local transform, object-space box corners)
         self.stored: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
         # a mesh file's meshes are stored once (the intersector then builds each once for all its

@@ -1,7 +1,8 @@
 """pbrt shapes as our meshes: the analytic ones (sphere, disk, cone, cylinder) tessellated,
-trianglemesh, plymesh (a file named by several shapes is loaded once), loopsubdiv (its control
-mesh) and pbrt-v4's bilinearmesh (two triangles per patch). Bad points or indices are errors; sizes
-that leave nothing to render and parameters we cannot honour are warnings with file and line."""
+trianglemesh, plymesh (a file named by several shapes is loaded once), loopsubdiv (subdivided as
+pbrt does: ``realistic.scene.loop_subdivision``) and pbrt-v4's bilinearmesh (two triangles per
+patch). Bad points or indices are errors; sizes that leave nothing to render and parameters we
+cannot honour are warnings with file and line."""
 
 from __future__ import annotations
 
@@ -12,9 +13,12 @@ import numpy as np
 
 from realistic.core.transforms import translate
 from realistic.errors import UserError
+from realistic.scene.loop_subdivision import levels_that_fit, loop_subdivide
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import Mesh
+from realistic.scene.pbrt.dialect import ParameterNames
 from realistic.scene.pbrt.parser import ShapeRecord
+from realistic.scene.pbrt.values import located
 from realistic.scene.shapes import cone, cylinder, disk, sphere
 
 #: Shapes pbrt defines by an equation, whose front is their object-space outside.
@@ -44,11 +48,13 @@ def reach_of(transform: np.ndarray, corners: np.ndarray) -> float:
 
 
 class ShapeMeshes:
-    """Tessellates or loads shapes; ``warn(where, message)`` reports what is not honoured and
-    ``find(name, directory, where, what)`` resolves a file a shape names."""
+    """Tessellates or loads shapes; ``warn(where, message)`` reports what is not honoured,
+    ``find(name, directory, where, what)`` resolves a file a shape names and ``names`` are the
+    scene's pbrt version's parameter names."""
 
-    def __init__(self, warn: Callable[[str, str], None], find: Callable[[str, Path, str, str], Path]):
-        self.warn, self.find = warn, find
+    def __init__(self, warn: Callable[[str, str], None], find: Callable[[str, Path, str, str], Path],
+                 names: ParameterNames):
+        self.warn, self.find, self.names = warn, find, names
         # a mesh file named by several shapes is loaded once: path -> its objects
         self.loaded: dict[Path, list[tuple[Mesh, np.ndarray]]] = {}
         # an analytic shape is tessellated once per size: (type, sizes) -> its mesh, so that a thousand
@@ -79,10 +85,8 @@ class ShapeMeshes:
             return [(self.triangle_mesh(shape), np.eye(4))]
         if shape.type == "bilinearmesh":
             return [(self.bilinear_mesh(shape), np.eye(4))]
-        if shape.type == "loopsubdiv":  # pbrt-v3/v4: "indices" and "P" of a triangle control mesh, "levels"
-            vertices, indices = self._indexed_points(shape, 3, "triangle")
-            self.warn(shape.where, "loopsubdiv (rendered as its control mesh, not subdivided)")
-            return [(Mesh(vertices, indices.reshape(-1, 3), None, None, shape.type), np.eye(4))]
+        if shape.type == "loopsubdiv":
+            return [(self.loop_subdivision(shape), np.eye(4))]
         if shape.type == "plymesh":
             filename = p.get_string("filename")
             if not filename:
@@ -125,6 +129,27 @@ class ShapeMeshes:
         with a warning, as pbrt does."""
         vertices, indices = self._indexed_points(shape, 3, "triangle")
         return self._mesh_with_attributes(shape, vertices, indices.reshape(-1, 3))
+
+    def loop_subdivision(self, shape: ShapeRecord) -> Mesh:
+        """pbrt's loopsubdiv: the triangle control mesh of "P" and "indices" subdivided "levels" times
+        (the name per version: ``ParameterNames``; default 3) and pushed to its limit surface, with
+        pbrt's limit normals. Fewer levels (with a warning) where 4^levels times the triangles would
+        pass ``MAX_TRIANGLES``; none below 0 (pbrt's loop then runs no level either)."""
+        vertices, indices = self._indexed_points(shape, 3, "triangle")
+        faces = indices.reshape(-1, 3)
+        given = [name for name in self.names.subdivision_levels if shape.params.has(name)]
+        name = given[0] if given else self.names.subdivision_levels[0]
+        value = shape.params.get_float(name, 3.0)
+        if not (np.isfinite(value) and value == int(value)):
+            raise UserError(f'{shape.where}: loopsubdiv "{name}" must be a whole number, got {value:g}')
+        levels = max(int(value), 0)
+        fitting = levels_that_fit(len(faces), levels)
+        if fitting < levels:
+            self.warn(shape.where, f'loopsubdiv "{name}" {value:g} would make 4^{value:g} x {len(faces):,} '
+                                   f"triangles (subdivided {fitting} times)")
+        with located(shape.where):
+            subdivided = loop_subdivide(vertices, faces, fitting)
+        return Mesh(subdivided.vertices, subdivided.faces, subdivided.normals, None, shape.type)
 
     def bilinear_mesh(self, shape: ShapeRecord) -> Mesh:
         """pbrt-v4's bilinearmesh (src/pbrt/shapes.cpp, BilinearPatch::CreateMesh): each patch's four
