@@ -114,19 +114,24 @@ def test_homework_scene_camera_and_instances():
     assert scene.warnings == []
 
 
-def test_typed_getters_give_the_default_only_when_a_parameter_gives_no_value():
-    """``get_float``/``get_floats``/``get_string`` fall back to the default for a missing or empty
-    parameter; ``get_required_float`` refuses both in one line naming the parameter."""
+def test_typed_getters_give_the_default_only_when_a_parameter_is_missing():
+    """``get_float``/``get_floats``/``get_string`` fall back to the default for a missing parameter;
+    ``get_required_float`` refuses one in one line naming it. Any lookup of an empty list
+    (``"float empty" []``) is an error at its file and line, as in pbrt-v4 (issue 34: it used to
+    read as absent)."""
     params = Params({"empty": Param("float", "empty", (), "scene.pbrt:3"),
                      "two": Param("float", "two", (1.5, 2.5), "scene.pbrt:4"),
                      "word": Param("string", "word", ("box",), "scene.pbrt:5")})
-    assert params.get_float("empty", 7.0) == 7.0 and params.get_float("missing") is None
+    assert params.get_float("missing") is None
     assert params.get_float("two", 7.0) == 1.5 and params.get_floats("two", []) == [1.5, 2.5]
     assert params.get_string("word", "x") == "box" and params.get_string("missing", "x") == "x"
     assert params.get_required_float("two") == 1.5
-    for name in ("empty", "missing"):
-        with pytest.raises(UserError, match=f'^"{name}" needs a number$'):
-            params.get_required_float(name)
+    with pytest.raises(UserError, match='^"missing" needs a number$'):
+        params.get_required_float("missing")
+    for lookup in (lambda: params.get_float("empty", 7.0), lambda: params.get_floats("empty"),
+                   lambda: params.get_required_float("empty"), lambda: params.has("empty")):
+        with pytest.raises(UserError, match=r'^scene.pbrt:3: "float empty" \[\] is an empty list'):
+            lookup()
     with pytest.raises(UserError, match='scene.pbrt:5: "word" expects numbers'):
         params.get_floats("word")
 

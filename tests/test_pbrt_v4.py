@@ -320,3 +320,16 @@ def test_transform_blocks_keep_only_the_transform_before_v4_and_everything_in_v4
     assert parsed.shapes[0].material.type == material and parsed.shapes[0].transform[0, 3] == 0
     said = warnings_about(imported, "s.pbrt:6: unsupported: TransformBegin/End (deprecated in pbrt-v4")
     assert bool(said) == (dialect == "v4")
+
+
+@pytest.mark.parametrize("body,line", [('Shape "sphere" "float radius" []\n', 5),
+                                       ('Attribute "shape" "float radius" [ ]\nShape "sphere"\n', 5),
+                                       ('Material "conductor" "spectrum eta" []\nShape "sphere"\n', 5)])
+def test_an_empty_parameter_list_is_an_error_at_its_line_as_in_pbrt_v4(tmp_path, body, line):
+    """pbrt-v4 refuses an empty list where it reads a value (src/pbrt/paramdict.cpp, lookupSingle:
+    "No values provided for parameter"); it used to read as if absent (a unit sphere)."""
+    path = world(tmp_path, body)
+    with pytest.raises(UserError) as error:
+        import_pbrt(path)
+    assert str(error.value).startswith(f"{path}:{line}: ") and "[] is an empty list" in str(error.value)
+    assert "\n" not in str(error.value)

@@ -4,7 +4,13 @@
 ``PowerLightSampler``; powers as pbrt-v3's ``Light::Power``) and one point or direction on it;
 densities are per unit solid angle at the shading point and include P_j. Area lights (their table
 and points: ``renderer.area_lights``) and emitting instances are sampled uniformly by area
-(solid-angle pdf d^2 / (cos_q A)); point, spot and distant lights are deltas (``delta`` True,
+(solid-angle pdf d^2 / (cos_q A)), except an emitting sphere (``EmissiveInstance.sphere``) seen from
+outside it, sampled uniformly within the cone it subtends (pdf 1 / (2 pi (1 - cos theta_max)), as
+pbrt-v3 ``src/shapes/sphere.cpp`` Sphere::Sample(const Interaction &, ...) and pbrt-v4
+``src/pbrt/shapes.h`` Sphere::Sample(ShapeSampleContext) do; from inside, by area as they do). Its
+mesh is inscribed in the sphere: a direction of the cone meets the mesh (found by a ray against that
+mesh alone, in its object space) or misses it and brings nothing, so the estimate stays unbiased for
+the mesh that is rendered; point, spot and distant lights are deltas (``delta`` True,
 pdf = P_j); an infinite light with a map is importance sampled by a ``Distribution2D`` over its
 texels' luminance (times sin(theta) for a lat-long map, whose texels shrink toward the poles),
 without one uniformly over the sphere. ``pdf_area``, ``pdf_instance``
@@ -26,8 +32,10 @@ from realistic.core.spectrum import spectral_value
 from realistic.core.transforms import transform_points
 from realistic.core.vectors import dot
 from realistic.renderer.area_lights import AreaLightTable
+from realistic.renderer.bsdf.base import ShadingFrame
+from realistic.scene.intersect import Intersector
 from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, SpotLight
-from realistic.scene.model import AreaLight, Scene
+from realistic.scene.model import AreaLight, Instance, Scene
 
 AREA, POINT, SPOT, DISTANT, INFINITE, INSTANCE = range(6)
 #: Luminance weights of linear sRGB (Rec. 709), for the environment maps' sampling densities.
@@ -117,6 +125,24 @@ class _Emitter:
         self.area = float(area.sum() / 2)
         self.cdf = np.cumsum(area) / area.sum()
         self.light = light
+        self.mesh = mesh
+        self.to_object = np.linalg.inv(np.asarray(inst.transform, np.float64)) if light.sphere else np.eye(4)
+        # the world winding's side of an object-space direction: flipped by a mirroring transform
+        self.winding = -1.0 if np.linalg.det(np.asarray(inst.transform, np.float64)[:3, :3]) < 0 else 1.0
+
+    def cone(self, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For points (N, 3) and this emitter's sphere: whether each lies outside it, the unit axis
+        to its centre, and 1 - cos(theta_max) of the cone it subtends (float64; as sin^2 / (1 + cos),
+        which keeps its digits for a small or distant sphere)."""
+        assert self.light.sphere is not None
+        centre, radius = self.light.sphere
+        to_centre = np.asarray(centre, np.float64) - np.asarray(point, np.float64)
+        d2 = np.einsum("ij,ij->i", to_centre, to_centre)
+        outside = d2 > radius * radius
+        sin2 = np.where(outside, radius * radius / np.where(outside, d2, 1.0), 1.0)
+        cos_max = np.sqrt(np.maximum(0.0, 1.0 - sin2))
+        axis = to_centre / np.sqrt(np.maximum(d2, 1e-300))[:, None]
+        return outside, axis, sin2 / (1.0 + cos_max)
 
 
 class LightSampler:
@@ -133,6 +159,7 @@ class LightSampler:
         self.environments: dict[int, _Environment] = {}
         self.emitters: dict[int, _Emitter] = {}
         self.instance_light: dict[int, int] = {}  # emitting instance -> light index
+        self._mesh_alone: dict[int, Intersector] = {}  # an emitting sphere's mesh -> rays against it alone
         for i, light in enumerate(self.lights):
             if isinstance(light, AreaLight):
                 self.kind[i], self.area_slot[i] = AREA, area_index[id(light)]
@@ -201,6 +228,13 @@ class LightSampler:
                                   table.area[slot], np.take(table.radiance, slot, axis=0), wi, distance, rgb, pdf)
         for i, emitter in self.emitters.items():
             rows = np.flatnonzero(j == i)
+            if len(rows) and emitter.light.sphere is not None:
+                outside, axis, one_minus_cos = emitter.cone(p[rows])
+                cone = rows[outside]
+                if len(cone):
+                    self._towards_sphere(emitter, cone, p, axis[outside], one_minus_cos[outside], u1[cone],
+                                         u2[cone], wi, target, distance, rgb, pdf)
+                rows = rows[~outside]  # inside its sphere: by area (pbrt: "sample shape by area")
             if len(rows):
                 # reuse u1 for the triangle (rescaled within its CDF step) and (u1', u2) inside it
                 tri = np.minimum(np.searchsorted(emitter.cdf, u1[rows], side="right"), len(emitter.cdf) - 1)
@@ -252,6 +286,38 @@ class LightSampler:
         valid = (pdf > 0) & np.any(rgb != 0, axis=1)
         return LightSample(wi, target, distance, colour(rgb, basis), pdf, delta, valid)
 
+    def _towards_sphere(self, emitter: _Emitter, rows: np.ndarray, p: np.ndarray, axis: np.ndarray,
+                        one_minus_cos: np.ndarray, u1: np.ndarray, u2: np.ndarray, wi: np.ndarray,
+                        target: np.ndarray, distance: np.ndarray, rgb: np.ndarray, pdf: np.ndarray) -> None:
+        """Fill ``wi``, ``distance``, ``rgb``, ``pdf`` and ``target`` at ``rows`` (points ``p[rows]``
+        outside ``emitter``'s sphere) with directions uniform in the cone the sphere subtends, about
+        ``axis``; where one misses the emitter's mesh or meets its back, it brings nothing."""
+        lower = u1 * one_minus_cos  # 1 - cos(theta), uniform on [0, 1 - cos(theta_max)]
+        cos = 1.0 - lower
+        sin = np.sqrt(np.maximum(0.0, lower * (2.0 - lower)))
+        phi = 2.0 * math.pi * u2
+        frame = ShadingFrame(axis.astype(np.float32))
+        w = frame.to_world(np.column_stack([sin * np.cos(phi), sin * np.sin(phi), cos]).astype(np.float32))
+        to_object = emitter.to_object
+        origin = transform_points(to_object, p[rows].astype(np.float64)).astype(np.float32)
+        direction = (w.astype(np.float64) @ to_object[:3, :3].T).astype(np.float32)
+        hits = self._alone(emitter).closest(origin, direction)  # t: world units along w, as the map is affine
+        front = emitter.winding * dot(direction, hits.normal) < 0
+        ok = (hits.geom >= 0) & (front | emitter.light.two_sided)
+        t = np.where(ok, hits.t, 0.0).astype(np.float32)
+        wi[rows], distance[rows] = w, t
+        target[rows] = p[rows] + t[:, None] * w
+        rgb[rows] = np.where(ok[:, None], np.asarray(emitter.light.radiance, np.float32), 0.0)
+        pdf[rows] = np.where(ok, 1.0 / (2.0 * math.pi * one_minus_cos), 0.0)
+
+    def _alone(self, emitter: _Emitter) -> Intersector:
+        """Rays against ``emitter``'s mesh alone in its object space: one per mesh, built on first use
+        (equal spheres share their tessellation, and so this)."""
+        key = id(emitter.mesh)
+        if key not in self._mesh_alone:
+            self._mesh_alone[key] = Intersector(Scene(meshes=[emitter.mesh], instances=[Instance(0)]), share=False)
+        return self._mesh_alone[key]
+
     @staticmethod
     def _towards_surface(rows: slice | np.ndarray, p: np.ndarray, q: np.ndarray, normal: np.ndarray,
                          two_sided: np.ndarray, area: np.ndarray, radiance: np.ndarray, wi: np.ndarray,
@@ -295,12 +361,20 @@ class LightSampler:
         return colour(rgb, basis)
 
     def pdf_instance(self, light: int, origin: np.ndarray, hit: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """Density with which ``sample`` would find the points ``hit`` (faces of geometric normal
+        ``normal``) on emitting instance ``light`` from ``origin``: the cone's for an emitting sphere
+        seen from outside it, by area otherwise."""
+        emitter = self.emitters[light]
         to = np.asarray(hit, np.float64) - origin
         d2 = np.einsum("ij,ij->i", to, to)
         n = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
         cos_q = np.abs(np.einsum("ij,ij->i", to, n)) / np.sqrt(np.maximum(d2, 1e-300))
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(cos_q > 0, self.probability[light] * d2 / (cos_q * self.emitters[light].area), 0.0)
+            density = np.where(cos_q > 0, d2 / (cos_q * emitter.area), 0.0)
+        if emitter.light.sphere is not None:
+            outside, _, one_minus_cos = emitter.cone(origin)
+            density = np.where(outside, 1.0 / (2.0 * math.pi * one_minus_cos), density)
+        return self.probability[light] * density
 
     def environment(self, direction: np.ndarray, basis: np.ndarray | None, camera: bool) -> np.ndarray:
         """Radiance (N, C) from the infinite lights along ``direction``; with none, the background for

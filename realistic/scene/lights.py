@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from realistic.core import validation
+from realistic.errors import UserError
 from realistic.scene.model import RGB, AreaLight
 
 SPOT_FALLOFFS = ("quartic", "smoothstep")
@@ -146,17 +147,40 @@ class InfiniteLight:
 @dataclass(frozen=True, eq=False)
 class EmissiveInstance:
     """Instance ``Scene.instances[instance]`` emits ``radiance`` from its front faces (both with
-    ``two_sided``) and still reflects by its material: pbrt's area light on an arbitrary shape."""
+    ``two_sided``) and still reflects by its material: pbrt's area light on an arbitrary shape.
+    ``sphere``: the world centre and radius of the sphere the instance's mesh is inscribed in when it
+    tessellates one (``sphere_in_world``), which the renderer samples by the cone it subtends."""
 
     instance: int
     radiance: RGB
     two_sided: bool = False
+    sphere: tuple[tuple[float, float, float], float] | None = None
 
     def __post_init__(self) -> None:
         validation.emission(self.radiance, "area light radiance")
+        if self.sphere is not None:
+            centre, radius = self.sphere
+            for value in centre:
+                validation.finite(value, "emitting sphere centre")
+            if not validation.finite(radius, "emitting sphere radius") > 0:
+                raise UserError(f"emitting sphere radius must be positive, got {radius:g}")
 
     def power(self, area: float) -> float:
         return math.pi * area * (2.0 if self.two_sided else 1.0) * float(np.mean(self.radiance))
+
+
+def sphere_in_world(transform: np.ndarray, radius: float) -> tuple[tuple[float, float, float], float] | None:
+    """World centre and radius of the sphere of ``radius`` about the object-space origin that the
+    affine ``transform`` places; None where the transform is no similarity (it makes an ellipsoid)."""
+    m = np.asarray(transform, np.float64)
+    linear = m[:3, :3]
+    with np.errstate(all="ignore"):
+        gram = linear.T @ linear
+        scale2 = float(np.trace(gram)) / 3.0
+        similar = 0 < scale2 < np.inf and np.allclose(gram, scale2 * np.eye(3), rtol=0.0, atol=1e-9 * scale2)
+    if not (similar and np.all(np.isfinite(m[:3, 3]))):
+        return None
+    return (float(m[0, 3]), float(m[1, 3]), float(m[2, 3])), float(radius) * math.sqrt(scale2)
 
 
 Light = AreaLight | PointLight | SpotLight | DistantLight | InfiniteLight | EmissiveInstance

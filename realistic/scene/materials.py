@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 from realistic.core import validation
 from realistic.errors import UserError
-from realistic.scene.metals import copper
+from realistic.scene.metals import TABLES, copper
 from realistic.scene.surfaces import RGB, CheckerTexture, GridTexture, ImageTexture, Material
 
 ROUGHNESS_RULES = ("alpha", "pbrt-v3", "sqrt", "blinn")
@@ -116,7 +116,9 @@ class CoatedDiffuse:
 class Conductor:
     """A metal: GGX microfacets (``roughness`` u and v) with the conductor Fresnel reflectance of a
     complex index ``eta`` + i ``k`` (RGB; copper by default); roughness 0 is a perfect mirror. ``scale`` tints it
-    (pbrt-v1/v2 shinymetal's reflectance, 1 otherwise)."""
+    (pbrt-v1/v2 shinymetal's reflectance, 1 otherwise). ``spectra``: the named metals (``metals.TABLES``)
+    whose eta and k spectra these are, for pbrt-v4's spectral Fresnel (``metals.reflectance_table``) in
+    place of Fresnel of the RGB eta and k; None for RGB indices."""
 
     eta: Colour = copper()[0]
     k: Colour = copper()[1]
@@ -124,8 +126,12 @@ class Conductor:
     roughness_v: Scalar = 0.01
     rule: str = "alpha"
     scale: Colour = (1.0, 1.0, 1.0)
+    spectra: tuple[str, str] | None = None
 
     def __post_init__(self) -> None:
+        if self.spectra is not None and not set(self.spectra) <= set(TABLES):
+            raise UserError(f"conductor spectra must name metals among {', '.join(sorted(TABLES))}, "
+                            f"got {self.spectra!r}")
         _colour(self.eta, "conductor eta", 1e-4)
         _colour(self.k, "conductor k")
         _scalar(self.roughness_u, "conductor uroughness")

@@ -9,6 +9,19 @@ Silver, aluminium, gold (on the same 56 wavelengths), magnesium oxide and titani
 here. Every table is turned into RGB by the same integral as every pbrt-v4 sampled spectrum here
 (``realistic.scene.measured.spectrum_to_rgb``); pbrt-v1/v2/v3 files convert copper as those
 versions do (``realistic.scene.pbrt.materials``).
+
+pbrt-v4 does not convert eta and k: ``ConductorMaterial`` (``src/pbrt/materials.h``) samples both
+spectra at the ray's wavelengths, ``ConductorBxDF`` (``src/pbrt/bxdfs.h``) evaluates ``FrComplex``
+(``src/pbrt/util/scattering.h``) per wavelength, and the RGB film integrates the result. Fresnel
+of the RGB-converted indices differs from that (gold's red -4.6 %, green +3.9 % at normal
+incidence), so ``reflectance_table`` tabulates, per pair of named spectra, the RGB that pbrt-v4's
+film records for the spectral Fresnel reflectance against cos(theta): the reflectance under the
+white of an RGB light (``rgb L [1 1 1]`` emits the sRGB illuminant D65, ``RGBIlluminantSpectrum``
+in ``src/pbrt/util/spectrum.h``) through the default ``cie1931`` sensor (``src/pbrt/film.h``
+``PixelSensor``: x bar, y bar, z bar, no white balance) and sRGB's ``RGBFromXYZ``
+(``src/pbrt/util/colorspace.cpp``): RGB = RGBFromXYZ int F D65 (x, y, z bar) / int D65 y bar over
+360-830 nm (``realistic.core.pbrt_spectra``), so a reflectance of 1 records (1, 1, 1). Gold lies
+outside sRGB's gamut: its red records 1.022 at normal incidence, as in pbrt-v4.
 """
 
 from __future__ import annotations
@@ -17,6 +30,7 @@ from functools import cache
 
 import numpy as np
 
+from realistic.core.pbrt_spectra import CIE_NM, CMF, PBRT4_RGB_FROM_XYZ, named_illuminant
 from realistic.scene.measured import spectrum_to_rgb
 
 COPPER_NM = (
@@ -105,6 +119,9 @@ TABLES = {
     "MgO": (MGO_NM, MGO_N, MGO_K),
     "TiO2": (TIO2_NM, TIO2_N, TIO2_K),
 }
+#: The cosines, evenly spaced over [0, 1], at which ``reflectance_table`` samples the reflectance
+#: (linear interpolation between them is within 5e-5 of the integral for every metal here).
+TABLE_COSINES = np.linspace(0.0, 1.0, 513)
 RGBPair = tuple[tuple[float, float, float], tuple[float, float, float]]
 
 
@@ -124,3 +141,40 @@ def named_metal(name: str) -> RGBPair:
 def copper() -> RGBPair:
     """Copper's (eta, k) as RGB triples."""
     return named_metal("Cu")
+
+
+def fr_complex(cos_i: np.ndarray, eta: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of a conductor of complex index ``eta`` + i ``k`` seen from a
+    medium of index 1 at cosines ``cos_i`` in [0, 1] (broadcast against ``eta`` and ``k``): pbrt-v4
+    ``FrComplex`` (``src/pbrt/util/scattering.h``), in complex float64."""
+    cos_i = np.asarray(cos_i, np.float64)
+    index = np.asarray(eta, np.float64) + 1j * np.asarray(k, np.float64)
+    sin2_t = (1.0 - cos_i * cos_i) / (index * index)
+    cos_t = np.sqrt(1.0 - sin2_t)
+    r_parl = (index * cos_i - cos_t) / (index * cos_i + cos_t)
+    r_perp = (cos_i - index * cos_t) / (cos_i + index * cos_t)
+    return (np.abs(r_parl) ** 2 + np.abs(r_perp) ** 2) / 2.0
+
+
+@cache
+def film_weights() -> np.ndarray:
+    """(471, 3) weights at ``CIE_NM`` (1 nm apart) turning a spectral reflectance into the linear
+    sRGB pbrt-v4's film records for it under a white RGB light (module docstring); each column sums to 1."""
+    d65 = named_illuminant("stdillum-D65")
+    if d65 is None:
+        raise LookupError("stdillum-D65 is missing from realistic.core.cie_data")
+    return (d65[:, None] * CMF) @ PBRT4_RGB_FROM_XYZ.T / float(d65 @ CMF[:, 1])
+
+
+@cache
+def reflectance_table(eta_metal: str, k_metal: str) -> np.ndarray:
+    """(len(TABLE_COSINES), 3) float32: the RGB pbrt-v4's film records for the Fresnel reflectance of
+    the spectra "metal-<eta_metal>-eta" and "metal-<k_metal>-k" (``TABLES``) at each of
+    ``TABLE_COSINES``. Each table is linear between its samples; beyond its ends it holds its end
+    values (pbrt-v4 reads 0 there; only MgO ends inside 360-830 nm, at 768 nm, where an index of 0
+    would leave Fresnel undefined)."""
+    eta_nm, eta, _ = TABLES[eta_metal]
+    k_nm, _, k = TABLES[k_metal]
+    eta_cie, k_cie = np.interp(CIE_NM, eta_nm, eta), np.interp(CIE_NM, k_nm, k)
+    reflectance = fr_complex(TABLE_COSINES[:, None], eta_cie[None, :], k_cie[None, :])
+    return (reflectance @ film_weights()).astype(np.float32)

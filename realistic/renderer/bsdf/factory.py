@@ -36,6 +36,7 @@ from realistic.scene.materials import (
     SurfaceMaterial,
 )
 from realistic.scene.measured import load_measured
+from realistic.scene.metals import reflectance_table
 from realistic.scene.model import Material
 
 
@@ -85,11 +86,15 @@ def bsdf_for(material: SurfaceMaterial, hits: HitParameters) -> BSDF:
 
         return WeightedSum([base, coat], [np.ones_like(base.albedo)] * 2, chances)
     if isinstance(material, Conductor):
-        eta, k = colour(hits, material.eta), colour(hits, material.k)
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
-        return MicrofacetReflection(colour(hits, material.scale), ax, ay,
-                                    lambda c, rows: fresnel.conductor(c, eta[rows], k[rows]))
+        if material.spectra is None:
+            eta, k = colour(hits, material.eta), colour(hits, material.k)
+            return MicrofacetReflection(colour(hits, material.scale), ax, ay,
+                                        lambda c, rows: fresnel.conductor(c, eta[rows], k[rows]))
+        table, channels = reflectance_table(*material.spectra), _channels(hits)
+        return MicrofacetReflection(colour(hits, material.scale), ax, ay, lambda c, rows: np.einsum(
+            "ncj,nj->nc", channels[rows], fresnel.tabulated(c, table)))
     if isinstance(material, Mirror):
         kr = colour(hits, material.reflectance)
         zero = np.zeros(len(kr), np.float32)

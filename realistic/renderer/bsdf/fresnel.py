@@ -50,6 +50,17 @@ def conductor(cos_i: np.ndarray, eta: np.ndarray, k: np.ndarray) -> np.ndarray:
     return np.nan_to_num(np.float32(0.5) * (r_p + r_s), nan=1.0).astype(np.float32, copy=False)
 
 
+def tabulated(cos_i: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """Reflectance (N, C) looked up at the absolute cosines ``cos_i`` (N,) in ``table`` (T, C), sampled at T
+    cosines evenly spaced over [0, 1] and linear between them (a named metal's spectral Fresnel as RGB,
+    ``realistic.scene.metals.reflectance_table``)."""
+    last = len(table) - 1
+    x = np.clip(np.abs(np.asarray(cos_i, np.float64)), 0.0, 1.0) * last
+    i = np.minimum(x.astype(np.int64), last - 1)
+    t = (x - i)[:, None]
+    return ((1.0 - t) * table[i] + t * table[i + 1]).astype(np.float32)
+
+
 def schlick(cos_i: np.ndarray, r0: np.ndarray) -> np.ndarray:
     """Schlick's approximation (N, C) with normal-incidence reflectance ``r0`` (N, C)."""
     m = (1.0 - np.clip(np.abs(cos_i), 0.0, 1.0)).astype(np.float32)[:, None]

@@ -18,7 +18,7 @@ from realistic.core.image_files import read_image
 from realistic.core.transforms import translate
 from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.errors import UserError
-from realistic.scene.lights import EmissiveInstance
+from realistic.scene.lights import EmissiveInstance, sphere_in_world
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.model import RGB, AreaLight, CheckerTexture, Material, Mesh, Scene
 from realistic.scene.pbrt.camera import camera_directive, import_camera
@@ -242,7 +242,9 @@ class _Importer:
                     self.warn(where, f"area light of area {area:.3g} (too small or too large to sample; the "
                                      f"shape is drawn unlit)")
                     continue
-                self.scene.lights.append(EmissiveInstance(index, radiance, two_sided))
+                sphere = (sphere_in_world(self.scene.instances[index].transform, shape.params.get_float("radius", 1.0))
+                          if shape.type == "sphere" else None)
+                self.scene.lights.append(EmissiveInstance(index, radiance, two_sided, sphere))
             return True
         transform = world @ shape.transform @ translate(0, 0, shape.params.get_float("height", 0.0))
         if not (np.all(np.isfinite(transform)) and abs(np.linalg.det(transform[:3, :3])) > 0):

@@ -337,7 +337,24 @@ def _conductor(r: _Reader) -> Conductor:
     if kind == "coatedconductor":
         ru = r.scalar("conductor.uroughness", r.scalar("conductor.roughness", 0.0))
         rv = r.scalar("conductor.vroughness", r.scalar("conductor.roughness", 0.0))
-    return Conductor(eta, k, ru, rv, r.rule())
+    eta_metal, k_metal = _named_metal(r, prefix + "eta"), _named_metal(r, prefix + "k")
+    spectra = (eta_metal, k_metal) if _v4(r.context) and eta_metal and k_metal else None
+    return Conductor(eta, k, ru, rv, r.rule(), spectra=spectra)
+
+
+def _named_metal(r: _Reader, name: str) -> str | None:
+    """The metal of ``metals.TABLES`` whose spectrum the conductor parameter ``name`` ("eta" or "k",
+    maybe prefixed) is: the one "spectrum <name>" "metal-<metal>-<eta|k>" names, copper when absent
+    (pbrt-v4 ``ConductorMaterial::Create``'s default), None when given otherwise (RGB, texture, file)."""
+    p = r.params.items.get(name)
+    if p is None:
+        return "Cu"
+    which = name.rsplit(".", 1)[-1]
+    if p.type == "spectrum" and len(p.values) == 1 and isinstance(p.values[0], str):
+        metal = re.fullmatch(rf"metal-(\w+)-{which}", p.values[0])
+        if metal and metal.group(1) in TABLES:
+            return metal.group(1)
+    return None
 
 
 def _copper(dialect_name: str) -> tuple[RGB, RGB]:

@@ -44,7 +44,10 @@ class ParamDict(dict[str, Param]):
     """A directive's parameters by name, remembering every name looked up (``get``, ``[]``, ``in``),
     as pbrt-v4 marks each parameter ``lookedUp`` and reports the rest (``ParameterDictionary::
     ReportUnused``, src/pbrt/paramdict.cpp). A lookup also counts for ``sources``: the dicts this
-    one was merged from (an entity's own parameters under pbrt-v4's Attribute defaults)."""
+    one was merged from (an entity's own parameters under pbrt-v4's Attribute defaults). A lookup of
+    a parameter given an empty list (``"float radius" []``) is an error naming its file and line, as
+    pbrt-v4's ``ParameterDictionary::lookupSingle`` refuses one ("No values provided for parameter",
+    src/pbrt/paramdict.cpp) where pbrt-v3 read it as absent."""
 
     def __init__(self, items: dict[str, Param] | None = None, sources: tuple[ParamDict, ...] = ()):
         super().__init__(items or {})
@@ -54,6 +57,10 @@ class ParamDict(dict[str, Param]):
 
     def _note(self, name: object) -> None:
         if isinstance(name, str):
+            param = super().get(name)
+            if param is not None and not param.values:
+                raise PbrtSyntaxError(*_split_where(param.where), f'"{param.type} {param.name}" [] is an empty '
+                                      f"list: give it a value or leave it out (pbrt-v4 refuses one)")
             self.looked_up.add(name)
             for source in self.sources:
                 source._note(name)
