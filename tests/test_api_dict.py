@@ -83,6 +83,13 @@ def test_emitting_spheres_and_rectangles_are_lights():
     assert isinstance(quad, AreaLight) and quad.shape == "quad" and quad.area() == pytest.approx(6)
 
 
+def test_an_emitting_sphere_keeps_its_world_centre_and_radius_for_cone_sampling():
+    scene = rl.load_dict({"shapes": [{"type": "sphere", "radius": 0.5, "center": [1, 2, 3], "emission": 1,
+                                      "transform": [[2, 0, 0, 0], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]}]})
+    (emitter,) = scene.lights
+    assert isinstance(emitter, EmissiveInstance) and emitter.sphere == ((2.0, 4.0, 6.0), pytest.approx(1.0))
+
+
 def test_a_mesh_file_is_placed_by_its_transform_and_may_emit(tmp_path):
     (tmp_path / "tri.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
                                       "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"

@@ -64,7 +64,7 @@ from realistic.errors import LensFileError, UserError
 from realistic.optics.formats import load_lens
 from realistic.optics.paraxial import stop_diameter_for_f_number
 from realistic.renderer.integrators import INTEGRATORS
-from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight
+from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, sphere_in_world
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import RGB, AreaLight, Material, Mesh, Scene
@@ -338,9 +338,11 @@ def _shape(scene: Scene, value: object, path: str, materials: _Materials) -> Non
             return
         scene.add(mesh, placement, material or Material())
         return
+    analytic_sphere = None
     if kind == "sphere":
-        placed: list[tuple[Mesh, np.ndarray, RGB | None]] = [
-            (sphere(entry.read("radius", _length("sphere radius"), 1.0)), _placement(entry, oriented=False), None)]
+        radius = entry.read("radius", _length("sphere radius"), 1.0)
+        placed: list[tuple[Mesh, np.ndarray, RGB | None]] = [(sphere(radius), _placement(entry, oriented=False), None)]
+        analytic_sphere = sphere_in_world(placed[0][1], radius)
     else:
         filename = entry.read("filename", _file_name, None)
         if filename is None:
@@ -352,7 +354,7 @@ def _shape(scene: Scene, value: object, path: str, materials: _Materials) -> Non
     for mesh, transform, colour in placed:
         _place(scene, mesh, transform, material or (Material(colour) if colour else Material()), path)
         if emission is not None:
-            scene.lights.append(EmissiveInstance(len(scene.instances) - 1, emission, two_sided))
+            scene.lights.append(EmissiveInstance(len(scene.instances) - 1, emission, two_sided, analytic_sphere))
 
 
 def _place(scene: Scene, mesh: Mesh, transform: np.ndarray, material: SurfaceMaterial, path: str) -> None:
