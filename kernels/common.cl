@@ -133,11 +133,16 @@ inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
     return FILTER_RY * as_float(as_uint(1.0f - root) ^ (as_uint(s) & 0x80000000u));
 }
 #else
+/* The bin search's first step reads the middle of a table, a literal (about 0.5) on both axes once
+ * the compiler folds the constant tables: written alike, the two comparisons were packed by LLVM's
+ * SLP vectoriser into a 2-wide vector, back through both random numbers' hashes, which stopped the
+ * work-group vectoriser (lens.cl's copy, "u >= CDF" on both axes, still is). u - c >= 0 is exactly
+ * u >= c in IEEE arithmetic, so y compares by the sign of a difference. */
 #if FILTER_BINS != 256
 #error "the unrolled bin search below is written for 256 bins"
 #endif
 #define SEARCH_X(step) k = FILTER_CDF_X[k + step] <= u ? k + step : k;
-#define SEARCH_Y(step) k += step & (uint)(-(int)(FILTER_CDF_Y[k + step] <= u));
+#define SEARCH_Y(step) k += step & (uint)(-(int)(u - FILTER_CDF_Y[k + step] >= 0.0f));
 inline __attribute__((always_inline)) float filter_offset_x(float u, float *w) {
     int k = 0;
     SEARCH_X(128) SEARCH_X(64) SEARCH_X(32) SEARCH_X(16) SEARCH_X(8) SEARCH_X(4) SEARCH_X(2) SEARCH_X(1)
