@@ -40,8 +40,9 @@ kernels, untimed), our ``passes.render`` less its "setup" and "exit pupil" stage
 scene's build and the pupil table: likewise excluded; a first render builds the kernels, untimed).
 CPU-seconds are the process's for the whole call (ours include the set-up). Each repeat renders each
 peer once, in turn; ratios are taken within a repeat, and the median and spread (min to max) over
-repeats are printed with each peer's samples/s, wall, CPU-s and image mean (RGB mean of the film;
-the lens camera's film is irradiance and vignetted, so its mean is not comparable). The load
+repeats are printed with each peer's samples/s, wall, CPU-s, camera rays traced per sample (ours:
+those the lens lets through; Mitsuba: 1) and image mean (RGB mean of the film; the lens camera's
+film is irradiance and vignetted, so its mean is not comparable). The load
 average is printed before and after: on a shared machine the figures are noisy.
 Writes bench/results/peers.json.
 """
@@ -91,8 +92,8 @@ DRAGONS = [(BLUE, -10.0) if i % 2 == 0 else (RED, -17.0) for i in range(11)]
 #: A child process's render of Mitsuba's Cornell box: an LLVM that Dr.Jit cannot use aborts the process.
 PROBE = ("import mitsuba as mi; mi.set_variant('llvm_ad_rgb'); "
          "mi.render(mi.load_dict(mi.cornell_box()), spp=1).numpy()")
-#: One peer's render: () -> (image (H, W, 3), render wall seconds, CPU-seconds, samples).
-Render = Callable[[], tuple[np.ndarray, float, float, int]]
+#: One peer's render: () -> (image (H, W, 3), render wall seconds, CPU-seconds, samples, camera rays traced).
+Render = Callable[[], tuple[np.ndarray, float, float, int, int]]
 
 
 def thin_lens_scene(folder: Path) -> Path:
@@ -131,18 +132,25 @@ def our_render(inputs: RenderInputs) -> Render:
         result = render(job, ThreadPasses())[0]
         cpu = time.process_time() - cpu
         before_rays = result.stage_seconds.get("setup", 0.0) + result.stage_seconds.get("exit pupil", 0.0)
-        return result.image, result.seconds - before_rays, cpu, result.samples_done
+        return result.image, result.seconds - before_rays, cpu, result.samples_done, result.primary_rays
 
     return run
 
 
+def mitsuba_pose(world_from_camera: np.ndarray) -> tuple[np.ndarray, float]:
+    """Mitsuba's sensor ``to_world`` for a pbrt camera pose (uniform scale, rotation, translation),
+    and the pose's scale: the rotation and translation, x mirrored (pbrt's camera +x is the image's
+    right, Mitsuba's its left)."""
+    unit = float(np.cbrt(np.linalg.det(world_from_camera[:3, :3])))  # the dragons' 1 / 5000
+    pose = np.eye(4)
+    pose[:3, :3] = world_from_camera[:3, :3] / unit @ np.diag([-1.0, 1.0, 1.0])
+    pose[:3, 3] = world_from_camera[:3, 3]
+    return pose, unit
+
+
 def mitsuba_scene(mi: Any, camera: ThinLensCamera, folder: Path) -> dict:
     """Mitsuba's description of the dragons seen by ``camera`` (see the module's docstring)."""
-    world = camera.world_from_camera
-    unit = float(np.cbrt(np.linalg.det(world[:3, :3])))  # the pose's uniform scale (1 / 5000)
-    pose = np.eye(4)
-    pose[:3, :3] = world[:3, :3] / unit @ np.diag([-1.0, 1.0, 1.0])
-    pose[:3, 3] = world[:3, 3]
+    pose, unit = mitsuba_pose(camera.world_from_camera)
     texture, _ = read_exr(PBRT / "textures" / "lines.exr")
     floor = folder / "floor.ply"
     _write_floor(floor)
@@ -208,7 +216,7 @@ def mitsuba_render(camera: ThinLensCamera, folder: Path) -> Render | str:
         cpu, wall = time.process_time(), time.perf_counter()
         image = np.asarray(mi.render(scene, spp=camera.spp))
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-        return image, wall, cpu, camera.sample_count
+        return image, wall, cpu, camera.sample_count, camera.sample_count
 
     return run
 
@@ -256,9 +264,10 @@ def main() -> None:
         runs: dict[str, list[dict]] = {name: [] for name in peers}
         for _ in range(args.repeats):
             for name, run in peers.items():
-                image, wall, cpu, samples = run()
+                image, wall, cpu, samples, traced = run()
                 runs[name].append({"wall_s": wall, "cpu_s": cpu, "samples_per_s": samples / wall,
-                                   "samples_per_cpu_s": samples / cpu, "mean": float(np.mean(image[..., :3]))})
+                                   "samples_per_cpu_s": samples / cpu, "traced_per_sample": traced / samples,
+                                   "mean": float(np.mean(image[..., :3]))})
     load_after = os.getloadavg()
     summary = {name: {key: spread([run[key] for run in values]) for key in values[0]} for name, values in runs.items()}
     ratios = {"lens / thin lens samples/s": [lens["samples_per_s"] / thin_["samples_per_s"]
@@ -271,10 +280,11 @@ def main() -> None:
                                                     for ours, theirs in zip(runs["thin lens"], runs["mitsuba"])]
     print(f"{machine.describe()}; {args.res[0]}x{args.res[1]}, {args.spp} spp, {args.repeats} repeats; load average "
           f"{load_before[0]:.2f} before, {load_after[0]:.2f} after (shared machine: noisy)")
-    print(f"{'peer':10s} {'M samples/s':>22s} {'wall s':>18s} {'CPU s':>18s} {'image mean':>12s}")
+    print(f"{'peer':10s} {'M samples/s':>22s} {'wall s':>18s} {'CPU s':>18s} {'traced':>7s} {'image mean':>12s}")
     for name, figures in summary.items():
         cells = [cell(figures[key], factor) for key, factor in (("samples_per_s", 1e-6), ("wall_s", 1), ("cpu_s", 1))]
-        print(f"{name:10s} {cells[0]:>22s} {cells[1]:>18s} {cells[2]:>18s} {figures['mean']['median']:12.5g}")
+        print(f"{name:10s} {cells[0]:>22s} {cells[1]:>18s} {cells[2]:>18s} "
+              f"{figures['traced_per_sample']['median']:7.3f} {figures['mean']['median']:12.5g}")
     for label, values in ratios.items():
         print(f"{label}: median {statistics.median(values):.3f} [{min(values):.3f}-{max(values):.3f}]")
     out = ROOT / "bench" / "results" / "peers.json"
