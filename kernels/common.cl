@@ -79,3 +79,84 @@ inline __attribute__((always_inline)) void concentric_disk(float u1, float u2, f
     *x = den * as_float((as_int(c) & first) | (as_int(s) & ~first));
     *y = den * as_float((as_int(s) & first) | (as_int(c) & ~first));
 }
+
+#ifdef CAMERA_SAMPLES
+/* Camera sampling shared by camera kernels that define CAMERA_SAMPLES before including this file
+ * (kernels/thin_lens.cl; kernels/lens.cl keeps its own copies, with its SPECTRAL variants): a
+ * launch's sample addresses, R4's stratified values and the pixel filter's film offsets, the same
+ * arithmetic as lens.cl's (see the comments there for why each is written as it is). The host
+ * defines FILTER_KIND, FILTER_RX, FILTER_RY and a tabulated filter's tables
+ * (realistic.camera.opencl_host.filter_lines). */
+
+#define R4_GOLDEN 0x9E3779B9u
+#define R4_KRONECKER_0 0xDB4F0B91u
+#define R4_KRONECKER_1 0xBBE05633u
+#define R4_KRONECKER_2 0xA0F2EC76u
+#define R4_KRONECKER_3 0x89E18285u
+
+/* Pixel and sample index within the pixel of work item gid of a launch over a slice of each
+ * pixel's samples (realistic.camera.base.SampleBlock). */
+inline void sample_address(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint gid,
+                           uint *pixel, uint *sample) {
+    uint s = offset + gid;
+    uint q = s / slice_width;
+    *pixel = first_pixel + q;
+    *sample = slice_start + (s - q * slice_width);
+}
+
+/* realistic.core.rng.stratified4's uint32 values: film x, film y, lens u, lens v. */
+inline void stratified4(uint pixel, uint sample, uint seed, uint *b0, uint *b1, uint *b2, uint *b3) {
+    uint h = hash32(hash32(seed + R4_GOLDEN) ^ pixel);
+    h = hash32(h ^ 0xFFFFFFFFu);
+    *b0 = sample * R4_KRONECKER_0 + hash32(h ^ 0u);
+    *b1 = sample * R4_KRONECKER_1 + hash32(h ^ 1u);
+    *b2 = sample * R4_KRONECKER_2 + hash32(h ^ 2u);
+    *b3 = sample * R4_KRONECKER_3 + hash32(h ^ 3u);
+}
+
+/* realistic.core.pixel_filter.PixelFilter.offsets along x and y: the offset in pixels from the
+ * pixel centre and the sample's factor along that axis in *w. */
+#if FILTER_KIND == 0
+inline __attribute__((always_inline)) float filter_offset_x(float u, float *w) { *w = 1.0f; return (u - 0.5f) * (2.0f * FILTER_RX); }
+inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) { *w = 1.0f; return (u - 0.5f) * (2.0f * FILTER_RY); }
+#elif FILTER_KIND == 1
+inline __attribute__((always_inline)) float filter_offset_x(float u, float *w) {
+    *w = 1.0f;
+    int left = u < 0.5f;
+    float root = __builtin_sqrtf(left ? 2.0f * u : 2.0f - 2.0f * u);
+    return FILTER_RX * (left ? root - 1.0f : 1.0f - root);
+}
+inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
+    *w = 1.0f;
+    float s = u - 0.5f;
+    float root = __builtin_sqrtf(1.0f - 2.0f * as_float(as_uint(s) & 0x7FFFFFFFu));
+    return FILTER_RY * as_float(as_uint(1.0f - root) ^ (as_uint(s) & 0x80000000u));
+}
+#else
+/* The bin search's first step reads the middle of a table, a literal (about 0.5) on both axes once
+ * the compiler folds the constant tables: written alike, the two comparisons were packed by LLVM's
+ * SLP vectoriser into a 2-wide vector, back through both random numbers' hashes, which stopped the
+ * work-group vectoriser (lens.cl's copy, "u >= CDF" on both axes, still is). u - c >= 0 is exactly
+ * u >= c in IEEE arithmetic, so y compares by the sign of a difference. */
+#if FILTER_BINS != 256
+#error "the unrolled bin search below is written for 256 bins"
+#endif
+#define SEARCH_X(step) k = FILTER_CDF_X[k + step] <= u ? k + step : k;
+#define SEARCH_Y(step) k += step & (uint)(-(int)(u - FILTER_CDF_Y[k + step] >= 0.0f));
+inline __attribute__((always_inline)) float filter_offset_x(float u, float *w) {
+    int k = 0;
+    SEARCH_X(128) SEARCH_X(64) SEARCH_X(32) SEARCH_X(16) SEARCH_X(8) SEARCH_X(4) SEARCH_X(2) SEARCH_X(1)
+    float lo = FILTER_CDF_X[k], hi = FILTER_CDF_X[k + 1];
+    *w = FILTER_WEIGHT_X[k];
+    return -FILTER_RX + ((float)k + (u - lo) / (hi - lo)) * (2.0f * FILTER_RX / FILTER_BINS);
+}
+inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
+    uint k = 0;
+    SEARCH_Y(128) SEARCH_Y(64) SEARCH_Y(32) SEARCH_Y(16) SEARCH_Y(8) SEARCH_Y(4) SEARCH_Y(2) SEARCH_Y(1)
+    float lo = FILTER_CDF_Y[k];
+    float t = (u - lo) * (1.0f / (FILTER_CDF_Y[k + 1] - lo));
+    *w = FILTER_WEIGHT_Y[k];
+    return (float)k * (2.0f * FILTER_RY / FILTER_BINS) + (t * (2.0f * FILTER_RY / FILTER_BINS) - FILTER_RY);
+}
+#endif
+#endif

@@ -284,3 +284,34 @@ def test_the_ceiling_traces_every_ray_the_render_traced(backend):
     assert len(recorder.primary) == len(recorder.shadow) > 1  # one closest and one occluded call per pass
     assert sum(len(o) for o, _ in recorder.primary) == rendered.primary_rays > 0
     assert sum(int(np.count_nonzero(t > 0)) for _, _, t in recorder.shadow) == rendered.shadow_rays > 0
+
+
+# --- bench/peers.py ------------------------------------------------------------------------------
+
+peers = _bench_module("peers")
+
+
+def test_peers_thin_lens_scene_swaps_only_the_camera_and_asks_for_direct_lighting(tmp_path):
+    """The dragons' file with pbrt's perspective camera in place of the realistic one (none of its
+    parameters left) and pbrt-v3's direct lighting named before the world, the rest unchanged."""
+    text = peers.thin_lens_scene(tmp_path).read_text()
+    original = peers.SCENE.read_text()
+    assert [line for line in text.splitlines() if line.startswith("Camera")] == [peers.THIN_LENS]
+    assert not any(word in text for word in ("specfile", "filmdistance", "aperture_diameter", "filmdiag"))
+    assert text.index('Integrator "directlighting"') < text.index("WorldBegin")
+    assert text[text.index("WorldBegin"):] == original[original.index("WorldBegin"):]
+
+
+def test_peers_mitsuba_pose_sees_what_the_pbrt_camera_sees():
+    """Mitsuba's sensor looks along the same world direction from the same point, its -x (image
+    right) is the pbrt camera's +x, and the scale comes back apart (lens radius and focus in world units)."""
+    rotation = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    world = np.eye(4)
+    world[:3, :3] = rotation / 5000
+    world[:3, 3] = [2.3, 0.05, -0.5]
+    pose, unit = peers.mitsuba_pose(world)
+    assert unit == pytest.approx(1 / 5000)
+    np.testing.assert_allclose(pose[:3, 3], world[:3, 3])
+    np.testing.assert_allclose(pose[:3, 2], rotation[:, 2])
+    np.testing.assert_allclose(pose[:3, 1], rotation[:, 1])
+    np.testing.assert_allclose(-pose[:3, 0], rotation[:, 0])

@@ -17,7 +17,7 @@ import numpy as np
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import disk_cache
-from realistic.core.pixel_filter import TABLE_BINS
+from realistic.core.pixel_filter import TABLE_BINS, PixelFilter
 from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
@@ -156,9 +156,9 @@ def _wavelength_lines(camera: LensCamera) -> list[str]:
             table("LAMBDA_DENSITY", WAVELENGTH_DENSITY), table("LAMBDA_CDF", WAVELENGTH_CDF)]
 
 
-def _filter_lines(camera: LensCamera) -> list[str]:
-    """The pixel filter's ``FILTER_*`` defines and tables (see ``kernels/lens.cl``)."""
-    pixel_filter = camera.pixel_filter
+def filter_lines(pixel_filter: PixelFilter) -> list[str]:
+    """The pixel filter's ``FILTER_*`` defines and tables (see ``kernels/lens.cl``; also
+    ``kernels/thin_lens.cl``'s)."""
     kind = 2 if pixel_filter.tabulated else ("box", "triangle").index(pixel_filter.name)
     lines = [f"#define FILTER_KIND {kind}", f"#define FILTER_RX {_c_float(pixel_filter.radius_x)}",
              f"#define FILTER_RY {_c_float(pixel_filter.radius_y)}"]
@@ -222,7 +222,7 @@ def camera_header(camera: LensCamera) -> str:
         "#define TRACE_SURFACES(EACH) " + " ".join(f"EACH(SURFACE_{k})" for k in range(len(calls))),
         *stop_lines(lens),
         *_wavelength_lines(camera),
-        *_filter_lines(camera),
+        *filter_lines(camera.pixel_filter),
     ]
     if camera.lens_sampling == "pupil":
         lines += ["#define LENS_SAMPLING_PUPIL 1", f"#define PUPIL_INTERVALS {len(camera.pupil.bounds)}"]
@@ -268,6 +268,21 @@ def launch_size(rays: int, per_item: int = 1) -> int:
     """Rays to launch the lens kernel for ``rays``, ``per_item`` rays per work item: whole groups
     of work items, at least ``SMALL_GRID_LIMIT`` of them."""
     return per_item * max(SMALL_GRID_LIMIT, whole_groups(-(-rays // per_item)))
+
+
+def launch_layout(block: SampleBlock, rays_per_sample: int = 1, per_item: int = 1
+                  ) -> tuple[tuple[np.uint32, ...], int]:
+    """A camera kernel's (first pixel, offset, slice start, slice width) arguments for ``block`` and
+    the padded launch's rays (``rays_per_sample`` per sample, ``per_item`` per work item), checking
+    the uint32 limits for the rays up to the last work group's end (those padded beyond it compute
+    rays nobody reads)."""
+    used = whole_groups(block.count * rays_per_sample)
+    first_pixel, offset = divmod(block.first, block.samples)
+    if offset + used >= 2**32 or first_pixel + (offset + used) // block.samples >= 2**31 \
+            or block.first_sample + block.samples >= 2**32:
+        raise ValueError(f"sample block {block} exceeds the kernel's 32-bit indices")
+    return tuple(np.uint32(v) for v in (first_pixel, offset, block.first_sample, block.samples)), \
+        launch_size(used, per_item)
 
 
 def lens_program(camera: LensCamera, rays_per_item: int) -> tuple[str, str]:
@@ -369,25 +384,11 @@ class LensKernel:
         disk_cache.store_arrays(key, {"rays_per_item": np.array([chosen])})
         return chosen
 
-    def _launch_layout(self, block: SampleBlock, rays_per_sample: int = 1, per_item: int = 1
-                       ) -> tuple[tuple[np.uint32, ...], int]:
-        """The kernel's (first pixel, offset, slice start, slice width) arguments and the padded
-        launch's rays (``rays_per_sample`` per sample, ``per_item`` per work item), checking the
-        uint32 limits for the rays up to the last work group's end (those padded beyond it compute
-        rays nobody reads)."""
-        used = whole_groups(block.count * rays_per_sample)
-        first_pixel, offset = divmod(block.first, block.samples)
-        if offset + used >= 2**32 or first_pixel + (offset + used) // block.samples >= 2**31 \
-                or block.first_sample + block.samples >= 2**32:
-            raise ValueError(f"sample block {block} exceeds the kernel's 32-bit indices")
-        return tuple(np.uint32(v) for v in (first_pixel, offset, block.first_sample, block.samples)), \
-            launch_size(used, per_item)
-
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
         """Rays of the block's samples, as ``LensCamera.generate_rays`` makes them (float32): a
         spectral camera's ``rays_per_sample`` rays of each sample consecutively."""
         per_item = self.rays_per_item
-        address, padded = self._launch_layout(block, self.camera.rays_per_sample, per_item)
+        address, padded = launch_layout(block, self.camera.rays_per_sample, per_item)
         count = block.count * self.camera.rays_per_sample
         out = np.empty((self._rows, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
@@ -410,7 +411,7 @@ class LensKernel:
     def sample_bits(self, block: SampleBlock, seed: int = 0) -> np.ndarray:
         """The kernel's stratified uint32 values per sample: R4's four, or for a spectral camera R5's
         five (the wavelength's last): shape (4 or 5, count) (for tests)."""
-        address, padded = self._launch_layout(block)
+        address, padded = launch_layout(block)
         count = block.count
         rows = 4 + int(self.camera.spectral)
         bits = cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, rows * padded * 4)

@@ -2,8 +2,8 @@
 
 Used for pbrt scenes that ask for it (and as a comparison for the real lenses). Rays come in the
 same ``RayBatch`` as the realistic camera's, from the same counter-based samples, with weight 1.
-It has no lens to trace: its rays are a few arithmetic operations per sample and come from numpy
-whatever the backend.
+``generate_rays`` is the float64 reference; the OpenCL backend makes the same rays with
+``kernels/thin_lens.cl`` (``camera/thin_lens_host``), since in numpy they cost as much as tracing them.
 
 The film position is drawn from the pixel filter (``realistic.core.pixel_filter``), as the
 realistic camera draws it; the filter's factor is the ray's weight (1 for box and triangle).

@@ -3,8 +3,8 @@
 The options keep the strings (a job stays picklable for Dask: each worker process makes its own
 backend and device); ``backend_for`` turns them into a backend object, once per process and pair.
 ``NumpyBackend`` runs the numpy references; ``OpenCLBackend`` (``renderer/opencl_backend``,
-imported only when chosen, since it imports pyopencl) runs ``kernels/lens.cl``, ``shade.cl`` and
-``ewa.cl`` on one ``Device`` and keeps each MIP map's texels there, keyed by the map, so scenes,
+imported only when chosen, since it imports pyopencl) runs ``kernels/lens.cl``, ``thin_lens.cl``,
+``shade.cl`` and ``ewa.cl`` on one ``Device`` and keeps each MIP map's texels there, keyed by the map, so scenes,
 cameras and textures stay plain data.
 """
 

@@ -1,4 +1,4 @@
-"""The "opencl" render backend: the lens, shading and EWA kernels on one ``Device``.
+"""The "opencl" render backend: the camera, shading and EWA kernels on one ``Device``.
 
 Made by ``renderer.backends.backend_for`` (one per process and device spec). It keeps the per-device
 state of what it is asked about: each MIP map's texels (an ``EwaKernel``) in a weak dictionary keyed
@@ -16,6 +16,8 @@ import numpy as np
 from realistic.camera.base import Camera, RayGenerator
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.opencl_host import LensKernel
+from realistic.camera.thin_lens import ThinLensCamera
+from realistic.camera.thin_lens_host import ThinLensKernel
 from realistic.device.opencl import Device
 from realistic.renderer.shade_kernel import ShadeKernel
 from realistic.scene.ewa_kernel import EwaKernel, SurfaceTables
@@ -23,8 +25,8 @@ from realistic.scene.mipmap import MipMap
 
 
 class OpenCLBackend:
-    """Kernels on ``device``: lens rays of a ``LensCamera`` (other cameras' rays are numpy's, there
-    being no lens to trace), EWA lookups, and the shading kernel for ``DirectLighting``."""
+    """Kernels on ``device``: camera rays of a ``LensCamera`` or a ``ThinLensCamera``, EWA lookups,
+    and the shading kernel for ``DirectLighting``."""
 
     name = "opencl"
 
@@ -34,10 +36,15 @@ class OpenCLBackend:
         self._lock = threading.Lock()
 
     def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
-        """``lens.cl``'s rays (float32) for a ``LensCamera``, the numpy reference's for other cameras."""
-        if not isinstance(camera, LensCamera):
+        """``lens.cl``'s rays (float32) for a ``LensCamera``, ``thin_lens.cl``'s for a
+        ``ThinLensCamera``, the numpy reference's for any other camera."""
+        kernel: LensKernel | ThinLensKernel
+        if isinstance(camera, LensCamera):
+            kernel = LensKernel(camera, self.device)
+        elif isinstance(camera, ThinLensCamera):
+            kernel = ThinLensKernel(camera, self.device)
+        else:
             return lambda block: camera.generate_rays(block, seed)
-        kernel = LensKernel(camera, self.device)
         return lambda block: kernel.generate(block, seed)
 
     def ewa_kernel(self, mipmap: MipMap) -> EwaKernel:
