@@ -118,7 +118,7 @@ def _glass_index(glass: GlassFormula) -> str:
             f"({c[4]} + (il2) * {c[5]}))))")
 
 
-def _stop_lines(lens: LensSystem) -> list[str]:
+def stop_lines(lens: LensSystem) -> list[str]:
     """``STOP_INSIDE(x, y)`` (and a mask table) for the lens's stop, as realistic.optics.stop_shape defines it."""
     diameter = float(lens.aperture_mm[lens.stop])
     shape = lens.stop_shape
@@ -220,7 +220,7 @@ def camera_header(camera: LensCamera) -> str:
         f"#define COATING_INDEX {_c_float(MGF2_INDEX)}",
         *(f"#define SURFACE_{k}(r, il2) {call}" for k, call in enumerate(calls)),
         "#define TRACE_SURFACES(EACH) " + " ".join(f"EACH(SURFACE_{k})" for k in range(len(calls))),
-        *_stop_lines(lens),
+        *stop_lines(lens),
         *_wavelength_lines(camera),
         *_filter_lines(camera),
     ]

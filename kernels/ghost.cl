@@ -1,0 +1,223 @@
+/* Rays from the scene along one path through the lens (a ghost, or the direct path) onto the film.
+ *
+ * OpenCL 1.2 C, float32, one work item per ray. The float64 reference is
+ * realistic/optics/ghosts.py (trace_ghost, trace_direct); this kernel follows its rules and the real-ray
+ * tracer's (realistic/optics/tracer.py): the sphere's root chosen by direction (the vertex cap), a
+ * hit on the far hemisphere a miss, each surface's clear aperture and the stop clipping on every
+ * pass, Heckbert refraction with total internal reflection blocking, mirror reflection about the
+ * normal, and the Fresnel factors of realistic/optics/coating.py (polarisation-averaged R at a
+ * reflection, T = 1 - R at a refraction: every medium is lossless).
+ *
+ * The path is the host's table of steps (realistic/camera/ghost_host.py, STEPS, declared once as a
+ * realistic.device.tables.Table whose STEP_* offsets the host prepends as #defines), one row per
+ * surface met, in order: the surface's shape, clear aperture, what the ray does there (STEP_ACTION:
+ * ACTION_PASS, ACTION_REFRACT or ACTION_REFLECT), the coating model (MODEL_*: realistic.optics.coating),
+ * the indices on the ray's side and the far side at the launch's wavelength, and the axial shift from
+ * this surface's vertex to the next one's (to the film plane after the last). As in kernels/lens.cl,
+ * the ray's axial position w is kept relative to the vertex of the surface about to be met, so float32
+ * keeps precision at the scale of the sag rather than of the lens-frame z.
+ *
+ * Unlike lens.cl, this kernel loops over its steps (one program serves every path of every lens);
+ * the work-group vectoriser does not widen it, and the flare's rays are far fewer than the camera's.
+ *
+ * The host's header also defines KIND_*, ACTION_*, MODEL_*, COATING_INDEX, ASPHERE_ITERATIONS,
+ * ASPHERE_TERMS, ASPHERE_TOLERANCE_MM and the stop's opening STOP_INSIDE(x, y)
+ * (realistic.camera.opencl_host.stop_lines: a round stop's squared radius STOP_R2 is the stop row's
+ * STEP_AP2, read through the row `s` in scope where it is used).
+ */
+
+typedef struct {
+    float ox, oy, w;
+    float dx, dy, dz;
+    float weight;
+    int alive;
+} Ray;
+
+/* The fraction of unpolarised light reflected by an interface from index N0 into N2 at incidence
+ * cosine C0 (realistic.optics.coating.reflectance, whose float64 formulas these are); 1 past the
+ * critical angle. PHASE = pi lambda0 / lambda, the layer's 2 delta at normal incidence. A layer
+ * (MODEL_LAYER) is a quarter wave of index COATING_INDEX at lambda0: with a, b the amplitude
+ * reflection coefficients entering and leaving the film, R = (a^2 + b^2 + 2 a b cos 2delta) /
+ * (1 + a^2 b^2 + 2 a b cos 2delta), per polarisation (Born and Wolf 1.6.4). Past the layer's own
+ * critical angle (light from dense glass beyond asin(COATING_INDEX / N0)) the film is crossed by an
+ * evanescent wave, which this real form does not describe: the layer's cosine is taken as 0 there,
+ * as lens.cl does. */
+inline float reflectance(int model, float N0, float N2, float C0, float PHASE) {
+    float q = N0 / N2;
+    float c2sq = 1.0f - q * q * (1.0f - C0 * C0);
+    float c2 = sqrt(c2sq > 0.0f ? c2sq : 0.0f);
+    float r;
+    if (model == MODEL_BARE) {
+        float rs = (N0 * C0 - N2 * c2) / (N0 * C0 + N2 * c2);
+        float rp = (N2 * C0 - N0 * c2) / (N2 * C0 + N0 * c2);
+        r = 0.5f * (rs * rs + rp * rp);
+    } else if (model == MODEL_LAYER) {
+        float ql = N0 / COATING_INDEX;
+        float clsq = 1.0f - ql * ql * (1.0f - C0 * C0);
+        float cl = sqrt(clsq > 0.0f ? clsq : 0.0f);
+        float cp = cos(PHASE * cl);
+        float as = (N0 * C0 - COATING_INDEX * cl) / (N0 * C0 + COATING_INDEX * cl);
+        float bs = (COATING_INDEX * cl - N2 * c2) / (COATING_INDEX * cl + N2 * c2);
+        float ap = (COATING_INDEX * C0 - N0 * cl) / (COATING_INDEX * C0 + N0 * cl);
+        float bp = (N2 * cl - COATING_INDEX * c2) / (N2 * cl + COATING_INDEX * c2);
+        float rs = (as * as + bs * bs + 2.0f * as * bs * cp) / (1.0f + as * as * bs * bs + 2.0f * as * bs * cp);
+        float rp = (ap * ap + bp * bp + 2.0f * ap * bp * cp) / (1.0f + ap * ap * bp * bp + 2.0f * ap * bp * cp);
+        r = 0.5f * (rs + rp);
+    } else {
+        r = 0.0f;
+    }
+    return c2sq < 0.0f ? 1.0f : r;
+}
+
+#if STOP_MASKED
+/* The stop's image mask (the host's STOP_MASK table, row 0 at +y), at the nearest pixel: lens.cl's. */
+inline int stop_mask(float x, float y) {
+    float fc = (x * (1.0f / STOP_DIAMETER_MM) + 0.5f) * (float)STOP_MASK_W;
+    float fr = (0.5f - y * (1.0f / STOP_DIAMETER_MM)) * (float)STOP_MASK_H;
+    int inside = (fc >= 0.0f) & (fc < (float)STOP_MASK_W) & (fr >= 0.0f) & (fr < (float)STOP_MASK_H);
+    int c = inside ? (int)fc : 0;
+    int r = inside ? (int)fr : 0;
+    return inside & (STOP_MASK[r * STOP_MASK_W + c] != 0);
+}
+#endif
+
+/* The hit (hx, hy, hw: w relative to this surface's vertex) and the unit normal facing the ray of
+ * step s; clears alive where the ray misses or leaves the clear aperture. */
+inline void meet(Ray *r, __constant float *s, float *hx, float *hy, float *hw, float *nx, float *ny, float *nz) {
+    int kind = (int)s[STEP_KIND];
+    int ahead = s[STEP_AHEAD] != 0.0f;
+    float t;
+    int ok = 1;
+    if (kind == KIND_SPHERE) {
+        /* t^2 + 2 b t + c = 0 about the vertex (c = |o|^2 + 2 R w does not cancel R^2), roots in the
+         * cancellation-free form q, c / q; the near one for a ray travelling +z when R < 0, the far
+         * one when R > 0 (realistic.optics.tracer.intersect_surface), either way for -z. */
+        float R = s[STEP_RADIUS];
+        float b = r->ox * r->dx + r->oy * r->dy + (r->w + R) * r->dz;
+        float c = r->ox * r->ox + r->oy * r->oy + r->w * (r->w + 2.0f * R);
+        float disc = b * b - c;
+        float root = sqrt(disc > 0.0f ? disc : 0.0f);
+        float q = -(b + (b < 0.0f ? -root : root));
+        float near = b > 0.0f ? q : c / q, far = b > 0.0f ? c / q : q;
+        int use_near = (r->dz > 0.0f) == (R < 0.0f);
+        t = use_near ? near : far;
+        *hx = r->ox + t * r->dx;
+        *hy = r->oy + t * r->dy;
+        *hw = r->w + t * r->dz;
+        float cz = *hw + R;  /* hit minus centre, axial */
+        ok = (disc >= 0.0f) & (cz * R > 0.0f);
+        float scale = (*hx * r->dx + *hy * r->dy + cz * r->dz > 0.0f ? -1.0f : 1.0f) / fabs(R);
+        *nx = *hx * scale;
+        *ny = *hy * scale;
+        *nz = cz * scale;
+    } else if (kind == KIND_ASPHERE) {
+        /* The float64 tracer's start (realistic.optics.tracer.intersect_asphere): the nearer root
+         * ahead on the base conic's vertex branch, else the vertex plane's; then Newton on
+         * F(t) = w(t) + sag(rho(t)) (realistic.optics.asphere, Horner in rho = x^2 + y^2). */
+        __constant float *a = s + STEP_ASPHERE;
+        float C = s[STEP_CURVATURE], CK = (1.0f + s[STEP_CONIC]) * C, CCK = CK * C;
+        float qa = C * (r->dx * r->dx + r->dy * r->dy) + CK * r->dz * r->dz;
+        float qb = C * (r->ox * r->dx + r->oy * r->dy) + r->dz + CK * r->w * r->dz;
+        float qg = C * (r->ox * r->ox + r->oy * r->oy) + 2.0f * r->w + CK * r->w * r->w;
+        float disc = qb * qb - qa * qg;
+        float root = sqrt(disc > 0.0f ? disc : 0.0f);
+        float qq = -(qb + (qb < 0.0f ? -root : root));
+        float t1 = qq / qa, t2 = qg / qq;
+        int ok1 = (disc >= 0.0f) & (t1 > 0.0f) & (1.0f + CK * (r->w + t1 * r->dz) >= 0.0f);
+        int ok2 = (disc >= 0.0f) & (t2 > 0.0f) & (1.0f + CK * (r->w + t2 * r->dz) >= 0.0f);
+        t = ok1 && !(ok2 && t2 < t1) ? t1 : (ok2 ? t2 : -r->w / r->dz);
+        float rho = 0.0f, f = 0.0f, slope = 0.0f, x = 0.0f, y = 0.0f, qs = 0.0f;
+        for (int k = 0; k <= ASPHERE_ITERATIONS; k++) {
+            x = r->ox + t * r->dx;
+            y = r->oy + t * r->dy;
+            rho = x * x + y * y;
+            qs = 1.0f - CCK * rho;
+            float sq = sqrt(qs > 0.0f ? qs : 0.0f);
+            float poly = 0.0f, dpoly = 0.0f;
+            for (int j = ASPHERE_TERMS - 1; j >= 0; j--) {
+                poly = poly * rho + a[j];
+                dpoly = dpoly * rho + (float)(j + 2) * a[j];
+            }
+            f = r->w + t * r->dz + C * rho / (1.0f + sq) + rho * rho * poly;
+            slope = C / (2.0f * sq) + rho * dpoly;
+            if (k < ASPHERE_ITERATIONS) t = t - f / (r->dz + 2.0f * slope * (x * r->dx + y * r->dy));
+        }
+        *hx = x;
+        *hy = y;
+        *hw = r->w + t * r->dz;
+        ok = (fabs(f) <= ASPHERE_TOLERANCE_MM) & (qs >= 0.0f);
+        float nxs = x * 2.0f * slope, nys = y * 2.0f * slope;
+        float scale = (nxs * r->dx + nys * r->dy + r->dz > 0.0f ? -1.0f : 1.0f) / sqrt(nxs * nxs + nys * nys + 1.0f);
+        *nx = nxs * scale;
+        *ny = nys * scale;
+        *nz = scale;
+    } else {  /* a plane at the vertex: a flat face or the stop */
+        t = -r->w / r->dz;
+        *hx = r->ox + t * r->dx;
+        *hy = r->oy + t * r->dy;
+        *hw = 0.0f;
+        *nx = 0.0f;
+        *ny = 0.0f;
+        *nz = r->dz > 0.0f ? -1.0f : 1.0f;
+    }
+    int inside = s[STEP_STOP] != 0.0f ? STOP_INSIDE(*hx, *hy) : (*hx * *hx + *hy * *hy <= s[STEP_AP2]);
+    r->alive = r->alive & ok & ((t > 0.0f) | !ahead) & inside;
+}
+
+/* One step: meet the surface, then pass, refract (weight x T) or reflect (weight x R). */
+inline void step(Ray *r, __constant float *s, float phase) {
+    float hx, hy, hw, nx, ny, nz;
+    meet(r, s, &hx, &hy, &hw, &nx, &ny, &nz);
+    int action = (int)s[STEP_ACTION];
+    float n0 = s[STEP_N_FROM], n2 = s[STEP_N_TO];
+    float c1 = -(r->dx * nx + r->dy * ny + r->dz * nz);
+    float R = reflectance((int)s[STEP_MODEL], n0, n2, c1, phase);
+    if (action == ACTION_REFLECT) {
+        r->weight *= R;
+        r->dx += 2.0f * c1 * nx;
+        r->dy += 2.0f * c1 * ny;
+        r->dz += 2.0f * c1 * nz;
+    } else if (action == ACTION_REFRACT) {
+        r->weight *= 1.0f - R;
+        float eta = n0 / n2;
+        float c2sq = 1.0f - eta * eta * (1.0f - c1 * c1);
+        r->alive = r->alive & (c2sq >= 0.0f);
+        float k = eta * c1 - sqrt(c2sq > 0.0f ? c2sq : 0.0f);
+        float tx = eta * r->dx + k * nx, ty = eta * r->dy + k * ny, tz = eta * r->dz + k * nz;
+        float inv = 1.0f / sqrt(tx * tx + ty * ty + tz * tz);
+        r->dx = tx * inv;
+        r->dy = ty * inv;
+        r->dz = tz * inv;
+    }
+    r->ox = hx;
+    r->oy = hy;
+    r->w = hw + s[STEP_SHIFT];
+}
+
+/* Rays i < count: in holds 6 rows of `stride` floats, origin x, y, w (relative to the first step's
+ * vertex) and direction x, y, z (unit); out holds 7 rows: film x, y, direction x, y, z at the film,
+ * weight, and 1 where the ray passed (0, and the rest 0, where it did not). steps: `step_count` rows of STEP_WIDTH. */
+__kernel void trace_path(uint count, uint step_count, __constant float *steps, float phase, uint stride,
+                         __global const float *in, __global float *out) {
+    uint i = get_global_id(0);
+    if (i >= count) return;
+    Ray r;
+    r.ox = in[i];
+    r.oy = in[stride + i];
+    r.w = in[2 * stride + i];
+    r.dx = in[3 * stride + i];
+    r.dy = in[4 * stride + i];
+    r.dz = in[5 * stride + i];
+    r.weight = 1.0f;
+    r.alive = 1;
+    for (uint k = 0; k < step_count; k++) step(&r, steps + k * STEP_WIDTH, phase);
+    float t = -r.w / r.dz;  /* w is now the axial position relative to the film plane */
+    r.alive = r.alive & (t > 0.0f);
+    out[i] = r.alive ? r.ox + t * r.dx : 0.0f;
+    out[stride + i] = r.alive ? r.oy + t * r.dy : 0.0f;
+    out[2 * stride + i] = r.alive ? r.dx : 0.0f;
+    out[3 * stride + i] = r.alive ? r.dy : 0.0f;
+    out[4 * stride + i] = r.alive ? r.dz : 0.0f;
+    out[5 * stride + i] = r.alive ? r.weight : 0.0f;
+    out[6 * stride + i] = r.alive ? 1.0f : 0.0f;
+}

@@ -1,0 +1,134 @@
+"""OpenCL host of ghost tracing: ``kernels/ghost.cl`` on a ``Device``, for one lens.
+
+The float64 reference is ``realistic.optics.ghosts`` (``trace_ghost``, ``trace_direct``); a
+``GhostKernel`` traces the same paths in float32 and returns the same ``GhostTrace``. A path is a
+table of steps (``STEPS``), one row per surface met in the order ``ghosts.path_steps`` gives, packed
+per launch for the path, film distance and wavelength: the program is built once per lens (its stop's
+shape is compiled in, as ``kernels/lens.cl`` has it), and every path, focus and wavelength reuses it.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+
+from realistic.camera.opencl_host import stop_lines
+from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.tables import Table, constant_defines
+from realistic.optics.asphere import COEFFICIENT_COUNT
+from realistic.optics.coating import DESIGN_WAVELENGTH_NM, IDEAL, MGF2_INDEX
+from realistic.optics.ghosts import GHOST_WAVELENGTH_NM, GhostPath, GhostTrace, path_steps
+from realistic.optics.lens import LensSystem
+
+KERNEL_FILE = "ghost.cl"
+#: One row per surface a path meets, in order (float32): its shape (``kind``: ``KINDS``; ``radius``
+#: of a sphere; base ``curvature``, ``conic`` and the coefficients A4 .. A20 of an asphere), its clear
+#: aperture (``ap2``, the squared semi-diameter; ``stop`` 1 at the aperture stop, whose opening is
+#: ``STOP_INSIDE``), ``ahead`` (0 where it touches the surface met before, as in ``lens.cl``), what the
+#: ray does there (``action``: ``ACTIONS``), the coating model (``realistic.optics.coating``), the
+#: indices on the ray's side and the far side, and the axial distance from this vertex to the next
+#: one's (to the film plane after the last), + toward the scene.
+STEPS = Table("STEP", np.float32, (("kind", 1), ("radius", 1), ("curvature", 1), ("conic", 1),
+                                   ("asphere", COEFFICIENT_COUNT), ("ap2", 1), ("stop", 1), ("ahead", 1),
+                                   ("action", 1), ("model", 1), ("n_from", 1), ("n_to", 1), ("shift", 1)))
+KINDS = ("plane", "sphere", "asphere")
+ACTIONS = ("pass", "refract", "reflect")
+#: Newton steps on an asphere, and the largest |F| (mm) accepted as a hit: ``kernels/lens.cl``'s.
+ASPHERE_ITERATIONS = 6
+ASPHERE_TOLERANCE_MM = 1e-4
+#: Rows of the kernel's input (origin x, y, w; direction) and output (film x, y; direction; weight; passed).
+IN_ROWS, OUT_ROWS = 6, 7
+
+
+def _c_float(value: float) -> str:
+    """A float32 C literal holding exactly np.float32(value)."""
+    return repr(float(np.float32(value))) + "f"
+
+
+def ghost_header(lens: LensSystem) -> str:
+    """The ``#define``s that ``ghost.cl`` needs for ``lens``: the table's offsets, the enumerations,
+    the coating's index, the asphere iteration, and the stop's opening (``stop_lines``; a round
+    stop's squared radius is its row's ``ap2``)."""
+    lines = [STEPS.defines(), constant_defines("KIND", KINDS), constant_defines("ACTION", ACTIONS),
+             "#define MODEL_IDEAL 0\n#define MODEL_BARE 1\n#define MODEL_LAYER 2\n",
+             f"#define COATING_INDEX {_c_float(MGF2_INDEX)}\n",
+             f"#define ASPHERE_ITERATIONS {ASPHERE_ITERATIONS}\n#define ASPHERE_TERMS {COEFFICIENT_COUNT}\n",
+             f"#define ASPHERE_TOLERANCE_MM {_c_float(ASPHERE_TOLERANCE_MM)}\n",
+             "#define STOP_R2 (s[STEP_AP2])\n", "\n".join(stop_lines(lens)) + "\n"]
+    return "".join(lines)
+
+
+def step_table(lens: LensSystem, film_distance_mm: float, path: GhostPath | None,
+               wavelength_nm: float) -> np.ndarray:
+    """``STEPS`` rows (float32) of ``path`` (None: the direct path) at ``wavelength_nm``."""
+    steps = path_steps(lens, path)
+    surfaces = np.array([surface for surface, _ in steps])
+    reflects = np.array([reflects for _, reflects in steps])
+    behind = lens.index_at(wavelength_nm)
+    front = np.concatenate([[1.0], behind[:-1]])
+    # the ray travels toward the film before the first reflection and after the second
+    toward_film = (np.cumsum(reflects) - reflects) % 2 == 0
+    n_from = np.where(toward_film, front[surfaces], behind[surfaces])
+    n_to = np.where(toward_film, behind[surfaces], front[surfaces])
+    models = lens.interface_models[surfaces]
+    action = np.where(reflects, ACTIONS.index("reflect"),
+                      np.where((n_from == n_to) & (models == IDEAL), ACTIONS.index("pass"), ACTIONS.index("refract")))
+    radius = lens.radius_mm[surfaces]
+    flat = (radius == 0) | ~np.isfinite(radius)
+    kind = np.where(lens.aspheric[surfaces], KINDS.index("asphere"), np.where(flat, 0, KINDS.index("sphere")))
+    vertex_z = np.concatenate([lens.vertex_z_mm(film_distance_mm)[surfaces], [0.0]])
+    previous = np.concatenate([[-1], surfaces[:-1]])
+    gaps = lens.thickness_mm[np.minimum(np.maximum(previous, 0), surfaces)]
+    return STEPS.pack(len(steps), kind=kind, radius=np.where(flat, 0.0, radius),
+                      curvature=np.where(flat, 0.0, 1.0 / np.where(flat, 1.0, radius)),
+                      conic=lens.conic[surfaces], asphere=lens.aspheric_coefficients[surfaces],
+                      ap2=(lens.aperture_mm[surfaces] / 2) ** 2, stop=surfaces == lens.stop,
+                      ahead=(previous < 0) | (gaps != 0), action=action, model=models, n_from=n_from, n_to=n_to,
+                      shift=vertex_z[:-1] - vertex_z[1:])
+
+
+class GhostKernel:
+    """``ghost.cl`` built for one lens on ``device``; ``trace`` is ``ghosts.trace_ghost`` in float32.
+    Safe to call from several threads (launches are serialised on one lock)."""
+
+    def __init__(self, lens: LensSystem, device: Device | None = None):
+        """``device``: where to build and launch (None: ``Device.for_spec()``, the default device)."""
+        self.lens, self.device = lens, device or Device.for_spec()
+        self.queue = self.device.queue()
+        program = self.device.build_program(ghost_header(lens) + kernel_source(KERNEL_FILE), KERNEL_FILE)
+        self._kernel = cl.Kernel(program, "trace_path")
+        self._lock = threading.Lock()
+
+    def trace(self, film_distance_mm: float, path: GhostPath | None, origins: np.ndarray, directions: np.ndarray,
+              wavelength_nm: float = GHOST_WAVELENGTH_NM) -> GhostTrace:
+        """Rays (lens frame, float64 or float32, N x 3 each) along ``path`` (None: the direct path)
+        onto the film, at one wavelength, as ``ghosts.trace_ghost`` traces them."""
+        lens = self.lens
+        steps = step_table(lens, film_distance_mm, path, wavelength_nm)
+        origins = np.asarray(origins, np.float64).reshape(-1, 3)
+        directions = np.asarray(directions, np.float64).reshape(-1, 3)
+        count = len(origins)
+        if count == 0:
+            return GhostTrace(np.zeros((0, 2)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, bool))
+        stride = whole_groups(count)
+        rays = np.zeros((IN_ROWS, stride), np.float32)
+        rays[0:2, :count] = origins[:, :2].T
+        # the axial position relative to the first surface's vertex, taken in float64
+        rays[2, :count] = origins[:, 2] - lens.vertex_z_mm(film_distance_mm)[path_steps(lens, path)[0][0]]
+        rays[3:6, :count] = (directions / np.linalg.norm(directions, axis=1, keepdims=True)).T
+        out = np.empty((OUT_ROWS, stride), np.float32)
+        phase = np.float32(math.pi * DESIGN_WAVELENGTH_NM / wavelength_nm)
+        with self._lock:
+            table = self.device.copied_buffer(steps, np.float32)
+            given = self.device.copied_buffer(rays, np.float32)
+            result = self.device.output_buffer(out.nbytes)
+            self._kernel(self.queue, (stride,), (LOCAL_SIZE,), np.uint32(count), np.uint32(len(steps)), table,
+                         phase, np.uint32(stride), given, result)
+            cl.enqueue_copy(self.queue, out, result)
+        passed = out[6, :count] > 0
+        film = np.where(passed[:, None], out[0:2, :count].T, np.nan)
+        direction = np.where(passed[:, None], out[2:5, :count].T, np.nan)
+        return GhostTrace(film.astype(np.float64), direction.astype(np.float64),
+                          out[5, :count].astype(np.float64), passed)
