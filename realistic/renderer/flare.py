@@ -53,7 +53,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from functools import partial
 
 import numpy as np
 
@@ -65,8 +64,9 @@ from realistic.core.transforms import transform_points, transform_vectors
 from realistic.core.warp import concentric_disk
 from realistic.optics.asphere import sag_mm
 from realistic.optics.dispersion import D_LINE_NM
-from realistic.optics.ghosts import GhostTrace, trace_direct, trace_ghost
+from realistic.optics.ghosts import GhostPath, GhostTrace, trace_direct, trace_ghost
 from realistic.optics.ghosts import ghost_paths as lens_ghost_paths
+from realistic.renderer.backends import GhostTracer
 from realistic.renderer.direct_lighting import SHADOW_OFFSET
 from realistic.renderer.film import Splats
 from realistic.renderer.light_sampler import FAR, LUMINANCE
@@ -96,18 +96,32 @@ class LensPath:
     share: float
 
 
-def ghost_paths(camera: LensCamera, threshold: float) -> list[LensPath]:
+def ghost_paths(camera: LensCamera, threshold: float, tracer: GhostTracer) -> list[LensPath]:
     """The camera's ghost paths (``optics.ghosts.ghost_paths`` at ``threshold``), each with a share
-    of the light paths proportional to its on-axis throughput."""
-    lens, film = camera.lens, camera.film_distance_mm
-    return [LensPath(partial(trace_ghost, lens, film, path), path.throughput)
-            for path in lens_ghost_paths(lens, threshold=threshold)]
+    of the light paths proportional to its on-axis throughput, traced by ``tracer`` (a backend's)."""
+    return [LensPath(_path_tracer(camera, path, tracer), path.throughput)
+            for path in lens_ghost_paths(camera.lens, threshold=threshold)]
 
 
-def direct_path(camera: LensCamera) -> LensPath:
+def direct_path(camera: LensCamera, tracer: GhostTracer) -> LensPath:
     """The ordinary way through the camera's lens (every surface refracting), as a ``LensPath``:
     light-traced, it renders what the camera's own rays render (the estimator's normalisation)."""
-    return LensPath(partial(trace_direct, camera.lens, camera.film_distance_mm), 1.0)
+    return LensPath(_path_tracer(camera, None, tracer), 1.0)
+
+
+def _path_tracer(camera: LensCamera, path: GhostPath | None, tracer: GhostTracer) -> PathTracer:
+    """``path`` (None: direct) of the camera's lens as a ``PathTracer``: by ``tracer`` at the d line
+    for an RGB camera, by the float64 reference (``optics.ghosts``) for a spectral camera, whose
+    rays each have their own wavelength."""
+    lens, film = camera.lens, camera.film_distance_mm
+
+    def trace(origins: np.ndarray, directions: np.ndarray, wavelength_nm: np.ndarray) -> GhostTrace:
+        if not camera.spectral:
+            return tracer(film, path, origins, directions, D_LINE_NM)
+        if path is None:
+            return trace_direct(lens, film, origins, directions, wavelength_nm)
+        return trace_ghost(lens, film, path, origins, directions, wavelength_nm)
+    return trace
 
 
 def front_cap_z(camera: LensCamera) -> tuple[float, float]:

@@ -62,8 +62,8 @@ class PassRunner:
         self.aovs = AovLayout(settings.aovs)
         self.flare = None
         if settings.flare_threshold is not None and isinstance(camera, LensCamera):  # RenderJob refuses other cameras
-            self.flare = FlareEstimator(scene, camera, self.integrator.intersector, settings.seed,
-                                        ghost_paths(camera, settings.flare_threshold))
+            paths = ghost_paths(camera, settings.flare_threshold, kernels.ghost_tracer(camera.lens))
+            self.flare = FlareEstimator(scene, camera, self.integrator.intersector, settings.seed, paths)
 
     def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
         """The results of passes given as (plan index, sample block)."""
