@@ -198,8 +198,10 @@ def test_flare_options_are_checked_and_an_ideal_lens_is_rendered_bare(capsys):
     inputs = build_render_inputs(RenderOptions(flare=True, resolution=(8, 8), spp=1))
     assert inputs.flare and set(inputs.camera.lens.coating) == {"none"}
     assert any("--coating none" in line for line in inputs.warnings)
+    inputs = build_render_inputs(RenderOptions(flare=True, coating="mgf2", flare_threshold=1e-6, resolution=(8, 8)))
+    assert set(inputs.camera.lens.coating) == {"mgf2"} and inputs.flare_threshold == 1e-6 and not inputs.warnings
     inputs = build_render_inputs(RenderOptions(flare=True, coating="mgf2", flare_threshold=1e-3, resolution=(8, 8)))
-    assert set(inputs.camera.lens.coating) == {"mgf2"} and inputs.flare_threshold == 1e-3 and not inputs.warnings
+    assert [line for line in inputs.warnings if "reaches the threshold 0.001" in line]  # coated: every ghost dimmer
     with pytest.raises(UserError, match="applies with --flare on"):
         RenderOptions(flare_threshold=1e-3)
     with pytest.raises(UserError, match="ghost threshold"):

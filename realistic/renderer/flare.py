@@ -246,8 +246,10 @@ class FlareEstimator:
         landed_pixel: list[np.ndarray] = []
         landed_value: list[np.ndarray] = []
         live = np.flatnonzero(np.any(flux != 0, axis=1))
+        by_path = live[np.argsort(path[live], kind="stable")]  # each path's rows, in order
+        ends = np.searchsorted(path[by_path], np.arange(len(self.paths) + 1))
         for g in range(len(self.paths)):
-            rows = live[path[live] == g]
+            rows = by_path[ends[g]:ends[g + 1]]
             if not len(rows):
                 continue
             exit_ = self.paths[g].trace(origin[rows], target[rows] - origin[rows], wavelength[rows])

@@ -33,7 +33,7 @@ from realistic.core.pixel_filter import filter_name
 from realistic.errors import UserError
 from realistic.optics.coating import COATINGS
 from realistic.optics.formats import load_lens
-from realistic.optics.ghosts import DEFAULT_THRESHOLD
+from realistic.optics.ghosts import DEFAULT_THRESHOLD, ghost_paths
 from realistic.optics.paraxial import FasterThanLens
 from realistic.optics.stop_shape import StopShape, bladed_stop, mask_stop
 from realistic.renderer.integrators import INTEGRATORS
@@ -273,7 +273,12 @@ def _flare_camera(camera: Camera, options: RenderOptions, inputs: RenderInputs) 
     if options.coating is None and set(camera.lens.coating) == {"ideal"}:
         inputs.warnings.append("--flare on: the ideal coating reflects nothing, so its lens has no ghosts: rendering "
                                "with --coating none (bare glass; --coating mgf2 for coated surfaces)")
-        return camera.with_coating("none")
+        camera = camera.with_coating("none")
+    ghosts = ghost_paths(camera.lens, threshold=0.0)
+    if ghosts and ghosts[0].throughput < inputs.flare_threshold:
+        inputs.warnings.append(f"--flare on: no ghost of {camera.lens.name} reaches the threshold "
+                               f"{inputs.flare_threshold:g} (the brightest carries {ghosts[0].throughput:.2g} of the "
+                               "light): lower --flare-threshold to see them")
     return camera
 
 
