@@ -24,6 +24,7 @@ from realistic.renderer.passes import ThreadPasses, scene_intersector
 from realistic.renderer.passes import render as render_job
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.timing import StageClock
+from realistic.scene.lights import DistantLight, PointLight, SpotLight
 from realistic.scene.model import AreaLight, Scene
 from test_job import NewestFirstWithRetries
 
@@ -74,6 +75,32 @@ def test_light_traced_direct_path_is_the_camera_render_of_a_small_light():
         assert light_error < 0.02 * light  # the comparison is tight enough to mean something
         assert abs(light - camera_value) < 4 * math.hypot(light_error, camera_error) + 0.005 * camera_value, (
             light, camera_value)  # 0.5 %: the camera sees the disk as a 64-gon
+
+
+def test_point_spot_and_distant_lights_bring_the_flux_of_the_area_light_they_stand_for():
+    """Through the direct path, a point light of intensity L A and a spot light pointing at the lens
+    bring what the small disk of radiance L and area A brings (which the camera's render checks
+    above); a distant light of irradiance E what a point light of intensity E D^2 brings from a
+    distance D far beyond the lens."""
+    scene, camera = _scene(coating="ideal", spp=8)
+    disk = scene.lights[0]
+    direct = [direct_path(camera, NumpyBackend().ghost_tracer(camera.lens))]
+
+    def brought(light: object) -> tuple[float, float]:
+        scene.lights = [light]
+        return _mean_and_error([_traced(scene, camera, direct, batch)[..., 1].sum() for batch in range(BATCHES)])
+
+    reference, reference_error = brought(disk)
+    intensity = (disk.area(),) * 3
+    toward_lens = translate(0.0, 0.0, -1.0)  # the spot at z = -1, its axis (+z) toward the camera
+    for light in (PointLight(intensity, np.array([0.0, 0.0, -1.0])),
+                  SpotLight(intensity, toward_lens, math.cos(math.radians(30)), math.cos(math.radians(20)))):
+        value, error = brought(light)
+        assert abs(value - reference) < 4 * math.hypot(error, reference_error) + 1e-3 * reference, (light, value)
+    far = 1000.0
+    value, error = brought(DistantLight((1.0, 1.0, 1.0), np.array([0.0, 0.0, -1.0])))
+    point, point_error = brought(PointLight((far * far,) * 3, np.array([0.0, 0.0, -far])))
+    assert value > 0 and abs(value - point) < 4 * math.hypot(error, point_error) + 1e-3 * point
 
 
 def _centroid(image: np.ndarray) -> np.ndarray:
