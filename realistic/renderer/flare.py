@@ -3,8 +3,8 @@
 A ghost is light that reflects twice inside the lens (``realistic.optics.ghosts``) before it
 reaches the film. Camera rays cannot find it efficiently: a camera ray would have to take a
 reflection of a few tenths of a percent at two chosen surfaces and still hit a small light. Light
-tracing from the light does it directly (the estimator Hullin et al. 2011 use for point lights,
-here for the lights of a 3-D scene, with visibility):
+tracing from the light does it directly (Hullin et al. 2011 trace the ghost paths from a point light
+as a 2-D overlay; here they start on the lights of a 3-D scene, with visibility):
 
 Estimator. Each camera sample id (pixel, sample) of a pass also draws one light path from its own
 counter-based numbers (``core.rng``, dimensions ``FLARE_KEY`` + 0 .. 6), so the number of light
@@ -37,9 +37,9 @@ the expectation of each term is the flux through that pixel, exactly (every fact
 of what was drawn), so the estimate is unbiased and its variance falls as 1 / (spp x pixels).
 That is the ordinary camera's pixel value: its weight cos^4 A / Z^2 makes a pixel
 mean(w L) = integral L cos dw, the film irradiance, box-filtered over the pixel (the flare ignores
-a wider pixel filter: ghosts are blurred far beyond a pixel). Lengths are mm in the lens frame;
-a point or distant light's intensity or irradiance is per scene unit squared, converted by the
-camera's ``mm_per_unit``.
+a wider pixel filter: ghosts are blurred far beyond a pixel). Lengths are mm in the lens frame, so
+a point or spot light's intensity (radiance times a scene-unit area) is multiplied by the camera's
+``mm_per_unit`` squared; radiance and irradiance need no conversion.
 
 A spectral camera draws each path's wavelength as its own samples do (``core.spectrum``) and weights
 it by ``rgb_response``, so ghosts take the coatings' colours; an RGB camera traces the d line, as
