@@ -193,6 +193,23 @@ def test_flare_is_bit_identical_whatever_the_executor_and_pass_order():
         assert a.image.sum() > c.image.sum()  # the flare adds light
 
 
+def test_flare_on_a_dask_farm_is_the_same_bits_as_in_process():
+    distributed = pytest.importorskip("distributed")
+    from realistic.renderer.farm import DaskPasses
+
+    scene, camera = _scene(0.05, 0.03, spp=6, size=(12, 10))
+    job = RenderJob(scene, (camera,), "numpy", seed=3, pass_samples=40, flare=True)
+    local = render_job(job, ThreadPasses(1))[0]
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    try:
+        with distributed.Client(cluster) as client:
+            farm = render_job(job, DaskPasses(client, task_samples=80))[0]
+    finally:
+        cluster.close()
+    assert local.image.sum() > 0
+    np.testing.assert_array_equal(farm.image, local.image)
+
+
 def test_a_checkpoint_keeps_the_flare_and_resumes_only_with_the_same_flare(tmp_path):
     scene, camera = _scene(0.05, 0.03, spp=8, size=(12, 10))
     job = RenderJob(scene, (camera,), "numpy", pass_samples=120, flare=True)
