@@ -15,7 +15,7 @@ from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core.transforms import translate
 from realistic.errors import UserError
 from realistic.optics.ghosts import ghost_paths as lens_ghost_paths
-from realistic.renderer.backends import NumpyBackend
+from realistic.renderer.backends import NumpyBackend, backend_for
 from realistic.renderer.checkpoint import checkpoint_path
 from realistic.renderer.flare import FlareEstimator, direct_path, ghost_paths
 from realistic.renderer.inputs import RenderOptions, build_render_inputs
@@ -121,6 +121,17 @@ def _ghosts(x: float, y: float, paths: slice = slice(None)) -> tuple[list[list[n
     direct = _traced(scene, camera, [direct_path(camera, tracer)], 0)
     return [[_traced(scene, camera, [ghost], batch) for batch in range(BATCHES)] for ghost in ghosts[paths]], \
         _centroid(direct)
+
+
+@pytest.mark.usefixtures("opencl_platform")
+def test_the_opencl_backend_lands_the_flare_where_the_float64_reference_does():
+    """The same light paths (same numbers) through ``kernels/ghost.cl`` and through the reference."""
+    scene, camera = _scene(0.05, 0.03, spp=8)
+    images = [_traced(scene, camera, ghost_paths(camera, 1e-4, backend_for(name).ghost_tracer(camera.lens)), 0)
+              for name in ("numpy", "opencl")]
+    assert images[0].sum() > 0
+    np.testing.assert_allclose(images[1].sum(), images[0].sum(), rtol=1e-3)
+    assert np.abs(images[1] - images[0]).sum() < 0.01 * images[0].sum()  # a path or two crosses a pixel edge
 
 
 def test_an_on_axis_light_has_ghosts_symmetric_about_the_image_centre():
