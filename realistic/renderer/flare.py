@@ -185,6 +185,10 @@ class FlareEstimator:
             estimate = np.ones(len(self.lights))
         self.light_p = estimate / estimate.sum() if len(estimate) else estimate
         self.light_cdf = np.cumsum(self.light_p)
+        self.colours = np.array([light.colour for light in self.lights], np.float64).reshape(-1, 3)
+        # a spot light's frame from the lens frame, for its falloff
+        self.spot_frames = {id(light): np.linalg.inv(np.asarray(light.light.light_to_world, np.float64))
+                            @ self.world_from_lens for light in self.lights if isinstance(light.light, SpotLight)}
 
     def _in_lens_frame(self, light: object) -> _Light | None:
         """A light this estimator traces, in the lens frame; None for others."""
@@ -233,21 +237,20 @@ class FlareEstimator:
         pick = np.minimum(np.searchsorted(self.light_cdf, u[0], side="right"), len(self.lights) - 1)
         origin = np.zeros((count, 3))
         target = np.zeros((count, 3))
-        flux = np.zeros((count, 3))  # Phi / T_g without the pick of the path, and with the light's colour
-        shadow = (np.zeros((count, 3)), np.zeros((count, 3)), np.zeros(count))  # start, direction, length
-        spectral = self.camera.spectral
-        wavelength = wavelengths_nm(u[6]).astype(np.float64) if spectral else np.full(count, D_LINE_NM)
+        flux = np.zeros(count)  # Phi / T_g before the path's pick, per unit of the light's colour
         for index, light in enumerate(self.lights):
             rows = np.flatnonzero(pick == index)
             if len(rows):
-                self._light_rows(light, rows, u, origin, target, flux, shadow)
+                origin[rows], target[rows], flux[rows] = self._light_rows(light, u[1][rows], u[2][rows], u[3][rows],
+                                                                          u[4][rows])
                 flux[rows] /= self.light_p[index]
+        spectral = self.camera.spectral
+        wavelength = wavelengths_nm(u[6]).astype(np.float64) if spectral else np.full(count, D_LINE_NM)
         path = np.minimum(np.searchsorted(self.path_cdf, u[5], side="right"), len(self.paths) - 1)
-        landed_pixel: list[np.ndarray] = []
-        landed_value: list[np.ndarray] = []
-        live = np.flatnonzero(np.any(flux != 0, axis=1))
+        live = np.flatnonzero(flux != 0)
         by_path = live[np.argsort(path[live], kind="stable")]  # each path's rows, in order
         ends = np.searchsorted(path[by_path], np.arange(len(self.paths) + 1))
+        landed, landed_pixel, landed_weight = [], [], []
         for g in range(len(self.paths)):
             rows = by_path[ends[g]:ends[g + 1]]
             if not len(rows):
@@ -256,67 +259,71 @@ class FlareEstimator:
             weight = np.where(exit_.passed, exit_.weight, 0.0)
             where = self._pixel_of(exit_.film_xy)
             keep = (weight != 0) & (where >= 0)
-            rows, where, weight = rows[keep], where[keep], weight[keep]
-            if not len(rows):
-                continue
-            visible = ~self.intersector.occluded(
-                transform_points(self.world_from_lens, shadow[0][rows]).astype(np.float32),
-                transform_vectors(self.world_from_lens, shadow[1][rows]).astype(np.float32),
-                shadow[2][rows].astype(np.float32))
-            value = flux[rows] * (weight / self.path_p[g] / self.pixel_area_mm2)[:, None]
-            if spectral:
-                value = (spectral_value(value, rgb_basis(wavelength[rows])).astype(np.float64)[:, None]
-                         * rgb_response(wavelength[rows]))
-            landed_pixel.append(where[visible])
-            landed_value.append(value[visible])
-        if not landed_pixel:
+            landed.append(rows[keep])
+            landed_pixel.append(where[keep])
+            landed_weight.append(weight[keep] / self.path_p[g])
+        rows = np.concatenate(landed) if landed else np.zeros(0, np.int64)
+        if not len(rows):
             return Splats.empty()
-        return Splats.of(np.concatenate(landed_pixel), np.concatenate(landed_value))
+        visible = ~self._occluded(pick[rows], origin[rows], target[rows])
+        rows = rows[visible]
+        scale = (flux[rows] * np.concatenate(landed_weight)[visible] / self.pixel_area_mm2)[:, None]
+        value = self.colours[pick[rows]] * scale
+        if spectral:
+            value = (spectral_value(value, rgb_basis(wavelength[rows])).astype(np.float64)[:, None]
+                     * rgb_response(wavelength[rows]))
+        return Splats.of(np.concatenate(landed_pixel)[visible], value)
 
-    def _light_rows(self, light: _Light, rows: np.ndarray, u: list[np.ndarray], origin: np.ndarray,
-                    target: np.ndarray, flux: np.ndarray, shadow: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
-        """Fill, for ``rows`` that picked ``light``: the line's start and its point on the lens
-        disk, the flux estimate before the path's throughput and picks (0 where the light cannot
-        reach the lens), and the shadow ray (start, direction and length in directions, lens frame)."""
-        shadow_start, shadow_direction, shadow_length = shadow
+    def _light_rows(self, light: _Light, u1: np.ndarray, u2: np.ndarray, u3: np.ndarray,
+                    u4: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For paths that picked ``light``, from their numbers for the light point (u1, u2) and the
+        lens point (u3, u4): the line's start, its point on the lens disk, and the flux estimate
+        per unit of the light's colour before the picks and the path's throughput (0 where the
+        light cannot reach the lens)."""
         a, z_p, z_far = self.clear_radius, self.z_p, self.z_far
         if isinstance(light.light, DistantLight):
             toward = light.centre  # unit, toward the light
-            if toward[2] <= 0:
-                return
+            if toward[2] <= 0:  # behind the lens
+                return np.zeros((len(u3), 3)), np.zeros((len(u3), 3)), np.zeros(len(u3))
             radius = a + (z_p - z_far) * math.hypot(toward[0], toward[1]) / toward[2]
-            x = self._disk_points(np.full(len(rows), radius), u[3][rows], u[4][rows])
-            origin[rows], target[rows] = x + toward / toward[2], x  # the line starts 1 mm in front of z_p
-            flux[rows] = light.colour * (toward[2] * math.pi * radius ** 2)
-            shadow_start[rows], shadow_direction[rows], shadow_length[rows] = x, toward, FAR
-            return
-        y = light.points(u[1][rows], u[2][rows])
+            x = self._disk_points(np.full(len(u3), radius), u3, u4)
+            flux = np.full(len(u3), toward[2] * math.pi * radius ** 2)
+            return x + toward / toward[2], x, flux  # the line starts 1 mm in front of z_p
+        y = light.points(u1, u2)
         ahead = y[:, 2] > z_p
         rho = np.hypot(y[:, 0], y[:, 1])
         with np.errstate(divide="ignore", invalid="ignore"):
             s = np.where(ahead, (y[:, 2] - z_p) / (y[:, 2] - z_far), 1.0)
         radius = np.maximum(a, rho * (1.0 - s) + a * s)
-        x = self._disk_points(radius, u[3][rows], u[4][rows])
+        x = self._disk_points(radius, u3, u4)
         offset = x - y
         d2 = np.einsum("ij,ij->i", offset, offset)
-        d = np.sqrt(d2)
-        cos_x = np.abs(offset[:, 2]) / d
+        flux = np.where(ahead, np.abs(offset[:, 2]) / (d2 * np.sqrt(d2)) * (math.pi * radius * radius), 0.0)
         if isinstance(light.light, AreaLight):
-            cos_l = offset @ light.normal / d
-            cos_l = np.abs(cos_l) if light.light.two_sided else np.maximum(cos_l, 0.0)
-            emitted = light.colour[None, :] * (cos_l * light.area_mm2)[:, None]
-            start = y + light.normal * np.where(offset @ light.normal >= 0, 1.0, -1.0)[:, None] \
-                * SHADOW_OFFSET * np.maximum(np.abs(y).max(axis=1), 1.0)[:, None]
-        else:
-            emitted = np.broadcast_to(light.colour, (len(rows), 3)).copy()
-            if isinstance(light.light, SpotLight):
-                to_light_frame = np.linalg.inv(np.asarray(light.light.light_to_world, np.float64))
-                world = transform_vectors(to_light_frame, transform_vectors(self.world_from_lens, offset))
-                emitted *= light.light.falloff(world[:, 2] / np.linalg.norm(world, axis=1))[:, None]
-            start = y
-        flux[rows] = np.where(ahead[:, None], emitted * (cos_x / d2 * math.pi * radius ** 2)[:, None], 0.0)
-        origin[rows], target[rows] = y, x
-        shadow_start[rows], shadow_direction[rows], shadow_length[rows] = start, x - start, 1.0 - 1e-4
+            cos_l = offset @ light.normal / np.sqrt(d2)
+            flux *= (np.abs(cos_l) if light.light.two_sided else np.maximum(cos_l, 0.0)) * light.area_mm2
+        elif isinstance(light.light, SpotLight):
+            world = transform_vectors(self.spot_frames[id(light)], offset)
+            flux *= light.light.falloff(world[:, 2] / np.linalg.norm(world, axis=1))
+        return y, x, flux
+
+    def _occluded(self, pick: np.ndarray, origin: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """Whether the scene hides each line's light from its lens point (shadow rays in world space):
+        from just off an area light's surface (toward the lens) or a point light's position to the
+        lens point, and from the lens point toward a distant light."""
+        start, direction, length = origin.copy(), target - origin, np.full(len(pick), 1.0 - 1e-4)
+        for index, light in enumerate(self.lights):
+            rows = np.flatnonzero(pick == index)
+            if isinstance(light.light, DistantLight):
+                start[rows], direction[rows], length[rows] = target[rows], light.centre, FAR
+            elif isinstance(light.light, AreaLight) and len(rows):
+                side = np.where(direction[rows] @ light.normal >= 0, 1.0, -1.0)
+                lift = side * SHADOW_OFFSET * np.maximum(np.abs(origin[rows]).max(axis=1), 1.0)
+                start[rows] = origin[rows] + light.normal * lift[:, None]
+                direction[rows] = target[rows] - start[rows]
+        return self.intersector.occluded(transform_points(self.world_from_lens, start).astype(np.float32),
+                                         transform_vectors(self.world_from_lens, direction).astype(np.float32),
+                                         length.astype(np.float32))
 
     def _disk_points(self, radius: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Points (N, 3) uniform on disks of ``radius`` about the axis in the plane z_p."""
