@@ -39,6 +39,7 @@ class Splats:
 
     @classmethod
     def empty(cls) -> Splats:
+        """A pass whose light paths reached no pixel."""
         return cls(np.zeros(0, np.int64), np.zeros((0, 3)))
 
 
