@@ -243,6 +243,14 @@ def test_a_checkpoint_keeps_the_flare_and_resumes_only_with_the_same_flare(tmp_p
     for other in ({"flare": False}, {"flare_threshold": 1e-3}):
         with pytest.raises(UserError, match="another flare setting"):
             render_job(dataclasses.replace(job, checkpoint=resume, **other))
+    saved = dict(np.load(path))
+    for damage, message in (({"flare": np.full_like(saved["flare"], np.nan)}, "flare not finite"),
+                            ({"flare": saved["flare"][:-1]}, "flare of the wrong shape")):
+        damaged = tmp_path / "damaged.exr.partial"
+        with open(damaged, "wb") as handle:
+            np.savez(handle, **{**saved, **damage})
+        with pytest.raises(UserError, match=f"damaged \\({message}"):
+            render_job(dataclasses.replace(job, checkpoint=Checkpointing(damaged, None, resume=True)))
     resumed = render_job(dataclasses.replace(job, checkpoint=resume), ThreadPasses(2))[0]
     np.testing.assert_array_equal(resumed.image, whole.image)
 
