@@ -57,7 +57,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     inputs = build_render_inputs(options_from_args(args, spp_list[0]))
     report_warnings(inputs.warnings)
     job = RenderJob(inputs.scene, (inputs.camera,), args.backend, args.seed, args.cl_device, inputs.light_samples,
-                    max_memory_bytes=args.max_memory)
+                    max_memory_bytes=args.max_memory, flare=inputs.flare, flare_threshold=inputs.flare_threshold)
     with farm_client(args, security) as client:
         rows, _ = measure_sample_counts(job, spp_list, executor_for(args, client, inputs.intersector), reference)
     against = "reference" if reference is not None else f"{max(spp_list)} spp"

@@ -18,6 +18,7 @@ from realistic.core.pixel_filter import FILTER_ALIASES, FILTER_NAMES, filter_nam
 from realistic.core.spectrum import DEFAULT_WAVELENGTHS_PER_SAMPLE
 from realistic.core.validation import finite
 from realistic.optics.coating import COATINGS
+from realistic.optics.ghosts import DEFAULT_THRESHOLD
 from realistic.renderer.memory import parse_size
 from realistic.scene.pbrt.dialect import DIALECTS
 
@@ -103,6 +104,13 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
                         help="lens surfaces' coating: ideal transmits everything, none loses the Fresnel "
                              "reflection of bare glass at each surface, mgf2 a single-layer quarter-wave MgF2 "
                              "anti-reflection coating on each glass-air surface (default: ideal)")
+    parser.add_argument("--flare", choices=("on", "off"), default="off",
+                        help="lens flare: light traced from the lights through the lens's ghosts (two reflections "
+                             "inside the lens) to the film; a coating other than ideal is needed, and none is used "
+                             "unless --coating is given (default: %(default)s)")
+    parser.add_argument("--flare-threshold", type=checked(float, validation.ghost_threshold), metavar="T",
+                        help="with --flare on: render the ghosts whose on-axis throughput is at least T, a "
+                             f"fraction of the light, 0 to 1 (default: {DEFAULT_THRESHOLD:g})")
     parser.add_argument("--wavelengths-per-sample", type=checked(int, validation.wavelengths_per_sample), metavar="K",
                         help="spectral renders: trace each camera sample at K wavelengths, one per 1/K of the "
                              "wavelength density, sharing its film, lens and light samples (less colour noise, "
@@ -136,4 +144,4 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
         dispersion=None if args.dispersion is None else args.dispersion == "on",
         wavelengths_per_sample=args.wavelengths_per_sample,
         search_paths=[Path(p) for p in args.search_path], pbrt_dialect=args.pbrt_dialect,
-        pixel_filter=args.filter, coating=args.coating)
+        pixel_filter=args.filter, coating=args.coating, flare=args.flare == "on", flare_threshold=args.flare_threshold)

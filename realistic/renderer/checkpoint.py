@@ -1,8 +1,9 @@
 """Checkpoints of a render in progress, and the identity that says which render one belongs to.
 
 A checkpoint (``OUT.exr.partial``, beside the output) holds the film sums and sample counts of the
-passes added in order, the sums of passes finished out of order, and the render's identity: content
-hashes of the scene and the camera, the seed, resolution, spp, pass size, backend, light samples and crop.
+passes added in order, the sums of passes finished out of order, the lens flare's film and splats
+(``film.Splats``) when the render has flare, and the render's identity: content hashes of the scene
+and the camera, the seed, resolution, spp, pass size, backend, light samples, crop, AOVs and flare.
 Resuming refuses, in one line, a checkpoint whose identity differs in any of them. It is an
 uncompressed NumPy ``.npz`` written atomically (``core.atomic_files``), so a kill mid-write leaves
 the previous checkpoint whole.
@@ -31,7 +32,7 @@ from realistic.camera.base import Camera, SampleBlock
 from realistic.core.atomic_files import write_atomically
 from realistic.errors import UserError
 from realistic.renderer.crop import PixelBounds
-from realistic.renderer.film import Film, PassFilm
+from realistic.renderer.film import Film, PassFilm, Splats
 from realistic.scene.model import Scene
 
 #: 2: passes are slices of every pixel's samples (``pass_plan``); a format-1 plan numbered other passes.
@@ -117,26 +118,29 @@ class RenderIdentity:
     light_samples: int
     crop: str = ""  # the pixel bounds "x0 x1 y0 y1" of a cropped render; "" for the whole image
     aovs: str = ""  # comma-separated, in ``validation.AOV_NAMES`` order; "" for none
+    flare: str = ""  # "ghosts >= THRESHOLD" when the render has lens flare; "" for none
 
     @classmethod
     def of(cls, scene: Scene, camera: Camera, seed: int, pass_samples: int, backend: str,
-           light_samples: int, crop: PixelBounds | None = None, aovs: tuple[str, ...] = ()) -> RenderIdentity:
+           light_samples: int, crop: PixelBounds | None = None, aovs: tuple[str, ...] = (),
+           flare_threshold: float | None = None) -> RenderIdentity:
         """The identity of rendering ``scene`` through ``camera`` (its ``camera`` and ``metadata``, which
-        names the file as it was given, not counted), cropped to ``crop`` when given."""
+        names the file as it was given, not counted), cropped to ``crop`` when given, with lens flare
+        through the ghosts of at least ``flare_threshold`` (None: none)."""
         scene_fields = {f.name: getattr(scene, f.name) for f in dataclasses.fields(scene)
                         if f.name not in ("camera", "metadata")}
         camera_hash = content_hash(dataclasses.replace(camera, spp=1))
         return cls(f"{camera.width}x{camera.height}", int(seed), content_hash(scene_fields), camera_hash,
                    int(camera.spp), int(pass_samples), backend, int(light_samples), "" if crop is None else str(crop),
-                   ",".join(aovs))
+                   ",".join(aovs), "" if flare_threshold is None else f"ghosts >= {flare_threshold!r}")
 
 
 #: How a mismatch is named in the refusal.
 _NAMES = {"resolution": "resolution", "seed": "seed", "scene": "scene", "camera": "camera", "spp": "spp",
           "pass_samples": "pass size", "backend": "backend", "light_samples": "light samples", "crop": "crop",
-          "aovs": "set of AOVs"}
-#: What a field missing from a checkpoint's header means: one written before crops or AOVs had none.
-_ABSENT = {"crop": "", "aovs": ""}
+          "aovs": "set of AOVs", "flare": "flare setting"}
+#: What a field missing from a checkpoint's header means: one written before crops, AOVs or flare had none.
+_ABSENT = {"crop": "", "aovs": "", "flare": ""}
 
 
 def checkpoint_path(out: Path) -> Path:
@@ -152,7 +156,12 @@ def save_checkpoint(path: Path, identity: RenderIdentity, film: PassFilm) -> Non
               "waiting_index": np.array(waiting, dtype=np.int64),
               "waiting_first_pixel": np.array([film.waiting[i][0] for i in waiting], dtype=np.int64)}
     for index in waiting:
-        arrays[f"waiting_{index}"] = film.waiting[index][1]
+        _, sums, splats = film.waiting[index]
+        arrays[f"waiting_{index}"] = sums
+        if splats is not None:
+            arrays[f"waiting_flare_pixel_{index}"], arrays[f"waiting_flare_{index}"] = splats.pixel, splats.value
+    if film.film.flare is not None:
+        arrays["flare"] = film.film.flare
     header = json.dumps({"format": FORMAT, "next_pass": film.next_pass, **dataclasses.asdict(identity)})
 
     def write(temporary: str) -> None:
@@ -172,15 +181,16 @@ def refuse_unless_resuming(path: Path) -> None:
 
 
 def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlock], *,
-                    crop: PixelBounds | None = None, columns: int = 3) -> PassFilm:
+                    crop: PixelBounds | None = None, columns: int = 3, flare: bool = False) -> PassFilm:
     """The film (of ``columns`` sums per pixel: ``aov.AovLayout.columns``; showing ``crop``, the
-    render's) saved at ``path``; UserError (one line) if it is missing, unreadable, made for another
-    render, or holds anything the render's pass plan ``passes`` does not give."""
+    render's; holding lens flare when ``flare``) saved at ``path``; UserError (one line) if it is
+    missing, unreadable, made for another render, or holds anything the render's pass plan
+    ``passes`` does not give."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no checkpoint to resume (render without --resume to start)")
     width, height = (int(v) for v in identity.resolution.split("x"))
-    header, saved = _read(path, width * height, columns)
+    header, saved = _read(path, width * height, columns, flare)
     for name, label in _NAMES.items():
         theirs, ours = header.get(name, _ABSENT.get(name)), getattr(identity, name)
         if type(theirs) is not type(ours) or theirs != ours:
@@ -188,22 +198,26 @@ def load_checkpoint(path: Path, identity: RenderIdentity, passes: list[SampleBlo
             shown = (theirs if isinstance(theirs, str) and theirs.isprintable() else ascii(theirs))[:width]
             raise UserError(f"{path}: cannot resume: the checkpoint is for another {label} ({shown or 'none'}, "
                             f"this render has {str(ours)[:width] or 'none'}); remove it or render without --resume")
-    film = PassFilm(Film(width, height, identity.spp, bounds=crop, columns=columns), passes)
+    film = PassFilm(Film(width, height, identity.spp, bounds=crop, columns=columns, flare=flare), passes)
     problem = _fill(film, header, saved)
     if problem:
         raise UserError(f"{path}: cannot resume: the checkpoint is damaged ({problem}); remove it to start afresh")
     return film
 
 
-def _read(path: Path, pixels: int, columns: int) -> tuple[dict, dict[str, np.ndarray]]:
+def _read(path: Path, pixels: int, columns: int, flare: bool) -> tuple[dict, dict[str, np.ndarray]]:
     """The header and arrays of the checkpoint at ``path`` for a film of ``pixels`` pixels of
-    ``columns`` sums each."""
+    ``columns`` sums each, and its flare when ``flare``."""
     try:
         with np.load(path, allow_pickle=False) as data:
             if not hasattr(data, "files"):
                 raise ValueError("not an .npz archive")
-            # the members' sizes before any is read: a few arrays of the film's size at most
-            if sum(info.file_size for info in data.zip.infolist()) > 24 * columns * pixels + (1 << 20):
+            # the members' sizes before any is read: a few arrays of the film's size at most, and with
+            # flare its flare film and each waiting pass's splats (at most one pixel index and RGB per pixel)
+            members = data.zip.infolist()
+            splats = sum(info.filename.startswith("waiting_flare_pixel_") for info in members) if flare else 0
+            limit = 24 * (columns + 3 * flare) * pixels + 32 * splats * pixels + (1 << 20)
+            if sum(info.file_size for info in members) > limit:
                 raise ValueError("larger than a checkpoint of this film")
             header = json.loads(str(data["header"]))
             if not isinstance(header, dict) or not str(header.get("format")).startswith("realistic checkpoint"):
@@ -212,7 +226,10 @@ def _read(path: Path, pixels: int, columns: int) -> tuple[dict, dict[str, np.nda
                 raise ValueError(f"{ascii(header['format'])[1:-1][:40]}, this version reads {FORMAT}")
             waiting = [f"waiting_{index}" for index in data["waiting_index"].tolist()] \
                 if "waiting_index" in data.files and data["waiting_index"].ndim == 1 else []
-            names = ["sums", "samples", "waiting_index", "waiting_first_pixel", *waiting]
+            if flare:
+                waiting += [f"waiting_flare{part}_{name[len('waiting_'):]}" for name in waiting
+                            for part in ("", "_pixel")]
+            names = ["sums", "samples", "waiting_index", "waiting_first_pixel", *waiting, *(["flare"] if flare else [])]
             saved = {name: data[name] for name in names if name in data.files}
     except Exception as err:  # numpy's and zipfile's readers raise many types for a damaged file
         text = " ".join(str(err).split())
@@ -250,6 +267,16 @@ def _fill(film: PassFilm, header: dict, saved: dict[str, np.ndarray]) -> str | N
         return "waiting pass indices out of range or repeated"
     film.film.sums[:], film.film.samples[:] = sums, samples
     film.next_pass = next_pass
+    if film.film.flare is not None:
+        flare = saved.get("flare")
+        if flare is None:
+            return "no flare"
+        problem = _sums_problem(flare, (pixels, 3), "flare")
+        if problem:
+            return problem
+        if next_pass == 0 and np.any(flare != 0):
+            return "flare before any pass"
+        film.film.flare[:] = flare
     for number, first_pixel in zip(index.tolist(), first.tolist(), strict=True):
         block, waiting = passes[number], saved.get(f"waiting_{number}")
         if first_pixel != block.first_pixel or waiting is None:
@@ -257,8 +284,26 @@ def _fill(film: PassFilm, header: dict, saved: dict[str, np.ndarray]) -> str | N
         problem = _sums_problem(waiting, (block.pixel_count, columns), f"waiting pass {number}")
         if problem:
             return problem
-        film.waiting[number] = (first_pixel, waiting.astype(np.float64))
+        splats = None
+        if film.film.flare is not None:
+            splats, problem = _splats(saved.get(f"waiting_flare_pixel_{number}"), saved.get(f"waiting_flare_{number}"),
+                                      pixels, f"waiting pass {number}")
+            if problem:
+                return problem
+        film.waiting[number] = (first_pixel, waiting.astype(np.float64), splats)
     return None
+
+
+def _splats(pixel: np.ndarray | None, value: np.ndarray | None, pixels: int,
+            what: str) -> tuple[Splats | None, str | None]:
+    """A waiting pass's flare splats from their arrays, or what is wrong with them."""
+    if pixel is None or value is None:
+        return None, f"{what} has no flare"
+    if pixel.ndim != 1 or pixel.dtype.kind not in "iu" or (len(pixel) and (
+            pixel.min() < 0 or pixel.max() >= pixels or np.any(np.diff(pixel) <= 0))):
+        return None, f"{what}'s flare pixels are not ascending film pixels"
+    problem = _sums_problem(value, (len(pixel), 3), f"{what}'s flare")
+    return (None, problem) if problem else (Splats(pixel.astype(np.int64), value), None)
 
 
 def _sums_problem(sums: np.ndarray, shape: tuple[int, int], what: str) -> str | None:

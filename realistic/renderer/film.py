@@ -3,14 +3,44 @@
 The pixel filter is not applied here: the camera draws each sample's film position from the filter
 around its own pixel and folds sign(f) integral|f| / integral(f) into its weight
 (``realistic.core.pixel_filter``), so sum / samples is the filtered value whatever the filter, and
-a pass never spills into neighbouring pixels."""
+a pass never spills into neighbouring pixels.
+
+Lens flare (``realistic.renderer.flare``) is light traced from the lights, which lands anywhere on
+the film: each pass brings its ``Splats`` (per pixel reached, the sum over the pass's light paths,
+one per sample id), kept in a film-sized ``flare`` array and divided by every sample taken so far,
+so a pixel's value is its camera estimate plus the flare's irradiance."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from realistic.camera.base import SampleBlock
 from realistic.renderer.crop import PixelBounds
+
+
+@dataclass(frozen=True)
+class Splats:
+    """One pass's light-traced contributions: per pixel reached (ascending, each once), the sum
+    of its light paths' values (float64 RGB); the film divides by the samples taken."""
+
+    pixel: np.ndarray  # (M,) int64
+    value: np.ndarray  # (M, 3) float64
+
+    @classmethod
+    def of(cls, pixel: np.ndarray, value: np.ndarray) -> Splats:
+        """The splats of (pixel, value) rows, summed per pixel in row order (deterministic)."""
+        unique, where = np.unique(np.asarray(pixel, np.int64), return_inverse=True)
+        sums = np.zeros((len(unique), 3))
+        for c in range(3):
+            sums[:, c] = np.bincount(where, weights=value[:, c], minlength=len(unique))
+        return cls(unique, sums)
+
+    @classmethod
+    def empty(cls) -> Splats:
+        """A pass whose light paths reached no pixel."""
+        return cls(np.zeros(0, np.int64), np.zeros((0, 3)))
 
 
 def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_count: int) -> np.ndarray:
@@ -26,19 +56,24 @@ class Film:
 
     Every sample counts, vignetted ones included (their contribution is 0), so a pixel's value is
     the film irradiance estimate E = mean(weight * radiance). ``columns`` beyond the radiance's 3
-    hold the AOVs' sums (``aov.AovLayout``).
+    hold the AOVs' sums (``aov.AovLayout``). ``flare``: the film also holds passes' ``Splats``
+    (module docstring).
     """
 
-    def __init__(self, width: int, height: int, spp: int, *, bounds: PixelBounds | None = None, columns: int = 3):
+    def __init__(self, width: int, height: int, spp: int, *, bounds: PixelBounds | None = None, columns: int = 3,
+                 flare: bool = False):
         self.width, self.height, self.spp = width, height, spp
         self.bounds = PixelBounds.whole(width, height) if bounds is None else bounds  # what ``image`` shows
         self.sums = np.zeros((width * height, columns), np.float64)
         self.samples = np.zeros(width * height, np.int64)
+        self.flare = np.zeros((width * height, 3), np.float64) if flare else None
 
-    def add(self, block: SampleBlock, first_pixel: int, sums: np.ndarray) -> None:
-        """Add the sums of a pass (from ``pass_sums``) of the samples of ``block``."""
+    def add(self, block: SampleBlock, first_pixel: int, sums: np.ndarray, splats: Splats | None = None) -> None:
+        """Add the sums of a pass (from ``pass_sums``) of the samples of ``block``, and its flare."""
         self.sums[first_pixel:first_pixel + len(sums)] += sums
         self.samples[block.first_pixel:block.first_pixel + block.pixel_count] += block.samples_per_pixel()
+        if self.flare is not None and splats is not None:
+            self.flare[splats.pixel] += splats.value
 
     def image(self) -> np.ndarray:
         """(height, width, 3) float32 film values of ``bounds`` (the whole film unless cropped);
@@ -47,6 +82,9 @@ class Film:
         sums = self.sums[:, :3].reshape(self.height, self.width, 3)[b.y0:b.y1, b.x0:b.x1]
         samples = self.samples.reshape(self.height, self.width, 1)[b.y0:b.y1, b.x0:b.x1]
         value = np.divide(sums, samples, out=np.zeros(sums.shape), where=samples > 0)
+        taken = int(self.samples.sum())
+        if self.flare is not None and taken:
+            value += self.flare.reshape(self.height, self.width, 3)[b.y0:b.y1, b.x0:b.x1] / taken
         return value.astype(np.float32)
 
 
@@ -61,12 +99,13 @@ class PassFilm:
     def __init__(self, film: Film, passes: list[SampleBlock]):
         self.film, self.passes = film, passes
         self.next_pass = 0  # passes 0 .. next_pass - 1 are in film
-        self.waiting: dict[int, tuple[int, np.ndarray]] = {}  # index -> (first pixel, sums)
+        self.waiting: dict[int, tuple[int, np.ndarray, Splats | None]] = {}  # index -> (first pixel, sums, flare)
 
-    def add(self, index: int, first_pixel: int, sums: np.ndarray) -> None:
-        """Take pass ``index``'s sums (from ``pass_sums``) starting at pixel ``first_pixel``; a
-        RuntimeError for a pass index, first pixel or sums' shape that is not the plan's (a result
-        from a worker is checked here, on arrival, before anything is added)."""
+    def add(self, index: int, first_pixel: int, sums: np.ndarray, splats: Splats | None = None) -> None:
+        """Take pass ``index``'s sums (from ``pass_sums``) starting at pixel ``first_pixel``, and its
+        flare ``splats``; a RuntimeError for a pass index, first pixel, sums' shape or splats that
+        are not the plan's (a result from a worker is checked here, on arrival, before anything is
+        added)."""
         if not 0 <= index < len(self.passes):
             raise RuntimeError(f"pass {index} is not in the plan of {len(self.passes)} passes")
         block = self.passes[index]
@@ -74,12 +113,19 @@ class PassFilm:
         if first_pixel != block.first_pixel or sums.shape != shape or sums.dtype != np.float64:
             raise RuntimeError(f"pass {index}: sums {sums.dtype}{sums.shape} from pixel {first_pixel}, "
                                f"expected float64{shape} from pixel {block.first_pixel}")
+        if (splats is not None) != (self.film.flare is not None):
+            raise RuntimeError(f"pass {index}: flare {'given' if splats is not None else 'missing'}, expected "
+                               f"{'some' if self.film.flare is not None else 'none'}")
+        if splats is not None and (splats.value.shape != (len(splats.pixel), 3) or splats.value.dtype != np.float64
+                                   or (len(splats.pixel) and not 0 <= splats.pixel.min() <= splats.pixel.max()
+                                       < len(self.film.samples))):
+            raise RuntimeError(f"pass {index}: flare splats {splats.value.dtype}{splats.value.shape} "
+                               "outside the film or of the wrong shape")
         if self.has(index):
             return  # a retried task's duplicate
-        self.waiting[index] = (first_pixel, sums)
+        self.waiting[index] = (first_pixel, sums, splats)
         while self.next_pass in self.waiting:
-            first_pixel, sums = self.waiting.pop(self.next_pass)
-            self.film.add(self.passes[self.next_pass], first_pixel, sums)
+            self.film.add(self.passes[self.next_pass], *self.waiting.pop(self.next_pass))
             self.next_pass += 1
 
     def has(self, index: int) -> bool:
@@ -95,8 +141,10 @@ class PassFilm:
         if not self.waiting:
             return self.film.image()
         film = Film(self.film.width, self.film.height, self.film.spp, bounds=self.film.bounds,
-                    columns=self.film.sums.shape[1])
+                    columns=self.film.sums.shape[1], flare=self.film.flare is not None)
         film.sums[:], film.samples[:] = self.film.sums, self.film.samples
+        if film.flare is not None and self.film.flare is not None:
+            film.flare[:] = self.film.flare
         for index in sorted(self.waiting):
             film.add(self.passes[index], *self.waiting[index])
         return film.image()
@@ -107,6 +155,6 @@ class PassFilm:
             return self.film.sums
         sums = self.film.sums.copy()
         for index in sorted(self.waiting):
-            first_pixel, waiting = self.waiting[index]
+            first_pixel, waiting, _ = self.waiting[index]
             sums[first_pixel:first_pixel + len(waiting)] += waiting
         return sums

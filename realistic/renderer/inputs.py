@@ -33,6 +33,7 @@ from realistic.core.pixel_filter import filter_name
 from realistic.errors import UserError
 from realistic.optics.coating import COATINGS
 from realistic.optics.formats import load_lens
+from realistic.optics.ghosts import DEFAULT_THRESHOLD, ghost_paths
 from realistic.optics.paraxial import FasterThanLens
 from realistic.optics.stop_shape import StopShape, bladed_stop, mask_stop
 from realistic.renderer.integrators import INTEGRATORS
@@ -89,6 +90,8 @@ class RenderOptions:
     pbrt_dialect: str = "auto"  # pbrt scenes: which pbrt's conventions (realistic.scene.pbrt.dialect)
     pixel_filter: str | None = None  # a filter name replacing the scene's, at pbrt's default parameters
     coating: str | None = None  # every lens surface's coating (realistic.optics.coating), None: the lens's own
+    flare: bool = False  # lens flare through the lens's ghost paths (realistic.renderer.flare)
+    flare_threshold: float | None = None  # the least on-axis throughput of a ghost rendered (None: the default)
     search_paths: list[Path] = field(default_factory=list)  # (str folders too: made Paths)
 
     def __post_init__(self) -> None:
@@ -115,6 +118,10 @@ class RenderOptions:
             self.pixel_filter = filter_name(self.pixel_filter)
         if self.coating is not None and self.coating not in COATINGS:
             raise UserError(f"unknown coating {self.coating!r} (choose {', '.join(COATINGS)})")
+        if self.flare_threshold is not None:
+            validation.ghost_threshold(self.flare_threshold)
+            if not self.flare:
+                raise UserError("--flare-threshold applies with --flare on")
         if self.aperture_mm is not None:
             validation.stop_diameter_mm(self.aperture_mm)
         if self.focus_distance is not None:
@@ -162,6 +169,8 @@ class RenderInputs:
     filter_dialect: Dialect = MESH_FILTER_DIALECT
     camera_where: str = ""  # a pbrt scene's Camera directive (file:line), for errors about the camera
     intersector: Intersector | None = None
+    flare: bool = False  # render lens flare (``RenderJob.flare``), through ghosts of at least this throughput:
+    flare_threshold: float = DEFAULT_THRESHOLD
 
     @property
     def camera(self) -> Camera:
@@ -213,6 +222,8 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
             if not isinstance(camera, LensCamera):
                 raise UserError("--coating needs a real lens (--lens)")
             camera = camera.with_coating(options.coating)
+        if options.flare:
+            camera = _flare_camera(camera, options, inputs)
         if options.focus_distance is not None:
             camera = camera.with_focus(options.focus_distance)
         if options.film_distance_mm is not None:
@@ -247,6 +258,28 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
     scene.camera = camera
     scene.metadata = inputs.metadata
     return inputs
+
+
+def _flare_camera(camera: Camera, options: RenderOptions, inputs: RenderInputs) -> LensCamera:
+    """The camera of a render with lens flare, which ``inputs`` now asks for: a real lens, and
+    under the ``ideal`` coating (which reflects nothing, so has no ghosts) one with bare surfaces
+    unless ``--coating`` was given, with a line saying so."""
+    if not isinstance(camera, LensCamera):
+        raise UserError("--flare on needs a real lens (--lens): a thin-lens or perspective camera has no ghosts")
+    inputs.flare = True
+    if options.flare_threshold is not None:
+        inputs.flare_threshold = options.flare_threshold
+    inputs.metadata["flare"] = f"ghosts >= {inputs.flare_threshold:g}"  # the image header says how it was made
+    if options.coating is None and set(camera.lens.coating) == {"ideal"}:
+        inputs.warnings.append("--flare on: the ideal coating reflects nothing, so its lens has no ghosts: rendering "
+                               "with --coating none (bare glass; --coating mgf2 for coated surfaces)")
+        camera = camera.with_coating("none")
+    ghosts = ghost_paths(camera.lens, threshold=0.0)
+    if ghosts and ghosts[0].throughput < inputs.flare_threshold:
+        inputs.warnings.append(f"--flare on: no ghost of {camera.lens.name} reaches the threshold "
+                               f"{inputs.flare_threshold:g} (the brightest carries {ghosts[0].throughput:.2g} of the "
+                               "light): lower --flare-threshold to see them")
+    return camera
 
 
 def _with_stop(camera: Camera, options: RenderOptions, shape: StopShape | None, warnings: list[str]) -> Camera:

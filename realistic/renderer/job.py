@@ -18,9 +18,12 @@ from typing import Protocol
 import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
+from realistic.camera.lens_camera import LensCamera
 from realistic.core import validation
 from realistic.errors import UserError
+from realistic.optics.ghosts import DEFAULT_THRESHOLD
 from realistic.renderer.crop import PixelBounds
+from realistic.renderer.film import Splats
 from realistic.renderer.pass_plan import default_pass_samples
 from realistic.renderer.timing import StageClock
 from realistic.scene.model import Scene
@@ -37,12 +40,14 @@ class PassSettings:
     morton: bool = False
     crop: PixelBounds | None = None  # trace only these pixels' rays (None: all)
     aovs: tuple[str, ...] = ()  # ``renderer.aov`` names, in ``validation.AOV_NAMES`` order
+    flare_threshold: float | None = None  # lens flare through the ghosts this bright (``renderer.flare``); None: none
 
 
 @dataclass(frozen=True)
 class PassResult:
     """One pass's per-pixel sums (``film.pass_sums``: the radiance's 3 columns, then the AOVs'
-    (``aov.AovLayout``)) and ray counts; ``index`` is its plan index."""
+    (``aov.AovLayout``)), its lens flare (``film.Splats``, when the job renders flare) and ray
+    counts; ``index`` is its plan index."""
 
     index: int
     first_pixel: int
@@ -50,6 +55,7 @@ class PassResult:
     count: int
     primary_rays: int
     shadow_rays: int
+    flare: Splats | None = None
 
 
 @dataclass(frozen=True)
@@ -84,6 +90,10 @@ class RenderJob:
     crop: PixelBounds | None = None
     # first-hit outputs written beside the image (``renderer.aov``): names or "depth,normal"
     aovs: tuple[str, ...] | str = ()
+    # lens flare: light traced from the lights through the lens's ghost paths (``renderer.flare``),
+    # those whose on-axis throughput is at least ``flare_threshold`` (``optics.ghosts.ghost_paths``)
+    flare: bool = False
+    flare_threshold: float = DEFAULT_THRESHOLD
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", tuple(self.cameras))
@@ -100,13 +110,16 @@ class RenderJob:
                 self.crop.within(camera.width, camera.height)
         if self.checkpoint is not None and len(self.cameras) != 1:
             raise UserError("checkpoints are for single images, not sequences")
+        validation.ghost_threshold(self.flare_threshold)
+        if self.flare and not all(isinstance(camera, LensCamera) for camera in self.cameras):
+            raise UserError("--flare on needs a real lens (--lens): a thin-lens or perspective camera has no ghosts")
 
     @property
     def settings(self) -> PassSettings:
         """What each pass runner needs besides the scene and camera."""
         light_samples = self.scene.light_samples if self.light_samples is None else self.light_samples
         return PassSettings(self.backend, self.cl_device, self.seed, light_samples, self.morton, self.crop,
-                            validation.aovs(self.aovs))
+                            validation.aovs(self.aovs), self.flare_threshold if self.flare else None)
 
     @property
     def pass_size(self) -> int:

@@ -184,7 +184,8 @@ def check_job_memory(job: RenderJob, threads: int, limit_bytes: int | None, fram
     """``check_memory`` for every kind of frame ``job`` renders (a sweep's frames are alike, so one
     check serves them), on ``threads`` threads, holding ``frames`` films and ``kept_images`` images."""
     alike = {(c.width, c.height, c.spp, c.rays_per_sample): c for c in job.cameras}
-    aov_columns = AovLayout(job.settings.aovs).columns - RADIANCE_COLUMNS
+    # lens flare's film and splats are three float64 sums per pixel or landed path, as RGB AOV columns are
+    aov_columns = AovLayout(job.settings.aovs).columns - RADIANCE_COLUMNS + (RADIANCE_COLUMNS if job.flare else 0)
     for camera in alike.values():
         check_memory(job.scene, camera, job.pass_size, threads, limit_bytes, frames, kept_images, limit_source,
                      aov_columns)

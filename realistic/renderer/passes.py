@@ -179,6 +179,7 @@ class _Frame:
     layout: AovLayout
     crop: PixelBounds | None = None
     film: PassFilm | None = None
+    flare: bool = False  # the film holds lens flare (``RenderJob.flare``)
 
     @property
     def complete(self) -> bool:
@@ -188,7 +189,7 @@ class _Frame:
         """The film, allocated on first use."""
         if self.film is None:
             self.film = PassFilm(Film(self.camera.width, self.camera.height, self.camera.spp, bounds=self.crop,
-                                      columns=self.layout.columns), self.plan)
+                                      columns=self.layout.columns, flare=self.flare), self.plan)
         return self.film
 
 
@@ -240,15 +241,15 @@ def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
         plan = plans[key]
         samples = job.crop.width * job.crop.height * camera.spp if job.crop is not None else camera.sample_count
         result = RenderResult(_EMPTY, 0, samples, 0, 0, 0.0, False, passes_total=len(plan), job=job, frame=index)
-        frames.append(_Frame(camera, plan, result, AovLayout(job.settings.aovs), job.crop))
+        frames.append(_Frame(camera, plan, result, AovLayout(job.settings.aovs), job.crop, flare=job.flare))
     if job.checkpoint is None:
         return frames, None
     identity = RenderIdentity.of(job.scene, job.cameras[0], job.seed, job.pass_size, job.backend,
-                                 job.settings.light_samples, job.crop, job.settings.aovs)
+                                 job.settings.light_samples, job.crop, job.settings.aovs, job.settings.flare_threshold)
     frame = frames[0]
     if job.checkpoint.resume:
         frame.film = load_checkpoint(job.checkpoint.path, identity, frame.plan, crop=job.crop,
-                                     columns=frame.layout.columns)
+                                     columns=frame.layout.columns, flare=job.flare)
         frame.result.samples_done = sum(_samples_of(job, frame.plan[i], frame.camera)
                                         for i in range(frame.film.next_pass)) \
             + sum(_samples_of(job, frame.plan[i], frame.camera) for i in frame.film.waiting)
@@ -302,7 +303,7 @@ def _run(job: RenderJob, executor: PassExecutor, observer: RenderObserver, clock
         for done in results:
             if film.has(done.index):
                 continue  # a retried task's duplicate
-            film.add(done.index, done.first_pixel, done.sums)
+            film.add(done.index, done.first_pixel, done.sums, done.flare)
             frame.result.samples_done += done.count
             frame.result.primary_rays += done.primary_rays
             frame.result.shadow_rays += done.shadow_rays

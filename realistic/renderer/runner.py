@@ -10,10 +10,12 @@ from __future__ import annotations
 import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
+from realistic.camera.lens_camera import LensCamera
 from realistic.core.spectrum import rgb_response
 from realistic.renderer.aov import AovLayout
 from realistic.renderer.backends import backend_for
 from realistic.renderer.film import pass_sums
+from realistic.renderer.flare import FlareEstimator, ghost_paths
 from realistic.renderer.footprint import differential_scale
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.job import PassResult, PassSettings
@@ -58,6 +60,10 @@ class PassRunner:
         self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
                                           settings.seed, spread, backend=kernels)
         self.aovs = AovLayout(settings.aovs)
+        self.flare = None
+        if settings.flare_threshold is not None and isinstance(camera, LensCamera):  # RenderJob refuses other cameras
+            paths = ghost_paths(camera, settings.flare_threshold, kernels.ghost_tracer(camera.lens))
+            self.flare = FlareEstimator(scene, camera, self.integrator.intersector, settings.seed, paths)
 
     def run(self, passes: list[tuple[int, SampleBlock]]) -> list[PassResult]:
         """The results of passes given as (plan index, sample block)."""
@@ -105,5 +111,9 @@ class PassRunner:
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
             if aov_values is not None:
                 sums = np.column_stack([sums, pass_sums(pixel, aov_values, first_pixel, pixel_count)])
+        flare = None
+        if self.flare is not None:
+            with self.clock("flare"):
+                flare = self.flare.splats(block)
         count = block.count if self.crop is None else self.crop.samples_in(block, self.camera.width)
-        return PassResult(index, first_pixel, sums, count, len(alive), shadow_rays)
+        return PassResult(index, first_pixel, sums, count, len(alive), shadow_rays, flare)
