@@ -27,6 +27,7 @@ same sequence of steps (``path_steps``).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -41,8 +42,9 @@ from realistic.optics.tracer import Vectors, incidence_cosine, intersect_asphere
 
 #: The default wavelength of ``ghost_paths``: the helium d line, as the lens's n_d.
 GHOST_WAVELENGTH_NM = D_LINE_NM
-#: Ghosts whose on-axis throughput is below this are left out by default.
-DEFAULT_THRESHOLD = 1e-4
+#: Ghosts whose on-axis throughput is below this are left out by default: low enough to keep the
+#: ghosts of a lens coated with MgF2 (those of the double Gauss are 1e-6 to 4e-5).
+DEFAULT_THRESHOLD = 1e-6
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,12 @@ class GhostTrace:
     direction: np.ndarray  # (N, 3) unit direction at the film
     weight: np.ndarray  # (N,)
     passed: np.ndarray  # (N,) bool
+
+
+#: What traces rays along a path (None: the direct path) onto the film, as ``trace_ghost`` does (a render
+#: backend's: the float64 reference or ``kernels/ghost.cl``): (film distance mm, path, origins (N, 3),
+#: directions (N, 3), wavelength nm, one or one per ray) -> ``GhostTrace``.
+GhostTracer = Callable[[float, "GhostPath | None", np.ndarray, np.ndarray, "float | np.ndarray"], GhostTrace]
 
 
 #: One step of a path: the surface met and whether the ray reflects there (else it refracts).

@@ -11,22 +11,18 @@ cameras and textures stay plain data.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
 
 from realistic.camera.base import BACKENDS, Camera, RayGenerator, check_backend
-from realistic.optics.ghosts import GhostPath, GhostTrace, trace_direct, trace_ghost
+from realistic.optics.ghosts import GhostPath, GhostTrace, GhostTracer, trace_direct, trace_ghost
 from realistic.optics.lens import LensSystem
 from realistic.scene.mipmap import MipMap
 from realistic.scene.textures import numpy_ewa
 
-__all__ = ["BACKENDS", "Backend", "GhostTracer", "NumpyBackend", "backend_for"]
+__all__ = ["BACKENDS", "Backend", "NumpyBackend", "backend_for"]
 
-#: Rays (lens frame) along a ghost path (None: the direct path) onto the film, at one wavelength:
-#: (film distance mm, path, origins (N, 3), directions (N, 3), wavelength nm) -> ``optics.ghosts.GhostTrace``.
-GhostTracer = Callable[[float, GhostPath | None, np.ndarray, np.ndarray, float], GhostTrace]
 
 
 class Backend(Protocol):
@@ -61,7 +57,7 @@ class NumpyBackend:
     def ghost_tracer(self, lens: LensSystem) -> GhostTracer:
         """The float64 reference, ``optics.ghosts.trace_ghost`` (``trace_direct`` for None)."""
         def trace(film_distance_mm: float, path: GhostPath | None, origins: np.ndarray, directions: np.ndarray,
-                  wavelength_nm: float) -> GhostTrace:
+                  wavelength_nm: float | np.ndarray) -> GhostTrace:
             if path is None:
                 return trace_direct(lens, film_distance_mm, origins, directions, wavelength_nm)
             return trace_ghost(lens, film_distance_mm, path, origins, directions, wavelength_nm)

@@ -64,9 +64,8 @@ from realistic.core.transforms import transform_points, transform_vectors
 from realistic.core.warp import concentric_disk
 from realistic.optics.asphere import sag_mm
 from realistic.optics.dispersion import D_LINE_NM
-from realistic.optics.ghosts import GhostPath, GhostTrace, trace_direct, trace_ghost
+from realistic.optics.ghosts import GhostPath, GhostTrace, GhostTracer
 from realistic.optics.ghosts import ghost_paths as lens_ghost_paths
-from realistic.renderer.backends import GhostTracer
 from realistic.renderer.direct_lighting import SHADOW_OFFSET
 from realistic.renderer.film import Splats
 from realistic.renderer.light_sampler import FAR, LUMINANCE
@@ -110,17 +109,12 @@ def direct_path(camera: LensCamera, tracer: GhostTracer) -> LensPath:
 
 
 def _path_tracer(camera: LensCamera, path: GhostPath | None, tracer: GhostTracer) -> PathTracer:
-    """``path`` (None: direct) of the camera's lens as a ``PathTracer``: by ``tracer`` at the d line
-    for an RGB camera, by the float64 reference (``optics.ghosts``) for a spectral camera, whose
-    rays each have their own wavelength."""
-    lens, film = camera.lens, camera.film_distance_mm
+    """``path`` (None: direct) of the camera's lens as a ``PathTracer``, traced by ``tracer``: at the
+    d line for an RGB camera, at each ray's own wavelength for a spectral one."""
+    film = camera.film_distance_mm
 
     def trace(origins: np.ndarray, directions: np.ndarray, wavelength_nm: np.ndarray) -> GhostTrace:
-        if not camera.spectral:
-            return tracer(film, path, origins, directions, D_LINE_NM)
-        if path is None:
-            return trace_direct(lens, film, origins, directions, wavelength_nm)
-        return trace_ghost(lens, film, path, origins, directions, wavelength_nm)
+        return tracer(film, path, origins, directions, wavelength_nm if camera.spectral else D_LINE_NM)
     return trace
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import threading
 import weakref
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -21,7 +20,7 @@ from realistic.camera.opencl_host import LensKernel
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.camera.thin_lens_host import ThinLensKernel
 from realistic.device.opencl import Device
-from realistic.optics.ghosts import GhostPath, GhostTrace
+from realistic.optics.ghosts import GhostTracer
 from realistic.optics.lens import LensSystem
 from realistic.renderer.shade_kernel import ShadeKernel
 from realistic.scene.ewa_kernel import EwaKernel, SurfaceTables
@@ -37,7 +36,6 @@ class OpenCLBackend:
     def __init__(self, device: Device):
         self.device = device
         self._ewa_kernels: weakref.WeakKeyDictionary[MipMap, EwaKernel] = weakref.WeakKeyDictionary()
-        self._ghost_kernels: weakref.WeakKeyDictionary[LensSystem, GhostKernel] = weakref.WeakKeyDictionary()
         self._lock = threading.Lock()
 
     def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
@@ -64,14 +62,11 @@ class OpenCLBackend:
         """``MipMap.ewa``'s lookups by ``kernels/ewa.cl`` (the same to float32 rounding)."""
         return self.ewa_kernel(mipmap)(st, axis0, axis1)
 
-    def ghost_tracer(self, lens: LensSystem) -> Callable[[float, GhostPath | None, np.ndarray, np.ndarray, float],
-                                                          GhostTrace]:
-        """``kernels/ghost.cl`` built for ``lens`` on this device (once per lens), float32."""
-        with self._lock:
-            kernel = self._ghost_kernels.get(lens)
-            if kernel is None:
-                kernel = self._ghost_kernels[lens] = GhostKernel(lens, self.device)
-            return kernel.trace
+    def ghost_tracer(self, lens: LensSystem) -> GhostTracer:
+        """``kernels/ghost.cl`` for ``lens`` on this device, float32 (its program is built once per
+        process and lens by ``Device.build_program``; a kernel object holds its lens, so none is kept
+        here, where it would keep the lens alive)."""
+        return GhostKernel(lens, self.device).trace
 
     def shade_kernel(self, **tables: Any) -> ShadeKernel:
         """``ShadeKernel`` on this device with a scene's ``tables`` (its keyword arguments)."""
