@@ -7,6 +7,7 @@ import pytest
 from realistic import load_lens
 from realistic.errors import UserError
 from realistic.optics.coating import BARE, IDEAL, LAYER, MGF2_INDEX, reflect_transmit, reflectance, transmittance
+from realistic.optics.forward_trace import reversed_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import paraxial_data
 from realistic.optics.report import on_axis_transmittance, t_stop
@@ -165,3 +166,15 @@ def test_ideal_leaves_the_reference_weight_untouched():
     assert np.count_nonzero(traced.passed) > 20 and np.all(traced.transmittance == 1.0)
     assert np.all(trace_from_film(lens.with_coating("none"), 60.0, np.zeros((201, 3)), directions
                                   ).transmittance[traced.passed] < 1.0)
+
+
+def test_a_lens_seen_from_the_film_keeps_each_surface_s_coating():
+    """reversed_lens (forward traces from the object side) reverses the coatings with the surfaces,
+    so every interface keeps its own model: bare where it was bare, coated where it was coated."""
+    lens = load_lens("dgauss")
+    names = ["mgf2" if i % 3 == 0 else "none" if i % 3 == 1 else "ideal" for i in range(lens.surface_count)]
+    coated = lens.with_coating(names)
+    back = reversed_lens(coated)
+    assert back.coating == tuple(names[::-1])
+    np.testing.assert_array_equal(back.interface_models, coated.interface_models[::-1])
+    assert set(coated.interface_models) == {IDEAL, BARE, LAYER}

@@ -29,8 +29,8 @@ from realistic.optics.tracer import TraceResult, trace_from_film
 
 
 def reversed_lens(lens: LensSystem) -> LensSystem:
-    """The lens seen from the film side: the order of surfaces reversed, radii negated, and the
-    medium behind each surface the one in front of it in the original."""
+    """The lens seen from the film side: the order of surfaces reversed (their coatings with them),
+    radii negated, and the medium behind each surface the one in front of it in the original."""
     count = lens.surface_count
     medium_in_front = np.concatenate([[1.0], lens.index_d[:-1]])
     abbe_in_front = np.concatenate([[0.0], lens.abbe_v[:-1]])
@@ -43,7 +43,7 @@ def reversed_lens(lens: LensSystem) -> LensSystem:
         thickness_mm=np.concatenate([lens.thickness_mm[:-1][::-1], [0.0]]),
         index_d=medium_in_front[::-1].copy(), abbe_v=abbe_in_front[::-1].copy(),
         aperture_mm=lens.aperture_mm[::-1].copy(), stop=count - 1 - lens.stop,
-        glass=((None, *lens.glass[:-1]))[::-1],
+        glass=((None, *lens.glass[:-1]))[::-1], coating=lens.coating[::-1],
         conic=conic, aspheric_coefficients=coefficients)
 
 
