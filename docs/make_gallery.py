@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LENSES = ("dgauss", "fisheye", "telephoto", "wide")
 #: The flare scene's renders: name and options (the lens file's coating is ideal: nothing reflects).
 FLARE = (("flare", []), ("flare-none", ["--flare", "on", "--coating", "none"]),
-         ("flare-mgf2", ["--flare", "on", "--coating", "mgf2", "--flare-threshold", "1e-6"]))
+         ("flare-mgf2", ["--flare", "on", "--coating", "mgf2"]))
 #: The flare scene's exposure (EV): a dim dusk scene around a very bright lamp.
 FLARE_EXPOSURE = "3"
 
