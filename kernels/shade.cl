@@ -18,7 +18,9 @@
  *   - light sample k of light_samples: the pixel's scrambled Sobol' numbers at index
  *     sample * light_samples + k (realistic.core.rng.light_bits, bit for bit), the light picked by its float32 CDF rounded up (the same choice as numpy's
  *     searchsorted on the float64 CDF), a point on the disk (concentric map) or quad, and the
- *     area-sampling estimate rho / pi L cos_p cos_q / d^2 A / P.
+ *     area-sampling estimate rho / pi L cos_p cos_q / d^2 A / P;
+ *   - for spectral rays (SPECTRAL), rho and L as spectra at the ray's wavelength (its rgb_basis row),
+ *     the value in all three colours (realistic.core.spectrum.spectral_value, in its order).
  * Outputs, row o = (k - first_sample) * stride + i: shadow-ray origin and vector (to the light
  * point) (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
  * miss, an emitter, a light facing away, padding) so embree skips it, and the contribution (3
@@ -44,9 +46,11 @@
 #define SHADOW_LENGTH 0.9999f
 /* Build options (-D) the host sets per scene, so that the work the scene never needs costs no gathers:
  * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO (0 or 1, see the kernel); and
- * per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more). */
-#if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO) || !defined(LAUNCH_SAMPLES)
-#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DLAUNCH_SAMPLES=.."
+ * per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more), and SPECTRAL (0 or
+ * 1): whether the rays carry one wavelength each (see the kernel). */
+#if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO) \
+    || !defined(LAUNCH_SAMPLES) || !defined(SPECTRAL)
+#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DLAUNCH_SAMPLES=.. -DSPECTRAL=.."
 #endif
 /* The tables' row widths and field offsets (GEOM_INT_*, GEOM_FLOAT_*, MATERIAL_*, LIGHT_*) and the
  * material kinds (KIND_*) are #defines the host prepends, generated from the tables it packs
@@ -154,7 +158,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                     __global const float *origin, __global const float *direction, __global const float *tfar,
                     __global const float *hit_u, __global const float *hit_v, __global const int *prim,
                     __global const int *geom, __global const float *ng_in, __global const uint *pixel,
-                    __global const uint *sample, __global const float *albedo_in,
+                    __global const uint *sample, __global const float *albedo_in, __global const float *basis,
                     __global const int *faces, __global const float *normals, __global const float *uvs,
                     __global const int *geom_ints, __global const float *geom_floats,
                     __global const float *materials, __global const float *lights, __global const float *cdf,
@@ -257,6 +261,16 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     rho_b = kind == KIND_HOST ? AT(albedo_in, 3, host_row, 2) : rho_b;
 #endif
 
+    /* SPECTRAL: every ray has one wavelength, given by its row of realistic.core.spectrum.rgb_basis
+     * (the host's, so the basis is numpy's bit for bit); the albedo becomes the spectrum's value at
+     * it, as spectral_value computes it (r b_R + g b_G + b b_B, in that order), and so does each
+     * light's radiance below. The three contribution columns then all hold the spectral radiance,
+     * as the numpy path's (n, 1) values broadcast to three columns. */
+#if SPECTRAL
+    float b_r = AT(basis, 3, r, 0), b_g = AT(basis, 3, r, 1), b_b = AT(basis, 3, r, 2);
+    float rho_s = rho_r * b_r + rho_g * b_g + rho_b * b_b;
+#endif
+
     /* the launch's light samples, unrolled */
 #pragma unroll
     for (uint q = 0; q < LAUNCH_SAMPLES; ++q) {
@@ -293,9 +307,18 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         AT(shadow_vector, 3, o, 1) = live ? qy - sy : 0.0f;
         AT(shadow_vector, 3, o, 2) = live ? qz - sz : 0.0f;
         shadow_length[o] = live ? SHADOW_LENGTH : -1.0f;
+#if SPECTRAL
+        float emitted = FIELD(light, LIGHT_RADIANCE) * b_r + FIELD(light, LIGHT_RADIANCE + 1) * b_g
+                        + FIELD(light, LIGHT_RADIANCE + 2) * b_b;
+        float value = live ? rho_s * emitted * scale : 0.0f;
+        AT(contribution, 3, o, 0) = value;
+        AT(contribution, 3, o, 1) = value;
+        AT(contribution, 3, o, 2) = value;
+#else
         AT(contribution, 3, o, 0) = live ? rho_r * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
         AT(contribution, 3, o, 1) = live ? rho_g * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
         AT(contribution, 3, o, 2) = live ? rho_b * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
+#endif
     }
 }
 

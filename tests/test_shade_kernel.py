@@ -8,6 +8,8 @@ independent float64 reference (tests/test_shading_reference.py) checks the kerne
 through its "opencl" cases. Skips only when no OpenCL platform exists.
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -17,6 +19,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core import rng
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.spectrum import rgb_basis, wavelengths_nm
 from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
@@ -162,16 +165,74 @@ def test_no_rays():
     assert got.shape == (0, 3) and shadow_rays == 0
 
 
-def test_spectral_rays_keep_the_numpy_path():
+def wavelengths_of(count: int) -> np.ndarray:
+    """Spectral rays' wavelengths: the density's inverse CDF at scattered numbers, and both ends."""
+    u = np.random.default_rng(5).random(count)
+    u[:2] = (0.0, 1.0 - 2**-24)
+    return wavelengths_nm(u)
+
+
+@pytest.mark.parametrize("light_samples", [1, 3])
+def test_spectral_per_hit_samples_match_the_numpy_path(scene_rays, light_samples):
+    """Spectral rays (one wavelength each): the same live samples and shadow rays as RGB rays, and
+    contributions equal to the numpy path's spectral values (albedo and radiance through
+    ``spectral_value`` at each ray's ``rgb_basis`` row) in all three columns."""
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    intersector = Intersector(scene)
+    numpy_path = DirectLighting(scene, intersector, light_samples, SEED, spread)
+    kernel_path = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl")
+    basis = rgb_basis(wavelengths_of(len(origin)))
+    hits = intersector.closest(origin, direction)
+    surface = np.flatnonzero((hits.geom >= 0) & (hits.geom < len(scene.instances)))
+    point, shadow_origin, shading, ng, rho = numpy_path._surface_points(origin, direction, hits, surface, basis)
+    albedo = kernel_path._host_albedo(origin, direction, hits) if kernel_path._kernel.host_albedo.any() else None
+    batch = kernel_path._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal,
+                                      pixel, sample, albedo, light_samples, SEED, basis=basis)
+    for k in range(light_samples):
+        contribution, to_light, live = numpy_path._light_sample(point, shadow_origin, shading, ng, rho,
+                                                                pixel[surface], sample[surface], k, basis[surface])
+        rows = k * batch.stride + surface[live]
+        assert contribution.shape == (len(live), 1) and np.all(batch.length[rows] == F32(1.0 - 1e-4))
+        np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])
+        got = batch.contribution[rows]
+        assert np.all(got == got[:, :1])  # the spectral value in every column
+        np.testing.assert_allclose(got[:, 0], contribution[:, 0], rtol=1e-5, atol=1e-6 * np.abs(contribution).max())
+
+
+@pytest.mark.parametrize("light_samples", [1, 2])
+def test_spectral_radiance_matches_the_numpy_path(scene_rays, light_samples):
+    """The whole spectral ``radiance`` (emitters, a coloured background, surfaces): the kernel's
+    against the numpy path's, and the same shadow rays traced."""
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    scene = dataclasses.replace(scene, background=(0.3, 0.1, 0.05))
+    wavelength = wavelengths_of(len(origin))
+    intersector = Intersector(scene)
+    expected, expected_rays = DirectLighting(scene, intersector, light_samples, SEED, spread).radiance(
+        origin, direction, pixel, sample, wavelength_nm=wavelength)
+    integrator = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl")
+    assert integrator._kernel is not None
+    got, shadow_rays = integrator.radiance(origin, direction, pixel, sample, wavelength_nm=wavelength)
+    assert got.dtype == np.float32 and shadow_rays == expected_rays > 0
+    hits = intersector.closest(origin, direction)
+    assert (hits.geom < 0).any()  # misses see the background
+    assert len(scene.lights) < 3 or (hits.geom >= len(scene.instances)).any()  # the busy scene's emitters
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+
+
+def test_spectral_renders_match_the_numpy_shading(monkeypatch):
+    """A dispersive lens camera's render (three wavelengths a sample, two light samples) shaded by the
+    kernel and by numpy (the kernel left unbuilt), both with the lens kernel's camera rays: the
+    images differ by the shading alone."""
     setup = default_setup()
-    origin, direction, pixel, sample, spread = rays_of(setup.scene, setup.eye, setup.target, 16, 12, 1)
-    wavelength = np.linspace(400.0, 700.0, len(origin)).astype(F32)
-    intersector = Intersector(setup.scene)
-    expected, _ = DirectLighting(setup.scene, intersector, 1, SEED, spread).radiance(
-        origin, direction, pixel, sample, wavelength_nm=wavelength)
-    got, _ = DirectLighting(setup.scene, intersector, 1, SEED, spread, backend="opencl").radiance(
-        origin, direction, pixel, sample, wavelength_nm=wavelength)
-    np.testing.assert_array_equal(got, expected)
+    camera = dataclasses.replace(
+        LensCamera.looking_at(load_lens("dgauss"), setup.eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, 40, 30, 4),
+        spectral=True, wavelengths_per_sample=3)
+    job = RenderJob(setup.scene, (camera,), "opencl", SEED, light_samples=2, pass_samples=700)
+    kernel_image = render(job, ThreadPasses(threads=2))[0].image
+    monkeypatch.setattr(DirectLighting, "_build_kernel", lambda self: None)
+    numpy_image = render(job, ThreadPasses(threads=2))[0].image
+    assert numpy_image.max() > 0 and np.ptp(numpy_image[..., 0] - numpy_image[..., 2]) > 0  # colour, not grey
+    np.testing.assert_allclose(kernel_image, numpy_image, rtol=1e-5, atol=1e-5 * numpy_image.max())
 
 
 def test_random_numbers_are_rng_light_uniforms_bit_for_bit():

@@ -25,8 +25,8 @@ contribution, embree traces all the shadow rays in one ``occluded`` call, and nu
 unblocked contributions; camera rays that miss or see an emitter keep the numpy code. The albedo of
 EWA-filtered image textures comes from ``kernels/ewa.cl``'s ``ewa_hits`` (hit records to albedo, bit
 for bit the numpy ``_albedo`` here: ``tests/test_ewa_hits.py``), other image textures' from ``_albedo``. Spectral rays
-stay on the numpy path with either backend. The two agree to float32 rounding, shadow-ray origins
-bit for bit (``tests/test_shade_kernel.py``).
+shade in the kernel too (its ``SPECTRAL`` variant, given the rays' ``rgb_basis`` rows). The two agree
+to float32 rounding, shadow-ray origins bit for bit (``tests/test_shade_kernel.py``).
 """
 
 from __future__ import annotations
@@ -198,10 +198,11 @@ class DirectLighting:
         if hits is None:
             with timed("embree"):
                 hits = self.intersector.closest(origin, direction)
-        if self._kernel is not None and wavelength_nm is None:
-            return self._radiance_kernel(self._kernel, origin, direction, pixel, sample, hits, timed, albedo)
         with timed("shading"):
             basis = None if wavelength_nm is None else rgb_basis(wavelength_nm)
+        if self._kernel is not None:
+            return self._radiance_kernel(self._kernel, origin, direction, pixel, sample, hits, timed, albedo, basis)
+        with timed("shading"):
 
             def colour(rgb: np.ndarray, rows: np.ndarray) -> np.ndarray:
                 """RGB rows as they are, or as spectral values (n, 1) at the rays ``rows``' wavelengths."""
@@ -290,10 +291,11 @@ class DirectLighting:
 
     def _radiance_kernel(self, kernel: ShadeKernel, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray,
                          sample: np.ndarray, hits: Hits, timed: Callable[[str], AbstractContextManager[object]],
-                         albedo: np.ndarray | None = None) -> tuple[np.ndarray, int]:
-        """``radiance`` of RGB rays through ``kernels/shade.cl``: the kernel shades every surface hit
-        and writes all light samples' shadow rays, embree traces them in one call, numpy sums.
-        ``albedo``: the rays' albedo from ``first_hits`` (its host rows are ``_host_albedo``'s)."""
+                         albedo: np.ndarray | None = None, basis: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+        """``radiance`` through ``kernels/shade.cl``: the kernel shades every surface hit and writes
+        all light samples' shadow rays, embree traces them in one call, numpy sums. ``albedo``: the
+        rays' albedo from ``first_hits`` (its host rows are ``_host_albedo``'s); ``basis``: spectral
+        rays' ``rgb_basis`` rows (None for RGB rays)."""
         from realistic.device.opencl import whole_groups
         from realistic.renderer.shade_kernel import MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS
 
@@ -314,7 +316,7 @@ class DirectLighting:
             with timed("shading"):
                 batch = kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                            hits.normal, pixel, sample, albedo, count, self.seed, first,
-                                           self.light_samples)
+                                           self.light_samples, basis)
             with timed("embree"):
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
@@ -336,12 +338,17 @@ class DirectLighting:
             if self.light_samples > 1:
                 out /= np.float32(self.light_samples)
             if self.background.any():  # misses are already zero: a black background needs no pass over them
-                out[np.flatnonzero(hits.geom < 0)] = self.background  # twice as fast as a boolean-mask store
+                missed = np.flatnonzero(hits.geom < 0)  # twice as fast as a boolean-mask store
+                out[missed] = self.background if basis is None else spectral_value(
+                    np.broadcast_to(self.background, (len(missed), 3)), _rows(basis, missed))[:, None]
             seen = np.flatnonzero(hits.geom >= self.instance_count)
             if len(seen):
                 j = hits.geom[seen] - self.instance_count
                 front = (dot(_rows(direction, seen), _rows(self._lights.normal, j)) < 0) | self._lights.two_sided[j]
-                out[seen] = _rows(self._lights.radiance, j) * front[:, None]
+                emitted = _rows(self._lights.radiance, j)
+                if basis is not None:
+                    emitted = spectral_value(emitted, _rows(basis, seen))[:, None]
+                out[seen] = emitted * front[:, None]
         return out, shadow_rays
 
     def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits: Hits) -> np.ndarray:

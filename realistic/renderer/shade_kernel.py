@@ -14,11 +14,14 @@ per-instance normal matrices and materials, lights and their CDF) are device buf
 integrator. Four build options leave out what a scene never needs (every table read is a vector
 gather on the CPU, the kernel's main cost): the light search's depth, smooth normals, procedural
 textures, host albedos. A fifth, the light samples per launch, lets each work item do a hit's work
-once for all of them (the loop unrolled). PoCL builds each variant once per process and caches the
-build on disk across processes. Inputs are wrapped without copying (``USE_HOST_PTR``: PoCL on the CPU reads the numpy
-arrays in place); outputs are numpy arrays kept per thread and reused across passes while they are
-large enough. Each thread has its own queue and kernel object, so the renderer's worker threads
-launch independently; PoCL spreads each launch over every core.
+once for all of them (the loop unrolled); a sixth, ``SPECTRAL``, shades rays of one wavelength each
+(a spectral camera's: albedo and radiance as spectra at the ray's wavelength, from the host's
+``rgb_basis`` rows, as the numpy path does), so a spectral render shades in the kernel too. PoCL
+builds each variant once per process and caches the build on disk across processes. Inputs are
+wrapped without copying (``USE_HOST_PTR``: PoCL on the CPU reads the numpy arrays in place); outputs
+are numpy arrays kept per thread and reused across passes while they are large enough. Each thread
+has its own queue and kernel object, so the renderer's worker threads launch independently; PoCL
+spreads each launch over every core.
 """
 
 from __future__ import annotations
@@ -106,7 +109,7 @@ class _ThreadState:
 
     def __init__(self, device: Device):
         self.queue = device.queue()
-        self.shade: dict[int, cl.Kernel] = {}  # light samples per launch -> that program's kernel object
+        self.shade: dict[tuple[int, bool], cl.Kernel] = {}  # (light samples per launch, spectral) -> kernel
         self.rows = 0
         self.arrays: dict[str, np.ndarray] = {}
         self.buffers: dict[str, cl.Buffer] = {}
@@ -165,11 +168,13 @@ class ShadeKernel:
         self._local = threading.local()
         self._states: list[_ThreadState] = []  # keeps every thread's buffers alive with the kernel
 
-    def _program(self, launch_samples: int) -> cl.Program:
-        """The scene's program variant whose work items make ``launch_samples`` light samples each
-        (built once per process and count: a render needs one, or two with a remainder)."""
+    def _program(self, launch_samples: int, spectral: bool = False) -> cl.Program:
+        """The scene's program variant whose work items make ``launch_samples`` light samples each, of
+        RGB or (``spectral``) one-wavelength rays (built once per process and variant: a render needs
+        one, or two with a remainder)."""
         return self.device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE,
-                                         (*self.options, f"-DLAUNCH_SAMPLES={launch_samples}"))
+                                         (*self.options, f"-DLAUNCH_SAMPLES={launch_samples}",
+                                          f"-DSPECTRAL={int(spectral)}"))
 
     def _state(self) -> _ThreadState:
         state = getattr(self._local, "state", None)
@@ -181,13 +186,15 @@ class ShadeKernel:
     def shade(self, origin: np.ndarray, direction: np.ndarray, t: np.ndarray, u: np.ndarray, v: np.ndarray,
               prim: np.ndarray, geom: np.ndarray, normal: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
               albedo: np.ndarray | None, light_samples: int, seed: int, first_sample: int = 0,
-              total_samples: int | None = None) -> ShadowBatch:
+              total_samples: int | None = None, basis: np.ndarray | None = None) -> ShadowBatch:
         """Shadow rays and contributions of N camera rays and their closest hits (embree's t, u, v,
         prim, geom and unnormalised Ng) for light samples ``first_sample`` .. ``first_sample +
         light_samples - 1`` of ``total_samples`` per camera sample (default: up to the last of these,
         which the random numbers depend on: ``rng.light_bits``); ``albedo`` (N, 3) the numpy albedo
-        where a material's row is KIND_HOST (None when no material is). The arrays returned are this
-        thread's, valid until its next call."""
+        where a material's row is KIND_HOST (None when no material is). ``basis``: for spectral rays,
+        each ray's ``realistic.core.spectrum.rgb_basis`` row (N, 3) float32, and the contributions are
+        then spectral values, the same in all three columns. The arrays returned are this thread's,
+        valid until its next call."""
         if not 0 < light_samples <= MAX_LAUNCH_SAMPLES:
             raise ValueError(f"a launch makes 1 to {MAX_LAUNCH_SAMPLES} light samples per ray, not {light_samples}")
         total = first_sample + light_samples if total_samples is None else total_samples
@@ -205,11 +212,13 @@ class ShadeKernel:
                   np.ascontiguousarray(v, np.float32), np.ascontiguousarray(prim, np.int32),
                   np.ascontiguousarray(geom, np.int32), np.ascontiguousarray(normal, np.float32),
                   _as_uint32(pixel), _as_uint32(sample),
-                  self._dummy_albedo if albedo is None else np.ascontiguousarray(albedo, np.float32)]
+                  self._dummy_albedo if albedo is None else np.ascontiguousarray(albedo, np.float32),
+                  self._dummy_albedo if basis is None else np.ascontiguousarray(basis, np.float32)]
         buffers = [cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a) for a in inputs]
-        kernel = state.shade.get(light_samples)
+        variant = (light_samples, basis is not None)
+        kernel = state.shade.get(variant)
         if kernel is None:
-            kernel = state.shade[light_samples] = cl.Kernel(self._program(light_samples), "shade")
+            kernel = state.shade[variant] = cl.Kernel(self._program(*variant), "shade")
         kernel.set_args(np.uint32(n), np.uint32(stride), np.uint32(first_sample), np.uint32(total),
                         np.uint32(seed & 0xFFFFFFFF),
                         np.uint32(1),
