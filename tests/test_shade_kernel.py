@@ -19,7 +19,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core import rng
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
-from realistic.core.spectrum import rgb_basis, wavelengths_nm
+from realistic.core.spectrum import rgb_basis, rgb_response, wavelengths_nm
 from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
@@ -174,29 +174,34 @@ def wavelengths_of(count: int) -> np.ndarray:
 
 @pytest.mark.parametrize("light_samples", [1, 3])
 def test_spectral_per_hit_samples_match_the_numpy_path(scene_rays, light_samples):
-    """Spectral rays (one wavelength each): the same live samples and shadow rays as RGB rays, and
+    """Spectral rays (one wavelength each): the same live samples and shadow rays as RGB rays,
     contributions equal to the numpy path's spectral values (albedo and radiance through
-    ``spectral_value`` at each ray's ``rgb_basis`` row) in all three columns."""
+    ``spectral_value`` at each ray's ``rgb_basis`` row), and each ray's film weight equal to
+    ``rgb_response`` (the kernel's basis and weight come from its interpolated SPECTRUM table)."""
     scene, (origin, direction, pixel, sample, spread) = scene_rays
     intersector = Intersector(scene)
     numpy_path = DirectLighting(scene, intersector, light_samples, SEED, spread)
     kernel_path = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl")
-    basis = rgb_basis(wavelengths_of(len(origin)))
+    wavelength = wavelengths_of(len(origin))
+    basis = rgb_basis(wavelength)
     hits = intersector.closest(origin, direction)
     surface = np.flatnonzero((hits.geom >= 0) & (hits.geom < len(scene.instances)))
     point, shadow_origin, shading, ng, rho = numpy_path._surface_points(origin, direction, hits, surface, basis)
     albedo = kernel_path._host_albedo(origin, direction, hits) if kernel_path._kernel.host_albedo.any() else None
     batch = kernel_path._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal,
-                                      pixel, sample, albedo, light_samples, SEED, basis=basis)
+                                      pixel, sample, albedo, light_samples, SEED, wavelength_nm=wavelength)
     for k in range(light_samples):
         contribution, to_light, live = numpy_path._light_sample(point, shadow_origin, shading, ng, rho,
                                                                 pixel[surface], sample[surface], k, basis[surface])
         rows = k * batch.stride + surface[live]
-        assert contribution.shape == (len(live), 1) and np.all(batch.length[rows] == F32(1.0 - 1e-4))
+        assert np.all(batch.length[rows] == F32(1.0 - 1e-4))
         np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])
-        got = batch.contribution[rows]
-        assert np.all(got == got[:, :1])  # the spectral value in every column
-        np.testing.assert_allclose(got[:, 0], contribution[:, 0], rtol=1e-5, atol=1e-6 * np.abs(contribution).max())
+        assert contribution.shape == batch.contribution[rows].shape == (len(live), 1)
+        np.testing.assert_allclose(batch.contribution[rows], contribution, rtol=1e-5,
+                                   atol=1e-6 * np.abs(contribution).max())
+    expected = rgb_response(wavelength)
+    # within the table's interpolation error (5e-6 of the largest weight) and float32 rounding
+    np.testing.assert_allclose(batch.response[:len(origin)], expected, rtol=1e-5, atol=6e-6 * np.abs(expected).max())
 
 
 @pytest.mark.parametrize("light_samples", [1, 2])
@@ -280,8 +285,8 @@ def test_renders_match_between_backends(name):
 
 
 def test_the_kernel_vectorises(tmp_path):
-    """PoCL's work-group vectoriser widens ``shade`` (every table read would otherwise be scalar:
-    about 4x slower). Its remarks need a fresh build, so this runs in a process of its own."""
+    """PoCL's work-group vectoriser widens ``shade``, RGB and spectral (every table read would
+    otherwise be scalar: about 4x slower). Its remarks need a fresh build, so this runs in a process of its own."""
 
     script = (
         "import numpy as np\n"
@@ -291,8 +296,10 @@ def test_the_kernel_vectorises(tmp_path):
         "scene = busy_scene()[0]\n"
         "integrator = DirectLighting(scene, Intersector(scene), 2, backend='opencl')\n"
         "ray = np.array([[0.0, 1.0, 4.0]], np.float32)\n"
-        "integrator.radiance(ray, np.array([[0.0, -0.2, -1.0]], np.float32) / np.float32(1.0198039),\n"
-        "                    np.zeros(1, np.int32), np.zeros(1, np.int64))\n")
+        "direction = np.array([[0.0, -0.2, -1.0]], np.float32) / np.float32(1.0198039)\n"
+        "for wavelength in (None, np.array([550.0], np.float32)):  # the RGB and the spectral variant\n"
+        "    integrator.radiance(ray, direction, np.zeros(1, np.int32), np.zeros(1, np.int64),\n"
+        "                        wavelength_nm=wavelength)\n")
     run = run_fresh(script, POCL_KERNEL_CACHE="0", POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=str(tmp_path),
                     REALISTIC_CACHE_DIR="off")  # compiled from source, not loaded from realistic's cache
     remarks = run.stdout + run.stderr
