@@ -21,8 +21,9 @@
  *     area-sampling estimate rho / pi L cos_p cos_q / d^2 A / P;
  *   - for spectral rays (SPECTRAL), rho and L as spectra at the ray's wavelength
  *     (realistic.core.spectrum.spectral_value, in its order, with the rgb_basis row): the
- *     contribution is one spectral value, and the ray's film weight rgb_response is written once
- *     per ray (`response`, 3 floats), for the host to weight the ray's sum as numpy does. Both come
+ *     contribution is one spectral value, and the ray's film weight rgb_response and its basis row
+ *     are written once per ray (`response`, `basis`: 3 floats each), for the host to weight the
+ *     ray's sum as numpy does and to colour what the ray sees directly. Both come
  *     from the host's SPECTRUM table, rgb_basis and rgb_response's factors cie_rgb and
  *     wavelength_pdf at SPECTRUM_INTERVALS + 1 equally spaced wavelengths (the wavelength
  *     density's nodes among them), interpolated linearly: within 5e-6 of numpy's largest values.
@@ -169,7 +170,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                     __global const int *geom_ints, __global const float *geom_floats,
                     __global const float *materials, __global const float *lights, __global const float *cdf,
                     __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
-                    __global float *contribution, __global float *response) {
+                    __global float *contribution, __global float *response, __global float *basis) {
     uint i = get_global_id(0);
     uint r = i < n ? i : n - 1;
     int g = geom[r];
@@ -290,6 +291,9 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     AT(response, 3, i, 0) = f_r;
     AT(response, 3, i, 1) = f_g;
     AT(response, 3, i, 2) = f_b;
+    AT(basis, 3, i, 0) = b_r;
+    AT(basis, 3, i, 1) = b_g;
+    AT(basis, 3, i, 2) = b_b;
 #endif
 
     /* the launch's light samples, unrolled */

@@ -176,8 +176,8 @@ def wavelengths_of(count: int) -> np.ndarray:
 def test_spectral_per_hit_samples_match_the_numpy_path(scene_rays, light_samples):
     """Spectral rays (one wavelength each): the same live samples and shadow rays as RGB rays,
     contributions equal to the numpy path's spectral values (albedo and radiance through
-    ``spectral_value`` at each ray's ``rgb_basis`` row), and each ray's film weight equal to
-    ``rgb_response`` (the kernel's basis and weight come from its interpolated SPECTRUM table)."""
+    ``spectral_value`` at each ray's ``rgb_basis`` row), and each ray's film weight and basis row
+    equal to ``rgb_response`` and ``rgb_basis`` (the kernel's come from its interpolated SPECTRUM table)."""
     scene, (origin, direction, pixel, sample, spread) = scene_rays
     intersector = Intersector(scene)
     numpy_path = DirectLighting(scene, intersector, light_samples, SEED, spread)
@@ -202,6 +202,7 @@ def test_spectral_per_hit_samples_match_the_numpy_path(scene_rays, light_samples
     expected = rgb_response(wavelength)
     # within the table's interpolation error (5e-6 of the largest weight) and float32 rounding
     np.testing.assert_allclose(batch.response[:len(origin)], expected, rtol=1e-5, atol=6e-6 * np.abs(expected).max())
+    np.testing.assert_allclose(batch.basis[:len(origin)], basis, rtol=0, atol=1e-6)  # the table's 3e-7, and rounding
 
 
 @pytest.mark.parametrize("light_samples", [1, 2])

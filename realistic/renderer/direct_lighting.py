@@ -324,14 +324,15 @@ class DirectLighting:
             # light samples per launch
             group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // whole_groups(n)))  # the kernel's stride
             shadow_rays = 0
-            response: np.ndarray | None = None  # spectral rays' film weights, which every launch writes
+            response: np.ndarray | None = None  # spectral rays' film weights and basis rows, which every
+            basis: np.ndarray | None = None  # launch writes
         for first in range(0, self.light_samples, group):
             count = min(group, self.light_samples - first)
             with timed("shading"):
                 batch = kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                            hits.normal, pixel, sample, albedo, count, self.seed, first,
                                            self.light_samples, wavelength_nm)
-                response = batch.response
+                response, basis = batch.response, batch.basis
             with timed("embree"):
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
@@ -353,28 +354,27 @@ class DirectLighting:
             if self.light_samples > 1:
                 out /= np.float32(self.light_samples)
             if response is not None:  # the film's weight, after the sum, as the numpy path applies it
-                response = response[:n]
-                out = out * response
+                out = out * response[:n]
             if self.background.any():  # misses are already zero: a black background needs no pass over them
                 missed = np.flatnonzero(hits.geom < 0)  # twice as fast as a boolean-mask store
-                out[missed] = self._seen(np.broadcast_to(self.background, (len(missed), 3)), missed, wavelength_nm,
-                                         response)
+                out[missed] = self._seen(np.broadcast_to(self.background, (len(missed), 3)), missed, response, basis)
             seen = np.flatnonzero(hits.geom >= self.instance_count)
             if len(seen):
                 j = hits.geom[seen] - self.instance_count
                 front = (dot(_rows(direction, seen), _rows(self._lights.normal, j)) < 0) | self._lights.two_sided[j]
-                out[seen] = self._seen(_rows(self._lights.radiance, j), seen, wavelength_nm, response) * front[:, None]
+                out[seen] = self._seen(_rows(self._lights.radiance, j), seen, response, basis) * front[:, None]
         return out, shadow_rays
 
     @staticmethod
-    def _seen(rgb: np.ndarray, rows: np.ndarray, wavelength_nm: np.ndarray | None, response: np.ndarray | None
+    def _seen(rgb: np.ndarray, rows: np.ndarray, response: np.ndarray | None, basis: np.ndarray | None
               ) -> np.ndarray:
-        """Radiance ``rgb`` (n, 3) seen directly by the camera rays ``rows``: as it is, or for spectral
-        rays its spectral value at each ray's wavelength times the ray's film weight (``response``, all
-        rays' rows), as ``radiance`` makes it on the numpy path."""
-        if wavelength_nm is None or response is None:
+        """Radiance ``rgb`` (n, 3) seen directly by the camera rays ``rows``: as it is (RGB rays), or
+        for spectral rays its spectral value at each ray's wavelength (``basis``: every ray's
+        ``rgb_basis`` row) times the ray's film weight (``response``), as ``radiance`` makes it on the
+        numpy path."""
+        if response is None or basis is None:
             return rgb
-        return spectral_value(rgb, rgb_basis(wavelength_nm[rows]))[:, None] * _rows(response, rows)
+        return spectral_value(rgb, _rows(basis, rows))[:, None] * _rows(response, rows)
 
     def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits: Hits) -> np.ndarray:
         """Albedo (N, 3) of the surface hits whose material the shading kernel leaves to the host

@@ -131,6 +131,7 @@ class ShadowBatch:
     contribution: np.ndarray  # (rows, 3) float32 (spectral rays: (rows, 1)), 0 for a dead sample
     stride: int
     response: np.ndarray | None = None  # spectral rays: (stride, 3) float32, each ray's ``rgb_response``
+    basis: np.ndarray | None = None  # spectral rays: (stride, 3) float32, each ray's ``rgb_basis`` row
 
 
 class _ThreadState:
@@ -149,7 +150,8 @@ class _ThreadState:
         if rows <= self.rows:
             return
         rows += rows // 8
-        for name, width in (("origin", 3), ("vector", 3), ("length", 1), ("contribution", 3), ("response", 3)):
+        for name, width in (("origin", 3), ("vector", 3), ("length", 1), ("contribution", 3), ("response", 3),
+                            ("basis", 3)):
             array = np.empty(rows * width, np.float32)
             self.arrays[name] = array
             self.buffers[name] = device.host_buffer(array, cl.mem_flags.WRITE_ONLY)
@@ -223,8 +225,8 @@ class ShadeKernel:
         which the random numbers depend on: ``rng.light_bits``); ``albedo`` (N, 3) the numpy albedo
         where a material's row is KIND_HOST (None when no material is). ``wavelength_nm``: for
         spectral rays, each ray's wavelength (N,): the contributions are then spectral values (one
-        column), and the batch's ``response`` each ray's ``rgb_response``. The arrays returned are this
-        thread's, valid until its next call."""
+        column), and the batch's ``response`` and ``basis`` each ray's ``rgb_response`` and ``rgb_basis``
+        row. The arrays returned are this thread's, valid until its next call."""
         if not 0 < light_samples <= MAX_LAUNCH_SAMPLES:
             raise ValueError(f"a launch makes 1 to {MAX_LAUNCH_SAMPLES} light samples per ray, not {light_samples}")
         total = first_sample + light_samples if total_samples is None else total_samples
@@ -255,14 +257,14 @@ class ShadeKernel:
                         np.int32(self.instance_count),
                         self.offset_base, np.int32(self.light_count), *buffers, self._spectrum, *self._tables,
                         state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
-                        state.buffers["contribution"], state.buffers["response"])
+                        state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
         cl.enqueue_nd_range_kernel(state.queue, kernel, (stride,), (LOCAL_SIZE,))
         spectral = wavelength_nm is not None
         channels = 1 if spectral else 3
         arrays = {}
         sizes = {"origin": rows * 3, "vector": rows * 3, "length": rows, "contribution": rows * channels}
         if spectral:
-            sizes["response"] = stride * 3
+            sizes["response"] = sizes["basis"] = stride * 3
         for name, size in sizes.items():
             host = state.arrays[name][:size]
             # a read into the buffer's own host pointer: PoCL copies nothing, and the call orders
@@ -274,7 +276,8 @@ class ShadeKernel:
             buffer.release()
         return ShadowBatch(arrays["origin"].reshape(rows, 3), arrays["vector"].reshape(rows, 3), arrays["length"],
                            arrays["contribution"].reshape(rows, channels), stride,
-                           arrays["response"].reshape(stride, 3) if spectral else None)
+                           arrays["response"].reshape(stride, 3) if spectral else None,
+                           arrays["basis"].reshape(stride, 3) if spectral else None)
 
     def light_uniforms(self, pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int) -> np.ndarray:
         """The kernel's light-sample random numbers (3 * light_samples, N): u_pick, u1, u2 per light
