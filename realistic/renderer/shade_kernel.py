@@ -16,14 +16,14 @@ gather on the CPU, the kernel's main cost): the light search's depth, smooth nor
 textures, host albedos. A fifth, the light samples per launch, lets each work item do a hit's work
 once for all of them (the loop unrolled); a sixth, ``SPECTRAL``, shades rays of one wavelength each
 (a spectral camera's K per sample, all in the one launch): albedo and radiance as spectra at the
-ray's wavelength (one contribution column), and each ray's film weight there, from ``SPECTRUM``,
-a table of the numpy path's own ``rgb_basis`` and ``rgb_response``, so that a spectral ray costs
-the host nothing an RGB ray does not. PoCL
-builds each variant once per process and caches the build on disk across processes. Inputs are
-wrapped without copying (``USE_HOST_PTR``: PoCL on the CPU reads the numpy arrays in place); outputs
-are numpy arrays kept per thread and reused across passes while they are large enough. Each thread
-has its own queue and kernel object, so the renderer's worker threads launch independently; PoCL
-spreads each launch over every core.
+ray's wavelength (one contribution column), and each ray's film weight and basis row, from
+``SPECTRUM``, a table of the numpy path's own ``rgb_basis``, ``cie_rgb`` and ``wavelength_pdf``, so
+that a spectral ray costs the host nothing an RGB ray does not (``rgb_response`` in numpy cost
+several times an RGB ray's whole shading). PoCL builds each variant once per process and caches the
+build on disk across processes. Inputs are wrapped without copying (``USE_HOST_PTR``: PoCL on the
+CPU reads the numpy arrays in place); outputs are numpy arrays kept per thread and reused across
+passes while they are large enough. Each thread has its own queue and kernel object, so the
+renderer's worker threads launch independently; PoCL spreads each launch over every core.
 """
 
 from __future__ import annotations
