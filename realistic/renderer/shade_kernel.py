@@ -140,22 +140,24 @@ class _ThreadState:
     def __init__(self, device: Device):
         self.queue = device.queue()
         self.shade: dict[tuple[int, bool], cl.Kernel] = {}  # (light samples per launch, spectral) -> kernel
-        self.rows = 0
+        self.rows = {"shadow": 0, "ray": 0}
         self.arrays: dict[str, np.ndarray] = {}
         self.buffers: dict[str, cl.Buffer] = {}
 
-    def outputs(self, device: Device, rows: int) -> None:
-        """Output arrays of at least ``rows`` rows (an eighth more, so passes of varying size settle
-        on one allocation)."""
-        if rows <= self.rows:
-            return
-        rows += rows // 8
-        for name, width in (("origin", 3), ("vector", 3), ("length", 1), ("contribution", 3), ("response", 3),
-                            ("basis", 3)):
-            array = np.empty(rows * width, np.float32)
-            self.arrays[name] = array
-            self.buffers[name] = device.host_buffer(array, cl.mem_flags.WRITE_ONLY)
-        self.rows = rows
+    def outputs(self, device: Device, rows: int, rays: int) -> None:
+        """Output arrays of at least ``rows`` shadow-ray rows and, for spectral launches (``rays``
+        not 0), ``rays`` per-ray rows (an eighth more, so passes of varying size settle on one
+        allocation; a launch of RGB rays has a one-element placeholder there)."""
+        for kind, count, names in (("shadow", rows, ("origin", "vector", "length", "contribution")),
+                                   ("ray", max(rays, 1), ("response", "basis"))):
+            if count <= self.rows[kind]:
+                continue
+            count += count // 8
+            for name in names:
+                array = np.empty(count * (1 if name == "length" else 3), np.float32)
+                self.arrays[name] = array
+                self.buffers[name] = device.host_buffer(array, cl.mem_flags.WRITE_ONLY)
+            self.rows[kind] = count
 
 
 class ShadeKernel:
@@ -237,7 +239,7 @@ class ShadeKernel:
             empty = np.zeros((0, 3), np.float32)
             return ShadowBatch(empty, empty, np.zeros(0, np.float32), empty, 0)
         state = self._state()
-        state.outputs(self.device, rows)
+        state.outputs(self.device, rows, 0 if wavelength_nm is None else stride)
         mf = cl.mem_flags
         inputs = [np.ascontiguousarray(origin, np.float32), np.ascontiguousarray(direction, np.float32),
                   np.ascontiguousarray(t, np.float32), np.ascontiguousarray(u, np.float32),
