@@ -26,7 +26,9 @@ stratification leaves of it). References dominate the cost, so
 they are cached in the output folder as .npy, keyed by scene, resolution, mode, K, spp, seed and a
 hash of the sampling code (``kernels/lens.cl``, ``realistic/core/rng.py``,
 ``realistic/core/spectrum.py``, ``realistic/renderer/passes.py``), so a change to how samples are
-drawn makes a new reference. Writes ``OUT/spectral_noise.json`` (default OUT: bench/results).
+drawn makes a new reference. Writes ``OUT/spectral_noise.json`` (default OUT: bench/results), with
+the machine's load averages before and after the timed renders (times on a shared machine are only
+as good as its load).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -181,6 +184,7 @@ def main() -> None:
         v = d["variance_rgb"]
         print(f"{name:30s} {v[0]:6.2f} {v[1]:6.2f} {v[2]:6.2f}  " + " ".join(f"{e:10.4f}" for e in d["white_rel_rmse"]))
     rows = []
+    load_before = os.getloadavg()
     for scene_name in args.scenes.split(","):
         size = res.get("*", res.get(scene_name, (150, 150)))
         errors = {}
@@ -213,8 +217,12 @@ def main() -> None:
               f"{r['rel_rmse_rgb']:12.5f} {r['rel_rmse_spectral']:13.5f} {r['ratio']:6.3f} "
               f"{r['seconds_rgb']:6.2f} {r['seconds_spectral']:7.2f} {r['cpu_seconds_rgb']:7.2f} "
               f"{r['cpu_seconds_spectral']:8.2f} {r['ratio_equal_time']:10.3f} {r['ratio_equal_cpu_time']:9.3f}")
+    load_after = os.getloadavg()
+    print(f"load average (1, 5, 15 min): {' '.join(f'{v:.2f}' for v in load_before)} before, "
+          f"{' '.join(f'{v:.2f}' for v in load_after)} after, on {os.cpu_count()} CPUs")
     result = {"reference_spp": args.reference_spp, "code_hash": version, "densities": densities,
-              "wavelengths_per_sample": counts, "repeats": args.repeats, "rows": rows}
+              "wavelengths_per_sample": counts, "repeats": args.repeats, "rows": rows,
+              "load_average": {"before": list(load_before), "after": list(load_after), "cpus": os.cpu_count()}}
     (args.out / "spectral_noise.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
 
 

@@ -18,11 +18,19 @@
  *   - light sample k of light_samples: the pixel's scrambled Sobol' numbers at index
  *     sample * light_samples + k (realistic.core.rng.light_bits, bit for bit), the light picked by its float32 CDF rounded up (the same choice as numpy's
  *     searchsorted on the float64 CDF), a point on the disk (concentric map) or quad, and the
- *     area-sampling estimate rho / pi L cos_p cos_q / d^2 A / P.
+ *     area-sampling estimate rho / pi L cos_p cos_q / d^2 A / P;
+ *   - for spectral rays (SPECTRAL), rho and L as spectra at the ray's wavelength
+ *     (realistic.core.spectrum.spectral_value, in its order, with the rgb_basis row): the
+ *     contribution is one spectral value, and the ray's film weight rgb_response and its basis row
+ *     are written once per ray (`response`, `basis`: 3 floats each), for the host to weight the
+ *     ray's sum as numpy does and to colour what the ray sees directly. Both come
+ *     from the host's SPECTRUM table, rgb_basis and rgb_response's factors cie_rgb and
+ *     wavelength_pdf at SPECTRUM_INTERVALS + 1 equally spaced wavelengths (the wavelength
+ *     density's nodes among them), interpolated linearly: within 5e-6 of numpy's largest values.
  * Outputs, row o = (k - first_sample) * stride + i: shadow-ray origin and vector (to the light
  * point) (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
  * miss, an emitter, a light facing away, padding) so embree skips it, and the contribution (3
- * floats, 0 when dead). The light's emitting side, the shading and the geometric normal decide
+ * floats, or 1 for spectral rays; 0 when dead). The light's emitting side, the shading and the geometric normal decide
  * which samples live, as in numpy; embree's answer decides which contributions count (the host).
  *
  * Written for PoCL's work-group vectoriser as kernels/lens.cl is (see its header): no calls to
@@ -44,9 +52,11 @@
 #define SHADOW_LENGTH 0.9999f
 /* Build options (-D) the host sets per scene, so that the work the scene never needs costs no gathers:
  * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO (0 or 1, see the kernel); and
- * per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more). */
-#if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO) || !defined(LAUNCH_SAMPLES)
-#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DLAUNCH_SAMPLES=.."
+ * per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more), and SPECTRAL (0 or
+ * 1): whether the rays carry one wavelength each (see the kernel). */
+#if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO) \
+    || !defined(LAUNCH_SAMPLES) || !defined(SPECTRAL)
+#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DLAUNCH_SAMPLES=.. -DSPECTRAL=.."
 #endif
 /* The tables' row widths and field offsets (GEOM_INT_*, GEOM_FLOAT_*, MATERIAL_*, LIGHT_*) and the
  * material kinds (KIND_*) are #defines the host prepends, generated from the tables it packs
@@ -154,12 +164,13 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                     __global const float *origin, __global const float *direction, __global const float *tfar,
                     __global const float *hit_u, __global const float *hit_v, __global const int *prim,
                     __global const int *geom, __global const float *ng_in, __global const uint *pixel,
-                    __global const uint *sample, __global const float *albedo_in,
+                    __global const uint *sample, __global const float *albedo_in, __global const float *wavelength,
+                    __global const float *spectrum,
                     __global const int *faces, __global const float *normals, __global const float *uvs,
                     __global const int *geom_ints, __global const float *geom_floats,
                     __global const float *materials, __global const float *lights, __global const float *cdf,
                     __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
-                    __global float *contribution) {
+                    __global float *contribution, __global float *response, __global float *basis) {
     uint i = get_global_id(0);
     uint r = i < n ? i : n - 1;
     int g = geom[r];
@@ -257,6 +268,34 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     rho_b = kind == KIND_HOST ? AT(albedo_in, 3, host_row, 2) : rho_b;
 #endif
 
+    /* SPECTRAL: every ray has one wavelength; its rgb_basis row (b_*) and rgb_response (f_*, cie_rgb
+     * over the density) come from the SPECTRUM table's rows either side, interpolated linearly. The albedo becomes the
+     * spectrum's value there, as spectral_value computes it (r b_R + g b_G + b b_B, in that order),
+     * and so does each light's radiance below. */
+#if SPECTRAL
+    float st = (wavelength[r] - SPECTRUM_MIN_NM) * SPECTRUM_PER_NM;
+    st = st > 0.0f ? st : 0.0f;
+    int si = (int)__builtin_floorf(st);
+    si = si < SPECTRUM_INTERVALS - 1 ? si : SPECTRUM_INTERVALS - 1;
+    float sw = st - (float)si;
+    __global const float *s0 = spectrum + SPECTRUM_WIDTH * si;
+    __global const float *s1 = s0 + SPECTRUM_WIDTH;
+#define LERP(k) (FIELD(s0, k) + sw * (FIELD(s1, k) - FIELD(s0, k)))
+    float b_r = LERP(SPECTRUM_BASIS), b_g = LERP(SPECTRUM_BASIS + 1), b_b = LERP(SPECTRUM_BASIS + 2);
+    float pdf = LERP(SPECTRUM_PDF);
+    float f_r = LERP(SPECTRUM_CIE) / pdf, f_g = LERP(SPECTRUM_CIE + 1) / pdf, f_b = LERP(SPECTRUM_CIE + 2) / pdf;
+#undef LERP
+    float rho_s = rho_r * b_r + rho_g * b_g + rho_b * b_b;
+    /* the film weight, once per ray: weighting each light sample's value by it in the loop below
+     * gives LLVM's SLP vectoriser a pattern it packs, and PoCL's then gives up on the kernel */
+    AT(response, 3, i, 0) = f_r;
+    AT(response, 3, i, 1) = f_g;
+    AT(response, 3, i, 2) = f_b;
+    AT(basis, 3, i, 0) = b_r;
+    AT(basis, 3, i, 1) = b_g;
+    AT(basis, 3, i, 2) = b_b;
+#endif
+
     /* the launch's light samples, unrolled */
 #pragma unroll
     for (uint q = 0; q < LAUNCH_SAMPLES; ++q) {
@@ -293,9 +332,15 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         AT(shadow_vector, 3, o, 1) = live ? qy - sy : 0.0f;
         AT(shadow_vector, 3, o, 2) = live ? qz - sz : 0.0f;
         shadow_length[o] = live ? SHADOW_LENGTH : -1.0f;
+#if SPECTRAL
+        float emitted = FIELD(light, LIGHT_RADIANCE) * b_r + FIELD(light, LIGHT_RADIANCE + 1) * b_g
+                        + FIELD(light, LIGHT_RADIANCE + 2) * b_b;
+        contribution[o] = live ? rho_s * emitted * scale : 0.0f;
+#else
         AT(contribution, 3, o, 0) = live ? rho_r * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
         AT(contribution, 3, o, 1) = live ? rho_g * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
         AT(contribution, 3, o, 2) = live ? rho_b * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
+#endif
     }
 }
 

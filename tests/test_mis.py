@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from realistic.core.spectrum import rgb_response
 from realistic.core.transforms import rotate, translate
 from realistic.renderer.bsdf import BSDFSample, Lambertian, bsdf_for
 from realistic.renderer.direct_lighting import DirectLighting
@@ -98,7 +99,12 @@ def _mean(integrator, spectral: bool = False):
     origin, direction = _camera_rays(N)
     wavelength = np.random.default_rng(9).uniform(400, 700, N) if spectral else None
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
-    return radiance[:, 0].mean(), radiance[:, 0].std() / math.sqrt(N)
+    value = radiance[:, 0]
+    if spectral:  # radiance times the film's weight: the spectral value is their quotient (the largest weight's)
+        response = rgb_response(wavelength)
+        column = np.abs(response).argmax(axis=1)
+        value = radiance[np.arange(N), column] / response[np.arange(N), column]
+    return value.mean(), value.std() / math.sqrt(N)
 
 
 @pytest.mark.parametrize("radius", [0.05, 1.0])

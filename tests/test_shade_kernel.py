@@ -8,6 +8,8 @@ independent float64 reference (tests/test_shading_reference.py) checks the kerne
 through its "opencl" cases. Skips only when no OpenCL platform exists.
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -17,6 +19,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core import rng
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.spectrum import rgb_basis, rgb_response, wavelengths_nm
 from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
@@ -162,16 +165,80 @@ def test_no_rays():
     assert got.shape == (0, 3) and shadow_rays == 0
 
 
-def test_spectral_rays_keep_the_numpy_path():
+def wavelengths_of(count: int) -> np.ndarray:
+    """Spectral rays' wavelengths: the density's inverse CDF at scattered numbers, and both ends."""
+    u = np.random.default_rng(5).random(count)
+    u[:2] = (0.0, 1.0 - 2**-24)
+    return wavelengths_nm(u)
+
+
+@pytest.mark.parametrize("light_samples", [1, 3])
+def test_spectral_per_hit_samples_match_the_numpy_path(scene_rays, light_samples):
+    """Spectral rays (one wavelength each): the same live samples and shadow rays as RGB rays,
+    contributions equal to the numpy path's spectral values (albedo and radiance through
+    ``spectral_value`` at each ray's ``rgb_basis`` row), and each ray's film weight and basis row
+    equal to ``rgb_response`` and ``rgb_basis`` (the kernel's come from its interpolated SPECTRUM table)."""
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    intersector = Intersector(scene)
+    numpy_path = DirectLighting(scene, intersector, light_samples, SEED, spread)
+    kernel_path = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl")
+    wavelength = wavelengths_of(len(origin))
+    basis = rgb_basis(wavelength)
+    hits = intersector.closest(origin, direction)
+    surface = np.flatnonzero((hits.geom >= 0) & (hits.geom < len(scene.instances)))
+    point, shadow_origin, shading, ng, rho = numpy_path._surface_points(origin, direction, hits, surface, basis)
+    albedo = kernel_path._host_albedo(origin, direction, hits) if kernel_path._kernel.host_albedo.any() else None
+    batch = kernel_path._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal,
+                                      pixel, sample, albedo, light_samples, SEED, wavelength_nm=wavelength)
+    for k in range(light_samples):
+        contribution, to_light, live = numpy_path._light_sample(point, shadow_origin, shading, ng, rho,
+                                                                pixel[surface], sample[surface], k, basis[surface])
+        rows = k * batch.stride + surface[live]
+        assert np.all(batch.length[rows] == F32(1.0 - 1e-4))
+        np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])
+        assert contribution.shape == batch.contribution[rows].shape == (len(live), 1)
+        np.testing.assert_allclose(batch.contribution[rows], contribution, rtol=1e-5,
+                                   atol=1e-6 * np.abs(contribution).max())
+    expected = rgb_response(wavelength)
+    # within the table's interpolation error (5e-6 of the largest weight) and float32 rounding
+    np.testing.assert_allclose(batch.response[:len(origin)], expected, rtol=1e-5, atol=6e-6 * np.abs(expected).max())
+    np.testing.assert_allclose(batch.basis[:len(origin)], basis, rtol=0, atol=1e-6)  # the table's 3e-7, and rounding
+
+
+@pytest.mark.parametrize("light_samples", [1, 2])
+def test_spectral_radiance_matches_the_numpy_path(scene_rays, light_samples):
+    """The whole spectral ``radiance`` (emitters, a coloured background, surfaces): the kernel's
+    against the numpy path's, and the same shadow rays traced."""
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    scene = dataclasses.replace(scene, background=(0.3, 0.1, 0.05))
+    wavelength = wavelengths_of(len(origin))
+    intersector = Intersector(scene)
+    expected, expected_rays = DirectLighting(scene, intersector, light_samples, SEED, spread).radiance(
+        origin, direction, pixel, sample, wavelength_nm=wavelength)
+    integrator = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl")
+    assert integrator._kernel is not None
+    got, shadow_rays = integrator.radiance(origin, direction, pixel, sample, wavelength_nm=wavelength)
+    assert got.dtype == np.float32 and shadow_rays == expected_rays > 0
+    hits = intersector.closest(origin, direction)
+    assert (hits.geom < 0).any()  # misses see the background
+    assert len(scene.lights) < 3 or (hits.geom >= len(scene.instances)).any()  # the busy scene's emitters
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+
+
+def test_spectral_renders_match_the_numpy_shading(monkeypatch):
+    """A dispersive lens camera's render (three wavelengths a sample, two light samples) shaded by the
+    kernel and by numpy (the kernel left unbuilt), both with the lens kernel's camera rays: the
+    images differ by the shading alone."""
     setup = default_setup()
-    origin, direction, pixel, sample, spread = rays_of(setup.scene, setup.eye, setup.target, 16, 12, 1)
-    wavelength = np.linspace(400.0, 700.0, len(origin)).astype(F32)
-    intersector = Intersector(setup.scene)
-    expected, _ = DirectLighting(setup.scene, intersector, 1, SEED, spread).radiance(
-        origin, direction, pixel, sample, wavelength_nm=wavelength)
-    got, _ = DirectLighting(setup.scene, intersector, 1, SEED, spread, backend="opencl").radiance(
-        origin, direction, pixel, sample, wavelength_nm=wavelength)
-    np.testing.assert_array_equal(got, expected)
+    camera = dataclasses.replace(
+        LensCamera.looking_at(load_lens("dgauss"), setup.eye, setup.target, None, FULL_FRAME_DIAGONAL_MM, 40, 30, 4),
+        spectral=True, wavelengths_per_sample=3)
+    job = RenderJob(setup.scene, (camera,), "opencl", SEED, light_samples=2, pass_samples=700)
+    kernel_image = render(job, ThreadPasses(threads=2))[0].image
+    monkeypatch.setattr(DirectLighting, "_build_kernel", lambda self: None)
+    numpy_image = render(job, ThreadPasses(threads=2))[0].image
+    assert numpy_image.max() > 0 and np.ptp(numpy_image[..., 0] - numpy_image[..., 2]) > 0  # colour, not grey
+    np.testing.assert_allclose(kernel_image, numpy_image, rtol=1e-5, atol=1e-5 * numpy_image.max())
 
 
 def test_random_numbers_are_rng_light_uniforms_bit_for_bit():
@@ -219,8 +286,8 @@ def test_renders_match_between_backends(name):
 
 
 def test_the_kernel_vectorises(tmp_path):
-    """PoCL's work-group vectoriser widens ``shade`` (every table read would otherwise be scalar:
-    about 4x slower). Its remarks need a fresh build, so this runs in a process of its own."""
+    """PoCL's work-group vectoriser widens ``shade``, RGB and spectral (every table read would
+    otherwise be scalar: about 4x slower). Its remarks need a fresh build, so this runs in a process of its own."""
 
     script = (
         "import numpy as np\n"
@@ -230,8 +297,10 @@ def test_the_kernel_vectorises(tmp_path):
         "scene = busy_scene()[0]\n"
         "integrator = DirectLighting(scene, Intersector(scene), 2, backend='opencl')\n"
         "ray = np.array([[0.0, 1.0, 4.0]], np.float32)\n"
-        "integrator.radiance(ray, np.array([[0.0, -0.2, -1.0]], np.float32) / np.float32(1.0198039),\n"
-        "                    np.zeros(1, np.int32), np.zeros(1, np.int64))\n")
+        "direction = np.array([[0.0, -0.2, -1.0]], np.float32) / np.float32(1.0198039)\n"
+        "for wavelength in (None, np.array([550.0], np.float32)):  # the RGB and the spectral variant\n"
+        "    integrator.radiance(ray, direction, np.zeros(1, np.int32), np.zeros(1, np.int64),\n"
+        "                        wavelength_nm=wavelength)\n")
     run = run_fresh(script, POCL_KERNEL_CACHE="0", POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=str(tmp_path),
                     REALISTIC_CACHE_DIR="off")  # compiled from source, not loaded from realistic's cache
     remarks = run.stdout + run.stderr

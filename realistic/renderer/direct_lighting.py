@@ -16,7 +16,7 @@ the camera's ``pixel_spread_radians`` is given.
 
 Spectral rays (one wavelength each) evaluate every RGB albedo, light radiance and background as a
 spectrum at the ray's wavelength (``realistic.core.spectrum.rgb_basis``), multiply spectra, and return
-the spectral radiance in all three columns; the film then weights it by ``rgb_response``.
+the spectral radiance weighted by the film's ``rgb_response`` at that wavelength (RGB).
 
 Backends: the numpy code here is the reference and shades with backend "numpy". With backend
 "opencl" RGB rays are shaded by ``kernels/shade.cl`` (``renderer.shade_kernel``): one launch per pass
@@ -25,8 +25,8 @@ contribution, embree traces all the shadow rays in one ``occluded`` call, and nu
 unblocked contributions; camera rays that miss or see an emitter keep the numpy code. The albedo of
 EWA-filtered image textures comes from ``kernels/ewa.cl``'s ``ewa_hits`` (hit records to albedo, bit
 for bit the numpy ``_albedo`` here: ``tests/test_ewa_hits.py``), other image textures' from ``_albedo``. Spectral rays
-stay on the numpy path with either backend. The two agree to float32 rounding, shadow-ray origins
-bit for bit (``tests/test_shade_kernel.py``).
+shade in the kernel too (its ``SPECTRAL`` variant, which weights by ``rgb_response`` itself). The two
+agree to float32 rounding, shadow-ray origins bit for bit (``tests/test_shade_kernel.py``).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from realistic.core import rng
-from realistic.core.spectrum import rgb_basis, spectral_value
+from realistic.core.spectrum import rgb_basis, rgb_response, spectral_value
 from realistic.core.vectors import dot, normalise
 from realistic.renderer.aov import FirstHits
 from realistic.renderer.area_lights import AreaLightTable
@@ -190,7 +190,8 @@ class DirectLighting:
                  hits: Hits | None = None, albedo: np.ndarray | None = None) -> tuple[np.ndarray, int]:
         """RGB radiance (N, 3) float32 along unit-direction rays, and the number of shadow rays traced.
 
-        With ``wavelength_nm`` (N,), the spectral radiance at each ray's wavelength, in all three columns.
+        With ``wavelength_nm`` (N,), the spectral radiance at each ray's wavelength times the film's
+        ``rgb_response`` there.
         ``hits``: the rays' closest hits when already traced, else traced here; ``albedo``: their
         ``first_hits`` albedo (N, 3) when already computed, which the shading kernel then reads.
         """
@@ -198,8 +199,19 @@ class DirectLighting:
         if hits is None:
             with timed("embree"):
                 hits = self.intersector.closest(origin, direction)
-        if self._kernel is not None and wavelength_nm is None:
-            return self._radiance_kernel(self._kernel, origin, direction, pixel, sample, hits, timed, albedo)
+        if self._kernel is not None:
+            return self._radiance_kernel(self._kernel, origin, direction, pixel, sample, hits, timed, albedo,
+                                         wavelength_nm)
+        out, shadow_rays = self._radiance_numpy(origin, direction, pixel, sample, hits, timed, wavelength_nm)
+        if wavelength_nm is not None:
+            with timed("shading"):
+                out *= rgb_response(wavelength_nm)
+        return out, shadow_rays
+
+    def _radiance_numpy(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
+                        hits: Hits, timed: Callable[[str], AbstractContextManager[object]],
+                        wavelength_nm: np.ndarray | None) -> tuple[np.ndarray, int]:
+        """``radiance`` in numpy, the reference: spectral values in all three columns for spectral rays."""
         with timed("shading"):
             basis = None if wavelength_nm is None else rgb_basis(wavelength_nm)
 
@@ -290,10 +302,12 @@ class DirectLighting:
 
     def _radiance_kernel(self, kernel: ShadeKernel, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray,
                          sample: np.ndarray, hits: Hits, timed: Callable[[str], AbstractContextManager[object]],
-                         albedo: np.ndarray | None = None) -> tuple[np.ndarray, int]:
-        """``radiance`` of RGB rays through ``kernels/shade.cl``: the kernel shades every surface hit
-        and writes all light samples' shadow rays, embree traces them in one call, numpy sums.
-        ``albedo``: the rays' albedo from ``first_hits`` (its host rows are ``_host_albedo``'s)."""
+                         albedo: np.ndarray | None = None, wavelength_nm: np.ndarray | None = None
+                         ) -> tuple[np.ndarray, int]:
+        """``radiance`` through ``kernels/shade.cl``: the kernel shades every surface hit and writes
+        all light samples' shadow rays, embree traces them in one call, numpy sums. ``albedo``: the
+        rays' albedo from ``first_hits`` (its host rows are ``_host_albedo``'s); ``wavelength_nm``:
+        spectral rays' wavelengths (None for RGB rays)."""
         from realistic.device.opencl import whole_groups
         from realistic.renderer.shade_kernel import MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS
 
@@ -305,26 +319,30 @@ class DirectLighting:
                 albedo = None  # the kernel holds every material's albedo
             elif albedo is None:
                 albedo = self._host_albedo(origin, direction, hits)
-            out = np.zeros((n, 3), np.float32)
+            channels = 3 if wavelength_nm is None else 1  # a spectral ray's sum is one spectral value
+            out = np.zeros((n, channels), np.float32)
             # light samples per launch
             group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // whole_groups(n)))  # the kernel's stride
             shadow_rays = 0
+            response: np.ndarray | None = None  # spectral rays' film weights and basis rows, which every
+            basis: np.ndarray | None = None  # launch writes
         for first in range(0, self.light_samples, group):
             count = min(group, self.light_samples - first)
             with timed("shading"):
                 batch = kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                            hits.normal, pixel, sample, albedo, count, self.seed, first,
-                                           self.light_samples)
+                                           self.light_samples, wavelength_nm)
+                response, basis = batch.response, batch.basis
             with timed("embree"):
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
                 # the batch's arrays are this thread's to overwrite until its next launch
-                contribution = batch.contribution.reshape(count, batch.stride, 3)[:, :n]
+                contribution = batch.contribution.reshape(count, batch.stride, channels)[:, :n]
                 visible = np.logical_not(blocked, out=np.empty(len(blocked), np.float32))
                 visible = visible.reshape(count, batch.stride)[:, :n]
                 # times 1 or 0, colour by colour: a (count, n, 1) factor broadcast over the colours runs
                 # numpy's inner loop three elements at a time, and a uint8 factor is cast first (2x slower)
-                for channel in range(3):
+                for channel in range(channels):
                     np.multiply(contribution[:, :, channel], visible, out=contribution[:, :, channel])
                 if first == 0:  # out is zero: 0 + x is x, so the sum starts at light sample 0 as numpy's does
                     np.add.reduce(contribution, axis=0, out=out)  # adds rows k = 0, 1, ... in order
@@ -335,14 +353,28 @@ class DirectLighting:
         with timed("shading"):
             if self.light_samples > 1:
                 out /= np.float32(self.light_samples)
+            if response is not None:  # the film's weight, after the sum, as the numpy path applies it
+                out = out * response[:n]
             if self.background.any():  # misses are already zero: a black background needs no pass over them
-                out[np.flatnonzero(hits.geom < 0)] = self.background  # twice as fast as a boolean-mask store
+                missed = np.flatnonzero(hits.geom < 0)  # twice as fast as a boolean-mask store
+                out[missed] = self._seen(np.broadcast_to(self.background, (len(missed), 3)), missed, response, basis)
             seen = np.flatnonzero(hits.geom >= self.instance_count)
             if len(seen):
                 j = hits.geom[seen] - self.instance_count
                 front = (dot(_rows(direction, seen), _rows(self._lights.normal, j)) < 0) | self._lights.two_sided[j]
-                out[seen] = _rows(self._lights.radiance, j) * front[:, None]
+                out[seen] = self._seen(_rows(self._lights.radiance, j), seen, response, basis) * front[:, None]
         return out, shadow_rays
+
+    @staticmethod
+    def _seen(rgb: np.ndarray, rows: np.ndarray, response: np.ndarray | None, basis: np.ndarray | None
+              ) -> np.ndarray:
+        """Radiance ``rgb`` (n, 3) seen directly by the camera rays ``rows``: as it is (RGB rays), or
+        for spectral rays its spectral value at each ray's wavelength (``basis``: every ray's
+        ``rgb_basis`` row) times the ray's film weight (``response``), as ``radiance`` makes it on the
+        numpy path."""
+        if response is None or basis is None:
+            return rgb
+        return spectral_value(rgb, _rows(basis, rows))[:, None] * _rows(response, rows)
 
     def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits: Hits) -> np.ndarray:
         """Albedo (N, 3) of the surface hits whose material the shading kernel leaves to the host

@@ -32,7 +32,7 @@ from functools import cached_property
 import numpy as np
 
 from realistic.core import rng
-from realistic.core.spectrum import rgb_basis
+from realistic.core.spectrum import rgb_basis, rgb_response
 from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot, normalise
 from realistic.renderer.bsdf import BSDF, HitParameters, ShadingFrame, bsdf_for
@@ -123,7 +123,7 @@ class PathIntegrator(DirectLighting):
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
                  hits: Hits | None = None, albedo: np.ndarray | None = None) -> tuple[np.ndarray, int]:
-        """RGB radiance (N, 3) float32 (spectral values in all columns with ``wavelength_nm``) and the
+        """RGB radiance (N, 3) float32 (with ``wavelength_nm``, spectral values times ``rgb_response``) and the
         number of shadow rays traced; ``hits``: the camera rays' closest hits when already traced
         (``albedo``, the shading kernel's input in ``DirectLighting``, has no use here: BSDFs are
         evaluated at every hit)."""
@@ -176,6 +176,8 @@ class PathIntegrator(DirectLighting):
             specular, shade, prev_pdf, prev_point = state["specular"], state["shade"], state["pdf"], state["point"]
         result = np.empty((n, 3), np.float32)
         result[:] = out
+        if wavelength_nm is not None:  # the film's weight at each ray's wavelength, as DirectLighting's
+            result *= rgb_response(wavelength_nm)
         return result, shadow_rays
 
     def first_albedo(self, hits: Hits, surface: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:

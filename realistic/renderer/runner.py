@@ -11,7 +11,6 @@ import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
 from realistic.camera.lens_camera import LensCamera
-from realistic.core.spectrum import rgb_response
 from realistic.renderer.aov import AovLayout
 from realistic.renderer.backends import backend_for
 from realistic.renderer.film import pass_sums
@@ -102,12 +101,11 @@ class PassRunner:
         with self.clock("accumulation"):
             first_pixel, pixel_count = block.first_pixel, block.pixel_count
             value = radiance  # the integrator's own array: weighted in place, no second (N, 3) array
-            value *= rays.weight[alive, None].astype(np.float32, copy=False)
-            if wavelength is not None:
-                response = rgb_response(wavelength)
-                if rays_per_sample > 1:  # each of a sample's K wavelengths is 1/K of its estimate
-                    response /= np.float32(rays_per_sample)
-                value *= response
+            # a spectral ray's radiance comes weighted by the film's response at its wavelength
+            weight = rays.weight[alive, None].astype(np.float32, copy=False)
+            if rays_per_sample > 1:  # each of a sample's K wavelengths is 1/K of its estimate
+                weight = weight / np.float32(rays_per_sample)
+            value *= weight
             sums = pass_sums(pixel, value, first_pixel, pixel_count)
             if aov_values is not None:
                 sums = np.column_stack([sums, pass_sums(pixel, aov_values, first_pixel, pixel_count)])

@@ -14,11 +14,16 @@ per-instance normal matrices and materials, lights and their CDF) are device buf
 integrator. Four build options leave out what a scene never needs (every table read is a vector
 gather on the CPU, the kernel's main cost): the light search's depth, smooth normals, procedural
 textures, host albedos. A fifth, the light samples per launch, lets each work item do a hit's work
-once for all of them (the loop unrolled). PoCL builds each variant once per process and caches the
-build on disk across processes. Inputs are wrapped without copying (``USE_HOST_PTR``: PoCL on the CPU reads the numpy
-arrays in place); outputs are numpy arrays kept per thread and reused across passes while they are
-large enough. Each thread has its own queue and kernel object, so the renderer's worker threads
-launch independently; PoCL spreads each launch over every core.
+once for all of them (the loop unrolled); a sixth, ``SPECTRAL``, shades rays of one wavelength each
+(a spectral camera's K per sample, all in the one launch): albedo and radiance as spectra at the
+ray's wavelength (one contribution column), and each ray's film weight and basis row, from
+``SPECTRUM``, a table of the numpy path's own ``rgb_basis``, ``cie_rgb`` and ``wavelength_pdf``, so
+that a spectral ray costs the host nothing an RGB ray does not (``rgb_response`` in numpy cost
+several times an RGB ray's whole shading). PoCL builds each variant once per process and caches the
+build on disk across processes. Inputs are wrapped without copying (``USE_HOST_PTR``: PoCL on the
+CPU reads the numpy arrays in place); outputs are numpy arrays kept per thread and reused across
+passes while they are large enough. Each thread has its own queue and kernel object, so the
+renderer's worker threads launch independently; PoCL spreads each launch over every core.
 """
 
 from __future__ import annotations
@@ -28,6 +33,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from realistic.core.spectrum import (
+    LAMBDA_MAX_NM,
+    LAMBDA_MIN_NM,
+    WAVELENGTH_INTERVALS,
+    cie_rgb,
+    rgb_basis,
+    wavelength_pdf,
+)
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.scene.model import CheckerTexture, GridTexture, Material
@@ -46,12 +59,23 @@ MATERIALS = Table("MATERIAL", np.float32, (("kind", 1), ("diffuse", 3), ("cells"
 #: contribution's scale (area / probability / pi), whether a disk, whether two-sided (0 or 1).
 LIGHTS = Table("LIGHT", np.float32, (("centre", 3), ("a", 3), ("b", 3), ("normal", 3), ("radiance", 3),
                                      ("scale", 1), ("disk", 1), ("two_sided", 1), ("unused", 2)))
+#: Per wavelength node (``SPECTRUM_INTERVALS`` + 1 of them, equally spaced over 380-780 nm): the
+#: RGB-to-spectrum basis (``rgb_basis``), and the film's weight ``rgb_response`` as its two factors,
+#: ``cie_rgb`` and the wavelength density ``wavelength_pdf``, which spectral rays interpolate linearly
+#: (the weight is their quotient: 1 / pdf bends too sharply in the blue to interpolate as closely).
+SPECTRUM = Table("SPECTRUM", np.float32, (("basis", 3), ("cie", 3), ("pdf", 1)))
+#: Intervals of ``SPECTRUM``: 128 per interval of the wavelength density, whose nodes are then table
+#: nodes (the density is exactly linear between them); the interpolated basis and weight are within
+#: 3e-7 and 5e-6 of the closed forms' largest values (``tests/test_shade_kernel.py``).
+SPECTRUM_INTERVALS = 128 * WAVELENGTH_INTERVALS
 #: Material kinds: constant colour, grid and checker textures (in the kernel), host albedo.
 KINDS = ("constant", "grid", "checker", "host")
 KIND_CONSTANT, KIND_GRID, KIND_CHECKER, KIND_HOST = range(len(KINDS))
 #: The generated head of ``shade.cl``'s source: every table's defines and the kinds.
-HEADER = "".join(table.defines() for table in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS)) + \
-    constant_defines("KIND", KINDS)
+HEADER = "".join(table.defines() for table in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS, SPECTRUM)) + \
+    constant_defines("KIND", KINDS) + \
+    (f"#define SPECTRUM_INTERVALS {SPECTRUM_INTERVALS}\n#define SPECTRUM_MIN_NM {LAMBDA_MIN_NM!r}f\n"
+     f"#define SPECTRUM_PER_NM {SPECTRUM_INTERVALS / (LAMBDA_MAX_NM - LAMBDA_MIN_NM)!r}f\n")
 #: The kernel's light search is written out for at most this many lights.
 MAX_LIGHTS = 65535
 #: Shadow rays per launch (and per embree call) at most: a pass's light samples go in groups of
@@ -70,6 +94,13 @@ def rounded_up_cdf(cdf: np.ndarray) -> np.ndarray:
     low = c32.astype(np.float64) < cdf
     c32[low] = np.nextafter(c32[low], np.float32(np.inf))
     return c32
+
+
+def spectrum_rows() -> np.ndarray:
+    """The ``SPECTRUM`` table: ``rgb_basis``, ``cie_rgb`` and ``wavelength_pdf`` at its equally
+    spaced wavelengths (``rgb_response`` is ``cie_rgb / wavelength_pdf``)."""
+    nodes = np.linspace(LAMBDA_MIN_NM, LAMBDA_MAX_NM, SPECTRUM_INTERVALS + 1)
+    return SPECTRUM.pack(len(nodes), basis=rgb_basis(nodes), cie=cie_rgb(nodes), pdf=wavelength_pdf(nodes))
 
 
 def material_row(material: Material) -> np.ndarray:
@@ -97,8 +128,10 @@ class ShadowBatch:
     origin: np.ndarray  # (rows, 3) float32
     vector: np.ndarray  # (rows, 3) float32: to the light point
     length: np.ndarray  # (rows,) float32: 1 - 1e-4 (in units of vector), -1 for a dead sample
-    contribution: np.ndarray  # (rows, 3) float32, 0 for a dead sample
+    contribution: np.ndarray  # (rows, 3) float32 (spectral rays: (rows, 1)), 0 for a dead sample
     stride: int
+    response: np.ndarray | None = None  # spectral rays: (stride, 3) float32, each ray's ``rgb_response``
+    basis: np.ndarray | None = None  # spectral rays: (stride, 3) float32, each ray's ``rgb_basis`` row
 
 
 class _ThreadState:
@@ -106,22 +139,25 @@ class _ThreadState:
 
     def __init__(self, device: Device):
         self.queue = device.queue()
-        self.shade: dict[int, cl.Kernel] = {}  # light samples per launch -> that program's kernel object
-        self.rows = 0
+        self.shade: dict[tuple[int, bool], cl.Kernel] = {}  # (light samples per launch, spectral) -> kernel
+        self.rows = {"shadow": 0, "ray": 0}
         self.arrays: dict[str, np.ndarray] = {}
         self.buffers: dict[str, cl.Buffer] = {}
 
-    def outputs(self, device: Device, rows: int) -> None:
-        """Output arrays of at least ``rows`` rows (an eighth more, so passes of varying size settle
-        on one allocation)."""
-        if rows <= self.rows:
-            return
-        rows += rows // 8
-        for name, width in (("origin", 3), ("vector", 3), ("length", 1), ("contribution", 3)):
-            array = np.empty(rows * width, np.float32)
-            self.arrays[name] = array
-            self.buffers[name] = device.host_buffer(array, cl.mem_flags.WRITE_ONLY)
-        self.rows = rows
+    def outputs(self, device: Device, rows: int, rays: int) -> None:
+        """Output arrays of at least ``rows`` shadow-ray rows and, for spectral launches (``rays``
+        not 0), ``rays`` per-ray rows (an eighth more, so passes of varying size settle on one
+        allocation; a launch of RGB rays has a one-element placeholder there)."""
+        for kind, count, names in (("shadow", rows, ("origin", "vector", "length", "contribution")),
+                                   ("ray", max(rays, 1), ("response", "basis"))):
+            if count <= self.rows[kind]:
+                continue
+            count += count // 8
+            for name in names:
+                array = np.empty(count * (1 if name == "length" else 3), np.float32)
+                self.arrays[name] = array
+                self.buffers[name] = device.host_buffer(array, cl.mem_flags.WRITE_ONLY)
+            self.rows[kind] = count
 
 
 class ShadeKernel:
@@ -161,15 +197,18 @@ class ShadeKernel:
             (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom_ints, np.int32),
             (geom_floats, np.float32), (material_rows, np.float32), (light_rows, np.float32),
             (rounded_up_cdf(light_cdf), np.float32))]
+        self._spectrum = device.wrapped_buffer(spectrum_rows(), np.float32)
         self._dummy_albedo = np.zeros(3, np.float32)
         self._local = threading.local()
         self._states: list[_ThreadState] = []  # keeps every thread's buffers alive with the kernel
 
-    def _program(self, launch_samples: int) -> cl.Program:
-        """The scene's program variant whose work items make ``launch_samples`` light samples each
-        (built once per process and count: a render needs one, or two with a remainder)."""
+    def _program(self, launch_samples: int, spectral: bool = False) -> cl.Program:
+        """The scene's program variant whose work items make ``launch_samples`` light samples each, of
+        RGB or (``spectral``) one-wavelength rays (built once per process and variant: a render needs
+        one, or two with a remainder)."""
         return self.device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE,
-                                         (*self.options, f"-DLAUNCH_SAMPLES={launch_samples}"))
+                                         (*self.options, f"-DLAUNCH_SAMPLES={launch_samples}",
+                                          f"-DSPECTRAL={int(spectral)}"))
 
     def _state(self) -> _ThreadState:
         state = getattr(self._local, "state", None)
@@ -181,13 +220,15 @@ class ShadeKernel:
     def shade(self, origin: np.ndarray, direction: np.ndarray, t: np.ndarray, u: np.ndarray, v: np.ndarray,
               prim: np.ndarray, geom: np.ndarray, normal: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
               albedo: np.ndarray | None, light_samples: int, seed: int, first_sample: int = 0,
-              total_samples: int | None = None) -> ShadowBatch:
+              total_samples: int | None = None, wavelength_nm: np.ndarray | None = None) -> ShadowBatch:
         """Shadow rays and contributions of N camera rays and their closest hits (embree's t, u, v,
         prim, geom and unnormalised Ng) for light samples ``first_sample`` .. ``first_sample +
         light_samples - 1`` of ``total_samples`` per camera sample (default: up to the last of these,
         which the random numbers depend on: ``rng.light_bits``); ``albedo`` (N, 3) the numpy albedo
-        where a material's row is KIND_HOST (None when no material is). The arrays returned are this
-        thread's, valid until its next call."""
+        where a material's row is KIND_HOST (None when no material is). ``wavelength_nm``: for
+        spectral rays, each ray's wavelength (N,): the contributions are then spectral values (one
+        column), and the batch's ``response`` and ``basis`` each ray's ``rgb_response`` and ``rgb_basis``
+        row. The arrays returned are this thread's, valid until its next call."""
         if not 0 < light_samples <= MAX_LAUNCH_SAMPLES:
             raise ValueError(f"a launch makes 1 to {MAX_LAUNCH_SAMPLES} light samples per ray, not {light_samples}")
         total = first_sample + light_samples if total_samples is None else total_samples
@@ -198,29 +239,36 @@ class ShadeKernel:
             empty = np.zeros((0, 3), np.float32)
             return ShadowBatch(empty, empty, np.zeros(0, np.float32), empty, 0)
         state = self._state()
-        state.outputs(self.device, rows)
+        state.outputs(self.device, rows, 0 if wavelength_nm is None else stride)
         mf = cl.mem_flags
         inputs = [np.ascontiguousarray(origin, np.float32), np.ascontiguousarray(direction, np.float32),
                   np.ascontiguousarray(t, np.float32), np.ascontiguousarray(u, np.float32),
                   np.ascontiguousarray(v, np.float32), np.ascontiguousarray(prim, np.int32),
                   np.ascontiguousarray(geom, np.int32), np.ascontiguousarray(normal, np.float32),
                   _as_uint32(pixel), _as_uint32(sample),
-                  self._dummy_albedo if albedo is None else np.ascontiguousarray(albedo, np.float32)]
+                  self._dummy_albedo if albedo is None else np.ascontiguousarray(albedo, np.float32),
+                  self._dummy_albedo if wavelength_nm is None else np.ascontiguousarray(wavelength_nm, np.float32)]
         buffers = [cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a) for a in inputs]
-        kernel = state.shade.get(light_samples)
+        variant = (light_samples, wavelength_nm is not None)
+        kernel = state.shade.get(variant)
         if kernel is None:
-            kernel = state.shade[light_samples] = cl.Kernel(self._program(light_samples), "shade")
+            kernel = state.shade[variant] = cl.Kernel(self._program(*variant), "shade")
         kernel.set_args(np.uint32(n), np.uint32(stride), np.uint32(first_sample), np.uint32(total),
                         np.uint32(seed & 0xFFFFFFFF),
                         np.uint32(1),
                         np.int32(self.instance_count),
-                        self.offset_base, np.int32(self.light_count), *buffers, *self._tables,
+                        self.offset_base, np.int32(self.light_count), *buffers, self._spectrum, *self._tables,
                         state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
-                        state.buffers["contribution"])
+                        state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
         cl.enqueue_nd_range_kernel(state.queue, kernel, (stride,), (LOCAL_SIZE,))
+        spectral = wavelength_nm is not None
+        channels = 1 if spectral else 3
         arrays = {}
-        for name, width in (("origin", 3), ("vector", 3), ("length", 1), ("contribution", 3)):
-            host = state.arrays[name][:rows * width]
+        sizes = {"origin": rows * 3, "vector": rows * 3, "length": rows, "contribution": rows * channels}
+        if spectral:
+            sizes["response"] = sizes["basis"] = stride * 3
+        for name, size in sizes.items():
+            host = state.arrays[name][:size]
             # a read into the buffer's own host pointer: PoCL copies nothing, and the call orders
             # the read after the kernel (and would copy if a platform kept its own memory)
             cl.enqueue_copy(state.queue, host, state.buffers[name], is_blocking=False)
@@ -229,7 +277,9 @@ class ShadeKernel:
         for buffer in buffers:
             buffer.release()
         return ShadowBatch(arrays["origin"].reshape(rows, 3), arrays["vector"].reshape(rows, 3), arrays["length"],
-                           arrays["contribution"].reshape(rows, 3), stride)
+                           arrays["contribution"].reshape(rows, channels), stride,
+                           arrays["response"].reshape(stride, 3) if spectral else None,
+                           arrays["basis"].reshape(stride, 3) if spectral else None)
 
     def light_uniforms(self, pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int) -> np.ndarray:
         """The kernel's light-sample random numbers (3 * light_samples, N): u_pick, u1, u2 per light
