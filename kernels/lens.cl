@@ -4,7 +4,8 @@
  * realistic.camera.lens_camera.LensCamera.generate_rays; this kernel follows the same rules (its
  * tracer, realistic/optics/tracer.py):
  * root chosen by direction, far hemisphere = miss, clear-aperture and stop clipping, Heckbert
- * refraction, total internal reflection blocks, each coated surface's Fresnel transmittance.
+ * refraction, total internal reflection blocks, each coated surface's Fresnel transmittance, the
+ * paraxial (ideal thin lens) surfaces' slope change.
  *
  * Written so that PoCL's work-group vectoriser turns the work-item loop into SIMD code
  * (../shared/DESIGN.md, "Facts measured on this machine"): no calls to OpenCL builtin math
@@ -39,7 +40,7 @@
  *   RAYS_PER_ITEM                 rays each work item traces side by side (1, 2 or 4; see
  *                                 "several rays per work item")
  *   SURFACE_k(r, il2)             surface k, rear first (k = 0), as a call to sphere()/plane()/
- *                                 asphere()/stop() with literal constants; when SPECTRAL, its
+ *                                 asphere()/paraxial()/stop() with literal constants; when SPECTRAL, its
  *                                 index ratio is computed from each dispersive glass's index
  *                                 A + B il2 (il2 = 1 / lambda^2 in um^-2, A and B literal Cauchy
  *                                 coefficients), or a catalogue glass's Sellmeier or Schott formula
@@ -333,6 +334,27 @@ inline __attribute__((always_inline)) void plane(Ray *r, const float AP2, const 
     float hy = r->oy + t * r->dy;
     r->alive = r->alive & ((t > 0.0f) | !AHEAD) & (hx * hx + hy * hy <= AP2);
     if (REFRACTS) refract(r, 0.0f, 0.0f, r->dz > 0.0f ? -1.0f : (r->dz < 0.0f ? 1.0f : 0.0f), ETA);
+    r->ox = hx;
+    r->oy = hy;
+    r->w = -GAP;
+}
+
+/* A paraxial surface (realistic.optics.lens): an ideal thin lens of powers PX, PY on the vertex plane.
+ * The ray's slopes along its travel, d / |dz|, lose (hx PX, hy PY); no light is lost. AP2 is the
+ * clear semi-aperture squared (settings[SET_STOP_R2] when the surface is the stop). */
+inline __attribute__((always_inline)) void paraxial(Ray *r, const float AP2, const float PX, const float PY,
+                                                   const float GAP, const int AHEAD) {
+    float t = -r->w / r->dz;
+    float hx = r->ox + t * r->dx;
+    float hy = r->oy + t * r->dy;
+    r->alive = r->alive & ((t > 0.0f) | !AHEAD) & (hx * hx + hy * hy <= AP2);
+    float along = 1.0f / (r->dz < 0.0f ? -r->dz : r->dz);
+    float ux = r->dx * along - hx * PX;
+    float uy = r->dy * along - hy * PY;
+    float s = 1.0f / __builtin_sqrtf(ux * ux + uy * uy + 1.0f);
+    r->dx = ux * s;
+    r->dy = uy * s;
+    r->dz = r->dz < 0.0f ? -s : s;
     r->ox = hx;
     r->oy = hy;
     r->w = -GAP;

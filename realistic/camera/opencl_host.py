@@ -196,7 +196,11 @@ def camera_header(camera: LensCamera) -> str:
         ap2 = (lens.aperture_mm[i] / 2) ** 2
         radius = lens.radius_mm[i]
         refracts = int(eta != "1.0f")
-        if i == lens.stop and not lens.stop_is_flat_in_air:  # a round stop (``with_stop_shape``) on its surface
+        if lens.paraxial[i]:
+            px, py = (_c_float(p) for p in lens.paraxial_power_per_mm[i])
+            clear = "settings[SET_STOP_R2]" if i == lens.stop else _c_float(ap2)
+            calls.append(f"paraxial(r, {clear}, {px}, {py}, {_c_float(gap)}, {ahead});")
+        elif i == lens.stop and not lens.stop_is_flat_in_air:  # a round stop (``with_stop_shape``) on its surface
             kind = "plane" if radius == 0 else "sphere"
             shape = "" if radius == 0 else f"{_c_float(radius)}, "
             calls.append(f"{kind}(r, {shape}settings[SET_STOP_R2], {eta}, {refracts}, {_c_float(gap)}, {ahead});")
@@ -211,7 +215,7 @@ def camera_header(camera: LensCamera) -> str:
         else:
             calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)}, "
                          f"{ahead});")
-        if refracts and not (i == lens.stop and lens.stop_is_flat_in_air):
+        if refracts and not (i == lens.stop and lens.stop_is_flat_in_air) and not lens.paraxial[i]:
             calls[-1] += _transmission(camera, i, eta, n_in, n_out)
     lines = [
         SETTINGS.defines().rstrip("\n"),

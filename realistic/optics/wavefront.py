@@ -5,7 +5,8 @@ Rays from one object point (at infinity at ``field_deg``, or at a finite distanc
 through a square grid over the entrance-pupil plane with the float64 tracer on the reversed lens
 (``realistic.optics.forward_trace``), keeping every surface's hit point. The optical path length of
 a ray is sum n_i |p_(i+1) - p_i| from the object (a point source, or for an object at infinity
-the plane wavefront through the origin of the launch frame) to the *reference sphere*: the
+the plane wavefront through the origin of the launch frame) to the *reference sphere*
+(a paraxial surface adds the path of an ideal lens, ``ideal_lens_path``): the
 sphere centred on the reference point on the film (by default the centroid of the ray landings)
 that passes through the centre of the paraxial exit pupil. The OPD of a ray is its path minus the
 mean path of all passing rays (piston removed), in waves:
@@ -137,10 +138,27 @@ class _Beam:
         opl = start.copy()
         previous = np.asarray(origins, dtype=np.float64)
         with np.errstate(invalid="ignore"):
-            for k, hit in enumerate(path):
-                opl += media[k] * np.linalg.norm(hit - previous, axis=1)
+            for k, hit in enumerate(path):  # hit k is on surface k of the lens, front first
+                step = np.linalg.norm(hit - previous, axis=1)
+                opl += media[k] * step
+                if self.lens.paraxial[k]:
+                    opl += ideal_lens_path(hit[:, :2], (hit - previous) / step[:, None],
+                                           float(self.lens.paraxial_power_per_mm[k, 0]))
                 previous = hit
         return traced.passed, opl, previous, traced.direction
+
+
+def ideal_lens_path(hit_xy: np.ndarray, incoming: np.ndarray, power: float) -> np.ndarray:
+    """The optical path a paraxial surface of ``power`` adds to rays meeting it at ``hit_xy`` (from its
+    vertex) with unit directions ``incoming``: the path that makes the ideal lens image perfectly, as
+    Zemax's default OPD mode takes it. A ray of direction s is bound for the focal-plane point
+    P = f (s_x / s_z, s_y / s_z, 1); a plane wave along s reaches the hit h at path s.h, so the path
+    sign(f) (|P| - |P - h|) - s.h makes every ray of the wave equal at P (0 at the vertex)."""
+    f = 1.0 / power
+    sz = np.abs(incoming[:, 2])
+    to_focus = np.sqrt((f * incoming[:, 0] / sz - hit_xy[:, 0]) ** 2 + (f * incoming[:, 1] / sz - hit_xy[:, 1]) ** 2
+                       + f * f)
+    return np.sign(f) * (abs(f) / sz - to_focus) - np.sum(incoming[:, :2] * hit_xy, axis=1)
 
 
 def wavefront(lens: LensSystem, field_deg: float, wavelength_nm: float, film_distance_mm: float,
@@ -153,6 +171,10 @@ def wavefront(lens: LensSystem, field_deg: float, wavelength_nm: float, film_dis
     ``spacing_mm``) and is widened until no passing ray lies on its rim.
     """
     validation.wavelength_nm(wavelength_nm)
+    anamorphic = np.flatnonzero(lens.paraxial_power_per_mm[:, 0] != lens.paraxial_power_per_mm[:, 1])
+    if len(anamorphic):
+        raise UserError(f"{lens.name}: surface {anamorphic[0]} is a paraxial lens with different x and y powers, "
+                        f"whose wavefront is not modelled: use --model geometric")
     if not (abs(field_deg) < 90):
         raise UserError(f"field angle {field_deg:g} deg must be between -90 and 90")
     if not 2 <= samples_across <= 1024:
