@@ -108,7 +108,7 @@ def cmd_lens_mtf(args: argparse.Namespace) -> int:
     out = _outputs(args, f"{lens.name}-mtf.png")
     _warn_dispersion(lens, args.wavelengths)
     report = lens_mtf(lens, args.field, args.wavelengths, args.max_frequency, args.focus, args.samples,
-                      model=args.model)
+                      model=args.model, weights=args.weights)
     _write(args.json, json.dumps(report.as_dict(), indent=1) + "\n")
     plot_mtf(report, out)
     nu = report.frequencies_lp_mm
@@ -133,6 +133,8 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
     out = checked_exr(Path(args.out or f"{lens.name}-psf.exr"))
     if args.model == "fft":
         return _fft_psf(args, lens, out)
+    if args.wavelengths is not None or args.weights is not None:
+        raise UserError("--wavelengths and --weights are the FFT model's (--model fft)")
     psf = point_spread(lens, args.depth * MM_PER_METRE, args.field,
                        None if args.focus is None else args.focus * MM_PER_METRE,
                        args.pixel_um / 1000.0, args.size, args.spp, seed=args.seed, backend=args.backend)
@@ -151,10 +153,44 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _polychromatic_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
+    """``lens psf --model fft --wavelengths ...``: the wavelengths' diffraction PSFs summed by power, as an EXR."""
+    from realistic.camera.psf import polychromatic_point_spread
+    from realistic.core.image_files import write_exr
+
+    _warn_dispersion(lens, args.wavelengths)
+    psf = polychromatic_point_spread(lens, args.depth * MM_PER_METRE, args.field,
+                                     None if args.focus is None else args.focus * MM_PER_METRE,
+                                     args.pixel_um / 1000.0, args.size, args.wavelengths, args.weights, args.samples)
+    first = psf.parts[0]
+    listed = ",".join(f"{w:.6g}" for w in args.wavelengths)
+    write_exr(out, psf.image[:, :, None].repeat(3, axis=2), {
+        "lens": lens.name, "content": "polychromatic diffraction PSF (FFT): film irradiance per unit power reaching "
+        "the film", "pixelMm": first.pixel_mm,
+        "windowCentreFilmMm": f"{first.centre_film_mm[0]:.6g},{first.centre_film_mm[1]:.6g}",
+        "filmDistanceMm": first.film_distance_mm, "wavelengthsNm": listed,
+        "weights": ",".join(f"{w:.6g}" for w in psf.weights),
+        "strehls": ",".join(f"{p.strehl:.6g}" for p in psf.parts), "enclosed": psf.enclosed})
+    for part in psf.parts:
+        _warn_pupil_sampling(part.undersampled, f"at {args.field:g} deg, {part.wavelength_nm:g} nm")
+    print(f"{lens.name}: FFT PSF of a point {args.depth:g} m from the film at {args.field:g} deg, {listed} nm "
+          f"weighted {', '.join(f'{w:.3g}' for w in psf.weights)}, film {first.film_distance_mm:.4f} mm; window centre "
+          f"({first.centre_film_mm[0]:.4f}, {first.centre_film_mm[1]:.4f}) mm, {args.size} px of {args.pixel_um:g} um; "
+          f"Strehl per wavelength {', '.join(f'{p.strehl:.4f}' for p in psf.parts)}, {psf.enclosed:.4f} of the "
+          f"light in the window")
+    print(f"wrote {out}")
+    return 0
+
+
 def _fft_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
-    """``lens psf --model fft``: the diffraction PSF at ``--wavelength`` as an EXR."""
+    """``lens psf --model fft``: the diffraction PSF at ``--wavelength`` (or ``--wavelengths``) as an EXR."""
     from realistic.camera.psf import fft_point_spread
     from realistic.core.image_files import write_exr
+
+    if args.wavelengths is not None:
+        return _polychromatic_psf(args, lens, out)
+    if args.weights is not None:
+        raise UserError("--weights go with --wavelengths (one per wavelength)")
 
     _warn_dispersion(lens, [args.wavelength])
     psf = fft_point_spread(lens, args.depth * MM_PER_METRE, args.field,
@@ -214,7 +250,7 @@ def cmd_lens_wavefront(args: argparse.Namespace) -> int:
 
 def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     """Register ``list``, ``spot``, ``mtf`` and ``psf`` under ``lens``."""
-    from realistic.optics.spot import parse_wavelengths
+    from realistic.optics.spot import parse_wavelengths, parse_weights
 
     listing = lens_commands.add_parser("list", help="the bundled lens library: focal length, f-number, image "
                                                     "circle, elements, aspheres, source")
@@ -249,6 +285,8 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     mtf.add_argument("--model", choices=("fft", "geometric"), default="fft",
                      help="FFT of the pupil function with the diffraction limit, or geometric from the spot "
                           "(default fft)")
+    mtf.add_argument("--weights", type=checked(str, parse_weights), metavar="W,...",
+                     help="FFT model: relative power of each wavelength (default: equal)")
     mtf.add_argument("--max-frequency", type=positive("maximum frequency (lp/mm)"), default=100.0, metavar="LP/MM",
                      help="highest spatial frequency plotted (default 100 lp/mm)")
     mtf.add_argument("--out", metavar="PNG", help="plot (default: LENS-mtf.png)")
@@ -259,8 +297,13 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     psf.add_argument("lens", metavar="LENS", help=LENS_HELP)
     psf.add_argument("--model", choices=("fft", "geometric"), default="fft",
                      help="FFT of the pupil function at --wavelength, or rendered with camera rays (default fft)")
-    psf.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM, metavar="NM",
-                     help="wavelength of the FFT model in nm (default: the d line, %(default).2f)")
+    colour = psf.add_mutually_exclusive_group()
+    colour.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM,
+                        metavar="NM", help="wavelength of the FFT model in nm (default: the d line, %(default).2f)")
+    colour.add_argument("--wavelengths", type=checked(str, parse_wavelengths), metavar="F,d,C",
+                        help="FFT model: several wavelengths (Fraunhofer line names or nm), their PSFs summed")
+    psf.add_argument("--weights", type=checked(str, parse_weights), metavar="W,...",
+                     help="with --wavelengths: relative power of each (default: equal)")
     psf.add_argument("--samples", type=checked(int, _pupil_samples), default=64, metavar="N",
                      help="FFT model: pupil samples across the diameter, at least (default 64)")
     psf.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
