@@ -12,6 +12,7 @@ import pytest
 from kernel_reference import assert_kernel_matches, camera_for_lens
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
+from realistic.camera.psf import fft_point_spread
 from realistic.cli import main
 from realistic.core.image_files import read_exr
 from realistic.errors import LensFileError, UserError
@@ -161,12 +162,19 @@ def test_a_paraxial_lens_draws(tmp_path) -> None:
     assert (tmp_path / "ideal.png").stat().st_size > 0
 
 
-def test_an_ideal_lens_has_a_flat_wavefront_at_every_field() -> None:
+def test_an_ideal_lens_has_a_flat_wavefront_at_every_field_and_distance() -> None:
     lens = parse_zmx(single())
-    for field_deg in (0.0, 10.0, 25.0):
+    for field_deg in (0.0, 10.0, 25.0, 40.0):
         front = wavefront(lens, field_deg, 587.5618, F_MM, samples_across=32)
         assert front.rms_waves < 1e-9
         assert front.reference_mm[1] == pytest.approx(-F_MM * math.tan(math.radians(field_deg)), abs=1e-9)
+    for distance_mm in (300.0, 1e4):  # a point a in front of the lens, the film at its image: 1/b = 1/f - 1/a
+        film = 1 / (1 / F_MM - 1 / distance_mm)
+        for field_deg in (0.0, 10.0):
+            front = wavefront(lens, field_deg, 587.5618, film, 32, object_distance_mm=distance_mm)
+            assert front.rms_waves < 1e-8
+            spread = fft_point_spread(lens, distance_mm + film, field_deg, pixel_mm=0.0005, size=16)
+            assert spread.strehl == pytest.approx(1.0, abs=1e-9)
 
 
 def test_a_zmx_with_a_paraxial_surface_renders(tmp_path, capsys) -> None:

@@ -34,10 +34,14 @@ from realistic.errors import UserError
 from realistic.optics.forward_trace import reversed_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import paraxial_data
-from realistic.optics.tracer import trace_from_film
+from realistic.optics.tracer import paraxial_deflect, trace_from_film
 
 #: Entrance-pupil radii (paraxial) tried for the square grid, until no passing ray lies on its rim.
 _GRID_RADII = (1.25, 2.5, 5.0, 10.0, 20.0)
+#: RMS spread of a beam's slopes at a paraxial surface below which it is a plane wave (``ideal_lens_path``):
+#: directions from float64 hit points scatter by ~1e-14, and an object 1e10 pupil radii away spreads them
+#: by 1e-10 while its wave differs from a plane one by a 1e-10 pupil radius.
+PLANE_WAVE_SLOPES = 1e-10
 #: Noll terms fitted by default (through the secondary spherical, j = 22).
 ZERNIKE_TERMS = 22
 #: Names of the first Noll terms.
@@ -149,16 +153,36 @@ class _Beam:
 
 
 def ideal_lens_path(hit_xy: np.ndarray, incoming: np.ndarray, power: float) -> np.ndarray:
-    """The optical path a paraxial surface of ``power`` adds to rays meeting it at ``hit_xy`` (from its
-    vertex) with unit directions ``incoming``: the path that makes the ideal lens image perfectly, as
-    Zemax's default OPD mode takes it. A ray of direction s is bound for the focal-plane point
-    P = f (s_x / s_z, s_y / s_z, 1); a plane wave along s reaches the hit h at path s.h, so the path
-    sign(f) (|P| - |P - h|) - s.h makes every ray of the wave equal at P (0 at the vertex)."""
-    f = 1.0 / power
-    sz = np.abs(incoming[:, 2])
-    to_focus = np.sqrt((f * incoming[:, 0] / sz - hit_xy[:, 0]) ** 2 + (f * incoming[:, 1] / sz - hit_xy[:, 1]) ** 2
-                       + f * f)
-    return np.sign(f) * (abs(f) / sz - to_focus) - np.sum(incoming[:, :2] * hit_xy, axis=1)
+    """The optical path a paraxial surface of ``power`` adds to the rays of one beam meeting it at
+    ``hit_xy`` (from its vertex) with unit directions ``incoming``: the path that makes the ideal lens
+    image perfectly, as Zemax's default OPD mode takes it (0 through the vertex).
+
+    The beam's object is the point its rays come from, at the distance a in front of the surface that
+    fits their lines best (1/a = sum |du|^2 / sum dh.du over the rays' heights h and slopes u about
+    their means; 0, a plane wave, when their RMS slope spread is below ``PLANE_WAVE_SLOPES``, the
+    rounding of directions taken from hit points); the lens images it at b, 1/b = 1/f - 1/a.
+    A ray from S (on its line, a in front) to its image Q (b behind) then gains the chief ray's path
+    less its own, sign(a)|S| - A + sign(b)|Q| - B (A, B the ray's lengths to the two planes), written
+    in 1/A and 1/B so that a plane wave or an image at infinity (1/A or 1/B = 0) stays exact:
+    (|h|^2 / A - 2 s.h) / (1 + sqrt(1 - 2 s.h / A + |h|^2 / A^2)), and the same in s' and -B."""
+    rows = np.all(np.isfinite(hit_xy), axis=1) & np.all(np.isfinite(incoming), axis=1)
+    slopes = incoming[:, :2] / np.abs(incoming[:, 2:3])
+    dh = hit_xy[rows] - hit_xy[rows].mean(axis=0)
+    du = slopes[rows] - slopes[rows].mean(axis=0)
+    spread, coupling = float(np.sum(du * du)), float(np.sum(dh * du))
+    parallel = spread <= len(du) * PLANE_WAVE_SLOPES ** 2 or coupling == 0
+    inverse_a = 0.0 if parallel else spread / coupling
+    outgoing = np.stack(paraxial_deflect((hit_xy[:, 0], hit_xy[:, 1]), tuple(incoming.T), np.array([power, power])),
+                        axis=1)
+    h2 = np.sum(hit_xy * hit_xy, axis=1)
+
+    def leg(direction: np.ndarray, inverse_length: np.ndarray, sign: float) -> np.ndarray:
+        along = sign * np.sum(direction[:, :2] * hit_xy, axis=1)
+        return (h2 * inverse_length - 2 * along) / (1 + np.sqrt(1 - 2 * along * inverse_length
+                                                                 + h2 * inverse_length ** 2))
+
+    return (leg(incoming, np.abs(incoming[:, 2]) * inverse_a, 1.0)
+            + leg(outgoing, np.abs(outgoing[:, 2]) * (power - inverse_a), -1.0))
 
 
 def wavefront(lens: LensSystem, field_deg: float, wavelength_nm: float, film_distance_mm: float,
