@@ -162,9 +162,9 @@ def refract(d: Vectors, normal: Vectors, eta: float | np.ndarray) -> tuple[Vecto
     return (tx * inv, ty * inv, tz * inv), tir
 
 
-def paraxial_deflect(hit: Vectors, d: Vectors, power: np.ndarray) -> Vectors:
-    """The unit direction leaving an ideal thin lens of powers ``power`` (p_x, p_y) at ``hit``: its
-    slopes along the travel axis, d_x / |d_z| and d_y / |d_z|, less x p_x and y p_y."""
+def paraxial_deflect(hit: tuple[np.ndarray, ...], d: Vectors, power: np.ndarray) -> Vectors:
+    """The unit direction leaving an ideal thin lens of powers ``power`` (p_x, p_y) at ``hit`` ((x, y)
+    or (x, y, z)): its slopes along the travel axis, d_x / |d_z| and d_y / |d_z|, less x p_x and y p_y."""
     dx, dy, dz = d
     along = np.abs(dz)
     ux = dx / along - hit[0] * power[0]

@@ -172,8 +172,8 @@ def ideal_lens_path(hit_xy: np.ndarray, incoming: np.ndarray, power: float) -> n
     spread, coupling = float(np.sum(du * du)), float(np.sum(dh * du))
     parallel = spread <= len(du) * PLANE_WAVE_SLOPES ** 2 or coupling == 0
     inverse_a = 0.0 if parallel else spread / coupling
-    outgoing = np.stack(paraxial_deflect((hit_xy[:, 0], hit_xy[:, 1]), tuple(incoming.T), np.array([power, power])),
-                        axis=1)
+    outgoing = np.stack(paraxial_deflect((hit_xy[:, 0], hit_xy[:, 1]), (incoming[:, 0], incoming[:, 1], incoming[:, 2]),
+                                         np.array([power, power])), axis=1)
     h2 = np.sum(hit_xy * hit_xy, axis=1)
 
     def leg(direction: np.ndarray, inverse_length: np.ndarray, sign: float) -> np.ndarray:
