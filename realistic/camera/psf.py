@@ -35,7 +35,7 @@ from realistic.camera.base import RayGenerator, SampleBlock, check_backend
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import validation
 from realistic.errors import UserError
-from realistic.optics.diffraction import box_integrate, fft_psf, pupil_function, strehl_ratio
+from realistic.optics.diffraction import box_integrate, fft_psf, huygens_psf, pupil_function, strehl_ratio
 from realistic.optics.forward_trace import trace_object_point
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
@@ -75,8 +75,8 @@ class DiffractionSpread:
     centre_film_mm: tuple[float, float]
     film_distance_mm: float
     wavelength_nm: float
-    fft_size: int
-    fft_spacing_mm: tuple[float, float]  # the FFT's samples along film x and y
+    fft_size: int  # 0 for the Huygens sum (``huygens_point_spread``)
+    fft_spacing_mm: tuple[float, float]  # the FFT's samples along film x and y (the Huygens sum's points)
     strehl: float
     opd_rms_waves: float
     undersampled: float  # ``Wavefront.undersampled_fraction``
@@ -132,6 +132,35 @@ def fft_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, 
     return DiffractionSpread(image, pixel_mm, front.reference_mm, film_distance, wavelength_nm, fft_size,
                              (float(du[0]), float(du[1])),
                              strehl_ratio(pupil), front.rms_waves, front.undersampled_fraction)
+
+
+#: Film points per pixel side where ``huygens_point_spread`` samples the PSF (each pixel averages them).
+HUYGENS_SAMPLES_PER_PIXEL = 3
+
+
+def huygens_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focus_mm: float | None = None,
+                         pixel_mm: float = 0.002, size: int = 64, wavelength_nm: float = 587.5618,
+                         samples_across: int = 64) -> DiffractionSpread:
+    """The PSF of a point ``depth_mm`` from the film by the Huygens-Fresnel sum over the reference sphere
+    (``realistic.optics.diffraction.huygens_psf``), on the window of ``fft_point_spread``: each pixel the
+    mean of ``HUYGENS_SAMPLES_PER_PIXEL`` squared points. The result's ``fft_size`` is 0 and its
+    ``fft_spacing_mm`` the spacing of those points."""
+    validation.positive_length(depth_mm, "depth (mm)")
+    validation.positive_length(pixel_mm, "pixel size (mm)")
+    if not (isinstance(size, int) and 1 <= size <= 512):
+        raise UserError(f"Huygens PSF window size must be 1..512 pixels, got {size!r}")
+    film_distance = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
+    distance = _object_distance(lens, depth_mm, film_distance)
+    front = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance)
+    sub = HUYGENS_SAMPLES_PER_PIXEL
+    step = pixel_mm / sub
+    offsets = (np.arange(size * sub) - (size * sub - 1) / 2) * step
+    y, x = np.meshgrid(offsets, -offsets, indexing="ij")  # rows along +y, columns along -x, as the FFT's window
+    values = huygens_psf(front.opd_waves, front.sphere_mm, wavelength_nm, np.column_stack([x.ravel(), y.ravel()]))
+    image = values.reshape(size, sub, size, sub).mean(axis=(1, 3))
+    return DiffractionSpread(image, pixel_mm, front.reference_mm, film_distance, wavelength_nm, 0, (step, step),
+                             strehl_ratio(pupil_function(front.opd_waves)), front.rms_waves,
+                             front.undersampled_fraction)
 
 
 @dataclass(frozen=True)

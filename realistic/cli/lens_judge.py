@@ -131,7 +131,7 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
 
     lens = _load(args)
     out = checked_exr(Path(args.out or f"{lens.name}-psf.exr"))
-    if args.model == "fft":
+    if args.model in ("fft", "huygens"):
         return _fft_psf(args, lens, out)
     if args.wavelengths is not None or args.weights is not None:
         raise UserError("--wavelengths and --weights are the FFT model's (--model fft)")
@@ -183,28 +183,31 @@ def _polychromatic_psf(args: argparse.Namespace, lens: LensSystem, out: Path) ->
 
 
 def _fft_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
-    """``lens psf --model fft``: the diffraction PSF at ``--wavelength`` (or ``--wavelengths``) as an EXR."""
-    from realistic.camera.psf import fft_point_spread
-    from realistic.core.image_files import write_exr
+    """``lens psf --model fft|huygens``: the diffraction PSF at ``--wavelength`` (or, FFT, ``--wavelengths``)
+    as an EXR."""
+    from realistic.camera.psf import fft_point_spread, huygens_point_spread
+    from realistic.core.image_files import Metadata, write_exr
 
-    if args.wavelengths is not None:
+    if args.wavelengths is not None and args.model == "fft":
         return _polychromatic_psf(args, lens, out)
-    if args.weights is not None:
-        raise UserError("--weights go with --wavelengths (one per wavelength)")
+    if args.wavelengths is not None or args.weights is not None:
+        raise UserError("--wavelengths and --weights go together, with --model fft")
 
     _warn_dispersion(lens, [args.wavelength])
-    psf = fft_point_spread(lens, args.depth * MM_PER_METRE, args.field,
-                           None if args.focus is None else args.focus * MM_PER_METRE,
-                           args.pixel_um / 1000.0, args.size, args.wavelength, args.samples)
+    spread = fft_point_spread if args.model == "fft" else huygens_point_spread
+    psf = spread(lens, args.depth * MM_PER_METRE, args.field, None if args.focus is None else args.focus * MM_PER_METRE,
+                 args.pixel_um / 1000.0, args.size, args.wavelength, args.samples)
+    model = "FFT" if args.model == "fft" else "Huygens-Fresnel sum over the reference sphere"
+    sampling: Metadata = ({"fftSize": psf.fft_size, "fftSpacingMm": ",".join(f"{v:.6g}" for v in psf.fft_spacing_mm)}
+                          if args.model == "fft" else {"sampleSpacingMm": psf.fft_spacing_mm[0]})
     write_exr(out, psf.image[:, :, None].repeat(3, axis=2), {
-        "lens": lens.name, "content": "diffraction PSF (FFT): film irradiance per unit power reaching the film",
+        "lens": lens.name, "content": f"diffraction PSF ({model}): film irradiance per unit power reaching the film",
         "pixelMm": psf.pixel_mm, "windowCentreFilmMm": f"{psf.centre_film_mm[0]:.6g},{psf.centre_film_mm[1]:.6g}",
-        "filmDistanceMm": psf.film_distance_mm, "wavelengthNm": psf.wavelength_nm, "fftSize": psf.fft_size,
-        "fftSpacingMm": ",".join(f"{v:.6g}" for v in psf.fft_spacing_mm), "strehl": psf.strehl,
+        "filmDistanceMm": psf.film_distance_mm, "wavelengthNm": psf.wavelength_nm, **sampling, "strehl": psf.strehl,
         "opdRmsWaves": psf.opd_rms_waves,
         "enclosed": psf.enclosed})
     _warn_pupil_sampling(psf.undersampled, f"at {args.field:g} deg")
-    print(f"{lens.name}: FFT PSF of a point {args.depth:g} m from the film at {args.field:g} deg, "
+    print(f"{lens.name}: {args.model} PSF of a point {args.depth:g} m from the film at {args.field:g} deg, "
           f"{psf.wavelength_nm:g} nm, film {psf.film_distance_mm:.4f} mm; window centre "
           f"({psf.centre_film_mm[0]:.4f}, {psf.centre_film_mm[1]:.4f}) mm, {args.size} px of {args.pixel_um:g} um; "
           f"OPD RMS {psf.opd_rms_waves:.4f} waves, Strehl {psf.strehl:.4f}, {psf.enclosed:.4f} of the light "
@@ -295,8 +298,9 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     psf = lens_commands.add_parser("psf", help="point-spread function on the film (EXR): by diffraction (FFT) "
                                                "or rendered with camera rays")
     psf.add_argument("lens", metavar="LENS", help=LENS_HELP)
-    psf.add_argument("--model", choices=("fft", "geometric"), default="fft",
-                     help="FFT of the pupil function at --wavelength, or rendered with camera rays (default fft)")
+    psf.add_argument("--model", choices=("fft", "huygens", "geometric"), default="fft",
+                     help="FFT of the pupil function at --wavelength, the Huygens-Fresnel sum over the reference "
+                          "sphere (slower, no Fraunhofer approximation), or rendered with camera rays (default fft)")
     colour = psf.add_mutually_exclusive_group()
     colour.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM,
                         metavar="NM", help="wavelength of the FFT model in nm (default: the d line, %(default).2f)")

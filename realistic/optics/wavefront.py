@@ -24,6 +24,7 @@ the unit disk is the circle about the passing rays' centroid through the farthes
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -70,6 +71,9 @@ class Wavefront:
     reference_mm: tuple[float, float]
     scale_mm: tuple[float, float]  # (L_x, L_y): pupil height h gives the image-space direction sine h / L
     pupil_xy_mm: np.ndarray  # (n, n, 2) grid cell centres on the entrance-pupil plane
+    # (n, n, 3) where each ray crosses the reference sphere, from the reference point on the film (NaN
+    # where none passes; the film's x, y and the axis toward it); empty where not traced
+    sphere_mm: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0, 3)))
 
     @property
     def passed(self) -> np.ndarray:
@@ -245,9 +249,11 @@ def wavefront(lens: LensSystem, field_deg: float, wavelength_nm: float, film_dis
     scale = np.abs(np.sum(h * h, axis=0) / turn)
     opd = np.full(count * count, np.nan)
     opd[passed] = (total - total.mean()) / (wavelength_nm * 1e-6)
+    sphere = np.full((count * count, 3), np.nan)
+    sphere[passed] = p + t[:, None] * d - centre
     return Wavefront(opd.reshape(count, count), spacing, wavelength_nm, field_deg, film_distance_mm,
                      (float(ref[0]), float(ref[1])),
-                     (float(scale[0]), float(scale[1])), grid)
+                     (float(scale[0]), float(scale[1])), grid, sphere.reshape(count, count, 3))
 
 
 def noll_indices(j: int) -> tuple[int, int]:
