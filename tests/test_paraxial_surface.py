@@ -194,3 +194,12 @@ def test_formats_without_paraxial_surfaces_refuse_to_write_one() -> None:
     for write in (format_prescription, format_codev):
         with pytest.raises(UserError, match="surface 1 is paraxial .* convert to .zmx or .json"):
             write(lens)
+
+
+def test_lens_info_names_paraxial_surfaces(tmp_path, capsys) -> None:
+    path = tmp_path / "pair.zmx"
+    path.write_text(zmx("STOP\nCURV 0\nDISZ 2\nDIAM 8", "TYPE PARAXIAL\nPARM 1 40\nDISZ 5\nDIAM 10",
+                        "TYPE PARAXIAL_XY\nPARM 1 0\nPARM 2 0.01\nDISZ 30\nDIAM 10"))
+    assert main(["lens", "info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "paraxial f 40 mm" in out and "paraxial f inf x 100 mm" in out
