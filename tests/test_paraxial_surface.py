@@ -203,3 +203,11 @@ def test_lens_info_names_paraxial_surfaces(tmp_path, capsys) -> None:
     assert main(["lens", "info", str(path)]) == 0
     out = capsys.readouterr().out
     assert "paraxial f 40 mm" in out and "paraxial f inf x 100 mm" in out
+
+
+def test_a_paraxial_stop_is_written_to_zemax_only() -> None:
+    lens = parse_zmx(single())
+    with pytest.raises(UserError, match="its stop is paraxial, .* convert to .zmx$"):
+        format_json_lens(lens)
+    again = parse_zmx(format_zmx(lens))
+    assert again.stop == 0 and again.paraxial[0] and paraxial_data(again).efl_mm == pytest.approx(F_MM, rel=1e-15)

@@ -200,8 +200,10 @@ def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) 
 def format_json_lens(lens: LensSystem) -> str:
     """``lens`` as an isetlens/omni JSON document (floats written exactly: repr round-trips)."""
     if not lens.stop_is_flat_in_air:
-        raise UserError(f"{lens.name}: its stop is curved or has glass on one side, and in a .json prescription "
-                        f"the stop is a radius-0 surface in air: convert to .zmx or .seq")
+        what, formats = ("paraxial", ".zmx") if lens.paraxial[lens.stop] else ("curved or has glass on one side",
+                                                                               ".zmx or .seq")
+        raise UserError(f"{lens.name}: its stop is {what}, and in a .json prescription the stop is a radius-0 "
+                        f"surface in air: convert to {formats}")
     surfaces = []
     before = np.concatenate([[1.0], lens.index_d[:-1]])
     for i in range(lens.surface_count):
