@@ -4,7 +4,8 @@
  * realistic.camera.lens_camera.LensCamera.generate_rays; this kernel follows the same rules (its
  * tracer, realistic/optics/tracer.py):
  * root chosen by direction, far hemisphere = miss, clear-aperture and stop clipping, Heckbert
- * refraction, total internal reflection blocks, each coated surface's Fresnel transmittance.
+ * refraction, total internal reflection blocks, each coated surface's Fresnel transmittance, the
+ * paraxial (ideal thin lens) surfaces' slope change.
  *
  * Written so that PoCL's work-group vectoriser turns the work-item loop into SIMD code
  * (../shared/DESIGN.md, "Facts measured on this machine"): no calls to OpenCL builtin math
@@ -39,7 +40,7 @@
  *   RAYS_PER_ITEM                 rays each work item traces side by side (1, 2 or 4; see
  *                                 "several rays per work item")
  *   SURFACE_k(r, il2)             surface k, rear first (k = 0), as a call to sphere()/plane()/
- *                                 asphere()/stop() with literal constants; when SPECTRAL, its
+ *                                 asphere()/paraxial()/stop() with literal constants; when SPECTRAL, its
  *                                 index ratio is computed from each dispersive glass's index
  *                                 A + B il2 (il2 = 1 / lambda^2 in um^-2, A and B literal Cauchy
  *                                 coefficients), or a catalogue glass's Sellmeier or Schott formula
@@ -47,8 +48,7 @@
  *                                 followed, where the lens's coating loses light there, by
  *                                 transmit_bare() or transmit_layer() (see "coatings")
  *   TRACE_SURFACES(EACH)          EACH(SURFACE_0) EACH(SURFACE_1) ...: every surface, rear first
- *   COATED                        1: some surface loses light (the weight carries Ray.T);
- *                                 COATING_INDEX the layer's index
+ *   COATED                        1: some surface loses light (the weight carries Ray.T)
  * The kernel argument `settings` holds what changes with the focus (the film distance) and the
  * stop's diameter, float32 at the SET_* offsets the generated header defines (declared once, with
  * what each holds, in realistic.camera.opencl_host.SETTINGS; packed by setting_values): SET_PLANE_Z,
@@ -198,23 +198,25 @@ inline __attribute__((always_inline)) float cos_phase(float x) {
         y2 * (-1.0f / 6402373705728000.0f))))))))));
 }
 
-/* A quarter-wave layer of index COATING_INDEX between media N0 (the ray's) and N2, at the phase
- * factor PHASE = pi lambda0 / lambda (2 delta = PHASE cos theta_layer). With a, b the amplitude
+/* A quarter-wave layer (at lambda0) of index NL between media N0 (the ray's) and N2, at the phase
+ * factor PHASE = pi (lambda0 / lambda) NL / n(lambda0) (2 delta = PHASE cos theta_layer); NL is MgF2's
+ * index at the ray's wavelength (realistic.optics.coating.mgf2_index). With a, b the amplitude
  * reflection coefficients entering and leaving the film, the Airy sum gives
  * R = (a^2 + b^2 + 2 a b cos 2delta) / D and T = (1 - a^2)(1 - b^2) / D, D = 1 + a^2 b^2 + 2 a b cos 2delta
  * (lossless: R + T = 1). s takes T's form and p R's, and the four coefficients are written each in
  * its own form, on purpose: as twins, LLVM's SLP vectoriser packed s and p into 2-wide vectors,
  * which stops PoCL's work-group vectoriser ("instruction return type cannot be vectorized"). */
-inline __attribute__((always_inline)) void transmit_layer(Ray *r, const float N0, const float N2, const float PHASE) {
+inline __attribute__((always_inline)) void transmit_layer(Ray *r, const float N0, const float N2, const float PHASE,
+                                                         const float NL) {
     float c0 = r->c1, c2 = r->c2;
-    float q = N0 * (1.0f / COATING_INDEX);
+    float q = N0 * (1.0f / NL);
     float cl2 = 1.0f - q * q * (1.0f - c0 * c0);
     float cl = __builtin_sqrtf(cl2 > 0.0f ? cl2 : 0.0f);
-    float n0c0 = N0 * c0, nlcl = COATING_INDEX * cl, n2c2 = N2 * c2;
+    float n0c0 = N0 * c0, nlcl = NL * cl, n2c2 = N2 * c2;
     float as = (n0c0 - nlcl) / (n0c0 + nlcl);
     float bs = 1.0f - 2.0f * n2c2 / (nlcl + n2c2);
-    float ap = (COATING_INDEX * c0 - N0 * cl) * (1.0f / (COATING_INDEX * c0 + N0 * cl));
-    float bp = 2.0f * (N2 * cl) / (N2 * cl + COATING_INDEX * c2) - 1.0f;
+    float ap = (NL * c0 - N0 * cl) * (1.0f / (NL * c0 + N0 * cl));
+    float bp = 2.0f * (N2 * cl) / (N2 * cl + NL * c2) - 1.0f;
     float cp = cos_phase(PHASE * cl);
     float as2 = as * as, bs2 = bs * bs;
     float ts = (1.0f - as2) * (1.0f - bs2) / (1.0f + as2 * bs2 + 2.0f * as * bs * cp);
@@ -333,6 +335,27 @@ inline __attribute__((always_inline)) void plane(Ray *r, const float AP2, const 
     float hy = r->oy + t * r->dy;
     r->alive = r->alive & ((t > 0.0f) | !AHEAD) & (hx * hx + hy * hy <= AP2);
     if (REFRACTS) refract(r, 0.0f, 0.0f, r->dz > 0.0f ? -1.0f : (r->dz < 0.0f ? 1.0f : 0.0f), ETA);
+    r->ox = hx;
+    r->oy = hy;
+    r->w = -GAP;
+}
+
+/* A paraxial surface (realistic.optics.lens): an ideal thin lens of powers PX, PY on the vertex plane.
+ * The ray's slopes along its travel, d / |dz|, lose (hx PX, hy PY); no light is lost. AP2 is the
+ * clear semi-aperture squared (settings[SET_STOP_R2] when the surface is the stop). */
+inline __attribute__((always_inline)) void paraxial(Ray *r, const float AP2, const float PX, const float PY,
+                                                   const float GAP, const int AHEAD) {
+    float t = -r->w / r->dz;
+    float hx = r->ox + t * r->dx;
+    float hy = r->oy + t * r->dy;
+    r->alive = r->alive & ((t > 0.0f) | !AHEAD) & (hx * hx + hy * hy <= AP2);
+    float along = 1.0f / (r->dz < 0.0f ? -r->dz : r->dz);
+    float ux = r->dx * along - hx * PX;
+    float uy = r->dy * along - hy * PY;
+    float s = 1.0f / __builtin_sqrtf(ux * ux + uy * uy + 1.0f);
+    r->dx = ux * s;
+    r->dy = uy * s;
+    r->dz = r->dz < 0.0f ? -s : s;
     r->ox = hx;
     r->oy = hy;
     r->w = -GAP;

@@ -6,7 +6,17 @@ import pytest
 
 from realistic import load_lens
 from realistic.errors import UserError
-from realistic.optics.coating import BARE, IDEAL, LAYER, MGF2_INDEX, reflect_transmit, reflectance, transmittance
+from realistic.optics.coating import (
+    BARE,
+    DESIGN_WAVELENGTH_NM,
+    IDEAL,
+    LAYER,
+    MGF2_INDEX,
+    mgf2_index,
+    reflect_transmit,
+    reflectance,
+    transmittance,
+)
 from realistic.optics.forward_trace import reversed_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import paraxial_data
@@ -50,22 +60,46 @@ def test_quarter_wave_layer_of_index_sqrt_n_glass_cancels_reflection(monkeypatch
     import realistic.optics.coating as coating
 
     monkeypatch.setattr(coating, "MGF2_INDEX", np.sqrt(1.9044))
+    monkeypatch.setattr(coating, "mgf2_index", lambda wavelength_nm: np.full_like(wavelength_nm, np.sqrt(1.9044)))
     for n0, n2 in ((1.0, 1.9044), (1.9044, 1.0)):
         assert coating.reflectance(LAYER, n0, n2, 1.0, coating.DESIGN_WAVELENGTH_NM) == pytest.approx(0, abs=1e-30)
 
 
 def test_mgf2_on_crown_is_the_closed_form_at_its_design_wavelength():
-    """((n0 n_g - n1^2) / (n0 n_g + n1^2))^2: about 1.26 % for n_g = 1.52, from 4.26 % bare."""
+    """((n0 n_g - n1^2) / (n0 n_g + n1^2))^2: about 1.24 % for n_g = 1.52, from 4.26 % bare."""
     closed = ((1.52 - MGF2_INDEX**2) / (1.52 + MGF2_INDEX**2)) ** 2
     assert reflectance(LAYER, 1.0, 1.52, 1.0, 550.0) == pytest.approx(closed, rel=1e-13)
-    assert closed == pytest.approx(0.0126, abs=1e-4)
+    assert closed == pytest.approx(0.0124, abs=1e-4)
     away = reflectance(LAYER, 1.0, 1.52, 1.0, np.array([400.0, 700.0]))
     assert np.all(away > closed) and np.all(away < reflectance(BARE, 1.0, 1.52, 1.0, 550.0))
 
 
+def test_mgf2_is_dispersive_as_dodge_measured_it():
+    """The ordinary index of Dodge's (1984) Sellmeier fit: 1.3785 at 550 nm, falling with lambda."""
+    assert 1.378 <= mgf2_index(550.0) <= 1.380
+    assert MGF2_INDEX == mgf2_index(DESIGN_WAVELENGTH_NM)
+    assert mgf2_index(450.0) > mgf2_index(550.0) > mgf2_index(650.0)
+
+
+def test_the_coated_reflectance_minimum_stays_near_the_design_wavelength():
+    """The layer is a quarter wave at 550 nm whatever its dispersion (its thickness is lambda0 / (4 n(lambda0)));
+    the minimum of R moves a few nm longer only as the lower index there matches the glass better."""
+    wavelengths = np.arange(450.0, 650.0, 0.25)
+    for glass in (1.52, 1.7):
+        r = reflectance(LAYER, 1.0, glass, 1.0, wavelengths)
+        assert abs(wavelengths[np.argmin(r)] - DESIGN_WAVELENGTH_NM) < 10.0
+        closed = ((glass - MGF2_INDEX**2) / (glass + MGF2_INDEX**2)) ** 2
+        assert reflectance(LAYER, 1.0, glass, 1.0, DESIGN_WAVELENGTH_NM) == pytest.approx(closed, rel=1e-13)
+
+
 def test_a_layer_is_a_half_wave_at_half_the_design_wavelength():
-    """At lambda0 / 2 the layer is a half wave thick, absent (Born and Wolf 1.6.4): R is the bare one."""
-    assert reflectance(LAYER, 1.0, 1.52, 1.0, 275.0) == pytest.approx(reflectance(BARE, 1.0, 1.52, 1.0, 275.0))
+    """Where the layer is a half wave thick, lambda = 2 n(lambda) d (near lambda0 / 2, moved by the dispersion),
+    it is absent (Born and Wolf 1.6.4): R is the bare one."""
+    half = DESIGN_WAVELENGTH_NM / 2
+    for _ in range(50):  # the fixed point of lambda = 2 n(lambda) lambda0 / (4 n(lambda0))
+        half = float(mgf2_index(half)) * DESIGN_WAVELENGTH_NM / (2 * MGF2_INDEX)
+    assert 276 < half < 282
+    assert reflectance(LAYER, 1.0, 1.52, 1.0, half) == pytest.approx(reflectance(BARE, 1.0, 1.52, 1.0, half))
 
 
 def _axial_transmittance(lens) -> float:

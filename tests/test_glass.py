@@ -110,7 +110,8 @@ def test_zemax_unknown_glass_names_the_line_and_the_closest_names():
     assert "\n" not in message
 
 
-@pytest.mark.parametrize(("kind", "line"), [("COORDBRK", "coordinate breaks"), ("PARAXIAL", "a paraxial")])
+# (PARAXIAL is traced now: tests/test_paraxial_surface.py)
+@pytest.mark.parametrize(("kind", "line"), [("COORDBRK", "coordinate breaks")])
 def test_zemax_refuses_what_real_rays_cannot_trace_with_file_and_line(kind, line):
     text = ZMX_SINGLET.format(glass="N-BK7").replace("SURF 3\n  TYPE STANDARD", f"SURF 3\n  TYPE {kind}")
     with pytest.raises(LensFileError, match=rf"singlet.zmx:24: TYPE {kind}: {line}"):

@@ -174,7 +174,7 @@ def test_lens_wavefront_and_fft_psf_commands(tmp_path: Path, capsys: pytest.Capt
 
 
 @pytest.mark.parametrize("argv", [["lens", "wavefront", "dgauss", "--terms", "0"],
-                                  ["lens", "psf", "dgauss", "--depth", "3", "--model", "huygens"],
+                                  ["lens", "psf", "dgauss", "--depth", "3", "--model", "wave"],
                                   ["lens", "mtf", "dgauss", "--model", "wave"]])
 def test_bad_wave_options_are_one_line_errors(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     assert main(argv) == 2

@@ -107,7 +107,6 @@ UNSUPPORTED = {
     "odd asphere": (3, "TYPE", "  TYPE ODDASPH", "surface type ODDASPH"),
     "toroid": (3, "TYPE", "  TYPE TOROIDAL", "surface type TOROIDAL"),
     "coordinate break": (4, "TYPE", "  TYPE COORDBRK", "TYPE COORDBRK: coordinate breaks"),
-    "paraxial": (2, "TYPE", "  TYPE PARAXIAL", "TYPE PARAXIAL: a paraxial (ideal thin) lens cannot be traced"),
     "conic not a number": (3, "CONI", "  CONI abc", "CONI 'abc' is not a number"),
     "mirror": (1, "GLAS", "  GLAS MIRROR 0 0", "mirror"),
     "unknown glass": (1, "GLAS", "  GLAS N-BK77 0 0", "glass 'N-BK77' is in none of the catalogues"),

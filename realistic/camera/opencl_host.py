@@ -22,7 +22,7 @@ from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table
-from realistic.optics.coating import BARE, DESIGN_WAVELENGTH_NM, LAYER, MGF2_INDEX
+from realistic.optics.coating import BARE, DESIGN_WAVELENGTH_NM, LAYER, MGF2, MGF2_INDEX, mgf2_index
 from realistic.optics.dispersion import D_LINE_NM, GlassFormula, cauchy_coefficients
 from realistic.optics.lens import LensSystem
 from realistic.optics.sampling import rear_element_sampler
@@ -90,11 +90,15 @@ def _transmission(camera: LensCamera, i: int, eta: str, n_in: str, n_out: str) -
     if model == BARE:
         return f" transmit_bare(r, {eta});"
     if model == LAYER:
-        # pi lambda0 / lambda: 1 / lambda is sqrt(il2) / 1000 per ray, or the d line's
-        factor = np.pi * DESIGN_WAVELENGTH_NM
-        phase = (f"({_c_float(factor * 1e-3)} * __builtin_sqrtf(il2))" if camera.spectral
-                 else _c_float(factor / D_LINE_NM))
-        return f" transmit_layer(r, {n_in}, {n_out}, {phase});"
+        # pi (lambda0 / lambda) n(lambda) / n(lambda0): 1 / lambda is sqrt(il2) / 1000 per ray, or the d line's
+        factor = np.pi * DESIGN_WAVELENGTH_NM / MGF2_INDEX
+        if camera.spectral:
+            layer = _glass_index(MGF2)
+            phase = f"({_c_float(factor * 1e-3)} * __builtin_sqrtf(il2) * {layer})"
+        else:
+            layer = _c_float(float(mgf2_index(D_LINE_NM)))
+            phase = _c_float(factor * float(mgf2_index(D_LINE_NM)) / D_LINE_NM)
+        return f" transmit_layer(r, {n_in}, {n_out}, {phase}, {layer});"
     return ""
 
 
@@ -196,7 +200,11 @@ def camera_header(camera: LensCamera) -> str:
         ap2 = (lens.aperture_mm[i] / 2) ** 2
         radius = lens.radius_mm[i]
         refracts = int(eta != "1.0f")
-        if i == lens.stop and not lens.stop_is_flat_in_air:  # a round stop (``with_stop_shape``) on its surface
+        if lens.paraxial[i]:
+            px, py = (_c_float(p) for p in lens.paraxial_power_per_mm[i])
+            clear = "settings[SET_STOP_R2]" if i == lens.stop else _c_float(ap2)
+            calls.append(f"paraxial(r, {clear}, {px}, {py}, {_c_float(gap)}, {ahead});")
+        elif i == lens.stop and not lens.stop_is_flat_in_air:  # a round stop (``with_stop_shape``) on its surface
             kind = "plane" if radius == 0 else "sphere"
             shape = "" if radius == 0 else f"{_c_float(radius)}, "
             calls.append(f"{kind}(r, {shape}settings[SET_STOP_R2], {eta}, {refracts}, {_c_float(gap)}, {ahead});")
@@ -211,13 +219,12 @@ def camera_header(camera: LensCamera) -> str:
         else:
             calls.append(f"sphere(r, {_c_float(radius)}, {_c_float(ap2)}, {eta}, {refracts}, {_c_float(gap)}, "
                          f"{ahead});")
-        if refracts and not (i == lens.stop and lens.stop_is_flat_in_air):
+        if refracts and not (i == lens.stop and lens.stop_is_flat_in_air) and not lens.paraxial[i]:
             calls[-1] += _transmission(camera, i, eta, n_in, n_out)
     lines = [
         SETTINGS.defines().rstrip("\n"),
         f"#define SPECTRAL {int(camera.spectral)}",
         f"#define COATED {int(bool(lens.interface_models.any()))}",
-        f"#define COATING_INDEX {_c_float(MGF2_INDEX)}",
         *(f"#define SURFACE_{k}(r, il2) {call}" for k, call in enumerate(calls)),
         "#define TRACE_SURFACES(EACH) " + " ".join(f"EACH(SURFACE_{k})" for k in range(len(calls))),
         *stop_lines(lens),

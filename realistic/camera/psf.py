@@ -1,10 +1,11 @@
 """The point-spread function on the film: by diffraction of the pupil function (``fft_point_spread``),
 or rendered with the camera's own rays (``point_spread``, the geometric model described below).
 
-The FFT model traces the wavefront of the point (``realistic.optics.wavefront``) at one wavelength
-and transforms its pupil function (``realistic.optics.diffraction``); the window is centred on the
-centroid of the rays' landings (the reference sphere's centre), the FFT samples at a quarter pixel
-or finer are integrated over each pixel, and the image is irradiance per unit power reaching the
+The FFT model traces the wavefront of the point (``realistic.optics.wavefront``) at each wavelength
+(``polychromatic_point_spread`` adds several by their powers) and transforms its pupil function
+(``realistic.optics.diffraction``); the window is centred on the centroid of the rays' landings (the
+reference sphere's centre), the FFT samples at a quarter pixel or finer are integrated over each
+pixel, and the image is irradiance per unit power reaching the
 film (1/mm^2: the window's sum times the pixel area is the fraction of the light inside it).
 
 The geometric model:
@@ -25,6 +26,7 @@ source on the axis L * pi r^2 * (projected solid angle of the entrance pupil).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +35,7 @@ from realistic.camera.base import RayGenerator, SampleBlock, check_backend
 from realistic.camera.lens_camera import LensCamera
 from realistic.core import validation
 from realistic.errors import UserError
-from realistic.optics.diffraction import box_integrate, fft_psf, pupil_function, strehl_ratio
+from realistic.optics.diffraction import box_integrate, fft_psf, huygens_psf, pupil_function, strehl_ratio
 from realistic.optics.forward_trace import trace_object_point
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import film_distance_for_focus, paraxial_data
@@ -73,8 +75,8 @@ class DiffractionSpread:
     centre_film_mm: tuple[float, float]
     film_distance_mm: float
     wavelength_nm: float
-    fft_size: int
-    fft_spacing_mm: tuple[float, float]  # the FFT's samples along film x and y
+    fft_size: int  # 0 for the Huygens sum (``huygens_point_spread``)
+    fft_spacing_mm: tuple[float, float]  # the FFT's samples along film x and y (the Huygens sum's points)
     strehl: float
     opd_rms_waves: float
     undersampled: float  # ``Wavefront.undersampled_fraction``
@@ -97,12 +99,13 @@ def _object_distance(lens: LensSystem, depth_mm: float, film_distance_mm: float)
 
 def fft_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focus_mm: float | None = None,
                      pixel_mm: float = 0.002, size: int = 64, wavelength_nm: float = 587.5618,
-                     samples_across: int = 64) -> DiffractionSpread:
+                     samples_across: int = 64, reference_mm: tuple[float, float] | None = None) -> DiffractionSpread:
     """Diffraction PSF of a point ``depth_mm`` from the film (see the module docstring).
 
     The pupil is sampled with ``samples_across`` cells across its paraxial diameter, or finer where
     the window needs it (the FFT's field, lambda L / cell, spans at least twice the window), and
-    zero-padded until the PSF samples are a quarter pixel or finer.
+    zero-padded until the PSF samples are a quarter pixel or finer. ``reference_mm``: the window's
+    centre on the film (default: the centroid of this wavelength's rays).
     """
     validation.positive_length(depth_mm, "depth (mm)")
     validation.positive_length(pixel_mm, "pixel size (mm)")
@@ -110,7 +113,7 @@ def fft_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, 
         raise UserError(f"PSF window size must be 1..4096 pixels, got {size!r}")
     film_distance = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
     distance = _object_distance(lens, depth_mm, film_distance)
-    first = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance)
+    first = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance, reference_mm)
     wave_l = wavelength_nm * 1e-6 * np.array(first.scale_mm)  # lambda L (x, y): FFT field = lambda L / cell
     spacing = min(first.spacing_mm, float(wave_l.min()) / (2 * size * pixel_mm))
     front = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance,
@@ -129,6 +132,72 @@ def fft_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, 
     return DiffractionSpread(image, pixel_mm, front.reference_mm, film_distance, wavelength_nm, fft_size,
                              (float(du[0]), float(du[1])),
                              strehl_ratio(pupil), front.rms_waves, front.undersampled_fraction)
+
+
+#: Film points per pixel side where ``huygens_point_spread`` samples the PSF (each pixel averages them).
+HUYGENS_SAMPLES_PER_PIXEL = 3
+
+
+def huygens_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focus_mm: float | None = None,
+                         pixel_mm: float = 0.002, size: int = 64, wavelength_nm: float = 587.5618,
+                         samples_across: int = 64) -> DiffractionSpread:
+    """The PSF of a point ``depth_mm`` from the film by the Huygens-Fresnel sum over the reference sphere
+    (``realistic.optics.diffraction.huygens_psf``), on the window of ``fft_point_spread``: each pixel the
+    mean of ``HUYGENS_SAMPLES_PER_PIXEL`` squared points. The result's ``fft_size`` is 0 and its
+    ``fft_spacing_mm`` the spacing of those points."""
+    validation.positive_length(depth_mm, "depth (mm)")
+    validation.positive_length(pixel_mm, "pixel size (mm)")
+    if not (isinstance(size, int) and 1 <= size <= 512):
+        raise UserError(f"Huygens PSF window size must be 1..512 pixels, got {size!r}")
+    film_distance = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
+    distance = _object_distance(lens, depth_mm, film_distance)
+    front = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance)
+    sub = HUYGENS_SAMPLES_PER_PIXEL
+    step = pixel_mm / sub
+    offsets = (np.arange(size * sub) - (size * sub - 1) / 2) * step
+    y, x = np.meshgrid(offsets, -offsets, indexing="ij")  # rows along +y, columns along -x, as the FFT's window
+    values = huygens_psf(front.opd_waves, front.sphere_mm, wavelength_nm, np.column_stack([x.ravel(), y.ravel()]))
+    image = values.reshape(size, sub, size, sub).mean(axis=(1, 3))
+    return DiffractionSpread(image, pixel_mm, front.reference_mm, film_distance, wavelength_nm, 0, (step, step),
+                             strehl_ratio(pupil_function(front.opd_waves)), front.rms_waves,
+                             front.undersampled_fraction)
+
+
+@dataclass(frozen=True)
+class PolychromaticSpread:
+    """Several wavelengths' FFT PSFs (``parts``, one window about one film point) and their sum
+    weighted by relative power (``weights``, summing to 1): irradiance per unit power, as each part."""
+
+    image: np.ndarray
+    parts: tuple[DiffractionSpread, ...]
+    weights: tuple[float, ...]
+
+    @property
+    def enclosed(self) -> float:
+        """Fraction of the light that reaches the film landing inside the window."""
+        return float(self.image.sum() * self.parts[0].pixel_mm ** 2)
+
+
+def polychromatic_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0,
+                               focus_mm: float | None = None, pixel_mm: float = 0.002, size: int = 64,
+                               wavelengths_nm: Sequence[float] = (587.5618,), weights: Sequence[float] | None = None,
+                               samples_across: int = 64) -> PolychromaticSpread:
+    """The FFT PSF of several wavelengths of relative powers ``weights`` (None: equal) on one window.
+
+    Each wavelength's PSF comes sampled at its own lambda L / (M dh) and is integrated over the
+    window's pixels (``fft_point_spread``), so the parts share the pixel grid and add; the window
+    is centred on the weighted mean of the wavelengths' ray centroids, so lateral colour shows.
+    """
+    power = validation.spectral_weights(weights, len(wavelengths_nm))
+    film_distance = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
+    distance = _object_distance(lens, depth_mm, film_distance)
+    centroids = [wavefront(lens, field_deg, w, film_distance, samples_across, distance).reference_mm
+                 for w in wavelengths_nm]
+    reference = np.average(centroids, axis=0, weights=power)
+    parts = tuple(fft_point_spread(lens, depth_mm, field_deg, focus_mm, pixel_mm, size, w, samples_across,
+                                   (float(reference[0]), float(reference[1]))) for w in wavelengths_nm)
+    image = sum((p * part.image for p, part in zip(power, parts)), np.zeros((size, size)))
+    return PolychromaticSpread(image, parts, tuple(power))
 
 
 def _sphere_hits(origin: np.ndarray, direction: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:

@@ -108,7 +108,7 @@ def cmd_lens_mtf(args: argparse.Namespace) -> int:
     out = _outputs(args, f"{lens.name}-mtf.png")
     _warn_dispersion(lens, args.wavelengths)
     report = lens_mtf(lens, args.field, args.wavelengths, args.max_frequency, args.focus, args.samples,
-                      model=args.model)
+                      model=args.model, weights=args.weights)
     _write(args.json, json.dumps(report.as_dict(), indent=1) + "\n")
     plot_mtf(report, out)
     nu = report.frequencies_lp_mm
@@ -131,8 +131,10 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
 
     lens = _load(args)
     out = checked_exr(Path(args.out or f"{lens.name}-psf.exr"))
-    if args.model == "fft":
+    if args.model in ("fft", "huygens"):
         return _fft_psf(args, lens, out)
+    if args.wavelengths is not None or args.weights is not None:
+        raise UserError("--wavelengths and --weights are the FFT model's (--model fft)")
     psf = point_spread(lens, args.depth * MM_PER_METRE, args.field,
                        None if args.focus is None else args.focus * MM_PER_METRE,
                        args.pixel_um / 1000.0, args.size, args.spp, seed=args.seed, backend=args.backend)
@@ -151,24 +153,61 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
     return 0
 
 
-def _fft_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
-    """``lens psf --model fft``: the diffraction PSF at ``--wavelength`` as an EXR."""
-    from realistic.camera.psf import fft_point_spread
+def _polychromatic_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
+    """``lens psf --model fft --wavelengths ...``: the wavelengths' diffraction PSFs summed by power, as an EXR."""
+    from realistic.camera.psf import polychromatic_point_spread
     from realistic.core.image_files import write_exr
 
-    _warn_dispersion(lens, [args.wavelength])
-    psf = fft_point_spread(lens, args.depth * MM_PER_METRE, args.field,
-                           None if args.focus is None else args.focus * MM_PER_METRE,
-                           args.pixel_um / 1000.0, args.size, args.wavelength, args.samples)
+    _warn_dispersion(lens, args.wavelengths)
+    psf = polychromatic_point_spread(lens, args.depth * MM_PER_METRE, args.field,
+                                     None if args.focus is None else args.focus * MM_PER_METRE,
+                                     args.pixel_um / 1000.0, args.size, args.wavelengths, args.weights, args.samples)
+    first = psf.parts[0]
+    listed = ",".join(f"{w:.6g}" for w in args.wavelengths)
     write_exr(out, psf.image[:, :, None].repeat(3, axis=2), {
-        "lens": lens.name, "content": "diffraction PSF (FFT): film irradiance per unit power reaching the film",
+        "lens": lens.name, "content": "polychromatic diffraction PSF (FFT): film irradiance per unit power reaching "
+        "the film", "pixelMm": first.pixel_mm,
+        "windowCentreFilmMm": f"{first.centre_film_mm[0]:.6g},{first.centre_film_mm[1]:.6g}",
+        "filmDistanceMm": first.film_distance_mm, "wavelengthsNm": listed,
+        "weights": ",".join(f"{w:.6g}" for w in psf.weights),
+        "strehls": ",".join(f"{p.strehl:.6g}" for p in psf.parts), "enclosed": psf.enclosed})
+    for part in psf.parts:
+        _warn_pupil_sampling(part.undersampled, f"at {args.field:g} deg, {part.wavelength_nm:g} nm")
+    print(f"{lens.name}: FFT PSF of a point {args.depth:g} m from the film at {args.field:g} deg, {listed} nm "
+          f"weighted {', '.join(f'{w:.3g}' for w in psf.weights)}, film {first.film_distance_mm:.4f} mm; window centre "
+          f"({first.centre_film_mm[0]:.4f}, {first.centre_film_mm[1]:.4f}) mm, {args.size} px of {args.pixel_um:g} um; "
+          f"Strehl per wavelength {', '.join(f'{p.strehl:.4f}' for p in psf.parts)}, {psf.enclosed:.4f} of the "
+          f"light in the window")
+    print(f"wrote {out}")
+    return 0
+
+
+def _fft_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
+    """``lens psf --model fft|huygens``: the diffraction PSF at ``--wavelength`` (or, FFT, ``--wavelengths``)
+    as an EXR."""
+    from realistic.camera.psf import fft_point_spread, huygens_point_spread
+    from realistic.core.image_files import Metadata, write_exr
+
+    if args.wavelengths is not None and args.model == "fft":
+        return _polychromatic_psf(args, lens, out)
+    if args.wavelengths is not None or args.weights is not None:
+        raise UserError("--wavelengths and --weights go together, with --model fft")
+
+    _warn_dispersion(lens, [args.wavelength])
+    spread = fft_point_spread if args.model == "fft" else huygens_point_spread
+    psf = spread(lens, args.depth * MM_PER_METRE, args.field, None if args.focus is None else args.focus * MM_PER_METRE,
+                 args.pixel_um / 1000.0, args.size, args.wavelength, args.samples)
+    model = "FFT" if args.model == "fft" else "Huygens-Fresnel sum over the reference sphere"
+    sampling: Metadata = ({"fftSize": psf.fft_size, "fftSpacingMm": ",".join(f"{v:.6g}" for v in psf.fft_spacing_mm)}
+                          if args.model == "fft" else {"sampleSpacingMm": psf.fft_spacing_mm[0]})
+    write_exr(out, psf.image[:, :, None].repeat(3, axis=2), {
+        "lens": lens.name, "content": f"diffraction PSF ({model}): film irradiance per unit power reaching the film",
         "pixelMm": psf.pixel_mm, "windowCentreFilmMm": f"{psf.centre_film_mm[0]:.6g},{psf.centre_film_mm[1]:.6g}",
-        "filmDistanceMm": psf.film_distance_mm, "wavelengthNm": psf.wavelength_nm, "fftSize": psf.fft_size,
-        "fftSpacingMm": ",".join(f"{v:.6g}" for v in psf.fft_spacing_mm), "strehl": psf.strehl,
+        "filmDistanceMm": psf.film_distance_mm, "wavelengthNm": psf.wavelength_nm, **sampling, "strehl": psf.strehl,
         "opdRmsWaves": psf.opd_rms_waves,
         "enclosed": psf.enclosed})
     _warn_pupil_sampling(psf.undersampled, f"at {args.field:g} deg")
-    print(f"{lens.name}: FFT PSF of a point {args.depth:g} m from the film at {args.field:g} deg, "
+    print(f"{lens.name}: {args.model} PSF of a point {args.depth:g} m from the film at {args.field:g} deg, "
           f"{psf.wavelength_nm:g} nm, film {psf.film_distance_mm:.4f} mm; window centre "
           f"({psf.centre_film_mm[0]:.4f}, {psf.centre_film_mm[1]:.4f}) mm, {args.size} px of {args.pixel_um:g} um; "
           f"OPD RMS {psf.opd_rms_waves:.4f} waves, Strehl {psf.strehl:.4f}, {psf.enclosed:.4f} of the light "
@@ -214,7 +253,7 @@ def cmd_lens_wavefront(args: argparse.Namespace) -> int:
 
 def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     """Register ``list``, ``spot``, ``mtf`` and ``psf`` under ``lens``."""
-    from realistic.optics.spot import parse_wavelengths
+    from realistic.optics.spot import parse_wavelengths, parse_weights
 
     listing = lens_commands.add_parser("list", help="the bundled lens library: focal length, f-number, image "
                                                     "circle, elements, aspheres, source")
@@ -249,6 +288,8 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     mtf.add_argument("--model", choices=("fft", "geometric"), default="fft",
                      help="FFT of the pupil function with the diffraction limit, or geometric from the spot "
                           "(default fft)")
+    mtf.add_argument("--weights", type=checked(str, parse_weights), metavar="W,...",
+                     help="FFT model: relative power of each wavelength (default: equal)")
     mtf.add_argument("--max-frequency", type=positive("maximum frequency (lp/mm)"), default=100.0, metavar="LP/MM",
                      help="highest spatial frequency plotted (default 100 lp/mm)")
     mtf.add_argument("--out", metavar="PNG", help="plot (default: LENS-mtf.png)")
@@ -257,10 +298,16 @@ def add_judge_commands(lens_commands: argparse._SubParsersAction) -> None:
     psf = lens_commands.add_parser("psf", help="point-spread function on the film (EXR): by diffraction (FFT) "
                                                "or rendered with camera rays")
     psf.add_argument("lens", metavar="LENS", help=LENS_HELP)
-    psf.add_argument("--model", choices=("fft", "geometric"), default="fft",
-                     help="FFT of the pupil function at --wavelength, or rendered with camera rays (default fft)")
-    psf.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM, metavar="NM",
-                     help="wavelength of the FFT model in nm (default: the d line, %(default).2f)")
+    psf.add_argument("--model", choices=("fft", "huygens", "geometric"), default="fft",
+                     help="FFT of the pupil function at --wavelength, the Huygens-Fresnel sum over the reference "
+                          "sphere (slower, no Fraunhofer approximation), or rendered with camera rays (default fft)")
+    colour = psf.add_mutually_exclusive_group()
+    colour.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM,
+                        metavar="NM", help="wavelength of the FFT model in nm (default: the d line, %(default).2f)")
+    colour.add_argument("--wavelengths", type=checked(str, parse_wavelengths), metavar="F,d,C",
+                        help="FFT model: several wavelengths (Fraunhofer line names or nm), their PSFs summed")
+    psf.add_argument("--weights", type=checked(str, parse_weights), metavar="W,...",
+                     help="with --wavelengths: relative power of each (default: equal)")
     psf.add_argument("--samples", type=checked(int, _pupil_samples), default=64, metavar="N",
                      help="FFT model: pupil samples across the diameter, at least (default 64)")
     psf.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",

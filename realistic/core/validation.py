@@ -98,6 +98,21 @@ def field_angle_deg(value: float) -> float:
     return value
 
 
+def spectral_weights(weights: Sequence[float] | None, count: int) -> list[float]:
+    """Relative powers of ``count`` wavelengths (None: equal), normalised to sum to 1: one per
+    wavelength, finite and not negative, not all 0."""
+    if weights is None:
+        return [1.0 / count] * count
+    values = [float(w) for w in weights]
+    if len(values) != count:
+        raise UserError(f"{len(values)} weights given for {count} wavelengths: give one per wavelength")
+    if not all(math.isfinite(w) and w >= 0 for w in values) or sum(values) <= 0:
+        raise UserError(f"wavelength weights must be finite, not negative and not all 0, got "
+                        f"{', '.join(f'{w:g}' for w in values)}")
+    total = sum(values)
+    return [w / total for w in values]
+
+
 def resolution(width: int, height: int) -> tuple[int, int]:
     width = _in_range(_integer(width, "resolution width"), "resolution width", 1, MAX_IMAGE_SIDE)
     height = _in_range(_integer(height, "resolution height"), "resolution height", 1, MAX_IMAGE_SIDE)

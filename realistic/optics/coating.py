@@ -2,9 +2,12 @@
 
 A ray crossing a refracting surface loses the light the interface reflects. For unpolarised light
 the transmitted fraction is the average of the s and p polarisations, (Ts + Tp) / 2, from the
-Fresnel equations (Born and Wolf, Principles of Optics, 1.5.2). A coating is one thin film of index
-``MGF2_INDEX`` and quarter-wave optical thickness at ``DESIGN_WAVELENGTH_NM`` (d = lambda0 / (4 n))
-between the two media; its reflection is the Airy sum of the beams reflected inside the film
+Fresnel equations (Born and Wolf, Principles of Optics, 1.5.2). A coating is one thin film of
+magnesium fluoride, of index ``mgf2_index`` (its ordinary index: M. J. Dodge, "Refractive properties
+of magnesium fluoride", Applied Optics 23, 1980-1985 (1984), Sellmeier fit for 0.2-7 um; a coating
+film is polycrystalline, its index near the ordinary one) and quarter-wave optical thickness at
+``DESIGN_WAVELENGTH_NM`` (d = lambda0 / (4 n(lambda0)), ``MGF2_INDEX`` = n(lambda0)) between the two
+media; its reflection is the Airy sum of the beams reflected inside the film
 (Born and Wolf 1.6.4), for s and p apart:
 
     r = (r01 + r12 e^(2 i delta)) / (1 + r01 r12 e^(2 i delta)),  t = t01 t12 e^(i delta) / (same),
@@ -26,14 +29,26 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from realistic.optics.dispersion import GlassFormula
+
 #: The coating choices, per surface or for the whole lens.
 COATINGS = ("ideal", "none", "mgf2")
 #: What a surface does to a ray's weight: nothing, bare Fresnel, Fresnel through the layer.
 IDEAL, BARE, LAYER = 0, 1, 2
-#: Magnesium fluoride's index, taken constant over the visible (it varies by under 1 %).
-MGF2_INDEX = 1.38
+#: Magnesium fluoride's ordinary index: Dodge (1984), n^2 - 1 = sum B_i lambda^2 / (lambda^2 - C_i) (um).
+MGF2 = GlassFormula("MgF2 (ordinary ray)", "Dodge 1984", "sellmeier",
+                    (0.48755108, 0.39875031, 2.3120353, 0.04338408 ** 2, 0.09461442 ** 2, 23.793604 ** 2))
 #: The wavelength at which the layer is a quarter wave thick.
 DESIGN_WAVELENGTH_NM = 550.0
+
+
+def mgf2_index(wavelength_nm: float | np.ndarray) -> np.ndarray:
+    """The layer's index at ``wavelength_nm`` (``MGF2``)."""
+    return MGF2.index(np.asarray(wavelength_nm, dtype=np.float64) * 1e-3)
+
+
+#: The layer's index at its design wavelength, which sets its thickness lambda0 / (4 n).
+MGF2_INDEX = float(mgf2_index(DESIGN_WAVELENGTH_NM))
 
 
 def interface_models(coatings: Sequence[str], index_behind: np.ndarray, index_in_front: np.ndarray) -> np.ndarray:
@@ -79,11 +94,11 @@ def reflect_transmit(model: int, n_from: float | np.ndarray, n_to: float | np.nd
         rs, rp, ts, tp = _interface(n0, n2, c0, c2)
         amplitudes = [(rs, ts), (rp, tp)]
     else:
-        n1 = np.full_like(n0, MGF2_INDEX)
+        n1 = mgf2_index(lam)
         # complex inside the layer past its critical angle: the film is then crossed by an evanescent
         # wave (frustrated total reflection), which the same sum describes
         c1 = np.sqrt((1.0 - (n0 / n1) ** 2 * (1.0 - c0 * c0)).astype(np.complex128))
-        delta = 2.0 * np.pi * MGF2_INDEX * (DESIGN_WAVELENGTH_NM / (4.0 * MGF2_INDEX)) * c1 / lam
+        delta = 2.0 * np.pi * n1 * (DESIGN_WAVELENGTH_NM / (4.0 * MGF2_INDEX)) * c1 / lam
         phase = np.exp(2j * delta)
         r01s, r01p, t01s, t01p = _interface(n0, n1, c0, c1)
         r12s, r12p, t12s, t12p = _interface(n1, n2, c1, c2)

@@ -34,7 +34,8 @@ def surface_profile(lens: LensSystem, film_distance_mm: float, i: int, rho: np.n
 
 def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
                        film_diagonal_mm: float = FULL_FRAME_DIAGONAL_MM) -> None:
-    """The elements, the stop, the film and meridional ray fans from three film heights."""
+    """The elements (a paraxial surface as a double arrow), the stop, the film and meridional ray fans
+    from three film heights."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -50,6 +51,11 @@ def plot_cross_section(lens: LensSystem, film_distance_mm: float, out: Path,
             ax.plot([z, z], [-half, -top], "k", lw=2)
             if lens.stop_is_flat_in_air:
                 continue
+        if lens.paraxial[i]:  # an ideal thin lens, as optics programs draw one: arrows out, or in if diverging
+            z = lens.vertex_z_mm(film_distance_mm)[i]
+            style = "<->" if lens.paraxial_power_per_mm[i].sum() > 0 else "]-["
+            ax.annotate("", xy=(z, half), xytext=(z, -half), arrowprops={"arrowstyle": style, "lw": 1})
+            continue
         rho = np.linspace(-half, half, 101)
         ax.plot(surface_profile(lens, film_distance_mm, i, rho), rho, "k", lw=1)
         if lens.index_d[i] > 1 and i + 1 < lens.surface_count:  # glass behind: close the element's rim

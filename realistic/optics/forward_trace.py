@@ -30,7 +30,8 @@ from realistic.optics.tracer import TraceResult, trace_from_film
 
 def reversed_lens(lens: LensSystem) -> LensSystem:
     """The lens seen from the film side: the order of surfaces reversed (their coatings with them),
-    radii negated, and the medium behind each surface the one in front of it in the original."""
+    radii negated, and the medium behind each surface the one in front of it in the original (a
+    paraxial surface keeps its powers)."""
     count = lens.surface_count
     medium_in_front = np.concatenate([[1.0], lens.index_d[:-1]])
     abbe_in_front = np.concatenate([[0.0], lens.abbe_v[:-1]])
@@ -44,7 +45,8 @@ def reversed_lens(lens: LensSystem) -> LensSystem:
         index_d=medium_in_front[::-1].copy(), abbe_v=abbe_in_front[::-1].copy(),
         aperture_mm=lens.aperture_mm[::-1].copy(), stop=count - 1 - lens.stop,
         glass=((None, *lens.glass[:-1]))[::-1], coating=lens.coating[::-1],
-        conic=conic, aspheric_coefficients=coefficients)
+        conic=conic, aspheric_coefficients=coefficients,
+        paraxial_power_per_mm=lens.paraxial_power_per_mm[::-1].copy())
 
 
 def pupil_grid(samples_across: int) -> np.ndarray:

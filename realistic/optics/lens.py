@@ -31,6 +31,12 @@ A surface may be an even asphere (``realistic.optics.asphere``): a conic constan
 coefficients A4 .. A20 of r^4 .. r^20 beside its base radius. A surface with k = 0 and every
 coefficient 0 is a sphere and is traced exactly as one; paraxial analysis uses the base curvature.
 
+A surface may be paraxial (Zemax's PARAXIAL and PARAXIAL_XY): an ideal thin lens of powers
+(1/f_x, 1/f_y) on the plane of its vertex, with air on both sides. A ray meeting it at (x, y) with
+slopes (u_x, u_y) = (dx/dz, dy/dz) along its travel leaves with slopes (u_x - x/f_x, u_y - y/f_y):
+every field is imaged perfectly onto the focal plane, and the lens is achromatic.
+``paraxial_power_per_mm`` holds the two powers per surface (0, 0 for the others).
+
 Two surfaces may be 0 mm apart (a stop on a lens vertex) where they touch without crossing inside
 their clear apertures; the tracer then meets the second wherever the ray meets it.
 
@@ -97,11 +103,14 @@ class LensSystem:
     glass: tuple[GlassFormula | None, ...] = ()
     # per surface, its coating (``realistic.optics.coating.COATINGS``); empty (the default): all ideal
     coating: tuple[str, ...] = ()
+    # (N, 2) powers 1/f_x, 1/f_y (1/mm) of a paraxial surface, 0 for the others; empty (the default): none
+    paraxial_power_per_mm: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 2)))
 
     def __post_init__(self) -> None:
         """Make the text printable (``validation.printable_text``: it reaches terminals and the files
-        ``lens convert`` writes) and expand the empty defaults of ``conic``, ``aspheric_coefficients``
-        and ``glass`` per surface, so that they are always (N,) and (N, 9) arrays and an N-tuple."""
+        ``lens convert`` writes) and expand the empty defaults of ``conic``, ``aspheric_coefficients``,
+        ``glass``, ``coating`` and ``paraxial_power_per_mm`` per surface, so that they are always (N,),
+        (N, 9) and (N, 2) arrays and N-tuples."""
         count = len(self.radius_mm)
         object.__setattr__(self, "name", validation.printable_text(self.name))
         object.__setattr__(self, "source", validation.printable_text(self.source))
@@ -114,6 +123,8 @@ class LensSystem:
             object.__setattr__(self, "glass", (None,) * count)
         if not self.coating:
             object.__setattr__(self, "coating", ("ideal",) * count)
+        if self.paraxial_power_per_mm.size == 0:
+            object.__setattr__(self, "paraxial_power_per_mm", np.zeros((count, 2)))
 
     def __repr__(self) -> str:
         """One line, no arrays: the name, surfaces, stop and length (``lens info`` says the rest)."""
@@ -134,6 +145,11 @@ class LensSystem:
     @property
     def asphere_count(self) -> int:
         return int(np.count_nonzero(self.aspheric))
+
+    @property
+    def paraxial(self) -> np.ndarray:
+        """Per surface: True for a paraxial surface (an ideal thin lens of some power)."""
+        return np.any(self.paraxial_power_per_mm != 0, axis=1)
 
     @property
     def curvature_per_mm(self) -> np.ndarray:
@@ -158,10 +174,11 @@ class LensSystem:
 
     @property
     def stop_is_flat_in_air(self) -> bool:
-        """True for the usual stop, a plane (radius 0) with air on both sides; False for a curved or
-        refracting stop surface, which only formats that mark the stop (.zmx, .seq) can hold."""
+        """True for the usual stop, a plane (radius 0) with air on both sides; False for a curved,
+        refracting or paraxial stop surface, which only formats that mark the stop (.zmx, .seq) can hold."""
         before = self.index_d[self.stop - 1] if self.stop > 0 else 1.0
-        return bool(self.radius_mm[self.stop] == 0 and self.index_d[self.stop] == 1.0 and before == 1.0)
+        return bool(self.radius_mm[self.stop] == 0 and self.index_d[self.stop] == 1.0 and before == 1.0
+                    and not self.paraxial[self.stop])
 
     @property
     def has_dispersion(self) -> bool:
@@ -226,6 +243,12 @@ class LensSystem:
             if name not in COATINGS:
                 raise UserError(f"unknown coating {name!r}: choose one of {', '.join(COATINGS)}")
         return dataclasses.replace(self, coating=names)
+
+    def refuse_paraxial(self, format_name: str) -> None:
+        """A UserError for a file format that cannot hold this lens's paraxial surfaces, if it has any."""
+        if self.paraxial.any():
+            raise UserError(f"{self.name}: surface {int(self.paraxial.argmax())} is paraxial (an ideal thin lens), "
+                            f"which a {format_name} prescription cannot hold: convert to .zmx or .json")
 
     @property
     def interface_models(self) -> np.ndarray:
@@ -324,7 +347,7 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
                abbe: list[float], aperture: list[float], name: str | None = None, note: str = "",
                conic: list[float] | None = None, coefficients: list[list[float]] | None = None,
                description: str = "", glass: list[GlassFormula | None] | None = None,
-               stop: int | None = None) -> LensSystem:
+               stop: int | None = None, paraxial_power: list[tuple[float, float]] | None = None) -> LensSystem:
     """Validate per-surface values (prescription conventions) into a LensSystem.
 
     ``lines[i]`` is the file line that errors about surface i name; every parser feeds this one
@@ -332,7 +355,8 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
     surface: k, and up to nine coefficients A4, A6, ... of r^4, r^6, ...) make surfaces aspheric.
     ``glass`` (per surface, None where the row's n_d and V_d stand) sets a medium's index and V_d
     from a catalogue formula. ``stop`` marks the stop row where the format says which it is; without
-    it the stop is the radius-0 row with the same medium on both sides.
+    it the stop is the radius-0 row with the same medium on both sides. ``paraxial_power`` (per surface,
+    (1/f_x, 1/f_y) in 1/mm, (0, 0) for an ordinary surface) makes surfaces paraxial thin lenses.
     """
     count = len(lines)
     glass = [None] * count if glass is None else list(glass)
@@ -340,6 +364,7 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
     abbe = [float(g.abbe_v) if g is not None else v for g, v in zip(glass, abbe)]
     conic = [0.0] * count if conic is None else list(conic)
     coefficients = [[] for _ in range(count)] if coefficients is None else [list(a) for a in coefficients]
+    power = [(0.0, 0.0)] * count if paraxial_power is None else [(float(x), float(y)) for x, y in paraxial_power]
     if len(lines) > MAX_SURFACES:
         raise LensFileError(path, lines[MAX_SURFACES], too_many_surfaces(len(lines)))
     for i, line in enumerate(lines):
@@ -368,13 +393,17 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
 
     index = [1.0 if n in (0.0, 1.0) else n for n in index]
     abbe = [0.0 if n == 1.0 else v for n, v in zip(index, abbe)]
-    radius = _flat_faces(radius, index, abbe, glass, stop)
+    paraxial = [i for i in range(count) if power[i] != (0.0, 0.0)]
+    for i in paraxial:
+        _check_paraxial(path, lines[i], radius[i], power[i], conic[i], coefficients[i],
+                        (index[i - 1] if i > 0 else 1.0, index[i]), glass[i])
+    radius = _flat_faces(radius, index, abbe, glass, stop, paraxial)
     _check_touching(path, lines, radius, thickness, aperture, conic, coefficients)
     if stop is None:
         stop = _implicit_stop(path, lines, radius, index)
     elif conic[stop] != 0 or any(coefficients[stop]):
         raise LensFileError(path, lines[stop], "the aperture stop cannot be aspheric")
-    refracting = [i for i in range(count) if index[i] != (index[i - 1] if i > 0 else 1.0)]
+    refracting = [i for i in range(count) if index[i] != (index[i - 1] if i > 0 else 1.0) or i in paraxial]
     if not refracting:
         raise LensFileError(path, None, "no refracting surface (every row is the stop or has air on both sides): "
                             "the lens would not form an image")
@@ -387,7 +416,23 @@ def build_lens(path: str, lines: list[int], radius: list[float], thickness: list
         glass=tuple(None if index[i] == 1.0 else g for i, g in enumerate(glass)),
         aspheric_coefficients=np.array([a + [0.0] * (COEFFICIENT_COUNT - len(a)) for a in coefficients],
                                        dtype=np.float64).reshape(count, COEFFICIENT_COUNT),
+        paraxial_power_per_mm=np.array(power, dtype=np.float64).reshape(count, 2),
     )
+
+
+def _check_paraxial(path: str, line: int, radius: float, power: tuple[float, float], conic: float,
+                    coefficients: list[float], media: tuple[float, float], glass: GlassFormula | None) -> None:
+    """A paraxial surface's own rules: a plane with air on both sides, and focal lengths of a usable size."""
+    for axis, p in zip("xy", power):
+        if not math.isfinite(p) or (p != 0 and not MIN_LENGTH_MM <= 1 / abs(p) <= MAX_LENGTH_MM):
+            raise LensFileError(path, line, f"paraxial focal length in {axis} {1 / p if p else math.inf:g} mm is out "
+                                f"of range: its magnitude must be between {MIN_LENGTH_MM:g} and {MAX_LENGTH_MM:g} mm")
+    if radius != 0 and math.isfinite(radius):
+        raise LensFileError(path, line, f"a paraxial surface is a plane, but it has radius {radius:g} mm")
+    if conic != 0 or any(coefficients):
+        raise LensFileError(path, line, "a paraxial surface cannot be aspheric")
+    if media != (1.0, 1.0) or glass is not None:
+        raise LensFileError(path, line, "a paraxial surface needs air on both sides")
 
 
 def _implicit_stop(path: str, lines: list[int], radius: list[float], index: list[float]) -> int:
@@ -406,14 +451,15 @@ def _implicit_stop(path: str, lines: list[int], radius: list[float], index: list
 
 
 def _flat_faces(radius: list[float], index: list[float], abbe: list[float], glass: list[GlassFormula | None],
-                stop: int | None) -> list[float]:
+                stop: int | None, paraxial: list[int]) -> list[float]:
     """The radii with each radius 0 that is not the stop made ``inf``, a plane: every one but ``stop``
-    when the format marks it, else those between different media (a flat glass face)."""
+    when the format marks it, else those between different media (a flat glass face) and the
+    ``paraxial`` surfaces."""
     def medium(i: int) -> tuple[float, float, GlassFormula | None]:
         return (index[i], abbe[i], glass[i]) if i >= 0 else (1.0, 0.0, None)
 
     flat = [i for i, r in enumerate(radius) if r == 0 and (i != stop if stop is not None else
-                                                           medium(i) != medium(i - 1))]
+                                                           medium(i) != medium(i - 1) or i in paraxial)]
     return [math.inf if i in flat else r for i, r in enumerate(radius)]
 
 

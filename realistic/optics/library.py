@@ -75,7 +75,7 @@ BISECTIONS = 6
 def _lens_key(lens: LensSystem) -> bytes:
     """Everything of a prescription that the image circle depends on, as bytes."""
     arrays = (lens.radius_mm, lens.thickness_mm, lens.index_d, lens.abbe_v, lens.aperture_mm, lens.conic,
-              lens.aspheric_coefficients)
+              lens.aspheric_coefficients) + ((lens.paraxial_power_per_mm,) if lens.paraxial.any() else ())
     shape = repr((lens.stop, lens.stop_shape)).encode()
     return b"".join(np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in arrays) + shape
 

@@ -2,9 +2,11 @@
 
 The FFT model (the default) is the modulus of the OTF of each wavelength's pupil function
 (``realistic.optics.wavefront`` and ``realistic.optics.diffraction``), all wavelengths referred to
-one point on the film (the centroid of their rays' landings, so lateral colour counts) and their
-OTFs averaged with equal weight (equal power per wavelength) before the modulus; the plot adds the
-diffraction-limited MTF of the paraxial f-number, averaged over the same wavelengths.
+one point on the film (the weighted mean of their rays' landing centroids, so lateral colour counts)
+and their OTFs averaged with the wavelengths' weights (relative powers; equal by default) before the
+modulus. Each wavelength's OTF is read at its own cell shift for a frequency nu, nu lambda L / dh
+(``realistic.optics.diffraction``), so the curves add on one frequency axis. The plot adds the
+diffraction-limited MTF of the paraxial f-number, averaged over the same wavelengths and weights.
 
 The geometric model:
 
@@ -13,7 +15,7 @@ frequency nu (line pairs per mm) over N equally weighted ray landings u_k is
 (1/N) sum_k exp(-2 pi i nu u_k), and the MTF is its modulus. No histogram is built, so nothing
 depends on a bin size. Fields lie along +y: the *tangential* MTF projects on y (lines
 perpendicular to the field's radius), the *sagittal* on x. Several wavelengths enter with equal
-weight. Diffraction is not included.
+weight (weights are the FFT model's). Diffraction is not included.
 """
 
 from __future__ import annotations
@@ -84,33 +86,38 @@ class MtfReport:
 
 
 def fft_field_mtf(lens: LensSystem, field_deg: float, wavelengths_nm: list[float], film_distance_mm: float,
-                  frequencies_lp_mm: np.ndarray, samples_across: int) -> tuple[np.ndarray, np.ndarray, float]:
+                  frequencies_lp_mm: np.ndarray, samples_across: int, weights: list[float] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, float]:
     """(sagittal, tangential, worst ``Wavefront.undersampled_fraction``) of the FFT MTF of one field at
-    infinity, wavelengths with equal power."""
+    infinity, wavelengths with relative powers ``weights`` (None: equal)."""
+    weights = validation.spectral_weights(weights, len(wavelengths_nm))
     fronts = [wavefront(lens, field_deg, w, film_distance_mm, samples_across) for w in wavelengths_nm]
-    reference = np.mean([f.reference_mm for f in fronts], axis=0)
+    reference = np.average([f.reference_mm for f in fronts], axis=0, weights=weights)
     if len(fronts) > 1:
         fronts = [wavefront(lens, field_deg, w, film_distance_mm, samples_across, reference_mm=tuple(reference))
                   for w in wavelengths_nm]
     sagittal = np.zeros(len(frequencies_lp_mm), dtype=np.complex128)
     tangential = np.zeros(len(frequencies_lp_mm), dtype=np.complex128)
-    for front in fronts:
+    for front, weight in zip(fronts, weights):
         otf = fft_otf(pupil_function(front.opd_waves))
         shifts = frequencies_lp_mm * front.wavelength_nm * 1e-6 / front.spacing_mm
-        sagittal += otf_along(otf, 1, shifts * front.scale_mm[0])  # columns run along x
-        tangential += otf_along(otf, 0, shifts * front.scale_mm[1])
+        sagittal += weight * otf_along(otf, 1, shifts * front.scale_mm[0])  # columns run along x
+        tangential += weight * otf_along(otf, 0, shifts * front.scale_mm[1])
     worst = max(front.undersampled_fraction for front in fronts)
-    return np.abs(sagittal) / len(fronts), np.abs(tangential) / len(fronts), worst
+    return np.abs(sagittal), np.abs(tangential), worst
 
 
 def lens_mtf(lens: LensSystem, fields_deg: list[float], wavelengths_nm: list[float], max_frequency_lp_mm: float,
              focus: str | float = "paraxial", samples_across: int = 128, frequency_count: int = 101,
-             model: str = "fft") -> MtfReport:
+             model: str = "fft", weights: list[float] | None = None) -> MtfReport:
     """MTF (``model`` fft or geometric) from 0 to ``max_frequency_lp_mm`` of objects at infinity at
-    ``fields_deg``."""
+    ``fields_deg``; ``weights``: the FFT model's relative power per wavelength (None: equal)."""
     max_frequency_lp_mm = validation.positive_length(max_frequency_lp_mm, "maximum frequency (lp/mm)")
     if model not in MODELS:
         raise UserError(f"MTF model must be one of {', '.join(MODELS)}, got {model!r}")
+    if model == "geometric" and weights is not None:
+        raise UserError("wavelength weights apply to the FFT model (the geometric MTF weights every ray equally)")
+    weights = validation.spectral_weights(weights, len(wavelengths_nm))
     nu = np.linspace(0.0, max_frequency_lp_mm, frequency_count)
     if model == "geometric" or focus == "best":
         traced = trace_fields(lens, fields_deg, wavelengths_nm, samples_across)
@@ -120,8 +127,9 @@ def lens_mtf(lens: LensSystem, fields_deg: list[float], wavelengths_nm: list[flo
         curves = [spot_mtf(s, nu) for s in spots]
         return MtfReport(lens.name, focus_label(focus), film, nu, tuple(fields_deg), tuple(c[0] for c in curves),
                          tuple(c[1] for c in curves))
-    fft = [fft_field_mtf(lens, f, wavelengths_nm, film, nu, samples_across) for f in fields_deg]
+    fft = [fft_field_mtf(lens, f, wavelengths_nm, film, nu, samples_across, weights) for f in fields_deg]
     f_number = paraxial_data(lens).f_number
-    limit = np.mean([diffraction_limited_mtf(nu * w * 1e-6 * f_number) for w in wavelengths_nm], axis=0)
+    limit = np.average([diffraction_limited_mtf(nu * w * 1e-6 * f_number) for w in wavelengths_nm], axis=0,
+                       weights=weights)
     return MtfReport(lens.name, focus_label(focus), film, nu, tuple(fields_deg), tuple(c[0] for c in fft),
                      tuple(c[1] for c in fft), model, limit, tuple(c[2] for c in fft))

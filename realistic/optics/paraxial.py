@@ -6,7 +6,9 @@ plain distances (film distance from the rear vertex, object distance from the fi
 mean the same in the lens frame of ``realistic.optics.lens``.
 
 The trace is the y-nu method: at a surface of curvature c between indices n and n',
-n'u' = nu - y (n' - n) c; across a gap t in index n', y <- y + t u'.
+n'u' = nu - y ((n' - n) c + p), with p the power of a paraxial surface (an ideal thin lens, 0
+elsewhere; of a PARAXIAL_XY surface the y power, the meridional plane being y's); across a gap t
+in index n', y <- y + t u'.
 """
 
 from __future__ import annotations
@@ -53,18 +55,19 @@ class _Surfaces:
     gaps: np.ndarray  # len(curvature) - 1 distances between vertices
     stop: int
     stop_radius: float
+    power: np.ndarray  # a paraxial surface's (y) power, 0 elsewhere
 
     def reversed(self) -> _Surfaces:
         """The same lens seen from the film side: order reversed, curvatures and media swapped."""
         return _Surfaces(-self.curvature[::-1], self.n_after[::-1], self.n_before[::-1],
-                         self.gaps[::-1], len(self.curvature) - 1 - self.stop, self.stop_radius)
+                         self.gaps[::-1], len(self.curvature) - 1 - self.stop, self.stop_radius, self.power[::-1])
 
 
 def _surfaces(lens: LensSystem, wavelength_nm: float) -> _Surfaces:
     n_after = lens.index_at(wavelength_nm)
     n_before = np.concatenate([[1.0], n_after[:-1]])
     return _Surfaces(lens.curvature_per_mm, n_before, n_after, lens.thickness_mm[:-1],
-                     lens.stop, lens.stop_diameter_mm / 2)
+                     lens.stop, lens.stop_diameter_mm / 2, lens.paraxial_power_per_mm[:, 1])
 
 
 def _trace(surfaces: _Surfaces, y: float, nu: float) -> tuple[np.ndarray, float, float]:
@@ -72,7 +75,7 @@ def _trace(surfaces: _Surfaces, y: float, nu: float) -> tuple[np.ndarray, float,
     heights = np.empty(len(surfaces.curvature))
     for i, c in enumerate(surfaces.curvature):
         heights[i] = y
-        nu = nu - y * (surfaces.n_after[i] - surfaces.n_before[i]) * c
+        nu = nu - y * ((surfaces.n_after[i] - surfaces.n_before[i]) * c + surfaces.power[i])
         if i < len(surfaces.gaps):
             y = y + surfaces.gaps[i] * nu / surfaces.n_after[i]
     return heights, y, nu / surfaces.n_after[-1]

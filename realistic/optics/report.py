@@ -61,6 +61,8 @@ def lens_summary(lens: LensSystem, wavelength_nm: float = D_LINE_NM, film_distan
         surfaces[i]["conic"] = float(lens.conic[i])
         surfaces[i]["aspheric_coefficients"] = {
             f"A{p}": float(a) for p, a in zip(COEFFICIENT_POWERS, lens.aspheric_coefficients[i]) if a != 0}
+    for i in map(int, lens.paraxial.nonzero()[0]):
+        surfaces[i]["focal_length_mm"] = [1 / p if p else None for p in map(float, lens.paraxial_power_per_mm[i])]
     summary["surfaces"] = surfaces
     if sampling_film_diagonal_mm:
         distance = film_distance_mm if film_distance_mm is not None else infinity_mm
@@ -83,8 +85,11 @@ def format_summary(summary: dict[str, Any]) -> str:
     for i, s in enumerate(summary["surfaces"]):
         radius = "stop" if s["stop"] and s["radius_mm"] == 0 else f"{s['radius_mm']:.4f}" + "*" * s["stop"]
         abbe = f"{s['abbe_v']:.1f}" if s["abbe_v"] else "-"
+        focal = s.get("focal_length_mm")
+        kind = s.get("glass", "") if focal is None else "paraxial f " + " x ".join(
+            "inf" if f is None else f"{f:.6g}" for f in (focal[:1] if focal[0] == focal[1] else focal)) + " mm"
         lines.append(f"{i:3d} {radius:>11} {s['thickness_mm']:11.4f} {s['index_d']:7.4f} {abbe:>8} "
-                     f"{s['aperture_mm']:10.3f}  {s.get('glass', '')}".rstrip())
+                     f"{s['aperture_mm']:10.3f}  {kind}".rstrip())
     if any(s["stop"] and s["radius_mm"] != 0 for s in summary["surfaces"]):
         lines.append("  * the aperture stop, on a curved surface")
     aspheres = [(i, s) for i, s in enumerate(summary["surfaces"]) if "conic" in s]

@@ -32,6 +32,8 @@ from realistic.optics.tracer import trace_from_film
 PUPIL_INTERVALS = 64
 #: Part of an aspheric lens's pupil-table key: change it when the tracer's asphere rules change.
 ASPHERE_KEY = b"asphere-2"
+#: Part of a lens with paraxial surfaces' pupil-table key: change it when their tracing rules change.
+PARAXIAL_KEY = b"paraxial-1"
 
 
 def rear_surface_depths_mm(lens: LensSystem, film_distance_mm: float) -> tuple[float, float]:
@@ -170,6 +172,8 @@ def exit_pupil_table(lens: LensSystem, film_distance_mm: float, film_diagonal_mm
     shape = lens.radius_mm.tobytes()
     if lens.aspheric.any():  # spherical lenses keep their keys (and cached tables)
         shape += ASPHERE_KEY + lens.conic.tobytes() + lens.aspheric_coefficients.tobytes()
+    if lens.paraxial.any():  # ideal thin lenses' powers (lenses without keep their keys)
+        shape += PARAXIAL_KEY + lens.paraxial_power_per_mm.tobytes()
     if any(g is not None for g in lens.glass):  # a catalogue formula, not Cauchy, away from the d line
         shape += repr(lens.glass).encode()
     key = (shape, lens.thickness_mm[:-1].tobytes(), lens.index_d.tobytes(),

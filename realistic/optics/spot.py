@@ -52,6 +52,18 @@ def parse_wavelengths(text: str) -> list[float]:
     return result
 
 
+def parse_weights(text: str) -> list[float]:
+    """``"1,2,1"``: relative powers of the wavelengths, in their order (checked against them by
+    ``validation.spectral_weights``)."""
+    values = []
+    for item in text.split(","):
+        try:
+            values.append(float(item))
+        except ValueError:
+            raise UserError(f"weight {item.strip()!r} is not a number") from None
+    return values
+
+
 @dataclass(frozen=True)
 class Spot:
     """One field's spot on the film: points per wavelength (film x, y in mm) and their spread."""

@@ -23,6 +23,9 @@ Rules (the kernel follows the same ones):
   opening.
 * Refraction in Heckbert's form T = eta I + (eta c1 - c2) N, N facing the incoming ray,
   c1 = -I.N, c2 = sqrt(1 - eta^2 (1 - c1^2)); a negative radicand is total internal reflection.
+* A paraxial surface (``LensSystem.paraxial_power_per_mm``, powers p_x, p_y) is met as a plane; a ray
+  at (x, y) with slopes (u_x, u_y) along its travel leaves with slopes (u_x - x p_x, u_y - y p_y)
+  (``paraxial_deflect``), and loses no light.
 * At each refracting surface the ray keeps the fraction (Ts + Tp) / 2 that its coating
   (``LensSystem.coating``, ``realistic.optics.coating``) transmits at its incidence cosine c1, its
   wavelength and the two media's indices: ``TraceResult.transmittance``, 1 under ``ideal``.
@@ -159,6 +162,17 @@ def refract(d: Vectors, normal: Vectors, eta: float | np.ndarray) -> tuple[Vecto
     return (tx * inv, ty * inv, tz * inv), tir
 
 
+def paraxial_deflect(hit: tuple[np.ndarray, ...], d: Vectors, power: np.ndarray) -> Vectors:
+    """The unit direction leaving an ideal thin lens of powers ``power`` (p_x, p_y) at ``hit`` ((x, y)
+    or (x, y, z)): its slopes along the travel axis, d_x / |d_z| and d_y / |d_z|, less x p_x and y p_y."""
+    dx, dy, dz = d
+    along = np.abs(dz)
+    ux = dx / along - hit[0] * power[0]
+    uy = dy / along - hit[1] * power[1]
+    inv = 1.0 / np.sqrt(ux * ux + uy * uy + 1.0)
+    return ux * inv, uy * inv, np.sign(dz) * inv
+
+
 def _rows(v: Vectors, keep: np.ndarray) -> Vectors:
     """The rays that the mask ``keep`` selects, of each component of ``v``."""
     return v[0][keep], v[1][keep], v[2][keep]
@@ -191,7 +205,7 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
     if np.ndim(wavelength_nm):
         wavelength_nm = np.broadcast_to(wavelength_nm, (count,))
     index = lens.index_at(wavelength_nm)  # (media,) or (media, count)
-    aspheric = lens.aspheric
+    aspheric, paraxial = lens.aspheric, lens.paraxial
     models = lens.interface_models
     transmitted = np.ones(count)
 
@@ -218,7 +232,9 @@ def trace_from_film(lens: LensSystem, film_distance_mm: float, origins: np.ndarr
                 r2 = o[0] * o[0] + o[1] * o[1]
                 block(~(r2 <= (lens.aperture_mm[i] / 2) ** 2), i,
                       STOP if i == lens.stop else ASPHERE if aspheric[i] else APERTURE)
-            if i != lens.stop or not lens.stop_is_flat_in_air:
+            if paraxial[i]:
+                d = paraxial_deflect(o, d, lens.paraxial_power_per_mm[i])
+            elif i != lens.stop or not lens.stop_is_flat_in_air:
                 n_front = index[i - 1] if i > 0 else 1.0
                 eta = index[i] / n_front
                 if models[i] != IDEAL:

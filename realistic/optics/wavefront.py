@@ -5,7 +5,8 @@ Rays from one object point (at infinity at ``field_deg``, or at a finite distanc
 through a square grid over the entrance-pupil plane with the float64 tracer on the reversed lens
 (``realistic.optics.forward_trace``), keeping every surface's hit point. The optical path length of
 a ray is sum n_i |p_(i+1) - p_i| from the object (a point source, or for an object at infinity
-the plane wavefront through the origin of the launch frame) to the *reference sphere*: the
+the plane wavefront through the origin of the launch frame) to the *reference sphere*
+(a paraxial surface adds the path of an ideal lens, ``ideal_lens_path``): the
 sphere centred on the reference point on the film (by default the centroid of the ray landings)
 that passes through the centre of the paraxial exit pupil. The OPD of a ray is its path minus the
 mean path of all passing rays (piston removed), in waves:
@@ -23,6 +24,7 @@ the unit disk is the circle about the passing rays' centroid through the farthes
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -33,10 +35,14 @@ from realistic.errors import UserError
 from realistic.optics.forward_trace import reversed_lens
 from realistic.optics.lens import LensSystem
 from realistic.optics.paraxial import paraxial_data
-from realistic.optics.tracer import trace_from_film
+from realistic.optics.tracer import paraxial_deflect, trace_from_film
 
 #: Entrance-pupil radii (paraxial) tried for the square grid, until no passing ray lies on its rim.
 _GRID_RADII = (1.25, 2.5, 5.0, 10.0, 20.0)
+#: RMS spread of a beam's slopes at a paraxial surface below which it is a plane wave (``ideal_lens_path``):
+#: directions from float64 hit points scatter by ~1e-14, and an object 1e10 pupil radii away spreads them
+#: by 1e-10 while its wave differs from a plane one by a 1e-10 pupil radius.
+PLANE_WAVE_SLOPES = 1e-10
 #: Noll terms fitted by default (through the secondary spherical, j = 22).
 ZERNIKE_TERMS = 22
 #: Names of the first Noll terms.
@@ -65,6 +71,9 @@ class Wavefront:
     reference_mm: tuple[float, float]
     scale_mm: tuple[float, float]  # (L_x, L_y): pupil height h gives the image-space direction sine h / L
     pupil_xy_mm: np.ndarray  # (n, n, 2) grid cell centres on the entrance-pupil plane
+    # (n, n, 3) where each ray crosses the reference sphere, from the reference point on the film (NaN
+    # where none passes; the film's x, y and the axis toward it); empty where not traced
+    sphere_mm: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0, 3)))
 
     @property
     def passed(self) -> np.ndarray:
@@ -137,10 +146,47 @@ class _Beam:
         opl = start.copy()
         previous = np.asarray(origins, dtype=np.float64)
         with np.errstate(invalid="ignore"):
-            for k, hit in enumerate(path):
-                opl += media[k] * np.linalg.norm(hit - previous, axis=1)
+            for k, hit in enumerate(path):  # hit k is on surface k of the lens, front first
+                step = np.linalg.norm(hit - previous, axis=1)
+                opl += media[k] * step
+                if self.lens.paraxial[k]:
+                    opl += ideal_lens_path(hit[:, :2], (hit - previous) / step[:, None],
+                                           float(self.lens.paraxial_power_per_mm[k, 0]))
                 previous = hit
         return traced.passed, opl, previous, traced.direction
+
+
+def ideal_lens_path(hit_xy: np.ndarray, incoming: np.ndarray, power: float) -> np.ndarray:
+    """The optical path a paraxial surface of ``power`` adds to the rays of one beam meeting it at
+    ``hit_xy`` (from its vertex) with unit directions ``incoming``: the path that makes the ideal lens
+    image perfectly, as Zemax's default OPD mode takes it (0 through the vertex).
+
+    The beam's object is the point its rays come from, at the distance a in front of the surface that
+    fits their lines best (1/a = sum |du|^2 / sum dh.du over the rays' heights h and slopes u about
+    their means; 0, a plane wave, when their RMS slope spread is below ``PLANE_WAVE_SLOPES``, the
+    rounding of directions taken from hit points); the lens images it at b, 1/b = 1/f - 1/a.
+    A ray from S (on its line, a in front) to its image Q (b behind) then gains the chief ray's path
+    less its own, sign(a)|S| - A + sign(b)|Q| - B (A, B the ray's lengths to the two planes), written
+    in 1/A and 1/B so that a plane wave or an image at infinity (1/A or 1/B = 0) stays exact:
+    (|h|^2 / A - 2 s.h) / (1 + sqrt(1 - 2 s.h / A + |h|^2 / A^2)), and the same in s' and -B."""
+    rows = np.all(np.isfinite(hit_xy), axis=1) & np.all(np.isfinite(incoming), axis=1)
+    slopes = incoming[:, :2] / np.abs(incoming[:, 2:3])
+    dh = hit_xy[rows] - hit_xy[rows].mean(axis=0)
+    du = slopes[rows] - slopes[rows].mean(axis=0)
+    spread, coupling = float(np.sum(du * du)), float(np.sum(dh * du))
+    parallel = spread <= len(du) * PLANE_WAVE_SLOPES ** 2 or coupling == 0
+    inverse_a = 0.0 if parallel else spread / coupling
+    outgoing = np.stack(paraxial_deflect((hit_xy[:, 0], hit_xy[:, 1]), (incoming[:, 0], incoming[:, 1], incoming[:, 2]),
+                                         np.array([power, power])), axis=1)
+    h2 = np.sum(hit_xy * hit_xy, axis=1)
+
+    def leg(direction: np.ndarray, inverse_length: np.ndarray, sign: float) -> np.ndarray:
+        along = sign * np.sum(direction[:, :2] * hit_xy, axis=1)
+        return (h2 * inverse_length - 2 * along) / (1 + np.sqrt(1 - 2 * along * inverse_length
+                                                                 + h2 * inverse_length ** 2))
+
+    return (leg(incoming, np.abs(incoming[:, 2]) * inverse_a, 1.0)
+            + leg(outgoing, np.abs(outgoing[:, 2]) * (power - inverse_a), -1.0))
 
 
 def wavefront(lens: LensSystem, field_deg: float, wavelength_nm: float, film_distance_mm: float,
@@ -153,6 +199,10 @@ def wavefront(lens: LensSystem, field_deg: float, wavelength_nm: float, film_dis
     ``spacing_mm``) and is widened until no passing ray lies on its rim.
     """
     validation.wavelength_nm(wavelength_nm)
+    anamorphic = np.flatnonzero(lens.paraxial_power_per_mm[:, 0] != lens.paraxial_power_per_mm[:, 1])
+    if len(anamorphic):
+        raise UserError(f"{lens.name}: surface {anamorphic[0]} is a paraxial lens with different x and y powers, "
+                        f"whose wavefront is not modelled: use --model geometric")
     if not (abs(field_deg) < 90):
         raise UserError(f"field angle {field_deg:g} deg must be between -90 and 90")
     if not 2 <= samples_across <= 1024:
@@ -199,9 +249,11 @@ def wavefront(lens: LensSystem, field_deg: float, wavelength_nm: float, film_dis
     scale = np.abs(np.sum(h * h, axis=0) / turn)
     opd = np.full(count * count, np.nan)
     opd[passed] = (total - total.mean()) / (wavelength_nm * 1e-6)
+    sphere = np.full((count * count, 3), np.nan)
+    sphere[passed] = p + t[:, None] * d - centre
     return Wavefront(opd.reshape(count, count), spacing, wavelength_nm, field_deg, film_distance_mm,
                      (float(ref[0]), float(ref[1])),
-                     (float(scale[0]), float(scale[1])), grid)
+                     (float(scale[0]), float(scale[1])), grid, sphere.reshape(count, count, 3))
 
 
 def noll_indices(j: int) -> tuple[int, int]:

@@ -113,9 +113,11 @@ def prescription_sha256(lens: LensSystem) -> str:
     name: per surface (front first) radius, thickness, index, Abbe number, aperture diameter, conic
     constant and the 9 aspheric coefficients as little-endian float64, row by row, then the stop's
     surface index as a little-endian int64. The aperture column holds the stop's diameter, so a
-    different f-stop hashes differently; a stop shape (a mask) does not count."""
-    table = np.column_stack([lens.radius_mm, lens.thickness_mm, lens.index_d, lens.abbe_v, lens.aperture_mm,
-                             lens.conic, lens.aspheric_coefficients]).astype("<f8")
+    different f-stop hashes differently; a stop shape (a mask) does not count. A lens with paraxial
+    surfaces adds their two powers per row (other lenses keep the hashes they had)."""
+    columns = [lens.radius_mm, lens.thickness_mm, lens.index_d, lens.abbe_v, lens.aperture_mm, lens.conic,
+               lens.aspheric_coefficients] + ([lens.paraxial_power_per_mm] if lens.paraxial.any() else [])
+    table = np.column_stack(columns).astype("<f8")
     return hashlib.sha256(table.tobytes() + np.array([lens.stop], "<i8").tobytes()).hexdigest()
 
 

@@ -242,6 +242,7 @@ def _glass_code(n: float, v: float) -> str:
 
 def format_codev(lens: LensSystem) -> str:
     """``lens`` as a CODE V sequence file in mm (radius mode) that ``parse_codev`` reads back exactly."""
+    lens.refuse_paraxial(".seq")
     title = (lens.description or lens.name).replace("'", " ").replace("\n", " ")
     lines = ["RDM", "DIM M", f"TIT '{title}'", "SO 0.0 1e20"]
     for i in range(lens.surface_count):

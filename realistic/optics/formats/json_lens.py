@@ -18,6 +18,9 @@ scene side to the film side, lengths in millimetres (isetlens ``data/lens/*.json
 - ``glass``: a catalogue glass name for the medium behind the surface (``"N-BK7"``, or with its
   catalogue, ``"N-BK7 (Schott)"``), looked up in ``realistic.optics.glass``; its formula then gives
   the index (this package's key; ``ior`` may be 0 beside it).
+- ``focal_length_mm``: makes the surface paraxial, an ideal thin lens of that focal length
+  (``realistic.optics.lens``; this package's key, as Zemax's PARAXIAL), or of ``[f_x, f_y]`` (Zemax's
+  PARAXIAL_XY; ``null`` for an axis without power). Its radius is 0 and it has air on both sides.
 - ``transform``: only absent, null or the identity is accepted (no tilts or decentres).
 
 Unknown surface keys are refused (a misspelt ``conic_constant`` must not silently give a sphere).
@@ -39,7 +42,7 @@ from realistic.optics.glass.catalogue import catalogue_stem, find_glass, unknown
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
 
 SURFACE_KEYS = ("radius", "thickness", "ior", "semi_aperture", "conic_constant", "aspheric_coefficients",
-                "abbe_number", "transform", "glass")
+                "abbe_number", "transform", "glass", "focal_length_mm")
 IDENTITY = [[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, 0]]
 
 
@@ -114,6 +117,20 @@ class _Surface(NamedTuple):
     conic: float
     coefficients: list[float]
     glass: GlassFormula | None
+    power: tuple[float, float]
+
+
+def _paraxial_power(value: object, path: str, line: int) -> tuple[float, float]:
+    """(1/f_x, 1/f_y) of a ``focal_length_mm`` value: a number, or an [x, y] pair whose null is no power."""
+    if value is None:
+        return 0.0, 0.0
+    pair = value if isinstance(value, list) and len(value) == 2 else [value, value]
+    focal = [math.inf if f is None and pair is value else _number(f, path, line, "focal_length_mm")
+             for f in pair]
+    if any(f == 0 or math.isnan(f) for f in focal) or all(math.isinf(f) for f in focal):
+        raise LensFileError(path, line, f"focal_length_mm {json.dumps(value)[:40]} must be a non-zero number or an "
+                            f"[x, y] pair of them (null for an axis without power)")
+    return 1 / focal[0], 1 / focal[1]
 
 
 def _catalogue_glass(value: object, path: str, line: int) -> GlassFormula | None:
@@ -152,7 +169,8 @@ def _surface(item: object, path: str, line: int) -> _Surface:
                     2 * _scalar(item["semi_aperture"], path, line, "semi_aperture"),
                     _scalar(item.get("conic_constant", 0), path, line, "conic_constant"),
                     [_number(a, path, line, "aspheric coefficient") for a in coefficients],
-                    _catalogue_glass(item.get("glass"), path, line))
+                    _catalogue_glass(item.get("glass"), path, line),
+                    _paraxial_power(item.get("focal_length_mm"), path, line))
 
 
 def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) -> LensSystem:
@@ -174,6 +192,7 @@ def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) 
     return build_lens(path, lines, [s.radius for s in rows], [s.thickness for s in rows], [s.index_d for s in rows],
                       [s.abbe for s in rows], [s.aperture for s in rows], conic=[s.conic for s in rows],
                       coefficients=[s.coefficients for s in rows], glass=[s.glass for s in rows],
+                      paraxial_power=[s.power for s in rows],
                       name=name or (label.strip() if isinstance(label, str) and label.strip() else None),
                       description=description.strip() if isinstance(description, str) else "")
 
@@ -181,22 +200,27 @@ def parse_json_lens(text: str, path: str = "<string>", name: str | None = None) 
 def format_json_lens(lens: LensSystem) -> str:
     """``lens`` as an isetlens/omni JSON document (floats written exactly: repr round-trips)."""
     if not lens.stop_is_flat_in_air:
-        raise UserError(f"{lens.name}: its stop is curved or has glass on one side, and in a .json prescription "
-                        f"the stop is a radius-0 surface in air: convert to .zmx or .seq")
+        what, formats = ("paraxial", ".zmx") if lens.paraxial[lens.stop] else ("curved or has glass on one side",
+                                                                               ".zmx or .seq")
+        raise UserError(f"{lens.name}: its stop is {what}, and in a .json prescription the stop is a radius-0 "
+                        f"surface in air: convert to {formats}")
     surfaces = []
     before = np.concatenate([[1.0], lens.index_d[:-1]])
     for i in range(lens.surface_count):
         radius = float(lens.radius_mm[i])
         flat_face = math.isinf(radius) and (lens.index_d[i] != before[i] or lens.glass[i] != (
             lens.glass[i - 1] if i else None))
-        surface: dict[str, str | float | list[float]] = {
-            "radius": 0.0 if flat_face else radius, "thickness": float(lens.thickness_mm[i]),
+        surface: dict[str, str | float | list[float] | list[float | None]] = {
+            "radius": 0.0 if flat_face or lens.paraxial[i] else radius, "thickness": float(lens.thickness_mm[i]),
             "ior": 0.0 if i == lens.stop else float(lens.index_d[i]), "semi_aperture": float(lens.aperture_mm[i]) / 2}
         if lens.abbe_v[i] > 0:
             surface["abbe_number"] = float(lens.abbe_v[i])
         glass = lens.glass[i]
         if glass is not None:
             surface["glass"] = glass.label
+        if lens.paraxial[i]:
+            px, py = (float(p) for p in lens.paraxial_power_per_mm[i])
+            surface["focal_length_mm"] = 1 / px if px == py else [1 / p if p else None for p in (px, py)]
         if lens.aspheric[i]:
             coefficients = [float(a) for a in lens.aspheric_coefficients[i]]
             while coefficients and coefficients[-1] == 0:

@@ -137,6 +137,7 @@ def format_prescription(lens: LensSystem) -> str:
     if not lens.stop_is_flat_in_air:
         raise UserError(f"{lens.name}: its stop is curved or has glass on one side, and in a .dat prescription "
                         f"the stop is a flat row in air: convert to .zmx or .seq")
+    lens.refuse_paraxial(".dat")
     if lens.aspheric.any():
         surface = int(lens.aspheric.argmax())
         raise UserError(f"{lens.name}: surface {surface} is aspheric and a .dat prescription has no columns for "

@@ -3,7 +3,10 @@
 Supported: ``MODE SEQ`` files of ``TYPE STANDARD`` spheres and conics and ``TYPE EVENASPH`` even
 aspheres (``CONI`` conic constant; ``PARM 2`` .. ``PARM 8`` the coefficients of r^4 .. r^16 in
 unit^(1-p), converted to mm; ``PARM 1``, the r^2 term, must be 0 since it would move the paraxial
-curvature away from CURV), with ``CURV`` in 1/unit,
+curvature away from CURV), ``TYPE PARAXIAL`` ideal thin lenses (``PARM 1`` the focal length in lens
+units) and ``TYPE PARAXIAL_XY`` ones (``PARM 1`` and ``PARM 2`` the x and y powers in 1/unit), traced
+as ``realistic.optics.lens`` describes (their OPD mode parameter is ignored: the wave optics take
+such a surface to image perfectly, as Zemax's default mode does), with ``CURV`` in 1/unit,
 ``DISZ`` thickness to the next surface, ``DIAM`` semi-diameter, or ``CLAP 0 max`` whose hard
 circular aperture takes precedence over DIAM; ``MEMA``, the mechanical semi-diameter, stands in
 when neither is given; ``FLAP``, the flat annulus beyond the clear aperture, changes nothing the
@@ -22,9 +25,8 @@ a side (a STOP on a singlet's first face), stays that surface, which refracts an
 the stop (``realistic.optics.lens``). A ``DISZ 0`` gap (a stop on a lens vertex) is kept when the two
 surfaces only touch. Semi-diameters are kept as the file gives them.
 
-Rejected with the line that holds them: other surface types (coordinate breaks, paraxial and ideal
-surfaces, which real rays cannot trace, TOROIDAL, ODDASPH, ...), a non-zero r^2 term, mirrors, tilts
-and decentres (``SCBD``/``SCAD``, ``OBDC``), obscurations and
+Rejected with the line that holds them: other surface types (coordinate breaks, TOROIDAL, ODDASPH,
+...), a non-zero r^2 term, mirrors, tilts and decentres (``SCBD``/``SCAD``, ``OBDC``), obscurations and
 non-circular apertures, glass in object or image space, a curved image surface, non-sequential mode.
 Everything else (fields, wavelengths, solves, tolerances, display settings) is ignored.
 """
@@ -43,8 +45,8 @@ from realistic.optics.formats.pbrt_dat import text_lines
 from realistic.optics.glass.catalogue import catalogue_stem, find_glass, unknown_glass
 from realistic.optics.lens import MAX_SURFACES, LensSystem, build_lens, too_many_surfaces
 
-#: Surface types read: spheres and conics, and even aspheres with PARM 1..8 on r^2 .. r^16.
-SURFACE_TYPES = ("STANDARD", "EVENASPH")
+#: Surface types read: spheres and conics, even aspheres with PARM 1..8 on r^2 .. r^16, and ideal thin lenses.
+SURFACE_TYPES = ("STANDARD", "EVENASPH", "PARAXIAL", "PARAXIAL_XY")
 EVENASPH_TERMS = 8
 
 #: Lens units Zemax writes on the ``UNIT`` line, in millimetres.
@@ -52,9 +54,7 @@ UNIT_MM = {"MM": 1.0, "CM": 10.0, "IN": 25.4, "INCH": 25.4, "M": 1000.0, "METER"
 
 #: Surface keywords for apertures we cannot model (only circular apertures are supported).
 #: Why each surface type real rays cannot trace is refused.
-REFUSED_TYPES = {"COORDBRK": "coordinate breaks (tilts and decentres) are not supported",
-                 "PARAXIAL": "a paraxial (ideal thin) lens cannot be traced with real rays",
-                 "PARAXIAL_XY": "a paraxial (ideal thin) lens cannot be traced with real rays"}
+REFUSED_TYPES = {"COORDBRK": "coordinate breaks (tilts and decentres) are not supported"}
 
 UNSUPPORTED_APERTURES = {"OBSC": "circular obscuration", "SQAP": "rectangular aperture",
                          "ELAP": "elliptical aperture", "UDAP": "user-defined aperture",
@@ -153,8 +153,8 @@ def _surface_keyword(tokens: list[str], surface: _Surface, path: str, line: int,
         if first in REFUSED_TYPES:
             raise LensFileError(path, line, f"TYPE {first}: {REFUSED_TYPES[first]}")
         if first not in SURFACE_TYPES:
-            raise LensFileError(path, line, f"surface type {first} is not supported (only TYPE STANDARD and "
-                                f"TYPE EVENASPH)")
+            raise LensFileError(path, line, f"surface type {first} is not supported (only TYPE "
+                                f"{', '.join(SURFACE_TYPES[:-1])} and {SURFACE_TYPES[-1]})")
         surface.kind = first
     elif keyword == "PARM":
         number = _number(first, path, line, "PARM number")
@@ -254,13 +254,33 @@ def parse_zmx(text: str, path: str = "<string>") -> LensSystem:
 
     radius = [(0.0 if s is stop else math.inf) if s.curvature == 0 else unit_mm / s.curvature for s in lens]
     coefficients = [_coefficients(s, unit_mm, path) for s in lens]
+    power = [_paraxial_power(s, unit_mm, path) for s in lens]
     catalogue = [name for s in lens for name in s.catalogue]
     note = (f"catalogue glasses read from the n_d/V_d on their GLAS lines: {', '.join(catalogue)}"
             if catalogue else "")
     return build_lens(path, [s.line for s in lens], radius, [s.thickness * unit_mm for s in lens],
                       [s.index for s in lens], [s.abbe for s in lens],
                       apertures, note=note, conic=[s.conic for s in lens], coefficients=coefficients,
-                      glass=[s.glass for s in lens], stop=lens.index(stop))
+                      glass=[s.glass for s in lens], stop=lens.index(stop), paraxial_power=power)
+
+
+def _paraxial_power(surface: _Surface, unit_mm: float, path: str) -> tuple[float, float]:
+    """(1/f_x, 1/f_y) in 1/mm of a PARAXIAL or PARAXIAL_XY surface, (0, 0) for the others."""
+    if surface.kind == "PARAXIAL":
+        focal, line = surface.parms.get(1, (0.0, surface.line))
+        if focal == 0 or not math.isfinite(focal):
+            raise LensFileError(path, line, f"a PARAXIAL surface needs a finite, non-zero focal length (PARM 1), "
+                                f"got {focal:g}")
+        return 1 / (focal * unit_mm), 1 / (focal * unit_mm)
+    if surface.kind == "PARAXIAL_XY":
+        x, y = (surface.parms.get(k, (0.0, surface.line)) for k in (1, 2))
+        if x[0] == 0 and y[0] == 0:
+            raise LensFileError(path, surface.line, "a PARAXIAL_XY surface has no power (PARM 1 and PARM 2 are 0)")
+        for value, line in (x, y):
+            if not math.isfinite(value):
+                raise LensFileError(path, line, f"PARAXIAL_XY power {value:g} is not a finite number")
+        return x[0] / unit_mm, y[0] / unit_mm
+    return 0.0, 0.0
 
 
 def _coefficients(surface: _Surface, unit_mm: float, path: str) -> list[float]:
@@ -284,7 +304,8 @@ def _coefficients(surface: _Surface, unit_mm: float, path: str) -> list[float]:
 
 def format_zmx(lens: LensSystem) -> str:
     """``lens`` as a Zemax sequential file in mm (ASCII) that ``parse_zmx`` reads back exactly;
-    aspheres as EVENASPH, which carries terms up to r^16."""
+    aspheres as EVENASPH, which carries terms up to r^16, paraxial surfaces as PARAXIAL (PARAXIAL_XY
+    where the two powers differ)."""
     beyond = np.flatnonzero(np.any(lens.aspheric_coefficients[:, EVENASPH_TERMS - 1:] != 0, axis=1))
     if len(beyond):
         raise UserError(f"{lens.name}: surface {beyond[0]} has r^18 or r^20 terms, which Zemax's EVENASPH "
@@ -298,7 +319,14 @@ def format_zmx(lens: LensSystem) -> str:
         radius = float(lens.radius_mm[i])
         curvature = 0.0 if radius == 0 or math.isinf(radius) else 1.0 / radius
         lines += [f"SURF {i + 1}"] + (["  STOP"] if i == lens.stop else [])
-        lines += [f"  TYPE {'EVENASPH' if lens.aspheric[i] else 'STANDARD'}", f"  CURV {curvature!r}"]
+        px, py = (float(p) for p in lens.paraxial_power_per_mm[i])
+        kind = ("PARAXIAL" if px == py else "PARAXIAL_XY") if lens.paraxial[i] else (
+            "EVENASPH" if lens.aspheric[i] else "STANDARD")
+        lines += [f"  TYPE {kind}", f"  CURV {curvature!r}"]
+        if kind == "PARAXIAL":
+            lines.append(f"  PARM 1 {1 / px!r}")
+        elif kind == "PARAXIAL_XY":
+            lines += [f"  PARM 1 {px!r}", f"  PARM 2 {py!r}"]
         if lens.aspheric[i]:
             lines.append(f"  CONI {float(lens.conic[i])!r}")
             terms = [0.0, *lens.aspheric_coefficients[i, :EVENASPH_TERMS - 1]]
