@@ -21,8 +21,9 @@
  * Unlike lens.cl, this kernel loops over its steps (one program serves every path of the lens);
  * the work-group vectoriser does not widen it, and the flare's rays are far fewer than the camera's.
  *
- * The host's header also defines KIND_*, ACTION_*, MODEL_*, COATING_INDEX, PI_LAMBDA0 (pi times the
- * layer's design wavelength, nm), ASPHERE_ITERATIONS,
+ * The host's header also defines KIND_*, ACTION_*, MODEL_*, LAYER_MEDIUM (the media table's row of the
+ * coating layer's own index), PI_LAMBDA0_OVER_NL0 (pi times the layer's design wavelength, nm, over
+ * its index there), ASPHERE_ITERATIONS,
  * ASPHERE_TERMS, ASPHERE_TOLERANCE_MM and the stop's opening STOP_INSIDE(x, y)
  * (realistic.camera.opencl_host.stop_lines: a round stop's squared radius STOP_R2 is the stop row's
  * STEP_AP2, read through the row `s` in scope where it is used).
@@ -35,19 +36,20 @@ typedef struct {
     int alive;
     uint node;    /* the ray's wavelength: media table node below it, */
     float frac;   /* its place between that node and the next, */
-    float phase;  /* and pi lambda0 / lambda (reflectance's PHASE) */
+    float layer;  /* the coating layer's index at that wavelength, */
+    float phase;  /* and pi lambda0 nl / (lambda nl0) (reflectance's PHASE) */
 } Ray;
 
 /* The fraction of unpolarised light reflected by an interface from index N0 into N2 at incidence
  * cosine C0 (realistic.optics.coating.reflectance, whose float64 formulas these are); 1 past the
- * critical angle. PHASE = pi lambda0 / lambda, the layer's 2 delta at normal incidence. A layer
- * (MODEL_LAYER) is a quarter wave of index COATING_INDEX at lambda0: with a, b the amplitude
+ * critical angle. PHASE = pi lambda0 nl / (lambda nl0), the layer's 2 delta at normal incidence. A
+ * layer (MODEL_LAYER) of index NL is a quarter wave at lambda0: with a, b the amplitude
  * reflection coefficients entering and leaving the film, R = (a^2 + b^2 + 2 a b cos 2delta) /
  * (1 + a^2 b^2 + 2 a b cos 2delta), per polarisation (Born and Wolf 1.6.4). Past the layer's own
- * critical angle (light from dense glass beyond asin(COATING_INDEX / N0)) the film is crossed by an
+ * critical angle (light from dense glass beyond asin(NL / N0)) the film is crossed by an
  * evanescent wave, which this real form does not describe: the layer's cosine is taken as 0 there,
  * as lens.cl does. */
-inline float reflectance(int model, float N0, float N2, float C0, float PHASE) {
+inline float reflectance(int model, float N0, float N2, float C0, float PHASE, float NL) {
     float q = N0 / N2;
     float c2sq = 1.0f - q * q * (1.0f - C0 * C0);
     float c2 = sqrt(c2sq > 0.0f ? c2sq : 0.0f);
@@ -57,14 +59,14 @@ inline float reflectance(int model, float N0, float N2, float C0, float PHASE) {
         float rp = (N2 * C0 - N0 * c2) / (N2 * C0 + N0 * c2);
         r = 0.5f * (rs * rs + rp * rp);
     } else if (model == MODEL_LAYER) {
-        float ql = N0 / COATING_INDEX;
+        float ql = N0 / NL;
         float clsq = 1.0f - ql * ql * (1.0f - C0 * C0);
         float cl = sqrt(clsq > 0.0f ? clsq : 0.0f);
         float cp = cos(PHASE * cl);
-        float as = (N0 * C0 - COATING_INDEX * cl) / (N0 * C0 + COATING_INDEX * cl);
-        float bs = (COATING_INDEX * cl - N2 * c2) / (COATING_INDEX * cl + N2 * c2);
-        float ap = (COATING_INDEX * C0 - N0 * cl) / (COATING_INDEX * C0 + N0 * cl);
-        float bp = (N2 * cl - COATING_INDEX * c2) / (N2 * cl + COATING_INDEX * c2);
+        float as = (N0 * C0 - NL * cl) / (N0 * C0 + NL * cl);
+        float bs = (NL * cl - N2 * c2) / (NL * cl + N2 * c2);
+        float ap = (NL * C0 - N0 * cl) / (NL * C0 + N0 * cl);
+        float bp = (N2 * cl - NL * c2) / (N2 * cl + NL * c2);
         float rs = (as * as + bs * bs + 2.0f * as * bs * cp) / (1.0f + as * as * bs * bs + 2.0f * as * bs * cp);
         float rp = (ap * ap + bp * bp + 2.0f * ap * bp * cp) / (1.0f + ap * ap * bp * bp + 2.0f * ap * bp * cp);
         r = 0.5f * (rs + rp);
@@ -180,7 +182,7 @@ inline void step(Ray *r, __constant float *s, __global const float *media, uint 
     float n0 = from[0] + r->frac * (from[1] - from[0]), n2 = to[0] + r->frac * (to[1] - to[0]);
     float phase = r->phase;
     float c1 = -(r->dx * nx + r->dy * ny + r->dz * nz);
-    float R = reflectance((int)s[STEP_MODEL], n0, n2, c1, phase);
+    float R = reflectance((int)s[STEP_MODEL], n0, n2, c1, phase, r->layer);
     if (action == ACTION_REFLECT) {
         r->weight *= R;
         r->dx += 2.0f * c1 * nx;
@@ -204,15 +206,17 @@ inline void step(Ray *r, __constant float *s, __global const float *media, uint 
 }
 
 /* Ray i's state from the input rows (see trace_path). */
-inline void load(Ray *r, uint i, uint stride, __global const float *in, uint nodes, float lambda0,
-                 float inv_spacing) {
+inline void load(Ray *r, uint i, uint stride, __global const float *in, __global const float *media, uint nodes,
+                 float lambda0, float inv_spacing) {
     float lambda = in[6 * stride + i];
     float u = (lambda - lambda0) * inv_spacing;
     float k = floor(u);
     k = k < 0.0f ? 0.0f : (k > (float)(nodes - 2) ? (float)(nodes - 2) : k);
     r->node = (uint)k;
     r->frac = u - k;
-    r->phase = PI_LAMBDA0 / lambda;
+    __global const float *layer = media + LAYER_MEDIUM * nodes + r->node;
+    r->layer = layer[0] + r->frac * (layer[1] - layer[0]);
+    r->phase = PI_LAMBDA0_OVER_NL0 * r->layer / lambda;
     r->ox = in[i];
     r->oy = in[stride + i];
     r->w = in[2 * stride + i];
@@ -250,7 +254,7 @@ __kernel void trace_path(uint count, uint step_count, __constant float *steps, _
                          __global float *out) {
     uint items = stride / RAYS_PER_ITEM, i = get_global_id(0);
     Ray r[RAYS_PER_ITEM];
-    for (uint j = 0; j < RAYS_PER_ITEM; j++) load(&r[j], i + j * items, stride, in, nodes, lambda0, inv_spacing);
+    for (uint j = 0; j < RAYS_PER_ITEM; j++) load(&r[j], i + j * items, stride, in, media, nodes, lambda0, inv_spacing);
     for (uint k = 0; k < step_count; k++) {
         for (uint j = 0; j < RAYS_PER_ITEM; j++) step(&r[j], steps + k * STEP_WIDTH, media, nodes);
     }

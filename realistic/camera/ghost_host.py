@@ -18,7 +18,7 @@ from realistic.camera.opencl_host import stop_lines
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.optics.asphere import COEFFICIENT_COUNT
-from realistic.optics.coating import DESIGN_WAVELENGTH_NM, IDEAL, MGF2_INDEX
+from realistic.optics.coating import DESIGN_WAVELENGTH_NM, IDEAL, MGF2_INDEX, mgf2_index
 from realistic.optics.ghosts import GHOST_WAVELENGTH_NM, GhostPath, GhostTrace, path_steps
 from realistic.optics.lens import LensSystem
 
@@ -57,12 +57,12 @@ def _c_float(value: float) -> str:
 
 def ghost_header(lens: LensSystem) -> str:
     """The ``#define``s that ``ghost.cl`` needs for ``lens``: the table's offsets, the enumerations,
-    the coating's index, the asphere iteration, and the stop's opening (``stop_lines``; a round
+    the coating layer's row of the media table, the asphere iteration, and the stop's opening (``stop_lines``; a round
     stop's squared radius is its row's ``ap2``)."""
     lines = [STEPS.defines(), constant_defines("KIND", KINDS), constant_defines("ACTION", ACTIONS),
              "#define MODEL_IDEAL 0\n#define MODEL_BARE 1\n#define MODEL_LAYER 2\n",
-             f"#define COATING_INDEX {_c_float(MGF2_INDEX)}\n",
-             f"#define PI_LAMBDA0 {_c_float(math.pi * DESIGN_WAVELENGTH_NM)}\n",
+             f"#define LAYER_MEDIUM {lens.surface_count + 1}\n",
+             f"#define PI_LAMBDA0_OVER_NL0 {_c_float(math.pi * DESIGN_WAVELENGTH_NM / MGF2_INDEX)}\n",
              f"#define ASPHERE_ITERATIONS {ASPHERE_ITERATIONS}\n#define ASPHERE_TERMS {COEFFICIENT_COUNT}\n",
              f"#define ASPHERE_TOLERANCE_MM {_c_float(ASPHERE_TOLERANCE_MM)}\n",
              "#define STOP_R2 (s[STEP_AP2])\n", "\n".join(stop_lines(lens)) + "\n"]
@@ -70,14 +70,15 @@ def ghost_header(lens: LensSystem) -> str:
 
 
 def media_table(lens: LensSystem, wavelengths_nm: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """Each medium's index (rows: air in front, then the medium behind each surface) at nodes
+    """Each medium's index (rows: air in front, the medium behind each surface, then the coating
+    layer's MgF2, ``LAYER_MEDIUM``) at nodes
     ``INDEX_SPACING_NM`` apart covering ``wavelengths_nm`` (at least two), with the first node's
     wavelength and the spacing: the kernel interpolates each ray's index linearly between them."""
     low, high = float(np.min(wavelengths_nm)), float(np.max(wavelengths_nm))
     nodes = max(2, math.ceil((high - low) / INDEX_SPACING_NM) + 1)
     wavelengths = low + INDEX_SPACING_NM * np.arange(nodes)
     behind = np.broadcast_to(lens.index_at(wavelengths).reshape(lens.surface_count, -1), (lens.surface_count, nodes))
-    return np.concatenate([np.ones((1, nodes)), behind]), low, INDEX_SPACING_NM
+    return np.concatenate([np.ones((1, nodes)), behind, mgf2_index(wavelengths)[None]]), low, INDEX_SPACING_NM
 
 
 def step_table(lens: LensSystem, film_distance_mm: float, path: GhostPath | None, media: np.ndarray) -> np.ndarray:
