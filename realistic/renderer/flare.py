@@ -43,8 +43,9 @@ a point or spot light's intensity (radiance times a scene-unit area) is multipli
 
 A spectral camera draws each path's wavelength as its own samples do (``core.spectrum``) and weights
 it by ``rgb_response``, so ghosts take the coatings' colours; an RGB camera traces the d line, as
-its camera rays do. Lights: area lights, point, spot and distant lights (emitting shapes and the
-infinite light's texels are not traced). Light reaching the front surface from beside or behind
+its camera rays do. Lights: area lights, emitting shapes (a pbrt AreaLightSource on a sphere or a
+mesh: points uniform by area over its triangles, ``light_sampler.Emitter``), point, spot and distant
+lights (the infinite light's texels are not traced). Light reaching the front surface from beside or behind
 the plane z_p (a light touching the lens) is not counted.
 """
 
@@ -68,9 +69,9 @@ from realistic.optics.ghosts import GhostPath, GhostTrace, GhostTracer
 from realistic.optics.ghosts import ghost_paths as lens_ghost_paths
 from realistic.renderer.direct_lighting import SHADOW_OFFSET
 from realistic.renderer.film import Splats
-from realistic.renderer.light_sampler import FAR, LUMINANCE
+from realistic.renderer.light_sampler import FAR, LUMINANCE, Emitter
 from realistic.scene.intersect import Intersector
-from realistic.scene.lights import DistantLight, PointLight, SpotLight
+from realistic.scene.lights import DistantLight, EmissiveInstance, PointLight, SpotLight
 from realistic.scene.model import AreaLight, Scene
 
 #: First of the seven ``rng`` dimensions of a light path (light pick, light point u and v, lens
@@ -131,7 +132,8 @@ def front_cap_z(camera: LensCamera) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class _Light:
-    """A light in the lens frame (mm): kind, position or centre, axes, normal, colour, area."""
+    """A light in the lens frame (mm): kind, position or centre, axes, normal, colour, area; an
+    emitting shape's triangles (``emitter``, world space) with the lens frame from the world."""
 
     light: object
     centre: np.ndarray  # point, spot, area: position (mm); distant: unit direction toward the light
@@ -140,17 +142,37 @@ class _Light:
     normal: np.ndarray
     colour: np.ndarray  # (3,) radiance, intensity or irradiance
     area_mm2: float
+    emitter: Emitter | None = None
+    lens_from_world: np.ndarray | None = None
 
-    def points(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Points (N, 3) uniform by area for (u, v) uniform on [0, 1)^2 (the position of a point light)."""
+    @property
+    def has_surface(self) -> bool:
+        """Whether the light emits from a surface (an area light or an emitting shape)."""
+        return isinstance(self.light, (AreaLight, EmissiveInstance))
+
+    @property
+    def two_sided(self) -> bool:
+        """Whether a surface light emits from both sides."""
+        return bool(getattr(self.light, "two_sided", False))
+
+    def points(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points (N, 3) uniform by area for (u, v) uniform on [0, 1)^2 (the position of a point
+        light), and the unit emitting normals there (the light's own normal; zero for a point)."""
         light = self.light
+        if self.emitter is not None and self.lens_from_world is not None:
+            points, normals = self.emitter.points(u, v)
+            normals = transform_vectors(self.lens_from_world, normals)
+            return (transform_points(self.lens_from_world, points),
+                    normals / np.linalg.norm(normals, axis=1, keepdims=True))
+        normals = np.broadcast_to(self.normal, (len(u), 3))
         if not isinstance(light, AreaLight):
-            return np.broadcast_to(self.centre, (len(u), 3)).copy()
+            return np.broadcast_to(self.centre, (len(u), 3)).copy(), normals
         if light.shape == "disk":
             x, y = concentric_disk(u, v)
         else:
             x, y = 2.0 * u - 1.0, 2.0 * v - 1.0
-        return self.centre + self.a * x.astype(np.float64)[:, None] + self.b * y.astype(np.float64)[:, None]
+        return (self.centre + self.a * x.astype(np.float64)[:, None] + self.b * y.astype(np.float64)[:, None],
+                normals)
 
 
 class FlareEstimator:
@@ -171,7 +193,8 @@ class FlareEstimator:
         self.clear_radius = float(camera.lens.aperture_mm[0]) / 2
         w_mm, h_mm = camera.film_size_mm
         self.pixel_area_mm2 = (w_mm / camera.width) * (h_mm / camera.height)
-        self.lights = [light for light in (self._in_lens_frame(light) for light in scene.lights) if light is not None]
+        self.lights = [light for light in (self._in_lens_frame(light, scene) for light in scene.lights)
+                       if light is not None]
         estimate = np.array([self._flux_estimate(light) for light in self.lights], np.float64)
         if len(estimate) and estimate.max() > 0:
             estimate = np.maximum(estimate, LIGHT_FLOOR * estimate.max())
@@ -184,10 +207,15 @@ class FlareEstimator:
         self.spot_frames = {id(light): np.linalg.inv(np.asarray(light.light.light_to_world, np.float64))
                             @ self.world_from_lens for light in self.lights if isinstance(light.light, SpotLight)}
 
-    def _in_lens_frame(self, light: object) -> _Light | None:
+    def _in_lens_frame(self, light: object, scene: Scene) -> _Light | None:
         """A light this estimator traces, in the lens frame; None for others."""
         to_lens, mm2 = self.lens_from_world, self.mm_per_unit ** 2
         zero = np.zeros(3)
+        if isinstance(light, EmissiveInstance):
+            emitter = Emitter(light, scene)
+            centre = transform_points(to_lens, (emitter.origin + (emitter.e1 + emitter.e2) / 3).mean(axis=0)[None])[0]
+            return _Light(light, centre, zero, zero, zero, np.asarray(light.radiance, np.float64),
+                          emitter.area * mm2, emitter, to_lens)
         if isinstance(light, AreaLight):
             centre, a, b, normal = light.frame()
             normal = transform_vectors(to_lens, normal[None])[0]
@@ -216,8 +244,12 @@ class FlareEstimator:
         if d2 == 0 or light.centre[2] <= self.z_p:
             return 0.0
         cos_x = -offset[2] / math.sqrt(d2)
-        emitted = lum * light.area_mm2 * abs(float(light.normal @ offset)) / math.sqrt(d2) \
-            if isinstance(light.light, AreaLight) else lum
+        if isinstance(light.light, AreaLight):
+            emitted = lum * light.area_mm2 * abs(float(light.normal @ offset)) / math.sqrt(d2)
+        elif light.emitter is not None:  # a shape's mean projected area: a convex one's is a quarter of its area
+            emitted = lum * light.area_mm2 / 4
+        else:
+            emitted = lum
         return emitted * cos_x * disk / d2
 
     def splats(self, block: SampleBlock) -> Splats:
@@ -231,12 +263,13 @@ class FlareEstimator:
         pick = np.minimum(np.searchsorted(self.light_cdf, u[0], side="right"), len(self.lights) - 1)
         origin = np.zeros((count, 3))
         target = np.zeros((count, 3))
+        normal = np.zeros((count, 3))  # a surface light's emitting normal at the line's start
         flux = np.zeros(count)  # Phi / T_g before the path's pick, per unit of the light's colour
         for index, light in enumerate(self.lights):
             rows = np.flatnonzero(pick == index)
             if len(rows):
-                origin[rows], target[rows], flux[rows] = self._light_rows(light, u[1][rows], u[2][rows], u[3][rows],
-                                                                          u[4][rows])
+                origin[rows], target[rows], flux[rows], normal[rows] = self._light_rows(
+                    light, u[1][rows], u[2][rows], u[3][rows], u[4][rows])
                 flux[rows] /= self.light_p[index]
         spectral = self.camera.spectral
         wavelength = wavelengths_nm(u[6]).astype(np.float64) if spectral else np.full(count, D_LINE_NM)
@@ -259,7 +292,7 @@ class FlareEstimator:
         rows = np.concatenate(landed) if landed else np.zeros(0, np.int64)
         if not len(rows):
             return Splats.empty()
-        visible = ~self._occluded(pick[rows], origin[rows], target[rows])
+        visible = ~self._occluded(pick[rows], origin[rows], target[rows], normal[rows])
         rows = rows[visible]
         scale = (flux[rows] * np.concatenate(landed_weight)[visible] / self.pixel_area_mm2)[:, None]
         value = self.colours[pick[rows]] * scale
@@ -269,21 +302,23 @@ class FlareEstimator:
         return Splats.of(np.concatenate(landed_pixel)[visible], value)
 
     def _light_rows(self, light: _Light, u1: np.ndarray, u2: np.ndarray, u3: np.ndarray,
-                    u4: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    u4: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """For paths that picked ``light``, from their numbers for the light point (u1, u2) and the
-        lens point (u3, u4): the line's start, its point on the lens disk, and the flux estimate
+        lens point (u3, u4): the line's start, its point on the lens disk, the flux estimate
         per unit of the light's colour before the picks and the path's throughput (0 where the
-        light cannot reach the lens)."""
+        light cannot reach the lens), and the light's emitting normal at the start (0 for a point
+        or distant light)."""
         a, z_p, z_far = self.clear_radius, self.z_p, self.z_far
         if isinstance(light.light, DistantLight):
             toward = light.centre  # unit, toward the light
+            zeros = np.zeros((len(u3), 3))
             if toward[2] <= 0:  # behind the lens
-                return np.zeros((len(u3), 3)), np.zeros((len(u3), 3)), np.zeros(len(u3))
+                return zeros, zeros, np.zeros(len(u3)), zeros
             radius = a + (z_p - z_far) * math.hypot(toward[0], toward[1]) / toward[2]
             x = self._disk_points(np.full(len(u3), radius), u3, u4)
             flux = np.full(len(u3), toward[2] * math.pi * radius ** 2)
-            return x + toward / toward[2], x, flux  # the line starts 1 mm in front of z_p
-        y = light.points(u1, u2)
+            return x + toward / toward[2], x, flux, zeros  # the line starts 1 mm in front of z_p
+        y, normal = light.points(u1, u2)
         ahead = y[:, 2] > z_p
         rho = np.hypot(y[:, 0], y[:, 1])
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -293,27 +328,27 @@ class FlareEstimator:
         offset = x - y
         d2 = np.einsum("ij,ij->i", offset, offset)
         flux = np.where(ahead, np.abs(offset[:, 2]) / (d2 * np.sqrt(d2)) * (math.pi * radius * radius), 0.0)
-        if isinstance(light.light, AreaLight):
-            cos_l = offset @ light.normal / np.sqrt(d2)
-            flux *= (np.abs(cos_l) if light.light.two_sided else np.maximum(cos_l, 0.0)) * light.area_mm2
+        if light.has_surface:
+            cos_l = np.einsum("ij,ij->i", offset, normal) / np.sqrt(d2)
+            flux *= (np.abs(cos_l) if light.two_sided else np.maximum(cos_l, 0.0)) * light.area_mm2
         elif isinstance(light.light, SpotLight):
             world = transform_vectors(self.spot_frames[id(light)], offset)
             flux *= light.light.falloff(world[:, 2] / np.linalg.norm(world, axis=1))
-        return y, x, flux
+        return y, x, flux, normal
 
-    def _occluded(self, pick: np.ndarray, origin: np.ndarray, target: np.ndarray) -> np.ndarray:
+    def _occluded(self, pick: np.ndarray, origin: np.ndarray, target: np.ndarray, normal: np.ndarray) -> np.ndarray:
         """Whether the scene hides each line's light from its lens point (shadow rays in world space):
-        from just off an area light's surface (toward the lens) or a point light's position to the
-        lens point, and from the lens point toward a distant light."""
+        from just off a surface light (toward the lens, along its ``normal``) or a point light's
+        position to the lens point, and from the lens point toward a distant light."""
         start, direction, length = origin.copy(), target - origin, np.full(len(pick), 1.0 - 1e-4)
         for index, light in enumerate(self.lights):
             rows = np.flatnonzero(pick == index)
             if isinstance(light.light, DistantLight):
                 start[rows], direction[rows], length[rows] = target[rows], light.centre, FAR
-            elif isinstance(light.light, AreaLight) and len(rows):
-                side = np.where(direction[rows] @ light.normal >= 0, 1.0, -1.0)
+            elif light.has_surface and len(rows):
+                side = np.where(np.einsum("ij,ij->i", direction[rows], normal[rows]) >= 0, 1.0, -1.0)
                 lift = side * SHADOW_OFFSET * np.maximum(np.abs(origin[rows]).max(axis=1), 1.0)
-                start[rows] = origin[rows] + light.normal * lift[:, None]
+                start[rows] = origin[rows] + normal[rows] * lift[:, None]
                 direction[rows] = target[rows] - start[rows]
         return self.intersector.occluded(transform_points(self.world_from_lens, start).astype(np.float32),
                                          transform_vectors(self.world_from_lens, direction).astype(np.float32),

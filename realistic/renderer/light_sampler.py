@@ -111,8 +111,9 @@ class _Environment:
         return self.distribution.pdf(uv) * self.jacobian(uv)
 
 
-class _Emitter:
-    """An emitting instance's world triangles and their area CDF."""
+class Emitter:
+    """An emitting instance's world triangles and their area CDF (``points`` draws on them by area:
+    the light sampler's area strategy and the flare's light points)."""
 
     def __init__(self, light: EmissiveInstance, scene: Scene):
         inst = scene.instances[light.instance]
@@ -129,6 +130,17 @@ class _Emitter:
         self.to_object = np.linalg.inv(np.asarray(inst.transform, np.float64)) if light.sphere else np.eye(4)
         # the world winding's side of an object-space direction: flipped by a mirroring transform
         self.winding = -1.0 if np.linalg.det(np.asarray(inst.transform, np.float64)[:3, :3]) < 0 else 1.0
+
+    def points(self, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points (N, 3) uniform by area over the triangles, and their triangles' unit normals, for
+        (u1, u2) uniform on [0, 1)^2: u1 picks the triangle and, rescaled within its CDF step, with
+        u2 places the point in it (Turk's square-root map)."""
+        tri = np.minimum(np.searchsorted(self.cdf, u1, side="right"), len(self.cdf) - 1)
+        lo = np.where(tri > 0, self.cdf[tri - 1], 0.0)
+        s = np.clip((u1 - lo) / np.maximum(self.cdf[tri] - lo, 1e-300), 0.0, 1.0)
+        r = np.sqrt(s)
+        b1, b2 = 1.0 - r, u2 * r
+        return self.origin[tri] + self.e1[tri] * b1[:, None] + self.e2[tri] * b2[:, None], self.normal[tri]
 
     def cone(self, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For points (N, 3) and this emitter's sphere: whether each lies outside it, the unit axis
@@ -157,7 +169,7 @@ class LightSampler:
         power = np.zeros(len(self.lights))
         self.area_slot = np.full(len(self.lights), -1)  # light index -> index among the area lights
         self.environments: dict[int, _Environment] = {}
-        self.emitters: dict[int, _Emitter] = {}
+        self.emitters: dict[int, Emitter] = {}
         self.instance_light: dict[int, int] = {}  # emitting instance -> light index
         self._mesh_alone: dict[int, Intersector] = {}  # an emitting sphere's mesh -> rays against it alone
         for i, light in enumerate(self.lights):
@@ -166,7 +178,7 @@ class LightSampler:
                 power[i] = math.pi * light.area() * (2 if light.two_sided else 1) * float(np.mean(light.radiance))
             elif isinstance(light, EmissiveInstance):
                 self.kind[i] = INSTANCE
-                self.emitters[i] = _Emitter(light, scene)
+                self.emitters[i] = Emitter(light, scene)
                 self.instance_light[light.instance] = i
                 power[i] = light.power(self.emitters[i].area)
             else:
@@ -236,15 +248,9 @@ class LightSampler:
                                          u2[cone], wi, target, distance, rgb, pdf)
                 rows = rows[~outside]  # inside its sphere: by area (pbrt: "sample shape by area")
             if len(rows):
-                # reuse u1 for the triangle (rescaled within its CDF step) and (u1', u2) inside it
-                tri = np.minimum(np.searchsorted(emitter.cdf, u1[rows], side="right"), len(emitter.cdf) - 1)
-                lo = np.where(tri > 0, emitter.cdf[tri - 1], 0.0)
-                s = np.clip((u1[rows] - lo) / np.maximum(emitter.cdf[tri] - lo, 1e-300), 0.0, 1.0)
-                r = np.sqrt(s)
-                b1, b2 = 1.0 - r, u2[rows] * r
-                q = emitter.origin[tri] + emitter.e1[tri] * b1[:, None] + emitter.e2[tri] * b2[:, None]
+                q, normal = emitter.points(u1[rows], u2[rows])
                 target[rows] = q
-                self._towards_surface(rows, p, q, emitter.normal[tri], np.full(len(rows), emitter.light.two_sided),
+                self._towards_surface(rows, p, q, normal, np.full(len(rows), emitter.light.two_sided),
                                       np.full(len(rows), emitter.area),
                                       np.broadcast_to(np.asarray(emitter.light.radiance, np.float64), (len(rows), 3)),
                                       wi, distance, rgb, pdf)
@@ -286,7 +292,7 @@ class LightSampler:
         valid = (pdf > 0) & np.any(rgb != 0, axis=1)
         return LightSample(wi, target, distance, colour(rgb, basis), pdf, delta, valid)
 
-    def _towards_sphere(self, emitter: _Emitter, rows: np.ndarray, p: np.ndarray, axis: np.ndarray,
+    def _towards_sphere(self, emitter: Emitter, rows: np.ndarray, p: np.ndarray, axis: np.ndarray,
                         one_minus_cos: np.ndarray, u1: np.ndarray, u2: np.ndarray, wi: np.ndarray,
                         target: np.ndarray, distance: np.ndarray, rgb: np.ndarray, pdf: np.ndarray) -> None:
         """Fill ``wi``, ``distance``, ``rgb``, ``pdf`` and ``target`` at ``rows`` (points ``p[rows]``
@@ -310,7 +316,7 @@ class LightSampler:
         rgb[rows] = np.where(ok[:, None], np.asarray(emitter.light.radiance, np.float32), 0.0)
         pdf[rows] = np.where(ok, 1.0 / (2.0 * math.pi * one_minus_cos), 0.0)
 
-    def _alone(self, emitter: _Emitter) -> Intersector:
+    def _alone(self, emitter: Emitter) -> Intersector:
         """Rays against ``emitter``'s mesh alone in its object space: one per mesh, built on first use
         (equal spheres share their tessellation, and so this)."""
         key = id(emitter.mesh)
