@@ -276,6 +276,8 @@ def test_lens_ghosts_lists_the_ghosts_above_the_threshold(capsys: pytest.Capture
     assert [float(r[3]) for r in rows] == pytest.approx([p.throughput for p in expected], rel=1e-3)
     direct = next(line.split() for line in lines if line.split()[:1] == ["direct"])
     assert float(direct[-2]) < -5 and float(direct[-1]) == 1.0  # the image of a light at 10 deg lies toward -y
+    glare = next(line for line in lines if line.startswith("veiling glare"))
+    assert float(glare.split(" bring ")[1].split()[0]) == pytest.approx(sum(float(r[-1]) for r in rows), rel=2e-3)
 
 
 @pytest.mark.parametrize(("flag", "value", "message"), [("--threshold", "2", "ghost threshold"),

@@ -39,6 +39,9 @@ def cmd_lens_ghosts(args: argparse.Namespace) -> int:
     direct_light = rows[0].light if rows[0].light > 0 else 1.0
     for row in rows:
         print(_row(row, direct_light))
+    glare = sum(row.light for row in rows[1:]) / direct_light
+    print(f"veiling glare: the {len(paths)} ghosts together bring {glare:.3g} of the direct image's light "
+          f"({100 * glare / (1 + glare):.3g} % of the light reaching the film along these paths)")
     print("focus: where an on-axis point at infinity is sharpest along the path, mm from the film (+ toward the "
           "scene); rms and y: the spot's radius and centre on the film; light: relative to the direct image's")
     return 0
