@@ -81,11 +81,10 @@ inline __attribute__((always_inline)) void concentric_disk(float u1, float u2, f
 }
 
 #ifdef CAMERA_SAMPLES
-/* Camera sampling shared by camera kernels that define CAMERA_SAMPLES before including this file
- * (kernels/thin_lens.cl; kernels/lens.cl keeps its own copies, with its SPECTRAL variants): a
- * launch's sample addresses, R4's stratified values and the pixel filter's film offsets, the same
- * arithmetic as lens.cl's (see the comments there for why each is written as it is). The host
- * defines FILTER_KIND, FILTER_RX, FILTER_RY and a tabulated filter's tables
+/* Camera sampling shared by the camera kernels, which define CAMERA_SAMPLES before including this
+ * file (kernels/lens.cl, kernels/thin_lens.cl): a launch's sample addresses, R4's stratified values
+ * (thin_lens.cl's; lens.cl has its own, with its SPECTRAL R5) and the pixel filter's film offsets.
+ * The host defines FILTER_KIND, FILTER_RX, FILTER_RY and a tabulated filter's tables
  * (realistic.camera.opencl_host.filter_lines). */
 
 #define R4_GOLDEN 0x9E3779B9u
@@ -95,7 +94,9 @@ inline __attribute__((always_inline)) void concentric_disk(float u1, float u2, f
 #define R4_KRONECKER_3 0x89E18285u
 
 /* Pixel and sample index within the pixel of work item gid of a launch over a slice of each
- * pixel's samples (realistic.camera.base.SampleBlock). */
+ * pixel's samples (realistic.camera.base.SampleBlock): pixels get slice_width samples each, from
+ * slice_start, and the launch starts `offset` pairs into pixel first_pixel's slice. The host keeps
+ * offset < slice_width and checks offset + launch size < 2^32, so the uint sum cannot wrap. */
 inline void sample_address(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint gid,
                            uint *pixel, uint *sample) {
     uint s = offset + gid;
@@ -115,17 +116,23 @@ inline void stratified4(uint pixel, uint sample, uint seed, uint *b0, uint *b1, 
 }
 
 /* realistic.core.pixel_filter.PixelFilter.offsets along x and y: the offset in pixels from the
- * pixel centre and the sample's factor along that axis in *w. */
+ * pixel centre and the sample's factor along that axis in *w. The box offset (u - 1/2) 2r is exact,
+ * so the 0.5-radius box gives the plain in-pixel jitter bit for bit. The x and y versions compute
+ * the same values by different instruction sequences on purpose: two isomorphic chains let LLVM's
+ * SLP vectoriser pack them into 2-wide vectors, which stops PoCL's work-group vectoriser (a
+ * several-fold slower kernel). */
 #if FILTER_KIND == 0
 inline __attribute__((always_inline)) float filter_offset_x(float u, float *w) { *w = 1.0f; return (u - 0.5f) * (2.0f * FILTER_RX); }
 inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) { *w = 1.0f; return (u - 0.5f) * (2.0f * FILTER_RY); }
 #elif FILTER_KIND == 1
+/* Inverse CDF of the tent max(0, r - |x|): -1 + sqrt(2u) below u = 1/2, 1 - sqrt(2 - 2u) above. */
 inline __attribute__((always_inline)) float filter_offset_x(float u, float *w) {
     *w = 1.0f;
     int left = u < 0.5f;
     float root = __builtin_sqrtf(left ? 2.0f * u : 2.0f - 2.0f * u);
     return FILTER_RX * (left ? root - 1.0f : 1.0f - root);
 }
+/* The same: 1 - 2|u - 1/2| is 2u or 2 - 2u exactly, and the sign of u - 1/2 is the offset's. */
 inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
     *w = 1.0f;
     float s = u - 0.5f;
@@ -133,11 +140,13 @@ inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
     return FILTER_RY * as_float(as_uint(1.0f - root) ^ (as_uint(s) & 0x80000000u));
 }
 #else
-/* The bin search's first step reads the middle of a table, a literal (about 0.5) on both axes once
- * the compiler folds the constant tables: written alike, the two comparisons were packed by LLVM's
- * SLP vectoriser into a 2-wide vector, back through both random numbers' hashes, which stopped the
- * work-group vectoriser (lens.cl's copy, "u >= CDF" on both axes, still is). u - c >= 0 is exactly
- * u >= c in IEEE arithmetic, so y compares by the sign of a difference. */
+/* The bin k with CDF[k] <= u < CDF[k + 1] by a branch-free binary search, unrolled (a loop here
+ * stops the work-group vectoriser too), then u's place inside the bin. The search's first step
+ * reads the middle of a table, a literal (about 0.5) on both axes once the compiler folds the
+ * constant tables: written alike, the two comparisons were packed by LLVM's SLP vectoriser into a
+ * 2-wide vector, back through both random numbers' hashes, which stopped the work-group
+ * vectoriser. u - c >= 0 is exactly u >= c in IEEE arithmetic, so y compares by the sign of a
+ * difference. */
 #if FILTER_BINS != 256
 #error "the unrolled bin search below is written for 256 bins"
 #endif

@@ -80,19 +80,8 @@
 #define KRONECKER_3 0x89E18285u
 #endif
 
+#define CAMERA_SAMPLES  /* common.cl's sample addresses and pixel filter offsets */
 #include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source) */
-
-/* Pixel and sample index within the pixel of work item gid of a launch over a slice of each
- * pixel's samples (realistic.camera.base.SampleBlock): pixels get slice_width samples each, from
- * slice_start, and the launch starts `offset` pairs into pixel first_pixel's slice. The host keeps
- * offset < slice_width and checks offset + launch size < 2^32, so the uint sum cannot wrap. */
-inline void sample_address(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint gid,
-                           uint *pixel, uint *sample) {
-    uint s = offset + gid;
-    uint q = s / slice_width;
-    *pixel = first_pixel + q;
-    *sample = slice_start + (s - q * slice_width);
-}
 
 /* The stratified uint32 values of one sample: film x, film y, lens u, lens v, and when SPECTRAL
  * the wavelength's in *b4 (realistic.core.rng.stratified4 / stratified5). */
@@ -425,54 +414,7 @@ inline void sample_plane(__constant float *settings, float fx, float fy, float u
 #endif
 
 /* ------------------------------------------------------------------ pixel filter
- * The film offset (pixels, from the pixel centre) drawn from |f| along one axis, and the sample's
- * factor along it, as realistic.core.pixel_filter.PixelFilter.offsets. The box offset
- * (u - 1/2) 2r is exact, so the 0.5-radius box gives the plain in-pixel jitter bit for bit.
- * The x and y versions compute the same values by different instruction sequences on purpose (as
- * concentric_disk does): two isomorphic chains let LLVM's SLP vectoriser pack them into 2-wide
- * vectors, which stops PoCL's work-group vectoriser (measured: 1.5 M rays/s instead of 12). */
-#if FILTER_KIND == 0
-inline __attribute__((always_inline)) float filter_offset_x(float u, float *w) { *w = 1.0f; return (u - 0.5f) * (2.0f * FILTER_RX); }
-inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) { *w = 1.0f; return (u - 0.5f) * (2.0f * FILTER_RY); }
-#elif FILTER_KIND == 1
-/* Inverse CDF of the tent max(0, r - |x|): -1 + sqrt(2u) below u = 1/2, 1 - sqrt(2 - 2u) above. */
-inline __attribute__((always_inline)) float filter_offset_x(float u, float *w) {
-    *w = 1.0f;
-    int left = u < 0.5f;
-    float root = __builtin_sqrtf(left ? 2.0f * u : 2.0f - 2.0f * u);
-    return FILTER_RX * (left ? root - 1.0f : 1.0f - root);
-}
-/* The same: 1 - 2|u - 1/2| is 2u or 2 - 2u exactly, and the sign of u - 1/2 is the offset's. */
-inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
-    *w = 1.0f;
-    float s = u - 0.5f;
-    float root = __builtin_sqrtf(1.0f - 2.0f * as_float(as_uint(s) & 0x7FFFFFFFu));
-    return FILTER_RY * as_float(as_uint(1.0f - root) ^ (as_uint(s) & 0x80000000u));
-}
-#else
-/* The bin k with CDF[k] <= u < CDF[k + 1] by a branch-free binary search, unrolled (a loop here
- * stops the work-group vectoriser too: 1.6 M rays/s), then u's place inside the bin. */
-#if FILTER_BINS != 256
-#error "the unrolled bin search below is written for 256 bins"
-#endif
-#define SEARCH_X(step) k = FILTER_CDF_X[k + step] <= u ? k + step : k;
-#define SEARCH_Y(step) k += step & (uint)(-(int)(FILTER_CDF_Y[k + step] <= u));
-inline __attribute__((always_inline)) float filter_offset_x(float u, float *w) {
-    int k = 0;
-    SEARCH_X(128) SEARCH_X(64) SEARCH_X(32) SEARCH_X(16) SEARCH_X(8) SEARCH_X(4) SEARCH_X(2) SEARCH_X(1)
-    float lo = FILTER_CDF_X[k], hi = FILTER_CDF_X[k + 1];
-    *w = FILTER_WEIGHT_X[k];
-    return -FILTER_RX + ((float)k + (u - lo) / (hi - lo)) * (2.0f * FILTER_RX / FILTER_BINS);
-}
-inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
-    uint k = 0;
-    SEARCH_Y(128) SEARCH_Y(64) SEARCH_Y(32) SEARCH_Y(16) SEARCH_Y(8) SEARCH_Y(4) SEARCH_Y(2) SEARCH_Y(1)
-    float lo = FILTER_CDF_Y[k];
-    float t = (u - lo) * (1.0f / (FILTER_CDF_Y[k + 1] - lo));
-    *w = FILTER_WEIGHT_Y[k];
-    return (float)k * (2.0f * FILTER_RY / FILTER_BINS) + (t * (2.0f * FILTER_RY / FILTER_BINS) - FILTER_RY);
-}
-#endif
+ * filter_offset_x / filter_offset_y: kernels/common.cl's (CAMERA_SAMPLES), shared with thin_lens.cl. */
 
 /* ------------------------------------------------------------------ several rays per work item
  * PoCL makes the loop over a work group's work items SIMD with LLVM's loop vectoriser, whose cost
