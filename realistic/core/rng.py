@@ -51,11 +51,10 @@ rays share the sample's film and lens numbers (and its sample index, so whatever
 
 from __future__ import annotations
 
-import threading
-from collections.abc import Callable
-
 import numpy as np
 from numpy.typing import ArrayLike
+
+from realistic.core.jit import compiled
 
 #: frac(phi_4^-k) * 2^32, k = 1..4, phi_4 the real root of x^5 = x + 1.
 KRONECKER_R4 = (0xDB4F0B91, 0xBBE05633, 0xA0F2EC76, 0x89E18285)
@@ -281,24 +280,6 @@ def _all_light_loop(pixel: np.ndarray, sample: np.ndarray, light_samples: int, s
                 out[0, k, r] = 0.0
 
 
-_compiled: list[Callable[..., None]] = []
-_compile_lock = threading.Lock()
-
-
-def _all_light_function() -> Callable[..., None]:
-    """``_all_light_loop`` compiled by numba (``nogil``, cached on disk where it can be, as
-    ``realistic.scene.packet_loop``'s loops; numba imported on the first call)."""
-    with _compile_lock:
-        if not _compiled:
-            import numba
-
-            try:
-                _compiled.append(numba.njit(nogil=True, cache=True)(_all_light_loop))
-            except RuntimeError:  # numba found no writable cache directory
-                _compiled.append(numba.njit(nogil=True)(_all_light_loop))
-        return _compiled[0]
-
-
 def all_light_uniforms(pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int,
                        pick: bool = True) -> np.ndarray:
     """``light_uniforms`` of every light sample k = 0 .. ``light_samples`` - 1 at once, bit for bit:
@@ -308,5 +289,5 @@ def all_light_uniforms(pixel: np.ndarray, sample: np.ndarray, light_samples: int
     sample = np.ascontiguousarray(np.broadcast_to(np.asarray(sample).astype(np.uint32).astype(np.int64),
                                                   pixel.shape))
     out = np.empty((3, light_samples, len(pixel)), np.float32)
-    _all_light_function()(pixel, sample, int(light_samples), int(seed) & 0xFFFFFFFF, bool(pick), out)
+    compiled(_all_light_loop)(pixel, sample, int(light_samples), int(seed) & 0xFFFFFFFF, bool(pick), out)
     return out

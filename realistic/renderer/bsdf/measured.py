@@ -36,6 +36,7 @@ from typing import Protocol
 import numpy as np
 
 from realistic.core.disk_cache import cache_key, load_arrays, store_arrays
+from realistic.core.jit import compiled
 from realistic.renderer.bsdf.lambertian import CosineSampled
 from realistic.scene.measured import HalfangleTable, IrregularSamples
 
@@ -178,28 +179,10 @@ def _table_loop(table: np.ndarray, wo: np.ndarray, wi: np.ndarray, out: np.ndarr
             out[r, c] = (c00 * (1 - fy) + c10 * fy) * (1 - fz) + (c01 * (1 - fy) + c11 * fy) * fz
 
 
-_compiled: list[Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], None]] = []
-_compile_lock = threading.Lock()
-
-
-def _table_function() -> Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], None]:
-    """``_table_loop`` compiled by numba (``nogil``, cached on disk where it can be, as
-    ``realistic.scene.packet_loop``'s loops; numba imported on the first lookup)."""
-    with _compile_lock:
-        if not _compiled:
-            import numba
-
-            try:
-                _compiled.append(numba.njit(nogil=True, cache=True)(_table_loop))
-            except RuntimeError:  # numba found no writable cache directory
-                _compiled.append(numba.njit(nogil=True)(_table_loop))
-        return _compiled[0]
-
-
 def table_lookup(table: np.ndarray, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
     """The table's RGB (N, 3) float64 for local pairs (wo, wi) (N, 3) (module notes)."""
     out = np.empty((len(wo), 3), np.float64)
-    _table_function()(table, np.ascontiguousarray(wo), np.ascontiguousarray(wi), out)
+    compiled(_table_loop)(table, np.ascontiguousarray(wo), np.ascontiguousarray(wi), out)
     return out
 
 
