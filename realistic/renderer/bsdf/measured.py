@@ -150,9 +150,9 @@ def _irregular_table(samples: IrregularSamples) -> np.ndarray:
 
 
 def _table_loop(table: np.ndarray, wo: np.ndarray, wi: np.ndarray, out: np.ndarray) -> None:
-    """The table's RGB at each local pair (wo, wi) into ``out`` (N, 3): BRDFRemap as
-    ``realistic.scene.measured.brdf_remap`` computes it (float64), then trilinear interpolation; 0
-    where the two are not on one side."""
+    """The table's RGB at each local pair (wo, wi) into ``out`` (N, 3): BRDFRemap (float64; delta phi
+    as the angle between the two azimuths, one atan2, which is ``realistic.scene.measured.brdf_remap``'s
+    folded difference of two), then trilinear interpolation; 0 where the two are not on one side."""
     last = table.shape[0] - 1
     for r in range(wo.shape[0]):
         cos_o, cos_i = float(wo[r, 2]), float(wi[r, 2])
@@ -161,11 +161,13 @@ def _table_loop(table: np.ndarray, wo: np.ndarray, wi: np.ndarray, out: np.ndarr
             continue
         sin_o = math.sqrt(max(0.0, 1.0 - cos_o * cos_o))
         sin_i = math.sqrt(max(0.0, 1.0 - cos_i * cos_i))
-        phi_o = math.atan2(float(wo[r, 1]), float(wo[r, 0])) % (2 * math.pi)
-        phi_i = math.atan2(float(wi[r, 1]), float(wi[r, 0])) % (2 * math.pi)
-        dphi = (phi_i - phi_o) % (2 * math.pi)
-        if dphi > math.pi:
-            dphi = 2 * math.pi - dphi
+        ox, oy, ix, iy = float(wo[r, 0]), float(wo[r, 1]), float(wi[r, 0]), float(wi[r, 1])
+        if (ox != 0.0 or oy != 0.0) and (ix != 0.0 or iy != 0.0):  # the angle between the azimuths
+            dphi = math.atan2(abs(ox * iy - oy * ix), ox * ix + oy * iy)
+        else:  # along the normal: pbrt's azimuth atan2(0, 0) = 0
+            dphi = (math.atan2(iy, ix) - math.atan2(oy, ox)) % (2 * math.pi)
+            if dphi > math.pi:
+                dphi = 2 * math.pi - dphi
         gx = min(max(sin_i * sin_o * last, 0.0), float(last))
         gy = min(max(dphi / math.pi * last, 0.0), float(last))
         gz = min(max(cos_i * cos_o * last, 0.0), float(last))
