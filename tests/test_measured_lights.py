@@ -43,4 +43,5 @@ def test_the_compiled_area_loop_is_the_numpy_path_bit_for_bit():
     for name, a, b in (("target", got.target, target), ("wi", got.wi, wi), ("distance", got.distance, distance),
                        ("radiance", got.radiance, rgb), ("pdf", got.pdf, pdf)):
         assert a.dtype == b.dtype and np.array_equal(a, b), name
-    assert 0 < np.count_nonzero(got.pdf == 0) < n and np.all(got.valid == (got.pdf > 0))
+    assert np.array_equal(got.valid, (pdf > 0) & np.any(rgb != 0, axis=1)) and not got.delta.any()
+    assert 0 < np.count_nonzero(got.pdf == 0) < n and sampler.area_only
