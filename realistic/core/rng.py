@@ -222,11 +222,12 @@ def light_uniforms(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples:
 def _all_light_loop(pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int, pick: bool,
                     out: np.ndarray) -> None:
     """``light_uniforms`` for k = 0 .. light_samples - 1 into ``out`` (3, light_samples, N): the same
-    steps on int64 values kept in [0, 2^32) (each product, sum and left shift masked), so every bit is
-    the uint32 arithmetic's; the per-pixel keys are hashed once per row."""
+    steps on int64 values kept in [0, 2^32) (each product, sum and left shift masked to 32 bits; a
+    product past 2^63 wraps, as numba's fixed-width integers do, which leaves its low 32 bits exact),
+    so every bit is the uint32 arithmetic's; the per-pixel keys are hashed once per row."""
     m32 = 0xFFFFFFFF
     unit = np.float32(1.0 / (1 << 24))
-    steps = ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF))
+    swaps = ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF))
     pairs = ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF), (16, 0x0000FFFF))
     keys = np.empty(5, np.int64)
     for r in range(pixel.shape[0]):
@@ -252,11 +253,11 @@ def _all_light_loop(pixel: np.ndarray, sample: np.ndarray, light_samples: int, s
             for which in range(3 if pick else 2):  # the point's index (keys 0-2), the pick's (keys 3, 4)
                 shuffle = keys[0] if which < 2 else keys[3]
                 x = (base + k) & m32
-                for _ in range(2):  # reverse_bits(owen_scramble_digits(reverse_bits(index), shuffle))
-                    for shift, mask in steps:
+                for step in range(2):  # reverse_bits(owen_scramble_digits(reverse_bits(index), shuffle))
+                    for shift, mask in swaps:
                         x = ((x >> shift) & mask) | ((x & mask) << shift)
                     x = ((x >> 16) | (x << 16)) & m32
-                    if _ == 0:
+                    if step == 0:
                         x ^= (x * 0x3D20ADEA) & m32
                         x = (x + shuffle) & m32
                         x = (x * ((shuffle >> 16) | 1)) & m32
@@ -271,7 +272,7 @@ def _all_light_loop(pixel: np.ndarray, sample: np.ndarray, light_samples: int, s
                 x = (x * ((key >> 16) | 1)) & m32
                 x ^= (x * 0x05526C56) & m32
                 x ^= (x * 0x53A22864) & m32
-                for shift, mask in steps:
+                for shift, mask in swaps:
                     x = ((x >> shift) & mask) | ((x & mask) << shift)
                 x = ((x >> 16) | (x << 16)) & m32
                 out[(which + 1) % 3, k, r] = np.float32(x >> 8) * unit
