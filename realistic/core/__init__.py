@@ -1,6 +1,7 @@
 """Foundations every other part uses; imports nothing from the rest of the package but ``errors``.
 
 - ``rng``: counter-based random numbers, bit-identical in numpy and ``kernels/lens.cl``.
+- ``jit``: loops compiled by numba on first use (``nogil``, cached on disk).
 - ``warp``: maps from the unit square (the concentric disk).
 - ``distribution``: a 2-D piecewise-constant distribution (environment-map importance sampling).
 - ``pixel_filter``: pbrt's pixel filters, their integrals and the film offsets sampled from them.

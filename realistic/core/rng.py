@@ -54,6 +54,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from realistic.core.jit import compiled
+
 #: frac(phi_4^-k) * 2^32, k = 1..4, phi_4 the real root of x^5 = x + 1.
 KRONECKER_R4 = (0xDB4F0B91, 0xBBE05633, 0xA0F2EC76, 0x89E18285)
 #: frac(phi_5^-k) * 2^32 rounded, k = 1..5, phi_5 the real root of x^6 = x + 1 (spectral samples).
@@ -215,3 +217,78 @@ def light_uniforms(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples:
     u1, u2 = (to_unit_float(bits) for bits in light_point_bits(pixel, sample, k, light_samples, seed))
     u0 = to_unit_float(light_pick_bits(pixel, sample, k, light_samples, seed)) if pick else np.zeros_like(u1)
     return [u0, u1, u2]
+
+
+def _all_light_loop(pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int, pick: bool,
+                    out: np.ndarray) -> None:
+    """``light_uniforms`` for k = 0 .. light_samples - 1 into ``out`` (3, light_samples, N): the same
+    steps on int64 values kept in [0, 2^32) (each product, sum and left shift masked to 32 bits; a
+    product past 2^63 wraps, as numba's fixed-width integers do, which leaves its low 32 bits exact),
+    so every bit is the uint32 arithmetic's; the per-pixel keys are hashed once per row."""
+    m32 = 0xFFFFFFFF
+    unit = np.float32(1.0 / (1 << 24))
+    swaps = ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF))
+    pairs = ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF), (16, 0x0000FFFF))
+    keys = np.empty(5, np.int64)
+    for r in range(pixel.shape[0]):
+        h = (seed + 0x9E3779B9) & m32
+        for part in (-1, pixel[r] & m32, m32):  # hash32(seed + golden), then ^ pixel, then ^ 0xFFFFFFFF
+            if part >= 0:
+                h ^= part
+            h ^= h >> 16
+            h = (h * 0x7FEB352D) & m32
+            h ^= h >> 15
+            h = (h * 0x846CA68B) & m32
+            h ^= h >> 16
+        for j in range(5):
+            x = h ^ (16 + j)  # LIGHT_KEYS
+            x ^= x >> 16
+            x = (x * 0x7FEB352D) & m32
+            x ^= x >> 15
+            x = (x * 0x846CA68B) & m32
+            x ^= x >> 16
+            keys[j] = x
+        base = ((sample[r] & m32) * light_samples) & m32
+        for k in range(light_samples):
+            for which in range(3 if pick else 2):  # the point's index (keys 0-2), the pick's (keys 3, 4)
+                shuffle = keys[0] if which < 2 else keys[3]
+                x = (base + k) & m32
+                for step in range(2):  # reverse_bits(owen_scramble_digits(reverse_bits(index), shuffle))
+                    for shift, mask in swaps:
+                        x = ((x >> shift) & mask) | ((x & mask) << shift)
+                    x = ((x >> 16) | (x << 16)) & m32
+                    if step == 0:
+                        x ^= (x * 0x3D20ADEA) & m32
+                        x = (x + shuffle) & m32
+                        x = (x * ((shuffle >> 16) | 1)) & m32
+                        x ^= (x * 0x05526C56) & m32
+                        x ^= (x * 0x53A22864) & m32
+                if which == 1:  # Sobol' dimension 1: the butterfly over bit supersets
+                    for shift, mask in pairs:
+                        x ^= (x >> shift) & mask
+                key = keys[1 + which] if which < 2 else keys[4]
+                x ^= (x * 0x3D20ADEA) & m32  # reverse_bits(owen_scramble_digits(digits, key))
+                x = (x + key) & m32
+                x = (x * ((key >> 16) | 1)) & m32
+                x ^= (x * 0x05526C56) & m32
+                x ^= (x * 0x53A22864) & m32
+                for shift, mask in swaps:
+                    x = ((x >> shift) & mask) | ((x & mask) << shift)
+                x = ((x >> 16) | (x << 16)) & m32
+                out[(which + 1) % 3, k, r] = np.float32(x >> 8) * unit
+        if not pick:
+            for k in range(light_samples):
+                out[0, k, r] = 0.0
+
+
+def all_light_uniforms(pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int,
+                       pick: bool = True) -> np.ndarray:
+    """``light_uniforms`` of every light sample k = 0 .. ``light_samples`` - 1 at once, bit for bit:
+    (3, light_samples, N) float32, row [:, k] the list (u0 pick, u1, u2) of sample k. One compiled
+    loop (GIL released) instead of numpy's passes over temporaries, once per k."""
+    pixel = np.ascontiguousarray(np.asarray(pixel).astype(np.uint32).astype(np.int64))
+    sample = np.ascontiguousarray(np.broadcast_to(np.asarray(sample).astype(np.uint32).astype(np.int64),
+                                                  pixel.shape))
+    out = np.empty((3, light_samples, len(pixel)), np.float32)
+    compiled(_all_light_loop)(pixel, sample, int(light_samples), int(seed) & 0xFFFFFFFF, bool(pick), out)
+    return out

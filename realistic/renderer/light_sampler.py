@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.core.distribution import Distribution2D
+from realistic.core.jit import compiled
 from realistic.core.spectrum import spectral_value
 from realistic.core.transforms import transform_points
 from realistic.core.vectors import dot
@@ -63,6 +64,47 @@ class LightSample:
     pdf: np.ndarray
     delta: np.ndarray
     valid: np.ndarray
+
+
+def _area_loop(p: np.ndarray, slot: np.ndarray, u1: np.ndarray, u2: np.ndarray, centre: np.ndarray, a: np.ndarray,
+               b: np.ndarray, normal: np.ndarray, disk: np.ndarray, two_sided: np.ndarray, area: np.ndarray,
+               radiance: np.ndarray, probability: np.ndarray, target: np.ndarray, wi: np.ndarray,
+               distance: np.ndarray, rgb: np.ndarray, pdf: np.ndarray, valid: np.ndarray) -> None:
+    """``LightSampler.sample``'s numpy path for rows that all pick area lights (``slot``, each picked
+    with ``probability``): ``AreaLightTable.points``, ``LightSampler._towards_surface``, the pick's
+    probability and ``valid``, in one loop with the same arithmetic in the same precisions (the map's
+    angle in float64, the point and its direction in float32, the density in float64)."""
+    tiny = np.float32(1e-30)
+    for r in range(p.shape[0]):
+        s = slot[r]
+        x1, x2 = 2.0 * u1[r] - 1.0, 2.0 * u2[r] - 1.0
+        if disk[s]:  # Shirley-Chiu's concentric map (``realistic.core.warp.concentric_disk``)
+            if x1 == 0.0 and x2 == 0.0:
+                radius, phi = 0.0, 0.0
+            elif abs(x1) > abs(x2):
+                radius, phi = x1, (np.pi / 4) * (x2 / x1)
+            else:
+                radius, phi = x2, (np.pi / 2) - (np.pi / 4) * (x1 / x2)
+            x, y = np.float32(radius * math.cos(phi)), np.float32(radius * math.sin(phi))
+        else:
+            x, y = np.float32(x1), np.float32(x2)
+        for c in range(3):
+            target[r, c] = centre[s, c] + a[s, c] * x + b[s, c] * y
+        t0, t1, t2 = target[r, 0] - p[r, 0], target[r, 1] - p[r, 1], target[r, 2] - p[r, 2]
+        d2 = t0 * t0 + t1 * t1 + t2 * t2
+        d = np.sqrt(max(d2, tiny))
+        wi[r, 0], wi[r, 1], wi[r, 2] = t0 / d, t1 / d, t2 / d
+        cos_q = -(wi[r, 0] * normal[s, 0] + wi[r, 1] * normal[s, 1] + wi[r, 2] * normal[s, 2])
+        if two_sided[s]:
+            cos_q = abs(cos_q)
+        distance[r] = d
+        ok = cos_q > 0 and d2 > 0
+        pdf[r] = np.float64(d2) / (np.float64(cos_q) * area[s]) * probability[s] if ok else 0.0
+        lit = False
+        for c in range(3):
+            rgb[r, c] = radiance[s, c] if ok else np.float32(0.0)
+            lit = lit or rgb[r, c] != 0
+        valid[r] = pdf[r] > 0 and lit
 
 
 class _Environment:
@@ -214,6 +256,7 @@ class LightSampler:
             if slot >= 0:
                 slot_light[slot] = i
         self.area_probability = self.probability[slot_light] if len(self.area_lights) else np.zeros(0)
+        self.area_only = bool(len(self.lights)) and bool(np.all(self.kind == AREA))
 
     # ---- sampling ------------------------------------------------------------------------------
     def sample(self, point: np.ndarray, u_pick: np.ndarray, u1: np.ndarray, u2: np.ndarray,
@@ -221,14 +264,16 @@ class LightSampler:
         """One light sample per point (N, 3)."""
         n = len(point)
         p = np.asarray(point, np.float32)
+        j = np.minimum(np.searchsorted(self.cdf, u_pick, side="right"), len(self.cdf) - 1)
+        u1, u2 = np.asarray(u1, np.float64), np.asarray(u2, np.float64)
+        if self.area_only:  # area lights alone (the seed scene): one compiled loop, no gathers
+            return self._sample_areas(p, j, u1, u2, basis)
         wi = np.zeros((n, 3), np.float32)
         target = np.zeros((n, 3), np.float32)
         distance = np.zeros(n, np.float32)
         rgb = np.zeros((n, 3), np.float32)
         pdf = np.zeros(n)
-        j = np.minimum(np.searchsorted(self.cdf, u_pick, side="right"), len(self.cdf) - 1)
         kind = self.kind[j]
-        u1, u2 = np.asarray(u1, np.float64), np.asarray(u2, np.float64)
         area_rows = np.flatnonzero(kind == AREA)
         if len(area_rows):
             rows = slice(None) if len(area_rows) == n else area_rows  # area lights alone: no gathers
@@ -323,6 +368,17 @@ class LightSampler:
         if key not in self._mesh_alone:
             self._mesh_alone[key] = Intersector(Scene(meshes=[emitter.mesh], instances=[Instance(0)]), share=False)
         return self._mesh_alone[key]
+
+    def _sample_areas(self, p: np.ndarray, j: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+                      basis: np.ndarray | None) -> LightSample:
+        """``sample`` where every light is an area light: ``_area_loop`` on lights ``j``."""
+        n, table = len(p), self.area_lights
+        target, wi, rgb = (np.empty((n, 3), np.float32) for _ in range(3))
+        distance, pdf, valid = np.empty(n, np.float32), np.empty(n), np.empty(n, bool)
+        compiled(_area_loop)(p, self.area_slot[j], u1, u2, table.centre, table.a, table.b, table.normal, table.disk,
+                             table.two_sided, table.area, table.radiance, self.area_probability, target, wi,
+                             distance, rgb, pdf, valid)
+        return LightSample(wi, target, distance, colour(rgb, basis), pdf, np.zeros(n, bool), valid)
 
     @staticmethod
     def _towards_surface(rows: slice | np.ndarray, p: np.ndarray, q: np.ndarray, normal: np.ndarray,

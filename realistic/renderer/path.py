@@ -302,9 +302,11 @@ class PathIntegrator(DirectLighting):
         base = BOUNCE_DIMENSION + 8 * depth
         light_count = self.light_samples if depth == 0 else 1
         samples = []
+        if depth == 0 and self.lights.has_lights:  # every light sample's numbers in one compiled loop
+            first_light = rng.all_light_uniforms(px, sx, self.light_samples, self.seed)
         for k in range(light_count if self.lights.has_lights else 0):
             if depth == 0:
-                u_light = rng.light_uniforms(px, sx, k, self.light_samples, self.seed)
+                u_light = list(first_light[:, k])
             else:
                 u_light = [rng.uniform(px, sx, dim, self.seed) for dim in (base + 4, base + 5, base + 6)]
             u_pick, u1, u2 = u_light
