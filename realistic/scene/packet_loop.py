@@ -30,10 +30,11 @@ arrays on); ``scene/embree`` checks the library it loads against it before any l
 from __future__ import annotations
 
 import ctypes
-import threading
 from collections.abc import Callable
 
 import numpy as np
+
+from realistic.core.jit import compiled
 
 PACKET = 16  # rays per rtcIntersect16 / rtcOccluded16 call
 RAY_ROWS = 12  # rows of RTCRay16
@@ -125,31 +126,13 @@ def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, ori
             blocked[base + lane] = floats[TFAR, lane] < 0
 
 
-_lock = threading.Lock()
-_compiled: list[Callable[..., None]] = []
-
-
 def closest_loop() -> Callable[..., None]:
-    """``_closest`` compiled: (function, scene, packet, origin, direction, tfar, t, u, v, prim, geom,
-    instance, normal), the packet from ``packet_buffer``; it runs with the GIL released."""
-    return _loops()[0]
+    """``_closest`` compiled (``realistic.core.jit``): (function, scene, packet, origin, direction,
+    tfar, t, u, v, prim, geom, instance, normal), the packet from ``packet_buffer``; it runs with the
+    GIL released."""
+    return compiled(_closest)
 
 
 def occluded_loop() -> Callable[..., None]:
     """``_occluded`` compiled: (function, scene, packet, origin, direction, distance, blocked)."""
-    return _loops()[1]
-
-
-def _loops() -> list[Callable[..., None]]:
-    """The loops as numba dispatchers (numba imported and the loops bound on the first call; each
-    is compiled, or loaded from numba's cache, on its first call)."""
-    with _lock:
-        if not _compiled:
-            import numba
-
-            for loop in (_closest, _occluded):
-                try:
-                    _compiled.append(numba.njit(nogil=True, cache=True)(loop))
-                except RuntimeError:  # numba found no writable cache directory
-                    _compiled.append(numba.njit(nogil=True)(loop))
-        return _compiled
+    return compiled(_occluded)
