@@ -169,3 +169,16 @@ inline __attribute__((always_inline)) float filter_offset_y(float u, float *w) {
 }
 #endif
 #endif
+
+#if defined(STOP_MASKED) && STOP_MASKED
+/* The stop's image mask (the host's STOP_MASK table, row 0 at +y), at the nearest pixel: the lens
+ * and ghost kernels' STOP_INSIDE for a stop given as an image (realistic.camera.opencl_host.stop_lines). */
+inline int stop_mask(float x, float y) {
+    float fc = (x * (1.0f / STOP_DIAMETER_MM) + 0.5f) * (float)STOP_MASK_W;
+    float fr = (0.5f - y * (1.0f / STOP_DIAMETER_MM)) * (float)STOP_MASK_H;
+    int inside = (fc >= 0.0f) & (fc < (float)STOP_MASK_W) & (fr >= 0.0f) & (fr < (float)STOP_MASK_H);
+    int c = inside ? (int)fc : 0;
+    int r = inside ? (int)fr : 0;
+    return inside & (STOP_MASK[r * STOP_MASK_W + c] != 0);
+}
+#endif

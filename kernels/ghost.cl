@@ -29,6 +29,8 @@
  * STEP_AP2, read through the row `s` in scope where it is used).
  */
 
+#include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source); its stop_mask */
+
 typedef struct {
     float ox, oy, w;
     float dx, dy, dz;
@@ -75,18 +77,6 @@ inline float reflectance(int model, float N0, float N2, float C0, float PHASE, f
     }
     return c2sq < 0.0f ? 1.0f : r;
 }
-
-#if STOP_MASKED
-/* The stop's image mask (the host's STOP_MASK table, row 0 at +y), at the nearest pixel: lens.cl's. */
-inline int stop_mask(float x, float y) {
-    float fc = (x * (1.0f / STOP_DIAMETER_MM) + 0.5f) * (float)STOP_MASK_W;
-    float fr = (0.5f - y * (1.0f / STOP_DIAMETER_MM)) * (float)STOP_MASK_H;
-    int inside = (fc >= 0.0f) & (fc < (float)STOP_MASK_W) & (fr >= 0.0f) & (fr < (float)STOP_MASK_H);
-    int c = inside ? (int)fc : 0;
-    int r = inside ? (int)fr : 0;
-    return inside & (STOP_MASK[r * STOP_MASK_W + c] != 0);
-}
-#endif
 
 /* The hit (hx, hy, hw: w relative to this surface's vertex) and the unit normal facing the ray of
  * step s; clears alive where the ray misses or leaves the clear aperture. */

@@ -16,7 +16,7 @@ from realistic.optics.ghosts import GhostPath, GhostTrace, ghost_paths, trace_di
 from realistic.optics.glass.catalogue import find_glass
 from realistic.optics.lens import LensSystem, build_lens
 from realistic.optics.paraxial import paraxial_data
-from realistic.optics.stop_shape import bladed_stop
+from realistic.optics.stop_shape import bladed_stop, polygon_stop
 from test_ghosts import collimated_bundle, plate
 
 pytestmark = pytest.mark.usefixtures("opencl_platform")
@@ -94,6 +94,19 @@ def test_kernel_clips_at_a_bladed_stop_as_the_reference_does() -> None:
         _assert_matches(lens, film, path, origins, directions, kernel)
     round_stop = trace_direct(dataclasses.replace(lens, stop_shape=None), film, origins, directions)
     assert kernel.trace(film, None, origins, directions).passed.sum() < round_stop.passed.sum()  # the blades cut
+
+
+def test_kernel_clips_at_an_image_stop_as_the_reference_does() -> None:
+    """A stop given as a mask (a triangle, pixels of ``polygon_stop``): common.cl's stop_mask."""
+    triangle = np.array([[0.0, 1.0], [-0.9, -0.5], [0.9, -0.5]])
+    lens = load_lens("dgauss").with_coating("none").with_stop_shape(polygon_stop(triangle, "triangle"))
+    film = paraxial_data(lens).bfl_mm
+    origins, directions = collimated_bundle(lens, film, lens.aperture_mm[0] / 2, 0.0, across=61)
+    kernel = GhostKernel(lens)
+    for path in [None, *ghost_paths(lens)[:3]]:
+        _assert_matches(lens, film, path, origins, directions, kernel)
+    round_stop = trace_direct(dataclasses.replace(lens, stop_shape=None), film, origins, directions)
+    assert 0 < kernel.trace(film, None, origins, directions).passed.sum() < 0.8 * round_stop.passed.sum()
 
 
 def test_kernel_gives_the_plate_ghost_r1_r2_of_the_direct_image() -> None:

@@ -399,19 +399,10 @@ class LensKernel:
         count = block.count * self.camera.rays_per_sample
         out = np.empty((self._rows, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
-        # the kernel writes into the result's own arrays (USE_HOST_PTR): the reads below then copy
-        # nothing on PoCL's CPU device, where a copy from a buffer of its own cost a fifth of a launch
-        flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
-        with self._lock:
-            buffers = [cl.Buffer(self.context, flags, hostbuf=array) for array in (out, pixels)]
-            self._generate(self.queue, (padded // per_item,), (LOCAL_SIZE,), *address,
-                           np.uint32(seed & 0xFFFFFFFF), self._world, self._settings, *self._film, np.uint32(padded),
-                           *buffers)
-            for array, buffer in zip((out, pixels), buffers):
-                cl.enqueue_copy(self.queue, array, buffer, is_blocking=False)  # orders the read after the kernel
-            self.queue.finish()
-        for buffer in buffers:
-            buffer.release()
+        with self._lock:  # the kernel writes into the result's own arrays (Device.run_into)
+            self.device.run_into(self.queue, self._generate, (padded // per_item,), (LOCAL_SIZE,),
+                                 (*address, np.uint32(seed & 0xFFFFFFFF), self._world, self._settings, *self._film,
+                                  np.uint32(padded)), (out, pixels))
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count], wavelength_nm=out[7, :count] if self.camera.spectral else None)
 

@@ -63,16 +63,9 @@ class ThinLensKernel:
         count = block.count
         out = np.empty((ROWS, padded), dtype=np.float32)
         pixels = np.empty(padded, dtype=np.int32)
-        # written in place (USE_HOST_PTR), as LensKernel.generate does: the reads below copy nothing on a CPU device
-        flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
-        with self._lock:
-            buffers = [cl.Buffer(self.device.context, flags, hostbuf=array) for array in (out, pixels)]
-            self._generate(self.queue, (padded,), (LOCAL_SIZE,), *address, np.uint32(seed & 0xFFFFFFFF),
-                           self._world, *self._constants, np.uint32(padded), *buffers)
-            for array, buffer in zip((out, pixels), buffers):
-                cl.enqueue_copy(self.queue, array, buffer, is_blocking=False)  # orders the read after the kernel
-            self.queue.finish()
-        for buffer in buffers:
-            buffer.release()
+        with self._lock:  # written in place (Device.run_into), as LensKernel.generate does
+            self.device.run_into(self.queue, self._generate, (padded,), (LOCAL_SIZE,),
+                                 (*address, np.uint32(seed & 0xFFFFFFFF), self._world, *self._constants,
+                                  np.uint32(padded)), (out, pixels))
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count])
