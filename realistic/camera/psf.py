@@ -87,14 +87,16 @@ class DiffractionSpread:
         return float(self.image.sum() * self.pixel_mm**2)
 
 
-def _object_distance(lens: LensSystem, depth_mm: float, film_distance_mm: float) -> float:
-    """Distance of a point ``depth_mm`` from the film to the paraxial entrance pupil."""
+def _focused(lens: LensSystem, depth_mm: float, focus_mm: float | None) -> tuple[float, float]:
+    """The film distance focused at ``focus_mm`` (None: at the point), and the distance of a point
+    ``depth_mm`` from the film to the paraxial entrance pupil."""
+    film_distance_mm = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
     pupil_z = film_distance_mm + lens.track_length_mm - paraxial_data(lens).entrance_pupil_mm
     front_z = film_distance_mm + lens.track_length_mm
     if depth_mm <= front_z:
         raise UserError(f"depth {depth_mm:g} mm is not in front of the lens (its front vertex is "
                         f"{front_z:.6g} mm from the film)")
-    return depth_mm - pupil_z
+    return film_distance_mm, depth_mm - pupil_z
 
 
 def fft_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, focus_mm: float | None = None,
@@ -111,8 +113,7 @@ def fft_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0.0, 
     validation.positive_length(pixel_mm, "pixel size (mm)")
     if not (isinstance(size, int) and 1 <= size <= 4096):
         raise UserError(f"PSF window size must be 1..4096 pixels, got {size!r}")
-    film_distance = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
-    distance = _object_distance(lens, depth_mm, film_distance)
+    film_distance, distance = _focused(lens, depth_mm, focus_mm)
     first = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance, reference_mm)
     wave_l = wavelength_nm * 1e-6 * np.array(first.scale_mm)  # lambda L (x, y): FFT field = lambda L / cell
     spacing = min(first.spacing_mm, float(wave_l.min()) / (2 * size * pixel_mm))
@@ -149,8 +150,7 @@ def huygens_point_spread(lens: LensSystem, depth_mm: float, field_deg: float = 0
     validation.positive_length(pixel_mm, "pixel size (mm)")
     if not (isinstance(size, int) and 1 <= size <= 512):
         raise UserError(f"Huygens PSF window size must be 1..512 pixels, got {size!r}")
-    film_distance = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
-    distance = _object_distance(lens, depth_mm, film_distance)
+    film_distance, distance = _focused(lens, depth_mm, focus_mm)
     front = wavefront(lens, field_deg, wavelength_nm, film_distance, samples_across, distance)
     sub = HUYGENS_SAMPLES_PER_PIXEL
     step = pixel_mm / sub
@@ -189,8 +189,7 @@ def polychromatic_point_spread(lens: LensSystem, depth_mm: float, field_deg: flo
     is centred on the weighted mean of the wavelengths' ray centroids, so lateral colour shows.
     """
     power = validation.spectral_weights(weights, len(wavelengths_nm))
-    film_distance = film_distance_for_focus(lens, focus_mm if focus_mm is not None else depth_mm)
-    distance = _object_distance(lens, depth_mm, film_distance)
+    film_distance, distance = _focused(lens, depth_mm, focus_mm)
     centroids = [wavefront(lens, field_deg, w, film_distance, samples_across, distance).reference_mm
                  for w in wavelengths_nm]
     reference = np.average(centroids, axis=0, weights=power)
