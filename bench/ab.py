@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
@@ -22,18 +21,12 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))  # first already when run as a script; not when a test loads this file
+
+import machine  # noqa: E402
+
 CEILING = "ceiling (renderer's binding)"
-
-
-def cpu_name() -> str:
-    """The processor's model name as Linux reports it (else the platform's word for it)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def run_tree(tree: Path, arguments: list[str], cache: Path) -> dict[str, float]:
@@ -73,10 +66,10 @@ def main() -> None:
         print(f"{label:32} {other / 1e6:18.2f} {this / 1e6:17.2f} {this / other:13.3f}")
     out = ROOT / "bench" / "results" / "ab.json"
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"cpu": cpu_name(), "cores": os.cpu_count(), "against": str(trees["other"]),
+    out.write_text(json.dumps({"cpu": machine.describe(), "against": str(trees["other"]),
                                "rounds": args.rounds, "render_arguments": args.render_arguments, "rows": table},
                               indent=1) + "\n")
-    print(f"cpu: {cpu_name()}, {os.cpu_count()} cores; wrote {out}")
+    print(f"cpu: {machine.describe()}; wrote {out}")
 
 
 if __name__ == "__main__":

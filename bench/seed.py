@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import resource
 import statistics
 import subprocess
@@ -31,22 +30,16 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))  # first already when run as a script; not when a test loads this file
+
+import machine  # noqa: E402
+
 SHARED = ROOT.parent / "shared"
 #: pbrt-v2 on dof-dragons.pbrt at 500 x 212, 16 spp, 128 light samples: CPU-seconds (issue 35).
 PBRT_V2_CPU_S = 157.0
 SCENES = {"dof-dragons": SHARED / "scenes" / "pbrt" / "dof-dragons.pbrt",
           "seed": ROOT / "scenes" / "dof-dragons" / "seed.pbrt"}
-
-
-def cpu_name() -> str:
-    """The processor's model name as Linux reports it (else the platform's word for it)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def render(tree: Path, scene: Path, arguments: list[str], cache: Path, work: Path) -> tuple[float, float]:
@@ -106,10 +99,10 @@ def main() -> None:
     if len(rows) == 2:
         ratio = rows[0]["median_cpu_s"] / rows[1]["median_cpu_s"]
         print(f"other / this CPU-s: {ratio:.2f}")
-    print(f"cpu: {cpu_name()}, {os.cpu_count()} cores; load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
+    print(f"cpu: {machine.describe()}; load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
     out = ROOT / "bench" / "results" / "seed.json"
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"cpu": cpu_name(), "cores": os.cpu_count(), "load_average": load,
+    out.write_text(json.dumps({"cpu": machine.describe(), "load_average": load,
                                "scene": args.scene, "res": args.res, "spp": args.spp, "rounds": args.rounds,
                                "pbrt_v2_cpu_s": PBRT_V2_CPU_S, "rows": rows, "other_over_this_cpu": ratio},
                               indent=1) + "\n")

@@ -3,12 +3,14 @@ d line on the axis and at 15 deg; skipped unless optiland is installed (extra ``
 
 from __future__ import annotations
 
+import importlib.util
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from realistic.optics.diffraction import pupil_function, strehl_ratio
 from realistic.optics.formats import load_lens
-from realistic.optics.lens import LensSystem
 from realistic.optics.mtf import lens_mtf
 from realistic.optics.paraxial import paraxial_data
 from realistic.optics.wavefront import wavefront
@@ -18,31 +20,22 @@ materials = pytest.importorskip("optiland.materials")
 mtf = pytest.importorskip("optiland.mtf")
 psf = pytest.importorskip("optiland.psf")
 
-D_UM = 0.5875618
-FIELDS = (0.0, 15.0)
+ROOT = Path(__file__).resolve().parents[1]
+
 FREQUENCIES = np.array([10.0, 30.0, 50.0, 100.0])
 
 
-def optiland_dgauss(lens: LensSystem) -> object:
-    """The same prescription in optiland, film at our paraxial focus, d line only (no dispersion)."""
-    para = paraxial_data(lens)
-    system = optic.Optic()
-    system.add_surface(index=0, thickness=np.inf)
-    for i in range(lens.surface_count):
-        n = float(lens.index_d[i])
-        radius = float(lens.radius_mm[i])
-        thickness = float(lens.thickness_mm[i]) if i < lens.surface_count - 1 else para.bfl_mm
-        extra = {} if i == lens.stop else {"aperture": float(lens.aperture_mm[i])}  # diameters, as ours
-        system.add_surface(index=i + 1, radius=radius if radius != 0 else np.inf, thickness=thickness,
-                           material="air" if n == 1.0 else materials.IdealMaterial(n=n), is_stop=i == lens.stop,
-                           **extra)
-    system.add_surface(index=lens.surface_count + 1)
-    system.set_aperture(aperture_type="EPD", value=para.entrance_pupil_diameter_mm)
-    system.set_field_type("angle")
-    for field in FIELDS:
-        system.add_field(y=field)
-    system.add_wavelength(value=D_UM, is_primary=True)
-    return system
+def _crosscheck_bench():
+    """bench/crosscheck_optiland.py, whose ``optiland_system`` builds the prescription in optiland."""
+    spec = importlib.util.spec_from_file_location("bench_crosscheck_optiland",
+                                                  ROOT / "bench" / "crosscheck_optiland.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+BENCH = _crosscheck_bench()
+D_UM, FIELDS, optiland_dgauss = BENCH.D_UM, BENCH.FIELDS, BENCH.optiland_system
 
 
 def test_fft_mtf_of_dgauss_matches_optiland() -> None:
