@@ -48,8 +48,9 @@ def test_a_round_stops_psf_has_the_airy_patterns_first_dark_ring_at_1_22_lambda_
 
 @pytest.mark.parametrize("blades", [5, 6, 7, 8])
 def test_n_straight_blades_give_n_spikes_when_n_is_even_and_2n_when_odd(blades: int) -> None:
-    pitch = LAMBDA_N_MM  # three fine samples per pixel, a 255-pixel kernel
-    psf = starburst.pixel_psf(bladed_stop(blades, rotation_deg=10.0), pitch, LAMBDA_N_MM)
+    stop = bladed_stop(blades, rotation_deg=10.0)
+    # spikes a few pixels wide (pitch lambda N): the angular profile on a ring is smooth
+    psf = starburst.pixel_psf(stop, LAMBDA_N_MM, LAMBDA_N_MM)
     centre = (psf.shape[0] - 1) / 2
     angles = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
     radius = 40.0
@@ -57,6 +58,19 @@ def test_n_straight_blades_give_n_spikes_when_n_is_even_and_2n_when_odd(blades: 
     orders = np.abs(np.fft.rfft(ring - ring.mean()))[1:41]
     spikes = blades if blades % 2 == 0 else 2 * blades
     assert int(np.argmax(orders)) + 1 == spikes
+    # spikes under a pixel wide (pitch 8 lambda N): each runs along a blade's normal, both ways, and
+    # by symmetry they carry the same light
+    psf = starburst.pixel_psf(stop, 8 * LAMBDA_N_MM, LAMBDA_N_MM)
+    centre = (psf.shape[0] - 1) / 2
+    rows, cols = np.mgrid[:psf.shape[0], :psf.shape[1]] - centre
+    radius_px, angle = np.hypot(rows, cols), np.degrees(np.arctan2(-rows, cols))
+    normals = 10.0 + (2 * np.arange(blades) + 1) * 180.0 / blades
+    sectors = [psf[(radius_px > 5) & (radius_px < 45) & (np.abs((angle - direction + 180) % 360 - 180) < 6)].sum()
+               for direction in np.concatenate([normals, normals + 180])]
+    assert min(sectors) > 0.75 * max(sectors)  # equal but for the FFT's folded copies (``pupil_grid``)
+    between = psf[(radius_px > 5) & (radius_px < 45) & (np.abs((angle - normals[0] - 180 / spikes + 180) % 360
+                                                                 - 180) < 6)].sum()
+    assert between < 0.05 * min(sectors)
 
 
 def test_the_working_f_number_at_infinity_focus_is_the_paraxial_f_number() -> None:
