@@ -308,7 +308,7 @@ def cmd_render(args: argparse.Namespace) -> int:
                     args.pass_samples, max_memory_bytes=args.max_memory, checkpoint=checkpoint, sweep=args.sweep,
                     keep_images=sweep is None, crop=crop,  # a sequence's frames are written as they complete
                     aovs=tuple({*args.aov, *(GUIDE_AOVS if args.denoise else ())}), flare=inputs.flare,
-                    flare_threshold=inputs.flare_threshold)
+                    flare_threshold=inputs.flare_threshold, starburst=inputs.starburst)
     written: dict[int, float] = {}
     display = None
     if args.display is not None:  # tev shows what the EXR holds: the crop, exposed as it is written

@@ -111,6 +111,10 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--flare-threshold", type=checked(float, validation.ghost_threshold), metavar="T",
                         help="with --flare on: render the ghosts whose on-axis throughput is at least T, a "
                              f"fraction of the light, 0 to 1 (default: {DEFAULT_THRESHOLD:g})")
+    parser.add_argument("--starburst", choices=("on", "off"), default="off",
+                        help="the diffraction starburst of the aperture blades: the stop's diffraction pattern "
+                             "(at 610, 550 and 465 nm) spread around the pixels above the metered exposure's white, "
+                             "light moved, not added; needs a real lens (default: %(default)s)")
     parser.add_argument("--wavelengths-per-sample", type=checked(int, validation.wavelengths_per_sample), metavar="K",
                         help="spectral renders: trace each camera sample at K wavelengths, one per 1/K of the "
                              "wavelength density, sharing its film, lens and light samples (less colour noise, "
@@ -144,4 +148,5 @@ def options_from_args(args: argparse.Namespace, spp: int | None) -> RenderOption
         dispersion=None if args.dispersion is None else args.dispersion == "on",
         wavelengths_per_sample=args.wavelengths_per_sample,
         search_paths=[Path(p) for p in args.search_path], pbrt_dialect=args.pbrt_dialect,
-        pixel_filter=args.filter, coating=args.coating, flare=args.flare == "on", flare_threshold=args.flare_threshold)
+        pixel_filter=args.filter, coating=args.coating, flare=args.flare == "on", flare_threshold=args.flare_threshold,
+        starburst=args.starburst == "on")

@@ -39,6 +39,7 @@ from realistic.optics.stop_shape import StopShape, bladed_stop, mask_stop
 from realistic.renderer.integrators import INTEGRATORS
 from realistic.renderer.output import OUTPUT_SUFFIXES
 from realistic.renderer.passes import scene_intersector
+from realistic.renderer.starburst import STARBURST_NEEDS_LENS, WAVELENGTHS_NM
 from realistic.scene.intersect import Intersector
 from realistic.scene.meshes import load_mesh_file
 from realistic.scene.model import Scene
@@ -92,6 +93,7 @@ class RenderOptions:
     coating: str | None = None  # every lens surface's coating (realistic.optics.coating), None: the lens's own
     flare: bool = False  # lens flare through the lens's ghost paths (realistic.renderer.flare)
     flare_threshold: float | None = None  # the least on-axis throughput of a ghost rendered (None: the default)
+    starburst: bool = False  # the stop's diffraction spread around the brightest pixels (realistic.renderer.starburst)
     search_paths: list[Path] = field(default_factory=list)  # (str folders too: made Paths)
 
     def __post_init__(self) -> None:
@@ -171,6 +173,7 @@ class RenderInputs:
     intersector: Intersector | None = None
     flare: bool = False  # render lens flare (``RenderJob.flare``), through ghosts of at least this throughput:
     flare_threshold: float = DEFAULT_THRESHOLD
+    starburst: bool = False  # the finished image gets the stop's diffraction starburst (``RenderJob.starburst``)
 
     @property
     def camera(self) -> Camera:
@@ -224,6 +227,11 @@ def apply_overrides(inputs: RenderInputs, options: RenderOptions) -> RenderInput
             camera = camera.with_coating(options.coating)
         if options.flare:
             camera = _flare_camera(camera, options, inputs)
+        if options.starburst:
+            if not isinstance(camera, LensCamera):
+                raise UserError(STARBURST_NEEDS_LENS)
+            inputs.starburst = True
+            inputs.metadata["starburst"] = f"stop diffraction at {', '.join(f'{w:g}' for w in WAVELENGTHS_NM)} nm"
         if options.focus_distance is not None:
             camera = camera.with_focus(options.focus_distance)
         if options.film_distance_mm is not None:

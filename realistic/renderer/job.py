@@ -25,6 +25,7 @@ from realistic.optics.ghosts import DEFAULT_THRESHOLD
 from realistic.renderer.crop import PixelBounds
 from realistic.renderer.film import Splats
 from realistic.renderer.pass_plan import default_pass_samples
+from realistic.renderer.starburst import STARBURST_NEEDS_LENS
 from realistic.renderer.timing import StageClock
 from realistic.scene.model import Scene
 
@@ -94,6 +95,8 @@ class RenderJob:
     # those whose on-axis throughput is at least ``flare_threshold`` (``optics.ghosts.ghost_paths``)
     flare: bool = False
     flare_threshold: float = DEFAULT_THRESHOLD
+    # the stop's diffraction starburst around each finished image's brightest pixels (``renderer.starburst``)
+    starburst: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", tuple(self.cameras))
@@ -113,6 +116,8 @@ class RenderJob:
         validation.ghost_threshold(self.flare_threshold)
         if self.flare and not all(isinstance(camera, LensCamera) for camera in self.cameras):
             raise UserError("--flare on needs a real lens (--lens): a thin-lens or perspective camera has no ghosts")
+        if self.starburst and not all(isinstance(camera, LensCamera) for camera in self.cameras):
+            raise UserError(STARBURST_NEEDS_LENS)
 
     @property
     def settings(self) -> PassSettings:

@@ -47,6 +47,7 @@ from realistic.renderer.job import PassExecutor, PassResult, RenderJob, RenderOb
 from realistic.renderer.memory import check_job_memory
 from realistic.renderer.pass_plan import plan_passes
 from realistic.renderer.runner import PassRunner
+from realistic.renderer.starburst import starburst
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector
@@ -180,6 +181,7 @@ class _Frame:
     crop: PixelBounds | None = None
     film: PassFilm | None = None
     flare: bool = False  # the film holds lens flare (``RenderJob.flare``)
+    starburst: bool = False  # the finished image gets the stop's starburst (``RenderJob.starburst``)
 
     @property
     def complete(self) -> bool:
@@ -241,7 +243,8 @@ def _frames(job: RenderJob) -> tuple[list[_Frame], RenderIdentity | None]:
         plan = plans[key]
         samples = job.crop.width * job.crop.height * camera.spp if job.crop is not None else camera.sample_count
         result = RenderResult(_EMPTY, 0, samples, 0, 0, 0.0, False, passes_total=len(plan), job=job, frame=index)
-        frames.append(_Frame(camera, plan, result, AovLayout(job.settings.aovs), job.crop, flare=job.flare))
+        frames.append(_Frame(camera, plan, result, AovLayout(job.settings.aovs), job.crop, flare=job.flare,
+                             starburst=job.starburst))
     if job.checkpoint is None:
         return frames, None
     identity = RenderIdentity.of(job.scene, job.cameras[0], job.seed, job.pass_size, job.backend,
@@ -381,6 +384,8 @@ def _finish(frame: _Frame, start: float, clock: StageClock, keep_images: bool) -
     bounds = frame.crop or PixelBounds.whole(frame.camera.width, frame.camera.height)
     if frame.film is not None:
         result.image = frame.film.image()
+        if frame.starburst:  # on the image only: the film (and a checkpoint) keeps the raw sums
+            result.image = starburst(result.image, frame.camera)
         aovs = frame.layout.images(frame.film.sums(), frame.camera.width, frame.camera.height,
                                    CameraFrame.of(frame.camera.world_from_camera))
         result.aovs = {name: image[bounds.y0:bounds.y1, bounds.x0:bounds.x1] for name, image in aovs.items()}
