@@ -194,7 +194,7 @@ def _text(value: float) -> str:
 
 def _finite_scene(imported) -> bool:
     scene = imported.scene
-    arrays = [np.asarray(scene.camera.transform, np.float64)]
+    arrays = [np.asarray(scene.camera.world_from_camera, np.float64)]  # a ThinLensCamera or a LensCamera
     arrays += [np.asarray(inst.transform) for inst in scene.instances]
     arrays += [mesh.vertices for mesh in scene.meshes]
     for light in scene.lights:
