@@ -2,13 +2,25 @@
 uniform numbers; the kernel's own energy, reciprocity and pdf properties; and a path-traced render
 with the kernel equal to the numpy one."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from bsdf_helpers import ConstantHits, uniform_sphere
+from realistic.camera.base import SampleBlock
+from realistic.camera.lens_camera import LensCamera
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.transforms import translate
+from realistic.optics.formats import load_lens
+from realistic.renderer.backends import backend_for
 from realistic.renderer.bsdf import bsdf_for
+from realistic.renderer.path import PathIntegrator
+from realistic.scene.intersect import Intersector
 from realistic.scene.materials import Conductor, Dielectric, Mirror, Plastic
 from realistic.scene.model import Material
+from realistic.scene.shapes import sphere
+from test_shading_reference import textured_scene
 
 pytest.importorskip("realistic.camera.opencl_host")
 pytestmark = pytest.mark.usefixtures("opencl_platform")
@@ -113,3 +125,30 @@ def test_kernel_is_reciprocal_and_keeps_energy(kernel, name):
     assert np.all(sampled <= 1.0 + 1e-2)
     assert np.allclose(sampled, integrated, rtol=0.03, atol=0.01)
     assert float((pdf[0] * 4 * np.pi).mean()) < 1.02
+
+
+def test_path_tracing_with_the_kernel_renders_the_numpy_image():
+    """Path tracing (depth 5) on the opencl backend, the covered materials in the kernel and an
+    Oren-Nayar one in numpy, gives each ray the numpy backend's radiance to float32 rounding (a path
+    may only part where rounding moves a sample across a lobe's or roulette's threshold)."""
+    scene, eye, target = textured_scene()
+    materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05),
+                 Material((0.3, 0.6, 0.9), sigma=20.0)]
+    scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
+    scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
+    camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, 24, 16, 2)
+    rays = backend_for("numpy").ray_generator(camera, 3)(SampleBlock(0, camera.sample_count, camera.spp))
+    alive = np.flatnonzero(rays.weight != 0)
+    args = (rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32), rays.pixel[alive],
+            alive % 2)
+    images = []
+    for backend in ("numpy", "opencl"):
+        integrator = PathIntegrator(scene, Intersector(scene), 2, 3, camera.pixel_spread_radians(), 5, "path",
+                                    backend=backend)
+        images.append(integrator.radiance(*args)[0])
+    expected, got = images
+    assert PathIntegrator(scene, Intersector(scene), backend="opencl")._bsdf_kernel is not None
+    scale = float(np.abs(expected).max())
+    close = np.all(np.isclose(got, expected, rtol=1e-4, atol=1e-5 * scale), axis=1)
+    assert close.mean() > 0.99, close.mean()
+    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 1e-3

@@ -78,6 +78,10 @@ class BsdfKernel:
         self.program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._local = threading.local()
 
+    def rows(self, material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
+        """``parameters`` (the ``BsdfLauncher`` method)."""
+        return parameters(material, hits, count)
+
     def _queue_and_kernel(self) -> tuple[cl.CommandQueue, cl.Kernel]:
         state = getattr(self._local, "state", None)
         if state is None:
