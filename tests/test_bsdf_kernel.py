@@ -127,10 +127,12 @@ def test_kernel_is_reciprocal_and_keeps_energy(kernel, name):
     assert float((pdf[0] * 4 * np.pi).mean()) < 1.02
 
 
-def test_path_tracing_with_the_kernel_renders_the_numpy_image():
+@pytest.mark.parametrize("spectral", [False, True])
+def test_path_tracing_with_the_kernel_renders_the_numpy_image(spectral):
     """Path tracing (depth 5) on the opencl backend, the covered materials in the kernel and an
     Oren-Nayar one in numpy, gives each ray the numpy backend's radiance to float32 rounding (a path
-    may only part where rounding moves a sample across a lobe's or roulette's threshold)."""
+    may only part where rounding moves a sample across a lobe's or roulette's threshold); spectral
+    rays stay with the numpy BSDFs."""
     scene, eye, target = textured_scene()
     materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05),
                  Material((0.3, 0.6, 0.9), sigma=20.0)]
@@ -140,7 +142,7 @@ def test_path_tracing_with_the_kernel_renders_the_numpy_image():
     rays = backend_for("numpy").ray_generator(camera, 3)(SampleBlock(0, camera.sample_count, camera.spp))
     alive = np.flatnonzero(rays.weight != 0)
     args = (rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32), rays.pixel[alive],
-            alive % 2)
+            alive % 2, None, np.random.default_rng(1).uniform(400, 700, len(alive)) if spectral else None)
     images = []
     for backend in ("numpy", "opencl"):
         integrator = PathIntegrator(scene, Intersector(scene), 2, 3, camera.pixel_spread_radians(), 5, "path",
