@@ -378,8 +378,10 @@ class PathIntegrator(DirectLighting):
             else:
                 hit_rows = np.concatenate([np.arange(m)[r] for r, _ in on_device])
                 table = np.concatenate([t for _, t in on_device])
-            light_wi = np.stack([local[hit_rows] for _, local in samples]) if samples else np.zeros((0, 1, 3))
-            f_light, pdf_light, s = kernel(table, wo[hit_rows], light_wi, u_bsdf[hit_rows], u_lobe[hit_rows])
+            hit_wo = wo[hit_rows]
+            light_wi = np.stack([local[hit_rows] for _, local in samples]) if samples else \
+                np.zeros((0, len(hit_wo), 3), np.float32)
+            f_light, pdf_light, s = kernel(table, hit_wo, light_wi, u_bsdf[hit_rows], u_lobe[hit_rows])
             store(hit_rows, s, list(f_light), list(pdf_light))
         beta_s = beta[surface]
         shadow: dict[str, list[np.ndarray]] = {"start": [], "vector": [], "length": [], "rows": [],
