@@ -93,6 +93,18 @@ inline float ggx_lambda(const Params *p, float3 w) {
     return 0.5f * (sqrt(1.0f + tan2) - 1.0f);
 }
 
+/* (cos, sin) of 2 pi u for u in [0, 1): the nearest quarter turn (exact in float32), then common.cl's
+ * polynomial within pi / 4 of it (no library call, and no rounding of 2 pi u). */
+inline void sincos_turn(float u, float *c, float *s) {
+    float t = 4.0f * u;
+    float q = floor(t + 0.5f);
+    float sq, cq;
+    sincos_quarter((t - q) * (0.5f * PI_F), &sq, &cq);
+    int quadrant = (int)q & 3;
+    *c = quadrant == 0 ? cq : (quadrant == 1 ? -sq : (quadrant == 2 ? -cq : sq));
+    *s = quadrant == 0 ? sq : (quadrant == 1 ? cq : (quadrant == 2 ? -sq : -cq));
+}
+
 /* Heitz 2018's visible-normal sample, as microfacet.GGX.sample_visible (wo in the upper hemisphere). */
 inline float3 ggx_sample_visible(const Params *p, float3 wo, float u0, float u1) {
     float3 v = normalize((float3)(p->ax * wo.x, p->ay * wo.y, wo.z));
@@ -100,8 +112,9 @@ inline float3 ggx_sample_visible(const Params *p, float3 wo, float u0, float u1)
     float3 t1 = length2 > 0.0f ? (float3)(-v.y, v.x, 0.0f) * rsqrt(length2) : (float3)(1.0f, 0.0f, 0.0f);
     float3 t2 = cross(v, t1);
     float r = sqrt(u0);
-    float phi = 2.0f * PI_F * u1;
-    float p1 = r * cos(phi), p2 = r * sin(phi);
+    float cos_phi, sin_phi;
+    sincos_turn(u1, &cos_phi, &sin_phi);
+    float p1 = r * cos_phi, p2 = r * sin_phi;
     float s = 0.5f * (1.0f + v.z);
     p2 = (1.0f - s) * sqrt(fmax(0.0f, 1.0f - p1 * p1)) + s * p2;
     float3 n = p1 * t1 + p2 * t2 + sqrt(fmax(0.0f, 1.0f - p1 * p1 - p2 * p2)) * v;
