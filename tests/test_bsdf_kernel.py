@@ -2,6 +2,7 @@
 uniform numbers; the kernel's own energy, reciprocity and pdf properties; and a path-traced render
 with the kernel equal to the numpy one."""
 
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from bsdf_helpers import ConstantHits, uniform_sphere
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
+from realistic.core.data_files import data_file
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.transforms import translate
 from realistic.optics.formats import load_lens
@@ -26,7 +28,7 @@ pytest.importorskip("realistic.camera.opencl_host")
 pytestmark = pytest.mark.usefixtures("opencl_platform")
 
 from realistic.device.opencl import Device  # noqa: E402
-from realistic.renderer.bsdf_kernel import BSDF_PARAMS, BsdfKernel, parameters  # noqa: E402
+from realistic.renderer.bsdf_kernel import BSDF_PARAMS, HEADER, BsdfKernel, parameters  # noqa: E402
 
 N = 20_000
 WHITE = (1.0, 1.0, 1.0)
@@ -68,6 +70,17 @@ def _close(kernel_value: np.ndarray, numpy_value: np.ndarray, rtol: float) -> No
     error = np.abs(kernel_value.astype(np.float64) - numpy_value) / scale
     assert np.all(error[np.abs(numpy_value) > 1e-20] < rtol), float(error.max())
     assert np.all(np.abs(kernel_value[np.abs(numpy_value) <= 1e-20]) <= 1e-20)
+
+
+def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
+    """As tests/test_tables.py checks the other kernels: BSDF_PARAM_, KIND_ and SMOOTH_ALPHA come from
+    the host's header, none is kept in the kernel too."""
+    code = re.sub(r"/\*.*?\*/", "", data_file("kernels/bsdf.cl").read_text(encoding="utf-8"), flags=re.DOTALL)
+    prefixes = ("BSDF_PARAM_", "KIND_", "SMOOTH_ALPHA")
+    used = {name for name in re.findall(r"\b[A-Z][A-Z0-9_]*\b", code) if name.startswith(prefixes)}
+    declared = set(re.findall(r"^#define (\w+) ", HEADER, re.MULTILINE))
+    assert used and used <= declared, used - declared
+    assert not re.search(r"^#define (" + "|".join(prefixes) + ")", code, re.MULTILINE)
 
 
 def test_every_covered_material_has_rows_and_others_do_not():
