@@ -20,6 +20,7 @@
   the options' ``backend`` and ``cl_device`` strings name, once per process.
 - ``shade_kernel``: the fast path's shading as an OpenCL kernel (``kernels/shade.cl``), backend "opencl".
 - ``path``: MIS direct lighting and path tracing over any BSDF and light, one embree batch per bounce.
+- ``bsdf_kernel``: the path tracer's BSDFs as an OpenCL kernel (``kernels/bsdf.cl``), backend "opencl".
 - ``light_sampler``: every light picked by power, sampled, with densities for MIS.
 - ``area_lights``: the area lights' table and points drawn on them by area, for both integrators.
 - ``footprint``: a camera ray's pixel footprint on a surface, as two uv axes for texture filtering.

@@ -4,8 +4,8 @@ The options keep the strings (a job stays picklable for Dask: each worker proces
 backend and device); ``backend_for`` turns them into a backend object, once per process and pair.
 ``NumpyBackend`` runs the numpy references; ``OpenCLBackend`` (``renderer/opencl_backend``,
 imported only when chosen, since it imports pyopencl) runs ``kernels/lens.cl``, ``thin_lens.cl``,
-``shade.cl`` and ``ewa.cl`` on one ``Device`` and keeps each MIP map's texels there, keyed by the map, so scenes,
-cameras and textures stay plain data.
+``shade.cl``, ``ewa.cl`` and ``bsdf.cl`` on one ``Device`` and keeps each MIP map's texels there,
+keyed by the map, so scenes, cameras and textures stay plain data.
 """
 
 from __future__ import annotations
@@ -18,12 +18,23 @@ import numpy as np
 from realistic.camera.base import BACKENDS, Camera, RayGenerator, check_backend
 from realistic.optics.ghosts import GhostPath, GhostTrace, GhostTracer, trace_direct, trace_ghost
 from realistic.optics.lens import LensSystem
+from realistic.renderer.bsdf.base import BSDFSample, HitParameters
+from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.mipmap import MipMap
 from realistic.scene.textures import numpy_ewa
 
-__all__ = ["BACKENDS", "Backend", "NumpyBackend", "backend_for"]
+__all__ = ["BACKENDS", "Backend", "BsdfLauncher", "NumpyBackend", "backend_for"]
 
 
+class BsdfLauncher(Protocol):
+    """BSDFs of a batch of hits on a device (``renderer.bsdf_kernel.BsdfKernel``)."""
+
+    def rows(self, material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
+        """``material``'s parameter rows at ``count`` RGB ``hits``; None where the device does not cover it."""
+
+    def __call__(self, params: np.ndarray, wo: np.ndarray, light_wi: np.ndarray, u: np.ndarray,
+                 u_lobe: np.ndarray) -> tuple[np.ndarray, np.ndarray, BSDFSample]:
+        """f (L, N, 3) and pdf (L, N) at light directions ``light_wi`` (L, N, 3), and one BSDF sample."""
 
 class Backend(Protocol):
     """What the renderer asks of a backend."""
@@ -39,6 +50,9 @@ class Backend(Protocol):
 
     def ghost_tracer(self, lens: LensSystem) -> GhostTracer:
         """What traces ``lens``'s ghost paths (lens flare, ``renderer.flare``)."""
+
+    def bsdf_kernel(self) -> BsdfLauncher | None:
+        """What evaluates and samples the path integrator's BSDFs on a device (None: numpy does)."""
 
 
 class NumpyBackend:
@@ -62,6 +76,10 @@ class NumpyBackend:
                 return trace_direct(lens, film_distance_mm, origins, directions, wavelength_nm)
             return trace_ghost(lens, film_distance_mm, path, origins, directions, wavelength_nm)
         return trace
+
+    def bsdf_kernel(self) -> BsdfLauncher | None:
+        """None: the path integrator's numpy BSDFs."""
+        return None
 
 
 #: One backend per process and (name, device spec), so a device's programs and texels are reused.

@@ -1,4 +1,4 @@
-"""The "opencl" render backend: the camera, shading and EWA kernels on one ``Device``.
+"""The "opencl" render backend: the camera, shading, BSDF and EWA kernels on one ``Device``.
 
 Made by ``renderer.backends.backend_for`` (one per process and device spec). It keeps the per-device
 state of what it is asked about: each MIP map's texels (an ``EwaKernel``) in a weak dictionary keyed
@@ -22,6 +22,7 @@ from realistic.camera.thin_lens_host import ThinLensKernel
 from realistic.device.opencl import Device
 from realistic.optics.ghosts import GhostTracer
 from realistic.optics.lens import LensSystem
+from realistic.renderer.bsdf_kernel import BsdfKernel
 from realistic.renderer.shade_kernel import ShadeKernel
 from realistic.scene.ewa_kernel import EwaKernel, SurfaceTables
 from realistic.scene.mipmap import MipMap
@@ -37,6 +38,7 @@ class OpenCLBackend:
         self.device = device
         self._ewa_kernels: weakref.WeakKeyDictionary[MipMap, EwaKernel] = weakref.WeakKeyDictionary()
         self._lock = threading.Lock()
+        self._bsdf_kernel: BsdfKernel | None = None
 
     def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
         """``lens.cl``'s rays (float32) for a ``LensCamera``, ``thin_lens.cl``'s for a
@@ -67,6 +69,13 @@ class OpenCLBackend:
         process and lens by ``Device.build_program``; a kernel object holds its lens, so none is kept
         here, where it would keep the lens alive)."""
         return GhostKernel(lens, self.device).trace
+
+    def bsdf_kernel(self) -> BsdfKernel:
+        """``kernels/bsdf.cl`` on this device for ``PathIntegrator``, made on first use."""
+        with self._lock:
+            if self._bsdf_kernel is None:
+                self._bsdf_kernel = BsdfKernel(self.device)
+            return self._bsdf_kernel
 
     def shade_kernel(self, **tables: Any) -> ShadeKernel:
         """``ShadeKernel`` on this device with a scene's ``tables`` (its keyword arguments)."""

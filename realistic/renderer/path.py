@@ -17,6 +17,11 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 ``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
 after specular bounces), for tests.
 
+Backends: on "opencl", RGB rays at hits whose material ``kernels/bsdf.cl`` covers (the backend's
+``bsdf_kernel``: diffuse, conductor, mirror, smooth glass, plastic) are evaluated and sampled there,
+in one launch per bounce, with the same random numbers; every other material, spectral rays and the
+"numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
+
 Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
 stratified light samples) as ``DirectLighting`` does; bounce b's BSDF sample, lobe choice,
 roulette and its light sample use ``BOUNCE_DIMENSION + 8 b + (0 .. 6)``, so results do not depend
@@ -35,7 +40,8 @@ from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, rgb_response
 from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot, normalise
-from realistic.renderer.bsdf import BSDF, HitParameters, ShadingFrame, bsdf_for
+from realistic.renderer.backends import Backend, backend_for
+from realistic.renderer.bsdf import BSDF, BSDFSample, HitParameters, ShadingFrame, bsdf_for
 from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _rows
 from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
@@ -105,13 +111,18 @@ class PathIntegrator(DirectLighting):
 
     def __init__(self, scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
                  pixel_spread_radians: float = 0.0, max_depth: int = 5, mode: str = "path", mis: bool = True,
-                 bsdf_factory: Callable[[SurfaceMaterial, HitParameters], BSDF] = bsdf_for):
+                 bsdf_factory: Callable[[SurfaceMaterial, HitParameters], BSDF] = bsdf_for, *,
+                 backend: Backend | str = "numpy"):
+        """An "opencl" ``backend`` evaluates and samples the BSDFs it covers in ``kernels/bsdf.cl``
+        (with ``bsdf_for``, whose materials it mirrors); the rest of the integrator is numpy."""
         super().__init__(scene, intersector, light_samples, seed, pixel_spread_radians)
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
         if max_depth < 0:
             raise ValueError("max_depth must be at least 0")
         self.max_depth, self.mode, self.mis, self.bsdf_factory = max_depth, mode, mis, bsdf_factory
+        chosen = backend_for(backend) if isinstance(backend, str) else backend
+        self._bsdf_kernel = chosen.bsdf_kernel() if bsdf_factory is bsdf_for else None
         self.lights = LightSampler(scene, intersector.extent)
         # instances whose transform mirrors: their world winding faces inward (see ``_outward_normals``)
         self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
@@ -322,6 +333,20 @@ class PathIntegrator(DirectLighting):
         pdf = np.zeros(m)
         is_specular = np.zeros(m, bool)
         valid = np.zeros(m, bool)
+
+        def store(rows: slice | np.ndarray, s: BSDFSample, f: list[np.ndarray], f_pdf: list[np.ndarray]) -> None:
+            """The BSDF's values at the light samples and its sample at the hits ``rows``."""
+            for k in range(len(samples)):
+                light_f[k][rows], light_bsdf_pdf[k][rows] = f[k], f_pdf[k]
+            wi[rows], pdf[rows], is_specular[rows] = s.wi, s.pdf, s.specular
+            ok = s.valid & (s.pdf > 0)
+            valid[rows] = ok
+            with np.errstate(divide="ignore", invalid="ignore"):
+                throughput[rows] = np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))
+                                            [:, None], 0.0)
+
+        kernel = self._bsdf_kernel if sb is None else None  # the kernel shades RGB rays
+        on_device: list[tuple[slice | np.ndarray, np.ndarray]] = []
         material_of = self._geom_material[geom]
         groups = np.unique(material_of)
         for index in groups:
@@ -341,17 +366,25 @@ class PathIntegrator(DirectLighting):
                 return self._footprint(face[rows], geom[rows], ds[rows], ng[rows], t[rows])
 
             params = SurfaceParameters(len(f), uv, footprint, None if sb is None else sb[rows])
+            table = None if kernel is None else kernel.rows(material, params, len(f))
+            if table is not None:
+                on_device.append((rows, table))
+                continue
             bsdf = self.bsdf_factory(material, params)
-            for k, (_, local) in enumerate(samples):
-                light_f[k][rows] = bsdf.evaluate(wo[rows], local[rows])
-                light_bsdf_pdf[k][rows] = bsdf.pdf(wo[rows], local[rows])
-            s = bsdf.sample(wo[rows], u_bsdf[rows], u_lobe[rows])
-            wi[rows], pdf[rows], is_specular[rows] = s.wi, s.pdf, s.specular
-            ok = s.valid & (s.pdf > 0)
-            valid[rows] = ok
-            with np.errstate(divide="ignore", invalid="ignore"):
-                throughput[rows] = np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))
-                                            [:, None], 0.0)
+            store(rows, bsdf.sample(wo[rows], u_bsdf[rows], u_lobe[rows]),
+                  [bsdf.evaluate(wo[rows], local[rows]) for _, local in samples],
+                  [bsdf.pdf(wo[rows], local[rows]) for _, local in samples])
+        if kernel is not None and on_device:  # every covered hit in one launch
+            if len(on_device) == 1:
+                hit_rows, table = on_device[0]
+            else:
+                hit_rows = np.concatenate([np.arange(m)[r] for r, _ in on_device])
+                table = np.concatenate([t for _, t in on_device])
+            hit_wo = wo[hit_rows]
+            light_wi = np.stack([local[hit_rows] for _, local in samples]) if samples else \
+                np.zeros((0, len(hit_wo), 3), np.float32)
+            f_light, pdf_light, s = kernel(table, hit_wo, light_wi, u_bsdf[hit_rows], u_lobe[hit_rows])
+            store(hit_rows, s, list(f_light), list(pdf_light))
         beta_s = beta[surface]
         shadow: dict[str, list[np.ndarray]] = {"start": [], "vector": [], "length": [], "rows": [],
                                                "contribution": []}

@@ -1,0 +1,169 @@
+"""kernels/bsdf.cl against the numpy BSDFs (the reference) at random directions, materials and
+uniform numbers; the kernel's own energy, reciprocity and pdf properties; and a path-traced render
+with the kernel equal to the numpy one."""
+
+import re
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from bsdf_helpers import ConstantHits, uniform_sphere
+from realistic.camera.base import SampleBlock
+from realistic.camera.lens_camera import LensCamera
+from realistic.core.data_files import data_file
+from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.transforms import translate
+from realistic.optics.formats import load_lens
+from realistic.renderer.backends import backend_for
+from realistic.renderer.bsdf import bsdf_for
+from realistic.renderer.path import PathIntegrator
+from realistic.scene.intersect import Intersector
+from realistic.scene.materials import Conductor, Dielectric, Mirror, Plastic
+from realistic.scene.model import Material
+from realistic.scene.shapes import sphere
+from test_shading_reference import textured_scene
+
+pytest.importorskip("realistic.camera.opencl_host")
+pytestmark = pytest.mark.usefixtures("opencl_platform")
+
+from realistic.device.opencl import Device  # noqa: E402
+from realistic.renderer.bsdf_kernel import BSDF_PARAMS, HEADER, BsdfKernel, parameters  # noqa: E402
+
+N = 20_000
+WHITE = (1.0, 1.0, 1.0)
+
+#: The materials the kernel covers, rough and smooth.
+COVERED = {
+    "lambertian": Material((0.8, 0.5, 0.2)),
+    "conductor": Conductor(roughness_u=0.3, roughness_v=0.1),
+    "rough conductor, pbrt-v3 rule": Conductor(roughness_u=0.05, roughness_v=0.05, rule="pbrt-v3"),
+    "white conductor": Conductor((1.0,) * 3, (1e4,) * 3, 0.2, 0.2),
+    "smooth conductor": Conductor(roughness_u=0.0, roughness_v=0.0, scale=(0.9, 0.8, 0.7)),
+    "mirror": Mirror((0.9, 0.7, 0.5)),
+    "glass": Dielectric(1.5, (0.9, 1.0, 1.0), (1.0, 0.8, 0.9)),
+    "thin glass": Dielectric(1.33, WHITE, WHITE, thin=True),
+    "plastic": Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.3),
+    "smooth plastic": Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.0),
+}
+GLOSSY = ["lambertian", "conductor", "rough conductor, pbrt-v3 rule", "white conductor", "plastic"]
+
+
+@pytest.fixture(scope="module")
+def kernel() -> BsdfKernel:
+    return BsdfKernel(Device.for_spec())
+
+
+def _inputs(seed: int, n: int = N, lights: int = 2):
+    rng = np.random.default_rng(seed)
+    wo = uniform_sphere(rng, n)
+    light_wi = np.stack([uniform_sphere(rng, n) for _ in range(lights)])
+    light_wi[0, : n // 2, 2] = np.abs(light_wi[0, : n // 2, 2]) * np.sign(wo[: n // 2, 2])  # half on wo's side
+    u = rng.random((n, 2)).astype(np.float32)
+    u_lobe = rng.random(n).astype(np.float32)
+    return wo, light_wi, u, u_lobe
+
+
+def _close(kernel_value: np.ndarray, numpy_value: np.ndarray, rtol: float) -> None:
+    """Equal to ``rtol`` relative (float32 against the float64 GGX of the numpy code)."""
+    scale = np.maximum(np.abs(numpy_value), np.float32(1e-30))
+    error = np.abs(kernel_value.astype(np.float64) - numpy_value) / scale
+    assert np.all(error[np.abs(numpy_value) > 1e-20] < rtol), float(error.max())
+    assert np.all(np.abs(kernel_value[np.abs(numpy_value) <= 1e-20]) <= 1e-20)
+
+
+def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
+    """As tests/test_tables.py checks the other kernels: BSDF_PARAM_, KIND_ and SMOOTH_ALPHA come from
+    the host's header, none is kept in the kernel too."""
+    code = re.sub(r"/\*.*?\*/", "", data_file("kernels/bsdf.cl").read_text(encoding="utf-8"), flags=re.DOTALL)
+    prefixes = ("BSDF_PARAM_", "KIND_", "SMOOTH_ALPHA")
+    used = {name for name in re.findall(r"\b[A-Z][A-Z0-9_]*\b", code) if name.startswith(prefixes)}
+    declared = set(re.findall(r"^#define (\w+) ", HEADER, re.MULTILINE))
+    assert used and used <= declared, used - declared
+    assert not re.search(r"^#define (" + "|".join(prefixes) + ")", code, re.MULTILINE)
+
+
+def test_every_covered_material_has_rows_and_others_do_not():
+    hits = ConstantHits(3)
+    for material in COVERED.values():
+        rows = parameters(material, hits, 3)
+        assert rows is not None and rows.shape == (3, BSDF_PARAMS.width)
+    assert parameters(Material(WHITE, sigma=20.0), hits, 3) is None
+    assert parameters(Dielectric(1.5, roughness_u=0.2, roughness_v=0.2), hits, 3) is None
+
+
+@pytest.mark.parametrize("name", sorted(COVERED))
+def test_kernel_evaluates_and_samples_as_the_numpy_bsdf(kernel, name):
+    material = COVERED[name]
+    wo, light_wi, u, u_lobe = _inputs(sorted(COVERED).index(name))
+    hits = ConstantHits(N)
+    bsdf = bsdf_for(material, hits)
+    light_f, light_pdf, s = kernel(parameters(material, hits, N), wo, light_wi, u, u_lobe)
+    for k in range(len(light_wi)):
+        _close(light_f[k], bsdf.evaluate(wo, light_wi[k]), 1e-5)
+        _close(light_pdf[k], bsdf.pdf(wo, light_wi[k]), 1e-5)
+    ref = bsdf.sample(wo, u, u_lobe)
+    assert np.array_equal(s.specular, ref.specular)
+    # a flag may differ only where a direction lies within rounding of a lobe's boundary
+    assert np.mean(s.valid != ref.valid) < 1e-3
+    both = s.valid & ref.valid
+    assert np.allclose(s.wi[both], ref.wi[both], atol=2e-5)
+    # directions equal to float32 rounding; value and pdf there to what that rounding moves them
+    # (most at grazing wi, where the cosine's relative error is largest)
+    _close(s.pdf[both], ref.pdf[both].astype(np.float64), 2e-3)
+    _close(s.value[both], ref.value[both].astype(np.float64), 2e-3)
+    assert np.median(np.abs(s.pdf[both] / ref.pdf[both] - 1)) < 1e-5
+
+
+@pytest.mark.parametrize("name", GLOSSY)
+def test_kernel_is_reciprocal_and_keeps_energy(kernel, name):
+    """f(a, b) = f(b, a); the sampled albedo at most 1 and equal to the evaluated one; the pdf
+    integrates to at most 1 (white-furnace and pdf properties as tests/test_bsdf_materials.py)."""
+    material = COVERED[name]
+    rng = np.random.default_rng(5)
+    n = 200_000
+    a, b = uniform_sphere(rng, n), uniform_sphere(rng, n)
+    b[:, 2] = np.abs(b[:, 2]) * np.sign(a[:, 2])
+    rows = parameters(material, ConstantHits(n), n)
+    u, u_lobe = rng.random((n, 2)).astype(np.float32), rng.random(n).astype(np.float32)
+    fab, _, _ = kernel(rows, a, b[None], u, u_lobe)
+    fba, _, _ = kernel(rows, b, a[None], u, u_lobe)
+    assert np.allclose(fab, fba, rtol=2e-3, atol=1e-6) and fab.max() > 0
+    wo = np.tile(np.float32([[np.sin(0.9), 0.0, np.cos(0.9)]]), (n, 1))
+    sphere = uniform_sphere(rng, n)
+    f, pdf, s = kernel(rows, wo, sphere[None], u, u_lobe)
+    weight = np.where(s.valid, np.abs(s.wi[:, 2]) / np.where(s.valid, s.pdf, 1.0), 0.0)
+    sampled = (s.value * weight[:, None]).mean(axis=0)
+    integrated = (f[0] * (np.abs(sphere[:, 2]) * 4 * np.pi)[:, None]).mean(axis=0)
+    assert np.all(sampled <= 1.0 + 1e-2)
+    assert np.allclose(sampled, integrated, rtol=0.03, atol=0.01)
+    assert float((pdf[0] * 4 * np.pi).mean()) < 1.02
+
+
+@pytest.mark.parametrize("spectral", [False, True])
+def test_path_tracing_with_the_kernel_renders_the_numpy_image(spectral):
+    """Path tracing (depth 5) on the opencl backend, the covered materials in the kernel and an
+    Oren-Nayar one in numpy, gives each ray the numpy backend's radiance to float32 rounding (a path
+    may only part where rounding moves a sample across a lobe's or roulette's threshold); spectral
+    rays stay with the numpy BSDFs."""
+    scene, eye, target = textured_scene()
+    materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05),
+                 Material((0.3, 0.6, 0.9), sigma=20.0)]
+    scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
+    scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
+    camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, 24, 16, 2)
+    rays = backend_for("numpy").ray_generator(camera, 3)(SampleBlock(0, camera.sample_count, camera.spp))
+    alive = np.flatnonzero(rays.weight != 0)
+    args = (rays.origin[alive].astype(np.float32), rays.direction[alive].astype(np.float32), rays.pixel[alive],
+            alive % 2, None, np.random.default_rng(1).uniform(400, 700, len(alive)) if spectral else None)
+    images = []
+    for backend in ("numpy", "opencl"):
+        integrator = PathIntegrator(scene, Intersector(scene), 2, 3, camera.pixel_spread_radians(), 5, "path",
+                                    backend=backend)
+        images.append(integrator.radiance(*args)[0])
+    expected, got = images
+    assert PathIntegrator(scene, Intersector(scene), backend="opencl")._bsdf_kernel is not None
+    scale = float(np.abs(expected).max())
+    close = np.all(np.isclose(got, expected, rtol=1e-4, atol=1e-5 * scale), axis=1)
+    assert close.mean() > 0.99, close.mean()
+    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 1e-3
