@@ -1,0 +1,99 @@
+"""A first render's start-up (issue 35): the programs a render builds, and where their errors go.
+
+The lens kernel's first sight of a camera uses one ray per work item untimed (the choice among
+``rays_per_item_choices`` is timed the next time, then read back); the camera's program builds on a
+thread of its own while the shading kernel builds, and its build errors still reach the caller as
+a foreground build's do.
+"""
+
+import threading
+
+import pytest
+
+from realistic import load_scene
+from realistic.errors import UserError
+from realistic.renderer.job import PassSettings
+from realistic.renderer.runner import PassRunner
+from realistic.renderer.timing import StageClock
+
+opencl = pytest.importorskip("realistic.device.opencl")
+
+pytestmark = pytest.mark.usefixtures("opencl_platform")
+
+
+@pytest.fixture()
+def built(monkeypatch, opencl_platform, tmp_path):
+    """An empty disk cache, no choice made yet in this process, and the rays per work item of
+    every lens program ``LensKernel`` builds, in order."""
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(opencl_platform, "_chosen", {})
+    choices: list[int] = []
+    original = opencl_platform.LensKernel._build
+
+    def recording(kernel, rays_per_item):
+        choices.append(rays_per_item)
+        return original(kernel, rays_per_item)
+
+    monkeypatch.setattr(opencl_platform.LensKernel, "_build", recording)
+    return choices
+
+
+def test_a_camera_first_seen_builds_one_program_untimed_and_its_choice_is_timed_next(built, opencl_platform,
+                                                                                    monkeypatch):
+    from kernel_reference import reference_camera
+
+    camera = reference_camera("wide", "rear")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    assert opencl_platform.LensKernel(camera).rays_per_item == one
+    assert built == [one]  # the several-ray program is neither built nor timed
+    monkeypatch.setattr(opencl_platform, "_chosen", {})  # as in the next process
+    built.clear()
+    timed = opencl_platform.LensKernel(camera).rays_per_item
+    assert timed in (several, one)
+    assert built == [several, one, timed]  # both built to be timed, then the faster one used
+    monkeypatch.setattr(opencl_platform, "_chosen", {})
+    built.clear()
+    assert opencl_platform.LensKernel(camera).rays_per_item == timed
+    assert built == [timed]  # read back from the disk cache
+
+
+def test_with_the_cache_off_every_process_times_its_choice(built, opencl_platform, monkeypatch):
+    from kernel_reference import reference_camera
+
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", "off")
+    camera = reference_camera("wide", "rear")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    timed = opencl_platform.LensKernel(camera).rays_per_item
+    assert built == [several, one, timed]
+
+
+def _runner_with_lens_source(monkeypatch, opencl_platform, source: str) -> list[threading.Thread]:
+    """The threads that asked for the lens program while a PassRunner was made on the opencl backend
+    with ``source`` as that program (still named lens.cl); the runner's error, if any, is raised."""
+    asked: list[threading.Thread] = []
+    original = opencl_platform.lens_program
+
+    def replaced(camera, rays_per_item):
+        asked.append(threading.current_thread())
+        return source, original(camera, rays_per_item)[1]
+
+    monkeypatch.setattr(opencl_platform, "lens_program", replaced)
+    scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=False)
+    try:
+        PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())
+    finally:
+        assert asked and all(thread is not threading.current_thread() for thread in asked)  # built on its own thread
+    return asked
+
+
+def test_a_camera_build_error_on_its_own_thread_names_the_kernel_file(built, opencl_platform, monkeypatch):
+    source = "__kernel void generate_rays(__global float *x) { x[0] = undeclared_here; }\n"
+    with pytest.raises(RuntimeError, match=r"(?s)building lens\.cl failed:.*undeclared_here"):
+        _runner_with_lens_source(monkeypatch, opencl_platform, source)
+
+
+def test_an_unknown_cpu_on_the_camera_build_thread_is_a_one_line_user_error(built, opencl_platform, monkeypatch):
+    source = f'#error "{opencl.UNKNOWN_CPU}"\n__kernel void generate_rays(__global float *x) {{ x[0] = 1.0f; }}\n'
+    with pytest.raises(UserError) as raised:
+        _runner_with_lens_source(monkeypatch, opencl_platform, source)
+    assert "--backend numpy" in str(raised.value) and "\n" not in str(raised.value)
