@@ -97,3 +97,24 @@ def test_an_unknown_cpu_on_the_camera_build_thread_is_a_one_line_user_error(buil
     with pytest.raises(UserError) as raised:
         _runner_with_lens_source(monkeypatch, opencl_platform, source)
     assert "--backend numpy" in str(raised.value) and "\n" not in str(raised.value)
+
+
+@pytest.mark.parametrize("dispersion", [False, True])
+def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dispersion):
+    """A spectral render's shading kernel is built for spectral rays alone, an RGB render's for RGB
+    rays alone (the spectral one used to build the RGB variant too, unused)."""
+    from realistic.camera.base import SampleBlock
+
+    variants: list[str] = []
+    original = opencl.build_program
+
+    def recording(device, source, name, options=()):
+        if name == "shade.cl":
+            variants.extend(option for option in options if option.startswith("-DSPECTRAL="))
+        return original(device, source, name, options)
+
+    monkeypatch.setattr(opencl, "build_program", recording)
+    scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=dispersion)
+    runner = PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())
+    assert runner(0, SampleBlock(0, 240, 2)).shadow_rays > 0  # shaded by the kernel
+    assert variants and set(variants) == {f"-DSPECTRAL={int(dispersion)}"}

@@ -62,7 +62,8 @@ class PassRunner:
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="camera-build") as build:
             generate = build.submit(kernels.ray_generator, camera, settings.seed)
             self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
-                                              settings.seed, spread, backend=kernels)
+                                              settings.seed, spread, backend=kernels,
+                                              spectral=isinstance(camera, LensCamera) and camera.spectral)
             self.generate = generate.result()
         self.aovs = AovLayout(settings.aovs)
         self.flare = None
