@@ -1,17 +1,13 @@
-"""A first render's start-up (issue 35): the programs a render builds, and where their errors go.
+"""A first render's start-up (issue 35): the programs a render builds.
 
 The lens kernel's first sight of a camera uses one ray per work item untimed (the choice among
-``rays_per_item_choices`` is timed the next time, then read back); the camera's program builds on a
-thread of its own while the shading kernel builds, and its build errors still reach the caller as
-a foreground build's do.
+``rays_per_item_choices`` is timed the next time, then read back); a render builds the shading
+kernel variant its rays need, and no other.
 """
-
-import threading
 
 import pytest
 
 from realistic import load_scene
-from realistic.errors import UserError
 from realistic.renderer.job import PassSettings
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.timing import StageClock
@@ -65,38 +61,6 @@ def test_with_the_cache_off_every_process_times_its_choice(built, opencl_platfor
     several, one = opencl_platform.rays_per_item_choices(camera)
     timed = opencl_platform.LensKernel(camera).rays_per_item
     assert built == [several, one, timed]
-
-
-def _runner_with_lens_source(monkeypatch, opencl_platform, source: str) -> list[threading.Thread]:
-    """The threads that asked for the lens program while a PassRunner was made on the opencl backend
-    with ``source`` as that program (still named lens.cl); the runner's error, if any, is raised."""
-    asked: list[threading.Thread] = []
-    original = opencl_platform.lens_program
-
-    def replaced(camera, rays_per_item):
-        asked.append(threading.current_thread())
-        return source, original(camera, rays_per_item)[1]
-
-    monkeypatch.setattr(opencl_platform, "lens_program", replaced)
-    scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=False)
-    try:
-        PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())
-    finally:
-        assert asked and all(thread is not threading.current_thread() for thread in asked)  # built on its own thread
-    return asked
-
-
-def test_a_camera_build_error_on_its_own_thread_names_the_kernel_file(built, opencl_platform, monkeypatch):
-    source = "__kernel void generate_rays(__global float *x) { x[0] = undeclared_here; }\n"
-    with pytest.raises(RuntimeError, match=r"(?s)building lens\.cl failed:.*undeclared_here"):
-        _runner_with_lens_source(monkeypatch, opencl_platform, source)
-
-
-def test_an_unknown_cpu_on_the_camera_build_thread_is_a_one_line_user_error(built, opencl_platform, monkeypatch):
-    source = f'#error "{opencl.UNKNOWN_CPU}"\n__kernel void generate_rays(__global float *x) {{ x[0] = 1.0f; }}\n'
-    with pytest.raises(UserError) as raised:
-        _runner_with_lens_source(monkeypatch, opencl_platform, source)
-    assert "--backend numpy" in str(raised.value) and "\n" not in str(raised.value)
 
 
 @pytest.mark.parametrize("dispersion", [False, True])

@@ -7,8 +7,6 @@ per-pixel sums (``film.pass_sums``). Both executors (``passes.ThreadPasses`` and
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
@@ -56,15 +54,11 @@ class PassRunner:
                  intersector: Intersector | None = None):
         self.camera, self.morton, self.clock, self.crop = camera, settings.morton, clock, settings.crop
         kernels = backend_for(settings.backend, settings.cl_device)  # this process's, made once: jobs carry strings
+        self.generate = kernels.ray_generator(camera, settings.seed)
         spread = camera.pixel_spread_radians() * differential_scale(camera.spp, scene.differential_floor)
-        # the camera's kernel is built on a thread of its own while the shading kernel builds here
-        # (pyopencl releases the GIL while a program builds); its errors are raised by result()
-        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="camera-build") as build:
-            generate = build.submit(kernels.ray_generator, camera, settings.seed)
-            self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
-                                              settings.seed, spread, backend=kernels,
-                                              spectral=isinstance(camera, LensCamera) and camera.spectral)
-            self.generate = generate.result()
+        self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
+                                          settings.seed, spread, backend=kernels,
+                                          spectral=isinstance(camera, LensCamera) and camera.spectral)
         self.aovs = AovLayout(settings.aovs)
         self.flare = None
         if settings.flare_threshold is not None and isinstance(camera, LensCamera):  # RenderJob refuses other cameras
