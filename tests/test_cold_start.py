@@ -63,6 +63,32 @@ def test_with_the_cache_off_every_process_times_its_choice(built, opencl_platfor
     assert built == [several, one, timed]
 
 
+def test_the_program_not_chosen_stores_no_binaries(built, opencl_platform, monkeypatch):
+    """Built a second time to be timed, the program not chosen leaves its first build's mark alone
+    at exit: its binaries would cost a compile of every kernel and never be loaded."""
+    from kernel_reference import reference_camera
+    from realistic.core import disk_cache
+
+    camera = reference_camera("telephoto", "rear")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    device = opencl.Device.for_spec()
+
+    def stored(rays_per_item: int) -> list[str]:
+        source, _ = opencl_platform.lens_program(camera, rays_per_item)
+        entry = disk_cache.load_arrays(disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), source.encode(), ()))
+        return [] if entry is None else sorted(entry)
+
+    opencl.build_program.cache_clear()  # each sight as in a process of its own
+    opencl_platform.LensKernel(camera)
+    opencl.build_program.cache_clear()
+    monkeypatch.setattr(opencl_platform, "_chosen", {})
+    chosen = opencl_platform.LensKernel(camera).rays_per_item
+    opencl.store_built_binaries()
+    opencl.build_program.cache_clear()
+    assert stored(several if chosen == one else one) == ["built"]
+    assert stored(chosen) == (["device0"] if chosen == one else ["built"])  # built twice, or once
+
+
 @pytest.mark.parametrize("dispersion", [False, True])
 def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dispersion):
     """A spectral render's shading kernel is built for spectral rays alone, an RGB render's for RGB

@@ -20,7 +20,7 @@ from realistic.core import disk_cache
 from realistic.core.pixel_filter import TABLE_BINS, PixelFilter
 from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, leave_binaries_unstored, whole_groups
 from realistic.device.tables import Table
 from realistic.optics.coating import BARE, DESIGN_WAVELENGTH_NM, LAYER, MGF2, MGF2_INDEX, mgf2_index
 from realistic.optics.dispersion import D_LINE_NM, GlassFormula, cauchy_coefficients
@@ -376,7 +376,8 @@ class LensKernel:
         builds and compiles both programs, most of a first render's start-up, and PoCL compiles the
         one-ray program at its first launch in a fraction of the several-ray one's time, while the
         choice changes only the camera rays' speed (every ray is the same either way), a small part
-        of a render. With the disk cache off every process times its choice."""
+        of a render. With the disk cache off every process times its choice. The program not chosen
+        leaves no binaries to store at exit (``leave_binaries_unstored``)."""
         key = disk_cache.cache_key("lens-rays-per-item", self.device.identity(),
                                    camera_header(self.camera) + kernel_source(KERNEL_FILE))
         if key in _chosen:
@@ -400,6 +401,7 @@ class LensKernel:
                 fastest[choice] = min(fastest[choice], _seconds(lambda: self.generate(block)))
         chosen = _chosen[key] = one if fastest[one] < ONE_RAY_MARGIN * fastest[several] else several
         disk_cache.store_arrays(key, {"rays_per_item": np.array([chosen])})
+        leave_binaries_unstored(built[several if chosen == one else one][1])
         return chosen
 
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
