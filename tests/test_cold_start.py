@@ -78,6 +78,7 @@ def test_the_program_not_chosen_stores_no_binaries(built, opencl_platform, monke
         entry = disk_cache.load_arrays(disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), source.encode(), ()))
         return [] if entry is None else sorted(entry)
 
+    monkeypatch.setattr(opencl, "_unstored", [])  # none of the binaries earlier tests left to store
     opencl.build_program.cache_clear()  # each sight as in a process of its own
     opencl_platform.LensKernel(camera)
     opencl.build_program.cache_clear()
