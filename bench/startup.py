@@ -109,10 +109,10 @@ def first_renders(trees: dict[str, Path], cases: dict[str, list[str]], repeats: 
     for _ in range(repeats):
         for case, arguments in cases.items():
             for tree, path in trees.items():
-                caches = (tempfile.mkdtemp(prefix="realistic-bench-cache-"),
-                          tempfile.mkdtemp(prefix="pocl-bench-cache-"))
-                for run in RUNS:
-                    seconds[case][tree][run].append(render_seconds(path, arguments, caches))
+                with tempfile.TemporaryDirectory(prefix="realistic-bench-cache-") as ours, \
+                        tempfile.TemporaryDirectory(prefix="pocl-bench-cache-") as pocl:
+                    for run in RUNS:
+                        seconds[case][tree][run].append(render_seconds(path, arguments, (ours, pocl)))
     print(f"\n{'render':<10}{'tree':<12}" + "".join(f"{run + ' s':>10}" for run in RUNS))
     results: dict[str, object] = {}
     for case, by_tree in seconds.items():
