@@ -1,14 +1,20 @@
-"""Start-up benchmark: the exit-pupil table per lens, uncached and cached, and the README command.
+"""Start-up benchmark: the exit-pupil table per lens, uncached and cached, and a user's first renders.
 
-    .venv/bin/python bench/startup.py [--repeats 3] [--skip-readme]
+    .venv/bin/python bench/startup.py [--repeats 3] [--skip-tables] [--skip-renders] [--baseline DIR]
 
 For every bundled lens focused at infinity on a full-frame film: the seconds to build its
 exit-pupil table (d line, and the three wavelengths of a spectral camera) with an empty disk cache,
 and to read it back from the disk cache in a fresh process state (memory cache cleared). Then the
 table's cost against the number of surfaces (flat glass plates in front of the double Gauss: the
-search traces the same rays, each through more surfaces), and the wall time of README's first
-command (``python -m realistic render``) with an empty and with a filled cache. Medians of
-``--repeats`` runs. Writes bench/results/startup.json.
+search traces the same rays, each through more surfaces).
+
+Then a user's first renders: the wall seconds of README's first command (``python -m realistic
+render``) and of the dragons homework scene (``scenes/dof-dragons/dgauss.pbrt`` at 4 spp; skipped
+when ``../shared`` lacks its meshes), each run three times in a row on empty caches (ours and
+PoCL's, ``POCL_CACHE_DIR``): the first is a cold start (every kernel compiled), the later ones
+find what the earlier left. ``--baseline DIR``: another checkout (an older commit, say) whose runs
+alternate with this tree's, so both see the same load. Medians of ``--repeats`` sequences; the
+load average is printed and stored. Writes bench/results/startup.json.
 """
 
 from __future__ import annotations
@@ -77,46 +83,85 @@ def plated_lens(plates: int) -> LensSystem:
     return build_lens("plates", list(range(1, len(rows) + 1)), *columns, name=f"dgauss+{plates} plates")
 
 
-def readme_seconds(cache: str) -> float:
-    """Wall seconds of ``python -m realistic render`` (README's first command) with ``cache``."""
+SHARED = ROOT.parent / "shared"
+DRAGONS = ["scenes/dof-dragons/dgauss.pbrt", "--spp", "4", "--search-path", str(SHARED / "meshes"),
+           "--search-path", str(SHARED / "scenes" / "pbrt"), "--search-path", str(SHARED / "lenses")]
+#: Renders in a row on the same caches: the first a cold start, the others after it.
+RUNS = ("first", "second", "third")
+
+
+def render_seconds(tree: Path, arguments: list[str], caches: tuple[str, str]) -> float:
+    """Wall seconds of ``python -m realistic render ARGUMENTS`` run from checkout ``tree`` with
+    ``caches`` (REALISTIC_CACHE_DIR, POCL_CACHE_DIR)."""
     with tempfile.TemporaryDirectory() as folder:
+        env = {**os.environ, "PYTHONPATH": str(tree), "REALISTIC_CACHE_DIR": caches[0], "POCL_CACHE_DIR": caches[1]}
         start = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "realistic", "render", "--out", str(Path(folder) / "r.exr")],
-                       check=True, cwd=ROOT, env={**os.environ, "REALISTIC_CACHE_DIR": cache},
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        subprocess.run([sys.executable, "-m", "realistic", "render", *arguments, "--out", str(Path(folder) / "r.exr")],
+                       check=True, cwd=tree, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         return time.perf_counter() - start
+
+
+def first_renders(trees: dict[str, Path], cases: dict[str, list[str]], repeats: int) -> dict[str, object]:
+    """Per case and tree, the median wall seconds of each of ``RUNS`` renders in a row on empty
+    caches, the trees' sequences taken in turn."""
+    seconds: dict[str, dict[str, dict[str, list[float]]]] = {
+        case: {tree: {run: [] for run in RUNS} for tree in trees} for case in cases}
+    for _ in range(repeats):
+        for case, arguments in cases.items():
+            for tree, path in trees.items():
+                with tempfile.TemporaryDirectory(prefix="realistic-bench-cache-") as ours, \
+                        tempfile.TemporaryDirectory(prefix="pocl-bench-cache-") as pocl:
+                    for run in RUNS:
+                        seconds[case][tree][run].append(render_seconds(path, arguments, (ours, pocl)))
+    print(f"\n{'render':<10}{'tree':<12}" + "".join(f"{run + ' s':>10}" for run in RUNS))
+    results: dict[str, object] = {}
+    for case, by_tree in seconds.items():
+        results[case] = {tree: {run: statistics.median(values) for run, values in runs.items()}
+                         for tree, runs in by_tree.items()}
+        for tree, runs in by_tree.items():
+            print(f"{case:<10}{tree:<12}" + "".join(f"{statistics.median(runs[run]):>10.2f}" for run in RUNS))
+    return results
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3, help="runs per figure; the median is shown")
-    parser.add_argument("--skip-readme", action="store_true", help="skip timing README's render command")
+    parser.add_argument("--skip-tables", action="store_true", help="skip timing the exit-pupil tables")
+    parser.add_argument("--skip-renders", action="store_true", help="skip timing the first renders")
+    parser.add_argument("--baseline", type=Path, help="another checkout whose renders alternate with this tree's")
     args = parser.parse_args()
-    results: dict[str, object] = {"lenses": {}, "surfaces": {}, "readme": {}}
+    results: dict[str, object] = {"load_average_before": os.getloadavg(), "cpu_count": os.cpu_count()}
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
 
-    print(f"{'lens':<12}{'d line s':>10}{'cached s':>10}{'spectral s':>12}{'cached s':>10}")
-    for name in BUNDLED_LENSES:
-        lens = load_lens(name)
-        mono = table_seconds(lens, (D_LINE_NM,), args.repeats)
-        spectral = table_seconds(lens, SPECTRAL, args.repeats)
-        results["lenses"][name] = {"d_line": mono, "spectral": spectral}
-        print(f"{name:<12}{mono[0]:>10.3f}{mono[1]:>10.4f}{spectral[0]:>12.3f}{spectral[1]:>10.4f}")
+    if not args.skip_tables:
+        lenses: dict[str, object] = {}
+        surfaces: dict[int, float] = {}
+        print(f"{'lens':<12}{'d line s':>10}{'cached s':>10}{'spectral s':>12}{'cached s':>10}")
+        for name in BUNDLED_LENSES:
+            lens = load_lens(name)
+            mono = table_seconds(lens, (D_LINE_NM,), args.repeats)
+            spectral = table_seconds(lens, SPECTRAL, args.repeats)
+            lenses[name] = {"d_line": mono, "spectral": spectral}
+            print(f"{name:<12}{mono[0]:>10.3f}{mono[1]:>10.4f}{spectral[0]:>12.3f}{spectral[1]:>10.4f}")
 
-    print(f"\n{'surfaces':<12}{'table s':>10}{'s per surface':>15}")
-    for plates in (0, 45, 495):
-        lens = plated_lens(plates)
-        seconds = table_seconds(lens, (D_LINE_NM,), 1)[0]
-        results["surfaces"][lens.surface_count] = seconds
-        print(f"{lens.surface_count:<12}{seconds:>10.3f}{seconds / lens.surface_count:>15.5f}")
+        print(f"\n{'surfaces':<12}{'table s':>10}{'s per surface':>15}")
+        for plates in (0, 45, 495):
+            lens = plated_lens(plates)
+            seconds = table_seconds(lens, (D_LINE_NM,), 1)[0]
+            surfaces[lens.surface_count] = seconds
+            print(f"{lens.surface_count:<12}{seconds:>10.3f}{seconds / lens.surface_count:>15.5f}")
+        results.update(lenses=lenses, surfaces=surfaces)
 
-    if not args.skip_readme:
-        empty = [readme_seconds(tempfile.mkdtemp(prefix="realistic-bench-cache-")) for _ in range(args.repeats)]
-        filled_cache = tempfile.mkdtemp(prefix="realistic-bench-cache-")
-        readme_seconds(filled_cache)
-        filled = [readme_seconds(filled_cache) for _ in range(args.repeats)]
-        results["readme"] = {"empty_cache": statistics.median(empty), "filled_cache": statistics.median(filled)}
-        print(f"\nREADME command wall s: empty cache {statistics.median(empty):.2f}, "
-              f"filled cache {statistics.median(filled):.2f}")
+    if not args.skip_renders:
+        trees = {"this": ROOT} if args.baseline is None else {"baseline": args.baseline.resolve(), "this": ROOT}
+        cases: dict[str, list[str]] = {"readme": []}
+        if (SHARED / "meshes" / "dragon.ply").is_file():
+            cases["dragons"] = DRAGONS
+        else:
+            print(f"\nthe dragons render is skipped: {SHARED / 'meshes' / 'dragon.ply'} is absent")
+        results["renders"] = first_renders(trees, cases, args.repeats)
+        results["load_average_after"] = os.getloadavg()
+        print(f"load average {os.getloadavg()[0]:.2f}")
 
     out = ROOT / "bench" / "results" / "startup.json"
     out.parent.mkdir(exist_ok=True)

@@ -20,7 +20,7 @@ from realistic.core import disk_cache
 from realistic.core.pixel_filter import TABLE_BINS, PixelFilter
 from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, leave_binaries_unstored, whole_groups
 from realistic.device.tables import Table
 from realistic.optics.coating import BARE, DESIGN_WAVELENGTH_NM, LAYER, MGF2, MGF2_INDEX, mgf2_index
 from realistic.optics.dispersion import D_LINE_NM, GlassFormula, cauchy_coefficients
@@ -327,8 +327,9 @@ class LensKernel:
     """``lens.cl`` built for one camera; each launch writes straight into the arrays it returns.
 
     Each work item traces ``rays_per_item`` rays: given, or else the faster of
-    ``rays_per_item_choices`` as timed on this device the first time this lens, camera and kernel
-    source are built, then kept in the disk cache. Several rays per work item are what let PoCL's
+    ``rays_per_item_choices`` as timed on this device the second time this lens, camera and kernel
+    source are built (the first uses one, untimed: ``_fastest_rays_per_item``), then kept in
+    the disk cache. Several rays per work item are what let PoCL's
     vectoriser overlap their latencies (``kernels/lens.cl``), but LLVM's SLP vectoriser, which PoCL
     3.0 runs before it, sometimes packs the rays into short vectors instead, and then the kernel
     runs at a third of the speed of one ray per work item: which happens depends on the kernel's
@@ -368,7 +369,15 @@ class LensKernel:
     def _fastest_rays_per_item(self) -> int:
         """The faster of ``rays_per_item_choices`` for this camera on this device (see
         ``ONE_RAY_MARGIN``): from the disk cache, or timed on launches of equal work, taken in turn
-        (PoCL compiles each at its first launch, untimed)."""
+        (PoCL compiles each at its first launch, untimed).
+
+        The first time this lens, camera and kernel source are seen (no disk-cache entry) one ray
+        per work item is used untimed and a mark is left; the choice is timed the next time. Timing
+        builds and compiles both programs, most of a first render's start-up, and PoCL compiles the
+        one-ray program at its first launch in a fraction of the several-ray one's time, while the
+        choice changes only the camera rays' speed (every ray is the same either way), a small part
+        of a render. With the disk cache off every process times its choice. The program not chosen
+        leaves no binaries to store at exit (``leave_binaries_unstored``)."""
         key = disk_cache.cache_key("lens-rays-per-item", self.device.identity(),
                                    camera_header(self.camera) + kernel_source(KERNEL_FILE))
         if key in _chosen:
@@ -377,6 +386,9 @@ class LensKernel:
         several, one = rays_per_item_choices(self.camera)
         if stored is not None and "rays_per_item" in stored and int(stored["rays_per_item"][0]) in (several, one):
             return _chosen.setdefault(key, int(stored["rays_per_item"][0]))
+        if stored is None and disk_cache.cache_dir() is not None:
+            disk_cache.store_arrays(key, {"seen": np.zeros(1, np.uint8)})
+            return _chosen.setdefault(key, one)
         block = SampleBlock(0, TIMED_RAYS // self.camera.rays_per_sample, self.camera.spp)
         built = {choice: self._build(choice) for choice in (several, one)}  # each built once
         fastest = {several: np.inf, one: np.inf}
@@ -389,6 +401,7 @@ class LensKernel:
                 fastest[choice] = min(fastest[choice], _seconds(lambda: self.generate(block)))
         chosen = _chosen[key] = one if fastest[one] < ONE_RAY_MARGIN * fastest[several] else several
         disk_cache.store_arrays(key, {"rays_per_item": np.array([chosen])})
+        leave_binaries_unstored(built[several if chosen == one else one][1])
         return chosen
 
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:

@@ -263,6 +263,13 @@ def _remember(key: str, program: cl.Program, built_before: bool) -> None:
         _unstored.append((key, program))
 
 
+def leave_binaries_unstored(program: cl.Program) -> None:
+    """Store no binaries of ``program`` at exit: one built only to be timed against another and
+    not used (``LensKernel``'s rays per work item), whose binaries would cost a compile of every
+    kernel and never be loaded."""
+    _unstored[:] = [(key, built) for key, built in _unstored if built is not program]
+
+
 @atexit.register  # after pyopencl's own exit handler is registered, so it runs first
 def store_built_binaries() -> None:
     """Store the binaries of the programs ``build_program`` built from source a second time. Run as

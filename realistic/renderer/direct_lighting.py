@@ -81,16 +81,16 @@ class DirectLighting:
     """Radiance arriving along camera rays, with direct illumination from the scene's area lights."""
 
     def __init__(self, scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
-                 pixel_spread_radians: float = 0.0, *, backend: Backend | str = "numpy"):
+                 pixel_spread_radians: float = 0.0, *, backend: Backend | str = "numpy", spectral: bool = False):
         """``pixel_spread_radians``: the camera's (``Camera.pixel_spread_radians``); 0 point-samples
         image textures (bilinear on their finest level). An "opencl" ``backend`` (a
         ``renderer.backends`` object, or its name for the default device) shades RGB rays with
         ``kernels/shade.cl`` on its device (``renderer.shade_kernel``); "numpy" with the numpy code
-        here, the reference."""
+        here, the reference. ``spectral``: whether the rays will be spectral (the kernel variant built first)."""
         if light_samples < 1:
             raise ValueError("light_samples must be at least 1")
         self.intersector, self.light_samples, self.seed = intersector, light_samples, seed
-        self.pixel_spread_radians = pixel_spread_radians
+        self.pixel_spread_radians, self.spectral = pixel_spread_radians, spectral
         # also runs EWA texture lookups (``scene.ewa_kernel``)
         self.backend = backend_for(backend) if isinstance(backend, str) else backend
         self.background = np.asarray(scene.background, dtype=np.float32)
@@ -160,7 +160,8 @@ class DirectLighting:
                                       geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
                                       materials=[_matte(m) for m in self._materials], light_rows=rows,
                                       light_cdf=self._light_cdf,
-                                      extent=self.intersector.extent, launch_samples=self.light_samples)
+                                      extent=self.intersector.extent, launch_samples=self.light_samples,
+                                      spectral=self.spectral)
         self._build_device_textures(backend, kernel.host_albedo)
         return kernel
 

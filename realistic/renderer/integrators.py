@@ -37,15 +37,18 @@ def is_lambertian(scene: Scene) -> bool:
 
 
 def make_integrator(scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
-                    pixel_spread_radians: float = 0.0, *, backend: Backend | str = "numpy") -> DirectLighting:
+                    pixel_spread_radians: float = 0.0, *, backend: Backend | str = "numpy",
+                    spectral: bool = False) -> DirectLighting:
     """The integrator ``scene.integrator`` names, at ``scene.max_depth``. An "opencl" ``backend``
-    (``renderer.backends``, or its name) lets ``DirectLighting`` shade with its OpenCL kernel and
-    ``PathIntegrator`` evaluate and sample the BSDFs ``kernels/bsdf.cl`` covers."""
+    (``renderer.backends``, or its name) lets ``DirectLighting`` shade with its OpenCL kernel
+    (built for ``spectral`` rays or RGB ones) and ``PathIntegrator`` evaluate and sample the BSDFs
+    ``kernels/bsdf.cl`` covers."""
     if scene.integrator not in INTEGRATORS:
         raise ValueError(f"unknown integrator {scene.integrator!r} (choose {', '.join(INTEGRATORS)})")
     if scene.integrator == "directlighting" and all(isinstance(light, AreaLight) for light in scene.lights) \
             and is_lambertian(scene):
-        return DirectLighting(scene, intersector, light_samples, seed, pixel_spread_radians, backend=backend)
+        return DirectLighting(scene, intersector, light_samples, seed, pixel_spread_radians, backend=backend,
+                              spectral=spectral)
     mode = "direct" if scene.integrator == "directlighting" else "path"
     return PathIntegrator(scene, intersector, light_samples, seed, pixel_spread_radians, scene.max_depth, mode,
                           backend=backend)

@@ -57,7 +57,8 @@ class PassRunner:
         self.generate = kernels.ray_generator(camera, settings.seed)
         spread = camera.pixel_spread_radians() * differential_scale(camera.spp, scene.differential_floor)
         self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
-                                          settings.seed, spread, backend=kernels)
+                                          settings.seed, spread, backend=kernels,
+                                          spectral=isinstance(camera, LensCamera) and camera.spectral)
         self.aovs = AovLayout(settings.aovs)
         self.flare = None
         if settings.flare_threshold is not None and isinstance(camera, LensCamera):  # RenderJob refuses other cameras

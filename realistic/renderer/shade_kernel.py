@@ -166,10 +166,10 @@ class ShadeKernel:
     def __init__(self, *, faces: np.ndarray, normals: np.ndarray, uv: np.ndarray, geom_face_offset: np.ndarray,
                  geom_material: np.ndarray, geom_smooth: np.ndarray, geom_normal_matrix: np.ndarray,
                  materials: list[Material], light_rows: np.ndarray, light_cdf: np.ndarray, extent: float,
-                 device: Device, launch_samples: int = 1):
+                 device: Device, launch_samples: int = 1, spectral: bool = False):
         """``launch_samples``: the light samples per launch a render will ask for (at most
-        ``MAX_LAUNCH_SAMPLES``), whose program is built here rather than in its first pass (others
-        are built on first use)."""
+        ``MAX_LAUNCH_SAMPLES``), and ``spectral``: whether its rays are spectral; that program
+        variant is built here rather than in its first pass (others are built on first use)."""
         self.device = device
         self.context = device.context
         if not 0 < len(light_cdf) <= MAX_LIGHTS:
@@ -192,7 +192,7 @@ class ShadeKernel:
                         f"-DSMOOTH={int(np.any(geom_smooth))}",
                         f"-DTEXTURED={int(np.any(np.isin(kinds, (KIND_GRID, KIND_CHECKER))))}",
                         f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
-        self.program = self._program(min(launch_samples, MAX_LAUNCH_SAMPLES))
+        self.program = self._program(min(launch_samples, MAX_LAUNCH_SAMPLES), spectral)
         self._tables = [device.wrapped_buffer(array, dtype) for array, dtype in (
             (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom_ints, np.int32),
             (geom_floats, np.float32), (material_rows, np.float32), (light_rows, np.float32),

@@ -1,0 +1,111 @@
+"""A first render's start-up (issue 35): the programs a render builds.
+
+The lens kernel's first sight of a camera uses one ray per work item untimed (the choice among
+``rays_per_item_choices`` is timed the next time, then read back); a render builds the shading
+kernel variant its rays need, and no other.
+"""
+
+import pytest
+
+from realistic import load_scene
+from realistic.renderer.job import PassSettings
+from realistic.renderer.runner import PassRunner
+from realistic.renderer.timing import StageClock
+
+opencl = pytest.importorskip("realistic.device.opencl")
+
+pytestmark = pytest.mark.usefixtures("opencl_platform")
+
+
+@pytest.fixture()
+def built(monkeypatch, opencl_platform, tmp_path):
+    """An empty disk cache, no choice made yet in this process, and the rays per work item of
+    every lens program ``LensKernel`` builds, in order."""
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(opencl_platform, "_chosen", {})
+    choices: list[int] = []
+    original = opencl_platform.LensKernel._build
+
+    def recording(kernel, rays_per_item):
+        choices.append(rays_per_item)
+        return original(kernel, rays_per_item)
+
+    monkeypatch.setattr(opencl_platform.LensKernel, "_build", recording)
+    return choices
+
+
+def test_a_camera_first_seen_builds_one_program_untimed_and_its_choice_is_timed_next(built, opencl_platform,
+                                                                                    monkeypatch):
+    from kernel_reference import reference_camera
+
+    camera = reference_camera("wide", "rear")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    assert opencl_platform.LensKernel(camera).rays_per_item == one
+    assert built == [one]  # the several-ray program is neither built nor timed
+    monkeypatch.setattr(opencl_platform, "_chosen", {})  # as in the next process
+    built.clear()
+    timed = opencl_platform.LensKernel(camera).rays_per_item
+    assert timed in (several, one)
+    assert built == [several, one, timed]  # both built to be timed, then the faster one used
+    monkeypatch.setattr(opencl_platform, "_chosen", {})
+    built.clear()
+    assert opencl_platform.LensKernel(camera).rays_per_item == timed
+    assert built == [timed]  # read back from the disk cache
+
+
+def test_with_the_cache_off_every_process_times_its_choice(built, opencl_platform, monkeypatch):
+    from kernel_reference import reference_camera
+
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", "off")
+    camera = reference_camera("wide", "rear")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    timed = opencl_platform.LensKernel(camera).rays_per_item
+    assert built == [several, one, timed]
+
+
+def test_the_program_not_chosen_stores_no_binaries(built, opencl_platform, monkeypatch):
+    """Built a second time to be timed, the program not chosen leaves its first build's mark alone
+    at exit: its binaries would cost a compile of every kernel and never be loaded."""
+    from kernel_reference import reference_camera
+    from realistic.core import disk_cache
+
+    camera = reference_camera("telephoto", "rear")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    device = opencl.Device.for_spec()
+
+    def stored(rays_per_item: int) -> list[str]:
+        source, _ = opencl_platform.lens_program(camera, rays_per_item)
+        entry = disk_cache.load_arrays(disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), source.encode(), ()))
+        return [] if entry is None else sorted(entry)
+
+    monkeypatch.setattr(opencl, "_unstored", [])  # none of the binaries earlier tests left to store
+    opencl.build_program.cache_clear()  # each sight as in a process of its own
+    opencl_platform.LensKernel(camera)
+    opencl.build_program.cache_clear()
+    monkeypatch.setattr(opencl_platform, "_chosen", {})
+    chosen = opencl_platform.LensKernel(camera).rays_per_item
+    opencl.store_built_binaries()
+    opencl.build_program.cache_clear()
+    assert stored(several if chosen == one else one) == ["built"]
+    assert stored(chosen) == (["device0"] if chosen == one else ["built"])  # built twice, or once
+
+
+@pytest.mark.parametrize("dispersion", [False, True])
+def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dispersion):
+    """A spectral render's shading kernel is built for spectral rays alone, an RGB render's for RGB
+    rays alone (the spectral one used to build the RGB variant too, unused)."""
+    from realistic.camera.base import SampleBlock
+
+    variants: list[str] = []
+    original = opencl.build_program
+
+    def recording(device, source, name, options=()):
+        if name == "shade.cl":
+            variants.extend(option for option in options if option.startswith("-DSPECTRAL="))
+        return original(device, source, name, options)
+
+    monkeypatch.setattr(opencl, "build_program", recording)
+    scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=dispersion)
+    runner = PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())
+    assert runner(0, SampleBlock(0, 240, 2)).shadow_rays > 0  # shaded by the kernel
+    assert variants and set(variants) == {f"-DSPECTRAL={int(dispersion)}"}
