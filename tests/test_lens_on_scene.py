@@ -210,6 +210,8 @@ def test_every_lens_command_takes_the_focus_in_metres_from_the_film(tmp_path, ca
     assert float(read_exr(psf)[1]["filmDistanceMm"]) == pytest.approx(film_distance_for_focus(lens, 2000.0))
     assert main(["lens", "curves", "dgauss", "--focus", "inf", "--out", str(tmp_path / "c.png")]) == 0
     capsys.readouterr()
+    assert main(["lens", "ghosts", "dgauss", "--focus", "2", "--threshold", "2e-3"]) == 0
+    assert f"{film_distance_for_focus(lens, 2000.0):.3f} mm behind the rear vertex" in capsys.readouterr().out
 
 
 def test_render_focus_takes_inf_and_the_film_distance_in_mm():

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from realistic.camera.lens_camera import MM_PER_METRE
 from realistic.cli.values import LENS_HELP, checked
 from realistic.core import validation
 from realistic.optics.dispersion import D_LINE_NM
@@ -30,11 +31,11 @@ def cmd_lens_ghosts(args: argparse.Namespace) -> int:
     lens = load_lens(args.lens)
     lens = (lens.with_stop_diameter(args.aperture) if args.aperture else lens).with_coating(args.coating)
     paths = ghost_paths(lens, wavelength_nm=args.wavelength, threshold=args.threshold)
-    film = film_distance_for_focus(lens, math.inf, args.wavelength)
+    film = film_distance_for_focus(lens, args.focus * MM_PER_METRE, args.wavelength)
     rows = summarise(lens, film, paths, args.field, args.wavelength)
     print(f"{lens.name}, coating {args.coating}: {len(paths)} ghosts with on-axis throughput >= {args.threshold:g} "
-          f"(reflected at the second surface, then the first; surfaces from 0 at the front); film at the focus "
-          f"for infinity, {film:.3f} mm behind the rear vertex; spot of a light at {args.field:g} deg")
+          f"(reflected at the second surface, then the first; surfaces from 0 at the front); film focused at "
+          f"{args.focus:g} m, {film:.3f} mm behind the rear vertex; spot of a light at infinity at {args.field:g} deg")
     print(f"{'reflects':>10} {'throughput':>10} {'focus (mm)':>11} {'rms (mm)':>9} {'y (mm)':>9} {'light':>9}")
     direct_light = rows[0].light if rows[0].light > 0 else 1.0
     for row in rows:
@@ -59,6 +60,8 @@ def add_ghosts_command(lens_commands: argparse._SubParsersAction) -> None:
                                           "(default: %(default)g)")
     ghosts.add_argument("--field", type=checked(float, validation.field_angle_deg), default=0.0, metavar="DEG",
                         help="field angle of the light whose ghost spots are reported (default: 0)")
+    ghosts.add_argument("--focus", type=checked(float, validation.focus_distance), default=math.inf, metavar="M",
+                        help="distance in focus, in metres from the film plane, or inf (default: inf)")
     ghosts.add_argument("--aperture", type=checked(float, validation.stop_diameter_mm), metavar="MM",
                         help="stop diameter in mm (default: the file's)")
     ghosts.add_argument("--wavelength", type=checked(float, validation.wavelength_nm), default=D_LINE_NM,
