@@ -18,7 +18,7 @@ from realistic.camera.opencl_host import stop_lines
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.optics.asphere import COEFFICIENT_COUNT
-from realistic.optics.coating import DESIGN_WAVELENGTH_NM, IDEAL, MGF2_INDEX, mgf2_index
+from realistic.optics.coating import DESIGN_WAVELENGTH_NM, IDEAL, LAYER, MGF2_INDEX, mgf2_index
 from realistic.optics.ghosts import GHOST_WAVELENGTH_NM, GhostPath, GhostTrace, path_steps
 from realistic.optics.lens import LensSystem
 
@@ -57,14 +57,17 @@ def _c_float(value: float) -> str:
 
 def ghost_header(lens: LensSystem) -> str:
     """The ``#define``s that ``ghost.cl`` needs for ``lens``: the table's offsets, the enumerations,
-    the coating layer's row of the media table, the asphere iteration, and the stop's opening (``stop_lines``; a round
-    stop's squared radius is its row's ``ap2``)."""
+    the coating layer's row of the media table, the asphere iteration, whether the lens has aspheres and
+    layer coatings at all (``ASPHERES``, ``LAYERS``: the kernel compiles only the shapes and coatings it
+    meets), and the stop's opening (``stop_lines``; a round stop's squared radius is its row's ``ap2``)."""
     lines = [STEPS.defines(), constant_defines("KIND", KINDS), constant_defines("ACTION", ACTIONS),
              "#define MODEL_IDEAL 0\n#define MODEL_BARE 1\n#define MODEL_LAYER 2\n",
              f"#define LAYER_MEDIUM {lens.surface_count + 1}\n",
              f"#define PI_LAMBDA0_OVER_NL0 {_c_float(math.pi * DESIGN_WAVELENGTH_NM / MGF2_INDEX)}\n",
              f"#define ASPHERE_ITERATIONS {ASPHERE_ITERATIONS}\n#define ASPHERE_TERMS {COEFFICIENT_COUNT}\n",
              f"#define ASPHERE_TOLERANCE_MM {_c_float(ASPHERE_TOLERANCE_MM)}\n",
+             f"#define ASPHERES {int(np.any(lens.aspheric))}\n",
+             f"#define LAYERS {int(np.any(lens.interface_models == LAYER))}\n",
              "#define STOP_R2 (s[STEP_AP2])\n", "\n".join(stop_lines(lens)) + "\n"]
     return "".join(lines)
 
