@@ -80,6 +80,19 @@ inline __attribute__((always_inline)) void concentric_disk(float u1, float u2, f
     *y = den * as_float((as_int(s) & first) | (as_int(c) & ~first));
 }
 
+/* cos(x) for 0 <= x <= 2 pi (the layer's phase for any wavelength above lambda0 / 2) as -cos(x - pi)
+ * by its Taylor polynomial to the 18th power (error below 4e-9 for |x - pi| <= pi). One polynomial, not
+ * sincos_quarter's pair and a choice of quadrant: the pair's twin chains were packed into 2-wide
+ * vectors by LLVM's SLP vectoriser, and the choice became a switch; either stops PoCL's work-group
+ * vectoriser. The coating layers' phase in kernels/lens.cl and kernels/ghost.cl. */
+inline __attribute__((always_inline)) float cos_phase(float x) {
+    float y = x - 3.14159265358979f;
+    float y2 = y * y;
+    return -(1.0f + y2 * (-0.5f + y2 * (1.0f / 24 + y2 * (-1.0f / 720 + y2 * (1.0f / 40320 + y2 * (-1.0f / 3628800 +
+        y2 * (1.0f / 479001600 + y2 * (-1.0f / 87178291200.0f + y2 * (1.0f / 20922789888000.0f +
+        y2 * (-1.0f / 6402373705728000.0f))))))))));
+}
+
 #ifdef CAMERA_SAMPLES
 /* Camera sampling shared by the camera kernels, which define CAMERA_SAMPLES before including this
  * file (kernels/lens.cl, kernels/thin_lens.cl): a launch's sample addresses, R4's stratified values

@@ -49,18 +49,6 @@ typedef struct {
     float phase;  /* and pi lambda0 nl / (lambda nl0) (reflectance's PHASE) */
 } Ray;
 
-#define PI_F 3.14159265358979f
-
-/* cos(x) for 0 <= x <= 2 pi (the layer's phase for any wavelength above lambda0 / 2): kernels/lens.cl's
- * cos_phase (-cos(x - pi) by its Taylor polynomial to the 18th power, error below 4e-9), a polynomial
- * because a call to the builtin cos stops PoCL's work-group vectoriser. */
-inline __attribute__((always_inline)) float cos_phase(float x) {
-    float y = x - PI_F;
-    float y2 = y * y;
-    return -(1.0f + y2 * (-0.5f + y2 * (1.0f / 24 + y2 * (-1.0f / 720 + y2 * (1.0f / 40320 + y2 * (-1.0f / 3628800 +
-        y2 * (1.0f / 479001600 + y2 * (-1.0f / 87178291200.0f + y2 * (1.0f / 20922789888000.0f +
-        y2 * (-1.0f / 6402373705728000.0f))))))))));
-}
 
 /* The fraction of unpolarised light reflected by an interface from index N0 into N2 at incidence
  * cosine C0 (realistic.optics.coating.reflectance, whose float64 formulas these are); 1 past the

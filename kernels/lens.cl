@@ -174,19 +174,6 @@ inline __attribute__((always_inline)) void transmit_bare(Ray *r, const float ETA
     r->T = r->T * (1.0f - 0.5f * (rs * rs + rp * rp));
 }
 
-/* cos(x) for 0 <= x <= 2 pi (the layer's phase for any wavelength above lambda0 / 2) as -cos(x - pi)
- * by its Taylor polynomial to the 18th power (error below 4e-9 for |x - pi| <= pi). One polynomial, not
- * sincos_quarter's pair and a choice of quadrant: the pair's twin chains were packed into 2-wide
- * vectors by LLVM's SLP vectoriser, and the choice became a switch; either stops PoCL's work-group
- * vectoriser. */
-inline __attribute__((always_inline)) float cos_phase(float x) {
-    float y = x - PI_F;
-    float y2 = y * y;
-    return -(1.0f + y2 * (-0.5f + y2 * (1.0f / 24 + y2 * (-1.0f / 720 + y2 * (1.0f / 40320 + y2 * (-1.0f / 3628800 +
-        y2 * (1.0f / 479001600 + y2 * (-1.0f / 87178291200.0f + y2 * (1.0f / 20922789888000.0f +
-        y2 * (-1.0f / 6402373705728000.0f))))))))));
-}
-
 /* A quarter-wave layer (at lambda0) of index NL between media N0 (the ray's) and N2, at the phase
  * factor PHASE = pi (lambda0 / lambda) NL / n(lambda0) (2 delta = PHASE cos theta_layer); NL is MgF2's
  * index at the ray's wavelength (realistic.optics.coating.mgf2_index). With a, b the amplitude
