@@ -49,7 +49,6 @@ typedef struct {
     float phase;  /* and pi lambda0 nl / (lambda nl0) (reflectance's PHASE) */
 } Ray;
 
-
 /* The fraction of unpolarised light reflected by an interface from index N0 into N2 at incidence
  * cosine C0 (realistic.optics.coating.reflectance, whose float64 formulas these are); 1 past the
  * critical angle. PHASE = pi lambda0 nl / (lambda nl0), the layer's 2 delta at normal incidence. A
