@@ -28,6 +28,7 @@ from realistic.scene.materials import Mirror
 from realistic.scene.model import AreaLight, Scene
 from realistic.scene.shapes import quad
 from realistic.scene.surfaces import Material
+from test_job import InterruptedAfterThirdTask
 
 REPO = Path(__file__).resolve().parents[1]
 ALL = "depth,normal,albedo,position"
@@ -179,16 +180,7 @@ def test_a_checkpoint_resumes_only_with_the_same_aovs_and_to_the_same_bits(tmp_p
     job = RenderJob(scene, (camera,), "numpy", pass_samples=24, aovs="depth,albedo",
                     checkpoint=Checkpointing(path, None))
 
-    class Stop(ThreadPasses):
-        """Interrupts the render after its third task."""
-
-        def wait_first(self, pending: set) -> set:
-            self.waited = getattr(self, "waited", 0) + 1
-            if self.waited == 3:
-                raise KeyboardInterrupt
-            return super().wait_first(pending)
-
-    partial = render(job, Stop(1))[0]
+    partial = render(job, InterruptedAfterThirdTask(1))[0]
     assert partial.interrupted and path.exists()
     with pytest.raises(UserError, match="another set of AOVs"):
         render(dataclasses.replace(job, aovs="depth", checkpoint=Checkpointing(path, None, resume=True)))

@@ -28,7 +28,7 @@ from realistic.scene.lights import DistantLight, EmissiveInstance, PointLight, S
 from realistic.scene.materials import Material
 from realistic.scene.model import AreaLight, Scene
 from realistic.scene.shapes import sphere
-from test_job import NewestFirstWithRetries
+from test_job import InterruptedAfterThirdTask, NewestFirstWithRetries
 
 WIDTH, HEIGHT = 40, 30
 #: Independent batches each estimate is split into, for its standard error.
@@ -251,16 +251,7 @@ def test_a_checkpoint_keeps_the_flare_and_resumes_only_with_the_same_flare(tmp_p
     path = checkpoint_path(tmp_path / "out.exr")
     job = dataclasses.replace(job, checkpoint=Checkpointing(path, None))
 
-    class Stop(ThreadPasses):
-        """Interrupts the render after its third task."""
-
-        def wait_first(self, pending: set) -> set:
-            self.waited = getattr(self, "waited", 0) + 1
-            if self.waited == 3:
-                raise KeyboardInterrupt
-            return super().wait_first(pending)
-
-    partial = render_job(job, Stop(2))[0]
+    partial = render_job(job, InterruptedAfterThirdTask(2))[0]
     assert partial.interrupted and path.exists()
     resume = Checkpointing(path, None, resume=True)
     for other in ({"flare": False}, {"flare_threshold": 1e-3}):

@@ -56,6 +56,17 @@ class NewestFirstWithRetries:
         self.runners = {}
 
 
+class InterruptedAfterThirdTask(ThreadPasses):
+    """ThreadPasses that interrupts the render (as Ctrl-C would) when it waits for its third task:
+    a checkpoint holds the first tasks, for the resume tests."""
+
+    def wait_first(self, pending: set) -> set:
+        self.waited = getattr(self, "waited", 0) + 1
+        if self.waited == 3:
+            raise KeyboardInterrupt
+        return super().wait_first(pending)
+
+
 def test_any_executor_keeping_the_protocol_renders_the_same_bits():
     scene, camera = _scene()
     job = RenderJob(scene, (camera, dataclasses.replace(camera, spp=3)), "numpy", seed=4, pass_samples=17)
