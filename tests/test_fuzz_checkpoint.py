@@ -314,3 +314,23 @@ def test_any_flare_value_or_length_resumes_or_is_refused_in_one_line(tmp_path_fa
             flat[position] = int(special)
     altered = arrays[name].shape != original.shape or not np.array_equal(arrays[name], original, equal_nan=False)
     _flare_resumes_whole_or_is_refused(_write(folder / "x.partial", header, arrays), arrays, altered)
+
+
+@given(st.data())
+def test_any_damaged_byte_of_a_flare_checkpoint_resumes_or_is_refused_in_one_line(tmp_path_factory, data):
+    folder = tmp_path_factory.mktemp("cp")
+    path = folder / "x.partial"
+    save_checkpoint(path, FLARE_IDENTITY, _flare_film((0, 1, 2, 4, 6)))
+    content = bytearray(path.read_bytes())
+    for _ in range(data.draw(st.integers(1, 4), label="bytes")):
+        content[data.draw(st.integers(0, len(content) - 1), label="at")] = data.draw(st.integers(0, 255), label="to")
+    path.write_bytes(bytes(content[:data.draw(st.integers(len(content) // 2, len(content)), label="cut")]))
+    try:
+        film = load_checkpoint(path, FLARE_IDENTITY, PLAN, flare=True)
+    except UserError as err:
+        assert "\n" not in str(err) and str(path) in str(err), str(err)
+        return
+    for index in range(len(PLAN)):
+        if not film.has(index):
+            film.add(index, PLAN[index].first_pixel, *_pass_data(index))
+    assert np.all(np.isfinite(film.image()))
