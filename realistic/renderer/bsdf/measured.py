@@ -129,12 +129,14 @@ def _trusted_table(stored: dict[str, np.ndarray], samples: IrregularSamples, nod
     top = np.maximum(samples.rgb.max(axis=0), 0.0).astype(np.float32)
     if not (np.all(np.isfinite(table)) and np.all(table >= 0) and np.all(table <= top)):
         return None
-    index = table_nodes(nodes)
-    read = np.zeros(table.shape[:3], bool)
-    read[index[:, 0], index[:, 1], index[:, 2]] = True
-    if np.any(table[~read] != 0):
+    axis = np.arange(nodes)
+    read_i, read_k = np.nonzero(axis[:, None] + axis[None, :] <= nodes + 1)  # ``table_nodes``' rule, any j
+    unread_i, unread_k = np.nonzero(axis[:, None] + axis[None, :] > nodes + 1)
+    if np.any(table[unread_i, :, unread_k] != 0):
         return None
-    checked = index[np.random.default_rng(0).choice(len(index), min(CHECKED_NODES, len(index)), replace=False)]
+    rng = np.random.default_rng(0)
+    pick = rng.choice(len(read_i), min(CHECKED_NODES, len(read_i)), replace=False)
+    checked = np.column_stack([read_i[pick], rng.integers(0, nodes, len(pick)), read_k[pick]])
     expected = irregular_lookup(samples, checked / (nodes - 1.0)).astype(np.float32)
     if not np.array_equal(table[checked[:, 0], checked[:, 1], checked[:, 2]], expected):
         return None  # the lookup is per node, so a build gives these bits (a numpy whose sums differ: a rebuild)
