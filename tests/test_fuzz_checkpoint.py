@@ -14,7 +14,7 @@ from hypothesis.extra import numpy as hnp
 from realistic.errors import UserError
 from realistic.renderer.aov import AovLayout
 from realistic.renderer.checkpoint import FORMAT, RenderIdentity, load_checkpoint, save_checkpoint
-from realistic.renderer.film import Film, PassFilm
+from realistic.renderer.film import Film, PassFilm, Splats
 from realistic.renderer.pass_plan import plan_passes
 
 WIDTH, HEIGHT, SPP, PASS_SAMPLES = 4, 3, 4, 6
@@ -213,3 +213,124 @@ def test_any_value_in_an_aov_column_loads_or_is_refused_in_one_line(tmp_path_fac
     row = data.draw(st.integers(0, len(arrays[name]) - 1))
     arrays[name][row, data.draw(st.integers(3, AOV_COLUMNS - 1))] = data.draw(SPECIAL)
     _aov_loads_and_renders_on_or_refuses(_write(tmp_path_factory.mktemp("cp") / "x.partial", header, arrays))
+
+
+def _pass_data(index: int) -> tuple[np.ndarray, Splats]:
+    """Pass ``index``'s sums and flare splats (a few ascending pixels of the film), the same in every call."""
+    rng = np.random.default_rng(100 + index)
+    pixel = np.flatnonzero(rng.random(WIDTH * HEIGHT) < 0.5).astype(np.int64)
+    return rng.random((PLAN[index].pixel_count, 3)), Splats(pixel, rng.random((len(pixel), 3)))
+
+
+def _flare_film(taken: tuple[int, ...]) -> PassFilm:
+    """A film with lens flare holding the passes ``taken`` (``_pass_data``)."""
+    film = PassFilm(Film(WIDTH, HEIGHT, SPP, flare=True), PLAN)
+    for index in taken:
+        film.add(index, PLAN[index].first_pixel, *_pass_data(index))
+    return film
+
+
+FLARE_IDENTITY = dataclasses.replace(IDENTITY, flare="ghosts >= 0.0001")
+FLARE_WHOLE = _flare_film(tuple(range(len(PLAN)))).image()
+
+
+def _flare_parts(tmp_path: Path) -> tuple[dict, dict[str, np.ndarray]]:
+    """The header and arrays of a flare checkpoint (``save_checkpoint``) of passes 0-2 taken and 4 and 6 waiting."""
+    path = tmp_path / "saved.partial"
+    save_checkpoint(path, FLARE_IDENTITY, _flare_film((0, 1, 2, 4, 6)))
+    with np.load(path) as data:
+        arrays = {name: data[name] for name in data.files}
+    return json.loads(str(arrays.pop("header"))), arrays
+
+
+FLARE_NAMES = ["flare", "waiting_flare_4", "waiting_flare_pixel_4", "waiting_flare_6", "waiting_flare_pixel_6"]
+
+
+def _flare_resumes_whole_or_is_refused(path: Path, arrays: dict[str, np.ndarray], altered: bool) -> None:
+    """The property: a one-line UserError naming the file, or a film holding exactly the file's flare
+    that every remaining pass completes to a finite image, the uninterrupted render's bit for bit
+    when the file was not altered."""
+    try:
+        film = load_checkpoint(path, FLARE_IDENTITY, PLAN, flare=True)
+    except UserError as err:
+        assert "\n" not in str(err) and str(path) in str(err), str(err)
+        assert altered, str(err)
+        return
+    assert film.film.flare is not None
+    np.testing.assert_array_equal(film.film.flare, arrays["flare"])  # what the file holds, nothing else
+    for number in film.waiting:
+        splats = film.waiting[number][2]
+        assert splats is not None
+        np.testing.assert_array_equal(splats.pixel, arrays[f"waiting_flare_pixel_{number}"])
+        np.testing.assert_array_equal(splats.value, arrays[f"waiting_flare_{number}"])
+    for index in range(len(PLAN)):
+        if not film.has(index):
+            film.add(index, PLAN[index].first_pixel, *_pass_data(index))
+    image = film.image()
+    assert np.all(np.isfinite(image))
+    if not altered:
+        np.testing.assert_array_equal(image, FLARE_WHOLE)
+
+
+def test_an_unaltered_flare_checkpoint_resumes_bit_identically(tmp_path):
+    header, arrays = _flare_parts(tmp_path)
+    assert set(FLARE_NAMES) <= set(arrays)
+    _flare_resumes_whole_or_is_refused(_write(tmp_path / "x.partial", header, arrays), arrays, altered=False)
+
+
+@given(st.sampled_from(FLARE_NAMES), ARRAYS | st.none())
+def test_any_flare_array_resumes_or_is_refused_in_one_line(tmp_path_factory, name, array):
+    folder = tmp_path_factory.mktemp("cp")
+    header, arrays = _flare_parts(folder)
+    original = arrays.pop(name)
+    if array is not None:
+        arrays[name] = array
+    altered = array is None or array.dtype != original.dtype or not np.array_equal(array, original)
+    path = _write(folder / "x.partial", header, arrays)
+    if name in arrays:
+        _flare_resumes_whole_or_is_refused(path, arrays, altered)
+    else:
+        with pytest.raises(UserError) as err:
+            load_checkpoint(path, FLARE_IDENTITY, PLAN, flare=True)
+        assert "\n" not in str(err.value) and str(path) in str(err.value)
+
+
+@given(st.sampled_from(FLARE_NAMES), st.data())
+def test_any_flare_value_or_length_resumes_or_is_refused_in_one_line(tmp_path_factory, name, data):
+    """NaN, inf, huge and negative values (a spectral camera's flare may be negative: ``cie_rgb`` has
+    negative lobes), and arrays cut short."""
+    folder = tmp_path_factory.mktemp("cp")
+    header, arrays = _flare_parts(folder)
+    original = arrays[name].copy()
+    if data.draw(st.booleans(), label="truncate"):
+        arrays[name] = arrays[name][:data.draw(st.integers(0, max(len(original) - 1, 0)), label="length")]
+    else:
+        flat = arrays[name].reshape(-1)
+        position = data.draw(st.integers(0, flat.size - 1), label="position")
+        special = data.draw(SPECIAL, label="value")
+        if flat.dtype.kind == "f":
+            flat[position] = special
+        elif np.isfinite(special) and abs(special) < 2**62:
+            flat[position] = int(special)
+    altered = arrays[name].shape != original.shape or not np.array_equal(arrays[name], original, equal_nan=False)
+    _flare_resumes_whole_or_is_refused(_write(folder / "x.partial", header, arrays), arrays, altered)
+
+
+@given(st.data())
+def test_any_damaged_byte_of_a_flare_checkpoint_resumes_or_is_refused_in_one_line(tmp_path_factory, data):
+    folder = tmp_path_factory.mktemp("cp")
+    path = folder / "x.partial"
+    save_checkpoint(path, FLARE_IDENTITY, _flare_film((0, 1, 2, 4, 6)))
+    content = bytearray(path.read_bytes())
+    for _ in range(data.draw(st.integers(1, 4), label="bytes")):
+        content[data.draw(st.integers(0, len(content) - 1), label="at")] = data.draw(st.integers(0, 255), label="to")
+    path.write_bytes(bytes(content[:data.draw(st.integers(len(content) // 2, len(content)), label="cut")]))
+    try:
+        film = load_checkpoint(path, FLARE_IDENTITY, PLAN, flare=True)
+    except UserError as err:
+        assert "\n" not in str(err) and str(path) in str(err), str(err)
+        return
+    for index in range(len(PLAN)):
+        if not film.has(index):
+            film.add(index, PLAN[index].first_pixel, *_pass_data(index))
+    assert np.all(np.isfinite(film.image()))

@@ -1,10 +1,11 @@
-"""Property-based tests of the JSON, CODE V and Zemax EVENASPH readers: whatever the text, the
-outcome is a lens that obeys the model's rules (and traces) or a one-line LensFileError naming the
-file; nothing else."""
+"""Property-based tests of the JSON (``focal_length_mm`` too), CODE V and Zemax EVENASPH and PARAXIAL
+readers: whatever the text, the outcome is a lens that obeys the model's rules (and traces) or a
+one-line LensFileError naming the file (and for .zmx paraxial surfaces, the line); nothing else."""
 
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 from hypothesis import given
@@ -72,11 +73,33 @@ def json_surfaces(draw, stop: bool, glass: bool):
     return surface
 
 
+FOCAL_LENGTHS = st.one_of(st.floats(20, 200), st.floats(-200, -20),
+                          st.lists(st.one_of(st.floats(20, 200), st.none()), min_size=2, max_size=2))
+#: Any JSON value (NaN and infinities too, which Python's json reads and writes).
+JSON_VALUES = st.recursive(st.one_of(st.none(), st.booleans(), VALUES, st.text(max_size=4)),
+                           lambda inner: st.one_of(st.lists(inner, max_size=3),
+                                                   st.dictionaries(st.text(max_size=3), inner, max_size=2)),
+                           max_leaves=5)
+
+
+@st.composite
+def json_paraxial_surfaces(draw):
+    """An ideal thin lens in air (``focal_length_mm``), its focal length mostly plausible, one time in
+    six any JSON value; sometimes with a radius or glass it may not have."""
+    surface = {"radius": 0, "thickness": odd(draw, st.floats(0.1, 200), VALUES), "ior": 0,
+               "semi_aperture": odd(draw, st.floats(0.5, 15), VALUES),
+               "focal_length_mm": odd(draw, FOCAL_LENGTHS, JSON_VALUES)}
+    if draw(st.integers(0, 9)) == 0:
+        surface[draw(st.sampled_from(["radius", "ior"]))] = draw(VALUES)
+    return surface
+
+
 @st.composite
 def json_lenses(draw):
     count = draw(st.integers(3, 6))
     stop = draw(st.integers(0, count - 1))
-    surfaces = [draw(json_surfaces(i == stop, glass_after(draw, i, count, stop))) for i in range(count)]
+    surfaces = [draw(json_paraxial_surfaces()) if i != stop and draw(st.integers(0, 3)) == 0
+                else draw(json_surfaces(i == stop, glass_after(draw, i, count, stop))) for i in range(count)]
     document = {"name": draw(st.one_of(st.text(max_size=5), st.none(), VALUES)), "surfaces": surfaces}
     text = json.dumps(document, indent=draw(st.sampled_from([None, 1, 2])))
     cut = draw(st.one_of(st.none(), st.none(), st.integers(0, len(text))))
@@ -139,10 +162,16 @@ def evenasph_lenses(draw):
              "  DISZ INFINITY"]
     for number in range(1, count + 1):
         lines.append(f"SURF {number}")
+        kind = draw(st.sampled_from(["STANDARD", "EVENASPH", "PARAXIAL", "PARAXIAL_XY"]))
         if number == stop:
             lines += ["  STOP", "  CURV 0", "  DISZ 1"]
+        elif kind.startswith("PARAXIAL"):  # an ideal thin lens in air, its PARMs any number or missing
+            lines += [f"  TYPE {kind}", "  CURV 0", f"  DISZ {draw(st.floats(0.1, 100))!r}", "  GLAS AIR"]
+            good = st.floats(10, 200) if kind == "PARAXIAL" else st.floats(-0.1, 0.1)
+            for k in draw(st.lists(st.integers(0, 3), max_size=3)):
+                lines.append(f"  PARM {k} {odd(draw, good, VALUES)!r}")
         else:
-            lines += [f"  TYPE {draw(st.sampled_from(['STANDARD', 'EVENASPH']))}",
+            lines += [f"  TYPE {kind}",
                       f"  CURV {draw(st.floats(-0.1, 0.1))!r}", f"  CONI {draw(st.one_of(st.floats(-5, 3), VALUES))!r}",
                       f"  DISZ {draw(st.floats(0.1, 10))!r}",
                       f"  GLAS {GLASS if glass_after(draw, number - 1, count, stop - 1) else 'AIR'}"]
@@ -154,5 +183,10 @@ def evenasph_lenses(draw):
 
 
 @given(evenasph_lenses())
-def test_zemax_evenasph_text_gives_a_valid_lens_or_a_lens_file_error(text):
+def test_zemax_evenasph_and_paraxial_text_gives_a_valid_lens_or_a_lens_file_error(text):
+    try:
+        parse_zmx(text, "fuzz.zmx")
+    except UserError as err:
+        if "PARM" in str(err) or "PARAXIAL" in str(err):
+            assert re.match(r"fuzz\.zmx:\d+: ", str(err)), str(err)  # the line at fault
     check_text(parse_zmx, text, "fuzz.zmx")

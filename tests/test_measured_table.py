@@ -5,9 +5,13 @@ formula written out in ``test_measured`` (nodes), against the trilinear interpol
 albedo integral, and through the verified disk cache."""
 
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from bsdf_helpers import uniform_sphere
 from conftest import shared_file
@@ -24,7 +28,7 @@ from realistic.renderer.bsdf.measured import (
     table_lookup,
     table_nodes,
 )
-from realistic.scene.measured import brdf_remap, load_measured, read_irregular
+from realistic.scene.measured import IrregularSamples, brdf_remap, load_measured, read_irregular
 from test_measured import _pbrt_irregular
 
 #: A pixel of the seed scene (pbrt-v2 dof-dragons.pbrt) averages 16 spp x 128 light samples.
@@ -146,25 +150,77 @@ def test_furnace_albedo_from_the_table_is_pbrt_v2s_within_a_pixels_noise(blue):
     assert table.max() <= samples.rgb.max()
 
 
-def test_the_table_goes_through_the_verified_disk_cache(tmp_path, monkeypatch):
-    """A built table is stored; a stored one is used; one that cannot be a table (a value above the
-    greatest sample, or another shape) is rebuilt. A coarse grid keeps the builds quick."""
-    path = tmp_path / "two.brdf"
-    path.write_text("2 400 700\n0.1 0 0.2 0 0.3 0.3\n0.9 0 1.0 3.0 0.6 0.6\n0.5 1 0.4 2 0.2 0.5\n")
-    samples = read_irregular(path)
-    nodes = 6
+NODES = 6  # a coarse grid keeps the cache tests' builds quick
+TWO = "2 400 700\n0.1 0 0.2 0 0.3 0.3\n0.9 0 1.0 3.0 0.6 0.6\n0.5 1 0.4 2 0.2 0.5\n"
+#: Another file's samples: their table is a plausible one (every value within the bounds) but not TWO's.
+OTHER = "2 400 700\n0.2 0 0.1 0.5 0.2 0.3\n0.7 0 0.9 0.4 0.4 0.1\n0.4 1 0.6 0.1 0.3 0.2\n"
+
+
+def _irregular(tmp_path: Path, name: str, text: str) -> IrregularSamples:
+    path = tmp_path / name
+    path.write_text(text)
+    return read_irregular(path)
+
+
+@pytest.fixture
+def coarse_cache(tmp_path, monkeypatch):
+    """A disk cache of the test's own, ``NODES`` per table axis, and the tables' memory emptied
+    before and after."""
     monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(measured, "TABLE_NODES", nodes)
+    monkeypatch.setattr(measured, "TABLE_NODES", NODES)
     measured._irregular_table.cache_clear()
-    try:
-        built = irregular_table(samples)
-        assert built.shape == (nodes,) * 3 + (3,) and np.array_equal(built, build_irregular_table(samples, nodes))
-        key = measured._table_key(samples, nodes)
-        assert np.array_equal(load_arrays(key)["table"], built)
-        for stored, used in ((built * 0.5, built * 0.5), (built * 0 + 2 * samples.rgb.max(), built),
-                             (built[:-1], built), (built.astype(np.float64), built)):
-            store_arrays(key, {"table": stored})
-            measured._irregular_table.cache_clear()
-            assert np.array_equal(irregular_table(samples), used)
-    finally:
-        measured._irregular_table.cache_clear()
+    yield
+    measured._irregular_table.cache_clear()
+
+
+def _from_cache(samples: IrregularSamples, entry: dict[str, np.ndarray]) -> np.ndarray:
+    """The table ``irregular_table`` gives with ``entry`` stored under the samples' key."""
+    store_arrays(measured._table_key(samples, NODES), entry)
+    measured._irregular_table.cache_clear()
+    return irregular_table(samples)
+
+
+def test_the_table_goes_through_the_verified_disk_cache(tmp_path, coarse_cache):
+    """A built table is stored and a stored one used; one that cannot be this file's table (a
+    value above the greatest sample, another shape or type, another file's, scaled) is rebuilt."""
+    samples = _irregular(tmp_path, "two.brdf", TWO)
+    built = irregular_table(samples)
+    assert built.shape == (NODES,) * 3 + (3,) and np.array_equal(built, build_irregular_table(samples, NODES))
+    key = measured._table_key(samples, NODES)
+    assert np.array_equal(load_arrays(key)["table"], built)
+    other = build_irregular_table(_irregular(tmp_path, "other.brdf", OTHER), NODES)
+    assert np.all(other <= samples.rgb.max(axis=0)) and not np.array_equal(other, built)  # within the bounds
+    assert np.array_equal(_from_cache(samples, {"table": built}), built)
+    for stored in (built * 0.5, built * 0 + 2 * samples.rgb.max(), built[:-1], built.astype(np.float64), other):
+        assert np.array_equal(_from_cache(samples, {"table": stored}), built)
+
+
+TABLE_SHAPE = (NODES,) * 3 + (3,)
+SPECIAL = st.sampled_from([np.nan, np.inf, -np.inf, -1.0, -1e-30, 1e30, 3.1, np.finfo(np.float32).max])
+ENTRY_ARRAYS = st.sampled_from([np.float32, np.float64, np.float16, np.int32, np.uint8, np.bool_]).flatmap(
+    lambda dtype: hnp.arrays(dtype, st.sampled_from([TABLE_SHAPE, TABLE_SHAPE[:-1], (NODES - 1, NODES, NODES, 3),
+                                                     (NODES**3 * 3,), ()])
+                             | hnp.array_shapes(min_dims=0, max_dims=4, max_side=7)))
+
+
+@given(data=st.data())
+def test_any_cache_entry_is_this_files_table_or_rebuilt(tmp_path, coarse_cache, data):
+    """Entries of random contents (any arrays, names, dtypes, shapes; the table with NaN, inf,
+    negative, huge values, or another file's table, scaled or not) are never used: the table is
+    the one built from the samples, bit for bit."""
+    samples = _irregular(tmp_path, "two.brdf", TWO)
+    built = build_irregular_table(samples, NODES)
+    kind = data.draw(st.sampled_from(["arrays", "special", "other", "scaled"]), label="kind")
+    if kind == "arrays":
+        entry = data.draw(st.dictionaries(st.sampled_from(["table", "tables", "x"]), ENTRY_ARRAYS, max_size=2))
+    elif kind == "special":
+        table = built.copy()
+        flat = table.reshape(-1)
+        for _ in range(data.draw(st.integers(1, 3), label="values")):
+            flat[data.draw(st.integers(0, flat.size - 1), label="position")] = data.draw(SPECIAL, label="value")
+        entry = {"table": table}
+    else:
+        table = build_irregular_table(_irregular(tmp_path, "other.brdf", OTHER), NODES) if kind == "other" else built
+        scale = data.draw(st.floats(0.0, 1.0, exclude_max=kind == "scaled"), label="scale")
+        entry = {"table": (table * np.float32(scale)).astype(np.float32)}
+    assert np.array_equal(_from_cache(samples, entry), built)

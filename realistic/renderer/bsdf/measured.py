@@ -48,6 +48,8 @@ CHUNK = 65_536
 TABLE_NODES = 128
 #: Part of the table's disk-cache key: change it when what the table holds changes.
 TABLE_KEY = b"irregular-table-1"
+#: Nodes of a cached table recomputed before it is used (``_trusted_table``), a small part of a build.
+CHECKED_NODES = 64
 
 
 class _NearestNeighbours(Protocol):
@@ -116,15 +118,28 @@ def _table_key(samples: IrregularSamples, nodes: int) -> str:
 
 
 def _trusted_table(stored: dict[str, np.ndarray], samples: IrregularSamples, nodes: int) -> np.ndarray | None:
-    """The table a cache entry holds when it is one ``build_irregular_table`` could have made, else
-    None: float32 of the grid's shape, every value between 0 and the samples' greatest (the lookup
-    is a clamped weighted mean of them)."""
+    """The table a cache entry holds when it is one ``build_irregular_table`` could have made from
+    these samples, else None: float32 of the grid's shape, every value between 0 and the samples'
+    greatest (the lookup is a clamped weighted mean of them), 0 at the nodes never read, and
+    exactly ``irregular_lookup`` at ``CHECKED_NODES`` of the read ones (so a table of other samples, which
+    would pass the bounds, is not taken for this one's)."""
     table = stored.get("table")
     if set(stored) != {"table"} or table is None or table.dtype != np.float32 or table.shape != (nodes,) * 3 + (3,):
         return None
     top = np.maximum(samples.rgb.max(axis=0), 0.0).astype(np.float32)
     if not (np.all(np.isfinite(table)) and np.all(table >= 0) and np.all(table <= top)):
         return None
+    axis = np.arange(nodes)
+    read_i, read_k = np.nonzero(axis[:, None] + axis[None, :] <= nodes + 1)  # ``table_nodes``' rule, any j
+    unread_i, unread_k = np.nonzero(axis[:, None] + axis[None, :] > nodes + 1)
+    if np.any(table[unread_i, :, unread_k] != 0):
+        return None
+    rng = np.random.default_rng(0)
+    pick = rng.choice(len(read_i), min(CHECKED_NODES, len(read_i)), replace=False)
+    checked = np.column_stack([read_i[pick], rng.integers(0, nodes, len(pick)), read_k[pick]])
+    expected = irregular_lookup(samples, checked / (nodes - 1.0)).astype(np.float32)
+    if not np.array_equal(table[checked[:, 0], checked[:, 1], checked[:, 2]], expected):
+        return None  # the lookup is per node, so a build gives these bits (a numpy whose sums differ: a rebuild)
     return table
 
 
