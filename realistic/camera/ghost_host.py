@@ -153,11 +153,10 @@ class GhostKernel:
             table = self.device.copied_buffer(steps, np.float32)
             indices = self.device.copied_buffer(media, np.float32)
             given = self.device.copied_buffer(rays, np.float32)
-            result = self.device.output_buffer(out.nbytes)
-            self._kernel(self.queue, (stride // self.rays_per_item,), (LOCAL_SIZE,), np.uint32(count),
-                         np.uint32(len(steps)), table, indices, np.uint32(media.shape[1]), np.float32(first_nm),
-                         np.float32(1.0 / spacing_nm), np.uint32(stride), given, result)
-            cl.enqueue_copy(self.queue, out, result)
+            self.device.run_into(self.queue, self._kernel, (stride // self.rays_per_item,), (LOCAL_SIZE,),
+                                 (np.uint32(count), np.uint32(len(steps)), table, indices, np.uint32(media.shape[1]),
+                                  np.float32(first_nm), np.float32(1.0 / spacing_nm), np.uint32(stride), given),
+                                 (out,))
         passed = out[6, :count] > 0
         film = np.where(passed[:, None], out[0:2, :count].T, np.nan)
         direction = np.where(passed[:, None], out[2:5, :count].T, np.nan)

@@ -176,13 +176,17 @@ class Device:
         """Launch ``kernel`` with ``args`` followed by one write-only buffer over each of ``outputs``'
         own memory (USE_HOST_PTR), and wait until the results are in those arrays: the reads copy
         nothing on PoCL's CPU device, where a copy out of a buffer of its own cost a fifth of a
-        camera launch. Callers serialise launches on one queue themselves."""
+        camera launch. An empty output (OpenCL has no empty buffers) gets a scratch buffer the kernel
+        does not write. Callers serialise launches on one queue themselves, or give each thread its
+        own queue and kernel."""
         flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
-        buffers = [cl.Buffer(self.context, flags, hostbuf=array) for array in outputs]
+        buffers = [cl.Buffer(self.context, flags, hostbuf=array) if array.nbytes else self.output_buffer(4)
+                   for array in outputs]
         try:
             kernel(queue, global_size, local_size, *args, *buffers)
             for array, buffer in zip(outputs, buffers):
-                cl.enqueue_copy(queue, array, buffer, is_blocking=False)  # orders the read after the kernel
+                if array.nbytes:
+                    cl.enqueue_copy(queue, array, buffer, is_blocking=False)  # orders the read after the kernel
             queue.finish()
         finally:
             for buffer in buffers:

@@ -102,13 +102,8 @@ class BsdfKernel:
         if n:
             queue, kernel = self._queue_and_kernel()
             inputs = [self.device.wrapped_buffer(a, np.float32) for a in (params, wo, light_wi, u, u_lobe)]
-            outputs = [light_f, light_pdf, wi, value, pdf, flags]
-            buffers = [self.device.output_buffer(max(a.nbytes, 4)) for a in outputs]
-            kernel.set_args(np.uint32(n), np.uint32(lights), *inputs, *buffers)
-            cl.enqueue_nd_range_kernel(queue, kernel, (whole_groups(n),), (LOCAL_SIZE,))
-            for host, buffer in zip(outputs, buffers):
-                if host.nbytes:
-                    cl.enqueue_copy(queue, host, buffer, is_blocking=False)
-            queue.finish()
+            self.device.run_into(queue, kernel, (whole_groups(n),), (LOCAL_SIZE,),
+                                 (np.uint32(n), np.uint32(lights), *inputs),
+                                 (light_f, light_pdf, wi, value, pdf, flags))
         specular = (flags & 1).astype(bool)
         return light_f, light_pdf, BSDFSample(wi, value, pdf, specular, (flags & 2).astype(bool))
