@@ -135,9 +135,8 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
         return _fft_psf(args, lens, out)
     if args.wavelengths is not None or args.weights is not None:
         raise UserError("--wavelengths and --weights are the FFT model's (--model fft)")
-    psf = point_spread(lens, args.depth * MM_PER_METRE, args.field,
-                       None if args.focus is None else args.focus * MM_PER_METRE,
-                       args.pixel_um / 1000.0, args.size, args.spp, seed=args.seed, backend=args.backend)
+    psf = point_spread(lens, args.depth * MM_PER_METRE, args.field, _psf_focus_mm(args), args.pixel_um / 1000.0,
+                       args.size, args.spp, seed=args.seed, backend=args.backend)
     image = psf.image[:, :, None].repeat(3, axis=2)
     write_exr(out, image, {
         "lens": lens.name, "content": "film irradiance per unit source radiance (point spread function)",
@@ -153,14 +152,18 @@ def cmd_lens_psf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _psf_focus_mm(args: argparse.Namespace) -> float | None:
+    """``lens psf --focus`` in mm from the film (None: focused on the point)."""
+    return None if args.focus is None else args.focus * MM_PER_METRE
+
+
 def _polychromatic_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
     """``lens psf --model fft --wavelengths ...``: the wavelengths' diffraction PSFs summed by power, as an EXR."""
     from realistic.camera.psf import polychromatic_point_spread
     from realistic.core.image_files import write_exr
 
     _warn_dispersion(lens, args.wavelengths)
-    psf = polychromatic_point_spread(lens, args.depth * MM_PER_METRE, args.field,
-                                     None if args.focus is None else args.focus * MM_PER_METRE,
+    psf = polychromatic_point_spread(lens, args.depth * MM_PER_METRE, args.field, _psf_focus_mm(args),
                                      args.pixel_um / 1000.0, args.size, args.wavelengths, args.weights, args.samples)
     first = psf.parts[0]
     listed = ",".join(f"{w:.6g}" for w in args.wavelengths)
@@ -195,7 +198,7 @@ def _fft_psf(args: argparse.Namespace, lens: LensSystem, out: Path) -> int:
 
     _warn_dispersion(lens, [args.wavelength])
     spread = fft_point_spread if args.model == "fft" else huygens_point_spread
-    psf = spread(lens, args.depth * MM_PER_METRE, args.field, None if args.focus is None else args.focus * MM_PER_METRE,
+    psf = spread(lens, args.depth * MM_PER_METRE, args.field, _psf_focus_mm(args),
                  args.pixel_um / 1000.0, args.size, args.wavelength, args.samples)
     model = "FFT" if args.model == "fft" else "Huygens-Fresnel sum over the reference sphere"
     sampling: Metadata = ({"fftSize": psf.fft_size, "fftSpacingMm": ",".join(f"{v:.6g}" for v in psf.fft_spacing_mm)}
