@@ -13,34 +13,27 @@ from realistic.core.image_files import read_exr
 from realistic.optics.formats import load_lens
 from realistic.optics.formats.zemax import parse_zmx
 from realistic.optics.paraxial import stop_diameter_for_f_number
+from test_paraxial_surface import single
 
 D_NM = 587.5618
 F_MM, N = 50.0, 8.0
-IDEAL = f"""MODE SEQ
-UNIT MM
-SURF 0
-  CURV 0
-  DISZ INFINITY
-SURF 1
-  STOP
-  TYPE PARAXIAL
-  PARM 1 {F_MM}
-  DISZ {F_MM}
-  DIAM {F_MM / (2 * N)}
-SURF 2
-  CURV 0
-  DISZ 0
-  DIAM 40
-"""
+IDEAL = single(F_MM, F_MM / (2 * N))  # an ideal lens at f/8
+
+
+def airy_pixels(wavelength_nm: float, f_number: float, pixel_mm: float, size: int, sub: int = 5) -> np.ndarray:
+    """The Airy pattern's irradiance per unit power, pi / (4 lambda^2 N^2) (2 J1(x) / x)^2, on a
+    ``size`` x ``size`` window of pixels about its centre, each the mean of ``sub`` x ``sub`` points."""
+    lam = wavelength_nm * 1e-6
+    points = (np.arange(size * sub) - (size * sub - 1) / 2) * (pixel_mm / sub)
+    x = np.pi * np.hypot(*np.meshgrid(points, points)) / (lam * f_number)
+    point = np.pi / (4 * (lam * f_number) ** 2) * (2 * j1(x) / x) ** 2
+    return point.reshape(size, sub, size, sub).mean(axis=(1, 3))
 
 
 def test_huygens_psf_of_an_ideal_lens_is_the_airy_pattern() -> None:
-    pixel, size, sub = 0.0006, 16, 5
+    pixel, size = 0.0006, 16
     spread = huygens_point_spread(parse_zmx(IDEAL), 1e7, 0.0, None, pixel, size, D_NM, 64)
-    points = (np.arange(size * sub) - (size * sub - 1) / 2) * (pixel / sub)
-    x = np.pi * np.hypot(*np.meshgrid(points, points)) / (D_NM * 1e-6 * N)
-    airy = np.pi / (4 * (D_NM * 1e-6 * N) ** 2) * (2 * j1(x) / x) ** 2
-    expected = airy.reshape(size, sub, size, sub).mean(axis=(1, 3))
+    expected = airy_pixels(D_NM, N, pixel, size)
     assert np.max(np.abs(spread.image - expected)) < 0.003 * expected.max()
 
 

@@ -8,7 +8,6 @@ import json
 
 import numpy as np
 import pytest
-from scipy.special import j1
 
 from realistic.camera.psf import polychromatic_point_spread
 from realistic.cli import main
@@ -17,26 +16,13 @@ from realistic.errors import UserError
 from realistic.optics.diffraction import diffraction_limited_mtf
 from realistic.optics.formats.zemax import parse_zmx
 from realistic.optics.mtf import lens_mtf
+from test_huygens import airy_pixels
+from test_paraxial_surface import single
 
 F_MM, SEMI_MM = 50.0, 10.0  # f/2.5
 WAVELENGTHS = [486.1327, 587.5618, 656.2725]
 WEIGHTS = [1.0, 2.0, 0.5]
-IDEAL = f"""MODE SEQ
-UNIT MM
-SURF 0
-  CURV 0
-  DISZ INFINITY
-SURF 1
-  STOP
-  TYPE PARAXIAL
-  PARM 1 {F_MM}
-  DISZ {F_MM}
-  DIAM {SEMI_MM}
-SURF 2
-  CURV 0
-  DISZ 0
-  DIAM 40
-"""
+IDEAL = single(F_MM, SEMI_MM)  # an ideal lens at f/2.5
 
 
 def test_polychromatic_mtf_of_an_ideal_lens_is_the_weighted_sum_of_the_monochromatic_ones() -> None:
@@ -62,20 +48,13 @@ def test_polychromatic_mtf_of_an_ideal_lens_is_the_weighted_sum_of_the_monochrom
 def test_polychromatic_psf_of_an_ideal_lens_is_the_weighted_airy_patterns() -> None:
     # at f/8, where the Airy pattern's paraxial form holds (at f/2.5 the ideal lens's peak is 2 % lower)
     n = 8.0
-    lens = parse_zmx(IDEAL.replace(f"DIAM {SEMI_MM}", f"DIAM {F_MM / (2 * n)}"))
-    pixel, size, sub = 0.0006, 48, 5  # 0.6 um: the first dark rings, 1.22 lambda N = 4.7 .. 6.4 um, span pixels
+    lens = parse_zmx(single(F_MM, F_MM / (2 * n)))
+    pixel, size = 0.0006, 48  # 0.6 um: the first dark rings, 1.22 lambda N = 4.7 .. 6.4 um, span pixels
     spread = polychromatic_point_spread(lens, 1e7, 0.0, None, pixel, size, WAVELENGTHS, WEIGHTS, 64)
     share = np.array(WEIGHTS) / sum(WEIGHTS)
-    points = (np.arange(size * sub) - (size * sub - 1) / 2) * (pixel / sub)  # sub x sub points per pixel
-    r = np.hypot(*np.meshgrid(points, points))
 
     def airy(wavelength_nm: float) -> np.ndarray:
-        """The Airy pattern's irradiance per unit power, pi / (4 lambda^2 N^2) (2 J1(x) / x)^2, averaged over
-        each pixel."""
-        lam = wavelength_nm * 1e-6
-        x = np.pi * r / (lam * n)
-        point = np.pi / (4 * lam * lam * n * n) * (2 * j1(x) / x) ** 2
-        return point.reshape(size, sub, size, sub).mean(axis=(1, 3))
+        return airy_pixels(wavelength_nm, n, pixel, size)
 
     expected = sum(s * airy(w) for s, w in zip(share, WAVELENGTHS))
     assert np.max(np.abs(spread.image - expected)) < 0.002 * expected.max()
