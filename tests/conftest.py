@@ -38,6 +38,18 @@ def run_fresh(script: str, *args: str, timeout: float = 600, **env: str) -> subp
     return run
 
 
+def vectoriser_remarks(script: str, *args: str, pocl_cache: Path) -> str:
+    """The output of ``script`` run in a process of its own whose kernels PoCL compiles from source
+    into ``pocl_cache`` (not realistic's binary cache, not PoCL's kernel cache) with its vectoriser's
+    remarks on; the calling test is skipped where this PoCL prints none."""
+    run = run_fresh(script, *args, POCL_KERNEL_CACHE="0", POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=str(pocl_cache),
+                    REALISTIC_CACHE_DIR="off")
+    remarks = run.stdout + run.stderr
+    if "vectorized loop" not in remarks and "not vectorized" not in remarks:
+        pytest.skip("this PoCL prints no vectoriser remarks")
+    return remarks
+
+
 def built_from_source(script: str, cache_home: Path, *args: str) -> str:
     """The standard output of ``script`` run in a process of its own whose kernels PoCL builds from
     source into ``cache_home`` (neither realistic's binary cache nor an earlier PoCL build)."""

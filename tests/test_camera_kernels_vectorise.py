@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import run_fresh
+from conftest import vectoriser_remarks
 
 pytestmark = pytest.mark.usefixtures("opencl_platform")
 
@@ -36,9 +36,5 @@ for kernel in (LensKernel(lens_camera), ThinLensKernel(thin)):
 
 @pytest.mark.parametrize("kind", ["box", "triangle", "gaussian"])
 def test_both_camera_kernels_vectorise_with_each_filter_kind(tmp_path, kind):
-    run = run_fresh(SCRIPT, kind, POCL_KERNEL_CACHE="0", POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=str(tmp_path),
-                    REALISTIC_CACHE_DIR="off")  # compiled from source, not loaded from realistic's cache
-    remarks = run.stdout + run.stderr
-    if "vectorized loop" not in remarks and "not vectorized" not in remarks:
-        pytest.skip("this PoCL prints no vectoriser remarks")
+    remarks = vectoriser_remarks(SCRIPT, kind, pocl_cache=tmp_path)
     assert "loop not vectorized" not in remarks and remarks.count("vectorized loop") >= 2, remarks[-2000:]

@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from conftest import run_fresh
+from conftest import vectoriser_remarks
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
@@ -301,9 +301,5 @@ def test_the_kernel_vectorises(tmp_path):
         "for wavelength in (None, np.array([550.0], np.float32)):  # the RGB and the spectral variant\n"
         "    integrator.radiance(ray, direction, np.zeros(1, np.int32), np.zeros(1, np.int64),\n"
         "                        wavelength_nm=wavelength)\n")
-    run = run_fresh(script, POCL_KERNEL_CACHE="0", POCL_VECTORIZER_REMARKS="1", POCL_CACHE_DIR=str(tmp_path),
-                    REALISTIC_CACHE_DIR="off")  # compiled from source, not loaded from realistic's cache
-    remarks = run.stdout + run.stderr
-    if "vectorized loop" not in remarks and "not vectorized" not in remarks:
-        pytest.skip("this PoCL prints no vectoriser remarks")
+    remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
     assert "loop not vectorized" not in remarks and "vectorized loop" in remarks
