@@ -143,8 +143,8 @@ class GhostKernel:
         stride = self.rays_per_item * whole_groups(-(-count // self.rays_per_item))
         rays = np.zeros((IN_ROWS, stride), np.float32)
         rays[0:2, :count] = origins[:, :2].T
-        # the axial position relative to the first surface's vertex, taken in float64
-        rays[2, :count] = origins[:, 2] - lens.vertex_z_mm(film_distance_mm)[path_steps(lens, path)[0][0]]
+        # the axial position relative to the front vertex (every path meets the front surface first), in float64
+        rays[2, :count] = origins[:, 2] - lens.vertex_z_mm(film_distance_mm)[0]
         rays[3:6, :count] = (directions / np.linalg.norm(directions, axis=1, keepdims=True)).T
         rays[6] = first_nm  # (the padding's too)
         rays[6, :count] = wavelengths
