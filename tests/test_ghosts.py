@@ -282,7 +282,8 @@ def test_lens_ghosts_lists_the_ghosts_above_the_threshold(capsys: pytest.Capture
 
 @pytest.mark.parametrize(("flag", "value", "message"), [("--threshold", "2", "ghost threshold"),
                                                          ("--field", "95", "field angle"),
-                                                         ("--coating", "ideal", "invalid choice")])
+                                                         ("--coating", "ideal", "invalid choice"),
+                                                         ("--focus", "-1", "focus distance")])
 def test_lens_ghosts_refuses_bad_values_in_one_line(capsys: pytest.CaptureFixture[str], flag: str, value: str,
                                                     message: str) -> None:
     from realistic.cli import main
