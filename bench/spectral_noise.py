@@ -18,6 +18,11 @@ the machine, so the equal-time picture can be stated too: a spectral sample cost
 The column ``ratio@time`` is the ratio at equal wall time, estimated as ratio x sqrt(spectral
 seconds / RGB seconds) (error falling as 1 / sqrt(samples)); ``ratio@cpu`` the same from the
 process's CPU seconds, which other work on a shared machine disturbs less.
+Where the time goes: for each scene, spp and mode, the fastest timed render's stage thread-seconds
+(``RenderResult.stage_seconds``: the lens kernel is "ray generation"; "embree" is the closest hits and
+the shadow rays; "shading" the shading kernel, the host's sums and the pass's ray gathers) per
+camera sample in microseconds, with the camera rays and shadow rays per sample, and each
+spectral mode's stage times over the RGB mode's.
 First it prints, for the wavelength densities considered and for K stratified wavelengths of the
 density used, the per-sample variance of each channel's estimator for a flat white spectrum
 (``realistic.core.spectrum.estimator_variance``, ``stratified_response_variance``; it multiplies
@@ -60,9 +65,10 @@ from realistic.core.spectrum import (  # noqa: E402
     wavelengths_nm,
 )
 from realistic.renderer.convergence import relative_rmse  # noqa: E402
-from realistic.renderer.job import RenderJob  # noqa: E402
+from realistic.renderer.job import RenderJob, RenderResult  # noqa: E402
 from realistic.renderer.passes import ThreadPasses  # noqa: E402
 from realistic.renderer.passes import render as render_job  # noqa: E402
+from realistic.scene.model import Scene  # noqa: E402
 
 SHARED_SCENES = ROOT.parent / "shared" / "scenes" / "pbrt"
 SAMPLING_CODE = ("kernels/lens.cl", "realistic/core/rng.py", "realistic/core/spectrum.py",
@@ -78,7 +84,7 @@ def code_hash() -> str:
     return digest.hexdigest()[:12]
 
 
-def load(scene_name: str, res: tuple[int, int], wavelengths: int | None):
+def load(scene_name: str, res: tuple[int, int], wavelengths: int | None) -> Scene:
     """The scene at ``res``: RGB (``wavelengths`` None) or spectral with K = ``wavelengths``."""
     path = None if scene_name == "default" else SHARED_SCENES / scene_name
     if path is not None and not path.is_file():
@@ -87,21 +93,39 @@ def load(scene_name: str, res: tuple[int, int], wavelengths: int | None):
                                 dispersion=wavelengths is not None, wavelengths_per_sample=wavelengths)
 
 
-def render(scene, spp: int, seed: int) -> tuple[np.ndarray, float, float]:
-    """The image, its wall seconds and this process's CPU seconds (all threads, PoCL's included)."""
+def render(scene: Scene, spp: int, seed: int) -> tuple[np.ndarray, float, float, dict[str, float]]:
+    """The image, its wall seconds, this process's CPU seconds (all threads, PoCL's included) and
+    ``stage_costs``."""
     import dataclasses
 
+    if scene.camera is None:
+        raise SystemExit("spectral_noise: the scene has no camera")
     start, cpu = time.perf_counter(), time.process_time()
     job = RenderJob(scene, (dataclasses.replace(scene.camera, spp=spp),), seed=seed)
-    image = render_job(job, ThreadPasses(pin_threads=True))[0].image
-    return image, time.perf_counter() - start, time.process_time() - cpu
+    result = render_job(job, ThreadPasses(pin_threads=True))[0]
+    return result.image, time.perf_counter() - start, time.process_time() - cpu, stage_costs(result)
 
 
-def reference(scene, key: str, spp: int, out: Path) -> np.ndarray:
+#: The stages of a render's passes (``realistic.renderer.timing``) that ``stage_costs`` reports.
+PASS_STAGES = ("ray generation", "embree", "shading", "accumulation")
+
+
+def stage_costs(result: RenderResult) -> dict[str, float]:
+    """A render's pass stages in thread-microseconds per camera sample, their total, and its camera
+    and shadow rays per sample."""
+    samples = max(result.samples_done, 1)
+    costs = {stage: 1e6 * result.stage_seconds.get(stage, 0.0) / samples for stage in PASS_STAGES}
+    costs["total"] = sum(costs.values())
+    costs["camera_rays"] = result.primary_rays / samples
+    costs["shadow_rays"] = result.shadow_rays / samples
+    return costs
+
+
+def reference(scene: Scene, key: str, spp: int, out: Path) -> np.ndarray:
     path = out / f"reference-{key}.npy"
     if path.is_file():
         return np.load(path)
-    image, seconds, _ = render(scene, spp, REFERENCE_SEED)
+    image, seconds, _, _ = render(scene, spp, REFERENCE_SEED)
     np.save(path, image)
     print(f"  reference {key}: {seconds:.1f} s", file=sys.stderr)
     return image
@@ -151,6 +175,23 @@ def density_table(spps: list[int], wavelength_counts: list[int], pixels: int = 4
     return table
 
 
+def print_stages(stages: list[dict]) -> None:
+    """The stage table: microseconds per camera sample, and each spectral mode's over RGB's."""
+    names = (*PASS_STAGES, "total")
+    print(f"{'scene':28s} {'spp':>4s} {'mode':>13s} " + " ".join(f"{n[:10]:>10s}" for n in names)
+          + f" {'cam rays':>8s} {'shadow':>7s}   (us per sample; x: over RGB)")
+    rgb = {(s["scene"], s["spp"]): s for s in stages if s["mode"] == "rgb"}
+    for s in stages:
+        print(f"{s['scene']:28s} {s['spp']:4d} {s['mode']:>13s} " + " ".join(f"{s[n]:10.3f}" for n in names)
+              + f" {s['camera_rays']:8.2f} {s['shadow_rays']:7.2f}")
+        base = rgb.get((s["scene"], s["spp"]))
+        if s["mode"] != "rgb" and base is not None:
+            print(f"{'':28s} {'':4s} {'x':>13s} "
+                  + " ".join(f"{s[n] / base[n]:10.2f}" if base[n] > 0 else f"{'-':>10s}" for n in names)
+                  + f" {s['camera_rays'] / base['camera_rays']:8.2f} "
+                  + (f"{s['shadow_rays'] / base['shadow_rays']:7.2f}" if base["shadow_rays"] else f"{'-':>7s}"))
+
+
 def parse_counts(text: str) -> list[int]:
     counts = [int(v) for v in text.split(",") if v]
     if not counts or min(counts) < 1:
@@ -183,7 +224,8 @@ def main() -> None:
     for name, d in densities.items():
         v = d["variance_rgb"]
         print(f"{name:30s} {v[0]:6.2f} {v[1]:6.2f} {v[2]:6.2f}  " + " ".join(f"{e:10.4f}" for e in d["white_rel_rmse"]))
-    rows = []
+    rows: list[dict] = []
+    stages: list[dict] = []
     load_before = os.getloadavg()
     for scene_name in args.scenes.split(","):
         size = res.get("*", res.get(scene_name, (150, 150)))
@@ -198,6 +240,8 @@ def main() -> None:
                 image = timed[0][0]
                 seconds, cpu = min(t[1] for t in timed), min(t[2] for t in timed)
                 errors[mode, spp] = (relative_rmse(image, ref), seconds, cpu)
+                stages.append({"scene": scene_name, "spp": spp, "mode": mode,
+                               **min(timed, key=lambda t: t[1])[3]})
         for spp in spps:
             rgb, rgb_s, rgb_cpu = errors["rgb", spp]
             for k in counts:
@@ -217,11 +261,12 @@ def main() -> None:
               f"{r['rel_rmse_rgb']:12.5f} {r['rel_rmse_spectral']:13.5f} {r['ratio']:6.3f} "
               f"{r['seconds_rgb']:6.2f} {r['seconds_spectral']:7.2f} {r['cpu_seconds_rgb']:7.2f} "
               f"{r['cpu_seconds_spectral']:8.2f} {r['ratio_equal_time']:10.3f} {r['ratio_equal_cpu_time']:9.3f}")
+    print_stages(stages)
     load_after = os.getloadavg()
     print(f"load average (1, 5, 15 min): {' '.join(f'{v:.2f}' for v in load_before)} before, "
           f"{' '.join(f'{v:.2f}' for v in load_after)} after, on {os.cpu_count()} CPUs")
     result = {"reference_spp": args.reference_spp, "code_hash": version, "densities": densities,
-              "wavelengths_per_sample": counts, "repeats": args.repeats, "rows": rows,
+              "wavelengths_per_sample": counts, "repeats": args.repeats, "rows": rows, "stages": stages,
               "load_average": {"before": list(load_before), "after": list(load_after), "cpus": os.cpu_count()}}
     (args.out / "spectral_noise.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
 
