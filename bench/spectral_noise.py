@@ -18,11 +18,13 @@ the machine, so the equal-time picture can be stated too: a spectral sample cost
 The column ``ratio@time`` is the ratio at equal wall time, estimated as ratio x sqrt(spectral
 seconds / RGB seconds) (error falling as 1 / sqrt(samples)); ``ratio@cpu`` the same from the
 process's CPU seconds, which other work on a shared machine disturbs less.
-Where the time goes: for each scene, spp and mode, the fastest timed render's stage thread-seconds
-(``RenderResult.stage_seconds``: the lens kernel is "ray generation"; "embree" is the closest hits and
-the shadow rays; "shading" the shading kernel, the host's sums and the pass's ray gathers) per
-camera sample in microseconds, with the camera rays and shadow rays per sample, and each
-spectral mode's stage times over the RGB mode's.
+Where the time goes: for each scene, spp and mode, the same render's passes run once more by one
+pass runner on this thread, each stage's CPU seconds (``time.process_time``: every thread of the
+process, PoCL's included, so a stage's kernel launches count in it; other work on a shared machine
+disturbs CPU time far less than wall time) per camera sample in microseconds ("ray generation" is
+the lens kernel; "embree" the closest hits and the shadow rays; "shading" the shading kernel, the
+host's sums and the pass's ray gathers), with the camera rays and shadow rays per sample, and each
+spectral mode's stage costs over the RGB mode's.
 First it prints, for the wavelength densities considered and for K stratified wavelengths of the
 density used, the per-sample variance of each channel's estimator for a flat white spectrum
 (``realistic.core.spectrum.estimator_variance``, ``stratified_response_variance``; it multiplies
@@ -39,11 +41,14 @@ as good as its load).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import json
 import os
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -65,9 +70,13 @@ from realistic.core.spectrum import (  # noqa: E402
     wavelengths_nm,
 )
 from realistic.renderer.convergence import relative_rmse  # noqa: E402
-from realistic.renderer.job import RenderJob, RenderResult  # noqa: E402
+from realistic.renderer.job import RenderJob  # noqa: E402
+from realistic.renderer.pass_plan import plan_passes  # noqa: E402
 from realistic.renderer.passes import ThreadPasses  # noqa: E402
 from realistic.renderer.passes import render as render_job  # noqa: E402
+from realistic.renderer.runner import PassRunner  # noqa: E402
+from realistic.renderer.timing import StageClock  # noqa: E402
+from realistic.scene.intersect import Intersector  # noqa: E402
 from realistic.scene.model import Scene  # noqa: E402
 
 SHARED_SCENES = ROOT.parent / "shared" / "scenes" / "pbrt"
@@ -93,31 +102,53 @@ def load(scene_name: str, res: tuple[int, int], wavelengths: int | None) -> Scen
                                 dispersion=wavelengths is not None, wavelengths_per_sample=wavelengths)
 
 
-def render(scene: Scene, spp: int, seed: int) -> tuple[np.ndarray, float, float, dict[str, float]]:
-    """The image, its wall seconds, this process's CPU seconds (all threads, PoCL's included) and
-    ``stage_costs``."""
-    import dataclasses
-
+def render(scene: Scene, spp: int, seed: int) -> tuple[np.ndarray, float, float]:
+    """The image, its wall seconds and this process's CPU seconds (all threads, PoCL's included)."""
     if scene.camera is None:
         raise SystemExit("spectral_noise: the scene has no camera")
     start, cpu = time.perf_counter(), time.process_time()
     job = RenderJob(scene, (dataclasses.replace(scene.camera, spp=spp),), seed=seed)
-    result = render_job(job, ThreadPasses(pin_threads=True))[0]
-    return result.image, time.perf_counter() - start, time.process_time() - cpu, stage_costs(result)
+    image = render_job(job, ThreadPasses(pin_threads=True))[0].image
+    return image, time.perf_counter() - start, time.process_time() - cpu
 
 
 #: The stages of a render's passes (``realistic.renderer.timing``) that ``stage_costs`` reports.
 PASS_STAGES = ("ray generation", "embree", "shading", "accumulation")
 
 
-def stage_costs(result: RenderResult) -> dict[str, float]:
-    """A render's pass stages in thread-microseconds per camera sample, their total, and its camera
-    and shadow rays per sample."""
-    samples = max(result.samples_done, 1)
-    costs = {stage: 1e6 * result.stage_seconds.get(stage, 0.0) / samples for stage in PASS_STAGES}
+class CpuStageClock(StageClock):
+    """A ``StageClock`` summing this process's CPU seconds per stage instead of wall seconds: with
+    one pass runner working alone, each stage's own cost, kernel threads included."""
+
+    @contextmanager
+    def __call__(self, stage: str) -> Iterator[None]:
+        start = time.process_time()
+        try:
+            yield
+        finally:
+            self.seconds[stage] += time.process_time() - start
+
+
+def stage_costs(scene: Scene, spp: int, seed: int) -> dict[str, float]:
+    """The render's passes run in order by one ``PassRunner`` on this thread (after one untimed
+    pass, which builds the kernels): each of ``PASS_STAGES`` in CPU microseconds per camera sample,
+    their total, and the camera and shadow rays per sample."""
+    if scene.camera is None:
+        raise SystemExit("spectral_noise: the scene has no camera")
+    camera = dataclasses.replace(scene.camera, spp=spp)
+    camera.prepare()
+    job = RenderJob(scene, (camera,), seed=seed)
+    clock = CpuStageClock()
+    runner = PassRunner(scene, camera, job.settings, clock, Intersector(scene))
+    blocks = plan_passes(camera.width * camera.height, spp, job.pass_size)
+    runner.run([(0, blocks[0])])
+    clock.seconds.clear()
+    results = runner.run(list(enumerate(blocks)))
+    samples = sum(block.count for block in blocks)
+    costs = {stage: 1e6 * clock.seconds[stage] / samples for stage in PASS_STAGES}
     costs["total"] = sum(costs.values())
-    costs["camera_rays"] = result.primary_rays / samples
-    costs["shadow_rays"] = result.shadow_rays / samples
+    costs["camera_rays"] = sum(r.primary_rays for r in results) / samples
+    costs["shadow_rays"] = sum(r.shadow_rays for r in results) / samples
     return costs
 
 
@@ -125,7 +156,7 @@ def reference(scene: Scene, key: str, spp: int, out: Path) -> np.ndarray:
     path = out / f"reference-{key}.npy"
     if path.is_file():
         return np.load(path)
-    image, seconds, _, _ = render(scene, spp, REFERENCE_SEED)
+    image, seconds, _ = render(scene, spp, REFERENCE_SEED)
     np.save(path, image)
     print(f"  reference {key}: {seconds:.1f} s", file=sys.stderr)
     return image
@@ -179,7 +210,7 @@ def print_stages(stages: list[dict]) -> None:
     """The stage table: microseconds per camera sample, and each spectral mode's over RGB's."""
     names = (*PASS_STAGES, "total")
     print(f"{'scene':28s} {'spp':>4s} {'mode':>13s} " + " ".join(f"{n[:10]:>10s}" for n in names)
-          + f" {'cam rays':>8s} {'shadow':>7s}   (us per sample; x: over RGB)")
+          + f" {'cam rays':>8s} {'shadow':>7s}   (CPU us per sample; x: over RGB)")
     rgb = {(s["scene"], s["spp"]): s for s in stages if s["mode"] == "rgb"}
     for s in stages:
         print(f"{s['scene']:28s} {s['spp']:4d} {s['mode']:>13s} " + " ".join(f"{s[n]:10.3f}" for n in names)
@@ -241,7 +272,7 @@ def main() -> None:
                 seconds, cpu = min(t[1] for t in timed), min(t[2] for t in timed)
                 errors[mode, spp] = (relative_rmse(image, ref), seconds, cpu)
                 stages.append({"scene": scene_name, "spp": spp, "mode": mode,
-                               **min(timed, key=lambda t: t[1])[3]})
+                               **stage_costs(scene, spp, TEST_SEED)})
         for spp in spps:
             rgb, rgb_s, rgb_cpu = errors["rgb", spp]
             for k in counts:
