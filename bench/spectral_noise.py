@@ -18,6 +18,13 @@ the machine, so the equal-time picture can be stated too: a spectral sample cost
 The column ``ratio@time`` is the ratio at equal wall time, estimated as ratio x sqrt(spectral
 seconds / RGB seconds) (error falling as 1 / sqrt(samples)); ``ratio@cpu`` the same from the
 process's CPU seconds, which other work on a shared machine disturbs less.
+Where the time goes: for each scene, spp and mode, the same render's passes run once more by one
+pass runner on this thread, each stage's CPU seconds (``time.process_time``: every thread of the
+process, PoCL's included, so a stage's kernel launches count in it; other work on a shared machine
+disturbs CPU time far less than wall time) per camera sample in microseconds ("ray generation" is
+the lens kernel; "embree" the closest hits and the shadow rays; "shading" the shading kernel, the
+host's sums and the pass's ray gathers), with the camera rays and shadow rays per sample, and each
+spectral mode's stage costs over the RGB mode's.
 First it prints, for the wavelength densities considered and for K stratified wavelengths of the
 density used, the per-sample variance of each channel's estimator for a flat white spectrum
 (``realistic.core.spectrum.estimator_variance``, ``stratified_response_variance``; it multiplies
@@ -34,11 +41,14 @@ as good as its load).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import json
 import os
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -61,8 +71,13 @@ from realistic.core.spectrum import (  # noqa: E402
 )
 from realistic.renderer.convergence import relative_rmse  # noqa: E402
 from realistic.renderer.job import RenderJob  # noqa: E402
+from realistic.renderer.pass_plan import plan_passes  # noqa: E402
 from realistic.renderer.passes import ThreadPasses  # noqa: E402
 from realistic.renderer.passes import render as render_job  # noqa: E402
+from realistic.renderer.runner import PassRunner  # noqa: E402
+from realistic.renderer.timing import StageClock  # noqa: E402
+from realistic.scene.intersect import Intersector  # noqa: E402
+from realistic.scene.model import Scene  # noqa: E402
 
 SHARED_SCENES = ROOT.parent / "shared" / "scenes" / "pbrt"
 SAMPLING_CODE = ("kernels/lens.cl", "realistic/core/rng.py", "realistic/core/spectrum.py",
@@ -78,7 +93,7 @@ def code_hash() -> str:
     return digest.hexdigest()[:12]
 
 
-def load(scene_name: str, res: tuple[int, int], wavelengths: int | None):
+def load(scene_name: str, res: tuple[int, int], wavelengths: int | None) -> Scene:
     """The scene at ``res``: RGB (``wavelengths`` None) or spectral with K = ``wavelengths``."""
     path = None if scene_name == "default" else SHARED_SCENES / scene_name
     if path is not None and not path.is_file():
@@ -87,17 +102,57 @@ def load(scene_name: str, res: tuple[int, int], wavelengths: int | None):
                                 dispersion=wavelengths is not None, wavelengths_per_sample=wavelengths)
 
 
-def render(scene, spp: int, seed: int) -> tuple[np.ndarray, float, float]:
+def render(scene: Scene, spp: int, seed: int) -> tuple[np.ndarray, float, float]:
     """The image, its wall seconds and this process's CPU seconds (all threads, PoCL's included)."""
-    import dataclasses
-
+    if scene.camera is None:
+        raise SystemExit("spectral_noise: the scene has no camera")
     start, cpu = time.perf_counter(), time.process_time()
     job = RenderJob(scene, (dataclasses.replace(scene.camera, spp=spp),), seed=seed)
     image = render_job(job, ThreadPasses(pin_threads=True))[0].image
     return image, time.perf_counter() - start, time.process_time() - cpu
 
 
-def reference(scene, key: str, spp: int, out: Path) -> np.ndarray:
+#: The stages of a render's passes (``realistic.renderer.timing``) that ``stage_costs`` reports.
+PASS_STAGES = ("ray generation", "embree", "shading", "accumulation")
+
+
+class CpuStageClock(StageClock):
+    """A ``StageClock`` summing this process's CPU seconds per stage instead of wall seconds: with
+    one pass runner working alone, each stage's own cost, kernel threads included."""
+
+    @contextmanager
+    def __call__(self, stage: str) -> Iterator[None]:
+        start = time.process_time()
+        try:
+            yield
+        finally:
+            self.seconds[stage] += time.process_time() - start
+
+
+def stage_costs(scene: Scene, spp: int, seed: int) -> dict[str, float]:
+    """The render's passes run in order by one ``PassRunner`` on this thread (after one untimed
+    pass, which builds the kernels): each of ``PASS_STAGES`` in CPU microseconds per camera sample,
+    their total, and the camera and shadow rays per sample."""
+    if scene.camera is None:
+        raise SystemExit("spectral_noise: the scene has no camera")
+    camera = dataclasses.replace(scene.camera, spp=spp)
+    camera.prepare()
+    job = RenderJob(scene, (camera,), seed=seed)
+    clock = CpuStageClock()
+    runner = PassRunner(scene, camera, job.settings, clock, Intersector(scene))
+    blocks = plan_passes(camera.width * camera.height, spp, job.pass_size)
+    runner.run([(0, blocks[0])])
+    clock.seconds.clear()
+    results = runner.run(list(enumerate(blocks)))
+    samples = sum(block.count for block in blocks)
+    costs = {stage: 1e6 * clock.seconds[stage] / samples for stage in PASS_STAGES}
+    costs["total"] = sum(costs.values())
+    costs["camera_rays"] = sum(r.primary_rays for r in results) / samples
+    costs["shadow_rays"] = sum(r.shadow_rays for r in results) / samples
+    return costs
+
+
+def reference(scene: Scene, key: str, spp: int, out: Path) -> np.ndarray:
     path = out / f"reference-{key}.npy"
     if path.is_file():
         return np.load(path)
@@ -151,6 +206,23 @@ def density_table(spps: list[int], wavelength_counts: list[int], pixels: int = 4
     return table
 
 
+def print_stages(stages: list[dict]) -> None:
+    """The stage table: microseconds per camera sample, and each spectral mode's over RGB's."""
+    names = (*PASS_STAGES, "total")
+    print(f"{'scene':28s} {'spp':>4s} {'mode':>13s} " + " ".join(f"{n[:10]:>10s}" for n in names)
+          + f" {'cam rays':>8s} {'shadow':>7s}   (CPU us per sample; x: over RGB)")
+    rgb = {(s["scene"], s["spp"]): s for s in stages if s["mode"] == "rgb"}
+    for s in stages:
+        print(f"{s['scene']:28s} {s['spp']:4d} {s['mode']:>13s} " + " ".join(f"{s[n]:10.3f}" for n in names)
+              + f" {s['camera_rays']:8.2f} {s['shadow_rays']:7.2f}")
+        base = rgb.get((s["scene"], s["spp"]))
+        if s["mode"] != "rgb" and base is not None:
+            print(f"{'':28s} {'':4s} {'x':>13s} "
+                  + " ".join(f"{s[n] / base[n]:10.2f}" if base[n] > 0 else f"{'-':>10s}" for n in names)
+                  + f" {s['camera_rays'] / base['camera_rays']:8.2f} "
+                  + (f"{s['shadow_rays'] / base['shadow_rays']:7.2f}" if base["shadow_rays"] else f"{'-':>7s}"))
+
+
 def parse_counts(text: str) -> list[int]:
     counts = [int(v) for v in text.split(",") if v]
     if not counts or min(counts) < 1:
@@ -183,7 +255,8 @@ def main() -> None:
     for name, d in densities.items():
         v = d["variance_rgb"]
         print(f"{name:30s} {v[0]:6.2f} {v[1]:6.2f} {v[2]:6.2f}  " + " ".join(f"{e:10.4f}" for e in d["white_rel_rmse"]))
-    rows = []
+    rows: list[dict] = []
+    stages: list[dict] = []
     load_before = os.getloadavg()
     for scene_name in args.scenes.split(","):
         size = res.get("*", res.get(scene_name, (150, 150)))
@@ -198,6 +271,8 @@ def main() -> None:
                 image = timed[0][0]
                 seconds, cpu = min(t[1] for t in timed), min(t[2] for t in timed)
                 errors[mode, spp] = (relative_rmse(image, ref), seconds, cpu)
+                stages.append({"scene": scene_name, "spp": spp, "mode": mode,
+                               **stage_costs(scene, spp, TEST_SEED)})
         for spp in spps:
             rgb, rgb_s, rgb_cpu = errors["rgb", spp]
             for k in counts:
@@ -217,11 +292,12 @@ def main() -> None:
               f"{r['rel_rmse_rgb']:12.5f} {r['rel_rmse_spectral']:13.5f} {r['ratio']:6.3f} "
               f"{r['seconds_rgb']:6.2f} {r['seconds_spectral']:7.2f} {r['cpu_seconds_rgb']:7.2f} "
               f"{r['cpu_seconds_spectral']:8.2f} {r['ratio_equal_time']:10.3f} {r['ratio_equal_cpu_time']:9.3f}")
+    print_stages(stages)
     load_after = os.getloadavg()
     print(f"load average (1, 5, 15 min): {' '.join(f'{v:.2f}' for v in load_before)} before, "
           f"{' '.join(f'{v:.2f}' for v in load_after)} after, on {os.cpu_count()} CPUs")
     result = {"reference_spp": args.reference_spp, "code_hash": version, "densities": densities,
-              "wavelengths_per_sample": counts, "repeats": args.repeats, "rows": rows,
+              "wavelengths_per_sample": counts, "repeats": args.repeats, "rows": rows, "stages": stages,
               "load_average": {"before": list(load_before), "after": list(load_after), "cpus": os.cpu_count()}}
     (args.out / "spectral_noise.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
 
