@@ -48,13 +48,13 @@ GLOSSY = {"conductor": Conductor(roughness_u=0.1, roughness_v=0.1),
 
 def path(bsdfs: str):
     """A path tracer to depth 5 whose BSDFs run on ``bsdfs`` ("numpy", or "device": the render's backend)."""
-    def make(scene, *a, backend):
+    def make(scene, *a, backend, **_):
         return PathIntegrator(scene, *a, max_depth=5, mode="path", backend="numpy" if bsdfs == "numpy" else backend)
     return make
 
 
 VARIANTS = {
-    "fast path (DirectLighting)": (None, lambda scene, *a, **backend: DirectLighting(scene, *a, **backend)),
+    "fast path (DirectLighting)": (None, lambda scene, *a, **options: DirectLighting(scene, *a, **options)),
     "MIS direct (PathIntegrator)": (None, lambda scene, *a, **_: PathIntegrator(scene, *a, max_depth=5,
                                                                                  mode="direct")),
     "path, lambertian, numpy BSDF": (None, path("numpy")),
