@@ -53,6 +53,15 @@ MIS, DIRECT, EMISSION_AFTER_DIFFUSE = (1 << k for k in range(len(MODE_FLAGS)))
 GOES_ON, SPECULAR, SHADES = 1, 2, 4
 
 
+def header(dimension: int, roulette_after: int) -> str:
+    """The generated head of the program: ``bsdf.cl``'s defines, every table's here, the texture
+    kinds, the mode flags, and the integrator's first bounce dimension and roulette depth."""
+    return (bsdf_kernel.HEADER + "".join(t.defines() for t in (GEOM, NORMAL_MATRIX, MATERIALS, LIGHTS))
+            + constant_defines("BOUNCE_TEXTURE", TEXTURES)
+            + "".join(f"#define BOUNCE_{name.upper()} {1 << k}\n" for k, name in enumerate(MODE_FLAGS))
+            + f"#define BOUNCE_DIMENSION {dimension}\n#define BOUNCE_ROULETTE_AFTER {roulette_after}\n")
+
+
 class _Textured(Exception):
     """A parameter is a texture (``constant_rows``' probe)."""
 
@@ -75,8 +84,9 @@ def material_rows(material: SurfaceMaterial) -> tuple[np.ndarray, np.ndarray] | 
     """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not
     cover it (a kind ``bsdf.cl`` lacks, or a textured parameter other than a Lambertian's grid or
     checker texture)."""
-    texture = material.texture if isinstance(material, Material) else None
-    plain = replace(material, texture=None) if isinstance(texture, GridTexture | CheckerTexture) else material
+    plain, texture = material, None
+    if isinstance(material, Material) and isinstance(material.texture, GridTexture | CheckerTexture):
+        plain, texture = replace(material, texture=None), material.texture
     try:
         row = bsdf_kernel.parameters(plain, _Constants(), 1)
     except _Textured:
@@ -148,11 +158,7 @@ class BounceKernel:
         table = light_rows(lights) if self.light_count else LIGHTS.pack(1)
         cdf = rounded_up_cdf(lights.cdf) if self.light_count else np.ones(1, np.float32)
         self.offset_base = np.float32(1e-2 * extent)
-        header = (bsdf_kernel.HEADER + "".join(t.defines() for t in (GEOM, NORMAL_MATRIX, MATERIALS, LIGHTS))
-                  + constant_defines("BOUNCE_TEXTURE", TEXTURES)
-                  + "".join(f"#define BOUNCE_{name.upper()} {1 << k}\n" for k, name in enumerate(MODE_FLAGS))
-                  + f"#define BOUNCE_DIMENSION {dimension}u\n#define BOUNCE_ROULETTE_AFTER {roulette_after}u\n")
-        self.program = device.build_program(header + kernel_source(bsdf_kernel.KERNEL_FILE)
+        self.program = device.build_program(header(dimension, roulette_after) + kernel_source(bsdf_kernel.KERNEL_FILE)
                                             + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._tables = [device.wrapped_buffer(array, dtype) for array, dtype in (
             (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom, np.int32), (matrices, np.float32),
@@ -174,9 +180,12 @@ class BounceKernel:
         hit (0 without lights)."""
         m = len(rows)
         lights = light_samples if self.light_count else 0
-        out = Bounce(*(np.empty((lights * m, 3), np.float32) for _ in range(2)), np.empty(lights * m, np.float32),
-                     np.empty((lights * m, 3), np.float32), *(np.empty((m, 3), np.float32) for _ in range(4)),
-                     np.empty(m, np.float32), np.empty(m, np.int32))
+        shadows = lights * m
+        out = Bounce(shadow_origin=np.empty((shadows, 3), np.float32), shadow_vector=np.empty((shadows, 3), np.float32),
+                     shadow_length=np.empty(shadows, np.float32), contribution=np.empty((shadows, 3), np.float32),
+                     origin=np.empty((m, 3), np.float32), direction=np.empty((m, 3), np.float32),
+                     beta=np.empty((m, 3), np.float32), point=np.empty((m, 3), np.float32),
+                     pdf=np.empty(m, np.float32), flags=np.empty(m, np.int32))
         if m:
             queue, kernel = self._queue_and_kernel()
             inputs = [self.device.wrapped_buffer(a, dtype) for a, dtype in (

@@ -17,10 +17,16 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 ``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
 after specular bounces), for tests.
 
-Backends: on "opencl", RGB rays at hits whose material ``kernels/bsdf.cl`` covers (the backend's
-``bsdf_kernel``: diffuse, conductor, mirror, smooth glass, plastic) are evaluated and sampled there,
-in one launch per bounce, with the same random numbers; every other material, spectral rays and the
-"numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
+Backends: on "opencl", where every light is an area light (or none emits), RGB rays at hits whose
+material ``kernels/bsdf.cl`` covers with constant parameters (Lambertian under a grid or checker
+texture too) take the whole bounce in one launch of ``kernels/bounce.cl`` (``renderer.bounce_kernel``:
+surface point, normals, light samples, MIS weights, shadow rays, BSDF sample, beta, roulette), with
+the same random numbers; the host keeps embree, emission and the compaction of live paths. Other
+such hits (image-textured or other textured parameters, Oren-Nayar, rough glass, measured and the
+other materials ``bsdf.cl`` lacks) have the numpy bounce (``_shade``) with their BSDFs in
+``kernels/bsdf.cl`` where it covers them (the backend's ``bsdf_kernel``); spectral rays, scenes with
+other lights and the "numpy" backend use ``_shade`` with the numpy BSDFs of ``bsdf_factory``, the
+reference.
 
 Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
 stratified light samples) as ``DirectLighting`` does; bounce b's BSDF sample, lobe choice,
@@ -250,7 +256,7 @@ class PathIntegrator(DirectLighting):
         if len(rows) == len(surface):
             return state
         rest = self._shade(hits, surface[~covered], path, o, d, beta, None, pixel, sample, depth)
-        joined = {key: np.concatenate([state[key], rest[key]]) for key in state if key != "shadow"}
+        joined: dict = {key: np.concatenate([state[key], rest[key]]) for key in state if key != "shadow"}
         joined["shadow"] = {key: value if rest["shadow"][key] is None else np.concatenate([value, rest["shadow"][key]])
                             for key, value in state["shadow"].items()}
         return joined
