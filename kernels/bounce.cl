@@ -24,6 +24,8 @@
  * length 1 - 1e-4 in units of the vector or -1 for a dead sample (embree skips it), contribution (3
  * floats, 0 when dead). Per hit: the next origin, direction, beta, the point (3 floats each), the
  * sample's pdf and flags (bit 0 the path goes on, bit 1 specular, bit 2 shade its next hit).
+ * Square roots and floors here are __builtin_sqrtf and __builtin_floorf (LLVM intrinsics, correctly
+ * rounded as numpy's float32 ones), not the OpenCL library's calls, as in kernels/shade.cl.
  */
 
 #pragma OPENCL FP_CONTRACT OFF
@@ -32,10 +34,9 @@
 #define SHADOW_OFFSET 1e-4f
 #define SHADOW_LENGTH 0.9999f
 
-/* realistic.core.rng.uniform: the top 24 bits of the hash of (seed, pixel, sample, dim). */
-inline float uniform_at(uint pixel, uint sample, uint dim, uint seed) {
-    return to_unit(hash32(hash32(hash32(hash32(seed + GOLDEN) ^ pixel) ^ sample) ^ dim));
-}
+/* realistic.core.rng.uniform at dimension dim, from the sample's key hash32(hash32(hash32(seed +
+ * GOLDEN) ^ pixel) ^ sample): the top 24 bits of hash32(key ^ dim). */
+inline float uniform_at(uint key, uint dim) { return to_unit(hash32(key ^ dim)); }
 
 /* realistic.core.rng.light_uniforms (pick included), bit for bit: light sample k of light_samples
  * per camera sample (the same numbers as kernels/shade.cl's light_numbers). */
@@ -74,7 +75,7 @@ inline float power_heuristic(float a, float b) {
 }
 
 inline float3 normalise3(float3 v) {
-    float l = sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+    float l = __builtin_sqrtf(v.x * v.x + v.y * v.y + v.z * v.z);
     return l > 0.0f ? v / l : (float3)(0.0f);
 }
 
@@ -114,12 +115,14 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     __global const int *gi = geom_ints + BOUNCE_GEOM_WIDTH * g;
     float3 ng = normalise3(load3(ng_in, r));
     if (gi[BOUNCE_GEOM_SWAPS]) ng = -ng;
+    /* the triangle's corners are read only where smooth normals or a texture need them: a random
+     * read of a large mesh's faces costs a cache miss */
     int face = gi[BOUNCE_GEOM_FACE_OFFSET] + prim[r];
-    int i0 = faces[3 * face], i1 = faces[3 * face + 1], i2 = faces[3 * face + 2];
     float b1 = hit_u[r], b2 = hit_v[r];
     float b0 = 1.0f - b1 - b2;
     float3 shading = ng;
     if (gi[BOUNCE_GEOM_SMOOTH]) {
+        int i0 = faces[3 * face], i1 = faces[3 * face + 1], i2 = faces[3 * face + 2];
         float3 n = load3(normals, i0) * b0 + load3(normals, i1) * b1 + load3(normals, i2) * b2;
         __global const float *nm = geom_floats + BOUNCE_NORMAL_MATRIX_WIDTH * g;
         float3 w = (float3)(nm[0] * n.x + nm[1] * n.y + nm[2] * n.z, nm[3] * n.x + nm[4] * n.y + nm[5] * n.z,
@@ -145,22 +148,24 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     __global const float *mat = materials + BOUNCE_MATERIAL_WIDTH * material;
     int texture = (int)mat[BOUNCE_MATERIAL_TEXTURE];
     if (texture != BOUNCE_TEXTURE_NONE) {
+        int i0 = faces[3 * face], i1 = faces[3 * face + 1], i2 = faces[3 * face + 2];
         float tu = uvs[2 * i0] * b0 + uvs[2 * i1] * b1 + uvs[2 * i2] * b2;
         float tv = uvs[2 * i0 + 1] * b0 + uvs[2 * i1 + 1] * b1 + uvs[2 * i2 + 1] * b2;
         float cu = tu * mat[BOUNCE_MATERIAL_CELLS], cv = tv * mat[BOUNCE_MATERIAL_CELLS];
-        float fu = cu - floor(cu), fv = cv - floor(cv);
+        float fu = cu - __builtin_floorf(cu), fv = cv - __builtin_floorf(cv);
         float low = mat[BOUNCE_MATERIAL_LOW], high = mat[BOUNCE_MATERIAL_HIGH];
         int use_b;
         if (texture == BOUNCE_TEXTURE_GRID) {
             use_b = !((fu < low) | (fu > high) | (fv < low) | (fv > high));
         } else {
-            float parity = floor(cu) + floor(cv);
-            use_b = parity - 2.0f * floor(parity * 0.5f) != 0.0f;
+            float parity = __builtin_floorf(cu) + __builtin_floorf(cv);
+            use_b = parity - 2.0f * __builtin_floorf(parity * 0.5f) != 0.0f;
         }
         p.scale *= use_b ? vload3(0, mat + BOUNCE_MATERIAL_COLOUR_B) : vload3(0, mat + BOUNCE_MATERIAL_COLOUR_A);
     }
     float3 beta = load3(beta_in, r);
     uint base = BOUNCE_DIMENSION + 8 * depth;
+    uint key = hash32(hash32(hash32(seed + GOLDEN) ^ px) ^ sx);
     int mis = (mode_flags & BOUNCE_MIS) != 0;
 
     /* light samples */
@@ -171,9 +176,9 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
         if (depth == 0) {
             light_uniforms(px, sx, k, light_samples, seed, &u_pick, &u1, &u2);
         } else {
-            u_pick = uniform_at(px, sx, base + 4, seed);
-            u1 = uniform_at(px, sx, base + 5, seed);
-            u2 = uniform_at(px, sx, base + 6, seed);
+            u_pick = uniform_at(key, base + 4);
+            u1 = uniform_at(key, base + 5);
+            u2 = uniform_at(key, base + 6);
         }
         __global const float *light = lights + BOUNCE_LIGHT_WIDTH * pick_light(cdf, light_count, u_pick);
         float x, y;
@@ -187,7 +192,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
                         + vload3(0, light + BOUNCE_LIGHT_B) * y;
         float3 to_light = target - point;
         float d2 = dot3(to_light, to_light);
-        float3 wi = to_light / sqrt(fmax(d2, 1e-30f));
+        float3 wi = to_light / __builtin_sqrtf(fmax(d2, 1e-30f));
         float cos_q = -dot3(wi, vload3(0, light + BOUNCE_LIGHT_NORMAL));
         if (light[BOUNCE_LIGHT_TWO_SIDED] != 0.0f) cos_q = fabs(cos_q);
         int ok = cos_q > 0.0f && d2 > 0.0f;
@@ -214,8 +219,8 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     float3 value;
     float pdf;
     int flags;
-    float3 local_wi = bsdf_sample(&p, wo, uniform_at(px, sx, base, seed), uniform_at(px, sx, base + 1, seed),
-                                  uniform_at(px, sx, base + 2, seed), &value, &pdf, &flags);
+    float3 local_wi = bsdf_sample(&p, wo, uniform_at(key, base), uniform_at(key, base + 1), uniform_at(key, base + 2),
+                                  &value, &pdf, &flags);
     int specular = flags & 1;
     int ok = (flags & 2) && pdf > 0.0f;
     float3 throughput = ok ? value * (fabs(local_wi.z) / pdf) : (float3)(0.0f);
@@ -231,7 +236,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
         go = go && (follow || (!specular && (mode_flags & BOUNCE_EMISSION_AFTER_DIFFUSE)));
     } else if (depth >= BOUNCE_ROULETTE_AFTER) {
         float q = fmax(0.05f, 1.0f - fmax(fmax(new_beta.x, new_beta.y), new_beta.z));
-        go = go && uniform_at(px, sx, base + 3, seed) >= q;
+        go = go && uniform_at(key, base + 3) >= q;
         new_beta /= fmax(1.0f - q, 1e-6f);
     }
     go = go && (new_beta.x != 0.0f || new_beta.y != 0.0f || new_beta.z != 0.0f);
