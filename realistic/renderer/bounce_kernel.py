@@ -129,6 +129,13 @@ class Bounce:
     pdf: np.ndarray  # (m,) float32: the BSDF sample's density
     flags: np.ndarray  # (m,) int32: GOES_ON, SPECULAR, SHADES
 
+    def going_on(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The hits whose paths go on (their indices), and of those whether the BSDF sample was
+        specular and whether their next hit is shaded."""
+        keep = np.flatnonzero(self.flags & GOES_ON)
+        flags = self.flags[keep]
+        return keep, (flags & SPECULAR) != 0, (flags & SHADES) != 0
+
 
 class BounceKernel:
     """``bounce.cl`` with one scene's tables on ``device``."""

@@ -244,10 +244,9 @@ class PathIntegrator(DirectLighting):
                               light_samples=self.light_samples if depth == 0 else 1, seed=self.seed,
                               mode_flags=self._bounce_flags, max_depth=self.max_depth)
         ray = path[rows]
-        keep = np.flatnonzero(result.flags & 1)
-        flags = result.flags[keep]
+        keep, specular, shade = result.going_on()
         state = {"path": ray[keep], "origin": result.origin[keep], "direction": result.direction[keep],
-                 "beta": result.beta[keep], "specular": (flags & 2) != 0, "shade": (flags & 4) != 0,
+                 "beta": result.beta[keep], "specular": specular, "shade": shade,
                  "pdf": result.pdf[keep].astype(np.float64), "point": result.point[keep].astype(np.float64),
                  "shadow": {"start": result.shadow_origin, "vector": result.shadow_vector,
                             "length": result.shadow_length,
