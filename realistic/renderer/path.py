@@ -197,8 +197,11 @@ class PathIntegrator(DirectLighting):
                 with timed("shading"):
                     free = ~blocked
                     rows, value = shadow["rows"][free], shadow["contribution"][free]
-                    for c in range(channels):  # rows repeat with several light samples per hit
-                        out[:, c] += np.bincount(rows, value[:, c], minlength=n).astype(np.float32)
+                    if depth > 0 or self.light_samples == 1:  # one light sample per ray: rows are distinct
+                        out[rows] += value
+                    else:
+                        for c in range(channels):  # rows repeat with several light samples per hit
+                            out[:, c] += np.bincount(rows, value[:, c], minlength=n).astype(np.float32)
                     # the fused bounce's dead light samples have length -1 (embree skips them)
                     shadow_rays += int(np.count_nonzero(shadow["length"] > 0))
             path, o, d, beta = state["path"], state["origin"], state["direction"], state["beta"]
@@ -333,7 +336,8 @@ class PathIntegrator(DirectLighting):
                   prev_lights: int, depth: int, out: np.ndarray) -> None:
         """Add what the rays see of emitters, MIS-weighted against the light samples that could find it."""
         pick = (lambda rows: None) if basis is None else (lambda rows: basis[rows])
-        miss = np.flatnonzero(hits.geom < 0)
+        # misses see the infinite lights, or the background from camera rays (else nothing to add)
+        miss = np.flatnonzero(hits.geom < 0) if self.lights.environments or depth == 0 else np.zeros(0, np.int64)
         if len(miss):
             le = self.lights.environment(d[miss], pick(miss), camera=depth == 0)
             pdf = self.lights.pdf_environment(d[miss]) if self.lights.environments else np.zeros(len(miss))
