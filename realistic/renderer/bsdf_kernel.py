@@ -1,7 +1,9 @@
 """OpenCL host of the path integrator's BSDFs: ``kernels/bsdf.cl`` on a ``Device``.
 
 ``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB rays at hits whose
-material the kernel covers (``parameters`` returns their rows): Lambertian (``Material`` without
+material the kernel covers (``parameters`` returns their rows) where the fused bounce
+(``renderer/bounce_kernel``, whose program holds ``bsdf.cl``.s functions too) does not take
+the whole bounce: textured parameters, lights other than area lights. Lambertian (``Material`` without
 Oren-Nayar roughness), conductors given by eta and k, mirrors, smooth and thin dielectrics, and
 plastic. Every other material, and spectral rays, stay with the numpy BSDFs of ``renderer.bsdf``,
 which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The host looks each
