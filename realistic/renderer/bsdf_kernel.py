@@ -2,7 +2,7 @@
 
 ``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB rays at hits whose
 material the kernel covers (``parameters`` returns their rows) where the fused bounce
-(``renderer/bounce_kernel``, whose program holds ``bsdf.cl``.s functions too) does not take
+(``renderer/bounce_kernel``, whose program holds ``bsdf.cl``'s functions too) does not take
 the whole bounce: textured parameters, lights other than area lights. Lambertian (``Material`` without
 Oren-Nayar roughness), conductors given by eta and k, mirrors, smooth and thin dielectrics, and
 plastic. Every other material, and spectral rays, stay with the numpy BSDFs of ``renderer.bsdf``,
