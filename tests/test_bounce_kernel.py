@@ -12,6 +12,7 @@ from realistic.core.data_files import data_file
 from realistic.core.transforms import rotate, scale, translate
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
+from realistic.scene.lights import PointLight
 from realistic.scene.materials import Conductor, Dielectric, Plastic
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene
 from realistic.scene.shapes import sphere
@@ -203,3 +204,18 @@ def test_convex_object_inside_area_lights_reads_its_albedo(mode, material, albed
     value = radiance[:, 0].astype(np.float64)
     error = value.std() / np.sqrt(N)
     assert abs(value.mean() - albedo) < 4 * error + 2e-3, (value.mean(), error)
+
+
+def test_the_kernel_takes_scenes_without_lights_and_leaves_other_lights_to_numpy():
+    """No light (nothing to sample: the camera rays' misses see the background, the rest is black,
+    as on the numpy backend), and a point light (not an area light: the numpy bounce)."""
+    scene = _scene(Material((0.5, 0.5, 0.5)))
+    scene.lights = []
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, "path", backend="opencl")
+    assert integrator._bounce is not None
+    origin, direction, hits = _rays(scene, 500, 1)
+    radiance, shadows = integrator.radiance(origin, direction, np.arange(500), np.zeros(500, int))
+    assert shadows == 0 and np.any(hits.geom >= 0)
+    assert np.array_equal(radiance, np.where((hits.geom < 0)[:, None], np.float32(scene.background), 0))
+    scene.lights = [PointLight((5.0, 5.0, 5.0), np.array([0.0, 2.0, 0.0]))]
+    assert PathIntegrator(scene, Intersector(scene), backend="opencl")._bounce is None
