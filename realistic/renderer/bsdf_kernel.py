@@ -16,6 +16,7 @@ BSDF sample; each thread has its own queue, so the renderer's worker threads lau
 from __future__ import annotations
 
 import threading
+from functools import cached_property
 
 import numpy as np
 
@@ -77,8 +78,13 @@ class BsdfKernel:
 
     def __init__(self, device: Device):
         self.device = device
-        self.program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._local = threading.local()
+
+    @cached_property
+    def program(self) -> cl.Program:
+        """The program, built on the first launch: a path tracer whose bounces all go through the
+        fused bounce kernel (``renderer.bounce_kernel``) never launches this one."""
+        return self.device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
 
     def rows(self, material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
         """``parameters`` (the ``BsdfLauncher`` method)."""
