@@ -1,13 +1,14 @@
 """Integrator benchmark: what MIS and path tracing cost against the direct-lighting fast path, and
-the path tracer's BSDFs in numpy against ``kernels/bsdf.cl``.
+the path tracer's bounces in numpy against the OpenCL backend's (``kernels/bounce.cl``).
 
     .venv/bin/python bench/integrators.py [--res 300x300] [--spp 16] [--backend opencl|numpy] [--repeats 3]
 
 Renders the dragon (as bench/render.py: ../shared/meshes/dragon.ply, else a procedural mesh) on the
 grid floor under a disk light with: the Lambertian area-light fast path (``DirectLighting``, what
 "directlighting" picks for such scenes), the general MIS direct lighting (``PathIntegrator``
-"direct"), and path tracing to depth 5 with the dragon Lambertian, a rough conductor (copper, alpha
-0.1) and plastic, each with the numpy BSDFs and (backend opencl) with ``kernels/bsdf.cl``. The
+"direct", on each backend), and path tracing to depth 5 with the dragon Lambertian, a rough conductor (copper, alpha
+0.1) and plastic, each on the numpy backend (``PathIntegrator._shade``, the numpy BSDFs) and
+(backend opencl) on the render's backend (one ``kernels/bounce.cl`` launch per bounce). The
 variants run in turn, ``--repeats`` rounds, so old and new alternate under the same load; the table
 gives each one's medians: wall seconds, shading and embree thread-seconds, bounces per camera sample
 (closest-hit rays traced per camera ray), samples/s per bounce (samples x bounces per sample / wall
@@ -47,22 +48,23 @@ GLOSSY = {"conductor": Conductor(roughness_u=0.1, roughness_v=0.1),
 
 
 def path(bsdfs: str):
-    """A path tracer to depth 5 whose BSDFs run on ``bsdfs`` ("numpy", or "device": the render's backend)."""
-    def make(scene, *a, backend):
+    """A path tracer to depth 5 on the ``bsdfs`` backend ("numpy", or "device": the render's)."""
+    def make(scene, *a, backend, **_):
         return PathIntegrator(scene, *a, max_depth=5, mode="path", backend="numpy" if bsdfs == "numpy" else backend)
     return make
 
 
 VARIANTS = {
-    "fast path (DirectLighting)": (None, lambda scene, *a, **backend: DirectLighting(scene, *a, **backend)),
-    "MIS direct (PathIntegrator)": (None, lambda scene, *a, **_: PathIntegrator(scene, *a, max_depth=5,
-                                                                                 mode="direct")),
-    "path, lambertian, numpy BSDF": (None, path("numpy")),
-    "path, lambertian, BSDF kernel": (None, path("device")),
-    "path, conductor, numpy BSDF": ("conductor", path("numpy")),
-    "path, conductor, BSDF kernel": ("conductor", path("device")),
-    "path, plastic, numpy BSDF": ("plastic", path("numpy")),
-    "path, plastic, BSDF kernel": ("plastic", path("device")),
+    "fast path (DirectLighting)": (None, lambda scene, *a, **options: DirectLighting(scene, *a, **options)),
+    "MIS direct, numpy": (None, lambda scene, *a, **_: PathIntegrator(scene, *a, max_depth=5, mode="direct")),
+    "MIS direct, opencl": (None, lambda scene, *a, backend, **_: PathIntegrator(scene, *a, max_depth=5, mode="direct",
+                                                                               backend=backend)),
+    "path, lambertian, numpy": (None, path("numpy")),
+    "path, lambertian, opencl": (None, path("device")),
+    "path, conductor, numpy": ("conductor", path("numpy")),
+    "path, conductor, opencl": ("conductor", path("device")),
+    "path, plastic, numpy": ("plastic", path("numpy")),
+    "path, plastic, opencl": ("plastic", path("device")),
 }
 
 
@@ -108,7 +110,7 @@ def main() -> None:
     width, height = (int(v) for v in args.res.split("x"))
     setup, camera, source, warm = staged_subject("dgauss", width, height, args.spp)
     scenes = {None: setup.scene, **{name: glossy(setup.scene, m) for name, m in GLOSSY.items()}}
-    variants = {name: v for name, v in VARIANTS.items() if args.backend == "opencl" or "kernel" not in name}
+    variants = {name: v for name, v in VARIANTS.items() if args.backend == "opencl" or "opencl" not in name}
     count = RayCount()
     for scene_name, make in variants.values():  # kernel builds and caches
         runner.make_integrator = make

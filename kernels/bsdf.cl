@@ -212,6 +212,41 @@ inline float3 dielectric_sample(const Params *p, float3 wo, float u_lobe, float3
     return wi;
 }
 
+/* One BSDF sample from the uniform numbers u0, u1 and u_lobe: its direction (returned), value,
+ * pdf and flags (bit 0 specular, bit 1 valid), as ``BSDF.sample`` returns them. The bsdf kernel
+ * below and kernels/bounce.cl (the path integrator's fused bounce) both draw through it. */
+inline float3 bsdf_sample(const Params *p, float3 wo, float u0, float u1, float ul, float3 *value_out,
+                          float *pdf_out, int *flags_out) {
+    float3 wi, value;
+    float pdf;
+    int specular, valid;
+    if (p->kind == KIND_DIELECTRIC || p->kind == KIND_THIN_DIELECTRIC) {
+        wi = dielectric_sample(p, wo, ul, &value, &pdf, &valid);
+        specular = 1;
+    } else {
+        /* plastic: the diffuse lobe below the diffuse chance, else the coat (mix.WeightedSum) */
+        int diffuse = p->kind == KIND_LAMBERTIAN || (p->kind == KIND_PLASTIC && ul < diffuse_chance(p));
+        wi = diffuse ? cosine_on_side(wo, u0, u1) : microfacet_direction(p, wo, u0, u1);
+        specular = !diffuse && p->smooth;
+        value = bsdf_eval(p, wo, wi, &pdf);
+        if (specular) {
+            float c = fabs(wo.z);
+            value = c > 0.0f ? reflected(p, c) / c : (float3)(0.0f);
+            pdf = p->kind == KIND_PLASTIC ? 1.0f - diffuse_chance(p) : 1.0f;
+        }
+        /* the sampled lobe's own validity: a Lambertian's pdf positive; a microfacet lobe's pdf
+         * positive (1 where smooth) and wi on wo's side */
+        float lobe_pdf = 1.0f;
+        if (!diffuse && !specular) microfacet_eval(p, wo, wi, &lobe_pdf);
+        int side = wo.z * wi.z > 0.0f;
+        valid = pdf > 0.0f && side && (diffuse ? wi.z != 0.0f : lobe_pdf > 0.0f && wo.z != 0.0f);
+    }
+    *value_out = value;
+    *pdf_out = pdf;
+    *flags_out = specular | (valid << 1);
+    return wi;
+}
+
 __kernel void bsdf(uint n, uint lights, __global const float *params, __global const float *wo_in,
                    __global const float *light_wi, __global const float *u, __global const float *u_lobe,
                    __global float *light_f, __global float *light_pdf, __global float *wi_out,
@@ -226,33 +261,12 @@ __kernel void bsdf(uint n, uint lights, __global const float *params, __global c
         vstore3(bsdf_eval(&p, wo, vload3(row, light_wi), &pdf), row, light_f);
         light_pdf[row] = pdf;
     }
-    float u0 = u[2 * i], u1 = u[2 * i + 1], ul = u_lobe[i];
-    float3 wi, value;
+    float3 value;
     float pdf;
-    int specular, valid;
-    if (p.kind == KIND_DIELECTRIC || p.kind == KIND_THIN_DIELECTRIC) {
-        wi = dielectric_sample(&p, wo, ul, &value, &pdf, &valid);
-        specular = 1;
-    } else {
-        /* plastic: the diffuse lobe below the diffuse chance, else the coat (mix.WeightedSum) */
-        int diffuse = p.kind == KIND_LAMBERTIAN || (p.kind == KIND_PLASTIC && ul < diffuse_chance(&p));
-        wi = diffuse ? cosine_on_side(wo, u0, u1) : microfacet_direction(&p, wo, u0, u1);
-        specular = !diffuse && p.smooth;
-        value = bsdf_eval(&p, wo, wi, &pdf);
-        if (specular) {
-            float c = fabs(wo.z);
-            value = c > 0.0f ? reflected(&p, c) / c : (float3)(0.0f);
-            pdf = p.kind == KIND_PLASTIC ? 1.0f - diffuse_chance(&p) : 1.0f;
-        }
-        /* the sampled lobe's own validity: a Lambertian's pdf positive; a microfacet lobe's pdf
-         * positive (1 where smooth) and wi on wo's side */
-        float lobe_pdf = 1.0f;
-        if (!diffuse && !specular) microfacet_eval(&p, wo, wi, &lobe_pdf);
-        int side = wo.z * wi.z > 0.0f;
-        valid = pdf > 0.0f && side && (diffuse ? wi.z != 0.0f : lobe_pdf > 0.0f && wo.z != 0.0f);
-    }
+    int flags;
+    float3 wi = bsdf_sample(&p, wo, u[2 * i], u[2 * i + 1], u_lobe[i], &value, &pdf, &flags);
     vstore3(wi, i, wi_out);
     vstore3(value, i, value_out);
     pdf_out[i] = pdf;
-    flags_out[i] = specular | (valid << 1);
+    flags_out[i] = flags;
 }

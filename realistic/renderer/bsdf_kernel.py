@@ -1,7 +1,9 @@
 """OpenCL host of the path integrator's BSDFs: ``kernels/bsdf.cl`` on a ``Device``.
 
 ``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB rays at hits whose
-material the kernel covers (``parameters`` returns their rows): Lambertian (``Material`` without
+material the kernel covers (``parameters`` returns their rows) where the fused bounce
+(``renderer/bounce_kernel``, whose program holds ``bsdf.cl``'s functions too) does not take
+the whole bounce: textured parameters, lights other than area lights. Lambertian (``Material`` without
 Oren-Nayar roughness), conductors given by eta and k, mirrors, smooth and thin dielectrics, and
 plastic. Every other material, and spectral rays, stay with the numpy BSDFs of ``renderer.bsdf``,
 which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The host looks each
@@ -14,6 +16,7 @@ BSDF sample; each thread has its own queue, so the renderer's worker threads lau
 from __future__ import annotations
 
 import threading
+from functools import cached_property
 
 import numpy as np
 
@@ -75,8 +78,13 @@ class BsdfKernel:
 
     def __init__(self, device: Device):
         self.device = device
-        self.program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._local = threading.local()
+
+    @cached_property
+    def program(self) -> cl.Program:
+        """The program, built on the first launch: a path tracer whose bounces all go through the
+        fused bounce kernel (``renderer.bounce_kernel``) never launches this one."""
+        return self.device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
 
     def rows(self, material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
         """``parameters`` (the ``BsdfLauncher`` method)."""

@@ -22,6 +22,7 @@ from realistic.camera.thin_lens_host import ThinLensKernel
 from realistic.device.opencl import Device
 from realistic.optics.ghosts import GhostTracer
 from realistic.optics.lens import LensSystem
+from realistic.renderer.bounce_kernel import BounceKernel
 from realistic.renderer.bsdf_kernel import BsdfKernel
 from realistic.renderer.shade_kernel import ShadeKernel
 from realistic.scene.ewa_kernel import EwaKernel, SurfaceTables
@@ -76,6 +77,10 @@ class OpenCLBackend:
             if self._bsdf_kernel is None:
                 self._bsdf_kernel = BsdfKernel(self.device)
             return self._bsdf_kernel
+
+    def bounce_kernel(self, **tables: Any) -> BounceKernel:
+        """``BounceKernel`` (the path integrator's fused bounce) on this device with a scene's ``tables``."""
+        return BounceKernel(self.device, **tables)
 
     def shade_kernel(self, **tables: Any) -> ShadeKernel:
         """``ShadeKernel`` on this device with a scene's ``tables`` (its keyword arguments)."""

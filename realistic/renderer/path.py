@@ -17,10 +17,16 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 ``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
 after specular bounces), for tests.
 
-Backends: on "opencl", RGB rays at hits whose material ``kernels/bsdf.cl`` covers (the backend's
-``bsdf_kernel``: diffuse, conductor, mirror, smooth glass, plastic) are evaluated and sampled there,
-in one launch per bounce, with the same random numbers; every other material, spectral rays and the
-"numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
+Backends: on "opencl", where every light is an area light (or none emits), RGB rays at hits whose
+material ``kernels/bsdf.cl`` covers with constant parameters (Lambertian under a grid or checker
+texture too) take the whole bounce in one launch of ``kernels/bounce.cl`` (``renderer.bounce_kernel``:
+surface point, normals, light samples, MIS weights, shadow rays, BSDF sample, beta, roulette), with
+the same random numbers; the host keeps embree, emission and the compaction of live paths. Other
+such hits (image-textured or other textured parameters, Oren-Nayar, rough glass, measured and the
+other materials ``bsdf.cl`` lacks) have the numpy bounce (``_shade``) with their BSDFs in
+``kernels/bsdf.cl`` where it covers them (the backend's ``bsdf_kernel``); spectral rays, scenes with
+other lights and the "numpy" backend use ``_shade`` with the numpy BSDFs of ``bsdf_factory``, the
+reference.
 
 Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
 stratified light samples) as ``DirectLighting`` does; bounce b's BSDF sample, lobe choice,
@@ -33,6 +39,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from contextlib import nullcontext
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -50,6 +57,9 @@ from realistic.scene.lights import EmissiveInstance
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.model import ImageTexture, Scene, Texture
 from realistic.scene.textures import Footprint, evaluate
+
+if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
+    from realistic.renderer.bounce_kernel import BounceKernel
 
 BOUNCE_DIMENSION = 4 + 3 * MAX_LIGHT_SAMPLES
 MODES = ("direct", "path")
@@ -126,6 +136,7 @@ class PathIntegrator(DirectLighting):
         self.lights = LightSampler(scene, intersector.extent)
         # instances whose transform mirrors: their world winding faces inward (see ``_outward_normals``)
         self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
+        self._bounce = self._build_bounce(chosen) if self._bsdf_kernel is not None else None
         self._instance_light = np.full(max(self.instance_count, 1), -1, np.int64)
         for i, light in enumerate(scene.lights):
             if isinstance(light, EmissiveInstance):
@@ -153,6 +164,8 @@ class PathIntegrator(DirectLighting):
         prev_pdf = np.zeros(n)
         prev_point = o.astype(np.float64)
         shadow_rays = 0
+        if self._bounce is not None and basis_all is None:  # the fused bounce's random-number keys
+            pixel_key, sample_key = pixel.astype(np.uint32), np.broadcast_to(sample, (n,)).astype(np.uint32)
         # "direct" shades the first hit whatever max_depth is (its MIS rays are traced one step more)
         last = max(self.max_depth, 1) if self.mode == "direct" else self.max_depth
         for depth in range(last + 1):
@@ -172,7 +185,11 @@ class PathIntegrator(DirectLighting):
                 surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0) & shade)
                 if depth == last or len(surface) == 0:
                     break
-                state = self._shade(hits, surface, path, o, d, beta, basis, pixel, sample, depth)
+                if self._bounce is not None and basis is None:
+                    state = self._shade_on_device(hits, surface, path, o, d, beta, pixel, sample, pixel_key,
+                                                  sample_key, depth)
+                else:
+                    state = self._shade(hits, surface, path, o, d, beta, basis, pixel, sample, depth)
             shadow = state["shadow"]
             if shadow["rows"] is not None and len(shadow["rows"]):
                 with timed("embree"):  # every light sample's shadow ray of this bounce in one batch
@@ -180,9 +197,13 @@ class PathIntegrator(DirectLighting):
                 with timed("shading"):
                     free = ~blocked
                     rows, value = shadow["rows"][free], shadow["contribution"][free]
-                    for c in range(channels):  # rows repeat with several light samples per hit
-                        out[:, c] += np.bincount(rows, value[:, c], minlength=n).astype(np.float32)
-                shadow_rays += len(blocked)
+                    if depth > 0 or self.light_samples == 1:  # one light sample per ray: rows are distinct
+                        out[rows] += value
+                    else:
+                        for c in range(channels):  # rows repeat with several light samples per hit
+                            out[:, c] += np.bincount(rows, value[:, c], minlength=n).astype(np.float32)
+                    # the fused bounce's dead light samples have length -1 (embree skips them)
+                    shadow_rays += int(np.count_nonzero(shadow["length"] > 0))
             path, o, d, beta = state["path"], state["origin"], state["direction"], state["beta"]
             specular, shade, prev_pdf, prev_point = state["specular"], state["shade"], state["pdf"], state["point"]
         result = np.empty((n, 3), np.float32)
@@ -190,6 +211,57 @@ class PathIntegrator(DirectLighting):
         if wavelength_nm is not None:  # the film's weight at each ray's wavelength, as DirectLighting's
             result *= rgb_response(wavelength_nm)
         return result, shadow_rays
+
+    def _build_bounce(self, backend: Backend) -> BounceKernel | None:
+        """The fused bounce kernel on ``backend``'s device (imports pyopencl only here), for scenes
+        whose lights it samples (area lights alone, or none that emit); None otherwise or on the
+        "numpy" backend."""
+        if backend.name != "opencl" or (self.lights.has_lights and not self.lights.area_only):
+            return None
+        from realistic.renderer import bounce_kernel
+        from realistic.renderer.opencl_backend import OpenCLBackend
+
+        if not isinstance(backend, OpenCLBackend):
+            raise TypeError(f"the bounce kernel runs on an OpenCL backend, not {backend!r}")
+        self._bounce_flags = (bounce_kernel.MIS if self.mis else 0) | (
+            bounce_kernel.DIRECT | (bounce_kernel.EMISSION_AFTER_DIFFUSE if self.mis and self.lights.hittable else 0)
+            if self.mode == "direct" else 0)
+        return backend.bounce_kernel(faces=self._faces, normals=self._normals, uv=self._uv,
+                                     geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
+                                     geom_smooth=self._geom_smooth, geom_swaps=self._geom_swaps,
+                                     geom_normal_matrix=self._geom_normal_matrix, materials=self._materials,
+                                     lights=self.lights, extent=self.intersector.extent,
+                                     dimension=BOUNCE_DIMENSION, roulette_after=ROULETTE_AFTER)
+
+    def _shade_on_device(self, hits: Hits, surface: np.ndarray, path: np.ndarray, o: np.ndarray, d: np.ndarray,
+                         beta: np.ndarray, pixel: np.ndarray, sample: np.ndarray, pixel_key: np.ndarray,
+                         sample_key: np.ndarray, depth: int) -> dict:
+        """``_shade`` of RGB rays by the fused bounce kernel (``renderer.bounce_kernel``) at the hits
+        whose material it covers, and by ``_shade`` at the others; ``pixel_key`` and ``sample_key``:
+        ``pixel`` and ``sample`` as uint32, the kernel's random-number keys. The shadow rays include
+        the kernel's dead light samples (length -1, contribution 0)."""
+        assert self._bounce is not None
+        covered = self._bounce.covered[self._geom_material[hits.geom[surface]]]
+        rows = surface if covered.all() else surface[covered]
+        result = self._bounce(rows, path, pixel_key, sample_key, o, d, hits, beta, depth=depth,
+                              light_samples=self.light_samples if depth == 0 else 1, seed=self.seed,
+                              mode_flags=self._bounce_flags, max_depth=self.max_depth)
+        ray = path[rows]
+        keep, specular, shade = result.going_on()
+        state = {"path": ray[keep], "origin": result.origin[keep], "direction": result.direction[keep],
+                 "beta": result.beta[keep], "specular": specular, "shade": shade,
+                 "pdf": result.pdf[keep].astype(np.float64), "point": result.point[keep].astype(np.float64),
+                 "shadow": {"start": result.shadow_origin, "vector": result.shadow_vector,
+                            "length": result.shadow_length,
+                            "rows": np.tile(ray, len(result.shadow_length) // max(len(rows), 1)),
+                            "contribution": result.contribution}}
+        if len(rows) == len(surface):
+            return state
+        rest = self._shade(hits, surface[~covered], path, o, d, beta, None, pixel, sample, depth)
+        joined: dict = {key: np.concatenate([state[key], rest[key]]) for key in state if key != "shadow"}
+        joined["shadow"] = {key: value if rest["shadow"][key] is None else np.concatenate([value, rest["shadow"][key]])
+                            for key, value in state["shadow"].items()}
+        return joined
 
     def first_albedo(self, hits: Hits, surface: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
         """Albedo (n, 3) of the camera-ray hits ``surface``: each material's BSDF's directional
@@ -264,7 +336,8 @@ class PathIntegrator(DirectLighting):
                   prev_lights: int, depth: int, out: np.ndarray) -> None:
         """Add what the rays see of emitters, MIS-weighted against the light samples that could find it."""
         pick = (lambda rows: None) if basis is None else (lambda rows: basis[rows])
-        miss = np.flatnonzero(hits.geom < 0)
+        # misses see the infinite lights, or the background from camera rays (else nothing to add)
+        miss = np.flatnonzero(hits.geom < 0) if self.lights.environments or depth == 0 else np.zeros(0, np.int64)
         if len(miss):
             le = self.lights.environment(d[miss], pick(miss), camera=depth == 0)
             pdf = self.lights.pdf_environment(d[miss]) if self.lights.environments else np.zeros(len(miss))

@@ -1,0 +1,249 @@
+/* One path-tracing bounce at surface hits: closest hit -> light samples' shadow rays and the next ray.
+ *
+ * OpenCL 1.2 C, float32. The numpy reference is realistic.renderer.path.PathIntegrator._shade; the
+ * host is realistic/renderer/bounce_kernel.py, which puts the BSDF_PARAM and BOUNCE_* tables'
+ * #defines first, then kernels/bsdf.cl (with common.cl), whose Params, bsdf_eval and bsdf_sample this
+ * file uses, then this file. One work item per surface hit i (row rows[i] of the bounce's rays,
+ * path path[row]), as the numpy code does it, in the same float32 operations and order where it can:
+ *   - the hit point o + t d; the geometric normal (embree's Ng normalised, reversed under a mirroring
+ *     transform); where the mesh has varying vertex normals, the interpolated one through the
+ *     instance's normal matrix (kept where it normalised to unit length), which the geometric normal
+ *     is turned toward and which is the shading normal (PathIntegrator._outward_normals);
+ *   - the shading frame (Duff et al. 2017, as renderer.bsdf.ShadingFrame) and wo;
+ *   - the material's BSDF_PARAM row, its Lambertian albedo times a grid or checker texture at the
+ *     interpolated uv (realistic.scene.textures.evaluate) where BOUNCE_MATERIAL says so;
+ *   - light samples (area lights only, picked by the rounded-up CDF as numpy's searchsorted picks):
+ *     at depth 0 light_samples of them with the pixel's Sobol' numbers (rng.all_light_uniforms), else
+ *     one with rng.uniform at dimensions base + 4 .. 6; the point on the disk or quad, the density
+ *     d^2 / (cos_q A) P_j, f and the BSDF's pdf, the power heuristic, the contribution
+ *     beta f L |cos| w / (pdf n), and the shadow ray from the offset origin to the point;
+ *   - one BSDF sample (bsdf_sample) with rng.uniform at base .. base + 2, the throughput, Russian
+ *     roulette (path mode, depth >= ROULETTE_AFTER, rng.uniform at base + 3) or the direct mode's
+ *     rule, and the next ray from the offset origin.
+ * Outputs, light sample k of hit i at row k * m + i: shadow origin and vector (3 floats each), its
+ * length 1 - 1e-4 in units of the vector or -1 for a dead sample (embree skips it), contribution (3
+ * floats, 0 when dead). Per hit: the next origin, direction, beta, the point (3 floats each), the
+ * sample's pdf and flags (bit 0 the path goes on, bit 1 specular, bit 2 shade its next hit).
+ * Square roots and floors here are __builtin_sqrtf and __builtin_floorf (LLVM intrinsics, correctly
+ * rounded as numpy's float32 ones), not the OpenCL library's calls, as in kernels/shade.cl.
+ */
+
+#pragma OPENCL FP_CONTRACT OFF
+
+#define GOLDEN 0x9E3779B9u
+#define SHADOW_OFFSET 1e-4f
+#define SHADOW_LENGTH 0.9999f
+
+/* realistic.core.rng.uniform at dimension dim, from the sample's key hash32(hash32(hash32(seed +
+ * GOLDEN) ^ pixel) ^ sample): the top 24 bits of hash32(key ^ dim). */
+inline float uniform_at(uint key, uint dim) { return to_unit(hash32(key ^ dim)); }
+
+/* realistic.core.rng.light_uniforms (pick included), bit for bit: light sample k of light_samples
+ * per camera sample (the same numbers as kernels/shade.cl's light_numbers). */
+inline void light_uniforms(uint pixel, uint sample, uint k, uint light_samples, uint seed, float *u0, float *u1,
+                           float *u2) {
+    uint h = hash32(hash32(hash32(seed + GOLDEN) ^ pixel) ^ 0xFFFFFFFFu);
+    uint index = sample * light_samples + k;
+    uint reversed = reverse_bits(index);
+    uint shuffled = reverse_bits(owen_scramble_digits(reversed, hash32(h ^ 16u)));
+    *u1 = to_unit(reverse_bits(owen_scramble_digits(shuffled, hash32(h ^ 17u))));
+    *u2 = to_unit(reverse_bits(owen_scramble_digits(sobol1_digits(shuffled), hash32(h ^ 18u))));
+    uint picked = reverse_bits(owen_scramble_digits(reversed, hash32(h ^ 19u)));
+    *u0 = to_unit(reverse_bits(owen_scramble_digits(picked, hash32(h ^ 20u))));
+}
+
+/* The light of pick value u: how many CDF entries are <= u (numpy's searchsorted side="right"),
+ * at most count - 1 (a binary search). */
+inline int pick_light(__global const float *cdf, int count, float u) {
+    int lo = 0, hi = count;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (cdf[mid] <= u) lo = mid + 1; else hi = mid;
+    }
+    return min(lo, count - 1);
+}
+
+inline float3 load3(__global const float *a, size_t row) { return vload3(row, a); }
+
+/* a^2 / (a^2 + b^2) for a, b >= 0 without overflow (0 where both are 0): path.power_heuristic. */
+inline float power_heuristic(float a, float b) {
+    if (a > 0.0f) {
+        float r = b / a;
+        return 1.0f / (1.0f + r * r);
+    }
+    return 0.0f;
+}
+
+inline float3 normalise3(float3 v) {
+    float l = __builtin_sqrtf(v.x * v.x + v.y * v.y + v.z * v.z);
+    return l > 0.0f ? v / l : (float3)(0.0f);
+}
+
+inline float dot3(float3 a, float3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+/* max |v_i| */
+inline float magnitude3(float3 v) { return fmax(fmax(fabs(v.x), fabs(v.y)), fabs(v.z)); }
+
+/* The sign of x as numpy's np.sign: -1, 0 or 1. */
+inline float sign_of(float x) { return x > 0.0f ? 1.0f : (x < 0.0f ? -1.0f : 0.0f); }
+
+__kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mode_flags, uint max_depth,
+                     float offset_base, int light_count,
+                     __global const int *rows, __global const int *path, __global const uint *pixel,
+                     __global const uint *sample, __global const float *origin, __global const float *direction,
+                     __global const float *tfar, __global const float *hit_u, __global const float *hit_v,
+                     __global const int *prim, __global const int *geom, __global const float *ng_in,
+                     __global const float *beta_in,
+                     __global const int *faces, __global const float *normals, __global const float *uvs,
+                     __global const int *geom_ints, __global const float *geom_floats,
+                     __global const float *params, __global const float *materials,
+                     __global const float *lights, __global const float *cdf,
+                     __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
+                     __global float *contribution, __global float *next_origin, __global float *next_direction,
+                     __global float *next_beta, __global float *next_point, __global float *next_pdf,
+                     __global int *next_flags) {
+    uint i = get_global_id(0);
+    if (i >= m) return;
+    int r = rows[i];
+    int g = geom[r];
+    uint px = pixel[path[r]], sx = sample[path[r]];
+    float3 d = load3(direction, r);
+    float t = tfar[r];
+    float3 point = load3(origin, r) + t * d;
+
+    /* normals (PathIntegrator._outward_normals) */
+    __global const int *gi = geom_ints + BOUNCE_GEOM_WIDTH * g;
+    float3 ng = normalise3(load3(ng_in, r));
+    if (gi[BOUNCE_GEOM_SWAPS]) ng = -ng;
+    /* the triangle's corners are read only where smooth normals or a texture need them: a random
+     * read of a large mesh's faces costs a cache miss */
+    int face = gi[BOUNCE_GEOM_FACE_OFFSET] + prim[r];
+    float b1 = hit_u[r], b2 = hit_v[r];
+    float b0 = 1.0f - b1 - b2;
+    float3 shading = ng;
+    if (gi[BOUNCE_GEOM_SMOOTH]) {
+        int i0 = faces[3 * face], i1 = faces[3 * face + 1], i2 = faces[3 * face + 2];
+        float3 n = load3(normals, i0) * b0 + load3(normals, i1) * b1 + load3(normals, i2) * b2;
+        __global const float *nm = geom_floats + BOUNCE_NORMAL_MATRIX_WIDTH * g;
+        float3 w = (float3)(nm[0] * n.x + nm[1] * n.y + nm[2] * n.z, nm[3] * n.x + nm[4] * n.y + nm[5] * n.z,
+                            nm[6] * n.x + nm[7] * n.y + nm[8] * n.z);
+        w = normalise3(w);
+        if (dot3(w, w) > 0.5f) {
+            if (dot3(ng, w) < 0.0f) ng = -ng;
+            shading = w;
+        }
+    }
+    /* the shading frame (ShadingFrame: Duff et al. 2017) */
+    float sgn = shading.z >= 0.0f ? 1.0f : -1.0f;
+    float fa = -1.0f / (sgn + shading.z);
+    float fb = shading.x * shading.y * fa;
+    float3 fs = normalise3((float3)(1.0f + sgn * shading.x * shading.x * fa, sgn * fb, -sgn * shading.x));
+    float3 ft = normalise3((float3)(fb, sgn + shading.y * shading.y * fa, -shading.y));
+    float3 wo = (float3)(-dot3(d, fs), -dot3(d, ft), -dot3(d, shading));
+    float eps = SHADOW_OFFSET * (magnitude3(point) + offset_base);
+
+    /* the material: its BSDF row, a Lambertian's albedo times its grid or checker texture */
+    int material = gi[BOUNCE_GEOM_MATERIAL];
+    Params p = load_params(params + BSDF_PARAM_WIDTH * material);
+    __global const float *mat = materials + BOUNCE_MATERIAL_WIDTH * material;
+    int texture = (int)mat[BOUNCE_MATERIAL_TEXTURE];
+    if (texture != BOUNCE_TEXTURE_NONE) {
+        int i0 = faces[3 * face], i1 = faces[3 * face + 1], i2 = faces[3 * face + 2];
+        float tu = uvs[2 * i0] * b0 + uvs[2 * i1] * b1 + uvs[2 * i2] * b2;
+        float tv = uvs[2 * i0 + 1] * b0 + uvs[2 * i1 + 1] * b1 + uvs[2 * i2 + 1] * b2;
+        float cu = tu * mat[BOUNCE_MATERIAL_CELLS], cv = tv * mat[BOUNCE_MATERIAL_CELLS];
+        float fu = cu - __builtin_floorf(cu), fv = cv - __builtin_floorf(cv);
+        float low = mat[BOUNCE_MATERIAL_LOW], high = mat[BOUNCE_MATERIAL_HIGH];
+        int use_b;
+        if (texture == BOUNCE_TEXTURE_GRID) {
+            use_b = !((fu < low) | (fu > high) | (fv < low) | (fv > high));
+        } else {
+            float parity = __builtin_floorf(cu) + __builtin_floorf(cv);
+            use_b = parity - 2.0f * __builtin_floorf(parity * 0.5f) != 0.0f;
+        }
+        p.scale *= use_b ? vload3(0, mat + BOUNCE_MATERIAL_COLOUR_B) : vload3(0, mat + BOUNCE_MATERIAL_COLOUR_A);
+    }
+    float3 beta = load3(beta_in, r);
+    uint base = BOUNCE_DIMENSION + 8 * depth;
+    uint key = hash32(hash32(hash32(seed + GOLDEN) ^ px) ^ sx);
+    int mis = (mode_flags & BOUNCE_MIS) != 0;
+
+    /* light samples */
+    float n_light = (float)light_samples;
+    for (uint k = 0; k < light_samples; k++) {
+        size_t o = (size_t)k * m + i;
+        float u_pick, u1, u2;
+        if (depth == 0) {
+            light_uniforms(px, sx, k, light_samples, seed, &u_pick, &u1, &u2);
+        } else {
+            u_pick = uniform_at(key, base + 4);
+            u1 = uniform_at(key, base + 5);
+            u2 = uniform_at(key, base + 6);
+        }
+        __global const float *light = lights + BOUNCE_LIGHT_WIDTH * pick_light(cdf, light_count, u_pick);
+        float x, y;
+        if (light[BOUNCE_LIGHT_DISK] != 0.0f) {
+            concentric_disk(u1, u2, &x, &y);
+        } else {
+            x = 2.0f * u1 - 1.0f;
+            y = 2.0f * u2 - 1.0f;
+        }
+        float3 target = vload3(0, light + BOUNCE_LIGHT_CENTRE) + vload3(0, light + BOUNCE_LIGHT_A) * x
+                        + vload3(0, light + BOUNCE_LIGHT_B) * y;
+        float3 to_light = target - point;
+        float d2 = dot3(to_light, to_light);
+        float3 wi = to_light / __builtin_sqrtf(fmax(d2, 1e-30f));
+        float cos_q = -dot3(wi, vload3(0, light + BOUNCE_LIGHT_NORMAL));
+        if (light[BOUNCE_LIGHT_TWO_SIDED] != 0.0f) cos_q = fabs(cos_q);
+        int ok = cos_q > 0.0f && d2 > 0.0f;
+        float light_pdf = ok ? d2 / (cos_q * light[BOUNCE_LIGHT_AREA]) * light[BOUNCE_LIGHT_PROBABILITY] : 0.0f;
+        float3 radiance = vload3(0, light + BOUNCE_LIGHT_RADIANCE);
+        int valid = light_pdf > 0.0f && ok && (radiance.x != 0.0f || radiance.y != 0.0f || radiance.z != 0.0f);
+        float3 light_wi = (float3)(dot3(wi, fs), dot3(wi, ft), dot3(wi, shading));
+        float bsdf_pdf;
+        float3 f = bsdf_eval(&p, wo, light_wi, &bsdf_pdf);
+        float side_g = dot3(wi, ng);
+        int usable = valid && side_g * light_wi.z > 0.0f;
+        float weight = mis ? power_heuristic(n_light * light_pdf, bsdf_pdf) : 1.0f;
+        float scale = usable ? fabs(light_wi.z) * weight / (light_pdf * n_light) : 0.0f;
+        float3 c = beta * f * radiance * scale;
+        int live = c.x != 0.0f || c.y != 0.0f || c.z != 0.0f;
+        float3 start = point + ng * eps * sign_of(side_g);
+        vstore3(live ? start : (float3)(0.0f), o, shadow_origin);
+        vstore3(live ? target - start : (float3)(0.0f), o, shadow_vector);
+        shadow_length[o] = live ? SHADOW_LENGTH : -1.0f;
+        vstore3(live ? c : (float3)(0.0f), o, contribution);
+    }
+
+    /* the BSDF sample and the next ray */
+    float3 value;
+    float pdf;
+    int flags;
+    float3 local_wi = bsdf_sample(&p, wo, uniform_at(key, base), uniform_at(key, base + 1), uniform_at(key, base + 2),
+                                  &value, &pdf, &flags);
+    int specular = flags & 1;
+    int ok = (flags & 2) && pdf > 0.0f;
+    float3 throughput = ok ? value * (fabs(local_wi.z) / pdf) : (float3)(0.0f);
+    float3 world_wi = fs * local_wi.x + ft * local_wi.y + shading * local_wi.z;
+    float side = dot3(world_wi, ng);
+    int go = ok && side * local_wi.z > 0.0f;
+    float3 new_beta = beta * throughput;
+    int shade = 1;
+    if (mode_flags & BOUNCE_DIRECT) {
+        /* pbrt-v3 DirectLightingIntegrator: specular reflection while depth + 1 < maxdepth */
+        int follow = specular && depth + 1 < max_depth;
+        shade = follow;
+        go = go && (follow || (!specular && (mode_flags & BOUNCE_EMISSION_AFTER_DIFFUSE)));
+    } else if (depth >= BOUNCE_ROULETTE_AFTER) {
+        float q = fmax(0.05f, 1.0f - fmax(fmax(new_beta.x, new_beta.y), new_beta.z));
+        go = go && uniform_at(key, base + 3) >= q;
+        new_beta /= fmax(1.0f - q, 1e-6f);
+    }
+    go = go && (new_beta.x != 0.0f || new_beta.y != 0.0f || new_beta.z != 0.0f);
+    vstore3(point + ng * eps * sign_of(side), i, next_origin);
+    vstore3(world_wi, i, next_direction);
+    vstore3(new_beta, i, next_beta);
+    vstore3(point, i, next_point);
+    next_pdf[i] = pdf;
+    next_flags[i] = go | (specular << 1) | (shade << 2);
+}

@@ -1,0 +1,208 @@
+"""OpenCL host of the path integrator's fused bounce: ``kernels/bounce.cl`` on a ``Device``.
+
+``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend: one launch per bounce
+takes the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shadow ray and
+contribution (MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps
+embree and the compaction of live paths. It covers RGB rays, scenes whose lights are all area
+lights (or that have none), and materials ``bsdf_kernel.parameters`` covers whose parameters are
+constants, Lambertian ones also under a grid or checker texture (evaluated in the kernel). The rest
+(spectral rays, other lights, image or other textured parameters, materials ``bsdf.cl`` lacks)
+stays with ``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares
+the two per hit with the same random numbers). The program is the BSDF kernel's source with this
+one after it, so both share ``bsdf.cl``'s material functions; the scene's tables are device buffers
+made once per integrator, and each thread has its own queue and kernel object.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.tables import Table, constant_defines
+from realistic.renderer import bsdf_kernel
+from realistic.renderer.light_sampler import LightSampler
+from realistic.renderer.shade_kernel import rounded_up_cdf
+from realistic.scene.intersect import Hits
+from realistic.scene.materials import SurfaceMaterial
+from realistic.scene.model import CheckerTexture, GridTexture, Material
+
+KERNEL_FILE = "bounce.cl"
+#: Per instance (embree geometry id): its first face, material, whether its mesh has varying vertex
+#: normals, whether its transform mirrors (0 or 1).
+GEOM = Table("BOUNCE_GEOM", np.int32, (("face_offset", 1), ("material", 1), ("smooth", 1), ("swaps", 1)))
+#: Per instance: the normal matrix (inverse transpose of the linear map), row major.
+NORMAL_MATRIX = Table("BOUNCE_NORMAL_MATRIX", np.float32, (("matrix", 9),))
+#: Per material, beside its ``BSDF_PARAMS`` row: a Lambertian's texture (``TEXTURES``), a grid's or
+#: checker's cells, line bounds (low, high: line_width / 2 and 1 - line_width / 2) and colours (a:
+#: line or even, b: base or odd).
+MATERIALS = Table("BOUNCE_MATERIAL", np.float32, (("texture", 1), ("cells", 1), ("low", 1), ("high", 1),
+                                                  ("colour_a", 3), ("colour_b", 3)))
+TEXTURES = ("none", "grid", "checker")
+#: Per light (the sampler's order, all area lights): centre and half-axes a, b (a point is
+#: centre + a x + b y), unit emitting normal, radiance, area, pick probability, disk and two-sided (0, 1).
+LIGHTS = Table("BOUNCE_LIGHT", np.float32, (("centre", 3), ("a", 3), ("b", 3), ("normal", 3), ("radiance", 3),
+                                            ("area", 1), ("probability", 1), ("disk", 1), ("two_sided", 1)))
+#: ``mode_flags`` bits: MIS on, pbrt's "direct" mode, and (direct mode) whether non-specular BSDF
+#: samples go on to find emission.
+MODE_FLAGS = ("mis", "direct", "emission_after_diffuse")
+MIS, DIRECT, EMISSION_AFTER_DIFFUSE = (1 << k for k in range(len(MODE_FLAGS)))
+#: ``next_flags`` bits.
+GOES_ON, SPECULAR, SHADES = 1, 2, 4
+
+
+def header(dimension: int, roulette_after: int) -> str:
+    """The generated head of the program: ``bsdf.cl``'s defines, every table's here, the texture
+    kinds, the mode flags, and the integrator's first bounce dimension and roulette depth."""
+    return (bsdf_kernel.HEADER + "".join(t.defines() for t in (GEOM, NORMAL_MATRIX, MATERIALS, LIGHTS))
+            + constant_defines("BOUNCE_TEXTURE", TEXTURES)
+            + "".join(f"#define BOUNCE_{name.upper()} {1 << k}\n" for k, name in enumerate(MODE_FLAGS))
+            + f"#define BOUNCE_DIMENSION {dimension}\n#define BOUNCE_ROULETTE_AFTER {roulette_after}\n")
+
+
+class _Textured(Exception):
+    """A parameter is a texture (``constant_rows``' probe)."""
+
+
+class _Constants:
+    """``HitParameters`` of one hit that refuse textures: what ``constant_rows`` packs with."""
+
+    def colour(self, value: object) -> np.ndarray:
+        if isinstance(value, tuple | list | np.ndarray | float | int):
+            return np.broadcast_to(np.asarray(value, np.float32), (1, 3))
+        raise _Textured
+
+    def scalar(self, value: object) -> np.ndarray:
+        if isinstance(value, float | int):
+            return np.full(1, value, np.float32)
+        raise _Textured
+
+
+def material_rows(material: SurfaceMaterial) -> tuple[np.ndarray, np.ndarray] | None:
+    """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not
+    cover it (a kind ``bsdf.cl`` lacks, or a textured parameter other than a Lambertian's grid or
+    checker texture)."""
+    plain, texture = material, None
+    if isinstance(material, Material) and isinstance(material.texture, GridTexture | CheckerTexture):
+        plain, texture = replace(material, texture=None), material.texture
+    try:
+        row = bsdf_kernel.parameters(plain, _Constants(), 1)
+    except _Textured:
+        return None
+    if row is None:
+        return None
+    if isinstance(texture, GridTexture):
+        half = texture.line_width / 2
+        extra = MATERIALS.pack(1, texture=TEXTURES.index("grid"), cells=texture.cells, low=half, high=1 - half,
+                               colour_a=texture.line, colour_b=texture.base)
+    elif isinstance(texture, CheckerTexture):
+        extra = MATERIALS.pack(1, texture=TEXTURES.index("checker"), cells=texture.cells, colour_a=texture.even,
+                               colour_b=texture.odd)
+    else:
+        extra = MATERIALS.pack(1)
+    return row[0], extra[0]
+
+
+def light_rows(lights: LightSampler) -> np.ndarray:
+    """``LIGHTS`` rows of a sampler whose lights are all area lights, in its order."""
+    table, slot = lights.area_lights, lights.area_slot
+    return LIGHTS.pack(len(slot), centre=table.centre[slot], a=table.a[slot], b=table.b[slot],
+                       normal=table.normal[slot], radiance=table.radiance[slot], area=table.area[slot],
+                       probability=lights.probability, disk=table.disk[slot], two_sided=table.two_sided[slot])
+
+
+@dataclass
+class Bounce:
+    """One launch's outputs for m surface hits and L light samples each: shadow rays at rows
+    k * m + i (``length`` -1 and ``contribution`` 0 where dead), and each hit's next ray."""
+
+    shadow_origin: np.ndarray  # (L m, 3) float32
+    shadow_vector: np.ndarray  # (L m, 3) float32: to the light point
+    shadow_length: np.ndarray  # (L m,) float32: 1 - 1e-4 in units of the vector, or -1
+    contribution: np.ndarray  # (L m, 3) float32
+    origin: np.ndarray  # (m, 3) float32: the next ray's offset origin
+    direction: np.ndarray  # (m, 3) float32
+    beta: np.ndarray  # (m, 3) float32: after this bounce (and roulette)
+    point: np.ndarray  # (m, 3) float32: the hit point
+    pdf: np.ndarray  # (m,) float32: the BSDF sample's density
+    flags: np.ndarray  # (m,) int32: GOES_ON, SPECULAR, SHADES
+
+    def going_on(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The hits whose paths go on (their indices), and of those whether the BSDF sample was
+        specular and whether their next hit is shaded."""
+        keep = np.flatnonzero(self.flags & GOES_ON)
+        flags = self.flags[keep]
+        return keep, (flags & SPECULAR) != 0, (flags & SHADES) != 0
+
+
+class BounceKernel:
+    """``bounce.cl`` with one scene's tables on ``device``."""
+
+    def __init__(self, device: Device, *, faces: np.ndarray, normals: np.ndarray, uv: np.ndarray,
+                 geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_smooth: np.ndarray,
+                 geom_swaps: np.ndarray, geom_normal_matrix: np.ndarray, materials: list[SurfaceMaterial],
+                 lights: LightSampler, extent: float, dimension: int, roulette_after: int):
+        """``dimension``: the random-number dimension of bounce 0's BSDF sample (bounce b's are 8 b
+        on); ``roulette_after``: the bounces after which roulette may end a path. ``lights`` must
+        have area lights alone, or none that emit (``PathIntegrator`` checks)."""
+        self.device = device
+        rows = [material_rows(m) for m in materials]
+        #: per material: whether the kernel shades it
+        self.covered = np.array([r is not None for r in rows] or [False], bool)
+        params = np.array([r[0] if r else np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32) for r in rows]
+                          or [np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32)], np.float32)
+        textures = np.array([r[1] if r else np.zeros(MATERIALS.width, np.float32) for r in rows]
+                            or [np.zeros(MATERIALS.width, np.float32)], np.float32)
+        count = len(geom_face_offset)
+        geom = GEOM.pack(max(count, 1))
+        geom[:count] = GEOM.pack(count, face_offset=geom_face_offset, material=geom_material, smooth=geom_smooth,
+                                 swaps=geom_swaps)
+        matrices = NORMAL_MATRIX.pack(max(count, 1))
+        matrices[:count] = np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9)
+        self.light_count = len(lights.lights) if lights.has_lights else 0
+        table = light_rows(lights) if self.light_count else LIGHTS.pack(1)
+        cdf = rounded_up_cdf(lights.cdf) if self.light_count else np.ones(1, np.float32)
+        self.offset_base = np.float32(1e-2 * extent)
+        self.program = device.build_program(header(dimension, roulette_after) + kernel_source(bsdf_kernel.KERNEL_FILE)
+                                            + kernel_source(KERNEL_FILE), KERNEL_FILE)
+        self._tables = [device.wrapped_buffer(array, dtype) for array, dtype in (
+            (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom, np.int32), (matrices, np.float32),
+            (params, np.float32), (textures, np.float32), (table, np.float32), (cdf, np.float32))]
+        self._local = threading.local()
+
+    def _queue_and_kernel(self) -> tuple[cl.CommandQueue, cl.Kernel]:
+        state = getattr(self._local, "state", None)
+        if state is None:
+            state = self._local.state = (self.device.queue(), cl.Kernel(self.program, "bounce"))
+        return state
+
+    def __call__(self, rows: np.ndarray, path: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
+                 origin: np.ndarray, direction: np.ndarray, hits: Hits, beta: np.ndarray, *, depth: int,
+                 light_samples: int, seed: int, mode_flags: int, max_depth: int) -> Bounce:
+        """The bounce at the hits ``rows`` (m,) of a batch of rays (``origin``, ``direction``,
+        ``hits``, ``beta`` (B, 3), ``path`` (B,): each ray's camera ray, whose ``pixel`` and
+        ``sample`` key the random numbers) at ``depth``, with ``light_samples`` light samples per
+        hit (0 without lights)."""
+        m = len(rows)
+        lights = light_samples if self.light_count else 0
+        shadows = lights * m
+        out = Bounce(shadow_origin=np.empty((shadows, 3), np.float32), shadow_vector=np.empty((shadows, 3), np.float32),
+                     shadow_length=np.empty(shadows, np.float32), contribution=np.empty((shadows, 3), np.float32),
+                     origin=np.empty((m, 3), np.float32), direction=np.empty((m, 3), np.float32),
+                     beta=np.empty((m, 3), np.float32), point=np.empty((m, 3), np.float32),
+                     pdf=np.empty(m, np.float32), flags=np.empty(m, np.int32))
+        if m:
+            queue, kernel = self._queue_and_kernel()
+            inputs = [self.device.wrapped_buffer(a, dtype) for a, dtype in (
+                (rows, np.int32), (path, np.int32), (pixel, np.uint32), (sample, np.uint32), (origin, np.float32),
+                (direction, np.float32), (hits.t, np.float32), (hits.u, np.float32), (hits.v, np.float32),
+                (hits.prim, np.int32), (hits.geom, np.int32), (hits.normal, np.float32), (beta, np.float32))]
+            self.device.run_into(queue, kernel, (whole_groups(m),), (LOCAL_SIZE,),
+                                 (np.uint32(m), np.uint32(lights), np.uint32(depth), np.uint32(seed & 0xFFFFFFFF),
+                                  np.uint32(mode_flags), np.uint32(max_depth), self.offset_base,
+                                  np.int32(max(self.light_count, 1)), *inputs, *self._tables),
+                                 (out.shadow_origin, out.shadow_vector, out.shadow_length, out.contribution,
+                                  out.origin, out.direction, out.beta, out.point, out.pdf, out.flags))
+        return out

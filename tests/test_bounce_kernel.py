@@ -1,0 +1,221 @@
+"""kernels/bounce.cl (the path integrator's fused bounce) against the numpy ``PathIntegrator._shade``
+(the reference) per hit with the same random numbers, for every material the kernel covers; which
+materials it covers; whole paths equal to the numpy backend's; and an area-light furnace."""
+
+import re
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from realistic.core.data_files import data_file
+from realistic.core.transforms import rotate, scale, translate
+from realistic.renderer.path import PathIntegrator
+from realistic.scene.intersect import Intersector
+from realistic.scene.lights import PointLight
+from realistic.scene.materials import Conductor, Dielectric, Plastic
+from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene
+from realistic.scene.shapes import sphere
+from test_bsdf_kernel import COVERED
+from test_shading_reference import textured_scene
+
+pytest.importorskip("realistic.camera.opencl_host")
+pytestmark = pytest.mark.usefixtures("opencl_platform")
+
+from realistic.renderer.bounce_kernel import GOES_ON, SHADES, SPECULAR, header, material_rows  # noqa: E402
+
+N = 6000
+
+
+def _scene(material) -> Scene:
+    """``textured_scene`` with its sphere, cone and quad made of ``material`` and a mirrored copy of
+    the sphere (a transform that swaps handedness) added; the floor's image texture is not the
+    kernel's."""
+    scene, _, _ = textured_scene()
+    scene.instances = scene.instances[:1] + [replace(inst, material=material) for inst in scene.instances[1:]]
+    scene.add(scene.instances[1].mesh, translate(-0.2, 0.5, 1.0) @ scale(-0.5, 0.5, 0.5), material)
+    return scene
+
+
+def _rays(scene: Scene, n: int, seed: int):
+    """Rays from around the eye toward the objects, and their closest hits."""
+    rng = np.random.default_rng(seed)
+    origin = (np.array([0.0, 1.0, 4.0]) + rng.uniform(-0.5, 0.5, (n, 3))).astype(np.float32)
+    target = rng.uniform([-1.5, -0.2, -1.5], [1.5, 1.5, 1.5], (n, 3))
+    direction = target - origin
+    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    return origin, direction, Intersector(scene).closest(origin, direction)
+
+
+def _pair(scene: Scene, mode: str = "path", mis: bool = True, light_samples: int = 3):
+    numpy_one = PathIntegrator(scene, Intersector(scene), light_samples, 7, 0.0, 5, mode, mis, backend="numpy")
+    device_one = PathIntegrator(scene, Intersector(scene), light_samples, 7, 0.0, 5, mode, mis, backend="opencl")
+    assert device_one._bounce is not None
+    return numpy_one, device_one
+
+
+def _per_ray(rows: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """Sums of ``values`` (k, C) by ray ``rows`` (k,), (n, C) float64."""
+    return np.stack([np.bincount(rows, values[:, c], minlength=n) for c in range(values.shape[1])], axis=1)
+
+
+def _mostly(close: np.ndarray) -> bool:
+    """All but 0.2 % of the rows are close (a row may part where rounding crosses a threshold)."""
+    return len(close) == 0 or float(close.mean()) > 0.998
+
+
+def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
+    """As tests/test_tables.py checks the other kernels: the BOUNCE_ names come from the host's header."""
+    code = re.sub(r"/\*.*?\*/", "", data_file("kernels/bounce.cl").read_text(encoding="utf-8"), flags=re.DOTALL)
+    used = {name for name in re.findall(r"\b[A-Z][A-Z0-9_]*\b", code) if name.startswith("BOUNCE_")}
+    declared = set(re.findall(r"^#define (\w+) ", header(1, 3), re.MULTILINE))
+    assert used and used <= declared, used - declared
+    assert not re.search(r"^#define BOUNCE_", code, re.MULTILINE)
+
+
+def test_covered_materials():
+    """Constant parameters of the materials bsdf.cl covers, and a Lambertian's grid or checker
+    texture; image textures, textured parameters of other kinds and materials bsdf.cl lacks are not."""
+    for material in COVERED.values():
+        assert material_rows(material) is not None
+    assert material_rows(Material((1.0, 1.0, 1.0), GridTexture(cells=4.0))) is not None
+    assert material_rows(Material((1.0, 1.0, 1.0), CheckerTexture(cells=4.0))) is not None
+    image = ImageTexture(np.ones((4, 4, 3), np.float32))
+    assert material_rows(Material((1.0, 1.0, 1.0), image)) is None
+    assert material_rows(Plastic(image, (0.4, 0.4, 0.4), 0.1)) is None
+    assert material_rows(Material((0.5, 0.5, 0.5), sigma=20.0)) is None
+    assert material_rows(Dielectric(1.5, roughness_u=0.2, roughness_v=0.2)) is None
+
+
+@pytest.mark.parametrize("name", sorted(COVERED) + ["grid", "checker"])
+@pytest.mark.parametrize("depth", [0, 1, 3])
+@pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
+def test_bounce_kernel_shades_each_hit_as_the_numpy_reference(name, depth, mode, mis):
+    """Per hit, with the same random numbers: every light sample's shadow ray and contribution (summed
+    per ray with several light samples at depth 0), and the next ray, beta, pdf and flags, to float32
+    rounding (a decision may part only where rounding moves a number across its threshold)."""
+    material = {"grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=0.2)),
+                "checker": Material((0.7, 0.7, 0.7), CheckerTexture(cells=6.0))}.get(name) or COVERED[name]
+    scene = _scene(material)
+    numpy_one, device_one = _pair(scene, mode, mis)
+    origin, direction, hits = _rays(scene, N, sorted(COVERED).index(name) if name in COVERED else 11)
+    on_instance = (hits.geom >= 0) & (hits.geom < device_one.instance_count)
+    covered = device_one._bounce.covered[device_one._geom_material[np.where(on_instance, hits.geom, 0)]]
+    surface = np.flatnonzero(on_instance & covered)
+    assert len(surface) > N // 4
+    rng = np.random.default_rng(depth)
+    path = rng.permutation(N)  # each ray its own camera ray, out of order
+    beta = rng.uniform(0.2, 1.0, (N, 3)).astype(np.float32)
+    pixel, sample = rng.integers(0, 1 << 20, N), rng.integers(0, 64, N)
+    expected = numpy_one._shade(hits, surface, path, origin, direction, beta, None, pixel, sample, depth)
+    got = device_one._bounce(surface, path, pixel.astype(np.uint32), sample.astype(np.uint32), origin, direction,
+                             hits, beta, depth=depth, light_samples=3 if depth == 0 else 1, seed=7,
+                             mode_flags=device_one._bounce_flags, max_depth=5)
+    lights = 3 if depth == 0 else 1
+    assert len(got.shadow_length) == lights * len(surface)
+    # shadow rays: the same samples live, with the same contributions
+    live = got.shadow_length > 0
+    ray = np.tile(path[surface], lights)
+    shadow = expected["shadow"]
+    assert abs(int(live.sum()) - len(shadow["rows"])) <= 1e-3 * len(live) + 1
+    assert np.all(got.contribution[~live] == 0)
+    sums = _per_ray(ray, got.contribution, N), _per_ray(shadow["rows"], shadow["contribution"], N)
+    close = np.all(np.isclose(sums[0], sums[1], rtol=2e-3, atol=1e-6 * max(float(sums[1].max()), 1e-30)), axis=1)
+    assert _mostly(close), close.mean()
+    if lights == 1:  # one sample per ray: its ray, compared where both made it
+        order = np.argsort(shadow["rows"])
+        rows = shadow["rows"][order]
+        mine = np.flatnonzero(live)
+        both = np.intersect1d(ray[mine], rows)
+        at_mine = mine[np.argsort(ray[mine])][np.searchsorted(np.sort(ray[mine]), both)]
+        at_ref = order[np.searchsorted(rows, both)]
+        assert np.allclose(got.shadow_origin[at_mine], shadow["start"][at_ref], atol=1e-4)
+        assert np.allclose(got.shadow_vector[at_mine], shadow["vector"][at_ref], atol=2e-4, rtol=1e-4)
+    # the next rays
+    goes = (got.flags & GOES_ON) != 0
+    next_path = path[surface][goes]
+    assert len(np.setxor1d(next_path, expected["path"])) <= 2e-3 * len(surface) + 1
+    both, mine, ref = np.intersect1d(next_path, expected["path"], return_indices=True)
+    rows = np.flatnonzero(goes)[mine]
+    assert np.array_equal((got.flags[rows] & SPECULAR) != 0, expected["specular"][ref])
+    assert np.array_equal((got.flags[rows] & SHADES) != 0, expected["shade"][ref])
+    assert np.allclose(got.point[rows], expected["point"][ref], atol=1e-5)
+    assert np.allclose(got.origin[rows], expected["origin"][ref], atol=1e-4)
+    direction_close = np.all(np.isclose(got.direction[rows], expected["direction"][ref], atol=2e-4), axis=1)
+    assert _mostly(direction_close)
+    beta_close = np.all(np.isclose(got.beta[rows], expected["beta"][ref], rtol=2e-3, atol=1e-7), axis=1)
+    assert _mostly(beta_close)
+    pdf_close = np.isclose(got.pdf[rows], expected["pdf"][ref], rtol=2e-3)
+    assert _mostly(pdf_close)
+
+
+@pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
+def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
+    """Whole paths (depth 5, two light samples), glass, a rough conductor and plastic in the kernel
+    and the image-textured floor and an Oren-Nayar quad in numpy: each ray's radiance is the numpy
+    backend's to float32 rounding (a path may only part where rounding moves a sample across a
+    threshold)."""
+    scene, _, _ = textured_scene()
+    materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05), Material((0.3, 0.6, 0.9),
+                                                                                             sigma=20.0)]
+    scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
+    scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
+    numpy_one, device_one = _pair(scene, mode, mis, light_samples=2)
+    origin, direction, _ = _rays(scene, N, 3)
+    rng = np.random.default_rng(4)
+    pixel, sample = rng.integers(0, 1 << 20, N), rng.integers(0, 64, N)
+    expected, expected_shadows = numpy_one.radiance(origin, direction, pixel, sample)
+    got, shadows = device_one.radiance(origin, direction, pixel, sample)
+    top = float(np.abs(expected).max())
+    close = np.all(np.isclose(got, expected, rtol=1e-3, atol=1e-5 * top), axis=1)
+    assert close.mean() > 0.99, close.mean()
+    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 2e-3
+    assert abs(shadows - expected_shadows) <= 0.01 * expected_shadows
+
+
+def _area_light_furnace(material) -> Scene:
+    """A unit sphere of ``material`` inside a cube of six two-sided quad lights of radiance 1 (each a
+    little larger than its face, so no ray leaves through an edge)."""
+    scene = Scene()
+    scene.add(sphere(1.0, 48), np.eye(4), material)
+    faces = [rotate(0, (1, 0, 0)), rotate(180, (1, 0, 0)), rotate(90, (1, 0, 0)), rotate(-90, (1, 0, 0)),
+             rotate(90, (0, 1, 0)), rotate(-90, (0, 1, 0))]
+    for face in faces:
+        scene.lights.append(AreaLight("quad", (4.05, 4.05), (1.0, 1.0, 1.0), face @ translate(0, 0, 2.0),
+                                      two_sided=True))
+    return scene
+
+
+@pytest.mark.parametrize("mode", ["direct", "path"])
+@pytest.mark.parametrize("material, albedo", [(Material((0.7, 0.7, 0.7)), 0.7),
+                                              (Conductor((1.0,) * 3, (1e4,) * 3, 0.0, 0.0), 1.0)])
+def test_convex_object_inside_area_lights_reads_its_albedo(mode, material, albedo):
+    """Inside a closed box of lights of radiance 1, a convex Lambertian of albedo a reads a and a
+    smooth perfect conductor reads 1 (light sampling and BSDF sampling weighted by MIS, on the kernel)."""
+    scene = _area_light_furnace(material)
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
+    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    rng = np.random.default_rng(0)
+    origin = np.tile(np.float32([[0.0, 0.0, 1.8]]), (N, 1))
+    target = rng.uniform(-0.4, 0.4, (N, 3)) * np.array([1.0, 1.0, 0.0])
+    direction = target - origin
+    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
+    value = radiance[:, 0].astype(np.float64)
+    error = value.std() / np.sqrt(N)
+    assert abs(value.mean() - albedo) < 4 * error + 2e-3, (value.mean(), error)
+
+
+def test_the_kernel_takes_scenes_without_lights_and_leaves_other_lights_to_numpy():
+    """No light (nothing to sample: the camera rays' misses see the background, the rest is black,
+    as on the numpy backend), and a point light (not an area light: the numpy bounce)."""
+    scene = _scene(Material((0.5, 0.5, 0.5)))
+    scene.lights = []
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, "path", backend="opencl")
+    assert integrator._bounce is not None
+    origin, direction, hits = _rays(scene, 500, 1)
+    radiance, shadows = integrator.radiance(origin, direction, np.arange(500), np.zeros(500, int))
+    assert shadows == 0 and np.any(hits.geom >= 0)
+    assert np.array_equal(radiance, np.where((hits.geom < 0)[:, None], np.float32(scene.background), 0))
+    scene.lights = [PointLight((5.0, 5.0, 5.0), np.array([0.0, 2.0, 0.0]))]
+    assert PathIntegrator(scene, Intersector(scene), backend="opencl")._bounce is None
