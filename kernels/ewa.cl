@@ -151,9 +151,9 @@ __kernel void ewa(__global const float *texels, __global const long *base, __glo
 }
 
 /* ------------------------------------------------------------------ lookups at surface hits
- * The albedo of camera-ray hits on one image-textured material, from embree's hit records: what
- * realistic.renderer.integrator.DirectLighting._albedo computes in numpy (its reference), in the
- * same operations and order (FP_CONTRACT off, so a * b + c rounds twice as numpy's does):
+ * The EWA lookups of camera-ray hits on one image-textured material, from embree's hit records: what
+ * realistic.renderer.integrator.DirectLighting._albedo computes in numpy (its reference) before its
+ * lookups, in the same operations and order (FP_CONTRACT off, so a * b + c rounds twice as numpy's does):
  *   - embree's Ng normalised in float32 and turned to face the ray (_facing);
  *   - the uv interpolated in float32 from the triangle's corners with barycentrics (1 - u - v, u, v);
  *   - the pixel footprint in float64 (realistic/renderer/footprint.py): the cone of width t * spread
@@ -161,11 +161,13 @@ __kernel void ewa(__global const float *texels, __global const long *base, __glo
  *     1 / max(|cos|, MIN_COSINE)), carried into uv by the triangle's world edges (the instance's
  *     linear map times the mesh's float64 edges) and uv edges;
  *   - st = uv * scale + offset with t flipped for a bottom-origin image, the axes scaled alike
- *     (realistic/scene/textures.py); the EWA lookup above; times the material's diffuse colour.
- * Rows whose hit is not on an instance of `material` are left as they are. MAPPING holds: spread
- * (the camera's radians per pixel), s scale, t scale, s offset, t offset, t flip (+-1), t shift (0
- * or 1), diffuse r, g, b, at the MAPPING_* offsets the host prepends (realistic/scene/ewa_kernel.py:
- * MAPPING). */
+ *     (realistic/scene/textures.py).
+ * hit_lookups writes each such row's lookup (s, t, axis0, axis1: 6 doubles, ewa_small's input) and
+ * mine[i] = 1, and mine[i] = 0 for rows whose hit is not on an instance of `material`; the host
+ * filters the rows it marks (ewa_small, then ewa) and multiplies by the material's diffuse colour.
+ * MAPPING holds: spread (the camera's radians per pixel), s scale, t scale, s offset, t offset, t
+ * flip (+-1), t shift (0 or 1), diffuse r, g, b, at the MAPPING_* offsets the host prepends
+ * (realistic/scene/ewa_kernel.py: MAPPING). */
 
 #define MIN_COSINE 1e-3
 
@@ -201,19 +203,20 @@ inline double3 vertex(__global const double *vertices, int i) {
     return (double3)(vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]);
 }
 
-__kernel void ewa_hits(__global const float *texels, __global const long *base, __global const long *width,
-                       __global const long *height, const int wrap, const int levels, const double max_anisotropy,
-                       __global const double *lut, __global const int *faces, __global const double *vertices,
-                       __global const float *uvs, __global const int *geom_face_offset,
-                       __global const int *geom_material, __global const double *geom_linear,
-                       const int instance_count, const int material, __global const double *mapping,
-                       __global const float *direction, __global const float *tfar, __global const float *hit_u,
-                       __global const float *hit_v, __global const int *prim, __global const int *geom,
-                       __global const float *ng_in, const int count, __global float *out) {
+__kernel void hit_lookups(__global const int *faces, __global const double *vertices,
+                          __global const float *uvs, __global const int *geom_face_offset,
+                          __global const int *geom_material, __global const double *geom_linear,
+                          const int instance_count, const int material, __global const double *mapping,
+                          __global const float *direction, __global const float *tfar, __global const float *hit_u,
+                          __global const float *hit_v, __global const int *prim, __global const int *geom,
+                          __global const float *ng_in, const int count, __global uchar *mine,
+                          __global double *lookups) {
     int i = get_global_id(0);
     if (i >= count) return;
     int g = geom[i];
-    if (g < 0 || g >= instance_count || geom_material[g] != material) return;
+    int on_material = g >= 0 && g < instance_count && geom_material[g] == material;
+    mine[i] = on_material;
+    if (!on_material) return;
 
     /* embree's normal, normalised in float32 and facing the ray */
     float dx = direction[3 * i], dy = direction[3 * i + 1], dz = direction[3 * i + 2];
@@ -253,14 +256,124 @@ __kernel void ewa_hits(__global const float *texels, __global const long *base, 
     double2 axis0 = to_uv(across * w, edge1, edge2, duv1, duv2);
     double2 axis1 = to_uv(along * (w * stretch), edge1, edge2, duv1, duv2);
 
-    /* into the image's st (textures._image) and the lookup */
+    /* into the image's st (textures._image) */
     double2 scale = (double2)(mapping[MAPPING_ST_SCALE], mapping[MAPPING_ST_SCALE + 1]);
     double2 flip = (double2)(1.0, mapping[MAPPING_T_FLIP]);
     double2 st = ((double2)(us, vs) * scale + (double2)(mapping[MAPPING_ST_OFFSET], mapping[MAPPING_ST_OFFSET + 1]))
                  * flip + (double2)(0.0, mapping[MAPPING_T_SHIFT]);
-    double3 value = ewa_lookup(texels, base, width, height, wrap, levels, max_anisotropy, lut, st,
-                               axis0 * scale * flip, axis1 * scale * flip);
-    out[3 * i] = (float)mapping[MAPPING_DIFFUSE] * (float)value.x;
-    out[3 * i + 1] = (float)mapping[MAPPING_DIFFUSE + 1] * (float)value.y;
-    out[3 * i + 2] = (float)mapping[MAPPING_DIFFUSE + 2] * (float)value.z;
+    double2 major = axis0 * scale * flip, minor = axis1 * scale * flip;
+    __global double *lookup = lookups + 6 * i;
+    lookup[0] = st.x;
+    lookup[1] = st.y;
+    lookup[2] = major.x;
+    lookup[3] = major.y;
+    lookup[4] = minor.x;
+    lookup[5] = minor.y;
+}
+
+/* ------------------------------------------------------------------ magnified lookups, vectorised
+ * ewa_small is ewa for the lookups that read level 0 alone (lod clamped to 0: the minor axis at most
+ * a texel of level 0, as most of a near floor's are at a render's sample counts) over an ellipse of
+ * at most SMALL_SIDE rows of at most SMALL_SIDE texels each; it writes pending[i] = 1 for every other
+ * lookup, which the host gives to ewa. Lookups are rows of 6 doubles: s, t, axis0, axis1. Same
+ * operations in the same order as ewa_lookup and ewa_level, so the same bits: each row of the
+ * ellipse is walked from its first crossing over SMALL_SIDE columns, and a column past the span or
+ * outside the ellipse adds +0.0 (the sum unchanged, but for the sign of a zero sum) where
+ * ewa_level adds nothing.
+ *
+ * Written for PoCL's work-group vectoriser as kernels/shade.cl is (see its header): scalars only
+ * (its loop vectoriser widens no OpenCL vector types), LLVM builtins for the maths, the fixed loops
+ * unrolled, no early exits, ternaries for branches, every gather's index inside its table (rows past
+ * `count` read row count - 1; values bound for an int are zeroed where the lookup is left to ewa),
+ * and the reads offset through `unit` (always 1). LLVM's SLP vectoriser packs pairs of alike
+ * expressions into 2-wide vectors before PoCL's vectoriser runs, which then gives up on the kernel:
+ * `one` ((double)unit, 1.0) multiplies one of each pair it took (minor axis against major, t against
+ * s), which changes no bit (x * 1.0 is x) and leaves no two alike. POCL_VECTORIZER_REMARKS=1 prints
+ * "vectorized loop" for ewa_small (tests/test_ewa_kernel.py checks). */
+
+#define SMALL_SIDE 3
+#define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
+
+__kernel void ewa_small(__global const float *texels, __global const long *base, __global const long *width,
+                        __global const long *height, const int wrap, const int levels, const double max_anisotropy,
+                        __global const double *lut, __global const double *lookups, const int count, const int unit,
+                        __global uchar *pending, __global float *out) {
+    int i = get_global_id(0);
+    int r = i < count ? i : count - 1;
+    double one = (double)unit;
+    double s0 = AT(lookups, 6, r, 0), t0 = AT(lookups, 6, r, 1);
+    double majs = AT(lookups, 6, r, 2), majt = AT(lookups, 6, r, 3);
+    double mins = AT(lookups, 6, r, 4), mint = AT(lookups, 6, r, 5);
+    int swap = majs * majs + majt * majt < (mins * mins + mint * mint) * one;
+    double hs = swap ? mins : majs, ht = swap ? mint : majt;
+    mins = swap ? majs : mins;
+    mint = swap ? majt : mint;
+    majs = hs;
+    majt = ht;
+    double major_len = __builtin_sqrt(majs * majs + majt * majt);
+    double minor_len = __builtin_sqrt(mins * mins + mint * mint) * one;
+    int clamped = minor_len * max_anisotropy < major_len && minor_len > 0;
+    double stretch = major_len / __builtin_fmax(minor_len * max_anisotropy, 1e-300);
+    mins = clamped ? mins * stretch : mins;
+    mint = clamped ? mint * stretch : mint;
+    minor_len = clamped ? minor_len * stretch : minor_len;
+    double length = __builtin_fmax(minor_len, 1e-8);
+    int magnified = minor_len != 0 && length <= 1.0 / (double)(1L << (levels - 1));
+    double lw = (double)width[0], lh = (double)height[0];
+    double s = s0 * lw - 0.5, t = (t0 * lh - 0.5) * one;
+    double a0s = majs * lw, a0t = majt * lh, a1s = mins * lw, a1t = mint * lh;
+    double a = a0t * a0t + a1t * a1t + 1;
+    double b = -2 * (a0s * a0t + a1s * a1t);
+    double c = a0s * a0s + a1s * a1s + 1;
+    double inv_f = 1 / (a * c - b * b * 0.25);
+    a *= inv_f; b *= inv_f; c *= inv_f;
+    double det = 4 * a * c - b * b;
+    double half_t = 2 * __builtin_sqrt(a * det) / det;
+    int small = i < count && magnified && __builtin_fabs(s) < 1e9 && __builtin_fabs(t) < 1e9
+                && half_t < SMALL_SIDE;
+    double ts = small ? t : 0.0, hts = small ? half_t : 0.0, ss = small ? s : 0.0;
+    int y0 = (int)__builtin_ceil(ts - hts), y1 = (int)__builtin_floor(ts + hts);
+    small = small && y1 - y0 < SMALL_SIDE;
+    int iw = (int)width[0], ih = (int)height[0];
+    long level_base = base[0];
+    double inv_2a = 1 / (2 * a);
+    double sum_r = 0.0, sum_g = 0.0, sum_b = 0.0, weights = 0.0;
+    #pragma unroll
+    for (int j = 0; j < SMALL_SIDE; ++j) {
+        int y = y0 + j;
+        double dt = y - ts;
+        double bb = b * dt;
+        double root = __builtin_sqrt(__builtin_fmax(bb * bb - 4 * a * (c * dt * dt - 1), 0.0));
+        double left = small ? ss + (-bb - root) * inv_2a : 0.0, right = small ? ss + (-bb + root) * inv_2a : 0.0;
+        int x0 = (int)__builtin_ceil(left), x1 = (int)__builtin_floor(right);
+        int in_rows = y <= y1;
+        small = small && (!in_rows || x1 - x0 < SMALL_SIDE);
+        int row = wrap == 0 ? y & (ih - 1) : (y < 0 ? 0 : (y > ih - 1 ? ih - 1 : y));
+        double row_inside = wrap == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
+        double cdt2 = c * dt * dt;
+        #pragma unroll
+        for (int k = 0; k < SMALL_SIDE; ++k) {
+            int x = x0 + k;
+            double ds = x - ss;
+            double r2 = a * ds * ds + b * ds * dt + cdt2;
+            int take = in_rows && x <= x1 && r2 < 1;
+            double weight = lut[(int)((take ? r2 : 0.0) * LUT_SIZE)];
+            int at = wrap == 0 ? x & (iw - 1) : (x < 0 ? 0 : (x > iw - 1 ? iw - 1 : x));
+            double inside = wrap == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
+            long texel_at = level_base + (long)row * iw + at;
+            double red = AT(texels, 3, texel_at, 0), green = AT(texels, 3, texel_at, 1);
+            double blue = AT(texels, 3, texel_at, 2);
+            sum_r += take ? red * inside * weight : 0.0;
+            sum_g += take ? green * inside * weight : 0.0;
+            sum_b += take ? blue * inside * weight : 0.0;
+            weights += take ? weight : 0.0;
+        }
+    }
+    double norm = __builtin_fmax(weights, 1e-300);
+    if (small) {
+        AT(out, 3, i, 0) = (float)(sum_r / norm);
+        AT(out, 3, i, 1) = (float)(sum_g / norm);
+        AT(out, 3, i, 2) = (float)(sum_b / norm);
+    }
+    if (i < count) pending[i] = !small;
 }

@@ -1,7 +1,7 @@
-"""``ewa_hits`` (kernels/ewa.cl): the albedo of image-textured hits computed from embree's hit
-records on the device, against its numpy reference ``DirectLighting._albedo`` (uv interpolation,
-pixel footprint, st mapping, EWA lookup), per hit, to float32 rounding; and the renderer's choice
-of which materials go to the device."""
+"""``EwaKernel.at_hits`` (kernels/ewa.cl's hit_lookups, ewa_small and ewa): the albedo of
+image-textured hits computed from embree's hit records on the device, against its numpy reference
+``DirectLighting._albedo`` (uv interpolation, pixel footprint, st mapping, EWA lookup), per hit, to
+float32 rounding; and the renderer's choice of which materials go to the device."""
 
 import numpy as np
 import pytest
