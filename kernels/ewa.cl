@@ -163,8 +163,8 @@ __kernel void ewa(__global const float *texels, __global const long *base, __glo
  *   - st = uv * scale + offset with t flipped for a bottom-origin image, the axes scaled alike
  *     (realistic/scene/textures.py).
  * hit_lookups writes each such row's lookup (s, t, axis0, axis1: 6 doubles, ewa_small's input) and
- * mine[i] = 1, and mine[i] = 0 for rows whose hit is not on an instance of `material`; the host
- * filters the rows it marks (ewa_small, then ewa) and multiplies by the material's diffuse colour.
+ * mine[i] = 1, and mine[i] = 0 for rows whose hit is not on an instance of `material`; ewa_small,
+ * then ewa, filter the rows it marks, times the material's diffuse colour.
  * MAPPING holds: spread (the camera's radians per pixel), s scale, t scale, s offset, t offset, t
  * flip (+-1), t shift (0 or 1), diffuse r, g, b, at the MAPPING_* offsets the host prepends
  * (realistic/scene/ewa_kernel.py: MAPPING). */
@@ -274,8 +274,10 @@ __kernel void hit_lookups(__global const int *faces, __global const double *vert
 /* ------------------------------------------------------------------ magnified lookups, vectorised
  * ewa_small is ewa for the lookups that read level 0 alone (lod clamped to 0: the minor axis at most
  * a texel of level 0, as most of a near floor's are at a render's sample counts) over an ellipse of
- * at most SMALL_SIDE rows of at most SMALL_SIDE texels each; it writes pending[i] = 1 for every other
- * lookup, which the host gives to ewa. Lookups are rows of 6 doubles: s, t, axis0, axis1. Same
+ * at most SMALL_SIDE rows of at most SMALL_SIDE texels each, of the rows i that mine[i] marks, and
+ * writes their colours times (red, green, blue)_scale (float32 products, as hit_lookups' diffuse
+ * colour or 1); it writes pending[i] = 1 for every other marked lookup, which the host gives to ewa,
+ * and leaves unmarked rows alone. Lookups are rows of 6 doubles: s, t, axis0, axis1. Same
  * operations in the same order as ewa_lookup and ewa_level, so the same bits: each row of the
  * ellipse is walked from its first crossing over SMALL_SIDE columns, and a column past the span or
  * outside the ellipse adds +0.0 (the sum unchanged, but for the sign of a zero sum) where
@@ -296,10 +298,12 @@ __kernel void hit_lookups(__global const int *faces, __global const double *vert
 
 __kernel void ewa_small(__global const float *texels, __global const long *base, __global const long *width,
                         __global const long *height, const int wrap, const int levels, const double max_anisotropy,
-                        __global const double *lut, __global const double *lookups, const int count, const int unit,
-                        __global uchar *pending, __global float *out) {
+                        __global const double *lut, __global const double *lookups, __global const uchar *mine,
+                        const float red_scale, const float green_scale, const float blue_scale, const int count,
+                        const int unit, __global uchar *pending, __global float *out) {
     int i = get_global_id(0);
     int r = i < count ? i : count - 1;
+    int wanted = (i < count) & (mine[r] != 0);  /* &: mine[r] is read either way, so no branch */
     double one = (double)unit;
     double s0 = AT(lookups, 6, r, 0), t0 = AT(lookups, 6, r, 1);
     double majs = AT(lookups, 6, r, 2), majt = AT(lookups, 6, r, 3);
@@ -329,7 +333,7 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
     a *= inv_f; b *= inv_f; c *= inv_f;
     double det = 4 * a * c - b * b;
     double half_t = 2 * __builtin_sqrt(a * det) / det;
-    int small = i < count && magnified && __builtin_fabs(s) < 1e9 && __builtin_fabs(t) < 1e9
+    int small = wanted && magnified && __builtin_fabs(s) < 1e9 && __builtin_fabs(t) < 1e9
                 && half_t < SMALL_SIDE;
     double ts = small ? t : 0.0, hts = small ? half_t : 0.0, ss = small ? s : 0.0;
     int y0 = (int)__builtin_ceil(ts - hts), y1 = (int)__builtin_floor(ts + hts);
@@ -371,9 +375,9 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
     }
     double norm = __builtin_fmax(weights, 1e-300);
     if (small) {
-        AT(out, 3, i, 0) = (float)(sum_r / norm);
-        AT(out, 3, i, 1) = (float)(sum_g / norm);
-        AT(out, 3, i, 2) = (float)(sum_b / norm);
+        AT(out, 3, i, 0) = red_scale * (float)(sum_r / norm);
+        AT(out, 3, i, 1) = green_scale * (float)(sum_g / norm);
+        AT(out, 3, i, 2) = blue_scale * (float)(sum_b / norm);
     }
-    if (i < count) pending[i] = !small;
+    if (i < count) pending[i] = wanted && !small;
 }

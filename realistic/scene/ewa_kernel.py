@@ -92,44 +92,45 @@ class EwaKernel:
         lookups = np.empty((len(st), 6), np.float64)
         for column, values in enumerate((st, axis0, axis1)):
             lookups[:, 2 * column:2 * column + 2] = values
-        return self.lookups(lookups)
+        out = np.empty((len(st), 3), np.float32)
+        self._filter(lookups, np.ones(len(st), np.uint8), np.ones(3, np.float32), out)
+        return out
 
-    def lookups(self, lookups: np.ndarray) -> np.ndarray:
-        """Filtered colours (N, 3) float32 of lookups given as rows (s, t, axis0, axis1) (N, 6) float64:
-        ``ewa_small`` over all, then ``ewa`` over the rows it leaves."""
+    def _filter(self, lookups: np.ndarray, mine: np.ndarray, scale: np.ndarray, out: np.ndarray) -> None:
+        """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
+        lookups (s, t, axis0, axis1) (N, 6) float64 that ``mine`` (N,) uint8 marks: ``ewa_small``
+        over all, then ``ewa`` over the rows it leaves; unmarked rows are left as they are."""
         count = len(lookups)
-        out = np.empty((count, 3), np.float32)
         if count == 0:
-            return out
+            return
         pending = np.empty(count, np.uint8)
-        rows = self.device.wrapped_buffer(lookups, np.float64)
-        written = [self.device.host_buffer(a, cl.mem_flags.WRITE_ONLY) for a in (pending, out)]
+        inputs = [self.device.wrapped_buffer(lookups, np.float64), self.device.wrapped_buffer(mine, np.uint8)]
+        written = [self.device.host_buffer(pending, cl.mem_flags.WRITE_ONLY),
+                   self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
         with self._lock:
-            self._small_kernel(self.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, rows, np.int32(count),
-                               np.int32(1), *written)
+            self._small_kernel(self.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
+                               *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written)
             # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernel
             cl.enqueue_copy(self.queue, pending, written[0], is_blocking=False)
             cl.enqueue_copy(self.queue, out, written[1])
         rest = np.flatnonzero(pending)
         if len(rest):
             left = np.take(lookups, rest, axis=0)
-            inputs = [self.device.copied_buffer(left[:, k:k + 2], np.float64) for k in (0, 2, 4)]
+            columns = [self.device.copied_buffer(left[:, k:k + 2], np.float64) for k in (0, 2, 4)]
             result = self.device.output_buffer(len(rest) * 3 * 4)
             values = np.empty((len(rest), 3), np.float32)
             with self._lock:
-                self._kernel(self.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *inputs,
+                self._kernel(self.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
                              np.int32(len(rest)), result)
                 cl.enqueue_copy(self.queue, values, result)
-            out[rest] = values
-        return out
+            out[rest] = values * scale
 
     def at_hits(self, surfaces: SurfaceTables, material: int, mapping: np.ndarray, direction: np.ndarray,
                 hits: Hits, out: np.ndarray) -> None:
         """Write into ``out`` (N, 3) float32 the albedo of the rays (unit ``direction`` (N, 3)) whose
         closest hit (``scene.intersect.Hits``) is on an instance of material index ``material``, whose
         image texture this map is (``hit_mapping``); other rows are left as they are. ``hit_lookups``
-        makes those rows' lookups, ``lookups`` filters them, and the product with the diffuse colour
-        is the kernel's float32 one."""
+        makes those rows' lookups and ``_filter`` filters them, times the diffuse colour."""
         count = len(direction)
         if count == 0:
             return
@@ -146,7 +147,5 @@ class EwaKernel:
                               surfaces.instance_count, np.int32(material), *inputs, np.int32(count), *written)
             cl.enqueue_copy(self.queue, mine, written[0], is_blocking=False)
             cl.enqueue_copy(self.queue, lookups, written[1])
-        rows = np.flatnonzero(mine)
-        if len(rows):
-            diffuse = np.asarray(mapping[MAPPING.offset("diffuse"):][:3], np.float32)
-            out[rows] = self.lookups(np.take(lookups, rows, axis=0)) * diffuse
+        diffuse = MAPPING.offset("diffuse")
+        self._filter(lookups, mine, mapping[diffuse:diffuse + 3].astype(np.float32), out)
