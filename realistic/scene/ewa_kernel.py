@@ -11,7 +11,8 @@ its ellipse, runs scalar) and marks the others, which ``ewa`` does; the same bit
 
 ``SurfaceTables`` and ``EwaKernel.at_hits`` go one step further for the renderer: from embree's hit
 records to the albedo, with the uv, the pixel footprint and the st mapping computed on the device
-too (``hit_lookups``; numpy spent three times as long on those as on the lookups). Its reference is
+too (``hit_lookups``, vectorised like ``ewa_small``, on the rows of the texture's material that numpy
+picks; numpy spent three times as long on those as on the lookups). Its reference is
 ``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
 
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
@@ -49,10 +50,10 @@ class SurfaceTables:
 
     def __init__(self, device: Device, faces: np.ndarray, vertices: np.ndarray, uv: np.ndarray,
                  geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_linear: np.ndarray):
-        self.instance_count = np.int32(len(geom_face_offset))
+        self.geom_material = np.asarray(geom_material)  # the host picks each material's rows
         self.buffers = [device.wrapped_buffer(a, dtype) for a, dtype in
                         ((faces, np.int32), (vertices, np.float64), (uv, np.float32), (geom_face_offset, np.int32),
-                         (geom_material, np.int32), (geom_linear, np.float64))]
+                         (geom_linear, np.float64))]
 
 
 def hit_mapping(texture: ImageTexture, diffuse: np.ndarray | tuple[float, float, float],
@@ -93,18 +94,18 @@ class EwaKernel:
         for column, values in enumerate((st, axis0, axis1)):
             lookups[:, 2 * column:2 * column + 2] = values
         out = np.empty((len(st), 3), np.float32)
-        self._filter(lookups, np.ones(len(st), np.uint8), np.ones(3, np.float32), out)
+        self._filter(lookups, np.ones(3, np.float32), out)
         return out
 
-    def _filter(self, lookups: np.ndarray, mine: np.ndarray, scale: np.ndarray, out: np.ndarray) -> None:
+    def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray) -> None:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
-        lookups (s, t, axis0, axis1) (N, 6) float64 that ``mine`` (N,) uint8 marks: ``ewa_small``
-        over all, then ``ewa`` over the rows it leaves; unmarked rows are left as they are."""
+        lookups (s, t, axis0, axis1) (N, 6) float64: ``ewa_small`` over all, then ``ewa`` over the
+        rows it leaves."""
         count = len(lookups)
         if count == 0:
             return
         pending = np.empty(count, np.uint8)
-        inputs = [self.device.wrapped_buffer(lookups, np.float64), self.device.wrapped_buffer(mine, np.uint8)]
+        inputs = [self.device.wrapped_buffer(lookups, np.float64)]
         written = [self.device.host_buffer(pending, cl.mem_flags.WRITE_ONLY),
                    self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
         with self._lock:
@@ -129,23 +130,29 @@ class EwaKernel:
                 hits: Hits, out: np.ndarray) -> None:
         """Write into ``out`` (N, 3) float32 the albedo of the rays (unit ``direction`` (N, 3)) whose
         closest hit (``scene.intersect.Hits``) is on an instance of material index ``material``, whose
-        image texture this map is (``hit_mapping``); other rows are left as they are. ``hit_lookups``
-        makes those rows' lookups and ``_filter`` filters them, times the diffuse colour."""
+        image texture this map is (``hit_mapping``); other rows are left as they are. numpy picks those
+        rows, ``hit_lookups`` makes their lookups and ``_filter`` filters them, times the diffuse colour."""
         count = len(direction)
         if count == 0:
             return
         if out.dtype != np.float32 or not out.flags.c_contiguous or out.shape != (count, 3):
             raise ValueError(f"at_hits writes a C-contiguous ({count}, 3) float32 array, not {out.dtype} {out.shape}")
+        geom = hits.geom
+        surface = (geom >= 0) & (geom < len(surfaces.geom_material))
+        rows = np.flatnonzero(surface & (surfaces.geom_material[np.where(surface, geom, 0)] == material))
+        if len(rows) == 0:
+            return
         inputs = [self.device.wrapped_buffer(a, dtype)
                   for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
-                                   (hits.geom, np.int32), (hits.normal, np.float32))]
-        mine, lookups = np.empty(count, np.uint8), np.empty((count, 6), np.float64)
-        written = [self.device.host_buffer(a, cl.mem_flags.WRITE_ONLY) for a in (mine, lookups)]
+                                   (geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
+        lookups = np.empty((len(rows), 6), np.float64)
+        written = self.device.host_buffer(lookups, cl.mem_flags.WRITE_ONLY)
         with self._lock:
-            self._hits_kernel(self.queue, (whole_groups(count),), (LOCAL_SIZE,), *surfaces.buffers,
-                              surfaces.instance_count, np.int32(material), *inputs, np.int32(count), *written)
-            cl.enqueue_copy(self.queue, mine, written[0], is_blocking=False)
-            cl.enqueue_copy(self.queue, lookups, written[1])
+            self._hits_kernel(self.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,), *surfaces.buffers, *inputs,
+                              np.int32(len(rows)), np.int32(1), written)
+            cl.enqueue_copy(self.queue, lookups, written)
         diffuse = MAPPING.offset("diffuse")
-        self._filter(lookups, mine, mapping[diffuse:diffuse + 3].astype(np.float32), out)
+        albedo = np.empty((len(rows), 3), np.float32)
+        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo)
+        out[rows] = albedo
