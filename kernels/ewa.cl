@@ -289,11 +289,10 @@ __kernel void hit_lookups(__global const int *faces, __global const double *vert
  * at most SMALL_SIDE rows of at most SMALL_SIDE texels each, and writes their colours times
  * (red, green, blue)_scale (float32 products: a material's diffuse colour, or 1); it writes
  * pending[i] = 1 for every other lookup, which the host gives to ewa. Lookups are rows of 6
- * doubles: s, t, axis0, axis1. Same
- * operations in the same order as ewa_lookup and ewa_level, so the same bits: each row of the
- * ellipse is walked from its first crossing over SMALL_SIDE columns, and a column past the span or
- * outside the ellipse adds +0.0 (the sum unchanged, but for the sign of a zero sum) where
- * ewa_level adds nothing.
+ * doubles: s, t, axis0, axis1. Same operations in the same order as ewa_lookup and ewa_level, so
+ * the same bits: each row of the ellipse is walked from its first crossing over SMALL_SIDE columns,
+ * and a column past the span or outside the ellipse adds +0.0 (the sum unchanged, but for the sign
+ * of a zero sum) where ewa_level adds nothing.
  *
  * Written for PoCL's work-group vectoriser as kernels/shade.cl is (see its header): scalars only
  * (its loop vectoriser widens no OpenCL vector types), LLVM builtins for the maths, the fixed loops
