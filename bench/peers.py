@@ -42,7 +42,8 @@ CPU-seconds are the process's for the whole call (ours include the set-up). Each
 peer once, in turn; ratios are taken within a repeat, and the median and spread (min to max) over
 repeats are printed with each peer's samples/s, wall, CPU-s, camera rays traced per sample (ours:
 those the lens lets through; Mitsuba: 1) and image mean (RGB mean of the film; the lens camera's
-film is irradiance and vignetted, so its mean is not comparable). The load
+film is irradiance and vignetted, so its mean is not comparable), and for ours the median
+thread-seconds of each render stage (``renderer/timing``) and its share: what bounds it. The load
 average is printed before and after: on a shared machine the figures are noisy.
 Writes bench/results/peers.json.
 """
@@ -92,8 +93,11 @@ DRAGONS = [(BLUE, -10.0) if i % 2 == 0 else (RED, -17.0) for i in range(11)]
 #: A child process's render of Mitsuba's Cornell box: an LLVM that Dr.Jit cannot use aborts the process.
 PROBE = ("import mitsuba as mi; mi.set_variant('llvm_ad_rgb'); "
          "mi.render(mi.load_dict(mi.cornell_box()), spp=1).numpy()")
-#: One peer's render: () -> (image (H, W, 3), render wall seconds, CPU-seconds, samples, camera rays traced).
-Render = Callable[[], tuple[np.ndarray, float, float, int, int]]
+#: One peer's render: () -> (image (H, W, 3), render wall seconds, CPU-seconds, samples, camera rays traced,
+#: thread-seconds per stage of ours (``renderer/timing``), empty for Mitsuba).
+Render = Callable[[], tuple[np.ndarray, float, float, int, int, dict[str, float]]]
+#: Our stages timed per render (the set-up ones are excluded from the timings, as above).
+STAGES = ("ray generation", "embree", "shading", "accumulation")
 
 
 def thin_lens_scene(folder: Path) -> Path:
@@ -127,12 +131,13 @@ def our_render(inputs: RenderInputs) -> Render:
     job = RenderJob(inputs.scene, (inputs.camera,), "opencl", 0)
     render(job, ThreadPasses())
 
-    def run() -> tuple[np.ndarray, float, float, int]:
+    def run() -> tuple[np.ndarray, float, float, int, int, dict[str, float]]:
         cpu = time.process_time()
         result = render(job, ThreadPasses())[0]
         cpu = time.process_time() - cpu
         before_rays = result.stage_seconds.get("setup", 0.0) + result.stage_seconds.get("exit pupil", 0.0)
-        return result.image, result.seconds - before_rays, cpu, result.samples_done, result.primary_rays
+        stages = {stage: result.stage_seconds.get(stage, 0.0) for stage in STAGES}
+        return result.image, result.seconds - before_rays, cpu, result.samples_done, result.primary_rays, stages
 
     return run
 
@@ -212,11 +217,11 @@ def mitsuba_render(camera: ThinLensCamera, folder: Path) -> Render | str:
     scene = mi.load_dict(mitsuba_scene(mi, camera, folder))
     np.asarray(mi.render(scene, spp=camera.spp))
 
-    def run() -> tuple[np.ndarray, float, float, int]:
+    def run() -> tuple[np.ndarray, float, float, int, int, dict[str, float]]:
         cpu, wall = time.process_time(), time.perf_counter()
         image = np.asarray(mi.render(scene, spp=camera.spp))
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-        return image, wall, cpu, camera.sample_count, camera.sample_count
+        return image, wall, cpu, camera.sample_count, camera.sample_count, {}
 
     return run
 
@@ -264,10 +269,11 @@ def main() -> None:
         runs: dict[str, list[dict]] = {name: [] for name in peers}
         for _ in range(args.repeats):
             for name, run in peers.items():
-                image, wall, cpu, samples, traced = run()
+                image, wall, cpu, samples, traced, stages = run()
                 runs[name].append({"wall_s": wall, "cpu_s": cpu, "samples_per_s": samples / wall,
                                    "samples_per_cpu_s": samples / cpu, "traced_per_sample": traced / samples,
-                                   "mean": float(np.mean(image[..., :3]))})
+                                   "mean": float(np.mean(image[..., :3]))}
+                                  | {f"{stage} thread_s": seconds for stage, seconds in stages.items()})
     load_after = os.getloadavg()
     summary = {name: {key: spread([run[key] for run in values]) for key in values[0]} for name, values in runs.items()}
     ratios = {"lens / thin lens samples/s": [lens["samples_per_s"] / thin_["samples_per_s"]
@@ -287,6 +293,10 @@ def main() -> None:
               f"{figures['traced_per_sample']['median']:7.3f} {figures['mean']['median']:12.5g}")
     for label, values in ratios.items():
         print(f"{label}: median {statistics.median(values):.3f} [{min(values):.3f}-{max(values):.3f}]")
+    for name in ("thin lens", "lens"):  # what bounds ours: each stage's share of the stages' thread-seconds
+        seconds = {stage: summary[name][f"{stage} thread_s"]["median"] for stage in STAGES}
+        print(f"{name} stages, median thread-s (share): " + ", ".join(
+            f"{stage} {value:.2f} ({100 * value / sum(seconds.values()):.0f} %)" for stage, value in seconds.items()))
     out = ROOT / "bench" / "results" / "peers.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"machine": machine.describe(), "resolution": list(args.res), "spp": args.spp,

@@ -7,16 +7,21 @@ Renders the dragon (../shared/meshes/dragon.ply, else a procedural mesh of simil
 grid floor under a disk light: samples in raster order at each ``--pass-samples`` size (default: the
 renderer's), then at the renderer's size sorted along a Morton curve per pass, then in raster order
 with its threads left free to move between CPUs ("free": ``pin_threads=False``). Prints per-stage
-thread-seconds of the fastest of ``--repeats`` interleaved runs (3 by default, as many as the ceiling's
-tries, so that a best case is compared with a best case; ``--threads`` workers, by
-default the renderer's ``default_threads()``: one per core, so they can add up to the wall time
-times the cores), shading's thread-seconds per sample against
-embree's (backend "opencl" shades with ``kernels/shade.cl`` on PoCL, whose own threads are not
-counted: a worker waiting for its launch counts the launch's wall time), rays per second, and the
-ceiling: every primary and shadow ray of the raster render, made again and traced by embree alone on
-as many threads, through the renderer's binding (``scene/intersect``) and through embreex's own
-(``EmbreeScene.run`` on a world-space copy of the scene), the issue's original measure; and embree's
-thread-seconds inside the render against alone, which says what sharing the cores costs it.
+thread-seconds of the fastest of ``--repeats`` runs (``--threads`` workers, by default the
+renderer's ``default_threads()``: one per core, so they can add up to the wall time times the
+cores), shading's thread-seconds per sample against embree's (backend "opencl" shades with
+``kernels/shade.cl`` on PoCL, whose own threads are not counted: a worker waiting for its launch
+counts the launch's wall time), rays per second, and the ceiling: every primary and shadow ray of
+the raster render, made again and traced by embree alone on as many threads, through the
+renderer's binding (``scene/intersect``) and through embreex's own (``EmbreeScene.run`` on a
+world-space copy of the scene), the issue's original measure; and embree's thread-seconds inside
+the render against alone, which says what sharing the cores costs it.
+
+The ceiling is traced once per repeat, right after that repeat's renders, so that a render and the
+ceiling it is divided by see the same load: the fraction of the ceiling and embree's speed inside
+the render against alone are taken within each repeat and printed as their median and spread (min
+to max) over the repeats; the ceiling's samples/s likewise. On a shared machine the figures are
+noisy: the load average is printed before and after.
 Writes bench/results/render.json.
 """
 
@@ -24,6 +29,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import statistics
 import sys
 import threading
 import time
@@ -35,7 +42,9 @@ from embreex.mesh_construction import TriangleMesh
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
+import machine  # noqa: E402
 from realistic import load_lens  # noqa: E402
 from realistic.camera.base import SampleBlock  # noqa: E402
 from realistic.camera.lens_camera import LensCamera  # noqa: E402
@@ -124,35 +133,54 @@ def recorded_rays(setup, camera, backend: str, pass_samples: int = DEFAULT_PASS_
     return recorder
 
 
-def ceiling(setup, camera, backend: str, threads: int) -> dict:
-    """embree alone on all of the render's primary and shadow rays (``recorded_rays``), ``threads``
-    threads over 64k-ray chunks, the fastest of three: through the renderer's ``Intersector`` and
-    through embreex's own binding. All of them, not one pass's: the passes differ in cost (the
-    middle one, where the dragon fills the frame, traced 1.5 to 2 times slower per sample than the
-    image's mean), so one pass misstates the ceiling."""
+def ceiling_jobs(setup, camera, backend: str) -> tuple[dict, dict, tuple]:
+    """The ceiling's work: the render's primary and shadow rays (``recorded_rays``) as 64k-ray jobs,
+    per binding (prefix "" the renderer's ``Intersector``, "embreex_" embreex's own), the counts of
+    samples and rays, and the scenes the jobs trace (to be held as long as they are used). All of
+    the rays, not one pass's: the passes differ in cost (the middle one, where the dragon fills the
+    frame, traced 1.5 to 2 times slower per sample than the image's mean), so one pass misstates
+    the ceiling."""
     recorder = recorded_rays(setup, camera, backend)
     chunk = 1 << 16
     primary = [(o[s:s + chunk], d[s:s + chunk]) for o, d in recorder.primary for s in range(0, len(o), chunk)]
     shadow = [(o[s:s + chunk], d[s:s + chunk], t[s:s + chunk]) for o, d, t in recorder.shadow
               for s in range(0, len(o), chunk)]
     # shadow rows of dead light samples (length -1; embree skips them) are traced but not counted, as in the render
-    result = {"samples": camera.sample_count, "threads": threads, "primary_rays": sum(len(o) for o, _ in primary),
+    counts = {"samples": camera.sample_count, "primary_rays": sum(len(o) for o, _ in primary),
               "shadow_rays": sum(int(np.count_nonzero(t > 0)) for _, _, t in shadow)}
     ours = Intersector(setup.scene)
-    theirs, _buffers = embreex_scene(setup.scene)
+    theirs, buffers = embreex_scene(setup.scene)
     tracers = {"": (ours.closest, ours.occluded),
                "embreex_": (lambda o, d: theirs.run(o, d, output=1),
                             lambda o, d, t: theirs.run(o, d, query="OCCLUDED", dists=t.copy()))}
-    for prefix, (closest, occluded) in tracers.items():
-        primary_jobs = [lambda rays=rays, f=closest: f(*rays) for rays in primary]
-        shadow_jobs = [lambda rays=rays, f=occluded: f(*rays) for rays in shadow]
-        t_primary = min(traced_on_threads(primary_jobs, threads) for _ in range(3))
-        t_shadow = min(traced_on_threads(shadow_jobs, threads) for _ in range(3))
-        result |= {f"{prefix}primary_rays_per_s": result["primary_rays"] / t_primary,
-                   f"{prefix}shadow_rays_per_s": result["shadow_rays"] / t_shadow,
-                   f"{prefix}samples_per_s": camera.sample_count / (t_primary + t_shadow),
+    jobs = {prefix: ([lambda rays=rays, f=closest: f(*rays) for rays in primary],
+                     [lambda rays=rays, f=occluded: f(*rays) for rays in shadow])
+            for prefix, (closest, occluded) in tracers.items()}
+    return jobs, counts, (ours, theirs, buffers)
+
+
+def trace_ceiling(jobs: dict, counts: dict, threads: int) -> dict:
+    """One try of the ceiling: each binding's primary jobs, then its shadow jobs, on ``threads``
+    threads; rays and samples per second."""
+    result = {}
+    for prefix, (primary_jobs, shadow_jobs) in jobs.items():
+        t_primary = traced_on_threads(primary_jobs, threads)
+        t_shadow = traced_on_threads(shadow_jobs, threads)
+        result |= {f"{prefix}primary_rays_per_s": counts["primary_rays"] / t_primary,
+                   f"{prefix}shadow_rays_per_s": counts["shadow_rays"] / t_shadow,
+                   f"{prefix}samples_per_s": counts["samples"] / (t_primary + t_shadow),
                    f"{prefix}seconds": t_primary + t_shadow}
     return result
+
+
+def spread(values: list[float]) -> dict:
+    """The median, least and greatest of ``values``."""
+    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
+
+
+def cell(figure: dict, factor: float = 1.0) -> str:
+    """A figure's median [min-max] times ``factor``, to one decimal."""
+    return f"{figure['median'] * factor:.1f} [{figure['min'] * factor:.1f}-{figure['max'] * factor:.1f}]"
 
 
 def embreex_scene(scene) -> tuple:
@@ -203,8 +231,8 @@ def main() -> None:
     parser.add_argument("--pass-samples", type=pass_sizes, default=[DEFAULT_PASS_SAMPLES], metavar="N,N,...",
                         help=f"pass sizes to compare in raster order (default {DEFAULT_PASS_SAMPLES}, the renderer's)")
     parser.add_argument("--repeats", type=int, default=3,
-                        help="runs of each configuration, interleaved; the fastest is shown (default 3, as many "
-                             "as the ceiling's tries)")
+                        help="runs of each configuration, interleaved, each followed by a try of the ceiling; "
+                             "the fastest run's stages are shown (default 3)")
     args = parser.parse_args()
     width, height = (int(v) for v in args.res.split("x"))
     setup, camera, source, warm = staged_subject(args.lens, width, height, args.spp)
@@ -212,15 +240,24 @@ def main() -> None:
     print(f"scene: {source}, {triangles} triangles; {width}x{height}, {args.spp} spp, lens {args.lens}, "
           f"backend {args.backend}, default passes of {DEFAULT_PASS_SAMPLES} samples on {args.threads} thread(s)")
     render(RenderJob(setup.scene, (warm,), args.backend))  # warm-up: kernel build and caches
+    jobs, counts, _scenes = ceiling_jobs(setup, camera, args.backend)
     configs = [(False, size, True) for size in args.pass_samples] + [(True, DEFAULT_PASS_SAMPLES, True),
                                                                       (False, DEFAULT_PASS_SAMPLES, False)]
-    runs: list[dict] = [{} for _ in configs]
+    load_before = os.getloadavg()
+    tries: list[list[dict]] = [[] for _ in configs]
+    ceilings: list[dict] = []
     for _ in range(args.repeats):  # interleaved, so a load change on a shared machine hits every config alike
         for i, (morton, size, pinned) in enumerate(configs):
-            r = run(setup, camera, args.backend, morton, args.threads, size, pinned)
-            if not runs[i] or r["seconds"] < runs[i]["seconds"]:
-                runs[i] = r
-    top = ceiling(setup, camera, args.backend, args.threads)
+            tries[i].append(run(setup, camera, args.backend, morton, args.threads, size, pinned))
+        ceilings.append(trace_ceiling(jobs, counts, args.threads))
+    load_after = os.getloadavg()
+    runs = [min(config_tries, key=lambda r: r["seconds"]) for config_tries in tries]
+    top = {"samples": counts["samples"], "threads": args.threads, "primary_rays": counts["primary_rays"],
+           "shadow_rays": counts["shadow_rays"], "tries": ceilings}
+    for key in ceilings[0]:
+        top[key] = statistics.median(c[key] for c in ceilings)
+        top[f"{key}_spread"] = spread([c[key] for c in ceilings])
+    print(f"load average {load_before[0]:.2f} before, {load_after[0]:.2f} after (shared machine: noisy)")
     column = max(14, *(len(r["label"]) + 4 for r in runs))
     print(f"\n{'stage':<16}" + "".join(f"{r['label'] + ' s':>{column}}{'share':>8}" for r in runs))
     for stage in STAGES:
@@ -242,19 +279,27 @@ def main() -> None:
         print(f"{r['label']}: {r['samples_per_s'] / 1e6:.2f} M samples/s, {r['rays_per_s'] / 1e6:.2f} M rays/s "
               f"({r['primary_rays']} primary + {r['shadow_rays']} shadow rays)")
     for prefix, name in (("", "embree ceiling (the renderer's binding)"), ("embreex_", "embreex's own binding")):
-        print(f"{name}, all of the render's rays, {args.threads} threads, nothing else: primary "
-              f"{top[prefix + 'primary_rays_per_s'] / 1e6:.2f} M/s, "
-              f"shadow {top[prefix + 'shadow_rays_per_s'] / 1e6:.2f} M/s, "
-              f"{top[prefix + 'samples_per_s'] / 1e6:.2f} M samples/s")
-    for r in runs:
-        r["fraction_of_ceiling"] = r["samples_per_s"] / top["samples_per_s"]
-        r["fraction_of_embreex_ceiling"] = r["samples_per_s"] / top["embreex_samples_per_s"]
+        print(f"{name}, all of the render's rays, {args.threads} threads, nothing else, median [min-max] of "
+              f"{args.repeats}: primary {cell(top[prefix + 'primary_rays_per_s_spread'], 1e-6)} M/s, "
+              f"shadow {cell(top[prefix + 'shadow_rays_per_s_spread'], 1e-6)} M/s, "
+              f"{cell(top[prefix + 'samples_per_s_spread'], 1e-6)} M samples/s")
+    for r, config_tries in zip(runs, tries):
+        # within each repeat: its render against the ceiling traced right after it
+        fraction = [t["samples_per_s"] / c["samples_per_s"] for t, c in zip(config_tries, ceilings)]
+        embreex = [t["samples_per_s"] / c["embreex_samples_per_s"] for t, c in zip(config_tries, ceilings)]
         # alone, every thread traces until the last chunk: thread-seconds = threads x wall
-        r["embree_alone_over_inside"] = args.threads * top["seconds"] / max(r["stage_thread_seconds"]["embree"], 1e-12)
-        print(f"{r['label']}: end to end / ceiling {100 * r['fraction_of_ceiling']:.1f} % "
-              f"(/ embreex's {100 * r['fraction_of_embreex_ceiling']:.1f} %); embree inside the render runs at "
-              f"{100 * r['embree_alone_over_inside']:.0f} % of its speed alone")
-    report = {"scene": source, "triangles": triangles, "resolution": [width, height], "spp": args.spp,
+        alone = [args.threads * c["seconds"] / max(t["stage_thread_seconds"]["embree"], 1e-12)
+                 for t, c in zip(config_tries, ceilings)]
+        r["fraction_of_ceiling"], r["fraction_of_ceiling_spread"] = statistics.median(fraction), spread(fraction)
+        r["fraction_of_embreex_ceiling"] = statistics.median(embreex)
+        r["fraction_of_embreex_ceiling_spread"] = spread(embreex)
+        r["embree_alone_over_inside"], r["embree_alone_over_inside_spread"] = statistics.median(alone), spread(alone)
+        print(f"{r['label']}: end to end / ceiling {cell(r['fraction_of_ceiling_spread'], 100)} % "
+              f"(/ embreex's {cell(r['fraction_of_embreex_ceiling_spread'], 100)} %); embree inside the render runs "
+              f"at {cell(r['embree_alone_over_inside_spread'], 100)} % of its speed alone (median [min-max] of "
+              f"{args.repeats} repeats, each against its own ceiling)")
+    report = {"machine": machine.describe(), "load_average": [load_before, load_after],
+              "scene": source, "triangles": triangles, "resolution": [width, height], "spp": args.spp,
               "backend": args.backend, "lens": args.lens, "default_pass_samples": DEFAULT_PASS_SAMPLES,
               "threads": args.threads, "runs": runs, "ceiling": top}
     out = ROOT / "bench" / "results" / "render.json"

@@ -151,9 +151,9 @@ __kernel void ewa(__global const float *texels, __global const long *base, __glo
 }
 
 /* ------------------------------------------------------------------ lookups at surface hits
- * The albedo of camera-ray hits on one image-textured material, from embree's hit records: what
- * realistic.renderer.integrator.DirectLighting._albedo computes in numpy (its reference), in the
- * same operations and order (FP_CONTRACT off, so a * b + c rounds twice as numpy's does):
+ * The EWA lookups of camera-ray hits on one image-textured material, from embree's hit records: what
+ * realistic.renderer.integrator.DirectLighting._albedo computes in numpy (its reference) before its
+ * lookups, in the same operations and order (FP_CONTRACT off, so a * b + c rounds twice as numpy's does):
  *   - embree's Ng normalised in float32 and turned to face the ray (_facing);
  *   - the uv interpolated in float32 from the triangle's corners with barycentrics (1 - u - v, u, v);
  *   - the pixel footprint in float64 (realistic/renderer/footprint.py): the cone of width t * spread
@@ -161,106 +161,231 @@ __kernel void ewa(__global const float *texels, __global const long *base, __glo
  *     1 / max(|cos|, MIN_COSINE)), carried into uv by the triangle's world edges (the instance's
  *     linear map times the mesh's float64 edges) and uv edges;
  *   - st = uv * scale + offset with t flipped for a bottom-origin image, the axes scaled alike
- *     (realistic/scene/textures.py); the EWA lookup above; times the material's diffuse colour.
- * Rows whose hit is not on an instance of `material` are left as they are. MAPPING holds: spread
- * (the camera's radians per pixel), s scale, t scale, s offset, t offset, t flip (+-1), t shift (0
- * or 1), diffuse r, g, b, at the MAPPING_* offsets the host prepends (realistic/scene/ewa_kernel.py:
- * MAPPING). */
+ *     (realistic/scene/textures.py).
+ * hit_lookups writes lookup i (s, t, axis0, axis1: 6 doubles, ewa_small's input) for the hit in
+ * row rows[i], which the host picks among the hits on instances of the texture's material;
+ * ewa_small, then ewa, filter them, times the material's diffuse colour. It is written for PoCL's
+ * work-group vectoriser as ewa_small is (see there): scalars, no branches, every read inside its
+ * table (work items past `count` read rows[count - 1]), and `one` (1.0) or `onef` (1.0f) on
+ * one of each pair of alike expressions LLVM's SLP vectoriser would otherwise pack first (the y
+ * and z of the normal, the second edge and its products, one uv of each axis).
+ * MAPPING holds: spread (the camera's radians per pixel), s scale, t scale, s offset, t offset, t
+ * flip (+-1), t shift (0 or 1), diffuse r, g, b, at the MAPPING_* offsets the host prepends
+ * (realistic/scene/ewa_kernel.py: MAPPING). */
 
 #define MIN_COSINE 1e-3
+#define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
 
-inline double dot3(double3 a, double3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-
-inline double3 cross3(double3 a, double3 b) {
-    return (double3)(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+inline double dot3s(double ax, double ay, double az, double bx, double by, double bz) {
+    return ax * bx + ay * by + az * bz;
 }
 
-inline double3 normalise3(double3 v) {
-    double length = __builtin_sqrt(dot3(v, v));
-    return length > 0 ? v / length : (double3)(0.0);
-}
-
-/* uv offset of the tangent vector w on a triangle with world edges e1, e2 and uv edges g1, g2
- * (footprint.to_uv): w = alpha e1 + beta e2 by the normal equations; zero on a degenerate triangle. */
-inline double2 to_uv(double3 w, double3 e1, double3 e2, double2 g1, double2 g2) {
-    double g11 = dot3(e1, e1), g12 = dot3(e1, e2), g22 = dot3(e2, e2);
-    double r1 = dot3(e1, w), r2 = dot3(e2, w);
-    double det = g11 * g22 - g12 * g12;
-    double inv = det > 1e-12 * g11 * g22 ? 1.0 / det : 0.0;
-    double alpha = (g22 * r1 - g12 * r2) * inv, beta = (g11 * r2 - g12 * r1) * inv;
-    return alpha * g1 + beta * g2;
-}
-
-/* The instance's linear map (row-major 3 x 3) applied to v, row by row as numpy's einsum sums. */
-inline double3 linear_map(__global const double *m, double3 v) {
-    return (double3)(m[0] * v.x + m[1] * v.y + m[2] * v.z, m[3] * v.x + m[4] * v.y + m[5] * v.z,
-                     m[6] * v.x + m[7] * v.y + m[8] * v.z);
-}
-
-inline double3 vertex(__global const double *vertices, int i) {
-    return (double3)(vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]);
-}
-
-__kernel void ewa_hits(__global const float *texels, __global const long *base, __global const long *width,
-                       __global const long *height, const int wrap, const int levels, const double max_anisotropy,
-                       __global const double *lut, __global const int *faces, __global const double *vertices,
-                       __global const float *uvs, __global const int *geom_face_offset,
-                       __global const int *geom_material, __global const double *geom_linear,
-                       const int instance_count, const int material, __global const double *mapping,
-                       __global const float *direction, __global const float *tfar, __global const float *hit_u,
-                       __global const float *hit_v, __global const int *prim, __global const int *geom,
-                       __global const float *ng_in, const int count, __global float *out) {
+__kernel void hit_lookups(__global const int *faces, __global const double *vertices,
+                          __global const float *uvs, __global const int *geom_face_offset,
+                          __global const double *geom_linear, __global const double *mapping,
+                          __global const float *direction, __global const float *tfar, __global const float *hit_u,
+                          __global const float *hit_v, __global const int *prim, __global const int *geom,
+                          __global const float *ng_in, __global const int *rows, const int count, const int unit,
+                          __global double *lookups) {
     int i = get_global_id(0);
-    if (i >= count) return;
-    int g = geom[i];
-    if (g < 0 || g >= instance_count || geom_material[g] != material) return;
+    double one = (double)unit;
+    float onef = (float)unit;
+    int r = rows[i < count ? i : count - 1];
+    int g = geom[r];
 
     /* embree's normal, normalised in float32 and facing the ray */
-    float dx = direction[3 * i], dy = direction[3 * i + 1], dz = direction[3 * i + 2];
-    float nx = ng_in[3 * i], ny = ng_in[3 * i + 1], nz = ng_in[3 * i + 2];
-    float nlen = __builtin_sqrtf(nx * nx + ny * ny + nz * nz);  /* correctly rounded, as numpy's */
+    float dx = AT(direction, 3, r, 0), dy = AT(direction, 3, r, 1), dz = AT(direction, 3, r, 2);
+    float nx = AT(ng_in, 3, r, 0), ny = AT(ng_in, 3, r, 1), nz = AT(ng_in, 3, r, 2);
+    float nlen = __builtin_sqrtf(nx * nx + ny * ny + nz * nz);
     nx = nlen > 0.0f ? nx / nlen : 0.0f;
-    ny = nlen > 0.0f ? ny / nlen : 0.0f;
+    ny = nlen > 0.0f ? ny * onef / nlen : 0.0f;
     nz = nlen > 0.0f ? nz / nlen : 0.0f;
     float side = nx * dx + ny * dy + nz * dz > 0.0f ? -1.0f : 1.0f;
-    double3 normal = (double3)(nx * side, ny * side, nz * side);
-    double3 d = (double3)(dx, dy, dz);
+    double nrx = nx * side, nry = ny * side, nrz = nz * side * onef;
+    double ddx = dx, ddy = dy, ddz = dz;
 
     /* the triangle, its uv at the hit (float32) and its edges in world space and in uv */
-    int f = 3 * (geom_face_offset[g] + prim[i]);
-    int c0 = faces[f], c1 = faces[f + 1], c2 = faces[f + 2];
-    float u = hit_u[i], v = hit_v[i];
+    int f = 3 * (geom_face_offset[g] + prim[r]);
+    int c0 = AT(faces, 1, f, 0), c1 = AT(faces, 1, f, 1), c2 = AT(faces, 1, f, 2);
+    float u = hit_u[r], v = hit_v[r];
     float b0 = 1.0f - u - v;
-    float us = uvs[2 * c0] * b0 + uvs[2 * c1] * u + uvs[2 * c2] * v;
-    float vs = uvs[2 * c0 + 1] * b0 + uvs[2 * c1 + 1] * u + uvs[2 * c2 + 1] * v;
-    double2 uv0 = (double2)(uvs[2 * c0], uvs[2 * c0 + 1]);
-    double2 duv1 = (double2)(uvs[2 * c1], uvs[2 * c1 + 1]) - uv0;
-    double2 duv2 = (double2)(uvs[2 * c2], uvs[2 * c2 + 1]) - uv0;
-    double3 corner0 = vertex(vertices, c0);
-    double3 edge1 = linear_map(geom_linear + 9 * g, vertex(vertices, c1) - corner0);
-    double3 edge2 = linear_map(geom_linear + 9 * g, vertex(vertices, c2) - corner0);
+    float u0 = AT(uvs, 2, c0, 0), v0 = AT(uvs, 2, c0, 1), u1 = AT(uvs, 2, c1, 0), v1 = AT(uvs, 2, c1, 1);
+    float u2 = AT(uvs, 2, c2, 0), v2 = AT(uvs, 2, c2, 1);
+    float us = u0 * b0 + u1 * u + u2 * v;
+    float vs = v0 * b0 + v1 * u + v2 * v;
+    double g1s = (double)u1 - (double)u0, g1t = (double)v1 - (double)v0;
+    double g2s = (double)u2 - (double)u0, g2t = (double)v2 - (double)v0;
+    double px = AT(vertices, 3, c0, 0), py = AT(vertices, 3, c0, 1), pz = AT(vertices, 3, c0, 2);
+    double q1x = AT(vertices, 3, c1, 0) - px, q1y = AT(vertices, 3, c1, 1) - py, q1z = AT(vertices, 3, c1, 2) - pz;
+    double q2x = (AT(vertices, 3, c2, 0) - px) * one, q2y = (AT(vertices, 3, c2, 1) - py) * one;
+    double q2z = (AT(vertices, 3, c2, 2) - pz) * one;
+    __global const double *m = geom_linear + 9 * g;
+    double e1x = AT(m, 3, 0, 0) * q1x + AT(m, 3, 0, 1) * q1y + AT(m, 3, 0, 2) * q1z;
+    double e1y = AT(m, 3, 1, 0) * q1x + AT(m, 3, 1, 1) * q1y + AT(m, 3, 1, 2) * q1z;
+    double e1z = AT(m, 3, 2, 0) * q1x + AT(m, 3, 2, 1) * q1y + AT(m, 3, 2, 2) * q1z;
+    double e2x = AT(m, 3, 0, 0) * q2x + AT(m, 3, 0, 1) * q2y + AT(m, 3, 0, 2) * q2z;
+    double e2y = AT(m, 3, 1, 0) * q2x + AT(m, 3, 1, 1) * q2y + AT(m, 3, 1, 2) * q2z;
+    double e2z = AT(m, 3, 2, 0) * q2x + AT(m, 3, 2, 1) * q2y + AT(m, 3, 2, 2) * q2z;
 
-    /* the footprint's tangent axes (footprint.tangent_axes) and their uv offsets */
-    double w = (double)tfar[i] * mapping[MAPPING_SPREAD];
-    double cosine = dot3(d, normal);
-    double3 along = normalise3(d - cosine * normal);
-    if (!(dot3(along, along) > 0.5)) {
-        double3 other = __builtin_fabs(normal.x) < 0.9 ? (double3)(1.0, 0.0, 0.0) : (double3)(0.0, 1.0, 0.0);
-        along = normalise3(cross3(normal, other));
-    }
-    double3 across = cross3(normal, along);
+    /* the footprint's tangent axes (footprint.tangent_axes) */
+    double w = (double)tfar[r] * AT(mapping, 1, MAPPING_SPREAD, 0);
+    double cosine = dot3s(ddx, ddy, ddz, nrx, nry, nrz);
+    double ox = ddx - cosine * nrx, oy = ddy - cosine * nry, oz = ddz - cosine * nrz;
+    double olen = __builtin_sqrt(dot3s(ox, oy, oz, ox, oy, oz));
+    ox = olen > 0 ? ox / olen : 0.0;
+    oy = olen > 0 ? oy / olen : 0.0;
+    oz = olen > 0 ? oz / olen : 0.0;
+    /* a ray along the normal: the normal crossed with x, or with y near the x axis */
+    int near_x = !(__builtin_fabs(nrx) < 0.9);
+    double tx = near_x ? 0.0 : 1.0, ty = near_x ? 1.0 : 0.0;
+    double kx = nry * 0.0 - nrz * ty, ky = nrz * tx - nrx * 0.0, kz = nrx * ty - nry * tx;
+    double klen = __builtin_sqrt(dot3s(kx, ky, kz, kx, ky, kz));
+    int turned = !(dot3s(ox, oy, oz, ox, oy, oz) > 0.5);
+    double ax_ = turned ? (klen > 0 ? kx / klen : 0.0) : ox;
+    double ay_ = turned ? (klen > 0 ? ky / klen : 0.0) : oy;
+    double az_ = turned ? (klen > 0 ? kz / klen : 0.0) : oz;
+    double cx = nry * az_ - nrz * ay_, cy = nrz * ax_ - nrx * az_, cz = nrx * ay_ - nry * ax_;
     double stretch = 1.0 / __builtin_fmax(__builtin_fabs(cosine), MIN_COSINE);
-    double2 axis0 = to_uv(across * w, edge1, edge2, duv1, duv2);
-    double2 axis1 = to_uv(along * (w * stretch), edge1, edge2, duv1, duv2);
+    double wa = w * stretch;
 
-    /* into the image's st (textures._image) and the lookup */
-    double2 scale = (double2)(mapping[MAPPING_ST_SCALE], mapping[MAPPING_ST_SCALE + 1]);
-    double2 flip = (double2)(1.0, mapping[MAPPING_T_FLIP]);
-    double2 st = ((double2)(us, vs) * scale + (double2)(mapping[MAPPING_ST_OFFSET], mapping[MAPPING_ST_OFFSET + 1]))
-                 * flip + (double2)(0.0, mapping[MAPPING_T_SHIFT]);
-    double3 value = ewa_lookup(texels, base, width, height, wrap, levels, max_anisotropy, lut, st,
-                               axis0 * scale * flip, axis1 * scale * flip);
-    out[3 * i] = (float)mapping[MAPPING_DIFFUSE] * (float)value.x;
-    out[3 * i + 1] = (float)mapping[MAPPING_DIFFUSE + 1] * (float)value.y;
-    out[3 * i + 2] = (float)mapping[MAPPING_DIFFUSE + 2] * (float)value.z;
+    /* their uv offsets (to_uv) */
+    double g11 = dot3s(e1x, e1y, e1z, e1x, e1y, e1z), g12 = dot3s(e1x, e1y, e1z, e2x, e2y, e2z);
+    double g22 = dot3s(e2x, e2y, e2z, e2x, e2y, e2z) * one;
+    double det_uv = g11 * g22 - g12 * g12;
+    double inv_uv = det_uv > 1e-12 * g11 * g22 ? 1.0 / det_uv : 0.0;
+    double wx = cx * w, wy = cy * w, wz = cz * w;
+    double r1 = dot3s(e1x, e1y, e1z, wx, wy, wz), r2_ = dot3s(e2x, e2y, e2z, wx, wy, wz) * one;
+    double alpha = (g22 * r1 - g12 * r2_) * inv_uv, beta = (g11 * r2_ - g12 * r1) * inv_uv;
+    double a0u = alpha * g1s + beta * g2s, a0v = (alpha * g1t + beta * g2t) * one;
+    wx = ax_ * wa; wy = ay_ * wa; wz = az_ * wa;
+    r1 = dot3s(e1x, e1y, e1z, wx, wy, wz);
+    r2_ = dot3s(e2x, e2y, e2z, wx, wy, wz) * one;
+    alpha = (g22 * r1 - g12 * r2_) * inv_uv;
+    beta = (g11 * r2_ - g12 * r1) * inv_uv;
+    double a1u = (alpha * g1s + beta * g2s) * one, a1v = alpha * g1t + beta * g2t;
+
+    /* into the image's st (textures._image) */
+    double scale_s = AT(mapping, 1, MAPPING_ST_SCALE, 0), scale_t = AT(mapping, 1, MAPPING_ST_SCALE, 1);
+    double flip_t = AT(mapping, 1, MAPPING_T_FLIP, 0);
+    double s0 = ((double)us * scale_s + AT(mapping, 1, MAPPING_ST_OFFSET, 0)) * 1.0 + 0.0;
+    double t0 = ((double)vs * scale_t + AT(mapping, 1, MAPPING_ST_OFFSET, 1)) * flip_t
+              + AT(mapping, 1, MAPPING_T_SHIFT, 0);
+    double majs = a0u * scale_s * 1.0, majt = a0v * scale_t * flip_t;
+    double mins = a1u * scale_s * 1.0, mint = a1v * scale_t * flip_t;
+
+    if (i < count) {
+        AT(lookups, 6, i, 0) = s0;
+        AT(lookups, 6, i, 1) = t0;
+        AT(lookups, 6, i, 2) = majs;
+        AT(lookups, 6, i, 3) = majt;
+        AT(lookups, 6, i, 4) = mins;
+        AT(lookups, 6, i, 5) = mint;
+    }
+}
+
+/* ------------------------------------------------------------------ magnified lookups, vectorised
+ * ewa_small is ewa for the lookups that read level 0 alone (lod clamped to 0: the minor axis at most
+ * a texel of level 0, as most of a near floor's are at a render's sample counts) over an ellipse of
+ * at most SMALL_SIDE rows of at most SMALL_SIDE texels each, and writes their colours times
+ * (red, green, blue)_scale (float32 products: a material's diffuse colour, or 1); it writes
+ * pending[i] = 1 for every other lookup, which the host gives to ewa. Lookups are rows of 6
+ * doubles: s, t, axis0, axis1. Same operations in the same order as ewa_lookup and ewa_level, so
+ * the same bits: each row of the ellipse is walked from its first crossing over SMALL_SIDE columns,
+ * and a column past the span or outside the ellipse adds +0.0 (the sum unchanged, but for the sign
+ * of a zero sum) where ewa_level adds nothing.
+ *
+ * Written for PoCL's work-group vectoriser as kernels/shade.cl is (see its header): scalars only
+ * (its loop vectoriser widens no OpenCL vector types), LLVM builtins for the maths, the fixed loops
+ * unrolled, no early exits, ternaries for branches, every gather's index inside its table (rows past
+ * `count` read row count - 1; values bound for an int are zeroed where the lookup is left to ewa),
+ * and the reads offset through `unit` (always 1). LLVM's SLP vectoriser packs pairs of alike
+ * expressions into 2-wide vectors before PoCL's vectoriser runs, which then gives up on the kernel:
+ * `one` ((double)unit, 1.0) multiplies one of each pair it took (minor axis against major, t against
+ * s), which changes no bit (x * 1.0 is x) and leaves no two alike. POCL_VECTORIZER_REMARKS=1 prints
+ * "vectorized loop" for ewa_small and hit_lookups (tests/test_ewa_kernel.py, test_ewa_hits.py check). */
+
+#define SMALL_SIDE 3
+
+__kernel void ewa_small(__global const float *texels, __global const long *base, __global const long *width,
+                        __global const long *height, const int wrap, const int levels, const double max_anisotropy,
+                        __global const double *lut, __global const double *lookups, const float red_scale, const float green_scale, const float blue_scale, const int count,
+                        const int unit, __global uchar *pending, __global float *out) {
+    int i = get_global_id(0);
+    int r = i < count ? i : count - 1;
+    double one = (double)unit;
+    double s0 = AT(lookups, 6, r, 0), t0 = AT(lookups, 6, r, 1);
+    double majs = AT(lookups, 6, r, 2), majt = AT(lookups, 6, r, 3);
+    double mins = AT(lookups, 6, r, 4), mint = AT(lookups, 6, r, 5);
+    int swap = majs * majs + majt * majt < (mins * mins + mint * mint) * one;
+    double hs = swap ? mins : majs, ht = swap ? mint : majt;
+    mins = swap ? majs : mins;
+    mint = swap ? majt : mint;
+    majs = hs;
+    majt = ht;
+    double major_len = __builtin_sqrt(majs * majs + majt * majt);
+    double minor_len = __builtin_sqrt(mins * mins + mint * mint) * one;
+    int clamped = minor_len * max_anisotropy < major_len && minor_len > 0;
+    double stretch = major_len / __builtin_fmax(minor_len * max_anisotropy, 1e-300);
+    mins = clamped ? mins * stretch : mins;
+    mint = clamped ? mint * stretch : mint;
+    minor_len = clamped ? minor_len * stretch : minor_len;
+    double length = __builtin_fmax(minor_len, 1e-8);
+    int magnified = minor_len != 0 && length <= 1.0 / (double)(1L << (levels - 1));
+    double lw = (double)width[0], lh = (double)height[0];
+    double s = s0 * lw - 0.5, t = (t0 * lh - 0.5) * one;
+    double a0s = majs * lw, a0t = majt * lh, a1s = mins * lw, a1t = mint * lh;
+    double a = a0t * a0t + a1t * a1t + 1;
+    double b = -2 * (a0s * a0t + a1s * a1t);
+    double c = a0s * a0s + a1s * a1s + 1;
+    double inv_f = 1 / (a * c - b * b * 0.25);
+    a *= inv_f; b *= inv_f; c *= inv_f;
+    double det = 4 * a * c - b * b;
+    double half_t = 2 * __builtin_sqrt(a * det) / det;
+    int small = i < count && magnified && __builtin_fabs(s) < 1e9 && __builtin_fabs(t) < 1e9
+                && half_t < SMALL_SIDE;
+    double ts = small ? t : 0.0, hts = small ? half_t : 0.0, ss = small ? s : 0.0;
+    int y0 = (int)__builtin_ceil(ts - hts), y1 = (int)__builtin_floor(ts + hts);
+    small = small && y1 - y0 < SMALL_SIDE;
+    int iw = (int)width[0], ih = (int)height[0];
+    long level_base = base[0];
+    double inv_2a = 1 / (2 * a);
+    double sum_r = 0.0, sum_g = 0.0, sum_b = 0.0, weights = 0.0;
+    #pragma unroll
+    for (int j = 0; j < SMALL_SIDE; ++j) {
+        int y = y0 + j;
+        double dt = y - ts;
+        double bb = b * dt;
+        double root = __builtin_sqrt(__builtin_fmax(bb * bb - 4 * a * (c * dt * dt - 1), 0.0));
+        double left = small ? ss + (-bb - root) * inv_2a : 0.0, right = small ? ss + (-bb + root) * inv_2a : 0.0;
+        int x0 = (int)__builtin_ceil(left), x1 = (int)__builtin_floor(right);
+        int in_rows = y <= y1;
+        small = small && (!in_rows || x1 - x0 < SMALL_SIDE);
+        int row = wrap == 0 ? y & (ih - 1) : (y < 0 ? 0 : (y > ih - 1 ? ih - 1 : y));
+        double row_inside = wrap == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
+        double cdt2 = c * dt * dt;
+        #pragma unroll
+        for (int k = 0; k < SMALL_SIDE; ++k) {
+            int x = x0 + k;
+            double ds = x - ss;
+            double r2 = a * ds * ds + b * ds * dt + cdt2;
+            int take = in_rows && x <= x1 && r2 < 1;
+            double weight = lut[(int)((take ? r2 : 0.0) * LUT_SIZE)];
+            int at = wrap == 0 ? x & (iw - 1) : (x < 0 ? 0 : (x > iw - 1 ? iw - 1 : x));
+            double inside = wrap == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
+            long texel_at = level_base + (long)row * iw + at;
+            double red = AT(texels, 3, texel_at, 0), green = AT(texels, 3, texel_at, 1);
+            double blue = AT(texels, 3, texel_at, 2);
+            sum_r += take ? red * inside * weight : 0.0;
+            sum_g += take ? green * inside * weight : 0.0;
+            sum_b += take ? blue * inside * weight : 0.0;
+            weights += take ? weight : 0.0;
+        }
+    }
+    double norm = __builtin_fmax(weights, 1e-300);
+    if (small) {
+        AT(out, 3, i, 0) = red_scale * (float)(sum_r / norm);
+        AT(out, 3, i, 1) = green_scale * (float)(sum_g / norm);
+        AT(out, 3, i, 2) = blue_scale * (float)(sum_b / norm);
+    }
+    if (i < count) pending[i] = !small;
 }

@@ -14,7 +14,7 @@
  *     where it normalised to unit length (``DirectLighting._shading_normal``);
  *   - the albedo: the material's diffuse colour, times a grid or checker texture's colour at the
  *     interpolated uv (``realistic.scene.textures.evaluate``), or, for materials the kernel does
- *     not evaluate (image textures, filtered over pixel footprints), the host's albedo row (ewa.cl's ewa_hits or numpy);
+ *     not evaluate (image textures, filtered over pixel footprints), the host's albedo row (ewa.cl's kernels or numpy);
  *   - light sample k of light_samples: the pixel's scrambled Sobol' numbers at index
  *     sample * light_samples + k (realistic.core.rng.light_bits, bit for bit), the light picked by its float32 CDF rounded up (the same choice as numpy's
  *     searchsorted on the float64 CDF), a point on the disk (concentric map) or quad, and the

@@ -217,6 +217,25 @@ def test_occlusion_is_decided_by_the_distance(count: int) -> None:
     assert np.all(blocked[::3]) and np.all(blocked[1::3]) and not np.any(blocked[2::3])
 
 
+def test_rays_not_traced_between_traced_ones_change_no_answer() -> None:
+    """The occlusion loop packs only the rays it traces into packets: each traced ray's answer is
+    the one it gets alone, whatever is skipped around it (negative, -inf and NaN distances)."""
+    scene, world = instanced_scene(8)
+    count = 5 * PACKET + 3
+    origin, direction = random_rays(world, count, seed=9)
+    t_all, _, _, closest, ambiguous = moller_trumbore(world, origin, direction, 1e37)
+    t = np.where(closest >= 0, t_all[np.arange(count), np.maximum(closest, 0)], 1.0).astype(np.float32)
+    distance = np.where(np.arange(count) % 2 == 0, t * 1.001, t * 0.999).astype(np.float32)
+    skipped = np.random.default_rng(10).random(count) < 0.4
+    distance[skipped] = np.array([-1, -np.inf, np.nan], np.float32)[np.arange(count) % 3][skipped]
+    blocked = scene.occluded(origin, direction, distance)
+    alone = [bool(scene.occluded(origin[i:i + 1], direction[i:i + 1], distance[i:i + 1])[0]) for i in range(count)]
+    assert blocked.tolist() == alone
+    assert np.array_equal(blocked[skipped], distance[skipped] < 0)
+    traced = ~skipped & ~ambiguous & (closest >= 0)
+    assert np.array_equal(blocked[traced], (np.arange(count) % 2 == 0)[traced])
+
+
 def test_several_threads_tracing_at_once_get_the_answers_of_one() -> None:
     scene, world = instanced_scene(8)
     batches = [random_rays(world, 5000, seed) for seed in range(8)]

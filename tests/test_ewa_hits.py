@@ -1,7 +1,7 @@
-"""``ewa_hits`` (kernels/ewa.cl): the albedo of image-textured hits computed from embree's hit
-records on the device, against its numpy reference ``DirectLighting._albedo`` (uv interpolation,
-pixel footprint, st mapping, EWA lookup), per hit, to float32 rounding; and the renderer's choice
-of which materials go to the device."""
+"""``EwaKernel.at_hits`` (kernels/ewa.cl's hit_lookups, ewa_small and ewa): the albedo of
+image-textured hits computed from embree's hit records on the device, against its numpy reference
+``DirectLighting._albedo`` (uv interpolation, pixel footprint, st mapping, EWA lookup), per hit, to
+float32 rounding; and the renderer's choice of which materials go to the device."""
 
 import numpy as np
 import pytest
@@ -115,3 +115,19 @@ def test_rows_of_other_materials_are_left_alone():
     assert np.all(out[~mine] == -7.0) and np.all(out[mine] >= 0.0)
     with pytest.raises(ValueError, match="float32"):
         ewa.at_hits(device._surface_tables, index, mapping, direction, hits, out.astype(np.float64))
+
+
+def test_the_hit_lookups_vectorise(tmp_path):
+    """PoCL's work-group vectoriser widens ``hit_lookups`` and ``ewa_small`` (both of the work-group
+    functions PoCL makes of each); only ``ewa``, left the few lookups ``ewa_small`` does not take,
+    runs scalar. Its remarks need a fresh build, so this runs in a process of its own."""
+    from conftest import vectoriser_remarks
+
+    script = (
+        "from realistic.renderer.direct_lighting import DirectLighting\n"
+        "from test_ewa_hits import hits_of, instanced_scene\n"
+        "scene, eye, target = instanced_scene()\n"
+        "intersector, origin, direction, hits, spread = hits_of(scene, eye, target, 32, 24)\n"
+        "DirectLighting(scene, intersector, 1, 5, spread, backend='opencl')._host_albedo(origin, direction, hits)\n")
+    remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
+    assert remarks.count("vectorized loop (") >= 4

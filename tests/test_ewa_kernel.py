@@ -4,6 +4,7 @@ transcription of pbrt-v3's loop in test_textures.py): same taps, same weights, f
 import numpy as np
 import pytest
 
+from conftest import vectoriser_remarks
 from realistic.renderer.backends import backend_for
 from realistic.scene.mipmap import MipMap
 
@@ -60,6 +61,47 @@ def test_a_magnified_lookup_reads_the_finest_level_alone(opencl_platform, backen
     clean, dirty = ewa(MipMap(image), st, axis0, axis1), ewa(poisoned, st, axis0, axis1)
     assert np.array_equal(dirty[:400], clean[:400])
     assert np.isnan(dirty[400:]).all() and np.isfinite(clean).all()
+
+
+def magnified(count: int, seed: int, side: int, longest: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lookups over three repeats whose minor axis is at most a texel of a ``side``-texel level 0
+    (lod clamped to 0) and whose major axis is up to ``longest`` times it."""
+    rng = np.random.default_rng(seed)
+    st = rng.random((count, 2)) * 3 - 1
+    angle = rng.random(count) * 2 * np.pi
+    minor = rng.random(count) / side
+    major = minor * (1 + (longest - 1) * rng.random(count))
+    axis0 = np.column_stack([np.cos(angle), np.sin(angle)]) * major[:, None]
+    axis1 = np.column_stack([-np.sin(angle), np.cos(angle)]) * minor[:, None]
+    return st, axis0, axis1
+
+
+@pytest.mark.parametrize("wrap", ["repeat", "black", "clamp"])
+def test_magnified_lookups_are_the_references_bit_for_bit(opencl_platform, wrap):
+    """``ewa_small`` (vectorised) filters the magnified lookups over small ellipses and leaves the
+    longer ones to ``ewa``: in the same operations and order as the float64 reference, so each
+    colour is the reference's rounded to float32, exactly, on both sides of the split (the
+    ellipses reach 4 texels, past ``ewa_small``'s 3 x 3)."""
+    mipmap = MipMap(np.random.default_rng(2).random((64, 64, 3)), wrap)
+    st, axis0, axis1 = magnified(20000, 4, 64, 4.0)
+    device = backend_for("opencl").ewa(mipmap, st, axis0, axis1)
+    assert np.array_equal(device, mipmap.ewa(st, axis0, axis1).astype(np.float32))
+
+
+def test_the_small_lookups_vectorise(tmp_path):
+    """PoCL's work-group vectoriser widens ``ewa_small`` (``ewa`` and ``hit_lookups`` loop over
+    ellipses and run scalar): both of the work-group functions PoCL makes of it, for any group and
+    for whole ones. Lookups it takes alone launch nothing else, so every remark is its; the
+    remarks need a fresh build, so this runs in a process of its own."""
+    script = (
+        "import numpy as np\n"
+        "from realistic.renderer.backends import backend_for\n"
+        "from realistic.scene.mipmap import MipMap\n"
+        "mipmap = MipMap(np.random.default_rng(0).random((32, 32, 3)))\n"
+        "point = np.full((300, 2), 0.3)\n"
+        "backend_for('opencl').ewa(mipmap, point, np.full((300, 2), 1e-3), np.full((300, 2), -1e-3))\n")
+    remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
+    assert remarks.count("vectorized loop (") >= 2
 
 
 def test_the_kernel_refuses_a_map_whose_sides_are_not_powers_of_two(opencl_platform):

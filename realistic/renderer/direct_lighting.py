@@ -23,7 +23,7 @@ Backends: the numpy code here is the reference and shades with backend "numpy". 
 computes every surface hit's normals and albedo and every light sample's shadow ray and
 contribution, embree traces all the shadow rays in one ``occluded`` call, and numpy sums the
 unblocked contributions; camera rays that miss or see an emitter keep the numpy code. The albedo of
-EWA-filtered image textures comes from ``kernels/ewa.cl``'s ``ewa_hits`` (hit records to albedo, bit
+EWA-filtered image textures comes from ``kernels/ewa.cl`` (``EwaKernel.at_hits``: hit records to albedo, bit
 for bit the numpy ``_albedo`` here: ``tests/test_ewa_hits.py``), other image textures' from ``_albedo``. Spectral rays
 shade in the kernel too (its ``SPECTRAL`` variant, which weights by ``rgb_response`` itself). The two
 agree to float32 rounding, shadow-ray origins bit for bit (``tests/test_shade_kernel.py``).

@@ -5,9 +5,14 @@ the largest cost of a homework render's floor. The kernel runs the same mathemat
 double precision (one work-item loops over its ellipse), so it agrees with the reference to float32
 rounding; ``tests/test_ewa_kernel.py`` checks that.
 
+Most of a render's lookups are magnified (the minor axis under a texel, so level 0 alone) over a
+few texels: ``ewa_small`` does those vectorised over work items (``ewa``, a work item's loops over
+its ellipse, runs scalar) and marks the others, which ``ewa`` does; the same bits either way.
+
 ``SurfaceTables`` and ``EwaKernel.at_hits`` go one step further for the renderer: from embree's hit
 records to the albedo, with the uv, the pixel footprint and the st mapping computed on the device
-too (``ewa_hits``; numpy spent three times as long on those as on the lookups). Its reference is
+too (``hit_lookups``, vectorised like ``ewa_small``, on the rows of the texture's material that numpy
+picks; numpy spent three times as long on those as on the lookups). Its reference is
 ``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
 
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
@@ -29,7 +34,7 @@ from realistic.scene.model import ImageTexture
 from realistic.scene.textures import st_mapping
 
 KERNEL_FILE = "ewa.cl"
-#: ``ewa_hits``' MAPPING row (float64), declared once for the kernel and ``hit_mapping``: the camera's
+#: ``hit_lookups``' MAPPING row (float64), declared once for the kernel and ``hit_mapping``: the camera's
 #: spread (radians per pixel), st = (uv * st_scale + st_offset) * (1, t_flip) + (0, t_shift)
 #: (``textures.st_mapping``), and the material's diffuse colour.
 MAPPING = Table("MAPPING", np.float64, (("spread", 1), ("st_scale", 2), ("st_offset", 2), ("t_flip", 1),
@@ -39,21 +44,21 @@ HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 
 
 class SurfaceTables:
-    """A scene's triangles as ``ewa_hits`` reads them, wrapped once per render: faces (F, 3) of
+    """A scene's triangles as ``hit_lookups`` reads them, wrapped once per render: faces (F, 3) of
     concatenated vertex indices, float64 vertices (V, 3) in mesh space, float32 uvs (V, 2), and per
     instance (embree geometry id) its first face, material index and linear map (3 x 3)."""
 
     def __init__(self, device: Device, faces: np.ndarray, vertices: np.ndarray, uv: np.ndarray,
                  geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_linear: np.ndarray):
-        self.instance_count = np.int32(len(geom_face_offset))
+        self.geom_material = np.asarray(geom_material)  # the host picks each material's rows
         self.buffers = [device.wrapped_buffer(a, dtype) for a, dtype in
                         ((faces, np.int32), (vertices, np.float64), (uv, np.float32), (geom_face_offset, np.int32),
-                         (geom_material, np.int32), (geom_linear, np.float64))]
+                         (geom_linear, np.float64))]
 
 
 def hit_mapping(texture: ImageTexture, diffuse: np.ndarray | tuple[float, float, float],
                 spread_radians: float) -> np.ndarray:
-    """``ewa_hits``' ``MAPPING`` row (the diffuse colour's float32 values, exact in float64)."""
+    """``hit_lookups``' ``MAPPING`` row (the diffuse colour's float32 values, exact in float64)."""
     repeats, offset, flip, shift = st_mapping(texture)
     return MAPPING.pack(1, spread=spread_radians, st_scale=repeats, st_offset=offset, t_flip=flip[1],
                         t_shift=shift[1], diffuse=np.asarray(diffuse, np.float32))[0]
@@ -72,7 +77,8 @@ class EwaKernel:
         self.context = device.context
         self.queue = device.queue()
         program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
-        self._kernel, self._hits_kernel = cl.Kernel(program, "ewa"), cl.Kernel(program, "ewa_hits")
+        self._kernel, self._small_kernel = cl.Kernel(program, "ewa"), cl.Kernel(program, "ewa_small")
+        self._hits_kernel = cl.Kernel(program, "hit_lookups")
         # the texels wrapped, not copied, so they are not held twice
         # the map's kernel arguments: its buffers, then its scalars
         self._map: list[cl.Buffer | np.generic] = [
@@ -84,36 +90,69 @@ class EwaKernel:
 
     def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
         """Filtered colours (N, 3) float32 at (s, t) (N, 2) over ellipses with axes (N, 2) each."""
-        count = len(st)
-        out = np.empty((count, 3), np.float32)
-        if count == 0:
-            return out
-        inputs = [self.device.copied_buffer(a, np.float64) for a in (st, axis0, axis1)]
-        result = self.device.output_buffer(out.nbytes)
-        padded = whole_groups(count)
-        with self._lock:
-            self._kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._map, *inputs, np.int32(count), result)
-            cl.enqueue_copy(self.queue, out, result)
+        lookups = np.empty((len(st), 6), np.float64)
+        for column, values in enumerate((st, axis0, axis1)):
+            lookups[:, 2 * column:2 * column + 2] = values
+        out = np.empty((len(st), 3), np.float32)
+        self._filter(lookups, np.ones(3, np.float32), out)
         return out
+
+    def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray) -> None:
+        """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
+        lookups (s, t, axis0, axis1) (N, 6) float64: ``ewa_small`` over all, then ``ewa`` over the
+        rows it leaves."""
+        count = len(lookups)
+        if count == 0:
+            return
+        pending = np.empty(count, np.uint8)
+        inputs = [self.device.wrapped_buffer(lookups, np.float64)]
+        written = [self.device.host_buffer(pending, cl.mem_flags.WRITE_ONLY),
+                   self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
+        with self._lock:
+            self._small_kernel(self.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
+                               *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written)
+            # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernel
+            cl.enqueue_copy(self.queue, pending, written[0], is_blocking=False)
+            cl.enqueue_copy(self.queue, out, written[1])
+        rest = np.flatnonzero(pending)
+        if len(rest):
+            left = np.take(lookups, rest, axis=0)
+            columns = [self.device.copied_buffer(left[:, k:k + 2], np.float64) for k in (0, 2, 4)]
+            result = self.device.output_buffer(len(rest) * 3 * 4)
+            values = np.empty((len(rest), 3), np.float32)
+            with self._lock:
+                self._kernel(self.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
+                             np.int32(len(rest)), result)
+                cl.enqueue_copy(self.queue, values, result)
+            out[rest] = values * scale
 
     def at_hits(self, surfaces: SurfaceTables, material: int, mapping: np.ndarray, direction: np.ndarray,
                 hits: Hits, out: np.ndarray) -> None:
         """Write into ``out`` (N, 3) float32 the albedo of the rays (unit ``direction`` (N, 3)) whose
         closest hit (``scene.intersect.Hits``) is on an instance of material index ``material``, whose
-        image texture this map is (``hit_mapping``); other rows are left as they are."""
+        image texture this map is (``hit_mapping``); other rows are left as they are. numpy picks those
+        rows, ``hit_lookups`` makes their lookups and ``_filter`` filters them, times the diffuse colour."""
         count = len(direction)
         if count == 0:
             return
         if out.dtype != np.float32 or not out.flags.c_contiguous or out.shape != (count, 3):
             raise ValueError(f"at_hits writes a C-contiguous ({count}, 3) float32 array, not {out.dtype} {out.shape}")
+        geom = hits.geom
+        surface = (geom >= 0) & (geom < len(surfaces.geom_material))
+        rows = np.flatnonzero(surface & (surfaces.geom_material[np.where(surface, geom, 0)] == material))
+        if len(rows) == 0:
+            return
         inputs = [self.device.wrapped_buffer(a, dtype)
                   for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
-                                   (hits.geom, np.int32), (hits.normal, np.float32))]
-        result = self.device.host_buffer(out, cl.mem_flags.READ_WRITE)
-        padded = whole_groups(count)
+                                   (geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
+        lookups = np.empty((len(rows), 6), np.float64)
+        written = self.device.host_buffer(lookups, cl.mem_flags.WRITE_ONLY)
         with self._lock:
-            self._hits_kernel(self.queue, (padded,), (LOCAL_SIZE,), *self._map, *surfaces.buffers,
-                              surfaces.instance_count, np.int32(material), *inputs, np.int32(count), result)
-            # a read into the buffer's own host pointer: PoCL copies nothing; it orders the read after the kernel
-            cl.enqueue_copy(self.queue, out, result)
+            self._hits_kernel(self.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,), *surfaces.buffers, *inputs,
+                              np.int32(len(rows)), np.int32(1), written)
+            cl.enqueue_copy(self.queue, lookups, written)
+        diffuse = MAPPING.offset("diffuse")
+        albedo = np.empty((len(rows), 3), np.float32)
+        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo)
+        out[rows] = albedo

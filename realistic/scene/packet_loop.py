@@ -105,25 +105,34 @@ def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, ori
               distance: np.ndarray, blocked: np.ndarray) -> None:
     """Occlusion of each ray within [0, distance]: a ray whose distance is not >= 0 is not traced.
     ``blocked`` is True where tfar ends negative: embree's -inf for an occluded ray, or a negative
-    distance (a NaN distance stays unblocked)."""
+    distance (a NaN distance stays unblocked). The rays traced fill each packet's lanes in their
+    order, the others skipped (a packet costs embree about as much with idle lanes as full)."""
     floats = packet.view(np.float32)
     valid, rayhit = packet[VALID:].ctypes.data, packet.ctypes.data
     count = origin.shape[0]
-    for base in range(0, count, PACKET):
-        lanes = min(PACKET, count - base)
-        for lane in range(PACKET):
-            packet[VALID, lane] = 0
-        for lane in range(lanes):
-            i = base + lane
+    rows = np.empty(PACKET, np.int64)
+    lanes = 0
+    for i in range(count + 1):
+        if i < count:
+            if not distance[i] >= 0:
+                blocked[i] = distance[i] < 0
+                continue
             for axis in range(3):
-                floats[axis, lane] = origin[i, axis]
-                floats[4 + axis, lane] = direction[i, axis]
-            floats[TFAR, lane] = distance[i]
-            if distance[i] >= 0:
-                packet[VALID, lane] = -1
+                floats[axis, lanes] = origin[i, axis]
+                floats[4 + axis, lanes] = direction[i, axis]
+            floats[TFAR, lanes] = distance[i]
+            rows[lanes] = i
+            lanes += 1
+            if lanes < PACKET:
+                continue
+        elif lanes == 0:
+            break
+        for lane in range(PACKET):
+            packet[VALID, lane] = -1 if lane < lanes else 0
         function(valid, scene, rayhit, 0)
         for lane in range(lanes):
-            blocked[base + lane] = floats[TFAR, lane] < 0
+            blocked[rows[lane]] = floats[TFAR, lane] < 0
+        lanes = 0
 
 
 def closest_loop() -> Callable[..., None]:
