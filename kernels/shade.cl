@@ -51,12 +51,15 @@
 #define SHADOW_OFFSET 1e-4f
 #define SHADOW_LENGTH 0.9999f
 /* Build options (-D) the host sets per scene, so that the work the scene never needs costs no gathers:
- * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO (0 or 1, see the kernel); and
- * per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more), and SPECTRAL (0 or
- * 1): whether the rays carry one wavelength each (see the kernel). */
+ * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO, MEASURED (0 or 1, see the
+ * kernel); and per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more), and
+ * SPECTRAL (0 or 1): whether the rays carry one wavelength each (see the kernel). */
 #if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO) \
-    || !defined(LAUNCH_SAMPLES) || !defined(SPECTRAL)
-#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DLAUNCH_SAMPLES=.. -DSPECTRAL=.."
+    || !defined(LAUNCH_SAMPLES) || !defined(SPECTRAL) || !defined(MEASURED)
+#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DMEASURED=.. -DLAUNCH_SAMPLES=.. -DSPECTRAL=.."
+#endif
+#if MEASURED && SPECTRAL
+#error "measured materials shade RGB rays only"
 #endif
 /* The tables' row widths and field offsets (GEOM_INT_*, GEOM_FLOAT_*, MATERIAL_*, LIGHT_*) and the
  * material kinds (KIND_*) are #defines the host prepends, generated from the tables it packs
@@ -158,6 +161,102 @@ inline __attribute__((always_inline)) void light_numbers(uint pixel, uint sample
     *u0 = to_unit(reverse_bits(owen_scramble_digits(picked, hash32(h ^ 20u))));
 }
 
+#if MEASURED
+/* MEASURED: materials of kind KIND_MEASURED (pbrt-v2's irregular isotropic measured BRDFs) are
+ * shaded by multiple importance sampling as pbrt-v2's directlighting integrator does for a
+ * non-specular BSDF (src/core/integrator.cpp, EstimateDirect): each light sample is paired with a
+ * cosine-weighted BSDF sample (BxDF::Sample_f's default, src/core/reflection.cpp), both weighted by
+ * the power heuristic. f(wo, wi) is the trilinear lookup of realistic.renderer.bsdf.measured's
+ * table (table_lookup: BRDFRemap, then the eight nodes of the cell), the tables of every file one
+ * after another in `measured_tables`, TABLE_NODES^3 RGB nodes each. */
+
+/* Duff et al.'s orthonormal frame (s, t) about the unit normal n, each normalised, as
+ * realistic.renderer.bsdf.ShadingFrame builds it. */
+inline __attribute__((always_inline)) void shading_frame(float nx, float ny, float nz, float *sx, float *sy,
+                                                         float *sz, float *tx, float *ty, float *tz) {
+    float sign = nz >= 0.0f ? 1.0f : -1.0f;
+    float a = -1.0f / (sign + nz);
+    float b = nx * ny * a;
+    float s0 = 1.0f + sign * (nx * nx) * a, s1 = sign * b, s2 = -sign * nx;
+    float t0 = b, t1 = sign + (ny * ny) * a, t2 = -ny;
+    float sl = __builtin_sqrtf(s0 * s0 + s1 * s1 + s2 * s2), tl = __builtin_sqrtf(t0 * t0 + t1 * t1 + t2 * t2);
+    *sx = s0 / sl;
+    *sy = s1 / sl;
+    *sz = s2 / sl;
+    *tx = t0 / tl;
+    *ty = t1 / tl;
+    *tz = t2 / tl;
+}
+
+/* atan2(y, x) for y >= 0, in [0, pi]: an odd polynomial of degree 15 for atan on [0, 1] (a
+ * least-squares fit, within 1.5e-7 of atan in float32), folded by pi/2 - and pi -; 0 at (0, 0).
+ * A builtin atan2 would be a call, which PoCL's vectoriser does not widen. */
+inline __attribute__((always_inline)) float half_turn_atan2(float y, float x) {
+    float ax = x < 0.0f ? -x : x;
+    float hi = ax > y ? ax : y, lo = ax > y ? y : ax;
+    float a = hi > 0.0f ? lo / hi : 0.0f;
+    float a2 = a * a;
+    float p = -0.004073309246450663f;
+    p = p * a2 + 0.021946610882878304f;
+    p = p * a2 - 0.056063175201416016f;
+    p = p * a2 + 0.09656256437301636f;
+    p = p * a2 - 0.13915802538394928f;
+    p = p * a2 + 0.19948509335517883f;
+    p = p * a2 - 0.3333010673522949f;
+    p = p * a2 + 0.999999463558197f;
+    float angle = a * p;
+    angle = y > ax ? 0.5f * PI_F - angle : angle;
+    return x < 0.0f ? PI_F - angle : angle;
+}
+
+/* The table's RGB at the local pair (wo, wi), as table_lookup computes it in float64: 0 unless
+ * both are on one side; BRDFRemap (sin_i sin_o, delta phi / pi, cos_i cos_o) scaled to the grid,
+ * clamped (NaN to 0, so every gather stays inside the table), trilinear over the cell. */
+inline __attribute__((always_inline)) void measured_f(__global const float *table, int base, float ox, float oy,
+                                                      float oz, float ix, float iy, float iz, uint unit,
+                                                      float *fr, float *fg, float *fb) {
+    const float last = (float)(TABLE_NODES - 1);
+    float so2 = 1.0f - oz * oz, si2 = 1.0f - iz * iz;
+    float sin_o = __builtin_sqrtf(so2 > 0.0f ? so2 : 0.0f), sin_i = __builtin_sqrtf(si2 > 0.0f ? si2 : 0.0f);
+    float cross = ox * iy - oy * ix;
+    float dphi = half_turn_atan2(cross < 0.0f ? -cross : cross, ox * ix + oy * iy);
+    float vx = sin_i * sin_o * last, vy = dphi * (1.0f / PI_F) * last, vz = iz * oz * last;
+    float gx = vx > 0.0f ? (vx < last ? vx : last) : 0.0f;
+    float gy = vy > 0.0f ? (vy < last ? vy : last) : 0.0f;
+    float gz = vz > 0.0f ? (vz < last ? vz : last) : 0.0f;
+    int cx = (int)gx, cy = (int)gy, cz = (int)gz;
+    cx = cx < TABLE_NODES - 2 ? cx : TABLE_NODES - 2;
+    cy = cy < TABLE_NODES - 2 ? cy : TABLE_NODES - 2;
+    cz = cz < TABLE_NODES - 2 ? cz : TABLE_NODES - 2;
+    float wx = gx - (float)cx, wy = gy - (float)cy, wz = gz - (float)cz;
+    int n000 = base + (cx * TABLE_NODES + cy) * TABLE_NODES + cz;
+    int n100 = n000 + TABLE_NODES * TABLE_NODES, n010 = n000 + TABLE_NODES;
+    int n110 = n100 + TABLE_NODES;
+#define TRILINEAR(c) \
+    (((AT(table, 3, n000, c) * (1.0f - wx) + AT(table, 3, n100, c) * wx) * (1.0f - wy) \
+      + (AT(table, 3, n010, c) * (1.0f - wx) + AT(table, 3, n110, c) * wx) * wy) * (1.0f - wz) \
+     + ((AT(table, 3, n000 + 1, c) * (1.0f - wx) + AT(table, 3, n100 + 1, c) * wx) * (1.0f - wy) \
+        + (AT(table, 3, n010 + 1, c) * (1.0f - wx) + AT(table, 3, n110 + 1, c) * wx) * wy) * wz)
+    int same = oz * iz > 0.0f;
+    *fr = same ? TRILINEAR(0) : 0.0f;
+    *fg = same ? TRILINEAR(1) : 0.0f;
+    *fb = same ? TRILINEAR(2) : 0.0f;
+#undef TRILINEAR
+}
+
+/* The BSDF sample's numbers paired with light sample k (realistic.core.rng.light_bsdf_uniforms,
+ * bit for bit): the light point's shuffled index, its two Sobol' dimensions scrambled with the keys
+ * hash_key(pixel, 0xFFFFFFFF, d, seed) at d = 21, 22 (rng.BSDF_KEYS). */
+inline __attribute__((always_inline)) void bsdf_numbers(uint pixel, uint sample, uint k, uint light_samples, uint seed,
+                                                        uint unit, float *v1, float *v2) {
+    uint h = hash32(hash32(hash32(seed + GOLDEN) ^ pixel) ^ 0xFFFFFFFFu);
+    uint index = sample * light_samples + k;
+    uint shuffled = reverse_bits(owen_scramble_digits(reverse_bits(index), hash32(h ^ 16u)));
+    *v1 = to_unit(reverse_bits(owen_scramble_digits(shuffled, hash32(h ^ 21u))));
+    *v2 = to_unit(reverse_bits(owen_scramble_digits(sobol1_digits(shuffled), hash32(h ^ 22u))) * unit);
+}
+#endif
+
 /* ------------------------------------------------------------------ kernels */
 
 __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, uint seed, uint unit, int instance_count, float offset_base, int light_count,
@@ -169,6 +268,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                     __global const int *faces, __global const float *normals, __global const float *uvs,
                     __global const int *geom_ints, __global const float *geom_floats,
                     __global const float *materials, __global const float *lights, __global const float *cdf,
+                    __global const float *measured_tables,
                     __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
                     __global float *contribution, __global float *response, __global float *basis) {
     uint i = get_global_id(0);
@@ -239,7 +339,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     __global const float *mat = materials + MATERIAL_WIDTH * material;
     float rho_r = FIELD(mat, MATERIAL_DIFFUSE), rho_g = FIELD(mat, MATERIAL_DIFFUSE + 1);
     float rho_b = FIELD(mat, MATERIAL_DIFFUSE + 2);
-#if TEXTURED || HOST_ALBEDO
+#if TEXTURED || HOST_ALBEDO || MEASURED
     int kind = (int)FIELD(mat, MATERIAL_KIND);
 #endif
 #if TEXTURED
@@ -296,12 +396,24 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     AT(basis, 3, i, 2) = b_b;
 #endif
 
+#if MEASURED
+    /* a measured material: its table's first float, the local frame of the shading normal
+     * (ShadingFrame's construction) and wo = -d in it */
+    int measured = surface & (kind == KIND_MEASURED);
+    int table_base = (int)FIELD(mat, MATERIAL_TABLE) * (TABLE_NODES * TABLE_NODES * TABLE_NODES);
+    float fs_x, fs_y, fs_z, ft_x, ft_y, ft_z;
+    shading_frame(shx, shy, shz, &fs_x, &fs_y, &fs_z, &ft_x, &ft_y, &ft_z);
+    float wo_x = -dx * fs_x + -dy * fs_y + -dz * fs_z;
+    float wo_y = -dx * ft_x + -dy * ft_y + -dz * ft_z;
+    float wo_z = -dx * shx + -dy * shy + -dz * shz;
+#endif
+
     /* the launch's light samples, unrolled */
 #pragma unroll
     for (uint q = 0; q < LAUNCH_SAMPLES; ++q) {
-        /* light sample k, row o */
+        /* light sample k, row o (MEASURED: its BSDF sample's row o + stride) */
         uint k = first_sample + q;
-        uint o = q * stride + i;
+        uint o = (1 + MEASURED) * q * stride + i;
         float u_pick, u1, u2;
         light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
         int j = pick_light(cdf, light_count, u_pick, unit);
@@ -324,6 +436,22 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         cos_q = FIELD(light, LIGHT_TWO_SIDED) != 0.0f && cos_q < 0.0f ? -cos_q : cos_q;
         int live = surface & (cos_p > 0.0f) & (cos_q > 0.0f) & (ix * gx + iy * gy + iz * gz > 0.0f) & (dist2 > 0.0f);
         float scale = cos_p * cos_q / dist2 * FIELD(light, LIGHT_SCALE);
+#if MEASURED
+        /* a measured hit's light sample: f(wo, wi) pi in rho's place (the scale holds 1 / pi),
+         * times the power heuristic's weight against the cosine-sampled BSDF's density cos_p / pi:
+         * 1 / (1 + (p_bsdf / p_light)^2), p_light = d^2 / (cos_q A) */
+        float area = FIELD(light, LIGHT_AREA);
+        float mf_r, mf_g, mf_b;
+        measured_f(measured_tables, table_base, wo_x, wo_y, wo_z, ix * fs_x + iy * fs_y + iz * fs_z,
+                   ix * ft_x + iy * ft_y + iz * ft_z, cos_p, unit, &mf_r, &mf_g, &mf_b);
+        float ratio_l = cos_p * cos_q * area / (PI_F * dist2);
+        float weight_l = PI_F / (1.0f + ratio_l * ratio_l);
+        float lr = measured ? mf_r * weight_l : rho_r;
+        float lg = measured ? mf_g * weight_l : rho_g;
+        float lb = measured ? mf_b * weight_l : rho_b;
+#else
+        float lr = rho_r, lg = rho_g, lb = rho_b;
+#endif
 
         AT(shadow_origin, 3, o, 0) = live ? sx : 0.0f;
         AT(shadow_origin, 3, o, 1) = live ? sy : 0.0f;
@@ -337,9 +465,61 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                         + FIELD(light, LIGHT_RADIANCE + 2) * b_b;
         contribution[o] = live ? rho_s * emitted * scale : 0.0f;
 #else
-        AT(contribution, 3, o, 0) = live ? rho_r * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
-        AT(contribution, 3, o, 1) = live ? rho_g * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
-        AT(contribution, 3, o, 2) = live ? rho_b * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
+        AT(contribution, 3, o, 0) = live ? lr * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
+        AT(contribution, 3, o, 1) = live ? lg * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
+        AT(contribution, 3, o, 2) = live ? lb * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
+#endif
+#if MEASURED
+        /* the BSDF sample (pbrt-v2 EstimateDirect's second half, for the light picked above): a
+         * cosine-weighted direction about the shading normal from the sample's own numbers; it
+         * counts where it meets that light's disk or parallelogram from its emitting side, weighted
+         * by the power heuristic against the light's density there, over the pick's probability
+         * (1 / P = scale pi / A). Its shadow ray goes to the point met. */
+        float v1, v2;
+        bsdf_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &v1, &v2);
+        float bx, by;
+        concentric_disk(v1, v2, &bx, &by);
+        float bz2 = 1.0f - bx * bx - by * by;
+        float bz = __builtin_sqrtf(bz2 > 0.0f ? bz2 : 0.0f);
+        float fx = fs_x * bx + ft_x * by + shx * bz;
+        float fy = fs_y * bx + ft_y * by + shy * bz;
+        float fz = fs_z * bx + ft_z * by + shz * bz;
+        float nlx = FIELD(light, LIGHT_NORMAL), nly = FIELD(light, LIGHT_NORMAL + 1);
+        float nlz = FIELD(light, LIGHT_NORMAL + 2);
+        float cx = FIELD(light, LIGHT_CENTRE), cy = FIELD(light, LIGHT_CENTRE + 1);
+        float cz = FIELD(light, LIGHT_CENTRE + 2);
+        float denom = fx * nlx + fy * nly + fz * nlz;
+        float th = ((cx - px) * nlx + (cy - py) * nly + (cz - pz) * nlz) / denom;
+        float hx = px + th * fx, hy = py + th * fy, hz = pz + th * fz;
+        float rx = hx - cx, ry = hy - cy, rz = hz - cz;
+        float ax_ = FIELD(light, LIGHT_A), ay_ = FIELD(light, LIGHT_A + 1), az_ = FIELD(light, LIGHT_A + 2);
+        float bx_ = FIELD(light, LIGHT_B), by_ = FIELD(light, LIGHT_B + 1), bz_ = FIELD(light, LIGHT_B + 2);
+        float aa = ax_ * ax_ + ay_ * ay_ + az_ * az_, bb = bx_ * bx_ + by_ * by_ + bz_ * bz_;
+        float ab = ax_ * bx_ + ay_ * by_ + az_ * bz_;
+        float ra = rx * ax_ + ry * ay_ + rz * az_, rb = rx * bx_ + ry * by_ + rz * bz_;
+        float det = aa * bb - ab * ab;
+        float lu = (ra * bb - rb * ab) / det, lv = (rb * aa - ra * ab) / det;
+        int inside = disk ? lu * lu + lv * lv <= 1.0f
+                          : (lu >= -1.0f) & (lu <= 1.0f) & (lv >= -1.0f) & (lv <= 1.0f);
+        float cos_h = -denom;
+        cos_h = FIELD(light, LIGHT_TWO_SIDED) != 0.0f && cos_h < 0.0f ? -cos_h : cos_h;
+        int live_f = measured & (bz > 0.0f) & (fx * gx + fy * gy + fz * gz > 0.0f) & (th > 0.0f) & inside
+                     & (cos_h > 0.0f);
+        float bf_r, bf_g, bf_b;
+        measured_f(measured_tables, table_base, wo_x, wo_y, wo_z, bx, by, bz, unit, &bf_r, &bf_g, &bf_b);
+        float ratio_f = th * th * PI_F / (cos_h * area * bz);
+        float scale_f = PI_F / (1.0f + ratio_f * ratio_f) * (FIELD(light, LIGHT_SCALE) * PI_F / area);
+        uint of = o + stride;
+        AT(shadow_origin, 3, of, 0) = live_f ? sx : 0.0f;
+        AT(shadow_origin, 3, of, 1) = live_f ? sy : 0.0f;
+        AT(shadow_origin, 3, of, 2) = live_f ? sz : 0.0f;
+        AT(shadow_vector, 3, of, 0) = live_f ? hx - sx : 0.0f;
+        AT(shadow_vector, 3, of, 1) = live_f ? hy - sy : 0.0f;
+        AT(shadow_vector, 3, of, 2) = live_f ? hz - sz : 0.0f;
+        shadow_length[of] = live_f ? SHADOW_LENGTH : -1.0f;
+        AT(contribution, 3, of, 0) = live_f ? bf_r * FIELD(light, LIGHT_RADIANCE) * scale_f : 0.0f;
+        AT(contribution, 3, of, 1) = live_f ? bf_g * FIELD(light, LIGHT_RADIANCE + 1) * scale_f : 0.0f;
+        AT(contribution, 3, of, 2) = live_f ? bf_b * FIELD(light, LIGHT_RADIANCE + 2) * scale_f : 0.0f;
 #endif
     }
 }

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -43,10 +44,14 @@ from realistic.core.vectors import dot, normalise
 from realistic.renderer.aov import FirstHits
 from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.backends import Backend, backend_for
+from realistic.renderer.bsdf.base import ShadingFrame
+from realistic.renderer.bsdf.lambertian import cosine_hemisphere
+from realistic.renderer.bsdf.measured import irregular_table, table_lookup
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
-from realistic.scene.materials import SurfaceMaterial
+from realistic.scene.materials import Measured, SurfaceMaterial
+from realistic.scene.measured import IrregularSamples, load_measured
 from realistic.scene.model import ImageTexture, Material, Scene
 from realistic.scene.textures import albedo
 
@@ -62,12 +67,54 @@ def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     return np.take(a, index, axis=0)
 
 
+#: The directions of a measured material's albedo estimate (``first_hits``): cosine-weighted, at
+#: the centres of a 4 x 4 grid of numbers (pbrt-v4's ``nRhoSamples`` 16, as ``renderer.path``'s).
+_RHO_DIRECTIONS = cosine_hemisphere(np.array([((k % 4 + 0.5) / 4, (k // 4 + 0.5) / 4) for k in range(16)],
+                                             np.float32))
+
+
 def _matte(material: SurfaceMaterial) -> Material:
-    """``material``, which ``DirectLighting``'s own shading needs matte (``integrators.make_integrator``
-    gives scenes of other materials to ``PathIntegrator``, which shades them by their BSDFs)."""
+    """``material``, which ``DirectLighting``'s own shading needs matte where it reads an albedo
+    (``integrators.make_integrator`` gives scenes of other materials, but for measured ones, to
+    ``PathIntegrator``, which shades them by their BSDFs)."""
     if not isinstance(material, Material):
         raise TypeError(f"DirectLighting shades matte materials only, not {type(material).__name__}")
     return material
+
+
+def tabulated_samples(material: SurfaceMaterial) -> IrregularSamples | None:
+    """The samples of ``material`` when it is a measured BRDF of irregular samples (a ``.brdf``
+    file), which ``DirectLighting`` shades from its table (``renderer.bsdf.measured.irregular_table``)."""
+    if isinstance(material, Measured):
+        data = load_measured(material.path)
+        if isinstance(data, IrregularSamples):
+            return data
+    return None
+
+
+def is_tabulated(material: SurfaceMaterial) -> bool:
+    """Whether ``DirectLighting`` shades ``material`` from a measured table (``tabulated_samples``)."""
+    return tabulated_samples(material) is not None
+
+
+@dataclass(frozen=True)
+class _MeasuredHits:
+    """Surface hits' measured materials: each row's table (an index into ``tables``, -1 for the
+    other materials), the local frame of its shading normal and wo in it (numpy's MIS reference)."""
+
+    table: np.ndarray
+    tables: list[np.ndarray]
+    frame: ShadingFrame
+    wo: np.ndarray
+
+    def lookup(self, rows: np.ndarray, wi: np.ndarray) -> np.ndarray:
+        """f(wo, wi) RGB (n, 3) float32 of the measured hits ``rows`` for their local ``wi`` (n, 3)."""
+        f = np.zeros((len(rows), 3), np.float32)
+        for index, table in enumerate(self.tables):
+            at = np.flatnonzero(self.table[rows] == index)
+            if len(at):
+                f[at] = table_lookup(table, _rows(self.wo, rows[at]), wi[at]).astype(np.float32)
+        return f
 
 
 def _facing(normal: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -128,6 +175,15 @@ class DirectLighting:
                 material_index[id(inst.material)] = len(self._materials)
                 self._materials.append(inst.material)
         self._geom_material = np.array([material_index[id(inst.material)] for inst in scene.instances], np.int64)
+        # measured materials' tables, one per file, and each material's index among them (-1: matte)
+        self._tables: dict[str, np.ndarray] = {}
+        self._material_table = np.full(max(len(self._materials), 1), -1, np.int64)
+        for index, material in enumerate(self._materials):
+            data = tabulated_samples(material)
+            if data is not None and isinstance(material, Measured):
+                if material.path not in self._tables:
+                    self._tables[material.path] = irregular_table(data)
+                self._material_table[index] = list(self._tables).index(material.path)
 
     def _build_lights(self, scene: Scene) -> None:
         """The area lights' table, and each one's pick probability, proportional to its power."""
@@ -154,14 +210,16 @@ class DirectLighting:
             light_scale = self._lights.area / self._light_probability / np.pi
         lights = self._lights
         rows = LIGHTS.pack(len(lights), centre=lights.centre, a=lights.a, b=lights.b, normal=lights.normal,
-                           radiance=lights.radiance, scale=light_scale, disk=lights.disk, two_sided=lights.two_sided)
+                           radiance=lights.radiance, scale=light_scale, disk=lights.disk, two_sided=lights.two_sided,
+                           area=lights.area)
         kernel = backend.shade_kernel(faces=self._faces, normals=self._normals, uv=self._uv,
                                       geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
                                       geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
-                                      materials=[_matte(m) for m in self._materials], light_rows=rows,
-                                      light_cdf=self._light_cdf,
+                                      materials=[m if isinstance(m, Measured) and m.path in self._tables else _matte(m)
+                                                 for m in self._materials],
+                                      light_rows=rows, light_cdf=self._light_cdf,
                                       extent=self.intersector.extent, launch_samples=self.light_samples,
-                                      spectral=self.spectral)
+                                      spectral=self.spectral, measured_tables=self._tables)
         self._build_device_textures(backend, kernel.host_albedo)
         return kernel
 
@@ -174,7 +232,9 @@ class DirectLighting:
             return
         from realistic.scene.ewa_kernel import hit_mapping
 
-        for index, material in enumerate(map(_matte, self._materials)):
+        for index, material in enumerate(self._materials):
+            if not isinstance(material, Material):
+                continue
             texture = material.texture
             if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter == "ewa":
                 ewa = backend.ewa_kernel(texture.mipmap)
@@ -236,19 +296,30 @@ class DirectLighting:
             if len(surface) == 0 or len(self._lights) == 0 or self._light_cdf[-1] <= 0:
                 return out, 0
             point, shadow_origin, shading, ng, rho = self._surface_points(origin, direction, hits, surface, basis)
+            measured = self._measured_hits(direction, hits, surface, shading)
+            if measured is not None and basis is not None:
+                raise ValueError("DirectLighting shades measured materials with RGB rays only")
         total = np.zeros((len(surface), 3 if basis is None else 1), np.float32)
-        shadow_rays = 0
-        for k in range(self.light_samples):
-            with timed("shading"):
-                contribution, to_light, live = self._light_sample(point, shadow_origin, shading, ng, rho,
-                                                                  pixel[surface], sample[surface], k,
-                                                                  None if basis is None else _rows(basis, surface))
+
+        def add(contribution: np.ndarray, to_light: np.ndarray, live: np.ndarray) -> int:
+            """Trace the shadow rays of the rows ``live`` and add their unblocked contributions."""
             with timed("embree"):
                 blocked = self.intersector.occluded(_rows(shadow_origin, live), to_light,
                                                     np.full(len(live), 1.0 - 1e-4, np.float32))
-            shadow_rays += len(live)
             with timed("shading"):
                 total[live[~blocked]] += contribution[~blocked]
+            return len(live)
+
+        shadow_rays = 0
+        for k in range(self.light_samples):
+            with timed("shading"):
+                light = self._light_sample(point, shadow_origin, shading, ng, rho, pixel[surface], sample[surface], k,
+                                           None if basis is None else _rows(basis, surface), measured)
+            shadow_rays += add(*light)
+            if measured is not None:  # its BSDF sample, added after it (the kernel's row order)
+                with timed("shading"):
+                    paired = self._bsdf_sample(point, shadow_origin, ng, measured, pixel[surface], sample[surface], k)
+                shadow_rays += add(*paired)
         with timed("shading"):
             out[surface] = total / np.float32(self.light_samples)
         return out, shadow_rays
@@ -322,13 +393,15 @@ class DirectLighting:
                 albedo = self._host_albedo(origin, direction, hits)
             channels = 3 if wavelength_nm is None else 1  # a spectral ray's sum is one spectral value
             out = np.zeros((n, channels), np.float32)
-            # light samples per launch
-            group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // whole_groups(n)))  # the kernel's stride
+            # light samples per launch (``rows_per_sample`` shadow rays each: a measured scene's BSDF samples)
+            rows_per_sample = kernel.rows_per_sample
+            group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // (whole_groups(n) * rows_per_sample)))
             shadow_rays = 0
             response: np.ndarray | None = None  # spectral rays' film weights and basis rows, which every
             basis: np.ndarray | None = None  # launch writes
         for first in range(0, self.light_samples, group):
             count = min(group, self.light_samples - first)
+            rows = count * rows_per_sample
             with timed("shading"):
                 batch = kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                            hits.normal, pixel, sample, albedo, count, self.seed, first,
@@ -338,9 +411,9 @@ class DirectLighting:
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
                 # the batch's arrays are this thread's to overwrite until its next launch
-                contribution = batch.contribution.reshape(count, batch.stride, channels)[:, :n]
+                contribution = batch.contribution.reshape(rows, batch.stride, channels)[:, :n]
                 visible = np.logical_not(blocked, out=np.empty(len(blocked), np.float32))
-                visible = visible.reshape(count, batch.stride)[:, :n]
+                visible = visible.reshape(rows, batch.stride)[:, :n]
                 # times 1 or 0, colour by colour: a (count, n, 1) factor broadcast over the colours runs
                 # numpy's inner loop three elements at a time, and a uint8 factor is cast first (2x slower)
                 for channel in range(channels):
@@ -348,8 +421,8 @@ class DirectLighting:
                 if first == 0:  # out is zero: 0 + x is x, so the sum starts at light sample 0 as numpy's does
                     np.add.reduce(contribution, axis=0, out=out)  # adds rows k = 0, 1, ... in order
                 else:
-                    for k in range(count):  # in light-sample order, as the numpy path adds them
-                        out += contribution[k]
+                    for row in range(rows):  # in light-sample order, as the numpy path adds them
+                        out += contribution[row]
                 shadow_rays += int(np.count_nonzero(batch.length > 0))
         with timed("shading"):
             if self.light_samples > 1:
@@ -430,6 +503,9 @@ class DirectLighting:
             rows = np.flatnonzero(material_of == index)
             if len(rows) == 0:
                 continue
+            if isinstance(surface_material, Measured):
+                rho[rows] = self._measured_albedo(surface_material.path, direction[rows], normal[rows])
+                continue
             material = _matte(surface_material)
             uv = None
             if material.texture is not None:
@@ -442,6 +518,16 @@ class DirectLighting:
             rho[rows] = albedo(material, uv, len(rows), footprint, self.backend.ewa)
         return rho
 
+    def _measured_albedo(self, path: str, direction: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """A measured material's directional albedo (n, 3) seen along ``direction`` at normals
+        ``normal``: the mean of f pi over ``_RHO_DIRECTIONS`` (cosine-weighted, so f cos / pdf = f pi)."""
+        table = self._tables[path]
+        wo = ShadingFrame(normal).to_local(-np.asarray(direction, np.float32))
+        total = np.zeros((len(wo), 3), np.float64)
+        for wi in _RHO_DIRECTIONS:
+            total += table_lookup(table, wo, np.broadcast_to(wi, wo.shape))
+        return (total * (np.pi / len(_RHO_DIRECTIONS))).astype(np.float32)
+
     def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,
                    distance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """uv axes of the pixel footprints of hits on triangles ``face`` of instances ``geom``."""
@@ -453,16 +539,38 @@ class DirectLighting:
         return uv_footprint(direction.astype(np.float64), normal.astype(np.float64), distance.astype(np.float64),
                             self.pixel_spread_radians, edge1, edge2, uv[1] - uv[0], uv[2] - uv[0])
 
-    def _light_sample(self, point: np.ndarray, shadow_origin: np.ndarray, shading: np.ndarray, ng: np.ndarray,
-                      rho: np.ndarray, pixel: np.ndarray, sample: np.ndarray, k: int, basis: np.ndarray | None
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One light sample per point: (contribution of the unoccluded ones, shadow ray vector, their rows).
-
-        ``basis`` (rows of ``rgb_basis`` per point) makes the light's radiance spectral, as ``rho`` is then.
-        """
+    def _pick(self, pixel: np.ndarray, sample: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Light sample ``k``'s light (picked by power) and its point numbers u1, u2 per point."""
         u_pick, u1, u2 = rng.light_uniforms(pixel, sample, k, self.light_samples, self.seed,
                                             pick=len(self._light_cdf) > 1)
         j = np.minimum(np.searchsorted(self._light_cdf, u_pick, side="right"), len(self._light_cdf) - 1)
+        return j, u1, u2
+
+    def _light_scale(self, j: np.ndarray) -> np.ndarray:
+        """The kernel's float32 ``LIGHT_SCALE`` (area / probability / pi) of lights ``j``."""
+        with np.errstate(divide="ignore"):
+            return (self._lights.area[j] / self._light_probability[j] / np.pi).astype(np.float32)
+
+    def _measured_hits(self, direction: np.ndarray, hits: Hits, surface: np.ndarray, shading: np.ndarray
+                       ) -> _MeasuredHits | None:
+        """The surface hits' measured materials (``_MeasuredHits``), or None where none is measured."""
+        table = self._material_table[self._geom_material[hits.geom[surface]]]
+        if not np.any(table >= 0):
+            return None
+        frame = ShadingFrame(shading)
+        return _MeasuredHits(table, list(self._tables.values()), frame,
+                             frame.to_local(-_rows(np.asarray(direction, np.float32), surface)))
+
+    def _light_sample(self, point: np.ndarray, shadow_origin: np.ndarray, shading: np.ndarray, ng: np.ndarray,
+                      rho: np.ndarray, pixel: np.ndarray, sample: np.ndarray, k: int, basis: np.ndarray | None,
+                      measured: _MeasuredHits | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One light sample per point: (contribution of the unoccluded ones, shadow ray vector, their rows).
+
+        ``basis`` (rows of ``rgb_basis`` per point) makes the light's radiance spectral, as ``rho`` is then.
+        At ``measured`` hits, f(wo, wi) pi takes rho's place, times the power heuristic's weight
+        against the BSDF sample (``_bsdf_sample``), as ``kernels/shade.cl`` computes it.
+        """
+        j, u1, u2 = self._pick(pixel, sample, k)
         q = self._lights.points(j, u1, u2)
         to_light = q - point
         dist2 = dot(to_light, to_light)
@@ -477,5 +585,53 @@ class DirectLighting:
         emitted = _rows(self._lights.radiance, jl)
         if basis is not None:
             emitted = spectral_value(emitted, _rows(basis, live))[:, None]
-        contribution = _rows(rho, live) * emitted * scale[:, None]
+        reflectance = _rows(rho, live)
+        if measured is not None:
+            at = np.flatnonzero(measured.table[live] >= 0)
+            rows = live[at]
+            frame = measured.frame
+            wi_m = wi[rows]
+            local = np.column_stack([dot(wi_m, frame.s[rows]), dot(wi_m, frame.t[rows]), cos_p[rows]])
+            area = self._lights.area[j[rows]].astype(np.float32)
+            ratio = cos_p[rows] * cos_q[rows] * area / (np.float32(np.pi) * dist2[rows])
+            weight = np.float32(np.pi) / (np.float32(1) + ratio * ratio)
+            reflectance[at] = measured.lookup(rows, local) * weight[:, None]
+        contribution = reflectance * emitted * scale[:, None]
         return contribution, _rows(q, live) - _rows(shadow_origin, live), live
+
+    def _bsdf_sample(self, point: np.ndarray, shadow_origin: np.ndarray, ng: np.ndarray, measured: _MeasuredHits,
+                     pixel: np.ndarray, sample: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The BSDF sample paired with light sample ``k`` at the ``measured`` hits (pbrt-v2
+        ``EstimateDirect``'s second half, ``src/core/integrator.cpp``): a cosine-weighted direction
+        (``rng.light_bsdf_uniforms``) that counts where it meets the light sample's light from its
+        emitting side, weighted by the power heuristic against that light's density, over the
+        light's pick probability. Returns as ``_light_sample``: contributions, shadow-ray vectors
+        (to the point met), their rows."""
+        j, _, _ = self._pick(pixel, sample, k)
+        v1, v2 = rng.light_bsdf_uniforms(pixel, sample, k, self.light_samples, self.seed)
+        local = cosine_hemisphere(np.column_stack([v1, v2]))
+        wi = measured.frame.to_world(local)
+        normal, centre = _rows(self._lights.normal, j), _rows(self._lights.centre, j)
+        a, b = _rows(self._lights.a, j), _rows(self._lights.b, j)
+        denom = dot(wi, normal)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            th = dot(centre - point, normal) / denom
+            hit = point + th[:, None] * wi
+            r = hit - centre
+            aa, bb, ab = dot(a, a), dot(b, b), dot(a, b)
+            ra, rb = dot(r, a), dot(r, b)
+            det = aa * bb - ab * ab
+            lu, lv = (ra * bb - rb * ab) / det, (rb * aa - ra * ab) / det
+        inside = np.where(self._lights.disk[j], lu * lu + lv * lv <= 1,
+                          (np.abs(lu) <= 1) & (np.abs(lv) <= 1))
+        cos_h = np.where(self._lights.two_sided[j], np.abs(denom), -denom)
+        live = np.flatnonzero((measured.table >= 0) & (local[:, 2] > 0) & (dot(wi, ng) > 0) & (th > 0) & inside
+                              & (cos_h > 0))
+        jl = j[live]
+        f = measured.lookup(live, local[live])
+        area = self._lights.area[jl].astype(np.float32)
+        pi = np.float32(np.pi)
+        ratio = th[live] * th[live] * pi / (cos_h[live] * area * local[live, 2])
+        scale = pi / (np.float32(1) + ratio * ratio) * (self._light_scale(jl) * pi / area)
+        contribution = f * _rows(self._lights.radiance, jl) * scale[:, None]
+        return contribution, _rows(hit, live) - _rows(shadow_origin, live), live
