@@ -170,24 +170,6 @@ inline __attribute__((always_inline)) void light_numbers(uint pixel, uint sample
  * table (table_lookup: BRDFRemap, then the eight nodes of the cell), the tables of every file one
  * after another in `measured_tables`, TABLE_NODES^3 RGB nodes each. */
 
-/* Duff et al.'s orthonormal frame (s, t) about the unit normal n, each normalised, as
- * realistic.renderer.bsdf.ShadingFrame builds it. */
-inline __attribute__((always_inline)) void shading_frame(float nx, float ny, float nz, float *sx, float *sy,
-                                                         float *sz, float *tx, float *ty, float *tz) {
-    float sign = nz >= 0.0f ? 1.0f : -1.0f;
-    float a = -1.0f / (sign + nz);
-    float b = nx * ny * a;
-    float s0 = 1.0f + sign * (nx * nx) * a, s1 = sign * b, s2 = -sign * nx;
-    float t0 = b, t1 = sign + (ny * ny) * a, t2 = -ny;
-    float sl = __builtin_sqrtf(s0 * s0 + s1 * s1 + s2 * s2), tl = __builtin_sqrtf(t0 * t0 + t1 * t1 + t2 * t2);
-    *sx = s0 / sl;
-    *sy = s1 / sl;
-    *sz = s2 / sl;
-    *tx = t0 / tl;
-    *ty = t1 / tl;
-    *tz = t2 / tl;
-}
-
 /* atan2(y, x) for y >= 0, in [0, pi]: an odd polynomial of degree 15 for atan on [0, 1] (a
  * least-squares fit, within 1.5e-7 of atan in float32), folded by pi/2 - and pi -; 0 at (0, 0).
  * A builtin atan2 would be a call, which PoCL's vectoriser does not widen. */
@@ -209,39 +191,53 @@ inline __attribute__((always_inline)) float half_turn_atan2(float y, float x) {
     return x < 0.0f ? PI_F - angle : angle;
 }
 
-/* The table's RGB at the local pair (wo, wi), as table_lookup computes it in float64: 0 unless
- * both are on one side; BRDFRemap (sin_i sin_o, delta phi / pi, cos_i cos_o) scaled to the grid,
- * clamped (NaN to 0, so every gather stays inside the table), trilinear over the cell. */
-inline __attribute__((always_inline)) void measured_f(__global const float *table, int base, float ox, float oy,
-                                                      float oz, float ix, float iy, float iz, uint unit,
+/* The table's RGB for directions wo and wi about the shading normal n, as table_lookup computes
+ * it in float64 from local directions, given cos_o = wo.n, cos_i = wi.n, cross = n.(wo x wi) and
+ * along = wo.wi - cos_o cos_i (the sine and cosine of the azimuth between them, times sin_o sin_i:
+ * no local frame is needed). 0 unless both are on one side; BRDFRemap (sin_i sin_o, delta phi / pi,
+ * cos_i cos_o) scaled to the grid, clamped (so every gather stays inside the table), trilinear over
+ * the cell. `base`: the table's first node. */
+inline __attribute__((always_inline)) void measured_f(__global const float *table, int base, float oz, float iz,
+                                                      float cross, float along, uint unit,
                                                       float *fr, float *fg, float *fb) {
+    /* The three coordinates are computed by different instruction sequences on purpose (as
+     * concentric_disk's |a| and |b| in common.cl): isomorphic chains would be packed into 2-wide
+     * vectors by LLVM's SLP vectoriser, and PoCL's work-group vectoriser then gives up on the kernel. */
     const float last = (float)(TABLE_NODES - 1);
-    float so2 = 1.0f - oz * oz, si2 = 1.0f - iz * iz;
-    float sin_o = __builtin_sqrtf(so2 > 0.0f ? so2 : 0.0f), sin_i = __builtin_sqrtf(si2 > 0.0f ? si2 : 0.0f);
-    float cross = ox * iy - oy * ix;
-    float dphi = half_turn_atan2(cross < 0.0f ? -cross : cross, ox * ix + oy * iy);
-    float vx = sin_i * sin_o * last, vy = dphi * (1.0f / PI_F) * last, vz = iz * oz * last;
-    float gx = vx > 0.0f ? (vx < last ? vx : last) : 0.0f;
-    float gy = vy > 0.0f ? (vy < last ? vy : last) : 0.0f;
-    float gz = vz > 0.0f ? (vz < last ? vz : last) : 0.0f;
+    float so2 = 1.0f - oz * oz, si2 = (1.0f - iz) * (1.0f + iz);
+    float sin_o = __builtin_sqrtf(so2 > 0.0f ? so2 : 0.0f), sin_i = __builtin_sqrtf(__builtin_fmaxf(si2, 0.0f));
+    float dphi = half_turn_atan2(cross < 0.0f ? -cross : cross, along);
+    float vx = sin_i * sin_o * last, vy = dphi * (last / PI_F), vz = iz * oz * last;
+    float gx = vx > 0.0f ? (vx < last ? vx : last) : 0.0f;  /* NaN to 0 */
+    float gy = __builtin_fminf(__builtin_fmaxf(vy, 0.0f), last);  /* fmax(NaN, 0) is 0 */
+    float gz = vz < last ? vz : last;
+    gz = gz > 0.0f ? gz : 0.0f;
     int cx = (int)gx, cy = (int)gy, cz = (int)gz;
     cx = cx < TABLE_NODES - 2 ? cx : TABLE_NODES - 2;
-    cy = cy < TABLE_NODES - 2 ? cy : TABLE_NODES - 2;
-    cz = cz < TABLE_NODES - 2 ? cz : TABLE_NODES - 2;
+    cy -= cy == TABLE_NODES - 1;
+    cz = cz > TABLE_NODES - 2 ? TABLE_NODES - 2 : cz;
     float wx = gx - (float)cx, wy = gy - (float)cy, wz = gz - (float)cz;
     int n000 = base + (cx * TABLE_NODES + cy) * TABLE_NODES + cz;
     int n100 = n000 + TABLE_NODES * TABLE_NODES, n010 = n000 + TABLE_NODES;
     int n110 = n100 + TABLE_NODES;
-#define TRILINEAR(c) \
-    (((AT(table, 3, n000, c) * (1.0f - wx) + AT(table, 3, n100, c) * wx) * (1.0f - wy) \
-      + (AT(table, 3, n010, c) * (1.0f - wx) + AT(table, 3, n110, c) * wx) * wy) * (1.0f - wz) \
-     + ((AT(table, 3, n000 + 1, c) * (1.0f - wx) + AT(table, 3, n100 + 1, c) * wx) * (1.0f - wy) \
-        + (AT(table, 3, n010 + 1, c) * (1.0f - wx) + AT(table, 3, n110 + 1, c) * wx) * wy) * wz)
+    /* Trilinear interpolation: the eight nodes' weights, then per channel a serial sum of weighted
+     * nodes (no binary operation there has two operands of the same shape, which LLVM's SLP
+     * vectoriser would pack into a 2-wide vector, and PoCL's work-group vectoriser then gives up on
+     * the kernel: see AT). */
+    float vx0 = 1.0f - wx, vy0 = 1.0f - wy, vz0 = 1.0f - wz;
+    float w00 = vy0 * vz0, w10 = wy * vz0, w01 = vy0 * wz, w11 = wy * wz;
+#define NODE(node, c) AT(table, 3, node, c)
+#define CHANNEL(c) \
+    ((((((((NODE(n000, c) * vx0) * w00 + NODE(n100, c) * wx * w00) + NODE(n010, c) * vx0 * w10) \
+        + NODE(n110, c) * wx * w10) + NODE(n000 + 1, c) * vx0 * w01) + NODE(n100 + 1, c) * wx * w01) \
+      + NODE(n010 + 1, c) * vx0 * w11) + NODE(n110 + 1, c) * wx * w11)
+    float red = CHANNEL(0), green = CHANNEL(1), blue = CHANNEL(2);
+#undef CHANNEL
+#undef NODE
     int same = oz * iz > 0.0f;
-    *fr = same ? TRILINEAR(0) : 0.0f;
-    *fg = same ? TRILINEAR(1) : 0.0f;
-    *fb = same ? TRILINEAR(2) : 0.0f;
-#undef TRILINEAR
+    *fr = same ? red : 0.0f;
+    *fg = same ? green : 0.0f;
+    *fb = same ? blue : 0.0f;
 }
 
 /* The BSDF sample's numbers paired with light sample k (realistic.core.rng.light_bsdf_uniforms,
@@ -397,15 +393,11 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
 #endif
 
 #if MEASURED
-    /* a measured material: its table's first float, the local frame of the shading normal
-     * (ShadingFrame's construction) and wo = -d in it */
+    /* a measured material: its table's first node, wo = -d, cos_o and n x wo (for the azimuths) */
     int measured = surface & (kind == KIND_MEASURED);
     int table_base = (int)FIELD(mat, MATERIAL_TABLE) * (TABLE_NODES * TABLE_NODES * TABLE_NODES);
-    float fs_x, fs_y, fs_z, ft_x, ft_y, ft_z;
-    shading_frame(shx, shy, shz, &fs_x, &fs_y, &fs_z, &ft_x, &ft_y, &ft_z);
-    float wo_x = -dx * fs_x + -dy * fs_y + -dz * fs_z;
-    float wo_y = -dx * ft_x + -dy * ft_y + -dz * ft_z;
-    float wo_z = -dx * shx + -dy * shy + -dz * shz;
+    float cos_o = -(dx * shx + dy * shy + dz * shz);
+    float mx = shz * dy - shy * dz, my = shx * dz - shz * dx, mz = shy * dx - shx * dy;
 #endif
 
     /* the launch's light samples, unrolled */
@@ -442,8 +434,8 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
          * 1 / (1 + (p_bsdf / p_light)^2), p_light = d^2 / (cos_q A) */
         float area = FIELD(light, LIGHT_AREA);
         float mf_r, mf_g, mf_b;
-        measured_f(measured_tables, table_base, wo_x, wo_y, wo_z, ix * fs_x + iy * fs_y + iz * fs_z,
-                   ix * ft_x + iy * ft_y + iz * ft_z, cos_p, unit, &mf_r, &mf_g, &mf_b);
+        measured_f(measured_tables, table_base, cos_o, cos_p, ix * mx + iy * my + iz * mz,
+                   -(ix * dx + iy * dy + iz * dz) - cos_o * cos_p, unit, &mf_r, &mf_g, &mf_b);
         float ratio_l = cos_p * cos_q * area / (PI_F * dist2);
         float weight_l = PI_F / (1.0f + ratio_l * ratio_l);
         float lr = measured ? mf_r * weight_l : rho_r;
@@ -471,7 +463,9 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
 #endif
 #if MEASURED
         /* the BSDF sample (pbrt-v2 EstimateDirect's second half, for the light picked above): a
-         * cosine-weighted direction about the shading normal from the sample's own numbers; it
+         * cosine-weighted direction about the shading normal from the sample's own numbers, n plus
+         * a uniform point on the unit sphere (the concentric disk mapped by area: z = 1 - 2 r^2,
+         * (x, y) scaled by 2 sqrt(1 - r^2)), normalised, which needs no frame about n; it
          * counts where it meets that light's disk or parallelogram from its emitting side, weighted
          * by the power heuristic against the light's density there, over the pick's probability
          * (1 / P = scale pi / A). Its shadow ray goes to the point met. */
@@ -479,11 +473,22 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         bsdf_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &v1, &v2);
         float bx, by;
         concentric_disk(v1, v2, &bx, &by);
-        float bz2 = 1.0f - bx * bx - by * by;
-        float bz = __builtin_sqrtf(bz2 > 0.0f ? bz2 : 0.0f);
-        float fx = fs_x * bx + ft_x * by + shx * bz;
-        float fy = fs_y * bx + ft_y * by + shy * bz;
-        float fz = fs_z * bx + ft_z * by + shz * bz;
+        /* r^2 of the disk point from the map's radius max(|2 v1 - 1|, |2 v2 - 1|), not bx^2 + by^2:
+         * that pair of squares would give LLVM's SLP vectoriser a seed (see concentric_disk) */
+        float da = 2.0f * v1 - 1.0f, db = 2.0f * v2 - 1.0f;
+        da = da < 0.0f ? -da : da;
+        db = __builtin_fabsf(db);
+        float b2 = da > db ? da * da : db * db;
+        float lift = 1.0f - b2;
+        lift = 2.0f * __builtin_sqrtf(lift > 0.0f ? lift : 0.0f);
+        /* y by other instructions than x (the same value): see concentric_disk */
+        float fx = shx + bx * lift, fy = shy - (-by) * lift, fz = shz + (1.0f - 2.0f * b2);
+        float flen = __builtin_sqrtf(fx * fx + fy * fy + fz * fz);
+        int fok = flen > 0.0f;
+        fx = fok ? fx / flen : 0.0f;
+        fy = fok ? fy / flen : 0.0f;
+        fz = fok ? fz / flen : 0.0f;
+        float cos_f = fx * shx + fy * shy + fz * shz;
         float nlx = FIELD(light, LIGHT_NORMAL), nly = FIELD(light, LIGHT_NORMAL + 1);
         float nlz = FIELD(light, LIGHT_NORMAL + 2);
         float cx = FIELD(light, LIGHT_CENTRE), cy = FIELD(light, LIGHT_CENTRE + 1);
@@ -492,22 +497,22 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         float th = ((cx - px) * nlx + (cy - py) * nly + (cz - pz) * nlz) / denom;
         float hx = px + th * fx, hy = py + th * fy, hz = pz + th * fz;
         float rx = hx - cx, ry = hy - cy, rz = hz - cz;
-        float ax_ = FIELD(light, LIGHT_A), ay_ = FIELD(light, LIGHT_A + 1), az_ = FIELD(light, LIGHT_A + 2);
-        float bx_ = FIELD(light, LIGHT_B), by_ = FIELD(light, LIGHT_B + 1), bz_ = FIELD(light, LIGHT_B + 2);
-        float aa = ax_ * ax_ + ay_ * ay_ + az_ * az_, bb = bx_ * bx_ + by_ * by_ + bz_ * bz_;
-        float ab = ax_ * bx_ + ay_ * by_ + az_ * bz_;
-        float ra = rx * ax_ + ry * ay_ + rz * az_, rb = rx * bx_ + ry * by_ + rz * bz_;
-        float det = aa * bb - ab * ab;
-        float lu = (ra * bb - rb * ab) / det, lv = (rb * aa - ra * ab) / det;
-        int inside = disk ? lu * lu + lv * lv <= 1.0f
+        /* the point's (x, y) in the light's frame: dot products with the dual axes of a and b */
+        float lu = rx * FIELD(light, LIGHT_DUAL_A) + ry * FIELD(light, LIGHT_DUAL_A + 1)
+                   + rz * FIELD(light, LIGHT_DUAL_A + 2);
+        float lv = rx * FIELD(light, LIGHT_DUAL_B) + ry * FIELD(light, LIGHT_DUAL_B + 1)
+                   + rz * FIELD(light, LIGHT_DUAL_B + 2);
+        float lu2 = lu * lu;
+        int inside = disk ? lu2 <= 1.0f - lv * lv
                           : (lu >= -1.0f) & (lu <= 1.0f) & (lv >= -1.0f) & (lv <= 1.0f);
         float cos_h = -denom;
         cos_h = FIELD(light, LIGHT_TWO_SIDED) != 0.0f && cos_h < 0.0f ? -cos_h : cos_h;
-        int live_f = measured & (bz > 0.0f) & (fx * gx + fy * gy + fz * gz > 0.0f) & (th > 0.0f) & inside
+        int live_f = measured & (cos_f > 0.0f) & (fx * gx + fy * gy + fz * gz > 0.0f) & (th > 0.0f) & inside
                      & (cos_h > 0.0f);
         float bf_r, bf_g, bf_b;
-        measured_f(measured_tables, table_base, wo_x, wo_y, wo_z, bx, by, bz, unit, &bf_r, &bf_g, &bf_b);
-        float ratio_f = th * th * PI_F / (cos_h * area * bz);
+        measured_f(measured_tables, table_base, cos_o, cos_f, fx * mx + fy * my + fz * mz,
+                   -(fx * dx + fy * dy + fz * dz) - cos_o * cos_f, unit, &bf_r, &bf_g, &bf_b);
+        float ratio_f = th * th * PI_F / (cos_h * area * cos_f);
         float scale_f = PI_F / (1.0f + ratio_f * ratio_f) * (FIELD(light, LIGHT_SCALE) * PI_F / area);
         uint of = o + stride;
         AT(shadow_origin, 3, of, 0) = live_f ? sx : 0.0f;

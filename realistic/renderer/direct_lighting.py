@@ -41,6 +41,7 @@ import numpy as np
 from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, rgb_response, spectral_value
 from realistic.core.vectors import dot, normalise
+from realistic.core.warp import concentric_disk
 from realistic.renderer.aov import FirstHits
 from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.backends import Backend, backend_for
@@ -97,23 +98,44 @@ def is_tabulated(material: SurfaceMaterial) -> bool:
     return tabulated_samples(material) is not None
 
 
+def dual_axes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """float32 vectors a*, b* (L, 3) with a* . (x a + y b) = x and b* . (x a + y b) = y (in the
+    plane of a and b): a point's coordinates on a light (``AreaLightTable``), from float64 a and b."""
+    a64, b64 = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    aa, bb, ab = (np.einsum("ij,ij->i", p, q)[:, None] for p, q in ((a64, a64), (b64, b64), (a64, b64)))
+    det = aa * bb - ab * ab
+    return ((bb * a64 - ab * b64) / det).astype(np.float32), ((aa * b64 - ab * a64) / det).astype(np.float32)
+
+
 @dataclass(frozen=True)
 class _MeasuredHits:
-    """Surface hits' measured materials: each row's table (an index into ``tables``, -1 for the
-    other materials), the local frame of its shading normal and wo in it (numpy's MIS reference)."""
+    """Surface hits' measured materials (numpy's MIS reference): each row's table (an index into
+    ``tables``, -1 for the other materials), its shading normal n, wo = -d, cos_o = wo . n, and
+    n x wo, from which a direction's azimuth about n relative to wo follows without a local frame
+    (as ``kernels/shade.cl`` computes it)."""
 
     table: np.ndarray
     tables: list[np.ndarray]
-    frame: ShadingFrame
+    normal: np.ndarray
     wo: np.ndarray
+    cos_o: np.ndarray
+    n_cross_wo: np.ndarray
 
-    def lookup(self, rows: np.ndarray, wi: np.ndarray) -> np.ndarray:
-        """f(wo, wi) RGB (n, 3) float32 of the measured hits ``rows`` for their local ``wi`` (n, 3)."""
+    def lookup(self, rows: np.ndarray, wi: np.ndarray, cos_i: np.ndarray) -> np.ndarray:
+        """f(wo, wi) RGB (n, 3) float32 of the measured hits ``rows`` for world directions ``wi``
+        (n, 3) with cos_i = wi . n: ``table_lookup`` of the pair given as (1, 0, cos_o) and
+        (along, cross, cos_i), along = wo . wi - cos_o cos_i and cross = n . (wo x wi): projected
+        onto the tangent plane, wo and wi are then sin_o (1, 0) and sin_i sin_o (cos phi, sin phi)
+        scaled by 1 / sin_o, at the same azimuths (the lookup reads the pair through cos_o,
+        cos_i and the angle between the projections alone)."""
+        cos_o = self.cos_o[rows]
+        wo = np.column_stack([np.ones(len(rows), np.float32), np.zeros(len(rows), np.float32), cos_o])
+        local = np.column_stack([dot(wi, self.wo[rows]) - cos_o * cos_i, dot(wi, self.n_cross_wo[rows]), cos_i])
         f = np.zeros((len(rows), 3), np.float32)
         for index, table in enumerate(self.tables):
             at = np.flatnonzero(self.table[rows] == index)
             if len(at):
-                f[at] = table_lookup(table, _rows(self.wo, rows[at]), wi[at]).astype(np.float32)
+                f[at] = table_lookup(table, wo[at], local[at]).astype(np.float32)
         return f
 
 
@@ -192,6 +214,7 @@ class DirectLighting:
         power = lights.area * sides * lights.radiance.astype(np.float64).mean(axis=1)
         self._light_probability = power / power.sum() if power.sum() > 0 else power
         self._light_cdf = np.cumsum(self._light_probability)
+        self._dual_a, self._dual_b = dual_axes(lights.a, lights.b)
 
     def _build_kernel(self) -> ShadeKernel | None:
         """The scene's tables on the backend's OpenCL device (imports pyopencl only here); None (the
@@ -211,7 +234,7 @@ class DirectLighting:
         lights = self._lights
         rows = LIGHTS.pack(len(lights), centre=lights.centre, a=lights.a, b=lights.b, normal=lights.normal,
                            radiance=lights.radiance, scale=light_scale, disk=lights.disk, two_sided=lights.two_sided,
-                           area=lights.area)
+                           area=lights.area, dual_a=self._dual_a, dual_b=self._dual_b)
         kernel = backend.shade_kernel(faces=self._faces, normals=self._normals, uv=self._uv,
                                       geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
                                       geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
@@ -557,9 +580,9 @@ class DirectLighting:
         table = self._material_table[self._geom_material[hits.geom[surface]]]
         if not np.any(table >= 0):
             return None
-        frame = ShadingFrame(shading)
-        return _MeasuredHits(table, list(self._tables.values()), frame,
-                             frame.to_local(-_rows(np.asarray(direction, np.float32), surface)))
+        wo = -_rows(np.asarray(direction, np.float32), surface)
+        return _MeasuredHits(table, list(self._tables.values()), shading, wo, dot(wo, shading),
+                             np.cross(shading, wo).astype(np.float32))
 
     def _light_sample(self, point: np.ndarray, shadow_origin: np.ndarray, shading: np.ndarray, ng: np.ndarray,
                       rho: np.ndarray, pixel: np.ndarray, sample: np.ndarray, k: int, basis: np.ndarray | None,
@@ -589,13 +612,10 @@ class DirectLighting:
         if measured is not None:
             at = np.flatnonzero(measured.table[live] >= 0)
             rows = live[at]
-            frame = measured.frame
-            wi_m = wi[rows]
-            local = np.column_stack([dot(wi_m, frame.s[rows]), dot(wi_m, frame.t[rows]), cos_p[rows]])
             area = self._lights.area[j[rows]].astype(np.float32)
             ratio = cos_p[rows] * cos_q[rows] * area / (np.float32(np.pi) * dist2[rows])
             weight = np.float32(np.pi) / (np.float32(1) + ratio * ratio)
-            reflectance[at] = measured.lookup(rows, local) * weight[:, None]
+            reflectance[at] = measured.lookup(rows, wi[rows], cos_p[rows]) * weight[:, None]
         contribution = reflectance * emitted * scale[:, None]
         return contribution, _rows(q, live) - _rows(shadow_origin, live), live
 
@@ -603,35 +623,35 @@ class DirectLighting:
                      pixel: np.ndarray, sample: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The BSDF sample paired with light sample ``k`` at the ``measured`` hits (pbrt-v2
         ``EstimateDirect``'s second half, ``src/core/integrator.cpp``): a cosine-weighted direction
-        (``rng.light_bsdf_uniforms``) that counts where it meets the light sample's light from its
+        (``rng.light_bsdf_uniforms``; n plus a uniform point on the unit sphere, normalised) that
+        counts where it meets the light sample's light from its
         emitting side, weighted by the power heuristic against that light's density, over the
         light's pick probability. Returns as ``_light_sample``: contributions, shadow-ray vectors
         (to the point met), their rows."""
         j, _, _ = self._pick(pixel, sample, k)
         v1, v2 = rng.light_bsdf_uniforms(pixel, sample, k, self.light_samples, self.seed)
-        local = cosine_hemisphere(np.column_stack([v1, v2]))
-        wi = measured.frame.to_world(local)
+        x, y = (c.astype(np.float32) for c in concentric_disk(v1, v2))
+        # n plus a uniform point on the sphere (the disk mapped by area), normalised: cosine-weighted about n
+        r2 = np.maximum(np.abs(2 * v1 - 1), np.abs(2 * v2 - 1)) ** 2
+        lift = 2 * np.sqrt(np.maximum(1 - r2, 0))
+        wi = normalise(measured.normal + np.column_stack([x * lift, y * lift, 1 - 2 * r2]))
+        cos_i = dot(wi, measured.normal)
         normal, centre = _rows(self._lights.normal, j), _rows(self._lights.centre, j)
-        a, b = _rows(self._lights.a, j), _rows(self._lights.b, j)
         denom = dot(wi, normal)
         with np.errstate(divide="ignore", invalid="ignore"):
             th = dot(centre - point, normal) / denom
             hit = point + th[:, None] * wi
             r = hit - centre
-            aa, bb, ab = dot(a, a), dot(b, b), dot(a, b)
-            ra, rb = dot(r, a), dot(r, b)
-            det = aa * bb - ab * ab
-            lu, lv = (ra * bb - rb * ab) / det, (rb * aa - ra * ab) / det
-        inside = np.where(self._lights.disk[j], lu * lu + lv * lv <= 1,
-                          (np.abs(lu) <= 1) & (np.abs(lv) <= 1))
+            lu, lv = dot(r, _rows(self._dual_a, j)), dot(r, _rows(self._dual_b, j))
+        inside = np.where(self._lights.disk[j], lu * lu <= 1 - lv * lv, (np.abs(lu) <= 1) & (np.abs(lv) <= 1))
         cos_h = np.where(self._lights.two_sided[j], np.abs(denom), -denom)
-        live = np.flatnonzero((measured.table >= 0) & (local[:, 2] > 0) & (dot(wi, ng) > 0) & (th > 0) & inside
+        live = np.flatnonzero((measured.table >= 0) & (cos_i > 0) & (dot(wi, ng) > 0) & (th > 0) & inside
                               & (cos_h > 0))
         jl = j[live]
-        f = measured.lookup(live, local[live])
+        f = measured.lookup(live, wi[live], cos_i[live])
         area = self._lights.area[jl].astype(np.float32)
         pi = np.float32(np.pi)
-        ratio = th[live] * th[live] * pi / (cos_h[live] * area * local[live, 2])
+        ratio = th[live] * th[live] * pi / (cos_h[live] * area * cos_i[live])
         scale = pi / (np.float32(1) + ratio * ratio) * (self._light_scale(jl) * pi / area)
         contribution = f * _rows(self._lights.radiance, jl) * scale[:, None]
         return contribution, _rows(hit, live) - _rows(shadow_origin, live), live

@@ -59,10 +59,12 @@ GEOM_FLOATS = Table("GEOM_FLOAT", np.float32, (("normal_matrix", 9),))
 MATERIALS = Table("MATERIAL", np.float32, (("kind", 1), ("diffuse", 3), ("cells", 1), ("low", 1), ("high", 1),
                                            ("colour_a", 3), ("colour_b", 3), ("table", 1), ("unused", 2)))
 #: Per area light: centre and half-axes a, b (a point is centre + a x + b y), normal, radiance, the
-#: contribution's scale (area / probability / pi), whether a disk, whether two-sided (0 or 1), its
-#: area (the light's density for measured materials' MIS weights).
+#: contribution's scale (area / probability / pi), whether a disk, whether two-sided (0 or 1); for
+#: measured materials' BSDF samples its area and the dual axes of a and b
+#: (``direct_lighting.dual_axes``).
 LIGHTS = Table("LIGHT", np.float32, (("centre", 3), ("a", 3), ("b", 3), ("normal", 3), ("radiance", 3),
-                                     ("scale", 1), ("disk", 1), ("two_sided", 1), ("area", 1), ("unused", 1)))
+                                     ("scale", 1), ("disk", 1), ("two_sided", 1), ("area", 1), ("dual_a", 3),
+                                     ("dual_b", 3), ("unused", 3)))
 #: Per wavelength node (``SPECTRUM_INTERVALS`` + 1 of them, equally spaced over 380-780 nm): the
 #: RGB-to-spectrum basis (``rgb_basis``), and the film's weight ``rgb_response`` as its two factors,
 #: ``cie_rgb`` and the wavelength density ``wavelength_pdf``, which spectral rays interpolate linearly
