@@ -27,7 +27,10 @@
  *     from the host's SPECTRUM table, rgb_basis and rgb_response's factors cie_rgb and
  *     wavelength_pdf at SPECTRUM_INTERVALS + 1 equally spaced wavelengths (the wavelength
  *     density's nodes among them), interpolated linearly: within 5e-6 of numpy's largest values.
- * Outputs, row o = (k - first_sample) * stride + i: shadow-ray origin and vector (to the light
+ *   - with MEASURED, at hits of a measured material: f(wo, wi) from its table in rho / pi's place,
+ *     and a BSDF sample paired with each light sample (see measured_f and the loop);
+ * Outputs, row o = (k - first_sample) * stride + i (MEASURED: 2 (k - first_sample) * stride + i,
+ * and the BSDF sample's row o + stride, dead where the material is not measured): shadow-ray origin and vector (to the light
  * point) (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
  * miss, an emitter, a light facing away, padding) so embree skips it, and the contribution (3
  * floats, or 1 for spectral rays; 0 when dead). The light's emitting side, the shading and the geometric normal decide
@@ -196,9 +199,9 @@ inline __attribute__((always_inline)) float half_turn_atan2(float y, float x) {
  * along = wo.wi - cos_o cos_i (the sine and cosine of the azimuth between them, times sin_o sin_i:
  * no local frame is needed). 0 unless both are on one side; BRDFRemap (sin_i sin_o, delta phi / pi,
  * cos_i cos_o) scaled to the grid, clamped (so every gather stays inside the table), trilinear over
- * the cell. `base`: the table's first node. */
-inline __attribute__((always_inline)) void measured_f(__global const float *table, int base, float oz, float iz,
-                                                      float cross, float along, uint unit,
+ * the cell. `base`: the table's first node; `use`: whether the value is used (else it is garbage). */
+inline __attribute__((always_inline)) void measured_f(__global const float *table, int base, int use, float oz,
+                                                      float iz, float cross, float along, uint unit,
                                                       float *fr, float *fg, float *fb) {
     /* The three coordinates are computed by different instruction sequences on purpose (as
      * concentric_disk's |a| and |b| in common.cl): isomorphic chains would be packed into 2-wide
@@ -212,7 +215,9 @@ inline __attribute__((always_inline)) void measured_f(__global const float *tabl
     float gy = __builtin_fminf(__builtin_fmaxf(vy, 0.0f), last);  /* fmax(NaN, 0) is 0 */
     float gz = vz < last ? vz : last;
     gz = gz > 0.0f ? gz : 0.0f;
-    int cx = (int)gx, cy = (int)gy, cz = (int)gz;
+    /* a lane whose value is unused reads the table's first cell, which stays in the cache: the
+     * lookups are scattered over a table larger than the caches, and their misses are most of its cost */
+    int cx = use ? (int)gx : 0, cy = use ? (int)gy : 0, cz = use ? (int)gz : 0;
     cx = cx < TABLE_NODES - 2 ? cx : TABLE_NODES - 2;
     cy -= cy == TABLE_NODES - 1;
     cz = cz > TABLE_NODES - 2 ? TABLE_NODES - 2 : cz;
@@ -434,7 +439,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
          * 1 / (1 + (p_bsdf / p_light)^2), p_light = d^2 / (cos_q A) */
         float area = FIELD(light, LIGHT_AREA);
         float mf_r, mf_g, mf_b;
-        measured_f(measured_tables, table_base, cos_o, cos_p, ix * mx + iy * my + iz * mz,
+        measured_f(measured_tables, table_base, live & measured, cos_o, cos_p, ix * mx + iy * my + iz * mz,
                    -(ix * dx + iy * dy + iz * dz) - cos_o * cos_p, unit, &mf_r, &mf_g, &mf_b);
         float ratio_l = cos_p * cos_q * area / (PI_F * dist2);
         float weight_l = PI_F / (1.0f + ratio_l * ratio_l);
@@ -510,7 +515,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         int live_f = measured & (cos_f > 0.0f) & (fx * gx + fy * gy + fz * gz > 0.0f) & (th > 0.0f) & inside
                      & (cos_h > 0.0f);
         float bf_r, bf_g, bf_b;
-        measured_f(measured_tables, table_base, cos_o, cos_f, fx * mx + fy * my + fz * mz,
+        measured_f(measured_tables, table_base, live_f, cos_o, cos_f, fx * mx + fy * my + fz * mz,
                    -(fx * dx + fy * dy + fz * dz) - cos_o * cos_f, unit, &bf_r, &bf_g, &bf_b);
         float ratio_f = th * th * PI_F / (cos_h * area * cos_f);
         float scale_f = PI_F / (1.0f + ratio_f * ratio_f) * (FIELD(light, LIGHT_SCALE) * PI_F / area);

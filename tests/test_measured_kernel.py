@@ -92,14 +92,14 @@ def test_per_row_samples_match_the_numpy_path(measured_rays, light_samples):
     intersector = Intersector(scene)
     numpy_path = DirectLighting(scene, intersector, light_samples, SEED, spread)
     kernel_path = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl")
-    assert kernel_path._kernel.rows_per_sample == 2
+    assert kernel_path._measured_kernel.rows_per_sample == 2 and kernel_path._kernel.rows_per_sample == 1
     hits = intersector.closest(origin, direction)
     surface = np.flatnonzero((hits.geom >= 0) & (hits.geom < len(scene.instances)))
     point, shadow_origin, shading, ng, rho = numpy_path._surface_points(origin, direction, hits, surface)
     measured = numpy_path._measured_hits(direction, hits, surface, shading)
     albedo = kernel_path._host_albedo(origin, direction, hits)
-    batch = kernel_path._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal,
-                                      pixel, sample, albedo, light_samples, SEED)
+    batch = kernel_path._measured_kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
+                                               hits.normal, pixel, sample, albedo, light_samples, SEED)
     assert batch.length.shape == (2 * light_samples * batch.stride,)
     live_rows, bsdf_live = [], 0
     for k in range(light_samples):
@@ -180,7 +180,7 @@ def test_the_measured_variant_vectorises(tmp_path, glossy):
         "scene = busy_scene()[0]\n"
         "scene.instances[1] = dataclasses.replace(scene.instances[1], material=Measured(sys.argv[1]))\n"
         "integrator = DirectLighting(scene, Intersector(scene), 2, backend='opencl')\n"
-        "assert integrator._kernel.rows_per_sample == 2\n"
+        "assert integrator._measured_kernel.rows_per_sample == 2\n"
         "ray = np.array([[0.0, 1.0, 4.0]], np.float32)\n"
         "direction = np.array([[0.0, -0.2, -1.0]], np.float32) / np.float32(1.0198039)\n"
         "integrator.radiance(ray, direction, np.zeros(1, np.int32), np.zeros(1, np.int64))\n")

@@ -14,6 +14,17 @@ pass size.
 Image textures are filtered over each camera ray's pixel footprint (``renderer.footprint``) when
 the camera's ``pixel_spread_radians`` is given.
 
+Measured BRDFs of irregular samples (pbrt-v2's ``.brdf`` files, shaded from their tables,
+``renderer.bsdf.measured.irregular_table``) take pbrt-v2 ``directlighting``'s estimator for a
+non-specular BSDF (``UniformSampleAllLights``/``EstimateDirect``, ``src/core/integrator.cpp``): each
+light sample (light j, picked with probability P_j, point q) is paired with a BSDF sample, a
+cosine-weighted direction about the shading normal (pbrt-v2 ``BxDF::Sample_f``'s default,
+``src/core/reflection.cpp``; numbers ``rng.light_bsdf_uniforms``), which counts where it meets light
+j's disk or quad from its emitting side; each is weighted by the power heuristic between the light's
+solid-angle density |q - p|^2 / (cos_q A_j) and the BSDF's cos / pi, divided by P_j, and traces its
+own shadow ray. RGB rays only (``integrators.make_integrator`` sends spectral ones to the path
+integrator).
+
 Spectral rays (one wavelength each) evaluate every RGB albedo, light radiance and background as a
 spectrum at the ray's wavelength (``realistic.core.spectrum.rgb_basis``), multiply spectra, and return
 the spectral radiance weighted by the film's ``rgb_response`` at that wavelength (RGB).
@@ -167,6 +178,7 @@ class DirectLighting:
         self._build_surfaces(scene)
         self._build_lights(scene)
         self._kernel: ShadeKernel | None = None
+        self._measured_kernel: ShadeKernel | None = None  # the MEASURED variant, for hits on measured materials
         if self.backend.name == "opencl" and len(self._lights) and self._light_cdf[-1] > 0:
             self._kernel = self._build_kernel()
 
@@ -235,14 +247,16 @@ class DirectLighting:
         rows = LIGHTS.pack(len(lights), centre=lights.centre, a=lights.a, b=lights.b, normal=lights.normal,
                            radiance=lights.radiance, scale=light_scale, disk=lights.disk, two_sided=lights.two_sided,
                            area=lights.area, dual_a=self._dual_a, dual_b=self._dual_b)
-        kernel = backend.shade_kernel(faces=self._faces, normals=self._normals, uv=self._uv,
-                                      geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
-                                      geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
-                                      materials=[m if isinstance(m, Measured) and m.path in self._tables else _matte(m)
-                                                 for m in self._materials],
-                                      light_rows=rows, light_cdf=self._light_cdf,
-                                      extent=self.intersector.extent, launch_samples=self.light_samples,
-                                      spectral=self.spectral, measured_tables=self._tables)
+        tables = dict(faces=self._faces, normals=self._normals, uv=self._uv, geom_face_offset=self._geom_face_offset,
+                      geom_material=self._geom_material, geom_smooth=self._geom_smooth,
+                      geom_normal_matrix=self._geom_normal_matrix,
+                      materials=[m if isinstance(m, Measured) and m.path in self._tables else _matte(m)
+                                 for m in self._materials],
+                      light_rows=rows, light_cdf=self._light_cdf, extent=self.intersector.extent,
+                      launch_samples=self.light_samples)
+        kernel = backend.shade_kernel(**tables, spectral=self.spectral)
+        if self._tables:
+            self._measured_kernel = backend.shade_kernel(**tables, measured_tables=self._tables)
         self._build_device_textures(backend, kernel.host_albedo)
         return kernel
 
@@ -399,7 +413,35 @@ class DirectLighting:
                          sample: np.ndarray, hits: Hits, timed: Callable[[str], AbstractContextManager[object]],
                          albedo: np.ndarray | None = None, wavelength_nm: np.ndarray | None = None
                          ) -> tuple[np.ndarray, int]:
-        """``radiance`` through ``kernels/shade.cl``: the kernel shades every surface hit and writes
+        """``radiance`` through ``kernels/shade.cl`` (``_radiance_launches``): the rays that hit a
+        measured material through the measured kernel, the others through ``kernel``, which does no
+        table lookups and writes no BSDF rows (every lane of a launch does a lane's whole work)."""
+        if self._measured_kernel is None:
+            return self._radiance_launches(kernel, origin, direction, pixel, sample, hits, timed, albedo, wavelength_nm)
+        if wavelength_nm is not None:
+            raise ValueError("DirectLighting shades measured materials with RGB rays only")
+        with timed("shading"):
+            on_instance = (hits.geom >= 0) & (hits.geom < self.instance_count)
+            geom = np.where(on_instance, hits.geom, 0)
+            measured = on_instance & (self._material_table[self._geom_material[geom]] >= 0)
+            out = np.empty((len(origin), 3), np.float32)
+        shadow_rays = 0
+        for launched, rows in ((kernel, np.flatnonzero(~measured)), (self._measured_kernel, np.flatnonzero(measured))):
+            if len(rows) == 0:
+                continue
+            with timed("shading"):
+                part = Hits(*(_rows(a, rows) for a in (hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal)))
+            out[rows], traced = self._radiance_launches(launched, _rows(origin, rows), _rows(direction, rows),
+                                                        pixel[rows], sample[rows], part, timed,
+                                                        None if albedo is None else _rows(albedo, rows))
+            shadow_rays += traced
+        return out, shadow_rays
+
+    def _radiance_launches(self, kernel: ShadeKernel, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray,
+                           sample: np.ndarray, hits: Hits, timed: Callable[[str], AbstractContextManager[object]],
+                           albedo: np.ndarray | None = None, wavelength_nm: np.ndarray | None = None
+                           ) -> tuple[np.ndarray, int]:
+        """The rays' radiance through one shading kernel: the kernel shades every surface hit and writes
         all light samples' shadow rays, embree traces them in one call, numpy sums. ``albedo``: the
         rays' albedo from ``first_hits`` (its host rows are ``_host_albedo``'s); ``wavelength_nm``:
         spectral rays' wavelengths (None for RGB rays)."""

@@ -7,14 +7,18 @@ the hit point, the geometric and shading normals, the albedo (constant, grid and
 image-textured rows come from the host: ``DirectLighting._host_albedo``) and, for every light
 sample, the light point, the shadow ray and its contribution. It writes them into flat arrays
 ordered by light sample then ray (row k * stride + i), so embree traces all of a pass's shadow rays
-in one ``occluded`` call; dead samples have length -1, which embree skips.
+in one ``occluded`` call; dead samples have length -1, which embree skips. Measured materials
+(pbrt-v2's irregular ``.brdf`` files, their tables from ``renderer.bsdf.measured.irregular_table``
+one after another in one buffer) build the ``MEASURED`` variant: each light sample is paired with a
+cosine-weighted BSDF sample, both weighted by the power heuristic as pbrt-v2's ``directlighting``
+does (``EstimateDirect``), in rows 2 k * stride + i and the next stride.
 
 The program source does not depend on the scene: the scene's tables (faces, vertex normals, uvs,
 per-instance normal matrices and materials, lights and their CDF) are device buffers made once per
 integrator. Four build options leave out what a scene never needs (every table read is a vector
 gather on the CPU, the kernel's main cost): the light search's depth, smooth normals, procedural
-textures, host albedos. A fifth, the light samples per launch, lets each work item do a hit's work
-once for all of them (the loop unrolled); a sixth, ``SPECTRAL``, shades rays of one wavelength each
+textures, host albedos, measured materials. Another, the light samples per launch, lets each work item do a hit's work
+once for all of them (the loop unrolled); the last, ``SPECTRAL``, shades rays of one wavelength each
 (a spectral camera's K per sample, all in the one launch): albedo and radiance as spectra at the
 ray's wavelength (one contribution column), and each ray's film weight and basis row, from
 ``SPECTRUM``, a table of the numpy path's own ``rgb_basis``, ``cie_rgb`` and ``wavelength_pdf``, so
@@ -133,7 +137,8 @@ def material_row(material: Material | Measured, table: int = 0) -> np.ndarray:
 @dataclass
 class ShadowBatch:
     """One launch's outputs: ``light_samples`` x ``stride`` rows (row k * stride + i for ray i and
-    the launch's k-th light sample)."""
+    the launch's k-th light sample), twice as many with measured materials (rows 2 k * stride + i,
+    and the paired BSDF sample's the next stride)."""
 
     origin: np.ndarray  # (rows, 3) float32
     vector: np.ndarray  # (rows, 3) float32: to the light point
@@ -183,7 +188,8 @@ class ShadeKernel:
         variant is built here rather than in its first pass (others are built on first use).
         ``measured_tables``: each ``Measured`` material's file's table (``irregular_table``) by
         path, which a measured material's row names; with any, every light sample has a BSDF
-        sample's row too (``rows_per_sample`` 2), and rays must be RGB."""
+        sample's row too (``rows_per_sample`` 2), and rays must be RGB. Without, a measured
+        material's row reflects nothing (its hits are for the measured variant to shade)."""
         self.device = device
         self.context = device.context
         if not 0 < len(light_cdf) <= MAX_LIGHTS:
@@ -200,7 +206,7 @@ class ShadeKernel:
             self.instance_count, normal_matrix=np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9))
         tables = measured_tables or {}
         order = {path: index for index, path in enumerate(tables)}
-        material_rows = np.array([material_row(m, order[m.path] if isinstance(m, Measured) else 0)
+        material_rows = np.array([material_row(m, order.get(m.path, 0) if isinstance(m, Measured) else 0)
                                   for m in materials] or [MATERIALS.pack(1)[0]], np.float32)
         kinds = material_rows[:, MATERIALS.offset("kind")]
         self.host_albedo = kinds == KIND_HOST
