@@ -170,8 +170,12 @@ inline __attribute__((always_inline)) void light_numbers(uint pixel, uint sample
  * non-specular BSDF (src/core/integrator.cpp, EstimateDirect): each light sample is paired with a
  * cosine-weighted BSDF sample (BxDF::Sample_f's default, src/core/reflection.cpp), both weighted by
  * the power heuristic. f(wo, wi) is the trilinear lookup of realistic.renderer.bsdf.measured's
- * table (table_lookup: BRDFRemap, then the eight nodes of the cell), the tables of every file one
- * after another in `measured_tables`, TABLE_NODES^3 RGB nodes each. */
+ * table (table_lookup: BRDFRemap, then the eight nodes of the cell) in bfloat16 (a float's upper
+ * half), the tables of every file one after another in `measured_tables`, TABLE_NODES^3 records
+ * each: record (x, y, z) holds the RGB of nodes (x, y, z) and (x + 1, y, z), six bfloat16 values
+ * in three uints, so that a
+ * lookup reads four records, mostly four cache lines (the table is larger than the caches, and
+ * its misses are most of a lookup's cost; the host packs it: shade_kernel.table_records). */
 
 /* atan2(y, x) for y >= 0, in [0, pi]: an odd polynomial of degree 15 for atan on [0, 1] (a
  * least-squares fit, within 1.5e-7 of atan in float32), folded by pi/2 - and pi -; 0 at (0, 0).
@@ -194,13 +198,16 @@ inline __attribute__((always_inline)) float half_turn_atan2(float y, float x) {
     return x < 0.0f ? PI_F - angle : angle;
 }
 
+/* A bfloat16 value (the high or low 16 bits of `word`: a float's upper half) as a float. */
+#define HALF(word, high) as_float((high) ? (word) & 0xFFFF0000u : (word) << 16)
+
 /* The table's RGB for directions wo and wi about the shading normal n, as table_lookup computes
  * it in float64 from local directions, given cos_o = wo.n, cos_i = wi.n, cross = n.(wo x wi) and
  * along = wo.wi - cos_o cos_i (the sine and cosine of the azimuth between them, times sin_o sin_i:
  * no local frame is needed). 0 unless both are on one side; BRDFRemap (sin_i sin_o, delta phi / pi,
  * cos_i cos_o) scaled to the grid, clamped (so every gather stays inside the table), trilinear over
  * the cell. `base`: the table's first node; `use`: whether the value is used (else it is garbage). */
-inline __attribute__((always_inline)) void measured_f(__global const float *table, int base, int use, float oz,
+inline __attribute__((always_inline)) void measured_f(__global const uint *table, int base, int use, float oz,
                                                       float iz, float cross, float along, uint unit,
                                                       float *fr, float *fg, float *fb) {
     /* The three coordinates are computed by different instruction sequences on purpose (as
@@ -222,23 +229,26 @@ inline __attribute__((always_inline)) void measured_f(__global const float *tabl
     cy -= cy == TABLE_NODES - 1;
     cz = cz > TABLE_NODES - 2 ? TABLE_NODES - 2 : cz;
     float wx = gx - (float)cx, wy = gy - (float)cy, wz = gz - (float)cz;
-    int n000 = base + (cx * TABLE_NODES + cy) * TABLE_NODES + cz;
-    int n100 = n000 + TABLE_NODES * TABLE_NODES, n010 = n000 + TABLE_NODES;
-    int n110 = n100 + TABLE_NODES;
-    /* Trilinear interpolation: the eight nodes' weights, then per channel a serial sum of weighted
+    /* the four records (x, y..y+1, z..z+1) of the cell, each the RGB at x and at x + 1 */
+    int r00 = base + (cx * TABLE_NODES + cy) * TABLE_NODES + cz;
+    int r10 = r00 + TABLE_NODES, r01 = r00 + 1, r11 = r10 + 1;
+    /* Trilinear interpolation: the corners' weights, then per channel a serial sum of weighted
      * nodes (no binary operation there has two operands of the same shape, which LLVM's SLP
      * vectoriser would pack into a 2-wide vector, and PoCL's work-group vectoriser then gives up on
      * the kernel: see AT). */
     float vx0 = 1.0f - wx, vy0 = 1.0f - wy, vz0 = 1.0f - wz;
-    float w00 = vy0 * vz0, w10 = wy * vz0, w01 = vy0 * wz, w11 = wy * wz;
-#define NODE(node, c) AT(table, 3, node, c)
-#define CHANNEL(c) \
-    ((((((((NODE(n000, c) * vx0) * w00 + NODE(n100, c) * wx * w00) + NODE(n010, c) * vx0 * w10) \
-        + NODE(n110, c) * wx * w10) + NODE(n000 + 1, c) * vx0 * w01) + NODE(n100 + 1, c) * wx * w01) \
-      + NODE(n010 + 1, c) * vx0 * w11) + NODE(n110 + 1, c) * wx * w11)
-    float red = CHANNEL(0), green = CHANNEL(1), blue = CHANNEL(2);
+    /* (1 - wy)(1 - wz), wy (1 - wz), (1 - wy) wz and wy wz, by differing operations (see above) */
+    float w00 = vy0 * vz0, w10 = vz0 - w00, w01 = vy0 - w00, w11 = wy * wz;
+    /* a record's uints: (r, g) at x, (b at x, r at x + 1), (g, b) at x + 1, low half first */
+#define WORD(record, k) AT(table, 3, record, k)
+#define CHANNEL(lo_word, lo_high, hi_word, hi_high) \
+    ((((((((HALF(WORD(r00, lo_word), lo_high) * vx0) * w00 + HALF(WORD(r00, hi_word), hi_high) * wx * w00) \
+          + HALF(WORD(r10, lo_word), lo_high) * vx0 * w10) + HALF(WORD(r10, hi_word), hi_high) * wx * w10) \
+        + HALF(WORD(r01, lo_word), lo_high) * vx0 * w01) + HALF(WORD(r01, hi_word), hi_high) * wx * w01) \
+      + HALF(WORD(r11, lo_word), lo_high) * vx0 * w11) + HALF(WORD(r11, hi_word), hi_high) * wx * w11)
+    float red = CHANNEL(0, 0, 1, 1), green = CHANNEL(0, 1, 2, 0), blue = CHANNEL(1, 0, 2, 1);
 #undef CHANNEL
-#undef NODE
+#undef WORD
     int same = oz * iz > 0.0f;
     *fr = same ? red : 0.0f;
     *fg = same ? green : 0.0f;
@@ -269,7 +279,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                     __global const int *faces, __global const float *normals, __global const float *uvs,
                     __global const int *geom_ints, __global const float *geom_floats,
                     __global const float *materials, __global const float *lights, __global const float *cdf,
-                    __global const float *measured_tables,
+                    __global const uint *measured_tables,
                     __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
                     __global float *contribution, __global float *response, __global float *basis) {
     uint i = get_global_id(0);

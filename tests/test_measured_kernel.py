@@ -19,11 +19,12 @@ from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core import rng
 from realistic.core.transforms import look_at, rotate, translate
 from realistic.renderer.bsdf.measured import irregular_table
-from realistic.renderer.direct_lighting import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting, bfloat16
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.job import RenderJob
 from realistic.renderer.passes import ThreadPasses, render
 from realistic.renderer.path import PathIntegrator
+from realistic.renderer.shade_kernel import table_records
 from realistic.scene.intersect import Intersector
 from realistic.scene.materials import Measured
 from realistic.scene.measured import load_measured
@@ -133,6 +134,23 @@ def test_radiance_matches_the_numpy_path(measured_rays, light_samples, monkeypat
     np.testing.assert_allclose(got, expected, rtol=2e-4, atol=2e-5 * np.abs(expected).max())
 
 
+def test_the_kernels_table_is_bfloat16_in_records_of_two_nodes():
+    """``bfloat16`` rounds to nearest (relative error at most 2^-8) onto floats whose low 16 bits
+    are 0, and ``table_records`` holds node (x, y, z)'s RGB and node (x + 1, y, z)'s in the upper
+    halves of its words as ``shade.cl`` unpacks them."""
+    values = np.random.default_rng(3).random((4, 3, 2, 3)).astype(F32) * 10
+    rounded = bfloat16(values)
+    assert np.all(rounded.view(np.uint32) & 0xFFFF == 0)
+    assert np.all(np.abs(rounded - values) <= values * 2.0**-8)
+    records = table_records(rounded)
+    low, high = (records << 16).view(F32), (records & 0xFFFF0000).view(F32)
+    here = np.stack([low[..., 0], high[..., 0], low[..., 1]], axis=-1)
+    there = np.stack([high[..., 1], low[..., 2], high[..., 2]], axis=-1)
+    np.testing.assert_array_equal(here, rounded)
+    np.testing.assert_array_equal(there[:-1], rounded[1:])
+    assert np.all(there[-1] == 0)
+
+
 def test_bsdf_numbers_are_a_stratified_net_independent_of_the_light_points():
     """``rng.light_bsdf_uniforms``: a pixel's 64 BSDF numbers put one point in each of 8 x 8 cells
     (a (0, 6, 2)-net, as the light points), and they are not the light points."""
@@ -161,7 +179,7 @@ def test_a_constant_brdf_under_a_disk_light_gives_the_closed_form(flat):
     pixel, sample = np.arange(n) % 97, np.arange(n) // 97
     integrator = DirectLighting(scene, Intersector(scene), 4, SEED, backend="opencl")
     out, _ = integrator.radiance(origin, direction, pixel, sample)
-    f = irregular_table(load_measured(flat.path))[0, 0, 127]  # every read node holds the constant's RGB
+    f = bfloat16(irregular_table(load_measured(flat.path)))[0, 0, 127]  # every read node: the constant's RGB
     assert np.ptp(f) > 0.01  # pbrt-v2's spectrum-to-RGB of a flat spectrum is not grey
     expected = f * radiance * np.pi * radius**2 / (radius**2 + height**2)
     error = out.std(axis=0) / np.sqrt(n)

@@ -109,6 +109,15 @@ def is_tabulated(material: SurfaceMaterial) -> bool:
     return tabulated_samples(material) is not None
 
 
+def bfloat16(table: np.ndarray) -> np.ndarray:
+    """A measured table (float32) rounded to bfloat16 (a float's upper 16 bits, to nearest, ties to
+    even; relative error at most 2^-8) as the shading kernel holds it: half the memory, and so
+    fewer cache misses, which are most of its lookups' cost."""
+    bits = np.ascontiguousarray(table, np.float32).view(np.uint32)
+    rounded = (bits + np.uint32(0x7FFF) + ((bits >> np.uint32(16)) & np.uint32(1))) & np.uint32(0xFFFF0000)
+    return rounded.view(np.float32)
+
+
 def dual_axes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """float32 vectors a*, b* (L, 3) with a* . (x a + y b) = x and b* . (x a + y b) = y (in the
     plane of a and b): a point's coordinates on a light (``AreaLightTable``), from float64 a and b."""
@@ -209,14 +218,15 @@ class DirectLighting:
                 material_index[id(inst.material)] = len(self._materials)
                 self._materials.append(inst.material)
         self._geom_material = np.array([material_index[id(inst.material)] for inst in scene.instances], np.int64)
-        # measured materials' tables, one per file, and each material's index among them (-1: matte)
+        # measured materials' tables (in bfloat16, as the kernel holds them), one per file, and
+        # each material's index among them (-1: matte)
         self._tables: dict[str, np.ndarray] = {}
         self._material_table = np.full(max(len(self._materials), 1), -1, np.int64)
         for index, material in enumerate(self._materials):
             data = tabulated_samples(material)
             if data is not None and isinstance(material, Measured):
                 if material.path not in self._tables:
-                    self._tables[material.path] = irregular_table(data)
+                    self._tables[material.path] = bfloat16(irregular_table(data))
                 self._material_table[index] = list(self._tables).index(material.path)
 
     def _build_lights(self, scene: Scene) -> None:

@@ -108,6 +108,17 @@ def rounded_up_cdf(cdf: np.ndarray) -> np.ndarray:
     return c32
 
 
+def table_records(table: np.ndarray) -> np.ndarray:
+    """A measured table (n, n, n, 3) of bfloat16 values in float32 (``direct_lighting.bfloat16``) as
+    ``kernels/shade.cl`` reads it: uint32 (n, n, n, 3), record (x, y, z) the six values r, g, b at
+    (x, y, z) and at (x + 1, y, z) (0 past the last x) as their upper 16 bits, two to a uint, low half first."""
+    bits = np.asarray(table, np.float32).view(np.uint32) >> np.uint32(16)
+    upper = np.zeros_like(bits)
+    upper[:-1] = bits[1:]
+    halves = np.concatenate([bits, upper], axis=3)  # r, g, b at x, then at x + 1
+    return halves[..., 0::2] | (halves[..., 1::2] << np.uint32(16))
+
+
 def spectrum_rows() -> np.ndarray:
     """The ``SPECTRUM`` table: ``rgb_basis``, ``cie_rgb`` and ``wavelength_pdf`` at its equally
     spaced wavelengths (``rgb_response`` is ``cie_rgb / wavelength_pdf``)."""
@@ -186,8 +197,9 @@ class ShadeKernel:
         """``launch_samples``: the light samples per launch a render will ask for (at most
         ``MAX_LAUNCH_SAMPLES``), and ``spectral``: whether its rays are spectral; that program
         variant is built here rather than in its first pass (others are built on first use).
-        ``measured_tables``: each ``Measured`` material's file's table (``irregular_table``) by
-        path, which a measured material's row names; with any, every light sample has a BSDF
+        ``measured_tables``: each ``Measured`` material's file's table (``irregular_table``,
+        rounded to bfloat16: ``direct_lighting.bfloat16``) by path, which a measured
+        material's row names; with any, every light sample has a BSDF
         sample's row too (``rows_per_sample`` 2), and rays must be RGB. Without, a measured
         material's row reflects nothing (its hits are for the measured variant to shade)."""
         self.device = device
@@ -225,7 +237,8 @@ class ShadeKernel:
             (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom_ints, np.int32),
             (geom_floats, np.float32), (material_rows, np.float32), (light_rows, np.float32),
             (rounded_up_cdf(light_cdf), np.float32),
-            (np.concatenate([t.ravel() for t in tables.values()]) if tables else np.zeros(4), np.float32))]
+            (np.concatenate([table_records(t).ravel() for t in tables.values()]) if tables else np.zeros(4),
+             np.uint32))]
         self._spectrum = device.wrapped_buffer(spectrum_rows(), np.float32)
         self._dummy_albedo = np.zeros(3, np.float32)
         self._local = threading.local()
