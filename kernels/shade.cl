@@ -174,8 +174,9 @@ inline __attribute__((always_inline)) void light_numbers(uint pixel, uint sample
  * half), the tables of every file one after another in `measured_tables`, TABLE_NODES^3 records
  * each: record (x, y, z) holds the RGB of nodes (x, y, z) and (x + 1, y, z), six bfloat16 values
  * in three uints, so that a
- * lookup reads four records, mostly four cache lines (the table is larger than the caches, and
- * its misses are most of a lookup's cost; the host packs it: shade_kernel.table_records). */
+ * lookup reads two pairs of adjacent records (z and z + 1), two or three cache lines, where four
+ * nodes' pairs of floats took four to six (the table is larger than the caches, and its misses
+ * are most of a lookup's cost; the host packs it: shade_kernel.table_records). */
 
 /* atan2(y, x) for y >= 0, in [0, pi]: an odd polynomial of degree 15 for atan on [0, 1] (a
  * least-squares fit, within 1.5e-7 of atan in float32), folded by pi/2 - and pi -; 0 at (0, 0).
