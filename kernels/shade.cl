@@ -30,8 +30,9 @@
  *   - with MEASURED, at hits of a measured material: f(wo, wi) from its table in rho / pi's place,
  *     and a BSDF sample paired with each light sample (see measured_f and the loop);
  * Outputs, row o = (k - first_sample) * stride + i (MEASURED: 2 (k - first_sample) * stride + i,
- * and the BSDF sample's row o + stride, dead where the material is not measured): shadow-ray origin and vector (to the light
- * point) (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
+ * and the BSDF sample's row o + stride, dead where the material is not measured): shadow-ray
+ * origin and vector (to the light point or, for a BSDF sample, the point it meets on the light)
+ * (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
  * miss, an emitter, a light facing away, padding) so embree skips it, and the contribution (3
  * floats, or 1 for spectral rays; 0 when dead). The light's emitting side, the shading and the geometric normal decide
  * which samples live, as in numpy; embree's answer decides which contributions count (the host).
@@ -173,10 +174,9 @@ inline __attribute__((always_inline)) void light_numbers(uint pixel, uint sample
  * table (table_lookup: BRDFRemap, then the eight nodes of the cell) in bfloat16 (a float's upper
  * half), the tables of every file one after another in `measured_tables`, TABLE_NODES^3 records
  * each: record (x, y, z) holds the RGB of nodes (x, y, z) and (x + 1, y, z), six bfloat16 values
- * in three uints, so that a
- * lookup reads two pairs of adjacent records (z and z + 1), two or three cache lines, where four
- * nodes' pairs of floats took four to six (the table is larger than the caches, and its misses
- * are most of a lookup's cost; the host packs it: shade_kernel.table_records). */
+ * in three uints, so that a lookup reads two pairs of adjacent records (z and z + 1), two or three
+ * cache lines, where four nodes' pairs of floats took four to six (the table is larger than the
+ * caches, and its misses are most of a lookup's cost; the host packs it: shade_kernel.table_records). */
 
 /* atan2(y, x) for y >= 0, in [0, pi]: an odd polynomial of degree 15 for atan on [0, 1] (a
  * least-squares fit, within 1.5e-7 of atan in float32), folded by pi/2 - and pi -; 0 at (0, 0).
