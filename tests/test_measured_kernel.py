@@ -186,6 +186,20 @@ def test_a_constant_brdf_under_a_disk_light_gives_the_closed_form(flat):
     np.testing.assert_array_less(np.abs(out.mean(axis=0) - expected), 3 * error + 1e-4 * expected)
 
 
+def test_a_measured_materials_albedo_aov_is_its_directional_albedo(flat):
+    """``first_hits`` (the albedo AOV) on the fast path: a constant f reflects f pi of a uniform sky,
+    whatever the view."""
+    scene = Scene(background=(0.0, 0.0, 0.0))
+    scene.add(quad(50.0, 50.0), rotate(-90, (1, 0, 0)), flat)
+    scene.lights.append(AreaLight("disk", (1.0, 1.0), (1.0,) * 3, translate(0.0, 2.0, 0.0) @ rotate(90, (1, 0, 0))))
+    direction = np.array([[0.0, -1.0, 0.0], [0.6, -0.8, 0.0], [0.0, -0.6, 0.8]], F32)
+    origin = np.zeros_like(direction) + F32(1.0)
+    integrator = DirectLighting(scene, Intersector(scene), 1, SEED, backend="opencl")
+    first = integrator.first_hits(origin, direction, integrator.intersector.closest(origin, direction))
+    f = bfloat16(irregular_table(load_measured(flat.path)))[0, 0, 127]
+    np.testing.assert_allclose(first.albedo, np.broadcast_to(f * np.pi, (3, 3)), rtol=1e-5)
+
+
 def test_the_measured_variant_vectorises(tmp_path, glossy):
     """PoCL's work-group vectoriser widens the MEASURED variant of ``shade`` (no SLP-packed pairs)."""
     script = (
