@@ -27,8 +27,12 @@
  *     from the host's SPECTRUM table, rgb_basis and rgb_response's factors cie_rgb and
  *     wavelength_pdf at SPECTRUM_INTERVALS + 1 equally spaced wavelengths (the wavelength
  *     density's nodes among them), interpolated linearly: within 5e-6 of numpy's largest values.
- * Outputs, row o = (k - first_sample) * stride + i: shadow-ray origin and vector (to the light
- * point) (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
+ *   - with MEASURED, at hits of a measured material: f(wo, wi) from its table in rho / pi's place,
+ *     and a BSDF sample paired with each light sample (see measured_f and the loop);
+ * Outputs, row o = (k - first_sample) * stride + i (MEASURED: 2 (k - first_sample) * stride + i,
+ * and the BSDF sample's row o + stride, dead where the material is not measured): shadow-ray
+ * origin and vector (to the light point or, for a BSDF sample, the point it meets on the light)
+ * (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
  * miss, an emitter, a light facing away, padding) so embree skips it, and the contribution (3
  * floats, or 1 for spectral rays; 0 when dead). The light's emitting side, the shading and the geometric normal decide
  * which samples live, as in numpy; embree's answer decides which contributions count (the host).
@@ -51,12 +55,15 @@
 #define SHADOW_OFFSET 1e-4f
 #define SHADOW_LENGTH 0.9999f
 /* Build options (-D) the host sets per scene, so that the work the scene never needs costs no gathers:
- * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO (0 or 1, see the kernel); and
- * per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more), and SPECTRAL (0 or
- * 1): whether the rays carry one wavelength each (see the kernel). */
+ * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO, MEASURED (0 or 1, see the
+ * kernel); and per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more), and
+ * SPECTRAL (0 or 1): whether the rays carry one wavelength each (see the kernel). */
 #if !defined(PICK_BITS) || !defined(SMOOTH) || !defined(TEXTURED) || !defined(HOST_ALBEDO) \
-    || !defined(LAUNCH_SAMPLES) || !defined(SPECTRAL)
-#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DLAUNCH_SAMPLES=.. -DSPECTRAL=.."
+    || !defined(LAUNCH_SAMPLES) || !defined(SPECTRAL) || !defined(MEASURED)
+#error "build with -DPICK_BITS=.. -DSMOOTH=.. -DTEXTURED=.. -DHOST_ALBEDO=.. -DMEASURED=.. -DLAUNCH_SAMPLES=.. -DSPECTRAL=.."
+#endif
+#if MEASURED && SPECTRAL
+#error "measured materials shade RGB rays only"
 #endif
 /* The tables' row widths and field offsets (GEOM_INT_*, GEOM_FLOAT_*, MATERIAL_*, LIGHT_*) and the
  * material kinds (KIND_*) are #defines the host prepends, generated from the tables it packs
@@ -158,6 +165,110 @@ inline __attribute__((always_inline)) void light_numbers(uint pixel, uint sample
     *u0 = to_unit(reverse_bits(owen_scramble_digits(picked, hash32(h ^ 20u))));
 }
 
+#if MEASURED
+/* MEASURED: materials of kind KIND_MEASURED (pbrt-v2's irregular isotropic measured BRDFs) are
+ * shaded by multiple importance sampling as pbrt-v2's directlighting integrator does for a
+ * non-specular BSDF (src/core/integrator.cpp, EstimateDirect): each light sample is paired with a
+ * cosine-weighted BSDF sample (BxDF::Sample_f's default, src/core/reflection.cpp), both weighted by
+ * the power heuristic. f(wo, wi) is the trilinear lookup of realistic.renderer.bsdf.measured's
+ * table (table_lookup: BRDFRemap, then the eight nodes of the cell) in bfloat16 (a float's upper
+ * half), the tables of every file one after another in `measured_tables`, TABLE_NODES^3 records
+ * each: record (x, y, z) holds the RGB of nodes (x, y, z) and (x + 1, y, z), six bfloat16 values
+ * in three uints, so that a lookup reads two pairs of adjacent records (z and z + 1), two or three
+ * cache lines, where four nodes' pairs of floats took four to six (the table is larger than the
+ * caches, and its misses are most of a lookup's cost; the host packs it: shade_kernel.table_records). */
+
+/* atan2(y, x) for y >= 0, in [0, pi]: an odd polynomial of degree 15 for atan on [0, 1] (a
+ * least-squares fit, within 1.5e-7 of atan in float32), folded by pi/2 - and pi -; 0 at (0, 0).
+ * A builtin atan2 would be a call, which PoCL's vectoriser does not widen. */
+inline __attribute__((always_inline)) float half_turn_atan2(float y, float x) {
+    float ax = x < 0.0f ? -x : x;
+    float hi = ax > y ? ax : y, lo = ax > y ? y : ax;
+    float a = hi > 0.0f ? lo / hi : 0.0f;
+    float a2 = a * a;
+    float p = -0.004073309246450663f;
+    p = p * a2 + 0.021946610882878304f;
+    p = p * a2 - 0.056063175201416016f;
+    p = p * a2 + 0.09656256437301636f;
+    p = p * a2 - 0.13915802538394928f;
+    p = p * a2 + 0.19948509335517883f;
+    p = p * a2 - 0.3333010673522949f;
+    p = p * a2 + 0.999999463558197f;
+    float angle = a * p;
+    angle = y > ax ? 0.5f * PI_F - angle : angle;
+    return x < 0.0f ? PI_F - angle : angle;
+}
+
+/* A bfloat16 value (the high or low 16 bits of `word`: a float's upper half) as a float. */
+#define HALF(word, high) as_float((high) ? (word) & 0xFFFF0000u : (word) << 16)
+
+/* The table's RGB for directions wo and wi about the shading normal n, as table_lookup computes
+ * it in float64 from local directions, given cos_o = wo.n, cos_i = wi.n, cross = n.(wo x wi) and
+ * along = wo.wi - cos_o cos_i (the sine and cosine of the azimuth between them, times sin_o sin_i:
+ * no local frame is needed). 0 unless both are on one side; BRDFRemap (sin_i sin_o, delta phi / pi,
+ * cos_i cos_o) scaled to the grid, clamped (so every gather stays inside the table), trilinear over
+ * the cell. `base`: the table's first node; `use`: whether the value is used (else it is garbage). */
+inline __attribute__((always_inline)) void measured_f(__global const uint *table, int base, int use, float oz,
+                                                      float iz, float cross, float along, uint unit,
+                                                      float *fr, float *fg, float *fb) {
+    /* The three coordinates are computed by different instruction sequences on purpose (as
+     * concentric_disk's |a| and |b| in common.cl): isomorphic chains would be packed into 2-wide
+     * vectors by LLVM's SLP vectoriser, and PoCL's work-group vectoriser then gives up on the kernel. */
+    const float last = (float)(TABLE_NODES - 1);
+    float so2 = 1.0f - oz * oz, si2 = (1.0f - iz) * (1.0f + iz);
+    float sin_o = __builtin_sqrtf(so2 > 0.0f ? so2 : 0.0f), sin_i = __builtin_sqrtf(__builtin_fmaxf(si2, 0.0f));
+    float dphi = half_turn_atan2(cross < 0.0f ? -cross : cross, along);
+    float vx = sin_i * sin_o * last, vy = dphi * (last / PI_F), vz = iz * oz * last;
+    float gx = vx > 0.0f ? (vx < last ? vx : last) : 0.0f;  /* NaN to 0 */
+    float gy = __builtin_fminf(__builtin_fmaxf(vy, 0.0f), last);  /* fmax(NaN, 0) is 0 */
+    float gz = vz < last ? vz : last;
+    gz = gz > 0.0f ? gz : 0.0f;
+    /* a lane whose value is unused reads the table's first cell, which stays in the cache: the
+     * lookups are scattered over a table larger than the caches, and their misses are most of its cost */
+    int cx = use ? (int)gx : 0, cy = use ? (int)gy : 0, cz = use ? (int)gz : 0;
+    cx = cx < TABLE_NODES - 2 ? cx : TABLE_NODES - 2;
+    cy -= cy == TABLE_NODES - 1;
+    cz = cz > TABLE_NODES - 2 ? TABLE_NODES - 2 : cz;
+    float wx = gx - (float)cx, wy = gy - (float)cy, wz = gz - (float)cz;
+    /* the four records (x, y..y+1, z..z+1) of the cell, each the RGB at x and at x + 1 */
+    int r00 = base + (cx * TABLE_NODES + cy) * TABLE_NODES + cz;
+    int r10 = r00 + TABLE_NODES, r01 = r00 + 1, r11 = r10 + 1;
+    /* Trilinear interpolation: the corners' weights, then per channel a serial sum of weighted
+     * nodes (no binary operation there has two operands of the same shape, which LLVM's SLP
+     * vectoriser would pack into a 2-wide vector, and PoCL's work-group vectoriser then gives up on
+     * the kernel: see AT). */
+    float vx0 = 1.0f - wx, vy0 = 1.0f - wy, vz0 = 1.0f - wz;
+    /* (1 - wy)(1 - wz), wy (1 - wz), (1 - wy) wz and wy wz, by differing operations (see above) */
+    float w00 = vy0 * vz0, w10 = vz0 - w00, w01 = vy0 - w00, w11 = wy * wz;
+    /* a record's uints: (r, g) at x, (b at x, r at x + 1), (g, b) at x + 1, low half first */
+#define WORD(record, k) AT(table, 3, record, k)
+#define CHANNEL(lo_word, lo_high, hi_word, hi_high) \
+    ((((((((HALF(WORD(r00, lo_word), lo_high) * vx0) * w00 + HALF(WORD(r00, hi_word), hi_high) * wx * w00) \
+          + HALF(WORD(r10, lo_word), lo_high) * vx0 * w10) + HALF(WORD(r10, hi_word), hi_high) * wx * w10) \
+        + HALF(WORD(r01, lo_word), lo_high) * vx0 * w01) + HALF(WORD(r01, hi_word), hi_high) * wx * w01) \
+      + HALF(WORD(r11, lo_word), lo_high) * vx0 * w11) + HALF(WORD(r11, hi_word), hi_high) * wx * w11)
+    float red = CHANNEL(0, 0, 1, 1), green = CHANNEL(0, 1, 2, 0), blue = CHANNEL(1, 0, 2, 1);
+#undef CHANNEL
+#undef WORD
+    int same = oz * iz > 0.0f;
+    *fr = same ? red : 0.0f;
+    *fg = same ? green : 0.0f;
+    *fb = same ? blue : 0.0f;
+}
+
+/* The BSDF sample's numbers paired with light sample k (realistic.core.rng.light_bsdf_uniforms,
+ * bit for bit): the light point's shuffled index, its two Sobol' dimensions scrambled with the keys
+ * hash_key(pixel, 0xFFFFFFFF, d, seed) at d = 21, 22 (rng.BSDF_KEYS). */
+inline __attribute__((always_inline)) void bsdf_numbers(uint pixel, uint sample, uint k, uint light_samples, uint seed,
+                                                        uint unit, float *v1, float *v2) {
+    uint h = hash32(hash32(hash32(seed + GOLDEN) ^ pixel) ^ 0xFFFFFFFFu);
+    uint index = sample * light_samples + k;
+    uint shuffled = reverse_bits(owen_scramble_digits(reverse_bits(index), hash32(h ^ 16u)));
+    *v1 = to_unit(reverse_bits(owen_scramble_digits(shuffled, hash32(h ^ 21u))));
+    *v2 = to_unit(reverse_bits(owen_scramble_digits(sobol1_digits(shuffled), hash32(h ^ 22u))) * unit);
+}
+#endif
+
 /* ------------------------------------------------------------------ kernels */
 
 __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, uint seed, uint unit, int instance_count, float offset_base, int light_count,
@@ -169,6 +280,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                     __global const int *faces, __global const float *normals, __global const float *uvs,
                     __global const int *geom_ints, __global const float *geom_floats,
                     __global const float *materials, __global const float *lights, __global const float *cdf,
+                    __global const uint *measured_tables,
                     __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
                     __global float *contribution, __global float *response, __global float *basis) {
     uint i = get_global_id(0);
@@ -239,7 +351,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     __global const float *mat = materials + MATERIAL_WIDTH * material;
     float rho_r = FIELD(mat, MATERIAL_DIFFUSE), rho_g = FIELD(mat, MATERIAL_DIFFUSE + 1);
     float rho_b = FIELD(mat, MATERIAL_DIFFUSE + 2);
-#if TEXTURED || HOST_ALBEDO
+#if TEXTURED || HOST_ALBEDO || MEASURED
     int kind = (int)FIELD(mat, MATERIAL_KIND);
 #endif
 #if TEXTURED
@@ -296,12 +408,20 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     AT(basis, 3, i, 2) = b_b;
 #endif
 
+#if MEASURED
+    /* a measured material: its table's first node, wo = -d, cos_o and n x wo (for the azimuths) */
+    int measured = surface & (kind == KIND_MEASURED);
+    int table_base = (int)FIELD(mat, MATERIAL_TABLE) * (TABLE_NODES * TABLE_NODES * TABLE_NODES);
+    float cos_o = -(dx * shx + dy * shy + dz * shz);
+    float mx = shz * dy - shy * dz, my = shx * dz - shz * dx, mz = shy * dx - shx * dy;
+#endif
+
     /* the launch's light samples, unrolled */
 #pragma unroll
     for (uint q = 0; q < LAUNCH_SAMPLES; ++q) {
-        /* light sample k, row o */
+        /* light sample k, row o (MEASURED: its BSDF sample's row o + stride) */
         uint k = first_sample + q;
-        uint o = q * stride + i;
+        uint o = (1 + MEASURED) * q * stride + i;
         float u_pick, u1, u2;
         light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
         int j = pick_light(cdf, light_count, u_pick, unit);
@@ -324,6 +444,22 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         cos_q = FIELD(light, LIGHT_TWO_SIDED) != 0.0f && cos_q < 0.0f ? -cos_q : cos_q;
         int live = surface & (cos_p > 0.0f) & (cos_q > 0.0f) & (ix * gx + iy * gy + iz * gz > 0.0f) & (dist2 > 0.0f);
         float scale = cos_p * cos_q / dist2 * FIELD(light, LIGHT_SCALE);
+#if MEASURED
+        /* a measured hit's light sample: f(wo, wi) pi in rho's place (the scale holds 1 / pi),
+         * times the power heuristic's weight against the cosine-sampled BSDF's density cos_p / pi:
+         * 1 / (1 + (p_bsdf / p_light)^2), p_light = d^2 / (cos_q A) */
+        float area = FIELD(light, LIGHT_AREA);
+        float mf_r, mf_g, mf_b;
+        measured_f(measured_tables, table_base, live & measured, cos_o, cos_p, ix * mx + iy * my + iz * mz,
+                   -(ix * dx + iy * dy + iz * dz) - cos_o * cos_p, unit, &mf_r, &mf_g, &mf_b);
+        float ratio_l = cos_p * cos_q * area / (PI_F * dist2);
+        float weight_l = PI_F / (1.0f + ratio_l * ratio_l);
+        float lr = measured ? mf_r * weight_l : rho_r;
+        float lg = measured ? mf_g * weight_l : rho_g;
+        float lb = measured ? mf_b * weight_l : rho_b;
+#else
+        float lr = rho_r, lg = rho_g, lb = rho_b;
+#endif
 
         AT(shadow_origin, 3, o, 0) = live ? sx : 0.0f;
         AT(shadow_origin, 3, o, 1) = live ? sy : 0.0f;
@@ -337,9 +473,74 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                         + FIELD(light, LIGHT_RADIANCE + 2) * b_b;
         contribution[o] = live ? rho_s * emitted * scale : 0.0f;
 #else
-        AT(contribution, 3, o, 0) = live ? rho_r * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
-        AT(contribution, 3, o, 1) = live ? rho_g * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
-        AT(contribution, 3, o, 2) = live ? rho_b * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
+        AT(contribution, 3, o, 0) = live ? lr * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
+        AT(contribution, 3, o, 1) = live ? lg * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
+        AT(contribution, 3, o, 2) = live ? lb * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
+#endif
+#if MEASURED
+        /* the BSDF sample (pbrt-v2 EstimateDirect's second half, for the light picked above): a
+         * cosine-weighted direction about the shading normal from the sample's own numbers, n plus
+         * a uniform point on the unit sphere (the concentric disk mapped by area: z = 1 - 2 r^2,
+         * (x, y) scaled by 2 sqrt(1 - r^2)), normalised, which needs no frame about n; it
+         * counts where it meets that light's disk or parallelogram from its emitting side, weighted
+         * by the power heuristic against the light's density there, over the pick's probability
+         * (1 / P = scale pi / A). Its shadow ray goes to the point met. */
+        float v1, v2;
+        bsdf_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &v1, &v2);
+        float bx, by;
+        concentric_disk(v1, v2, &bx, &by);
+        /* r^2 of the disk point from the map's radius max(|2 v1 - 1|, |2 v2 - 1|), not bx^2 + by^2:
+         * that pair of squares would give LLVM's SLP vectoriser a seed (see concentric_disk) */
+        float da = 2.0f * v1 - 1.0f, db = 2.0f * v2 - 1.0f;
+        da = da < 0.0f ? -da : da;
+        db = __builtin_fabsf(db);
+        float b2 = da > db ? da * da : db * db;
+        float lift = 1.0f - b2;
+        lift = 2.0f * __builtin_sqrtf(lift > 0.0f ? lift : 0.0f);
+        /* y by other instructions than x (the same value): see concentric_disk */
+        float fx = shx + bx * lift, fy = shy - (-by) * lift, fz = shz + (1.0f - 2.0f * b2);
+        float flen = __builtin_sqrtf(fx * fx + fy * fy + fz * fz);
+        int fok = flen > 0.0f;
+        fx = fok ? fx / flen : 0.0f;
+        fy = fok ? fy / flen : 0.0f;
+        fz = fok ? fz / flen : 0.0f;
+        float cos_f = fx * shx + fy * shy + fz * shz;
+        float nlx = FIELD(light, LIGHT_NORMAL), nly = FIELD(light, LIGHT_NORMAL + 1);
+        float nlz = FIELD(light, LIGHT_NORMAL + 2);
+        float cx = FIELD(light, LIGHT_CENTRE), cy = FIELD(light, LIGHT_CENTRE + 1);
+        float cz = FIELD(light, LIGHT_CENTRE + 2);
+        float denom = fx * nlx + fy * nly + fz * nlz;
+        float th = ((cx - px) * nlx + (cy - py) * nly + (cz - pz) * nlz) / denom;
+        float hx = px + th * fx, hy = py + th * fy, hz = pz + th * fz;
+        float rx = hx - cx, ry = hy - cy, rz = hz - cz;
+        /* the point's (x, y) in the light's frame: dot products with the dual axes of a and b */
+        float lu = rx * FIELD(light, LIGHT_DUAL_A) + ry * FIELD(light, LIGHT_DUAL_A + 1)
+                   + rz * FIELD(light, LIGHT_DUAL_A + 2);
+        float lv = rx * FIELD(light, LIGHT_DUAL_B) + ry * FIELD(light, LIGHT_DUAL_B + 1)
+                   + rz * FIELD(light, LIGHT_DUAL_B + 2);
+        float lu2 = lu * lu;
+        int inside = disk ? lu2 <= 1.0f - lv * lv
+                          : (lu >= -1.0f) & (lu <= 1.0f) & (lv >= -1.0f) & (lv <= 1.0f);
+        float cos_h = -denom;
+        cos_h = FIELD(light, LIGHT_TWO_SIDED) != 0.0f && cos_h < 0.0f ? -cos_h : cos_h;
+        int live_f = measured & (cos_f > 0.0f) & (fx * gx + fy * gy + fz * gz > 0.0f) & (th > 0.0f) & inside
+                     & (cos_h > 0.0f);
+        float bf_r, bf_g, bf_b;
+        measured_f(measured_tables, table_base, live_f, cos_o, cos_f, fx * mx + fy * my + fz * mz,
+                   -(fx * dx + fy * dy + fz * dz) - cos_o * cos_f, unit, &bf_r, &bf_g, &bf_b);
+        float ratio_f = th * th * PI_F / (cos_h * area * cos_f);
+        float scale_f = PI_F / (1.0f + ratio_f * ratio_f) * (FIELD(light, LIGHT_SCALE) * PI_F / area);
+        uint of = o + stride;
+        AT(shadow_origin, 3, of, 0) = live_f ? sx : 0.0f;
+        AT(shadow_origin, 3, of, 1) = live_f ? sy : 0.0f;
+        AT(shadow_origin, 3, of, 2) = live_f ? sz : 0.0f;
+        AT(shadow_vector, 3, of, 0) = live_f ? hx - sx : 0.0f;
+        AT(shadow_vector, 3, of, 1) = live_f ? hy - sy : 0.0f;
+        AT(shadow_vector, 3, of, 2) = live_f ? hz - sz : 0.0f;
+        shadow_length[of] = live_f ? SHADOW_LENGTH : -1.0f;
+        AT(contribution, 3, of, 0) = live_f ? bf_r * FIELD(light, LIGHT_RADIANCE) * scale_f : 0.0f;
+        AT(contribution, 3, of, 1) = live_f ? bf_g * FIELD(light, LIGHT_RADIANCE + 1) * scale_f : 0.0f;
+        AT(contribution, 3, of, 2) = live_f ? bf_b * FIELD(light, LIGHT_RADIANCE + 2) * scale_f : 0.0f;
 #endif
     }
 }

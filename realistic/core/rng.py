@@ -140,6 +140,9 @@ def spectral_rays(pixel: np.ndarray, sample: np.ndarray, seed: int, wavelengths:
 #: Per-pixel key dimensions (``hash_key`` with sample 0xFFFFFFFF) of the light samples: index
 #: shuffle and scrambles of u1, u2 (the light point), index shuffle and scramble of u0 (the pick).
 LIGHT_KEYS = (16, 17, 18, 19, 20)
+#: Per-pixel key dimensions of the BSDF sample that goes with each light sample (MIS direct
+#: lighting in ``kernels/shade.cl``): scrambles of its two numbers, at the light point's shuffled index.
+BSDF_KEYS = (21, 22)
 
 
 def reverse_bits(x: np.ndarray) -> np.ndarray:
@@ -192,6 +195,18 @@ def light_point_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_sample
     index = reverse_bits(owen_scramble_digits(reverse_bits(_light_index(sample, k, light_samples)), shuffle))
     d1, d2 = sobol2_digits(index)
     return reverse_bits(owen_scramble_digits(d1, key1)), reverse_bits(owen_scramble_digits(d2, key2))
+
+
+def light_bsdf_uniforms(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """float32 (v1, v2) of the BSDF sample paired with light sample ``k``: the light point's shuffled
+    Sobol' index (``light_point_bits``), its two dimensions scrambled with keys of their own
+    (``BSDF_KEYS``), so the pixel's BSDF directions are a net as its light points are, independent of them."""
+    shuffle, key1, key2 = hash_keys(pixel, np.uint32(0xFFFFFFFF), (LIGHT_KEYS[0], *BSDF_KEYS), seed)
+    index = reverse_bits(owen_scramble_digits(reverse_bits(_light_index(sample, k, light_samples)), shuffle))
+    d1, d2 = sobol2_digits(index)
+    return (to_unit_float(reverse_bits(owen_scramble_digits(d1, key1))),
+            to_unit_float(reverse_bits(owen_scramble_digits(d2, key2))))
 
 
 def light_pick_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int) -> np.ndarray:

@@ -14,6 +14,17 @@ pass size.
 Image textures are filtered over each camera ray's pixel footprint (``renderer.footprint``) when
 the camera's ``pixel_spread_radians`` is given.
 
+Measured BRDFs of irregular samples (pbrt-v2's ``.brdf`` files, shaded from their tables,
+``renderer.bsdf.measured.irregular_table``) take pbrt-v2 ``directlighting``'s estimator for a
+non-specular BSDF (``UniformSampleAllLights``/``EstimateDirect``, ``src/core/integrator.cpp``): each
+light sample (light j, picked with probability P_j, point q) is paired with a BSDF sample, a
+cosine-weighted direction about the shading normal (pbrt-v2 ``BxDF::Sample_f``'s default,
+``src/core/reflection.cpp``; numbers ``rng.light_bsdf_uniforms``), which counts where it meets light
+j's disk or quad from its emitting side; each is weighted by the power heuristic between the light's
+solid-angle density |q - p|^2 / (cos_q A_j) and the BSDF's cos / pi, divided by P_j, and traces its
+own shadow ray. RGB rays only (``integrators.make_integrator`` sends spectral ones to the path
+integrator).
+
 Spectral rays (one wavelength each) evaluate every RGB albedo, light radiance and background as a
 spectrum at the ray's wavelength (``realistic.core.spectrum.rgb_basis``), multiply spectra, and return
 the spectral radiance weighted by the film's ``rgb_response`` at that wavelength (RGB).
@@ -33,6 +44,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -40,13 +52,18 @@ import numpy as np
 from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, rgb_response, spectral_value
 from realistic.core.vectors import dot, normalise
+from realistic.core.warp import concentric_disk
 from realistic.renderer.aov import FirstHits
 from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.backends import Backend, backend_for
+from realistic.renderer.bsdf.base import ShadingFrame
+from realistic.renderer.bsdf.lambertian import cosine_hemisphere
+from realistic.renderer.bsdf.measured import irregular_table, table_lookup
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
-from realistic.scene.materials import SurfaceMaterial
+from realistic.scene.materials import Measured, SurfaceMaterial
+from realistic.scene.measured import IrregularSamples, load_measured
 from realistic.scene.model import ImageTexture, Material, Scene
 from realistic.scene.textures import albedo
 
@@ -62,12 +79,84 @@ def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     return np.take(a, index, axis=0)
 
 
+#: The directions of a measured material's albedo estimate (``first_hits``): cosine-weighted, at
+#: the centres of a 4 x 4 grid of numbers (pbrt-v4's ``nRhoSamples`` 16, as ``renderer.path``'s).
+_RHO_DIRECTIONS = cosine_hemisphere(np.array([((k % 4 + 0.5) / 4, (k // 4 + 0.5) / 4) for k in range(16)],
+                                             np.float32))
+
+
 def _matte(material: SurfaceMaterial) -> Material:
-    """``material``, which ``DirectLighting``'s own shading needs matte (``integrators.make_integrator``
-    gives scenes of other materials to ``PathIntegrator``, which shades them by their BSDFs)."""
+    """``material``, which ``DirectLighting``'s own shading needs matte where it reads an albedo
+    (``integrators.make_integrator`` gives scenes of other materials, but for measured ones, to
+    ``PathIntegrator``, which shades them by their BSDFs)."""
     if not isinstance(material, Material):
         raise TypeError(f"DirectLighting shades matte materials only, not {type(material).__name__}")
     return material
+
+
+def tabulated_samples(material: SurfaceMaterial) -> IrregularSamples | None:
+    """The samples of ``material`` when it is a measured BRDF of irregular samples (a ``.brdf``
+    file), which ``DirectLighting`` shades from its table (``renderer.bsdf.measured.irregular_table``)."""
+    if isinstance(material, Measured):
+        data = load_measured(material.path)
+        if isinstance(data, IrregularSamples):
+            return data
+    return None
+
+
+def is_tabulated(material: SurfaceMaterial) -> bool:
+    """Whether ``DirectLighting`` shades ``material`` from a measured table (``tabulated_samples``)."""
+    return tabulated_samples(material) is not None
+
+
+def bfloat16(table: np.ndarray) -> np.ndarray:
+    """A measured table (float32) rounded to bfloat16 (a float's upper 16 bits, to nearest, ties to
+    even; relative error at most 2^-8) as the shading kernel holds it: half the memory, and so
+    fewer cache misses, which are most of its lookups' cost."""
+    bits = np.ascontiguousarray(table, np.float32).view(np.uint32)
+    rounded = (bits + np.uint32(0x7FFF) + ((bits >> np.uint32(16)) & np.uint32(1))) & np.uint32(0xFFFF0000)
+    return rounded.view(np.float32)
+
+
+def dual_axes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """float32 vectors a*, b* (L, 3) with a* . (x a + y b) = x and b* . (x a + y b) = y (in the
+    plane of a and b): a point's coordinates on a light (``AreaLightTable``), from float64 a and b."""
+    a64, b64 = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    aa, bb, ab = (np.einsum("ij,ij->i", p, q)[:, None] for p, q in ((a64, a64), (b64, b64), (a64, b64)))
+    det = aa * bb - ab * ab
+    return ((bb * a64 - ab * b64) / det).astype(np.float32), ((aa * b64 - ab * a64) / det).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class _MeasuredHits:
+    """Surface hits' measured materials (numpy's MIS reference): each row's table (an index into
+    ``tables``, -1 for the other materials), its shading normal n, wo = -d, cos_o = wo . n, and
+    n x wo, from which a direction's azimuth about n relative to wo follows without a local frame
+    (as ``kernels/shade.cl`` computes it)."""
+
+    table: np.ndarray
+    tables: list[np.ndarray]
+    normal: np.ndarray
+    wo: np.ndarray
+    cos_o: np.ndarray
+    n_cross_wo: np.ndarray
+
+    def lookup(self, rows: np.ndarray, wi: np.ndarray, cos_i: np.ndarray) -> np.ndarray:
+        """f(wo, wi) RGB (n, 3) float32 of the measured hits ``rows`` for world directions ``wi``
+        (n, 3) with cos_i = wi . n: ``table_lookup`` of the pair given as (1, 0, cos_o) and
+        (along, cross, cos_i), along = wo . wi - cos_o cos_i and cross = n . (wo x wi): projected
+        onto the tangent plane, wo and wi are then sin_o (1, 0) and sin_i sin_o (cos phi, sin phi)
+        scaled by 1 / sin_o, at the same azimuths (the lookup reads the pair through cos_o,
+        cos_i and the angle between the projections alone)."""
+        cos_o = self.cos_o[rows]
+        wo = np.column_stack([np.ones(len(rows), np.float32), np.zeros(len(rows), np.float32), cos_o])
+        local = np.column_stack([dot(wi, self.wo[rows]) - cos_o * cos_i, dot(wi, self.n_cross_wo[rows]), cos_i])
+        f = np.zeros((len(rows), 3), np.float32)
+        for index, table in enumerate(self.tables):
+            at = np.flatnonzero(self.table[rows] == index)
+            if len(at):
+                f[at] = table_lookup(table, wo[at], local[at]).astype(np.float32)
+        return f
 
 
 def _facing(normal: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -98,6 +187,7 @@ class DirectLighting:
         self._build_surfaces(scene)
         self._build_lights(scene)
         self._kernel: ShadeKernel | None = None
+        self._measured_kernel: ShadeKernel | None = None  # the MEASURED variant, for hits on measured materials
         if self.backend.name == "opencl" and len(self._lights) and self._light_cdf[-1] > 0:
             self._kernel = self._build_kernel()
 
@@ -128,6 +218,16 @@ class DirectLighting:
                 material_index[id(inst.material)] = len(self._materials)
                 self._materials.append(inst.material)
         self._geom_material = np.array([material_index[id(inst.material)] for inst in scene.instances], np.int64)
+        # measured materials' tables (in bfloat16, as the kernel holds them), one per file, and
+        # each material's index among them (-1: matte)
+        self._tables: dict[str, np.ndarray] = {}
+        self._material_table = np.full(max(len(self._materials), 1), -1, np.int64)
+        for index, material in enumerate(self._materials):
+            data = tabulated_samples(material)
+            if data is not None and isinstance(material, Measured):
+                if material.path not in self._tables:
+                    self._tables[material.path] = bfloat16(irregular_table(data))
+                self._material_table[index] = list(self._tables).index(material.path)
 
     def _build_lights(self, scene: Scene) -> None:
         """The area lights' table, and each one's pick probability, proportional to its power."""
@@ -136,6 +236,7 @@ class DirectLighting:
         power = lights.area * sides * lights.radiance.astype(np.float64).mean(axis=1)
         self._light_probability = power / power.sum() if power.sum() > 0 else power
         self._light_cdf = np.cumsum(self._light_probability)
+        self._dual_a, self._dual_b = dual_axes(lights.a, lights.b)
 
     def _build_kernel(self) -> ShadeKernel | None:
         """The scene's tables on the backend's OpenCL device (imports pyopencl only here); None (the
@@ -154,14 +255,18 @@ class DirectLighting:
             light_scale = self._lights.area / self._light_probability / np.pi
         lights = self._lights
         rows = LIGHTS.pack(len(lights), centre=lights.centre, a=lights.a, b=lights.b, normal=lights.normal,
-                           radiance=lights.radiance, scale=light_scale, disk=lights.disk, two_sided=lights.two_sided)
-        kernel = backend.shade_kernel(faces=self._faces, normals=self._normals, uv=self._uv,
-                                      geom_face_offset=self._geom_face_offset, geom_material=self._geom_material,
-                                      geom_smooth=self._geom_smooth, geom_normal_matrix=self._geom_normal_matrix,
-                                      materials=[_matte(m) for m in self._materials], light_rows=rows,
-                                      light_cdf=self._light_cdf,
-                                      extent=self.intersector.extent, launch_samples=self.light_samples,
-                                      spectral=self.spectral)
+                           radiance=lights.radiance, scale=light_scale, disk=lights.disk, two_sided=lights.two_sided,
+                           area=lights.area, dual_a=self._dual_a, dual_b=self._dual_b)
+        tables = dict(faces=self._faces, normals=self._normals, uv=self._uv, geom_face_offset=self._geom_face_offset,
+                      geom_material=self._geom_material, geom_smooth=self._geom_smooth,
+                      geom_normal_matrix=self._geom_normal_matrix,
+                      materials=[m if isinstance(m, Measured) and m.path in self._tables else _matte(m)
+                                 for m in self._materials],
+                      light_rows=rows, light_cdf=self._light_cdf, extent=self.intersector.extent,
+                      launch_samples=self.light_samples)
+        kernel = backend.shade_kernel(**tables, spectral=self.spectral)
+        if self._tables:
+            self._measured_kernel = backend.shade_kernel(**tables, measured_tables=self._tables)
         self._build_device_textures(backend, kernel.host_albedo)
         return kernel
 
@@ -174,7 +279,9 @@ class DirectLighting:
             return
         from realistic.scene.ewa_kernel import hit_mapping
 
-        for index, material in enumerate(map(_matte, self._materials)):
+        for index, material in enumerate(self._materials):
+            if not isinstance(material, Material):
+                continue
             texture = material.texture
             if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter == "ewa":
                 ewa = backend.ewa_kernel(texture.mipmap)
@@ -236,19 +343,30 @@ class DirectLighting:
             if len(surface) == 0 or len(self._lights) == 0 or self._light_cdf[-1] <= 0:
                 return out, 0
             point, shadow_origin, shading, ng, rho = self._surface_points(origin, direction, hits, surface, basis)
+            measured = self._measured_hits(direction, hits, surface, shading)
+            if measured is not None and basis is not None:
+                raise ValueError("DirectLighting shades measured materials with RGB rays only")
         total = np.zeros((len(surface), 3 if basis is None else 1), np.float32)
-        shadow_rays = 0
-        for k in range(self.light_samples):
-            with timed("shading"):
-                contribution, to_light, live = self._light_sample(point, shadow_origin, shading, ng, rho,
-                                                                  pixel[surface], sample[surface], k,
-                                                                  None if basis is None else _rows(basis, surface))
+
+        def add(contribution: np.ndarray, to_light: np.ndarray, live: np.ndarray) -> int:
+            """Trace the shadow rays of the rows ``live`` and add their unblocked contributions."""
             with timed("embree"):
                 blocked = self.intersector.occluded(_rows(shadow_origin, live), to_light,
                                                     np.full(len(live), 1.0 - 1e-4, np.float32))
-            shadow_rays += len(live)
             with timed("shading"):
                 total[live[~blocked]] += contribution[~blocked]
+            return len(live)
+
+        shadow_rays = 0
+        for k in range(self.light_samples):
+            with timed("shading"):
+                light = self._light_sample(point, shadow_origin, shading, ng, rho, pixel[surface], sample[surface], k,
+                                           None if basis is None else _rows(basis, surface), measured)
+            shadow_rays += add(*light)
+            if measured is not None:  # its BSDF sample, added after it (the kernel's row order)
+                with timed("shading"):
+                    paired = self._bsdf_sample(point, shadow_origin, ng, measured, pixel[surface], sample[surface], k)
+                shadow_rays += add(*paired)
         with timed("shading"):
             out[surface] = total / np.float32(self.light_samples)
         return out, shadow_rays
@@ -305,7 +423,35 @@ class DirectLighting:
                          sample: np.ndarray, hits: Hits, timed: Callable[[str], AbstractContextManager[object]],
                          albedo: np.ndarray | None = None, wavelength_nm: np.ndarray | None = None
                          ) -> tuple[np.ndarray, int]:
-        """``radiance`` through ``kernels/shade.cl``: the kernel shades every surface hit and writes
+        """``radiance`` through ``kernels/shade.cl`` (``_radiance_launches``): the rays that hit a
+        measured material through the measured kernel, the others through ``kernel``, which does no
+        table lookups and writes no BSDF rows (every lane of a launch does a lane's whole work)."""
+        if self._measured_kernel is None:
+            return self._radiance_launches(kernel, origin, direction, pixel, sample, hits, timed, albedo, wavelength_nm)
+        if wavelength_nm is not None:
+            raise ValueError("DirectLighting shades measured materials with RGB rays only")
+        with timed("shading"):
+            on_instance = (hits.geom >= 0) & (hits.geom < self.instance_count)
+            geom = np.where(on_instance, hits.geom, 0)
+            measured = on_instance & (self._material_table[self._geom_material[geom]] >= 0)
+            out = np.empty((len(origin), 3), np.float32)
+        shadow_rays = 0
+        for launched, rows in ((kernel, np.flatnonzero(~measured)), (self._measured_kernel, np.flatnonzero(measured))):
+            if len(rows) == 0:
+                continue
+            with timed("shading"):
+                part = Hits(*(_rows(a, rows) for a in (hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal)))
+            out[rows], traced = self._radiance_launches(launched, _rows(origin, rows), _rows(direction, rows),
+                                                        pixel[rows], sample[rows], part, timed,
+                                                        None if albedo is None else _rows(albedo, rows))
+            shadow_rays += traced
+        return out, shadow_rays
+
+    def _radiance_launches(self, kernel: ShadeKernel, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray,
+                           sample: np.ndarray, hits: Hits, timed: Callable[[str], AbstractContextManager[object]],
+                           albedo: np.ndarray | None = None, wavelength_nm: np.ndarray | None = None
+                           ) -> tuple[np.ndarray, int]:
+        """The rays' radiance through one shading kernel: the kernel shades every surface hit and writes
         all light samples' shadow rays, embree traces them in one call, numpy sums. ``albedo``: the
         rays' albedo from ``first_hits`` (its host rows are ``_host_albedo``'s); ``wavelength_nm``:
         spectral rays' wavelengths (None for RGB rays)."""
@@ -322,13 +468,15 @@ class DirectLighting:
                 albedo = self._host_albedo(origin, direction, hits)
             channels = 3 if wavelength_nm is None else 1  # a spectral ray's sum is one spectral value
             out = np.zeros((n, channels), np.float32)
-            # light samples per launch
-            group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // whole_groups(n)))  # the kernel's stride
+            # light samples per launch (``rows_per_sample`` shadow rays each: a measured scene's BSDF samples)
+            rows_per_sample = kernel.rows_per_sample
+            group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // (whole_groups(n) * rows_per_sample)))
             shadow_rays = 0
             response: np.ndarray | None = None  # spectral rays' film weights and basis rows, which every
             basis: np.ndarray | None = None  # launch writes
         for first in range(0, self.light_samples, group):
             count = min(group, self.light_samples - first)
+            rows = count * rows_per_sample
             with timed("shading"):
                 batch = kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                            hits.normal, pixel, sample, albedo, count, self.seed, first,
@@ -338,9 +486,9 @@ class DirectLighting:
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
                 # the batch's arrays are this thread's to overwrite until its next launch
-                contribution = batch.contribution.reshape(count, batch.stride, channels)[:, :n]
+                contribution = batch.contribution.reshape(rows, batch.stride, channels)[:, :n]
                 visible = np.logical_not(blocked, out=np.empty(len(blocked), np.float32))
-                visible = visible.reshape(count, batch.stride)[:, :n]
+                visible = visible.reshape(rows, batch.stride)[:, :n]
                 # times 1 or 0, colour by colour: a (count, n, 1) factor broadcast over the colours runs
                 # numpy's inner loop three elements at a time, and a uint8 factor is cast first (2x slower)
                 for channel in range(channels):
@@ -348,8 +496,8 @@ class DirectLighting:
                 if first == 0:  # out is zero: 0 + x is x, so the sum starts at light sample 0 as numpy's does
                     np.add.reduce(contribution, axis=0, out=out)  # adds rows k = 0, 1, ... in order
                 else:
-                    for k in range(count):  # in light-sample order, as the numpy path adds them
-                        out += contribution[k]
+                    for row in range(rows):  # in light-sample order, as the numpy path adds them
+                        out += contribution[row]
                 shadow_rays += int(np.count_nonzero(batch.length > 0))
         with timed("shading"):
             if self.light_samples > 1:
@@ -430,6 +578,9 @@ class DirectLighting:
             rows = np.flatnonzero(material_of == index)
             if len(rows) == 0:
                 continue
+            if isinstance(surface_material, Measured):
+                rho[rows] = self._measured_albedo(surface_material.path, direction[rows], normal[rows])
+                continue
             material = _matte(surface_material)
             uv = None
             if material.texture is not None:
@@ -442,6 +593,16 @@ class DirectLighting:
             rho[rows] = albedo(material, uv, len(rows), footprint, self.backend.ewa)
         return rho
 
+    def _measured_albedo(self, path: str, direction: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """A measured material's directional albedo (n, 3) seen along ``direction`` at normals
+        ``normal``: the mean of f pi over ``_RHO_DIRECTIONS`` (cosine-weighted, so f cos / pdf = f pi)."""
+        table = self._tables[path]
+        wo = ShadingFrame(normal).to_local(-np.asarray(direction, np.float32))
+        total = np.zeros((len(wo), 3), np.float64)
+        for wi in _RHO_DIRECTIONS:
+            total += table_lookup(table, wo, np.broadcast_to(wi, wo.shape))
+        return (total * (np.pi / len(_RHO_DIRECTIONS))).astype(np.float32)
+
     def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,
                    distance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """uv axes of the pixel footprints of hits on triangles ``face`` of instances ``geom``."""
@@ -453,16 +614,38 @@ class DirectLighting:
         return uv_footprint(direction.astype(np.float64), normal.astype(np.float64), distance.astype(np.float64),
                             self.pixel_spread_radians, edge1, edge2, uv[1] - uv[0], uv[2] - uv[0])
 
-    def _light_sample(self, point: np.ndarray, shadow_origin: np.ndarray, shading: np.ndarray, ng: np.ndarray,
-                      rho: np.ndarray, pixel: np.ndarray, sample: np.ndarray, k: int, basis: np.ndarray | None
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One light sample per point: (contribution of the unoccluded ones, shadow ray vector, their rows).
-
-        ``basis`` (rows of ``rgb_basis`` per point) makes the light's radiance spectral, as ``rho`` is then.
-        """
+    def _pick(self, pixel: np.ndarray, sample: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Light sample ``k``'s light (picked by power) and its point numbers u1, u2 per point."""
         u_pick, u1, u2 = rng.light_uniforms(pixel, sample, k, self.light_samples, self.seed,
                                             pick=len(self._light_cdf) > 1)
         j = np.minimum(np.searchsorted(self._light_cdf, u_pick, side="right"), len(self._light_cdf) - 1)
+        return j, u1, u2
+
+    def _light_scale(self, j: np.ndarray) -> np.ndarray:
+        """The kernel's float32 ``LIGHT_SCALE`` (area / probability / pi) of lights ``j``."""
+        with np.errstate(divide="ignore"):
+            return (self._lights.area[j] / self._light_probability[j] / np.pi).astype(np.float32)
+
+    def _measured_hits(self, direction: np.ndarray, hits: Hits, surface: np.ndarray, shading: np.ndarray
+                       ) -> _MeasuredHits | None:
+        """The surface hits' measured materials (``_MeasuredHits``), or None where none is measured."""
+        table = self._material_table[self._geom_material[hits.geom[surface]]]
+        if not np.any(table >= 0):
+            return None
+        wo = -_rows(np.asarray(direction, np.float32), surface)
+        return _MeasuredHits(table, list(self._tables.values()), shading, wo, dot(wo, shading),
+                             np.cross(shading, wo).astype(np.float32))
+
+    def _light_sample(self, point: np.ndarray, shadow_origin: np.ndarray, shading: np.ndarray, ng: np.ndarray,
+                      rho: np.ndarray, pixel: np.ndarray, sample: np.ndarray, k: int, basis: np.ndarray | None,
+                      measured: _MeasuredHits | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One light sample per point: (contribution of the unoccluded ones, shadow ray vector, their rows).
+
+        ``basis`` (rows of ``rgb_basis`` per point) makes the light's radiance spectral, as ``rho`` is then.
+        At ``measured`` hits, f(wo, wi) pi takes rho's place, times the power heuristic's weight
+        against the BSDF sample (``_bsdf_sample``), as ``kernels/shade.cl`` computes it.
+        """
+        j, u1, u2 = self._pick(pixel, sample, k)
         q = self._lights.points(j, u1, u2)
         to_light = q - point
         dist2 = dot(to_light, to_light)
@@ -477,5 +660,50 @@ class DirectLighting:
         emitted = _rows(self._lights.radiance, jl)
         if basis is not None:
             emitted = spectral_value(emitted, _rows(basis, live))[:, None]
-        contribution = _rows(rho, live) * emitted * scale[:, None]
+        reflectance = _rows(rho, live)
+        if measured is not None:
+            at = np.flatnonzero(measured.table[live] >= 0)
+            rows = live[at]
+            area = self._lights.area[j[rows]].astype(np.float32)
+            ratio = cos_p[rows] * cos_q[rows] * area / (np.float32(np.pi) * dist2[rows])
+            weight = np.float32(np.pi) / (np.float32(1) + ratio * ratio)
+            reflectance[at] = measured.lookup(rows, wi[rows], cos_p[rows]) * weight[:, None]
+        contribution = reflectance * emitted * scale[:, None]
         return contribution, _rows(q, live) - _rows(shadow_origin, live), live
+
+    def _bsdf_sample(self, point: np.ndarray, shadow_origin: np.ndarray, ng: np.ndarray, measured: _MeasuredHits,
+                     pixel: np.ndarray, sample: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The BSDF sample paired with light sample ``k`` at the ``measured`` hits (pbrt-v2
+        ``EstimateDirect``'s second half, ``src/core/integrator.cpp``): a cosine-weighted direction
+        (``rng.light_bsdf_uniforms``; n plus a uniform point on the unit sphere, normalised) that
+        counts where it meets the light sample's light from its
+        emitting side, weighted by the power heuristic against that light's density, over the
+        light's pick probability. Returns as ``_light_sample``: contributions, shadow-ray vectors
+        (to the point met), their rows."""
+        j, _, _ = self._pick(pixel, sample, k)
+        v1, v2 = rng.light_bsdf_uniforms(pixel, sample, k, self.light_samples, self.seed)
+        x, y = (c.astype(np.float32) for c in concentric_disk(v1, v2))
+        # n plus a uniform point on the sphere (the disk mapped by area), normalised: cosine-weighted about n
+        r2 = np.maximum(np.abs(2 * v1 - 1), np.abs(2 * v2 - 1)) ** 2
+        lift = 2 * np.sqrt(np.maximum(1 - r2, 0))
+        wi = normalise(measured.normal + np.column_stack([x * lift, y * lift, 1 - 2 * r2]))
+        cos_i = dot(wi, measured.normal)
+        normal, centre = _rows(self._lights.normal, j), _rows(self._lights.centre, j)
+        denom = dot(wi, normal)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            th = dot(centre - point, normal) / denom
+            hit = point + th[:, None] * wi
+            r = hit - centre
+            lu, lv = dot(r, _rows(self._dual_a, j)), dot(r, _rows(self._dual_b, j))
+        inside = np.where(self._lights.disk[j], lu * lu <= 1 - lv * lv, (np.abs(lu) <= 1) & (np.abs(lv) <= 1))
+        cos_h = np.where(self._lights.two_sided[j], np.abs(denom), -denom)
+        live = np.flatnonzero((measured.table >= 0) & (cos_i > 0) & (dot(wi, ng) > 0) & (th > 0) & inside
+                              & (cos_h > 0))
+        jl = j[live]
+        f = measured.lookup(live, wi[live], cos_i[live])
+        area = self._lights.area[jl].astype(np.float32)
+        pi = np.float32(np.pi)
+        ratio = th[live] * th[live] * pi / (cos_h[live] * area * cos_i[live])
+        scale = pi / (np.float32(1) + ratio * ratio) * (self._light_scale(jl) * pi / area)
+        contribution = f * _rows(self._lights.radiance, jl) * scale[:, None]
+        return contribution, _rows(hit, live) - _rows(shadow_origin, live), live

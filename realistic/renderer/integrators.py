@@ -2,8 +2,11 @@
 
 Lambertian surfaces lit by area lights alone under "directlighting" keep ``DirectLighting``, the
 light-sampling fast path whose images the homework scenes have always had (with only diffuse BSDFs
-and area lights MIS adds cost and no accuracy worth it); everything else goes through
-``PathIntegrator`` (MIS direct lighting, or path tracing).
+and area lights MIS adds cost and no accuracy worth it). On the "opencl" backend, with RGB rays,
+measured BRDFs of irregular samples (pbrt-v2's ``.brdf`` files, the seed scene's dragons) join them:
+``kernels/shade.cl`` shades them from their tables with a BSDF sample per light sample, MIS as
+pbrt-v2's ``directlighting``. Everything else goes through ``PathIntegrator`` (MIS direct lighting,
+or path tracing).
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ import numpy as np
 
 from realistic.renderer.backends import Backend
 from realistic.renderer.bsdf import Lambertian, bsdf_for
-from realistic.renderer.direct_lighting import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting, is_tabulated
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, Scene
@@ -30,10 +33,12 @@ class _NoHits:
         return np.zeros(0, np.float32)
 
 
-def is_lambertian(scene: Scene) -> bool:
-    """Whether every instance's material makes a Lambertian BSDF."""
+def is_lambertian(scene: Scene, tabulated: bool = False) -> bool:
+    """Whether every instance's material makes a Lambertian BSDF (or, with ``tabulated``, is a
+    measured BRDF ``DirectLighting`` shades from its table)."""
     materials = {id(inst.material): inst.material for inst in scene.instances}
-    return all(isinstance(bsdf_for(material, _NoHits()), Lambertian) for material in materials.values())
+    return all((tabulated and is_tabulated(material)) or isinstance(bsdf_for(material, _NoHits()), Lambertian)
+               for material in materials.values())
 
 
 def make_integrator(scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
@@ -45,8 +50,9 @@ def make_integrator(scene: Scene, intersector: Intersector, light_samples: int =
     ``kernels/bsdf.cl`` covers."""
     if scene.integrator not in INTEGRATORS:
         raise ValueError(f"unknown integrator {scene.integrator!r} (choose {', '.join(INTEGRATORS)})")
+    name = backend if isinstance(backend, str) else backend.name
     if scene.integrator == "directlighting" and all(isinstance(light, AreaLight) for light in scene.lights) \
-            and is_lambertian(scene):
+            and is_lambertian(scene, tabulated=name == "opencl" and not spectral):
         return DirectLighting(scene, intersector, light_samples, seed, pixel_spread_radians, backend=backend,
                               spectral=spectral)
     mode = "direct" if scene.integrator == "directlighting" else "path"

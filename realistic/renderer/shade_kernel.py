@@ -7,14 +7,18 @@ the hit point, the geometric and shading normals, the albedo (constant, grid and
 image-textured rows come from the host: ``DirectLighting._host_albedo``) and, for every light
 sample, the light point, the shadow ray and its contribution. It writes them into flat arrays
 ordered by light sample then ray (row k * stride + i), so embree traces all of a pass's shadow rays
-in one ``occluded`` call; dead samples have length -1, which embree skips.
+in one ``occluded`` call; dead samples have length -1, which embree skips. Measured materials
+(pbrt-v2's irregular ``.brdf`` files, their tables from ``renderer.bsdf.measured.irregular_table``
+one after another in one buffer) build the ``MEASURED`` variant: each light sample is paired with a
+cosine-weighted BSDF sample, both weighted by the power heuristic as pbrt-v2's ``directlighting``
+does (``EstimateDirect``), in rows 2 k * stride + i and the next stride.
 
 The program source does not depend on the scene: the scene's tables (faces, vertex normals, uvs,
 per-instance normal matrices and materials, lights and their CDF) are device buffers made once per
 integrator. Four build options leave out what a scene never needs (every table read is a vector
 gather on the CPU, the kernel's main cost): the light search's depth, smooth normals, procedural
-textures, host albedos. A fifth, the light samples per launch, lets each work item do a hit's work
-once for all of them (the loop unrolled); a sixth, ``SPECTRAL``, shades rays of one wavelength each
+textures, host albedos, measured materials. Another, the light samples per launch, lets each work item do a hit's work
+once for all of them (the loop unrolled); the last, ``SPECTRAL``, shades rays of one wavelength each
 (a spectral camera's K per sample, all in the one launch): albedo and radiance as spectra at the
 ray's wavelength (one contribution column), and each ray's film weight and basis row, from
 ``SPECTRUM``, a table of the numpy path's own ``rgb_basis``, ``cie_rgb`` and ``wavelength_pdf``, so
@@ -43,6 +47,8 @@ from realistic.core.spectrum import (
 )
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
+from realistic.renderer.bsdf.measured import TABLE_NODES
+from realistic.scene.materials import Measured
 from realistic.scene.model import CheckerTexture, GridTexture, Material
 
 KERNEL_FILE = "shade.cl"
@@ -52,13 +58,17 @@ GEOM_INTS = Table("GEOM_INT", np.int32, (("face_offset", 1), ("material", 1), ("
 #: Per instance: the normal matrix (inverse transpose of the linear map), row major.
 GEOM_FLOATS = Table("GEOM_FLOAT", np.float32, (("normal_matrix", 9),))
 #: Per material: its kind (``KINDS``), diffuse colour, and a grid's or checker's cells, line bounds
-#: (low, high: line_width / 2 and 1 - line_width / 2) and colours (a: line or even, b: base or odd).
+#: (low, high: line_width / 2 and 1 - line_width / 2) and colours (a: line or even, b: base or odd);
+#: a measured material's table (its index among the kernel's ``measured_tables``).
 MATERIALS = Table("MATERIAL", np.float32, (("kind", 1), ("diffuse", 3), ("cells", 1), ("low", 1), ("high", 1),
-                                           ("colour_a", 3), ("colour_b", 3), ("unused", 3)))
+                                           ("colour_a", 3), ("colour_b", 3), ("table", 1), ("unused", 2)))
 #: Per area light: centre and half-axes a, b (a point is centre + a x + b y), normal, radiance, the
-#: contribution's scale (area / probability / pi), whether a disk, whether two-sided (0 or 1).
+#: contribution's scale (area / probability / pi), whether a disk, whether two-sided (0 or 1); for
+#: measured materials' BSDF samples its area and the dual axes of a and b
+#: (``direct_lighting.dual_axes``).
 LIGHTS = Table("LIGHT", np.float32, (("centre", 3), ("a", 3), ("b", 3), ("normal", 3), ("radiance", 3),
-                                     ("scale", 1), ("disk", 1), ("two_sided", 1), ("unused", 2)))
+                                     ("scale", 1), ("disk", 1), ("two_sided", 1), ("area", 1), ("dual_a", 3),
+                                     ("dual_b", 3), ("unused", 3)))
 #: Per wavelength node (``SPECTRUM_INTERVALS`` + 1 of them, equally spaced over 380-780 nm): the
 #: RGB-to-spectrum basis (``rgb_basis``), and the film's weight ``rgb_response`` as its two factors,
 #: ``cie_rgb`` and the wavelength density ``wavelength_pdf``, which spectral rays interpolate linearly
@@ -68,14 +78,16 @@ SPECTRUM = Table("SPECTRUM", np.float32, (("basis", 3), ("cie", 3), ("pdf", 1)))
 #: nodes (the density is exactly linear between them); the interpolated basis and weight are within
 #: 3e-7 and 5e-6 of the closed forms' largest values (``tests/test_shade_kernel.py``).
 SPECTRUM_INTERVALS = 128 * WAVELENGTH_INTERVALS
-#: Material kinds: constant colour, grid and checker textures (in the kernel), host albedo.
-KINDS = ("constant", "grid", "checker", "host")
-KIND_CONSTANT, KIND_GRID, KIND_CHECKER, KIND_HOST = range(len(KINDS))
+#: Material kinds: constant colour, grid and checker textures (in the kernel), host albedo, and a
+#: measured BRDF's table (``realistic.renderer.bsdf.measured``), shaded with BSDF samples too.
+KINDS = ("constant", "grid", "checker", "host", "measured")
+KIND_CONSTANT, KIND_GRID, KIND_CHECKER, KIND_HOST, KIND_MEASURED = range(len(KINDS))
 #: The generated head of ``shade.cl``'s source: every table's defines and the kinds.
 HEADER = "".join(table.defines() for table in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS, SPECTRUM)) + \
     constant_defines("KIND", KINDS) + \
     (f"#define SPECTRUM_INTERVALS {SPECTRUM_INTERVALS}\n#define SPECTRUM_MIN_NM {LAMBDA_MIN_NM!r}f\n"
-     f"#define SPECTRUM_PER_NM {SPECTRUM_INTERVALS / (LAMBDA_MAX_NM - LAMBDA_MIN_NM)!r}f\n")
+     f"#define SPECTRUM_PER_NM {SPECTRUM_INTERVALS / (LAMBDA_MAX_NM - LAMBDA_MIN_NM)!r}f\n"
+     f"#define TABLE_NODES {TABLE_NODES}\n")
 #: The kernel's light search is written out for at most this many lights.
 MAX_LIGHTS = 65535
 #: Shadow rays per launch (and per embree call) at most: a pass's light samples go in groups of
@@ -96,6 +108,17 @@ def rounded_up_cdf(cdf: np.ndarray) -> np.ndarray:
     return c32
 
 
+def table_records(table: np.ndarray) -> np.ndarray:
+    """A measured table (n, n, n, 3) of bfloat16 values in float32 (``direct_lighting.bfloat16``) as
+    ``kernels/shade.cl`` reads it: uint32 (n, n, n, 3), record (x, y, z) the six values r, g, b at
+    (x, y, z) and at (x + 1, y, z) (0 past the last x) as their upper 16 bits, two to a uint, low half first."""
+    bits = np.asarray(table, np.float32).view(np.uint32) >> np.uint32(16)
+    upper = np.zeros_like(bits)
+    upper[:-1] = bits[1:]
+    halves = np.concatenate([bits, upper], axis=3)  # r, g, b at x, then at x + 1
+    return halves[..., 0::2] | (halves[..., 1::2] << np.uint32(16))
+
+
 def spectrum_rows() -> np.ndarray:
     """The ``SPECTRUM`` table: ``rgb_basis``, ``cie_rgb`` and ``wavelength_pdf`` at its equally
     spaced wavelengths (``rgb_response`` is ``cie_rgb / wavelength_pdf``)."""
@@ -103,8 +126,10 @@ def spectrum_rows() -> np.ndarray:
     return SPECTRUM.pack(len(nodes), basis=rgb_basis(nodes), cie=cie_rgb(nodes), pdf=wavelength_pdf(nodes))
 
 
-def material_row(material: Material) -> np.ndarray:
-    """A material's ``MATERIALS`` row."""
+def material_row(material: Material | Measured, table: int = 0) -> np.ndarray:
+    """A material's ``MATERIALS`` row; a measured one's table is ``table``."""
+    if isinstance(material, Measured):
+        return MATERIALS.pack(1, kind=KIND_MEASURED, table=table)[0]
     diffuse = np.asarray(material.diffuse, np.float32)
     texture = material.texture
     if texture is None:
@@ -123,7 +148,8 @@ def material_row(material: Material) -> np.ndarray:
 @dataclass
 class ShadowBatch:
     """One launch's outputs: ``light_samples`` x ``stride`` rows (row k * stride + i for ray i and
-    the launch's k-th light sample)."""
+    the launch's k-th light sample), twice as many with measured materials (rows 2 k * stride + i,
+    and the paired BSDF sample's the next stride)."""
 
     origin: np.ndarray  # (rows, 3) float32
     vector: np.ndarray  # (rows, 3) float32: to the light point
@@ -165,11 +191,17 @@ class ShadeKernel:
 
     def __init__(self, *, faces: np.ndarray, normals: np.ndarray, uv: np.ndarray, geom_face_offset: np.ndarray,
                  geom_material: np.ndarray, geom_smooth: np.ndarray, geom_normal_matrix: np.ndarray,
-                 materials: list[Material], light_rows: np.ndarray, light_cdf: np.ndarray, extent: float,
-                 device: Device, launch_samples: int = 1, spectral: bool = False):
+                 materials: list[Material | Measured], light_rows: np.ndarray, light_cdf: np.ndarray, extent: float,
+                 device: Device, launch_samples: int = 1, spectral: bool = False,
+                 measured_tables: dict[str, np.ndarray] | None = None):
         """``launch_samples``: the light samples per launch a render will ask for (at most
         ``MAX_LAUNCH_SAMPLES``), and ``spectral``: whether its rays are spectral; that program
-        variant is built here rather than in its first pass (others are built on first use)."""
+        variant is built here rather than in its first pass (others are built on first use).
+        ``measured_tables``: each ``Measured`` material's file's table (``irregular_table``,
+        rounded to bfloat16: ``direct_lighting.bfloat16``) by path, which a measured
+        material's row names; with any, every light sample has a BSDF
+        sample's row too (``rows_per_sample`` 2), and rays must be RGB. Without, a measured
+        material's row reflects nothing (its hits are for the measured variant to shade)."""
         self.device = device
         self.context = device.context
         if not 0 < len(light_cdf) <= MAX_LIGHTS:
@@ -184,19 +216,29 @@ class ShadeKernel:
         geom_floats = GEOM_FLOATS.pack(rows)
         geom_floats[:self.instance_count] = GEOM_FLOATS.pack(
             self.instance_count, normal_matrix=np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9))
-        material_rows = np.array([material_row(m) for m in materials] or [MATERIALS.pack(1)[0]], np.float32)
+        tables = measured_tables or {}
+        order = {path: index for index, path in enumerate(tables)}
+        material_rows = np.array([material_row(m, order.get(m.path, 0) if isinstance(m, Measured) else 0)
+                                  for m in materials] or [MATERIALS.pack(1)[0]], np.float32)
         kinds = material_rows[:, MATERIALS.offset("kind")]
         self.host_albedo = kinds == KIND_HOST
         # the program variant this scene needs: work no instance or material asks for is compiled out
         self.options = (f"-DPICK_BITS={(len(light_cdf) - 1).bit_length()}",
                         f"-DSMOOTH={int(np.any(geom_smooth))}",
                         f"-DTEXTURED={int(np.any(np.isin(kinds, (KIND_GRID, KIND_CHECKER))))}",
-                        f"-DHOST_ALBEDO={int(self.host_albedo.any())}")
+                        f"-DHOST_ALBEDO={int(self.host_albedo.any())}",
+                        f"-DMEASURED={int(bool(tables))}")
+        #: Shadow-ray rows per light sample: a measured scene's BSDF sample has the second.
+        self.rows_per_sample = 2 if tables else 1
+        if tables and spectral:
+            raise ValueError("measured materials shade RGB rays only")
         self.program = self._program(min(launch_samples, MAX_LAUNCH_SAMPLES), spectral)
         self._tables = [device.wrapped_buffer(array, dtype) for array, dtype in (
             (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom_ints, np.int32),
             (geom_floats, np.float32), (material_rows, np.float32), (light_rows, np.float32),
-            (rounded_up_cdf(light_cdf), np.float32))]
+            (rounded_up_cdf(light_cdf), np.float32),
+            (np.concatenate([table_records(t).ravel() for t in tables.values()]) if tables else np.zeros(4),
+             np.uint32))]
         self._spectrum = device.wrapped_buffer(spectrum_rows(), np.float32)
         self._dummy_albedo = np.zeros(3, np.float32)
         self._local = threading.local()
@@ -234,7 +276,7 @@ class ShadeKernel:
         total = first_sample + light_samples if total_samples is None else total_samples
         n = len(origin)
         stride = whole_groups(n)
-        rows = stride * light_samples
+        rows = stride * light_samples * self.rows_per_sample
         if n == 0:
             empty = np.zeros((0, 3), np.float32)
             return ShadowBatch(empty, empty, np.zeros(0, np.float32), empty, 0)
