@@ -100,10 +100,23 @@ def unreadable_message(path: Path, extension: str, err: BaseException) -> str:
 
 
 def no_triangles_message(path: Path, extension: str) -> str:
+    """The one-line message for a file trimesh read as holding no triangles: the file's own problem where
+    the diagnosis finds one (trimesh decodes text that is not UTF-8 when ``charset_normalizer`` is
+    installed, and then finds nothing in it; a cut ASCII STL is said as such first), else that it holds
+    none."""
     if extension == "stl" and not binary_stl_sizes(path)[0]:
         data = read_head(path, DIAGNOSIS_BYTES)
         if re.search(rb"(?i)\bvertex\b", data) and not re.search(rb"(?i)\bendsolid\b", data):
             return f"{path}: not a readable STL mesh (ASCII STL without an 'endsolid' line: truncated?)"
+    try:
+        found = _DIAGNOSE[extension](path)
+    except UnicodeDecodeError:
+        found = None, "the text is not valid UTF-8"
+    except Exception:  # best effort, as in unreadable_message
+        found = None
+    if found is not None:
+        line, reason = found
+        return f"{path}{'' if line is None else f':{line}'}: not a readable {extension.upper()} mesh ({reason})"
     return f"{path}: the file holds no triangles"
 
 
