@@ -178,12 +178,18 @@ class Device:
         nothing on PoCL's CPU device, where a copy out of a buffer of its own cost a fifth of a
         camera launch. An empty output (OpenCL has no empty buffers) gets a scratch buffer the kernel
         does not write. Callers serialise launches on one queue themselves, or give each thread its
-        own queue and kernel."""
+        own queue and kernel.
+
+        The launch is waited for before the reads are queued: PoCL compiles a kernel for its
+        work-group size when its first launch is submitted, which a non-blocking ``enqueue_copy``
+        queued behind it does inside that call, holding the GIL (every other thread of the render
+        stood still for the lens kernel's compile); ``CommandQueue.finish`` waits without it."""
         flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
         buffers = [cl.Buffer(self.context, flags, hostbuf=array) if array.nbytes else self.output_buffer(4)
                    for array in outputs]
         try:
             kernel(queue, global_size, local_size, *args, *buffers)
+            queue.finish()  # a first launch compiles the kernel here, without the GIL (see above)
             for array, buffer in zip(outputs, buffers):
                 if array.nbytes:
                     cl.enqueue_copy(queue, array, buffer, is_blocking=False)  # orders the read after the kernel
