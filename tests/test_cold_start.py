@@ -7,6 +7,7 @@ kernel variant its rays need, and no other.
 
 import pytest
 
+from conftest import run_fresh
 from realistic import load_scene
 from realistic.renderer.job import PassSettings
 from realistic.renderer.runner import PassRunner
@@ -109,3 +110,63 @@ def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dis
     runner = PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())
     assert runner(0, SampleBlock(0, 240, 2)).shadow_rays > 0  # shaded by the kernel
     assert variants and set(variants) == {f"-DSPECTRAL={int(dispersion)}"}
+
+
+def test_a_runner_compiles_the_trace_loops_for_the_arrays_its_passes_trace():
+    """``PassRunner`` compiles embree's packet loops while the kernels build (``compile_trace_loops``),
+    for exactly the argument types a pass then traces with: a pass compiles nothing more (checked
+    in a process of its own, whose loops nothing compiled before)."""
+    run = run_fresh("""
+from realistic import load_scene
+from realistic.camera.base import SampleBlock
+from realistic.renderer.job import PassSettings
+from realistic.renderer.runner import PassRunner
+from realistic.renderer.timing import StageClock
+from realistic.scene import packet_loop
+
+scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=False)
+runner = PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())
+loops = packet_loop.closest_loop(), packet_loop.occluded_loop()
+print([len(loop.signatures) for loop in loops])
+runner(0, SampleBlock(0, 240, 2))
+print([len(loop.signatures) for loop in loops])
+""")
+    assert run.stdout.split("\n")[:2] == ["[1, 1]", "[1, 1]"]
+
+
+def test_other_threads_run_while_a_kernel_first_launch_compiles(tmp_path):
+    """PoCL compiles a kernel at its first launch; ``Device.run_into`` waits for that in
+    ``CommandQueue.finish``, which lets other Python threads run (a non-blocking read queued behind
+    the launch made the compile happen inside ``enqueue_copy``, the GIL held: the render's other
+    threads stood still). A thread sleeping a millisecond at a time counts its wake-ups meanwhile."""
+    run = run_fresh("""
+import threading, time
+import numpy as np
+from realistic.device.opencl import LOCAL_SIZE, Device
+
+device = Device.for_spec()
+source = '''__kernel void f(uint n, __global float* out) {
+    float x = get_global_id(0);
+    for (int k = 0; k < 64; k++) x = sin(x) * cos(x) + sqrt(fabs(x)) + exp(-x * x) + log1p(fabs(x));
+    out[get_global_id(0)] = x;
+}'''
+kernel = device.build_program(source, "test.cl").f
+ticks, done = [0], threading.Event()
+
+def count() -> None:
+    while not done.is_set():
+        time.sleep(0.001)
+        ticks[0] += 1
+
+threading.Thread(target=count).start()
+time.sleep(0.05)
+before, start = ticks[0], time.perf_counter()
+device.run_into(device.queue(), kernel, (LOCAL_SIZE,), (LOCAL_SIZE,), (np.uint32(LOCAL_SIZE),),
+                (np.empty(LOCAL_SIZE, np.float32),))
+print(time.perf_counter() - start, ticks[0] - before)
+done.set()
+""", POCL_CACHE_DIR=str(tmp_path), REALISTIC_CACHE_DIR="off")
+    seconds, ticks = run.stdout.split()
+    if float(seconds) < 0.05:
+        pytest.skip(f"the first launch took {float(seconds):.3f} s: nothing compiled at it")
+    assert int(ticks) >= 10, f"{ticks} wake-ups in the {float(seconds):.2f} s of a first launch"
