@@ -91,6 +91,49 @@ def test_the_program_not_chosen_stores_no_binaries(built, opencl_platform, monke
     assert stored(chosen) == (["device0"] if chosen == one else ["built"])  # built twice, or once
 
 
+def test_build_ahead_builds_what_the_lens_kernel_uses_without_the_exit_pupil(built, opencl_platform, monkeypatch):
+    """``build_ahead`` (run while the exit-pupil table is made) builds, without that table, the
+    programs the camera's ``LensKernel`` then uses: at a camera's first sight, when its choice is
+    timed and when it is read back; the kernel builds none of its own."""
+    from kernel_reference import reference_camera
+    from realistic.camera.lens_camera import LensCamera
+
+    device = opencl.Device.for_spec()
+    camera = reference_camera("telephoto", "pupil")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    pupil = LensCamera.pupil
+    for sight in range(3):
+        opencl.build_program.cache_clear()  # each sight as in a process of its own
+        monkeypatch.setattr(opencl_platform, "_chosen", {})
+        with monkeypatch.context() as no_table:
+            no_table.setattr(LensCamera, "pupil", property(lambda camera: pytest.fail("the table was made")))
+            opencl_platform.build_ahead(camera, device)
+        ahead = opencl.build_program.cache_info().misses
+        assert LensCamera.pupil is pupil
+        opencl_platform.LensKernel(camera, device)
+        assert opencl.build_program.cache_info().misses == ahead, f"sight {sight} built a program again"
+    assert built[:3] == [one, several, one]  # first sight: one ray untimed; second: both timed
+
+
+def test_a_program_asked_for_while_it_builds_is_built_once(opencl_platform):
+    """Two threads asking for one new program get the same program from one build (a render's
+    ``build_ahead`` and its ``LensKernel`` ask for the same)."""
+    import threading
+
+    device = opencl.Device.for_spec()
+    opencl.build_program.cache_clear()
+    source = "__kernel void once(__global float* out) { out[get_global_id(0)] = 1.0f; }"
+    programs = []
+    threads = [threading.Thread(target=lambda: programs.append(device.build_program(source, "once.cl")))
+               for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(programs) == 2 and programs[0] is programs[1]
+    assert opencl.build_program.cache_info().misses == 1
+
+
 @pytest.mark.parametrize("dispersion", [False, True])
 def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dispersion):
     """A spectral render's shading kernel is built for spectral rays alone, an RGB render's for RGB

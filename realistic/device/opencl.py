@@ -121,6 +121,7 @@ class Device:
             device = (pocl or found)[0][3]
         self.spec = spec
         self.context = cl.Context([device])
+        self._build_lock = threading.Lock()
 
     @staticmethod
     def for_spec(spec: str | None = None) -> Device:
@@ -146,8 +147,11 @@ class Device:
         return cl.CommandQueue(self.context)
 
     def build_program(self, source: str, name: str, options: tuple[str, ...] = ()) -> cl.Program:
-        """``source`` built with ``options`` (``build_program``)."""
-        return build_program(self, source, name, options)
+        """``source`` built with ``options`` (``build_program``), one program at a time: a thread
+        asking for a program another is building waits for it and is handed the same, not a second
+        build (``build_ahead``s start builds early). PoCL 3.0 builds one program at a time anyway."""
+        with self._build_lock:
+            return build_program(self, source, name, options)
 
     def wrapped_buffer(self, array: np.ndarray, dtype: np.dtype | type) -> cl.Buffer:
         """A read-only buffer over ``array`` as contiguous ``dtype``, not a copy (PoCL on the CPU reads
