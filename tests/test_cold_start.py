@@ -155,10 +155,10 @@ def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dis
     assert variants and set(variants) == {f"-DSPECTRAL={int(dispersion)}"}
 
 
-def test_a_runner_compiles_the_trace_loops_for_the_arrays_its_passes_trace():
-    """``PassRunner`` compiles embree's packet loops while the kernels build (``compile_trace_loops``),
-    for exactly the argument types a pass then traces with: a pass compiles nothing more (checked
-    in a process of its own, whose loops nothing compiled before)."""
+def test_the_trace_loops_compiled_ahead_are_those_a_pass_traces_with():
+    """A render compiles embree's packet loops on a render thread as it starts (``ThreadPasses.open``
+    runs ``compile_trace_loops``), for exactly the argument types its passes then trace with: a
+    pass compiles nothing more (checked in a process of its own, whose loops nothing compiled)."""
     run = run_fresh("""
 from realistic import load_scene
 from realistic.camera.base import SampleBlock
@@ -166,12 +166,13 @@ from realistic.renderer.job import PassSettings
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.timing import StageClock
 from realistic.scene import packet_loop
+from realistic.scene.embree import compile_trace_loops
 
-scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=False)
-runner = PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())
 loops = packet_loop.closest_loop(), packet_loop.occluded_loop()
+compile_trace_loops()
 print([len(loop.signatures) for loop in loops])
-runner(0, SampleBlock(0, 240, 2))
+scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=False)
+PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())(0, SampleBlock(0, 240, 2))
 print([len(loop.signatures) for loop in loops])
 """)
     assert run.stdout.split("\n")[:2] == ["[1, 1]", "[1, 1]"]

@@ -59,6 +59,7 @@ from realistic.renderer.runner import PassRunner
 from realistic.renderer.starburst import starburst
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
+from realistic.scene.embree import compile_trace_loops
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import Scene
 
@@ -134,8 +135,11 @@ class ThreadPasses:
         self.pool = ThreadPoolExecutor(max_workers=self.threads,
                                        initializer=affinity.worker_pinner() if self.pin_threads else None)
         self.finished: queue.SimpleQueue[Future] = queue.SimpleQueue()  # futures, as they finish
-        # the first camera's programs build on a render thread while its exit-pupil table is made
+        # on the render threads while the exit-pupil table is made: the first camera's programs (PoCL
+        # builds them without the GIL), and the embree packet loops (numba, with it); a loop's error
+        # recurs in the first trace, which reports it
         self.ahead = self.pool.submit(_build_ahead, job.settings, job.cameras[0])
+        self.pool.submit(compile_trace_loops)
 
     def runner(self, frame: int) -> PassRunner:
         """Frame ``frame``'s runner, its camera prepared now. ``render`` submits frames in order, so

@@ -7,8 +7,6 @@ per-pixel sums (``film.pass_sums``). Both executors (``passes.ThreadPasses`` and
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
@@ -48,16 +46,6 @@ def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return np.take(points, rows, axis=0).astype(np.float32, copy=False)
 
 
-def compile_trace_loops(intersector: Intersector) -> None:
-    """Trace no rays through ``intersector``. The first trace of a process compiles embree's packet
-    loops (``scene/packet_loop``: numba's import and its compile or cache load, Python that holds the
-    GIL); ``PassRunner`` runs this on a thread of its own while the OpenCL driver builds the kernels
-    (its compiler runs without the GIL), not in the first pass after them."""
-    none = np.empty((0, 3), np.float32)
-    intersector.closest(none, none)
-    intersector.occluded(none, none, np.empty(0, np.float32))
-
-
 class PassRunner:
     """Runs passes of sample ids: rays, hits, shading, per-pixel sums. Built once per camera (and
     per worker process on a farm); ``intersector`` shares one scene's embree BVH between cameras."""
@@ -65,16 +53,12 @@ class PassRunner:
     def __init__(self, scene: Scene, camera: Camera, settings: PassSettings, clock: StageClock,
                  intersector: Intersector | None = None):
         self.camera, self.morton, self.clock, self.crop = camera, settings.morton, clock, settings.crop
-        intersector = intersector or Intersector(scene)
-        with ThreadPoolExecutor(1) as side:  # the trace loops' compile runs while the kernels build
-            traced = side.submit(compile_trace_loops, intersector)
-            kernels = backend_for(settings.backend, settings.cl_device)  # this process's, made once: jobs carry strings
-            self.generate = kernels.ray_generator(camera, settings.seed)
-            spread = camera.pixel_spread_radians() * differential_scale(camera.spp, scene.differential_floor)
-            self.integrator = make_integrator(scene, intersector, settings.light_samples,
-                                              settings.seed, spread, backend=kernels,
-                                              spectral=isinstance(camera, LensCamera) and camera.spectral)
-            traced.result()
+        kernels = backend_for(settings.backend, settings.cl_device)  # this process's, made once: jobs carry strings
+        self.generate = kernels.ray_generator(camera, settings.seed)
+        spread = camera.pixel_spread_radians() * differential_scale(camera.spp, scene.differential_floor)
+        self.integrator = make_integrator(scene, intersector or Intersector(scene), settings.light_samples,
+                                          settings.seed, spread, backend=kernels,
+                                          spectral=isinstance(camera, LensCamera) and camera.spectral)
         self.aovs = AovLayout(settings.aovs)
         self.flare = None
         if settings.flare_threshold is not None and isinstance(camera, LensCamera):  # RenderJob refuses other cameras

@@ -322,3 +322,16 @@ def _rays(origin: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.nda
     if len(origin) != len(direction):
         raise ValueError(f"{len(origin)} origins and {len(direction)} directions")
     return origin, direction
+
+
+def compile_trace_loops() -> None:
+    """Trace no rays through an empty scene. The process's first trace compiles the packet loops
+    (``scene/packet_loop``: numba's import and its compile or cache load, Python that holds the GIL
+    for half a second to a second); a render does this on a thread of its own as it starts, beside
+    its OpenCL builds (which run without the GIL), not in its first pass after them. The arrays are
+    of the types every trace passes (``_rays``), so nothing is compiled twice."""
+    scene = EmbreeScene()
+    scene.commit()
+    none = np.empty((0, 3), np.float32)
+    scene.intersect(none, none)
+    scene.occluded(none, none, np.empty(0, np.float32))
