@@ -379,7 +379,7 @@ def test_the_library_is_the_one_embreex_ships() -> None:
 
 def test_no_system_library_is_looked_for_when_the_wheel_s_loads(monkeypatch: pytest.MonkeyPatch) -> None:
     """``ctypes.util.find_library`` (ldconfig, gcc and ld run on Linux) is left alone when the
-    embreex wheel's library is the one used: it cost every render a third of a second."""
+    embreex wheel's library is the one used: every render started the three processes."""
     def refused(name: str) -> None:
         raise AssertionError(f"find_library({name!r}) was called")
 

@@ -69,8 +69,8 @@ _SIGNATURES = {
 def library_candidates() -> Iterator[Path]:
     """Where embree 4 may be: the libraries vendored in the embreex wheel (``embreex.libs`` on
     Linux and Windows, ``embreex/.dylibs`` on macOS), then a system-wide install, looked for only
-    when asked for (``ctypes.util.find_library`` runs ldconfig, gcc and ld on Linux: a third of
-    a second at every start-up, where the wheel's library is the one used)."""
+    when asked for: ``ctypes.util.find_library`` runs ldconfig, gcc and ld on Linux, three
+    processes at every start-up, where the wheel's library is the one used."""
     spec = importlib.util.find_spec("embreex")
     if spec is not None and spec.origin:
         package = Path(spec.origin).parent
