@@ -311,6 +311,7 @@ TIMED_RAYS = 4 * SMALL_GRID_LIMIT
 ONE_RAY_MARGIN = 0.8
 #: Rays per work item chosen in this process, by disk-cache key (a refocused camera asks again).
 _chosen: dict[str, int] = {}
+_choosing = threading.Lock()  # ``build_ahead`` on a render thread and ``LensKernel`` decide alike
 
 
 def _seconds(run: Callable[[], object]) -> float:
@@ -331,19 +332,21 @@ def _choice_key(camera: LensCamera, device: Device) -> str:
     return disk_cache.cache_key("lens-rays-per-item", device.identity(), source)
 
 
-def _untimed_choice(key: str, choices: tuple[int, int]) -> tuple[int | None, bool]:
+def _untimed_choice(key: str, choices: tuple[int, int]) -> int | None:
     """The rays per work item ``LensKernel`` runs without timing them for ``key`` (``_choice_key``;
-    ``choices``: several, one) and whether the camera is first seen: the choice made in this process
-    or stored in the disk cache; one ray for a camera the disk cache has no entry for (first seen);
-    None where the choice is to be timed. Reads, never writes."""
-    if key in _chosen:
-        return _chosen[key], False
-    stored = disk_cache.load_arrays(key)
-    if stored is not None and "rays_per_item" in stored and int(stored["rays_per_item"][0]) in choices:
-        return int(stored["rays_per_item"][0]), False
-    if stored is None and disk_cache.cache_dir() is not None:
-        return choices[1], True
-    return None, False
+    ``choices``: several, one), decided once per process (``_chosen``) whichever of ``build_ahead``
+    and ``LensKernel`` asks first: the choice stored in the disk cache, or for a camera it has no
+    entry for (first seen) one ray, leaving a mark there; None where the choice is to be timed."""
+    with _choosing:
+        if key in _chosen:
+            return _chosen[key]
+        stored = disk_cache.load_arrays(key)
+        if stored is not None and "rays_per_item" in stored and int(stored["rays_per_item"][0]) in choices:
+            return _chosen.setdefault(key, int(stored["rays_per_item"][0]))
+        if stored is None and disk_cache.cache_dir() is not None:
+            disk_cache.store_arrays(key, {"seen": np.zeros(1, np.uint8)})
+            return _chosen.setdefault(key, choices[1])
+        return None
 
 
 def build_ahead(camera: LensCamera, device: Device) -> None:
@@ -352,7 +355,7 @@ def build_ahead(camera: LensCamera, device: Device) -> None:
     calls this on a thread of its own while the exit-pupil table is made (the programs need no
     table; ``Device.build_program`` hands a program being built to whoever asks next)."""
     choices = rays_per_item_choices(camera)
-    untimed, _ = _untimed_choice(_choice_key(camera, device), choices)
+    untimed = _untimed_choice(_choice_key(camera, device), choices)
     for rays_per_item in choices if untimed is None else (untimed,):
         device.build_program(*lens_program(camera, rays_per_item))
 
@@ -414,11 +417,9 @@ class LensKernel:
         leaves no binaries to store at exit (``leave_binaries_unstored``)."""
         key = _choice_key(self.camera, self.device)
         several, one = rays_per_item_choices(self.camera)
-        untimed, first_seen = _untimed_choice(key, (several, one))
-        if first_seen:
-            disk_cache.store_arrays(key, {"seen": np.zeros(1, np.uint8)})
+        untimed = _untimed_choice(key, (several, one))
         if untimed is not None:
-            return _chosen.setdefault(key, untimed)
+            return untimed
         block = SampleBlock(0, TIMED_RAYS // self.camera.rays_per_sample, self.camera.spp)
         built = {choice: self._build(choice) for choice in (several, one)}  # each built once
         fastest = {several: np.inf, one: np.inf}
