@@ -1,6 +1,7 @@
 """Start-up benchmark: the exit-pupil table per lens, uncached and cached, and a user's first renders.
 
     .venv/bin/python bench/startup.py [--repeats 3] [--skip-tables] [--skip-renders] [--baseline DIR]
+        [--no-bytecode]
 
 For every bundled lens focused at infinity on a full-frame film: the seconds to build its
 exit-pupil table (d line, and the three wavelengths of a spectral camera) with an empty disk cache,
@@ -10,11 +11,16 @@ search traces the same rays, each through more surfaces).
 
 Then a user's first renders: the wall seconds of README's first command (``python -m realistic
 render``) and of the dragons homework scene (``scenes/dof-dragons/dgauss.pbrt`` at 4 spp; skipped
-when ``../shared`` lacks its meshes), each run three times in a row on empty caches (ours and
-PoCL's, ``POCL_CACHE_DIR``): the first is a cold start (every kernel compiled), the later ones
-find what the earlier left. ``--baseline DIR``: another checkout (an older commit, say) whose runs
-alternate with this tree's, so both see the same load. Medians of ``--repeats`` sequences; the
-load average is printed and stored. Writes bench/results/startup.json.
+when ``../shared`` lacks its meshes), each run three times in a row on empty caches (ours, PoCL's,
+``POCL_CACHE_DIR``, and numba's, ``NUMBA_CACHE_DIR``, which a fresh machine has none of either):
+the first is a cold start (every kernel and packet loop compiled), the later ones find what the
+earlier left. The Python bytecode of every module a render imports is written before the first
+sequence by an untimed render of each case, into a folder of the bench's own
+(``PYTHONPYCACHEPREFIX``), as installing a package compiles it; with ``--no-bytecode`` every run
+compiles the checkout's sources it imports (PYTHONDONTWRITEBYTECODE).
+``--baseline DIR``: another checkout (an older commit, say) whose runs alternate with this tree's,
+so both see the same load. Medians of ``--repeats`` sequences; the load average is printed and
+stored. Writes bench/results/startup.json.
 """
 
 from __future__ import annotations
@@ -90,29 +96,52 @@ DRAGONS = ["scenes/dof-dragons/dgauss.pbrt", "--spp", "4", "--search-path", str(
 RUNS = ("first", "second", "third")
 
 
-def render_seconds(tree: Path, arguments: list[str], caches: tuple[str, str]) -> float:
+#: The environment variables of a render's caches, each given an empty folder per sequence.
+CACHES = ("REALISTIC_CACHE_DIR", "POCL_CACHE_DIR", "NUMBA_CACHE_DIR")
+
+
+def render_seconds(tree: Path, arguments: list[str], caches: dict[str, str]) -> float:
     """Wall seconds of ``python -m realistic render ARGUMENTS`` run from checkout ``tree`` with
-    ``caches`` (REALISTIC_CACHE_DIR, POCL_CACHE_DIR)."""
+    ``caches`` (environment variables: ``CACHES`` and the bytecode's)."""
     with tempfile.TemporaryDirectory() as folder:
-        env = {**os.environ, "PYTHONPATH": str(tree), "REALISTIC_CACHE_DIR": caches[0], "POCL_CACHE_DIR": caches[1]}
+        env = {**os.environ, "PYTHONPATH": str(tree), **caches}
+        if "PYTHONPYCACHEPREFIX" in caches:
+            env.pop("PYTHONDONTWRITEBYTECODE", None)
+        else:  # nothing written into the trees
+            env["PYTHONDONTWRITEBYTECODE"] = "1"
         start = time.perf_counter()
         subprocess.run([sys.executable, "-m", "realistic", "render", *arguments, "--out", str(Path(folder) / "r.exr")],
                        check=True, cwd=tree, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         return time.perf_counter() - start
 
 
-def first_renders(trees: dict[str, Path], cases: dict[str, list[str]], repeats: int) -> dict[str, object]:
+def compiled_bytecode(trees: dict[str, Path], cases: dict[str, list[str]], prefix: Path) -> str:
+    """``prefix`` holding the bytecode of every module a render of ``cases`` imports from each tree
+    and from the installed libraries, written by one untimed render of each (caches thrown away)."""
+    for path in trees.values():
+        for arguments in cases.values():
+            with tempfile.TemporaryDirectory(prefix="realistic-bench-caches-") as folder:
+                caches = {name: str(Path(folder) / name) for name in CACHES}
+                render_seconds(path, arguments, {**caches, "PYTHONPYCACHEPREFIX": str(prefix)})
+    return str(prefix)
+
+
+def first_renders(trees: dict[str, Path], cases: dict[str, list[str]], repeats: int,
+                  bytecode: str | None) -> dict[str, object]:
     """Per case and tree, the median wall seconds of each of ``RUNS`` renders in a row on empty
-    caches, the trees' sequences taken in turn."""
+    caches, the trees' sequences taken in turn; ``bytecode``: the PYTHONPYCACHEPREFIX holding the
+    modules' bytecode (None: every run compiles its sources)."""
     seconds: dict[str, dict[str, dict[str, list[float]]]] = {
         case: {tree: {run: [] for run in RUNS} for tree in trees} for case in cases}
     for _ in range(repeats):
         for case, arguments in cases.items():
             for tree, path in trees.items():
-                with tempfile.TemporaryDirectory(prefix="realistic-bench-cache-") as ours, \
-                        tempfile.TemporaryDirectory(prefix="pocl-bench-cache-") as pocl:
+                with tempfile.TemporaryDirectory(prefix="realistic-bench-caches-") as folder:
+                    caches = {name: str(Path(folder) / name) for name in CACHES}
+                    if bytecode is not None:
+                        caches["PYTHONPYCACHEPREFIX"] = bytecode
                     for run in RUNS:
-                        seconds[case][tree][run].append(render_seconds(path, arguments, (ours, pocl)))
+                        seconds[case][tree][run].append(render_seconds(path, arguments, caches))
     print(f"\n{'render':<10}{'tree':<12}" + "".join(f"{run + ' s':>10}" for run in RUNS))
     results: dict[str, object] = {}
     for case, by_tree in seconds.items():
@@ -129,8 +158,11 @@ def main() -> None:
     parser.add_argument("--skip-tables", action="store_true", help="skip timing the exit-pupil tables")
     parser.add_argument("--skip-renders", action="store_true", help="skip timing the first renders")
     parser.add_argument("--baseline", type=Path, help="another checkout whose renders alternate with this tree's")
+    parser.add_argument("--no-bytecode", action="store_true",
+                        help="every render compiles the Python sources it imports (no .pyc)")
     args = parser.parse_args()
-    results: dict[str, object] = {"load_average_before": os.getloadavg(), "cpu_count": os.cpu_count()}
+    results: dict[str, object] = {"load_average_before": os.getloadavg(), "cpu_count": os.cpu_count(),
+                                  "bytecode": not args.no_bytecode, "numba_cache": "empty"}
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
 
     if not args.skip_tables:
@@ -159,7 +191,9 @@ def main() -> None:
             cases["dragons"] = DRAGONS
         else:
             print(f"\nthe dragons render is skipped: {SHARED / 'meshes' / 'dragon.ply'} is absent")
-        results["renders"] = first_renders(trees, cases, args.repeats)
+        with tempfile.TemporaryDirectory(prefix="realistic-bench-bytecode-") as folder:
+            bytecode = None if args.no_bytecode else compiled_bytecode(trees, cases, Path(folder))
+            results["renders"] = first_renders(trees, cases, args.repeats, bytecode)
         results["load_average_after"] = os.getloadavg()
         print(f"load average {os.getloadavg()[0]:.2f}")
 

@@ -7,6 +7,7 @@ kernel variant its rays need, and no other.
 
 import pytest
 
+from conftest import run_fresh
 from realistic import load_scene
 from realistic.renderer.job import PassSettings
 from realistic.renderer.runner import PassRunner
@@ -90,6 +91,49 @@ def test_the_program_not_chosen_stores_no_binaries(built, opencl_platform, monke
     assert stored(chosen) == (["device0"] if chosen == one else ["built"])  # built twice, or once
 
 
+def test_build_ahead_builds_what_the_lens_kernel_uses_without_the_exit_pupil(built, opencl_platform, monkeypatch):
+    """``build_ahead`` (run while the exit-pupil table is made) builds, without that table, the
+    programs the camera's ``LensKernel`` then uses: at a camera's first sight, when its choice is
+    timed and when it is read back; the kernel builds none of its own."""
+    from kernel_reference import reference_camera
+    from realistic.camera.lens_camera import LensCamera
+
+    device = opencl.Device.for_spec()
+    camera = reference_camera("telephoto", "pupil")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    pupil = LensCamera.pupil
+    for sight in range(3):
+        opencl.build_program.cache_clear()  # each sight as in a process of its own
+        monkeypatch.setattr(opencl_platform, "_chosen", {})
+        with monkeypatch.context() as no_table:
+            no_table.setattr(LensCamera, "pupil", property(lambda camera: pytest.fail("the table was made")))
+            opencl_platform.build_ahead(camera, device)
+        ahead = opencl.build_program.cache_info().misses
+        assert LensCamera.pupil is pupil
+        opencl_platform.LensKernel(camera, device)
+        assert opencl.build_program.cache_info().misses == ahead, f"sight {sight} built a program again"
+    assert built[:3] == [one, several, one]  # first sight: one ray untimed; second: both timed
+
+
+def test_a_program_asked_for_while_it_builds_is_built_once(opencl_platform):
+    """Two threads asking for one new program get the same program from one build (a render's
+    ``build_ahead`` and its ``LensKernel`` ask for the same)."""
+    import threading
+
+    device = opencl.Device.for_spec()
+    opencl.build_program.cache_clear()
+    source = "__kernel void once(__global float* out) { out[get_global_id(0)] = 1.0f; }"
+    programs = []
+    threads = [threading.Thread(target=lambda: programs.append(device.build_program(source, "once.cl")))
+               for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(programs) == 2 and programs[0] is programs[1]
+    assert opencl.build_program.cache_info().misses == 1
+
+
 @pytest.mark.parametrize("dispersion", [False, True])
 def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dispersion):
     """A spectral render's shading kernel is built for spectral rays alone, an RGB render's for RGB
@@ -109,3 +153,64 @@ def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dis
     runner = PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())
     assert runner(0, SampleBlock(0, 240, 2)).shadow_rays > 0  # shaded by the kernel
     assert variants and set(variants) == {f"-DSPECTRAL={int(dispersion)}"}
+
+
+def test_the_trace_loops_compiled_ahead_are_those_a_pass_traces_with():
+    """A render compiles embree's packet loops on a render thread as it starts (``ThreadPasses.open``
+    runs ``compile_trace_loops``), for exactly the argument types its passes then trace with: a
+    pass compiles nothing more (checked in a process of its own, whose loops nothing compiled)."""
+    run = run_fresh("""
+from realistic import load_scene
+from realistic.camera.base import SampleBlock
+from realistic.renderer.job import PassSettings
+from realistic.renderer.runner import PassRunner
+from realistic.renderer.timing import StageClock
+from realistic.scene import packet_loop
+from realistic.scene.embree import compile_trace_loops
+
+loops = packet_loop.closest_loop(), packet_loop.occluded_loop()
+compile_trace_loops()
+print([len(loop.signatures) for loop in loops])
+scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=False)
+PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())(0, SampleBlock(0, 240, 2))
+print([len(loop.signatures) for loop in loops])
+""")
+    assert run.stdout.split("\n")[:2] == ["[1, 1]", "[1, 1]"]
+
+
+def test_other_threads_run_while_a_kernel_first_launch_compiles(tmp_path):
+    """PoCL compiles a kernel at its first launch; ``Device.run_into`` waits for that in
+    ``CommandQueue.finish``, which lets other Python threads run (a non-blocking read queued behind
+    the launch made the compile happen inside ``enqueue_copy``, the GIL held: the render's other
+    threads stood still). A thread sleeping a millisecond at a time counts its wake-ups meanwhile."""
+    run = run_fresh("""
+import threading, time
+import numpy as np
+from realistic.device.opencl import LOCAL_SIZE, Device
+
+device = Device.for_spec()
+source = '''__kernel void f(uint n, __global float* out) {
+    float x = get_global_id(0);
+    for (int k = 0; k < 64; k++) x = sin(x) * cos(x) + sqrt(fabs(x)) + exp(-x * x) + log1p(fabs(x));
+    out[get_global_id(0)] = x;
+}'''
+kernel = device.build_program(source, "test.cl").f
+ticks, done = [0], threading.Event()
+
+def count() -> None:
+    while not done.is_set():
+        time.sleep(0.001)
+        ticks[0] += 1
+
+threading.Thread(target=count).start()
+time.sleep(0.05)
+before, start = ticks[0], time.perf_counter()
+device.run_into(device.queue(), kernel, (LOCAL_SIZE,), (LOCAL_SIZE,), (np.uint32(LOCAL_SIZE),),
+                (np.empty(LOCAL_SIZE, np.float32),))
+print(time.perf_counter() - start, ticks[0] - before)
+done.set()
+""", POCL_CACHE_DIR=str(tmp_path), REALISTIC_CACHE_DIR="off")
+    seconds, ticks = run.stdout.split()
+    if float(seconds) < 0.05:
+        pytest.skip(f"the first launch took {float(seconds):.3f} s: nothing compiled at it")
+    assert int(ticks) >= 10, f"{ticks} wake-ups in the {float(seconds):.2f} s of a first launch"

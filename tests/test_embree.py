@@ -393,5 +393,17 @@ def test_bad_meshes_and_uncommitted_scenes_are_refused() -> None:
 
 def test_the_library_is_the_one_embreex_ships() -> None:
     assert any("embree4" in path.name for path in embree.library_candidates())
-    assert embree.embree_library().path == embree.library_candidates()[0]
+    assert embree.embree_library().path == next(embree.library_candidates())
+
+
+def test_no_system_library_is_looked_for_when_the_wheel_s_loads(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``ctypes.util.find_library`` (ldconfig, gcc and ld run on Linux) is left alone when the
+    embreex wheel's library is the one used: every render started the three processes."""
+    def refused(name: str) -> None:
+        raise AssertionError(f"find_library({name!r}) was called")
+
+    monkeypatch.setattr(embree.ctypes.util, "find_library", refused)
+    library = embree.embree_library.__wrapped__()  # loaded afresh, with a device of its own
+    library.lib.rtcReleaseDevice(library.device)
+    assert library.path == embree.embree_library().path
 

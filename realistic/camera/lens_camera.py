@@ -82,7 +82,13 @@ from realistic.optics.paraxial import (
     stop_diameter_for_f_number,
     thick_lens,
 )
-from realistic.optics.sampling import ExitPupilTable, camera_weight, exit_pupil_table, rear_element_sampler
+from realistic.optics.sampling import (
+    PUPIL_INTERVALS,
+    ExitPupilTable,
+    camera_weight,
+    exit_pupil_table,
+    rear_element_sampler,
+)
 from realistic.optics.stop_shape import StopShape
 from realistic.optics.tracer import trace_from_film
 
@@ -208,9 +214,9 @@ class LensCamera:
     def pupil(self) -> ExitPupilTable:
         """Exit-pupil bounds for this lens, focus and film, built on first use (then cached); a
         spectral camera's boxes hold what passes at either end of the wavelength range as well as
-        at the d line."""
+        at the d line. Its ``PUPIL_INTERVALS`` film intervals are the count the lens kernel is built for."""
         wavelengths = (LAMBDA_MIN_NM, D_LINE_NM, LAMBDA_MAX_NM) if self.spectral else (D_LINE_NM,)
-        return exit_pupil_table(self.lens, self.film_distance_mm, self.sampled_film_diagonal_mm,
+        return exit_pupil_table(self.lens, self.film_distance_mm, self.sampled_film_diagonal_mm, PUPIL_INTERVALS,
                                 wavelengths_nm=wavelengths)
 
     @property

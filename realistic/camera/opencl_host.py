@@ -25,7 +25,7 @@ from realistic.device.tables import Table
 from realistic.optics.coating import BARE, DESIGN_WAVELENGTH_NM, LAYER, MGF2, MGF2_INDEX, mgf2_index
 from realistic.optics.dispersion import D_LINE_NM, GlassFormula, cauchy_coefficients
 from realistic.optics.lens import LensSystem
-from realistic.optics.sampling import rear_element_sampler
+from realistic.optics.sampling import PUPIL_INTERVALS, rear_element_sampler
 
 KERNEL_FILE = "lens.cl"
 #: Output rows of ``generate_rays``: origin xyz, direction xyz, weight (and wavelength when spectral).
@@ -232,7 +232,9 @@ def camera_header(camera: LensCamera) -> str:
         *filter_lines(camera.pixel_filter),
     ]
     if camera.lens_sampling == "pupil":
-        lines += ["#define LENS_SAMPLING_PUPIL 1", f"#define PUPIL_INTERVALS {len(camera.pupil.bounds)}"]
+        # the count ``LensCamera.pupil`` builds its table with: the header needs no table, so the
+        # program can build while the table is made (``build_ahead``)
+        lines += ["#define LENS_SAMPLING_PUPIL 1", f"#define PUPIL_INTERVALS {PUPIL_INTERVALS}"]
     else:
         lines += ["#define LENS_SAMPLING_PUPIL 0"]
     return "\n".join(lines) + "\n"
@@ -309,6 +311,7 @@ TIMED_RAYS = 4 * SMALL_GRID_LIMIT
 ONE_RAY_MARGIN = 0.8
 #: Rays per work item chosen in this process, by disk-cache key (a refocused camera asks again).
 _chosen: dict[str, int] = {}
+_choosing = threading.Lock()  # ``build_ahead`` on a render thread and ``LensKernel`` decide alike
 
 
 def _seconds(run: Callable[[], object]) -> float:
@@ -321,6 +324,40 @@ def _seconds(run: Callable[[], object]) -> float:
 #: A lens program as ``LensKernel._build`` makes it: its rays per work item, the program, and its
 #: ``generate_rays`` and ``sample_bits`` kernels.
 _Built = tuple[int, "cl.Program", "cl.Kernel", "cl.Kernel"]
+
+
+def _choice_key(camera: LensCamera, device: Device) -> str:
+    """The disk-cache key of the camera's choice of rays per work item on ``device``."""
+    source = camera_header(camera) + kernel_source(KERNEL_FILE)
+    return disk_cache.cache_key("lens-rays-per-item", device.identity(), source)
+
+
+def _untimed_choice(key: str, choices: tuple[int, int]) -> int | None:
+    """The rays per work item ``LensKernel`` runs without timing them for ``key`` (``_choice_key``;
+    ``choices``: several, one), decided once per process (``_chosen``) whichever of ``build_ahead``
+    and ``LensKernel`` asks first: the choice stored in the disk cache, or for a camera it has no
+    entry for (first seen) one ray, leaving a mark there; None where the choice is to be timed."""
+    with _choosing:
+        if key in _chosen:
+            return _chosen[key]
+        stored = disk_cache.load_arrays(key)
+        if stored is not None and "rays_per_item" in stored and int(stored["rays_per_item"][0]) in choices:
+            return _chosen.setdefault(key, int(stored["rays_per_item"][0]))
+        if stored is None and disk_cache.cache_dir() is not None:
+            disk_cache.store_arrays(key, {"seen": np.zeros(1, np.uint8)})
+            return _chosen.setdefault(key, choices[1])
+        return None
+
+
+def build_ahead(camera: LensCamera, device: Device) -> None:
+    """Build the lens programs ``LensKernel(camera, device)`` will use, before it is made: the
+    choice of rays per work item it runs untimed, or both choices where it will time them. A render
+    calls this on a thread of its own while the exit-pupil table is made (the programs need no
+    table; ``Device.build_program`` hands a program being built to whoever asks next)."""
+    choices = rays_per_item_choices(camera)
+    untimed = _untimed_choice(_choice_key(camera, device), choices)
+    for rays_per_item in choices if untimed is None else (untimed,):
+        device.build_program(*lens_program(camera, rays_per_item))
 
 
 class LensKernel:
@@ -378,17 +415,11 @@ class LensKernel:
         choice changes only the camera rays' speed (every ray is the same either way), a small part
         of a render. With the disk cache off every process times its choice. The program not chosen
         leaves no binaries to store at exit (``leave_binaries_unstored``)."""
-        key = disk_cache.cache_key("lens-rays-per-item", self.device.identity(),
-                                   camera_header(self.camera) + kernel_source(KERNEL_FILE))
-        if key in _chosen:
-            return _chosen[key]
-        stored = disk_cache.load_arrays(key)
+        key = _choice_key(self.camera, self.device)
         several, one = rays_per_item_choices(self.camera)
-        if stored is not None and "rays_per_item" in stored and int(stored["rays_per_item"][0]) in (several, one):
-            return _chosen.setdefault(key, int(stored["rays_per_item"][0]))
-        if stored is None and disk_cache.cache_dir() is not None:
-            disk_cache.store_arrays(key, {"seen": np.zeros(1, np.uint8)})
-            return _chosen.setdefault(key, one)
+        untimed = _untimed_choice(key, (several, one))
+        if untimed is not None:
+            return untimed
         block = SampleBlock(0, TIMED_RAYS // self.camera.rays_per_sample, self.camera.spp)
         built = {choice: self._build(choice) for choice in (several, one)}  # each built once
         fastest = {several: np.inf, one: np.inf}

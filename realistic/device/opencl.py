@@ -121,6 +121,7 @@ class Device:
             device = (pocl or found)[0][3]
         self.spec = spec
         self.context = cl.Context([device])
+        self._build_lock = threading.Lock()
 
     @staticmethod
     def for_spec(spec: str | None = None) -> Device:
@@ -146,8 +147,11 @@ class Device:
         return cl.CommandQueue(self.context)
 
     def build_program(self, source: str, name: str, options: tuple[str, ...] = ()) -> cl.Program:
-        """``source`` built with ``options`` (``build_program``)."""
-        return build_program(self, source, name, options)
+        """``source`` built with ``options`` (``build_program``), one program at a time: a thread
+        asking for a program another is building waits for it and is handed the same, not a second
+        build (``build_ahead``s start builds early). PoCL 3.0 builds one program at a time anyway."""
+        with self._build_lock:
+            return build_program(self, source, name, options)
 
     def wrapped_buffer(self, array: np.ndarray, dtype: np.dtype | type) -> cl.Buffer:
         """A read-only buffer over ``array`` as contiguous ``dtype``, not a copy (PoCL on the CPU reads
@@ -178,12 +182,18 @@ class Device:
         nothing on PoCL's CPU device, where a copy out of a buffer of its own cost a fifth of a
         camera launch. An empty output (OpenCL has no empty buffers) gets a scratch buffer the kernel
         does not write. Callers serialise launches on one queue themselves, or give each thread its
-        own queue and kernel."""
+        own queue and kernel.
+
+        The launch is waited for before the reads are queued: PoCL compiles a kernel for its
+        work-group size when its first launch is submitted, which a non-blocking ``enqueue_copy``
+        queued behind it does inside that call, holding the GIL (every other thread of the render
+        stood still for the lens kernel's compile); ``CommandQueue.finish`` waits without it."""
         flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
         buffers = [cl.Buffer(self.context, flags, hostbuf=array) if array.nbytes else self.output_buffer(4)
                    for array in outputs]
         try:
             kernel(queue, global_size, local_size, *args, *buffers)
+            queue.finish()  # a first launch compiles the kernel here, without the GIL (see above)
             for array, buffer in zip(outputs, buffers):
                 if array.nbytes:
                     cl.enqueue_copy(queue, array, buffer, is_blocking=False)  # orders the read after the kernel

@@ -45,6 +45,10 @@ class Backend(Protocol):
     def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
         """The camera's rays of any ``SampleBlock`` with ``seed``."""
 
+    def build_ahead(self, camera: Camera) -> None:
+        """Build what ``ray_generator(camera, ...)`` will build, before the camera is prepared
+        (its exit-pupil table made), so that a render thread can do it meanwhile."""
+
     def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
         """``MipMap.ewa``'s lookups (N, 3) (a ``scene.textures.EwaLookup``)."""
 
@@ -63,6 +67,9 @@ class NumpyBackend:
     def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
         """``camera.generate_rays`` with ``seed`` (float64)."""
         return lambda block: camera.generate_rays(block, seed)
+
+    def build_ahead(self, camera: Camera) -> None:
+        """Nothing: numpy builds nothing."""
 
     def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
         """``MipMap.ewa``."""

@@ -16,9 +16,9 @@ import numpy as np
 from realistic.camera.base import Camera, RayGenerator
 from realistic.camera.ghost_host import GhostKernel
 from realistic.camera.lens_camera import LensCamera
-from realistic.camera.opencl_host import LensKernel
+from realistic.camera.opencl_host import LensKernel, build_ahead
 from realistic.camera.thin_lens import ThinLensCamera
-from realistic.camera.thin_lens_host import ThinLensKernel
+from realistic.camera.thin_lens_host import ThinLensKernel, thin_lens_program
 from realistic.device.opencl import Device
 from realistic.optics.ghosts import GhostTracer
 from realistic.optics.lens import LensSystem
@@ -52,6 +52,13 @@ class OpenCLBackend:
         else:
             return lambda block: camera.generate_rays(block, seed)
         return lambda block: kernel.generate(block, seed)
+
+    def build_ahead(self, camera: Camera) -> None:
+        """The programs ``ray_generator(camera, ...)`` will use, built now (``opencl_host.build_ahead``)."""
+        if isinstance(camera, LensCamera):
+            build_ahead(camera, self.device)
+        elif isinstance(camera, ThinLensCamera):
+            self.device.build_program(*thin_lens_program(camera))
 
     def ewa_kernel(self, mipmap: MipMap) -> EwaKernel:
         """``mipmap``'s texels on this backend's device, made on first use."""

@@ -40,16 +40,26 @@ from realistic.camera.base import Camera, SampleBlock
 from realistic.core import affinity, validation
 from realistic.errors import UserError
 from realistic.renderer.aov import AovLayout, CameraFrame
+from realistic.renderer.backends import backend_for
 from realistic.renderer.checkpoint import RenderIdentity, load_checkpoint, refuse_unless_resuming, save_checkpoint
 from realistic.renderer.crop import PixelBounds
 from realistic.renderer.film import Film, PassFilm
-from realistic.renderer.job import PassExecutor, PassResult, RenderJob, RenderObserver, RenderResult, TaskHandle
+from realistic.renderer.job import (
+    PassExecutor,
+    PassResult,
+    PassSettings,
+    RenderJob,
+    RenderObserver,
+    RenderResult,
+    TaskHandle,
+)
 from realistic.renderer.memory import check_job_memory
 from realistic.renderer.pass_plan import plan_passes
 from realistic.renderer.runner import PassRunner
 from realistic.renderer.starburst import starburst
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
+from realistic.scene.embree import compile_trace_loops
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import Scene
 
@@ -125,6 +135,11 @@ class ThreadPasses:
         self.pool = ThreadPoolExecutor(max_workers=self.threads,
                                        initializer=affinity.worker_pinner() if self.pin_threads else None)
         self.finished: queue.SimpleQueue[Future] = queue.SimpleQueue()  # futures, as they finish
+        # on the render threads while the exit-pupil table is made: the first camera's programs (PoCL
+        # builds them without the GIL), and the embree packet loops (numba, with it); a loop's error
+        # recurs in the first trace, which reports it
+        self.ahead = self.pool.submit(_build_ahead, job.settings, job.cameras[0])
+        self.pool.submit(compile_trace_loops)
 
     def runner(self, frame: int) -> PassRunner:
         """Frame ``frame``'s runner, its camera prepared now. ``render`` submits frames in order, so
@@ -137,6 +152,7 @@ class ThreadPasses:
                 self.intersector = self.intersector or scene_intersector(self.job.scene)
                 self.runners = {frame: PassRunner(self.job.scene, camera, self.job.settings, self.clock,
                                                   self.intersector)}
+                self.ahead.result()
         return self.runners[frame]
 
     def submit(self, frame: int, passes: list[tuple[int, SampleBlock]]) -> Future:
@@ -167,6 +183,11 @@ class ThreadPasses:
         # a second interrupt while passes finish leaves them running: the caller stops at once
         self.pool.shutdown(wait=finished, cancel_futures=not finished)
         self.runners = {}
+
+
+def _build_ahead(settings: PassSettings, camera: Camera) -> None:
+    """The programs ``camera``'s ray generator will use, built (``Backend.build_ahead``)."""
+    backend_for(settings.backend, settings.cl_device).build_ahead(camera)
 
 
 @dataclass

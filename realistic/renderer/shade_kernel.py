@@ -303,6 +303,7 @@ class ShadeKernel:
                         state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
                         state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
         cl.enqueue_nd_range_kernel(state.queue, kernel, (stride,), (LOCAL_SIZE,))
+        state.queue.finish()  # a first launch compiles here, without the GIL (``Device.run_into``)
         spectral = wavelength_nm is not None
         channels = 1 if spectral else 3
         arrays = {}

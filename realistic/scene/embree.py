@@ -26,7 +26,7 @@ import ctypes
 import ctypes.util
 import functools
 import importlib.util
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,17 +66,19 @@ _SIGNATURES = {
 }
 
 
-def library_candidates() -> list[Path]:
+def library_candidates() -> Iterator[Path]:
     """Where embree 4 may be: the libraries vendored in the embreex wheel (``embreex.libs`` on
-    Linux and Windows, ``embreex/.dylibs`` on macOS), then a system-wide install."""
-    found = []
+    Linux and Windows, ``embreex/.dylibs`` on macOS), then a system-wide install, looked for only
+    when asked for: ``ctypes.util.find_library`` runs ldconfig, gcc and ld on Linux, three
+    processes at every start-up, where the wheel's library is the one used."""
     spec = importlib.util.find_spec("embreex")
     if spec is not None and spec.origin:
         package = Path(spec.origin).parent
         for folder in (package.parent / "embreex.libs", package / ".dylibs", package):
-            found += sorted(p for p in folder.glob("*embree4*") if p.is_file())
+            yield from sorted(p for p in folder.glob("*embree4*") if p.is_file())
     system = ctypes.util.find_library("embree4")
-    return found + ([Path(system)] if system else [])
+    if system:
+        yield Path(system)
 
 
 @dataclass(frozen=True)
@@ -320,3 +322,16 @@ def _rays(origin: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.nda
     if len(origin) != len(direction):
         raise ValueError(f"{len(origin)} origins and {len(direction)} directions")
     return origin, direction
+
+
+def compile_trace_loops() -> None:
+    """Trace no rays through an empty scene. The process's first trace compiles the packet loops
+    (``scene/packet_loop``: numba's import and its compile or cache load, Python that holds the GIL
+    for half a second to a second); a render does this on a thread of its own as it starts, beside
+    its OpenCL builds (which run without the GIL), not in its first pass after them. The arrays are
+    of the types every trace passes (``_rays``), so nothing is compiled twice."""
+    scene = EmbreeScene()
+    scene.commit()
+    none = np.empty((0, 3), np.float32)
+    scene.intersect(none, none)
+    scene.occluded(none, none, np.empty(0, np.float32))
