@@ -1,14 +1,15 @@
 """OpenCL host of the path integrator's BSDFs: ``kernels/bsdf.cl`` on a ``Device``.
 
 ``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB rays at hits whose
-material the kernel covers (``parameters`` returns their rows): Lambertian (``Material`` without
-Oren-Nayar roughness), conductors given by eta and k, mirrors, smooth and thin dielectrics, and
-plastic. Every other material, and spectral rays, stay with the numpy BSDFs of ``renderer.bsdf``,
-which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The host looks each
-parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and packs one
-``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both draw the
-same directions. One launch per bounce evaluates every light sample's direction and draws the
-BSDF sample; each thread has its own queue, so the renderer's worker threads launch independently.
+material the kernel covers (``parameters`` returns their rows): Lambertian and Oren-Nayar
+(``Material``), conductors given by eta and k, mirrors, smooth, thin and rough dielectrics, plastic,
+coated diffuse, substrate, and a mix of two of those. Conductors named by their spectra, diffuse
+transmission, measured BRDFs, mixes holding a mix, and spectral rays stay with the numpy BSDFs of
+``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The
+host looks each parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and
+packs one ``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both
+draw the same directions. One launch per bounce evaluates every light sample's direction and draws
+the BSDF sample; each thread has its own queue, so the renderer's worker threads launch independently.
 """
 
 from __future__ import annotations
@@ -20,54 +21,109 @@ import numpy as np
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer.bsdf.base import BSDFSample, HitParameters
+from realistic.renderer.bsdf.coated_diffuse import CoatedLambertian
 from realistic.renderer.bsdf.factory import colour, scalar
 from realistic.renderer.bsdf.microfacet import SMOOTH_ALPHA, alpha
-from realistic.scene.materials import Conductor, Dielectric, Mirror, Plastic, SurfaceMaterial
+from realistic.renderer.bsdf.oren_nayar import OrenNayar
+from realistic.scene.materials import (
+    CoatedDiffuse,
+    Conductor,
+    Dielectric,
+    Mirror,
+    Mix,
+    Plastic,
+    Substrate,
+    SurfaceMaterial,
+)
 from realistic.scene.model import Material
 
 KERNEL_FILE = "bsdf.cl"
-#: One hit's BSDF: its kind (``KINDS``); ``scale`` the Lambertian albedo, the conductor's or mirror's
-#: scale, the glass's reflection tint or the plastic's diffuse colour; ``tint`` the glass's
-#: transmission tint or the plastic's coat colour; ``eta`` the conductor's index per channel (a
-#: dielectric's or coat's index in its first column); ``k`` the conductor's absorption; ``alpha``
-#: the GGX widths along x and y.
-BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), ("eta", 3), ("k", 3),
-                                               ("alpha", 2)))
-KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic")
+#: One lobe (a material that is not a mix): its kind (``KINDS``); ``scale`` the Lambertian,
+#: Oren-Nayar, plastic or coated base's albedo, the conductor's or mirror's scale, the glass's
+#: reflection tint or the substrate's diffuse colour; ``tint`` the glass's transmission tint, the
+#: plastic's coat colour (1 for coated diffuse) or the substrate's specular reflectance; ``eta`` the
+#: conductor's index per channel (a dielectric's or coat's index in its first column); ``k`` the
+#: conductor's absorption or the coated base's scale (``CoatedLambertian.scale``); ``alpha`` the GGX
+#: widths along x and y; ``extra`` Oren-Nayar's A and B, or the coated base's albedo estimate.
+LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), ("eta", 3), ("k", 3), ("alpha", 2),
+                                        ("extra", 2)))
+#: One hit's BSDF: its first lobe, then ``amount`` (0: that lobe alone; else a mix of it, weighted
+#: 1 - amount, and the ``second`` lobe, weighted amount).
+BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", LOBE.width)))
+KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
+         "rough_dielectric", "substrate", "coated_diffuse")
 KIND = {name: index for index, name in enumerate(KINDS)}
 HEADER = BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SMOOTH_ALPHA {SMOOTH_ALPHA!r}f\n"
 
 
-def parameters(material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
-    """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits`` (RGB), or None where the kernel does
-    not cover the material (the numpy BSDF then shades it). The same look-ups as ``bsdf_for``."""
+def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
+    """``count`` ``LOBE`` rows of ``material`` (not a mix) at ``hits``, or None where the kernel does
+    not cover it. The same look-ups as ``bsdf_for``; the Oren-Nayar and coated-diffuse constants come
+    from their numpy BSDFs' own constructors."""
     if isinstance(material, Material):
-        if material.sigma != 0:
-            return None
         albedo = hits.colour(material.diffuse)
         if material.texture is not None:
             albedo = albedo * hits.colour(material.texture)
-        return BSDF_PARAMS.pack(count, kind=KIND["lambertian"], scale=albedo)
+        if material.sigma == 0:
+            return LOBE.pack(count, kind=KIND["lambertian"], scale=albedo)
+        rough = OrenNayar(albedo, material.sigma)
+        return LOBE.pack(count, kind=KIND["oren_nayar"], scale=albedo, extra=np.column_stack([rough.a, rough.b]))
     if isinstance(material, Plastic):
         kd, ks = colour(hits, material.diffuse), colour(hits, material.specular)
         a = alpha(scalar(hits, material.roughness), material.rule)
-        return BSDF_PARAMS.pack(count, kind=KIND["plastic"], scale=kd, tint=ks, eta=np.float32(material.eta),
-                                alpha=np.column_stack([a, a]))
+        return LOBE.pack(count, kind=KIND["plastic"], scale=kd, tint=ks, eta=np.float32(material.eta),
+                         alpha=np.column_stack([a, a]))
+    if isinstance(material, CoatedDiffuse):
+        base = CoatedLambertian(colour(hits, material.reflectance), material.eta)
+        a = alpha(scalar(hits, material.roughness), material.rule)
+        return LOBE.pack(count, kind=KIND["coated_diffuse"], scale=base.albedo, tint=np.float32(1.0),
+                         eta=np.float32(material.eta), k=base.scale, alpha=np.column_stack([a, a]),
+                         extra=np.column_stack([base.albedo_estimate, np.zeros(count)]))
     if isinstance(material, Conductor):
         if material.spectra is not None:
             return None
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
-        return BSDF_PARAMS.pack(count, kind=KIND["conductor"], scale=colour(hits, material.scale),
-                                eta=colour(hits, material.eta), k=colour(hits, material.k),
-                                alpha=np.column_stack([ax, ay]))
+        return LOBE.pack(count, kind=KIND["conductor"], scale=colour(hits, material.scale),
+                         eta=colour(hits, material.eta), k=colour(hits, material.k), alpha=np.column_stack([ax, ay]))
     if isinstance(material, Mirror):
-        return BSDF_PARAMS.pack(count, kind=KIND["mirror"], scale=colour(hits, material.reflectance))
-    if isinstance(material, Dielectric) and (material.thin or material.roughness_u == material.roughness_v == 0.0):
-        return BSDF_PARAMS.pack(count, kind=KIND["thin_dielectric" if material.thin else "dielectric"],
-                                scale=colour(hits, material.reflectance), tint=colour(hits, material.transmittance),
-                                eta=np.float32(material.eta))
+        return LOBE.pack(count, kind=KIND["mirror"], scale=colour(hits, material.reflectance))
+    if isinstance(material, Dielectric):
+        kr, kt = colour(hits, material.reflectance), colour(hits, material.transmittance)
+        if material.thin or material.roughness_u == material.roughness_v == 0.0:
+            return LOBE.pack(count, kind=KIND["thin_dielectric" if material.thin else "dielectric"], scale=kr,
+                             tint=kt, eta=np.float32(material.eta))
+        ru, rv = scalar(hits, material.roughness_u), scalar(hits, material.roughness_v)
+        smooth = (ru == 0) & (rv == 0)  # as bsdf_for: smooth where both are 0 before the remapping
+        ax, ay = (np.where(smooth, 0.0, alpha(r, material.rule)) for r in (ru, rv))
+        return LOBE.pack(count, kind=KIND["rough_dielectric"], scale=kr, tint=kt, eta=np.float32(material.eta),
+                         alpha=np.column_stack([ax, ay]))
+    if isinstance(material, Substrate):
+        ax = alpha(scalar(hits, material.roughness_u), material.rule)
+        ay = alpha(scalar(hits, material.roughness_v), material.rule)
+        return LOBE.pack(count, kind=KIND["substrate"], scale=colour(hits, material.diffuse),
+                         tint=colour(hits, material.specular), alpha=np.column_stack([ax, ay]))
     return None
+
+
+def parameters(material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
+    """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits`` (RGB), or None where the kernel does
+    not cover the material (the numpy BSDF then shades it). A mix's rows hold both its lobes, with
+    its amount clipped to [0, 1] as ``bsdf_for`` clips it; a row of amount 0 is its first lobe alone,
+    which is what the numpy mix gives there."""
+    if not isinstance(material, Mix):
+        lobe = _lobe(material, hits, count)
+        return None if lobe is None else BSDF_PARAMS.pack(count, **_fields(lobe))
+    first, second = _lobe(material.first, hits, count), _lobe(material.second, hits, count)
+    if first is None or second is None:
+        return None
+    amount = np.clip(scalar(hits, material.amount), 0.0, 1.0).astype(np.float32)
+    return BSDF_PARAMS.pack(count, **_fields(first), amount=amount, second=second)
+
+
+def _fields(lobe: np.ndarray) -> dict[str, np.ndarray]:
+    """``LOBE`` rows (count, width) as their named columns."""
+    return {name: lobe[:, LOBE.offset(name):LOBE.offset(name) + width] for name, width in LOBE.fields}
 
 
 class BsdfKernel:
