@@ -29,7 +29,7 @@ from realistic.scene.materials import (
     Plastic,
     Substrate,
 )
-from realistic.scene.model import Material
+from realistic.scene.model import CheckerTexture, Material
 from realistic.scene.shapes import sphere
 from test_shading_reference import textured_scene
 
@@ -205,17 +205,56 @@ def test_kernel_is_reciprocal_and_keeps_energy(kernel, name):
     assert float((pdf[0] * 4 * np.pi).mean()) < 1.02
 
 
+#: Each render's materials for the sphere, the cone and the quad of ``textured_scene`` (its floor stays
+#: the textured Lambertian) and for an added sphere: kernel materials beside one the kernel leaves to
+#: numpy (a named metal's spectral Fresnel; diffuse transmission).
+RENDERS = {
+    "glass, conductor, plastic": ([Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05),
+                                   Conductor(roughness_u=0.1, roughness_v=0.1, spectra=("Au", "Au"))],
+                                  Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2)),
+    "rough glass, mix, Oren-Nayar": ([Dielectric(1.5, roughness_u=0.2, roughness_v=0.2),
+                                      Mix(Substrate((0.6, 0.4, 0.2), (0.05, 0.05, 0.05), 0.2, 0.05),
+                                          CoatedDiffuse((0.7, 0.5, 0.3), 0.2), 0.4),
+                                      DiffuseTransmission((0.3, 0.6, 0.9), (0.2, 0.2, 0.2))],
+                                     Material((0.3, 0.6, 0.9), CheckerTexture(cells=6.0), sigma=20.0)),
+}
+
+
+@pytest.mark.parametrize("name", ["rough glass", "mix of oren-nayar and rough glass"])
+@pytest.mark.parametrize("theta", [0.3, 1.2, 2.5])
+def test_kernel_rough_glass_keeps_energy(kernel, name, theta):
+    """Rough glass transmits, so it is not reciprocal; from outside and inside (theta past 90 degrees)
+    its sampled albedo is at most 1 and equals the one integrated over the sphere from the evaluated
+    f, and its pdf integrates to at most 1."""
+    rows = parameters(COVERED[name], ConstantHits(200_000), 200_000)
+    rng = np.random.default_rng(6)
+    n = len(rows)
+    wo = np.tile(np.float32([[np.sin(theta), 0.0, np.cos(theta)]]), (n, 1))
+    sphere_wi = uniform_sphere(rng, n)
+    u, u_lobe = rng.random((n, 2)).astype(np.float32), rng.random(n).astype(np.float32)
+    f, pdf, s = kernel(rows, wo, sphere_wi[None], u, u_lobe)
+    weight = np.where(s.valid, np.abs(s.wi[:, 2]) / np.where(s.valid, s.pdf, 1.0), 0.0)
+    sampled = np.where(s.specular[:, None], 0.0, s.value * weight[:, None]).mean(axis=0)
+    integrated = (f[0] * (np.abs(sphere_wi[:, 2]) * 4 * np.pi)[:, None]).mean(axis=0)
+    assert np.all(sampled <= 1.0 + 1e-2) and sampled.max() > 0.3
+    spread = (f[0] * (np.abs(sphere_wi[:, 2]) * 4 * np.pi)[:, None]).std(axis=0) / np.sqrt(n)
+    assert np.all(np.abs(sampled - integrated) < 0.01 + 4 * spread)
+    density = pdf[0] * 4 * np.pi  # a peaked lobe: within four standard errors of at most 1
+    assert float(density.mean()) < 1.0 + 4 * float(density.std()) / np.sqrt(n)
+
+
 @pytest.mark.parametrize("spectral", [False, True])
-def test_path_tracing_with_the_kernel_renders_the_numpy_image(spectral):
-    """Path tracing (depth 5) on the opencl backend, the covered materials in the kernel and an
-    Oren-Nayar one in numpy, gives each ray the numpy backend's radiance to float32 rounding (a path
-    may only part where rounding moves a sample across a lobe's or roulette's threshold); spectral
-    rays stay with the numpy BSDFs."""
+@pytest.mark.parametrize("render", sorted(RENDERS))
+def test_path_tracing_with_the_kernel_renders_the_numpy_image(render, spectral):
+    """Path tracing (depth 5) on the opencl backend, the covered materials in the kernel and one
+    other in numpy, gives each ray the numpy backend's radiance to float32 rounding (a path may only
+    part where rounding moves a sample across a lobe's or roulette's threshold); spectral rays stay
+    with the numpy BSDFs."""
     scene, eye, target = textured_scene()
-    materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05),
-                 Material((0.3, 0.6, 0.9), sigma=20.0)]
-    scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
-    scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
+    materials, added = RENDERS[render]
+    scene.instances = scene.instances[:1] + [replace(inst, material=m) for inst, m in zip(scene.instances[1:],
+                                                                                          materials)]
+    scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), added)
     camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, 24, 16, 2)
     rays = backend_for("numpy").ray_generator(camera, 3)(SampleBlock(0, camera.sample_count, camera.spp))
     alive = np.flatnonzero(rays.weight != 0)
