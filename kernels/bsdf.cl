@@ -1,32 +1,39 @@
 /* BSDF evaluation and sampling for the path integrator: one work item per surface hit.
  *
  * OpenCL 1.2 C, float32. The numpy references are realistic/renderer/bsdf/ (lambertian.py,
- * conductor.py, microfacet.py, fresnel.py, dielectric.py, mix.py for plastic); the host is
- * realistic/renderer/bsdf_kernel.py, which prepends the BSDF_PARAM table's #defines and the KIND_*
- * constants. Each hit's parameters are a row of BSDF_PARAM (its material's kind, colours, indices
- * and GGX widths looked up at the hit by the host, textures included). Directions are in the local
- * shading frame (normal +z). Per work item i:
+ * oren_nayar.py, conductor.py, microfacet.py, fresnel.py, dielectric.py, rough_dielectric.py,
+ * substrate.py, coated_diffuse.py, measured.py, mix.py for plastic, coated diffuse and mixes); the
+ * host is realistic/renderer/bsdf_kernel.py, which prepends the BSDF_PARAM table's #defines, the
+ * KIND_* constants and BSDF_TABLE_ALIGN. Each hit's parameters are a row of BSDF_PARAM (its
+ * material's kind, colours, indices and GGX widths looked up at the hit by the host, textures
+ * included; a mix's row holds two lobes and the amount), and `tables` the measured BRDFs' tables.
+ * Directions are in the local shading frame (normal +z). Per work item i:
  *   - for each of `lights` light directions (rows k * n + i of light_wi): f(wo, wi) and the pdf with
  *     which sampling would pick wi;
  *   - one BSDF sample from the host's uniform numbers u (2 per hit) and u_lobe: its direction, value,
  *     pdf and flags (bit 0 specular, bit 1 valid), as ``BSDF.sample`` returns them.
- * Kinds: Lambertian; conductor (GGX with the conductor Fresnel of eta + i k); mirror (no Fresnel);
- * smooth dielectric and thin dielectric; plastic (Lambertian kd + a GGX coat of ks with the
- * dielectric Fresnel of index eta, lobes picked in proportion to the colours' means). A lobe whose
- * max(alpha_x, alpha_y) is below SMOOTH_ALPHA reflects specularly. */
+ * Lobe kinds: Lambertian; Oren-Nayar; conductor (GGX with the conductor Fresnel of eta + i k); mirror
+ * (no Fresnel); smooth, thin and rough dielectric (pbrt-v4's, GGX); plastic (Lambertian kd + a GGX
+ * coat of ks with the dielectric Fresnel of index eta, lobes picked in proportion to the colours'
+ * means); coated diffuse (the coated base + an uncoloured coat, lobes picked by the coat's Fresnel);
+ * substrate (FresnelBlend); measured (a pbrt-v2 .brdf file's table, cosine-sampled). A lobe whose
+ * max(alpha_x, alpha_y) is below SMOOTH_ALPHA reflects (glass: and refracts) specularly. */
 
 #include "common.cl"
 
 #define PI_F 3.14159265358979f
 
 /* One lobe: a material that is not a mix (the first 17 columns of a BSDF_PARAM row, or its
- * `second` field). `extra`: Oren-Nayar's A and B, or (x) the coated base's albedo estimate. */
+ * `second` field). `extra`: Oren-Nayar's A and B, the coated base's albedo estimate (x), or a
+ * measured table's start in the tables (x, in units of BSDF_TABLE_ALIGN floats) and its nodes per
+ * axis (y); `table` points at that start (measured lobes only). */
 typedef struct {
     int kind;
     float3 scale, tint, eta, k;
     float ax, ay;  /* GGX widths, at least 1e-4 as microfacet.GGX keeps them */
     float2 extra;
     int smooth;
+    __global const float *table;
 } Lobe;
 
 /* A hit's BSDF: its first lobe alone where amount is 0, else (1 - amount) first + amount second
@@ -36,7 +43,7 @@ typedef struct {
     float amount;
 } Params;
 
-inline Lobe load_lobe(__global const float *row) {
+inline Lobe load_lobe(__global const float *row, __global const float *tables) {
     Lobe p;
     p.kind = (int)row[BSDF_PARAM_KIND];
     p.scale = vload3(0, row + BSDF_PARAM_SCALE);
@@ -51,14 +58,16 @@ inline Lobe load_lobe(__global const float *row) {
                && (fmax(ax, ay) < SMOOTH_ALPHA || (p.kind == KIND_ROUGH_DIELECTRIC && p.eta.x == 1.0f));
     p.ax = fmax(ax, 1e-4f);
     p.ay = fmax(ay, 1e-4f);
+    p.table = tables + (p.kind == KIND_MEASURED ? (size_t)p.extra.x * BSDF_TABLE_ALIGN : 0);
     return p;
 }
 
-inline Params load_params(__global const float *row) {
+/* A hit's row; `tables` holds the measured lobes' tables (the host's TableStore). */
+inline Params load_params(__global const float *row, __global const float *tables) {
     Params p;
-    p.lobe[0] = load_lobe(row);
+    p.lobe[0] = load_lobe(row, tables);
     p.amount = row[BSDF_PARAM_AMOUNT];
-    p.lobe[1] = p.amount > 0.0f ? load_lobe(row + BSDF_PARAM_SECOND) : p.lobe[0];
+    p.lobe[1] = p.amount > 0.0f ? load_lobe(row + BSDF_PARAM_SECOND, tables) : p.lobe[0];
     return p;
 }
 
@@ -213,11 +222,46 @@ inline float oren_nayar_shape(const Lobe *p, float3 wo, float3 wi) {
     return (p->extra.x + p->extra.y * term) / PI_F;
 }
 
+/* A measured table's RGB at a pair on one side (measured._table_loop): BRDFRemap, delta phi the angle
+ * between the two azimuths, then the trilinear interpolation of the cell's eight nodes. */
+inline float3 measured_rgb(const Lobe *p, float3 wo, float3 wi) {
+    float cos_o = wo.z, cos_i = wi.z;
+    /* 1 - c^2 as (1 - c)(1 + c): near the normal, where 1 - c^2 would cancel, 1 - c is exact */
+    float sin_o = sqrt(fmax(0.0f, (1.0f - cos_o) * (1.0f + cos_o)));
+    float sin_i = sqrt(fmax(0.0f, (1.0f - cos_i) * (1.0f + cos_i)));
+    float dphi;
+    if ((wo.x != 0.0f || wo.y != 0.0f) && (wi.x != 0.0f || wi.y != 0.0f)) {
+        dphi = atan2(fabs(wo.x * wi.y - wo.y * wi.x), wo.x * wi.x + wo.y * wi.y);
+    } else {  /* along the normal: pbrt's azimuth atan2(0, 0) = 0 */
+        dphi = fmod(atan2(wi.y, wi.x) - atan2(wo.y, wo.x), 2.0f * PI_F);
+        dphi = dphi < 0.0f ? dphi + 2.0f * PI_F : dphi;
+        dphi = dphi > PI_F ? 2.0f * PI_F - dphi : dphi;
+    }
+    int n = (int)p->extra.y, last = n - 1;
+    float top = (float)last;
+    float gx = clamp(sin_i * sin_o * top, 0.0f, top), gy = clamp(dphi / PI_F * top, 0.0f, top);
+    float gz = clamp(cos_i * cos_o * top, 0.0f, top);
+    int ix = min((int)gx, last - 1), iy = min((int)gy, last - 1), iz = min((int)gz, last - 1);
+    float fx = gx - ix, fy = gy - iy, fz = gz - iz;
+    __global const float *t = p->table;
+    size_t sx = (size_t)n * n * 3, sy = (size_t)n * 3, at = ix * sx + iy * sy + iz * 3;
+    float3 c00 = vload3(0, t + at) * (1.0f - fx) + vload3(0, t + at + sx) * fx;
+    float3 c01 = vload3(0, t + at + 3) * (1.0f - fx) + vload3(0, t + at + sx + 3) * fx;
+    float3 c10 = vload3(0, t + at + sy) * (1.0f - fx) + vload3(0, t + at + sx + sy) * fx;
+    float3 c11 = vload3(0, t + at + sy + 3) * (1.0f - fx) + vload3(0, t + at + sx + sy + 3) * fx;
+    return (c00 * (1.0f - fy) + c10 * fy) * (1.0f - fz) + (c01 * (1.0f - fy) + c11 * fy) * fz;
+}
+
 /* The diffuse lobe of a kind that has one, for a pair on one side: Lambertian and plastic albedo /
  * pi, Oren-Nayar, coated diffuse's base (coated_diffuse.CoatedLambertian: k the host's scale,
- * times the coat's transmittance both ways). */
+ * times the coat's transmittance both ways), a measured table's RGB in the rays' channels (the
+ * rows of the host's matrix in scale, tint and eta). */
 inline float3 diffuse_value(const Lobe *p, float3 wo, float3 wi) {
     if (p->kind == KIND_OREN_NAYAR) return p->scale * oren_nayar_shape(p, wo, wi);
+    if (p->kind == KIND_MEASURED) {
+        float3 rgb = measured_rgb(p, wo, wi);
+        return (float3)(dot(p->scale, rgb), dot(p->tint, rgb), dot(p->eta, rgb));
+    }
     if (p->kind == KIND_COATED_DIFFUSE)
         return p->k * (fresnel_transmittance(fabs(wi.z), p->eta.x) * fresnel_transmittance(fabs(wo.z), p->eta.x));
     return p->scale * (1.0f / PI_F);
@@ -297,6 +341,7 @@ inline float3 lobe_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
     switch (p->kind) {
     case KIND_LAMBERTIAN:
     case KIND_OREN_NAYAR:
+    case KIND_MEASURED:
         *pdf = same * fabs(wi.z) / PI_F;
         return same > 0.0f ? diffuse_value(p, wo, wi) : (float3)(0.0f);
     case KIND_DIELECTRIC:
@@ -422,7 +467,8 @@ inline float3 lobe_sample(const Lobe *p, float3 wo, float u0, float u1, float ul
     }
     /* plastic and coated diffuse: the diffuse lobe below the diffuse chance, else the coat (mix.WeightedSum) */
     int two = p->kind == KIND_PLASTIC || p->kind == KIND_COATED_DIFFUSE;
-    int diffuse = p->kind == KIND_LAMBERTIAN || p->kind == KIND_OREN_NAYAR || (two && ul < diffuse_chance(p, wo));
+    int diffuse = p->kind == KIND_LAMBERTIAN || p->kind == KIND_OREN_NAYAR || p->kind == KIND_MEASURED
+                  || (two && ul < diffuse_chance(p, wo));
     wi = diffuse ? cosine_on_side(wo, u0, u1) : microfacet_direction(p, wo, u0, u1);
     *specular = !diffuse && p->smooth;
     *value = lobe_eval(p, wo, wi, pdf);
@@ -469,13 +515,14 @@ inline float3 bsdf_sample(const Params *p, float3 wo, float u0, float u1, float 
     return wi;
 }
 
-__kernel void bsdf(uint n, uint lights, __global const float *params, __global const float *wo_in,
+__kernel void bsdf(uint n, uint lights, __global const float *params, __global const float *tables,
+                   __global const float *wo_in,
                    __global const float *light_wi, __global const float *u, __global const float *u_lobe,
                    __global float *light_f, __global float *light_pdf, __global float *wi_out,
                    __global float *value_out, __global float *pdf_out, __global int *flags_out) {
     uint i = get_global_id(0);
     if (i >= n) return;
-    Params p = load_params(params + (size_t)i * BSDF_PARAM_WIDTH);
+    Params p = load_params(params + (size_t)i * BSDF_PARAM_WIDTH, tables);
     float3 wo = vload3(i, wo_in);
     for (uint k = 0; k < lights; k++) {
         size_t row = (size_t)k * n + i;

@@ -3,8 +3,9 @@
 ``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB rays at hits whose
 material the kernel covers (``parameters`` returns their rows): Lambertian and Oren-Nayar
 (``Material``), conductors given by eta and k, mirrors, smooth, thin and rough dielectrics, plastic,
-coated diffuse, substrate, and a mix of two of those. Conductors named by their spectra, diffuse
-transmission, measured BRDFs, mixes holding a mix, and spectral rays stay with the numpy BSDFs of
+coated diffuse, substrate, measured ``.brdf`` files (their 128^3 table, ``TableStore``), and a mix
+of two of those. Conductors named by their spectra, diffuse transmission, MERL tables, mixes
+holding a mix, and spectral rays stay with the numpy BSDFs of
 ``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The
 host looks each parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and
 packs one ``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both
@@ -15,6 +16,7 @@ the BSDF sample; each thread has its own queue, so the renderer's worker threads
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 
 import numpy as np
 
@@ -23,18 +25,21 @@ from realistic.device.tables import Table, constant_defines
 from realistic.renderer.bsdf.base import BSDFSample, HitParameters
 from realistic.renderer.bsdf.coated_diffuse import CoatedLambertian
 from realistic.renderer.bsdf.factory import colour, scalar
+from realistic.renderer.bsdf.measured import irregular_table
 from realistic.renderer.bsdf.microfacet import SMOOTH_ALPHA, alpha
 from realistic.renderer.bsdf.oren_nayar import OrenNayar
 from realistic.scene.materials import (
     CoatedDiffuse,
     Conductor,
     Dielectric,
+    Measured,
     Mirror,
     Mix,
     Plastic,
     Substrate,
     SurfaceMaterial,
 )
+from realistic.scene.measured import IrregularSamples, load_measured
 from realistic.scene.model import Material
 
 KERNEL_FILE = "bsdf.cl"
@@ -44,22 +49,37 @@ KERNEL_FILE = "bsdf.cl"
 #: plastic's coat colour (1 for coated diffuse) or the substrate's specular reflectance; ``eta`` the
 #: conductor's index per channel (a dielectric's or coat's index in its first column); ``k`` the
 #: conductor's absorption or the coated base's scale (``CoatedLambertian.scale``); ``alpha`` the GGX
-#: widths along x and y; ``extra`` Oren-Nayar's A and B, or the coated base's albedo estimate.
+#: widths along x and y; ``extra`` Oren-Nayar's A and B, the coated base's albedo estimate, or a
+#: measured table's start (in ``TABLE_ALIGN`` floats) and nodes per axis. A measured lobe's
+#: ``scale``, ``tint`` and ``eta`` are the rows of the matrix turning its RGB into the rays' channels.
 LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), ("eta", 3), ("k", 3), ("alpha", 2),
                                         ("extra", 2)))
 #: One hit's BSDF: its first lobe, then ``amount`` (0: that lobe alone; else a mix of it, weighted
 #: 1 - amount, and the ``second`` lobe, weighted amount).
 BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", LOBE.width)))
 KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
-         "rough_dielectric", "substrate", "coated_diffuse")
+         "rough_dielectric", "substrate", "coated_diffuse", "measured")
 KIND = {name: index for index, name in enumerate(KINDS)}
-HEADER = BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SMOOTH_ALPHA {SMOOTH_ALPHA!r}f\n"
+#: Measured tables start at multiples of this many floats in ``TableStore``'s buffer, so a row holds a
+#: start divided by it, a whole number float32 keeps exactly.
+TABLE_ALIGN = 1024
+HEADER = (BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SMOOTH_ALPHA {SMOOTH_ALPHA!r}f\n"
+          + f"#define BSDF_TABLE_ALIGN {TABLE_ALIGN}\n")
+#: Where a measured table lies in the kernel's tables: its start in ``TABLE_ALIGN`` floats.
+Place = Callable[[np.ndarray], int]
 
 
-def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
+def measured_lobe(table: np.ndarray, channels: np.ndarray, place: Place) -> np.ndarray:
+    """``LOBE`` rows of a measured BRDF's ``table`` (n, n, n, 3) (``measured.irregular_table``) for hits
+    whose rays take RGB into their channels by ``channels`` (N, 3, 3), as ``MeasuredBRDF`` does."""
+    return LOBE.pack(len(channels), kind=KIND["measured"], scale=channels[:, 0], tint=channels[:, 1],
+                     eta=channels[:, 2], extra=np.array([place(table), table.shape[0]], np.float32))
+
+
+def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Place | None) -> np.ndarray | None:
     """``count`` ``LOBE`` rows of ``material`` (not a mix) at ``hits``, or None where the kernel does
-    not cover it. The same look-ups as ``bsdf_for``; the Oren-Nayar and coated-diffuse constants come
-    from their numpy BSDFs' own constructors."""
+    not cover it (a measured BRDF without ``place``). The same look-ups as ``bsdf_for``; the
+    Oren-Nayar and coated-diffuse constants come from their numpy BSDFs' own constructors."""
     if isinstance(material, Material):
         albedo = hits.colour(material.diffuse)
         if material.texture is not None:
@@ -103,18 +123,26 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndar
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
         return LOBE.pack(count, kind=KIND["substrate"], scale=colour(hits, material.diffuse),
                          tint=colour(hits, material.specular), alpha=np.column_stack([ax, ay]))
+    if isinstance(material, Measured) and place is not None:
+        data = load_measured(material.path)
+        if isinstance(data, IrregularSamples):
+            channels = np.stack([hits.colour(c) for c in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))],
+                                axis=-1)  # (N, C, 3) as bsdf_for's; C = 3 for the kernel's RGB rays
+            return measured_lobe(irregular_table(data), channels, place)
     return None
 
 
-def parameters(material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
+def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, place: Place | None = None
+               ) -> np.ndarray | None:
     """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits`` (RGB), or None where the kernel does
-    not cover the material (the numpy BSDF then shades it). A mix's rows hold both its lobes, with
-    its amount clipped to [0, 1] as ``bsdf_for`` clips it; a row of amount 0 is its first lobe alone,
-    which is what the numpy mix gives there."""
+    not cover the material (the numpy BSDF then shades it); ``place`` puts measured tables in the
+    kernel's tables (``TableStore.place``; without it measured BRDFs stay in numpy). A mix's rows
+    hold both its lobes, with its amount clipped to [0, 1] as ``bsdf_for`` clips it; a row of amount
+    0 is its first lobe alone, which is what the numpy mix gives there."""
     if not isinstance(material, Mix):
-        lobe = _lobe(material, hits, count)
+        lobe = _lobe(material, hits, count, place)
         return None if lobe is None else BSDF_PARAMS.pack(count, **_fields(lobe))
-    first, second = _lobe(material.first, hits, count), _lobe(material.second, hits, count)
+    first, second = _lobe(material.first, hits, count, place), _lobe(material.second, hits, count, place)
     if first is None or second is None:
         return None
     amount = np.clip(scalar(hits, material.amount), 0.0, 1.0).astype(np.float32)
@@ -126,17 +154,46 @@ def _fields(lobe: np.ndarray) -> dict[str, np.ndarray]:
     return {name: lobe[:, LOBE.offset(name):LOBE.offset(name) + width] for name, width in LOBE.fields}
 
 
+class TableStore:
+    """The measured tables one kernel reads, back to back (each at a multiple of ``TABLE_ALIGN``
+    floats) in one read-only buffer; a table is appended the first time a row needs it, and starts
+    never move, so rows made before a later table was added stay right."""
+
+    def __init__(self, device: Device):
+        self.device = device
+        self._lock = threading.Lock()
+        self._starts: dict[int, int] = {}
+        self._tables: list[np.ndarray] = []  # held, so their ids stay theirs
+        self._data = np.zeros(TABLE_ALIGN, np.float32)
+        self.buffer = device.wrapped_buffer(self._data, np.float32)
+
+    def place(self, table: np.ndarray) -> int:
+        """``table``'s start in the buffer, in ``TABLE_ALIGN`` floats (a ``Place``)."""
+        with self._lock:
+            start = self._starts.get(id(table))
+            if start is None:
+                start = len(self._data) // TABLE_ALIGN
+                flat = np.ascontiguousarray(table, np.float32).ravel()
+                padding = np.zeros(-len(flat) % TABLE_ALIGN, np.float32)
+                self._data = np.concatenate([self._data, flat, padding])
+                self.buffer = self.device.wrapped_buffer(self._data, np.float32)
+                self._tables.append(table)
+                self._starts[id(table)] = start
+            return start
+
+
 class BsdfKernel:
     """``kernels/bsdf.cl`` on ``device`` (its program built once per process)."""
 
     def __init__(self, device: Device):
         self.device = device
         self.program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
+        self.tables = TableStore(device)
         self._local = threading.local()
 
     def rows(self, material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
-        """``parameters`` (the ``BsdfLauncher`` method)."""
-        return parameters(material, hits, count)
+        """``parameters`` with this kernel's tables (the ``BsdfLauncher`` method)."""
+        return parameters(material, hits, count, self.tables.place)
 
     def _queue_and_kernel(self) -> tuple[cl.CommandQueue, cl.Kernel]:
         state = getattr(self._local, "state", None)
@@ -146,10 +203,10 @@ class BsdfKernel:
 
     def __call__(self, params: np.ndarray, wo: np.ndarray, light_wi: np.ndarray, u: np.ndarray, u_lobe: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, BSDFSample]:
-        """For N hits with ``params`` (N, ``BSDF_PARAMS.width``) and local outgoing directions ``wo``
-        (N, 3): f (L, N, 3) and pdf (L, N) at the L light directions ``light_wi`` (L, N, 3), and the
-        BSDF sample drawn with ``u`` (N, 2) and ``u_lobe`` (N,), as the numpy BSDF's
-        ``evaluate``, ``pdf`` and ``sample`` give them (float32)."""
+        """For N hits with ``params`` (N, ``BSDF_PARAMS.width``, from ``rows``) and local outgoing
+        directions ``wo`` (N, 3): f (L, N, 3) and pdf (L, N) at the L light directions ``light_wi``
+        (L, N, 3), and the BSDF sample drawn with ``u`` (N, 2) and ``u_lobe`` (N,), as the numpy
+        BSDF's ``evaluate``, ``pdf`` and ``sample`` give them (float32)."""
         n, lights = len(wo), len(light_wi)
         light_f = np.zeros((lights, n, 3), np.float32)
         light_pdf = np.zeros((lights, n), np.float32)
@@ -157,9 +214,10 @@ class BsdfKernel:
         pdf, flags = np.zeros(n, np.float32), np.zeros(n, np.int32)
         if n:
             queue, kernel = self._queue_and_kernel()
-            inputs = [self.device.wrapped_buffer(a, np.float32) for a in (params, wo, light_wi, u, u_lobe)]
+            rows = self.device.wrapped_buffer(params, np.float32)
+            inputs = [self.device.wrapped_buffer(a, np.float32) for a in (wo, light_wi, u, u_lobe)]
             self.device.run_into(queue, kernel, (whole_groups(n),), (LOCAL_SIZE,),
-                                 (np.uint32(n), np.uint32(lights), *inputs),
+                                 (np.uint32(n), np.uint32(lights), rows, self.tables.buffer, *inputs),
                                  (light_f, light_pdf, wi, value, pdf, flags))
         specular = (flags & 1).astype(bool)
         return light_f, light_pdf, BSDFSample(wi, value, pdf, specular, (flags & 2).astype(bool))
