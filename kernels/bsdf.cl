@@ -12,7 +12,8 @@
  *     which sampling would pick wi;
  *   - one BSDF sample from the host's uniform numbers u (2 per hit) and u_lobe: its direction, value,
  *     pdf and flags (bit 0 specular, bit 1 valid), as ``BSDF.sample`` returns them.
- * Lobe kinds: Lambertian; Oren-Nayar; conductor (GGX with the conductor Fresnel of eta + i k); mirror
+ * Lobe kinds: Lambertian; Oren-Nayar; conductor (GGX with the conductor Fresnel of eta + i k, or
+ * a named metal's tabulated Fresnel); mirror
  * (no Fresnel); smooth, thin and rough dielectric (pbrt-v4's, GGX); plastic (Lambertian kd + a GGX
  * coat of ks with the dielectric Fresnel of index eta, lobes picked in proportion to the colours'
  * means); coated diffuse (the coated base + an uncoloured coat, lobes picked by the coat's Fresnel);
@@ -25,8 +26,9 @@
 
 /* One lobe: a material that is not a mix (the first 17 columns of a BSDF_PARAM row, or its
  * `second` field). `extra`: Oren-Nayar's A and B, the coated base's albedo estimate (x), or a
- * measured table's start in the tables (x, in units of BSDF_TABLE_ALIGN floats) and its nodes per
- * axis (y); `table` points at that start (measured lobes only). */
+ * table's start in the tables (x, in units of BSDF_TABLE_ALIGN floats) and its size (y: a measured
+ * table's nodes per axis, a named metal's reflectance table's rows); `table` points at that start
+ * (measured and tabulated-conductor lobes only). */
 typedef struct {
     int kind;
     float3 scale, tint, eta, k;
@@ -58,7 +60,8 @@ inline Lobe load_lobe(__global const float *row, __global const float *tables) {
                && (fmax(ax, ay) < SMOOTH_ALPHA || (p.kind == KIND_ROUGH_DIELECTRIC && p.eta.x == 1.0f));
     p.ax = fmax(ax, 1e-4f);
     p.ay = fmax(ay, 1e-4f);
-    p.table = tables + (p.kind == KIND_MEASURED ? (size_t)p.extra.x * BSDF_TABLE_ALIGN : 0);
+    int tabulated = p.kind == KIND_MEASURED || p.kind == KIND_TABULATED_CONDUCTOR;
+    p.table = tables + (tabulated ? (size_t)p.extra.x * BSDF_TABLE_ALIGN : 0);
     return p;
 }
 
@@ -125,10 +128,23 @@ inline float3 fresnel_conductor(float c, float3 eta, float3 k) {
     return (float3)(isnan(r.x) ? 1.0f : r.x, isnan(r.y) ? 1.0f : r.y, isnan(r.z) ? 1.0f : r.z);
 }
 
-/* The microfacet lobe's colour times its Fresnel at cosine c: the conductor's, the plastic or
- * coated-diffuse coat's (tint, dielectric eta.x), or the mirror's (none). */
+/* fresnel.tabulated: a named metal's RGB reflectance (its table's rows at evenly spaced cosines over
+ * [0, 1], linear between them) at |c|, in the rays' channels (the rows of the host's matrix in
+ * tint, eta and k). */
+inline float3 tabulated_reflectance(const Lobe *p, float c) {
+    int last = (int)p->extra.y - 1;
+    float x = clamp(fabs(c), 0.0f, 1.0f) * (float)last;
+    int i = min((int)x, last - 1);
+    float t = x - (float)i;
+    float3 rgb = vload3(i, p->table) * (1.0f - t) + vload3(i + 1, p->table) * t;
+    return (float3)(dot(p->tint, rgb), dot(p->eta, rgb), dot(p->k, rgb));
+}
+
+/* The microfacet lobe's colour times its Fresnel at cosine c: the conductor's (eta + i k, or a named
+ * metal's table), the plastic or coated-diffuse coat's (tint, dielectric eta.x), or the mirror's (none). */
 inline float3 reflected(const Lobe *p, float c) {
     if (p->kind == KIND_CONDUCTOR) return p->scale * fresnel_conductor(c, p->eta, p->k);
+    if (p->kind == KIND_TABULATED_CONDUCTOR) return p->scale * tabulated_reflectance(p, c);
     if (p->kind == KIND_PLASTIC || p->kind == KIND_COATED_DIFFUSE) return p->tint * fresnel_dielectric(c, p->eta.x);
     return p->scale;
 }

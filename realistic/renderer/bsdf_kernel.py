@@ -2,10 +2,10 @@
 
 ``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB rays at hits whose
 material the kernel covers (``parameters`` returns their rows): Lambertian and Oren-Nayar
-(``Material``), conductors given by eta and k, mirrors, smooth, thin and rough dielectrics, plastic,
-coated diffuse, substrate, measured ``.brdf`` files (their 128^3 table, ``TableStore``), and a mix
-of two of those. Conductors named by their spectra, diffuse transmission, MERL tables, mixes
-holding a mix, and spectral rays stay with the numpy BSDFs of
+(``Material``), conductors (eta and k, or a named metal's tabulated Fresnel), mirrors, smooth, thin
+and rough dielectrics, plastic, coated diffuse, substrate, measured ``.brdf`` files (their 128^3
+table), and a mix of two of those; the tables live in the kernel's ``TableStore``. Diffuse
+transmission, MERL tables, mixes holding a mix, and spectral rays stay with the numpy BSDFs of
 ``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The
 host looks each parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and
 packs one ``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both
@@ -40,6 +40,7 @@ from realistic.scene.materials import (
     SurfaceMaterial,
 )
 from realistic.scene.measured import IrregularSamples, load_measured
+from realistic.scene.metals import reflectance_table
 from realistic.scene.model import Material
 
 KERNEL_FILE = "bsdf.cl"
@@ -50,15 +51,17 @@ KERNEL_FILE = "bsdf.cl"
 #: conductor's index per channel (a dielectric's or coat's index in its first column); ``k`` the
 #: conductor's absorption or the coated base's scale (``CoatedLambertian.scale``); ``alpha`` the GGX
 #: widths along x and y; ``extra`` Oren-Nayar's A and B, the coated base's albedo estimate, or a
-#: measured table's start (in ``TABLE_ALIGN`` floats) and nodes per axis. A measured lobe's
-#: ``scale``, ``tint`` and ``eta`` are the rows of the matrix turning its RGB into the rays' channels.
+#: table's start (in ``TABLE_ALIGN`` floats) and size (a measured table's nodes per axis, a named
+#: metal's reflectance rows). A measured lobe's ``scale``, ``tint`` and ``eta``, and a tabulated
+#: conductor's ``tint``, ``eta`` and ``k``, are the rows of the matrix turning RGB into the rays'
+#: channels (``rgb_channels``).
 LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), ("eta", 3), ("k", 3), ("alpha", 2),
                                         ("extra", 2)))
 #: One hit's BSDF: its first lobe, then ``amount`` (0: that lobe alone; else a mix of it, weighted
 #: 1 - amount, and the ``second`` lobe, weighted amount).
 BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", LOBE.width)))
 KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
-         "rough_dielectric", "substrate", "coated_diffuse", "measured")
+         "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor")
 KIND = {name: index for index, name in enumerate(KINDS)}
 #: Measured tables start at multiples of this many floats in ``TableStore``'s buffer, so a row holds a
 #: start divided by it, a whole number float32 keeps exactly.
@@ -69,16 +72,15 @@ HEADER = (BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SM
 Place = Callable[[np.ndarray], int]
 
 
-def measured_lobe(table: np.ndarray, channels: np.ndarray, place: Place) -> np.ndarray:
-    """``LOBE`` rows of a measured BRDF's ``table`` (n, n, n, 3) (``measured.irregular_table``) for hits
-    whose rays take RGB into their channels by ``channels`` (N, 3, 3), as ``MeasuredBRDF`` does."""
-    return LOBE.pack(len(channels), kind=KIND["measured"], scale=channels[:, 0], tint=channels[:, 1],
-                     eta=channels[:, 2], extra=np.array([place(table), table.shape[0]], np.float32))
+def rgb_channels(hits: HitParameters) -> np.ndarray:
+    """(N, C, 3): how an RGB value becomes the rays' C channels at ``hits``, as ``bsdf_for`` turns a
+    measured or tabulated RGB into them (C = 3 for the kernel's RGB rays)."""
+    return np.stack([hits.colour(c) for c in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))], axis=-1)
 
 
 def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Place | None) -> np.ndarray | None:
     """``count`` ``LOBE`` rows of ``material`` (not a mix) at ``hits``, or None where the kernel does
-    not cover it (a measured BRDF without ``place``). The same look-ups as ``bsdf_for``; the
+    not cover it (a measured BRDF or named metal without ``place``). The same look-ups as ``bsdf_for``; the
     Oren-Nayar and coated-diffuse constants come from their numpy BSDFs' own constructors."""
     if isinstance(material, Material):
         albedo = hits.colour(material.diffuse)
@@ -100,10 +102,15 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Pla
                          eta=np.float32(material.eta), k=base.scale, alpha=np.column_stack([a, a]),
                          extra=np.column_stack([base.albedo_estimate, np.zeros(count)]))
     if isinstance(material, Conductor):
-        if material.spectra is not None:
-            return None
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
+        if material.spectra is not None:
+            if place is None:
+                return None
+            table, channels = reflectance_table(*material.spectra), rgb_channels(hits)
+            return LOBE.pack(count, kind=KIND["tabulated_conductor"], scale=colour(hits, material.scale),
+                             tint=channels[:, 0], eta=channels[:, 1], k=channels[:, 2],
+                             alpha=np.column_stack([ax, ay]), extra=np.array([place(table), len(table)], np.float32))
         return LOBE.pack(count, kind=KIND["conductor"], scale=colour(hits, material.scale),
                          eta=colour(hits, material.eta), k=colour(hits, material.k), alpha=np.column_stack([ax, ay]))
     if isinstance(material, Mirror):
@@ -126,9 +133,9 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Pla
     if isinstance(material, Measured) and place is not None:
         data = load_measured(material.path)
         if isinstance(data, IrregularSamples):
-            channels = np.stack([hits.colour(c) for c in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))],
-                                axis=-1)  # (N, C, 3) as bsdf_for's; C = 3 for the kernel's RGB rays
-            return measured_lobe(irregular_table(data), channels, place)
+            table, channels = irregular_table(data), rgb_channels(hits)
+            return LOBE.pack(count, kind=KIND["measured"], scale=channels[:, 0], tint=channels[:, 1],
+                             eta=channels[:, 2], extra=np.array([place(table), table.shape[0]], np.float32))
     return None
 
 
@@ -141,17 +148,22 @@ def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, place
     0 is its first lobe alone, which is what the numpy mix gives there."""
     if not isinstance(material, Mix):
         lobe = _lobe(material, hits, count, place)
-        return None if lobe is None else BSDF_PARAMS.pack(count, **_fields(lobe))
+        return None if lobe is None else _rows(lobe)
     first, second = _lobe(material.first, hits, count, place), _lobe(material.second, hits, count, place)
     if first is None or second is None:
         return None
-    amount = np.clip(scalar(hits, material.amount), 0.0, 1.0).astype(np.float32)
-    return BSDF_PARAMS.pack(count, **_fields(first), amount=amount, second=second)
+    return _rows(first, np.clip(scalar(hits, material.amount), 0.0, 1.0), second)
 
 
-def _fields(lobe: np.ndarray) -> dict[str, np.ndarray]:
-    """``LOBE`` rows (count, width) as their named columns."""
-    return {name: lobe[:, LOBE.offset(name):LOBE.offset(name) + width] for name, width in LOBE.fields}
+def _rows(first: np.ndarray, amount: np.ndarray | None = None, second: np.ndarray | None = None) -> np.ndarray:
+    """``BSDF_PARAMS`` rows from ``LOBE`` rows (count, width): the first lobe's columns lead (the
+    tables share their names and offsets), then the amount and the second lobe (zero without them)."""
+    rows = np.zeros((len(first), BSDF_PARAMS.width), np.float32)
+    rows[:, :LOBE.width] = first
+    if amount is not None and second is not None:
+        rows[:, BSDF_PARAMS.offset("amount")] = amount
+        rows[:, BSDF_PARAMS.offset("second"):] = second
+    return rows
 
 
 class TableStore:
