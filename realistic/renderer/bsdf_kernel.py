@@ -19,6 +19,7 @@ import threading
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
@@ -70,6 +71,8 @@ HEADER = (BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SM
           + f"#define BSDF_TABLE_ALIGN {TABLE_ALIGN}\n")
 #: Where a measured table lies in the kernel's tables: its start in ``TABLE_ALIGN`` floats.
 Place = Callable[[np.ndarray], int]
+#: One lobe's ``LOBE`` fields by name: constants or per-hit (count,) or (count, width) arrays.
+Columns = dict[str, ArrayLike]
 
 
 def rgb_channels(hits: HitParameters) -> np.ndarray:
@@ -78,8 +81,8 @@ def rgb_channels(hits: HitParameters) -> np.ndarray:
     return np.stack([hits.colour(c) for c in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))], axis=-1)
 
 
-def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Place | None) -> np.ndarray | None:
-    """``count`` ``LOBE`` rows of ``material`` (not a mix) at ``hits``, or None where the kernel does
+def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Place | None) -> Columns | None:
+    """``LOBE`` columns of ``material`` (not a mix) at ``count`` ``hits``, or None where the kernel does
     not cover it (a measured BRDF or named metal without ``place``). The same look-ups as ``bsdf_for``; the
     Oren-Nayar and coated-diffuse constants come from their numpy BSDFs' own constructors."""
     if isinstance(material, Material):
@@ -87,20 +90,20 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Pla
         if material.texture is not None:
             albedo = albedo * hits.colour(material.texture)
         if material.sigma == 0:
-            return LOBE.pack(count, kind=KIND["lambertian"], scale=albedo)
+            return dict(kind=KIND["lambertian"], scale=albedo)
         rough = OrenNayar(albedo, material.sigma)
-        return LOBE.pack(count, kind=KIND["oren_nayar"], scale=albedo, extra=np.column_stack([rough.a, rough.b]))
+        return dict(kind=KIND["oren_nayar"], scale=albedo, extra=np.column_stack([rough.a, rough.b]))
     if isinstance(material, Plastic):
         kd, ks = colour(hits, material.diffuse), colour(hits, material.specular)
         a = alpha(scalar(hits, material.roughness), material.rule)
-        return LOBE.pack(count, kind=KIND["plastic"], scale=kd, tint=ks, eta=np.float32(material.eta),
-                         alpha=np.column_stack([a, a]))
+        return dict(kind=KIND["plastic"], scale=kd, tint=ks, eta=np.float32(material.eta),
+                    alpha=np.column_stack([a, a]))
     if isinstance(material, CoatedDiffuse):
         base = CoatedLambertian(colour(hits, material.reflectance), material.eta)
         a = alpha(scalar(hits, material.roughness), material.rule)
-        return LOBE.pack(count, kind=KIND["coated_diffuse"], scale=base.albedo, tint=np.float32(1.0),
-                         eta=np.float32(material.eta), k=base.scale, alpha=np.column_stack([a, a]),
-                         extra=np.column_stack([base.albedo_estimate, np.zeros(count)]))
+        return dict(kind=KIND["coated_diffuse"], scale=base.albedo, tint=np.float32(1.0),
+                    eta=np.float32(material.eta), k=base.scale, alpha=np.column_stack([a, a]),
+                    extra=np.column_stack([base.albedo_estimate, np.zeros(count)]))
     if isinstance(material, Conductor):
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
@@ -108,34 +111,34 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Pla
             if place is None:
                 return None
             table, channels = reflectance_table(*material.spectra), rgb_channels(hits)
-            return LOBE.pack(count, kind=KIND["tabulated_conductor"], scale=colour(hits, material.scale),
-                             tint=channels[:, 0], eta=channels[:, 1], k=channels[:, 2],
-                             alpha=np.column_stack([ax, ay]), extra=np.array([place(table), len(table)], np.float32))
-        return LOBE.pack(count, kind=KIND["conductor"], scale=colour(hits, material.scale),
-                         eta=colour(hits, material.eta), k=colour(hits, material.k), alpha=np.column_stack([ax, ay]))
+            return dict(kind=KIND["tabulated_conductor"], scale=colour(hits, material.scale),
+                        tint=channels[:, 0], eta=channels[:, 1], k=channels[:, 2],
+                        alpha=np.column_stack([ax, ay]), extra=np.array([place(table), len(table)], np.float32))
+        return dict(kind=KIND["conductor"], scale=colour(hits, material.scale),
+                    eta=colour(hits, material.eta), k=colour(hits, material.k), alpha=np.column_stack([ax, ay]))
     if isinstance(material, Mirror):
-        return LOBE.pack(count, kind=KIND["mirror"], scale=colour(hits, material.reflectance))
+        return dict(kind=KIND["mirror"], scale=colour(hits, material.reflectance))
     if isinstance(material, Dielectric):
         kr, kt = colour(hits, material.reflectance), colour(hits, material.transmittance)
         if material.thin or material.roughness_u == material.roughness_v == 0.0:
-            return LOBE.pack(count, kind=KIND["thin_dielectric" if material.thin else "dielectric"], scale=kr,
-                             tint=kt, eta=np.float32(material.eta))
+            return dict(kind=KIND["thin_dielectric" if material.thin else "dielectric"], scale=kr,
+                        tint=kt, eta=np.float32(material.eta))
         ru, rv = scalar(hits, material.roughness_u), scalar(hits, material.roughness_v)
         smooth = (ru == 0) & (rv == 0)  # as bsdf_for: smooth where both are 0 before the remapping
         ax, ay = (np.where(smooth, 0.0, alpha(r, material.rule)) for r in (ru, rv))
-        return LOBE.pack(count, kind=KIND["rough_dielectric"], scale=kr, tint=kt, eta=np.float32(material.eta),
-                         alpha=np.column_stack([ax, ay]))
+        return dict(kind=KIND["rough_dielectric"], scale=kr, tint=kt, eta=np.float32(material.eta),
+                    alpha=np.column_stack([ax, ay]))
     if isinstance(material, Substrate):
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
-        return LOBE.pack(count, kind=KIND["substrate"], scale=colour(hits, material.diffuse),
-                         tint=colour(hits, material.specular), alpha=np.column_stack([ax, ay]))
+        return dict(kind=KIND["substrate"], scale=colour(hits, material.diffuse),
+                    tint=colour(hits, material.specular), alpha=np.column_stack([ax, ay]))
     if isinstance(material, Measured) and place is not None:
         data = load_measured(material.path)
         if isinstance(data, IrregularSamples):
             table, channels = irregular_table(data), rgb_channels(hits)
-            return LOBE.pack(count, kind=KIND["measured"], scale=channels[:, 0], tint=channels[:, 1],
-                             eta=channels[:, 2], extra=np.array([place(table), table.shape[0]], np.float32))
+            return dict(kind=KIND["measured"], scale=channels[:, 0], tint=channels[:, 1],
+                        eta=channels[:, 2], extra=np.array([place(table), table.shape[0]], np.float32))
     return None
 
 
@@ -148,21 +151,25 @@ def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, place
     0 is its first lobe alone, which is what the numpy mix gives there."""
     if not isinstance(material, Mix):
         lobe = _lobe(material, hits, count, place)
-        return None if lobe is None else _rows(lobe)
+        return None if lobe is None else _rows(count, lobe)
     first, second = _lobe(material.first, hits, count, place), _lobe(material.second, hits, count, place)
     if first is None or second is None:
         return None
-    return _rows(first, np.clip(scalar(hits, material.amount), 0.0, 1.0), second)
+    return _rows(count, first, np.clip(scalar(hits, material.amount), 0.0, 1.0), second)
 
 
-def _rows(first: np.ndarray, amount: np.ndarray | None = None, second: np.ndarray | None = None) -> np.ndarray:
-    """``BSDF_PARAMS`` rows from ``LOBE`` rows (count, width): the first lobe's columns lead (the
-    tables share their names and offsets), then the amount and the second lobe (zero without them)."""
-    rows = np.zeros((len(first), BSDF_PARAMS.width), np.float32)
-    rows[:, :LOBE.width] = first
-    if amount is not None and second is not None:
+def _rows(count: int, first: Columns, amount: np.ndarray | None = None, second: Columns | None = None) -> np.ndarray:
+    """``count`` ``BSDF_PARAMS`` rows: the first lobe's columns lead (the tables share their names and
+    offsets), then the amount and the second lobe (zero without them); columns not given are zero."""
+    rows = np.zeros((count, BSDF_PARAMS.width), np.float32)
+    for start, lobe in ((0, first), (BSDF_PARAMS.offset("second"), second or {})):
+        for name, value in lobe.items():
+            column = start + LOBE.offset(name)
+            width = LOBE.dtype[name].shape[0]
+            array = np.asarray(value, np.float32)
+            rows[:, column:column + width] = array[:, None] if width == 1 and array.ndim == 1 else array
+    if amount is not None:
         rows[:, BSDF_PARAMS.offset("amount")] = amount
-        rows[:, BSDF_PARAMS.offset("second"):] = second
     return rows
 
 
