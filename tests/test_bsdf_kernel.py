@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bsdf_helpers import ConstantHits, uniform_sphere
+from bsdf_helpers import ConstantHits, SpectralHits, uniform_sphere
 from conftest import shared_file
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
@@ -169,16 +169,17 @@ def _close_to_brightest(kernel_value: np.ndarray, numpy_value: np.ndarray) -> No
 
 
 def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: bool = False,
-                   table: bool = False) -> None:
+                   table: bool = False, spectral: bool = False) -> None:
     """The kernel's f and pdf at two light directions and its sample, for ``material`` at N random
     directions and uniform numbers, equal to the numpy BSDF's (``ILL_CONDITIONED``: what rounding
     allows). ``table``: a measured table's f, relative to each hit's brightest channel, is within
     1e-5 at 99 % of the hits and 1e-3 at all: where a cell's nodes differ by far more than the value
-    between them, the float32 rounding of the position in the cell moves the interpolant by more."""
+    between them, the float32 rounding of the position in the cell moves the interpolant by more.
+    ``spectral``: rays of one wavelength each (400-700 nm), one channel."""
     wo, light_wi, u, u_lobe = _inputs(seed)
-    hits = ConstantHits(N)
+    hits = SpectralHits(np.random.default_rng(seed).uniform(400, 700, N)) if spectral else ConstantHits(N)
     bsdf = bsdf_for(material, hits)
-    light_f, light_pdf, s = kernel(kernel.rows(material, hits, N), wo, light_wi, u, u_lobe)
+    light_f, light_pdf, s = kernel(kernel.rows(material, hits, N), wo, light_wi, u, u_lobe, 1 if spectral else 3)
     for k in range(len(light_wi)):
         for got, function in ((light_f[k], bsdf.evaluate), (light_pdf[k], bsdf.pdf)):
             expected = function(wo, light_wi[k])
@@ -192,9 +193,11 @@ def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: boo
     # a flag may differ only where a direction lies within rounding of a lobe's boundary
     assert np.mean(s.valid != ref.valid) < 1e-3
     both = s.valid & ref.valid
-    atol = np.full((len(wo), 1), 2e-5)
-    if ill_conditioned:  # refraction near the critical angle: as far as the reference's rounding moves wi
-        atol += 8 * _moved(lambda wo, u: bsdf.sample(wo, u, u_lobe).wi, wo, u, relative=False)[:, None]
+    # 2e-5, plus what a float32 cosine sqrt(1 - x^2 - y^2) carries at grazing wi (2^-23 / (2 |cos|)
+    # or so) and what float32 rounding of wo and u moves the reference's direction by (visible
+    # normals sampled at u near 1, refraction near the critical angle)
+    atol = (2e-5 + 2.0 ** -22 / np.maximum(np.abs(ref.wi[:, 2:].astype(np.float64)), 1e-30)
+            + 8 * _moved(lambda wo, u: bsdf.sample(wo, u, u_lobe).wi, wo, u, relative=False)[:, None])
     assert np.all(np.abs(s.wi[both] - ref.wi[both]) <= atol[both])
     # directions equal to float32 rounding; value and pdf there to what that rounding moves them:
     # most at grazing wi, whose cosine sqrt(1 - x^2 - y^2) carries 2^-23 / (2 cos^2) relative error
@@ -210,6 +213,12 @@ def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: boo
 @pytest.mark.parametrize("name", sorted(COVERED))
 def test_kernel_evaluates_and_samples_as_the_numpy_bsdf(kernel, name):
     _matches_numpy(kernel, COVERED[name], sorted(COVERED).index(name), name in ILL_CONDITIONED)
+
+
+@pytest.mark.parametrize("name", sorted(COVERED))
+def test_kernel_evaluates_and_samples_spectral_rays_as_the_numpy_bsdf(kernel, name):
+    """As above for rays of one wavelength each: the rows repeat the ray's one channel."""
+    _matches_numpy(kernel, COVERED[name], 100 + sorted(COVERED).index(name), name in ILL_CONDITIONED, spectral=True)
 
 
 @pytest.fixture
@@ -310,15 +319,15 @@ def test_kernel_rough_glass_keeps_energy(kernel, name, theta):
 def test_path_tracing_with_the_kernel_renders_the_numpy_image(render, spectral):
     """Path tracing (depth 5) on the opencl backend, the covered materials in the kernel and one
     other in numpy, gives each ray the numpy backend's radiance to float32 rounding (a path may only
-    part where rounding moves a sample across a lobe's or roulette's threshold); spectral rays stay
-    with the numpy BSDFs."""
+    part where rounding moves a sample across a lobe's or roulette's threshold), spectral rays too."""
     _renders_match(*RENDERS[render], spectral)
 
 
 def test_path_tracing_with_a_measured_brdf_on_the_kernel(three_samples):
     """As above with a .brdf file's table on the quad and in a mix on the cone."""
-    _renders_match([Dielectric(1.5), Mix(three_samples, Conductor(roughness_u=0.1, roughness_v=0.1), 0.5),
-                    three_samples], DiffuseTransmission(), False)
+    for spectral in (False, True):
+        _renders_match([Dielectric(1.5), Mix(three_samples, Conductor(roughness_u=0.1, roughness_v=0.1), 0.5),
+                        three_samples], DiffuseTransmission(), spectral)
 
 
 def _renders_match(materials: list, added, spectral: bool) -> None:

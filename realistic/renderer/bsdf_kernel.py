@@ -1,11 +1,11 @@
 """OpenCL host of the path integrator's BSDFs: ``kernels/bsdf.cl`` on a ``Device``.
 
-``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB rays at hits whose
-material the kernel covers (``parameters`` returns their rows): Lambertian and Oren-Nayar
-(``Material``), conductors (eta and k, or a named metal's tabulated Fresnel), mirrors, smooth, thin
-and rough dielectrics, plastic, coated diffuse, substrate, measured ``.brdf`` files (their 128^3
-table), and a mix of two of those; the tables live in the kernel's ``TableStore``. Diffuse
-transmission, MERL tables, mixes holding a mix, and spectral rays stay with the numpy BSDFs of
+``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB and spectral rays
+at hits whose material the kernel covers (``parameters`` returns their rows): Lambertian and
+Oren-Nayar (``Material``), conductors (eta and k, or a named metal's tabulated Fresnel), mirrors,
+smooth, thin and rough dielectrics, plastic, coated diffuse, substrate, measured ``.brdf`` files
+(their 128^3 table), and a mix of two of those; the tables live in the kernel's ``TableStore``.
+Diffuse transmission, MERL tables and mixes holding a mix stay with the numpy BSDFs of
 ``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The
 host looks each parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and
 packs one ``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both
@@ -76,9 +76,10 @@ Columns = dict[str, ArrayLike]
 
 
 def rgb_channels(hits: HitParameters) -> np.ndarray:
-    """(N, C, 3): how an RGB value becomes the rays' C channels at ``hits``, as ``bsdf_for`` turns a
-    measured or tabulated RGB into them (C = 3 for the kernel's RGB rays)."""
-    return np.stack([hits.colour(c) for c in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))], axis=-1)
+    """(N, 3, 3): how an RGB value becomes the rays' channels at ``hits``, as ``bsdf_for`` turns a
+    measured or tabulated RGB into them; a spectral ray's one channel is repeated (``parameters``)."""
+    channels = np.stack([hits.colour(c) for c in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))], axis=-1)
+    return np.broadcast_to(channels, (len(channels), 3, 3))
 
 
 def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Place | None) -> Columns | None:
@@ -144,11 +145,13 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Pla
 
 def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, place: Place | None = None
                ) -> np.ndarray | None:
-    """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits`` (RGB), or None where the kernel does
+    """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits``, or None where the kernel does
     not cover the material (the numpy BSDF then shades it); ``place`` puts measured tables in the
     kernel's tables (``TableStore.place``; without it measured BRDFs stay in numpy). A mix's rows
     hold both its lobes, with its amount clipped to [0, 1] as ``bsdf_for`` clips it; a row of amount
-    0 is its first lobe alone, which is what the numpy mix gives there."""
+    0 is its first lobe alone, which is what the numpy mix gives there. For spectral rays (colours of
+    one channel) each colour fills all three of the kernel's channels, which then agree, and any one
+    of them is the ray's (the lobe choices use channel means, unchanged by the repetition)."""
     if not isinstance(material, Mix):
         lobe = _lobe(material, hits, count, place)
         return None if lobe is None else _rows(count, lobe)
@@ -166,7 +169,7 @@ def _rows(count: int, first: Columns, amount: np.ndarray | None = None, second: 
         for name, value in lobe.items():
             column = start + LOBE.offset(name)
             width = LOBE.dtype[name].shape[0]
-            array = np.asarray(value, np.float32)
+            array = np.asarray(value, np.float32)  # (count, 1) colours of spectral rays broadcast
             rows[:, column:column + width] = array[:, None] if width == 1 and array.ndim == 1 else array
     if amount is not None:
         rows[:, BSDF_PARAMS.offset("amount")] = amount
@@ -220,12 +223,13 @@ class BsdfKernel:
             state = self._local.state = (self.device.queue(), cl.Kernel(self.program, "bsdf"))
         return state
 
-    def __call__(self, params: np.ndarray, wo: np.ndarray, light_wi: np.ndarray, u: np.ndarray, u_lobe: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, BSDFSample]:
+    def __call__(self, params: np.ndarray, wo: np.ndarray, light_wi: np.ndarray, u: np.ndarray, u_lobe: np.ndarray,
+                 channels: int = 3) -> tuple[np.ndarray, np.ndarray, BSDFSample]:
         """For N hits with ``params`` (N, ``BSDF_PARAMS.width``, from ``rows``) and local outgoing
-        directions ``wo`` (N, 3): f (L, N, 3) and pdf (L, N) at the L light directions ``light_wi``
+        directions ``wo`` (N, 3): f (L, N, C) and pdf (L, N) at the L light directions ``light_wi``
         (L, N, 3), and the BSDF sample drawn with ``u`` (N, 2) and ``u_lobe`` (N,), as the numpy
-        BSDF's ``evaluate``, ``pdf`` and ``sample`` give them (float32)."""
+        BSDF's ``evaluate``, ``pdf`` and ``sample`` give them (float32); C = ``channels``, 3 for RGB
+        rays, 1 for spectral ones (whose rows repeat their channel)."""
         n, lights = len(wo), len(light_wi)
         light_f = np.zeros((lights, n, 3), np.float32)
         light_pdf = np.zeros((lights, n), np.float32)
@@ -239,4 +243,5 @@ class BsdfKernel:
                                  (np.uint32(n), np.uint32(lights), rows, self.tables.buffer, *inputs),
                                  (light_f, light_pdf, wi, value, pdf, flags))
         specular = (flags & 1).astype(bool)
-        return light_f, light_pdf, BSDFSample(wi, value, pdf, specular, (flags & 2).astype(bool))
+        return light_f[:, :, :channels], light_pdf, BSDFSample(wi, value[:, :channels], pdf, specular,
+                                                               (flags & 2).astype(bool))

@@ -17,10 +17,10 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 ``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
 after specular bounces), for tests.
 
-Backends: on "opencl", RGB rays at hits whose material ``kernels/bsdf.cl`` covers (the backend's
-``bsdf_kernel``: diffuse, conductor, mirror, smooth glass, plastic) are evaluated and sampled there,
-in one launch per bounce, with the same random numbers; every other material, spectral rays and the
-"numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
+Backends: on "opencl", rays at hits whose material ``kernels/bsdf.cl`` covers (the backend's
+``bsdf_kernel``: every material but diffuse transmission and MERL tables) are evaluated and sampled there,
+in one launch per bounce, with the same random numbers; every other material and the "numpy"
+backend use the numpy BSDFs of ``bsdf_factory``, the reference.
 
 Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
 stratified light samples) as ``DirectLighting`` does; bounce b's BSDF sample, lobe choice,
@@ -345,7 +345,7 @@ class PathIntegrator(DirectLighting):
                 throughput[rows] = np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))
                                             [:, None], 0.0)
 
-        kernel = self._bsdf_kernel if sb is None else None  # the kernel shades RGB rays
+        kernel = self._bsdf_kernel
         on_device: list[tuple[slice | np.ndarray, np.ndarray]] = []
         material_of = self._geom_material[geom]
         groups = np.unique(material_of)
@@ -383,7 +383,7 @@ class PathIntegrator(DirectLighting):
             hit_wo = wo[hit_rows]
             light_wi = np.stack([local[hit_rows] for _, local in samples]) if samples else \
                 np.zeros((0, len(hit_wo), 3), np.float32)
-            f_light, pdf_light, s = kernel(table, hit_wo, light_wi, u_bsdf[hit_rows], u_lobe[hit_rows])
+            f_light, pdf_light, s = kernel(table, hit_wo, light_wi, u_bsdf[hit_rows], u_lobe[hit_rows], channels)
             store(hit_rows, s, list(f_light), list(pdf_light))
         beta_s = beta[surface]
         shadow: dict[str, list[np.ndarray]] = {"start": [], "vector": [], "length": [], "rows": [],
