@@ -6,7 +6,8 @@
  * host is realistic/renderer/bsdf_kernel.py, which prepends the BSDF_PARAM table's #defines, the
  * KIND_* constants and BSDF_TABLE_ALIGN. Each hit's parameters are a row of BSDF_PARAM (its
  * material's kind, colours, indices and GGX widths looked up at the hit by the host, textures
- * included; a mix's row holds two lobes and the amount), and `tables` the measured BRDFs' tables.
+ * included; a mix's row holds its first lobe, its amount and where its second lobe lies in
+ * `tables`), and `tables` the measured and named metals' tables and the mixes' second lobes.
  * Directions are in the local shading frame (normal +z). Per work item i:
  *   - for each of `lights` light directions (rows k * n + i of light_wi): f(wo, wi) and the pdf with
  *     which sampling would pick wi;
@@ -24,8 +25,8 @@
 
 #define PI_F 3.14159265358979f
 
-/* One lobe: a material that is not a mix (the first 17 columns of a BSDF_PARAM row, or its
- * `second` field). `extra`: Oren-Nayar's A and B, the coated base's albedo estimate (x), or a
+/* One lobe: a material that is not a mix (the first 17 columns of a BSDF_PARAM row, or a mix's
+ * second lobe in the tables). `extra`: Oren-Nayar's A and B, the coated base's albedo estimate (x), or a
  * table's start in the tables (x, in units of BSDF_TABLE_ALIGN floats) and its size (y: a measured
  * table's nodes per axis, a named metal's reflectance table's rows); `table` points at that start
  * (measured and tabulated-conductor lobes only). */
@@ -39,7 +40,7 @@ typedef struct {
 } Lobe;
 
 /* A hit's BSDF: its first lobe alone where amount is 0, else (1 - amount) first + amount second
- * (mix.WeightedSum with lobe chances 1 - amount and amount). */
+ * (mix.WeightedSum with lobe chances 1 - amount and amount); lobe[1] is lobe[0] where amount is 0. */
 typedef struct {
     Lobe lobe[2];
     float amount;
@@ -70,7 +71,8 @@ inline Params load_params(__global const float *row, __global const float *table
     Params p;
     p.lobe[0] = load_lobe(row, tables);
     p.amount = row[BSDF_PARAM_AMOUNT];
-    p.lobe[1] = p.amount > 0.0f ? load_lobe(row + BSDF_PARAM_SECOND, tables) : p.lobe[0];
+    p.lobe[1] = p.amount > 0.0f ? load_lobe(tables + (size_t)row[BSDF_PARAM_SECOND] * BSDF_TABLE_ALIGN, tables)
+                                : p.lobe[0];
     return p;
 }
 

@@ -4,8 +4,10 @@
 at hits whose material the kernel covers (``parameters`` returns their rows): Lambertian and
 Oren-Nayar (``Material``), conductors (eta and k, or a named metal's tabulated Fresnel), mirrors,
 smooth, thin and rough dielectrics, plastic, coated diffuse, substrate, measured ``.brdf`` files
-(their 128^3 table), and a mix of two of those; the tables live in the kernel's ``TableStore``.
-Diffuse transmission, MERL tables and mixes holding a mix stay with the numpy BSDFs of
+(their 128^3 table), and a mix of two of those whose second is the same at every hit; the tables
+and the mixes' second lobes live in the kernel's ``TableStore``. Diffuse transmission, MERL tables,
+mixes holding a mix or a textured second material (or seen by spectral rays, whose second lobe
+varies with the wavelength) stay with the numpy BSDFs of
 ``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The
 host looks each parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and
 packs one ``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both
@@ -16,7 +18,6 @@ the BSDF sample; each thread has its own queue, so the renderer's worker threads
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -59,8 +60,10 @@ KERNEL_FILE = "bsdf.cl"
 LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), ("eta", 3), ("k", 3), ("alpha", 2),
                                         ("extra", 2)))
 #: One hit's BSDF: its first lobe, then ``amount`` (0: that lobe alone; else a mix of it, weighted
-#: 1 - amount, and the ``second`` lobe, weighted amount).
-BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", LOBE.width)))
+#: 1 - amount, and a second lobe, weighted amount, the same at every hit: a ``LOBE`` row in the
+#: kernel's tables at ``second``, in ``TABLE_ALIGN`` floats). Mixes put their second lobe there so
+#: that every other row stays one lobe wide.
+BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", 1)))
 KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
          "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor")
 KIND = {name: index for index, name in enumerate(KINDS)}
@@ -69,8 +72,6 @@ KIND = {name: index for index, name in enumerate(KINDS)}
 TABLE_ALIGN = 1024
 HEADER = (BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SMOOTH_ALPHA {SMOOTH_ALPHA!r}f\n"
           + f"#define BSDF_TABLE_ALIGN {TABLE_ALIGN}\n")
-#: Where a measured table lies in the kernel's tables: its start in ``TABLE_ALIGN`` floats.
-Place = Callable[[np.ndarray], int]
 #: One lobe's ``LOBE`` fields by name: constants or per-hit (count,) or (count, width) arrays.
 Columns = dict[str, ArrayLike]
 
@@ -82,9 +83,10 @@ def rgb_channels(hits: HitParameters) -> np.ndarray:
     return np.broadcast_to(channels, (len(channels), 3, 3))
 
 
-def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Place | None) -> Columns | None:
+def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, tables: TableStore | None
+          ) -> Columns | None:
     """``LOBE`` columns of ``material`` (not a mix) at ``count`` ``hits``, or None where the kernel does
-    not cover it (a measured BRDF or named metal without ``place``). The same look-ups as ``bsdf_for``; the
+    not cover it (a measured BRDF or named metal without ``tables``). The same look-ups as ``bsdf_for``; the
     Oren-Nayar and coated-diffuse constants come from their numpy BSDFs' own constructors."""
     if isinstance(material, Material):
         albedo = hits.colour(material.diffuse)
@@ -109,12 +111,12 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Pla
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
         if material.spectra is not None:
-            if place is None:
+            if tables is None:
                 return None
             table, channels = reflectance_table(*material.spectra), rgb_channels(hits)
             return dict(kind=KIND["tabulated_conductor"], scale=colour(hits, material.scale),
                         tint=channels[:, 0], eta=channels[:, 1], k=channels[:, 2],
-                        alpha=np.column_stack([ax, ay]), extra=np.array([place(table), len(table)], np.float32))
+                        alpha=np.column_stack([ax, ay]), extra=np.array([tables.place(table), len(table)], np.float32))
         return dict(kind=KIND["conductor"], scale=colour(hits, material.scale),
                     eta=colour(hits, material.eta), k=colour(hits, material.k), alpha=np.column_stack([ax, ay]))
     if isinstance(material, Mirror):
@@ -134,74 +136,90 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, place: Pla
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
         return dict(kind=KIND["substrate"], scale=colour(hits, material.diffuse),
                     tint=colour(hits, material.specular), alpha=np.column_stack([ax, ay]))
-    if isinstance(material, Measured) and place is not None:
+    if isinstance(material, Measured) and tables is not None:
         data = load_measured(material.path)
         if isinstance(data, IrregularSamples):
             table, channels = irregular_table(data), rgb_channels(hits)
             return dict(kind=KIND["measured"], scale=channels[:, 0], tint=channels[:, 1],
-                        eta=channels[:, 2], extra=np.array([place(table), table.shape[0]], np.float32))
+                        eta=channels[:, 2], extra=np.array([tables.place(table), table.shape[0]], np.float32))
     return None
 
 
-def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, place: Place | None = None
+def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, tables: TableStore | None = None
                ) -> np.ndarray | None:
-    """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits``, or None where the kernel does
-    not cover the material (the numpy BSDF then shades it); ``place`` puts measured tables in the
-    kernel's tables (``TableStore.place``; without it measured BRDFs stay in numpy). A mix's rows
-    hold both its lobes, with its amount clipped to [0, 1] as ``bsdf_for`` clips it; a row of amount
-    0 is its first lobe alone, which is what the numpy mix gives there. For spectral rays (colours of
-    one channel) each colour fills all three of the kernel's channels, which then agree, and any one
-    of them is the ray's (the lobe choices use channel means, unchanged by the repetition)."""
+    """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits``, or None where the kernel does not
+    cover the material (the numpy BSDF then shades it); ``tables`` holds measured tables, named
+    metals' Fresnel tables and mixes' second lobes (without it those stay in numpy). A mix is covered
+    where its second material's lobe is the same at every hit (no textures; RGB rays), with its
+    amount clipped to [0, 1] as ``bsdf_for`` clips it; a row of amount 0 is its first lobe alone,
+    which is what the numpy mix gives there. For spectral rays (colours of one channel) each colour
+    fills all three of the kernel's channels, which then agree, and any one of them is the ray's
+    (the lobe choices use channel means, unchanged by the repetition)."""
     if not isinstance(material, Mix):
-        lobe = _lobe(material, hits, count, place)
-        return None if lobe is None else _rows(count, lobe)
-    first, second = _lobe(material.first, hits, count, place), _lobe(material.second, hits, count, place)
-    if first is None or second is None:
+        lobe = _lobe(material, hits, count, tables)
+        return None if lobe is None else _rows(count, lobe, BSDF_PARAMS.width)
+    first, second = _lobe(material.first, hits, count, tables), _lobe(material.second, hits, count, tables)
+    if first is None or second is None or tables is None:
         return None
-    return _rows(count, first, np.clip(scalar(hits, material.amount), 0.0, 1.0), second)
+    second_rows = _rows(count, second, LOBE.width)
+    if count and not np.all(second_rows == second_rows[:1]):
+        return None
+    rows = _rows(count, first, BSDF_PARAMS.width)
+    rows[:, BSDF_PARAMS.offset("amount")] = np.clip(scalar(hits, material.amount), 0.0, 1.0)
+    rows[:, BSDF_PARAMS.offset("second")] = tables.place_lobe(second_rows[0]) if count else 0
+    return rows
 
 
-def _rows(count: int, first: Columns, amount: np.ndarray | None = None, second: Columns | None = None) -> np.ndarray:
-    """``count`` ``BSDF_PARAMS`` rows: the first lobe's columns lead (the tables share their names and
-    offsets), then the amount and the second lobe (zero without them); columns not given are zero."""
-    rows = np.zeros((count, BSDF_PARAMS.width), np.float32)
-    for start, lobe in ((0, first), (BSDF_PARAMS.offset("second"), second or {})):
-        for name, value in lobe.items():
-            column = start + LOBE.offset(name)
-            width = LOBE.dtype[name].shape[0]
-            array = np.asarray(value, np.float32)  # (count, 1) colours of spectral rays broadcast
-            rows[:, column:column + width] = array[:, None] if width == 1 and array.ndim == 1 else array
-    if amount is not None:
-        rows[:, BSDF_PARAMS.offset("amount")] = amount
+def _rows(count: int, lobe: Columns, width: int) -> np.ndarray:
+    """``count`` rows of ``width`` float32 with ``lobe``'s ``LOBE`` columns first (``LOBE`` and
+    ``BSDF_PARAMS`` share their names and offsets) and zero elsewhere."""
+    rows = np.zeros((count, width), np.float32)
+    for name, value in lobe.items():
+        column, size = LOBE.offset(name), LOBE.dtype[name].shape[0]
+        array = np.asarray(value, np.float32)  # (count, 1) colours of spectral rays broadcast
+        rows[:, column:column + size] = array[:, None] if size == 1 and array.ndim == 1 else array
     return rows
 
 
 class TableStore:
-    """The measured tables one kernel reads, back to back (each at a multiple of ``TABLE_ALIGN``
-    floats) in one read-only buffer; a table is appended the first time a row needs it, and starts
-    never move, so rows made before a later table was added stay right."""
+    """What the kernel reads beside its rows, back to back in one read-only buffer, each at a multiple
+    of ``TABLE_ALIGN`` floats: measured tables and named metals' Fresnel tables (``place``, once per
+    table), and mixes' second lobes (``place_lobe``, once per distinct lobe). Starts never move, so
+    rows made before a later addition stay right."""
 
     def __init__(self, device: Device):
         self.device = device
         self._lock = threading.Lock()
-        self._starts: dict[int, int] = {}
+        self._starts: dict[int | bytes, int] = {}
         self._tables: list[np.ndarray] = []  # held, so their ids stay theirs
         self._data = np.zeros(TABLE_ALIGN, np.float32)
         self.buffer = device.wrapped_buffer(self._data, np.float32)
 
     def place(self, table: np.ndarray) -> int:
-        """``table``'s start in the buffer, in ``TABLE_ALIGN`` floats (a ``Place``)."""
+        """``table``'s start in the buffer, in ``TABLE_ALIGN`` floats."""
         with self._lock:
             start = self._starts.get(id(table))
             if start is None:
-                start = len(self._data) // TABLE_ALIGN
-                flat = np.ascontiguousarray(table, np.float32).ravel()
-                padding = np.zeros(-len(flat) % TABLE_ALIGN, np.float32)
-                self._data = np.concatenate([self._data, flat, padding])
-                self.buffer = self.device.wrapped_buffer(self._data, np.float32)
+                start = self._starts[id(table)] = self._append(table)
                 self._tables.append(table)
-                self._starts[id(table)] = start
             return start
+
+    def place_lobe(self, lobe: np.ndarray) -> int:
+        """A ``LOBE`` row's start in the buffer, in ``TABLE_ALIGN`` floats (one copy per distinct row)."""
+        key = np.ascontiguousarray(lobe, np.float32).tobytes()
+        with self._lock:
+            start = self._starts.get(key)
+            if start is None:
+                start = self._starts[key] = self._append(lobe)
+            return start
+
+    def _append(self, array: np.ndarray) -> int:
+        """Append ``array``'s floats, padded to ``TABLE_ALIGN``; its start (the caller holds the lock)."""
+        start = len(self._data) // TABLE_ALIGN
+        flat = np.ascontiguousarray(array, np.float32).ravel()
+        self._data = np.concatenate([self._data, flat, np.zeros(-len(flat) % TABLE_ALIGN, np.float32)])
+        self.buffer = self.device.wrapped_buffer(self._data, np.float32)
+        return start
 
 
 class BsdfKernel:
@@ -215,7 +233,7 @@ class BsdfKernel:
 
     def rows(self, material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
         """``parameters`` with this kernel's tables (the ``BsdfLauncher`` method)."""
-        return parameters(material, hits, count, self.tables.place)
+        return parameters(material, hits, count, self.tables)
 
     def _queue_and_kernel(self) -> tuple[cl.CommandQueue, cl.Kernel]:
         state = getattr(self._local, "state", None)
