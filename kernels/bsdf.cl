@@ -14,8 +14,8 @@
  *   - one BSDF sample from the host's uniform numbers u (2 per hit) and u_lobe: its direction, value,
  *     pdf and flags (bit 0 specular, bit 1 valid), as ``BSDF.sample`` returns them.
  * Lobe kinds: Lambertian; Oren-Nayar; conductor (GGX with the conductor Fresnel of eta + i k, or
- * a named metal's tabulated Fresnel); mirror
- * (no Fresnel); smooth, thin and rough dielectric (pbrt-v4's, GGX); plastic (Lambertian kd + a GGX
+ * a named metal's tabulated Fresnel); mirror (no Fresnel); smooth, thin and rough dielectric
+ * (pbrt-v4's, GGX); plastic (Lambertian kd + a GGX
  * coat of ks with the dielectric Fresnel of index eta, lobes picked in proportion to the colours'
  * means); coated diffuse (the coated base + an uncoloured coat, lobes picked by the coat's Fresnel);
  * substrate (FresnelBlend); measured (a pbrt-v2 .brdf file's table, cosine-sampled). A lobe whose
@@ -26,8 +26,8 @@
 #define PI_F 3.14159265358979f
 
 /* One lobe: a material that is not a mix (the first 17 columns of a BSDF_PARAM row, or a mix's
- * second lobe in the tables). `extra`: Oren-Nayar's A and B, the coated base's albedo estimate (x), or a
- * table's start in the tables (x, in units of BSDF_TABLE_ALIGN floats) and its size (y: a measured
+ * second lobe in the tables). `extra`: Oren-Nayar's A and B, the coated base's albedo estimate
+ * (x), or a table's start in the tables (x, in units of BSDF_TABLE_ALIGN floats) and its size (y: a measured
  * table's nodes per axis, a named metal's reflectance table's rows); `table` points at that start
  * (measured and tabulated-conductor lobes only). */
 typedef struct {
@@ -66,7 +66,7 @@ inline Lobe load_lobe(__global const float *row, __global const float *tables) {
     return p;
 }
 
-/* A hit's row; `tables` holds the measured lobes' tables (the host's TableStore). */
+/* A hit's row; `tables` holds the tables and mixes' second lobes (the host's TableStore). */
 inline Params load_params(__global const float *row, __global const float *tables) {
     Params p;
     p.lobe[0] = load_lobe(row, tables);
