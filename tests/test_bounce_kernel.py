@@ -13,7 +13,7 @@ from realistic.core.transforms import rotate, scale, translate
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.lights import PointLight
-from realistic.scene.materials import Conductor, Dielectric, Plastic
+from realistic.scene.materials import Conductor, Dielectric, DiffuseTransmission, Mix, Plastic
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene
 from realistic.scene.shapes import sphere
 from test_bsdf_kernel import COVERED
@@ -22,7 +22,9 @@ from test_shading_reference import textured_scene
 pytest.importorskip("realistic.camera.opencl_host")
 pytestmark = pytest.mark.usefixtures("opencl_platform")
 
+from realistic.device.opencl import Device  # noqa: E402
 from realistic.renderer.bounce_kernel import GOES_ON, SHADES, SPECULAR, header, material_rows  # noqa: E402
+from realistic.renderer.bsdf_kernel import TableStore  # noqa: E402
 
 N = 6000
 
@@ -74,17 +76,22 @@ def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
 
 
 def test_covered_materials():
-    """Constant parameters of the materials bsdf.cl covers, and a Lambertian's grid or checker
-    texture; image textures, textured parameters of other kinds and materials bsdf.cl lacks are not."""
+    """Constant parameters of the materials bsdf.cl covers (named metals and mixes with their tables
+    or second lobes in the BSDF kernel's tables), and a ``Material``'s grid or checker texture; image
+    textures, textured parameters of other kinds and materials bsdf.cl lacks are not."""
+    tables = TableStore(Device.for_spec())
     for material in COVERED.values():
-        assert material_rows(material) is not None
-    assert material_rows(Material((1.0, 1.0, 1.0), GridTexture(cells=4.0))) is not None
-    assert material_rows(Material((1.0, 1.0, 1.0), CheckerTexture(cells=4.0))) is not None
+        assert material_rows(material, tables) is not None
+    for sigma in (0.0, 20.0):
+        assert material_rows(Material((1.0, 1.0, 1.0), GridTexture(cells=4.0), sigma=sigma), tables) is not None
+        assert material_rows(Material((1.0, 1.0, 1.0), CheckerTexture(cells=4.0), sigma=sigma), tables) is not None
     image = ImageTexture(np.ones((4, 4, 3), np.float32))
-    assert material_rows(Material((1.0, 1.0, 1.0), image)) is None
-    assert material_rows(Plastic(image, (0.4, 0.4, 0.4), 0.1)) is None
-    assert material_rows(Material((0.5, 0.5, 0.5), sigma=20.0)) is None
-    assert material_rows(Dielectric(1.5, roughness_u=0.2, roughness_v=0.2)) is None
+    assert material_rows(Material((1.0, 1.0, 1.0), image), tables) is None
+    assert material_rows(Plastic(image, (0.4, 0.4, 0.4), 0.1), tables) is None
+    assert material_rows(Dielectric(1.5, roughness_u=image, roughness_v=0.2), tables) is None
+    assert material_rows(Mix(Material(), Material(), image), tables) is None
+    assert material_rows(Mix(Material(), Plastic(image), 0.5), tables) is None
+    assert material_rows(DiffuseTransmission(), tables) is None
 
 
 @pytest.mark.parametrize("name", sorted(COVERED) + ["grid", "checker"])
