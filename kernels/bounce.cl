@@ -10,8 +10,9 @@
  *     instance's normal matrix (kept where it normalised to unit length), which the geometric normal
  *     is turned toward and which is the shading normal (PathIntegrator._outward_normals);
  *   - the shading frame (Duff et al. 2017, as renderer.bsdf.ShadingFrame) and wo;
- *   - the material's BSDF_PARAM row, its Lambertian albedo times a grid or checker texture at the
- *     interpolated uv (realistic.scene.textures.evaluate) where BOUNCE_MATERIAL says so;
+ *   - the material's BSDF_PARAM row (with `tables`, the BSDF kernel's TableStore: measured and
+ *     named metals' tables, mixes' second lobes), a Material's albedo times a grid or checker
+ *     texture at the interpolated uv (realistic.scene.textures.evaluate) where BOUNCE_MATERIAL says so;
  *   - light samples (area lights only, picked by the rounded-up CDF as numpy's searchsorted picks):
  *     at depth 0 light_samples of them with the pixel's Sobol' numbers (rng.all_light_uniforms), else
  *     one with rng.uniform at dimensions base + 4 .. 6; the point on the disk or quad, the density
@@ -97,7 +98,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
                      __global const int *faces, __global const float *normals, __global const float *uvs,
                      __global const int *geom_ints, __global const float *geom_floats,
                      __global const float *params, __global const float *materials,
-                     __global const float *lights, __global const float *cdf,
+                     __global const float *lights, __global const float *cdf, __global const float *tables,
                      __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
                      __global float *contribution, __global float *next_origin, __global float *next_direction,
                      __global float *next_beta, __global float *next_point, __global float *next_pdf,
@@ -144,7 +145,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
 
     /* the material: its BSDF row, a Lambertian's albedo times its grid or checker texture */
     int material = gi[BOUNCE_GEOM_MATERIAL];
-    Params p = load_params(params + BSDF_PARAM_WIDTH * material);
+    Params p = load_params(params + BSDF_PARAM_WIDTH * material, tables);
     __global const float *mat = materials + BOUNCE_MATERIAL_WIDTH * material;
     int texture = (int)mat[BOUNCE_MATERIAL_TEXTURE];
     if (texture != BOUNCE_TEXTURE_NONE) {
@@ -161,7 +162,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
             float parity = __builtin_floorf(cu) + __builtin_floorf(cv);
             use_b = parity - 2.0f * __builtin_floorf(parity * 0.5f) != 0.0f;
         }
-        p.scale *= use_b ? vload3(0, mat + BOUNCE_MATERIAL_COLOUR_B) : vload3(0, mat + BOUNCE_MATERIAL_COLOUR_A);
+        p.lobe[0].scale *= use_b ? vload3(0, mat + BOUNCE_MATERIAL_COLOUR_B) : vload3(0, mat + BOUNCE_MATERIAL_COLOUR_A);
     }
     float3 beta = load3(beta_in, r);
     uint base = BOUNCE_DIMENSION + 8 * depth;

@@ -1,43 +1,87 @@
 /* BSDF evaluation and sampling for the path integrator: one work item per surface hit.
  *
  * OpenCL 1.2 C, float32. The numpy references are realistic/renderer/bsdf/ (lambertian.py,
- * conductor.py, microfacet.py, fresnel.py, dielectric.py, mix.py for plastic); the host is
- * realistic/renderer/bsdf_kernel.py, which prepends the BSDF_PARAM table's #defines and the KIND_*
- * constants. Each hit's parameters are a row of BSDF_PARAM (its material's kind, colours, indices
- * and GGX widths looked up at the hit by the host, textures included). Directions are in the local
- * shading frame (normal +z). Per work item i:
+ * oren_nayar.py, conductor.py, microfacet.py, fresnel.py, dielectric.py, rough_dielectric.py,
+ * substrate.py, coated_diffuse.py, measured.py, mix.py for plastic, coated diffuse and mixes); the
+ * host is realistic/renderer/bsdf_kernel.py, which prepends the BSDF_PARAM table's #defines, the
+ * KIND_* constants and BSDF_TABLE_ALIGN. Each hit's parameters are a row of BSDF_PARAM (its
+ * material's kind, colours, indices and GGX widths looked up at the hit by the host, textures
+ * included; a mix's row holds its first lobe, its amount and where its second lobe lies in
+ * `tables`), and `tables` the measured and named metals' tables and the mixes' second lobes.
+ * Directions are in the local shading frame (normal +z). Per work item i:
  *   - for each of `lights` light directions (rows k * n + i of light_wi): f(wo, wi) and the pdf with
  *     which sampling would pick wi;
  *   - one BSDF sample from the host's uniform numbers u (2 per hit) and u_lobe: its direction, value,
  *     pdf and flags (bit 0 specular, bit 1 valid), as ``BSDF.sample`` returns them.
- * Kinds: Lambertian; conductor (GGX with the conductor Fresnel of eta + i k); mirror (no Fresnel);
- * smooth dielectric and thin dielectric; plastic (Lambertian kd + a GGX coat of ks with the
- * dielectric Fresnel of index eta, lobes picked in proportion to the colours' means). A lobe whose
- * max(alpha_x, alpha_y) is below SMOOTH_ALPHA reflects specularly. */
+ * Lobe kinds: Lambertian; Oren-Nayar; conductor (GGX with the conductor Fresnel of eta + i k, or
+ * a named metal's tabulated Fresnel); mirror (no Fresnel); smooth, thin and rough dielectric
+ * (pbrt-v4's, GGX); plastic (Lambertian kd + a GGX
+ * coat of ks with the dielectric Fresnel of index eta, lobes picked in proportion to the colours'
+ * means); coated diffuse (the coated base + an uncoloured coat, lobes picked by the coat's Fresnel);
+ * substrate (FresnelBlend); measured (a pbrt-v2 .brdf file's table, cosine-sampled). A lobe whose
+ * max(alpha_x, alpha_y) is below SMOOTH_ALPHA reflects (glass: and refracts) specularly. */
 
 #include "common.cl"
 
 #define PI_F 3.14159265358979f
 
+/* One lobe: a material that is not a mix (the first 17 columns of a BSDF_PARAM row, or a mix's
+ * second lobe in the tables). `extra`: Oren-Nayar's A and B, the coated base's albedo estimate
+ * (x), or a table's start in the tables (x, in units of BSDF_TABLE_ALIGN floats) and its size (y: a measured
+ * table's nodes per axis, a named metal's reflectance table's rows); `table` points at that start
+ * (measured and tabulated-conductor lobes only). */
 typedef struct {
     int kind;
     float3 scale, tint, eta, k;
     float ax, ay;  /* GGX widths, at least 1e-4 as microfacet.GGX keeps them */
+    float2 extra;
     int smooth;
+    __global const float *table;
+} Lobe;
+
+/* A hit's BSDF: its first lobe alone where amount is 0, else (1 - amount) first + amount second
+ * (mix.WeightedSum with lobe chances 1 - amount and amount); lobe[1] is lobe[0] where amount is 0. */
+typedef struct {
+    Lobe lobe[2];
+    float amount;
 } Params;
 
-inline Params load_params(__global const float *row) {
-    Params p;
+inline Lobe load_lobe(__global const float *row, __global const float *tables) {
+    Lobe p;
     p.kind = (int)row[BSDF_PARAM_KIND];
     p.scale = vload3(0, row + BSDF_PARAM_SCALE);
     p.tint = vload3(0, row + BSDF_PARAM_TINT);
     p.eta = vload3(0, row + BSDF_PARAM_ETA);
     p.k = vload3(0, row + BSDF_PARAM_K);
     float ax = row[BSDF_PARAM_ALPHA], ay = row[BSDF_PARAM_ALPHA + 1];
-    p.smooth = fmax(ax, ay) < SMOOTH_ALPHA;
+    p.extra = vload2(0, row + BSDF_PARAM_EXTRA);
+    /* rough glass of index 1 refracts straight through: smooth, as rough_dielectric.RoughDielectric;
+     * FresnelBlend samples its GGX however narrow (substrate.FresnelBlend) */
+    p.smooth = p.kind != KIND_SUBSTRATE
+               && (fmax(ax, ay) < SMOOTH_ALPHA || (p.kind == KIND_ROUGH_DIELECTRIC && p.eta.x == 1.0f));
     p.ax = fmax(ax, 1e-4f);
     p.ay = fmax(ay, 1e-4f);
+    int tabulated = p.kind == KIND_MEASURED || p.kind == KIND_TABULATED_CONDUCTOR;
+    p.table = tables + (tabulated ? (size_t)p.extra.x * BSDF_TABLE_ALIGN : 0);
     return p;
+}
+
+/* A hit's row; `tables` holds the tables and mixes' second lobes (the host's TableStore). */
+inline Params load_params(__global const float *row, __global const float *tables) {
+    Params p;
+    p.lobe[0] = load_lobe(row, tables);
+    p.amount = row[BSDF_PARAM_AMOUNT];
+    p.lobe[1] = p.amount > 0.0f ? load_lobe(tables + (size_t)row[BSDF_PARAM_SECOND] * BSDF_TABLE_ALIGN, tables)
+                                : p.lobe[0];
+    return p;
+}
+
+/* The squared cosine of the direction refracted at cosine c with index ratio eta_i / eta_t, 1 - ratio^2
+ * (1 - c^2) summed as (1 - ratio^2) + ratio^2 c^2, which keeps grazing directions' digits at ratio 1
+ * (negative: total internal reflection). */
+inline float refracted_cos2(float ratio, float c) {
+    float r2 = ratio * ratio;
+    return (1.0f - r2) + r2 * (c * c);
 }
 
 /* fresnel.dielectric: reflectance from outside (index 1) into eta at cosine c (negative: inside). */
@@ -46,13 +90,26 @@ inline float fresnel_dielectric(float c, float eta) {
     int entering = c > 0.0f;
     float eta_i = entering ? 1.0f : eta, eta_t = entering ? eta : 1.0f;
     c = fabs(c);
-    float sin_t = eta_i / eta_t * sqrt(fmax(0.0f, 1.0f - c * c));
-    if (sin_t >= 1.0f) return 1.0f;
-    float cos_t = sqrt(fmax(0.0f, 1.0f - sin_t * sin_t));
+    float cos2_t = refracted_cos2(eta_i / eta_t, c);
+    if (cos2_t <= 0.0f) return 1.0f;
+    float cos_t = sqrt(cos2_t);
     float r_par = (eta_t * c - eta_i * cos_t) / (eta_t * c + eta_i * cos_t);
     float r_perp = (eta_i * c - eta_t * cos_t) / (eta_i * c + eta_t * cos_t);
     float r = 0.5f * (r_par * r_par + r_perp * r_perp);
     return isnan(r) ? 1.0f : r;
+}
+
+/* 1 - fresnel_dielectric(c, eta) for light arriving from outside (c >= 0), as 1 - r^2 = (1 - r)(1 + r)
+ * per polarisation: no cancellation at grazing angles, where the reflectance nears 1. */
+inline float fresnel_transmittance(float c, float eta) {
+    c = clamp(c, 0.0f, 1.0f);
+    float sin_t = sqrt(fmax(0.0f, 1.0f - c * c)) / eta;
+    if (sin_t >= 1.0f) return 0.0f;
+    float cos_t = sqrt(fmax(0.0f, 1.0f - sin_t * sin_t));
+    float a = eta * c, b = cos_t, d = eta * cos_t;
+    float t_par = 2.0f * a * b / ((a + b) * (a + b)), t_perp = 2.0f * c * d / ((c + d) * (c + d));
+    float t = t_par + t_perp;
+    return isnan(t) ? 0.0f : t;
 }
 
 /* fresnel.conductor per channel, at |c|. */
@@ -73,22 +130,35 @@ inline float3 fresnel_conductor(float c, float3 eta, float3 k) {
     return (float3)(isnan(r.x) ? 1.0f : r.x, isnan(r.y) ? 1.0f : r.y, isnan(r.z) ? 1.0f : r.z);
 }
 
-/* The microfacet lobe's colour times its Fresnel at cosine c: the conductor's, the plastic coat's
- * (tint, dielectric eta.x), or the mirror's (none). */
-inline float3 reflected(const Params *p, float c) {
+/* fresnel.tabulated: a named metal's RGB reflectance (its table's rows at evenly spaced cosines over
+ * [0, 1], linear between them) at |c|, in the rays' channels (the rows of the host's matrix in
+ * tint, eta and k). */
+inline float3 tabulated_reflectance(const Lobe *p, float c) {
+    int last = (int)p->extra.y - 1;
+    float x = clamp(fabs(c), 0.0f, 1.0f) * (float)last;
+    int i = min((int)x, last - 1);
+    float t = x - (float)i;
+    float3 rgb = vload3(i, p->table) * (1.0f - t) + vload3(i + 1, p->table) * t;
+    return (float3)(dot(p->tint, rgb), dot(p->eta, rgb), dot(p->k, rgb));
+}
+
+/* The microfacet lobe's colour times its Fresnel at cosine c: the conductor's (eta + i k, or a named
+ * metal's table), the plastic or coated-diffuse coat's (tint, dielectric eta.x), or the mirror's (none). */
+inline float3 reflected(const Lobe *p, float c) {
     if (p->kind == KIND_CONDUCTOR) return p->scale * fresnel_conductor(c, p->eta, p->k);
-    if (p->kind == KIND_PLASTIC) return p->tint * fresnel_dielectric(c, p->eta.x);
+    if (p->kind == KIND_TABULATED_CONDUCTOR) return p->scale * tabulated_reflectance(p, c);
+    if (p->kind == KIND_PLASTIC || p->kind == KIND_COATED_DIFFUSE) return p->tint * fresnel_dielectric(c, p->eta.x);
     return p->scale;
 }
 
-inline float ggx_d(const Params *p, float3 wh) {
+inline float ggx_d(const Lobe *p, float3 wh) {
     if (wh.z <= 0.0f) return 0.0f;
     float x = wh.x / p->ax, y = wh.y / p->ay;
     float den = x * x + y * y + wh.z * wh.z;
     return 1.0f / (PI_F * p->ax * p->ay * den * den);
 }
 
-inline float ggx_lambda(const Params *p, float3 w) {
+inline float ggx_lambda(const Lobe *p, float3 w) {
     float tan2 = (p->ax * p->ax * w.x * w.x + p->ay * p->ay * w.y * w.y) / fmax(w.z * w.z, 1e-30f);
     return 0.5f * (sqrt(1.0f + tan2) - 1.0f);
 }
@@ -106,7 +176,7 @@ inline void sincos_turn(float u, float *c, float *s) {
 }
 
 /* Heitz 2018's visible-normal sample, as microfacet.GGX.sample_visible (wo in the upper hemisphere). */
-inline float3 ggx_sample_visible(const Params *p, float3 wo, float u0, float u1) {
+inline float3 ggx_sample_visible(const Lobe *p, float3 wo, float u0, float u1) {
     float3 v = normalize((float3)(p->ax * wo.x, p->ay * wo.y, wo.z));
     float length2 = v.x * v.x + v.y * v.y;
     float3 t1 = length2 > 0.0f ? (float3)(-v.y, v.x, 0.0f) * rsqrt(length2) : (float3)(1.0f, 0.0f, 0.0f);
@@ -122,7 +192,7 @@ inline float3 ggx_sample_visible(const Params *p, float3 wo, float u0, float u1)
 }
 
 /* MicrofacetReflection.evaluate and .pdf at one pair (zero for a smooth lobe). */
-inline float3 microfacet_eval(const Params *p, float3 wo, float3 wi, float *pdf) {
+inline float3 microfacet_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
     *pdf = 0.0f;
     if (p->smooth || !(wo.z * wi.z > 0.0f)) return (float3)(0.0f);
     float flip = wo.z < 0.0f ? -1.0f : 1.0f;
@@ -139,32 +209,196 @@ inline float3 microfacet_eval(const Params *p, float3 wo, float3 wi, float *pdf)
     return reflected(p, dot(wo_up, wh)) * shape;
 }
 
-/* The plastic's lobe probabilities: the diffuse and coat colours' means, normalised (halves if both 0). */
-inline float diffuse_chance(const Params *p) {
-    float m0 = (p->scale.x + p->scale.y + p->scale.z) / 3.0f, m1 = (p->tint.x + p->tint.y + p->tint.z) / 3.0f;
+/* The two-lobe kinds' chance of the diffuse lobe at wo: plastic's the colours' means, normalised;
+ * coated diffuse's the base's share (1 - F(|cos_o|)) times its albedo estimate against the coat's
+ * F(|cos_o|) (factory.bsdf_for's chances); a half where both are 0. */
+inline float diffuse_chance(const Lobe *p, float3 wo) {
+    float m0, m1;
+    if (p->kind == KIND_COATED_DIFFUSE) {
+        float t = fresnel_transmittance(fabs(wo.z), p->eta.x);
+        m0 = t * p->extra.x;
+        m1 = 1.0f - t;
+    } else {
+        m0 = (p->scale.x + p->scale.y + p->scale.z) / 3.0f;
+        m1 = (p->tint.x + p->tint.y + p->tint.z) / 3.0f;
+    }
     return m0 + m1 > 0.0f ? m0 / (m0 + m1) : 0.5f;
+}
+
+/* oren_nayar.OrenNayar.evaluate without the albedo and the side test: (A + B term) / pi. */
+inline float oren_nayar_shape(const Lobe *p, float3 wo, float3 wi) {
+    float cos_i = fabs(wi.z), cos_o = fabs(wo.z);
+    float sin_i = sqrt(fmax(0.0f, 1.0f - cos_i * cos_i)), sin_o = sqrt(fmax(0.0f, 1.0f - cos_o * cos_o));
+    float term = 0.0f;
+    if (sin_i > 1e-4f && sin_o > 1e-4f) {
+        float cos_dphi = (wi.x * wo.x + wi.y * wo.y) / (sin_i * sin_o);
+        int incident_steeper = cos_i > cos_o;
+        float sin_alpha = incident_steeper ? sin_o : sin_i;
+        float tan_beta = incident_steeper ? sin_i / cos_i : sin_o / cos_o;
+        term = fmax(0.0f, cos_dphi) * sin_alpha * tan_beta;
+    }
+    return (p->extra.x + p->extra.y * term) / PI_F;
+}
+
+/* A measured table's RGB at a pair on one side (measured._table_loop): BRDFRemap, delta phi the angle
+ * between the two azimuths, then the trilinear interpolation of the cell's eight nodes. */
+inline float3 measured_rgb(const Lobe *p, float3 wo, float3 wi) {
+    float cos_o = wo.z, cos_i = wi.z;
+    /* 1 - c^2 as (1 - c)(1 + c): near the normal, where 1 - c^2 would cancel, 1 - c is exact */
+    float sin_o = sqrt(fmax(0.0f, (1.0f - cos_o) * (1.0f + cos_o)));
+    float sin_i = sqrt(fmax(0.0f, (1.0f - cos_i) * (1.0f + cos_i)));
+    float dphi;
+    if ((wo.x != 0.0f || wo.y != 0.0f) && (wi.x != 0.0f || wi.y != 0.0f)) {
+        dphi = atan2(fabs(wo.x * wi.y - wo.y * wi.x), wo.x * wi.x + wo.y * wi.y);
+    } else {  /* along the normal: pbrt's azimuth atan2(0, 0) = 0 */
+        dphi = fmod(atan2(wi.y, wi.x) - atan2(wo.y, wo.x), 2.0f * PI_F);
+        dphi = dphi < 0.0f ? dphi + 2.0f * PI_F : dphi;
+        dphi = dphi > PI_F ? 2.0f * PI_F - dphi : dphi;
+    }
+    int n = (int)p->extra.y, last = n - 1;
+    float top = (float)last;
+    float gx = clamp(sin_i * sin_o * top, 0.0f, top), gy = clamp(dphi / PI_F * top, 0.0f, top);
+    float gz = clamp(cos_i * cos_o * top, 0.0f, top);
+    int ix = min((int)gx, last - 1), iy = min((int)gy, last - 1), iz = min((int)gz, last - 1);
+    float fx = gx - ix, fy = gy - iy, fz = gz - iz;
+    __global const float *t = p->table;
+    size_t sx = (size_t)n * n * 3, sy = (size_t)n * 3, at = ix * sx + iy * sy + iz * 3;
+    float3 c00 = vload3(0, t + at) * (1.0f - fx) + vload3(0, t + at + sx) * fx;
+    float3 c01 = vload3(0, t + at + 3) * (1.0f - fx) + vload3(0, t + at + sx + 3) * fx;
+    float3 c10 = vload3(0, t + at + sy) * (1.0f - fx) + vload3(0, t + at + sx + sy) * fx;
+    float3 c11 = vload3(0, t + at + sy + 3) * (1.0f - fx) + vload3(0, t + at + sx + sy + 3) * fx;
+    return (c00 * (1.0f - fy) + c10 * fy) * (1.0f - fz) + (c01 * (1.0f - fy) + c11 * fy) * fz;
+}
+
+/* The diffuse lobe of a kind that has one, for a pair on one side: Lambertian and plastic albedo /
+ * pi, Oren-Nayar, coated diffuse's base (coated_diffuse.CoatedLambertian: k the host's scale,
+ * times the coat's transmittance both ways), a measured table's RGB in the rays' channels (the
+ * rows of the host's matrix in scale, tint and eta). */
+inline float3 diffuse_value(const Lobe *p, float3 wo, float3 wi) {
+    if (p->kind == KIND_OREN_NAYAR) return p->scale * oren_nayar_shape(p, wo, wi);
+    if (p->kind == KIND_MEASURED) {
+        float3 rgb = measured_rgb(p, wo, wi);
+        return (float3)(dot(p->scale, rgb), dot(p->tint, rgb), dot(p->eta, rgb));
+    }
+    if (p->kind == KIND_COATED_DIFFUSE)
+        return p->k * (fresnel_transmittance(fabs(wi.z), p->eta.x) * fresnel_transmittance(fabs(wo.z), p->eta.x));
+    return p->scale * (1.0f / PI_F);
+}
+
+/* Rough glass (rough_dielectric.RoughDielectric._lobes): f and the pdf of the pair wo, wi about the
+ * microfacet normal wm (+z side); zero where wm faces away from either and on smooth lobes. */
+inline float3 rough_dielectric_lobes(const Lobe *p, float3 wo, float3 wi, float3 wm, float *pdf) {
+    *pdf = 0.0f;
+    float eta = p->eta.x, cos_o = wo.z, cos_i = wi.z;
+    int reflect = cos_o * cos_i > 0.0f;
+    float etap = reflect ? 1.0f : (cos_o > 0.0f ? eta : 1.0f / eta);
+    float o_m = dot(wo, wm), i_m = dot(wi, wm);
+    if (p->smooth || cos_o == 0.0f || cos_i == 0.0f || !(i_m * cos_i > 0.0f) || !(o_m * cos_o > 0.0f))
+        return (float3)(0.0f);
+    float f_r = fresnel_dielectric(o_m, eta);
+    float d = ggx_d(p, wm), lo = ggx_lambda(p, wo);
+    float g = 1.0f / (1.0f + lo + ggx_lambda(p, wi));
+    float visible = 1.0f / (1.0f + lo) / fabs(cos_o) * d * fabs(o_m);
+    float f, density;
+    if (reflect) {
+        f = d * g * f_r / fabs(4.0f * cos_i * cos_o);
+        density = visible / (4.0f * fabs(o_m)) * f_r;
+    } else {
+        float root = i_m + o_m / etap, denom = root * root;
+        f = d * g * (1.0f - f_r) * fabs(i_m * o_m / (cos_i * cos_o * denom));
+        density = visible * fabs(i_m) / denom * (1.0f - f_r);
+    }
+    if (!isfinite(f) || !isfinite(density)) return (float3)(0.0f);
+    *pdf = density;
+    return (reflect ? p->scale : p->tint) * f;
+}
+
+/* The generalised half vector of a pair (RoughDielectric._half_vector), turned to +z; zero where undefined. */
+inline float3 rough_dielectric_half(const Lobe *p, float3 wo, float3 wi) {
+    int reflect = wo.z * wi.z > 0.0f;
+    float etap = reflect ? 1.0f : (wo.z > 0.0f ? p->eta.x : 1.0f / p->eta.x);
+    float3 wm = wi * etap + wo;
+    float length = sqrt(dot(wm, wm));
+    wm = length > 0.0f ? wm / length : (float3)(0.0f);
+    return wm.z < 0.0f ? -wm : wm;
+}
+
+/* 1 - (1 - x)^5 expanded (no cancellation at grazing angles, where x is near 0). */
+inline float one_minus_fifth(float x) {
+    return x * (5.0f + x * (-10.0f + x * (10.0f + x * (-5.0f + x))));
+}
+
+/* FresnelBlend (substrate.FresnelBlend.evaluate and .pdf). */
+inline float3 substrate_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
+    *pdf = 0.0f;
+    if (!(wo.z * wi.z > 0.0f)) return (float3)(0.0f);
+    float flip = wo.z < 0.0f ? -1.0f : 1.0f;
+    float3 wo_up = wo * flip, wi_up = wi * flip;
+    float cos_i = wi_up.z, cos_o = wo_up.z;
+    float diffuse = 28.0f / (23.0f * PI_F) * one_minus_fifth(0.5f * cos_i) * one_minus_fifth(0.5f * cos_o);
+    float3 h = wo_up + wi_up;
+    float3 value = p->scale * (1.0f - p->tint) * diffuse;
+    float glossy = 0.0f;
+    if (dot(h, h) > 1e-20f) {
+        float3 wh = normalize(h);
+        float cos_h = dot(wi_up, wh), d = ggx_d(p, wh);
+        float shape = d / (4.0f * fabs(cos_h) * fmax(cos_i, cos_o));
+        float m = 1.0f - clamp(fabs(cos_h), 0.0f, 1.0f);
+        float m5 = m * m * m * m * m;
+        if (isfinite(shape)) value += (p->tint + m5 * (1.0f - p->tint)) * shape;
+        glossy = d / (1.0f + ggx_lambda(p, wo_up)) / (4.0f * fmax(cos_o, 1e-30f));
+        if (!isfinite(glossy)) glossy = 0.0f;
+    }
+    *pdf = 0.5f * (fabs(wi.z) / PI_F + glossy);
+    return value;
+}
+
+/* One lobe's f(wo, wi) and the sampling pdf of wi. */
+inline float3 lobe_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
+    float same = wo.z * wi.z > 0.0f ? 1.0f : 0.0f;
+    switch (p->kind) {
+    case KIND_LAMBERTIAN:
+    case KIND_OREN_NAYAR:
+    case KIND_MEASURED:
+        *pdf = same * fabs(wi.z) / PI_F;
+        return same > 0.0f ? diffuse_value(p, wo, wi) : (float3)(0.0f);
+    case KIND_DIELECTRIC:
+    case KIND_THIN_DIELECTRIC:
+        *pdf = 0.0f;
+        return (float3)(0.0f);
+    case KIND_ROUGH_DIELECTRIC:
+        return rough_dielectric_lobes(p, wo, wi, rough_dielectric_half(p, wo, wi), pdf);
+    case KIND_SUBSTRATE:
+        return substrate_eval(p, wo, wi, pdf);
+    default:
+        break;
+    }
+    float coat_pdf;
+    float3 f = microfacet_eval(p, wo, wi, &coat_pdf);
+    if (p->kind != KIND_PLASTIC && p->kind != KIND_COATED_DIFFUSE) {
+        *pdf = coat_pdf;
+        return f;
+    }
+    float c0 = diffuse_chance(p, wo);
+    *pdf = c0 * (same * fabs(wi.z) / PI_F) + (1.0f - c0) * coat_pdf;
+    return same > 0.0f ? diffuse_value(p, wo, wi) + f : f;
+}
+
+/* A mix's lobe chances (mix.WeightedSum.chances): 1 - amount and amount, normalised. */
+inline float2 mix_chances(const Params *p) {
+    float2 c = (float2)(1.0f - p->amount, p->amount);
+    float total = c.x + c.y;
+    return total > 0.0f ? c / total : (float2)(0.5f);
 }
 
 /* f(wo, wi) and the sampling pdf of wi. */
 inline float3 bsdf_eval(const Params *p, float3 wo, float3 wi, float *pdf) {
-    float same = wo.z * wi.z > 0.0f ? 1.0f : 0.0f;
-    if (p->kind == KIND_LAMBERTIAN) {
-        *pdf = same * fabs(wi.z) / PI_F;
-        return p->scale * (same / PI_F);
-    }
-    if (p->kind == KIND_DIELECTRIC || p->kind == KIND_THIN_DIELECTRIC) {
-        *pdf = 0.0f;
-        return (float3)(0.0f);
-    }
-    float coat_pdf;
-    float3 f = microfacet_eval(p, wo, wi, &coat_pdf);
-    if (p->kind != KIND_PLASTIC) {
-        *pdf = coat_pdf;
-        return f;
-    }
-    float c0 = diffuse_chance(p);
-    *pdf = c0 * (same * fabs(wi.z) / PI_F) + (1.0f - c0) * coat_pdf;
-    return p->scale * (same / PI_F) + f;
+    if (!(p->amount > 0.0f)) return lobe_eval(&p->lobe[0], wo, wi, pdf);
+    float pdf0, pdf1;
+    float2 c = mix_chances(p);
+    float3 f0 = lobe_eval(&p->lobe[0], wo, wi, &pdf0), f1 = lobe_eval(&p->lobe[1], wo, wi, &pdf1);
+    *pdf = c.x * pdf0 + c.y * pdf1;
+    return (1.0f - p->amount) * f0 + p->amount * f1;
 }
 
 /* Cosine-weighted direction on wo's side (lambertian.cosine_on_side). */
@@ -177,7 +411,7 @@ inline float3 cosine_on_side(float3 wo, float u0, float u1) {
 
 /* A microfacet lobe's sampled direction: the mirror direction where smooth, else reflected about a
  * visible normal on wo's side. */
-inline float3 microfacet_direction(const Params *p, float3 wo, float u0, float u1) {
+inline float3 microfacet_direction(const Lobe *p, float3 wo, float u0, float u1) {
     if (p->smooth) return (float3)(-wo.x, -wo.y, wo.z);
     float flip = wo.z < 0.0f ? -1.0f : 1.0f;
     float3 wo_up = wo * flip;
@@ -185,8 +419,8 @@ inline float3 microfacet_direction(const Params *p, float3 wo, float u0, float u
     return (-wo_up + 2.0f * dot(wo_up, wh) * wh) * flip;
 }
 
-/* Smooth or thin glass (dielectric.Dielectric.sample). */
-inline float3 dielectric_sample(const Params *p, float3 wo, float u_lobe, float3 *value, float *pdf, int *valid) {
+/* Smooth or thin glass (dielectric.Dielectric.sample); smooth rough glass samples as smooth glass. */
+inline float3 dielectric_sample(const Lobe *p, float3 wo, float u_lobe, float3 *value, float *pdf, int *valid) {
     float eta = p->eta.x, r;
     float3 transmitted;
     int ok = 1;
@@ -198,9 +432,9 @@ inline float3 dielectric_sample(const Params *p, float3 wo, float u_lobe, float3
         r = fresnel_dielectric(wo.z, eta);
         int entering = wo.z > 0.0f;
         float ratio = entering ? 1.0f / eta : eta;
-        float sin2_t = ratio * ratio * fmax(0.0f, 1.0f - wo.z * wo.z);
-        ok = sin2_t < 1.0f;
-        float cos_t = sqrt(fmax(0.0f, 1.0f - sin2_t));
+        float cos2_t = refracted_cos2(ratio, wo.z);
+        ok = cos2_t > 0.0f;
+        float cos_t = sqrt(fmax(0.0f, cos2_t));
         transmitted = (float3)(-ratio * wo.x, -ratio * wo.y, entering ? -cos_t : cos_t);
     }
     int reflect = u_lobe < r || !ok;
@@ -212,48 +446,102 @@ inline float3 dielectric_sample(const Params *p, float3 wo, float u_lobe, float3
     return wi;
 }
 
-/* One BSDF sample from the uniform numbers u0, u1 and u_lobe: its direction (returned), value,
- * pdf and flags (bit 0 specular, bit 1 valid), as ``BSDF.sample`` returns them. The bsdf kernel
- * below and kernels/bounce.cl (the path integrator's fused bounce) both draw through it. */
-inline float3 bsdf_sample(const Params *p, float3 wo, float u0, float u1, float ul, float3 *value_out,
-                          float *pdf_out, int *flags_out) {
-    float3 wi, value;
-    float pdf;
-    int specular, valid;
-    if (p->kind == KIND_DIELECTRIC || p->kind == KIND_THIN_DIELECTRIC) {
-        wi = dielectric_sample(p, wo, ul, &value, &pdf, &valid);
-        specular = 1;
-    } else {
-        /* plastic: the diffuse lobe below the diffuse chance, else the coat (mix.WeightedSum) */
-        int diffuse = p->kind == KIND_LAMBERTIAN || (p->kind == KIND_PLASTIC && ul < diffuse_chance(p));
-        wi = diffuse ? cosine_on_side(wo, u0, u1) : microfacet_direction(p, wo, u0, u1);
-        specular = !diffuse && p->smooth;
-        value = bsdf_eval(p, wo, wi, &pdf);
-        if (specular) {
-            float c = fabs(wo.z);
-            value = c > 0.0f ? reflected(p, c) / c : (float3)(0.0f);
-            pdf = p->kind == KIND_PLASTIC ? 1.0f - diffuse_chance(p) : 1.0f;
-        }
-        /* the sampled lobe's own validity: a Lambertian's pdf positive; a microfacet lobe's pdf
-         * positive (1 where smooth) and wi on wo's side */
-        float lobe_pdf = 1.0f;
-        if (!diffuse && !specular) microfacet_eval(p, wo, wi, &lobe_pdf);
-        int side = wo.z * wi.z > 0.0f;
-        valid = pdf > 0.0f && side && (diffuse ? wi.z != 0.0f : lobe_pdf > 0.0f && wo.z != 0.0f);
-    }
-    *value_out = value;
-    *pdf_out = pdf;
-    *flags_out = specular | (valid << 1);
+/* Rough glass (RoughDielectric.sample): a visible normal wm on wo's side; reflect about it with
+ * probability F(wo.wm), else refract through it. */
+inline float3 rough_dielectric_sample(const Lobe *p, float3 wo, float u0, float u1, float u_lobe, float3 *value,
+                                      float *pdf, int *valid) {
+    float side = wo.z < 0.0f ? -1.0f : 1.0f, eta = p->eta.x;
+    float3 wm = ggx_sample_visible(p, wo * side, u0, u1);
+    float o_m = dot(wo, wm);
+    int reflect = u_lobe < fresnel_dielectric(o_m, eta);
+    int inside = o_m < 0.0f;
+    float ratio = inside ? eta : 1.0f / eta, cos_i = fabs(o_m);
+    float cos2_t = refracted_cos2(ratio, cos_i);
+    float cos_t = sqrt(fmax(0.0f, cos2_t));
+    float3 wi = reflect ? -wo + 2.0f * o_m * wm : -ratio * wo + (ratio * cos_i - cos_t) * (inside ? -wm : wm);
+    int same = wi.z * wo.z > 0.0f;
+    *value = rough_dielectric_lobes(p, wo, wi, wm, pdf);
+    *valid = (reflect ? same : !same && wi.z != 0.0f && cos2_t > 0.0f) && *pdf > 0.0f;
     return wi;
 }
 
-__kernel void bsdf(uint n, uint lights, __global const float *params, __global const float *wo_in,
+/* One lobe's sample from u0, u1 and u_lobe: its direction, value, pdf, whether specular and valid,
+ * as the lobe's numpy ``sample`` gives them. */
+inline float3 lobe_sample(const Lobe *p, float3 wo, float u0, float u1, float ul, float3 *value, float *pdf,
+                          int *specular, int *valid) {
+    if (p->kind == KIND_DIELECTRIC || p->kind == KIND_THIN_DIELECTRIC
+        || (p->kind == KIND_ROUGH_DIELECTRIC && p->smooth)) {
+        *specular = 1;
+        return dielectric_sample(p, wo, ul, value, pdf, valid);
+    }
+    *specular = 0;
+    if (p->kind == KIND_ROUGH_DIELECTRIC) return rough_dielectric_sample(p, wo, u0, u1, ul, value, pdf, valid);
+    float3 wi;
+    if (p->kind == KIND_SUBSTRATE) {  /* half the time the cosine, else the GGX visible normals */
+        wi = ul < 0.5f ? cosine_on_side(wo, u0, u1) : microfacet_direction(p, wo, u0, u1);
+        *value = substrate_eval(p, wo, wi, pdf);
+        *valid = *pdf > 0.0f;
+        return wi;
+    }
+    /* plastic and coated diffuse: the diffuse lobe below the diffuse chance, else the coat (mix.WeightedSum) */
+    int two = p->kind == KIND_PLASTIC || p->kind == KIND_COATED_DIFFUSE;
+    int diffuse = p->kind == KIND_LAMBERTIAN || p->kind == KIND_OREN_NAYAR || p->kind == KIND_MEASURED
+                  || (two && ul < diffuse_chance(p, wo));
+    wi = diffuse ? cosine_on_side(wo, u0, u1) : microfacet_direction(p, wo, u0, u1);
+    *specular = !diffuse && p->smooth;
+    *value = lobe_eval(p, wo, wi, pdf);
+    if (*specular) {
+        float c = fabs(wo.z);
+        *value = c > 0.0f ? reflected(p, c) / c : (float3)(0.0f);
+        *pdf = two ? 1.0f - diffuse_chance(p, wo) : 1.0f;
+    }
+    /* the sampled lobe's own validity: a diffuse lobe's pdf positive; a microfacet lobe's pdf
+     * positive (1 where smooth) and wi on wo's side */
+    float lobe_pdf = 1.0f;
+    if (!diffuse && !*specular) microfacet_eval(p, wo, wi, &lobe_pdf);
+    int side = wo.z * wi.z > 0.0f;
+    *valid = *pdf > 0.0f && side && (diffuse ? wi.z != 0.0f : lobe_pdf > 0.0f && wo.z != 0.0f);
+    return wi;
+}
+
+/* The BSDF sample: a mix picks its lobe with u_lobe and hands the lobe u_lobe rescaled within its
+ * share (mix.WeightedSum.sample); the value and pdf are then the whole mix's, or for a specular
+ * sample the lobe's times its weight and chance. flags: bit 0 specular, bit 1 valid. The bsdf kernel
+ * below and kernels/bounce.cl (the path integrator's fused bounce) both draw through it. */
+inline float3 bsdf_sample(const Params *p, float3 wo, float u0, float u1, float ul, float3 *value, float *pdf,
+                          int *flags) {
+    int specular, valid;
+    float3 wi;
+    if (!(p->amount > 0.0f)) {
+        wi = lobe_sample(&p->lobe[0], wo, u0, u1, ul, value, pdf, &specular, &valid);
+    } else {
+        float2 c = mix_chances(p);
+        int second = ul >= c.x;
+        float chance = second ? c.y : c.x, start = second ? (c.x + c.y) - c.y : 0.0f;  /* numpy's cumsum - chance */
+        float u_rest = clamp((ul - start) / fmax(chance, 1e-12f), 0.0f, 1.0f - 1e-7f);
+        float3 lobe_value;
+        float lobe_pdf;
+        wi = lobe_sample(&p->lobe[second], wo, u0, u1, u_rest, &lobe_value, &lobe_pdf, &specular, &valid);
+        if (specular) {
+            *value = (second ? p->amount : 1.0f - p->amount) * lobe_value;
+            *pdf = chance * lobe_pdf;
+        } else {
+            *value = bsdf_eval(p, wo, wi, pdf);
+        }
+        valid = valid && *pdf > 0.0f;
+    }
+    *flags = specular | (valid << 1);
+    return wi;
+}
+
+__kernel void bsdf(uint n, uint lights, __global const float *params, __global const float *tables,
+                   __global const float *wo_in,
                    __global const float *light_wi, __global const float *u, __global const float *u_lobe,
                    __global float *light_f, __global float *light_pdf, __global float *wi_out,
                    __global float *value_out, __global float *pdf_out, __global int *flags_out) {
     uint i = get_global_id(0);
     if (i >= n) return;
-    Params p = load_params(params + (size_t)i * BSDF_PARAM_WIDTH);
+    Params p = load_params(params + (size_t)i * BSDF_PARAM_WIDTH, tables);
     float3 wo = vload3(i, wo_in);
     for (uint k = 0; k < lights; k++) {
         size_t row = (size_t)k * n + i;

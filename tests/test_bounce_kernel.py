@@ -13,16 +13,18 @@ from realistic.core.transforms import rotate, scale, translate
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.lights import PointLight
-from realistic.scene.materials import Conductor, Dielectric, Plastic
+from realistic.scene.materials import Conductor, Dielectric, DiffuseTransmission, Mix, Plastic
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene
 from realistic.scene.shapes import sphere
-from test_bsdf_kernel import COVERED
+from test_bsdf_kernel import COVERED, three_samples  # noqa: F401 (a fixture)
 from test_shading_reference import textured_scene
 
 pytest.importorskip("realistic.camera.opencl_host")
 pytestmark = pytest.mark.usefixtures("opencl_platform")
 
+from realistic.device.opencl import Device  # noqa: E402
 from realistic.renderer.bounce_kernel import GOES_ON, SHADES, SPECULAR, header, material_rows  # noqa: E402
+from realistic.renderer.bsdf_kernel import TableStore  # noqa: E402
 
 N = 6000
 
@@ -74,31 +76,53 @@ def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
 
 
 def test_covered_materials():
-    """Constant parameters of the materials bsdf.cl covers, and a Lambertian's grid or checker
-    texture; image textures, textured parameters of other kinds and materials bsdf.cl lacks are not."""
+    """Constant parameters of the materials bsdf.cl covers (named metals and mixes with their tables
+    or second lobes in the BSDF kernel's tables), and a ``Material``'s grid or checker texture; image
+    textures, textured parameters of other kinds and materials bsdf.cl lacks are not."""
+    tables = TableStore(Device.for_spec())
     for material in COVERED.values():
-        assert material_rows(material) is not None
-    assert material_rows(Material((1.0, 1.0, 1.0), GridTexture(cells=4.0))) is not None
-    assert material_rows(Material((1.0, 1.0, 1.0), CheckerTexture(cells=4.0))) is not None
+        assert material_rows(material, tables) is not None
+    for sigma in (0.0, 20.0):
+        assert material_rows(Material((1.0, 1.0, 1.0), GridTexture(cells=4.0), sigma=sigma), tables) is not None
+        assert material_rows(Material((1.0, 1.0, 1.0), CheckerTexture(cells=4.0), sigma=sigma), tables) is not None
     image = ImageTexture(np.ones((4, 4, 3), np.float32))
-    assert material_rows(Material((1.0, 1.0, 1.0), image)) is None
-    assert material_rows(Plastic(image, (0.4, 0.4, 0.4), 0.1)) is None
-    assert material_rows(Material((0.5, 0.5, 0.5), sigma=20.0)) is None
-    assert material_rows(Dielectric(1.5, roughness_u=0.2, roughness_v=0.2)) is None
+    assert material_rows(Material((1.0, 1.0, 1.0), image), tables) is None
+    assert material_rows(Plastic(image, (0.4, 0.4, 0.4), 0.1), tables) is None
+    assert material_rows(Dielectric(1.5, roughness_u=image, roughness_v=0.2), tables) is None
+    assert material_rows(Mix(Material(), Material(), image), tables) is None
+    assert material_rows(Mix(Material(), Plastic(image), 0.5), tables) is None
+    assert material_rows(DiffuseTransmission(), tables) is None
 
 
-@pytest.mark.parametrize("name", sorted(COVERED) + ["grid", "checker"])
+#: Textured materials the kernel covers, beside ``COVERED``.
+TEXTURED = {"grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=0.2)),
+            "checker": Material((0.7, 0.7, 0.7), CheckerTexture(cells=6.0)),
+            "oren-nayar under a grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=0.2), sigma=15.0)}
+
+
+@pytest.mark.parametrize("name", sorted(COVERED) + sorted(TEXTURED))
 @pytest.mark.parametrize("depth", [0, 1, 3])
 @pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
 def test_bounce_kernel_shades_each_hit_as_the_numpy_reference(name, depth, mode, mis):
     """Per hit, with the same random numbers: every light sample's shadow ray and contribution (summed
     per ray with several light samples at depth 0), and the next ray, beta, pdf and flags, to float32
     rounding (a decision may part only where rounding moves a number across its threshold)."""
-    material = {"grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=0.2)),
-                "checker": Material((0.7, 0.7, 0.7), CheckerTexture(cells=6.0))}.get(name) or COVERED[name]
+    names = sorted(COVERED) + sorted(TEXTURED)
+    _shades_as_numpy(TEXTURED.get(name) or COVERED[name], depth, mode, mis, names.index(name))
+
+
+@pytest.mark.parametrize("depth", [0, 2])
+def test_bounce_kernel_shades_measured_brdfs_as_the_numpy_reference(three_samples, depth):  # noqa: F811
+    """A .brdf file's table and a mix holding it (both in the BSDF kernel's tables), per hit as above."""
+    for seed, material in enumerate((three_samples, Mix(Plastic(), three_samples, 0.7))):
+        _shades_as_numpy(material, depth, "path", True, 40 + seed)
+
+
+def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int) -> None:
+    """The per-hit comparison of the kernel and ``_shade`` on ``_scene(material)`` (rays from ``seed``)."""
     scene = _scene(material)
     numpy_one, device_one = _pair(scene, mode, mis)
-    origin, direction, hits = _rays(scene, N, sorted(COVERED).index(name) if name in COVERED else 11)
+    origin, direction, hits = _rays(scene, N, seed)
     on_instance = (hits.geom >= 0) & (hits.geom < device_one.instance_count)
     covered = device_one._bounce.covered[device_one._geom_material[np.where(on_instance, hits.geom, 0)]]
     surface = np.flatnonzero(on_instance & covered)
@@ -151,8 +175,8 @@ def test_bounce_kernel_shades_each_hit_as_the_numpy_reference(name, depth, mode,
 
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
-    """Whole paths (depth 5, two light samples), glass, a rough conductor and plastic in the kernel
-    and the image-textured floor and an Oren-Nayar quad in numpy: each ray's radiance is the numpy
+    """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad and
+    plastic in the kernel and the image-textured floor in numpy: each ray's radiance is the numpy
     backend's to float32 rounding (a path may only part where rounding moves a sample across a
     threshold)."""
     scene, _, _ = textured_scene()
@@ -187,11 +211,14 @@ def _area_light_furnace(material) -> Scene:
 
 
 @pytest.mark.parametrize("mode", ["direct", "path"])
-@pytest.mark.parametrize("material, albedo", [(Material((0.7, 0.7, 0.7)), 0.7),
-                                              (Conductor((1.0,) * 3, (1e4,) * 3, 0.0, 0.0), 1.0)])
+@pytest.mark.parametrize("material, albedo", [
+    (Material((0.7, 0.7, 0.7)), 0.7), (Conductor((1.0,) * 3, (1e4,) * 3, 0.0, 0.0), 1.0),
+    (Mix(Material((0.7, 0.7, 0.7)), Conductor((1.0,) * 3, (1e4,) * 3, 0.0, 0.0), 0.25), 0.775),
+    (Dielectric(1.0, roughness_u=0.3, roughness_v=0.3), 1.0)])
 def test_convex_object_inside_area_lights_reads_its_albedo(mode, material, albedo):
-    """Inside a closed box of lights of radiance 1, a convex Lambertian of albedo a reads a and a
-    smooth perfect conductor reads 1 (light sampling and BSDF sampling weighted by MIS, on the kernel)."""
+    """Inside a closed box of lights of radiance 1, a convex Lambertian of albedo a reads a, a
+    smooth perfect conductor 1, a mix of the two 0.75 a + 0.25, and rough glass of index 1 (which
+    lets light straight through) 1 (light sampling and BSDF sampling weighted by MIS, on the kernel)."""
     scene = _area_light_furnace(material)
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
     assert integrator._bounce is not None and integrator._bounce.covered.all()

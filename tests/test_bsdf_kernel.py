@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bsdf_helpers import ConstantHits, uniform_sphere
+from bsdf_helpers import ConstantHits, SpectralHits, uniform_sphere
+from conftest import shared_file
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.data_files import data_file
@@ -16,11 +17,21 @@ from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.transforms import translate
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
-from realistic.renderer.bsdf import bsdf_for
+from realistic.renderer.bsdf import bsdf_for, measured
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
-from realistic.scene.materials import Conductor, Dielectric, Mirror, Plastic
-from realistic.scene.model import Material
+from realistic.scene.materials import (
+    CoatedDiffuse,
+    Conductor,
+    Dielectric,
+    DiffuseTransmission,
+    Measured,
+    Mirror,
+    Mix,
+    Plastic,
+    Substrate,
+)
+from realistic.scene.model import CheckerTexture, Material
 from realistic.scene.shapes import sphere
 from test_shading_reference import textured_scene
 
@@ -40,13 +51,35 @@ COVERED = {
     "rough conductor, pbrt-v3 rule": Conductor(roughness_u=0.05, roughness_v=0.05, rule="pbrt-v3"),
     "white conductor": Conductor((1.0,) * 3, (1e4,) * 3, 0.2, 0.2),
     "smooth conductor": Conductor(roughness_u=0.0, roughness_v=0.0, scale=(0.9, 0.8, 0.7)),
+    "named metal": Conductor(roughness_u=0.2, roughness_v=0.1, spectra=("Au", "Au")),
+    "smooth named metal": Conductor(roughness_u=0.0, roughness_v=0.0, scale=(0.9, 0.8, 0.7), spectra=("Cu", "Cu")),
     "mirror": Mirror((0.9, 0.7, 0.5)),
     "glass": Dielectric(1.5, (0.9, 1.0, 1.0), (1.0, 0.8, 0.9)),
     "thin glass": Dielectric(1.33, WHITE, WHITE, thin=True),
     "plastic": Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.3),
     "smooth plastic": Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.0),
+    "oren-nayar": Material((0.8, 0.5, 0.2), sigma=20.0),
+    "rough glass": Dielectric(1.5, (0.9, 1.0, 1.0), (1.0, 0.8, 0.9), roughness_u=0.3, roughness_v=0.1),
+    "rough glass, pbrt-v3 rule": Dielectric(1.33, WHITE, WHITE, roughness_u=0.01, roughness_v=0.01, rule="pbrt-v3"),
+    "rough glass of index 1": Dielectric(1.0, WHITE, WHITE, roughness_u=0.2, roughness_v=0.2),
+    "substrate": Substrate((0.6, 0.4, 0.2), (0.05, 0.05, 0.05), 0.2, 0.05),
+    "narrow substrate": Substrate((0.6, 0.4, 0.2), (0.3, 0.2, 0.1), 1e-4, 1e-4),
+    "coated diffuse": CoatedDiffuse((0.7, 0.5, 0.3), 0.2),
+    "smooth coated diffuse": CoatedDiffuse((0.7, 0.5, 0.3), 0.0, eta=1.33),
+    "mix of lambertian and conductor": Mix(Material((0.8, 0.5, 0.2)), Conductor(roughness_u=0.2, roughness_v=0.2),
+                                           0.3),
+    "mix of plastic and glass": Mix(Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.0), Dielectric(1.5), 0.6),
+    "mix of oren-nayar and rough glass": Mix(Material(WHITE, sigma=10.0), Dielectric(1.5, roughness_u=0.2,
+                                                                                      roughness_v=0.2), 0.5),
+    "mix, all second": Mix(Substrate(), CoatedDiffuse(roughness=0.1), 1.0),
 }
-GLOSSY = ["lambertian", "conductor", "rough conductor, pbrt-v3 rule", "white conductor", "plastic"]
+#: Materials whose reference is ill-conditioned somewhere (``_conditioning``): there f and the pdf
+#: are compared to 1e-5 plus eight times what one float32 rounding of the directions moves the
+#: reference by; everywhere else to 1e-5.
+ILL_CONDITIONED = {"rough glass", "rough glass, pbrt-v3 rule", "smooth coated diffuse",
+                   "mix of oren-nayar and rough glass"}
+GLOSSY = ["lambertian", "conductor", "rough conductor, pbrt-v3 rule", "white conductor", "plastic", "oren-nayar",
+          "substrate", "coated diffuse", "mix of lambertian and conductor"]
 
 
 @pytest.fixture(scope="module")
@@ -64,12 +97,43 @@ def _inputs(seed: int, n: int = N, lights: int = 2):
     return wo, light_wi, u, u_lobe
 
 
-def _close(kernel_value: np.ndarray, numpy_value: np.ndarray, rtol: float) -> None:
-    """Equal to ``rtol`` relative (float32 against the float64 GGX of the numpy code)."""
-    scale = np.maximum(np.abs(numpy_value), np.float32(1e-30))
+def _close(kernel_value: np.ndarray, numpy_value: np.ndarray, rtol: float | np.ndarray,
+           scale: np.ndarray | None = None) -> None:
+    """Equal to ``rtol`` relative (float32 against the float64 GGX of the numpy code); ``rtol`` may
+    be per row, and the error relative to ``scale`` (broadcast) rather than to the numpy value."""
+    scale = np.maximum(np.abs(numpy_value) if scale is None else scale, np.float32(1e-30))
     error = np.abs(kernel_value.astype(np.float64) - numpy_value) / scale
-    assert np.all(error[np.abs(numpy_value) > 1e-20] < rtol), float(error.max())
+    tolerance = np.broadcast_to(np.reshape(rtol, (-1,) + (1,) * (error.ndim - 1)) if np.ndim(rtol) else rtol,
+                                error.shape)
+    big = np.abs(numpy_value) > 1e-20
+    assert np.all(error[big] < tolerance[big]), float((error[big] / tolerance[big]).max())
     assert np.all(np.abs(kernel_value[np.abs(numpy_value) <= 1e-20]) <= 1e-20)
+
+
+def _one_ulp(rng: np.random.Generator, w: np.ndarray) -> np.ndarray:
+    """Each component of ``w`` (float32) moved by one float32 step up or down at random."""
+    return np.nextafter(w, np.where(rng.random(w.shape) < 0.5, -np.inf, np.inf).astype(np.float32))
+
+
+def _moved(function, a: np.ndarray, b: np.ndarray, relative: bool = True) -> np.ndarray:
+    """How far (relative, or absolute, per row) ``function(a, b)`` moves when every component of its
+    float32 arguments moves by one float32 step (the most of four random moves)."""
+    rng = np.random.default_rng(9)
+    base = function(a, b).astype(np.float64).reshape(len(a), -1)
+    scale = np.maximum(np.abs(base), 1e-30) if relative else 1.0
+    moved = np.zeros(len(a))
+    for _ in range(4):
+        other = function(_one_ulp(rng, a), _one_ulp(rng, b)).astype(np.float64).reshape(len(a), -1)
+        moved = np.maximum(moved, (np.abs(other - base) / scale).max(axis=1))
+    return moved
+
+
+def _conditioning(function, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
+    """``_moved`` for the reference f or pdf, and 1e-3 where a cosine is below 1e-3 (the reference's
+    float32 Fresnel reflectance near 1 leaves 1 - F few digits there): what float32 inputs allow a
+    float32 kernel near rough glass's critical angle and coated diffuse's grazing angles."""
+    grazing = np.minimum(np.abs(wo[:, 2]), np.abs(wi[:, 2])) < 1e-3
+    return np.maximum(_moved(function, wo, wi), np.where(grazing, 1e-3, 0.0))
 
 
 def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
@@ -83,36 +147,112 @@ def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
     assert not re.search(r"^#define (" + "|".join(prefixes) + ")", code, re.MULTILINE)
 
 
-def test_every_covered_material_has_rows_and_others_do_not():
+def test_every_covered_material_has_rows_and_others_do_not(kernel):
+    """The kernel's rows for every covered material; none for the others, nor for a named metal
+    without the kernel's tables."""
     hits = ConstantHits(3)
     for material in COVERED.values():
-        rows = parameters(material, hits, 3)
+        rows = kernel.rows(material, hits, 3)
         assert rows is not None and rows.shape == (3, BSDF_PARAMS.width)
-    assert parameters(Material(WHITE, sigma=20.0), hits, 3) is None
-    assert parameters(Dielectric(1.5, roughness_u=0.2, roughness_v=0.2), hits, 3) is None
+    assert parameters(COVERED["named metal"], hits, 3) is None
+    assert parameters(DiffuseTransmission(), hits, 3) is None
+    assert parameters(Mix(Material(), DiffuseTransmission()), hits, 3) is None
+    assert parameters(Mix(Material(), Mix(Material(), Plastic())), hits, 3) is None
+    assert parameters(COVERED["mix of plastic and glass"], hits, 3) is None  # its second lobe is in the tables
+    # spectral rays see a second lobe that varies with their wavelengths
+    wavelengths = SpectralHits(np.float32([450.0, 550.0, 650.0]))
+    assert kernel.rows(Mix(Plastic(), Material((0.8, 0.5, 0.2))), wavelengths, 3) is None
 
 
-@pytest.mark.parametrize("name", sorted(COVERED))
-def test_kernel_evaluates_and_samples_as_the_numpy_bsdf(kernel, name):
-    material = COVERED[name]
-    wo, light_wi, u, u_lobe = _inputs(sorted(COVERED).index(name))
-    hits = ConstantHits(N)
+def _close_to_brightest(kernel_value: np.ndarray, numpy_value: np.ndarray) -> None:
+    """Colours (N, 3) equal, relative to each one's brightest channel, to 1e-5 at 99 % of the rows
+    and 1e-3 at all (``_matches_numpy``'s ``table``)."""
+    brightest = np.maximum(np.abs(numpy_value).max(axis=1), 1e-30)
+    error = np.abs(kernel_value - numpy_value.astype(np.float64)).max(axis=1) / brightest
+    assert np.quantile(error, 0.99) < 1e-5 and error.max() < 1e-3, (np.quantile(error, 0.99), error.max())
+
+
+def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: bool = False,
+                   table: bool = False, spectral: bool = False) -> None:
+    """The kernel's f and pdf at two light directions and its sample, for ``material`` at N random
+    directions and uniform numbers, equal to the numpy BSDF's (``ILL_CONDITIONED``: what rounding
+    allows). ``table``: a measured table's f, relative to each hit's brightest channel, is within
+    1e-5 at 99 % of the hits and 1e-3 at all: where a cell's nodes differ by far more than the value
+    between them, the float32 rounding of the position in the cell moves the interpolant by more.
+    ``spectral``: rays of one wavelength each (400-700 nm), one channel."""
+    wo, light_wi, u, u_lobe = _inputs(seed)
+    hits = SpectralHits(np.random.default_rng(seed).uniform(400, 700, N)) if spectral else ConstantHits(N)
     bsdf = bsdf_for(material, hits)
-    light_f, light_pdf, s = kernel(parameters(material, hits, N), wo, light_wi, u, u_lobe)
+    rows = kernel.rows(material, hits, N)
+    assert rows is not None
+    light_f, light_pdf, s = kernel(rows, wo, light_wi, u, u_lobe, 1 if spectral else 3)
     for k in range(len(light_wi)):
-        _close(light_f[k], bsdf.evaluate(wo, light_wi[k]), 1e-5)
-        _close(light_pdf[k], bsdf.pdf(wo, light_wi[k]), 1e-5)
+        for got, function in ((light_f[k], bsdf.evaluate), (light_pdf[k], bsdf.pdf)):
+            expected = function(wo, light_wi[k])
+            if table and got.ndim == 2:
+                _close_to_brightest(got, expected)
+            else:
+                slack = 8 * _conditioning(function, wo, light_wi[k]) if ill_conditioned else 0.0
+                _close(got, expected, 1e-5 + slack)
     ref = bsdf.sample(wo, u, u_lobe)
     assert np.array_equal(s.specular, ref.specular)
     # a flag may differ only where a direction lies within rounding of a lobe's boundary
     assert np.mean(s.valid != ref.valid) < 1e-3
     both = s.valid & ref.valid
-    assert np.allclose(s.wi[both], ref.wi[both], atol=2e-5)
-    # directions equal to float32 rounding; value and pdf there to what that rounding moves them
-    # (most at grazing wi, where the cosine's relative error is largest)
-    _close(s.pdf[both], ref.pdf[both].astype(np.float64), 2e-3)
-    _close(s.value[both], ref.value[both].astype(np.float64), 2e-3)
+    # 2e-5, plus what a float32 cosine sqrt(1 - x^2 - y^2) carries at grazing wi (2^-23 / (2 |cos|)
+    # or so) and what float32 rounding of wo and u moves the reference's direction by (visible
+    # normals sampled at u near 1, refraction near the critical angle)
+    atol = (2e-5 + 2.0 ** -22 / np.maximum(np.abs(ref.wi[:, 2:].astype(np.float64)), 1e-30)
+            + 8 * _moved(lambda wo, u: bsdf.sample(wo, u, u_lobe).wi, wo, u, relative=False)[:, None])
+    assert np.all(np.abs(s.wi[both] - ref.wi[both]) <= atol[both])
+    # directions equal to float32 rounding; value and pdf there to what that rounding moves them:
+    # most at grazing wi, whose cosine sqrt(1 - x^2 - y^2) carries 2^-23 / (2 cos^2) relative error
+    rtol = 2e-3 + 2.0 ** -23 / (2 * ref.wi[both, 2].astype(np.float64) ** 2)
+    _close(s.pdf[both], ref.pdf[both].astype(np.float64), rtol)
+    if table:
+        _close_to_brightest(s.value[both], ref.value[both])
+    else:
+        _close(s.value[both], ref.value[both].astype(np.float64), rtol)
     assert np.median(np.abs(s.pdf[both] / ref.pdf[both] - 1)) < 1e-5
+
+
+@pytest.mark.parametrize("name", sorted(COVERED))
+def test_kernel_evaluates_and_samples_as_the_numpy_bsdf(kernel, name):
+    _matches_numpy(kernel, COVERED[name], sorted(COVERED).index(name), name in ILL_CONDITIONED)
+
+
+@pytest.mark.parametrize("name", sorted(name for name, material in COVERED.items() if not isinstance(material, Mix)))
+def test_kernel_evaluates_and_samples_spectral_rays_as_the_numpy_bsdf(kernel, name):
+    """As above for rays of one wavelength each: the rows repeat the ray's one channel (mixes stay in
+    numpy for them: their second lobes vary with the wavelength)."""
+    _matches_numpy(kernel, COVERED[name], 100 + sorted(COVERED).index(name), name in ILL_CONDITIONED, spectral=True)
+
+
+@pytest.fixture
+def three_samples(monkeypatch, tmp_path) -> Measured:
+    """A .brdf file of three samples, its table built with 6 nodes per axis (quick; the kernel reads
+    the size from the row)."""
+    monkeypatch.setattr(measured, "TABLE_NODES", 6)
+    measured._irregular_table.cache_clear()
+    path = tmp_path / "three.brdf"
+    path.write_text("2 400 700\n0.1 0 0.2 0 0.3 0.3\n0.9 0 1.0 3.0 0.6 0.6\n0.5 1 0.4 2 0.2 0.5\n")
+    yield Measured(str(path))
+    measured._irregular_table.cache_clear()
+
+
+def test_kernel_reads_a_measured_table_as_the_numpy_bsdf(kernel, three_samples):
+    """A .brdf file's table and a mix holding it, the tables put in the kernel's buffer by its rows,
+    against ``MeasuredBRDF``; without the kernel's tables a measured material stays in numpy."""
+    assert parameters(three_samples, ConstantHits(3), 3) is None
+    _matches_numpy(kernel, three_samples, 1)
+    _matches_numpy(kernel, Mix(Plastic(), three_samples, 0.7), 2)
+
+
+def test_kernel_reads_the_seed_scenes_measured_brdf_as_numpy(kernel):
+    """The seed scene's acryl_blue.brdf (128^3 table), and a second file's table beside it in the
+    kernel's tables."""
+    for seed, name in enumerate(("acryl_blue", "garnet_red")):
+        _matches_numpy(kernel, Measured(str(shared_file(f"scenes/pbrt/brdfs/{name}.brdf"))), 20 + seed, table=True)
 
 
 @pytest.mark.parametrize("name", GLOSSY)
@@ -124,7 +264,7 @@ def test_kernel_is_reciprocal_and_keeps_energy(kernel, name):
     n = 200_000
     a, b = uniform_sphere(rng, n), uniform_sphere(rng, n)
     b[:, 2] = np.abs(b[:, 2]) * np.sign(a[:, 2])
-    rows = parameters(material, ConstantHits(n), n)
+    rows = kernel.rows(material, ConstantHits(n), n)
     u, u_lobe = rng.random((n, 2)).astype(np.float32), rng.random(n).astype(np.float32)
     fab, _, _ = kernel(rows, a, b[None], u, u_lobe)
     fba, _, _ = kernel(rows, b, a[None], u, u_lobe)
@@ -140,17 +280,70 @@ def test_kernel_is_reciprocal_and_keeps_energy(kernel, name):
     assert float((pdf[0] * 4 * np.pi).mean()) < 1.02
 
 
+#: Each render's materials for the sphere, the cone and the quad of ``textured_scene`` (its floor stays
+#: the textured Lambertian) and for an added sphere: kernel materials, and (but in the first) one the
+#: kernel leaves to numpy (diffuse transmission).
+RENDERS = {
+    "glass, conductor, plastic": ([Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05),
+                                   Conductor(roughness_u=0.1, roughness_v=0.1, spectra=("Au", "Au"))],
+                                  Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2)),
+    "named metal beside diffuse transmission": ([Dielectric(1.5), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2),
+                                                 Conductor(roughness_u=0.1, roughness_v=0.1, spectra=("Au", "Au"))],
+                                                DiffuseTransmission((0.5, 0.3, 0.2), (0.3, 0.3, 0.3))),
+    "rough glass, mix, Oren-Nayar": ([Dielectric(1.5, roughness_u=0.2, roughness_v=0.2),
+                                      Mix(Substrate((0.6, 0.4, 0.2), (0.05, 0.05, 0.05), 0.2, 0.05),
+                                          CoatedDiffuse((0.7, 0.5, 0.3), 0.2), 0.4),
+                                      DiffuseTransmission((0.3, 0.6, 0.9), (0.2, 0.2, 0.2))],
+                                     Material((0.3, 0.6, 0.9), CheckerTexture(cells=6.0), sigma=20.0)),
+}
+
+
+@pytest.mark.parametrize("name", ["rough glass", "mix of oren-nayar and rough glass"])
+@pytest.mark.parametrize("theta", [0.3, 1.2, 2.5])
+def test_kernel_rough_glass_keeps_energy(kernel, name, theta):
+    """Rough glass transmits, so it is not reciprocal; from outside and inside (theta past 90 degrees)
+    its sampled albedo is at most 1 and equals the one integrated over the sphere from the evaluated
+    f, and its pdf integrates to at most 1."""
+    rows = kernel.rows(COVERED[name], ConstantHits(200_000), 200_000)
+    rng = np.random.default_rng(6)
+    n = len(rows)
+    wo = np.tile(np.float32([[np.sin(theta), 0.0, np.cos(theta)]]), (n, 1))
+    sphere_wi = uniform_sphere(rng, n)
+    u, u_lobe = rng.random((n, 2)).astype(np.float32), rng.random(n).astype(np.float32)
+    f, pdf, s = kernel(rows, wo, sphere_wi[None], u, u_lobe)
+    weight = np.where(s.valid, np.abs(s.wi[:, 2]) / np.where(s.valid, s.pdf, 1.0), 0.0)
+    sampled = np.where(s.specular[:, None], 0.0, s.value * weight[:, None]).mean(axis=0)
+    integrated = (f[0] * (np.abs(sphere_wi[:, 2]) * 4 * np.pi)[:, None]).mean(axis=0)
+    assert np.all(sampled <= 1.0 + 1e-2) and sampled.max() > 0.3
+    spread = (f[0] * (np.abs(sphere_wi[:, 2]) * 4 * np.pi)[:, None]).std(axis=0) / np.sqrt(n)
+    assert np.all(np.abs(sampled - integrated) < 0.01 + 4 * spread)
+    density = pdf[0] * 4 * np.pi  # a peaked lobe: within four standard errors of at most 1
+    assert float(density.mean()) < 1.0 + 4 * float(density.std()) / np.sqrt(n)
+
+
 @pytest.mark.parametrize("spectral", [False, True])
-def test_path_tracing_with_the_kernel_renders_the_numpy_image(spectral):
-    """Path tracing (depth 5) on the opencl backend, the covered materials in the kernel and an
-    Oren-Nayar one in numpy, gives each ray the numpy backend's radiance to float32 rounding (a path
-    may only part where rounding moves a sample across a lobe's or roulette's threshold); spectral
-    rays stay with the numpy BSDFs."""
+@pytest.mark.parametrize("render", sorted(RENDERS))
+def test_path_tracing_with_the_kernel_renders_the_numpy_image(render, spectral):
+    """Path tracing (depth 5) on the opencl backend, the covered materials in the kernel and one
+    other in numpy, gives each ray the numpy backend's radiance to float32 rounding (a path may only
+    part where rounding moves a sample across a lobe's or roulette's threshold), spectral rays too."""
+    _renders_match(*RENDERS[render], spectral)
+
+
+def test_path_tracing_with_a_measured_brdf_on_the_kernel(three_samples):
+    """As above with a .brdf file's table on the quad and in a mix on the cone."""
+    for spectral in (False, True):
+        _renders_match([Dielectric(1.5), Mix(three_samples, Conductor(roughness_u=0.1, roughness_v=0.1), 0.5),
+                        three_samples], DiffuseTransmission(), spectral)
+
+
+def _renders_match(materials: list, added, spectral: bool) -> None:
+    """``textured_scene`` with ``materials`` on its sphere, cone and quad and a sphere of ``added``,
+    path traced on both backends: see the test above."""
     scene, eye, target = textured_scene()
-    materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05),
-                 Material((0.3, 0.6, 0.9), sigma=20.0)]
-    scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
-    scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
+    scene.instances = scene.instances[:1] + [replace(inst, material=m) for inst, m in zip(scene.instances[1:],
+                                                                                          materials)]
+    scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), added)
     camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, 24, 16, 2)
     rays = backend_for("numpy").ray_generator(camera, 3)(SampleBlock(0, camera.sample_count, camera.spp))
     alive = np.flatnonzero(rays.weight != 0)

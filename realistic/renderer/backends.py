@@ -30,11 +30,12 @@ class BsdfLauncher(Protocol):
     """BSDFs of a batch of hits on a device (``renderer.bsdf_kernel.BsdfKernel``)."""
 
     def rows(self, material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
-        """``material``'s parameter rows at ``count`` RGB ``hits``; None where the device does not cover it."""
+        """``material``'s parameter rows at ``count`` ``hits``; None where the device does not cover it."""
 
     def __call__(self, params: np.ndarray, wo: np.ndarray, light_wi: np.ndarray, u: np.ndarray,
-                 u_lobe: np.ndarray) -> tuple[np.ndarray, np.ndarray, BSDFSample]:
-        """f (L, N, 3) and pdf (L, N) at light directions ``light_wi`` (L, N, 3), and one BSDF sample."""
+                 u_lobe: np.ndarray, channels: int = 3) -> tuple[np.ndarray, np.ndarray, BSDFSample]:
+        """f (L, N, C) and pdf (L, N) at light directions ``light_wi`` (L, N, 3), and one BSDF sample
+        (C = ``channels``: 3 for RGB rays, 1 for spectral ones)."""
 
 class Backend(Protocol):
     """What the renderer asks of a backend."""

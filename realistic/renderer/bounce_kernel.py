@@ -5,12 +5,14 @@ takes the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample'
 contribution (MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps
 embree and the compaction of live paths. It covers RGB rays, scenes whose lights are all area
 lights (or that have none), and materials ``bsdf_kernel.parameters`` covers whose parameters are
-constants, Lambertian ones also under a grid or checker texture (evaluated in the kernel). The rest
-(spectral rays, other lights, image or other textured parameters, materials ``bsdf.cl`` lacks)
-stays with ``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares
-the two per hit with the same random numbers). The program is the BSDF kernel's source with this
-one after it, so both share ``bsdf.cl``'s material functions; the scene's tables are device buffers
-made once per integrator, and each thread has its own queue and kernel object.
+constants (measured tables, named metals' tables and mixes' second lobes in the BSDF kernel's
+``TableStore``), ``Material`` (Lambertian or Oren-Nayar) also under a grid or checker texture
+(evaluated in the kernel). The rest (spectral rays, other lights, image or other textured
+parameters, materials ``bsdf.cl`` lacks) stays with ``PathIntegrator._shade``, the numpy reference
+(``tests/test_bounce_kernel.py`` compares the two per hit with the same random numbers). The
+program is the BSDF kernel's source with this one after it, so both share ``bsdf.cl``'s material
+functions; the scene's tables are device buffers made once per integrator, and each thread has its
+own queue and kernel object.
 """
 
 from __future__ import annotations
@@ -80,15 +82,15 @@ class _Constants:
         raise _Textured
 
 
-def material_rows(material: SurfaceMaterial) -> tuple[np.ndarray, np.ndarray] | None:
+def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> tuple[np.ndarray, np.ndarray] | None:
     """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not
-    cover it (a kind ``bsdf.cl`` lacks, or a textured parameter other than a Lambertian's grid or
-    checker texture)."""
+    cover it (a kind ``bsdf.cl`` lacks, or a textured parameter other than a ``Material``'s grid or
+    checker texture); measured tables, named metals' tables and mixes' second lobes go to ``tables``."""
     plain, texture = material, None
     if isinstance(material, Material) and isinstance(material.texture, GridTexture | CheckerTexture):
         plain, texture = replace(material, texture=None), material.texture
     try:
-        row = bsdf_kernel.parameters(plain, _Constants(), 1)
+        row = bsdf_kernel.parameters(plain, _Constants(), 1, tables)
     except _Textured:
         return None
     if row is None:
@@ -143,12 +145,15 @@ class BounceKernel:
     def __init__(self, device: Device, *, faces: np.ndarray, normals: np.ndarray, uv: np.ndarray,
                  geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_smooth: np.ndarray,
                  geom_swaps: np.ndarray, geom_normal_matrix: np.ndarray, materials: list[SurfaceMaterial],
-                 lights: LightSampler, extent: float, dimension: int, roulette_after: int):
+                 lights: LightSampler, extent: float, dimension: int, roulette_after: int,
+                 tables: bsdf_kernel.TableStore):
         """``dimension``: the random-number dimension of bounce 0's BSDF sample (bounce b's are 8 b
         on); ``roulette_after``: the bounces after which roulette may end a path. ``lights`` must
-        have area lights alone, or none that emit (``PathIntegrator`` checks)."""
+        have area lights alone, or none that emit (``PathIntegrator`` checks). ``tables``: the BSDF
+        kernel's ``TableStore`` (shared, so a measured table is on the device once)."""
         self.device = device
-        rows = [material_rows(m) for m in materials]
+        self.bsdf_tables = tables
+        rows = [material_rows(m, tables) for m in materials]
         #: per material: whether the kernel shades it
         self.covered = np.array([r is not None for r in rows] or [False], bool)
         params = np.array([r[0] if r else np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32) for r in rows]
@@ -202,7 +207,8 @@ class BounceKernel:
             self.device.run_into(queue, kernel, (whole_groups(m),), (LOCAL_SIZE,),
                                  (np.uint32(m), np.uint32(lights), np.uint32(depth), np.uint32(seed & 0xFFFFFFFF),
                                   np.uint32(mode_flags), np.uint32(max_depth), self.offset_base,
-                                  np.int32(max(self.light_count, 1)), *inputs, *self._tables),
+                                  np.int32(max(self.light_count, 1)), *inputs, *self._tables,
+                                  self.bsdf_tables.buffer),
                                  (out.shadow_origin, out.shadow_vector, out.shadow_length, out.contribution,
                                   out.origin, out.direction, out.beta, out.point, out.pdf, out.flags))
         return out

@@ -1,16 +1,20 @@
 """OpenCL host of the path integrator's BSDFs: ``kernels/bsdf.cl`` on a ``Device``.
 
-``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB rays at hits whose
-material the kernel covers (``parameters`` returns their rows) where the fused bounce
-(``renderer/bounce_kernel``, whose program holds ``bsdf.cl``'s functions too) does not take
-the whole bounce: textured parameters, lights other than area lights. Lambertian (``Material`` without
-Oren-Nayar roughness), conductors given by eta and k, mirrors, smooth and thin dielectrics, and
-plastic. Every other material, and spectral rays, stay with the numpy BSDFs of ``renderer.bsdf``,
-which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The host looks each
-parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and packs one
-``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both draw the
-same directions. One launch per bounce evaluates every light sample's direction and draws the
-BSDF sample; each thread has its own queue, so the renderer's worker threads launch independently.
+``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend for RGB and spectral rays
+at hits whose material the kernel covers (``parameters`` returns their rows) where the fused bounce
+(``renderer/bounce_kernel``, whose program holds ``bsdf.cl``'s functions too) does not take the
+whole bounce: Lambertian and
+Oren-Nayar (``Material``), conductors (eta and k, or a named metal's tabulated Fresnel), mirrors,
+smooth, thin and rough dielectrics, plastic, coated diffuse, substrate, measured ``.brdf`` files
+(their 128^3 table), and a mix of two of those whose second is the same at every hit; the tables
+and the mixes' second lobes live in the kernel's ``TableStore``. Diffuse transmission, MERL tables,
+mixes holding a mix or a textured second material (or seen by spectral rays, whose second lobe
+varies with the wavelength) stay with the numpy BSDFs of
+``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The
+host looks each parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and
+packs one ``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both
+draw the same directions. One launch per bounce evaluates every light sample's direction and draws
+the BSDF sample; each thread has its own queue, so the renderer's worker threads launch independently.
 """
 
 from __future__ import annotations
@@ -19,58 +23,206 @@ import threading
 from functools import cached_property
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer.bsdf.base import BSDFSample, HitParameters
+from realistic.renderer.bsdf.coated_diffuse import CoatedLambertian
 from realistic.renderer.bsdf.factory import colour, scalar
+from realistic.renderer.bsdf.measured import irregular_table
 from realistic.renderer.bsdf.microfacet import SMOOTH_ALPHA, alpha
-from realistic.scene.materials import Conductor, Dielectric, Mirror, Plastic, SurfaceMaterial
+from realistic.renderer.bsdf.oren_nayar import OrenNayar
+from realistic.scene.materials import (
+    CoatedDiffuse,
+    Conductor,
+    Dielectric,
+    Measured,
+    Mirror,
+    Mix,
+    Plastic,
+    Substrate,
+    SurfaceMaterial,
+)
+from realistic.scene.measured import IrregularSamples, load_measured
+from realistic.scene.metals import reflectance_table
 from realistic.scene.model import Material
 
 KERNEL_FILE = "bsdf.cl"
-#: One hit's BSDF: its kind (``KINDS``); ``scale`` the Lambertian albedo, the conductor's or mirror's
-#: scale, the glass's reflection tint or the plastic's diffuse colour; ``tint`` the glass's
-#: transmission tint or the plastic's coat colour; ``eta`` the conductor's index per channel (a
-#: dielectric's or coat's index in its first column); ``k`` the conductor's absorption; ``alpha``
-#: the GGX widths along x and y.
-BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), ("eta", 3), ("k", 3),
-                                               ("alpha", 2)))
-KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic")
+#: One lobe (a material that is not a mix): its kind (``KINDS``); ``scale`` the Lambertian,
+#: Oren-Nayar, plastic or coated base's albedo, the conductor's or mirror's scale, the glass's
+#: reflection tint or the substrate's diffuse colour; ``tint`` the glass's transmission tint, the
+#: plastic's coat colour (1 for coated diffuse) or the substrate's specular reflectance; ``eta`` the
+#: conductor's index per channel (a dielectric's or coat's index in its first column); ``k`` the
+#: conductor's absorption or the coated base's scale (``CoatedLambertian.scale``); ``alpha`` the GGX
+#: widths along x and y; ``extra`` Oren-Nayar's A and B, the coated base's albedo estimate, or a
+#: table's start (in ``TABLE_ALIGN`` floats) and size (a measured table's nodes per axis, a named
+#: metal's reflectance rows). A measured lobe's ``scale``, ``tint`` and ``eta``, and a tabulated
+#: conductor's ``tint``, ``eta`` and ``k``, are the rows of the matrix turning RGB into the rays'
+#: channels (``rgb_channels``).
+LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), ("eta", 3), ("k", 3), ("alpha", 2),
+                                        ("extra", 2)))
+#: One hit's BSDF: its first lobe, then ``amount`` (0: that lobe alone; else a mix of it, weighted
+#: 1 - amount, and a second lobe, weighted amount, the same at every hit: a ``LOBE`` row in the
+#: kernel's tables at ``second``, in ``TABLE_ALIGN`` floats). Mixes put their second lobe there so
+#: that every other row stays one lobe wide.
+BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", 1)))
+KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
+         "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor")
 KIND = {name: index for index, name in enumerate(KINDS)}
-HEADER = BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SMOOTH_ALPHA {SMOOTH_ALPHA!r}f\n"
+#: Measured tables start at multiples of this many floats in ``TableStore``'s buffer, so a row holds a
+#: start divided by it, a whole number float32 keeps exactly.
+TABLE_ALIGN = 1024
+HEADER = (BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SMOOTH_ALPHA {SMOOTH_ALPHA!r}f\n"
+          + f"#define BSDF_TABLE_ALIGN {TABLE_ALIGN}\n")
+#: One lobe's ``LOBE`` fields by name: constants or per-hit (count,) or (count, width) arrays.
+Columns = dict[str, ArrayLike]
 
 
-def parameters(material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
-    """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits`` (RGB), or None where the kernel does
-    not cover the material (the numpy BSDF then shades it). The same look-ups as ``bsdf_for``."""
+def rgb_channels(hits: HitParameters) -> np.ndarray:
+    """(N, 3, 3): how an RGB value becomes the rays' channels at ``hits``, as ``bsdf_for`` turns a
+    measured or tabulated RGB into them; a spectral ray's one channel is repeated (``parameters``)."""
+    channels = np.stack([hits.colour(c) for c in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))], axis=-1)
+    return np.broadcast_to(channels, (len(channels), 3, 3))
+
+
+def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, tables: TableStore | None
+          ) -> Columns | None:
+    """``LOBE`` columns of ``material`` (not a mix) at ``count`` ``hits``, or None where the kernel does
+    not cover it (a measured BRDF or named metal without ``tables``). The same look-ups as ``bsdf_for``; the
+    Oren-Nayar and coated-diffuse constants come from their numpy BSDFs' own constructors."""
     if isinstance(material, Material):
-        if material.sigma != 0:
-            return None
         albedo = hits.colour(material.diffuse)
         if material.texture is not None:
             albedo = albedo * hits.colour(material.texture)
-        return BSDF_PARAMS.pack(count, kind=KIND["lambertian"], scale=albedo)
+        if material.sigma == 0:
+            return dict(kind=KIND["lambertian"], scale=albedo)
+        rough = OrenNayar(albedo, material.sigma)
+        return dict(kind=KIND["oren_nayar"], scale=albedo, extra=np.column_stack([rough.a, rough.b]))
     if isinstance(material, Plastic):
         kd, ks = colour(hits, material.diffuse), colour(hits, material.specular)
         a = alpha(scalar(hits, material.roughness), material.rule)
-        return BSDF_PARAMS.pack(count, kind=KIND["plastic"], scale=kd, tint=ks, eta=np.float32(material.eta),
-                                alpha=np.column_stack([a, a]))
+        return dict(kind=KIND["plastic"], scale=kd, tint=ks, eta=np.float32(material.eta),
+                    alpha=np.column_stack([a, a]))
+    if isinstance(material, CoatedDiffuse):
+        base = CoatedLambertian(colour(hits, material.reflectance), material.eta)
+        a = alpha(scalar(hits, material.roughness), material.rule)
+        return dict(kind=KIND["coated_diffuse"], scale=base.albedo, tint=np.float32(1.0),
+                    eta=np.float32(material.eta), k=base.scale, alpha=np.column_stack([a, a]),
+                    extra=np.column_stack([base.albedo_estimate, np.zeros(count)]))
     if isinstance(material, Conductor):
-        if material.spectra is not None:
-            return None
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
-        return BSDF_PARAMS.pack(count, kind=KIND["conductor"], scale=colour(hits, material.scale),
-                                eta=colour(hits, material.eta), k=colour(hits, material.k),
-                                alpha=np.column_stack([ax, ay]))
+        if material.spectra is not None:
+            if tables is None:
+                return None
+            table, channels = reflectance_table(*material.spectra), rgb_channels(hits)
+            return dict(kind=KIND["tabulated_conductor"], scale=colour(hits, material.scale),
+                        tint=channels[:, 0], eta=channels[:, 1], k=channels[:, 2],
+                        alpha=np.column_stack([ax, ay]), extra=np.array([tables.place(table), len(table)], np.float32))
+        return dict(kind=KIND["conductor"], scale=colour(hits, material.scale),
+                    eta=colour(hits, material.eta), k=colour(hits, material.k), alpha=np.column_stack([ax, ay]))
     if isinstance(material, Mirror):
-        return BSDF_PARAMS.pack(count, kind=KIND["mirror"], scale=colour(hits, material.reflectance))
-    if isinstance(material, Dielectric) and (material.thin or material.roughness_u == material.roughness_v == 0.0):
-        return BSDF_PARAMS.pack(count, kind=KIND["thin_dielectric" if material.thin else "dielectric"],
-                                scale=colour(hits, material.reflectance), tint=colour(hits, material.transmittance),
-                                eta=np.float32(material.eta))
+        return dict(kind=KIND["mirror"], scale=colour(hits, material.reflectance))
+    if isinstance(material, Dielectric):
+        kr, kt = colour(hits, material.reflectance), colour(hits, material.transmittance)
+        if material.thin or material.roughness_u == material.roughness_v == 0.0:
+            return dict(kind=KIND["thin_dielectric" if material.thin else "dielectric"], scale=kr,
+                        tint=kt, eta=np.float32(material.eta))
+        ru, rv = scalar(hits, material.roughness_u), scalar(hits, material.roughness_v)
+        smooth = (ru == 0) & (rv == 0)  # as bsdf_for: smooth where both are 0 before the remapping
+        ax, ay = (np.where(smooth, 0.0, alpha(r, material.rule)) for r in (ru, rv))
+        return dict(kind=KIND["rough_dielectric"], scale=kr, tint=kt, eta=np.float32(material.eta),
+                    alpha=np.column_stack([ax, ay]))
+    if isinstance(material, Substrate):
+        ax = alpha(scalar(hits, material.roughness_u), material.rule)
+        ay = alpha(scalar(hits, material.roughness_v), material.rule)
+        return dict(kind=KIND["substrate"], scale=colour(hits, material.diffuse),
+                    tint=colour(hits, material.specular), alpha=np.column_stack([ax, ay]))
+    if isinstance(material, Measured) and tables is not None:
+        data = load_measured(material.path)
+        if isinstance(data, IrregularSamples):
+            table, channels = irregular_table(data), rgb_channels(hits)
+            return dict(kind=KIND["measured"], scale=channels[:, 0], tint=channels[:, 1],
+                        eta=channels[:, 2], extra=np.array([tables.place(table), table.shape[0]], np.float32))
     return None
+
+
+def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, tables: TableStore | None = None
+               ) -> np.ndarray | None:
+    """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits``, or None where the kernel does not
+    cover the material (the numpy BSDF then shades it); ``tables`` holds measured tables, named
+    metals' Fresnel tables and mixes' second lobes (without it those stay in numpy). A mix is covered
+    where its second material's lobe is the same at every hit (no textures; RGB rays), with its
+    amount clipped to [0, 1] as ``bsdf_for`` clips it; a row of amount 0 is its first lobe alone,
+    which is what the numpy mix gives there. For spectral rays (colours of one channel) each colour
+    fills all three of the kernel's channels, which then agree, and any one of them is the ray's
+    (the lobe choices use channel means, unchanged by the repetition)."""
+    if not isinstance(material, Mix):
+        lobe = _lobe(material, hits, count, tables)
+        return None if lobe is None else _rows(count, lobe, BSDF_PARAMS.width)
+    first, second = _lobe(material.first, hits, count, tables), _lobe(material.second, hits, count, tables)
+    if first is None or second is None or tables is None:
+        return None
+    second_rows = _rows(count, second, LOBE.width)
+    if count and not np.all(second_rows == second_rows[:1]):
+        return None
+    rows = _rows(count, first, BSDF_PARAMS.width)
+    rows[:, BSDF_PARAMS.offset("amount")] = np.clip(scalar(hits, material.amount), 0.0, 1.0)
+    rows[:, BSDF_PARAMS.offset("second")] = tables.place_lobe(second_rows[0]) if count else 0
+    return rows
+
+
+def _rows(count: int, lobe: Columns, width: int) -> np.ndarray:
+    """``count`` rows of ``width`` float32 with ``lobe``'s ``LOBE`` columns first (``LOBE`` and
+    ``BSDF_PARAMS`` share their names and offsets) and zero elsewhere."""
+    rows = np.zeros((count, width), np.float32)
+    for name, value in lobe.items():
+        column, size = LOBE.offset(name), LOBE.dtype[name].shape[0]
+        array = np.asarray(value, np.float32)  # (count, 1) colours of spectral rays broadcast
+        rows[:, column:column + size] = array[:, None] if size == 1 and array.ndim == 1 else array
+    return rows
+
+
+class TableStore:
+    """What the kernel reads beside its rows, back to back in one read-only buffer, each at a multiple
+    of ``TABLE_ALIGN`` floats: measured tables and named metals' Fresnel tables (``place``, once per
+    table), and mixes' second lobes (``place_lobe``, once per distinct lobe). Starts never move, so
+    rows made before a later addition stay right."""
+
+    def __init__(self, device: Device):
+        self.device = device
+        self._lock = threading.Lock()
+        self._starts: dict[int | bytes, int] = {}
+        self._tables: list[np.ndarray] = []  # held, so their ids stay theirs
+        self._data = np.zeros(TABLE_ALIGN, np.float32)
+        self.buffer = device.wrapped_buffer(self._data, np.float32)
+
+    def place(self, table: np.ndarray) -> int:
+        """``table``'s start in the buffer, in ``TABLE_ALIGN`` floats."""
+        with self._lock:
+            start = self._starts.get(id(table))
+            if start is None:
+                start = self._starts[id(table)] = self._append(table)
+                self._tables.append(table)
+            return start
+
+    def place_lobe(self, lobe: np.ndarray) -> int:
+        """A ``LOBE`` row's start in the buffer, in ``TABLE_ALIGN`` floats (one copy per distinct row)."""
+        key = np.ascontiguousarray(lobe, np.float32).tobytes()
+        with self._lock:
+            start = self._starts.get(key)
+            if start is None:
+                start = self._starts[key] = self._append(lobe)
+            return start
+
+    def _append(self, array: np.ndarray) -> int:
+        """Append ``array``'s floats, padded to ``TABLE_ALIGN``; its start (the caller holds the lock)."""
+        start = len(self._data) // TABLE_ALIGN
+        flat = np.ascontiguousarray(array, np.float32).ravel()
+        self._data = np.concatenate([self._data, flat, np.zeros(-len(flat) % TABLE_ALIGN, np.float32)])
+        self.buffer = self.device.wrapped_buffer(self._data, np.float32)
+        return start
 
 
 class BsdfKernel:
@@ -78,6 +230,7 @@ class BsdfKernel:
 
     def __init__(self, device: Device):
         self.device = device
+        self.tables = TableStore(device)
         self._local = threading.local()
 
     @cached_property
@@ -87,8 +240,8 @@ class BsdfKernel:
         return self.device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
 
     def rows(self, material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
-        """``parameters`` (the ``BsdfLauncher`` method)."""
-        return parameters(material, hits, count)
+        """``parameters`` with this kernel's tables (the ``BsdfLauncher`` method)."""
+        return parameters(material, hits, count, self.tables)
 
     def _queue_and_kernel(self) -> tuple[cl.CommandQueue, cl.Kernel]:
         state = getattr(self._local, "state", None)
@@ -96,12 +249,13 @@ class BsdfKernel:
             state = self._local.state = (self.device.queue(), cl.Kernel(self.program, "bsdf"))
         return state
 
-    def __call__(self, params: np.ndarray, wo: np.ndarray, light_wi: np.ndarray, u: np.ndarray, u_lobe: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, BSDFSample]:
-        """For N hits with ``params`` (N, ``BSDF_PARAMS.width``) and local outgoing directions ``wo``
-        (N, 3): f (L, N, 3) and pdf (L, N) at the L light directions ``light_wi`` (L, N, 3), and the
-        BSDF sample drawn with ``u`` (N, 2) and ``u_lobe`` (N,), as the numpy BSDF's
-        ``evaluate``, ``pdf`` and ``sample`` give them (float32)."""
+    def __call__(self, params: np.ndarray, wo: np.ndarray, light_wi: np.ndarray, u: np.ndarray, u_lobe: np.ndarray,
+                 channels: int = 3) -> tuple[np.ndarray, np.ndarray, BSDFSample]:
+        """For N hits with ``params`` (N, ``BSDF_PARAMS.width``, from ``rows``) and local outgoing
+        directions ``wo`` (N, 3): f (L, N, C) and pdf (L, N) at the L light directions ``light_wi``
+        (L, N, 3), and the BSDF sample drawn with ``u`` (N, 2) and ``u_lobe`` (N,), as the numpy
+        BSDF's ``evaluate``, ``pdf`` and ``sample`` give them (float32); C = ``channels``, 3 for RGB
+        rays, 1 for spectral ones (whose rows repeat their channel)."""
         n, lights = len(wo), len(light_wi)
         light_f = np.zeros((lights, n, 3), np.float32)
         light_pdf = np.zeros((lights, n), np.float32)
@@ -109,9 +263,11 @@ class BsdfKernel:
         pdf, flags = np.zeros(n, np.float32), np.zeros(n, np.int32)
         if n:
             queue, kernel = self._queue_and_kernel()
-            inputs = [self.device.wrapped_buffer(a, np.float32) for a in (params, wo, light_wi, u, u_lobe)]
+            rows = self.device.wrapped_buffer(params, np.float32)
+            inputs = [self.device.wrapped_buffer(a, np.float32) for a in (wo, light_wi, u, u_lobe)]
             self.device.run_into(queue, kernel, (whole_groups(n),), (LOCAL_SIZE,),
-                                 (np.uint32(n), np.uint32(lights), *inputs),
+                                 (np.uint32(n), np.uint32(lights), rows, self.tables.buffer, *inputs),
                                  (light_f, light_pdf, wi, value, pdf, flags))
         specular = (flags & 1).astype(bool)
-        return light_f, light_pdf, BSDFSample(wi, value, pdf, specular, (flags & 2).astype(bool))
+        return light_f[:, :, :channels], light_pdf, BSDFSample(wi, value[:, :channels], pdf, specular,
+                                                               (flags & 2).astype(bool))

@@ -86,8 +86,9 @@ class OpenCLBackend:
             return self._bsdf_kernel
 
     def bounce_kernel(self, **tables: Any) -> BounceKernel:
-        """``BounceKernel`` (the path integrator's fused bounce) on this device with a scene's ``tables``."""
-        return BounceKernel(self.device, **tables)
+        """``BounceKernel`` (the path integrator's fused bounce) on this device with a scene's ``tables``
+        and the BSDF kernel's ``TableStore``."""
+        return BounceKernel(self.device, tables=self.bsdf_kernel().tables, **tables)
 
     def shade_kernel(self, **tables: Any) -> ShadeKernel:
         """``ShadeKernel`` on this device with a scene's ``tables`` (its keyword arguments)."""

@@ -18,15 +18,15 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 after specular bounces), for tests.
 
 Backends: on "opencl", where every light is an area light (or none emits), RGB rays at hits whose
-material ``kernels/bsdf.cl`` covers with constant parameters (Lambertian under a grid or checker
-texture too) take the whole bounce in one launch of ``kernels/bounce.cl`` (``renderer.bounce_kernel``:
-surface point, normals, light samples, MIS weights, shadow rays, BSDF sample, beta, roulette), with
-the same random numbers; the host keeps embree, emission and the compaction of live paths. Other
-such hits (image-textured or other textured parameters, Oren-Nayar, rough glass, measured and the
-other materials ``bsdf.cl`` lacks) have the numpy bounce (``_shade``) with their BSDFs in
-``kernels/bsdf.cl`` where it covers them (the backend's ``bsdf_kernel``); spectral rays, scenes with
-other lights and the "numpy" backend use ``_shade`` with the numpy BSDFs of ``bsdf_factory``, the
-reference.
+material ``kernels/bsdf.cl`` covers with constant parameters (Lambertian and Oren-Nayar under a
+grid or checker texture too) take the whole bounce in one launch of ``kernels/bounce.cl``
+(``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights, shadow rays, BSDF
+sample, beta, roulette), with the same random numbers; the host keeps embree, emission and the
+compaction of live paths. Other hits (textured parameters, spectral rays, scenes with other lights)
+have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
+where it covers the material (the backend's ``bsdf_kernel``: every material but diffuse
+transmission and MERL tables), in one launch per bounce with the same random numbers; every other
+material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
 
 Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
 stratified light samples) as ``DirectLighting`` does; bounce b's BSDF sample, lobe choice,
@@ -418,7 +418,7 @@ class PathIntegrator(DirectLighting):
                 throughput[rows] = np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))
                                             [:, None], 0.0)
 
-        kernel = self._bsdf_kernel if sb is None else None  # the kernel shades RGB rays
+        kernel = self._bsdf_kernel
         on_device: list[tuple[slice | np.ndarray, np.ndarray]] = []
         material_of = self._geom_material[geom]
         groups = np.unique(material_of)
@@ -456,7 +456,7 @@ class PathIntegrator(DirectLighting):
             hit_wo = wo[hit_rows]
             light_wi = np.stack([local[hit_rows] for _, local in samples]) if samples else \
                 np.zeros((0, len(hit_wo), 3), np.float32)
-            f_light, pdf_light, s = kernel(table, hit_wo, light_wi, u_bsdf[hit_rows], u_lobe[hit_rows])
+            f_light, pdf_light, s = kernel(table, hit_wo, light_wi, u_bsdf[hit_rows], u_lobe[hit_rows], channels)
             store(hit_rows, s, list(f_light), list(pdf_light))
         beta_s = beta[surface]
         shadow: dict[str, list[np.ndarray]] = {"start": [], "vector": [], "length": [], "rows": [],
