@@ -79,6 +79,16 @@
  * bench's dragon pass (131072 samples, one PoCL thread) 36 ms scalar against 7.5 ms vectorised. */
 #define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
 #define FIELD(row, k) ((row)[(k) * unit])
+/* shadow ray row o: from the offset point (sx, sy, sz) to (x, y, z), or a dead row (length -1) */
+#define WRITE_SHADOW_RAY(o, live, x, y, z) do { \
+        AT(shadow_origin, 3, o, 0) = (live) ? sx : 0.0f; \
+        AT(shadow_origin, 3, o, 1) = (live) ? sy : 0.0f; \
+        AT(shadow_origin, 3, o, 2) = (live) ? sz : 0.0f; \
+        AT(shadow_vector, 3, o, 0) = (live) ? (x) - sx : 0.0f; \
+        AT(shadow_vector, 3, o, 1) = (live) ? (y) - sy : 0.0f; \
+        AT(shadow_vector, 3, o, 2) = (live) ? (z) - sz : 0.0f; \
+        shadow_length[o] = (live) ? SHADOW_LENGTH : -1.0f; \
+    } while (0)
 
 #include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source) */
 
@@ -461,13 +471,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         float lr = rho_r, lg = rho_g, lb = rho_b;
 #endif
 
-        AT(shadow_origin, 3, o, 0) = live ? sx : 0.0f;
-        AT(shadow_origin, 3, o, 1) = live ? sy : 0.0f;
-        AT(shadow_origin, 3, o, 2) = live ? sz : 0.0f;
-        AT(shadow_vector, 3, o, 0) = live ? qx - sx : 0.0f;
-        AT(shadow_vector, 3, o, 1) = live ? qy - sy : 0.0f;
-        AT(shadow_vector, 3, o, 2) = live ? qz - sz : 0.0f;
-        shadow_length[o] = live ? SHADOW_LENGTH : -1.0f;
+        WRITE_SHADOW_RAY(o, live, qx, qy, qz);
 #if SPECTRAL
         float emitted = FIELD(light, LIGHT_RADIANCE) * b_r + FIELD(light, LIGHT_RADIANCE + 1) * b_g
                         + FIELD(light, LIGHT_RADIANCE + 2) * b_b;
@@ -531,13 +535,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
         float ratio_f = th * th * PI_F / (cos_h * area * cos_f);
         float scale_f = PI_F / (1.0f + ratio_f * ratio_f) * (FIELD(light, LIGHT_SCALE) * PI_F / area);
         uint of = o + stride;
-        AT(shadow_origin, 3, of, 0) = live_f ? sx : 0.0f;
-        AT(shadow_origin, 3, of, 1) = live_f ? sy : 0.0f;
-        AT(shadow_origin, 3, of, 2) = live_f ? sz : 0.0f;
-        AT(shadow_vector, 3, of, 0) = live_f ? hx - sx : 0.0f;
-        AT(shadow_vector, 3, of, 1) = live_f ? hy - sy : 0.0f;
-        AT(shadow_vector, 3, of, 2) = live_f ? hz - sz : 0.0f;
-        shadow_length[of] = live_f ? SHADOW_LENGTH : -1.0f;
+        WRITE_SHADOW_RAY(of, live_f, hx, hy, hz);
         AT(contribution, 3, of, 0) = live_f ? bf_r * FIELD(light, LIGHT_RADIANCE) * scale_f : 0.0f;
         AT(contribution, 3, of, 1) = live_f ? bf_g * FIELD(light, LIGHT_RADIANCE + 1) * scale_f : 0.0f;
         AT(contribution, 3, of, 2) = live_f ? bf_b * FIELD(light, LIGHT_RADIANCE + 2) * scale_f : 0.0f;
