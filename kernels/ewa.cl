@@ -48,6 +48,20 @@ inline double3 bilinear0(__global const float *texels, __global const long *base
     return top * (1 - fy) + bottom * fy;
 }
 
+/* The EWA ellipse a s^2 + b s t + c t^2 <= 1 of the axes (a0s, a0t), (a1s, a1t) in texels, widened by a
+ * texel (pbrt-v3 MIPMap::EWA), and its half-height in t. */
+inline void ewa_ellipse(double a0s, double a0t, double a1s, double a1t,
+                        double *a_out, double *b_out, double *c_out, double *half_t_out) {
+    double a = a0t * a0t + a1t * a1t + 1;
+    double b = -2 * (a0s * a0t + a1s * a1t);
+    double c = a0s * a0s + a1s * a1s + 1;
+    double inv_f = 1 / (a * c - b * b * 0.25);
+    a *= inv_f; b *= inv_f; c *= inv_f;
+    double det = 4 * a * c - b * b;
+    double half_t = 2 * __builtin_sqrt(a * det) / det;
+    *a_out = a; *b_out = b; *c_out = c; *half_t_out = half_t;
+}
+
 inline double3 ewa_level(__global const float *texels, __global const long *base, __global const long *width,
                          __global const long *height, int wrap, int levels, __global const double *lut,
                          long level, double s0, double t0_, double a0s, double a0t, double a1s, double a1t) {
@@ -58,13 +72,8 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
     double w = (double)width[level], h = (double)height[level];
     double s = s0 * w - 0.5, t = t0_ * h - 0.5;
     a0s *= w; a0t *= h; a1s *= w; a1t *= h;
-    double a = a0t * a0t + a1t * a1t + 1;
-    double b = -2 * (a0s * a0t + a1s * a1t);
-    double c = a0s * a0s + a1s * a1s + 1;
-    double inv_f = 1 / (a * c - b * b * 0.25);
-    a *= inv_f; b *= inv_f; c *= inv_f;
-    double det = 4 * a * c - b * b;
-    double half_t = 2 * __builtin_sqrt(a * det) / det;
+    double a, b, c, half_t;
+    ewa_ellipse(a0s, a0t, a1s, a1t, &a, &b, &c, &half_t);
     int y0 = (int)__builtin_ceil(t - half_t), y1 = (int)__builtin_floor(t + half_t);
     /* texel() per tap, with the wrap done once per row and the column stepped. Every level's sides are
      * powers of two (MipMap), so repeat's x mod w is x & (w - 1), also for negative x. */
@@ -334,13 +343,8 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
     double lw = (double)width[0], lh = (double)height[0];
     double s = s0 * lw - 0.5, t = (t0 * lh - 0.5) * one;
     double a0s = majs * lw, a0t = majt * lh, a1s = mins * lw, a1t = mint * lh;
-    double a = a0t * a0t + a1t * a1t + 1;
-    double b = -2 * (a0s * a0t + a1s * a1t);
-    double c = a0s * a0s + a1s * a1s + 1;
-    double inv_f = 1 / (a * c - b * b * 0.25);
-    a *= inv_f; b *= inv_f; c *= inv_f;
-    double det = 4 * a * c - b * b;
-    double half_t = 2 * __builtin_sqrt(a * det) / det;
+    double a, b, c, half_t;
+    ewa_ellipse(a0s, a0t, a1s, a1t, &a, &b, &c, &half_t);
     int small = i < count && magnified && __builtin_fabs(s) < 1e9 && __builtin_fabs(t) < 1e9
                 && half_t < SMALL_SIDE;
     double ts = small ? t : 0.0, hts = small ? half_t : 0.0, ss = small ? s : 0.0;
