@@ -29,8 +29,9 @@
  *     density's nodes among them), interpolated linearly: within 5e-6 of numpy's largest values.
  *   - with MEASURED, at hits of a measured material: f(wo, wi) from its table in rho / pi's place,
  *     and a BSDF sample paired with each light sample (see measured_f and the loop);
- * Outputs, row o = (k - first_sample) * stride + i (MEASURED: 2 (k - first_sample) * stride + i,
- * and the BSDF sample's row o + stride, dead where the material is not measured): shadow-ray
+ * Outputs, point-major (a ray's rows adjacent, so embree traces each hit point's shadow rays
+ * together), row o = i LAUNCH_SAMPLES + k - first_sample (MEASURED: 2 (i LAUNCH_SAMPLES + k -
+ * first_sample), and the BSDF sample's row o + 1, dead where the material is not measured): shadow-ray
  * origin and vector (to the light point or, for a BSDF sample, the point it meets on the light)
  * (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
  * miss, an emitter, a light facing away, padding) so embree skips it, and the contribution (3
@@ -281,7 +282,7 @@ inline __attribute__((always_inline)) void bsdf_numbers(uint pixel, uint sample,
 
 /* ------------------------------------------------------------------ kernels */
 
-__kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, uint seed, uint unit, int instance_count, float offset_base, int light_count,
+__kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, uint unit, int instance_count, float offset_base, int light_count,
                     __global const float *origin, __global const float *direction, __global const float *tfar,
                     __global const float *hit_u, __global const float *hit_v, __global const int *prim,
                     __global const int *geom, __global const float *ng_in, __global const uint *pixel,
@@ -429,9 +430,9 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
     /* the launch's light samples, unrolled */
 #pragma unroll
     for (uint q = 0; q < LAUNCH_SAMPLES; ++q) {
-        /* light sample k, row o (MEASURED: its BSDF sample's row o + stride) */
+        /* light sample k, row o (MEASURED: its BSDF sample's row o + 1) */
         uint k = first_sample + q;
-        uint o = (1 + MEASURED) * q * stride + i;
+        uint o = (1 + MEASURED) * (i * LAUNCH_SAMPLES + q);
         float u_pick, u1, u2;
         light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
         int j = pick_light(cdf, light_count, u_pick, unit);
@@ -534,7 +535,7 @@ __kernel void shade(uint n, uint stride, uint first_sample, uint light_samples, 
                    -(fx * dx + fy * dy + fz * dz) - cos_o * cos_f, unit, &bf_r, &bf_g, &bf_b);
         float ratio_f = th * th * PI_F / (cos_h * area * cos_f);
         float scale_f = PI_F / (1.0f + ratio_f * ratio_f) * (FIELD(light, LIGHT_SCALE) * PI_F / area);
-        uint of = o + stride;
+        uint of = o + 1;
         WRITE_SHADOW_RAY(of, live_f, hx, hy, hz);
         AT(contribution, 3, of, 0) = live_f ? bf_r * FIELD(light, LIGHT_RADIANCE) * scale_f : 0.0f;
         AT(contribution, 3, of, 1) = live_f ? bf_g * FIELD(light, LIGHT_RADIANCE + 1) * scale_f : 0.0f;

@@ -54,6 +54,23 @@ def test_pass_sums_add_each_pixels_rows_in_order_to_the_bit(sort):
     assert np.count_nonzero(sums.any(axis=1)) == 20
 
 
+def test_pass_sums_weight_each_row_in_its_precision_first():
+    """With weights, each float32 row times its weight rounded to float32, then added in turn in
+    float64: the sums of the weighted (N, 3) array the runner used to make."""
+    rng = np.random.default_rng(5)
+    pixel = rng.integers(0, 40, 3000) + 7
+    value = (rng.random((3000, 3)) * 10.0 ** rng.integers(-3, 4, (3000, 1))).astype(np.float32)
+    weight = (rng.random(3000) * 3 - 1).astype(np.float32)
+    sums = pass_sums(pixel, value, 7, 40, weight)
+    np.testing.assert_array_equal(sums, sequential_sums(pixel - 7, value * weight[:, None], 40))
+
+
+@pytest.mark.parametrize("pixel", [[3, 4, 2], [3, 9, 4]])
+def test_pass_sums_refuse_a_pixel_outside_the_pass(pixel):
+    with pytest.raises(ValueError, match="a pixel outside 3 .. 8"):
+        pass_sums(np.array(pixel), np.ones((3, 3), np.float32), 3, 6)
+
+
 def test_film_counts_a_slice_of_each_pixels_samples():
     """Samples [1, 3) of pixels 0..2 give each pixel 2 samples; then sample 0 of all of them, 3."""
     film = Film(width=3, height=1, spp=4)

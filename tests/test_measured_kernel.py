@@ -87,7 +87,7 @@ def measured_rays(glossy):
 
 @pytest.mark.parametrize("light_samples", [1, 3])
 def test_per_row_samples_match_the_numpy_path(measured_rays, light_samples):
-    """Every light sample's row and its BSDF sample's row (the next stride) against the numpy
+    """Every light sample's row and its BSDF sample's row (the next row) against the numpy
     reference's ``_light_sample`` and ``_bsdf_sample``."""
     scene, (origin, direction, pixel, sample, spread) = measured_rays
     intersector = Intersector(scene)
@@ -109,7 +109,7 @@ def test_per_row_samples_match_the_numpy_path(measured_rays, light_samples):
         paired = numpy_path._bsdf_sample(point, shadow_origin, ng, measured, pixel[surface], sample[surface], k)
         bsdf_live += len(paired[2])
         for row, (contribution, vector, live) in ((2 * k, light), (2 * k + 1, paired)):
-            rows = row * batch.stride + surface[live]
+            rows = surface[live] * (2 * light_samples) + row  # point-major: a ray's rows adjacent
             live_rows.append(rows)
             assert np.all(batch.length[rows] == F32(1.0 - 1e-4))
             np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])

@@ -199,3 +199,8 @@ def test_gather_rows_is_row_indexing_as_contiguous_float32(count, seed, dtype, t
     gathered = gather_rows(points, rows)
     assert gathered.dtype == np.float32 and gathered.flags.c_contiguous and gathered.shape == (len(rows), 3)
     assert np.array_equal(gathered, points[rows].astype(np.float32))
+
+
+def test_gather_rows_refuses_a_row_outside_the_points():
+    with pytest.raises(IndexError, match="a row outside 0 .. 3"):
+        gather_rows(np.zeros((4, 3), np.float32), np.array([0, 4]))

@@ -19,12 +19,13 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core import rng
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.jit import compiled
 from realistic.core.spectrum import rgb_basis, rgb_response, wavelengths_nm
 from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
-from realistic.renderer.direct_lighting import DirectLighting
+from realistic.renderer.direct_lighting import DirectLighting, _visible_sums
 from realistic.renderer.job import RenderJob
 from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.intersect import Intersector
@@ -96,7 +97,7 @@ def test_per_hit_samples_match_the_numpy_path(scene_rays, light_samples):
     for k in range(light_samples):
         contribution, to_light, live = numpy_path._light_sample(point, shadow_origin, shading, ng, rho,
                                                                 pixel[surface], sample[surface], k, None)
-        rows = k * batch.stride + surface[live]
+        rows = surface[live] * light_samples + k  # point-major: a ray's light samples adjacent
         live_rows.append(rows)
         assert np.all(batch.length[rows] == F32(1.0 - 1e-4))
         np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])  # exactly: embree's geometry
@@ -146,6 +147,32 @@ def test_light_samples_in_several_launches_match(scene_rays, monkeypatch, light_
     np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
 
 
+@pytest.mark.parametrize("per_ray, channels, fresh", [(1, 3, True), (4, 3, True), (2, 1, False), (8, 3, False)])
+def test_visible_sums_add_each_rays_rows_in_order_to_the_bit(per_ray, channels, fresh):
+    """``_visible_sums`` gives exactly numpy's sums of the old sample-major layout, each light
+    sample's row times 1 or 0 added in order in float32 (``np.add.reduce`` over the samples from
+    the first product, or added to earlier launches' sums), and counts the rows traced."""
+    rng_ = np.random.default_rng(per_ray)
+    n, stride = 37, 48
+    contribution = (rng_.random((stride * per_ray, channels)) * 10.0 ** rng_.integers(-3, 4, (stride * per_ray, 1))
+                    ).astype(np.float32)
+    blocked = rng_.random(stride * per_ray) < 0.4
+    length = np.where(rng_.random(stride * per_ray) < 0.7, F32(1 - 1e-4), F32(-1))
+    length[n * per_ray:] = -1  # padding rows are dead, as the kernel writes them
+    earlier = rng_.random((n, channels)).astype(np.float32)
+    sample_major = contribution.reshape(stride, per_ray, channels).transpose(1, 0, 2)[:, :n]
+    visible = np.logical_not(blocked).astype(np.float32).reshape(stride, per_ray).T[:, :n, None]
+    products = sample_major * visible
+    expected = np.add.reduce(products, axis=0) if fresh else earlier.copy()
+    if not fresh:
+        for row in products:
+            expected += row
+    out = np.full((n, channels), np.nan, np.float32) if fresh else earlier.copy()
+    traced = compiled(_visible_sums)(contribution, blocked, length, per_ray, n, fresh, out)
+    assert np.array_equal(out.view(np.uint32), expected.view(np.uint32))
+    assert traced == np.count_nonzero(length > 0)
+
+
 def test_a_launch_makes_at_most_max_launch_samples(scene_rays):
     from realistic.renderer.shade_kernel import MAX_LAUNCH_SAMPLES
 
@@ -193,7 +220,7 @@ def test_spectral_per_hit_samples_match_the_numpy_path(scene_rays, light_samples
     for k in range(light_samples):
         contribution, to_light, live = numpy_path._light_sample(point, shadow_origin, shading, ng, rho,
                                                                 pixel[surface], sample[surface], k, basis[surface])
-        rows = k * batch.stride + surface[live]
+        rows = surface[live] * light_samples + k  # point-major: a ray's light samples adjacent
         assert np.all(batch.length[rows] == F32(1.0 - 1e-4))
         np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])
         assert contribution.shape == batch.contribution[rows].shape == (len(live), 1)

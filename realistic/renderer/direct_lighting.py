@@ -32,7 +32,7 @@ the spectral radiance weighted by the film's ``rgb_response`` at that wavelength
 Backends: the numpy code here is the reference and shades with backend "numpy". With backend
 "opencl" RGB rays are shaded by ``kernels/shade.cl`` (``renderer.shade_kernel``): one launch per pass
 computes every surface hit's normals and albedo and every light sample's shadow ray and
-contribution, embree traces all the shadow rays in one ``occluded`` call, and numpy sums the
+contribution, embree traces all the shadow rays in one ``occluded`` call, and a loop (``_visible_sums``) sums the
 unblocked contributions; camera rays that miss or see an emitter keep the numpy code. The albedo of
 EWA-filtered image textures comes from ``kernels/ewa.cl`` (``EwaKernel.at_hits``: hit records to albedo, bit
 for bit the numpy ``_albedo`` here: ``tests/test_ewa_hits.py``), other image textures' from ``_albedo``. Spectral rays
@@ -50,6 +50,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from realistic.core import rng
+from realistic.core.jit import compiled
 from realistic.core.spectrum import rgb_basis, rgb_response, spectral_value
 from realistic.core.vectors import dot, normalise
 from realistic.core.warp import concentric_disk
@@ -164,6 +165,26 @@ def _facing(normal: np.ndarray, direction: np.ndarray) -> np.ndarray:
     ng = normalise(np.asarray(normal).astype(np.float32))
     ng *= np.where(dot(ng, direction) > 0, -1.0, 1.0).astype(np.float32)[:, None]
     return ng
+
+
+def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarray, per_ray: int, n: int,
+                  fresh: bool, out: np.ndarray) -> int:
+    """Add to ``out`` (n, channels) float32 each ray's unblocked contributions, its rows i per_ray ..
+    (i + 1) per_ray - 1 of a launch (``ShadowBatch``: point-major) in order, as contribution times 1
+    or 0 in float32 (``fresh``: ``out`` starts as the first product, not 0 plus it, as numpy's
+    reduction starts); the rows traced (length > 0) are returned. A numba loop (``core.jit``): one
+    pass over the launch's outputs, the GIL released, where numpy made four."""
+    traced = 0
+    for i in range(n):
+        for k in range(per_ray):
+            r = i * per_ray + k
+            visible = np.float32(0.0) if blocked[r] else np.float32(1.0)
+            for c in range(out.shape[1]):
+                product = contribution[r, c] * visible
+                out[i, c] = product if fresh and k == 0 else out[i, c] + product
+            if length[r] > 0:
+                traced += 1
+    return traced
 
 
 class DirectLighting:
@@ -452,7 +473,7 @@ class DirectLighting:
                            albedo: np.ndarray | None = None, wavelength_nm: np.ndarray | None = None
                            ) -> tuple[np.ndarray, int]:
         """The rays' radiance through one shading kernel: the kernel shades every surface hit and writes
-        all light samples' shadow rays, embree traces them in one call, numpy sums. ``albedo``: the
+        all light samples' shadow rays, embree traces them in one call, ``_visible_sums`` sums. ``albedo``: the
         rays' albedo from ``first_hits`` (its host rows are ``_host_albedo``'s); ``wavelength_nm``:
         spectral rays' wavelengths (None for RGB rays)."""
         from realistic.device.opencl import whole_groups
@@ -467,7 +488,7 @@ class DirectLighting:
             elif albedo is None:
                 albedo = self._host_albedo(origin, direction, hits)
             channels = 3 if wavelength_nm is None else 1  # a spectral ray's sum is one spectral value
-            out = np.zeros((n, channels), np.float32)
+            out = np.empty((n, channels), np.float32)  # the first launch's sums write every row
             # light samples per launch (``rows_per_sample`` shadow rays each: a measured scene's BSDF samples)
             rows_per_sample = kernel.rows_per_sample
             group = max(1, min(MAX_LAUNCH_SAMPLES, MAX_SHADOW_ROWS // (whole_groups(n) * rows_per_sample)))
@@ -485,20 +506,8 @@ class DirectLighting:
             with timed("embree"):
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
-                # the batch's arrays are this thread's to overwrite until its next launch
-                contribution = batch.contribution.reshape(rows, batch.stride, channels)[:, :n]
-                visible = np.logical_not(blocked, out=np.empty(len(blocked), np.float32))
-                visible = visible.reshape(rows, batch.stride)[:, :n]
-                # times 1 or 0, colour by colour: a (count, n, 1) factor broadcast over the colours runs
-                # numpy's inner loop three elements at a time, and a uint8 factor is cast first (2x slower)
-                for channel in range(channels):
-                    np.multiply(contribution[:, :, channel], visible, out=contribution[:, :, channel])
-                if first == 0:  # out is zero: 0 + x is x, so the sum starts at light sample 0 as numpy's does
-                    np.add.reduce(contribution, axis=0, out=out)  # adds rows k = 0, 1, ... in order
-                else:
-                    for row in range(rows):  # in light-sample order, as the numpy path adds them
-                        out += contribution[row]
-                shadow_rays += int(np.count_nonzero(batch.length > 0))
+                shadow_rays += compiled(_visible_sums)(batch.contribution, blocked, batch.length, rows, n,
+                                                       first == 0, out)
         with timed("shading"):
             if self.light_samples > 1:
                 out /= np.float32(self.light_samples)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.camera.base import SampleBlock
+from realistic.core.jit import compiled
 from realistic.renderer.crop import PixelBounds
 
 
@@ -43,12 +44,35 @@ class Splats:
         return cls(np.zeros(0, np.int64), np.zeros((0, 3)))
 
 
-def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_count: int) -> np.ndarray:
+def _add_rows(local: np.ndarray, value: np.ndarray, weight: np.ndarray, sums: np.ndarray) -> bool:
+    """Add value[i] * weight[i] (in value's precision) to sums[local[i]] (float64), row by row in
+    order; False, with nothing more added, at the first pixel outside ``sums`` (a numba loop,
+    ``core.jit``: one pass over the rows, where a ``np.bincount`` per column read them once each)."""
+    for i in range(local.shape[0]):
+        p = local[i]
+        if p < 0 or p >= sums.shape[0]:
+            return False
+        w = weight[i]
+        for c in range(value.shape[1]):
+            sums[p, c] += np.float64(value[i, c] * w)
+    return True
+
+
+def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_count: int,
+              weight: np.ndarray | None = None) -> np.ndarray:
     """Sums (pixel_count, columns) float64 of ``value`` rows (N, columns) per pixel, pixels
-    first_pixel .. + pixel_count - 1 (float64 with no rows too, where ``np.bincount`` gives int64)."""
-    local = pixel - first_pixel
-    return np.column_stack([np.bincount(local, weights=value[:, c], minlength=pixel_count)
-                            for c in range(value.shape[1])]).astype(np.float64, copy=False)
+    first_pixel .. + pixel_count - 1, each row added in turn in float64 (the same bits whatever the
+    executor). ``weight`` (N,), of value's dtype: each row times its weight first, rounded to
+    value's precision (the film's sample weights, without an (N, columns) product array)."""
+    value = np.asarray(value)
+    if value.dtype != np.float32:
+        value = value.astype(np.float64, copy=False)
+    weight = np.ones(len(value), value.dtype) if weight is None else np.asarray(weight, value.dtype)
+    sums = np.zeros((pixel_count, value.shape[1]), np.float64)
+    local = np.asarray(pixel, np.int64) - first_pixel
+    if not compiled(_add_rows)(local, value, weight, sums):
+        raise ValueError(f"pass_sums: a pixel outside {first_pixel} .. {first_pixel + pixel_count - 1}")
+    return sums
 
 
 class Film:

@@ -11,6 +11,7 @@ import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
 from realistic.camera.lens_camera import LensCamera
+from realistic.core.jit import compiled
 from realistic.renderer.aov import AovLayout
 from realistic.renderer.backends import backend_for
 from realistic.renderer.film import pass_sums
@@ -34,16 +35,25 @@ def morton_order(pixel: np.ndarray, width: int) -> np.ndarray:
     return np.argsort(code, kind="stable")
 
 
+def _gather(points: np.ndarray, rows: np.ndarray, gathered: np.ndarray) -> bool:
+    """gathered[j] = points[rows[j]] (a numba loop, ``core.jit``: one pass writing the result's
+    rows in order, whatever ``points``' layout); False, with the rest unwritten, at a row out of range."""
+    for j in range(rows.shape[0]):
+        r = rows[j]
+        if r < 0 or r >= points.shape[0]:
+            return False
+        for column in range(gathered.shape[1]):
+            gathered[j, column] = points[r, column]
+    return True
+
+
 def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """points[rows] as a contiguous (len(rows), 3) float32 array. The kernel's rays are transposed
-    views of its (rows, n) output: gathering from each coordinate's contiguous row straight into the
-    result's column reads memory in order, where ``np.take`` along the strided axis does not."""
-    if points.strides[0] < points.strides[1] and points.dtype == np.float32:  # coordinates are contiguous rows
-        gathered = np.empty((len(rows), points.shape[1]), np.float32)
-        for column in range(points.shape[1]):
-            np.take(points[:, column], rows, out=gathered[:, column])
-        return gathered
-    return np.take(points, rows, axis=0).astype(np.float32, copy=False)
+    """points[rows] (non-negative ``rows``) as a contiguous (len(rows), columns) float32 array. The
+    kernel's rays are transposed views of its (columns, n) output, which the loop reads in place."""
+    gathered = np.empty((len(rows), points.shape[1]), np.float32)
+    if not compiled(_gather)(points, np.asarray(rows, np.int64), gathered):
+        raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
+    return gathered
 
 
 class PassRunner:
@@ -101,13 +111,11 @@ class PassRunner:
                                                          self.clock, wavelength, hits, albedo)
         with self.clock("accumulation"):
             first_pixel, pixel_count = block.first_pixel, block.pixel_count
-            value = radiance  # the integrator's own array: weighted in place, no second (N, 3) array
             # a spectral ray's radiance comes weighted by the film's response at its wavelength
-            weight = rays.weight[alive, None].astype(np.float32, copy=False)
+            weight = rays.weight[alive].astype(np.float32, copy=False)
             if rays_per_sample > 1:  # each of a sample's K wavelengths is 1/K of its estimate
                 weight = weight / np.float32(rays_per_sample)
-            value *= weight
-            sums = pass_sums(pixel, value, first_pixel, pixel_count)
+            sums = pass_sums(pixel, radiance, first_pixel, pixel_count, weight)
             if aov_values is not None:
                 sums = np.column_stack([sums, pass_sums(pixel, aov_values, first_pixel, pixel_count)])
         flare = None

@@ -6,12 +6,14 @@ the two per hit (``tests/test_shade_kernel.py``). For each camera ray of a pass 
 the hit point, the geometric and shading normals, the albedo (constant, grid and checker materials;
 image-textured rows come from the host: ``DirectLighting._host_albedo``) and, for every light
 sample, the light point, the shadow ray and its contribution. It writes them into flat arrays
-ordered by light sample then ray (row k * stride + i), so embree traces all of a pass's shadow rays
-in one ``occluded`` call; dead samples have length -1, which embree skips. Measured materials
+ordered by ray then light sample (row i * light_samples + k: point-major, so embree traces each hit
+point's shadow rays one after another, coherent, and the host sums each ray's adjacent rows), so
+embree traces all of a pass's shadow rays in one ``occluded`` call; dead samples have length -1,
+which embree skips. Measured materials
 (pbrt-v2's irregular ``.brdf`` files, their tables from ``renderer.bsdf.measured.irregular_table``
 one after another in one buffer) build the ``MEASURED`` variant: each light sample is paired with a
 cosine-weighted BSDF sample, both weighted by the power heuristic as pbrt-v2's ``directlighting``
-does (``EstimateDirect``), in rows 2 k * stride + i and the next stride.
+does (``EstimateDirect``), in rows 2 (i * light_samples + k) and the next.
 
 The program source does not depend on the scene: the scene's tables (faces, vertex normals, uvs,
 per-instance normal matrices and materials, lights and their CDF) are device buffers made once per
@@ -147,9 +149,10 @@ def material_row(material: Material | Measured, table: int = 0) -> np.ndarray:
 
 @dataclass
 class ShadowBatch:
-    """One launch's outputs: ``light_samples`` x ``stride`` rows (row k * stride + i for ray i and
-    the launch's k-th light sample), twice as many with measured materials (rows 2 k * stride + i,
-    and the paired BSDF sample's the next stride)."""
+    """One launch's outputs: ``stride`` x ``light_samples`` rows, point-major (row i * light_samples
+    + k for ray i and the launch's k-th light sample), twice as many with measured materials (rows
+    2 (i * light_samples + k), and the paired BSDF sample's the next); rows of rays i >= n (padding)
+    are dead."""
 
     origin: np.ndarray  # (rows, 3) float32
     vector: np.ndarray  # (rows, 3) float32: to the light point
@@ -295,7 +298,7 @@ class ShadeKernel:
         kernel = state.shade.get(variant)
         if kernel is None:
             kernel = state.shade[variant] = cl.Kernel(self._program(*variant), "shade")
-        kernel.set_args(np.uint32(n), np.uint32(stride), np.uint32(first_sample), np.uint32(total),
+        kernel.set_args(np.uint32(n), np.uint32(first_sample), np.uint32(total),
                         np.uint32(seed & 0xFFFFFFFF),
                         np.uint32(1),
                         np.int32(self.instance_count),
