@@ -155,27 +155,32 @@ def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dis
     assert variants and set(variants) == {f"-DSPECTRAL={int(dispersion)}"}
 
 
-def test_the_trace_loops_compiled_ahead_are_those_a_pass_traces_with():
-    """A render compiles embree's packet loops on a render thread as it starts (``ThreadPasses.open``
-    runs ``compile_trace_loops``), for exactly the argument types its passes then trace with: a
-    pass compiles nothing more (checked in a process of its own, whose loops nothing compiled)."""
+def test_the_loops_compiled_ahead_are_those_a_pass_runs():
+    """A render compiles embree's packet loops and the pass's own loops (ray gathers, film sums,
+    shading sums) on render threads as it starts (``ThreadPasses.open`` runs ``compile_trace_loops``
+    and ``compile_pass_loops``), for exactly the argument types its passes then use: a pass compiles
+    nothing more (checked in a process of its own, whose loops nothing compiled)."""
     run = run_fresh("""
 from realistic import load_scene
 from realistic.camera.base import SampleBlock
+from realistic.core.jit import compiled
+from realistic.renderer import direct_lighting, film, runner
 from realistic.renderer.job import PassSettings
-from realistic.renderer.runner import PassRunner
+from realistic.renderer.runner import PassRunner, compile_pass_loops
 from realistic.renderer.timing import StageClock
 from realistic.scene import packet_loop
 from realistic.scene.embree import compile_trace_loops
 
-loops = packet_loop.closest_loop(), packet_loop.occluded_loop()
+loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), compiled(runner._gather),
+         compiled(film._add_rows), compiled(direct_lighting._visible_sums))
 compile_trace_loops()
+compile_pass_loops()
 print([len(loop.signatures) for loop in loops])
 scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=False)
 PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())(0, SampleBlock(0, 240, 2))
 print([len(loop.signatures) for loop in loops])
 """)
-    assert run.stdout.split("\n")[:2] == ["[1, 1]", "[1, 1]"]
+    assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1]"]
 
 
 def test_other_threads_run_while_a_kernel_first_launch_compiles(tmp_path):

@@ -187,6 +187,13 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     return traced
 
 
+def compile_shading_loops() -> None:
+    """Compile (or load from numba's cache) ``_visible_sums`` for the argument types every launch
+    passes, on no rows: a render does this on a render thread as it starts (``runner.compile_pass_loops``)."""
+    rows = np.empty((0, 3), np.float32)
+    compiled(_visible_sums)(rows, np.empty(0, np.bool_), np.empty(0, np.float32), 1, 0, True, rows)
+
+
 class DirectLighting:
     """Radiance arriving along camera rays, with direct illumination from the scene's area lights."""
 

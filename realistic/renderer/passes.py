@@ -55,7 +55,7 @@ from realistic.renderer.job import (
 )
 from realistic.renderer.memory import check_job_memory
 from realistic.renderer.pass_plan import plan_passes
-from realistic.renderer.runner import PassRunner
+from realistic.renderer.runner import PassRunner, compile_pass_loops
 from realistic.renderer.starburst import starburst
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
@@ -136,10 +136,11 @@ class ThreadPasses:
                                        initializer=affinity.worker_pinner() if self.pin_threads else None)
         self.finished: queue.SimpleQueue[Future] = queue.SimpleQueue()  # futures, as they finish
         # on the render threads while the exit-pupil table is made: the first camera's programs (PoCL
-        # builds them without the GIL), and the embree packet loops (numba, with it); a loop's error
-        # recurs in the first trace, which reports it
+        # builds them without the GIL), the embree packet loops and the pass's own loops (numba, with
+        # it); a loop's error recurs in the first pass, which reports it
         self.ahead = self.pool.submit(_build_ahead, job.settings, job.cameras[0])
         self.pool.submit(compile_trace_loops)
+        self.pool.submit(compile_pass_loops)
 
     def runner(self, frame: int) -> PassRunner:
         """Frame ``frame``'s runner, its camera prepared now. ``render`` submits frames in order, so

@@ -14,6 +14,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.core.jit import compiled
 from realistic.renderer.aov import AovLayout
 from realistic.renderer.backends import backend_for
+from realistic.renderer.direct_lighting import compile_shading_loops
 from realistic.renderer.film import pass_sums
 from realistic.renderer.flare import FlareEstimator, ghost_paths
 from realistic.renderer.footprint import differential_scale
@@ -54,6 +55,16 @@ def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     if not compiled(_gather)(points, np.asarray(rows, np.int64), gathered):
         raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
     return gathered
+
+
+def compile_pass_loops() -> None:
+    """Compile (or load from numba's cache) a pass's own numba loops, the gathers of the kernel's rays,
+    the film's sums and the shading sums, for the argument types a pass passes, on no rows: a render
+    does this on a render thread as it starts (``ThreadPasses.open``), beside its OpenCL builds, not
+    in its first pass. The kernel's rays are strided views of its (columns, n) output."""
+    gather_rows(np.empty((3, 4), np.float32).T[::2], np.empty(0, np.int64))
+    pass_sums(np.empty(0, np.int64), np.empty((0, 3), np.float32), 0, 0, np.empty(0, np.float32))
+    compile_shading_loops()
 
 
 class PassRunner:
