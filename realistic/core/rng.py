@@ -187,14 +187,21 @@ def _light_index(sample: np.ndarray, k: int, light_samples: int) -> np.ndarray:
         return np.asarray(sample, dtype=np.uint32) * np.uint32(light_samples) + np.uint32(k)
 
 
+def _light_sobol_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int,
+                      keys: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """uint32 pair of light sample ``k``: the pixel's Sobol' point at the index sample * light_samples + k
+    shuffled by key dimension keys[0], its two dimensions Owen-scrambled by keys[1] and keys[2]."""
+    shuffle, key1, key2 = hash_keys(pixel, np.uint32(0xFFFFFFFF), keys, seed)
+    index = reverse_bits(owen_scramble_digits(reverse_bits(_light_index(sample, k, light_samples)), shuffle))
+    d1, d2 = sobol2_digits(index)
+    return reverse_bits(owen_scramble_digits(d1, key1)), reverse_bits(owen_scramble_digits(d2, key2))
+
+
 def light_point_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int
                      ) -> tuple[np.ndarray, np.ndarray]:
     """uint32 (u1, u2) of light sample ``k`` of ``light_samples`` per camera sample: the pixel's
     Owen-scrambled Sobol' point at its shuffled index sample * light_samples + k (module notes)."""
-    shuffle, key1, key2 = hash_keys(pixel, np.uint32(0xFFFFFFFF), LIGHT_KEYS[:3], seed)
-    index = reverse_bits(owen_scramble_digits(reverse_bits(_light_index(sample, k, light_samples)), shuffle))
-    d1, d2 = sobol2_digits(index)
-    return reverse_bits(owen_scramble_digits(d1, key1)), reverse_bits(owen_scramble_digits(d2, key2))
+    return _light_sobol_bits(pixel, sample, k, light_samples, seed, (LIGHT_KEYS[0], LIGHT_KEYS[1], LIGHT_KEYS[2]))
 
 
 def light_bsdf_uniforms(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int
@@ -202,11 +209,8 @@ def light_bsdf_uniforms(pixel: np.ndarray, sample: np.ndarray, k: int, light_sam
     """float32 (v1, v2) of the BSDF sample paired with light sample ``k``: the light point's shuffled
     Sobol' index (``light_point_bits``), its two dimensions scrambled with keys of their own
     (``BSDF_KEYS``), so the pixel's BSDF directions are a net as its light points are, independent of them."""
-    shuffle, key1, key2 = hash_keys(pixel, np.uint32(0xFFFFFFFF), (LIGHT_KEYS[0], *BSDF_KEYS), seed)
-    index = reverse_bits(owen_scramble_digits(reverse_bits(_light_index(sample, k, light_samples)), shuffle))
-    d1, d2 = sobol2_digits(index)
-    return (to_unit_float(reverse_bits(owen_scramble_digits(d1, key1))),
-            to_unit_float(reverse_bits(owen_scramble_digits(d2, key2))))
+    v1, v2 = _light_sobol_bits(pixel, sample, k, light_samples, seed, (LIGHT_KEYS[0], BSDF_KEYS[0], BSDF_KEYS[1]))
+    return to_unit_float(v1), to_unit_float(v2)
 
 
 def light_pick_bits(pixel: np.ndarray, sample: np.ndarray, k: int, light_samples: int, seed: int) -> np.ndarray:
