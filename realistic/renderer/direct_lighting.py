@@ -80,10 +80,13 @@ def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     return np.take(a, index, axis=0)
 
 
-#: The directions of a measured material's albedo estimate (``first_hits``): cosine-weighted, at
-#: the centres of a 4 x 4 grid of numbers (pbrt-v4's ``nRhoSamples`` 16, as ``renderer.path``'s).
-_RHO_DIRECTIONS = cosine_hemisphere(np.array([((k % 4 + 0.5) / 4, (k // 4 + 0.5) / 4) for k in range(16)],
-                                             np.float32))
+#: Samples of a first hit's albedo estimate, as pbrt-v4's ``nRhoSamples`` (cpu/integrators.cpp): the
+#: centres of a 4 x 4 grid of (u0, u1), the same at every hit so the estimate is exact for a
+#: Lambertian BSDF and noise-free across a surface (``renderer.path`` samples its BSDFs with them).
+RHO_SAMPLES = 16
+RHO_U = np.array([((k % 4 + 0.5) / 4, (k // 4 + 0.5) / 4) for k in range(RHO_SAMPLES)], np.float32)
+#: The directions of a measured material's albedo estimate (``first_hits``): ``RHO_U`` cosine-weighted.
+_RHO_DIRECTIONS = cosine_hemisphere(RHO_U)
 
 
 def _matte(material: SurfaceMaterial) -> Material:

@@ -49,7 +49,7 @@ from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot, normalise
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.bsdf import BSDF, BSDFSample, HitParameters, ShadingFrame, bsdf_for
-from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _rows
+from realistic.renderer.direct_lighting import RHO_SAMPLES, RHO_U, SHADOW_OFFSET, DirectLighting, _rows
 from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
@@ -65,11 +65,7 @@ BOUNCE_DIMENSION = 4 + 3 * MAX_LIGHT_SAMPLES
 MODES = ("direct", "path")
 #: Bounces after which Russian roulette may end a path (pbrt-v3 ``PathIntegrator``: bounces > 3).
 ROULETTE_AFTER = 3
-#: BSDF samples of a first hit's albedo estimate, as pbrt-v4's ``nRhoSamples`` (cpu/integrators.cpp):
-#: the centres of a 4 x 4 grid of (u0, u1), each with its own lobe choice, the same at every hit so
-#: the estimate is exact for a Lambertian BSDF and noise-free across a surface.
-RHO_SAMPLES = 16
-_RHO_U = np.array([((k % 4 + 0.5) / 4, (k // 4 + 0.5) / 4) for k in range(RHO_SAMPLES)], np.float32)
+#: Each of the albedo estimate's BSDF samples (``direct_lighting.RHO_U``) with its own lobe choice.
 _RHO_LOBE = np.array([((7 * k) % RHO_SAMPLES + 0.5) / RHO_SAMPLES for k in range(RHO_SAMPLES)], np.float32)
 
 
@@ -290,7 +286,7 @@ class PathIntegrator(DirectLighting):
             bsdf = self.bsdf_factory(self._materials[index], SurfaceParameters(len(rows), uv, footprint, None))
             total = np.zeros((len(rows), 3), np.float64)
             for k in range(RHO_SAMPLES):
-                s = bsdf.sample(wo[rows], np.broadcast_to(_RHO_U[k], (len(rows), 2)),
+                s = bsdf.sample(wo[rows], np.broadcast_to(RHO_U[k], (len(rows), 2)),
                                 np.full(len(rows), _RHO_LOBE[k], np.float32))
                 ok = s.valid & (s.pdf > 0)
                 with np.errstate(divide="ignore", invalid="ignore"):
