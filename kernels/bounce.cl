@@ -113,19 +113,19 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     float3 point = load3(origin, r) + t * d;
 
     /* normals (PathIntegrator._outward_normals) */
-    __global const int *gi = geom_ints + BOUNCE_GEOM_WIDTH * g;
+    __global const int *gi = geom_ints + GEOM_INT_WIDTH * g;
     float3 ng = normalise3(load3(ng_in, r));
-    if (gi[BOUNCE_GEOM_SWAPS]) ng = -ng;
+    if (gi[GEOM_INT_SWAPS]) ng = -ng;
     /* the triangle's corners are read only where smooth normals or a texture need them: a random
      * read of a large mesh's faces costs a cache miss */
-    int face = gi[BOUNCE_GEOM_FACE_OFFSET] + prim[r];
+    int face = gi[GEOM_INT_FACE_OFFSET] + prim[r];
     float b1 = hit_u[r], b2 = hit_v[r];
     float b0 = 1.0f - b1 - b2;
     float3 shading = ng;
-    if (gi[BOUNCE_GEOM_SMOOTH]) {
+    if (gi[GEOM_INT_SMOOTH]) {
         int i0 = faces[3 * face], i1 = faces[3 * face + 1], i2 = faces[3 * face + 2];
         float3 n = load3(normals, i0) * b0 + load3(normals, i1) * b1 + load3(normals, i2) * b2;
-        __global const float *nm = geom_floats + BOUNCE_NORMAL_MATRIX_WIDTH * g;
+        __global const float *nm = geom_floats + GEOM_FLOAT_WIDTH * g + GEOM_FLOAT_NORMAL_MATRIX;
         float3 w = (float3)(nm[0] * n.x + nm[1] * n.y + nm[2] * n.z, nm[3] * n.x + nm[4] * n.y + nm[5] * n.z,
                             nm[6] * n.x + nm[7] * n.y + nm[8] * n.z);
         w = normalise3(w);
@@ -144,7 +144,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     float eps = SHADOW_OFFSET * (magnitude3(point) + offset_base);
 
     /* the material: its BSDF row, a Lambertian's albedo times its grid or checker texture */
-    int material = gi[BOUNCE_GEOM_MATERIAL];
+    int material = gi[GEOM_INT_MATERIAL];
     Params p = load_params(params + BSDF_PARAM_WIDTH * material, tables);
     __global const float *mat = materials + BOUNCE_MATERIAL_WIDTH * material;
     int texture = (int)mat[BOUNCE_MATERIAL_TEXTURE];

@@ -26,17 +26,12 @@ from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer import bsdf_kernel
 from realistic.renderer.light_sampler import LightSampler
-from realistic.renderer.shade_kernel import rounded_up_cdf
+from realistic.renderer.shade_kernel import GEOM_FLOATS, GEOM_INTS, rounded_up_cdf
 from realistic.scene.intersect import Hits
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.model import CheckerTexture, GridTexture, Material
 
 KERNEL_FILE = "bounce.cl"
-#: Per instance (embree geometry id): its first face, material, whether its mesh has varying vertex
-#: normals, whether its transform mirrors (0 or 1).
-GEOM = Table("BOUNCE_GEOM", np.int32, (("face_offset", 1), ("material", 1), ("smooth", 1), ("swaps", 1)))
-#: Per instance: the normal matrix (inverse transpose of the linear map), row major.
-NORMAL_MATRIX = Table("BOUNCE_NORMAL_MATRIX", np.float32, (("matrix", 9),))
 #: Per material, beside its ``BSDF_PARAMS`` row: a Lambertian's texture (``TEXTURES``), a grid's or
 #: checker's cells, line bounds (low, high: line_width / 2 and 1 - line_width / 2) and colours (a:
 #: line or even, b: base or odd).
@@ -58,7 +53,7 @@ GOES_ON, SPECULAR, SHADES = 1, 2, 4
 def header(dimension: int, roulette_after: int) -> str:
     """The generated head of the program: ``bsdf.cl``'s defines, every table's here, the texture
     kinds, the mode flags, and the integrator's first bounce dimension and roulette depth."""
-    return (bsdf_kernel.HEADER + "".join(t.defines() for t in (GEOM, NORMAL_MATRIX, MATERIALS, LIGHTS))
+    return (bsdf_kernel.HEADER + "".join(t.defines() for t in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS))
             + constant_defines("BOUNCE_TEXTURE", TEXTURES)
             + "".join(f"#define BOUNCE_{name.upper()} {1 << k}\n" for k, name in enumerate(MODE_FLAGS))
             + f"#define BOUNCE_DIMENSION {dimension}\n#define BOUNCE_ROULETTE_AFTER {roulette_after}\n")
@@ -161,11 +156,12 @@ class BounceKernel:
         textures = np.array([r[1] if r else np.zeros(MATERIALS.width, np.float32) for r in rows]
                             or [np.zeros(MATERIALS.width, np.float32)], np.float32)
         count = len(geom_face_offset)
-        geom = GEOM.pack(max(count, 1))
-        geom[:count] = GEOM.pack(count, face_offset=geom_face_offset, material=geom_material, smooth=geom_smooth,
-                                 swaps=geom_swaps)
-        matrices = NORMAL_MATRIX.pack(max(count, 1))
-        matrices[:count] = np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9)
+        geom = GEOM_INTS.pack(max(count, 1))
+        geom[:count] = GEOM_INTS.pack(count, face_offset=geom_face_offset, material=geom_material,
+                                      smooth=geom_smooth, swaps=geom_swaps)
+        matrices = GEOM_FLOATS.pack(max(count, 1))
+        matrices[:count] = GEOM_FLOATS.pack(
+            count, normal_matrix=np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9))
         self.light_count = len(lights.lights) if lights.has_lights else 0
         table = light_rows(lights) if self.light_count else LIGHTS.pack(1)
         cdf = rounded_up_cdf(lights.cdf) if self.light_count else np.ones(1, np.float32)

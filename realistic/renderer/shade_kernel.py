@@ -55,9 +55,11 @@ from realistic.scene.model import CheckerTexture, GridTexture, Material
 
 KERNEL_FILE = "shade.cl"
 #: The tables ``kernels/shade.cl`` reads, declared once: their ``#define``s head the kernel source.
-#: Per instance (embree geometry id): its first face, material index and smooth flag (0 or 1).
-GEOM_INTS = Table("GEOM_INT", np.int32, (("face_offset", 1), ("material", 1), ("smooth", 1), ("unused", 1)))
-#: Per instance: the normal matrix (inverse transpose of the linear map), row major.
+#: Per instance (embree geometry id): its first face, material index, smooth flag and whether its
+#: transform mirrors (0 or 1; read by the path tracer's ``bounce.cl``, which shares this layout, and
+#: left 0 here: shade.cl faces the geometric normal to the ray instead).
+GEOM_INTS = Table("GEOM_INT", np.int32, (("face_offset", 1), ("material", 1), ("smooth", 1), ("swaps", 1)))
+#: Per instance: the normal matrix (inverse transpose of the linear map), row major (``bounce.cl`` too).
 GEOM_FLOATS = Table("GEOM_FLOAT", np.float32, (("normal_matrix", 9),))
 #: Per material: its kind (``KINDS``), diffuse colour, and a grid's or checker's cells, line bounds
 #: (low, high: line_width / 2 and 1 - line_width / 2) and colours (a: line or even, b: base or odd);
