@@ -67,6 +67,17 @@ def test_text_that_is_not_utf8_says_so(tmp_path, name):
     refused(write(tmp_path, name, content + b"# caf\xe9\n"), "the text is not valid UTF-8")
 
 
+@pytest.mark.parametrize(("name", "content", "fragment"), [
+    ("garbage.stl", b"solid junk\n\x80\x81 not \xfe an \xff stl\n", "nor ASCII STL (not UTF-8 text)"),
+    ("latin1.obj", TRIANGLE.encode() + b"# caf\xe9\n", "the text is not valid UTF-8")])
+def test_a_file_read_as_empty_gets_its_own_diagnosis(tmp_path, monkeypatch, name, content, fragment):
+    """With ``charset_normalizer`` installed (requests brings it), trimesh decodes text that is not UTF-8
+    and garbage STL and reads no triangles instead of failing: the message still says what is wrong
+    with the file (here trimesh is made to read nothing, as it then does)."""
+    monkeypatch.setattr(trimesh, "load", lambda *args, **kwargs: trimesh.Scene())
+    refused(write(tmp_path, name, content), fragment)
+
+
 # 2. Truncated or malformed PLY -------------------------------------------------------------------------
 
 def test_truncated_ply_header(tmp_path):
