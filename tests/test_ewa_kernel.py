@@ -1,6 +1,9 @@
 """``kernels/ewa.cl`` against its numpy reference ``MipMap.ewa`` (itself checked against a scalar
 transcription of pbrt-v3's loop in test_textures.py): same taps, same weights, float32 rounding."""
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 
@@ -86,6 +89,26 @@ def test_magnified_lookups_are_the_references_bit_for_bit(opencl_platform, wrap)
     st, axis0, axis1 = magnified(20000, 4, 64, 4.0)
     device = backend_for("opencl").ewa(mipmap, st, axis0, axis1)
     assert np.array_equal(device, mipmap.ewa(st, axis0, axis1).astype(np.float32))
+
+
+def test_two_threads_lookups_equal_one_threads(opencl_platform):
+    """A render's threads filter through one ``EwaKernel`` at once, each on its own queue and kernel
+    objects: batches of both paths (``ewa_small`` and the long ellipses left to ``ewa``) filtered by
+    two threads started together, each many times, are the colours one thread makes of them."""
+    mipmap = MipMap(np.random.default_rng(5).random((64, 64, 3)), "repeat", max_anisotropy=8.0)
+    kernel = backend_for("opencl").ewa_kernel(mipmap)
+    batches = [ellipses(500 + 37 * k, 20 + k) for k in range(8)]
+    alone = [kernel(*batch) for batch in batches]
+    start = threading.Barrier(2)
+
+    def filter_all(order: list[int]) -> list[tuple[int, np.ndarray]]:
+        start.wait()
+        return [(k, kernel(*batches[k])) for _ in range(3) for k in order]
+
+    with ThreadPoolExecutor(2) as pool:
+        results = list(pool.map(filter_all, [list(range(8)), list(range(7, -1, -1))]))
+    for k, colours in (pair for result in results for pair in result):
+        assert np.array_equal(colours, alone[k])
 
 
 def test_the_small_lookups_vectorise(tmp_path):

@@ -16,7 +16,9 @@ picks; numpy spent three times as long on those as on the lookups). Its referenc
 ``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
 
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
-(``realistic.renderer.backends``), keyed by the map: the map itself stays plain data.
+(``realistic.renderer.backends``), keyed by the map: the map itself stays plain data. Each thread
+launches on its own queue with its own kernel objects (``_ThreadKernels``: a kernel object's
+arguments are its state), so a render's threads filter side by side, not one at a time.
 """
 
 from __future__ import annotations
@@ -64,8 +66,17 @@ def hit_mapping(texture: ImageTexture, diffuse: np.ndarray | tuple[float, float,
                         t_shift=shift[1], diffuse=np.asarray(diffuse, np.float32))[0]
 
 
+class _ThreadKernels:
+    """One thread's command queue and kernel objects over an ``EwaKernel``'s program."""
+
+    def __init__(self, device: Device, program: cl.Program):
+        self.queue = device.queue()
+        self.ewa, self.small, self.hits = (cl.Kernel(program, name) for name in ("ewa", "ewa_small", "hit_lookups"))
+
+
 class EwaKernel:
-    """One MIP map's texels on a device, and EWA lookups over them (thread-safe: one lock)."""
+    """One MIP map's texels on a device, and EWA lookups over them (thread-safe: a queue and kernel
+    objects per calling thread)."""
 
     def __init__(self, mipmap: MipMap, device: Device | None = None):
         """``device``: where the texels go (None: ``Device.for_spec()``, the default device)."""
@@ -75,10 +86,7 @@ class EwaKernel:
         device = device or Device.for_spec()
         self.device = device
         self.context = device.context
-        self.queue = device.queue()
-        program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
-        self._kernel, self._small_kernel = cl.Kernel(program, "ewa"), cl.Kernel(program, "ewa_small")
-        self._hits_kernel = cl.Kernel(program, "hit_lookups")
+        self._program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
         # the texels wrapped, not copied, so they are not held twice
         # the map's kernel arguments: its buffers, then its scalars
         self._map: list[cl.Buffer | np.generic] = [
@@ -86,7 +94,14 @@ class EwaKernel:
             *(device.wrapped_buffer(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)),
             np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
             np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float64)]
-        self._lock = threading.Lock()
+        self._local = threading.local()
+
+    def _thread(self) -> _ThreadKernels:
+        """The calling thread's queue and kernels, made on its first call."""
+        kernels: _ThreadKernels | None = getattr(self._local, "kernels", None)
+        if kernels is None:
+            kernels = self._local.kernels = _ThreadKernels(self.device, self._program)
+        return kernels
 
     def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
         """Filtered colours (N, 3) float32 at (s, t) (N, 2) over ellipses with axes (N, 2) each."""
@@ -108,22 +123,21 @@ class EwaKernel:
         inputs = [self.device.wrapped_buffer(lookups, np.float64)]
         written = [self.device.host_buffer(pending, cl.mem_flags.WRITE_ONLY),
                    self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
-        with self._lock:
-            self._small_kernel(self.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
-                               *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written)
-            # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernel
-            cl.enqueue_copy(self.queue, pending, written[0], is_blocking=False)
-            cl.enqueue_copy(self.queue, out, written[1])
+        kernels = self._thread()
+        kernels.small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
+                      *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written)
+        # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernel
+        cl.enqueue_copy(kernels.queue, pending, written[0], is_blocking=False)
+        cl.enqueue_copy(kernels.queue, out, written[1])
         rest = np.flatnonzero(pending)
         if len(rest):
             left = np.take(lookups, rest, axis=0)
             columns = [self.device.copied_buffer(left[:, k:k + 2], np.float64) for k in (0, 2, 4)]
             result = self.device.output_buffer(len(rest) * 3 * 4)
             values = np.empty((len(rest), 3), np.float32)
-            with self._lock:
-                self._kernel(self.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
-                             np.int32(len(rest)), result)
-                cl.enqueue_copy(self.queue, values, result)
+            kernels.ewa(kernels.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
+                        np.int32(len(rest)), result)
+            cl.enqueue_copy(kernels.queue, values, result)
             out[rest] = values * scale
 
     def at_hits(self, surfaces: SurfaceTables, material: int, mapping: np.ndarray, direction: np.ndarray,
@@ -148,10 +162,10 @@ class EwaKernel:
                                    (geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
         lookups = np.empty((len(rows), 6), np.float64)
         written = self.device.host_buffer(lookups, cl.mem_flags.WRITE_ONLY)
-        with self._lock:
-            self._hits_kernel(self.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,), *surfaces.buffers, *inputs,
-                              np.int32(len(rows)), np.int32(1), written)
-            cl.enqueue_copy(self.queue, lookups, written)
+        kernels = self._thread()
+        kernels.hits(kernels.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,), *surfaces.buffers, *inputs,
+                     np.int32(len(rows)), np.int32(1), written)
+        cl.enqueue_copy(kernels.queue, lookups, written)
         diffuse = MAPPING.offset("diffuse")
         albedo = np.empty((len(rows), 3), np.float32)
         self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo)
