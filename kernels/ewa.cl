@@ -35,16 +35,17 @@ inline double3 texel(__global const float *texels, __global const long *base, __
     return (double3)(p[0], p[1], p[2]) * inside;
 }
 
-inline double3 bilinear0(__global const float *texels, __global const long *base, __global const long *width,
-                         __global const long *height, int wrap, double s, double t) {
-    double x = s * width[0] - 0.5, y = t * height[0] - 0.5;
+/* Bilinear interpolation of texel centres at (s, t) on `level` (MipMap.bilinear). */
+inline double3 bilinear(__global const float *texels, __global const long *base, __global const long *width,
+                        __global const long *height, int wrap, int level, double s, double t) {
+    double x = s * width[level] - 0.5, y = t * height[level] - 0.5;
     double x0 = __builtin_floor(x), y0 = __builtin_floor(y);
     double fx = x - x0, fy = y - y0;
     int ix = (int)x0, iy = (int)y0;
-    double3 top = texel(texels, base, width, height, wrap, 0, ix, iy) * (1 - fx)
-                + texel(texels, base, width, height, wrap, 0, ix + 1, iy) * fx;
-    double3 bottom = texel(texels, base, width, height, wrap, 0, ix, iy + 1) * (1 - fx)
-                   + texel(texels, base, width, height, wrap, 0, ix + 1, iy + 1) * fx;
+    double3 top = texel(texels, base, width, height, wrap, level, ix, iy) * (1 - fx)
+                + texel(texels, base, width, height, wrap, level, ix + 1, iy) * fx;
+    double3 bottom = texel(texels, base, width, height, wrap, level, ix, iy + 1) * (1 - fx)
+                   + texel(texels, base, width, height, wrap, level, ix + 1, iy + 1) * fx;
     return top * (1 - fy) + bottom * fy;
 }
 
@@ -126,7 +127,7 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
         minor *= stretch;
         minor_len *= stretch;
     }
-    if (minor_len == 0) return bilinear0(texels, base, width, height, wrap, p.x, p.y);
+    if (minor_len == 0) return bilinear(texels, base, width, height, wrap, 0, p.x, p.y);
     /* lod is clamped to 0 where the minor axis is at most 2^(1 - levels) (a texel of the finest level
      * along its longer side): log2 is exact at powers of two and monotone, so levels - 1 + log2 of such a
      * length is at most 0, and the library call is skipped */
@@ -392,4 +393,27 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
         AT(out, 3, i, 2) = blue_scale * (float)(sum_b / norm);
     }
     if (i < count) pending[i] = !small;
+}
+
+/* ------------------------------------------------------------------ bilinear lookups
+ * pbrt-v4's "bilinear" image-texture filter (src/pbrt/util/mipmap.cpp, MIPMap::Filter): the filter
+ * width twice the largest component of either axis (textures._image), one bilinear lookup at level
+ * floor(levels - 1 + log2(width)) clamped to the levels (MipMap.bilinear_at_width, the numpy
+ * reference: the same float64 operations, so the same bits), times (red, green, blue)_scale as
+ * ewa_small writes it. Lookups are ewa_small's rows of 6 doubles: s, t, axis0, axis1. */
+__kernel void bilinear_lookups(__global const float *texels, __global const long *base, __global const long *width,
+                               __global const long *height, const int wrap, const int levels,
+                               __global const double *lookups, const float red_scale, const float green_scale,
+                               const float blue_scale, const int count, const int unit, __global float *out) {
+    int i = get_global_id(0);
+    if (i >= count) return;
+    double filter_width = 2 * __builtin_fmax(
+        __builtin_fmax(__builtin_fabs(AT(lookups, 6, i, 2)), __builtin_fabs(AT(lookups, 6, i, 3))),
+        __builtin_fmax(__builtin_fabs(AT(lookups, 6, i, 4)), __builtin_fabs(AT(lookups, 6, i, 5))));
+    double level = __builtin_floor((double)(levels - 1) + log2(__builtin_fmax(filter_width, 1e-8)));
+    int at = (int)__builtin_fmin(__builtin_fmax(level, 0.0), (double)(levels - 1));
+    double3 value = bilinear(texels, base, width, height, wrap, at, AT(lookups, 6, i, 0), AT(lookups, 6, i, 1));
+    AT(out, 3, i, 0) = red_scale * (float)value.x;
+    AT(out, 3, i, 1) = green_scale * (float)value.y;
+    AT(out, 3, i, 2) = blue_scale * (float)value.z;
 }

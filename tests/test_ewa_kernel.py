@@ -91,6 +91,24 @@ def test_magnified_lookups_are_the_references_bit_for_bit(opencl_platform, wrap)
     assert np.array_equal(device, mipmap.ewa(st, axis0, axis1).astype(np.float32))
 
 
+@pytest.mark.parametrize("wrap", ["repeat", "black", "clamp"])
+@pytest.mark.parametrize("shape", [(64, 64), (48, 80)])
+def test_bilinear_lookups_are_pbrt_v4s_bit_for_bit(opencl_platform, wrap, shape):
+    """``bilinear_lookups`` is pbrt-v4's bilinear filter (mipmap.cpp, MIPMap::Filter) as
+    ``MipMap.bilinear_at_width`` computes it in float64, with the width ``textures._image`` takes
+    (twice the largest axis component): each colour the reference's rounded to float32, on every
+    level (the footprints run from under a texel of level 0 to wider than the image)."""
+    mipmap = MipMap(np.random.default_rng(4).random((*shape, 3)), wrap)
+    st, axis0, axis1 = ellipses(20000, 13)
+    lengths = 10.0 ** np.random.default_rng(14).uniform(-4, 0.7, (len(st), 1))  # log-uniform: every level
+    axis0, axis1 = axis0 * lengths / 0.01, axis1 * lengths / 0.01
+    width = 2 * np.maximum(np.abs(axis0).max(axis=1), np.abs(axis1).max(axis=1))
+    levels = np.clip(np.floor(mipmap.level_count - 1 + np.log2(np.maximum(width, 1e-8))), 0, mipmap.level_count - 1)
+    assert set(levels) == set(range(mipmap.level_count))
+    device = backend_for("opencl").ewa_kernel(mipmap)(st, axis0, axis1, "bilinear")
+    assert np.array_equal(device, mipmap.bilinear_at_width(st, width).astype(np.float32))
+
+
 def test_two_threads_lookups_equal_one_threads(opencl_platform):
     """A render's threads filter through one ``EwaKernel`` at once, each on its own queue and kernel
     objects: batches of both paths (``ewa_small`` and the long ellipses left to ``ewa``) filtered by

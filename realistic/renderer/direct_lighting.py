@@ -302,22 +302,23 @@ class DirectLighting:
         return kernel
 
     def _build_device_textures(self, backend: OpenCLBackend, host_albedo: np.ndarray) -> None:
-        """EWA image textures filtered over pixel footprints: their albedo is computed from the hit
-        records on the device (``EwaKernel.at_hits``), the rest of the host's materials in numpy."""
+        """Image textures filtered over pixel footprints with EWA or pbrt-v4's bilinear filter
+        (``ewa_kernel.DEVICE_FILTERS``): their albedo is computed from the hit records on the device
+        (``EwaKernel.at_hits``), the rest of the host's materials in numpy."""
         self._device_textures = []
         self._numpy_albedo = host_albedo.copy()  # materials left to ``_albedo``
         if self.pixel_spread_radians <= 0:
             return
-        from realistic.scene.ewa_kernel import hit_mapping
+        from realistic.scene.ewa_kernel import DEVICE_FILTERS, hit_mapping
 
         for index, material in enumerate(self._materials):
             if not isinstance(material, Material):
                 continue
             texture = material.texture
-            if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter == "ewa":
+            if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter in DEVICE_FILTERS:
                 ewa = backend.ewa_kernel(texture.mipmap)
                 self._device_textures.append((index, ewa, hit_mapping(texture, material.diffuse,
-                                                                      self.pixel_spread_radians)))
+                                                                      self.pixel_spread_radians), texture.filter))
                 self._numpy_albedo[index] = False
         if self._device_textures:
             self._surface_tables = backend.surface_tables(self._faces, self._vertices, self._uv,
@@ -546,11 +547,11 @@ class DirectLighting:
 
     def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits: Hits) -> np.ndarray:
         """Albedo (N, 3) of the surface hits whose material the shading kernel leaves to the host
-        (image textures): EWA-filtered ones on the device (``_build_device_textures``), the others by
-        ``_albedo``; other rows are zero, unread by the kernel."""
+        (image textures): EWA- and bilinear-filtered ones on the device (``_build_device_textures``),
+        the others by ``_albedo``; other rows are zero, unread by the kernel."""
         albedo = np.zeros((len(origin), 3), np.float32)
-        for index, ewa, mapping in self._device_textures:
-            ewa.at_hits(self._surface_tables, index, mapping, direction, hits, albedo)
+        for index, ewa, mapping, texture_filter in self._device_textures:
+            ewa.at_hits(self._surface_tables, index, mapping, direction, hits, albedo, texture_filter)
         if not self._numpy_albedo.any():
             return albedo
         surface = (hits.geom >= 0) & (hits.geom < self.instance_count)

@@ -15,6 +15,10 @@ too (``hit_lookups``, vectorised like ``ewa_small``, on the rows of the texture'
 picks; numpy spent three times as long on those as on the lookups). Its reference is
 ``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
 
+``bilinear_lookups`` filters the same lookups with pbrt-v4's "bilinear" filter (one bilinear lookup
+at the level the footprint's width picks: ``MipMap.bilinear_at_width``, bit for bit), pbrt-v4's
+default and the filter Mitsuba's ``bitmap`` uses; ``DEVICE_FILTERS`` names the filters done here.
+
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
 (``realistic.renderer.backends``), keyed by the map: the map itself stays plain data. Each thread
 launches on its own queue with its own kernel objects (``_ThreadKernels``: a kernel object's
@@ -41,6 +45,8 @@ KERNEL_FILE = "ewa.cl"
 #: (``textures.st_mapping``), and the material's diffuse colour.
 MAPPING = Table("MAPPING", np.float64, (("spread", 1), ("st_scale", 2), ("st_offset", 2), ("t_flip", 1),
                                         ("t_shift", 1), ("diffuse", 3)))
+#: The image-texture filters (``validation.TEXTURE_FILTERS``) an ``EwaKernel`` runs on the device.
+DEVICE_FILTERS = ("ewa", "bilinear")
 #: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size.
 HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 
@@ -71,12 +77,13 @@ class _ThreadKernels:
 
     def __init__(self, device: Device, program: cl.Program):
         self.queue = device.queue()
-        self.ewa, self.small, self.hits = (cl.Kernel(program, name) for name in ("ewa", "ewa_small", "hit_lookups"))
+        self.ewa, self.small, self.hits, self.bilinear = (
+            cl.Kernel(program, name) for name in ("ewa", "ewa_small", "hit_lookups", "bilinear_lookups"))
 
 
 class EwaKernel:
-    """One MIP map's texels on a device, and EWA lookups over them (thread-safe: a queue and kernel
-    objects per calling thread)."""
+    """One MIP map's texels on a device, and EWA or bilinear lookups over them (thread-safe: a queue
+    and kernel objects per calling thread)."""
 
     def __init__(self, mipmap: MipMap, device: Device | None = None):
         """``device``: where the texels go (None: ``Device.for_spec()``, the default device)."""
@@ -103,21 +110,27 @@ class EwaKernel:
             kernels = self._local.kernels = _ThreadKernels(self.device, self._program)
         return kernels
 
-    def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
-        """Filtered colours (N, 3) float32 at (s, t) (N, 2) over ellipses with axes (N, 2) each."""
+    def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray, texture_filter: str = "ewa") -> np.ndarray:
+        """Colours (N, 3) float32 at (s, t) (N, 2) filtered (``DEVICE_FILTERS``) over footprints with
+        axes (N, 2) each."""
         lookups = np.empty((len(st), 6), np.float64)
         for column, values in enumerate((st, axis0, axis1)):
             lookups[:, 2 * column:2 * column + 2] = values
         out = np.empty((len(st), 3), np.float32)
-        self._filter(lookups, np.ones(3, np.float32), out)
+        self._filter(lookups, np.ones(3, np.float32), out, texture_filter)
         return out
 
-    def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray) -> None:
+    def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray, texture_filter: str) -> None:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
-        lookups (s, t, axis0, axis1) (N, 6) float64: ``ewa_small`` over all, then ``ewa`` over the
-        rows it leaves."""
+        lookups (s, t, axis0, axis1) (N, 6) float64: EWA (``ewa_small`` over all, then ``ewa`` over
+        the rows it leaves) or ``bilinear_lookups``."""
+        if texture_filter not in DEVICE_FILTERS:
+            raise ValueError(f"the device filters with {' or '.join(DEVICE_FILTERS)}, not {texture_filter!r}")
         count = len(lookups)
         if count == 0:
+            return
+        if texture_filter == "bilinear":
+            self._bilinear(lookups, scale, out)
             return
         pending = np.empty(count, np.uint8)
         inputs = [self.device.wrapped_buffer(lookups, np.float64)]
@@ -140,12 +153,22 @@ class EwaKernel:
             cl.enqueue_copy(kernels.queue, values, result)
             out[rest] = values * scale
 
+    def _bilinear(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray) -> None:
+        """``_filter``'s bilinear lookups, written into ``out``'s own memory."""
+        kernels = self._thread()
+        written = self.device.host_buffer(out, cl.mem_flags.WRITE_ONLY)
+        kernels.bilinear(kernels.queue, (whole_groups(len(lookups)),), (LOCAL_SIZE,), *self._map[:6],
+                         self.device.wrapped_buffer(lookups, np.float64),
+                         *(np.float32(v) for v in scale), np.int32(len(lookups)), np.int32(1), written)
+        cl.enqueue_copy(kernels.queue, out, written)  # into its own host pointer: orders the read after the kernel
+
     def at_hits(self, surfaces: SurfaceTables, material: int, mapping: np.ndarray, direction: np.ndarray,
-                hits: Hits, out: np.ndarray) -> None:
+                hits: Hits, out: np.ndarray, texture_filter: str = "ewa") -> None:
         """Write into ``out`` (N, 3) float32 the albedo of the rays (unit ``direction`` (N, 3)) whose
         closest hit (``scene.intersect.Hits``) is on an instance of material index ``material``, whose
-        image texture this map is (``hit_mapping``); other rows are left as they are. numpy picks those
-        rows, ``hit_lookups`` makes their lookups and ``_filter`` filters them, times the diffuse colour."""
+        image texture this map is (``hit_mapping``), filtered with ``texture_filter`` (``DEVICE_FILTERS``); other
+        rows are left as they are. numpy picks those rows, ``hit_lookups`` makes their lookups and
+        ``_filter`` filters them, times the diffuse colour."""
         count = len(direction)
         if count == 0:
             return
@@ -168,5 +191,5 @@ class EwaKernel:
         cl.enqueue_copy(kernels.queue, lookups, written)
         diffuse = MAPPING.offset("diffuse")
         albedo = np.empty((len(rows), 3), np.float32)
-        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo)
+        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo, texture_filter)
         out[rows] = albedo
