@@ -145,6 +145,19 @@ def test_the_small_lookups_vectorise(tmp_path):
     assert remarks.count("vectorized loop (") >= 2
 
 
+def test_the_small_bilinear_lookups_vectorise(tmp_path):
+    """``bilinear_small`` (level-0 lookups: no library log2) is widened by PoCL's vectoriser as
+    ``ewa_small`` is; lookups it takes alone launch nothing else, so every remark is its."""
+    script = (
+        "import numpy as np\n"
+        "from realistic.renderer.backends import backend_for\n"
+        "from realistic.scene.mipmap import MipMap\n"
+        "kernel = backend_for('opencl').ewa_kernel(MipMap(np.random.default_rng(0).random((32, 32, 3))))\n"
+        "kernel(np.full((300, 2), 0.3), np.full((300, 2), 1e-3), np.full((300, 2), -1e-3), 'bilinear')\n")
+    remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
+    assert remarks.count("vectorized loop (") >= 2
+
+
 def test_the_kernel_refuses_a_map_whose_sides_are_not_powers_of_two(opencl_platform):
     """The kernel wraps a repeating texture with x & (w - 1): MipMap always resamples to powers of two,
     and a map that did not would be refused rather than read at the wrong texels."""

@@ -15,9 +15,10 @@ too (``hit_lookups``, vectorised like ``ewa_small``, on the rows of the texture'
 picks; numpy spent three times as long on those as on the lookups). Its reference is
 ``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
 
-``bilinear_lookups`` filters the same lookups with pbrt-v4's "bilinear" filter (one bilinear lookup
-at the level the footprint's width picks: ``MipMap.bilinear_at_width``, bit for bit), pbrt-v4's
-default and the filter Mitsuba's ``bitmap`` uses; ``DEVICE_FILTERS`` names the filters done here.
+``bilinear_small`` and ``bilinear`` filter the same lookups with pbrt-v4's "bilinear" filter (one
+bilinear lookup at the level the footprint's width picks: ``MipMap.bilinear_at_width``, bit for bit),
+pbrt-v4's default and the filter Mitsuba's ``bitmap`` uses, split as EWA's are (level 0 vectorised,
+the others scalar); ``DEVICE_FILTERS`` names the filters done here.
 
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
 (``realistic.renderer.backends``), keyed by the map: the map itself stays plain data. Each thread
@@ -77,8 +78,10 @@ class _ThreadKernels:
 
     def __init__(self, device: Device, program: cl.Program):
         self.queue = device.queue()
-        self.ewa, self.small, self.hits, self.bilinear = (
-            cl.Kernel(program, name) for name in ("ewa", "ewa_small", "hit_lookups", "bilinear_lookups"))
+        self.hits = cl.Kernel(program, "hit_lookups")
+        #: per filter, its kernel for the small lookups and the one for the lookups it leaves pending
+        self.filters = {name: (cl.Kernel(program, f"{name}_small"), cl.Kernel(program, name))
+                        for name in DEVICE_FILTERS}
 
 
 class EwaKernel:
@@ -122,23 +125,21 @@ class EwaKernel:
 
     def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray, texture_filter: str) -> None:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
-        lookups (s, t, axis0, axis1) (N, 6) float64: EWA (``ewa_small`` over all, then ``ewa`` over
-        the rows it leaves) or ``bilinear_lookups``."""
+        lookups (s, t, axis0, axis1) (N, 6) float64: the filter's small kernel (``ewa_small``,
+        ``bilinear_small``) over all, then its other kernel (``ewa``, ``bilinear``) over the rows it leaves."""
         if texture_filter not in DEVICE_FILTERS:
             raise ValueError(f"the device filters with {' or '.join(DEVICE_FILTERS)}, not {texture_filter!r}")
         count = len(lookups)
         if count == 0:
-            return
-        if texture_filter == "bilinear":
-            self._bilinear(lookups, scale, out)
             return
         pending = np.empty(count, np.uint8)
         inputs = [self.device.wrapped_buffer(lookups, np.float64)]
         written = [self.device.host_buffer(pending, cl.mem_flags.WRITE_ONLY),
                    self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
         kernels = self._thread()
-        kernels.small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
-                      *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written)
+        small, other = kernels.filters[texture_filter]
+        small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
+              *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written)
         # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernel
         cl.enqueue_copy(kernels.queue, pending, written[0], is_blocking=False)
         cl.enqueue_copy(kernels.queue, out, written[1])
@@ -148,27 +149,18 @@ class EwaKernel:
             columns = [self.device.copied_buffer(left[:, k:k + 2], np.float64) for k in (0, 2, 4)]
             result = self.device.output_buffer(len(rest) * 3 * 4)
             values = np.empty((len(rest), 3), np.float32)
-            kernels.ewa(kernels.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
-                        np.int32(len(rest)), result)
+            other(kernels.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
+                  np.int32(len(rest)), result)
             cl.enqueue_copy(kernels.queue, values, result)
             out[rest] = values * scale
-
-    def _bilinear(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray) -> None:
-        """``_filter``'s bilinear lookups, written into ``out``'s own memory."""
-        kernels = self._thread()
-        written = self.device.host_buffer(out, cl.mem_flags.WRITE_ONLY)
-        kernels.bilinear(kernels.queue, (whole_groups(len(lookups)),), (LOCAL_SIZE,), *self._map[:6],
-                         self.device.wrapped_buffer(lookups, np.float64),
-                         *(np.float32(v) for v in scale), np.int32(len(lookups)), np.int32(1), written)
-        cl.enqueue_copy(kernels.queue, out, written)  # into its own host pointer: orders the read after the kernel
 
     def at_hits(self, surfaces: SurfaceTables, material: int, mapping: np.ndarray, direction: np.ndarray,
                 hits: Hits, out: np.ndarray, texture_filter: str = "ewa") -> None:
         """Write into ``out`` (N, 3) float32 the albedo of the rays (unit ``direction`` (N, 3)) whose
         closest hit (``scene.intersect.Hits``) is on an instance of material index ``material``, whose
-        image texture this map is (``hit_mapping``), filtered with ``texture_filter`` (``DEVICE_FILTERS``); other
-        rows are left as they are. numpy picks those rows, ``hit_lookups`` makes their lookups and
-        ``_filter`` filters them, times the diffuse colour."""
+        image texture this map is (``hit_mapping``), filtered with ``texture_filter``
+        (``DEVICE_FILTERS``); other rows are left as they are. numpy picks those rows, ``hit_lookups``
+        makes their lookups and ``_filter`` filters them, times the diffuse colour."""
         count = len(direction)
         if count == 0:
             return
