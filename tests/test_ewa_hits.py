@@ -11,10 +11,11 @@ import pytest
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.jit import compiled
 from realistic.core.transforms import rotate, scale, translate
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
-from realistic.renderer.direct_lighting import DirectLighting, _facing
+from realistic.renderer.direct_lighting import DirectLighting, _facing, _material_rows, _place_rows
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.shapes import cone, quad, sphere
@@ -119,19 +120,26 @@ def test_only_ewa_and_bilinear_textures_with_footprints_go_to_the_device():
     assert point_sampled._device_textures == []  # no footprint: level 0 bilinearly, in numpy
 
 
-def test_rows_of_other_materials_are_left_alone():
+def test_each_textures_rows_are_the_hits_on_its_material():
+    """``_host_albedo`` gives each device texture the rays whose hits are on its material's instances
+    (``_material_rows``: one numba pass, in order) and places the colours ``at_hits`` returns in
+    those rows (``_place_rows``); at_hits refuses rows it would have to convert."""
     scene, eye, target = instanced_scene()
     intersector, origin, direction, hits, spread = hits_of(scene, eye, target, 32, 24)
     device = DirectLighting(scene, intersector, 1, 5, spread, backend="opencl")
-    index, ewa, mapping, _ = device._device_textures[0]
-    out = np.full((len(direction), 3), -7.0, F32)
-    ewa.at_hits(device._surface_tables, index, mapping, direction, hits, out)
     surface = (hits.geom >= 0) & (hits.geom < device.instance_count)
-    mine = surface & (device._geom_material[np.where(surface, hits.geom, 0)] == index)
-    assert mine.any() and (~mine).any()
-    assert np.all(out[~mine] == -7.0) and np.all(out[mine] >= 0.0)
-    with pytest.raises(ValueError, match="float32"):
-        ewa.at_hits(device._surface_tables, index, mapping, direction, hits, out.astype(np.float64))
+    material = device._geom_material[np.where(surface, hits.geom, 0)]
+    rows = np.empty(len(direction), np.int32)
+    for index, ewa, mapping, texture_filter in device._device_textures:
+        mine = np.flatnonzero(surface & (material == index))
+        count = compiled(_material_rows)(hits.geom, device._geom_material, index, rows)
+        assert count > 0 and np.array_equal(rows[:count], mine)
+        out = np.full((len(direction), 3), -7.0, F32)
+        colours = ewa.at_hits(device._surface_tables, rows[:count], mapping, direction, hits, texture_filter)
+        compiled(_place_rows)(colours, rows[:count], out)
+        assert np.array_equal(out[mine], colours) and np.all(np.delete(out, mine, axis=0) == -7.0)
+    with pytest.raises(ValueError, match="int32"):
+        ewa.at_hits(device._surface_tables, mine, mapping, direction, hits)
 
 
 def test_the_hit_lookups_vectorise(tmp_path):

@@ -190,11 +190,36 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     return traced
 
 
+def _material_rows(geom: np.ndarray, geom_material: np.ndarray, material: int, rows: np.ndarray) -> int:
+    """Write into ``rows`` (int32, at least len(geom)) in order the rays whose closest hit is on an
+    instance (embree geometry id 0 .. len(geom_material) - 1) of material index ``material``, and
+    return how many: a numba loop (``core.jit``), one pass where numpy made six over every ray."""
+    count = 0
+    for i in range(len(geom)):
+        g = geom[i]
+        if 0 <= g < len(geom_material) and geom_material[g] == material:
+            rows[count] = i
+            count += 1
+    return count
+
+
+def _place_rows(values: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
+    """out[rows] = values (rows of 3 float32), a numba loop (``core.jit``): numpy's fancy-index
+    store cost as much as the pick."""
+    for i in range(len(rows)):
+        for c in range(3):
+            out[rows[i], c] = values[i, c]
+
+
 def compile_shading_loops() -> None:
-    """Compile (or load from numba's cache) ``_visible_sums`` for the argument types every launch
-    passes, on no rows: a render does this on a render thread as it starts (``runner.compile_pass_loops``)."""
+    """Compile (or load from numba's cache) ``_visible_sums``, ``_material_rows`` and ``_place_rows``
+    for the argument types every launch passes, on no rows: a render does this on a render thread as
+    it starts (``runner.compile_pass_loops``)."""
     rows = np.empty((0, 3), np.float32)
     compiled(_visible_sums)(rows, np.empty(0, np.bool_), np.empty(0, np.float32), 1, 0, True, rows)
+    picked = np.empty(0, np.int32)
+    compiled(_material_rows)(picked, np.empty(0, np.int64), 0, picked)
+    compiled(_place_rows)(rows, picked, rows)
 
 
 class DirectLighting:
@@ -322,8 +347,7 @@ class DirectLighting:
                 self._numpy_albedo[index] = False
         if self._device_textures:
             self._surface_tables = backend.surface_tables(self._faces, self._vertices, self._uv,
-                                                          self._geom_face_offset, self._geom_material,
-                                                          self._geom_linear.reshape(-1, 9))
+                                                          self._geom_face_offset, self._geom_linear.reshape(-1, 9))
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
@@ -550,8 +574,12 @@ class DirectLighting:
         (image textures): EWA- and bilinear-filtered ones on the device (``_build_device_textures``),
         the others by ``_albedo``; other rows are zero, unread by the kernel."""
         albedo = np.zeros((len(origin), 3), np.float32)
+        if self._device_textures:
+            picks = np.empty(len(origin), np.int32)
         for index, ewa, mapping, texture_filter in self._device_textures:
-            ewa.at_hits(self._surface_tables, index, mapping, direction, hits, albedo, texture_filter)
+            picked = picks[:compiled(_material_rows)(hits.geom, self._geom_material, index, picks)]
+            compiled(_place_rows)(ewa.at_hits(self._surface_tables, picked, mapping, direction, hits, texture_filter),
+                                  picked, albedo)
         if not self._numpy_albedo.any():
             return albedo
         surface = (hits.geom >= 0) & (hits.geom < self.instance_count)

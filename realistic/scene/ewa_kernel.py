@@ -11,8 +11,8 @@ its ellipse, runs scalar) and marks the others, which ``ewa`` does; the same bit
 
 ``SurfaceTables`` and ``EwaKernel.at_hits`` go one step further for the renderer: from embree's hit
 records to the albedo, with the uv, the pixel footprint and the st mapping computed on the device
-too (``hit_lookups``, vectorised like ``ewa_small``, on the rows of the texture's material that numpy
-picks; numpy spent three times as long on those as on the lookups). Its reference is
+too (``hit_lookups``, vectorised like ``ewa_small``, on the rows of the texture's material that the
+renderer picks; numpy spent three times as long on those as on the lookups). Its reference is
 ``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
 
 ``bilinear_small`` and ``bilinear`` filter the same lookups with pbrt-v4's "bilinear" filter (one
@@ -55,11 +55,10 @@ HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 class SurfaceTables:
     """A scene's triangles as ``hit_lookups`` reads them, wrapped once per render: faces (F, 3) of
     concatenated vertex indices, float64 vertices (V, 3) in mesh space, float32 uvs (V, 2), and per
-    instance (embree geometry id) its first face, material index and linear map (3 x 3)."""
+    instance (embree geometry id) its first face and linear map (3 x 3)."""
 
     def __init__(self, device: Device, faces: np.ndarray, vertices: np.ndarray, uv: np.ndarray,
-                 geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_linear: np.ndarray):
-        self.geom_material = np.asarray(geom_material)  # the host picks each material's rows
+                 geom_face_offset: np.ndarray, geom_linear: np.ndarray):
         self.buffers = [device.wrapped_buffer(a, dtype) for a, dtype in
                         ((faces, np.int32), (vertices, np.float64), (uv, np.float32), (geom_face_offset, np.int32),
                          (geom_linear, np.float64))]
@@ -154,27 +153,22 @@ class EwaKernel:
             cl.enqueue_copy(kernels.queue, values, result)
             out[rest] = values * scale
 
-    def at_hits(self, surfaces: SurfaceTables, material: int, mapping: np.ndarray, direction: np.ndarray,
-                hits: Hits, out: np.ndarray, texture_filter: str = "ewa") -> None:
-        """Write into ``out`` (N, 3) float32 the albedo of the rays (unit ``direction`` (N, 3)) whose
-        closest hit (``scene.intersect.Hits``) is on an instance of material index ``material``, whose
-        image texture this map is (``hit_mapping``), filtered with ``texture_filter``
-        (``DEVICE_FILTERS``); other rows are left as they are. numpy picks those rows, ``hit_lookups``
-        makes their lookups and ``_filter`` filters them, times the diffuse colour."""
-        count = len(direction)
-        if count == 0:
-            return
-        if out.dtype != np.float32 or not out.flags.c_contiguous or out.shape != (count, 3):
-            raise ValueError(f"at_hits writes a C-contiguous ({count}, 3) float32 array, not {out.dtype} {out.shape}")
-        geom = hits.geom
-        surface = (geom >= 0) & (geom < len(surfaces.geom_material))
-        rows = np.flatnonzero(surface & (surfaces.geom_material[np.where(surface, geom, 0)] == material))
+    def at_hits(self, surfaces: SurfaceTables, rows: np.ndarray, mapping: np.ndarray, direction: np.ndarray,
+                hits: Hits, texture_filter: str = "ewa") -> np.ndarray:
+        """The albedo (len(rows), 3) float32 of the rays ``rows`` (int32) among those with unit
+        ``direction`` (N, 3), whose closest hits (``scene.intersect.Hits``) are on instances of a
+        material whose image texture this map is (``hit_mapping``), filtered with ``texture_filter``
+        (``DEVICE_FILTERS``): ``hit_lookups`` makes their lookups and ``_filter`` filters them, times
+        the diffuse colour. The caller picks the rows and places the colours (one pass each)."""
+        albedo = np.empty((len(rows), 3), np.float32)
         if len(rows) == 0:
-            return
+            return albedo
+        if rows.dtype != np.int32:
+            raise ValueError(f"at_hits reads int32 rows, not {rows.dtype}")
         inputs = [self.device.wrapped_buffer(a, dtype)
                   for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
-                                   (geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
+                                   (hits.geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
         lookups = np.empty((len(rows), 6), np.float64)
         written = self.device.host_buffer(lookups, cl.mem_flags.WRITE_ONLY)
         kernels = self._thread()
@@ -182,6 +176,5 @@ class EwaKernel:
                      np.int32(len(rows)), np.int32(1), written)
         cl.enqueue_copy(kernels.queue, lookups, written)
         diffuse = MAPPING.offset("diffuse")
-        albedo = np.empty((len(rows), 3), np.float32)
         self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo, texture_filter)
-        out[rows] = albedo
+        return albedo
