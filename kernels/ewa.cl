@@ -37,7 +37,7 @@ inline double3 texel(__global const float *texels, __global const long *base, __
 
 /* Bilinear interpolation of texel centres at (s, t) on `level` (MipMap.bilinear). */
 inline double3 bilinear_at(__global const float *texels, __global const long *base, __global const long *width,
-                        __global const long *height, int wrap, int level, double s, double t) {
+                           __global const long *height, int wrap, int level, double s, double t) {
     double x = s * width[level] - 0.5, y = t * height[level] - 0.5;
     double x0 = __builtin_floor(x), y0 = __builtin_floor(y);
     double fx = x - x0, fy = y - y0;

@@ -1,4 +1,4 @@
-"""EWA MIP-map lookups on the OpenCL device (``kernels/ewa.cl``), for the "opencl" backend.
+"""EWA (and bilinear) MIP-map lookups on the OpenCL device (``kernels/ewa.cl``), for the "opencl" backend.
 
 The numpy ``MipMap.ewa`` expands every (lookup, texel) tap into flat arrays: about 0.07 M lookups/s,
 the largest cost of a homework render's floor. The kernel runs the same mathematics per lookup in
