@@ -11,6 +11,11 @@ says so and stops without them) three ways, in one process, taking turns each re
   scene's camera space, which ``Scale 5000`` makes millimetres: about the dgauss 50 mm at f/2
   focused on the red dragon right of centre) and ``Integrator "directlighting"`` (pbrt-v3 would
   otherwise path trace), the OpenCL backend;
+- ``thin bilinear``: ``thin lens`` with the floor's image texture filtered as Mitsuba's ``bitmap``
+  filters it (``bilinear_filter``): pbrt-v4's "bilinear" (its imagemap's default, ``textures.cpp``)
+  in place of the pbrt-v3 file's EWA (pbrt-v3 ``imagemap.cpp``: ``trilinear`` false); pbrt-v4 picks
+  the level from the footprint's width, Mitsuba reads the full image, the same level on all but the
+  far floor. Both ratios to Mitsuba are printed: EWA as the file says, bilinear as Mitsuba renders;
 - ``lens``: our render of the scene as it is (the dgauss prescription traced by ``kernels/lens.cl``;
   the lens vignettes about 40 % of the film's rays, which then cost nothing more);
 - ``mitsuba`` (``--mitsuba``; skipped with a line saying why when ``mitsuba`` is not importable:
@@ -59,6 +64,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +85,7 @@ from realistic.core.transforms import rotate, scale, translate  # noqa: E402
 from realistic.renderer.inputs import RenderInputs, build_render_inputs  # noqa: E402
 from realistic.renderer.job import RenderJob  # noqa: E402
 from realistic.renderer.passes import ThreadPasses, render  # noqa: E402
+from realistic.scene.surfaces import ImageTexture, Material  # noqa: E402
 from scenes import positive_count  # noqa: E402
 
 SHARED = ROOT.parent / "shared"
@@ -124,6 +131,17 @@ def our_inputs(scene: Path, spp: int, res: tuple[int, int]) -> RenderInputs:
         arguments += ["--search-path", str(folder)]
     args = build_parser().parse_args(arguments)
     return build_render_inputs(options_from_args(args, args.spp))
+
+
+def bilinear_filter(inputs: RenderInputs) -> RenderInputs:
+    """``inputs`` with its image textures filtered with pbrt-v4's "bilinear" (a scene of its own)."""
+    scene = replace(inputs.scene, instances=list(inputs.scene.instances))
+    for k, instance in enumerate(scene.instances):
+        material = instance.material
+        if isinstance(material, Material) and isinstance(material.texture, ImageTexture):
+            texture = replace(material.texture, filter="bilinear")
+            scene.instances[k] = replace(instance, material=replace(material, texture=texture))
+    return replace(inputs, scene=scene, intersector=None)
 
 
 def our_render(inputs: RenderInputs) -> Render:
@@ -256,7 +274,7 @@ def main() -> None:
         folder = Path(temporary)
         thin = our_inputs(thin_lens_scene(folder), args.spp, args.res)
         assert isinstance(thin.camera, ThinLensCamera)
-        peers: dict[str, Render] = {"thin lens": our_render(thin),
+        peers: dict[str, Render] = {"thin lens": our_render(thin), "thin bilinear": our_render(bilinear_filter(thin)),
                                     "lens": our_render(our_inputs(SCENE, args.spp, args.res))}
         skipped = {}
         if args.mitsuba:
@@ -279,21 +297,21 @@ def main() -> None:
     ratios = {"lens / thin lens samples/s": [lens["samples_per_s"] / thin_["samples_per_s"]
                                              for lens, thin_ in zip(runs["lens"], runs["thin lens"])]}
     if "mitsuba" in runs:
-        for key, label in (("samples_per_s", "samples/s"), ("samples_per_cpu_s", "samples/CPU-s")):
-            ratios[f"thin lens / mitsuba {label}"] = [ours[key] / theirs[key]
-                                                      for ours, theirs in zip(runs["thin lens"], runs["mitsuba"])]
-        ratios["thin lens / mitsuba image mean"] = [ours["mean"] / theirs["mean"]
-                                                    for ours, theirs in zip(runs["thin lens"], runs["mitsuba"])]
+        for thin_name, key, label in [(n, k, la) for n in ("thin lens", "thin bilinear") for k, la in (
+                ("samples_per_s", "samples/s"), ("samples_per_cpu_s", "samples/CPU-s"), ("mean", "image mean"))]:
+            ratios[f"{thin_name} / mitsuba {label}"] = [ours[key] / theirs[key]
+                                                        for ours, theirs in zip(runs[thin_name], runs["mitsuba"])]
     print(f"{machine.describe()}; {args.res[0]}x{args.res[1]}, {args.spp} spp, {args.repeats} repeats; load average "
           f"{load_before[0]:.2f} before, {load_after[0]:.2f} after (shared machine: noisy)")
-    print(f"{'peer':10s} {'M samples/s':>22s} {'wall s':>18s} {'CPU s':>18s} {'traced':>7s} {'image mean':>12s}")
+    print(f"{'peer':13s} {'M samples/s':>22s} {'wall s':>18s} {'CPU s':>18s} {'traced':>7s} {'image mean':>12s}")
     for name, figures in summary.items():
         cells = [cell(figures[key], factor) for key, factor in (("samples_per_s", 1e-6), ("wall_s", 1), ("cpu_s", 1))]
-        print(f"{name:10s} {cells[0]:>22s} {cells[1]:>18s} {cells[2]:>18s} "
+        print(f"{name:13s} {cells[0]:>22s} {cells[1]:>18s} {cells[2]:>18s} "
               f"{figures['traced_per_sample']['median']:7.3f} {figures['mean']['median']:12.5g}")
     for label, values in ratios.items():
         print(f"{label}: median {statistics.median(values):.3f} [{min(values):.3f}-{max(values):.3f}]")
-    for name in ("thin lens", "lens"):  # what bounds ours: each stage's share of the stages' thread-seconds
+    # what bounds ours: each stage's share of the stages' thread-seconds
+    for name in ("thin lens", "thin bilinear", "lens"):
         seconds = {stage: summary[name][f"{stage} thread_s"]["median"] for stage in STAGES}
         print(f"{name} stages, median thread-s (share): " + ", ".join(
             f"{stage} {value:.2f} ({100 * value / sum(seconds.values()):.0f} %)" for stage, value in seconds.items()))

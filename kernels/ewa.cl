@@ -35,16 +35,17 @@ inline double3 texel(__global const float *texels, __global const long *base, __
     return (double3)(p[0], p[1], p[2]) * inside;
 }
 
-inline double3 bilinear0(__global const float *texels, __global const long *base, __global const long *width,
-                         __global const long *height, int wrap, double s, double t) {
-    double x = s * width[0] - 0.5, y = t * height[0] - 0.5;
+/* Bilinear interpolation of texel centres at (s, t) on `level` (MipMap.bilinear). */
+inline double3 bilinear_at(__global const float *texels, __global const long *base, __global const long *width,
+                           __global const long *height, int wrap, int level, double s, double t) {
+    double x = s * width[level] - 0.5, y = t * height[level] - 0.5;
     double x0 = __builtin_floor(x), y0 = __builtin_floor(y);
     double fx = x - x0, fy = y - y0;
     int ix = (int)x0, iy = (int)y0;
-    double3 top = texel(texels, base, width, height, wrap, 0, ix, iy) * (1 - fx)
-                + texel(texels, base, width, height, wrap, 0, ix + 1, iy) * fx;
-    double3 bottom = texel(texels, base, width, height, wrap, 0, ix, iy + 1) * (1 - fx)
-                   + texel(texels, base, width, height, wrap, 0, ix + 1, iy + 1) * fx;
+    double3 top = texel(texels, base, width, height, wrap, level, ix, iy) * (1 - fx)
+                + texel(texels, base, width, height, wrap, level, ix + 1, iy) * fx;
+    double3 bottom = texel(texels, base, width, height, wrap, level, ix, iy + 1) * (1 - fx)
+                   + texel(texels, base, width, height, wrap, level, ix + 1, iy + 1) * fx;
     return top * (1 - fy) + bottom * fy;
 }
 
@@ -126,7 +127,7 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
         minor *= stretch;
         minor_len *= stretch;
     }
-    if (minor_len == 0) return bilinear0(texels, base, width, height, wrap, p.x, p.y);
+    if (minor_len == 0) return bilinear_at(texels, base, width, height, wrap, 0, p.x, p.y);
     /* lod is clamped to 0 where the minor axis is at most 2^(1 - levels) (a texel of the finest level
      * along its longer side): log2 is exact at powers of two and monotone, so levels - 1 + log2 of such a
      * length is at most 0, and the library call is skipped */
@@ -392,4 +393,85 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
         AT(out, 3, i, 2) = blue_scale * (float)(sum_b / norm);
     }
     if (i < count) pending[i] = !small;
+}
+
+/* ------------------------------------------------------------------ bilinear lookups
+ * pbrt-v4's "bilinear" image-texture filter (src/pbrt/util/mipmap.cpp, MIPMap::Filter): the filter
+ * width twice the largest component of either axis (textures._image), one bilinear lookup at level
+ * floor(levels - 1 + log2(width)) clamped to the levels: MipMap.bilinear_at_width, the numpy
+ * reference, in the same float64 operations, so the same bits.
+ *
+ * bilinear_small does the lookups whose width is under 2^(2 - levels) (1 - 2^-40), level 0 whatever
+ * the rounding of log2 (within 3 ulps, OpenCL's bound: levels - 1 + log2 stays under 1 by 1e-12),
+ * so no library call: most of a near floor's. It is ewa_small's twin (same arguments, read as there;
+ * written for PoCL's vectoriser as ewa_small is) and marks the others pending for bilinear, ewa's twin
+ * (same arguments), which takes the level from log2. */
+
+inline double filter_width(double a0s, double a0t, double a1s, double a1t) {
+    return 2 * __builtin_fmax(__builtin_fmax(__builtin_fabs(a0s), __builtin_fabs(a0t)),
+                              __builtin_fmax(__builtin_fabs(a1s), __builtin_fabs(a1t)));
+}
+
+__kernel void bilinear_small(__global const float *texels, __global const long *base, __global const long *width,
+                             __global const long *height, const int wrap, const int levels,
+                             const double max_anisotropy, __global const double *lut, __global const double *lookups,
+                             const float red_scale, const float green_scale, const float blue_scale, const int count,
+                             const int unit, __global uchar *pending, __global float *out) {
+    int i = get_global_id(0);
+    int r = i < count ? i : count - 1;
+    double one = (double)unit;
+    double w = filter_width(AT(lookups, 6, r, 2), AT(lookups, 6, r, 3), AT(lookups, 6, r, 4), AT(lookups, 6, r, 5));
+    double lw = (double)width[0], lh = (double)height[0];
+    double x = AT(lookups, 6, r, 0) * lw - 0.5, y = (AT(lookups, 6, r, 1) * lh - 0.5) * one;
+    int small = i < count && w < 2.0 / (double)(1L << (levels - 1)) * (1 - 0x1p-40)
+                && __builtin_fabs(x) < 1e9 && __builtin_fabs(y) < 1e9;
+    x = small ? x : 0.0;
+    y = small ? y : 0.0;
+    double x0 = __builtin_floor(x), y0 = __builtin_floor(y);
+    double fx = x - x0, fy = (y - y0) * one;
+    int ix = (int)x0, iy = (int)y0;
+    int iw = (int)width[0], ih = (int)height[0];
+    int xs[2], ys[2];
+    double inside_x[2], inside_y[2];
+    #pragma unroll
+    for (int k = 0; k < 2; ++k) {
+        int xk = ix + k, yk = iy + k;
+        xs[k] = wrap == 0 ? xk & (iw - 1) : (xk < 0 ? 0 : (xk > iw - 1 ? iw - 1 : xk));
+        ys[k] = wrap == 0 ? yk & (ih - 1) : (yk < 0 ? 0 : (yk > ih - 1 ? ih - 1 : yk));
+        inside_x[k] = wrap == 1 && (xk < 0 || xk >= iw) ? 0.0 : 1.0;
+        inside_y[k] = wrap == 1 && (yk < 0 || yk >= ih) ? 0.0 : 1.0;
+    }
+    long level_base = base[0];
+    double value[3];
+    #pragma unroll
+    for (int c = 0; c < 3; ++c) {
+        double t00 = AT(texels, 3, level_base + (long)ys[0] * iw + xs[0], c) * (inside_x[0] * inside_y[0]);
+        double t10 = AT(texels, 3, level_base + (long)ys[0] * iw + xs[1], c) * (inside_x[1] * inside_y[0]);
+        double t01 = AT(texels, 3, level_base + (long)ys[1] * iw + xs[0], c) * (inside_x[0] * inside_y[1]);
+        double t11 = AT(texels, 3, level_base + (long)ys[1] * iw + xs[1], c) * (inside_x[1] * inside_y[1]);
+        double top = t00 * (1 - fx) + t10 * fx;
+        double bottom = t01 * (1 - fx) + t11 * fx;
+        value[c] = top * (1 - fy) + bottom * fy;
+    }
+    if (small) {
+        AT(out, 3, i, 0) = red_scale * (float)value[0];
+        AT(out, 3, i, 1) = green_scale * (float)value[1];
+        AT(out, 3, i, 2) = blue_scale * (float)value[2];
+    }
+    if (i < count) pending[i] = !small;
+}
+
+__kernel void bilinear(__global const float *texels, __global const long *base, __global const long *width,
+                       __global const long *height, const int wrap, const int levels, const double max_anisotropy,
+                       __global const double *lut, __global const double *st, __global const double *axis0,
+                       __global const double *axis1, const int count, __global float *out) {
+    int i = get_global_id(0);
+    if (i >= count) return;
+    double w = filter_width(axis0[2 * i], axis0[2 * i + 1], axis1[2 * i], axis1[2 * i + 1]);
+    double level = __builtin_floor((double)(levels - 1) + log2(__builtin_fmax(w, 1e-8)));
+    int at = (int)__builtin_fmin(__builtin_fmax(level, 0.0), (double)(levels - 1));
+    double3 value = bilinear_at(texels, base, width, height, wrap, at, st[2 * i], st[2 * i + 1]);
+    out[3 * i] = (float)value.x;
+    out[3 * i + 1] = (float)value.y;
+    out[3 * i + 2] = (float)value.z;
 }

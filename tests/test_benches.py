@@ -302,6 +302,26 @@ def test_peers_thin_lens_scene_swaps_only_the_camera_and_asks_for_direct_lightin
     assert text[text.index("WorldBegin"):] == original[original.index("WorldBegin"):]
 
 
+def test_peers_bilinear_filter_changes_only_the_image_textures_filter():
+    """The 'thin bilinear' peer's scene: each image texture filtered with pbrt-v4's bilinear, the
+    rest of every material and instance as it was, and the original inputs untouched."""
+    from realistic.renderer.inputs import RenderInputs
+    from realistic.scene.model import Scene
+    from realistic.scene.shapes import quad
+    from realistic.scene.surfaces import ImageTexture, Material
+
+    scene = Scene()
+    texture = ImageTexture(np.ones((4, 4, 3), np.float32), scale=(5.0, 5.0))
+    scene.add(quad(1.0, 1.0), np.eye(4), Material((0.5, 0.5, 0.5), texture))
+    scene.add(quad(1.0, 1.0), np.eye(4), Material((0.8, 0.2, 0.2)))
+    inputs = RenderInputs(scene, "out.exr")
+    changed = peers.bilinear_filter(inputs)
+    floor, plain = changed.scene.instances
+    assert floor.material.texture.filter == "bilinear" and floor.material.texture.scale == (5.0, 5.0)
+    assert floor.material.diffuse == (0.5, 0.5, 0.5) and plain is scene.instances[1]
+    assert scene.instances[0].material.texture is texture and texture.filter == "ewa"
+
+
 def test_peers_mitsuba_pose_sees_what_the_pbrt_camera_sees():
     """Mitsuba's sensor looks along the same world direction from the same point, its -x (image
     right) is the pbrt camera's +x, and the scale comes back apart (lens radius and focus in world units)."""

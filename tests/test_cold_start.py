@@ -168,11 +168,13 @@ from realistic.renderer import direct_lighting, film, runner
 from realistic.renderer.job import PassSettings
 from realistic.renderer.runner import PassRunner, compile_pass_loops
 from realistic.renderer.timing import StageClock
-from realistic.scene import packet_loop
+from realistic.scene import intersect, packet_loop
 from realistic.scene.embree import compile_trace_loops
 
 loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), compiled(runner._gather),
-         compiled(film._add_rows), compiled(direct_lighting._visible_sums))
+         compiled(film._add_rows), compiled(direct_lighting._visible_sums),
+         compiled(direct_lighting._material_rows), compiled(direct_lighting._place_rows),
+         compiled(intersect._instances_to_world))
 compile_trace_loops()
 compile_pass_loops()
 print([len(loop.signatures) for loop in loops])
@@ -180,7 +182,7 @@ scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=
 PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())(0, SampleBlock(0, 240, 2))
 print([len(loop.signatures) for loop in loops])
 """)
-    assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1]"]
+    assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1, 1, 1, 1]"]
 
 
 def test_other_threads_run_while_a_kernel_first_launch_compiles(tmp_path):

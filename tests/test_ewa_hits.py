@@ -3,16 +3,19 @@ image-textured hits computed from embree's hit records on the device, against it
 ``DirectLighting._albedo`` (uv interpolation, pixel footprint, st mapping, EWA lookup), per hit, to
 float32 rounding; and the renderer's choice of which materials go to the device."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.core.jit import compiled
 from realistic.core.transforms import rotate, scale, translate
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
-from realistic.renderer.direct_lighting import DirectLighting, _facing
+from realistic.renderer.direct_lighting import DirectLighting, _facing, _material_rows, _place_rows
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.shapes import cone, quad, sphere
@@ -51,6 +54,17 @@ def instanced_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
     return scene, np.array([0.0, 0.35, 4.5]), np.array([0.0, 0.3, 0.0])
 
 
+def bilinear_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
+    """``instanced_scene`` with its EWA textures filtered with pbrt-v4's bilinear filter instead."""
+    scene, eye, target = instanced_scene()
+    for k, instance in enumerate(scene.instances):
+        texture = instance.material.texture
+        if texture.filter == "ewa":
+            scene.instances[k] = replace(instance, material=replace(instance.material,
+                                                                    texture=replace(texture, filter="bilinear")))
+    return scene, eye, target
+
+
 def hits_of(scene: Scene, eye: np.ndarray, target: np.ndarray, width: int = 96, height: int = 64):
     camera = LensCamera.looking_at(load_lens("dgauss"), eye, target, None, FULL_FRAME_DIAGONAL_MM, width, height, 2)
     rays = backend_for("numpy").ray_generator(camera, 3)(SampleBlock(0, camera.sample_count, 2))
@@ -71,9 +85,9 @@ def reference_albedo(integrator: DirectLighting, host: np.ndarray, direction: np
     return out
 
 
-@pytest.mark.parametrize("name", ["textured", "instanced"])
+@pytest.mark.parametrize("name", ["textured", "instanced", "bilinear"])
 def test_device_albedo_matches_numpy(name):
-    scene, eye, target = textured_scene() if name == "textured" else instanced_scene()
+    scene, eye, target = {"textured": textured_scene, "instanced": instanced_scene, "bilinear": bilinear_scene}[name]()
     intersector, origin, direction, hits, spread = hits_of(scene, eye, target)
     device = DirectLighting(scene, intersector, 1, 5, spread, backend="opencl")
     numpy_path = DirectLighting(scene, intersector, 1, 5, spread, backend="numpy")
@@ -90,31 +104,42 @@ def test_device_albedo_matches_numpy(name):
     assert np.mean(albedo == reference) > 0.99
 
 
-def test_only_ewa_textures_with_footprints_go_to_the_device():
+def test_only_ewa_and_bilinear_textures_with_footprints_go_to_the_device():
     scene, eye, target = instanced_scene()
     intersector, *_ = hits_of(scene, eye, target, 8, 8)
     with_spread = DirectLighting(scene, intersector, 1, 5, 1e-3, backend="opencl")
     materials = with_spread._materials
-    on_device = [i for i, _, _ in with_spread._device_textures]
+    on_device = [i for i, _, _, _ in with_spread._device_textures]
     assert [materials[i].texture.filter for i in on_device] == ["ewa"] * 4
     assert [m.texture.filter for i, m in enumerate(materials) if with_spread._numpy_albedo[i]] == ["trilinear"]
+    scene, eye, target = bilinear_scene()
+    intersector, *_ = hits_of(scene, eye, target, 8, 8)
+    bilinear = DirectLighting(scene, intersector, 1, 5, 1e-3, backend="opencl")
+    assert [f for _, _, _, f in bilinear._device_textures] == ["bilinear"] * 4
     point_sampled = DirectLighting(scene, intersector, 1, 5, 0.0, backend="opencl")
     assert point_sampled._device_textures == []  # no footprint: level 0 bilinearly, in numpy
 
 
-def test_rows_of_other_materials_are_left_alone():
+def test_each_textures_rows_are_the_hits_on_its_material():
+    """``_host_albedo`` gives each device texture the rays whose hits are on its material's instances
+    (``_material_rows``: one numba pass, in order) and places the colours ``at_hits`` returns in
+    those rows (``_place_rows``); at_hits refuses rows it would have to convert."""
     scene, eye, target = instanced_scene()
     intersector, origin, direction, hits, spread = hits_of(scene, eye, target, 32, 24)
     device = DirectLighting(scene, intersector, 1, 5, spread, backend="opencl")
-    index, ewa, mapping = device._device_textures[0]
-    out = np.full((len(direction), 3), -7.0, F32)
-    ewa.at_hits(device._surface_tables, index, mapping, direction, hits, out)
     surface = (hits.geom >= 0) & (hits.geom < device.instance_count)
-    mine = surface & (device._geom_material[np.where(surface, hits.geom, 0)] == index)
-    assert mine.any() and (~mine).any()
-    assert np.all(out[~mine] == -7.0) and np.all(out[mine] >= 0.0)
-    with pytest.raises(ValueError, match="float32"):
-        ewa.at_hits(device._surface_tables, index, mapping, direction, hits, out.astype(np.float64))
+    material = device._geom_material[np.where(surface, hits.geom, 0)]
+    rows = np.empty(len(direction), np.int32)
+    for index, ewa, mapping, texture_filter in device._device_textures:
+        mine = np.flatnonzero(surface & (material == index))
+        count = compiled(_material_rows)(hits.geom, device._geom_material, index, rows)
+        assert count > 0 and np.array_equal(rows[:count], mine)
+        out = np.full((len(direction), 3), -7.0, F32)
+        colours = ewa.at_hits(device._surface_tables, rows[:count], mapping, direction, hits, texture_filter)
+        compiled(_place_rows)(colours, rows[:count], out)
+        assert np.array_equal(out[mine], colours) and np.all(np.delete(out, mine, axis=0) == -7.0)
+    with pytest.raises(ValueError, match="int32"):
+        ewa.at_hits(device._surface_tables, mine, mapping, direction, hits)
 
 
 def test_the_hit_lookups_vectorise(tmp_path):

@@ -1,6 +1,9 @@
 """``kernels/ewa.cl`` against its numpy reference ``MipMap.ewa`` (itself checked against a scalar
 transcription of pbrt-v3's loop in test_textures.py): same taps, same weights, float32 rounding."""
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 
@@ -88,6 +91,44 @@ def test_magnified_lookups_are_the_references_bit_for_bit(opencl_platform, wrap)
     assert np.array_equal(device, mipmap.ewa(st, axis0, axis1).astype(np.float32))
 
 
+@pytest.mark.parametrize("wrap", ["repeat", "black", "clamp"])
+@pytest.mark.parametrize("shape", [(64, 64), (48, 80)])
+def test_bilinear_lookups_are_pbrt_v4s_bit_for_bit(opencl_platform, wrap, shape):
+    """``bilinear_lookups`` is pbrt-v4's bilinear filter (mipmap.cpp, MIPMap::Filter) as
+    ``MipMap.bilinear_at_width`` computes it in float64, with the width ``textures._image`` takes
+    (twice the largest axis component): each colour the reference's rounded to float32, on every
+    level (the footprints run from under a texel of level 0 to wider than the image)."""
+    mipmap = MipMap(np.random.default_rng(4).random((*shape, 3)), wrap)
+    st, axis0, axis1 = ellipses(20000, 13)
+    lengths = 10.0 ** np.random.default_rng(14).uniform(-4, 0.7, (len(st), 1))  # log-uniform: every level
+    axis0, axis1 = axis0 * lengths / 0.01, axis1 * lengths / 0.01
+    width = 2 * np.maximum(np.abs(axis0).max(axis=1), np.abs(axis1).max(axis=1))
+    levels = np.clip(np.floor(mipmap.level_count - 1 + np.log2(np.maximum(width, 1e-8))), 0, mipmap.level_count - 1)
+    assert set(levels) == set(range(mipmap.level_count))
+    device = backend_for("opencl").ewa_kernel(mipmap)(st, axis0, axis1, "bilinear")
+    assert np.array_equal(device, mipmap.bilinear_at_width(st, width).astype(np.float32))
+
+
+def test_two_threads_lookups_equal_one_threads(opencl_platform):
+    """A render's threads filter through one ``EwaKernel`` at once, each on its own queue and kernel
+    objects: batches of both paths (``ewa_small`` and the long ellipses left to ``ewa``) filtered by
+    two threads started together, each many times, are the colours one thread makes of them."""
+    mipmap = MipMap(np.random.default_rng(5).random((64, 64, 3)), "repeat", max_anisotropy=8.0)
+    kernel = backend_for("opencl").ewa_kernel(mipmap)
+    batches = [ellipses(500 + 37 * k, 20 + k) for k in range(8)]
+    alone = [kernel(*batch) for batch in batches]
+    start = threading.Barrier(2)
+
+    def filter_all(order: list[int]) -> list[tuple[int, np.ndarray]]:
+        start.wait()
+        return [(k, kernel(*batches[k])) for _ in range(3) for k in order]
+
+    with ThreadPoolExecutor(2) as pool:
+        results = list(pool.map(filter_all, [list(range(8)), list(range(7, -1, -1))]))
+    for k, colours in (pair for result in results for pair in result):
+        assert np.array_equal(colours, alone[k])
+
+
 def test_the_small_lookups_vectorise(tmp_path):
     """PoCL's work-group vectoriser widens ``ewa_small`` (``ewa`` and ``hit_lookups`` loop over
     ellipses and run scalar): both of the work-group functions PoCL makes of it, for any group and
@@ -100,6 +141,19 @@ def test_the_small_lookups_vectorise(tmp_path):
         "mipmap = MipMap(np.random.default_rng(0).random((32, 32, 3)))\n"
         "point = np.full((300, 2), 0.3)\n"
         "backend_for('opencl').ewa(mipmap, point, np.full((300, 2), 1e-3), np.full((300, 2), -1e-3))\n")
+    remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
+    assert remarks.count("vectorized loop (") >= 2
+
+
+def test_the_small_bilinear_lookups_vectorise(tmp_path):
+    """``bilinear_small`` (level-0 lookups: no library log2) is widened by PoCL's vectoriser as
+    ``ewa_small`` is; lookups it takes alone launch nothing else, so every remark is its."""
+    script = (
+        "import numpy as np\n"
+        "from realistic.renderer.backends import backend_for\n"
+        "from realistic.scene.mipmap import MipMap\n"
+        "kernel = backend_for('opencl').ewa_kernel(MipMap(np.random.default_rng(0).random((32, 32, 3))))\n"
+        "kernel(np.full((300, 2), 0.3), np.full((300, 2), 1e-3), np.full((300, 2), -1e-3), 'bilinear')\n")
     remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
     assert remarks.count("vectorized loop (") >= 2
 

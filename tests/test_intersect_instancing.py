@@ -114,6 +114,24 @@ def test_closest_hits_agree_with_the_flat_build(floor, light):
     assert_same_hits(a, b, origin, direction)
 
 
+def test_instanced_normals_are_the_cofactor_products_in_float32():
+    """``closest`` names an instanced hit by its instance and takes embree's object-space normal to
+    the world by the instance's cofactor matrix, in float32, summed in order (the numpy formula
+    below); hits outside instances keep embree's geometry id and normal."""
+    shared = Intersector(instanced_scene())
+    origin, direction = random_rays(40000, seed=4)
+    raw = shared._embree.intersect(origin, direction, float(intersect._MISS_T))
+    hits = shared.closest(origin, direction)
+    inside = raw.instance >= 0
+    assert 1000 < inside.sum() < len(origin) - 1000
+    m = shared._normal_to_world_t[raw.instance[inside]]
+    n = raw.normal[inside]
+    expected = (n[:, 0, None] * m[:, 0] + n[:, 1, None] * m[:, 1]) + n[:, 2, None] * m[:, 2]
+    assert np.array_equal(hits.normal[inside], expected) and np.array_equal(hits.geom[inside], raw.instance[inside])
+    assert np.array_equal(hits.normal[~inside], raw.normal[~inside])
+    assert np.array_equal(hits.geom[~inside], raw.geom[~inside])
+
+
 def test_occlusion_agrees_with_the_flat_build():
     scene = instanced_scene()
     flat, shared = Intersector(scene, share=False), Intersector(scene)

@@ -190,11 +190,36 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     return traced
 
 
+def _material_rows(geom: np.ndarray, geom_material: np.ndarray, material: int, rows: np.ndarray) -> int:
+    """Write into ``rows`` (int32, at least len(geom)) in order the rays whose closest hit is on an
+    instance (embree geometry id 0 .. len(geom_material) - 1) of material index ``material``, and
+    return how many: a numba loop (``core.jit``), one pass where numpy made six over every ray."""
+    count = 0
+    for i in range(len(geom)):
+        g = geom[i]
+        if 0 <= g < len(geom_material) and geom_material[g] == material:
+            rows[count] = i
+            count += 1
+    return count
+
+
+def _place_rows(values: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
+    """out[rows] = values (rows of 3 float32), a numba loop (``core.jit``): numpy's fancy-index
+    store cost as much as the pick."""
+    for i in range(len(rows)):
+        for c in range(3):
+            out[rows[i], c] = values[i, c]
+
+
 def compile_shading_loops() -> None:
-    """Compile (or load from numba's cache) ``_visible_sums`` for the argument types every launch
-    passes, on no rows: a render does this on a render thread as it starts (``runner.compile_pass_loops``)."""
+    """Compile (or load from numba's cache) ``_visible_sums``, ``_material_rows`` and ``_place_rows``
+    for the argument types every launch passes, on no rows: a render does this on a render thread as
+    it starts (``runner.compile_pass_loops``)."""
     rows = np.empty((0, 3), np.float32)
     compiled(_visible_sums)(rows, np.empty(0, np.bool_), np.empty(0, np.float32), 1, 0, True, rows)
+    picked = np.empty(0, np.int32)
+    compiled(_material_rows)(picked, np.empty(0, np.int64), 0, picked)
+    compiled(_place_rows)(rows, picked, rows)
 
 
 class DirectLighting:
@@ -302,27 +327,27 @@ class DirectLighting:
         return kernel
 
     def _build_device_textures(self, backend: OpenCLBackend, host_albedo: np.ndarray) -> None:
-        """EWA image textures filtered over pixel footprints: their albedo is computed from the hit
-        records on the device (``EwaKernel.at_hits``), the rest of the host's materials in numpy."""
+        """Image textures filtered over pixel footprints with EWA or pbrt-v4's bilinear filter
+        (``ewa_kernel.DEVICE_FILTERS``): their albedo is computed from the hit records on the device
+        (``EwaKernel.at_hits``), the rest of the host's materials in numpy."""
         self._device_textures = []
         self._numpy_albedo = host_albedo.copy()  # materials left to ``_albedo``
         if self.pixel_spread_radians <= 0:
             return
-        from realistic.scene.ewa_kernel import hit_mapping
+        from realistic.scene.ewa_kernel import DEVICE_FILTERS, hit_mapping
 
         for index, material in enumerate(self._materials):
             if not isinstance(material, Material):
                 continue
             texture = material.texture
-            if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter == "ewa":
+            if host_albedo[index] and isinstance(texture, ImageTexture) and texture.filter in DEVICE_FILTERS:
                 ewa = backend.ewa_kernel(texture.mipmap)
                 self._device_textures.append((index, ewa, hit_mapping(texture, material.diffuse,
-                                                                      self.pixel_spread_radians)))
+                                                                      self.pixel_spread_radians), texture.filter))
                 self._numpy_albedo[index] = False
         if self._device_textures:
             self._surface_tables = backend.surface_tables(self._faces, self._vertices, self._uv,
-                                                          self._geom_face_offset, self._geom_material,
-                                                          self._geom_linear.reshape(-1, 9))
+                                                          self._geom_face_offset, self._geom_linear.reshape(-1, 9))
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
@@ -546,11 +571,15 @@ class DirectLighting:
 
     def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits: Hits) -> np.ndarray:
         """Albedo (N, 3) of the surface hits whose material the shading kernel leaves to the host
-        (image textures): EWA-filtered ones on the device (``_build_device_textures``), the others by
-        ``_albedo``; other rows are zero, unread by the kernel."""
+        (image textures): EWA- and bilinear-filtered ones on the device (``_build_device_textures``),
+        the others by ``_albedo``; other rows are zero, unread by the kernel."""
         albedo = np.zeros((len(origin), 3), np.float32)
-        for index, ewa, mapping in self._device_textures:
-            ewa.at_hits(self._surface_tables, index, mapping, direction, hits, albedo)
+        if self._device_textures:
+            picks = np.empty(len(origin), np.int32)
+        for index, ewa, mapping, texture_filter in self._device_textures:
+            picked = picks[:compiled(_material_rows)(hits.geom, self._geom_material, index, picks)]
+            compiled(_place_rows)(ewa.at_hits(self._surface_tables, picked, mapping, direction, hits, texture_filter),
+                                  picked, albedo)
         if not self._numpy_albedo.any():
             return albedo
         surface = (hits.geom >= 0) & (hits.geom < self.instance_count)

@@ -21,7 +21,7 @@ from realistic.renderer.footprint import differential_scale
 from realistic.renderer.integrators import make_integrator
 from realistic.renderer.job import PassResult, PassSettings
 from realistic.renderer.timing import StageClock
-from realistic.scene.intersect import Intersector
+from realistic.scene.intersect import Intersector, compile_intersect_loops
 from realistic.scene.model import Scene
 
 
@@ -59,10 +59,12 @@ def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
 
 def compile_pass_loops() -> None:
     """Compile (or load from numba's cache) a pass's own numba loops, the gathers of the kernel's rays,
-    the film's sums and the shading sums, for the argument types a pass passes, on no rows: a render
-    does this on a render thread as it starts (``ThreadPasses.open``), beside its OpenCL builds, not
-    in its first pass. The kernel's rays are strided views of its (columns, n) output."""
+    the closest hits' instance normals, the film's sums and the shading sums, for the argument types
+    a pass passes, on no rows: a render does this on a render thread as it starts
+    (``ThreadPasses.open``), beside its OpenCL builds, not in its first pass. The kernel's rays are
+    strided views of its (columns, n) output."""
     gather_rows(np.empty((3, 4), np.float32).T[::2], np.empty(0, np.int64))
+    compile_intersect_loops()
     pass_sums(np.empty(0, np.int64), np.empty((0, 3), np.float32), 0, 0, np.empty(0, np.float32))
     compile_shading_loops()
 

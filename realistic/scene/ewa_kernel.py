@@ -1,4 +1,4 @@
-"""EWA MIP-map lookups on the OpenCL device (``kernels/ewa.cl``), for the "opencl" backend.
+"""EWA (and bilinear) MIP-map lookups on the OpenCL device (``kernels/ewa.cl``), for the "opencl" backend.
 
 The numpy ``MipMap.ewa`` expands every (lookup, texel) tap into flat arrays: about 0.07 M lookups/s,
 the largest cost of a homework render's floor. The kernel runs the same mathematics per lookup in
@@ -11,12 +11,19 @@ its ellipse, runs scalar) and marks the others, which ``ewa`` does; the same bit
 
 ``SurfaceTables`` and ``EwaKernel.at_hits`` go one step further for the renderer: from embree's hit
 records to the albedo, with the uv, the pixel footprint and the st mapping computed on the device
-too (``hit_lookups``, vectorised like ``ewa_small``, on the rows of the texture's material that numpy
-picks; numpy spent three times as long on those as on the lookups). Its reference is
+too (``hit_lookups``, vectorised like ``ewa_small``, on the rows of the texture's material that the
+renderer picks; numpy spent three times as long on those as on the lookups). Its reference is
 ``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
 
+``bilinear_small`` and ``bilinear`` filter the same lookups with pbrt-v4's "bilinear" filter (one
+bilinear lookup at the level the footprint's width picks: ``MipMap.bilinear_at_width``, bit for bit),
+pbrt-v4's default and the filter Mitsuba's ``bitmap`` uses, split as EWA's are (level 0 vectorised,
+the others scalar); ``DEVICE_FILTERS`` names the filters done here.
+
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
-(``realistic.renderer.backends``), keyed by the map: the map itself stays plain data.
+(``realistic.renderer.backends``), keyed by the map: the map itself stays plain data. Each thread
+launches on its own queue with its own kernel objects (``_ThreadKernels``: a kernel object's
+arguments are its state), so a render's threads filter side by side, not one at a time.
 """
 
 from __future__ import annotations
@@ -39,6 +46,8 @@ KERNEL_FILE = "ewa.cl"
 #: (``textures.st_mapping``), and the material's diffuse colour.
 MAPPING = Table("MAPPING", np.float64, (("spread", 1), ("st_scale", 2), ("st_offset", 2), ("t_flip", 1),
                                         ("t_shift", 1), ("diffuse", 3)))
+#: The image-texture filters (``validation.TEXTURE_FILTERS``) an ``EwaKernel`` runs on the device.
+DEVICE_FILTERS = ("ewa", "bilinear")
 #: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size.
 HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 
@@ -46,11 +55,10 @@ HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 class SurfaceTables:
     """A scene's triangles as ``hit_lookups`` reads them, wrapped once per render: faces (F, 3) of
     concatenated vertex indices, float64 vertices (V, 3) in mesh space, float32 uvs (V, 2), and per
-    instance (embree geometry id) its first face, material index and linear map (3 x 3)."""
+    instance (embree geometry id) its first face and linear map (3 x 3)."""
 
     def __init__(self, device: Device, faces: np.ndarray, vertices: np.ndarray, uv: np.ndarray,
-                 geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_linear: np.ndarray):
-        self.geom_material = np.asarray(geom_material)  # the host picks each material's rows
+                 geom_face_offset: np.ndarray, geom_linear: np.ndarray):
         self.buffers = [device.wrapped_buffer(a, dtype) for a, dtype in
                         ((faces, np.int32), (vertices, np.float64), (uv, np.float32), (geom_face_offset, np.int32),
                          (geom_linear, np.float64))]
@@ -64,8 +72,20 @@ def hit_mapping(texture: ImageTexture, diffuse: np.ndarray | tuple[float, float,
                         t_shift=shift[1], diffuse=np.asarray(diffuse, np.float32))[0]
 
 
+class _ThreadKernels:
+    """One thread's command queue and kernel objects over an ``EwaKernel``'s program."""
+
+    def __init__(self, device: Device, program: cl.Program):
+        self.queue = device.queue()
+        self.hits = cl.Kernel(program, "hit_lookups")
+        #: per filter, its kernel for the small lookups and the one for the lookups it leaves pending
+        self.filters = {name: (cl.Kernel(program, f"{name}_small"), cl.Kernel(program, name))
+                        for name in DEVICE_FILTERS}
+
+
 class EwaKernel:
-    """One MIP map's texels on a device, and EWA lookups over them (thread-safe: one lock)."""
+    """One MIP map's texels on a device, and EWA or bilinear lookups over them (thread-safe: a queue
+    and kernel objects per calling thread)."""
 
     def __init__(self, mipmap: MipMap, device: Device | None = None):
         """``device``: where the texels go (None: ``Device.for_spec()``, the default device)."""
@@ -75,10 +95,7 @@ class EwaKernel:
         device = device or Device.for_spec()
         self.device = device
         self.context = device.context
-        self.queue = device.queue()
-        program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
-        self._kernel, self._small_kernel = cl.Kernel(program, "ewa"), cl.Kernel(program, "ewa_small")
-        self._hits_kernel = cl.Kernel(program, "hit_lookups")
+        self._program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
         # the texels wrapped, not copied, so they are not held twice
         # the map's kernel arguments: its buffers, then its scalars
         self._map: list[cl.Buffer | np.generic] = [
@@ -86,21 +103,31 @@ class EwaKernel:
             *(device.wrapped_buffer(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)),
             np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
             np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float64)]
-        self._lock = threading.Lock()
+        self._local = threading.local()
 
-    def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
-        """Filtered colours (N, 3) float32 at (s, t) (N, 2) over ellipses with axes (N, 2) each."""
+    def _thread(self) -> _ThreadKernels:
+        """The calling thread's queue and kernels, made on its first call."""
+        kernels: _ThreadKernels | None = getattr(self._local, "kernels", None)
+        if kernels is None:
+            kernels = self._local.kernels = _ThreadKernels(self.device, self._program)
+        return kernels
+
+    def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray, texture_filter: str = "ewa") -> np.ndarray:
+        """Colours (N, 3) float32 at (s, t) (N, 2) filtered (``DEVICE_FILTERS``) over footprints with
+        axes (N, 2) each."""
         lookups = np.empty((len(st), 6), np.float64)
         for column, values in enumerate((st, axis0, axis1)):
             lookups[:, 2 * column:2 * column + 2] = values
         out = np.empty((len(st), 3), np.float32)
-        self._filter(lookups, np.ones(3, np.float32), out)
+        self._filter(lookups, np.ones(3, np.float32), out, texture_filter)
         return out
 
-    def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray) -> None:
+    def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray, texture_filter: str) -> None:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
-        lookups (s, t, axis0, axis1) (N, 6) float64: ``ewa_small`` over all, then ``ewa`` over the
-        rows it leaves."""
+        lookups (s, t, axis0, axis1) (N, 6) float64: the filter's small kernel (``ewa_small``,
+        ``bilinear_small``) over all, then its other kernel (``ewa``, ``bilinear``) over the rows it leaves."""
+        if texture_filter not in DEVICE_FILTERS:
+            raise ValueError(f"the device filters with {' or '.join(DEVICE_FILTERS)}, not {texture_filter!r}")
         count = len(lookups)
         if count == 0:
             return
@@ -108,51 +135,46 @@ class EwaKernel:
         inputs = [self.device.wrapped_buffer(lookups, np.float64)]
         written = [self.device.host_buffer(pending, cl.mem_flags.WRITE_ONLY),
                    self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
-        with self._lock:
-            self._small_kernel(self.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
-                               *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written)
-            # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernel
-            cl.enqueue_copy(self.queue, pending, written[0], is_blocking=False)
-            cl.enqueue_copy(self.queue, out, written[1])
+        kernels = self._thread()
+        small, other = kernels.filters[texture_filter]
+        small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
+              *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written)
+        # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernel
+        cl.enqueue_copy(kernels.queue, pending, written[0], is_blocking=False)
+        cl.enqueue_copy(kernels.queue, out, written[1])
         rest = np.flatnonzero(pending)
         if len(rest):
             left = np.take(lookups, rest, axis=0)
             columns = [self.device.copied_buffer(left[:, k:k + 2], np.float64) for k in (0, 2, 4)]
             result = self.device.output_buffer(len(rest) * 3 * 4)
             values = np.empty((len(rest), 3), np.float32)
-            with self._lock:
-                self._kernel(self.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
-                             np.int32(len(rest)), result)
-                cl.enqueue_copy(self.queue, values, result)
+            other(kernels.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
+                  np.int32(len(rest)), result)
+            cl.enqueue_copy(kernels.queue, values, result)
             out[rest] = values * scale
 
-    def at_hits(self, surfaces: SurfaceTables, material: int, mapping: np.ndarray, direction: np.ndarray,
-                hits: Hits, out: np.ndarray) -> None:
-        """Write into ``out`` (N, 3) float32 the albedo of the rays (unit ``direction`` (N, 3)) whose
-        closest hit (``scene.intersect.Hits``) is on an instance of material index ``material``, whose
-        image texture this map is (``hit_mapping``); other rows are left as they are. numpy picks those
-        rows, ``hit_lookups`` makes their lookups and ``_filter`` filters them, times the diffuse colour."""
-        count = len(direction)
-        if count == 0:
-            return
-        if out.dtype != np.float32 or not out.flags.c_contiguous or out.shape != (count, 3):
-            raise ValueError(f"at_hits writes a C-contiguous ({count}, 3) float32 array, not {out.dtype} {out.shape}")
-        geom = hits.geom
-        surface = (geom >= 0) & (geom < len(surfaces.geom_material))
-        rows = np.flatnonzero(surface & (surfaces.geom_material[np.where(surface, geom, 0)] == material))
+    def at_hits(self, surfaces: SurfaceTables, rows: np.ndarray, mapping: np.ndarray, direction: np.ndarray,
+                hits: Hits, texture_filter: str = "ewa") -> np.ndarray:
+        """The albedo (len(rows), 3) float32 of the rays ``rows`` (int32) among those with unit
+        ``direction`` (N, 3), whose closest hits (``scene.intersect.Hits``) are on instances of a
+        material whose image texture this map is (``hit_mapping``), filtered with ``texture_filter``
+        (``DEVICE_FILTERS``): ``hit_lookups`` makes their lookups and ``_filter`` filters them, times
+        the diffuse colour. The caller picks the rows and places the colours (one pass each)."""
+        albedo = np.empty((len(rows), 3), np.float32)
         if len(rows) == 0:
-            return
+            return albedo
+        if rows.dtype != np.int32:
+            raise ValueError(f"at_hits reads int32 rows, not {rows.dtype}")
         inputs = [self.device.wrapped_buffer(a, dtype)
                   for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
-                                   (geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
+                                   (hits.geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
         lookups = np.empty((len(rows), 6), np.float64)
         written = self.device.host_buffer(lookups, cl.mem_flags.WRITE_ONLY)
-        with self._lock:
-            self._hits_kernel(self.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,), *surfaces.buffers, *inputs,
-                              np.int32(len(rows)), np.int32(1), written)
-            cl.enqueue_copy(self.queue, lookups, written)
+        kernels = self._thread()
+        kernels.hits(kernels.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,), *surfaces.buffers, *inputs,
+                     np.int32(len(rows)), np.int32(1), written)
+        cl.enqueue_copy(kernels.queue, lookups, written)
         diffuse = MAPPING.offset("diffuse")
-        albedo = np.empty((len(rows), 3), np.float32)
-        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo)
-        out[rows] = albedo
+        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo, texture_filter)
+        return albedo

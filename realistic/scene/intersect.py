@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from realistic.core.jit import compiled
 from realistic.core.transforms import transform_points
 from realistic.errors import UserError
 from realistic.scene.embree import EmbreeScene
@@ -38,6 +39,29 @@ SHARE_MIN_FACES = 4096
 #: An instance whose transform's linear part is worse conditioned than this is copied to world space.
 MAX_SHARED_CONDITION = 1e4
 _MISS_T = np.float32(1e37)  # the tfar a ray that hits nothing keeps
+
+
+def _instances_to_world(instance: np.ndarray, normal_to_world_t: np.ndarray, geom: np.ndarray,
+                        normal: np.ndarray) -> None:
+    """Where a hit is on an embree instance (``instance`` >= 0), make ``geom`` that instance and
+    take its float32 normal to the world: row n times the instance's (3, 3) ``normal_to_world_t``,
+    summed in float32 in order ((n0 m0k + n1 m1k) + n2 m2k, as numpy's einsum made it). A numba
+    loop (``core.jit``): one pass, where numpy picked, gathered and scattered the rows."""
+    for i in range(len(instance)):
+        which = instance[i]
+        if which >= 0:
+            geom[i] = which
+            x, y, z = normal[i, 0], normal[i, 1], normal[i, 2]
+            for k in range(3):
+                normal[i, k] = (x * normal_to_world_t[which, 0, k] + y * normal_to_world_t[which, 1, k]
+                                + z * normal_to_world_t[which, 2, k])
+
+
+def compile_intersect_loops() -> None:
+    """Compile (or load from numba's cache) ``_instances_to_world`` for the types ``closest``
+    passes, on no rows (a render does this as it starts: ``runner.compile_pass_loops``)."""
+    ids = np.empty(0, np.int32)
+    compiled(_instances_to_world)(ids, np.empty((0, 3, 3), np.float32), ids, np.empty((0, 3), np.float32))
 
 
 @dataclass(frozen=True)
@@ -128,13 +152,8 @@ class Intersector:
     def closest(self, origin: np.ndarray, direction: np.ndarray) -> Hits:
         """Nearest hit along each ray (direction need not be unit; t is in its units)."""
         hits = self._embree.intersect(origin, direction, float(_MISS_T))
-        geom, normal = hits.geom, hits.normal
-        instanced = np.flatnonzero(hits.instance >= 0)
-        if len(instanced):
-            which = hits.instance[instanced]
-            geom[instanced] = which
-            normal[instanced] = np.einsum("ij,ijk->ik", normal[instanced], self._normal_to_world_t[which])
-        return Hits(hits.t, hits.u, hits.v, hits.prim, geom, normal)
+        compiled(_instances_to_world)(hits.instance, self._normal_to_world_t, hits.geom, hits.normal)
+        return Hits(hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal)
 
     def occluded(self, origin: np.ndarray, direction: np.ndarray, distance: np.ndarray) -> np.ndarray:
         """True where something lies between t = 0 and t = ``distance``, and where ``distance`` is
