@@ -59,10 +59,12 @@ executable file): time to equal error, in CPU-seconds and wall, from one pbrt-v4
   materials ``diffuse``; the file names no integrator nor filter, so both renderers take pbrt-v4's
   defaults: ``volpath`` (we render it as ``path``), ``maxdepth`` 5, the ``bvh`` light sampler, the
   gaussian filter of radius 1.5.
-- Both render that file at each ``--v4-spps`` with two seeds: pbrt-v4 as a child process
+- Both render that file at each ``--v4-spps`` with two seeds, taking turns: pbrt-v4 as a child process
   (``--nthreads`` the CPU count, ``--spp``, ``--seed``), timed whole (parsing, BVH, render, EXR)
   in wall and in the child's CPU-seconds (``resource.getrusage(RUSAGE_CHILDREN)``); we time our scene
   load (once, added to each render) and ``render`` in wall and in the process's CPU-seconds.
+  pbrt-v4 bounds its exit pupil at every start (``RealisticCamera``'s constructor); ours comes from
+  the disk cache after the first render, as a user's second render of the lens finds it.
 - Each render's noise is its relative RMSE from its two seeds (``convergence.two_seed_noise``, no
   reference); the spp to ``--target`` follows the 1/N law from the highest count
   (``converge.spp_to_noise``), the seconds there a line in spp through the measured seconds
@@ -350,29 +352,41 @@ def our_v4_run(inputs: RenderInputs, load: tuple[float, float], spp: int, seed: 
     return image[..., :3], load[0] + wall, load[1] + time.process_time() - cpu
 
 
-def equal_error(run: Callable[[int, int], tuple[np.ndarray, float, float]], spps: list[int], ref: np.ndarray,
-                target: float) -> dict:
-    """One renderer's rows (spp, wall, CPU-s, noise from two seeds) and its fitted times to ``target``
-    (see the module's docstring), and its highest count's image mean and RMSE against ``ref``."""
-    rows, last = [], np.zeros(0)
+#: One renderer's render of the pbrt-v4 file: (spp, seed) -> (RGB image, wall s, CPU-s).
+V4Run = Callable[[int, int], tuple[np.ndarray, float, float]]
+
+
+def equal_error(runs: dict[str, V4Run], spps: list[int], ref: np.ndarray, target: float) -> dict[str, dict]:
+    """Per renderer: its rows (spp, wall, CPU-s, noise from two seeds), its fitted times to ``target``
+    (see the module's docstring), and its highest count's image mean and RMSE against ``ref``. The
+    renderers take turns at each count and seed, so the machine's load falls on both alike."""
+    rows: dict[str, list[dict]] = {name: [] for name in runs}
+    last: dict[str, np.ndarray] = {}
     for spp in spps:
-        first, wall, cpu = run(spp, converge.TEST_SEED)
-        second, wall2, cpu2 = run(spp, converge.NOISE_SEED)
-        rows.append({"spp": spp, "wall_s": (wall + wall2) / 2, "cpu_s": (cpu + cpu2) / 2,
-                     "noise": two_seed_noise(first, second), "mean": float(np.mean(first))})
-        last = 0.5 * (first.astype(np.float64) + second)
-        print(f"  {spp:5d} spp {rows[-1]['wall_s']:8.2f} s wall {rows[-1]['cpu_s']:8.2f} CPU-s "
-              f"noise {rows[-1]['noise']:.4f}", flush=True)
-    top = rows[-1]
-    spp_target = converge.spp_to_noise(top["noise"] * math.sqrt(top["spp"]), 0.5, target)
-    _, q = converge.noise_power_law(spps, [r["noise"] for r in rows])
-    return {"rows": rows, "spp_to_target": spp_target, "exponent": q,
-            "wall_s_to_target": converge.extrapolated_seconds(spps, [r["wall_s"] for r in rows], 0.0, spp_target),
-            "cpu_s_to_target": converge.extrapolated_seconds(spps, [r["cpu_s"] for r in rows], 0.0, spp_target),
-            "mean": float(np.mean(last)), "reference_mean": float(np.mean(ref)),
-            "rel_rmse_to_reference": relative_rmse(last, ref),
-            # the two seeds' average has half a render's variance: this much of the RMSE is its noise
+        renders: dict[str, list[tuple[np.ndarray, float, float]]] = {name: [] for name in runs}
+        for seed in (converge.TEST_SEED, converge.NOISE_SEED):
+            for name, run in runs.items():
+                renders[name].append(run(spp, seed))
+        for name, ((first, wall, cpu), (second, wall2, cpu2)) in renders.items():
+            rows[name].append({"spp": spp, "wall_s": (wall + wall2) / 2, "cpu_s": (cpu + cpu2) / 2,
+                               "noise": two_seed_noise(first, second), "mean": float(np.mean(first))})
+            last[name] = 0.5 * (first.astype(np.float64) + second)
+            print(f"{name:8s} {spp:5d} spp {rows[name][-1]['wall_s']:8.2f} s wall {rows[name][-1]['cpu_s']:8.2f} "
+                  f"CPU-s noise {rows[name][-1]['noise']:.4f}", flush=True)
+    results = {}
+    for name, table in rows.items():
+        top = table[-1]
+        spp_target = converge.spp_to_noise(top["noise"] * math.sqrt(top["spp"]), 0.5, target)
+        _, q = converge.noise_power_law(spps, [r["noise"] for r in table])
+        results[name] = {
+            "rows": table, "spp_to_target": spp_target, "exponent": q,
+            "wall_s_to_target": converge.extrapolated_seconds(spps, [r["wall_s"] for r in table], 0.0, spp_target),
+            "cpu_s_to_target": converge.extrapolated_seconds(spps, [r["cpu_s"] for r in table], 0.0, spp_target),
+            "mean": float(np.mean(last[name])), "reference_mean": float(np.mean(ref)),
+            "rel_rmse_to_reference": relative_rmse(last[name], ref),
+            # the two seeds' average has half a render's variance: this much of its RMSE is its noise
             "noise_of_average": top["noise"] / math.sqrt(2.0)}
+    return results
 
 
 def pbrt_v4_peer(pbrt: Path, args: argparse.Namespace) -> None:
@@ -386,11 +400,9 @@ def pbrt_v4_peer(pbrt: Path, args: argparse.Namespace) -> None:
                                                              converge.source_hash(ROOT, scene)), args.reference_spp)
     converge.render_seconds(inputs, args.v4_spps[0], converge.TEST_SEED)  # kernels built, untimed
     load_before = os.getloadavg()
-    results = {}
-    for name, run in (("pbrt-v4", lambda spp, seed: pbrt_v4_run(pbrt, scene, spp, seed)),
-                      ("ours", lambda spp, seed: our_v4_run(inputs, load, spp, seed))):
-        print(f"{name}:", flush=True)
-        results[name] = equal_error(run, args.v4_spps, ref, args.target)
+    runs: dict[str, V4Run] = {"pbrt-v4": lambda spp, seed: pbrt_v4_run(pbrt, scene, spp, seed),
+                              "ours": lambda spp, seed: our_v4_run(inputs, load, spp, seed)}
+    results = equal_error(runs, args.v4_spps, ref, args.target)
     load_after = os.getloadavg()
     theirs, ours = results["pbrt-v4"], results["ours"]
     ratios = {f"pbrt-v4 / ours, {unit} to {args.target:g}": theirs[key] / ours[key]
