@@ -72,7 +72,13 @@ executable file): time to equal error, in CPU-seconds and wall, from one pbrt-v4
   wall. ``noise_power_law``'s exponent over all counts is printed beside it (0.5: the 1/N law).
 - Agreement: against our reference at ``--reference-spp`` (seed 1, cached as ``bench/converge.py``
   caches it), each renderer's image mean at its highest count (both seeds averaged) and that
-  image's relative RMSE, beside the RMSE its noise alone explains.
+  image's relative RMSE, beside the RMSE its noise alone explains. pbrt gives an area light's shape
+  the material in effect where it is declared (pbrt-v4 src/pbrt/scene.cpp, ``CreateAggregate``: a
+  ``GeometricPrimitive`` with ``mtl`` and the light; here the default diffuse 0.5 under the disk),
+  and its path integrator reflects off it (src/pbrt/cpu/integrators.cpp, ``PathIntegrator::Li``: the
+  emission, then the same surface's BSDF); our paths end at an emitter. So from the third path vertex
+  on, pbrt-v4's image is brighter than ours by the light reflected off the disk's underside; with
+  ``maxdepth`` 1 or 2, or a black material on the disk, the means agree.
 
 Writes bench/results/peers-pbrt-v4.json.
 """
