@@ -1,6 +1,8 @@
-"""Peers benchmark: the dragons rendered by Mitsuba 3 and by us, samples/s side by side (issue 35).
+"""Peers benchmark: the dragons rendered by Mitsuba 3, pbrt-v4 and by us, side by side (issue 35).
 
     .venv/bin/python bench/peers.py [--mitsuba] [--spp 64] [--res 300x300] [--repeats 5]
+    PBRT_V4=/path/to/pbrt .venv/bin/python bench/peers.py [--only-pbrt-v4] [--v4-spps 4,16,64]
+        [--reference-spp 1024] [--target 0.02]
 
 Renders ``scenes/dof-dragons/dgauss.pbrt`` (11 Stanford dragons on the homework's grid floor under
 its disk light; needs ``../shared/meshes/dragon.ply`` and ``../shared/scenes/pbrt/textures``, and
@@ -51,13 +53,48 @@ film is irradiance and vignetted, so its mean is not comparable), and for ours t
 thread-seconds of each render stage (``renderer/timing``) and its share: what bounds it. The load
 average is printed before and after: on a shared machine the figures are noisy.
 Writes bench/results/peers.json.
+
+pbrt-v4 (``PBRT_V4`` names its executable; skipped with a line saying why when it is unset or not an
+executable file): time to equal error, in CPU-seconds and wall, from one pbrt-v4 file.
+
+- The file: ``pbrt --upgrade`` of the dragons as pbrt-v3 takes them (``pbrt_v3_scene``: the
+  homework camera rewritten in pbrt-v3's convention, which ``--upgrade`` passes through), written
+  with everything it makes into bench/results/pbrt-v4/. The upgrade makes the sampler
+  ``paddedsobol`` (from ``lowdiscrepancy``), the light ``diffuse`` without ``nsamples``, the matte
+  materials ``diffuse``; the file names no integrator nor filter, so both renderers take pbrt-v4's
+  defaults: ``volpath`` (we render it as ``path``), ``maxdepth`` 5, the ``bvh`` light sampler, the
+  gaussian filter of radius 1.5.
+- Both render that file at each ``--v4-spps`` with two seeds, taking turns: pbrt-v4 as a child process
+  (``--nthreads`` the CPU count, ``--spp``, ``--seed``), timed whole (parsing, BVH, render, EXR)
+  in wall and in the child's CPU-seconds (``resource.getrusage(RUSAGE_CHILDREN)``); we time our scene
+  load (once, added to each render) and ``render`` in wall and in the process's CPU-seconds.
+  pbrt-v4 bounds its exit pupil at every start (``RealisticCamera``'s constructor); ours comes from
+  the disk cache after the first render, as a user's second render of the lens finds it.
+- Each render's noise is its relative RMSE from its two seeds (``convergence.two_seed_noise``, no
+  reference); the spp to ``--target`` follows the 1/N law from the highest count
+  (``converge.spp_to_noise``), the seconds there a line in spp through the measured seconds
+  (``converge.extrapolated_seconds``), and the ratio pbrt-v4 / ours is printed in CPU-seconds and
+  wall. ``noise_power_law``'s exponent over all counts is printed beside it (0.5: the 1/N law).
+- Agreement: against our reference at ``--reference-spp`` (seed 1, cached as ``bench/converge.py``
+  caches it), each renderer's image mean at its highest count (both seeds averaged) and that
+  image's relative RMSE, beside the RMSE its noise alone explains. pbrt gives an area light's shape
+  the material in effect where it is declared (pbrt-v4 src/pbrt/scene.cpp, ``CreateAggregate``: a
+  ``GeometricPrimitive`` with ``mtl`` and the light; here the default diffuse 0.5 under the disk),
+  and its path integrator reflects off it (src/pbrt/cpu/integrators.cpp, ``PathIntegrator::Li``: the
+  emission, then the same surface's BSDF); our paths end at an emitter. So from the third path vertex
+  on, pbrt-v4's image is brighter than ours by the light reflected off the disk's underside; with
+  ``maxdepth`` 1 or 2, or a black material on the disk, the means agree.
+
+Writes bench/results/peers-pbrt-v4.json.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -74,15 +111,19 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
+import converge  # noqa: E402
 import machine  # noqa: E402
+from realistic.camera.lens_camera import LensCamera  # noqa: E402
 from realistic.camera.thin_lens import ThinLensCamera  # noqa: E402
 from realistic.cli import build_parser  # noqa: E402
 from realistic.cli.scene_arguments import options_from_args  # noqa: E402
-from realistic.cli.values import checked, parse_resolution  # noqa: E402
+from realistic.cli.values import checked, parse_resolution, parse_spp_list, positive  # noqa: E402
 from realistic.core import validation  # noqa: E402
 from realistic.core.image_files import read_exr  # noqa: E402
 from realistic.core.transforms import rotate, scale, translate  # noqa: E402
-from realistic.renderer.inputs import RenderInputs, build_render_inputs  # noqa: E402
+from realistic.optics.paraxial import focus_distance_for_film  # noqa: E402
+from realistic.renderer.convergence import relative_rmse, two_seed_noise  # noqa: E402
+from realistic.renderer.inputs import RenderInputs, RenderOptions, build_render_inputs  # noqa: E402
 from realistic.renderer.job import RenderJob  # noqa: E402
 from realistic.renderer.passes import ThreadPasses, render  # noqa: E402
 from realistic.scene.surfaces import ImageTexture, Material  # noqa: E402
@@ -92,6 +133,10 @@ SHARED = ROOT.parent / "shared"
 MESHES = SHARED / "meshes"
 PBRT = SHARED / "scenes" / "pbrt"
 SCENE = ROOT / "scenes" / "dof-dragons" / "dgauss.pbrt"
+#: The lens the dgauss scene names (``"string specfile" "dgauss.50mm.dat"``).
+LENS_FILE = SHARED / "lenses" / "dgauss.50mm.dat"
+#: Where the pbrt-v4 comparison writes its scene files, images and cached reference.
+V4_FOLDER = ROOT / "bench" / "results" / "pbrt-v4"
 THIN_LENS = 'Camera "perspective" "float fov" [50] "float lensradius" [12.3] "float focaldistance" [3534]'
 #: The dragons of scenes/dof-dragons/world.pbrt: per instance, its object's colour and turn about y (degrees).
 BLUE, RED = (0.2, 0.2, 0.5), (0.8, 0.2, 0.2)
@@ -244,6 +289,166 @@ def mitsuba_render(camera: ThinLensCamera, folder: Path) -> Render | str:
     return run
 
 
+def pbrt_v4_executable() -> Path | str:
+    """pbrt-v4's executable from ``PBRT_V4``, or why there is none."""
+    value = os.environ.get("PBRT_V4", "")
+    if not value:
+        return "PBRT_V4 is not set (the path of a pbrt-v4 executable)"
+    if not (Path(value).is_file() and os.access(value, os.X_OK)):
+        return f"PBRT_V4={value} is not an executable file"
+    return Path(value)
+
+
+def pbrt_v3_scene(folder: Path, res: tuple[int, int]) -> Path:
+    """The dgauss dragons as pbrt-v3 reads them, the input of ``pbrt --upgrade``, written in ``folder``.
+
+    ``scenes/dof-dragons/dgauss.pbrt`` has the homework's camera (``specfile``, ``filmdistance`` in mm
+    from the rear vertex, ``aperture_diameter``, ``filmdiag``; camera space in mm with the front lens
+    vertex at its origin), which neither pbrt-v3 nor pbrt-v4 reads and ``--upgrade`` copies unchanged.
+    So it is written in pbrt-v3's convention, which pbrt-v4 keeps (pbrt-v4 src/pbrt/cameras.cpp,
+    ``RealisticCamera::Create``): ``lensfile``, ``aperturediameter`` (mm), ``focusdistance`` (m from the
+    film: the distance the homework's film distance focuses, ``paraxial.focus_distance_for_film``),
+    ``Film "diagonal"``, and camera space in metres with the film centre at its origin
+    (``Translate 0 0`` the film-to-front-vertex distance and ``Scale .001`` ahead of the file's own
+    transforms). ``world.pbrt`` is inlined and the mesh, texture and lens are named by absolute paths.
+    """
+    camera = our_inputs(SCENE, 1, res).camera
+    assert isinstance(camera, LensCamera)
+    focus_m = focus_distance_for_film(camera.lens, camera.film_distance_mm) / 1000.0
+    front_m = (camera.film_distance_mm + camera.lens.track_length_mm) / 1000.0
+    world = (SCENE.parent / "world.pbrt").read_text(encoding="utf-8")
+    world = world.replace('"dragon.ply"', f'"{MESHES / "dragon.ply"}"').replace(
+        '"textures/lines.exr"', f'"{PBRT / "textures" / "lines.exr"}"')
+    lines = [f'Film "image" "integer xresolution" [{res[0]}] "integer yresolution" [{res[1]}] '
+             f'"float diagonal" [{camera.film_diagonal_mm:g}] "string filename" ["dragons.exr"]']
+    for line in SCENE.read_text(encoding="utf-8").splitlines():
+        if line.startswith("Camera "):
+            lines.append(f'Camera "realistic" "string lensfile" "{LENS_FILE}" "float aperturediameter" '
+                         f'[{camera.lens.stop_diameter_mm:g}] "float focusdistance" [{focus_m:.9g}]')
+        elif line.startswith("Scale "):
+            lines += [f"Translate 0 0 {front_m:.9g}", "Scale .001 .001 .001", line]
+        elif line.startswith("Include "):
+            lines.append(world)
+        elif not line.startswith(("Film ", "    ")):  # the homework camera's parameters are indented
+            lines.append(line)
+    path = folder / "dragons-v3.pbrt"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def child_seconds(command: list[str]) -> tuple[float, float]:
+    """Run ``command``: its wall seconds and CPU-seconds (user + system, from RUSAGE_CHILDREN); a
+    failure stops the bench with its last line of output."""
+    before, start = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+    result = subprocess.run(command, capture_output=True, text=True)
+    wall, after = time.perf_counter() - start, resource.getrusage(resource.RUSAGE_CHILDREN)
+    if result.returncode != 0:
+        last = (result.stderr.strip() or result.stdout.strip() or "no output").splitlines()[-1]
+        raise SystemExit(f"pbrt-v4: {' '.join(command)} failed (exit status {result.returncode}): {last}")
+    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+
+
+def pbrt_v4_scene(pbrt: Path, folder: Path, res: tuple[int, int]) -> Path:
+    """The dragons' pbrt-v4 file: ``pbrt --upgrade`` of ``pbrt_v3_scene``, in ``folder``."""
+    v3 = pbrt_v3_scene(folder, res)
+    result = subprocess.run([str(pbrt), "--upgrade", str(v3)], capture_output=True, text=True)
+    if result.returncode != 0:
+        raise SystemExit(f"pbrt-v4: --upgrade {v3} failed: {result.stderr.strip()}")
+    path = folder / "dragons-v4.pbrt"
+    path.write_text(result.stdout, encoding="utf-8")
+    return path
+
+
+def pbrt_v4_run(pbrt: Path, scene: Path, spp: int, seed: int) -> tuple[np.ndarray, float, float]:
+    """pbrt-v4's render of ``scene`` at ``spp`` with ``seed``: (RGB image, wall s, CPU-s), the whole process."""
+    out = scene.with_name(f"pbrt-v4-{spp}spp-seed{seed}.exr")
+    wall, cpu = child_seconds([str(pbrt), "--nthreads", str(os.cpu_count() or 1), "--spp", str(spp),
+                               "--seed", str(seed), "--outfile", str(out), "--quiet", str(scene)])
+    return read_exr(out)[0][..., :3], wall, cpu
+
+
+def our_v4_run(inputs: RenderInputs, load: tuple[float, float], spp: int, seed: int
+               ) -> tuple[np.ndarray, float, float]:
+    """Our render of the loaded pbrt-v4 file at ``spp`` with ``seed``: (RGB image, wall s, CPU-s), the
+    scene load's (wall, CPU) ``load`` added."""
+    cpu = time.process_time()
+    image, wall = converge.render_seconds(inputs, spp, seed)
+    return image[..., :3], load[0] + wall, load[1] + time.process_time() - cpu
+
+
+#: One renderer's render of the pbrt-v4 file: (spp, seed) -> (RGB image, wall s, CPU-s).
+V4Run = Callable[[int, int], tuple[np.ndarray, float, float]]
+
+
+def equal_error(runs: dict[str, V4Run], spps: list[int], ref: np.ndarray, target: float) -> dict[str, dict]:
+    """Per renderer: its rows (spp, wall, CPU-s, noise from two seeds), its fitted times to ``target``
+    (see the module's docstring), and its highest count's image mean and RMSE against ``ref``. The
+    renderers take turns at each count and seed, so the machine's load falls on both alike."""
+    rows: dict[str, list[dict]] = {name: [] for name in runs}
+    last: dict[str, np.ndarray] = {}
+    for spp in spps:
+        renders: dict[str, list[tuple[np.ndarray, float, float]]] = {name: [] for name in runs}
+        for seed in (converge.TEST_SEED, converge.NOISE_SEED):
+            for name, run in runs.items():
+                renders[name].append(run(spp, seed))
+        for name, ((first, wall, cpu), (second, wall2, cpu2)) in renders.items():
+            rows[name].append({"spp": spp, "wall_s": (wall + wall2) / 2, "cpu_s": (cpu + cpu2) / 2,
+                               "noise": two_seed_noise(first, second), "mean": float(np.mean(first))})
+            last[name] = 0.5 * (first.astype(np.float64) + second)
+            print(f"{name:8s} {spp:5d} spp {rows[name][-1]['wall_s']:8.2f} s wall {rows[name][-1]['cpu_s']:8.2f} "
+                  f"CPU-s noise {rows[name][-1]['noise']:.4f}", flush=True)
+    results = {}
+    for name, table in rows.items():
+        top = table[-1]
+        spp_target = converge.spp_to_noise(top["noise"] * math.sqrt(top["spp"]), 0.5, target)
+        _, q = converge.noise_power_law(spps, [r["noise"] for r in table])
+        results[name] = {
+            "rows": table, "spp_to_target": spp_target, "exponent": q,
+            "wall_s_to_target": converge.extrapolated_seconds(spps, [r["wall_s"] for r in table], 0.0, spp_target),
+            "cpu_s_to_target": converge.extrapolated_seconds(spps, [r["cpu_s"] for r in table], 0.0, spp_target),
+            "mean": float(np.mean(last[name])), "reference_mean": float(np.mean(ref)),
+            "rel_rmse_to_reference": relative_rmse(last[name], ref),
+            # the two seeds' average has half a render's variance: this much of its RMSE is its noise
+            "noise_of_average": top["noise"] / math.sqrt(2.0)}
+    return results
+
+
+def pbrt_v4_peer(pbrt: Path, args: argparse.Namespace) -> None:
+    """Time to ``args.target`` of pbrt-v4 and of us from one pbrt-v4 file; prints and writes JSON."""
+    V4_FOLDER.mkdir(parents=True, exist_ok=True)
+    scene = pbrt_v4_scene(pbrt, V4_FOLDER, args.res)
+    load_wall, load_cpu = time.perf_counter(), time.process_time()
+    inputs = build_render_inputs(RenderOptions(scene=str(scene)))
+    load = (time.perf_counter() - load_wall, time.process_time() - load_cpu)
+    ref = converge.reference(inputs, converge.reference_path(V4_FOLDER, scene, args.res, args.reference_spp,
+                                                             converge.source_hash(ROOT, scene)), args.reference_spp)
+    converge.render_seconds(inputs, args.v4_spps[0], converge.TEST_SEED)  # kernels built, untimed
+    load_before = os.getloadavg()
+    runs: dict[str, V4Run] = {"pbrt-v4": lambda spp, seed: pbrt_v4_run(pbrt, scene, spp, seed),
+                              "ours": lambda spp, seed: our_v4_run(inputs, load, spp, seed)}
+    results = equal_error(runs, args.v4_spps, ref, args.target)
+    load_after = os.getloadavg()
+    theirs, ours = results["pbrt-v4"], results["ours"]
+    ratios = {f"pbrt-v4 / ours, {unit} to {args.target:g}": theirs[key] / ours[key]
+              for unit, key in (("CPU-s", "cpu_s_to_target"), ("wall s", "wall_s_to_target"))}
+    print(f"{machine.describe()}; {scene} ({args.res[0]}x{args.res[1]}), our reference {args.reference_spp} spp; "
+          f"load average {load_before[0]:.2f} before, {load_after[0]:.2f} after (shared machine: noisy)")
+    print(f"{'peer':8s} {'spp to ' + format(args.target, 'g'):>11s} {'CPU s':>9s} {'wall s':>9s} {'exponent':>9s} "
+          f"{'mean':>9s} {'mean/ref':>9s} {'RMSE/ref':>9s} {'its noise':>9s}")
+    for name, r in results.items():
+        print(f"{name:8s} {r['spp_to_target']:11.0f} {r['cpu_s_to_target']:9.1f} {r['wall_s_to_target']:9.1f} "
+              f"{r['exponent']:9.3f} {r['mean']:9.5g} {r['mean'] / r['reference_mean']:9.4f} "
+              f"{r['rel_rmse_to_reference']:9.4f} {r['noise_of_average']:9.4f}")
+    for label, value in ratios.items():
+        print(f"{label}: {value:.2f}x")
+    out = ROOT / "bench" / "results" / "peers-pbrt-v4.json"
+    out.write_text(json.dumps({"machine": machine.describe(), "scene": str(scene), "resolution": list(args.res),
+                               "reference_spp": args.reference_spp, "target": args.target,
+                               "load_average": [load_before, load_after], "our_scene_load_s": list(load),
+                               "results": results, "ratios": ratios}, indent=1))
+    print(f"wrote {out}")
+
+
 def spread(values: list[float]) -> dict:
     """The median, least and greatest of ``values``."""
     return {"median": statistics.median(values), "min": min(values), "max": max(values)}
@@ -260,6 +465,13 @@ def build_parser_() -> argparse.ArgumentParser:
     parser.add_argument("--spp", type=checked(int, validation.samples_per_pixel), default=64)
     parser.add_argument("--res", type=parse_resolution, default=(300, 300), metavar="WxH")
     parser.add_argument("--repeats", type=checked(int, positive_count), default=5)
+    parser.add_argument("--only-pbrt-v4", action="store_true", help="only the pbrt-v4 comparison (needs PBRT_V4)")
+    parser.add_argument("--v4-spps", type=checked(str, parse_spp_list), default=[4, 16, 64], metavar="N,N,...",
+                        help="samples per pixel of the pbrt-v4 comparison's renders (default 4,16,64)")
+    parser.add_argument("--reference-spp", type=checked(int, validation.samples_per_pixel), default=1024,
+                        metavar="N", help="samples per pixel of our reference for pbrt-v4 (default 1024)")
+    parser.add_argument("--target", type=positive("target relative RMSE"), default=0.02,
+                        help="relative RMSE the pbrt-v4 comparison times (default 0.02)")
     return parser
 
 
@@ -268,6 +480,15 @@ def main() -> None:
     missing = [p for p in (MESHES / "dragon.ply", PBRT / "textures" / "lines.exr") if not p.exists()]
     if missing:
         print(f"peers: skipped: {missing[0]} not found (no ../shared data)")
+        return
+    pbrt = pbrt_v4_executable()
+    if isinstance(pbrt, str):
+        print(f"pbrt-v4: skipped: {pbrt}")
+    elif not LENS_FILE.is_file():
+        print(f"pbrt-v4: skipped: {LENS_FILE} not found (no ../shared data)")
+    else:
+        pbrt_v4_peer(pbrt, args)
+    if args.only_pbrt_v4:
         return
     load_before = os.getloadavg()
     with tempfile.TemporaryDirectory() as temporary:

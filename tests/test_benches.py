@@ -335,3 +335,37 @@ def test_peers_mitsuba_pose_sees_what_the_pbrt_camera_sees():
     np.testing.assert_allclose(pose[:3, 2], rotation[:, 2])
     np.testing.assert_allclose(pose[:3, 1], rotation[:, 1])
     np.testing.assert_allclose(-pose[:3, 0], rotation[:, 0])
+
+
+def test_peers_pbrt_v4_executable_says_why_it_is_skipped(tmp_path, monkeypatch):
+    """Unset, a missing path and a file that is not executable each give a reason; an executable its path."""
+    monkeypatch.delenv("PBRT_V4", raising=False)
+    assert "not set" in peers.pbrt_v4_executable()
+    monkeypatch.setenv("PBRT_V4", str(tmp_path / "nowhere"))
+    assert "not an executable file" in peers.pbrt_v4_executable()
+    plain = tmp_path / "pbrt"
+    plain.write_text("")
+    monkeypatch.setenv("PBRT_V4", str(plain))
+    assert "not an executable file" in peers.pbrt_v4_executable()
+    plain.chmod(0o755)
+    assert peers.pbrt_v4_executable() == plain
+
+
+@pytest.mark.skipif(not (peers.MESHES / "dragon.ply").is_file() or not peers.LENS_FILE.is_file(),
+                    reason="needs ../shared/meshes/dragon.ply and ../shared/lenses (not in the repository)")
+def test_peers_pbrt_v3_scene_keeps_the_homework_camera(tmp_path):
+    """The dragons in pbrt-v3's camera convention (metres from the film centre, focus by distance)
+    put the lens frame where the homework file puts it, at the same film distance, stop and film,
+    with none of the homework's parameters and the world inlined."""
+    text = peers.pbrt_v3_scene(tmp_path, (64, 48)).read_text()
+    statements = "\n".join(line.split("#")[0] for line in text.splitlines())
+    homework_words = ("specfile", "filmdistance", "aperture_diameter", "filmdiag", "Include")
+    assert not any(word in statements for word in homework_words)
+    assert statements.count("ObjectInstance") == 11
+    converted = peers.our_inputs(tmp_path / "dragons-v3.pbrt", 1, (64, 48)).camera
+    homework = peers.our_inputs(peers.SCENE, 1, (64, 48)).camera
+    assert converted.origin == "film" and homework.origin == "front_vertex"
+    np.testing.assert_allclose(converted.world_from_lens, homework.world_from_lens, rtol=1e-9, atol=1e-12)
+    assert converted.film_distance_mm == pytest.approx(homework.film_distance_mm, rel=1e-9)
+    assert converted.lens.stop_diameter_mm == homework.lens.stop_diameter_mm
+    assert converted.film_diagonal_mm == homework.film_diagonal_mm
