@@ -292,7 +292,7 @@ class EmbreeScene:
         hits = RayHits(t=np.empty(n, np.float32), u=np.empty(n, np.float32), v=np.empty(n, np.float32),
                        prim=np.empty(n, np.int32), geom=np.empty(n, np.int32), instance=np.empty(n, np.int32),
                        normal=np.empty((n, 3), np.float32))
-        packet_loop.closest_loop()(self._embree.intersect16, self._handle, packet_loop.packet_buffer(), origin,
+        packet_loop.closest_loop()(self._embree.intersect16, self._handle, *packet_loop.packet_arguments(), origin,
                                    direction, np.float32(tfar), hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                    hits.instance, hits.normal)
         return hits
@@ -306,8 +306,8 @@ class EmbreeScene:
             raise ValueError(f"{len(distance)} distances for {len(origin)} rays")
         self._require_committed()
         blocked = np.empty(len(origin), np.bool_)
-        packet_loop.occluded_loop()(self._embree.occluded16, self._handle, packet_loop.packet_buffer(), origin,
-                                    direction, distance, blocked)
+        packet_loop.occluded_loop()(self._embree.occluded16, self._handle, *packet_loop.packet_arguments(),
+                                    np.empty(packet_loop.PACKET, np.int64), origin, direction, distance, blocked)
         return blocked
 
     def _require_committed(self) -> None:

@@ -63,17 +63,25 @@ def packet_buffer(rows: int = ROWS + 1) -> np.ndarray:
     return packet
 
 
-def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, origin: np.ndarray, direction: np.ndarray,
-             tfar: np.float32, t: np.ndarray, u: np.ndarray, v: np.ndarray, prim: np.ndarray, geom: np.ndarray,
-             instance: np.ndarray, normal: np.ndarray) -> None:
+def packet_arguments() -> tuple[np.ndarray, np.ndarray, int, int]:
+    """A new ``packet_buffer`` for one call of a loop, with what the loops take beside it: its
+    float32 view and the addresses of its valid mask and of its RTCRayHit16. Made here, not in the
+    loops: numba compiles a view or a slice's address in a loop as code of its own (a fifth of a
+    loop's first compile, which a first render waits for)."""
+    packet = packet_buffer()
+    return packet, packet.view(np.float32), packet[VALID:].ctypes.data, packet.ctypes.data
+
+
+def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, floats: np.ndarray, valid: int,
+             rayhit: int, origin: np.ndarray, direction: np.ndarray, tfar: np.float32, t: np.ndarray, u: np.ndarray,
+             v: np.ndarray, prim: np.ndarray, geom: np.ndarray, instance: np.ndarray, normal: np.ndarray) -> None:
     """Closest hits of ``origin``/``direction`` ((N, 3) float32) within [0, tfar]: each lane's hit
     rows are cleared (Ng, u, v 0; ids -1, invalid) before the call, then copied to t, u, v, prim,
-    geom, instance ((N,) arrays) and normal ((N, 3)); a miss keeps tfar as t."""
-    floats = packet.view(np.float32)
-    valid, rayhit = packet[VALID:].ctypes.data, packet.ctypes.data
+    geom, instance ((N,) arrays) and normal ((N, 3)); a miss keeps tfar as t. The packet, its
+    float32 view and the addresses embree takes come from ``packet_arguments``."""
     count = origin.shape[0]
     for base in range(0, count, PACKET):
-        lanes = min(PACKET, count - base)
+        lanes = count - base if count - base < PACKET else PACKET
         for lane in range(PACKET):
             packet[VALID, lane] = -1 if lane < lanes else 0
         for lane in range(lanes):
@@ -101,16 +109,15 @@ def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, orig
                 normal[i, axis] = floats[NG + axis, lane]
 
 
-def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, origin: np.ndarray, direction: np.ndarray,
-              distance: np.ndarray, blocked: np.ndarray) -> None:
+def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, floats: np.ndarray, valid: int,
+              rayhit: int, rows: np.ndarray, origin: np.ndarray, direction: np.ndarray, distance: np.ndarray,
+              blocked: np.ndarray) -> None:
     """Occlusion of each ray within [0, distance]: a ray whose distance is not >= 0 is not traced.
     ``blocked`` is True where tfar ends negative: embree's -inf for an occluded ray, or a negative
     distance (a NaN distance stays unblocked). The rays traced fill each packet's lanes in their
-    order, the others skipped (a packet costs embree about as much with idle lanes as full)."""
-    floats = packet.view(np.float32)
-    valid, rayhit = packet[VALID:].ctypes.data, packet.ctypes.data
+    order, the others skipped (a packet costs embree about as much with idle lanes as full); ``rows``
+    (``PACKET`` int64) holds the lanes' ray numbers."""
     count = origin.shape[0]
-    rows = np.empty(PACKET, np.int64)
     lanes = 0
     for i in range(count + 1):
         if i < count:
@@ -136,12 +143,12 @@ def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, ori
 
 
 def closest_loop() -> Callable[..., None]:
-    """``_closest`` compiled (``realistic.core.jit``): (function, scene, packet, origin, direction,
-    tfar, t, u, v, prim, geom, instance, normal), the packet from ``packet_buffer``; it runs with the
-    GIL released."""
+    """``_closest`` compiled (``realistic.core.jit``): (function, scene, *``packet_arguments()``,
+    origin, direction, tfar, t, u, v, prim, geom, instance, normal); it runs with the GIL released."""
     return compiled(_closest)
 
 
 def occluded_loop() -> Callable[..., None]:
-    """``_occluded`` compiled: (function, scene, packet, origin, direction, distance, blocked)."""
+    """``_occluded`` compiled: (function, scene, *``packet_arguments()``, rows, origin, direction,
+    distance, blocked), ``rows`` an empty (``PACKET``,) int64 array."""
     return compiled(_occluded)
