@@ -171,7 +171,7 @@ from realistic.renderer.timing import StageClock
 from realistic.scene import packet_loop
 from realistic.scene.embree import compile_trace_loops
 
-loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), compiled(runner._gather),
+loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), compiled(runner._gather, runner.GATHER_SIGNATURE),
          compiled(film._add_rows), compiled(direct_lighting._visible_sums))
 compile_trace_loops()
 compile_pass_loops()
@@ -219,3 +219,21 @@ done.set()
     if float(seconds) < 0.05:
         pytest.skip(f"the first launch took {float(seconds):.3f} s: nothing compiled at it")
     assert int(ticks) >= 10, f"{ticks} wake-ups in the {float(seconds):.2f} s of a first launch"
+
+
+def test_the_ray_gather_compiles_once_for_strided_and_contiguous_rays():
+    """The kernel's rays are views of its (columns, stride) output: strided where a launch is padded,
+    F-contiguous where it is not (a default render has both). The gather compiled ahead serves both:
+    it used to compile again in a pass for the layout not seen ahead (checked in a process of its own)."""
+    run = run_fresh("""
+import numpy as np
+from realistic.core.jit import compiled
+from realistic.renderer import runner
+
+runner.compile_pass_loops()
+output = np.arange(24, dtype=np.float32).reshape(6, 4)
+for points in (output[0:3, :3].T, output[3:6].T):  # a padded launch's rays, an unpadded one's
+    assert np.array_equal(runner.gather_rows(points, np.array([2, 0])), points[[2, 0]])
+print(len(compiled(runner._gather, runner.GATHER_SIGNATURE).signatures))
+""")
+    assert run.stdout.split() == ["1"]

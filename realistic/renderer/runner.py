@@ -48,21 +48,28 @@ def _gather(points: np.ndarray, rows: np.ndarray, gathered: np.ndarray) -> bool:
     return True
 
 
+#: ``_gather``'s one signature: any layout of points, so that the kernel's rays, strided or
+#: contiguous views (a launch with no padding), do not compile it twice.
+GATHER_SIGNATURE = "boolean(float32[:, :], int64[:], float32[:, ::1])"
+
+
 def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """points[rows] (non-negative ``rows``) as a contiguous (len(rows), columns) float32 array. The
-    kernel's rays are transposed views of its (columns, n) output, which the loop reads in place."""
+    kernel's rays are transposed views of its (columns, n) output, which the loop reads in place;
+    other points (the numpy references' float64) are rounded to float32 first."""
     gathered = np.empty((len(rows), points.shape[1]), np.float32)
-    if not compiled(_gather)(points, np.asarray(rows, np.int64), gathered):
+    points = np.asarray(points, np.float32)
+    if not compiled(_gather, GATHER_SIGNATURE)(points, np.asarray(rows, np.int64), gathered):
         raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
     return gathered
 
 
 def compile_pass_loops() -> None:
-    """Compile (or load from numba's cache) a pass's own numba loops, the gathers of the kernel's rays,
-    the film's sums and the shading sums, for the argument types a pass passes, on no rows: a render
-    does this on a render thread as it starts (``ThreadPasses.open``), beside its OpenCL builds, not
-    in its first pass. The kernel's rays are strided views of its (columns, n) output."""
-    gather_rows(np.empty((3, 4), np.float32).T[::2], np.empty(0, np.int64))
+    """Compile (or load from numba's cache) a pass's own numba loops, the gathers of the kernel's rays
+    (for its one signature), the film's sums and the shading sums, for the argument types a pass
+    passes, on no rows: a render does this on a render thread as it starts (``ThreadPasses.open``),
+    beside its OpenCL builds, not in its first pass."""
+    compiled(_gather, GATHER_SIGNATURE)
     pass_sums(np.empty(0, np.int64), np.empty((0, 3), np.float32), 0, 0, np.empty(0, np.float32))
     compile_shading_loops()
 
