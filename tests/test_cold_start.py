@@ -5,9 +5,12 @@ The lens kernel's first sight of a camera uses one ray per work item untimed (th
 kernel variant its rays need, and no other.
 """
 
+import subprocess
+import sys
+
 import pytest
 
-from conftest import run_fresh
+from conftest import fresh_process_env, run_fresh
 from realistic import load_scene
 from realistic.renderer.job import PassSettings
 from realistic.renderer.runner import PassRunner
@@ -237,3 +240,55 @@ for points in (output[0:3, :3].T, output[3:6].T):  # a padded launch's rays, an 
 print(len(compiled(runner._gather, runner.GATHER_SIGNATURE).signatures))
 """)
     assert run.stdout.split() == ["1"]
+
+
+@pytest.mark.parametrize(("argv", "renders"), [
+    (["render"], True),
+    (["render", "scene.pbrt", "--spp", "4"], True),
+    (["render", "--backend", "opencl"], True),
+    (["render", "--backend", "numpy"], False),
+    (["render", "--backend=numpy"], False),
+    (["render", "--help"], False),
+    (["render", "-h"], False),
+    (["lens", "info", "dgauss"], False),
+    ([], False),
+])
+def test_the_compiler_is_loaded_early_only_for_an_opencl_render(argv, renders):
+    from realistic.__main__ import renders_on_opencl
+
+    assert renders_on_opencl(argv) is renders
+
+
+@pytest.mark.parametrize(("argv", "spec"), [
+    (["render"], None),
+    (["render", "--cl-device", "1:0"], "1:0"),
+    (["render", "--cl-device=pthread"], "pthread"),
+    (["render", "--cl-device=a", "--cl-device", "b"], "b"),  # the last given, as argparse keeps
+    (["render", "--cl-device", "a", "--cl-device=b"], "b"),
+    (["render", "--cl-device"], None),  # argparse reports it
+])
+def test_the_early_compiler_load_uses_the_device_the_render_names(argv, spec):
+    from realistic.__main__ import device_spec
+
+    assert device_spec(argv) == spec
+
+
+def test_loading_the_compiler_builds_no_program_the_render_keeps(monkeypatch, tmp_path):
+    """``Device.load_compiler`` leaves nothing in the program cache or the disk cache."""
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
+    device = opencl.Device.for_spec()
+    before = opencl.build_program.cache_info().currsize
+    device.load_compiler()
+    assert opencl.build_program.cache_info().currsize == before
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_render_on_a_device_that_cannot_be_had_says_so_in_one_line(tmp_path):
+    """The early compiler load meets the bad device first and leaves it to the render: one line,
+    exit status 2, no traceback from the loading thread."""
+    run = subprocess.run([sys.executable, "-m", "realistic", "render", "--res", "8x6", "--spp", "1", "--quiet",
+                          "--out", str(tmp_path / "r.exr")], capture_output=True, text=True,
+                         env=fresh_process_env(PYOPENCL_CTX="no such device"), timeout=600)
+    assert run.returncode == 2
+    assert run.stderr.strip().splitlines() == [
+        next(line for line in run.stderr.splitlines() if "no OpenCL device matches" in line)]
