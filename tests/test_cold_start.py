@@ -292,3 +292,126 @@ def test_a_render_on_a_device_that_cannot_be_had_says_so_in_one_line(tmp_path):
     assert run.returncode == 2
     assert run.stderr.strip().splitlines() == [
         next(line for line in run.stderr.splitlines() if "no OpenCL device matches" in line)]
+
+
+@pytest.fixture()
+def numpy_loops(monkeypatch):
+    """The loops' numpy forms (``core.jit.use_compiled_loops(False)``, whatever numba made before)."""
+    from realistic.core import jit
+
+    monkeypatch.setattr(jit, "_use_compiled", [False])
+
+
+def _random_instances():
+    """An embree scene of two instances of 2000 random triangles."""
+    import numpy as np
+
+    from realistic.scene.embree import EmbreeScene
+
+    rng = np.random.default_rng(3)
+    mesh = EmbreeScene()
+    mesh.add_triangles(rng.random((3000, 3)).astype(np.float32), rng.integers(0, 3000, (2000, 3)), 0)
+    mesh.commit()
+    scene = EmbreeScene()
+    shifted = np.eye(4)
+    shifted[0, 3] = 0.5
+    scene.add_instance(mesh, np.eye(4), 5)
+    scene.add_instance(mesh, shifted, 7)
+    scene.commit()
+    return scene
+
+
+@pytest.mark.parametrize("count", [0, 1, 15, 16, 17, 5000])
+def test_packets_called_from_python_answer_as_the_compiled_loops(count, monkeypatch):
+    """embree's packets made by numpy and called from Python (a small render's) hold the compiled
+    loops' rays lane for lane: the same hits and occlusions, bit for bit (NaN and negative
+    distances included)."""
+    import numpy as np
+
+    from realistic.core import jit
+
+    scene = _random_instances()
+    rng = np.random.default_rng(count)
+    origin = (rng.random((count, 3)) * 2 - 0.5).astype(np.float32)
+    direction = (rng.random((count, 3)) - 0.5).astype(np.float32)
+    distance = (rng.random(count) * 2 - 0.3).astype(np.float32)
+    distance[:count // 7] = np.nan
+    answers = []
+    for compiled in (True, False):
+        monkeypatch.setattr(jit, "_use_compiled", [compiled])
+        hits = scene.intersect(origin, direction)
+        answers.append((*vars(hits).values(), scene.occluded(origin, direction, distance)))
+    assert count < 100 or answers[0][4].max() >= 0  # some rays hit
+    for compiled, python in zip(*answers):
+        assert compiled.dtype == python.dtype and np.array_equal(compiled, python)
+
+
+def test_the_numpy_forms_of_the_pass_loops_give_the_same_bits(numpy_loops, monkeypatch):
+    import numpy as np
+
+    from realistic.core import jit
+    from realistic.renderer import direct_lighting, film, runner
+
+    rng = np.random.default_rng(5)
+    n, per_ray = 3000, 3
+    output = rng.random((7, n + 37)).astype(np.float32)
+    rows = np.sort(rng.choice(n, n - 400, replace=False))
+    pixel = np.sort(rng.integers(100, 900, n))
+    value, weight = rng.random((n, 3)).astype(np.float32), (rng.random(n) - 0.2).astype(np.float32)
+    contribution = rng.random((n * per_ray + 5, 3)).astype(np.float32)
+    blocked, length = rng.random(n * per_ray + 5) < 0.4, (rng.random(n * per_ray + 5) - 0.3).astype(np.float32)
+
+    def run() -> list:
+        out = [np.full((n, 3), 7.0, np.float32) for _ in range(2)]
+        counts = [direct_lighting.visible_sums(contribution, blocked, length, per_ray, n, fresh, o)
+                  for fresh, o in zip((True, False), out)]
+        return [runner.gather_rows(output[0:3, :n].T, rows), runner.gather_rows(output[3:6].T, rows),
+                runner.gather_rows(output[0:3, :n].T.astype(np.float64), rows),
+                film.pass_sums(pixel, value, 100, 800, weight),
+                film.pass_sums(pixel, value.astype(np.float64), 100, 800),
+                *out, np.array(counts)]
+
+    numpy_forms = run()
+    monkeypatch.setattr(jit, "_use_compiled", [True])
+    for compiled, numpy_form in zip(run(), numpy_forms):
+        assert compiled.dtype == numpy_form.dtype and compiled.flags.c_contiguous == numpy_form.flags.c_contiguous
+        assert np.array_equal(compiled, numpy_form)
+
+
+def test_the_numpy_forms_refuse_what_the_loops_refuse(numpy_loops):
+    import numpy as np
+
+    from realistic.renderer import film, runner
+
+    with pytest.raises(IndexError, match="a row outside 0 .. 3"):
+        runner.gather_rows(np.zeros((4, 3), np.float32), np.array([0, 4]))
+    with pytest.raises(ValueError, match="a pixel outside 10 .. 11"):
+        film.pass_sums(np.array([10, 12]), np.zeros((2, 3), np.float32), 10, 2)
+
+
+def test_a_small_render_never_imports_numba_and_a_large_one_compiles_its_loops():
+    """README's first render (300x300, 16 spp) is too small to repay numba's import and first
+    compiles (``COMPILED_LOOPS_RAYS``): its passes run the loops' numpy forms and embree's packets
+    from Python (checked in a process of its own); a render of more rays runs numba's loops."""
+    import dataclasses
+
+    from realistic.core import jit
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.runner import COMPILED_LOOPS_RAYS, choose_loops
+
+    run = run_fresh("""
+import sys
+from realistic import load_scene
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import ThreadPasses, render
+
+scene = load_scene()
+print(scene.camera.width, scene.camera.height, scene.camera.spp, scene.light_samples)
+render(RenderJob(scene, (scene.camera,), "opencl"), ThreadPasses())
+print("numba" in sys.modules)
+""")
+    assert run.stdout.split() == ["300", "300", "16", "1", "False"]
+    scene = load_scene(resolution=(30, 20), spp=1)
+    big = dataclasses.replace(scene.camera, spp=COMPILED_LOOPS_RAYS // (30 * 20 * 2) + 1)
+    assert choose_loops(RenderJob(scene, (big,), "opencl")) and jit.compiled_loops()
+    assert choose_loops(RenderJob(scene, (big,), "opencl")) and jit.compiled_loops()

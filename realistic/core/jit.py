@@ -11,6 +11,8 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
+#: Whether the loops run compiled (``compiled_loops``): one flag for the process, set per render.
+_use_compiled = [True]
 #: Each loop's dispatcher and the signature it was made for (None: the types of each call).
 _compiled: dict[Callable[..., Any], tuple[Callable[..., Any], str | None]] = {}
 _lock = threading.Lock()
@@ -35,3 +37,17 @@ def compiled(loop: Callable[..., Any], signature: str | None = None) -> Callable
         if made_for != signature:
             raise ValueError(f"{loop.__qualname__} was compiled for {made_for!r}, not {signature!r}")
         return dispatcher
+
+
+def use_compiled_loops(wanted: bool) -> None:
+    """Run the loops compiled from now on where ``wanted`` or where numba has made any already in
+    this process (they are then cheap); otherwise their numpy forms, each giving the same bits.
+    A render too small to repay numba's import and first compiles (a second or so of one core,
+    holding the GIL) asks for the numpy forms (``renderer.passes.ThreadPasses.open``)."""
+    with _lock:
+        _use_compiled[0] = wanted or bool(_compiled)
+
+
+def compiled_loops() -> bool:
+    """Whether the loops run compiled (``use_compiled_loops``; True until a render says otherwise)."""
+    return _use_compiled[0]

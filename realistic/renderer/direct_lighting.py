@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from realistic.core import rng
-from realistic.core.jit import compiled
+from realistic.core.jit import compiled, compiled_loops
 from realistic.core.spectrum import rgb_basis, rgb_response, spectral_value
 from realistic.core.vectors import dot, normalise
 from realistic.core.warp import concentric_disk
@@ -188,6 +188,23 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
             if length[r] > 0:
                 traced += 1
     return traced
+
+
+def visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarray, per_ray: int, n: int,
+                 fresh: bool, out: np.ndarray) -> int:
+    """``_visible_sums``, compiled, or in numpy where the loops do not run compiled
+    (``core.jit.use_compiled_loops``): the same products, added in the same order."""
+    if compiled_loops():
+        return int(compiled(_visible_sums)(contribution, blocked, length, per_ray, n, fresh, out))
+    rows = n * per_ray
+    visible = np.where(blocked[:rows], np.float32(0.0), np.float32(1.0))
+    products = (contribution[:rows, :out.shape[1]] * visible[:, None]).reshape(n, per_ray, out.shape[1])
+    for k in range(per_ray):
+        if fresh and k == 0:
+            out[:n] = products[:, 0]
+        else:
+            out[:n] += products[:, k]
+    return int(np.count_nonzero(length[:rows] > 0))
 
 
 def compile_shading_loops() -> None:
@@ -516,8 +533,7 @@ class DirectLighting:
             with timed("embree"):
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
-                shadow_rays += compiled(_visible_sums)(batch.contribution, blocked, batch.length, rows, n,
-                                                       first == 0, out)
+                shadow_rays += visible_sums(batch.contribution, blocked, batch.length, rows, n, first == 0, out)
         with timed("shading"):
             if self.light_samples > 1:
                 out /= np.float32(self.light_samples)

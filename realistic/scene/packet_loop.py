@@ -18,6 +18,9 @@ file where that is writable, else (an installed, read-only package) in the user'
 uncached. That first trace is the loops' start-up cost: numba's import, and its
 first compile or cache load, which imports numba's own typing and lowering modules (and scipy's
 linalg, when installed, for its BLAS check); ``bench/embree_loop.py`` measures it, cold and warm.
+A render too small to repay that (``renderer.runner.choose_loops``) never imports numba: there
+``trace_closest`` and ``trace_occluded`` make every packet in numpy at once and call embree once
+per packet from Python, with the same packets lane for lane, so the same answers.
 
 Packet rows (``embree4/rtcore_ray.h``, ``RTCRayHit16``): org_x, org_y, org_z, tnear, dir_x, dir_y,
 dir_z, time, tfar, mask, id, flags (``RTCRay16`` ends here), then the hit's Ng_x, Ng_y, Ng_z, u, v,
@@ -152,3 +155,71 @@ def occluded_loop() -> Callable[..., None]:
     """``_occluded`` compiled: (function, scene, *``packet_arguments()``, rows, origin, direction,
     distance, blocked), ``rows`` an empty (``PACKET``,) int64 array."""
     return compiled(_occluded)
+
+
+def _packets(count: int) -> np.ndarray:
+    """(count / 16 rounded up, ``ROWS + 1``, 16) int32 packets in one 64-byte aligned block, each
+    set as ``packet_buffer`` sets one, its hit rows cleared as ``_closest`` clears them (Ng, u, v 0;
+    ids -1), its lanes from ``count`` on not valid."""
+    packets = -(-count // PACKET)
+    raw = np.zeros(packets * (ROWS + 1) * PACKET + ALIGNMENT // 4, np.int32)
+    start = (-raw.ctypes.data % ALIGNMENT) // 4
+    block = raw[start:start + packets * (ROWS + 1) * PACKET].reshape(packets, ROWS + 1, PACKET)
+    block[:, MASK:MASK + 1] = -1
+    block[:, PRIM:INST + 1] = -1
+    _set_lanes(block[:, VALID:VALID + 1], np.full((count, 1), -1, np.int32))
+    return block
+
+
+def _set_lanes(lanes: np.ndarray, values: np.ndarray) -> None:
+    """Rows (N, k) into the block's (packets, k, 16) ``lanes``, in order (the last packet's spare
+    lanes left as they are)."""
+    full, rest = divmod(len(values), PACKET)
+    spread = lanes.transpose(0, 2, 1)  # (packets, 16, k)
+    spread[:full] = values[:full * PACKET].reshape(full, PACKET, values.shape[1])
+    if rest:
+        spread[full, :rest] = values[full * PACKET:]
+
+
+def _call_each(function: Callable[..., None], scene: int, block: np.ndarray) -> None:
+    """``function`` (rtcIntersect16 or rtcOccluded16) on each packet of ``block`` in turn."""
+    stride, valid = block.strides[0], VALID * block.strides[1]
+    for address in range(block.ctypes.data, block.ctypes.data + len(block) * stride, stride):
+        function(address + valid, scene, address, None)
+
+
+def trace_closest(function: Callable[..., None], scene: int, origin: np.ndarray, direction: np.ndarray,
+                  tfar: np.float32, t: np.ndarray, u: np.ndarray, v: np.ndarray, prim: np.ndarray, geom: np.ndarray,
+                  instance: np.ndarray, normal: np.ndarray) -> None:
+    """``_closest`` without numba: every packet made by numpy at once, then one call from Python
+    per packet (a render too small to repay compiling the loop, ``core.jit.compiled_loops``). The
+    packets are ``_closest``'s, lane for lane, so the hits are the same."""
+    count = len(origin)
+    block = _packets(count)
+    floats = block.view(np.float32)
+    _set_lanes(floats[:, 0:3], origin)
+    _set_lanes(floats[:, 4:7], direction)
+    floats[:, TFAR] = tfar
+    _call_each(function, scene, block)
+    t[:] = floats[:, TFAR].reshape(-1)[:count]
+    u[:] = floats[:, U].reshape(-1)[:count]
+    v[:] = floats[:, V].reshape(-1)[:count]
+    prim[:] = block[:, PRIM].reshape(-1)[:count]
+    geom[:] = block[:, GEOM].reshape(-1)[:count]
+    instance[:] = block[:, INST].reshape(-1)[:count]
+    normal[:] = floats[:, NG:NG + 3].transpose(0, 2, 1).reshape(-1, 3)[:count]
+
+
+def trace_occluded(function: Callable[..., None], scene: int, origin: np.ndarray, direction: np.ndarray,
+                   distance: np.ndarray, blocked: np.ndarray) -> None:
+    """``_occluded`` without numba (see ``trace_closest``): the rays traced fill the packets' lanes in
+    their order, as there, so the answers are the same."""
+    blocked[:] = distance < 0
+    traced = np.flatnonzero(distance >= 0)
+    block = _packets(len(traced))
+    floats = block.view(np.float32)
+    _set_lanes(floats[:, 0:3], origin[traced])
+    _set_lanes(floats[:, 4:7], direction[traced])
+    _set_lanes(floats[:, TFAR:TFAR + 1], distance[traced, None])
+    _call_each(function, scene, block)
+    blocked[traced] = floats[:, TFAR].reshape(-1)[:len(traced)] < 0
