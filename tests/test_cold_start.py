@@ -415,3 +415,15 @@ print("numba" in sys.modules)
     big = dataclasses.replace(scene.camera, spp=COMPILED_LOOPS_RAYS // (30 * 20 * 2) + 1)
     assert choose_loops(RenderJob(scene, (big,), "opencl")) and jit.compiled_loops()
     assert choose_loops(RenderJob(scene, (big,), "opencl")) and jit.compiled_loops()
+
+
+def test_an_8_bit_png_is_the_file_imageio_wrote_without_importing_it():
+    """``png_bytes`` writes 8-bit PNGs through Pillow itself: the bytes imageio's Pillow plugin wrote."""
+    import imageio.v3 as iio
+    import numpy as np
+
+    from realistic.core.image_files import png_bytes, preview_pixels
+
+    image = np.random.default_rng(2).random((17, 23, 3)).astype(np.float32)
+    assert png_bytes(image, 0.5) == bytes(iio.imwrite("<bytes>", preview_pixels(image, 0.5), plugin="pillow",
+                                                      extension=".png"))
