@@ -61,7 +61,7 @@ def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     if not compiled_loops():  # numpy's form (``core.jit.use_compiled_loops``)
         if len(rows) and (rows.min() < 0 or rows.max() >= len(points)):
             raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
-        return points[rows]
+        return np.ascontiguousarray(points[rows])
     gathered = np.empty((len(rows), points.shape[1]), np.float32)
     if not compiled(_gather, GATHER_SIGNATURE)(points, rows, gathered):
         raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
