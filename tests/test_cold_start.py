@@ -5,9 +5,12 @@ The lens kernel's first sight of a camera uses one ray per work item untimed (th
 kernel variant its rays need, and no other.
 """
 
+import subprocess
+import sys
+
 import pytest
 
-from conftest import run_fresh
+from conftest import fresh_process_env, run_fresh
 from realistic import load_scene
 from realistic.renderer.job import PassSettings
 from realistic.renderer.runner import PassRunner
@@ -171,7 +174,7 @@ from realistic.renderer.timing import StageClock
 from realistic.scene import intersect, packet_loop
 from realistic.scene.embree import compile_trace_loops
 
-loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), compiled(runner._gather),
+loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), compiled(runner._gather, runner.GATHER_SIGNATURE),
          compiled(film._add_rows), compiled(direct_lighting._visible_sums),
          compiled(direct_lighting._material_rows), compiled(direct_lighting._place_rows),
          compiled(intersect._instances_to_world))
@@ -221,3 +224,242 @@ done.set()
     if float(seconds) < 0.05:
         pytest.skip(f"the first launch took {float(seconds):.3f} s: nothing compiled at it")
     assert int(ticks) >= 10, f"{ticks} wake-ups in the {float(seconds):.2f} s of a first launch"
+
+
+def test_the_ray_gather_compiles_once_for_strided_and_contiguous_rays():
+    """The kernel's rays are views of its (columns, stride) output: strided where a launch is padded,
+    F-contiguous where it is not (a default render has both). The gather compiled ahead serves both:
+    it used to compile again in a pass for the layout not seen ahead (checked in a process of its own)."""
+    run = run_fresh("""
+import numpy as np
+from realistic.core.jit import compiled
+from realistic.renderer import runner
+
+runner.compile_pass_loops()
+output = np.arange(24, dtype=np.float32).reshape(6, 4)
+for points in (output[0:3, :3].T, output[3:6].T):  # a padded launch's rays, an unpadded one's
+    assert np.array_equal(runner.gather_rows(points, np.array([2, 0])), points[[2, 0]])
+print(len(compiled(runner._gather, runner.GATHER_SIGNATURE).signatures))
+""")
+    assert run.stdout.split() == ["1"]
+
+
+@pytest.mark.parametrize(("argv", "renders"), [
+    (["render"], True),
+    (["render", "scene.pbrt", "--spp", "4"], True),
+    (["render", "--backend", "opencl"], True),
+    (["render", "--backend", "numpy"], False),
+    (["render", "--backend=numpy"], False),
+    (["render", "--help"], False),
+    (["render", "-h"], False),
+    (["lens", "info", "dgauss"], False),
+    ([], False),
+])
+def test_the_compiler_is_loaded_early_only_for_an_opencl_render(argv, renders):
+    from realistic.__main__ import renders_on_opencl
+
+    assert renders_on_opencl(argv) is renders
+
+
+@pytest.mark.parametrize(("argv", "spec"), [
+    (["render"], None),
+    (["render", "--cl-device", "1:0"], "1:0"),
+    (["render", "--cl-device=pthread"], "pthread"),
+    (["render", "--cl-device=a", "--cl-device", "b"], "b"),  # the last given, as argparse keeps
+    (["render", "--cl-device", "a", "--cl-device=b"], "b"),
+    (["render", "--cl-device"], None),  # argparse reports it
+])
+def test_the_early_compiler_load_uses_the_device_the_render_names(argv, spec):
+    from realistic.__main__ import device_spec
+
+    assert device_spec(argv) == spec
+
+
+def test_loading_the_compiler_builds_no_program_the_render_keeps(monkeypatch, tmp_path):
+    """``Device.load_compiler`` leaves nothing in the program cache or the disk cache."""
+    monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
+    device = opencl.Device.for_spec()
+    before = opencl.build_program.cache_info().currsize
+    device.load_compiler()
+    assert opencl.build_program.cache_info().currsize == before
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_render_on_a_device_that_cannot_be_had_says_so_in_one_line(tmp_path):
+    """The early compiler load meets the bad device first and leaves it to the render: one line,
+    exit status 2, no traceback from the loading thread."""
+    run = subprocess.run([sys.executable, "-m", "realistic", "render", "--res", "8x6", "--spp", "1", "--quiet",
+                          "--out", str(tmp_path / "r.exr")], capture_output=True, text=True,
+                         env=fresh_process_env(PYOPENCL_CTX="no such device"), timeout=600)
+    assert run.returncode == 2
+    assert run.stderr.strip().splitlines() == [
+        next(line for line in run.stderr.splitlines() if "no OpenCL device matches" in line)]
+
+
+@pytest.fixture()
+def numpy_loops(monkeypatch):
+    """The loops' numpy forms (``core.jit.use_compiled_loops(False)``, whatever numba made before)."""
+    from realistic.core import jit
+
+    monkeypatch.setattr(jit, "_use_compiled", [False])
+
+
+def _random_instances():
+    """An embree scene of two instances of 2000 random triangles."""
+    import numpy as np
+
+    from realistic.scene.embree import EmbreeScene
+
+    rng = np.random.default_rng(3)
+    mesh = EmbreeScene()
+    mesh.add_triangles(rng.random((3000, 3)).astype(np.float32), rng.integers(0, 3000, (2000, 3)), 0)
+    mesh.commit()
+    scene = EmbreeScene()
+    shifted = np.eye(4)
+    shifted[0, 3] = 0.5
+    scene.add_instance(mesh, np.eye(4), 5)
+    scene.add_instance(mesh, shifted, 7)
+    scene.commit()
+    return scene
+
+
+@pytest.mark.parametrize("count", [0, 1, 15, 16, 17, 5000])
+def test_packets_called_from_python_answer_as_the_compiled_loops(count, monkeypatch):
+    """embree's packets made by numpy and called from Python (a small render's) hold the compiled
+    loops' rays lane for lane: the same hits and occlusions, bit for bit (NaN and negative
+    distances included)."""
+    import numpy as np
+
+    from realistic.core import jit
+
+    scene = _random_instances()
+    rng = np.random.default_rng(count)
+    origin = (rng.random((count, 3)) * 2 - 0.5).astype(np.float32)
+    direction = (rng.random((count, 3)) - 0.5).astype(np.float32)
+    distance = (rng.random(count) * 2 - 0.3).astype(np.float32)
+    distance[:count // 7] = np.nan
+    answers = []
+    for compiled in (True, False):
+        monkeypatch.setattr(jit, "_use_compiled", [compiled])
+        hits = scene.intersect(origin, direction)
+        answers.append((*vars(hits).values(), scene.occluded(origin, direction, distance)))
+    assert count < 100 or answers[0][4].max() >= 0  # some rays hit
+    for compiled, python in zip(*answers):
+        assert compiled.dtype == python.dtype and np.array_equal(compiled, python)
+
+
+def test_the_numpy_forms_of_the_pass_loops_give_the_same_bits(numpy_loops, monkeypatch):
+    import numpy as np
+
+    from realistic.core import jit
+    from realistic.renderer import direct_lighting, film, runner
+
+    rng = np.random.default_rng(5)
+    n, per_ray = 3000, 3
+    output = rng.random((7, n + 37)).astype(np.float32)
+    rows = np.sort(rng.choice(n, n - 400, replace=False))
+    pixel = np.sort(rng.integers(100, 900, n))
+    value, weight = rng.random((n, 3)).astype(np.float32), (rng.random(n) - 0.2).astype(np.float32)
+    contribution = rng.random((n * per_ray + 5, 3)).astype(np.float32)
+    blocked, length = rng.random(n * per_ray + 5) < 0.4, (rng.random(n * per_ray + 5) - 0.3).astype(np.float32)
+
+    def run() -> list:
+        out = [np.full((n, 3), 7.0, np.float32) for _ in range(2)]
+        counts = [direct_lighting.visible_sums(contribution, blocked, length, per_ray, n, fresh, o)
+                  for fresh, o in zip((True, False), out)]
+        return [runner.gather_rows(output[0:3, :n].T, rows), runner.gather_rows(output[3:6].T, rows),
+                runner.gather_rows(output[0:3, :n].T.astype(np.float64), rows),
+                film.pass_sums(pixel, value, 100, 800, weight),
+                film.pass_sums(pixel, value.astype(np.float64), 100, 800),
+                *out, np.array(counts)]
+
+    numpy_forms = run()
+    monkeypatch.setattr(jit, "_use_compiled", [True])
+    for compiled, numpy_form in zip(run(), numpy_forms):
+        assert compiled.dtype == numpy_form.dtype and compiled.flags.c_contiguous == numpy_form.flags.c_contiguous
+        assert np.array_equal(compiled, numpy_form)
+
+
+def test_the_numpy_forms_of_the_texture_and_instance_loops_give_the_same_bits(numpy_loops, monkeypatch):
+    """The device textures' row pick and place and the instanced hits' normals to the world, in numpy
+    (a small render's) and compiled: the same rows, the same float32 sums."""
+    import numpy as np
+
+    from realistic.core import jit
+    from realistic.renderer import direct_lighting
+    from realistic.scene import intersect
+
+    rng = np.random.default_rng(9)
+    n = 4000
+    geom = rng.integers(-1, 12, n).astype(np.int32)  # ids past the instances' are lights
+    geom_material = rng.integers(0, 3, 9)
+    values = rng.random((n, 3)).astype(np.float32)
+    instance = rng.integers(-1, 5, n).astype(np.int32)
+    normal_to_world_t = rng.standard_normal((5, 3, 3)).astype(np.float32)
+    normal = rng.standard_normal((n, 3)).astype(np.float32)
+
+    def run() -> list:
+        rows = np.full(n, -7, np.int32)
+        count = direct_lighting.material_rows(geom, geom_material, 1, rows)
+        out = np.zeros((n, 3), np.float32)
+        direct_lighting.place_rows(values[:count], rows[:count], out)
+        hit_geom, hit_normal = geom.copy(), normal.copy()
+        intersect.instances_to_world(instance, normal_to_world_t, hit_geom, hit_normal)
+        return [rows, np.array([count]), out, hit_geom, hit_normal]
+
+    numpy_forms = run()
+    assert 0 < numpy_forms[1][0] < n
+    monkeypatch.setattr(jit, "_use_compiled", [True])
+    for compiled, numpy_form in zip(run(), numpy_forms):
+        assert compiled.dtype == numpy_form.dtype and np.array_equal(compiled, numpy_form)
+
+
+def test_the_numpy_forms_refuse_what_the_loops_refuse(numpy_loops):
+    import numpy as np
+
+    from realistic.renderer import film, runner
+
+    with pytest.raises(IndexError, match="a row outside 0 .. 3"):
+        runner.gather_rows(np.zeros((4, 3), np.float32), np.array([0, 4]))
+    with pytest.raises(ValueError, match="a pixel outside 10 .. 11"):
+        film.pass_sums(np.array([10, 12]), np.zeros((2, 3), np.float32), 10, 2)
+
+
+def test_a_small_render_never_imports_numba_and_a_large_one_compiles_its_loops():
+    """README's first render (300x300, 16 spp) is too small to repay numba's import and first
+    compiles (``COMPILED_LOOPS_RAYS``): its passes run the loops' numpy forms and embree's packets
+    from Python (checked in a process of its own); a render of more rays runs numba's loops."""
+    import dataclasses
+
+    from realistic.core import jit
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.runner import COMPILED_LOOPS_RAYS, choose_loops
+
+    run = run_fresh("""
+import sys
+from realistic import load_scene
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import ThreadPasses, render
+
+scene = load_scene()
+print(scene.camera.width, scene.camera.height, scene.camera.spp, scene.light_samples)
+render(RenderJob(scene, (scene.camera,), "opencl"), ThreadPasses())
+print("numba" in sys.modules)
+""")
+    assert run.stdout.split() == ["300", "300", "16", "1", "False"]
+    scene = load_scene(resolution=(30, 20), spp=1)
+    big = dataclasses.replace(scene.camera, spp=COMPILED_LOOPS_RAYS // (30 * 20 * 2) + 1)
+    assert choose_loops(RenderJob(scene, (big,), "opencl")) and jit.compiled_loops()
+    assert choose_loops(RenderJob(scene, (big,), "opencl")) and jit.compiled_loops()
+
+
+def test_an_8_bit_png_is_the_file_imageio_wrote_without_importing_it():
+    """``png_bytes`` writes 8-bit PNGs through Pillow itself: the bytes imageio's Pillow plugin wrote."""
+    import imageio.v3 as iio
+    import numpy as np
+
+    from realistic.core.image_files import png_bytes, preview_pixels
+
+    image = np.random.default_rng(2).random((17, 23, 3)).astype(np.float32)
+    assert png_bytes(image, 0.5) == bytes(iio.imwrite("<bytes>", preview_pixels(image, 0.5), plugin="pillow",
+                                                      extension=".png"))

@@ -3,6 +3,7 @@ EXR (OpenEXR) and other images (imageio) read at their stored bit depth or float
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
@@ -108,12 +109,19 @@ def preview_pixels(image: np.ndarray, exposure_stops: float, bits: int = 8) -> n
 
 
 def png_bytes(image: np.ndarray, exposure_stops: float, bits: int = 8) -> bytes:
-    """The PNG file of ``preview_pixels`` in memory: 8 bits through imageio's Pillow plugin, 16 through
-    its OpenCV plugin (Pillow writes no 16-bit RGB)."""
+    """The PNG file of ``preview_pixels`` in memory: 8 bits through Pillow (the bytes imageio's Pillow
+    plugin wrote, without imageio's import, a tenth of a second of a first render's start), 16
+    through imageio's OpenCV plugin (Pillow writes no 16-bit RGB)."""
+    samples = preview_pixels(image, exposure_stops, bits)
+    if bits == 8:
+        from PIL import Image
+
+        data = io.BytesIO()
+        Image.fromarray(samples).save(data, format="PNG")
+        return data.getvalue()
     import imageio.v3 as iio
 
-    samples = preview_pixels(image, exposure_stops, bits)
-    return bytes(iio.imwrite("<bytes>", samples, plugin="pillow" if bits == 8 else "opencv", extension=".png"))
+    return bytes(iio.imwrite("<bytes>", samples, plugin="opencv", extension=".png"))
 
 
 def write_png(path: Path, image: np.ndarray, exposure_stops: float, bits: int = 8) -> None:

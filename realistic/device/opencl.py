@@ -49,6 +49,8 @@ LOCAL_SIZE = 256
 PROGRAM_CACHE_SIZE = 16
 #: The disk cache's kind for program binaries.
 CACHE_KIND = "opencl-program"
+#: What ``Device.load_compiler`` builds.
+ONE_LINE_KERNEL = "__kernel void one_line(__global float* out) { out[get_global_id(0)] = 0.0f; }"
 
 
 def kernel_source(name: str) -> str:
@@ -152,6 +154,17 @@ class Device:
         build (``build_ahead``s start builds early). PoCL 3.0 builds one program at a time anyway."""
         with self._build_lock:
             return build_program(self, source, name, options)
+
+    def load_compiler(self) -> None:
+        """Build a one-line program, not kept: the driver loads its compiler and kernel library at a
+        process's first build (PoCL 3.0: a few tenths of a second, without the GIL), and a render's
+        first program then finds them loaded (``realistic.__main__`` starts this on a thread as the
+        process starts, while the rest of it is imported and the scene read)."""
+        with self._build_lock:
+            try:
+                cl.Program(self.context, ONE_LINE_KERNEL).build()
+            except cl.Error:  # a driver that builds nothing: the render's first build reports it
+                pass
 
     def wrapped_buffer(self, array: np.ndarray, dtype: np.dtype | type) -> cl.Buffer:
         """A read-only buffer over ``array`` as contiguous ``dtype``, not a copy (PoCL on the CPU reads

@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from realistic.core import rng
-from realistic.core.jit import compiled
+from realistic.core.jit import compiled, compiled_loops
 from realistic.core.spectrum import rgb_basis, rgb_response, spectral_value
 from realistic.core.vectors import dot, normalise
 from realistic.core.warp import concentric_disk
@@ -209,6 +209,43 @@ def _place_rows(values: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
     for i in range(len(rows)):
         for c in range(3):
             out[rows[i], c] = values[i, c]
+
+
+def visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarray, per_ray: int, n: int,
+                 fresh: bool, out: np.ndarray) -> int:
+    """``_visible_sums``, compiled, or in numpy where the loops do not run compiled
+    (``core.jit.use_compiled_loops``): the same products, added in the same order."""
+    if compiled_loops():
+        return int(compiled(_visible_sums)(contribution, blocked, length, per_ray, n, fresh, out))
+    rows = n * per_ray
+    visible = np.where(blocked[:rows], np.float32(0.0), np.float32(1.0))
+    products = (contribution[:rows, :out.shape[1]] * visible[:, None]).reshape(n, per_ray, out.shape[1])
+    for k in range(per_ray):
+        if fresh and k == 0:
+            out[:n] = products[:, 0]
+        else:
+            out[:n] += products[:, k]
+    return int(np.count_nonzero(length[:rows] > 0))
+
+
+def material_rows(geom: np.ndarray, geom_material: np.ndarray, material: int, rows: np.ndarray) -> int:
+    """``_material_rows``, compiled, or in numpy where the loops do not run compiled
+    (``core.jit.use_compiled_loops``): the same rows in the same order."""
+    if compiled_loops():
+        return int(compiled(_material_rows)(geom, geom_material, material, rows))
+    surface = (geom >= 0) & (geom < len(geom_material))
+    picked = np.flatnonzero(surface)
+    picked = picked[geom_material[geom[picked]] == material]
+    rows[:len(picked)] = picked
+    return len(picked)
+
+
+def place_rows(values: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
+    """``_place_rows``, compiled, or numpy's fancy-index store where the loops do not run compiled."""
+    if compiled_loops():
+        compiled(_place_rows)(values, rows, out)
+    else:
+        out[rows] = values
 
 
 def compile_shading_loops() -> None:
@@ -541,8 +578,7 @@ class DirectLighting:
             with timed("embree"):
                 blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
             with timed("shading"):
-                shadow_rays += compiled(_visible_sums)(batch.contribution, blocked, batch.length, rows, n,
-                                                       first == 0, out)
+                shadow_rays += visible_sums(batch.contribution, blocked, batch.length, rows, n, first == 0, out)
         with timed("shading"):
             if self.light_samples > 1:
                 out /= np.float32(self.light_samples)
@@ -577,9 +613,9 @@ class DirectLighting:
         if self._device_textures:
             picks = np.empty(len(origin), np.int32)
         for index, ewa, mapping, texture_filter in self._device_textures:
-            picked = picks[:compiled(_material_rows)(hits.geom, self._geom_material, index, picks)]
-            compiled(_place_rows)(ewa.at_hits(self._surface_tables, picked, mapping, direction, hits, texture_filter),
-                                  picked, albedo)
+            picked = picks[:material_rows(hits.geom, self._geom_material, index, picks)]
+            place_rows(ewa.at_hits(self._surface_tables, picked, mapping, direction, hits, texture_filter),
+                       picked, albedo)
         if not self._numpy_albedo.any():
             return albedo
         surface = (hits.geom >= 0) & (hits.geom < self.instance_count)

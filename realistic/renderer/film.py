@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from realistic.camera.base import SampleBlock
-from realistic.core.jit import compiled
+from realistic.core.jit import compiled, compiled_loops
 from realistic.renderer.crop import PixelBounds
 
 
@@ -68,10 +68,17 @@ def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_coun
     if value.dtype != np.float32:
         value = value.astype(np.float64, copy=False)
     weight = np.ones(len(value), value.dtype) if weight is None else np.asarray(weight, value.dtype)
-    sums = np.zeros((pixel_count, value.shape[1]), np.float64)
     local = np.asarray(pixel, np.int64) - first_pixel
+    outside = ValueError(f"pass_sums: a pixel outside {first_pixel} .. {first_pixel + pixel_count - 1}")
+    if not compiled_loops():  # numpy's form (``core.jit.use_compiled_loops``): np.bincount adds each
+        if len(local) and (local.min() < 0 or local.max() >= pixel_count):  # weight in turn, in float64
+            raise outside
+        products = (value * weight[:, None]).astype(np.float64)
+        return np.stack([np.bincount(local, products[:, c], pixel_count) for c in range(value.shape[1])], axis=1) \
+            if value.shape[1] else np.zeros((pixel_count, 0))
+    sums = np.zeros((pixel_count, value.shape[1]), np.float64)
     if not compiled(_add_rows)(local, value, weight, sums):
-        raise ValueError(f"pass_sums: a pixel outside {first_pixel} .. {first_pixel + pixel_count - 1}")
+        raise outside
     return sums
 
 

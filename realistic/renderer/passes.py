@@ -55,7 +55,7 @@ from realistic.renderer.job import (
 )
 from realistic.renderer.memory import check_job_memory
 from realistic.renderer.pass_plan import plan_passes
-from realistic.renderer.runner import PassRunner, compile_pass_loops
+from realistic.renderer.runner import PassRunner, choose_loops, compile_pass_loops
 from realistic.renderer.starburst import starburst
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
@@ -139,8 +139,9 @@ class ThreadPasses:
         # builds them without the GIL), the embree packet loops and the pass's own loops (numba, with
         # it); a loop's error recurs in the first pass, which reports it
         self.ahead = self.pool.submit(_build_ahead, job.settings, job.cameras[0])
-        self.pool.submit(compile_trace_loops)
-        self.pool.submit(compile_pass_loops)
+        if choose_loops(job):  # numba's, where the render repays compiling them
+            self.pool.submit(compile_trace_loops)
+            self.pool.submit(compile_pass_loops)
 
     def runner(self, frame: int) -> PassRunner:
         """Frame ``frame``'s runner, its camera prepared now. ``render`` submits frames in order, so

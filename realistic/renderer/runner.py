@@ -11,7 +11,7 @@ import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
 from realistic.camera.lens_camera import LensCamera
-from realistic.core.jit import compiled
+from realistic.core.jit import compiled, compiled_loops, use_compiled_loops
 from realistic.renderer.aov import AovLayout
 from realistic.renderer.backends import backend_for
 from realistic.renderer.direct_lighting import compile_shading_loops
@@ -19,7 +19,7 @@ from realistic.renderer.film import pass_sums
 from realistic.renderer.flare import FlareEstimator, ghost_paths
 from realistic.renderer.footprint import differential_scale
 from realistic.renderer.integrators import make_integrator
-from realistic.renderer.job import PassResult, PassSettings
+from realistic.renderer.job import PassResult, PassSettings, RenderJob
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Intersector, compile_intersect_loops
 from realistic.scene.model import Scene
@@ -48,25 +48,50 @@ def _gather(points: np.ndarray, rows: np.ndarray, gathered: np.ndarray) -> bool:
     return True
 
 
+#: ``_gather``'s one signature: any layout of points, so that the kernel's rays, strided or
+#: contiguous views (a launch with no padding), do not compile it twice.
+GATHER_SIGNATURE = "boolean(float32[:, :], int64[:], float32[:, ::1])"
+
+
 def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """points[rows] (non-negative ``rows``) as a contiguous (len(rows), columns) float32 array. The
-    kernel's rays are transposed views of its (columns, n) output, which the loop reads in place."""
+    kernel's rays are transposed views of its (columns, n) output, which the loop reads in place;
+    other points (the numpy references' float64) are rounded to float32 first."""
+    points, rows = np.asarray(points, np.float32), np.asarray(rows, np.int64)
+    if not compiled_loops():  # numpy's form (``core.jit.use_compiled_loops``)
+        if len(rows) and (rows.min() < 0 or rows.max() >= len(points)):
+            raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
+        return np.ascontiguousarray(points[rows])
     gathered = np.empty((len(rows), points.shape[1]), np.float32)
-    if not compiled(_gather)(points, np.asarray(rows, np.int64), gathered):
+    if not compiled(_gather, GATHER_SIGNATURE)(points, rows, gathered):
         raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
     return gathered
 
 
 def compile_pass_loops() -> None:
-    """Compile (or load from numba's cache) a pass's own numba loops, the gathers of the kernel's rays,
-    the closest hits' instance normals, the film's sums and the shading sums, for the argument types
-    a pass passes, on no rows: a render does this on a render thread as it starts
-    (``ThreadPasses.open``), beside its OpenCL builds, not in its first pass. The kernel's rays are
-    strided views of its (columns, n) output."""
-    gather_rows(np.empty((3, 4), np.float32).T[::2], np.empty(0, np.int64))
+    """Compile (or load from numba's cache) a pass's own numba loops, the gathers of the kernel's rays
+    (for its one signature), the closest hits' instance normals, the film's sums and the shading
+    sums, for the argument types a pass passes, on no rows: a render does this on a render thread as
+    it starts (``ThreadPasses.open``), beside its OpenCL builds, not in its first pass."""
+    compiled(_gather, GATHER_SIGNATURE)
     compile_intersect_loops()
     pass_sums(np.empty(0, np.int64), np.empty((0, 3), np.float32), 0, 0, np.empty(0, np.float32))
     compile_shading_loops()
+
+
+#: Rays (camera and shadow rays) from which a render runs numba's loops (``choose_loops``): numba's
+#: import and first compiles take a second or so of one core, holding the GIL, which the numpy
+#: forms and embree's packets called from Python repay only over about this many rays.
+COMPILED_LOOPS_RAYS = 8_000_000
+
+
+def choose_loops(job: RenderJob) -> bool:
+    """Whether ``job``'s passes run numba's loops, set for the process (``core.jit.use_compiled_loops``):
+    only for a render of at least ``COMPILED_LOOPS_RAYS`` rays, estimated as each camera's samples
+    times its rays per sample and one more than the light samples, or where they are made already."""
+    rays = sum(camera.width * camera.height * camera.spp * camera.rays_per_sample for camera in job.cameras)
+    use_compiled_loops(rays * (1 + job.settings.light_samples) >= COMPILED_LOOPS_RAYS)
+    return compiled_loops()
 
 
 class PassRunner:

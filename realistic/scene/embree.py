@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from realistic.core.jit import compiled_loops
 from realistic.errors import UserError
 from realistic.scene import packet_loop
 from realistic.scene.packet_loop import GEOM, INST, INST_PRIM, PRIM, RAY_ROWS, ROWS, TFAR, PacketFunction
@@ -292,9 +293,13 @@ class EmbreeScene:
         hits = RayHits(t=np.empty(n, np.float32), u=np.empty(n, np.float32), v=np.empty(n, np.float32),
                        prim=np.empty(n, np.int32), geom=np.empty(n, np.int32), instance=np.empty(n, np.int32),
                        normal=np.empty((n, 3), np.float32))
-        packet_loop.closest_loop()(self._embree.intersect16, self._handle, packet_loop.packet_buffer(), origin,
-                                   direction, np.float32(tfar), hits.t, hits.u, hits.v, hits.prim, hits.geom,
-                                   hits.instance, hits.normal)
+        arrays = (hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.instance, hits.normal)
+        if compiled_loops():
+            packet_loop.closest_loop()(self._embree.intersect16, self._handle, *packet_loop.packet_arguments(),
+                                       origin, direction, np.float32(tfar), *arrays)
+        else:
+            packet_loop.trace_closest(self._embree.intersect16, self._handle, origin, direction, np.float32(tfar),
+                                      *arrays)
         return hits
 
     def occluded(self, origin: np.ndarray, direction: np.ndarray, distance: np.ndarray) -> np.ndarray:
@@ -306,8 +311,11 @@ class EmbreeScene:
             raise ValueError(f"{len(distance)} distances for {len(origin)} rays")
         self._require_committed()
         blocked = np.empty(len(origin), np.bool_)
-        packet_loop.occluded_loop()(self._embree.occluded16, self._handle, packet_loop.packet_buffer(), origin,
-                                    direction, distance, blocked)
+        if compiled_loops():
+            packet_loop.occluded_loop()(self._embree.occluded16, self._handle, *packet_loop.packet_arguments(),
+                                        np.empty(packet_loop.PACKET, np.int64), origin, direction, distance, blocked)
+        else:
+            packet_loop.trace_occluded(self._embree.occluded16, self._handle, origin, direction, distance, blocked)
         return blocked
 
     def _require_committed(self) -> None:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from realistic.core.jit import compiled
+from realistic.core.jit import compiled, compiled_loops
 from realistic.core.transforms import transform_points
 from realistic.errors import UserError
 from realistic.scene.embree import EmbreeScene
@@ -55,6 +55,20 @@ def _instances_to_world(instance: np.ndarray, normal_to_world_t: np.ndarray, geo
             for k in range(3):
                 normal[i, k] = (x * normal_to_world_t[which, 0, k] + y * normal_to_world_t[which, 1, k]
                                 + z * normal_to_world_t[which, 2, k])
+
+
+def instances_to_world(instance: np.ndarray, normal_to_world_t: np.ndarray, geom: np.ndarray,
+                       normal: np.ndarray) -> None:
+    """``_instances_to_world``, compiled, or in numpy where the loops do not run compiled
+    (``core.jit.use_compiled_loops``): the same float32 products, summed in the same order."""
+    if compiled_loops():
+        compiled(_instances_to_world)(instance, normal_to_world_t, geom, normal)
+        return
+    rows = np.flatnonzero(instance >= 0)
+    which = instance[rows]
+    geom[rows] = which
+    n, m = normal[rows], normal_to_world_t[which]
+    normal[rows] = (n[:, 0:1] * m[:, 0] + n[:, 1:2] * m[:, 1]) + n[:, 2:3] * m[:, 2]
 
 
 def compile_intersect_loops() -> None:
@@ -152,7 +166,7 @@ class Intersector:
     def closest(self, origin: np.ndarray, direction: np.ndarray) -> Hits:
         """Nearest hit along each ray (direction need not be unit; t is in its units)."""
         hits = self._embree.intersect(origin, direction, float(_MISS_T))
-        compiled(_instances_to_world)(hits.instance, self._normal_to_world_t, hits.geom, hits.normal)
+        instances_to_world(hits.instance, self._normal_to_world_t, hits.geom, hits.normal)
         return Hits(hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal)
 
     def occluded(self, origin: np.ndarray, direction: np.ndarray, distance: np.ndarray) -> np.ndarray:

@@ -18,6 +18,9 @@ file where that is writable, else (an installed, read-only package) in the user'
 uncached. That first trace is the loops' start-up cost: numba's import, and its
 first compile or cache load, which imports numba's own typing and lowering modules (and scipy's
 linalg, when installed, for its BLAS check); ``bench/embree_loop.py`` measures it, cold and warm.
+A render too small to repay that (``renderer.runner.choose_loops``) never imports numba: there
+``trace_closest`` and ``trace_occluded`` make every packet in numpy at once and call embree once
+per packet from Python, with the same packets lane for lane, so the same answers.
 
 Packet rows (``embree4/rtcore_ray.h``, ``RTCRayHit16``): org_x, org_y, org_z, tnear, dir_x, dir_y,
 dir_z, time, tfar, mask, id, flags (``RTCRay16`` ends here), then the hit's Ng_x, Ng_y, Ng_z, u, v,
@@ -63,17 +66,25 @@ def packet_buffer(rows: int = ROWS + 1) -> np.ndarray:
     return packet
 
 
-def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, origin: np.ndarray, direction: np.ndarray,
-             tfar: np.float32, t: np.ndarray, u: np.ndarray, v: np.ndarray, prim: np.ndarray, geom: np.ndarray,
-             instance: np.ndarray, normal: np.ndarray) -> None:
+def packet_arguments() -> tuple[np.ndarray, np.ndarray, int, int]:
+    """A new ``packet_buffer`` for one call of a loop, with what the loops take beside it: its
+    float32 view and the addresses of its valid mask and of its RTCRayHit16. Made here, not in the
+    loops: numba compiles a view or a slice's address in a loop as code of its own (a fifth of a
+    loop's first compile, which a first render waits for)."""
+    packet = packet_buffer()
+    return packet, packet.view(np.float32), packet[VALID:].ctypes.data, packet.ctypes.data
+
+
+def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, floats: np.ndarray, valid: int,
+             rayhit: int, origin: np.ndarray, direction: np.ndarray, tfar: np.float32, t: np.ndarray, u: np.ndarray,
+             v: np.ndarray, prim: np.ndarray, geom: np.ndarray, instance: np.ndarray, normal: np.ndarray) -> None:
     """Closest hits of ``origin``/``direction`` ((N, 3) float32) within [0, tfar]: each lane's hit
     rows are cleared (Ng, u, v 0; ids -1, invalid) before the call, then copied to t, u, v, prim,
-    geom, instance ((N,) arrays) and normal ((N, 3)); a miss keeps tfar as t."""
-    floats = packet.view(np.float32)
-    valid, rayhit = packet[VALID:].ctypes.data, packet.ctypes.data
+    geom, instance ((N,) arrays) and normal ((N, 3)); a miss keeps tfar as t. The packet, its
+    float32 view and the addresses embree takes come from ``packet_arguments``."""
     count = origin.shape[0]
     for base in range(0, count, PACKET):
-        lanes = min(PACKET, count - base)
+        lanes = count - base if count - base < PACKET else PACKET
         for lane in range(PACKET):
             packet[VALID, lane] = -1 if lane < lanes else 0
         for lane in range(lanes):
@@ -101,16 +112,15 @@ def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, orig
                 normal[i, axis] = floats[NG + axis, lane]
 
 
-def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, origin: np.ndarray, direction: np.ndarray,
-              distance: np.ndarray, blocked: np.ndarray) -> None:
+def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, floats: np.ndarray, valid: int,
+              rayhit: int, rows: np.ndarray, origin: np.ndarray, direction: np.ndarray, distance: np.ndarray,
+              blocked: np.ndarray) -> None:
     """Occlusion of each ray within [0, distance]: a ray whose distance is not >= 0 is not traced.
     ``blocked`` is True where tfar ends negative: embree's -inf for an occluded ray, or a negative
     distance (a NaN distance stays unblocked). The rays traced fill each packet's lanes in their
-    order, the others skipped (a packet costs embree about as much with idle lanes as full)."""
-    floats = packet.view(np.float32)
-    valid, rayhit = packet[VALID:].ctypes.data, packet.ctypes.data
+    order, the others skipped (a packet costs embree about as much with idle lanes as full); ``rows``
+    (``PACKET`` int64) holds the lanes' ray numbers."""
     count = origin.shape[0]
-    rows = np.empty(PACKET, np.int64)
     lanes = 0
     for i in range(count + 1):
         if i < count:
@@ -136,12 +146,80 @@ def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, ori
 
 
 def closest_loop() -> Callable[..., None]:
-    """``_closest`` compiled (``realistic.core.jit``): (function, scene, packet, origin, direction,
-    tfar, t, u, v, prim, geom, instance, normal), the packet from ``packet_buffer``; it runs with the
-    GIL released."""
+    """``_closest`` compiled (``realistic.core.jit``): (function, scene, *``packet_arguments()``,
+    origin, direction, tfar, t, u, v, prim, geom, instance, normal); it runs with the GIL released."""
     return compiled(_closest)
 
 
 def occluded_loop() -> Callable[..., None]:
-    """``_occluded`` compiled: (function, scene, packet, origin, direction, distance, blocked)."""
+    """``_occluded`` compiled: (function, scene, *``packet_arguments()``, rows, origin, direction,
+    distance, blocked), ``rows`` an empty (``PACKET``,) int64 array."""
     return compiled(_occluded)
+
+
+def _packets(count: int) -> np.ndarray:
+    """(count / 16 rounded up, ``ROWS + 1``, 16) int32 packets in one 64-byte aligned block, each
+    set as ``packet_buffer`` sets one, its hit rows cleared as ``_closest`` clears them (Ng, u, v 0;
+    ids -1), its lanes from ``count`` on not valid."""
+    packets = -(-count // PACKET)
+    raw = np.zeros(packets * (ROWS + 1) * PACKET + ALIGNMENT // 4, np.int32)
+    start = (-raw.ctypes.data % ALIGNMENT) // 4
+    block = raw[start:start + packets * (ROWS + 1) * PACKET].reshape(packets, ROWS + 1, PACKET)
+    block[:, MASK:MASK + 1] = -1
+    block[:, PRIM:INST + 1] = -1
+    _set_lanes(block[:, VALID:VALID + 1], np.full((count, 1), -1, np.int32))
+    return block
+
+
+def _set_lanes(lanes: np.ndarray, values: np.ndarray) -> None:
+    """Rows (N, k) into the block's (packets, k, 16) ``lanes``, in order (the last packet's spare
+    lanes left as they are)."""
+    full, rest = divmod(len(values), PACKET)
+    spread = lanes.transpose(0, 2, 1)  # (packets, 16, k)
+    spread[:full] = values[:full * PACKET].reshape(full, PACKET, values.shape[1])
+    if rest:
+        spread[full, :rest] = values[full * PACKET:]
+
+
+def _call_each(function: Callable[..., None], scene: int, block: np.ndarray) -> None:
+    """``function`` (rtcIntersect16 or rtcOccluded16) on each packet of ``block`` in turn."""
+    stride, valid = block.strides[0], VALID * block.strides[1]
+    for address in range(block.ctypes.data, block.ctypes.data + len(block) * stride, stride):
+        function(address + valid, scene, address, None)
+
+
+def trace_closest(function: Callable[..., None], scene: int, origin: np.ndarray, direction: np.ndarray,
+                  tfar: np.float32, t: np.ndarray, u: np.ndarray, v: np.ndarray, prim: np.ndarray, geom: np.ndarray,
+                  instance: np.ndarray, normal: np.ndarray) -> None:
+    """``_closest`` without numba: every packet made by numpy at once, then one call from Python
+    per packet (a render too small to repay compiling the loop, ``core.jit.compiled_loops``). The
+    packets are ``_closest``'s, lane for lane, so the hits are the same."""
+    count = len(origin)
+    block = _packets(count)
+    floats = block.view(np.float32)
+    _set_lanes(floats[:, 0:3], origin)
+    _set_lanes(floats[:, 4:7], direction)
+    floats[:, TFAR] = tfar
+    _call_each(function, scene, block)
+    t[:] = floats[:, TFAR].reshape(-1)[:count]
+    u[:] = floats[:, U].reshape(-1)[:count]
+    v[:] = floats[:, V].reshape(-1)[:count]
+    prim[:] = block[:, PRIM].reshape(-1)[:count]
+    geom[:] = block[:, GEOM].reshape(-1)[:count]
+    instance[:] = block[:, INST].reshape(-1)[:count]
+    normal[:] = floats[:, NG:NG + 3].transpose(0, 2, 1).reshape(-1, 3)[:count]
+
+
+def trace_occluded(function: Callable[..., None], scene: int, origin: np.ndarray, direction: np.ndarray,
+                   distance: np.ndarray, blocked: np.ndarray) -> None:
+    """``_occluded`` without numba (see ``trace_closest``): the rays traced fill the packets' lanes in
+    their order, as there, so the answers are the same."""
+    blocked[:] = distance < 0
+    traced = np.flatnonzero(distance >= 0)
+    block = _packets(len(traced))
+    floats = block.view(np.float32)
+    _set_lanes(floats[:, 0:3], origin[traced])
+    _set_lanes(floats[:, 4:7], direction[traced])
+    _set_lanes(floats[:, TFAR:TFAR + 1], distance[traced, None])
+    _call_each(function, scene, block)
+    blocked[traced] = floats[:, TFAR].reshape(-1)[:len(traced)] < 0
