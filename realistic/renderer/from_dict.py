@@ -331,7 +331,7 @@ def _shape(scene: Scene, value: object, path: str, materials: _Materials) -> Non
             mesh, shape_name = quad(*size), "quad"
         if emission is not None:
             with _at(path):
-                light = AreaLight(shape_name, size, emission, placement, two_sided=two_sided)
+                light = AreaLight(shape_name, size, emission, placement, two_sided=two_sided, material=material)
                 if not 0 < light.area() < math.inf:
                     raise UserError(f"an emitter of area {light.area():.3g} cannot be sampled")
             scene.lights.append(light)

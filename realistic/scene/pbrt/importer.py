@@ -256,7 +256,10 @@ class _Importer:
             self.warn(where, f"area light reaching beyond {MAX_WORLD_COORDINATE:g} from the origin, more than the "
                              f"renderer's single precision holds (skipped)")
             return True
-        light = AreaLight("disk", (radius, radius), radiance, transform, shape.reverse_orientation, two_sided)
+        # pbrt-v3 pbrtShape (src/core/api.cpp) and pbrt-v4 BasicScene::CreateAggregate
+        # (src/pbrt/scene.cpp) give the shape the material in effect, which its surface reflects by
+        light = AreaLight("disk", (radius, radius), radiance, transform, shape.reverse_orientation, two_sided,
+                          self.material(shape.material))
         with np.errstate(all="ignore"):
             area, normal = light.area(), light.frame()[3]
         if not (0 < area < np.inf and np.all(np.isfinite(normal))):
