@@ -145,3 +145,14 @@ def test_imported_disk_light_keeps_the_material_in_effect(tmp_path, version, mat
                     'Shape "disk" "float radius" 1\nAttributeEnd\n' + ("" if version == "v4" else "WorldEnd\n"))
     (light,) = import_pbrt(path, dialect=version).scene.lights
     assert isinstance(light, AreaLight) and light.material == expected
+
+
+def test_pbrt_v4_ignores_the_light_of_an_interface_shape(tmp_path):
+    """pbrt-v4 (``BasicScene::CreateLights``) skips an area light whose shape's material is
+    "interface", with a warning; the shape stays, letting light through."""
+    path = tmp_path / "scene.pbrt"
+    path.write_text(CAMERA + 'WorldBegin\nMaterial "interface"\nAttributeBegin\nAreaLightSource "diffuse" '
+                    '"rgb L" [1 1 1]\nShape "disk" "float radius" 1\nAttributeEnd\n')
+    imported = import_pbrt(path, dialect="v4")
+    assert imported.scene.lights == [] and len(imported.scene.instances) == 1
+    assert any('Material "interface"' in line and "pbrt-v4" in line for line in imported.warnings)

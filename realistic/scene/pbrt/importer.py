@@ -211,6 +211,11 @@ class _Importer:
         if declaration.type not in ("area", "diffuse"):
             self.warn(where, f'AreaLightSource "{declaration.type}" (shape rendered unlit)')
             return False
+        if self.dialect.name == "v4" and shape.material.type in ("interface", "none", ""):
+            # pbrt-v4 BasicScene::CreateLights (src/pbrt/scene.cpp) skips such a shape's light; pbrt-v3
+            # keeps it, and its rays pass through the shape
+            self.warn(where, f'area light on a shape of Material "{shape.material.type}" (ignored, as pbrt-v4 does)')
+            return False
         emitted = declaration.params.items.get("L")
         radiance = rgb(declaration.params, "L", (1.0, 1.0, 1.0))
         if emitted is not None and emitted.type in SPECTRAL_TYPES:  # as the file's pbrt records it
