@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from realistic.core.transforms import rotate, translate
+from realistic.renderer.from_dict import load_dict
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.materials import Dielectric, Plastic, SurfaceMaterial
@@ -156,3 +157,11 @@ def test_pbrt_v4_ignores_the_light_of_an_interface_shape(tmp_path):
     imported = import_pbrt(path, dialect="v4")
     assert imported.scene.lights == [] and len(imported.scene.instances) == 1
     assert any('Material "interface"' in line and "pbrt-v4" in line for line in imported.warnings)
+
+
+def test_dict_emitter_reflects_only_by_a_material_it_names():
+    """``load_dict``: an emitting disk with a ``material`` reflects by it; one without only emits."""
+    scene = load_dict({"shapes": [{"type": "disk", "emission": 1, "material": {"type": "diffuse", "reflectance": 0.3}},
+                                  {"type": "quad", "emission": 2}]})
+    with_material, without = scene.area_lights
+    assert with_material.material == Material((0.3, 0.3, 0.3)) and without.material is None
