@@ -81,9 +81,8 @@ executable file): time to equal error, in CPU-seconds and wall, from one pbrt-v4
   the material in effect where it is declared (pbrt-v4 src/pbrt/scene.cpp, ``CreateAggregate``: a
   ``GeometricPrimitive`` with ``mtl`` and the light; here the default diffuse 0.5 under the disk),
   and its path integrator reflects off it (src/pbrt/cpu/integrators.cpp, ``PathIntegrator::Li``: the
-  emission, then the same surface's BSDF); our paths end at an emitter. So from the third path vertex
-  on, pbrt-v4's image is brighter than ours by the light reflected off the disk's underside; with
-  ``maxdepth`` 1 or 2, or a black material on the disk, the means agree.
+  emission, then the same surface's BSDF); so do we (``AreaLight.material``, ``renderer/path``), so
+  the light reflected off the disk's underside from the third path vertex on is in both images.
 
 Writes bench/results/peers-pbrt-v4.json.
 """

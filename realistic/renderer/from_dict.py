@@ -19,7 +19,8 @@ except the lens's, which are millimetres as everywhere::
   ``center``; ``mesh`` (``filename``, a mesh file placed as the file places it). Any shape takes a
   ``transform`` (4x4 object-to-world rows, applied last), a ``material`` (a dict, or the name of one
   in ``materials``; matte grey without) and an ``emission`` (RGB or grey radiance: an area light;
-  ``two_sided``).
+  ``two_sided``; an emitting disk or rectangle reflects by its ``material`` when it names one, else
+  it only emits).
 - ``materials``: name -> a material dict: ``type`` is a pbrt material (``diffuse``, ``conductor``,
   ``dielectric``, ``coateddiffuse``, ``mix`` with ``materials`` naming two, ...), the other keys its
   pbrt parameters (numbers, RGB lists, bools, named spectra such as ``"metal-Au-eta"``), read as a
@@ -331,7 +332,7 @@ def _shape(scene: Scene, value: object, path: str, materials: _Materials) -> Non
             mesh, shape_name = quad(*size), "quad"
         if emission is not None:
             with _at(path):
-                light = AreaLight(shape_name, size, emission, placement, two_sided=two_sided)
+                light = AreaLight(shape_name, size, emission, placement, two_sided=two_sided, material=material)
                 if not 0 < light.area() < math.inf:
                     raise UserError(f"an emitter of area {light.area():.3g} cannot be sampled")
             scene.lights.append(light)

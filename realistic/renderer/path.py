@@ -8,7 +8,9 @@ hits grouped by material (``realistic.renderer.bsdf.bsdf_for``). At each surface
   pbrt's ``EstimateDirect``): w_l = (n p_l)^2 / ((n p_l)^2 + p_f^2), deltas weight 1;
 - one BSDF sample continues the path; when it reaches an emitter (area light, emitting instance or,
   on a miss, the infinite lights) that emission is weighted w_f = p_f^2 / ((n p_l)^2 + p_f^2), or 1
-  after a specular bounce or for camera rays.
+  after a specular bounce or for camera rays. An area light with a material (``AreaLight.material``:
+  pbrt's shape keeps the material in effect) is also a surface: the path adds its emission and goes
+  on from it with that material's BSDF, as pbrt's does; one without ends the path.
 
 ``mode`` "path": every BSDF sample continues, up to ``max_depth`` bounces, with Russian roulette
 after the third (pbrt-v3 ``PathIntegrator``: q = max(0.05, 1 - max throughput)). "direct" (pbrt's
@@ -56,6 +58,7 @@ from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.lights import EmissiveInstance
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.model import ImageTexture, Scene, Texture
+from realistic.scene.shapes import light_mesh
 from realistic.scene.textures import Footprint, evaluate
 
 if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
@@ -130,6 +133,7 @@ class PathIntegrator(DirectLighting):
         chosen = backend_for(backend) if isinstance(backend, str) else backend
         self._bsdf_kernel = chosen.bsdf_kernel() if bsdf_factory is bsdf_for else None
         self.lights = LightSampler(scene, intersector.extent)
+        self._add_light_surfaces(scene)
         # instances whose transform mirrors: their world winding faces inward (see ``_outward_normals``)
         self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
         self._bounce = self._build_bounce(chosen) if self._bsdf_kernel is not None else None
@@ -137,6 +141,48 @@ class PathIntegrator(DirectLighting):
         for i, light in enumerate(scene.lights):
             if isinstance(light, EmissiveInstance):
                 self._instance_light[light.instance] = i
+
+    def _add_light_surfaces(self, scene: Scene) -> None:
+        """Extend the per-geometry tables past the instances by the area lights' tessellations
+        (geometry ``instance_count + j``, as ``scene.intersect`` builds them), so that a path reflects
+        off an area light that has a material, as pbrt's paths do: pbrt gives the shape the material
+        in effect (pbrt-v3 ``pbrtShape``, pbrt-v4 ``BasicScene::CreateAggregate``) and its path
+        integrator adds the emission at the hit and goes on with that material's BSDF (pbrt-v3
+        ``PathIntegrator::Li``, pbrt-v4 ``PathIntegrator::Li``). ``_shaded[g]``: whether hits on
+        geometry g are shaded (every instance; the lights with a material), with a False last entry
+        for misses (geometry -1)."""
+        lights = scene.area_lights
+        reflecting = np.array([light.material is not None for light in lights], bool)
+        self._shaded = np.concatenate([np.ones(self.instance_count, bool), reflecting, [False]])
+        if not reflecting.any():
+            return
+        material_index = {id(material): index for index, material in enumerate(self._materials)}
+        faces, normals, uv, vertices, offsets, linear, material_of = [], [], [], [], [], [], []
+        vertex_count, face_count = len(self._vertices), len(self._faces)
+        for light in lights:
+            mesh = light_mesh(light)
+            if light.material is not None and id(light.material) not in material_index:
+                material_index[id(light.material)] = len(self._materials)
+                self._materials.append(light.material)
+            faces.append(mesh.faces + vertex_count)
+            vertices.append(mesh.vertices)
+            normals.append(np.zeros((len(mesh.vertices), 3)))  # flat: never interpolated
+            uv.append(np.zeros((len(mesh.vertices), 2)) if mesh.uv is None else mesh.uv)
+            offsets.append(face_count)
+            linear.append(np.asarray(light.transform, np.float64)[:3, :3])
+            material_of.append(-1 if light.material is None else material_index[id(light.material)])
+            vertex_count, face_count = vertex_count + len(mesh.vertices), face_count + len(mesh.faces)
+        self._faces = np.concatenate([self._faces, *faces]).astype(self._faces.dtype)
+        self._vertices = np.concatenate([self._vertices, *vertices])
+        self._normals = np.concatenate([self._normals, *normals]).astype(np.float32)
+        self._uv = np.concatenate([self._uv, *uv]).astype(np.float32)
+        self._geom_face_offset = np.concatenate([self._geom_face_offset, offsets]).astype(np.int64)
+        self._geom_smooth = np.concatenate([self._geom_smooth, np.zeros(len(lights), bool)])
+        self._geom_linear = np.concatenate([self._geom_linear, np.array(linear).reshape(-1, 3, 3)])
+        self._geom_normal_matrix = np.concatenate(
+            [self._geom_normal_matrix, np.linalg.inv(np.array(linear).reshape(-1, 3, 3)).transpose(0, 2, 1)]
+        ).astype(np.float32)
+        self._geom_material = np.concatenate([self._geom_material, material_of]).astype(np.int64)
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
@@ -177,8 +223,7 @@ class PathIntegrator(DirectLighting):
                 prev_lights = self.light_samples if depth == 1 else 1
                 self._emission(hits, path, o, d, beta, basis, specular, prev_pdf, prev_point, prev_lights,
                                depth, out)
-                light_id = hits.geom - self.instance_count
-                surface = np.flatnonzero((hits.geom >= 0) & (light_id < 0) & shade)
+                surface = np.flatnonzero(self._shaded[hits.geom] & shade)
                 if depth == last or len(surface) == 0:
                     break
                 if self._bounce is not None and basis is None:

@@ -70,6 +70,10 @@ class AreaLight:
     ``shape`` "disk": radius ``size[0]`` about the origin; "quad": ``size[0]`` by ``size[1]``
     centred on the origin. The emitting side follows the transformed normal (inverse transpose),
     flipped by ``reverse_orientation`` as in pbrt.
+
+    ``material``: what its surface reflects by, on both sides, besides emitting (pbrt gives an area
+    light's shape the material in effect where it is declared); None for a pure emitter, at which
+    paths end.
     """
 
     shape: str
@@ -78,6 +82,7 @@ class AreaLight:
     transform: np.ndarray = field(default_factory=lambda: np.eye(4))
     reverse_orientation: bool = False
     two_sided: bool = False
+    material: SurfaceMaterial | None = None
 
     def __post_init__(self) -> None:
         validation.emission(self.radiance, "area light radiance")

@@ -211,6 +211,11 @@ class _Importer:
         if declaration.type not in ("area", "diffuse"):
             self.warn(where, f'AreaLightSource "{declaration.type}" (shape rendered unlit)')
             return False
+        if self.dialect.name == "v4" and shape.material.type in ("interface", "none", ""):
+            # pbrt-v4 BasicScene::CreateLights (src/pbrt/scene.cpp) skips such a shape's light; pbrt-v3
+            # keeps it, and its rays pass through the shape
+            self.warn(where, f'area light on a shape of Material "{shape.material.type}" (ignored, as pbrt-v4 does)')
+            return False
         emitted = declaration.params.items.get("L")
         radiance = rgb(declaration.params, "L", (1.0, 1.0, 1.0))
         if emitted is not None and emitted.type in SPECTRAL_TYPES:  # as the file's pbrt records it
@@ -256,7 +261,10 @@ class _Importer:
             self.warn(where, f"area light reaching beyond {MAX_WORLD_COORDINATE:g} from the origin, more than the "
                              f"renderer's single precision holds (skipped)")
             return True
-        light = AreaLight("disk", (radius, radius), radiance, transform, shape.reverse_orientation, two_sided)
+        # pbrt-v3 pbrtShape (src/core/api.cpp) and pbrt-v4 BasicScene::CreateAggregate
+        # (src/pbrt/scene.cpp) give the shape the material in effect, which its surface reflects by
+        light = AreaLight("disk", (radius, radius), radiance, transform, shape.reverse_orientation, two_sided,
+                          self.material(shape.material))
         with np.errstate(all="ignore"):
             area, normal = light.area(), light.frame()[3]
         if not (0 < area < np.inf and np.all(np.isfinite(normal))):

@@ -1,0 +1,167 @@
+"""Area lights that reflect by the material in effect where they are declared, as pbrt's do.
+
+pbrt gives an area light's shape the current material (pbrt-v3 ``pbrtShape`` in
+``src/core/api.cpp``, pbrt-v4 ``BasicScene::CreateAggregate`` in ``src/pbrt/scene.cpp``) and its path
+integrator adds the emission at a hit on it and then bounces off that surface (pbrt-v3 and pbrt-v4
+``PathIntegrator::Li``). Closed forms: inside a closed box whose walls are Lambertian emitters of
+albedo a and radiance Le, the radiance to ``max_depth`` bounces is Le (1 + a + ... + a^max_depth);
+pbrt-v3's direct lighting sees Le (1 + a). Walls without a material give Le alone (the path ends).
+"""
+
+import numpy as np
+import pytest
+
+from realistic.core.transforms import rotate, translate
+from realistic.renderer.from_dict import load_dict
+from realistic.renderer.path import PathIntegrator
+from realistic.scene.intersect import Intersector
+from realistic.scene.materials import Dielectric, Plastic, SurfaceMaterial
+from realistic.scene.model import AreaLight, Material, Scene
+from realistic.scene.pbrt.importer import import_pbrt
+
+N = 20000
+ALBEDO = np.array([0.5, 0.3, 0.7])
+LE = np.array([1.0, 2.0, 0.5])
+CAMERA = 'Film "image" "integer xresolution" [8] "integer yresolution" [8]\nCamera "perspective" "float fov" 40\n'
+
+
+def _emitter_box(material: SurfaceMaterial | None) -> Scene:
+    """A closed cube [-2, 2]^3 of six one-sided quad lights of radiance ``LE`` facing inward, each
+    reflecting by ``material``."""
+    scene = Scene()
+    for face in (rotate(0, (1, 0, 0)), rotate(180, (1, 0, 0)), rotate(90, (1, 0, 0)), rotate(-90, (1, 0, 0)),
+                 rotate(90, (0, 1, 0)), rotate(-90, (0, 1, 0))):
+        scene.lights.append(AreaLight("quad", (4.0, 4.0), tuple(LE), face @ translate(0, 0, -2.0), material=material))
+    return scene
+
+
+def _inside_rays(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rays from points inside the box in uniform directions."""
+    rng = np.random.default_rng(seed)
+    origin = rng.uniform(-1.5, 1.5, (n, 3)).astype(np.float32)
+    direction = rng.normal(size=(n, 3))
+    return origin, (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+
+
+def _radiance(scene: Scene, max_depth: int, mode: str, backend: str) -> np.ndarray:
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, max_depth, mode, backend=backend)
+    assert (integrator._bounce is not None) == (backend == "opencl")
+    origin, direction = _inside_rays(N, max_depth)
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
+    return radiance.astype(np.float64)
+
+
+def _agrees(radiance: np.ndarray, expected: np.ndarray) -> None:
+    """Each channel's mean within 4 standard errors (and 1e-3 relative) of ``expected``."""
+    error = radiance.std(axis=0) / np.sqrt(len(radiance))
+    assert np.all(np.abs(radiance.mean(axis=0) - expected) < 4 * error + 1e-3 * expected), (
+        radiance.mean(axis=0), expected, error)
+
+
+@pytest.mark.parametrize("max_depth", [0, 1, 2, 5])
+def test_box_of_reflecting_emitters_sums_the_geometric_series(max_depth):
+    """Path mode, numpy: Le (1 - a^(D + 1)) / (1 - a) per channel to D bounces (light sampling and
+    BSDF sampling weighted by MIS, roulette after the third bounce)."""
+    expected = LE * (1 - ALBEDO ** (max_depth + 1)) / (1 - ALBEDO)
+    _agrees(_radiance(_emitter_box(Material(tuple(ALBEDO))), max_depth, "path", "numpy"), expected)
+
+
+@pytest.mark.usefixtures("opencl_platform")
+@pytest.mark.parametrize("max_depth", [1, 5])
+def test_box_of_reflecting_emitters_through_the_bounce_kernel(max_depth):
+    """The fused bounce kernel at hits on the emitters: the same series, and each ray's radiance the
+    numpy backend's to float32 rounding (the same random numbers)."""
+    scene = _emitter_box(Material(tuple(ALBEDO)))
+    got = _radiance(scene, max_depth, "path", "opencl")
+    _agrees(got, LE * (1 - ALBEDO ** (max_depth + 1)) / (1 - ALBEDO))
+    expected = _radiance(scene, max_depth, "path", "numpy")
+    close = np.all(np.isclose(got, expected, rtol=1e-3, atol=1e-5 * float(expected.max())), axis=1)
+    assert close.mean() > 0.99, close.mean()
+
+
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_direct_lighting_reflects_the_other_emitters_once(backend, request):
+    """pbrt-v3 ``DirectLightingIntegrator``: the emission seen plus the light the emitter's surface
+    reflects directly, Le (1 + a)."""
+    if backend == "opencl":
+        request.getfixturevalue("opencl_platform")
+    _agrees(_radiance(_emitter_box(Material(tuple(ALBEDO))), 5, "direct", backend), LE * (1 + ALBEDO))
+
+
+def test_emitters_without_material_end_paths():
+    """No material (a scene that gave none): every ray sees Le and nothing reflected."""
+    radiance = _radiance(_emitter_box(None), 5, "path", "numpy")
+    assert np.allclose(radiance, LE.astype(np.float32), rtol=1e-6)
+
+
+@pytest.mark.usefixtures("opencl_platform")
+@pytest.mark.parametrize("material", [Material(tuple(ALBEDO)), Plastic((0.4, 0.3, 0.2), (0.3, 0.3, 0.3), 0.1)])
+@pytest.mark.parametrize("depth", [0, 2])
+def test_bounce_kernel_shades_emitter_hits_as_the_numpy_reference(material, depth):
+    """Per hit on an emitter, with the same random numbers: the kernel's light samples (summed per
+    ray) and next rays are ``_shade``'s to float32 rounding."""
+    scene = _emitter_box(material)
+    numpy_one = PathIntegrator(scene, Intersector(scene), 3, 7, 0.0, 5, "path", backend="numpy")
+    device_one = PathIntegrator(scene, Intersector(scene), 3, 7, 0.0, 5, "path", backend="opencl")
+    assert device_one._bounce is not None and device_one._bounce.covered.all()
+    n = 4000
+    origin, direction = _inside_rays(n, 11)
+    hits = Intersector(scene).closest(origin, direction)
+    surface = np.flatnonzero(hits.geom >= device_one.instance_count)
+    assert len(surface) == n
+    rng = np.random.default_rng(depth)
+    path = rng.permutation(n)
+    beta = rng.uniform(0.2, 1.0, (n, 3)).astype(np.float32)
+    pixel, sample = rng.integers(0, 1 << 20, n), rng.integers(0, 64, n)
+    lights = 3 if depth == 0 else 1
+    expected = numpy_one._shade(hits, surface, path, origin, direction, beta, None, pixel, sample, depth)
+    got = device_one._bounce(surface, path, pixel.astype(np.uint32), sample.astype(np.uint32), origin, direction,
+                             hits, beta, depth=depth, light_samples=lights, seed=7,
+                             mode_flags=device_one._bounce_flags, max_depth=5)
+    shadow = expected["shadow"]
+    sums = [np.stack([np.bincount(rows, values[:, c], minlength=n) for c in range(3)], axis=1)
+            for rows, values in ((np.tile(path[surface], lights), got.contribution),
+                                 (shadow["rows"], shadow["contribution"]))]
+    assert float(sums[1].max()) > 0
+    close = np.all(np.isclose(sums[0], sums[1], rtol=2e-3, atol=1e-6 * float(sums[1].max())), axis=1)
+    assert close.mean() > 0.998, close.mean()
+    goes = np.flatnonzero(got.flags & 1)
+    both, mine, ref = np.intersect1d(path[surface][goes], expected["path"], return_indices=True)
+    assert len(both) > 0.99 * max(len(goes), len(expected["path"]))
+    rows = goes[mine]
+    assert np.allclose(got.origin[rows], expected["origin"][ref], atol=1e-4)
+    assert np.mean(np.all(np.isclose(got.direction[rows], expected["direction"][ref], atol=2e-4), axis=1)) > 0.998
+    assert np.mean(np.all(np.isclose(got.beta[rows], expected["beta"][ref], rtol=2e-3, atol=1e-7), axis=1)) > 0.998
+
+
+@pytest.mark.parametrize("version, material, expected", [
+    ("v3", 'Material "matte" "rgb Kd" [0.2 0.3 0.4]', Material((0.2, 0.3, 0.4))),
+    ("v4", 'Material "diffuse" "rgb reflectance" [0.2 0.3 0.4]', Material((0.2, 0.3, 0.4))),
+    ("v3", 'Material "none"', Dielectric(1.0))])
+def test_imported_disk_light_keeps_the_material_in_effect(tmp_path, version, material, expected):
+    """A pbrt disk area light reflects by the material in effect (an "interface" or "none" one lets
+    light through, as pbrt-v3's missing BSDF does)."""
+    path = tmp_path / "scene.pbrt"
+    path.write_text(CAMERA + "WorldBegin\n" + material + '\nAttributeBegin\nAreaLightSource "diffuse" "rgb L" [1 1 1]\n'
+                    'Shape "disk" "float radius" 1\nAttributeEnd\n' + ("" if version == "v4" else "WorldEnd\n"))
+    (light,) = import_pbrt(path, dialect=version).scene.lights
+    assert isinstance(light, AreaLight) and light.material == expected
+
+
+def test_pbrt_v4_ignores_the_light_of_an_interface_shape(tmp_path):
+    """pbrt-v4 (``BasicScene::CreateLights``) skips an area light whose shape's material is
+    "interface", with a warning; the shape stays, letting light through."""
+    path = tmp_path / "scene.pbrt"
+    path.write_text(CAMERA + 'WorldBegin\nMaterial "interface"\nAttributeBegin\nAreaLightSource "diffuse" '
+                    '"rgb L" [1 1 1]\nShape "disk" "float radius" 1\nAttributeEnd\n')
+    imported = import_pbrt(path, dialect="v4")
+    assert imported.scene.lights == [] and len(imported.scene.instances) == 1
+    assert any('Material "interface"' in line and "pbrt-v4" in line for line in imported.warnings)
+
+
+def test_dict_emitter_reflects_only_by_a_material_it_names():
+    """``load_dict``: an emitting disk with a ``material`` reflects by it; one without only emits."""
+    scene = load_dict({"shapes": [{"type": "disk", "emission": 1, "material": {"type": "diffuse", "reflectance": 0.3}},
+                                  {"type": "quad", "emission": 2}]})
+    with_material, without = scene.area_lights
+    assert with_material.material == Material((0.3, 0.3, 0.3)) and without.material is None
