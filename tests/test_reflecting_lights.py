@@ -165,3 +165,25 @@ def test_dict_emitter_reflects_only_by_a_material_it_names():
                                   {"type": "quad", "emission": 2}]})
     with_material, without = scene.area_lights
     assert with_material.material == Material((0.3, 0.3, 0.3)) and without.material is None
+
+
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_direct_lighting_of_lights_that_light_each_other_is_the_reflecting_route(backend, request):
+    """``Integrator "directlighting"`` on lights that reflect one another's light takes the path
+    integrator's "direct" mode (the fast route ends rays at lights): the box reads Le (1 + a); one
+    reflecting light alone, or several pure emitters, keep the fast route, which is exact there."""
+    from realistic.renderer.direct_lighting import DirectLighting
+    from realistic.renderer.integrators import make_integrator
+
+    if backend == "opencl":
+        request.getfixturevalue("opencl_platform")
+    box = _emitter_box(Material(tuple(ALBEDO)))
+    box.integrator = "directlighting"
+    integrator = make_integrator(box, Intersector(box), 1, 3, backend=backend)
+    assert isinstance(integrator, PathIntegrator) and integrator.mode == "direct"
+    origin, direction = _inside_rays(N, 7)
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
+    _agrees(radiance.astype(np.float64), LE * (1 + ALBEDO))
+    for scene in (_emitter_box(None), Scene(lights=box.lights[:1])):
+        scene.integrator = "directlighting"
+        assert type(make_integrator(scene, Intersector(scene), 1, 3, backend=backend)) is DirectLighting

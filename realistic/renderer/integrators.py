@@ -41,6 +41,14 @@ def is_lambertian(scene: Scene, tabulated: bool = False) -> bool:
                for material in materials.values())
 
 
+def lights_light_each_other(scene: Scene) -> bool:
+    """Whether one of the scene's area lights can reflect another's light: a light with a material
+    (``AreaLight.material``) among two or more. ``DirectLighting`` ends rays at lights, which is
+    exact otherwise (a planar light cannot light itself); ``PathIntegrator``'s "direct" mode shades
+    a light's surface as pbrt-v3's DirectLightingIntegrator does."""
+    return len(scene.lights) > 1 and any(light.material is not None for light in scene.lights)
+
+
 def make_integrator(scene: Scene, intersector: Intersector, light_samples: int = 1, seed: int = 0,
                     pixel_spread_radians: float = 0.0, *, backend: Backend | str = "numpy",
                     spectral: bool = False) -> DirectLighting:
@@ -51,7 +59,8 @@ def make_integrator(scene: Scene, intersector: Intersector, light_samples: int =
     if scene.integrator not in INTEGRATORS:
         raise ValueError(f"unknown integrator {scene.integrator!r} (choose {', '.join(INTEGRATORS)})")
     name = backend if isinstance(backend, str) else backend.name
-    if scene.integrator == "directlighting" and all(isinstance(light, AreaLight) for light in scene.lights) \
+    area_lights_only = all(isinstance(light, AreaLight) for light in scene.lights)
+    if scene.integrator == "directlighting" and area_lights_only and not lights_light_each_other(scene) \
             and is_lambertian(scene, tabulated=name == "opencl" and not spectral):
         return DirectLighting(scene, intersector, light_samples, seed, pixel_spread_radians, backend=backend,
                               spectral=spectral)
