@@ -12,7 +12,9 @@
  *   - the shading frame (Duff et al. 2017, as renderer.bsdf.ShadingFrame) and wo;
  *   - the material's BSDF_PARAM row (with `tables`, the BSDF kernel's TableStore: measured and
  *     named metals' tables, mixes' second lobes), a Material's albedo times a grid or checker
- *     texture at the interpolated uv (realistic.scene.textures.evaluate) where BOUNCE_MATERIAL says so;
+ *     texture at the interpolated uv (realistic.scene.textures.evaluate) where BOUNCE_MATERIAL says so,
+ *     or, for an image texture, the hit's albedo the host filtered before the launch (`albedo`, one
+ *     RGB per hit: EwaKernel.at_hits);
  *   - light samples (area lights only, picked by the rounded-up CDF as numpy's searchsorted picks):
  *     at depth 0 light_samples of them with the pixel's Sobol' numbers (rng.all_light_uniforms), else
  *     one with rng.uniform at dimensions base + 4 .. 6; the point on the disk or quad, the density
@@ -94,7 +96,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
                      __global const uint *sample, __global const float *origin, __global const float *direction,
                      __global const float *tfar, __global const float *hit_u, __global const float *hit_v,
                      __global const int *prim, __global const int *geom, __global const float *ng_in,
-                     __global const float *beta_in,
+                     __global const float *beta_in, __global const float *albedo,
                      __global const int *faces, __global const float *normals, __global const float *uvs,
                      __global const int *geom_ints, __global const float *geom_floats,
                      __global const float *params, __global const float *materials,
@@ -143,12 +145,15 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     float3 wo = (float3)(-dot3(d, fs), -dot3(d, ft), -dot3(d, shading));
     float eps = SHADOW_OFFSET * (magnitude3(point) + offset_base);
 
-    /* the material: its BSDF row, a Lambertian's albedo times its grid or checker texture */
+    /* the material: its BSDF row, a Lambertian's albedo times its grid or checker texture, or its
+     * image-textured albedo (the host's, per hit) */
     int material = gi[GEOM_INT_MATERIAL];
     Params p = load_params(params + BSDF_PARAM_WIDTH * material, tables);
     __global const float *mat = materials + BOUNCE_MATERIAL_WIDTH * material;
     int texture = (int)mat[BOUNCE_MATERIAL_TEXTURE];
-    if (texture != BOUNCE_TEXTURE_NONE) {
+    if (texture == BOUNCE_TEXTURE_IMAGE) {
+        p.lobe[0].scale = load3(albedo, i);
+    } else if (texture != BOUNCE_TEXTURE_NONE) {
         int i0 = faces[3 * face], i1 = faces[3 * face + 1], i2 = faces[3 * face + 2];
         float tu = uvs[2 * i0] * b0 + uvs[2 * i1] * b1 + uvs[2 * i2] * b2;
         float tv = uvs[2 * i0 + 1] * b0 + uvs[2 * i1 + 1] * b1 + uvs[2 * i2 + 1] * b2;

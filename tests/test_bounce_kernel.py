@@ -31,8 +31,7 @@ N = 6000
 
 def _scene(material) -> Scene:
     """``textured_scene`` with its sphere, cone and quad made of ``material`` and a mirrored copy of
-    the sphere (a transform that swaps handedness) added; the floor's image texture is not the
-    kernel's."""
+    the sphere (a transform that swaps handedness) added; the floor keeps its EWA-filtered image."""
     scene, _, _ = textured_scene()
     scene.instances = scene.instances[:1] + [replace(inst, material=material) for inst in scene.instances[1:]]
     scene.add(scene.instances[1].mesh, translate(-0.2, 0.5, 1.0) @ scale(-0.5, 0.5, 0.5), material)
@@ -49,9 +48,10 @@ def _rays(scene: Scene, n: int, seed: int):
     return origin, direction, Intersector(scene).closest(origin, direction)
 
 
-def _pair(scene: Scene, mode: str = "path", mis: bool = True, light_samples: int = 3):
-    numpy_one = PathIntegrator(scene, Intersector(scene), light_samples, 7, 0.0, 5, mode, mis, backend="numpy")
-    device_one = PathIntegrator(scene, Intersector(scene), light_samples, 7, 0.0, 5, mode, mis, backend="opencl")
+def _pair(scene: Scene, mode: str = "path", mis: bool = True, light_samples: int = 3, spread: float = 0.0):
+    """The numpy and the OpenCL backend's integrators (``spread``: the pixel spread, radians)."""
+    numpy_one = PathIntegrator(scene, Intersector(scene), light_samples, 7, spread, 5, mode, mis, backend="numpy")
+    device_one = PathIntegrator(scene, Intersector(scene), light_samples, 7, spread, 5, mode, mis, backend="opencl")
     assert device_one._bounce is not None
     return numpy_one, device_one
 
@@ -77,16 +77,22 @@ def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
 
 def test_covered_materials():
     """Constant parameters of the materials bsdf.cl covers (named metals and mixes with their tables
-    or second lobes in the BSDF kernel's tables), and a ``Material``'s grid or checker texture; image
-    textures, textured parameters of other kinds and materials bsdf.cl lacks are not."""
+    or second lobes in the BSDF kernel's tables), and a ``Material``'s grid or checker texture or its
+    EWA- or bilinear-filtered image texture; point- or trilinear-filtered images, textured parameters
+    of other kinds and materials bsdf.cl lacks are not."""
     tables = TableStore(Device.for_spec())
     for material in COVERED.values():
         assert material_rows(material, tables) is not None
     for sigma in (0.0, 20.0):
         assert material_rows(Material((1.0, 1.0, 1.0), GridTexture(cells=4.0), sigma=sigma), tables) is not None
         assert material_rows(Material((1.0, 1.0, 1.0), CheckerTexture(cells=4.0), sigma=sigma), tables) is not None
+        for texture_filter in ("ewa", "bilinear"):
+            image = ImageTexture(np.ones((4, 4, 3), np.float32), filter=texture_filter)
+            assert material_rows(Material((1.0, 1.0, 1.0), image, sigma=sigma), tables) is not None
+        for texture_filter in ("point", "trilinear"):
+            image = ImageTexture(np.ones((4, 4, 3), np.float32), filter=texture_filter)
+            assert material_rows(Material((1.0, 1.0, 1.0), image, sigma=sigma), tables) is None
     image = ImageTexture(np.ones((4, 4, 3), np.float32))
-    assert material_rows(Material((1.0, 1.0, 1.0), image), tables) is None
     assert material_rows(Plastic(image, (0.4, 0.4, 0.4), 0.1), tables) is None
     assert material_rows(Dielectric(1.5, roughness_u=image, roughness_v=0.2), tables) is None
     assert material_rows(Mix(Material(), Material(), image), tables) is None
@@ -94,10 +100,20 @@ def test_covered_materials():
     assert material_rows(DiffuseTransmission(), tables) is None
 
 
+#: An image of 64 x 32 texels with little symmetry, for the image-textured materials.
+IMAGE = np.random.default_rng(11).random((32, 64, 3)).astype(np.float32)
 #: Textured materials the kernel covers, beside ``COVERED``.
 TEXTURED = {"grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=0.2)),
             "checker": Material((0.7, 0.7, 0.7), CheckerTexture(cells=6.0)),
-            "oren-nayar under a grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=0.2), sigma=15.0)}
+            "oren-nayar under a grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=0.2), sigma=15.0),
+            "image, ewa": Material((0.9, 0.8, 0.7), ImageTexture(IMAGE, scale=(3.0, 2.0), max_anisotropy=4.0)),
+            "image, bilinear": Material((0.6, 0.9, 0.8), ImageTexture(IMAGE, scale=(2.0, 5.0), v_origin="top",
+                                                                      filter="bilinear", wrap="clamp",
+                                                                      offset=(0.3, -0.2))),
+            "oren-nayar under an image": Material((0.8, 0.8, 0.9), ImageTexture(IMAGE, scale=(4.0, 4.0), wrap="black"),
+                                                  sigma=20.0)}
+#: The pixel spread (radians) of the per-hit comparison: the image textures' footprints at depth 0.
+SPREAD = 4e-3
 
 
 @pytest.mark.parametrize("name", sorted(COVERED) + sorted(TEXTURED))
@@ -106,7 +122,9 @@ TEXTURED = {"grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=
 def test_bounce_kernel_shades_each_hit_as_the_numpy_reference(name, depth, mode, mis):
     """Per hit, with the same random numbers: every light sample's shadow ray and contribution (summed
     per ray with several light samples at depth 0), and the next ray, beta, pdf and flags, to float32
-    rounding (a decision may part only where rounding moves a number across its threshold)."""
+    rounding (a decision may part only where rounding moves a number across its threshold); image
+    textures filtered over the pixel's footprint at depth 0 (``SPREAD``) and at level 0 deeper, as
+    ``_shade`` filters them."""
     names = sorted(COVERED) + sorted(TEXTURED)
     _shades_as_numpy(TEXTURED.get(name) or COVERED[name], depth, mode, mis, names.index(name))
 
@@ -121,7 +139,7 @@ def test_bounce_kernel_shades_measured_brdfs_as_the_numpy_reference(three_sample
 def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int) -> None:
     """The per-hit comparison of the kernel and ``_shade`` on ``_scene(material)`` (rays from ``seed``)."""
     scene = _scene(material)
-    numpy_one, device_one = _pair(scene, mode, mis)
+    numpy_one, device_one = _pair(scene, mode, mis, spread=SPREAD)
     origin, direction, hits = _rays(scene, N, seed)
     on_instance = (hits.geom >= 0) & (hits.geom < device_one.instance_count)
     covered = device_one._bounce.covered[device_one._geom_material[np.where(on_instance, hits.geom, 0)]]
@@ -176,10 +194,13 @@ def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int) -> N
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad and
-    plastic in the kernel and the image-textured floor in numpy: each ray's radiance is the numpy
-    backend's to float32 rounding (a path may only part where rounding moves a sample across a
+    plastic in the kernel and the trilinear image-textured floor in numpy: each ray's radiance is the
+    numpy backend's to float32 rounding (a path may only part where rounding moves a sample across a
     threshold)."""
     scene, _, _ = textured_scene()
+    floor = scene.instances[0].material
+    scene.instances[0] = replace(scene.instances[0], material=replace(floor, texture=replace(floor.texture,
+                                                                                             filter="trilinear")))
     materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05), Material((0.3, 0.6, 0.9),
                                                                                              sigma=20.0)]
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
@@ -187,6 +208,28 @@ def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     numpy_one, device_one = _pair(scene, mode, mis, light_samples=2)
     origin, direction, _ = _rays(scene, N, 3)
     rng = np.random.default_rng(4)
+    pixel, sample = rng.integers(0, 1 << 20, N), rng.integers(0, 64, N)
+    expected, expected_shadows = numpy_one.radiance(origin, direction, pixel, sample)
+    got, shadows = device_one.radiance(origin, direction, pixel, sample)
+    top = float(np.abs(expected).max())
+    close = np.all(np.isclose(got, expected, rtol=1e-3, atol=1e-5 * top), axis=1)
+    assert close.mean() > 0.99, close.mean()
+    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 2e-3
+    assert abs(shadows - expected_shadows) <= 0.01 * expected_shadows
+
+
+@pytest.mark.parametrize("mode", ["path", "direct"])
+def test_paths_over_image_textures_carry_the_numpy_radiance(mode):
+    """Whole paths over image textures in the kernel: ``textured_scene``'s EWA floor, a bilinear
+    Oren-Nayar sphere and a Lambertian quad under an image, seen with a pixel spread (footprints at
+    the first hit, level 0 deeper): each ray's radiance is the numpy backend's to float32 rounding."""
+    scene, _, _ = textured_scene()
+    scene.instances[3] = replace(scene.instances[3], material=TEXTURED["image, ewa"])
+    scene.instances[1] = replace(scene.instances[1], material=replace(TEXTURED["image, bilinear"], sigma=10.0))
+    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
+    assert device_one._bounce is not None and device_one._bounce.covered.all()
+    origin, direction, _ = _rays(scene, N, 5)
+    rng = np.random.default_rng(6)
     pixel, sample = rng.integers(0, 1 << 20, N), rng.integers(0, 64, N)
     expected, expected_shadows = numpy_one.radiance(origin, direction, pixel, sample)
     got, shadows = device_one.radiance(origin, direction, pixel, sample)

@@ -7,8 +7,13 @@ embree and the compaction of live paths. It covers RGB rays, scenes whose lights
 lights (or that have none), and materials ``bsdf_kernel.parameters`` covers whose parameters are
 constants (measured tables, named metals' tables and mixes' second lobes in the BSDF kernel's
 ``TableStore``), ``Material`` (Lambertian or Oren-Nayar) also under a grid or checker texture
-(evaluated in the kernel). The rest (spectral rays, other lights, image or other textured
-parameters, materials ``bsdf.cl`` lacks) stays with ``PathIntegrator._shade``, the numpy reference
+(evaluated in the kernel) or an image texture filtered with EWA or pbrt-v4's bilinear filter
+(``ewa_kernel.DEVICE_FILTERS``): before each launch ``EwaKernel.at_hits`` turns those hits' records
+into their albedo on the device, with the footprint ``PathIntegrator._shade`` gives at that depth
+(the camera's pixel spread at depth 0, none deeper: level 0 bilinear), and the kernel reads it per
+hit in place of the row's constant. The rest (spectral rays, other lights, image textures with the
+point or trilinear filter, textured parameters other than a ``Material``'s texture, materials
+``bsdf.cl`` lacks) stays with ``PathIntegrator._shade``, the numpy reference
 (``tests/test_bounce_kernel.py`` compares the two per hit with the same random numbers). The
 program is the BSDF kernel's source with this one after it, so both share ``bsdf.cl``'s material
 functions; the scene's tables are device buffers made once per integrator, and each thread has its
@@ -18,6 +23,7 @@ own queue and kernel object.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -27,17 +33,19 @@ from realistic.device.tables import Table, constant_defines
 from realistic.renderer import bsdf_kernel
 from realistic.renderer.light_sampler import LightSampler
 from realistic.renderer.shade_kernel import GEOM_FLOATS, GEOM_INTS, rounded_up_cdf
+from realistic.scene.ewa_kernel import DEVICE_FILTERS, EwaKernel, SurfaceTables, hit_mapping
 from realistic.scene.intersect import Hits
 from realistic.scene.materials import SurfaceMaterial
-from realistic.scene.model import CheckerTexture, GridTexture, Material
+from realistic.scene.mipmap import MipMap
+from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Material
 
 KERNEL_FILE = "bounce.cl"
 #: Per material, beside its ``BSDF_PARAMS`` row: a Lambertian's texture (``TEXTURES``), a grid's or
 #: checker's cells, line bounds (low, high: line_width / 2 and 1 - line_width / 2) and colours (a:
-#: line or even, b: base or odd).
+#: line or even, b: base or odd); an image texture's albedo comes per hit (``BounceKernel.__call__``).
 MATERIALS = Table("BOUNCE_MATERIAL", np.float32, (("texture", 1), ("cells", 1), ("low", 1), ("high", 1),
                                                   ("colour_a", 3), ("colour_b", 3)))
-TEXTURES = ("none", "grid", "checker")
+TEXTURES = ("none", "grid", "checker", "image")
 #: Per light (the sampler's order, all area lights): centre and half-axes a, b (a point is
 #: centre + a x + b y), unit emitting normal, radiance, area, pick probability, disk and two-sided (0, 1).
 LIGHTS = Table("BOUNCE_LIGHT", np.float32, (("centre", 3), ("a", 3), ("b", 3), ("normal", 3), ("radiance", 3),
@@ -80,9 +88,12 @@ class _Constants:
 def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> tuple[np.ndarray, np.ndarray] | None:
     """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not
     cover it (a kind ``bsdf.cl`` lacks, or a textured parameter other than a ``Material``'s grid or
-    checker texture); measured tables, named metals' tables and mixes' second lobes go to ``tables``."""
+    checker texture or its image texture filtered as ``DEVICE_FILTERS`` says); measured tables, named
+    metals' tables and mixes' second lobes go to ``tables``."""
     plain, texture = material, None
-    if isinstance(material, Material) and isinstance(material.texture, GridTexture | CheckerTexture):
+    if isinstance(material, Material) and (
+            isinstance(material.texture, GridTexture | CheckerTexture)
+            or isinstance(material.texture, ImageTexture) and material.texture.filter in DEVICE_FILTERS):
         plain, texture = replace(material, texture=None), material.texture
     try:
         row = bsdf_kernel.parameters(plain, _Constants(), 1, tables)
@@ -97,6 +108,8 @@ def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> 
     elif isinstance(texture, CheckerTexture):
         extra = MATERIALS.pack(1, texture=TEXTURES.index("checker"), cells=texture.cells, colour_a=texture.even,
                                colour_b=texture.odd)
+    elif isinstance(texture, ImageTexture):
+        extra = MATERIALS.pack(1, texture=TEXTURES.index("image"))
     else:
         extra = MATERIALS.pack(1)
     return row[0], extra[0]
@@ -141,16 +154,29 @@ class BounceKernel:
                  geom_face_offset: np.ndarray, geom_material: np.ndarray, geom_smooth: np.ndarray,
                  geom_swaps: np.ndarray, geom_normal_matrix: np.ndarray, materials: list[SurfaceMaterial],
                  lights: LightSampler, extent: float, dimension: int, roulette_after: int,
-                 tables: bsdf_kernel.TableStore):
+                 tables: bsdf_kernel.TableStore, vertices: np.ndarray, geom_linear: np.ndarray,
+                 pixel_spread_radians: float, ewa_kernel: Callable[[MipMap], EwaKernel]):
         """``dimension``: the random-number dimension of bounce 0's BSDF sample (bounce b's are 8 b
         on); ``roulette_after``: the bounces after which roulette may end a path. ``lights`` must
         have area lights alone, or none that emit (``PathIntegrator`` checks). ``tables``: the BSDF
-        kernel's ``TableStore`` (shared, so a measured table is on the device once)."""
+        kernel's ``TableStore`` (shared, so a measured table is on the device once). ``vertices``
+        (float64, mesh space), ``geom_linear`` (per instance, 3 x 3), ``pixel_spread_radians`` (the
+        camera's) and ``ewa_kernel`` (a MIP map's ``EwaKernel``, the backend's) serve image textures."""
         self.device = device
         self.bsdf_tables = tables
         rows = [material_rows(m, tables) for m in materials]
         #: per material: whether the kernel shades it
         self.covered = np.array([r is not None for r in rows] or [False], bool)
+        self._geom_material = np.asarray(geom_material)
+        #: per image-textured material covered: its index, EWA kernel, filter and ``hit_mapping`` rows
+        #: at depth 0 (the pixel's footprint) and deeper (none: level 0 bilinear, as ``_shade``)
+        self._images = [(k, ewa_kernel(m.texture.mipmap), m.texture.filter,
+                         hit_mapping(m.texture, m.diffuse, pixel_spread_radians),
+                         hit_mapping(m.texture, m.diffuse, 0.0))
+                        for k, (m, r) in enumerate(zip(materials, rows))
+                        if r is not None and isinstance(m, Material) and isinstance(m.texture, ImageTexture)]
+        self._surfaces = SurfaceTables(device, faces, vertices, uv, geom_face_offset,
+                                       np.asarray(geom_linear).reshape(-1, 9)) if self._images else None
         params = np.array([r[0] if r else np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32) for r in rows]
                           or [np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32)], np.float32)
         textures = np.array([r[1] if r else np.zeros(MATERIALS.width, np.float32) for r in rows]
@@ -196,10 +222,12 @@ class BounceKernel:
                      pdf=np.empty(m, np.float32), flags=np.empty(m, np.int32))
         if m:
             queue, kernel = self._queue_and_kernel()
+            albedo = self._albedo(rows, direction, hits, depth)
             inputs = [self.device.wrapped_buffer(a, dtype) for a, dtype in (
                 (rows, np.int32), (path, np.int32), (pixel, np.uint32), (sample, np.uint32), (origin, np.float32),
                 (direction, np.float32), (hits.t, np.float32), (hits.u, np.float32), (hits.v, np.float32),
-                (hits.prim, np.int32), (hits.geom, np.int32), (hits.normal, np.float32), (beta, np.float32))]
+                (hits.prim, np.int32), (hits.geom, np.int32), (hits.normal, np.float32), (beta, np.float32),
+                (albedo, np.float32))]
             self.device.run_into(queue, kernel, (whole_groups(m),), (LOCAL_SIZE,),
                                  (np.uint32(m), np.uint32(lights), np.uint32(depth), np.uint32(seed & 0xFFFFFFFF),
                                   np.uint32(mode_flags), np.uint32(max_depth), self.offset_base,
@@ -208,3 +236,18 @@ class BounceKernel:
                                  (out.shadow_origin, out.shadow_vector, out.shadow_length, out.contribution,
                                   out.origin, out.direction, out.beta, out.point, out.pdf, out.flags))
         return out
+
+    def _albedo(self, rows: np.ndarray, direction: np.ndarray, hits: Hits, depth: int) -> np.ndarray:
+        """The albedo (m, 3) float32 of the hits ``rows`` on image-textured materials (zero elsewhere,
+        unread): ``EwaKernel.at_hits`` with the pixel's footprint at depth 0 and none deeper, which is
+        what ``PathIntegrator._shade`` filters with."""
+        albedo = np.zeros((len(rows), 3), np.float32)
+        if self._surfaces is None:  # no image-textured material
+            return albedo
+        material_of = self._geom_material[hits.geom[rows]]
+        for index, ewa, texture_filter, first, deeper in self._images:
+            picked = np.flatnonzero(material_of == index)
+            if len(picked):
+                albedo[picked] = ewa.at_hits(self._surfaces, rows[picked].astype(np.int32), first if depth == 0
+                                             else deeper, direction, hits, texture_filter)
+        return albedo

@@ -21,10 +21,12 @@ after specular bounces), for tests.
 
 Backends: on "opencl", where every light is an area light (or none emits), RGB rays at hits whose
 material ``kernels/bsdf.cl`` covers with constant parameters (Lambertian and Oren-Nayar under a
-grid or checker texture too) take the whole bounce in one launch of ``kernels/bounce.cl``
-(``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights, shadow rays, BSDF
-sample, beta, roulette), with the same random numbers; the host keeps embree, emission and the
-compaction of live paths. Other hits (textured parameters, spectral rays, scenes with other lights)
+grid or checker texture too, or under an EWA- or bilinear-filtered image texture, whose albedo
+``EwaKernel.at_hits`` filters on the device before the launch) take the whole bounce in one launch
+of ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS
+weights, shadow rays, BSDF sample, beta, roulette), with the same random numbers; the host keeps
+embree, emission and the compaction of live paths. Other hits (other textured parameters, spectral
+rays, scenes with other lights)
 have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
 where it covers the material (the backend's ``bsdf_kernel``: every material but diffuse
 transmission and MERL tables), in one launch per bounce with the same random numbers; every other
@@ -272,7 +274,9 @@ class PathIntegrator(DirectLighting):
                                      geom_smooth=self._geom_smooth, geom_swaps=self._geom_swaps,
                                      geom_normal_matrix=self._geom_normal_matrix, materials=self._materials,
                                      lights=self.lights, extent=self.intersector.extent,
-                                     dimension=BOUNCE_DIMENSION, roulette_after=ROULETTE_AFTER)
+                                     dimension=BOUNCE_DIMENSION, roulette_after=ROULETTE_AFTER,
+                                     vertices=self._vertices, geom_linear=self._geom_linear,
+                                     pixel_spread_radians=self.pixel_spread_radians, ewa_kernel=backend.ewa_kernel)
 
     def _shade_on_device(self, hits: Hits, surface: np.ndarray, path: np.ndarray, o: np.ndarray, d: np.ndarray,
                          beta: np.ndarray, pixel: np.ndarray, sample: np.ndarray, pixel_key: np.ndarray,
