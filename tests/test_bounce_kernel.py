@@ -191,6 +191,21 @@ def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int) -> N
     assert _mostly(pdf_close)
 
 
+def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegrator, seed: int) -> None:
+    """Whole paths of N rays into ``scene`` (``_rays``' seed ``seed``): each ray's radiance the numpy
+    backend's to float32 rounding (99 % of rays), the mean to 2e-3, the shadow rays to 1 %."""
+    origin, direction, _ = _rays(scene, N, seed)
+    rng = np.random.default_rng(seed + 1)
+    pixel, sample = rng.integers(0, 1 << 20, N), rng.integers(0, 64, N)
+    expected, expected_shadows = numpy_one.radiance(origin, direction, pixel, sample)
+    got, shadows = device_one.radiance(origin, direction, pixel, sample)
+    top = float(np.abs(expected).max())
+    close = np.all(np.isclose(got, expected, rtol=1e-3, atol=1e-5 * top), axis=1)
+    assert close.mean() > 0.99, close.mean()
+    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 2e-3
+    assert abs(shadows - expected_shadows) <= 0.01 * expected_shadows
+
+
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad and
@@ -206,16 +221,7 @@ def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
     scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
     numpy_one, device_one = _pair(scene, mode, mis, light_samples=2)
-    origin, direction, _ = _rays(scene, N, 3)
-    rng = np.random.default_rng(4)
-    pixel, sample = rng.integers(0, 1 << 20, N), rng.integers(0, 64, N)
-    expected, expected_shadows = numpy_one.radiance(origin, direction, pixel, sample)
-    got, shadows = device_one.radiance(origin, direction, pixel, sample)
-    top = float(np.abs(expected).max())
-    close = np.all(np.isclose(got, expected, rtol=1e-3, atol=1e-5 * top), axis=1)
-    assert close.mean() > 0.99, close.mean()
-    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 2e-3
-    assert abs(shadows - expected_shadows) <= 0.01 * expected_shadows
+    _paths_agree(scene, numpy_one, device_one, 3)
 
 
 @pytest.mark.parametrize("mode", ["path", "direct"])
@@ -228,16 +234,7 @@ def test_paths_over_image_textures_carry_the_numpy_radiance(mode):
     scene.instances[1] = replace(scene.instances[1], material=replace(TEXTURED["image, bilinear"], sigma=10.0))
     numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
     assert device_one._bounce is not None and device_one._bounce.covered.all()
-    origin, direction, _ = _rays(scene, N, 5)
-    rng = np.random.default_rng(6)
-    pixel, sample = rng.integers(0, 1 << 20, N), rng.integers(0, 64, N)
-    expected, expected_shadows = numpy_one.radiance(origin, direction, pixel, sample)
-    got, shadows = device_one.radiance(origin, direction, pixel, sample)
-    top = float(np.abs(expected).max())
-    close = np.all(np.isclose(got, expected, rtol=1e-3, atol=1e-5 * top), axis=1)
-    assert close.mean() > 0.99, close.mean()
-    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 2e-3
-    assert abs(shadows - expected_shadows) <= 0.01 * expected_shadows
+    _paths_agree(scene, numpy_one, device_one, 5)
 
 
 def _area_light_furnace(material) -> Scene:
