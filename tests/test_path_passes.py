@@ -10,6 +10,7 @@ from realistic.core.transforms import rotate, translate
 from realistic.renderer.job import RenderJob
 from realistic.renderer.light_sampler import LightSampler
 from realistic.renderer.passes import ThreadPasses, render
+from realistic.renderer.path import _add_rows
 from realistic.scene.lights import DistantLight, InfiniteLight, PointLight, SpotLight
 from realistic.scene.model import AreaLight, Material, Scene
 from realistic.scene.shapes import quad, sphere
@@ -48,3 +49,17 @@ def test_lights_are_picked_in_proportion_to_their_power():
     power = np.array([4 * math.pi * 2, 2 * math.pi * 3 * (1 - (math.cos(0.3) + math.cos(0.5)) / 2),
                       math.pi * radius ** 2, math.pi * radius ** 2 * 0.5, math.pi * 6.0 * 4.0])
     np.testing.assert_allclose(LightSampler(scene, extent).probability, power / power.sum())
+
+
+def test_adding_rows_matches_fancy_indexing():
+    """``path._add_rows`` (the bounce's scatter of contributions) adds exactly as out[rows] += value
+    does for distinct rows, RGB and spectral (one channel)."""
+    generator = np.random.default_rng(5)
+    for channels in (3, 1):
+        out = generator.random((50, channels), dtype=np.float32)
+        rows = generator.permutation(50)[:20].astype(np.int32)
+        value = generator.random((20, channels), dtype=np.float32)
+        expected = out.copy()
+        expected[rows] += value
+        _add_rows(out, rows, value)
+        assert np.array_equal(out, expected)

@@ -248,6 +248,6 @@ class BounceKernel:
         for index, ewa, texture_filter, first, deeper in self._images:
             picked = np.flatnonzero(material_of == index)
             if len(picked):
-                albedo[picked] = ewa.at_hits(self._surfaces, rows[picked].astype(np.int32), first if depth == 0
-                                             else deeper, direction, hits, texture_filter)
+                albedo[picked] = ewa.at_hits(self._surfaces, rows[picked].astype(np.int32, copy=False),
+                                             first if depth == 0 else deeper, direction, hits, texture_filter)
         return albedo

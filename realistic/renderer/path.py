@@ -110,6 +110,16 @@ class SurfaceParameters:
         return evaluate(value, self._uv, None).mean(axis=1).astype(np.float32)
 
 
+def _add_rows(out: np.ndarray, rows: np.ndarray, value: np.ndarray) -> None:
+    """out[rows] += value for distinct ``rows`` of a C-contiguous (N, C) ``out``: the rows gathered
+    with ``np.take`` and put back as single items (``np.put`` on a void view of the rows), the same
+    sums several times faster than fancy indexing of a 2-D array."""
+    item = np.dtype((np.void, out.dtype.itemsize * out.shape[1]))
+    total = np.take(out, rows, axis=0)
+    total += value
+    np.put(out.view(item).reshape(len(out)), rows, total.view(item).reshape(len(rows)))
+
+
 def power_heuristic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a^2 / (a^2 + b^2), 0 where both are 0."""
     a2, b2 = np.square(a, dtype=np.float64), np.square(b, dtype=np.float64)
@@ -139,6 +149,8 @@ class PathIntegrator(DirectLighting):
         # instances whose transform mirrors: their world winding faces inward (see ``_outward_normals``)
         self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
         self._bounce = self._build_bounce(chosen) if self._bsdf_kernel is not None else None
+        #: per geometry, whether the fused bounce shades its material (one gather per bounce, not two)
+        self._bounce_covers = None if self._bounce is None else self._bounce.covered[self._geom_material]
         self._instance_light = np.full(max(self.instance_count, 1), -1, np.int64)
         for i, light in enumerate(scene.lights):
             if isinstance(light, EmissiveInstance):
@@ -200,7 +212,7 @@ class PathIntegrator(DirectLighting):
         channels = 3 if basis_all is None else 1
         out = np.zeros((n, channels), np.float32)
         beta = np.ones((n, channels), np.float32)
-        path = np.arange(n)
+        path = np.arange(n, dtype=np.int32)  # int32: the bounce kernel's rows, read without a copy
         o = np.ascontiguousarray(origin, np.float32)
         d = np.ascontiguousarray(direction, np.float32)
         specular = np.ones(n, bool)
@@ -239,9 +251,9 @@ class PathIntegrator(DirectLighting):
                     blocked = self.intersector.occluded(shadow["start"], shadow["vector"], shadow["length"])
                 with timed("shading"):
                     free = ~blocked
-                    rows, value = shadow["rows"][free], shadow["contribution"][free]
+                    rows, value = shadow["rows"][free], np.compress(free, shadow["contribution"], axis=0)
                     if depth > 0 or self.light_samples == 1:  # one light sample per ray: rows are distinct
-                        out[rows] += value
+                        _add_rows(out, rows, value)
                     else:
                         for c in range(channels):  # rows repeat with several light samples per hit
                             out[:, c] += np.bincount(rows, value[:, c], minlength=n).astype(np.float32)
@@ -285,20 +297,21 @@ class PathIntegrator(DirectLighting):
         whose material it covers, and by ``_shade`` at the others; ``pixel_key`` and ``sample_key``:
         ``pixel`` and ``sample`` as uint32, the kernel's random-number keys. The shadow rays include
         the kernel's dead light samples (length -1, contribution 0)."""
-        assert self._bounce is not None
-        covered = self._bounce.covered[self._geom_material[hits.geom[surface]]]
-        rows = surface if covered.all() else surface[covered]
+        assert self._bounce is not None and self._bounce_covers is not None
+        covered = self._bounce_covers[hits.geom[surface]]
+        rows = (surface if covered.all() else surface[covered]).astype(np.int32)  # the kernel's, converted once
         result = self._bounce(rows, path, pixel_key, sample_key, o, d, hits, beta, depth=depth,
                               light_samples=self.light_samples if depth == 0 else 1, seed=self.seed,
                               mode_flags=self._bounce_flags, max_depth=self.max_depth)
         ray = path[rows]
         keep, specular, shade = result.going_on()
-        state = {"path": ray[keep], "origin": result.origin[keep], "direction": result.direction[keep],
-                 "beta": result.beta[keep], "specular": specular, "shade": shade,
-                 "pdf": result.pdf[keep].astype(np.float64), "point": result.point[keep].astype(np.float64),
+        state = {"path": ray[keep], "origin": _rows(result.origin, keep), "direction": _rows(result.direction, keep),
+                 "beta": _rows(result.beta, keep), "specular": specular, "shade": shade,
+                 "pdf": result.pdf[keep], "point": _rows(result.point, keep),  # float32: read in float64 as gathered
                  "shadow": {"start": result.shadow_origin, "vector": result.shadow_vector,
                             "length": result.shadow_length,
-                            "rows": np.tile(ray, len(result.shadow_length) // max(len(rows), 1)),
+                            "rows": ray if len(result.shadow_length) == len(rows) else  # one light sample each
+                            np.tile(ray, len(result.shadow_length) // max(len(rows), 1)),
                             "contribution": result.contribution}}
         if len(rows) == len(surface):
             return state
@@ -381,25 +394,29 @@ class PathIntegrator(DirectLighting):
                   prev_lights: int, depth: int, out: np.ndarray) -> None:
         """Add what the rays see of emitters, MIS-weighted against the light samples that could find it."""
         pick = (lambda rows: None) if basis is None else (lambda rows: basis[rows])
-        # misses see the infinite lights, or the background from camera rays (else nothing to add)
-        miss = np.flatnonzero(hits.geom < 0) if self.lights.environments or depth == 0 else np.zeros(0, np.int64)
+        # misses see the infinite lights, or the background from camera rays (else nothing to add: a
+        # black background adds zeros)
+        seen = self.lights.environments or depth == 0 and self.lights.background.any()
+        miss = np.flatnonzero(hits.geom < 0) if seen else np.zeros(0, np.int64)
         if len(miss):
             le = self.lights.environment(d[miss], pick(miss), camera=depth == 0)
             pdf = self.lights.pdf_environment(d[miss]) if self.lights.environments else np.zeros(len(miss))
             weight = self._mis(miss, specular, prev_pdf, pdf, prev_lights) if self.lights.environments else \
                 np.ones(len(miss))
             out[path[miss]] += beta[miss] * le * weight[:, None].astype(np.float32)
-        slot = hits.geom - self.instance_count
-        lit = np.flatnonzero(slot >= 0)
+        lit = np.flatnonzero(hits.geom >= self.instance_count)
         if len(lit):
-            point = o[lit] + hits.t[lit, None] * d[lit]
-            le = self.lights.area_emission(slot[lit], d[lit], pick(lit))
-            weight = self._mis(lit, specular, prev_pdf, self.lights.pdf_area(slot[lit], prev_point[lit], point),
+            slot = hits.geom[lit] - self.instance_count
+            d_lit = _rows(d, lit)
+            point = _rows(o, lit) + hits.t[lit, None] * d_lit
+            le = self.lights.area_emission(slot, d_lit, pick(lit))
+            weight = self._mis(lit, specular, prev_pdf, self.lights.pdf_area(slot, prev_point[lit], point),
                                prev_lights)
-            out[path[lit]] += beta[lit] * le * weight[:, None].astype(np.float32)
+            _add_rows(out, path[lit], _rows(beta, lit) * le * weight[:, None].astype(np.float32))
         if self.lights.emitters:
-            geom = np.where((hits.geom >= 0) & (slot < 0), hits.geom, 0)
-            which = np.where((hits.geom >= 0) & (slot < 0), self._instance_light[geom], -1)
+            instance = (hits.geom >= 0) & (hits.geom < self.instance_count)
+            geom = np.where(instance, hits.geom, 0)
+            which = np.where(instance, self._instance_light[geom], -1)
             for light in np.unique(which[which >= 0]):
                 rows = np.flatnonzero(which == light)
                 point = o[rows] + hits.t[rows, None] * d[rows]
