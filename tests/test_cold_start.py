@@ -27,6 +27,7 @@ def built(monkeypatch, opencl_platform, tmp_path):
     every lens program ``LensKernel`` builds, in order."""
     monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(opencl_platform, "_chosen", {})
+    monkeypatch.setattr(opencl_platform, "_timing", [True])  # as a render that repays timing sets it
     choices: list[int] = []
     original = opencl_platform.LensKernel._build
 
@@ -55,6 +56,24 @@ def test_a_camera_first_seen_builds_one_program_untimed_and_its_choice_is_timed_
     built.clear()
     assert opencl_platform.LensKernel(camera).rays_per_item == timed
     assert built == [timed]  # read back from the disk cache
+
+
+def test_only_a_render_that_repays_it_times_the_choice(built, opencl_platform, monkeypatch):
+    """A camera seen before but not timed yet has its choice timed only by a render that repays it
+    (``runner.repays_compiling``, passed on by ``Backend.build_ahead``): a small one (README's second
+    render) builds the one-ray program alone, untimed, and leaves the choice to a larger render."""
+    from kernel_reference import reference_camera
+    from realistic.renderer.backends import backend_for
+
+    camera = reference_camera("wide", "rear")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    backend = backend_for("opencl", None)
+    for time_choices, expected in ((False, []), (False, []), (True, [several, one])):
+        monkeypatch.setattr(opencl_platform, "_chosen", {})  # as in the next process
+        built.clear()
+        backend.build_ahead(camera, time_choices)
+        chosen = opencl_platform.LensKernel(camera).rays_per_item
+        assert built == expected + [chosen] and (chosen == one or time_choices)
 
 
 def test_with_the_cache_off_every_process_times_its_choice(built, opencl_platform, monkeypatch):

@@ -312,6 +312,16 @@ ONE_RAY_MARGIN = 0.8
 #: Rays per work item chosen in this process, by disk-cache key (a refocused camera asks again).
 _chosen: dict[str, int] = {}
 _choosing = threading.Lock()  # ``build_ahead`` on a render thread and ``LensKernel`` decide alike
+#: Whether a choice not yet timed is timed now (``time_choices``).
+_timing = [True]
+
+
+def time_choices(wanted: bool) -> None:
+    """Whether this process's ``LensKernel``s time a choice of rays per work item that is still
+    untimed (building and compiling both programs: about a second, which a small render never
+    repays) or run one ray per item untimed, leaving the choice to a render that repays timing it
+    (``renderer.runner.repays_compiling``). A stored choice is used either way."""
+    _timing[0] = wanted
 
 
 def _seconds(run: Callable[[], object]) -> float:
@@ -336,7 +346,8 @@ def _untimed_choice(key: str, choices: tuple[int, int]) -> int | None:
     """The rays per work item ``LensKernel`` runs without timing them for ``key`` (``_choice_key``;
     ``choices``: several, one), decided once per process (``_chosen``) whichever of ``build_ahead``
     and ``LensKernel`` asks first: the choice stored in the disk cache, or for a camera it has no
-    entry for (first seen) one ray, leaving a mark there; None where the choice is to be timed."""
+    entry for (first seen) one ray, leaving a mark there; None where the choice is to be timed, or
+    one ray, untimed, where this process's renders do not repay timing it (``time_choices``)."""
     with _choosing:
         if key in _chosen:
             return _chosen[key]
@@ -346,7 +357,7 @@ def _untimed_choice(key: str, choices: tuple[int, int]) -> int | None:
         if stored is None and disk_cache.cache_dir() is not None:
             disk_cache.store_arrays(key, {"seen": np.zeros(1, np.uint8)})
             return _chosen.setdefault(key, choices[1])
-        return None
+        return None if _timing[0] else _chosen.setdefault(key, choices[1])
 
 
 def build_ahead(camera: LensCamera, device: Device) -> None:

@@ -46,9 +46,11 @@ class Backend(Protocol):
     def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
         """The camera's rays of any ``SampleBlock`` with ``seed``."""
 
-    def build_ahead(self, camera: Camera) -> None:
+    def build_ahead(self, camera: Camera, time_choices: bool = True) -> None:
         """Build what ``ray_generator(camera, ...)`` will build, before the camera is prepared
-        (its exit-pupil table made), so that a render thread can do it meanwhile."""
+        (its exit-pupil table made), so that a render thread can do it meanwhile. ``time_choices``:
+        whether this process's kernels time the build choices they have not timed yet (a render
+        that repays it) or take the quickest to build, untimed."""
 
     def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
         """``MipMap.ewa``'s lookups (N, 3) (a ``scene.textures.EwaLookup``)."""
@@ -69,7 +71,7 @@ class NumpyBackend:
         """``camera.generate_rays`` with ``seed`` (float64)."""
         return lambda block: camera.generate_rays(block, seed)
 
-    def build_ahead(self, camera: Camera) -> None:
+    def build_ahead(self, camera: Camera, time_choices: bool = True) -> None:
         """Nothing: numpy builds nothing."""
 
     def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from realistic.camera import opencl_host
 from realistic.camera.base import Camera, RayGenerator
 from realistic.camera.ghost_host import GhostKernel
 from realistic.camera.lens_camera import LensCamera
@@ -53,8 +54,10 @@ class OpenCLBackend:
             return lambda block: camera.generate_rays(block, seed)
         return lambda block: kernel.generate(block, seed)
 
-    def build_ahead(self, camera: Camera) -> None:
-        """The programs ``ray_generator(camera, ...)`` will use, built now (``opencl_host.build_ahead``)."""
+    def build_ahead(self, camera: Camera, time_choices: bool = True) -> None:
+        """The programs ``ray_generator(camera, ...)`` will use, built now (``opencl_host.build_ahead``);
+        ``time_choices``: ``opencl_host.time_choices``, for this process's lens kernels from now on."""
+        opencl_host.time_choices(time_choices)
         if isinstance(camera, LensCamera):
             build_ahead(camera, self.device)
         elif isinstance(camera, ThinLensCamera):

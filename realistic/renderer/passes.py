@@ -55,7 +55,7 @@ from realistic.renderer.job import (
 )
 from realistic.renderer.memory import check_job_memory
 from realistic.renderer.pass_plan import plan_passes
-from realistic.renderer.runner import PassRunner, choose_loops, compile_pass_loops
+from realistic.renderer.runner import PassRunner, choose_loops, compile_pass_loops, repays_compiling
 from realistic.renderer.starburst import starburst
 from realistic.renderer.thread_count import default_threads
 from realistic.renderer.timing import StageClock
@@ -138,7 +138,7 @@ class ThreadPasses:
         # on the render threads while the exit-pupil table is made: the first camera's programs (PoCL
         # builds them without the GIL), the embree packet loops and the pass's own loops (numba, with
         # it); a loop's error recurs in the first pass, which reports it
-        self.ahead = self.pool.submit(_build_ahead, job.settings, job.cameras[0])
+        self.ahead = self.pool.submit(_build_ahead, job.settings, job.cameras[0], repays_compiling(job))
         if choose_loops(job):  # numba's, where the render repays compiling them
             self.pool.submit(compile_trace_loops)
             self.pool.submit(compile_pass_loops)
@@ -187,9 +187,10 @@ class ThreadPasses:
         self.runners = {}
 
 
-def _build_ahead(settings: PassSettings, camera: Camera) -> None:
-    """The programs ``camera``'s ray generator will use, built (``Backend.build_ahead``)."""
-    backend_for(settings.backend, settings.cl_device).build_ahead(camera)
+def _build_ahead(settings: PassSettings, camera: Camera, time_choices: bool) -> None:
+    """The programs ``camera``'s ray generator will use, built (``Backend.build_ahead``), choices
+    timed where the render repays it."""
+    backend_for(settings.backend, settings.cl_device).build_ahead(camera, time_choices)
 
 
 @dataclass

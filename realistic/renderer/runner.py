@@ -79,18 +79,25 @@ def compile_pass_loops() -> None:
     compile_shading_loops()
 
 
-#: Rays (camera and shadow rays) from which a render runs numba's loops (``choose_loops``): numba's
-#: import and first compiles take a second or so of one core, holding the GIL, which the numpy
-#: forms and embree's packets called from Python repay only over about this many rays.
+#: Rays (camera and shadow rays) from which a render repays one-off compiles (``repays_compiling``):
+#: numba's import and first compiles take a second or so of one core, holding the GIL, which the
+#: numpy forms and embree's packets called from Python repay only over about this many rays; timing
+#: the lens program's choice of rays per work item costs about as much.
 COMPILED_LOOPS_RAYS = 8_000_000
+
+
+def repays_compiling(job: RenderJob) -> bool:
+    """Whether ``job`` has at least ``COMPILED_LOOPS_RAYS`` rays, estimated as each camera's samples
+    times its rays per sample and one more than the light samples."""
+    rays = sum(camera.width * camera.height * camera.spp * camera.rays_per_sample for camera in job.cameras)
+    return rays * (1 + job.settings.light_samples) >= COMPILED_LOOPS_RAYS
 
 
 def choose_loops(job: RenderJob) -> bool:
     """Whether ``job``'s passes run numba's loops, set for the process (``core.jit.use_compiled_loops``):
-    only for a render of at least ``COMPILED_LOOPS_RAYS`` rays, estimated as each camera's samples
-    times its rays per sample and one more than the light samples, or where they are made already."""
-    rays = sum(camera.width * camera.height * camera.spp * camera.rays_per_sample for camera in job.cameras)
-    use_compiled_loops(rays * (1 + job.settings.light_samples) >= COMPILED_LOOPS_RAYS)
+    only for a render that repays compiling them (``repays_compiling``), or where they are made
+    already."""
+    use_compiled_loops(repays_compiling(job))
     return compiled_loops()
 
 
