@@ -186,7 +186,7 @@ def test_the_loops_compiled_ahead_are_those_a_pass_runs():
 from realistic import load_scene
 from realistic.camera.base import SampleBlock
 from realistic.core.jit import compiled
-from realistic.renderer import direct_lighting, film, runner
+from realistic.renderer import direct_lighting, film, hit_rows, runner
 from realistic.renderer.job import PassSettings
 from realistic.renderer.runner import PassRunner, compile_pass_loops
 from realistic.renderer.timing import StageClock
@@ -195,7 +195,7 @@ from realistic.scene.embree import compile_trace_loops
 
 loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), compiled(runner._gather, runner.GATHER_SIGNATURE),
          compiled(film._add_rows), compiled(direct_lighting._visible_sums),
-         compiled(direct_lighting._material_rows), compiled(direct_lighting._place_rows),
+         compiled(hit_rows._rows_on_material), compiled(hit_rows._place_rows),
          compiled(intersect._instances_to_world))
 compile_trace_loops()
 compile_pass_loops()
@@ -405,7 +405,7 @@ def test_the_numpy_forms_of_the_texture_and_instance_loops_give_the_same_bits(nu
     import numpy as np
 
     from realistic.core import jit
-    from realistic.renderer import direct_lighting
+    from realistic.renderer import hit_rows
     from realistic.scene import intersect
 
     rng = np.random.default_rng(9)
@@ -419,9 +419,9 @@ def test_the_numpy_forms_of_the_texture_and_instance_loops_give_the_same_bits(nu
 
     def run() -> list:
         rows = np.full(n, -7, np.int32)
-        count = direct_lighting.material_rows(geom, geom_material, 1, rows)
+        count = hit_rows.rows_on_material(geom, geom_material, 1, rows)
         out = np.zeros((n, 3), np.float32)
-        direct_lighting.place_rows(values[:count], rows[:count], out)
+        hit_rows.place_rows(values[:count], rows[:count], out)
         hit_geom, hit_normal = geom.copy(), normal.copy()
         intersect.instances_to_world(instance, normal_to_world_t, hit_geom, hit_normal)
         return [rows, np.array([count]), out, hit_geom, hit_normal]

@@ -15,7 +15,8 @@ from realistic.core.jit import compiled
 from realistic.core.transforms import rotate, scale, translate
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
-from realistic.renderer.direct_lighting import DirectLighting, _facing, _material_rows, _place_rows
+from realistic.renderer.direct_lighting import DirectLighting, _facing
+from realistic.renderer.hit_rows import _place_rows, _rows_on_material
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.shapes import cone, quad, sphere
@@ -122,8 +123,8 @@ def test_only_ewa_and_bilinear_textures_with_footprints_go_to_the_device():
 
 def test_each_textures_rows_are_the_hits_on_its_material():
     """``_host_albedo`` gives each device texture the rays whose hits are on its material's instances
-    (``_material_rows``: one numba pass, in order) and places the colours ``at_hits`` returns in
-    those rows (``_place_rows``); at_hits refuses rows it would have to convert."""
+    (``hit_rows._rows_on_material``: one numba pass, in order) and places the colours ``at_hits`` returns in
+    those rows (``hit_rows._place_rows``); at_hits refuses rows it would have to convert."""
     scene, eye, target = instanced_scene()
     intersector, origin, direction, hits, spread = hits_of(scene, eye, target, 32, 24)
     device = DirectLighting(scene, intersector, 1, 5, spread, backend="opencl")
@@ -132,7 +133,7 @@ def test_each_textures_rows_are_the_hits_on_its_material():
     rows = np.empty(len(direction), np.int32)
     for index, ewa, mapping, texture_filter in device._device_textures:
         mine = np.flatnonzero(surface & (material == index))
-        count = compiled(_material_rows)(hits.geom, device._geom_material, index, rows)
+        count = compiled(_rows_on_material)(hits.geom, device._geom_material, index, rows)
         assert count > 0 and np.array_equal(rows[:count], mine)
         out = np.full((len(direction), 3), -7.0, F32)
         colours = ewa.at_hits(device._surface_tables, rows[:count], mapping, direction, hits, texture_filter)

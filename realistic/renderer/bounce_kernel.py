@@ -31,6 +31,7 @@ import numpy as np
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer import bsdf_kernel
+from realistic.renderer.hit_rows import place_rows, rows_on_material
 from realistic.renderer.light_sampler import LightSampler
 from realistic.renderer.shade_kernel import GEOM_FLOATS, GEOM_INTS, rounded_up_cdf
 from realistic.scene.ewa_kernel import DEVICE_FILTERS, EwaKernel, SurfaceTables, hit_mapping
@@ -244,10 +245,11 @@ class BounceKernel:
         albedo = np.zeros((len(rows), 3), np.float32)
         if self._surfaces is None:  # no image-textured material
             return albedo
-        material_of = self._geom_material[hits.geom[rows]]
+        geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
         for index, ewa, texture_filter, first, deeper in self._images:
-            picked = np.flatnonzero(material_of == index)
+            picked = picks[:rows_on_material(geom, self._geom_material, index, picks)]
             if len(picked):
-                albedo[picked] = ewa.at_hits(self._surfaces, rows[picked].astype(np.int32, copy=False),
-                                             first if depth == 0 else deeper, direction, hits, texture_filter)
+                place_rows(ewa.at_hits(self._surfaces, rows[picked].astype(np.int32, copy=False),
+                                       first if depth == 0 else deeper, direction, hits, texture_filter),
+                           picked, albedo)
         return albedo

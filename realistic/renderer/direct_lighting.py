@@ -61,6 +61,7 @@ from realistic.renderer.bsdf.base import ShadingFrame
 from realistic.renderer.bsdf.lambertian import cosine_hemisphere
 from realistic.renderer.bsdf.measured import irregular_table, table_lookup
 from realistic.renderer.footprint import uv_footprint
+from realistic.renderer.hit_rows import compile_row_loops, place_rows, rows_on_material
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.materials import Measured, SurfaceMaterial
@@ -190,27 +191,6 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     return traced
 
 
-def _material_rows(geom: np.ndarray, geom_material: np.ndarray, material: int, rows: np.ndarray) -> int:
-    """Write into ``rows`` (int32, at least len(geom)) in order the rays whose closest hit is on an
-    instance (embree geometry id 0 .. len(geom_material) - 1) of material index ``material``, and
-    return how many: a numba loop (``core.jit``), one pass where numpy made six over every ray."""
-    count = 0
-    for i in range(len(geom)):
-        g = geom[i]
-        if 0 <= g < len(geom_material) and geom_material[g] == material:
-            rows[count] = i
-            count += 1
-    return count
-
-
-def _place_rows(values: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
-    """out[rows] = values (rows of 3 float32), a numba loop (``core.jit``): numpy's fancy-index
-    store cost as much as the pick."""
-    for i in range(len(rows)):
-        for c in range(3):
-            out[rows[i], c] = values[i, c]
-
-
 def visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarray, per_ray: int, n: int,
                  fresh: bool, out: np.ndarray) -> int:
     """``_visible_sums``, compiled, or in numpy where the loops do not run compiled
@@ -228,35 +208,13 @@ def visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarr
     return int(np.count_nonzero(length[:rows] > 0))
 
 
-def material_rows(geom: np.ndarray, geom_material: np.ndarray, material: int, rows: np.ndarray) -> int:
-    """``_material_rows``, compiled, or in numpy where the loops do not run compiled
-    (``core.jit.use_compiled_loops``): the same rows in the same order."""
-    if compiled_loops():
-        return int(compiled(_material_rows)(geom, geom_material, material, rows))
-    surface = (geom >= 0) & (geom < len(geom_material))
-    picked = np.flatnonzero(surface)
-    picked = picked[geom_material[geom[picked]] == material]
-    rows[:len(picked)] = picked
-    return len(picked)
-
-
-def place_rows(values: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
-    """``_place_rows``, compiled, or numpy's fancy-index store where the loops do not run compiled."""
-    if compiled_loops():
-        compiled(_place_rows)(values, rows, out)
-    else:
-        out[rows] = values
-
-
 def compile_shading_loops() -> None:
-    """Compile (or load from numba's cache) ``_visible_sums``, ``_material_rows`` and ``_place_rows``
-    for the argument types every launch passes, on no rows: a render does this on a render thread as
-    it starts (``runner.compile_pass_loops``)."""
+    """Compile (or load from numba's cache) ``_visible_sums`` and the device textures' row loops
+    (``hit_rows``) for the argument types every launch passes, on no rows: a render does this on a
+    render thread as it starts (``runner.compile_pass_loops``)."""
     rows = np.empty((0, 3), np.float32)
     compiled(_visible_sums)(rows, np.empty(0, np.bool_), np.empty(0, np.float32), 1, 0, True, rows)
-    picked = np.empty(0, np.int32)
-    compiled(_material_rows)(picked, np.empty(0, np.int64), 0, picked)
-    compiled(_place_rows)(rows, picked, rows)
+    compile_row_loops()
 
 
 class DirectLighting:
@@ -613,7 +571,7 @@ class DirectLighting:
         if self._device_textures:
             picks = np.empty(len(origin), np.int32)
         for index, ewa, mapping, texture_filter in self._device_textures:
-            picked = picks[:material_rows(hits.geom, self._geom_material, index, picks)]
+            picked = picks[:rows_on_material(hits.geom, self._geom_material, index, picks)]
             place_rows(ewa.at_hits(self._surface_tables, picked, mapping, direction, hits, texture_filter),
                        picked, albedo)
         if not self._numpy_albedo.any():
