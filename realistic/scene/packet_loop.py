@@ -54,16 +54,22 @@ ALIGNMENT = 64  # bytes: RTCRayHit16 is RTC_ALIGN(64), and embree loads the vali
 PacketFunction = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)
 
 
+def _aligned_packets(count: int, rows: int) -> np.ndarray:
+    """(count, rows, 16) int32 packets in one 64-byte aligned block (a row is 64 bytes, so each
+    packet is aligned), zero but for every mask bit: the ray rows that no trace changes (tnear,
+    time, mask, id, flags) are set."""
+    raw = np.zeros(count * rows * PACKET + ALIGNMENT // 4, np.int32)
+    start = (-raw.ctypes.data % ALIGNMENT) // 4
+    block = raw[start:start + count * rows * PACKET].reshape(count, rows, PACKET)
+    block[:, MASK] = -1
+    return block
+
+
 def packet_buffer(rows: int = ROWS + 1) -> np.ndarray:
     """A (rows, 16) int32 packet, 64-byte aligned, its ray rows that no trace changes already set:
     tnear and time 0, every mask bit, id and flags 0. The loops take ``ROWS + 1`` rows (the last
     is the valid mask); each call gets its own, so threads share none."""
-    raw = np.empty(rows * PACKET + ALIGNMENT // 4, np.int32)
-    start = (-raw.ctypes.data % ALIGNMENT) // 4
-    packet = raw[start:start + rows * PACKET].reshape(rows, PACKET)
-    packet[[TNEAR, TIME, ID, FLAGS]] = 0  # float 0.0 is int 0
-    packet[MASK] = -1
-    return packet
+    return _aligned_packets(1, rows)[0]
 
 
 def packet_arguments() -> tuple[np.ndarray, np.ndarray, int, int]:
@@ -161,11 +167,7 @@ def _packets(count: int) -> np.ndarray:
     """(count / 16 rounded up, ``ROWS + 1``, 16) int32 packets in one 64-byte aligned block, each
     set as ``packet_buffer`` sets one, its hit rows cleared as ``_closest`` clears them (Ng, u, v 0;
     ids -1), its lanes from ``count`` on not valid."""
-    packets = -(-count // PACKET)
-    raw = np.zeros(packets * (ROWS + 1) * PACKET + ALIGNMENT // 4, np.int32)
-    start = (-raw.ctypes.data % ALIGNMENT) // 4
-    block = raw[start:start + packets * (ROWS + 1) * PACKET].reshape(packets, ROWS + 1, PACKET)
-    block[:, MASK:MASK + 1] = -1
+    block = _aligned_packets(-(-count // PACKET), ROWS + 1)
     block[:, PRIM:INST + 1] = -1
     _set_lanes(block[:, VALID:VALID + 1], np.full((count, 1), -1, np.int32))
     return block
