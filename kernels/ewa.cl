@@ -401,6 +401,8 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
  * floor(levels - 1 + log2(width)) clamped to the levels: MipMap.bilinear_at_width, the numpy
  * reference, in the same float64 operations, so the same bits.
  *
+ * At or past the coarsest level it returns that level's one texel (pbrt's Texel(Levels() - 1, 0, 0)).
+ *
  * bilinear_small does the lookups whose width is under 2^(2 - levels) (1 - 2^-40), level 0 whatever
  * the rounding of log2 (within 3 ulps, OpenCL's bound: levels - 1 + log2 stays under 1 by 1e-12),
  * so no library call: most of a near floor's. It is ewa_small's twin (same arguments, read as there;
@@ -423,7 +425,7 @@ __kernel void bilinear_small(__global const float *texels, __global const long *
     double w = filter_width(AT(lookups, 6, r, 2), AT(lookups, 6, r, 3), AT(lookups, 6, r, 4), AT(lookups, 6, r, 5));
     double lw = (double)width[0], lh = (double)height[0];
     double x = AT(lookups, 6, r, 0) * lw - 0.5, y = (AT(lookups, 6, r, 1) * lh - 0.5) * one;
-    int small = i < count && w < 2.0 / (double)(1L << (levels - 1)) * (1 - 0x1p-40)
+    int small = i < count && w < (levels > 1 ? 2.0 : 1.0) / (double)(1L << (levels - 1)) * (1 - 0x1p-40)
                 && __builtin_fabs(x) < 1e9 && __builtin_fabs(y) < 1e9;
     x = small ? x : 0.0;
     y = small ? y : 0.0;
@@ -468,9 +470,12 @@ __kernel void bilinear(__global const float *texels, __global const long *base, 
     int i = get_global_id(0);
     if (i >= count) return;
     double w = filter_width(axis0[2 * i], axis0[2 * i + 1], axis1[2 * i], axis1[2 * i + 1]);
-    double level = __builtin_floor((double)(levels - 1) + log2(__builtin_fmax(w, 1e-8)));
-    int at = (int)__builtin_fmin(__builtin_fmax(level, 0.0), (double)(levels - 1));
-    double3 value = bilinear_at(texels, base, width, height, wrap, at, st[2 * i], st[2 * i + 1]);
+    double level = (double)(levels - 1) + log2(__builtin_fmax(w, 1e-8));
+    /* at or past the coarsest level, its one texel, unwrapped (MipMap._coarsest_where_wide) */
+    __global const float *p = texels + 3 * base[levels - 1];
+    double3 value = level >= levels - 1 ? (double3)(p[0], p[1], p[2])
+                  : bilinear_at(texels, base, width, height, wrap, (int)__builtin_fmax(__builtin_floor(level), 0.0),
+                                st[2 * i], st[2 * i + 1]);
     out[3 * i] = (float)value.x;
     out[3 * i + 1] = (float)value.y;
     out[3 * i + 2] = (float)value.z;

@@ -92,7 +92,7 @@ def test_magnified_lookups_are_the_references_bit_for_bit(opencl_platform, wrap)
 
 
 @pytest.mark.parametrize("wrap", ["repeat", "black", "clamp"])
-@pytest.mark.parametrize("shape", [(64, 64), (48, 80)])
+@pytest.mark.parametrize("shape", [(64, 64), (48, 80), (1, 1)])
 def test_bilinear_lookups_are_pbrt_v4s_bit_for_bit(opencl_platform, wrap, shape):
     """``bilinear_lookups`` is pbrt-v4's bilinear filter (mipmap.cpp, MIPMap::Filter) as
     ``MipMap.bilinear_at_width`` computes it in float64, with the width ``textures._image`` takes
