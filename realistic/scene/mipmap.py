@@ -22,8 +22,9 @@ the point filter's texel index rounded half away from zero (``std::round``). Whe
 reaches the coarsest level, point, bilinear and trilinear return its one texel as it is, unwrapped
 (both versions: ``Texel(Levels() - 1, 0, 0)``). All lookups are numpy over the points; EWA's varying
 number of texels per point is expanded into one flat array of (point, texel) taps and summed with
-``np.bincount``; that is the reference of ``realistic.scene.ewa_kernel`` (``kernels/ewa.cl``), which the "opencl"
-backend uses for EWA. A map is plain data (it pickles): a backend keeps its texels on a device.
+``np.bincount``; they are the references of ``realistic.scene.ewa_kernel`` (``kernels/ewa.cl``), their
+versions on the device for the "opencl" backend. A map is plain data (it pickles): a backend keeps its
+texels on a device.
 """
 
 from __future__ import annotations
