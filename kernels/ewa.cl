@@ -395,36 +395,61 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
     if (i < count) pending[i] = !small;
 }
 
-/* ------------------------------------------------------------------ bilinear lookups
- * pbrt-v4's "bilinear" image-texture filter (src/pbrt/util/mipmap.cpp, MIPMap::Filter): the filter
- * width twice the largest component of either axis (textures._image), one bilinear lookup at level
- * floor(levels - 1 + log2(width)) clamped to the levels: MipMap.bilinear_at_width, the numpy
- * reference, in the same float64 operations, so the same bits.
+/* ------------------------------------------------------------------ point, bilinear and trilinear lookups
+ * pbrt-v4's "point" and "bilinear" image-texture filters and pbrt-v3's "trilinear" (pbrt-v4
+ * src/pbrt/util/mipmap.cpp, MIPMap::Filter; pbrt-v3 src/core/mipmap.h, MIPMap::Lookup): the filter
+ * width twice the largest component of either axis (textures._image), the continuous level
+ * levels - 1 + log2(width); at or past the coarsest level, its one texel (unwrapped); else point takes
+ * the nearest texel (st * size - 0.5 rounded half away from zero, as std::round) and bilinear the
+ * bilinear lookup at the level's floor clamped to 0, and trilinear blends the bilinear lookups of the
+ * two levels around it (clamped to 0): MipMap.point, bilinear_at_width and trilinear, the numpy
+ * references, in the same float64 operations, so the same bits (trilinear's blend weight is the
+ * fraction of log2, OpenCL's to 3 ulps: within float32 rounding of the reference).
  *
- * bilinear_small does the lookups whose width is under 2^(2 - levels) (1 - 2^-40), level 0 whatever
- * the rounding of log2 (within 3 ulps, OpenCL's bound: levels - 1 + log2 stays under 1 by 1e-12),
- * so no library call: most of a near floor's. It is ewa_small's twin (same arguments, read as there;
- * written for PoCL's vectoriser as ewa_small is) and marks the others pending for bilinear, ewa's twin
- * (same arguments), which takes the level from log2. */
+ * Each filter's _small kernel does the lookups that read level 0 alone whatever the rounding of log2
+ * (within 3 ulps, OpenCL's bound, a width under the limit times 1 - 2^-40 keeps the level under the
+ * limit's by 1e-12), so no library call: most of a near floor's. The limit is 2^(2 - levels) for point
+ * and bilinear (level under 1; 1 for a one-level map, whose level 0 is the coarsest) and 2^(1 - levels)
+ * for trilinear (level under 0, where the blend's second weight is 0: b0 * 1 + b1 * 0 is b0, bit for bit).
+ * They are ewa_small's twins (same arguments, read as there; written for PoCL's vectoriser as ewa_small
+ * is) and mark the others pending for the scalar kernel of the same name, ewa's twin (same arguments). */
 
 inline double filter_width(double a0s, double a0t, double a1s, double a1t) {
     return 2 * __builtin_fmax(__builtin_fmax(__builtin_fabs(a0s), __builtin_fabs(a0t)),
                               __builtin_fmax(__builtin_fabs(a1s), __builtin_fabs(a1t)));
 }
 
-__kernel void bilinear_small(__global const float *texels, __global const long *base, __global const long *width,
-                             __global const long *height, const int wrap, const int levels,
-                             const double max_anisotropy, __global const double *lut, __global const double *lookups,
-                             const float red_scale, const float green_scale, const float blue_scale, const int count,
-                             const int unit, __global uchar *pending, __global float *out) {
+/* The width under which point and bilinear read level 0 and are not at the coarsest level. */
+inline double level0_limit(int levels) {
+    return (levels > 1 ? 2.0 : 1.0) / (double)(1L << (levels - 1)) * (1 - 0x1p-40);
+}
+
+/* x rounded to the nearest integer, halves away from zero (C's round), as MipMap's _round_half_away. */
+inline double round_half_away(double x) {
+    double whole = __builtin_trunc(x);
+    return whole + (__builtin_fabs(x - whole) >= 0.5 ? (x > 0 ? 1.0 : -1.0) : 0.0);
+}
+
+/* The coarsest level's one texel, as it is (MipMap._coarsest_where_wide). */
+inline double3 coarsest(__global const float *texels, __global const long *base, int levels) {
+    __global const float *p = texels + 3 * base[levels - 1];
+    return (double3)(p[0], p[1], p[2]);
+}
+
+/* bilinear_small and trilinear_small: the bilinear lookup at level 0 of the lookups whose width is
+ * under `limit`, scaled; the others marked pending. */
+inline void bilinear_level0(__global const float *texels, __global const long *base, __global const long *width,
+                            __global const long *height, const int wrap, const int levels,
+                            __global const double *lookups, const float red_scale, const float green_scale,
+                            const float blue_scale, const int count, const int unit, __global uchar *pending,
+                            __global float *out, double limit) {
     int i = get_global_id(0);
     int r = i < count ? i : count - 1;
     double one = (double)unit;
     double w = filter_width(AT(lookups, 6, r, 2), AT(lookups, 6, r, 3), AT(lookups, 6, r, 4), AT(lookups, 6, r, 5));
     double lw = (double)width[0], lh = (double)height[0];
     double x = AT(lookups, 6, r, 0) * lw - 0.5, y = (AT(lookups, 6, r, 1) * lh - 0.5) * one;
-    int small = i < count && w < 2.0 / (double)(1L << (levels - 1)) * (1 - 0x1p-40)
-                && __builtin_fabs(x) < 1e9 && __builtin_fabs(y) < 1e9;
+    int small = i < count && w < limit && __builtin_fabs(x) < 1e9 && __builtin_fabs(y) < 1e9;
     x = small ? x : 0.0;
     y = small ? y : 0.0;
     double x0 = __builtin_floor(x), y0 = __builtin_floor(y);
@@ -461,17 +486,112 @@ __kernel void bilinear_small(__global const float *texels, __global const long *
     if (i < count) pending[i] = !small;
 }
 
+__kernel void bilinear_small(__global const float *texels, __global const long *base, __global const long *width,
+                             __global const long *height, const int wrap, const int levels,
+                             const double max_anisotropy, __global const double *lut, __global const double *lookups,
+                             const float red_scale, const float green_scale, const float blue_scale, const int count,
+                             const int unit, __global uchar *pending, __global float *out) {
+    bilinear_level0(texels, base, width, height, wrap, levels, lookups, red_scale, green_scale, blue_scale, count,
+                    unit, pending, out, level0_limit(levels));
+}
+
+__kernel void trilinear_small(__global const float *texels, __global const long *base, __global const long *width,
+                              __global const long *height, const int wrap, const int levels,
+                              const double max_anisotropy, __global const double *lut, __global const double *lookups,
+                              const float red_scale, const float green_scale, const float blue_scale, const int count,
+                              const int unit, __global uchar *pending, __global float *out) {
+    bilinear_level0(texels, base, width, height, wrap, levels, lookups, red_scale, green_scale, blue_scale, count,
+                    unit, pending, out, 1.0 / (double)(1L << (levels - 1)) * (1 - 0x1p-40));
+}
+
+__kernel void point_small(__global const float *texels, __global const long *base, __global const long *width,
+                          __global const long *height, const int wrap, const int levels,
+                          const double max_anisotropy, __global const double *lut, __global const double *lookups,
+                          const float red_scale, const float green_scale, const float blue_scale, const int count,
+                          const int unit, __global uchar *pending, __global float *out) {
+    int i = get_global_id(0);
+    int r = i < count ? i : count - 1;
+    double one = (double)unit;
+    double w = filter_width(AT(lookups, 6, r, 2), AT(lookups, 6, r, 3), AT(lookups, 6, r, 4), AT(lookups, 6, r, 5));
+    double lw = (double)width[0], lh = (double)height[0];
+    double x = AT(lookups, 6, r, 0) * lw - 0.5, y = (AT(lookups, 6, r, 1) * lh - 0.5) * one;
+    int small = i < count && w < level0_limit(levels) && __builtin_fabs(x) < 1e9 && __builtin_fabs(y) < 1e9;
+    /* round_half_away, written out with `one` on y's half (the SLP vectoriser would pair x's and y's) */
+    x = small ? x : 0.0;
+    y = small ? y : 0.0;
+    double wx = __builtin_trunc(x), wy = __builtin_trunc(y) * one;
+    int ix = (int)(wx + (__builtin_fabs(x - wx) >= 0.5 ? (x > 0 ? 1.0 : -1.0) : 0.0));
+    int iy = (int)(wy + (__builtin_fabs(y - wy) * one >= 0.5 ? (y > 0 ? 1.0 : -1.0) : 0.0) * one);
+    int iw = (int)width[0], ih = (int)height[0];
+    int at_x = wrap == 0 ? ix & (iw - 1) : (ix < 0 ? 0 : (ix > iw - 1 ? iw - 1 : ix));
+    int at_y = wrap == 0 ? iy & (ih - 1) : (iy < 0 ? 0 : (iy > ih - 1 ? ih - 1 : iy));
+    double inside = wrap == 1 && (ix < 0 || ix >= iw || iy < 0 || iy >= ih) ? 0.0 : 1.0;
+    long texel_at = base[0] + (long)at_y * iw + at_x;
+    if (small) {
+        AT(out, 3, i, 0) = red_scale * (float)(AT(texels, 3, texel_at, 0) * inside);
+        AT(out, 3, i, 1) = green_scale * (float)(AT(texels, 3, texel_at, 1) * inside);
+        AT(out, 3, i, 2) = blue_scale * (float)(AT(texels, 3, texel_at, 2) * inside);
+    }
+    if (i < count) pending[i] = !small;
+}
+
+/* The continuous level of lookup i's filter width (MipMap._level_of). */
+inline double width_level(__global const double *axis0, __global const double *axis1, int levels, int i) {
+    double w = filter_width(axis0[2 * i], axis0[2 * i + 1], axis1[2 * i], axis1[2 * i + 1]);
+    return (double)(levels - 1) + log2(__builtin_fmax(w, 1e-8));
+}
+
+inline void store(__global float *out, int i, double3 value) {
+    out[3 * i] = (float)value.x;
+    out[3 * i + 1] = (float)value.y;
+    out[3 * i + 2] = (float)value.z;
+}
+
 __kernel void bilinear(__global const float *texels, __global const long *base, __global const long *width,
                        __global const long *height, const int wrap, const int levels, const double max_anisotropy,
                        __global const double *lut, __global const double *st, __global const double *axis0,
                        __global const double *axis1, const int count, __global float *out) {
     int i = get_global_id(0);
     if (i >= count) return;
-    double w = filter_width(axis0[2 * i], axis0[2 * i + 1], axis1[2 * i], axis1[2 * i + 1]);
-    double level = __builtin_floor((double)(levels - 1) + log2(__builtin_fmax(w, 1e-8)));
-    int at = (int)__builtin_fmin(__builtin_fmax(level, 0.0), (double)(levels - 1));
-    double3 value = bilinear_at(texels, base, width, height, wrap, at, st[2 * i], st[2 * i + 1]);
-    out[3 * i] = (float)value.x;
-    out[3 * i + 1] = (float)value.y;
-    out[3 * i + 2] = (float)value.z;
+    double level = width_level(axis0, axis1, levels, i);
+    store(out, i, level >= levels - 1 ? coarsest(texels, base, levels)
+                  : bilinear_at(texels, base, width, height, wrap, (int)__builtin_fmax(__builtin_floor(level), 0.0),
+                                st[2 * i], st[2 * i + 1]));
+}
+
+__kernel void point(__global const float *texels, __global const long *base, __global const long *width,
+                    __global const long *height, const int wrap, const int levels, const double max_anisotropy,
+                    __global const double *lut, __global const double *st, __global const double *axis0,
+                    __global const double *axis1, const int count, __global float *out) {
+    int i = get_global_id(0);
+    if (i >= count) return;
+    double level = width_level(axis0, axis1, levels, i);
+    if (level >= levels - 1) {
+        store(out, i, coarsest(texels, base, levels));
+        return;
+    }
+    int at = (int)__builtin_fmax(__builtin_floor(level), 0.0);
+    int x = (int)round_half_away(st[2 * i] * width[at] - 0.5);
+    int y = (int)round_half_away(st[2 * i + 1] * height[at] - 0.5);
+    store(out, i, texel(texels, base, width, height, wrap, at, x, y));
+}
+
+__kernel void trilinear(__global const float *texels, __global const long *base, __global const long *width,
+                        __global const long *height, const int wrap, const int levels, const double max_anisotropy,
+                        __global const double *lut, __global const double *st, __global const double *axis0,
+                        __global const double *axis1, const int count, __global float *out) {
+    int i = get_global_id(0);
+    if (i >= count) return;
+    double level = width_level(axis0, axis1, levels, i);
+    if (level >= levels - 1) {
+        store(out, i, coarsest(texels, base, levels));
+        return;
+    }
+    level = __builtin_fmax(level, 0.0);
+    double lower = __builtin_floor(level);
+    double delta = level - lower;
+    int at = (int)lower;
+    double s = st[2 * i], t = st[2 * i + 1];
+    store(out, i, bilinear_at(texels, base, width, height, wrap, at, s, t) * (1 - delta)
+                  + bilinear_at(texels, base, width, height, wrap, min(at + 1, levels - 1), s, t) * delta);
 }

@@ -78,20 +78,17 @@ def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
 def test_covered_materials():
     """Constant parameters of the materials bsdf.cl covers (named metals and mixes with their tables
     or second lobes in the BSDF kernel's tables), and a ``Material``'s grid or checker texture or its
-    EWA- or bilinear-filtered image texture; point- or trilinear-filtered images, textured parameters
-    of other kinds and materials bsdf.cl lacks are not."""
+    image texture (whatever its filter); textured parameters of other kinds and materials bsdf.cl
+    lacks are not."""
     tables = TableStore(Device.for_spec())
     for material in COVERED.values():
         assert material_rows(material, tables) is not None
     for sigma in (0.0, 20.0):
         assert material_rows(Material((1.0, 1.0, 1.0), GridTexture(cells=4.0), sigma=sigma), tables) is not None
         assert material_rows(Material((1.0, 1.0, 1.0), CheckerTexture(cells=4.0), sigma=sigma), tables) is not None
-        for texture_filter in ("ewa", "bilinear"):
+        for texture_filter in ("ewa", "bilinear", "point", "trilinear"):
             image = ImageTexture(np.ones((4, 4, 3), np.float32), filter=texture_filter)
             assert material_rows(Material((1.0, 1.0, 1.0), image, sigma=sigma), tables) is not None
-        for texture_filter in ("point", "trilinear"):
-            image = ImageTexture(np.ones((4, 4, 3), np.float32), filter=texture_filter)
-            assert material_rows(Material((1.0, 1.0, 1.0), image, sigma=sigma), tables) is None
     image = ImageTexture(np.ones((4, 4, 3), np.float32))
     assert material_rows(Plastic(image, (0.4, 0.4, 0.4), 0.1), tables) is None
     assert material_rows(Dielectric(1.5, roughness_u=image, roughness_v=0.2), tables) is None
@@ -110,6 +107,10 @@ TEXTURED = {"grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=
             "image, bilinear": Material((0.6, 0.9, 0.8), ImageTexture(IMAGE, scale=(2.0, 5.0), v_origin="top",
                                                                       filter="bilinear", wrap="clamp",
                                                                       offset=(0.3, -0.2))),
+            "image, point": Material((0.7, 0.8, 0.9), ImageTexture(IMAGE, scale=(3.0, 3.0), filter="point",
+                                                                   wrap="black")),
+            "image, trilinear": Material((0.8, 0.7, 0.9), ImageTexture(IMAGE, scale=(2.0, 3.0), filter="trilinear",
+                                                                       offset=(0.1, 0.2))),
             "oren-nayar under an image": Material((0.8, 0.8, 0.9), ImageTexture(IMAGE, scale=(4.0, 4.0), wrap="black"),
                                                   sigma=20.0)}
 #: The pixel spread (radians) of the per-hit comparison: the image textures' footprints at depth 0.
@@ -209,13 +210,12 @@ def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegr
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad and
-    plastic in the kernel and the trilinear image-textured floor in numpy: each ray's radiance is the
-    numpy backend's to float32 rounding (a path may only part where rounding moves a sample across a
-    threshold)."""
+    plastic in the kernel and the floor, plastic under its image texture, in numpy: each ray's radiance
+    is the numpy backend's to float32 rounding (a path may only part where rounding moves a sample
+    across a threshold)."""
     scene, _, _ = textured_scene()
     floor = scene.instances[0].material
-    scene.instances[0] = replace(scene.instances[0], material=replace(floor, texture=replace(floor.texture,
-                                                                                             filter="trilinear")))
+    scene.instances[0] = replace(scene.instances[0], material=Plastic(floor.texture, (0.3, 0.3, 0.3), 0.2))
     materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05), Material((0.3, 0.6, 0.9),
                                                                                              sigma=20.0)]
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]

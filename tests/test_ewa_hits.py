@@ -1,7 +1,8 @@
-"""``EwaKernel.at_hits`` (kernels/ewa.cl's hit_lookups, ewa_small and ewa): the albedo of
+"""``EwaKernel.at_hits`` (kernels/ewa.cl's hit_lookups and the filters' kernels): the albedo of
 image-textured hits computed from embree's hit records on the device, against its numpy reference
-``DirectLighting._albedo`` (uv interpolation, pixel footprint, st mapping, EWA lookup), per hit, to
-float32 rounding; and the renderer's choice of which materials go to the device."""
+``DirectLighting._albedo`` (uv interpolation, pixel footprint, st mapping, filtered lookup), per hit,
+to float32 rounding; the renderer's choice of which materials go to the device; and whole renders
+over point- and trilinear-filtered textures against the numpy backend's."""
 
 from dataclasses import replace
 
@@ -10,13 +11,16 @@ import pytest
 
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
+from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.jit import compiled
-from realistic.core.transforms import rotate, scale, translate
+from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
 from realistic.renderer.direct_lighting import DirectLighting, _facing
 from realistic.renderer.hit_rows import _place_rows, _rows_on_material
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.shapes import cone, quad, sphere
@@ -34,7 +38,7 @@ def image(seed: int, shape: tuple[int, int]) -> np.ndarray:
 def instanced_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
     """Image textures of every wrap and both v origins on instances whose linear maps are not
     rotations (a non-uniform scale, a mirror, a shear), on curved, sloped and grazing surfaces, with
-    a trilinear texture beside them (left to numpy) and a floor seen nearly edge on."""
+    a trilinear texture beside them and a floor seen nearly edge on."""
     scene = Scene(background=(0.0, 0.0, 0.0))
     clamp = ImageTexture(image(1, (48, 80)), scale=(3.0, 2.0), v_origin="bottom", wrap="clamp",
                          offset=(-0.3, 0.1))
@@ -55,15 +59,20 @@ def instanced_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
     return scene, np.array([0.0, 0.35, 4.5]), np.array([0.0, 0.3, 0.0])
 
 
-def bilinear_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
-    """``instanced_scene`` with its EWA textures filtered with pbrt-v4's bilinear filter instead."""
+def filtered_scene(texture_filter: str) -> tuple[Scene, np.ndarray, np.ndarray]:
+    """``instanced_scene`` with its EWA textures filtered with ``texture_filter`` instead."""
     scene, eye, target = instanced_scene()
     for k, instance in enumerate(scene.instances):
         texture = instance.material.texture
         if texture.filter == "ewa":
             scene.instances[k] = replace(instance, material=replace(instance.material,
-                                                                    texture=replace(texture, filter="bilinear")))
+                                                                    texture=replace(texture, filter=texture_filter)))
     return scene, eye, target
+
+
+def bilinear_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
+    """``instanced_scene`` with its EWA textures filtered with pbrt-v4's bilinear filter instead."""
+    return filtered_scene("bilinear")
 
 
 def hits_of(scene: Scene, eye: np.ndarray, target: np.ndarray, width: int = 96, height: int = 64):
@@ -86,9 +95,11 @@ def reference_albedo(integrator: DirectLighting, host: np.ndarray, direction: np
     return out
 
 
-@pytest.mark.parametrize("name", ["textured", "instanced", "bilinear"])
+@pytest.mark.parametrize("name", ["textured", "instanced", "bilinear", "point", "trilinear"])
 def test_device_albedo_matches_numpy(name):
-    scene, eye, target = {"textured": textured_scene, "instanced": instanced_scene, "bilinear": bilinear_scene}[name]()
+    scene, eye, target = {"textured": textured_scene, "instanced": instanced_scene, "bilinear": bilinear_scene,
+                          "point": lambda: filtered_scene("point"),
+                          "trilinear": lambda: filtered_scene("trilinear")}[name]()
     intersector, origin, direction, hits, spread = hits_of(scene, eye, target)
     device = DirectLighting(scene, intersector, 1, 5, spread, backend="opencl")
     numpy_path = DirectLighting(scene, intersector, 1, 5, spread, backend="numpy")
@@ -105,18 +116,19 @@ def test_device_albedo_matches_numpy(name):
     assert np.mean(albedo == reference) > 0.99
 
 
-def test_only_ewa_and_bilinear_textures_with_footprints_go_to_the_device():
+def test_image_textures_of_every_filter_with_footprints_go_to_the_device():
     scene, eye, target = instanced_scene()
     intersector, *_ = hits_of(scene, eye, target, 8, 8)
     with_spread = DirectLighting(scene, intersector, 1, 5, 1e-3, backend="opencl")
     materials = with_spread._materials
     on_device = [i for i, _, _, _ in with_spread._device_textures]
-    assert [materials[i].texture.filter for i in on_device] == ["ewa"] * 4
-    assert [m.texture.filter for i, m in enumerate(materials) if with_spread._numpy_albedo[i]] == ["trilinear"]
-    scene, eye, target = bilinear_scene()
-    intersector, *_ = hits_of(scene, eye, target, 8, 8)
-    bilinear = DirectLighting(scene, intersector, 1, 5, 1e-3, backend="opencl")
-    assert [f for _, _, _, f in bilinear._device_textures] == ["bilinear"] * 4
+    assert [materials[i].texture.filter for i in on_device] == ["ewa"] * 4 + ["trilinear"]
+    assert not any(with_spread._numpy_albedo[i] for i, m in enumerate(materials) if isinstance(m.texture, ImageTexture))
+    for texture_filter in ("bilinear", "point"):
+        scene, eye, target = filtered_scene(texture_filter)
+        intersector, *_ = hits_of(scene, eye, target, 8, 8)
+        filtered = DirectLighting(scene, intersector, 1, 5, 1e-3, backend="opencl")
+        assert [f for _, _, _, f in filtered._device_textures] == [texture_filter] * 4 + ["trilinear"]
     point_sampled = DirectLighting(scene, intersector, 1, 5, 0.0, backend="opencl")
     assert point_sampled._device_textures == []  # no footprint: level 0 bilinearly, in numpy
 
@@ -157,3 +169,27 @@ def test_the_hit_lookups_vectorise(tmp_path):
         "DirectLighting(scene, intersector, 1, 5, spread, backend='opencl')._host_albedo(origin, direction, hits)\n")
     remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
     assert remarks.count("vectorized loop (") >= 4
+
+
+@pytest.mark.parametrize("integrator", ["directlighting", "path"])
+def test_renders_over_point_and_trilinear_textures_match_the_numpy_backend(integrator):
+    """``textured_scene`` with its floor filtered trilinearly and a point-filtered image on its quad,
+    through a thin lens (both backends trace the same camera rays), rendered by each integrator on
+    the OpenCL backend (the textures' albedo by ``at_hits``) and on the numpy one: the same image
+    within float32 rounding, but where rounding moves a path's sample across a threshold."""
+    scene, eye, target = textured_scene()
+    floor, board = scene.instances[0], scene.instances[3]
+    scene.instances[0] = replace(floor, material=replace(floor.material, texture=replace(floor.material.texture,
+                                                                                         filter="trilinear")))
+    scene.instances[3] = replace(board, material=Material((0.3, 0.6, 0.9), ImageTexture(image(6, (16, 16)),
+                                                                                         scale=(3.0, 3.0),
+                                                                                         filter="point")))
+    scene = replace(scene, integrator=integrator)
+    camera = ThinLensCamera(40.0, 0.02, float(np.linalg.norm(target - eye)), 48, 32, 4, look_at(eye, target))
+    images = {backend: render(RenderJob(scene, (camera,), backend, 3, light_samples=2, pass_samples=1500),
+                              ThreadPasses(threads=2))[0].image for backend in ("numpy", "opencl")}
+    expected, got = images["numpy"], images["opencl"]
+    assert expected.max() > 0
+    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 1e-3
+    close = np.all(np.isclose(got, expected, rtol=1e-4, atol=1e-5 * expected.max()), axis=-1)
+    assert close.mean() > 0.99, close.mean()

@@ -91,22 +91,34 @@ def test_magnified_lookups_are_the_references_bit_for_bit(opencl_platform, wrap)
     assert np.array_equal(device, mipmap.ewa(st, axis0, axis1).astype(np.float32))
 
 
+@pytest.mark.parametrize("texture_filter", ["point", "bilinear", "trilinear"])
 @pytest.mark.parametrize("wrap", ["repeat", "black", "clamp"])
-@pytest.mark.parametrize("shape", [(64, 64), (48, 80)])
-def test_bilinear_lookups_are_pbrt_v4s_bit_for_bit(opencl_platform, wrap, shape):
-    """``bilinear_lookups`` is pbrt-v4's bilinear filter (mipmap.cpp, MIPMap::Filter) as
-    ``MipMap.bilinear_at_width`` computes it in float64, with the width ``textures._image`` takes
-    (twice the largest axis component): each colour the reference's rounded to float32, on every
-    level (the footprints run from under a texel of level 0 to wider than the image)."""
+@pytest.mark.parametrize("shape", [(64, 64), (48, 80), (1, 1)])
+def test_point_bilinear_and_trilinear_lookups_are_the_references(opencl_platform, texture_filter, wrap, shape):
+    """The point, bilinear and trilinear kernels are pbrt's filters (pbrt-v4 mipmap.cpp,
+    MIPMap::Filter; pbrt-v3's trilinear blend) as ``MipMap.point``, ``bilinear_at_width`` and
+    ``trilinear`` compute them in float64, with the width ``textures._image`` takes (twice the
+    largest axis component): point and bilinear colours are the reference's rounded to float32,
+    trilinear's within float32 rounding (its blend weight is log2's fraction, the library's), on
+    every level (the footprints run from none and under a texel of level 0 to wider than the image,
+    and st crosses texel edges exactly, where the point filter rounds halves)."""
     mipmap = MipMap(np.random.default_rng(4).random((*shape, 3)), wrap)
     st, axis0, axis1 = ellipses(20000, 13)
+    st[:2000] = np.round(st[:2000] * 64) / 64  # on texel edges of the finest levels
     lengths = 10.0 ** np.random.default_rng(14).uniform(-4, 0.7, (len(st), 1))  # log-uniform: every level
     axis0, axis1 = axis0 * lengths / 0.01, axis1 * lengths / 0.01
+    axis0[-500:] = axis1[-500:] = 0.0  # no footprint
     width = 2 * np.maximum(np.abs(axis0).max(axis=1), np.abs(axis1).max(axis=1))
     levels = np.clip(np.floor(mipmap.level_count - 1 + np.log2(np.maximum(width, 1e-8))), 0, mipmap.level_count - 1)
     assert set(levels) == set(range(mipmap.level_count))
-    device = backend_for("opencl").ewa_kernel(mipmap)(st, axis0, axis1, "bilinear")
-    assert np.array_equal(device, mipmap.bilinear_at_width(st, width).astype(np.float32))
+    device = backend_for("opencl").ewa_kernel(mipmap)(st, axis0, axis1, texture_filter)
+    reference = {"point": mipmap.point, "bilinear": mipmap.bilinear_at_width,
+                 "trilinear": mipmap.trilinear}[texture_filter](st, width).astype(np.float32)
+    if texture_filter == "trilinear":
+        np.testing.assert_allclose(device, reference, rtol=1e-6, atol=1e-7)
+        assert np.mean(device == reference) > 0.99
+    else:
+        assert np.array_equal(device, reference)
 
 
 def test_two_threads_lookups_equal_one_threads(opencl_platform):
@@ -145,15 +157,17 @@ def test_the_small_lookups_vectorise(tmp_path):
     assert remarks.count("vectorized loop (") >= 2
 
 
-def test_the_small_bilinear_lookups_vectorise(tmp_path):
-    """``bilinear_small`` (level-0 lookups: no library log2) is widened by PoCL's vectoriser as
-    ``ewa_small`` is; lookups it takes alone launch nothing else, so every remark is its."""
+@pytest.mark.parametrize("texture_filter", ["point", "bilinear", "trilinear"])
+def test_the_small_point_bilinear_and_trilinear_lookups_vectorise(tmp_path, texture_filter):
+    """``point_small``, ``bilinear_small`` and ``trilinear_small`` (level-0 lookups: no library log2)
+    are widened by PoCL's vectoriser as ``ewa_small`` is; lookups one takes alone launch nothing else,
+    so every remark is its."""
     script = (
         "import numpy as np\n"
         "from realistic.renderer.backends import backend_for\n"
         "from realistic.scene.mipmap import MipMap\n"
         "kernel = backend_for('opencl').ewa_kernel(MipMap(np.random.default_rng(0).random((32, 32, 3))))\n"
-        "kernel(np.full((300, 2), 0.3), np.full((300, 2), 1e-3), np.full((300, 2), -1e-3), 'bilinear')\n")
+        f"kernel(np.full((300, 2), 0.3), np.full((300, 2), 1e-3), np.full((300, 2), -1e-3), {texture_filter!r})\n")
     remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
     assert remarks.count("vectorized loop (") >= 2
 

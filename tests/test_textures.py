@@ -71,6 +71,31 @@ def test_bilinear_blends_texel_centres_and_zero_width_trilinear_is_bilinear():
     np.testing.assert_allclose(mipmap.trilinear(centres, np.zeros(4)), mipmap.bilinear(centres), atol=1e-7)
 
 
+def test_the_point_filter_rounds_halves_away_from_zero_as_pbrt_v4():
+    """pbrt-v4's point filter (src/pbrt/util/mipmap.cpp, MIPMap::Filter) takes the texel at
+    std::round(st * size - 0.5), which rounds halves away from zero: on a texel's edge it takes the
+    texel after it (before it left of 0), where numpy's round to even took every other one."""
+    image = np.arange(16 * 3, dtype=np.float32).reshape(4, 4, 3)
+    mipmap = MipMap(image, "clamp")
+    edges = np.array([[0.25, 0.5], [0.5, 0.75], [0.75, 0.25], [0.0, 0.0], [-0.25, 1.0]])
+    # st * 4 - 0.5 = 0.5, 1.5, 2.5, -0.5, -1.5, 3.5 -> 1, 2, 3, -1, -2, 4 (clamped into 0..3)
+    expected = image[[2, 3, 1, 0, 3], [1, 2, 3, 0, 0]]
+    np.testing.assert_array_equal(mipmap.point(edges, np.zeros(5)), expected)
+
+
+@pytest.mark.parametrize("wrap", ["repeat", "black", "clamp"])
+def test_footprints_past_the_coarsest_level_read_its_texel_unwrapped(wrap):
+    """pbrt-v3 (MIPMap::Lookup) and pbrt-v4 (MIPMap::Filter) return Texel(Levels() - 1, 0, 0) once
+    L - 1 + log2(width) reaches the coarsest level: the image mean, wherever st falls, also with the
+    black wrap (which had darkened a bilinear or point lookup off the 1 x 1 level's centre)."""
+    image = np.random.default_rng(9).random((8, 16, 3)).astype(np.float32)
+    mipmap = MipMap(image, wrap)
+    st_ = np.random.default_rng(10).uniform(-2, 3, (200, 2))
+    width = np.random.default_rng(11).uniform(1, 4, 200)  # L - 1 + log2(width) >= L - 1 from width 1 up
+    for lookup in (mipmap.point, mipmap.bilinear_at_width, mipmap.trilinear):
+        np.testing.assert_array_equal(lookup(st_, width), np.broadcast_to(mipmap.levels[-1][0, 0], (200, 3)))
+
+
 @pytest.mark.parametrize("wrap,expected", [("repeat", 0.5 * (1 + 5)), ("clamp", 1.0), ("black", 0.5)])
 def test_wrap_modes_at_the_left_border(wrap, expected):
     image = np.zeros((2, 4, 3), np.float32)

@@ -1,4 +1,5 @@
-"""EWA (and bilinear) MIP-map lookups on the OpenCL device (``kernels/ewa.cl``), for the "opencl" backend.
+"""MIP-map lookups (EWA, bilinear, point, trilinear) on the OpenCL device (``kernels/ewa.cl``), for the
+"opencl" backend.
 
 The numpy ``MipMap.ewa`` expands every (lookup, texel) tap into flat arrays: about 0.07 M lookups/s,
 the largest cost of a homework render's floor. The kernel runs the same mathematics per lookup in
@@ -18,7 +19,11 @@ renderer picks; numpy spent three times as long on those as on the lookups). Its
 ``bilinear_small`` and ``bilinear`` filter the same lookups with pbrt-v4's "bilinear" filter (one
 bilinear lookup at the level the footprint's width picks: ``MipMap.bilinear_at_width``, bit for bit),
 pbrt-v4's default and the filter Mitsuba's ``bitmap`` uses, split as EWA's are (level 0 vectorised,
-the others scalar); ``DEVICE_FILTERS`` names the filters done here.
+the others scalar); ``point_small``/``point`` (pbrt-v4's nearest texel: ``MipMap.point``, bit for
+bit) and ``trilinear_small``/``trilinear`` (``MipMap.trilinear``, to float32 rounding: its blend
+weight comes from log2) likewise. ``DEVICE_FILTERS`` names the filters done here. A lookup without a
+footprint (a ``hit_mapping`` of spread 0: the path integrator's deeper bounces) is level 0 bilinear
+whatever the filter, as ``textures.evaluate`` has it, so ``at_hits`` filters those with "bilinear".
 
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
 (``realistic.renderer.backends``), keyed by the map: the map itself stays plain data. Each thread
@@ -47,7 +52,7 @@ KERNEL_FILE = "ewa.cl"
 MAPPING = Table("MAPPING", np.float64, (("spread", 1), ("st_scale", 2), ("st_offset", 2), ("t_flip", 1),
                                         ("t_shift", 1), ("diffuse", 3)))
 #: The image-texture filters (``validation.TEXTURE_FILTERS``) an ``EwaKernel`` runs on the device.
-DEVICE_FILTERS = ("ewa", "bilinear")
+DEVICE_FILTERS = ("ewa", "bilinear", "point", "trilinear")
 #: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size.
 HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 
@@ -84,8 +89,8 @@ class _ThreadKernels:
 
 
 class EwaKernel:
-    """One MIP map's texels on a device, and EWA or bilinear lookups over them (thread-safe: a queue
-    and kernel objects per calling thread)."""
+    """One MIP map's texels on a device, and lookups over them with each of ``DEVICE_FILTERS``
+    (thread-safe: a queue and kernel objects per calling thread)."""
 
     def __init__(self, mipmap: MipMap, device: Device | None = None):
         """``device``: where the texels go (None: ``Device.for_spec()``, the default device)."""
@@ -125,7 +130,8 @@ class EwaKernel:
     def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray, texture_filter: str) -> None:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
         lookups (s, t, axis0, axis1) (N, 6) float64: the filter's small kernel (``ewa_small``,
-        ``bilinear_small``) over all, then its other kernel (``ewa``, ``bilinear``) over the rows it leaves."""
+        ``bilinear_small``, ...) over all, then its other kernel (``ewa``, ``bilinear``, ...) over the
+        rows it leaves."""
         if texture_filter not in DEVICE_FILTERS:
             raise ValueError(f"the device filters with {' or '.join(DEVICE_FILTERS)}, not {texture_filter!r}")
         count = len(lookups)
@@ -158,8 +164,9 @@ class EwaKernel:
         """The albedo (len(rows), 3) float32 of the rays ``rows`` (int32) among those with unit
         ``direction`` (N, 3), whose closest hits (``scene.intersect.Hits``) are on instances of a
         material whose image texture this map is (``hit_mapping``), filtered with ``texture_filter``
-        (``DEVICE_FILTERS``): ``hit_lookups`` makes their lookups and ``_filter`` filters them, times
-        the diffuse colour. The caller picks the rows and places the colours (one pass each)."""
+        (``DEVICE_FILTERS``; with "bilinear" where ``mapping``'s spread is 0: no footprint, level 0):
+        ``hit_lookups`` makes their lookups and ``_filter`` filters them, times the diffuse colour.
+        The caller picks the rows and places the colours (one pass each)."""
         albedo = np.empty((len(rows), 3), np.float32)
         if len(rows) == 0:
             return albedo
@@ -176,5 +183,7 @@ class EwaKernel:
                      np.int32(len(rows)), np.int32(1), written)
         cl.enqueue_copy(kernels.queue, lookups, written)
         diffuse = MAPPING.offset("diffuse")
-        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo, texture_filter)
+        footprint = mapping[MAPPING.offset("spread")] > 0
+        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo,
+                     texture_filter if footprint else "bilinear")
         return albedo

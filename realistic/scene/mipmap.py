@@ -11,15 +11,20 @@ exact area averaging (each new texel is the old image's mean over its span): no 
 negative lobes, and every level keeps the image mean exactly.
 
 Lookups follow the same file: trilinear blends bilinear lookups at the two levels around
-``L - 1 + log2(width)``; EWA clamps the ellipse's eccentricity to ``max_anisotropy``, picks the
-level from the minor axis and blends two levels of a Gaussian-weighted sum over the texels inside
-the ellipse (weights from pbrt's 128-entry table of exp(-2 r^2) - exp(-2)); where the level is
-clamped to 0 (a magnified lookup) the second level's weight is 0 and its sum is skipped. ``point`` and
-``bilinear`` follow pbrt-v4 ``src/pbrt/util/mipmap.cpp`` (MIPMap::Filter): one lookup at the level
-floor(L - 1 + log2(width)). All lookups are numpy over the points; EWA's varying number of texels
-per point is expanded into one flat array of (point, texel) taps and summed with ``np.bincount``;
-that is the reference of ``realistic.scene.ewa_kernel`` (``kernels/ewa.cl``), which the "opencl"
-backend uses for EWA. A map is plain data (it pickles): a backend keeps its texels on a device.
+``L - 1 + log2(width)`` (pbrt-v4 ``src/pbrt/util/mipmap.cpp`` reads level 0 alone wherever the floor
+of that is 0, blending only from level 1 up: the one place the versions differ, kept as v3 has it);
+EWA clamps the ellipse's eccentricity to ``max_anisotropy``, picks the level from the minor axis and
+blends two levels of a Gaussian-weighted sum over the texels inside the ellipse (weights from pbrt's
+128-entry table of exp(-2 r^2) - exp(-2)); where the level is clamped to 0 (a magnified lookup) the
+second level's weight is 0 and its sum is skipped. ``point`` and ``bilinear`` follow pbrt-v4
+``src/pbrt/util/mipmap.cpp`` (MIPMap::Filter): one lookup at the level floor(L - 1 + log2(width)),
+the point filter's texel index rounded half away from zero (``std::round``). Where L - 1 + log2(width)
+reaches the coarsest level, point, bilinear and trilinear return its one texel as it is, unwrapped
+(both versions: ``Texel(Levels() - 1, 0, 0)``). All lookups are numpy over the points; EWA's varying
+number of texels per point is expanded into one flat array of (point, texel) taps and summed with
+``np.bincount``; they are the references of ``realistic.scene.ewa_kernel`` (``kernels/ewa.cl``), their
+versions on the device for the "opencl" backend. A map is plain data (it pickles): a backend keeps its
+texels on a device.
 """
 
 from __future__ import annotations
@@ -46,6 +51,13 @@ def _area_resample_matrix(old: int, new: int) -> np.ndarray:
 
 def _next_power_of_two(n: int) -> int:
     return 1 << (n - 1).bit_length()
+
+
+def _round_half_away(x: np.ndarray) -> np.ndarray:
+    """``x`` rounded to the nearest integer (int64), halves away from zero (C's ``round``; numpy's
+    rounds them to even), exactly: x - trunc(x) is exact."""
+    whole = np.trunc(x)
+    return (whole + np.where(np.abs(x - whole) >= 0.5, np.sign(x), 0.0)).astype(np.int64)
 
 
 def _halve(level: np.ndarray) -> np.ndarray:
@@ -141,25 +153,37 @@ class MipMap:
         """Continuous level L - 1 + log2(width) of a filter ``width`` in (s, t) units."""
         return self.level_count - 1 + np.log2(np.maximum(width, 1e-8))
 
+    def _coarsest_where_wide(self, level: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """``values`` with the rows whose continuous ``level`` reaches the coarsest level replaced by
+        its one texel, unwrapped (pbrt-v3 ``MIPMap::Lookup``, pbrt-v4 ``MIPMap::Filter``)."""
+        wide = level >= self.level_count - 1
+        values[wide] = self._texels[-1]
+        return values
+
     def point(self, st: np.ndarray, width: np.ndarray) -> np.ndarray:
-        """The nearest texel at level floor(L - 1 + log2(width)) (pbrt-v4's point filter)."""
-        level = np.clip(np.floor(self._level_of(width)), 0, self.level_count - 1).astype(np.int64)
-        x = np.round(st[:, 0] * self._width[level] - 0.5).astype(np.int64)
-        y = np.round(st[:, 1] * self._height[level] - 0.5).astype(np.int64)
-        return self.texel(level, x, y)
+        """The nearest texel at level floor(L - 1 + log2(width)) (pbrt-v4's point filter): the texel
+        index is st * size - 0.5 rounded half away from zero, as ``std::round`` does."""
+        continuous = self._level_of(width)
+        level = np.clip(np.floor(continuous), 0, self.level_count - 1).astype(np.int64)
+        x = _round_half_away(st[:, 0] * self._width[level] - 0.5)
+        y = _round_half_away(st[:, 1] * self._height[level] - 0.5)
+        return self._coarsest_where_wide(continuous, self.texel(level, x, y))
 
     def bilinear_at_width(self, st: np.ndarray, width: np.ndarray) -> np.ndarray:
         """Bilinear at level floor(L - 1 + log2(width)) (pbrt-v4's bilinear filter)."""
-        level = np.clip(np.floor(self._level_of(width)), 0, self.level_count - 1).astype(np.int64)
-        return self.bilinear(st, level)
+        continuous = self._level_of(width)
+        level = np.clip(np.floor(continuous), 0, self.level_count - 1).astype(np.int64)
+        return self._coarsest_where_wide(continuous, self.bilinear(st, level))
 
     def trilinear(self, st: np.ndarray, width: np.ndarray) -> np.ndarray:
-        """Blend of bilinear lookups on the two levels around L - 1 + log2(width) (N, 3)."""
-        level = np.clip(self._level_of(width), 0.0, self.level_count - 1)
+        """Blend of bilinear lookups on the two levels around L - 1 + log2(width) (N, 3) (pbrt-v3's)."""
+        continuous = self._level_of(width)
+        level = np.clip(continuous, 0.0, self.level_count - 1)
         lower = np.floor(level).astype(np.int64)
         upper = np.minimum(lower + 1, self.level_count - 1)
         delta = (level - lower)[:, None]
-        return self.bilinear(st, lower) * (1 - delta) + self.bilinear(st, upper) * delta
+        return self._coarsest_where_wide(continuous, self.bilinear(st, lower) * (1 - delta)
+                                         + self.bilinear(st, upper) * delta)
 
     def ewa(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
         """Elliptically weighted average (N, 3) over the ellipse with axes ``axis0``, ``axis1`` (N, 2)
