@@ -8,6 +8,8 @@ albedo a and radiance Le, the radiance to ``max_depth`` bounces is Le (1 + a + .
 pbrt-v3's direct lighting sees Le (1 + a). Walls without a material give Le alone (the path ends).
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -18,6 +20,7 @@ from realistic.scene.intersect import Intersector
 from realistic.scene.materials import Dielectric, Plastic, SurfaceMaterial
 from realistic.scene.model import AreaLight, Material, Scene
 from realistic.scene.pbrt.importer import import_pbrt
+from realistic.scene.shapes import quad
 
 N = 20000
 ALBEDO = np.array([0.5, 0.3, 0.7])
@@ -187,3 +190,80 @@ def test_direct_lighting_of_lights_that_light_each_other_is_the_reflecting_route
     for scene in (_emitter_box(None), Scene(lights=box.lights[:1])):
         scene.integrator = "directlighting"
         assert type(make_integrator(scene, Intersector(scene), 1, 3, backend=backend)) is DirectLighting
+
+
+ETA = 1.5
+INCIDENCE = np.radians(60.0)  # beyond the critical angle from inside glass of index 1.5 (41.8 degrees)
+BELOW = np.array([0.4, 0.8, 1.2])
+
+
+def _fresnel(cos_i: float, eta: float) -> float:
+    """Unpolarised Fresnel reflectance entering a medium of index ``eta`` from index 1."""
+    cos_t = np.sqrt(1 - (1 - cos_i ** 2) / eta ** 2)
+    s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return float((s * s + p * p) / 2)
+
+
+def _through_the_sheet(scene: Scene, backend: str = "numpy") -> np.ndarray:
+    """Radiance of rays from (0, 0, 1) down at 60 degrees through a glass sheet at z = 0 onto an
+    emitter below: seen from outside, the sheet passes 1 - F of it (the path tracer's lobe choice);
+    from inside, total internal reflection sends every ray up, into nothing."""
+    scene.lights.append(AreaLight("quad", (1000.0, 1000.0), tuple(BELOW), translate(0, 0, -1.0)))
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 5, 0.0, 5, "path", backend=backend)
+    n = 4000
+    origin = np.tile(np.array([0.0, 0.0, 1.0], np.float32), (n, 1))
+    azimuth = 0.3  # off the disk's and the quad's edges through the origin
+    direction = np.tile(np.array([np.sin(INCIDENCE) * np.cos(azimuth), np.sin(INCIDENCE) * np.sin(azimuth),
+                                  -np.cos(INCIDENCE)], np.float32), (n, 1))
+    radiance, _ = integrator.radiance(origin, direction, np.arange(n), np.zeros(n, int))
+    return radiance.astype(np.float64)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_reversed_glass_light_has_its_inside_where_the_same_sheet_would(backend, request):
+    """A glass quad light at z = 0 whose ReverseOrientation turns it to emit down has its outside
+    below too, as the same quad has, light or not, when its triangles are wound the other way
+    (pbrt hands a shape the same ``reverseOrientation`` either way): rays from above are inside,
+    totally reflected, and see nothing; unreversed, they see the light and 1 - F of the emitter below."""
+    if backend == "opencl":
+        request.getfixturevalue("opencl_platform")
+    glass = Dielectric(ETA)
+    seen = {}
+    for reverse in (False, True):
+        light = AreaLight("quad", (1000.0, 1000.0), (0.5, 0.5, 0.5), reverse_orientation=reverse, material=glass)
+        seen[reverse] = _through_the_sheet(Scene(lights=[light]), backend)
+    _agrees(seen[False], 0.5 + (1 - _fresnel(np.cos(INCIDENCE), ETA)) * BELOW)
+    assert not seen[True].any()
+    sheet = quad(1000.0, 1000.0)
+    for faces, expected in ((sheet.faces, (1 - _fresnel(np.cos(INCIDENCE), ETA)) * BELOW), (sheet.faces[:, ::-1], 0.0)):
+        scene = Scene()
+        scene.add(dataclasses.replace(sheet, faces=faces), np.eye(4), glass)
+        got = _through_the_sheet(scene, backend)
+        _agrees(got, expected) if faces is sheet.faces else np.testing.assert_array_equal(got, 0.0)
+
+
+@pytest.mark.parametrize("light", ["", 'AreaLightSource "diffuse" "rgb L" [0.5 0.5 0.5]\n'])
+@pytest.mark.parametrize("version", ["v3", "v4"])
+def test_pbrt_reverse_orientation_turns_a_glass_shape_inside_out(tmp_path, version, light):
+    """A pbrt glass disk or triangle mesh at z = 0, emitting or not, under ReverseOrientation has its
+    outside below (pbrt-v3 ``pbrtShape``, pbrt-v4 ``BasicScene::CreateAggregate``: every shape gets
+    the ``reverseOrientation`` in effect, and its normal flips by it), as the mesh declared wound
+    the other way has: rays from above are then totally reflected and see nothing."""
+    glass = 'Material "dielectric" "float eta" 1.5\n' if version == "v4" else 'Material "glass" "float index" 1.5\n'
+    disk = 'Shape "disk" "float radius" 1000\n'
+    mesh = ('Shape "trianglemesh" "integer indices" [{}] "point3 P" [-500 -500 0 500 -500 0 500 500 0 '
+            '-500 500 0]\n')
+    outside = (0.5 if light else 0.0) + (1 - _fresnel(np.cos(INCIDENCE), ETA)) * BELOW
+    for shape, reverse, expected in ((disk, "", outside), (disk, "ReverseOrientation\n", 0.0),
+                                     (mesh.format("0 1 2 0 2 3"), "", outside),
+                                     (mesh.format("0 1 2 0 2 3"), "ReverseOrientation\n", 0.0),
+                                     (mesh.format("0 2 1 0 3 2"), "", 0.0)):
+        path = tmp_path / "scene.pbrt"
+        path.write_text(CAMERA + "WorldBegin\n" + glass + "AttributeBegin\n" + reverse + light + shape +
+                        "AttributeEnd\n" + ("" if version == "v4" else "WorldEnd\n"))
+        got = _through_the_sheet(import_pbrt(path, dialect=version).scene)
+        if expected is outside:
+            _agrees(got, outside)
+        else:
+            np.testing.assert_array_equal(got, 0.0, err_msg=shape + reverse)

@@ -66,7 +66,7 @@ from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.materials import Measured, SurfaceMaterial
 from realistic.scene.measured import IrregularSamples, load_measured
-from realistic.scene.model import ImageTexture, Material, Scene
+from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.textures import albedo
 
 if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
@@ -88,6 +88,20 @@ RHO_SAMPLES = 16
 RHO_U = np.array([((k % 4 + 0.5) / 4, (k // 4 + 0.5) / 4) for k in range(RHO_SAMPLES)], np.float32)
 #: The directions of a measured material's albedo estimate (``first_hits``): ``RHO_U`` cosine-weighted.
 _RHO_DIRECTIONS = cosine_hemisphere(RHO_U)
+
+
+def light_outward_flipped(light: AreaLight) -> bool:
+    """Whether the outside of an area light's surface, which its material sees (glass: the side it
+    enters from), is opposite its tessellation's world winding (``scene.shapes.light_mesh``, wound
+    to face +z in object space): under a mirroring transform, xor ReverseOrientation. That makes it
+    the side the light emits from (``AreaLight.frame``) and the side the same shape has without the
+    light, whose mesh the pbrt importer winds the other way under ReverseOrientation: pbrt hands a
+    shape the same ``reverseOrientation`` whether or not it emits (pbrt-v3 ``pbrtShape`` in
+    ``src/core/api.cpp``; pbrt-v4 ``BasicScene::CreateLights`` and ``CreateAggregate`` in
+    ``src/pbrt/scene.cpp``), and a disk's normal flips by it (pbrt-v3 ``src/shapes/disk.cpp`` through
+    ``SurfaceInteraction``'s constructor, ``src/core/interaction.cpp``; pbrt-v4 ``Disk`` in
+    ``src/pbrt/shapes.h``, ``flipNormal``)."""
+    return bool(np.linalg.det(np.asarray(light.transform, np.float64)[:3, :3]) < 0) != light.reverse_orientation
 
 
 def _matte(material: SurfaceMaterial) -> Material:

@@ -53,7 +53,14 @@ from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot, normalise
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.bsdf import BSDF, BSDFSample, HitParameters, ShadingFrame, bsdf_for
-from realistic.renderer.direct_lighting import RHO_SAMPLES, RHO_U, SHADOW_OFFSET, DirectLighting, _rows
+from realistic.renderer.direct_lighting import (
+    RHO_SAMPLES,
+    RHO_U,
+    SHADOW_OFFSET,
+    DirectLighting,
+    _rows,
+    light_outward_flipped,
+)
 from realistic.renderer.light_sampler import FAR, LightSampler, colour
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
@@ -146,8 +153,6 @@ class PathIntegrator(DirectLighting):
         self._bsdf_kernel = chosen.bsdf_kernel() if bsdf_factory is bsdf_for else None
         self.lights = LightSampler(scene, intersector.extent)
         self._add_light_surfaces(scene)
-        # instances whose transform mirrors: their world winding faces inward (see ``_outward_normals``)
-        self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
         self._bounce = self._build_bounce(chosen) if self._bsdf_kernel is not None else None
         #: per geometry, whether the fused bounce shades its material (one gather per bounce, not two)
         self._bounce_covers = None if self._bounce is None else self._bounce.covered[self._geom_material]
@@ -164,10 +169,14 @@ class PathIntegrator(DirectLighting):
         integrator adds the emission at the hit and goes on with that material's BSDF (pbrt-v3
         ``PathIntegrator::Li``, pbrt-v4 ``PathIntegrator::Li``). ``_shaded[g]``: whether hits on
         geometry g are shaded (every instance; the lights with a material), with a False last entry
-        for misses (geometry -1)."""
+        for misses (geometry -1). ``_geom_swaps[g]``: whether geometry g's outside is opposite its
+        world winding (``_outward_normals``): an instance's under a mirroring transform (the pbrt
+        importer winds ReverseOrientation into the mesh), a light's by ``light_outward_flipped``, so
+        that a light's glass has the inside and outside the same shape has without the light."""
         lights = scene.area_lights
         reflecting = np.array([light.material is not None for light in lights], bool)
         self._shaded = np.concatenate([np.ones(self.instance_count, bool), reflecting, [False]])
+        self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
         if not reflecting.any():
             return
         material_index = {id(material): index for index, material in enumerate(self._materials)}
@@ -197,6 +206,7 @@ class PathIntegrator(DirectLighting):
             [self._geom_normal_matrix, np.linalg.inv(np.array(linear).reshape(-1, 3, 3)).transpose(0, 2, 1)]
         ).astype(np.float32)
         self._geom_material = np.concatenate([self._geom_material, material_of]).astype(np.int64)
+        self._geom_swaps = np.concatenate([self._geom_swaps, [light_outward_flipped(light) for light in lights]])
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
