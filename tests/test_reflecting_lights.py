@@ -192,6 +192,62 @@ def test_direct_lighting_of_lights_that_light_each_other_is_the_reflecting_route
         assert type(make_integrator(scene, Intersector(scene), 1, 3, backend=backend)) is DirectLighting
 
 
+def _albedo_aov(scene: Scene, backend: str) -> np.ndarray:
+    """The albedo AOV (3, 4, 6) of ``scene`` seen by a pinhole at the origin looking down +z."""
+    from realistic.camera.thin_lens import ThinLensCamera
+    from realistic.renderer.job import RenderJob
+    from realistic.renderer.passes import ThreadPasses, render
+
+    camera = ThinLensCamera(40.0, 0.0, 1.0, 6, 4, 4, np.eye(4))
+    aovs = render(RenderJob(scene, (camera,), backend, aovs="albedo"), ThreadPasses(2))[0].aovs
+    return np.stack([aovs["Albedo.R"], aovs["Albedo.G"], aovs["Albedo.B"]])
+
+
+def _light_before_the_camera(material: SurfaceMaterial | None, integrator: str) -> Scene:
+    """A quad light filling the view at z = 5, emitting toward the camera and reflecting by ``material``."""
+    facing = translate(0, 0, 5.0) @ np.diag([1.0, 1.0, -1.0, 1.0])
+    return Scene(lights=[AreaLight("quad", (1000.0, 1000.0), tuple(LE), facing, material=material)],
+                 integrator=integrator)
+
+
+@pytest.mark.parametrize("integrator", ["directlighting", "path"])
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_albedo_aov_on_a_reflecting_light_is_its_materials(backend, integrator, request):
+    """pbrt-v4 ``PathIntegrator::Li`` fills the first hit's ``VisibleSurface`` with ``bsdf.rho`` of
+    the shape's material whether or not it emits: a Lambertian light of albedo a reads a (through
+    ``DirectLighting``, the single light's fast route, and ``PathIntegrator``); a pure emitter,
+    which has no BSDF, reads 0."""
+    if backend == "opencl":
+        request.getfixturevalue("opencl_platform")
+    got = _albedo_aov(_light_before_the_camera(Material(tuple(ALBEDO)), integrator), backend)
+    np.testing.assert_allclose(got, np.broadcast_to(ALBEDO[:, None, None], got.shape), rtol=1e-6)
+    assert not _albedo_aov(_light_before_the_camera(None, integrator), backend).any()
+
+
+def test_albedo_of_a_light_is_the_same_through_either_integrator():
+    """``DirectLighting._light_albedo`` (the light's own tessellation, its uv and outside) and
+    ``PathIntegrator.first_albedo`` (the light in its per-geometry tables) agree on a checker-textured
+    plastic light, reversed and mirrored (pbrt-v4 ``BSDF::rho`` over the same 16 samples)."""
+    from realistic.renderer.direct_lighting import DirectLighting
+    from realistic.scene.surfaces import CheckerTexture
+
+    plastic = Plastic(CheckerTexture((0.6, 0.2, 0.1), (0.1, 0.3, 0.5), 4.0), (0.3, 0.3, 0.3), 0.2)
+    light = AreaLight("disk", (3.0, 3.0), (1.0, 1.0, 1.0), translate(0, 0, 2.0) @ np.diag([-1.0, 1.0, 1.0, 1.0]),
+                      reverse_orientation=True, material=plastic)
+    scene = Scene(lights=[light])
+    rng = np.random.default_rng(3)
+    origin = np.zeros((500, 3), np.float32)
+    direction = np.column_stack([rng.uniform(-0.6, 0.6, (500, 2)), np.where(np.arange(500) % 2, 1.0, -1.0)])
+    origin[:, 2] = np.where(np.arange(500) % 2, 0.0, 4.0)  # half the rays from above the disk, half from below
+    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    hits = Intersector(scene).closest(origin, direction)
+    assert np.all(hits.geom == 0)
+    fast = DirectLighting(scene, Intersector(scene)).first_hits(origin, direction, hits).albedo
+    path = PathIntegrator(scene, Intersector(scene)).first_hits(origin, direction, hits).albedo
+    assert len(np.unique(fast[:, 0])) > 10  # the checker and the glossy lobe vary over the hits
+    np.testing.assert_allclose(fast, path, rtol=1e-5, atol=1e-6)
+
+
 ETA = 1.5
 INCIDENCE = np.radians(60.0)  # beyond the critical angle from inside glass of index 1.5 (41.8 degrees)
 BELOW = np.array([0.4, 0.8, 1.2])

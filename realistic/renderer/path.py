@@ -42,7 +42,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from contextlib import nullcontext
-from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -54,21 +53,21 @@ from realistic.core.vectors import dot, normalise
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.bsdf import BSDF, BSDFSample, HitParameters, ShadingFrame, bsdf_for
 from realistic.renderer.direct_lighting import (
-    RHO_SAMPLES,
-    RHO_U,
     SHADOW_OFFSET,
     DirectLighting,
+    SurfaceParameters,
     _rows,
+    directional_albedo,
     light_outward_flipped,
 )
-from realistic.renderer.light_sampler import FAR, LightSampler, colour
+from realistic.renderer.light_sampler import FAR, LightSampler
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.lights import EmissiveInstance
 from realistic.scene.materials import SurfaceMaterial
-from realistic.scene.model import ImageTexture, Scene, Texture
+from realistic.scene.model import Scene
 from realistic.scene.shapes import light_mesh
-from realistic.scene.textures import Footprint, evaluate
+from realistic.scene.textures import Footprint
 
 if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
     from realistic.renderer.bounce_kernel import BounceKernel
@@ -77,46 +76,6 @@ BOUNCE_DIMENSION = 4 + 3 * MAX_LIGHT_SAMPLES
 MODES = ("direct", "path")
 #: Bounces after which Russian roulette may end a path (pbrt-v3 ``PathIntegrator``: bounces > 3).
 ROULETTE_AFTER = 3
-#: Each of the albedo estimate's BSDF samples (``direct_lighting.RHO_U``) with its own lobe choice.
-_RHO_LOBE = np.array([((7 * k) % RHO_SAMPLES + 0.5) / RHO_SAMPLES for k in range(RHO_SAMPLES)], np.float32)
-
-
-class SurfaceParameters:
-    """``HitParameters`` over ``count`` hits: constants, and textures at their uv (image textures
-    filtered over their footprints). ``uv`` and ``footprint`` are functions called on the first
-    texture lookup that needs them (``footprint`` may return None: point-sampled), so untextured
-    materials cost neither."""
-
-    def __init__(self, count: int, uv: Callable[[], np.ndarray], footprint: Callable[[], Footprint | None],
-                 basis: np.ndarray | None):
-        self.count, self.basis = count, basis
-        self._uv_of, self._footprint_of = uv, footprint
-
-    @cached_property
-    def _uv(self) -> np.ndarray:
-        return self._uv_of()
-
-    @cached_property
-    def _footprint(self) -> Footprint | None:
-        return self._footprint_of()
-
-    def colour(self, value: object) -> np.ndarray:
-        if isinstance(value, tuple | list | np.ndarray | float | int):
-            rgb = np.broadcast_to(np.asarray(value, np.float32), (self.count, 3))
-        elif isinstance(value, Texture):
-            rgb = evaluate(value, self._uv, self._footprint if isinstance(value, ImageTexture) else None)
-        else:
-            raise TypeError(f"unknown texture {value!r}")
-        return colour(rgb, self.basis)
-
-    def scalar(self, value: object) -> np.ndarray:
-        if isinstance(value, float | int):
-            return np.full(self.count, value, np.float32)
-        if not isinstance(value, Texture):
-            raise TypeError(f"unknown texture {value!r}")
-        return evaluate(value, self._uv, None).mean(axis=1).astype(np.float32)
-
-
 def _add_rows(out: np.ndarray, rows: np.ndarray, value: np.ndarray) -> None:
     """out[rows] += value for distinct ``rows`` of a C-contiguous (N, C) ``out``: the rows gathered
     with ``np.take`` and put back as single items (``np.put`` on a void view of the rows), the same
@@ -356,16 +315,13 @@ class PathIntegrator(DirectLighting):
                 return self._footprint(face[rows], geom[rows], direction[rows], ng[rows], t[rows])
 
             bsdf = self.bsdf_factory(self._materials[index], SurfaceParameters(len(rows), uv, footprint, None))
-            total = np.zeros((len(rows), 3), np.float64)
-            for k in range(RHO_SAMPLES):
-                s = bsdf.sample(wo[rows], np.broadcast_to(RHO_U[k], (len(rows), 2)),
-                                np.full(len(rows), _RHO_LOBE[k], np.float32))
-                ok = s.valid & (s.pdf > 0)
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    total += np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))[:, None],
-                                      0.0)
-            rho[rows] = total / RHO_SAMPLES
+            rho[rows] = directional_albedo(bsdf, wo[rows])
         return rho
+
+    def _light_albedo(self, hits: Hits, lit: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
+        """``first_albedo``: the per-geometry tables hold the lights' surfaces (``_add_light_surfaces``),
+        so a light's material is looked up, oriented and filtered as an instance's is."""
+        return self.first_albedo(hits, lit, direction, ng)
 
     def _outward_normals(self, hits: Hits, surface: np.ndarray, face: np.ndarray, bary: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray]:
