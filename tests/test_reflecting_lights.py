@@ -276,27 +276,35 @@ def _through_the_sheet(scene: Scene, backend: str = "numpy") -> np.ndarray:
     return radiance.astype(np.float64)
 
 
+@pytest.mark.parametrize("mirror", [False, True])
 @pytest.mark.parametrize("backend", ["numpy", "opencl"])
-def test_reversed_glass_light_has_its_inside_where_the_same_sheet_would(backend, request):
+def test_reversed_glass_light_has_its_inside_where_the_same_sheet_would(backend, mirror, request):
     """A glass quad light at z = 0 whose ReverseOrientation turns it to emit down has its outside
     below too, as the same quad has, light or not, when its triangles are wound the other way
     (pbrt hands a shape the same ``reverseOrientation`` either way): rays from above are inside,
-    totally reflected, and see nothing; unreversed, they see the light and 1 - F of the emitter below."""
+    totally reflected, and see nothing; unreversed, they see the light and 1 - F of the emitter
+    below. The same under a mirroring transform (x to -x), which leaves the emitting side up."""
     if backend == "opencl":
         request.getfixturevalue("opencl_platform")
-    glass = Dielectric(ETA)
-    seen = {}
+    glass, place = Dielectric(ETA), np.diag([-1.0 if mirror else 1.0, 1.0, 1.0, 1.0])
+    outside = (1 - _fresnel(np.cos(INCIDENCE), ETA)) * BELOW
     for reverse in (False, True):
-        light = AreaLight("quad", (1000.0, 1000.0), (0.5, 0.5, 0.5), reverse_orientation=reverse, material=glass)
-        seen[reverse] = _through_the_sheet(Scene(lights=[light]), backend)
-    _agrees(seen[False], 0.5 + (1 - _fresnel(np.cos(INCIDENCE), ETA)) * BELOW)
-    assert not seen[True].any()
+        light = AreaLight("quad", (1000.0, 1000.0), (0.5, 0.5, 0.5), place, reverse_orientation=reverse,
+                          material=glass)
+        seen = _through_the_sheet(Scene(lights=[light]), backend)
+        if reverse:
+            np.testing.assert_array_equal(seen, 0.0)
+        else:
+            _agrees(seen, 0.5 + outside)
     sheet = quad(1000.0, 1000.0)
-    for faces, expected in ((sheet.faces, (1 - _fresnel(np.cos(INCIDENCE), ETA)) * BELOW), (sheet.faces[:, ::-1], 0.0)):
+    for wound_back in (False, True):
         scene = Scene()
-        scene.add(dataclasses.replace(sheet, faces=faces), np.eye(4), glass)
-        got = _through_the_sheet(scene, backend)
-        _agrees(got, expected) if faces is sheet.faces else np.testing.assert_array_equal(got, 0.0)
+        scene.add(dataclasses.replace(sheet, faces=sheet.faces[:, ::-1] if wound_back else sheet.faces), place, glass)
+        seen = _through_the_sheet(scene, backend)
+        if wound_back:
+            np.testing.assert_array_equal(seen, 0.0)
+        else:
+            _agrees(seen, outside)
 
 
 @pytest.mark.parametrize("light", ["", 'AreaLightSource "diffuse" "rgb L" [0.5 0.5 0.5]\n'])
