@@ -331,3 +331,21 @@ def test_pbrt_reverse_orientation_turns_a_glass_shape_inside_out(tmp_path, versi
             _agrees(got, outside)
         else:
             np.testing.assert_array_equal(got, 0.0, err_msg=shape + reverse)
+
+
+def test_reverse_orientation_stores_the_mesh_inside_out_alone(tmp_path):
+    """Under ReverseOrientation the importer stores each mesh once, turned inside out (faces wound
+    back, vertex normals negated, as pbrt-v4's ``TriangleMesh``), not beside the original."""
+    shapes = ('Shape "sphere" "float radius" 1\nShape "trianglemesh" "integer indices" [0 1 2] '
+              '"point3 P" [0 0 0 1 0 0 0 1 0] "normal N" [0 0 1 0 0 1 0 0 1]\n')
+    scenes = []
+    for reverse in ("", "ReverseOrientation\n"):
+        path = tmp_path / "scene.pbrt"
+        path.write_text(CAMERA + "WorldBegin\n" + reverse + shapes)
+        scenes.append(import_pbrt(path, dialect="v4").scene)
+    plain, reversed_ = scenes
+    assert len(reversed_.meshes) == len(reversed_.instances) == 2
+    for a, b in zip(plain.instances, reversed_.instances, strict=True):
+        mesh, inside_out = plain.meshes[a.mesh], reversed_.meshes[b.mesh]
+        np.testing.assert_array_equal(inside_out.faces, mesh.faces[:, ::-1])
+        np.testing.assert_array_equal(inside_out.normals, -mesh.normals)

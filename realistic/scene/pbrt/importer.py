@@ -87,9 +87,10 @@ class _Importer:
         # a mesh file's meshes are stored once (the intersector then builds each once for all its
         # instances): mesh identity -> scene mesh index
         self.mesh_index: dict[int, int] = {}
-        # per mesh index: its object-space area, and its copy wound the other way (emitting quadrics)
+        # per mesh index: its object-space area
         self.object_areas: dict[int, float] = {}
-        self.reversed_meshes: dict[int, int] = {}
+        # mesh identity -> the mesh and its copy turned inside out (``_inside_out``), made once
+        self.inside_out: dict[int, tuple[Mesh, Mesh]] = {}
 
     def warn(self, where: str, message: str) -> None:
         self.parsed.warn(where, message)
@@ -174,7 +175,7 @@ class _Importer:
 
     def add_instances(self, shape: ShapeRecord, world: np.ndarray) -> None:
         """Instances of the shape's meshes under ``world`` (meshes tessellated or loaded once), under
-        ReverseOrientation of the meshes turned inside out (``_reversed``), which is what glass
+        ReverseOrientation of the meshes turned inside out (``_inside_out``), which is what glass
         tells inside from outside by (``PathIntegrator._outward_normals``)."""
         material = self.material(shape.material)
         if id(shape) not in self.stored:  # tessellate or load once, however often it is instanced
@@ -184,7 +185,8 @@ class _Importer:
                 self.warn(shape.where, f'Shape "{shape.type}" whose sizes are too extreme for its triangles, '
                                        f"normals or uv to be computed (skipped)")
                 meshes = []
-            self.stored[id(shape)] = [(self._mesh_index(mesh), local, box_corners(mesh.vertices))
+            self.stored[id(shape)] = [(self._mesh_index(self._inside_out(mesh) if shape.reverse_orientation else mesh),
+                                       local, box_corners(mesh.vertices))
                                       for mesh, local in meshes]
         placed = world @ shape.transform
         if not _is_placeable(placed):
@@ -198,7 +200,7 @@ class _Importer:
                 self.warn(shape.where, f'Shape "{shape.type}" reaching {reach:.3g} from the origin, beyond the '
                                        f"{MAX_WORLD_COORDINATE:g} the renderer's single precision holds (skipped)")
                 continue
-            self.scene.add(self._reversed(index) if shape.reverse_orientation else index, transform, material)
+            self.scene.add(index, transform, material)
 
     def _mesh_index(self, mesh: Mesh) -> int:
         """The scene's index of ``mesh``, stored on first use (a mesh file's meshes are shared by shapes)."""
@@ -286,7 +288,7 @@ class _Importer:
         shapes (sphere, cone, cylinder) face outward in object space, flipped by ReverseOrientation
         xor the swap, which is the world winding of our outward-wound tessellations flipped by
         ReverseOrientation alone. ``add_instances`` has already turned the mesh inside out under
-        ReverseOrientation (``_reversed``), so only the rest is left here.
+        ReverseOrientation (``_inside_out``), so only the rest is left here.
         """
         inst = self.scene.instances[index]
         mesh = self.scene.meshes[inst.mesh]
@@ -325,22 +327,21 @@ class _Importer:
                 area = triangle_area(mesh.vertices @ linear.T, mesh.faces)
         return area if np.isfinite(area) else np.inf
 
-    def _reversed(self, mesh_index: int) -> int:
-        """The index of mesh ``mesh_index`` turned inside out, stored once: every face's winding
-        reversed and its vertex normals negated, as ReverseOrientation turns a shape (pbrt-v3 and
-        pbrt-v4 hand every shape the ``reverseOrientation`` in effect: ``pbrtShape`` in
-        ``src/core/api.cpp``, ``BasicScene::CreateAggregate`` in ``src/pbrt/scene.cpp``; a triangle's
-        or a quadric's normal flips by it, pbrt-v3 ``SurfaceInteraction``'s constructor in
-        ``src/core/interaction.cpp``, pbrt-v4 ``src/pbrt/shapes.h``, and pbrt-v4's ``TriangleMesh``,
-        ``src/pbrt/util/mesh.cpp``, negates the vertex normals; pbrt-v3 keeps them and turns a
-        triangle's normal toward them, so there ReverseOrientation does not turn a mesh with normals:
-        both dialects follow pbrt-v4 here, as ``_face_front`` does)."""
-        if mesh_index not in self.reversed_meshes:
-            mesh = self.scene.meshes[mesh_index]
+    def _inside_out(self, mesh: Mesh) -> Mesh:
+        """``mesh`` turned inside out, made once per mesh (a mesh file's meshes are shared by
+        shapes): every face's winding reversed and its vertex normals negated, as ReverseOrientation
+        turns a shape. pbrt-v3 and pbrt-v4 hand every shape the ``reverseOrientation`` in effect
+        (``pbrtShape`` in ``src/core/api.cpp``, ``BasicScene::CreateAggregate`` in
+        ``src/pbrt/scene.cpp``); a triangle's or a quadric's normal flips by it (pbrt-v3
+        ``SurfaceInteraction``'s constructor in ``src/core/interaction.cpp``, pbrt-v4
+        ``src/pbrt/shapes.h``), and pbrt-v4's ``TriangleMesh`` (``src/pbrt/util/mesh.cpp``) negates
+        the vertex normals. pbrt-v3 keeps those and turns a triangle's normal toward them, so there
+        ReverseOrientation does not turn a mesh with normals: both dialects follow pbrt-v4 here, as
+        ``_face_front`` does."""
+        if id(mesh) not in self.inside_out:  # the original kept too, so that its identity is not reused
             normals = None if mesh.normals is None else -mesh.normals
-            self.reversed_meshes[mesh_index] = self.scene.add_mesh(
-                dataclasses.replace(mesh, faces=mesh.faces[:, ::-1], normals=normals))
-        return self.reversed_meshes[mesh_index]
+            self.inside_out[id(mesh)] = (mesh, dataclasses.replace(mesh, faces=mesh.faces[:, ::-1], normals=normals))
+        return self.inside_out[id(mesh)][1]
 
     def run(self) -> Scene:
         for shape in self.parsed.shapes:
