@@ -349,3 +349,19 @@ def test_reverse_orientation_stores_the_mesh_inside_out_alone(tmp_path):
         mesh, inside_out = plain.meshes[a.mesh], reversed_.meshes[b.mesh]
         np.testing.assert_array_equal(inside_out.faces, mesh.faces[:, ::-1])
         np.testing.assert_array_equal(inside_out.normals, -mesh.normals)
+
+
+@pytest.mark.parametrize("version", ["v3", "v4"])
+def test_mirrored_glass_mesh_has_the_same_outside_emitting_or_not(tmp_path, version):
+    """A glass triangle mesh wound to face +z under ``Scale -1 1 1``: pbrt gives it the normal of its
+    world winding flipped by the mirror (+z), emitting or not, and emits on that side; rays from
+    above see 1 - F of the emitter below either way, and the light's own emission besides."""
+    glass = 'Material "dielectric" "float eta" 1.5\n' if version == "v4" else 'Material "glass" "float index" 1.5\n'
+    mesh = ('Shape "trianglemesh" "integer indices" [0 1 2 0 2 3] "point3 P" [-500 -500 0 500 -500 0 500 500 0 '
+            '-500 500 0]\n')
+    for light in ("", 'AreaLightSource "diffuse" "rgb L" [0.5 0.5 0.5]\n'):
+        path = tmp_path / "scene.pbrt"
+        path.write_text(CAMERA + "WorldBegin\n" + glass + "AttributeBegin\nScale -1 1 1\n" + light + mesh +
+                        "AttributeEnd\n" + ("" if version == "v4" else "WorldEnd\n"))
+        _agrees(_through_the_sheet(import_pbrt(path, dialect=version).scene),
+                (0.5 if light else 0.0) + (1 - _fresnel(np.cos(INCIDENCE), ETA)) * BELOW)

@@ -130,12 +130,17 @@ class PathIntegrator(DirectLighting):
         geometry g are shaded (every instance; the lights with a material), with a False last entry
         for misses (geometry -1). ``_geom_swaps[g]``: whether geometry g's outside is opposite its
         world winding (``_outward_normals``): an instance's under a mirroring transform (the pbrt
-        importer winds ReverseOrientation into the mesh), a light's by ``light_outward_flipped``, so
-        that a light's glass has the inside and outside the same shape has without the light."""
+        importer winds ReverseOrientation into the mesh) unless it emits, a light's by
+        ``light_outward_flipped``, so that a light's glass has the inside and outside the same shape
+        has without the light. An emitting instance's outside is its front, the side it emits from
+        (``EmissiveInstance``), as a pbrt shape's normal is both (``DiffuseAreaLight::L``, pbrt-v3
+        ``src/lights/diffuse.h``, pbrt-v4 ``src/pbrt/lights.h``, emits on its side, and the BSDF's
+        frame is built on it): the importer's ``_face_front`` winds that front to the shape's normal."""
         lights = scene.area_lights
         reflecting = np.array([light.material is not None for light in lights], bool)
         self._shaded = np.concatenate([np.ones(self.instance_count, bool), reflecting, [False]])
         self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
+        self._geom_swaps[[light.instance for light in scene.lights if isinstance(light, EmissiveInstance)]] = False
         if not reflecting.any():
             return
         material_index = {id(material): index for index, material in enumerate(self._materials)}
