@@ -10,7 +10,8 @@ The channels and their conventions are pbrt-v4's ``GBufferFilm`` (``src/pbrt/fil
 - ``normal``: "N.X", "N.Y", "N.Z", the geometric normal turned toward the camera ray, in camera
   space: the normalised weighted sum (pbrt-v4 ``Normalize(nSum)``);
 - ``albedo``: "Albedo.R", "Albedo.G", "Albedo.B", the surface's reflectance at the hit (a matte
-  material's Kd, textures included; other BSDFs' directional albedo, ``PathIntegrator.first_albedo``),
+  material's Kd, textures included; other BSDFs' directional albedo, ``PathIntegrator.first_albedo``;
+  an area light's material's too, while a pure emitter reads 0: ``DirectLighting.first_hits``),
   averaged over every sample (pbrt-v4 divides by ``weightSum``).
 
 Rays that miss contribute nothing, as in pbrt-v4 (no ``VisibleSurface``): a pixel that sees only

@@ -45,6 +45,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -57,17 +58,19 @@ from realistic.core.warp import concentric_disk
 from realistic.renderer.aov import FirstHits
 from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.backends import Backend, backend_for
-from realistic.renderer.bsdf.base import ShadingFrame
+from realistic.renderer.bsdf import BSDF, ShadingFrame, bsdf_for
 from realistic.renderer.bsdf.lambertian import cosine_hemisphere
 from realistic.renderer.bsdf.measured import irregular_table, table_lookup
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.hit_rows import compile_row_loops, place_rows, rows_on_material
+from realistic.renderer.light_sampler import colour
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.materials import Measured, SurfaceMaterial
 from realistic.scene.measured import IrregularSamples, load_measured
-from realistic.scene.model import ImageTexture, Material, Scene
-from realistic.scene.textures import albedo
+from realistic.scene.model import AreaLight, ImageTexture, Material, Scene, Texture
+from realistic.scene.shapes import light_mesh
+from realistic.scene.textures import Footprint, albedo, evaluate
 
 if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
     from realistic.renderer.opencl_backend import OpenCLBackend
@@ -88,6 +91,71 @@ RHO_SAMPLES = 16
 RHO_U = np.array([((k % 4 + 0.5) / 4, (k // 4 + 0.5) / 4) for k in range(RHO_SAMPLES)], np.float32)
 #: The directions of a measured material's albedo estimate (``first_hits``): ``RHO_U`` cosine-weighted.
 _RHO_DIRECTIONS = cosine_hemisphere(RHO_U)
+#: Each of the albedo estimate's BSDF samples (``RHO_U``) with its own lobe choice.
+_RHO_LOBE = np.array([((7 * k) % RHO_SAMPLES + 0.5) / RHO_SAMPLES for k in range(RHO_SAMPLES)], np.float32)
+
+
+def directional_albedo(bsdf: BSDF, wo: np.ndarray) -> np.ndarray:
+    """A BSDF's directional albedo (n, 3) at local directions ``wo`` (n, 3): rho(wo) = E[f |cos wi|
+    / pdf] over the ``RHO_SAMPLES`` fixed samples (pbrt-v4 ``BSDF::rho``, which its integrators
+    fill a ``VisibleSurface`` with); exact for a Lambertian BSDF."""
+    total = np.zeros((len(wo), 3), np.float64)
+    for k in range(RHO_SAMPLES):
+        s = bsdf.sample(wo, np.broadcast_to(RHO_U[k], (len(wo), 2)), np.full(len(wo), _RHO_LOBE[k], np.float32))
+        ok = s.valid & (s.pdf > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            total += np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))[:, None], 0.0)
+    return (total / RHO_SAMPLES).astype(np.float32)
+
+
+class SurfaceParameters:
+    """``HitParameters`` over ``count`` hits: constants, and textures at their uv (image textures
+    filtered over their footprints). ``uv`` and ``footprint`` are functions called on the first
+    texture lookup that needs them (``footprint`` may return None: point-sampled), so untextured
+    materials cost neither."""
+
+    def __init__(self, count: int, uv: Callable[[], np.ndarray], footprint: Callable[[], Footprint | None],
+                 basis: np.ndarray | None):
+        self.count, self.basis = count, basis
+        self._uv_of, self._footprint_of = uv, footprint
+
+    @cached_property
+    def _uv(self) -> np.ndarray:
+        return self._uv_of()
+
+    @cached_property
+    def _footprint(self) -> Footprint | None:
+        return self._footprint_of()
+
+    def colour(self, value: object) -> np.ndarray:
+        if isinstance(value, tuple | list | np.ndarray | float | int):
+            rgb = np.broadcast_to(np.asarray(value, np.float32), (self.count, 3))
+        elif isinstance(value, Texture):
+            rgb = evaluate(value, self._uv, self._footprint if isinstance(value, ImageTexture) else None)
+        else:
+            raise TypeError(f"unknown texture {value!r}")
+        return colour(rgb, self.basis)
+
+    def scalar(self, value: object) -> np.ndarray:
+        if isinstance(value, float | int):
+            return np.full(self.count, value, np.float32)
+        if not isinstance(value, Texture):
+            raise TypeError(f"unknown texture {value!r}")
+        return evaluate(value, self._uv, None).mean(axis=1).astype(np.float32)
+
+
+def light_outward_flipped(light: AreaLight) -> bool:
+    """Whether the outside of an area light's surface, which its material sees (glass: the side it
+    enters from), is opposite its tessellation's world winding (``scene.shapes.light_mesh``, wound
+    to face +z in object space): under a mirroring transform, xor ReverseOrientation. That makes it
+    the side the light emits from (``AreaLight.frame``) and the side the same shape has without the
+    light, whose mesh the pbrt importer winds the other way under ReverseOrientation: pbrt hands a
+    shape the same ``reverseOrientation`` whether or not it emits (pbrt-v3 ``pbrtShape`` in
+    ``src/core/api.cpp``; pbrt-v4 ``BasicScene::CreateLights`` and ``CreateAggregate`` in
+    ``src/pbrt/scene.cpp``), and a disk's normal flips by it (pbrt-v3 ``src/shapes/disk.cpp`` through
+    ``SurfaceInteraction``'s constructor, ``src/core/interaction.cpp``; pbrt-v4 ``Disk`` in
+    ``src/pbrt/shapes.h``, ``flipNormal``)."""
+    return bool(np.linalg.det(np.asarray(light.transform, np.float64)[:3, :3]) < 0) != light.reverse_orientation
 
 
 def _matte(material: SurfaceMaterial) -> Material:
@@ -235,6 +303,8 @@ class DirectLighting:
         self.backend = backend_for(backend) if isinstance(backend, str) else backend
         self.background = np.asarray(scene.background, dtype=np.float32)
         self.instance_count = len(scene.instances)
+        self._area_lights: list[AreaLight] = scene.area_lights
+        self._light_reflects = np.array([light.material is not None for light in self._area_lights], bool)
         self._build_surfaces(scene)
         self._build_lights(scene)
         self._kernel: ShadeKernel | None = None
@@ -425,10 +495,17 @@ class DirectLighting:
     def first_hits(self, origin: np.ndarray, direction: np.ndarray, hits: Hits, with_albedo: bool = True
                    ) -> FirstHits:
         """What the camera rays, whose closest ``hits`` are traced, hit first (``renderer.aov``):
-        points, normals facing the rays, and albedo (0 on area lights, which have no material; 0
-        everywhere unless ``with_albedo``).
+        points, normals facing the rays, and albedo (0 everywhere unless ``with_albedo``).
         With the shading kernel, image-textured materials' albedo is ``_host_albedo``'s, which
-        ``radiance`` then takes instead of computing it again; the others' is ``first_albedo``'s."""
+        ``radiance`` then takes instead of computing it again; the others' is ``first_albedo``'s.
+
+        On an area light with a material the albedo is that material's (``_light_albedo``), as on any
+        surface: pbrt-v4's ``PathIntegrator::Li`` (``src/pbrt/cpu/integrators.cpp``) adds an emitter's
+        Le, then fills the ``VisibleSurface`` of the first hit with ``bsdf.rho`` of the shape's
+        material, emitting or not. A pure emitter (no material) keeps albedo 0, with its point and
+        normal: it reflects nothing and paths end at it. pbrt-v4 has no such surface (an area light
+        on an "interface" shape is dropped, ``BasicScene::CreateLights``, and camera rays pass through
+        that shape), so 0, the reflectance of a surface without a BSDF, is ours to choose."""
         n = len(origin)
         hit = hits.geom >= 0
         point, normal, rho = (np.zeros((n, 3), np.float32) for _ in range(3))
@@ -437,12 +514,14 @@ class DirectLighting:
         point[rows] = _rows(np.asarray(origin, np.float32), rows) + hits.t[rows, None] * d
         normal[rows] = _facing(_rows(hits.normal, rows), d)
         surface = np.flatnonzero(hit & (hits.geom < self.instance_count)) if with_albedo else rows[:0]
+        lit = np.flatnonzero(hits.geom >= self.instance_count) if with_albedo else rows[:0]
+        lit = lit[self._light_reflects[hits.geom[lit] - self.instance_count]]
         if self._kernel is not None and self._kernel.host_albedo.any() and len(surface):
             rho[:] = self._host_albedo(origin, direction, hits)
             surface = surface[~self._kernel.host_albedo[self._geom_material[hits.geom[surface]]]]
-        if len(surface):
-            rho[surface] = self.first_albedo(hits, surface, _rows(np.asarray(direction, np.float32), surface),
-                                             _rows(normal, surface))
+        for at, albedo_of in ((surface, self.first_albedo), (lit, self._light_albedo)):
+            if len(at):
+                rho[at] = albedo_of(hits, at, _rows(np.asarray(direction, np.float32), at), _rows(normal, at))
         return FirstHits(hit, point, normal, rho)
 
     def first_albedo(self, hits: Hits, surface: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
@@ -450,6 +529,32 @@ class DirectLighting:
         materials' reflectance, image textures filtered over the rays' footprints as when shading."""
         face, bary = self._triangles(hits, surface)
         return self._albedo(face, bary, hits.geom[surface], direction, ng, hits.t[surface])
+
+    def _light_albedo(self, hits: Hits, lit: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
+        """Albedo (n, 3) of the camera-ray hits ``lit`` on area lights that have a material: its
+        BSDF's ``directional_albedo`` in the frame of the light's outside (``light_outward_flipped``),
+        its textures at the tessellation's uv, point-sampled (``ng``, the normals facing the rays,
+        are for ``PathIntegrator``'s footprints)."""
+        rho = np.empty((len(lit), 3), np.float32)
+        slot = hits.geom[lit] - self.instance_count
+        outward = normalise(_rows(hits.normal, lit).astype(np.float32))
+        for j in np.unique(slot):
+            rows = np.flatnonzero(slot == j)
+            light, at = self._area_lights[j], lit[rows]
+            material, mesh = light.material, light_mesh(light)
+            assert material is not None and mesh.uv is not None  # ``first_hits`` picks lights with a material
+            face = mesh.faces[hits.prim[at]]
+            u, v = hits.u[at, None], hits.v[at, None]
+            uv = (mesh.uv[face[:, 0]] * (1 - u - v) + mesh.uv[face[:, 1]] * u + mesh.uv[face[:, 2]] * v).astype(
+                np.float32)
+
+            def at_uv(uv: np.ndarray = uv) -> np.ndarray:
+                return uv
+
+            side = np.float32(-1.0 if light_outward_flipped(light) else 1.0)
+            bsdf = bsdf_for(material, SurfaceParameters(len(rows), at_uv, lambda: None, None))
+            rho[rows] = directional_albedo(bsdf, ShadingFrame(outward[rows] * side).to_local(-direction[rows]))
+        return rho
 
     def _surface_points(self, origin: np.ndarray, direction: np.ndarray, hits: Hits, surface: np.ndarray,
                         basis: np.ndarray | None = None) -> tuple[np.ndarray, ...]:

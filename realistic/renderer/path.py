@@ -42,7 +42,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from contextlib import nullcontext
-from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -53,15 +52,22 @@ from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot, normalise
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.bsdf import BSDF, BSDFSample, HitParameters, ShadingFrame, bsdf_for
-from realistic.renderer.direct_lighting import RHO_SAMPLES, RHO_U, SHADOW_OFFSET, DirectLighting, _rows
-from realistic.renderer.light_sampler import FAR, LightSampler, colour
+from realistic.renderer.direct_lighting import (
+    SHADOW_OFFSET,
+    DirectLighting,
+    SurfaceParameters,
+    _rows,
+    directional_albedo,
+    light_outward_flipped,
+)
+from realistic.renderer.light_sampler import FAR, LightSampler
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.lights import EmissiveInstance
 from realistic.scene.materials import SurfaceMaterial
-from realistic.scene.model import ImageTexture, Scene, Texture
+from realistic.scene.model import Scene
 from realistic.scene.shapes import light_mesh
-from realistic.scene.textures import Footprint, evaluate
+from realistic.scene.textures import Footprint
 
 if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
     from realistic.renderer.bounce_kernel import BounceKernel
@@ -70,46 +76,6 @@ BOUNCE_DIMENSION = 4 + 3 * MAX_LIGHT_SAMPLES
 MODES = ("direct", "path")
 #: Bounces after which Russian roulette may end a path (pbrt-v3 ``PathIntegrator``: bounces > 3).
 ROULETTE_AFTER = 3
-#: Each of the albedo estimate's BSDF samples (``direct_lighting.RHO_U``) with its own lobe choice.
-_RHO_LOBE = np.array([((7 * k) % RHO_SAMPLES + 0.5) / RHO_SAMPLES for k in range(RHO_SAMPLES)], np.float32)
-
-
-class SurfaceParameters:
-    """``HitParameters`` over ``count`` hits: constants, and textures at their uv (image textures
-    filtered over their footprints). ``uv`` and ``footprint`` are functions called on the first
-    texture lookup that needs them (``footprint`` may return None: point-sampled), so untextured
-    materials cost neither."""
-
-    def __init__(self, count: int, uv: Callable[[], np.ndarray], footprint: Callable[[], Footprint | None],
-                 basis: np.ndarray | None):
-        self.count, self.basis = count, basis
-        self._uv_of, self._footprint_of = uv, footprint
-
-    @cached_property
-    def _uv(self) -> np.ndarray:
-        return self._uv_of()
-
-    @cached_property
-    def _footprint(self) -> Footprint | None:
-        return self._footprint_of()
-
-    def colour(self, value: object) -> np.ndarray:
-        if isinstance(value, tuple | list | np.ndarray | float | int):
-            rgb = np.broadcast_to(np.asarray(value, np.float32), (self.count, 3))
-        elif isinstance(value, Texture):
-            rgb = evaluate(value, self._uv, self._footprint if isinstance(value, ImageTexture) else None)
-        else:
-            raise TypeError(f"unknown texture {value!r}")
-        return colour(rgb, self.basis)
-
-    def scalar(self, value: object) -> np.ndarray:
-        if isinstance(value, float | int):
-            return np.full(self.count, value, np.float32)
-        if not isinstance(value, Texture):
-            raise TypeError(f"unknown texture {value!r}")
-        return evaluate(value, self._uv, None).mean(axis=1).astype(np.float32)
-
-
 def _add_rows(out: np.ndarray, rows: np.ndarray, value: np.ndarray) -> None:
     """out[rows] += value for distinct ``rows`` of a C-contiguous (N, C) ``out``: the rows gathered
     with ``np.take`` and put back as single items (``np.put`` on a void view of the rows), the same
@@ -146,8 +112,6 @@ class PathIntegrator(DirectLighting):
         self._bsdf_kernel = chosen.bsdf_kernel() if bsdf_factory is bsdf_for else None
         self.lights = LightSampler(scene, intersector.extent)
         self._add_light_surfaces(scene)
-        # instances whose transform mirrors: their world winding faces inward (see ``_outward_normals``)
-        self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
         self._bounce = self._build_bounce(chosen) if self._bsdf_kernel is not None else None
         #: per geometry, whether the fused bounce shades its material (one gather per bounce, not two)
         self._bounce_covers = None if self._bounce is None else self._bounce.covered[self._geom_material]
@@ -164,10 +128,19 @@ class PathIntegrator(DirectLighting):
         integrator adds the emission at the hit and goes on with that material's BSDF (pbrt-v3
         ``PathIntegrator::Li``, pbrt-v4 ``PathIntegrator::Li``). ``_shaded[g]``: whether hits on
         geometry g are shaded (every instance; the lights with a material), with a False last entry
-        for misses (geometry -1)."""
+        for misses (geometry -1). ``_geom_swaps[g]``: whether geometry g's outside is opposite its
+        world winding (``_outward_normals``): an instance's under a mirroring transform (the pbrt
+        importer winds ReverseOrientation into the mesh) unless it emits, a light's by
+        ``light_outward_flipped``, so that a light's glass has the inside and outside the same shape
+        has without the light. An emitting instance's outside is its front, the side it emits from
+        (``EmissiveInstance``), as a pbrt shape's normal is both (``DiffuseAreaLight::L``, pbrt-v3
+        ``src/lights/diffuse.h``, pbrt-v4 ``src/pbrt/lights.h``, emits on its side, and the BSDF's
+        frame is built on it): the importer's ``_face_front`` winds that front to the shape's normal."""
         lights = scene.area_lights
         reflecting = np.array([light.material is not None for light in lights], bool)
         self._shaded = np.concatenate([np.ones(self.instance_count, bool), reflecting, [False]])
+        self._geom_swaps = np.linalg.det(self._geom_linear) < 0 if len(self._geom_linear) else np.zeros(0, bool)
+        self._geom_swaps[[light.instance for light in scene.lights if isinstance(light, EmissiveInstance)]] = False
         if not reflecting.any():
             return
         material_index = {id(material): index for index, material in enumerate(self._materials)}
@@ -197,6 +170,7 @@ class PathIntegrator(DirectLighting):
             [self._geom_normal_matrix, np.linalg.inv(np.array(linear).reshape(-1, 3, 3)).transpose(0, 2, 1)]
         ).astype(np.float32)
         self._geom_material = np.concatenate([self._geom_material, material_of]).astype(np.int64)
+        self._geom_swaps = np.concatenate([self._geom_swaps, [light_outward_flipped(light) for light in lights]])
 
     def radiance(self, origin: np.ndarray, direction: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  clock: StageClock | None = None, wavelength_nm: np.ndarray | None = None,
@@ -346,16 +320,13 @@ class PathIntegrator(DirectLighting):
                 return self._footprint(face[rows], geom[rows], direction[rows], ng[rows], t[rows])
 
             bsdf = self.bsdf_factory(self._materials[index], SurfaceParameters(len(rows), uv, footprint, None))
-            total = np.zeros((len(rows), 3), np.float64)
-            for k in range(RHO_SAMPLES):
-                s = bsdf.sample(wo[rows], np.broadcast_to(RHO_U[k], (len(rows), 2)),
-                                np.full(len(rows), _RHO_LOBE[k], np.float32))
-                ok = s.valid & (s.pdf > 0)
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    total += np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))[:, None],
-                                      0.0)
-            rho[rows] = total / RHO_SAMPLES
+            rho[rows] = directional_albedo(bsdf, wo[rows])
         return rho
+
+    def _light_albedo(self, hits: Hits, lit: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
+        """``first_albedo``: the per-geometry tables hold the lights' surfaces (``_add_light_surfaces``),
+        so a light's material is looked up, oriented and filtered as an instance's is."""
+        return self.first_albedo(hits, lit, direction, ng)
 
     def _outward_normals(self, hits: Hits, surface: np.ndarray, face: np.ndarray, bary: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray]:

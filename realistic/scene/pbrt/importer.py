@@ -87,9 +87,10 @@ class _Importer:
         # a mesh file's meshes are stored once (the intersector then builds each once for all its
         # instances): mesh identity -> scene mesh index
         self.mesh_index: dict[int, int] = {}
-        # per mesh index: its object-space area, and its copy wound the other way (emitting quadrics)
+        # per mesh index: its object-space area
         self.object_areas: dict[int, float] = {}
-        self.reversed_meshes: dict[int, int] = {}
+        # mesh identity -> the mesh and its copy turned inside out (``_inside_out``), made once
+        self.inside_out: dict[int, tuple[Mesh, Mesh]] = {}
 
     def warn(self, where: str, message: str) -> None:
         self.parsed.warn(where, message)
@@ -173,7 +174,9 @@ class _Importer:
         self.add_instances(shape, world)
 
     def add_instances(self, shape: ShapeRecord, world: np.ndarray) -> None:
-        """Instances of the shape's meshes under ``world`` (meshes tessellated or loaded once)."""
+        """Instances of the shape's meshes under ``world`` (meshes tessellated or loaded once), under
+        ReverseOrientation of the meshes turned inside out (``_inside_out``), which is what glass
+        tells inside from outside by (``PathIntegrator._outward_normals``)."""
         material = self.material(shape.material)
         if id(shape) not in self.stored:  # tessellate or load once, however often it is instanced
             with np.errstate(all="ignore"):  # extreme sizes: judged by is_sound
@@ -182,7 +185,8 @@ class _Importer:
                 self.warn(shape.where, f'Shape "{shape.type}" whose sizes are too extreme for its triangles, '
                                        f"normals or uv to be computed (skipped)")
                 meshes = []
-            self.stored[id(shape)] = [(self._mesh_index(mesh), local, box_corners(mesh.vertices))
+            self.stored[id(shape)] = [(self._mesh_index(self._inside_out(mesh) if shape.reverse_orientation else mesh),
+                                       local, box_corners(mesh.vertices))
                                       for mesh, local in meshes]
         placed = world @ shape.transform
         if not _is_placeable(placed):
@@ -283,16 +287,14 @@ class _Importer:
         winding's normal flipped by ReverseOrientation xor a handedness-swapping transform; quadric
         shapes (sphere, cone, cylinder) face outward in object space, flipped by ReverseOrientation
         xor the swap, which is the world winding of our outward-wound tessellations flipped by
-        ReverseOrientation alone.
+        ReverseOrientation alone. ``add_instances`` has already turned the mesh inside out under
+        ReverseOrientation (``_inside_out``), so only the rest is left here.
         """
         inst = self.scene.instances[index]
         mesh = self.scene.meshes[inst.mesh]
         linear = np.asarray(inst.transform, np.float64)[:3, :3]
         if shape.type in QUADRICS:  # outward in object space: only ReverseOrientation turns them
-            area = self._area(inst.mesh, linear)
-            if shape.reverse_orientation:
-                self.scene.instances[index] = dataclasses.replace(inst, mesh=self._reversed(inst.mesh))
-            return area
+            return self._area(inst.mesh, linear)
         with np.errstate(all="ignore"):
             corners = (mesh.vertices @ linear.T)[mesh.faces]
             winding = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
@@ -303,7 +305,6 @@ class _Importer:
             flip = np.einsum("ij,ij->i", winding, shading) < 0
         else:
             flip = np.full(len(mesh.faces), bool(np.linalg.det(linear) < 0))
-        flip ^= shape.reverse_orientation
         if np.any(flip):
             faces = np.where(flip[:, None], mesh.faces[:, ::-1], mesh.faces)
             rewound = self.scene.add_mesh(dataclasses.replace(mesh, faces=faces))
@@ -326,12 +327,21 @@ class _Importer:
                 area = triangle_area(mesh.vertices @ linear.T, mesh.faces)
         return area if np.isfinite(area) else np.inf
 
-    def _reversed(self, mesh_index: int) -> int:
-        """The index of mesh ``mesh_index`` with every face's winding reversed, stored once."""
-        if mesh_index not in self.reversed_meshes:
-            mesh = self.scene.meshes[mesh_index]
-            self.reversed_meshes[mesh_index] = self.scene.add_mesh(dataclasses.replace(mesh, faces=mesh.faces[:, ::-1]))
-        return self.reversed_meshes[mesh_index]
+    def _inside_out(self, mesh: Mesh) -> Mesh:
+        """``mesh`` turned inside out, made once per mesh (a mesh file's meshes are shared by
+        shapes): every face's winding reversed and its vertex normals negated, as ReverseOrientation
+        turns a shape. pbrt-v3 and pbrt-v4 hand every shape the ``reverseOrientation`` in effect
+        (``pbrtShape`` in ``src/core/api.cpp``, ``BasicScene::CreateAggregate`` in
+        ``src/pbrt/scene.cpp``); a triangle's or a quadric's normal flips by it (pbrt-v3
+        ``SurfaceInteraction``'s constructor in ``src/core/interaction.cpp``, pbrt-v4
+        ``src/pbrt/shapes.h``), and pbrt-v4's ``TriangleMesh`` (``src/pbrt/util/mesh.cpp``) negates
+        the vertex normals. pbrt-v3 keeps those and turns a triangle's normal toward them, so there
+        ReverseOrientation does not turn a mesh with normals: both dialects follow pbrt-v4 here, as
+        ``_face_front`` does."""
+        if id(mesh) not in self.inside_out:  # the original kept too, so that its identity is not reused
+            normals = None if mesh.normals is None else -mesh.normals
+            self.inside_out[id(mesh)] = (mesh, dataclasses.replace(mesh, faces=mesh.faces[:, ::-1], normals=normals))
+        return self.inside_out[id(mesh)][1]
 
     def run(self) -> Scene:
         for shape in self.parsed.shapes:
