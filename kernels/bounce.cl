@@ -20,7 +20,9 @@
  *     one with rng.uniform at dimensions base + 4 .. 6; on an area light the point on the disk or
  *     quad and the density d^2 / (cos_q A) P_j; a point or spot light's position, I / d^2 (a spot's
  *     times its quartic or smoothstep falloff) and density P_j; a distant light's direction and P_j;
- *     a constant infinite light's direction uniform on the sphere, density P_j / 4 pi; then f and the
+ *     a constant infinite light's direction uniform on the sphere, density P_j / 4 pi, or an
+ *     environment map's by its Distribution2D (map_direction), density P_j p(uv) |d(uv)/d(omega)|
+ *     and radiance times the texel; then f and the
  *     BSDF's pdf, the power heuristic (weight 1 for the delta lights, which no BSDF sample finds),
  *     the contribution beta f L |cos| w / (pdf n), and the shadow ray from the offset origin to the
  *     point, or along the direction to FAR for distant and infinite lights;
@@ -96,6 +98,60 @@ inline float magnitude3(float3 v) { return fmax(fmax(fabs(v.x), fabs(v.y)), fabs
 /* The sign of x as numpy's np.sign: -1, 0 or 1. */
 inline float sign_of(float x) { return x > 0.0f ? 1.0f : (x < 0.0f ? -1.0f : 0.0f); }
 
+/* The cell of u among a piecewise-constant distribution's count cells (the number of CDF entries
+ * <= u, less one, within 0 .. count - 1: Distribution2D.sample's searchsorted) and u's place
+ * within it, in [0, 1]. */
+inline int cdf_cell(__global const float *cdf, int count, float u, float *within) {
+    int cell = max(pick_light(cdf, count + 1, u) - 1, 0);
+    float lo = cdf[cell], hi = cdf[cell + 1];
+    *within = clamp((u - lo) / fmax(hi - lo, 1e-30f), 0.0f, 1.0f);
+    return cell;
+}
+
+/* An environment map's sample (_Environment.sample): (u, v) by the map's Distribution2D from u1
+ * (columns) and u2 (rows), the light-frame direction of a lat-long or equal-area map at uv
+ * (latlong_direction, equal_area_square_to_sphere) turned to the world by its frame; the solid-angle
+ * density (the cell's density times d(uv)/d(omega)) and the cell's texel, which the direction's
+ * nearest-texel lookup reads. */
+inline float3 map_direction(__global const float *light, __global const float *environment, float u1, float u2,
+                            float *density, float3 *texel) {
+    int width = (int)light[BOUNCE_LIGHT_MAP_SIZE], height = (int)light[BOUNCE_LIGHT_MAP_SIZE + 1];
+    __global const float *start = light + BOUNCE_LIGHT_MAP_TABLES;
+    __global const float *row_cdf = environment + (size_t)start[0] * BSDF_TABLE_ALIGN;
+    __global const float *col_cdf = environment + (size_t)start[1] * BSDF_TABLE_ALIGN;
+    __global const float *cells = environment + (size_t)start[2] * BSDF_TABLE_ALIGN;
+    __global const float *texels = environment + (size_t)start[3] * BSDF_TABLE_ALIGN;
+    float du, dv;
+    int row = cdf_cell(row_cdf, height, u2, &dv);
+    int col = cdf_cell(col_cdf + (size_t)row * (width + 1), width, u1, &du);
+    float u = fmin(((float)col + du) / (float)width, 0x1.fffffep-1f);
+    float v = fmin(((float)row + dv) / (float)height, 0x1.fffffep-1f);
+    size_t cell = (size_t)row * width + col;
+    *texel = vload3(cell, texels);
+    float3 w;
+    float jacobian;
+    if ((int)light[BOUNCE_LIGHT_MAPPING] == BOUNCE_MAPPING_LATLONG) {
+        float phi = u * (2.0f * M_PI_F), theta = v * M_PI_F;
+        float s = sin(theta);
+        w = (float3)(s * cos(phi), s * sin(phi), cos(theta));
+        jacobian = s > 0.0f ? 1.0f / (2.0f * M_PI_F * M_PI_F * s) : 0.0f;
+    } else {  /* Clarberg's octahedral equal-area square */
+        float a = 2.0f * u - 1.0f, b = 2.0f * v - 1.0f;
+        float ap = fabs(a), bp = fabs(b);
+        float signed_distance = 1.0f - (ap + bp);
+        float r = 1.0f - fabs(signed_distance);
+        float phi = (r == 0.0f ? 1.0f : (bp - ap) / r + 1.0f) * (0.25f * M_PI_F);
+        float radial = r * __builtin_sqrtf(fmax(0.0f, 2.0f - r * r));
+        w = (float3)(copysign(cos(phi), a) * radial, copysign(sin(phi), b) * radial,
+                     copysign(1.0f - r * r, signed_distance));
+        jacobian = 0.25f * M_1_PI_F;
+    }
+    __global const float *m = light + BOUNCE_LIGHT_FRAME;
+    *density = cells[cell] * jacobian;
+    return normalise3((float3)(m[0] * w.x + m[1] * w.y + m[2] * w.z, m[3] * w.x + m[4] * w.y + m[5] * w.z,
+                               m[6] * w.x + m[7] * w.y + m[8] * w.z));
+}
+
 __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mode_flags, uint max_depth,
                      float offset_base, int light_count,
                      __global const int *rows, __global const int *path, __global const uint *pixel,
@@ -106,7 +162,8 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
                      __global const int *faces, __global const float *normals, __global const float *uvs,
                      __global const int *geom_ints, __global const float *geom_floats,
                      __global const float *params, __global const float *materials,
-                     __global const float *lights, __global const float *cdf, __global const float *tables,
+                     __global const float *lights, __global const float *cdf, __global const float *environment,
+                     __global const float *tables,
                      __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
                      __global float *contribution, __global float *next_origin, __global float *next_direction,
                      __global float *next_beta, __global float *next_point, __global float *next_pdf,
@@ -238,12 +295,19 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
             radiance *= scale;
         } else if (kind == BOUNCE_KIND_DISTANT) {  /* from its direction, a shadow ray to FAR */
             wi = vload3(0, light + BOUNCE_LIGHT_NORMAL);
-        } else {  /* a constant infinite light: uniform over the sphere (_Environment.sample), density 1 / 4 pi */
+        } else if ((int)light[BOUNCE_LIGHT_MAPPING] == BOUNCE_MAPPING_NONE) {
+            /* a constant infinite light: uniform over the sphere (_Environment.sample), density 1 / 4 pi */
             float z = 1.0f - 2.0f * u1;
             float r = __builtin_sqrtf(fmax(0.0f, 1.0f - z * z));
             float phi = 2.0f * M_PI_F * u2;
             wi = (float3)(r * cos(phi), r * sin(phi), z);
             light_pdf = probability * (0.25f * M_1_PI_F);
+        } else {  /* an environment map: its texel and density at a direction from its tables */
+            float density;
+            float3 texel;
+            wi = map_direction(light, environment, u1, u2, &density, &texel);
+            light_pdf = probability * density;
+            radiance *= texel;
         }
         /* no BSDF sample can hit a delta light: its light sample weighs 1 */
         int delta = kind == BOUNCE_KIND_POINT || kind == BOUNCE_KIND_SPOT || kind == BOUNCE_KIND_DISTANT;

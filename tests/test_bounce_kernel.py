@@ -37,6 +37,10 @@ def _spot(falloff: str) -> SpotLight:
                      math.cos(math.radians(25)), falloff)
 
 
+#: An environment map of 16 x 32 texels, bright toward one side, dark in a few texels.
+SKY_IMAGE = (np.random.default_rng(12).random((16, 32, 3)) ** 3 + np.linspace(0.0, 1.0, 32)[None, :, None]
+             ).astype(np.float32)
+SKY_IMAGE[3:5, 7:9] = 0.0
 #: Light sets beside ``textured_scene``'s two area lights (``None``: keep those): each kind the kernel
 #: samples alone, and every kind together.
 LIGHT_SETS = {
@@ -45,8 +49,12 @@ LIGHT_SETS = {
     "spot, smoothstep": [_spot("smoothstep")],
     "distant": [DistantLight((2.0, 1.8, 1.5), np.array([0.3, 1.0, 0.4]) / np.linalg.norm([0.3, 1.0, 0.4]))],
     "infinite": [InfiniteLight((0.5, 0.6, 0.7))],
+    "lat-long map": [InfiniteLight((0.8, 0.7, 0.6), 3 * SKY_IMAGE, "latlong", rotate(-90, (1, 0, 0)))],
+    "equal-area map": [InfiniteLight((0.6, 0.7, 0.8), 3 * SKY_IMAGE[:, :16], "equal-area",
+                                     rotate(30, (0, 1, 0)) @ rotate(-90, (1, 0, 0)))],
     "every kind": [None, PointLight((6.0, 5.0, 4.0), np.array([0.5, 2.5, 1.0])), _spot("smoothstep"),
-                   DistantLight((0.5, 0.5, 0.5), np.array([0.0, 0.6, 0.8])), InfiniteLight((0.2, 0.3, 0.4))]}
+                   DistantLight((0.5, 0.5, 0.5), np.array([0.0, 0.6, 0.8])), InfiniteLight((0.2, 0.3, 0.4)),
+                   InfiniteLight((0.3, 0.3, 0.3), SKY_IMAGE, "latlong")]}
 
 
 def _with_lights(scene: Scene, lights: list) -> Scene:
@@ -171,9 +179,10 @@ def test_bounce_kernel_shades_measured_brdfs_as_the_numpy_reference(three_sample
 @pytest.mark.parametrize("depth", [0, 2])
 @pytest.mark.parametrize("mode, mis", [("path", True), ("direct", False)])
 def test_bounce_kernel_shades_each_hit_under_each_light_as_the_numpy_reference(lights, name, depth, mode, mis):
-    """Point, spot (both falloffs), distant and constant infinite lights, alone and with area lights,
-    per hit as above: the delta lights' samples unweighted, the sky's MIS-weighted, shadow rays to the
-    light's position or along its direction to ``FAR``."""
+    """Point, spot (both falloffs), distant and infinite lights (constant, or a lat-long or
+    equal-area map in a turned frame), alone and with area lights, per hit as above: the delta
+    lights' samples unweighted, the sky's MIS-weighted, shadow rays to the light's position or along
+    its direction to ``FAR``."""
     materials = {"matte": Material((0.7, 0.6, 0.5)), "rough conductor": Conductor(roughness_u=0.3, roughness_v=0.3),
                  "plastic": Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.1)}
     _shades_as_numpy(materials[name], depth, mode, mis, 60 + sorted(LIGHT_SETS).index(lights), LIGHT_SETS[lights])
@@ -319,8 +328,8 @@ def test_convex_object_inside_area_lights_reads_its_albedo(mode, material, albed
 
 def test_the_kernel_takes_scenes_without_lights_and_leaves_other_lights_to_numpy():
     """No light (nothing to sample: the camera rays' misses see the background, the rest is black,
-    as on the numpy backend); point, spot, distant and constant infinite lights are the kernel's, an
-    environment map and an emitting instance (not sampled in the kernel) the numpy bounce's."""
+    as on the numpy backend); point, spot, distant and infinite lights are the kernel's, an emitting
+    instance (not sampled in the kernel) the numpy bounce's."""
     scene = _scene(Material((0.5, 0.5, 0.5)))
     scene.lights = []
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, "path", backend="opencl")
@@ -331,9 +340,8 @@ def test_the_kernel_takes_scenes_without_lights_and_leaves_other_lights_to_numpy
     assert np.array_equal(radiance, np.where((hits.geom < 0)[:, None], np.float32(scene.background), 0))
     _with_lights(scene, LIGHT_SETS["every kind"][1:])
     assert PathIntegrator(scene, Intersector(scene), backend="opencl")._bounce is not None
-    for other in (InfiniteLight((1.0, 1.0, 1.0), np.ones((4, 8, 3), np.float32)), EmissiveInstance(1, (1.0, 1.0, 1.0))):
-        scene.lights = [PointLight((5.0, 5.0, 5.0), np.array([0.0, 2.0, 0.0])), other]
-        assert PathIntegrator(scene, Intersector(scene), backend="opencl")._bounce is None
+    scene.lights.append(EmissiveInstance(1, (1.0, 1.0, 1.0)))
+    assert PathIntegrator(scene, Intersector(scene), backend="opencl")._bounce is None
 
 
 @pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
@@ -390,15 +398,18 @@ def test_a_lambertian_plane_reads_the_closed_form_under_point_spot_and_distant_l
 @pytest.mark.parametrize("material, albedo", [
     (Material((0.7, 0.7, 0.7)), 0.7), (Conductor((1.0,) * 3, (1e4,) * 3, 0.0, 0.0), 1.0),
     (Mix(Material((0.7, 0.7, 0.7)), Conductor((1.0,) * 3, (1e4,) * 3, 0.0, 0.0), 0.25), 0.775)])
-def test_convex_object_under_a_uniform_sky_reads_its_albedo_times_the_sky(mode, material, albedo):
-    """Under a constant infinite light of radiance L, every point of a convex object sees the whole
-    sky: a Lambertian of albedo a reads a L, a smooth perfect conductor L, a mix of the two
-    (0.75 a + 0.25) L (the sky's light samples and the BSDF samples that escape to it weighted by MIS,
-    on the kernel)."""
+@pytest.mark.parametrize("image, mapping", [(None, "latlong"), (np.ones((8, 16, 3), np.float32), "latlong"),
+                                            (np.ones((8, 8, 3), np.float32), "equal-area")])
+def test_convex_object_under_a_uniform_sky_reads_its_albedo_times_the_sky(mode, material, albedo, image, mapping):
+    """Under a uniform infinite light of radiance L (constant, or a map of ones sampled by its
+    tables: by sin(theta) over a lat-long map's rows), every point of a convex object sees the
+    whole sky: a Lambertian of albedo a reads a L, a smooth perfect conductor L, a mix of the two
+    (0.75 a + 0.25) L (the sky's light samples and the BSDF samples that escape to it weighted by
+    MIS, on the kernel)."""
     sky = 0.8
     scene = Scene()
     scene.add(sphere(1.0, 48), np.eye(4), material)
-    scene.lights.append(InfiniteLight((sky, sky, sky)))
+    scene.lights.append(InfiniteLight((sky, sky, sky), image, mapping, rotate(40, (1, 1, 0))))
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
     assert integrator._bounce is not None and integrator._bounce.covered.all()
     rng = np.random.default_rng(1)
