@@ -22,17 +22,16 @@
  *     times its quartic or smoothstep falloff) and density P_j; a distant light's direction and P_j;
  *     a constant infinite light's direction uniform on the sphere, density P_j / 4 pi, or an
  *     environment map's by its Distribution2D (map_direction), density P_j p(uv) |d(uv)/d(omega)|
- *     and radiance times the texel; then f and the
- *     BSDF's pdf, the power heuristic (weight 1 for the delta lights, which no BSDF sample finds),
- *     the contribution beta f L |cos| w / (pdf n), and the shadow ray from the offset origin to the
- *     point, or along the direction to FAR for distant and infinite lights;
+ *     and radiance times the texel; then f and the BSDF's pdf, the power heuristic (weight 1 for
+ *     the delta lights, which no BSDF sample finds), the contribution beta f L |cos| w / (pdf n),
+ *     and the shadow ray from the offset origin to the point, or along the direction to FAR for
+ *     distant and infinite lights;
  *   - one BSDF sample (bsdf_sample) with rng.uniform at base .. base + 2, the throughput, Russian
  *     roulette (path mode, depth >= ROULETTE_AFTER, rng.uniform at base + 3) or the direct mode's
  *     rule, and the next ray from the offset origin.
  * Outputs, light sample k of hit i at row k * m + i: shadow origin and vector (3 floats each), its
  * length (1 - 1e-4 in units of the vector, FAR along a direction) or -1 for a dead sample (embree
- * skips it), contribution (3
- * floats, 0 when dead). Per hit: the next origin, direction, beta, the point (3 floats each), the
+ * skips it), contribution (3 floats, 0 when dead). Per hit: the next origin, direction, beta, the point (3 floats each), the
  * sample's pdf and flags (bit 0 the path goes on, bit 1 specular, bit 2 shade its next hit).
  * Square roots and floors here are __builtin_sqrtf and __builtin_floorf (LLVM intrinsics, correctly
  * rounded as numpy's float32 ones), not the OpenCL library's calls, as in kernels/shade.cl.

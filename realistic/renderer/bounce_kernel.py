@@ -157,7 +157,7 @@ def light_rows(lights: LightSampler) -> tuple[np.ndarray, np.ndarray]:
     size = 0
     for i, env in lights.environments.items():
         frame[i] = np.asarray(env.light.light_to_world, np.float64)[:3, :3].ravel()
-        if env.distribution is not None and env.light.image is not None:
+        if env.distribution is not None:  # a map
             row_cdf, col_cdf = env.distribution.cdfs
             mapping[i] = MAPPINGS.index(env.light.mapping.replace("-", "_"))
             map_size[i] = env.distribution.width, env.distribution.height
