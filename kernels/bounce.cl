@@ -15,17 +15,23 @@
  *     texture at the interpolated uv (realistic.scene.textures.evaluate) where BOUNCE_MATERIAL says so,
  *     or, for an image texture, the hit's albedo the host filtered before the launch (`albedo`, one
  *     RGB per hit: EwaKernel.at_hits);
- *   - light samples (area lights only, picked by the rounded-up CDF as numpy's searchsorted picks):
+ *   - light samples (picked by the rounded-up CDF as numpy's searchsorted picks; LightSampler.sample):
  *     at depth 0 light_samples of them with the pixel's Sobol' numbers (rng.all_light_uniforms), else
- *     one with rng.uniform at dimensions base + 4 .. 6; the point on the disk or quad, the density
- *     d^2 / (cos_q A) P_j, f and the BSDF's pdf, the power heuristic, the contribution
- *     beta f L |cos| w / (pdf n), and the shadow ray from the offset origin to the point;
+ *     one with rng.uniform at dimensions base + 4 .. 6; on an area light the point on the disk or
+ *     quad and the density d^2 / (cos_q A) P_j; a point or spot light's position, I / d^2 (a spot's
+ *     times its quartic or smoothstep falloff) and density P_j; a distant light's direction and P_j;
+ *     a constant infinite light's direction uniform on the sphere, density P_j / 4 pi, or an
+ *     environment map's by its Distribution2D (map_direction), density P_j p(uv) |d(uv)/d(omega)|
+ *     and radiance times the texel; then f and the BSDF's pdf, the power heuristic (weight 1 for
+ *     the delta lights, which no BSDF sample finds), the contribution beta f L |cos| w / (pdf n),
+ *     and the shadow ray from the offset origin to the point, or along the direction to FAR for
+ *     distant and infinite lights;
  *   - one BSDF sample (bsdf_sample) with rng.uniform at base .. base + 2, the throughput, Russian
  *     roulette (path mode, depth >= ROULETTE_AFTER, rng.uniform at base + 3) or the direct mode's
  *     rule, and the next ray from the offset origin.
  * Outputs, light sample k of hit i at row k * m + i: shadow origin and vector (3 floats each), its
- * length 1 - 1e-4 in units of the vector or -1 for a dead sample (embree skips it), contribution (3
- * floats, 0 when dead). Per hit: the next origin, direction, beta, the point (3 floats each), the
+ * length (1 - 1e-4 in units of the vector, FAR along a direction) or -1 for a dead sample (embree
+ * skips it), contribution (3 floats, 0 when dead). Per hit: the next origin, direction, beta, the point (3 floats each), the
  * sample's pdf and flags (bit 0 the path goes on, bit 1 specular, bit 2 shade its next hit).
  * Square roots and floors here are __builtin_sqrtf and __builtin_floorf (LLVM intrinsics, correctly
  * rounded as numpy's float32 ones), not the OpenCL library's calls, as in kernels/shade.cl.
@@ -36,6 +42,7 @@
 #define GOLDEN 0x9E3779B9u
 #define SHADOW_OFFSET 1e-4f
 #define SHADOW_LENGTH 0.9999f
+#define FAR 1e30f
 
 /* realistic.core.rng.uniform at dimension dim, from the sample's key hash32(hash32(hash32(seed +
  * GOLDEN) ^ pixel) ^ sample): the top 24 bits of hash32(key ^ dim). */
@@ -90,6 +97,60 @@ inline float magnitude3(float3 v) { return fmax(fmax(fabs(v.x), fabs(v.y)), fabs
 /* The sign of x as numpy's np.sign: -1, 0 or 1. */
 inline float sign_of(float x) { return x > 0.0f ? 1.0f : (x < 0.0f ? -1.0f : 0.0f); }
 
+/* The cell of u among a piecewise-constant distribution's count cells (the number of CDF entries
+ * <= u, less one, within 0 .. count - 1: Distribution2D.sample's searchsorted) and u's place
+ * within it, in [0, 1]. */
+inline int cdf_cell(__global const float *cdf, int count, float u, float *within) {
+    int cell = max(pick_light(cdf, count + 1, u) - 1, 0);
+    float lo = cdf[cell], hi = cdf[cell + 1];
+    *within = clamp((u - lo) / fmax(hi - lo, 1e-30f), 0.0f, 1.0f);
+    return cell;
+}
+
+/* An environment map's sample (_Environment.sample): (u, v) by the map's Distribution2D from u1
+ * (columns) and u2 (rows), the light-frame direction of a lat-long or equal-area map at uv
+ * (latlong_direction, equal_area_square_to_sphere) turned to the world by its frame; the solid-angle
+ * density (the cell's density times d(uv)/d(omega)) and the cell's texel, which the direction's
+ * nearest-texel lookup reads. */
+inline float3 map_direction(__global const float *light, __global const float *environment, float u1, float u2,
+                            float *density, float3 *texel) {
+    int width = (int)light[BOUNCE_LIGHT_MAP_SIZE], height = (int)light[BOUNCE_LIGHT_MAP_SIZE + 1];
+    __global const float *start = light + BOUNCE_LIGHT_MAP_TABLES;
+    __global const float *row_cdf = environment + (size_t)start[0] * BSDF_TABLE_ALIGN;
+    __global const float *col_cdf = environment + (size_t)start[1] * BSDF_TABLE_ALIGN;
+    __global const float *cells = environment + (size_t)start[2] * BSDF_TABLE_ALIGN;
+    __global const float *texels = environment + (size_t)start[3] * BSDF_TABLE_ALIGN;
+    float du, dv;
+    int row = cdf_cell(row_cdf, height, u2, &dv);
+    int col = cdf_cell(col_cdf + (size_t)row * (width + 1), width, u1, &du);
+    float u = fmin(((float)col + du) / (float)width, 0x1.fffffep-1f);
+    float v = fmin(((float)row + dv) / (float)height, 0x1.fffffep-1f);
+    size_t cell = (size_t)row * width + col;
+    *texel = vload3(cell, texels);
+    float3 w;
+    float jacobian;
+    if ((int)light[BOUNCE_LIGHT_MAPPING] == BOUNCE_MAPPING_LATLONG) {
+        float phi = u * (2.0f * M_PI_F), theta = v * M_PI_F;
+        float s = sin(theta);
+        w = (float3)(s * cos(phi), s * sin(phi), cos(theta));
+        jacobian = s > 0.0f ? 1.0f / (2.0f * M_PI_F * M_PI_F * s) : 0.0f;
+    } else {  /* Clarberg's octahedral equal-area square */
+        float a = 2.0f * u - 1.0f, b = 2.0f * v - 1.0f;
+        float ap = fabs(a), bp = fabs(b);
+        float signed_distance = 1.0f - (ap + bp);
+        float r = 1.0f - fabs(signed_distance);
+        float phi = (r == 0.0f ? 1.0f : (bp - ap) / r + 1.0f) * (0.25f * M_PI_F);
+        float radial = r * __builtin_sqrtf(fmax(0.0f, 2.0f - r * r));
+        w = (float3)(copysign(cos(phi), a) * radial, copysign(sin(phi), b) * radial,
+                     copysign(1.0f - r * r, signed_distance));
+        jacobian = 0.25f * M_1_PI_F;
+    }
+    __global const float *m = light + BOUNCE_LIGHT_FRAME;
+    *density = cells[cell] * jacobian;
+    return normalise3((float3)(m[0] * w.x + m[1] * w.y + m[2] * w.z, m[3] * w.x + m[4] * w.y + m[5] * w.z,
+                               m[6] * w.x + m[7] * w.y + m[8] * w.z));
+}
+
 __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mode_flags, uint max_depth,
                      float offset_base, int light_count,
                      __global const int *rows, __global const int *path, __global const uint *pixel,
@@ -100,7 +161,8 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
                      __global const int *faces, __global const float *normals, __global const float *uvs,
                      __global const int *geom_ints, __global const float *geom_floats,
                      __global const float *params, __global const float *materials,
-                     __global const float *lights, __global const float *cdf, __global const float *tables,
+                     __global const float *lights, __global const float *cdf, __global const float *environment,
+                     __global const float *tables,
                      __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
                      __global float *contribution, __global float *next_origin, __global float *next_direction,
                      __global float *next_beta, __global float *next_point, __global float *next_pdf,
@@ -187,37 +249,81 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
             u2 = uniform_at(key, base + 6);
         }
         __global const float *light = lights + BOUNCE_LIGHT_WIDTH * pick_light(cdf, light_count, u_pick);
-        float x, y;
-        if (light[BOUNCE_LIGHT_DISK] != 0.0f) {
-            concentric_disk(u1, u2, &x, &y);
-        } else {
-            x = 2.0f * u1 - 1.0f;
-            y = 2.0f * u2 - 1.0f;
-        }
-        float3 target = vload3(0, light + BOUNCE_LIGHT_CENTRE) + vload3(0, light + BOUNCE_LIGHT_A) * x
-                        + vload3(0, light + BOUNCE_LIGHT_B) * y;
-        float3 to_light = target - point;
-        float d2 = dot3(to_light, to_light);
-        float3 wi = to_light / __builtin_sqrtf(fmax(d2, 1e-30f));
-        float cos_q = -dot3(wi, vload3(0, light + BOUNCE_LIGHT_NORMAL));
-        if (light[BOUNCE_LIGHT_TWO_SIDED] != 0.0f) cos_q = fabs(cos_q);
-        int ok = cos_q > 0.0f && d2 > 0.0f;
-        float light_pdf = ok ? d2 / (cos_q * light[BOUNCE_LIGHT_AREA]) * light[BOUNCE_LIGHT_PROBABILITY] : 0.0f;
+        int kind = (int)light[BOUNCE_LIGHT_KIND];
         float3 radiance = vload3(0, light + BOUNCE_LIGHT_RADIANCE);
-        int valid = light_pdf > 0.0f && ok && (radiance.x != 0.0f || radiance.y != 0.0f || radiance.z != 0.0f);
+        float probability = light[BOUNCE_LIGHT_PROBABILITY];
+        float3 wi, target = (float3)(0.0f);
+        float light_pdf = probability;  /* a delta light's: its pick probability */
+        int far = kind == BOUNCE_KIND_DISTANT || kind == BOUNCE_KIND_INFINITE;
+        if (kind == BOUNCE_KIND_AREA) {  /* LightSampler._sample_areas: by area on the disk or quad */
+            float x, y;
+            if (light[BOUNCE_LIGHT_DISK] != 0.0f) {
+                concentric_disk(u1, u2, &x, &y);
+            } else {
+                x = 2.0f * u1 - 1.0f;
+                y = 2.0f * u2 - 1.0f;
+            }
+            target = vload3(0, light + BOUNCE_LIGHT_CENTRE) + vload3(0, light + BOUNCE_LIGHT_A) * x
+                     + vload3(0, light + BOUNCE_LIGHT_B) * y;
+            float3 to_light = target - point;
+            float d2 = dot3(to_light, to_light);
+            wi = to_light / __builtin_sqrtf(fmax(d2, 1e-30f));
+            float cos_q = -dot3(wi, vload3(0, light + BOUNCE_LIGHT_NORMAL));
+            if (light[BOUNCE_LIGHT_TWO_SIDED] != 0.0f) cos_q = fabs(cos_q);
+            int ok = cos_q > 0.0f && d2 > 0.0f;
+            light_pdf = ok ? d2 / (cos_q * light[BOUNCE_LIGHT_AREA]) * probability : 0.0f;
+        } else if (kind == BOUNCE_KIND_POINT || kind == BOUNCE_KIND_SPOT) {
+            /* I / d^2 toward the light's position, a spot's times its falloff (SpotLight.falloff) */
+            target = vload3(0, light + BOUNCE_LIGHT_CENTRE);
+            float3 to_light = target - point;
+            float d2 = dot3(to_light, to_light);
+            wi = to_light / __builtin_sqrtf(fmax(d2, 1e-30f));
+            float scale = 1.0f / fmax(d2, 1e-30f);
+            if (kind == BOUNCE_KIND_SPOT) {
+                /* the cosine to the cone's axis of -wi in the light's frame */
+                __global const float *frame = light + BOUNCE_LIGHT_FRAME;
+                float3 in_frame = -(float3)(frame[0] * wi.x + frame[1] * wi.y + frame[2] * wi.z,
+                                         frame[3] * wi.x + frame[4] * wi.y + frame[5] * wi.z,
+                                         frame[6] * wi.x + frame[7] * wi.y + frame[8] * wi.z);
+                float cos_axis = in_frame.z / fmax(__builtin_sqrtf(dot3(in_frame, in_frame)), 1e-30f);
+                float cos_total = light[BOUNCE_LIGHT_COS_TOTAL], span = light[BOUNCE_LIGHT_SPAN];
+                float t = span > 0.0f ? clamp((cos_axis - cos_total) / span, 0.0f, 1.0f)
+                                      : (cos_axis >= cos_total ? 1.0f : 0.0f);
+                scale *= light[BOUNCE_LIGHT_SMOOTHSTEP] != 0.0f ? t * t * (3.0f - 2.0f * t) : (t * t) * (t * t);
+            }
+            radiance *= scale;
+        } else if (kind == BOUNCE_KIND_DISTANT) {  /* from its direction, a shadow ray to FAR */
+            wi = vload3(0, light + BOUNCE_LIGHT_NORMAL);
+        } else if ((int)light[BOUNCE_LIGHT_MAPPING] == BOUNCE_MAPPING_NONE) {
+            /* a constant infinite light: uniform over the sphere (_Environment.sample), density 1 / 4 pi */
+            float z = 1.0f - 2.0f * u1;
+            float r = __builtin_sqrtf(fmax(0.0f, 1.0f - z * z));
+            float phi = 2.0f * M_PI_F * u2;
+            wi = (float3)(r * cos(phi), r * sin(phi), z);
+            light_pdf = probability * (0.25f * M_1_PI_F);
+        } else {  /* an environment map: its texel and density at a direction from its tables */
+            float density;
+            float3 texel;
+            wi = map_direction(light, environment, u1, u2, &density, &texel);
+            light_pdf = probability * density;
+            radiance *= texel;
+        }
+        /* no BSDF sample can hit a delta light: its light sample weighs 1 */
+        int delta = kind == BOUNCE_KIND_POINT || kind == BOUNCE_KIND_SPOT || kind == BOUNCE_KIND_DISTANT;
+        int valid = light_pdf > 0.0f && (radiance.x != 0.0f || radiance.y != 0.0f || radiance.z != 0.0f);
         float3 light_wi = (float3)(dot3(wi, fs), dot3(wi, ft), dot3(wi, shading));
         float bsdf_pdf;
         float3 f = bsdf_eval(&p, wo, light_wi, &bsdf_pdf);
         float side_g = dot3(wi, ng);
         int usable = valid && side_g * light_wi.z > 0.0f;
-        float weight = mis ? power_heuristic(n_light * light_pdf, bsdf_pdf) : 1.0f;
+        float weight = mis && !delta ? power_heuristic(n_light * light_pdf, bsdf_pdf) : 1.0f;
         float scale = usable ? fabs(light_wi.z) * weight / (light_pdf * n_light) : 0.0f;
         float3 c = beta * f * radiance * scale;
         int live = c.x != 0.0f || c.y != 0.0f || c.z != 0.0f;
         float3 start = point + ng * eps * sign_of(side_g);
         vstore3(live ? start : (float3)(0.0f), o, shadow_origin);
-        vstore3(live ? target - start : (float3)(0.0f), o, shadow_vector);
-        shadow_length[o] = live ? SHADOW_LENGTH : -1.0f;
+        vstore3(live ? (far ? wi : target - start) : (float3)(0.0f), o, shadow_vector);
+        shadow_length[o] = live ? (far ? FAR : SHADOW_LENGTH) : -1.0f;
         vstore3(live ? c : (float3)(0.0f), o, contribution);
     }
 

@@ -1,7 +1,9 @@
 """kernels/bounce.cl (the path integrator's fused bounce) against the numpy ``PathIntegrator._shade``
-(the reference) per hit with the same random numbers, for every material the kernel covers; which
-materials it covers; whole paths equal to the numpy backend's; and an area-light furnace."""
+(the reference) per hit with the same random numbers, for every material and every kind of light the
+kernel covers; which materials and lights it covers; whole paths equal to the numpy backend's; an
+area-light and a sky furnace; and a plane's closed-form radiance under point, spot and distant lights."""
 
+import math
 import re
 from dataclasses import replace
 
@@ -12,10 +14,10 @@ from realistic.core.data_files import data_file
 from realistic.core.transforms import rotate, scale, translate
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
-from realistic.scene.lights import PointLight
+from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, SpotLight
 from realistic.scene.materials import Conductor, Dielectric, DiffuseTransmission, Mix, Plastic
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene
-from realistic.scene.shapes import sphere
+from realistic.scene.shapes import quad, sphere
 from test_bsdf_kernel import COVERED, three_samples  # noqa: F401 (a fixture)
 from test_shading_reference import textured_scene
 
@@ -29,10 +31,46 @@ from realistic.renderer.bsdf_kernel import TableStore  # noqa: E402
 N = 6000
 
 
-def _scene(material) -> Scene:
+def _spot(falloff: str) -> SpotLight:
+    """A spot light 3 above the floor pointing down, its cone 35 degrees wide, falling off from 25."""
+    return SpotLight((40.0, 35.0, 30.0), translate(0.2, 3.0, 0.3) @ rotate(90, (1, 0, 0)), math.cos(math.radians(35)),
+                     math.cos(math.radians(25)), falloff)
+
+
+#: An environment map of 16 x 32 texels, bright toward one side, dark in a few texels.
+SKY_IMAGE = (np.random.default_rng(12).random((16, 32, 3)) ** 3 + np.linspace(0.0, 1.0, 32)[None, :, None]
+             ).astype(np.float32)
+SKY_IMAGE[3:5, 7:9] = 0.0
+#: Light sets beside ``textured_scene``'s two area lights (``None``: keep those): each kind the kernel
+#: samples alone, and every kind together.
+LIGHT_SETS = {
+    "point": [PointLight((6.0, 5.0, 4.0), np.array([0.5, 2.5, 1.0]))],
+    "spot, quartic": [_spot("quartic")],
+    "spot, smoothstep": [_spot("smoothstep")],
+    "distant": [DistantLight((2.0, 1.8, 1.5), np.array([0.3, 1.0, 0.4]) / np.linalg.norm([0.3, 1.0, 0.4]))],
+    "infinite": [InfiniteLight((0.5, 0.6, 0.7))],
+    "lat-long map": [InfiniteLight((0.8, 0.7, 0.6), 3 * SKY_IMAGE, "latlong", rotate(-90, (1, 0, 0)))],
+    "equal-area map": [InfiniteLight((0.6, 0.7, 0.8), 3 * SKY_IMAGE[:, :16], "equal-area",
+                                     rotate(30, (0, 1, 0)) @ rotate(-90, (1, 0, 0)))],
+    "every kind": [None, PointLight((6.0, 5.0, 4.0), np.array([0.5, 2.5, 1.0])), _spot("smoothstep"),
+                   DistantLight((0.5, 0.5, 0.5), np.array([0.0, 0.6, 0.8])), InfiniteLight((0.2, 0.3, 0.4)),
+                   InfiniteLight((0.3, 0.3, 0.3), SKY_IMAGE, "latlong")]}
+
+
+def _with_lights(scene: Scene, lights: list) -> Scene:
+    """``scene`` with ``lights`` in place of its own (a ``None`` entry keeps its own there)."""
+    own = scene.lights
+    scene.lights = [light for entry in lights for light in (own if entry is None else [entry])]
+    return scene
+
+
+def _scene(material, lights: list | None = None) -> Scene:
     """``textured_scene`` with its sphere, cone and quad made of ``material`` and a mirrored copy of
-    the sphere (a transform that swaps handedness) added; the floor keeps its EWA-filtered image."""
+    the sphere (a transform that swaps handedness) added; the floor keeps its EWA-filtered image;
+    ``lights`` (``LIGHT_SETS``) in place of its area lights."""
     scene, _, _ = textured_scene()
+    if lights is not None:
+        _with_lights(scene, lights)
     scene.instances = scene.instances[:1] + [replace(inst, material=material) for inst in scene.instances[1:]]
     scene.add(scene.instances[1].mesh, translate(-0.2, 0.5, 1.0) @ scale(-0.5, 0.5, 0.5), material)
     return scene
@@ -137,9 +175,23 @@ def test_bounce_kernel_shades_measured_brdfs_as_the_numpy_reference(three_sample
         _shades_as_numpy(material, depth, "path", True, 40 + seed)
 
 
-def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int) -> None:
-    """The per-hit comparison of the kernel and ``_shade`` on ``_scene(material)`` (rays from ``seed``)."""
-    scene = _scene(material)
+@pytest.mark.parametrize("lights", sorted(LIGHT_SETS))
+@pytest.mark.parametrize("name", ["matte", "rough conductor", "plastic"])
+@pytest.mark.parametrize("depth", [0, 2])
+@pytest.mark.parametrize("mode, mis", [("path", True), ("direct", False)])
+def test_bounce_kernel_shades_each_hit_under_each_light_as_the_numpy_reference(lights, name, depth, mode, mis):
+    """Point, spot (both falloffs), distant and infinite lights (constant, or a lat-long or
+    equal-area map in a turned frame), alone and with area lights, per hit as above: the delta
+    lights' samples unweighted, the sky's MIS-weighted, shadow rays to the light's position or along
+    its direction to ``FAR``."""
+    materials = {"matte": Material((0.7, 0.6, 0.5)), "rough conductor": Conductor(roughness_u=0.3, roughness_v=0.3),
+                 "plastic": Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.1)}
+    _shades_as_numpy(materials[name], depth, mode, mis, 60 + sorted(LIGHT_SETS).index(lights), LIGHT_SETS[lights])
+
+
+def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int, lights: list | None = None) -> None:
+    """The per-hit comparison of the kernel and ``_shade`` on ``_scene(material, lights)`` (rays from ``seed``)."""
+    scene = _scene(material, lights)
     numpy_one, device_one = _pair(scene, mode, mis, spread=SPREAD)
     origin, direction, hits = _rays(scene, N, seed)
     on_instance = (hits.geom >= 0) & (hits.geom < device_one.instance_count)
@@ -174,6 +226,7 @@ def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int) -> N
         at_ref = order[np.searchsorted(rows, both)]
         assert np.allclose(got.shadow_origin[at_mine], shadow["start"][at_ref], atol=1e-4)
         assert np.allclose(got.shadow_vector[at_mine], shadow["vector"][at_ref], atol=2e-4, rtol=1e-4)
+        assert np.array_equal(got.shadow_length[at_mine], shadow["length"][at_ref])
     # the next rays
     goes = (got.flags & GOES_ON) != 0
     next_path = path[surface][goes]
@@ -275,7 +328,8 @@ def test_convex_object_inside_area_lights_reads_its_albedo(mode, material, albed
 
 def test_the_kernel_takes_scenes_without_lights_and_leaves_other_lights_to_numpy():
     """No light (nothing to sample: the camera rays' misses see the background, the rest is black,
-    as on the numpy backend), and a point light (not an area light: the numpy bounce)."""
+    as on the numpy backend); point, spot, distant and infinite lights are the kernel's, an emitting
+    instance (not sampled in the kernel) the numpy bounce's."""
     scene = _scene(Material((0.5, 0.5, 0.5)))
     scene.lights = []
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, "path", backend="opencl")
@@ -284,5 +338,86 @@ def test_the_kernel_takes_scenes_without_lights_and_leaves_other_lights_to_numpy
     radiance, shadows = integrator.radiance(origin, direction, np.arange(500), np.zeros(500, int))
     assert shadows == 0 and np.any(hits.geom >= 0)
     assert np.array_equal(radiance, np.where((hits.geom < 0)[:, None], np.float32(scene.background), 0))
-    scene.lights = [PointLight((5.0, 5.0, 5.0), np.array([0.0, 2.0, 0.0]))]
+    _with_lights(scene, LIGHT_SETS["every kind"][1:])
+    assert PathIntegrator(scene, Intersector(scene), backend="opencl")._bounce is not None
+    scene.lights.append(EmissiveInstance(1, (1.0, 1.0, 1.0)))
     assert PathIntegrator(scene, Intersector(scene), backend="opencl")._bounce is None
+
+
+@pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
+def test_paths_under_every_kind_of_light_carry_the_numpy_radiance(mode, mis):
+    """Whole paths (depth 5, two light samples) under area, point, spot, distant and constant
+    infinite lights together, over glass, a rough conductor, plastic and textured Lambertians: each
+    ray's radiance is the numpy backend's to float32 rounding, escaping rays seeing the sky weighted
+    by MIS against its light samples as in numpy."""
+    scene = _with_lights(textured_scene()[0], LIGHT_SETS["every kind"])
+    materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05), Material((0.3, 0.6, 0.9),
+                                                                                             sigma=20.0)]
+    scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
+    scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
+    numpy_one, device_one = _pair(scene, mode, mis, light_samples=2)
+    assert device_one._bounce.covered.all()
+    _paths_agree(scene, numpy_one, device_one, 7)
+
+
+@pytest.mark.parametrize("mode", ["path", "direct"])
+def test_a_lambertian_plane_reads_the_closed_form_under_point_spot_and_distant_lights(mode):
+    """A Lambertian floor of albedo a, each light alone, on the kernel (no noise: delta lights, and
+    nothing else to reach): under a point light of intensity I at height h, at distance x from its
+    foot, radiance a I h / (pi d^3) with d^2 = h^2 + x^2 (a I / (pi h^2) at the foot); a spot light
+    there pointing down the same times pbrt-v3's quartic falloff of the angle from its axis; a
+    distant light of radiance E at 30 degrees from the zenith a E cos 30 / pi everywhere."""
+    a, intensity, h = 0.6, 5.0, 2.0
+    x = np.array([0.0, 0.5, 1.0, 1.5, 2.0])  # 0, 14, 27, 37 and 45 degrees from the spot's axis
+    d = np.hypot(h, x)
+    point = a * intensity * h / (math.pi * d ** 3)
+    cos_total, cos_start = math.cos(math.radians(40)), math.cos(math.radians(20))
+    falloff = np.clip((h / d - cos_total) / (cos_start - cos_total), 0.0, 1.0) ** 4
+    assert falloff[0] == 1 and 0 < falloff[2] < 1 and falloff[-1] == 0
+    tilt = math.radians(30)
+    cases = [(PointLight((intensity,) * 3, np.array([0.0, h, 0.0])), point),
+             (SpotLight((intensity,) * 3, translate(0.0, h, 0.0) @ rotate(90, (1, 0, 0)), cos_total, cos_start),
+              point * falloff),
+             (DistantLight((intensity,) * 3, np.array([math.sin(tilt), math.cos(tilt), 0.0])),
+              np.full(len(x), a * intensity * math.cos(tilt) / math.pi))]
+    target = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    origin = (target + np.array([-0.3, 3.0, 2.0])).astype(np.float32)
+    direction = (target - origin) / np.linalg.norm(target - origin, axis=1, keepdims=True)
+    for light, expected in cases:
+        scene = Scene()
+        scene.add(quad(40.0, 40.0), rotate(-90, (1, 0, 0)), Material((a, a, a)))
+        scene.lights = [light]
+        integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
+        assert integrator._bounce is not None and integrator._bounce.covered.all()
+        radiance, _ = integrator.radiance(origin, direction.astype(np.float32), np.arange(len(x)),
+                                          np.zeros(len(x), int))
+        assert np.allclose(radiance, expected[:, None], rtol=1e-4, atol=1e-7), (light, radiance[:, 0], expected)
+
+
+@pytest.mark.parametrize("mode", ["direct", "path"])
+@pytest.mark.parametrize("material, albedo", [
+    (Material((0.7, 0.7, 0.7)), 0.7), (Conductor((1.0,) * 3, (1e4,) * 3, 0.0, 0.0), 1.0),
+    (Mix(Material((0.7, 0.7, 0.7)), Conductor((1.0,) * 3, (1e4,) * 3, 0.0, 0.0), 0.25), 0.775)])
+@pytest.mark.parametrize("image, mapping", [(None, "latlong"), (np.ones((8, 16, 3), np.float32), "latlong"),
+                                            (np.ones((8, 8, 3), np.float32), "equal-area")])
+def test_convex_object_under_a_uniform_sky_reads_its_albedo_times_the_sky(mode, material, albedo, image, mapping):
+    """Under a uniform infinite light of radiance L (constant, or a map of ones sampled by its
+    tables: by sin(theta) over a lat-long map's rows), every point of a convex object sees the
+    whole sky: a Lambertian of albedo a reads a L, a smooth perfect conductor L, a mix of the two
+    (0.75 a + 0.25) L (the sky's light samples and the BSDF samples that escape to it weighted by
+    MIS, on the kernel)."""
+    sky = 0.8
+    scene = Scene()
+    scene.add(sphere(1.0, 48), np.eye(4), material)
+    scene.lights.append(InfiniteLight((sky, sky, sky), image, mapping, rotate(40, (1, 1, 0))))
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
+    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    rng = np.random.default_rng(1)
+    origin = np.tile(np.float32([[0.0, 0.0, 3.0]]), (N, 1))
+    target = rng.uniform(-0.5, 0.5, (N, 3)) * np.array([1.0, 1.0, 0.0])
+    direction = target - origin
+    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
+    value = radiance[:, 0].astype(np.float64)
+    error = value.std() / np.sqrt(N)
+    assert abs(value.mean() - albedo * sky) < 4 * error + 2e-3, (value.mean(), error)

@@ -29,6 +29,12 @@ class Distribution2D:
         # row r's CDF shifted to [r, r + 1]: one searchsorted finds every point's column
         self._flat_cdf = (self._col_cdf + np.arange(self.height)[:, None]).ravel()
 
+    @property
+    def cdfs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The marginal CDF over rows (H + 1,) and each row's conditional CDF over columns (H, W + 1),
+        each from 0 to 1: what ``sample`` inverts (for a kernel that samples as it does)."""
+        return self._row_cdf, self._col_cdf
+
     def sample(self, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points (N, 2) as (u, v) from uniform u1 (columns) and u2 (rows), and their densities (N,)."""
         u1, u2 = np.asarray(u1, np.float64), np.asarray(u2, np.float64)

@@ -3,21 +3,22 @@
 ``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend: one launch per bounce
 takes the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shadow ray and
 contribution (MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps
-embree and the compaction of live paths. It covers RGB rays, scenes whose lights are all area
-lights (or that have none), and materials ``bsdf_kernel.parameters`` covers whose parameters are
-constants (measured tables, named metals' tables and mixes' second lobes in the BSDF kernel's
-``TableStore``), ``Material`` (Lambertian or Oren-Nayar) also under a grid or checker texture
-(evaluated in the kernel) or an image texture filtered with EWA or pbrt-v4's bilinear filter
-(``ewa_kernel.DEVICE_FILTERS``): before each launch ``EwaKernel.at_hits`` turns those hits' records
-into their albedo on the device, with the footprint ``PathIntegrator._shade`` gives at that depth
-(the camera's pixel spread at depth 0, none deeper: level 0 bilinear), and the kernel reads it per
-hit in place of the row's constant. The rest (spectral rays, other lights, image textures with the
-point or trilinear filter, textured parameters other than a ``Material``'s texture, materials
-``bsdf.cl`` lacks) stays with ``PathIntegrator._shade``, the numpy reference
-(``tests/test_bounce_kernel.py`` compares the two per hit with the same random numbers). The
-program is the BSDF kernel's source with this one after it, so both share ``bsdf.cl``'s material
-functions; the scene's tables are device buffers made once per integrator, and each thread has its
-own queue and kernel object.
+embree and the compaction of live paths. It covers RGB rays, scenes whose lights are area, point,
+spot, distant or infinite lights (or that have none: ``samples_every_light``), and materials
+``bsdf_kernel.parameters`` covers whose parameters are constants (measured tables, named metals'
+tables and mixes' second lobes in the BSDF kernel's ``TableStore``), ``Material`` (Lambertian or
+Oren-Nayar) also under a grid or checker texture (evaluated in the kernel) or an image texture
+filtered with EWA or pbrt-v4's bilinear filter (``ewa_kernel.DEVICE_FILTERS``): before each launch
+``EwaKernel.at_hits`` turns those hits' records into their albedo on the device, with the footprint
+``PathIntegrator._shade`` gives at that depth (the camera's pixel spread at depth 0, none deeper:
+level 0 bilinear), and the kernel reads it per hit in place of the row's constant. An environment
+map's sampling tables (its ``Distribution2D``) and texels are one device buffer. The rest (spectral
+rays, scenes with an emitting instance, image textures with the point or trilinear filter, textured
+parameters other than a ``Material``'s texture, materials ``bsdf.cl`` lacks) stays with
+``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares the two per
+hit with the same random numbers). The program is the BSDF kernel's source with this one after it,
+so both share ``bsdf.cl``'s material functions; the scene's tables are device buffers made once per
+integrator, and each thread has its own queue and kernel object.
 """
 
 from __future__ import annotations
@@ -32,10 +33,11 @@ from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer import bsdf_kernel
 from realistic.renderer.hit_rows import place_rows, rows_on_material
-from realistic.renderer.light_sampler import LightSampler
+from realistic.renderer.light_sampler import AREA, DISTANT, INFINITE, POINT, SPOT, LightSampler
 from realistic.renderer.shade_kernel import GEOM_FLOATS, GEOM_INTS, rounded_up_cdf
 from realistic.scene.ewa_kernel import DEVICE_FILTERS, EwaKernel, SurfaceTables, hit_mapping
 from realistic.scene.intersect import Hits
+from realistic.scene.lights import InfiniteLight, SpotLight
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.mipmap import MipMap
 from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Material
@@ -47,10 +49,27 @@ KERNEL_FILE = "bounce.cl"
 MATERIALS = Table("BOUNCE_MATERIAL", np.float32, (("texture", 1), ("cells", 1), ("low", 1), ("high", 1),
                                                   ("colour_a", 3), ("colour_b", 3)))
 TEXTURES = ("none", "grid", "checker", "image")
-#: Per light (the sampler's order, all area lights): centre and half-axes a, b (a point is
-#: centre + a x + b y), unit emitting normal, radiance, area, pick probability, disk and two-sided (0, 1).
-LIGHTS = Table("BOUNCE_LIGHT", np.float32, (("centre", 3), ("a", 3), ("b", 3), ("normal", 3), ("radiance", 3),
-                                            ("area", 1), ("probability", 1), ("disk", 1), ("two_sided", 1)))
+#: Per light (the sampler's order): its kind (``LIGHT_KINDS``); an area light's centre and half-axes
+#: a, b (a point is centre + a x + b y), unit emitting normal, area, disk and two-sided (0, 1); a point
+#: or spot light's position (``centre``); a distant light's unit direction toward it (``normal``);
+#: ``radiance`` (a point or spot light's intensity); the pick probability; a spot light's world-to-light
+#: rotation (``frame``, row-major), cos_total_width, cos_falloff_start - cos_total_width (``span``) and
+#: whether its falloff is pbrt-v4's smoothstep (else pbrt-v3's quartic); an infinite light's mapping
+#: (``MAPPINGS``), light-to-world rotation (``frame``) and, with a map, its width and height and the
+#: starts (in ``bsdf_kernel.TABLE_ALIGN`` floats of the kernel's ``environment`` buffer) of its
+#: ``Distribution2D``'s row CDF (H + 1), column CDFs (H, W + 1), density (H, W) and its texels (H, W, 3).
+LIGHTS = Table("BOUNCE_LIGHT", np.float32, (("kind", 1), ("centre", 3), ("a", 3), ("b", 3), ("normal", 3),
+                                            ("radiance", 3), ("area", 1), ("probability", 1), ("disk", 1),
+                                            ("two_sided", 1), ("frame", 9), ("cos_total", 1), ("span", 1),
+                                            ("smoothstep", 1), ("mapping", 1), ("map_size", 2),
+                                            ("map_tables", 4)))
+#: The lights the kernel samples (``kind``): every kind but emitting instances.
+LIGHT_KINDS = ("area", "point", "spot", "distant", "infinite")
+#: An infinite light's map: none (constant radiance, sampled uniformly), or ``InfiniteLight.mapping``
+#: (its "-" an "_" here).
+MAPPINGS = ("none", "latlong", "equal_area")
+#: ``LightSampler``'s kind -> ``LIGHT_KINDS``' index.
+_KIND = {AREA: 0, POINT: 1, SPOT: 2, DISTANT: 3, INFINITE: 4}
 #: ``mode_flags`` bits: MIS on, pbrt's "direct" mode, and (direct mode) whether non-specular BSDF
 #: samples go on to find emission.
 MODE_FLAGS = ("mis", "direct", "emission_after_diffuse")
@@ -63,7 +82,8 @@ def header(dimension: int, roulette_after: int) -> str:
     """The generated head of the program: ``bsdf.cl``'s defines, every table's here, the texture
     kinds, the mode flags, and the integrator's first bounce dimension and roulette depth."""
     return (bsdf_kernel.HEADER + "".join(t.defines() for t in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS))
-            + constant_defines("BOUNCE_TEXTURE", TEXTURES)
+            + constant_defines("BOUNCE_TEXTURE", TEXTURES) + constant_defines("BOUNCE_KIND", LIGHT_KINDS)
+            + constant_defines("BOUNCE_MAPPING", MAPPINGS)
             + "".join(f"#define BOUNCE_{name.upper()} {1 << k}\n" for k, name in enumerate(MODE_FLAGS))
             + f"#define BOUNCE_DIMENSION {dimension}\n#define BOUNCE_ROULETTE_AFTER {roulette_after}\n")
 
@@ -116,12 +136,50 @@ def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> 
     return row[0], extra[0]
 
 
-def light_rows(lights: LightSampler) -> np.ndarray:
-    """``LIGHTS`` rows of a sampler whose lights are all area lights, in its order."""
-    table, slot = lights.area_lights, lights.area_slot
-    return LIGHTS.pack(len(slot), centre=table.centre[slot], a=table.a[slot], b=table.b[slot],
-                       normal=table.normal[slot], radiance=table.radiance[slot], area=table.area[slot],
-                       probability=lights.probability, disk=table.disk[slot], two_sided=table.two_sided[slot])
+def samples_every_light(lights: LightSampler) -> bool:
+    """Whether the kernel samples each of ``lights``: every kind but an emitting instance (``_shade``'s)."""
+    return all(kind in _KIND for kind in lights.kind)
+
+
+def light_rows(lights: LightSampler) -> tuple[np.ndarray, np.ndarray]:
+    """``LIGHTS`` rows of a sampler whose lights the kernel samples (``samples_every_light``), in
+    its order, and the float32 ``environment`` buffer they point into: each map's sampling tables (its
+    CDFs rounded up as ``rounded_up_cdf`` rounds, so the kernel's float32 searches pick numpy's cells)
+    and texels, each at a multiple of ``bsdf_kernel.TABLE_ALIGN`` floats."""
+    n = len(lights.lights)
+    spot = [(light.cos_total_width, light.cos_falloff_start - light.cos_total_width, light.falloff_kind != "quartic")
+            if isinstance(light, SpotLight) else (0.0, 0.0, False) for light in lights.lights]
+    radiance = np.array([light.radiance if isinstance(light, InfiniteLight) else lights.intensity[i]
+                         for i, light in enumerate(lights.lights)], np.float64).reshape(n, 3)
+    frame = lights.to_light_frame.reshape(n, 9).copy()
+    mapping, map_size, map_tables = np.zeros(n), np.zeros((n, 2)), np.zeros((n, 4))
+    environment: list[np.ndarray] = []
+    size = 0
+    for i, env in lights.environments.items():
+        frame[i] = np.asarray(env.light.light_to_world, np.float64)[:3, :3].ravel()
+        if env.distribution is not None:  # a map
+            row_cdf, col_cdf = env.distribution.cdfs
+            mapping[i] = MAPPINGS.index(env.light.mapping.replace("-", "_"))
+            map_size[i] = env.distribution.width, env.distribution.height
+            for k, part in enumerate((rounded_up_cdf(row_cdf), rounded_up_cdf(col_cdf), env.distribution.density,
+                                      env.light.image)):
+                flat = np.asarray(part, np.float32).ravel()
+                map_tables[i, k] = size // bsdf_kernel.TABLE_ALIGN
+                environment += [flat, np.zeros(-len(flat) % bsdf_kernel.TABLE_ALIGN, np.float32)]
+                size += len(flat) + len(environment[-1])
+    table = LIGHTS.pack(n, kind=[_KIND[int(k)] for k in lights.kind], centre=lights.position, normal=lights.position,
+                        radiance=radiance, probability=lights.probability, frame=frame,
+                        cos_total=[c for c, _, _ in spot], span=[s for _, s, _ in spot],
+                        smoothstep=[k for _, _, k in spot], mapping=mapping, map_size=map_size,
+                        map_tables=map_tables)
+    area = np.flatnonzero(lights.kind == AREA)
+    if len(area):
+        areas, slot = lights.area_lights, lights.area_slot[area]
+        table[area] = LIGHTS.pack(len(area), kind=_KIND[AREA], centre=areas.centre[slot], a=areas.a[slot],
+                                  b=areas.b[slot], normal=areas.normal[slot], radiance=areas.radiance[slot],
+                                  area=areas.area[slot], probability=lights.probability[area],
+                                  disk=areas.disk[slot], two_sided=areas.two_sided[slot])
+    return table, np.concatenate(environment) if environment else np.zeros(1, np.float32)
 
 
 @dataclass
@@ -130,8 +188,8 @@ class Bounce:
     k * m + i (``length`` -1 and ``contribution`` 0 where dead), and each hit's next ray."""
 
     shadow_origin: np.ndarray  # (L m, 3) float32
-    shadow_vector: np.ndarray  # (L m, 3) float32: to the light point
-    shadow_length: np.ndarray  # (L m,) float32: 1 - 1e-4 in units of the vector, or -1
+    shadow_vector: np.ndarray  # (L m, 3) float32: to the light point, or its direction (distant, infinite)
+    shadow_length: np.ndarray  # (L m,) float32: 1 - 1e-4 in units of the vector, FAR (a direction), or -1
     contribution: np.ndarray  # (L m, 3) float32
     origin: np.ndarray  # (m, 3) float32: the next ray's offset origin
     direction: np.ndarray  # (m, 3) float32
@@ -158,8 +216,8 @@ class BounceKernel:
                  tables: bsdf_kernel.TableStore, vertices: np.ndarray, geom_linear: np.ndarray,
                  pixel_spread_radians: float, ewa_kernel: Callable[[MipMap], EwaKernel]):
         """``dimension``: the random-number dimension of bounce 0's BSDF sample (bounce b's are 8 b
-        on); ``roulette_after``: the bounces after which roulette may end a path. ``lights`` must
-        have area lights alone, or none that emit (``PathIntegrator`` checks). ``tables``: the BSDF
+        on); ``roulette_after``: the bounces after which roulette may end a path. ``lights``: lights the
+        kernel samples (``samples_every_light``), or none that emit (``PathIntegrator`` checks). ``tables``: the BSDF
         kernel's ``TableStore`` (shared, so a measured table is on the device once). ``vertices``
         (float64, mesh space), ``geom_linear`` (per instance, 3 x 3), ``pixel_spread_radians`` (the
         camera's) and ``ewa_kernel`` (a MIP map's ``EwaKernel``, the backend's) serve image textures."""
@@ -190,14 +248,15 @@ class BounceKernel:
         matrices[:count] = GEOM_FLOATS.pack(
             count, normal_matrix=np.asarray(geom_normal_matrix, np.float32).reshape(-1, 9))
         self.light_count = len(lights.lights) if lights.has_lights else 0
-        table = light_rows(lights) if self.light_count else LIGHTS.pack(1)
+        table, environment = light_rows(lights) if self.light_count else (LIGHTS.pack(1), np.zeros(1, np.float32))
         cdf = rounded_up_cdf(lights.cdf) if self.light_count else np.ones(1, np.float32)
         self.offset_base = np.float32(1e-2 * extent)
         self.program = device.build_program(header(dimension, roulette_after) + kernel_source(bsdf_kernel.KERNEL_FILE)
                                             + kernel_source(KERNEL_FILE), KERNEL_FILE)
         self._tables = [device.wrapped_buffer(array, dtype) for array, dtype in (
             (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom, np.int32), (matrices, np.float32),
-            (params, np.float32), (textures, np.float32), (table, np.float32), (cdf, np.float32))]
+            (params, np.float32), (textures, np.float32), (table, np.float32), (cdf, np.float32),
+            (environment, np.float32))]
         self._local = threading.local()
 
     def _queue_and_kernel(self) -> tuple[cl.CommandQueue, cl.Kernel]:
