@@ -1,23 +1,23 @@
 """OpenCL host of the path integrator's fused bounce: ``kernels/bounce.cl`` on a ``Device``.
 
-``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend: one launch per bounce
-takes the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shadow ray and
-contribution (MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps
-embree and the compaction of live paths. It covers RGB rays, scenes whose lights are area, point,
-spot, distant or infinite lights (or that have none: ``samples_every_light``), and materials
-``bsdf_kernel.parameters`` covers whose parameters are constants (measured tables, named metals'
-tables and mixes' second lobes in the BSDF kernel's ``TableStore``), ``Material`` (Lambertian or
-Oren-Nayar) also under a grid or checker texture (evaluated in the kernel) or an image texture
-(any filter: ``ewa_kernel.DEVICE_FILTERS``): before each launch
-``EwaKernel.at_hits`` turns those hits' records into their albedo on the device, with the footprint
-``PathIntegrator._shade`` gives at that depth (the camera's pixel spread at depth 0, none deeper:
-level 0 bilinear), and the kernel reads it per hit in place of the row's constant. An environment
-map's sampling tables (its ``Distribution2D``) and texels are one device buffer. The rest (spectral
-rays, scenes with an emitting instance, textured parameters other than a ``Material``'s texture, materials ``bsdf.cl`` lacks) stays with
-``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares the two per
-hit with the same random numbers). The program is the BSDF kernel's source with this one after it,
-so both share ``bsdf.cl``'s material functions; the scene's tables are device buffers made once per
-integrator, and each thread has its own queue and kernel object.
+``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend: one launch per bounce takes
+the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shadow ray and contribution
+(MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps embree and the
+compaction of live paths. It covers RGB rays, scenes whose lights are area, point, spot, distant or
+infinite lights (or that have none: ``samples_every_light``), and materials ``bsdf_kernel.parameters``
+covers whose parameters are constants (measured tables, named metals' tables and mixes' second lobes in
+the BSDF kernel's ``TableStore``), ``Material`` (Lambertian or Oren-Nayar) also under a grid or checker
+texture (evaluated in the kernel) or an image texture (any filter: ``ewa_kernel.DEVICE_FILTERS``):
+before each launch ``EwaKernel.at_hits`` turns those hits' records into their albedo on the device, with
+the footprint ``PathIntegrator._shade`` gives at that depth (the camera's pixel spread at depth 0, none
+deeper: level 0 bilinear), and the kernel reads it per hit in place of the row's constant. An
+environment map's sampling tables (its ``Distribution2D``) and texels are one device buffer. The rest
+(spectral rays, scenes with an emitting instance, textured parameters other than a ``Material``'s
+texture, materials ``bsdf.cl`` lacks) stays with ``PathIntegrator._shade``, the numpy reference
+(``tests/test_bounce_kernel.py`` compares the two per hit with the same random numbers). The program is
+the BSDF kernel's source with this one after it, so both share ``bsdf.cl``'s material functions; the
+scene's tables are device buffers made once per integrator, and each thread has its own queue and kernel
+object.
 """
 
 from __future__ import annotations
