@@ -396,23 +396,27 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
 }
 
 /* ------------------------------------------------------------------ point, bilinear and trilinear lookups
- * pbrt-v4's "point" and "bilinear" image-texture filters and pbrt-v3's "trilinear" (pbrt-v4
+ * pbrt-v4's "point" and "bilinear" image-texture filters and both versions' "trilinear" (pbrt-v4
  * src/pbrt/util/mipmap.cpp, MIPMap::Filter; pbrt-v3 src/core/mipmap.h, MIPMap::Lookup): the filter
  * width twice the largest component of either axis (textures._image), the continuous level
  * levels - 1 + log2(width); at or past the coarsest level, its one texel (unwrapped); else point takes
  * the nearest texel (st * size - 0.5 rounded half away from zero, as std::round) and bilinear the
  * bilinear lookup at the level's floor clamped to 0, and trilinear blends the bilinear lookups of the
- * two levels around it (clamped to 0): MipMap.point, bilinear_at_width and trilinear, the numpy
+ * two levels around it (clamped to 0), or where that floor is under blend_from (its kernels' last
+ * argument: 0 as pbrt-v3, 1 as pbrt-v4's `if (iLevel == 0) return Bilerp<T>(0, st)`) takes level 0's
+ * alone: MipMap.point, bilinear_at_width and trilinear (MipMap.trilinear_blend_from), the numpy
  * references, in the same float64 operations, so the same bits (trilinear's blend weight is the
  * fraction of log2, OpenCL's to 3 ulps: within float32 rounding of the reference).
  *
  * Each filter's _small kernel does the lookups that read level 0 alone whatever the rounding of log2
  * (within 3 ulps, OpenCL's bound, a width under the limit times 1 - 2^-40 keeps the level under the
  * limit's by 1e-12), so no library call: most of a near floor's. The limit is 2^(2 - levels) for point
- * and bilinear (level under 1; 1 for a one-level map, whose level 0 is the coarsest) and 2^(1 - levels)
- * for trilinear (level under 0, where the blend's second weight is 0: b0 * 1 + b1 * 0 is b0, bit for bit).
- * They are ewa_small's twins (same arguments, read as there; written for PoCL's vectoriser as ewa_small
- * is) and mark the others pending for the scalar kernel of the same name, ewa's twin (same arguments). */
+ * and bilinear (level under 1; 1 for a one-level map, whose level 0 is the coarsest) and for trilinear
+ * blending from level 1 (level 0 alone under level 1), and 2^(1 - levels) for trilinear blending from
+ * level 0 (level under 0, where the blend's second weight is 0: b0 * 1 + b1 * 0 is b0, bit for bit).
+ * They are ewa_small's twins (same arguments, read as there, trilinear's then blend_from; written for
+ * PoCL's vectoriser as ewa_small is) and mark the others pending for the scalar kernel of the same name,
+ * ewa's twin (same arguments, trilinear's then blend_from). */
 
 inline double filter_width(double a0s, double a0t, double a1s, double a1t) {
     return 2 * __builtin_fmax(__builtin_fmax(__builtin_fabs(a0s), __builtin_fabs(a0t)),
@@ -499,9 +503,10 @@ __kernel void trilinear_small(__global const float *texels, __global const long 
                               __global const long *height, const int wrap, const int levels,
                               const double max_anisotropy, __global const double *lut, __global const double *lookups,
                               const float red_scale, const float green_scale, const float blue_scale, const int count,
-                              const int unit, __global uchar *pending, __global float *out) {
+                              const int unit, __global uchar *pending, __global float *out, const int blend_from) {
     bilinear_level0(texels, base, width, height, wrap, levels, lookups, red_scale, green_scale, blue_scale, count,
-                    unit, pending, out, 1.0 / (double)(1L << (levels - 1)) * (1 - 0x1p-40));
+                    unit, pending, out,
+                    blend_from ? level0_limit(levels) : 1.0 / (double)(1L << (levels - 1)) * (1 - 0x1p-40));
 }
 
 __kernel void point_small(__global const float *texels, __global const long *base, __global const long *width,
@@ -579,7 +584,7 @@ __kernel void point(__global const float *texels, __global const long *base, __g
 __kernel void trilinear(__global const float *texels, __global const long *base, __global const long *width,
                         __global const long *height, const int wrap, const int levels, const double max_anisotropy,
                         __global const double *lut, __global const double *st, __global const double *axis0,
-                        __global const double *axis1, const int count, __global float *out) {
+                        __global const double *axis1, const int count, __global float *out, const int blend_from) {
     int i = get_global_id(0);
     if (i >= count) return;
     double level = width_level(axis0, axis1, levels, i);
@@ -592,6 +597,8 @@ __kernel void trilinear(__global const float *texels, __global const long *base,
     double delta = level - lower;
     int at = (int)lower;
     double s = st[2 * i], t = st[2 * i + 1];
-    store(out, i, bilinear_at(texels, base, width, height, wrap, at, s, t) * (1 - delta)
-                  + bilinear_at(texels, base, width, height, wrap, min(at + 1, levels - 1), s, t) * delta);
+    double3 below = bilinear_at(texels, base, width, height, wrap, at, s, t);
+    store(out, i, at < blend_from ? below
+                  : below * (1 - delta)
+                    + bilinear_at(texels, base, width, height, wrap, min(at + 1, levels - 1), s, t) * delta);
 }

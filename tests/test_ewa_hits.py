@@ -95,11 +95,22 @@ def reference_albedo(integrator: DirectLighting, host: np.ndarray, direction: np
     return out
 
 
-@pytest.mark.parametrize("name", ["textured", "instanced", "bilinear", "point", "trilinear"])
+def v4_trilinear_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
+    """``instanced_scene`` with its EWA textures trilinear as pbrt-v4 filters (blending from level 1),
+    beside its trilinear texture blending from level 0 as pbrt-v3."""
+    scene, eye, target = filtered_scene("trilinear")
+    for k, instance in enumerate(scene.instances[:4]):
+        texture = replace(instance.material.texture, trilinear_blend_from=1)
+        scene.instances[k] = replace(instance, material=replace(instance.material, texture=texture))
+    return scene, eye, target
+
+
+@pytest.mark.parametrize("name", ["textured", "instanced", "bilinear", "point", "trilinear", "trilinear v4"])
 def test_device_albedo_matches_numpy(name):
     scene, eye, target = {"textured": textured_scene, "instanced": instanced_scene, "bilinear": bilinear_scene,
                           "point": lambda: filtered_scene("point"),
-                          "trilinear": lambda: filtered_scene("trilinear")}[name]()
+                          "trilinear": lambda: filtered_scene("trilinear"),
+                          "trilinear v4": v4_trilinear_scene}[name]()
     intersector, origin, direction, hits, spread = hits_of(scene, eye, target)
     device = DirectLighting(scene, intersector, 1, 5, spread, backend="opencl")
     numpy_path = DirectLighting(scene, intersector, 1, 5, spread, backend="numpy")

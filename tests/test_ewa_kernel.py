@@ -91,25 +91,29 @@ def test_magnified_lookups_are_the_references_bit_for_bit(opencl_platform, wrap)
     assert np.array_equal(device, mipmap.ewa(st, axis0, axis1).astype(np.float32))
 
 
-@pytest.mark.parametrize("texture_filter", ["point", "bilinear", "trilinear"])
+@pytest.mark.parametrize("texture_filter,blend_from", [("point", 0), ("bilinear", 0), ("trilinear", 0),
+                                                      ("trilinear", 1)])
 @pytest.mark.parametrize("wrap", ["repeat", "black", "clamp"])
 @pytest.mark.parametrize("shape", [(64, 64), (48, 80), (1, 1)])
-def test_point_bilinear_and_trilinear_lookups_are_the_references(opencl_platform, texture_filter, wrap, shape):
+def test_point_bilinear_and_trilinear_lookups_are_the_references(opencl_platform, texture_filter, blend_from, wrap,
+                                                                 shape):
     """The point, bilinear and trilinear kernels are pbrt's filters (pbrt-v4 mipmap.cpp,
-    MIPMap::Filter; pbrt-v3's trilinear blend) as ``MipMap.point``, ``bilinear_at_width`` and
-    ``trilinear`` compute them in float64, with the width ``textures._image`` takes (twice the
-    largest axis component): point and bilinear colours are the reference's rounded to float32,
-    trilinear's within float32 rounding (its blend weight is log2's fraction, the library's), on
-    every level (the footprints run from none and under a texel of level 0 to wider than the image,
-    and st crosses texel edges exactly, where the point filter rounds halves)."""
-    mipmap = MipMap(np.random.default_rng(4).random((*shape, 3)), wrap)
+    MIPMap::Filter; trilinear blending from level 0 as pbrt-v3's and from level 1 as pbrt-v4's) as
+    ``MipMap.point``, ``bilinear_at_width`` and ``trilinear`` compute them in float64, with the width
+    ``textures._image`` takes (twice the largest axis component): point and bilinear colours are the
+    reference's rounded to float32, trilinear's within float32 rounding (its blend weight is log2's
+    fraction, the library's) and exactly so where it reads level 0 alone, on every level (the
+    footprints run from none and under a texel of level 0 to wider than the image, and st crosses
+    texel edges exactly, where the point filter rounds halves)."""
+    mipmap = MipMap(np.random.default_rng(4).random((*shape, 3)), wrap, trilinear_blend_from=blend_from)
     st, axis0, axis1 = ellipses(20000, 13)
     st[:2000] = np.round(st[:2000] * 64) / 64  # on texel edges of the finest levels
     lengths = 10.0 ** np.random.default_rng(14).uniform(-4, 0.7, (len(st), 1))  # log-uniform: every level
     axis0, axis1 = axis0 * lengths / 0.01, axis1 * lengths / 0.01
     axis0[-500:] = axis1[-500:] = 0.0  # no footprint
     width = 2 * np.maximum(np.abs(axis0).max(axis=1), np.abs(axis1).max(axis=1))
-    levels = np.clip(np.floor(mipmap.level_count - 1 + np.log2(np.maximum(width, 1e-8))), 0, mipmap.level_count - 1)
+    continuous = mipmap.level_count - 1 + np.log2(np.maximum(width, 1e-8))
+    levels = np.clip(np.floor(continuous), 0, mipmap.level_count - 1)
     assert set(levels) == set(range(mipmap.level_count))
     device = backend_for("opencl").ewa_kernel(mipmap)(st, axis0, axis1, texture_filter)
     reference = {"point": mipmap.point, "bilinear": mipmap.bilinear_at_width,
@@ -117,6 +121,8 @@ def test_point_bilinear_and_trilinear_lookups_are_the_references(opencl_platform
     if texture_filter == "trilinear":
         np.testing.assert_allclose(device, reference, rtol=1e-6, atol=1e-7)
         assert np.mean(device == reference) > 0.99
+        alone = continuous < blend_from - 1e-9  # level 0's lookup alone: no blend weight from log2
+        assert alone.any() and np.array_equal(device[alone], reference[alone])
     else:
         assert np.array_equal(device, reference)
 

@@ -71,6 +71,46 @@ def test_bilinear_blends_texel_centres_and_zero_width_trilinear_is_bilinear():
     np.testing.assert_allclose(mipmap.trilinear(centres, np.zeros(4)), mipmap.bilinear(centres), atol=1e-7)
 
 
+def _one_hot() -> np.ndarray:
+    """A 4 x 4 image, 1 at texel (0, 0) and 0 elsewhere: levels 4 x 4, 2 x 2 ([[1/4, 0], [0, 0]]), 1 x 1 (1/16)."""
+    image = np.zeros((4, 4, 3), np.float32)
+    image[0, 0] = 1.0
+    return image
+
+
+#: At st = (1/8, 1/8), level 0's texel (0, 0) centre, bilinear reads 1 on level 0; on level 1 (x = y =
+#: -1/4: 3/4 of texel 0 and 1/4 of texel -1, wrapped, on each axis) 1/4 * 3/4 * 3/4 = 9/64; 1/16 on level 2.
+_ONE_HOT_LEVELS = (1.0, 9 / 64, 1 / 16)
+
+
+@pytest.mark.parametrize("blend_from,level,expected", [
+    # pbrt-v3 src/core/mipmap.h MIPMap::Lookup: Lerp(level - iLevel, triangle(iLevel), triangle(iLevel + 1))
+    (0, -1.0, 1.0),
+    (0, 0.5, 0.5 * 1.0 + 0.5 * 9 / 64),
+    (0, 1.25, 0.75 * 9 / 64 + 0.25 / 16),
+    # pbrt-v4 src/pbrt/util/mipmap.cpp MIPMap::Filter: if (iLevel == 0) return Bilerp<T>(0, st); else the same Lerp
+    (1, -1.0, 1.0),
+    (1, 0.5, 1.0),
+    (1, 1.0, 9 / 64),
+    (1, 1.25, 0.75 * 9 / 64 + 0.25 / 16),
+])
+def test_trilinear_blends_from_level_0_as_pbrt_v3_or_level_1_as_pbrt_v4(blend_from, level, expected):
+    """The continuous level is L - 1 + log2(width) = 2 + log2(width) here: both versions blend the
+    levels around it from level 1 up; for a level in [0, 1) pbrt-v3 blends levels 0 and 1 and pbrt-v4
+    reads level 0 alone (the values: ``_ONE_HOT_LEVELS``, worked by hand)."""
+    mipmap = MipMap(_one_hot(), trilinear_blend_from=blend_from)
+    assert [float(level_[0, 0, 0]) for level_ in mipmap.levels] == [1.0, 0.25, 1 / 16]
+    value = mipmap.trilinear(np.array([[0.125, 0.125]]), np.array([2.0 ** (level - 2)]))
+    np.testing.assert_allclose(value, np.full((1, 3), expected), rtol=1e-12)
+
+
+@pytest.mark.parametrize("value", [2, -1, True, 0.0, "1"])
+def test_a_trilinear_blend_start_other_than_0_or_1_is_a_one_line_error(value):
+    with pytest.raises(UserError, match="trilinear blend start level must be 0") as caught:
+        ImageTexture(_one_hot(), trilinear_blend_from=value)
+    assert "\n" not in str(caught.value)
+
+
 def test_the_point_filter_rounds_halves_away_from_zero_as_pbrt_v4():
     """pbrt-v4's point filter (src/pbrt/util/mipmap.cpp, MIPMap::Filter) takes the texel at
     std::round(st * size - 0.5), which rounds halves away from zero: on a texel's edge it takes the
@@ -323,6 +363,28 @@ def test_imagemap_parameters_per_dialect(tmp_path, dialect, parameters, filter_,
     texture = _imagemap_scene(tmp_path, parameters, dialect)
     assert texture.filter == filter_
     assert texture.pixels[0, 0, 0] == pytest.approx(texel, rel=1e-5)
+
+
+@pytest.mark.parametrize("dialect,parameters,blend_from,expected", [
+    ("v2", '"bool trilinear" "true"', 0, 0.5 * 1.0 + 0.5 * 9 / 64),
+    ("v3", '"bool trilinear" "true"', 0, 0.5 * 1.0 + 0.5 * 9 / 64),
+    ("v4", '"string filter" "trilinear"', 1, 1.0),
+])
+def test_a_trilinear_imagemap_blends_as_its_pbrt_version_does(tmp_path, dialect, parameters, blend_from, expected):
+    """pbrt-v2/v3 files blend levels 0 and 1 at a continuous level of 0.5, pbrt-v4 files read level 0
+    alone there (``test_trilinear_blends_from_level_0_as_pbrt_v3_or_level_1_as_pbrt_v4``'s values): a
+    footprint of width 2^-1.5 (level 2 - 1.5) at st (1/8, 1/8) of the one-hot image, whose uv is
+    (1/8, 1/8) for a top-origin (v2) image and (1/8, 7/8) for a bottom-origin (v3, v4) one."""
+    write_exr(tmp_path / "t.exr", _one_hot())
+    path = tmp_path / "s.pbrt"
+    path.write_text(SCENE_HEAD + f'Texture "t" "color" "imagemap" "string filename" "t.exr" {parameters}\n'
+                    + SCENE_TAIL)
+    texture = import_pbrt(path, dialect=dialect).scene.instances[0].material.texture
+    assert (texture.filter, texture.trilinear_blend_from) == ("trilinear", blend_from)
+    uv = np.array([[0.125, 0.125 if texture.v_origin == "top" else 0.875]])
+    half = 2.0 ** -2.5  # the width is twice the largest axis component: 2^-1.5
+    colour = evaluate(texture, uv, (np.array([[half, 0.0]]), np.array([[0.0, half]])))
+    np.testing.assert_allclose(colour, np.full((1, 3), expected), rtol=1e-6)
 
 
 @pytest.mark.parametrize("dialect,parameters,message", [

@@ -195,6 +195,10 @@ def finite(value: object, name: str) -> float:
 #: between trilinear and EWA with the bool ``trilinear``).
 TEXTURE_FILTERS = ("point", "bilinear", "trilinear", "ewa")
 TEXTURE_WRAPS = ("repeat", "black", "clamp")
+#: The MIP level from which a trilinear lookup blends two levels, below it reading level 0 alone:
+#: 0 in pbrt-v1 to v3 (``MIPMap::Lookup`` blends levels 0 and 1 for a level in [0, 1)), 1 in pbrt-v4
+#: (``MIPMap::Filter``: ``if (iLevel == 0) return Bilerp<T>(0, st)``).
+TRILINEAR_BLEND_STARTS = (0, 1)
 #: Longest-to-shortest axis ratio of an EWA ellipse: 1 (a circle) up to far beyond pbrt's default 8.
 MAX_ANISOTROPY = 1024.0
 
@@ -209,6 +213,13 @@ def texture_wrap(name: str) -> str:
     if name not in TEXTURE_WRAPS:
         raise UserError(f"image texture wrap must be one of {', '.join(TEXTURE_WRAPS)}, got {name!r}")
     return name
+
+
+def trilinear_blend_from(value: int) -> int:
+    """The level a trilinear lookup's blend starts from: an integer of ``TRILINEAR_BLEND_STARTS``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value not in TRILINEAR_BLEND_STARTS:
+        raise UserError(f"trilinear blend start level must be 0 (pbrt-v1 to v3) or 1 (pbrt-v4), got {value!r}")
+    return int(value)
 
 
 def max_anisotropy(value: float) -> float:

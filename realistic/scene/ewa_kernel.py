@@ -21,7 +21,8 @@ bilinear lookup at the level the footprint's width picks: ``MipMap.bilinear_at_w
 pbrt-v4's default and the filter Mitsuba's ``bitmap`` uses, split as EWA's are (level 0 vectorised,
 the others scalar); ``point_small``/``point`` (pbrt-v4's nearest texel: ``MipMap.point``, bit for
 bit) and ``trilinear_small``/``trilinear`` (``MipMap.trilinear``, to float32 rounding: its blend
-weight comes from log2) likewise. ``DEVICE_FILTERS`` names the filters done here. A lookup without a
+weight comes from log2) likewise, the map's ``trilinear_blend_from`` (pbrt-v3's blend or pbrt-v4's)
+their last argument. ``DEVICE_FILTERS`` names the filters done here. A lookup without a
 footprint (a ``hit_mapping`` of spread 0: the path integrator's deeper bounces) is level 0 bilinear
 whatever the filter, as ``textures.evaluate`` has it, so ``at_hits`` filters those with "bilinear".
 
@@ -108,6 +109,9 @@ class EwaKernel:
             *(device.wrapped_buffer(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)),
             np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
             np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float64)]
+        #: per filter, the arguments its two kernels take after their common ones
+        self._own: dict[str, tuple[np.generic, ...]] = {name: () for name in DEVICE_FILTERS}
+        self._own["trilinear"] = (np.int32(mipmap.trilinear_blend_from),)
         self._local = threading.local()
 
     def _thread(self) -> _ThreadKernels:
@@ -131,7 +135,7 @@ class EwaKernel:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
         lookups (s, t, axis0, axis1) (N, 6) float64: the filter's small kernel (``ewa_small``,
         ``bilinear_small``, ...) over all, then its other kernel (``ewa``, ``bilinear``, ...) over the
-        rows it leaves."""
+        rows it leaves, each with the filter's own arguments last."""
         if texture_filter not in DEVICE_FILTERS:
             raise ValueError(f"the device filters with {' or '.join(DEVICE_FILTERS)}, not {texture_filter!r}")
         count = len(lookups)
@@ -144,7 +148,7 @@ class EwaKernel:
         kernels = self._thread()
         small, other = kernels.filters[texture_filter]
         small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
-              *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written)
+              *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written, *self._own[texture_filter])
         # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernel
         cl.enqueue_copy(kernels.queue, pending, written[0], is_blocking=False)
         cl.enqueue_copy(kernels.queue, out, written[1])
@@ -155,7 +159,7 @@ class EwaKernel:
             result = self.device.output_buffer(len(rest) * 3 * 4)
             values = np.empty((len(rest), 3), np.float32)
             other(kernels.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
-                  np.int32(len(rest)), result)
+                  np.int32(len(rest)), result, *self._own[texture_filter])
             cl.enqueue_copy(kernels.queue, values, result)
             out[rest] = values * scale
 

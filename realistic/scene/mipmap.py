@@ -11,8 +11,9 @@ exact area averaging (each new texel is the old image's mean over its span): no 
 negative lobes, and every level keeps the image mean exactly.
 
 Lookups follow the same file: trilinear blends bilinear lookups at the two levels around
-``L - 1 + log2(width)`` (pbrt-v4 ``src/pbrt/util/mipmap.cpp`` reads level 0 alone wherever the floor
-of that is 0, blending only from level 1 up: the one place the versions differ, kept as v3 has it);
+``L - 1 + log2(width)``; pbrt-v4 ``src/pbrt/util/mipmap.cpp`` (``MIPMap::Filter``: ``if (iLevel == 0)
+return Bilerp<T>(0, st)``) reads level 0 alone wherever the floor of that is 0, blending only from
+level 1 up, the one place the versions differ: ``trilinear_blend_from`` (0 as v3, 1 as v4) says which;
 EWA clamps the ellipse's eccentricity to ``max_anisotropy``, picks the level from the minor axis and
 blends two levels of a Gaussian-weighted sum over the texels inside the ellipse (weights from pbrt's
 128-entry table of exp(-2 r^2) - exp(-2)); where the level is clamped to 0 (a magnified lookup) the
@@ -72,7 +73,10 @@ def _halve(level: np.ndarray) -> np.ndarray:
 class MipMap:
     """A pyramid of an (H, W, 3) linear image, stored as one flat texel array, and its lookups."""
 
-    def __init__(self, pixels: np.ndarray, wrap: str = "repeat", max_anisotropy: float = 8.0):
+    def __init__(self, pixels: np.ndarray, wrap: str = "repeat", max_anisotropy: float = 8.0,
+                 trilinear_blend_from: int = 0):
+        """``trilinear_blend_from``: the level from which ``trilinear`` blends two levels, reading level 0
+        alone below it (0: pbrt-v1 to v3; 1: pbrt-v4; ``validation.TRILINEAR_BLEND_STARTS``)."""
         image = np.asarray(pixels, dtype=np.float64)
         height, width = image.shape[:2]
         size_y, size_x = _next_power_of_two(height), _next_power_of_two(width)
@@ -83,6 +87,7 @@ class MipMap:
         for _ in range(int(math.log2(max(size_x, size_y)))):
             shapes.append((max(1, shapes[-1][0] // 2), max(1, shapes[-1][1] // 2)))
         self.wrap, self.max_anisotropy = wrap, float(max_anisotropy)
+        self.trilinear_blend_from = int(trilinear_blend_from)
         self._height = np.array([h for h, _ in shapes], np.int64)
         self._width = np.array([w for _, w in shapes], np.int64)
         self._base = np.concatenate([[0], np.cumsum(self._width * self._height)[:-1]])
@@ -176,14 +181,19 @@ class MipMap:
         return self._coarsest_where_wide(continuous, self.bilinear(st, level))
 
     def trilinear(self, st: np.ndarray, width: np.ndarray) -> np.ndarray:
-        """Blend of bilinear lookups on the two levels around L - 1 + log2(width) (N, 3) (pbrt-v3's)."""
+        """Blend of bilinear lookups on the two levels around L - 1 + log2(width) (N, 3); where that
+        level's floor (clamped to 0) is under ``trilinear_blend_from``, level 0's lookup alone (pbrt-v3
+        ``src/core/mipmap.h`` ``MIPMap::Lookup`` blends from level 0, pbrt-v4 ``src/pbrt/util/mipmap.cpp``
+        ``MIPMap::Filter`` from level 1)."""
         continuous = self._level_of(width)
         level = np.clip(continuous, 0.0, self.level_count - 1)
         lower = np.floor(level).astype(np.int64)
         upper = np.minimum(lower + 1, self.level_count - 1)
         delta = (level - lower)[:, None]
-        return self._coarsest_where_wide(continuous, self.bilinear(st, lower) * (1 - delta)
-                                         + self.bilinear(st, upper) * delta)
+        below = self.bilinear(st, lower)
+        blend = below * (1 - delta) + self.bilinear(st, upper) * delta
+        alone = (lower < self.trilinear_blend_from)[:, None]
+        return self._coarsest_where_wide(continuous, np.where(alone, below, blend))
 
     def ewa(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
         """Elliptically weighted average (N, 3) over the ellipse with axes ``axis0``, ``axis1`` (N, 2)

@@ -23,8 +23,10 @@ class ImageTexture:
     ``v_origin`` says which row v = 0 is: "bottom" (pbrt-v3 and v4 flip images on load) or "top"
     (pbrt-v1 and v2 look up the file's first row at v = 0); the pbrt dialect decides. ``filter``
     ("point", "bilinear", "trilinear", "ewa"), ``max_anisotropy`` and ``wrap`` ("repeat", "black",
-    "clamp") are pbrt's imagemap parameters; the defaults are pbrt-v3's. A lookup without a
-    footprint reads level 0 bilinearly whatever the filter.
+    "clamp") are pbrt's imagemap parameters; the defaults are pbrt-v3's. ``trilinear_blend_from`` is
+    the level from which the "trilinear" filter blends two levels, reading level 0 alone below it:
+    0 as pbrt-v1 to v3, 1 as pbrt-v4 (``MipMap.trilinear``); the pbrt dialect decides. A lookup without
+    a footprint reads level 0 bilinearly whatever the filter.
     """
 
     pixels: np.ndarray  # (H, W, 3) float32, linear
@@ -34,18 +36,20 @@ class ImageTexture:
     max_anisotropy: float = 8.0
     wrap: str = "repeat"
     offset: tuple[float, float] = (0.0, 0.0)  # pbrt's udelta, vdelta: added to the scaled u, v
+    trilinear_blend_from: int = 0
 
     def __post_init__(self) -> None:
         validation.texture_filter(self.filter)
         validation.texture_wrap(self.wrap)
         validation.max_anisotropy(self.max_anisotropy)
+        validation.trilinear_blend_from(self.trilinear_blend_from)
         for name, value in zip(("uscale", "vscale", "udelta", "vdelta"), (*self.scale, *self.offset)):
             validation.finite(value, f"image texture {name}")
 
     @cached_property
     def mipmap(self) -> MipMap:
         """The MIP map of ``pixels``, built on first use and kept."""
-        return MipMap(self.pixels, self.wrap, self.max_anisotropy)
+        return MipMap(self.pixels, self.wrap, self.max_anisotropy, self.trilinear_blend_from)
 
 
 @dataclass(frozen=True)

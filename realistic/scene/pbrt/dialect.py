@@ -16,7 +16,10 @@ choose the filter with ``bool trilinear`` (default false: EWA) and raise texels 
 gamma`` (sRGB decoding, default true for .png and .tga files); pbrt-v4 (``src/pbrt/textures.cpp``)
 names the filter in ``string filter`` (default "bilinear") and the colour encoding in ``string
 encoding`` (default sRGB for .png, else linear), and adds ``bool invert``. All: ``maxanisotropy`` 8,
-``wrap`` "repeat", ``scale`` 1.
+``wrap`` "repeat", ``scale`` 1. The trilinear filter blends levels 0 and 1 for a continuous level
+in [0, 1) in pbrt-v1/v2/v3 (pbrt-v3 ``src/core/mipmap.h``, ``MIPMap::Lookup``) and reads level 0
+alone there in pbrt-v4 (``src/pbrt/util/mipmap.cpp``, ``MIPMap::Filter``: ``if (iLevel == 0) return
+Bilerp<T>(0, st)``), blending from level 1 up (``ImageTexture.trilinear_blend_from``).
 
 The pixel filter (``PixelFilter``; the maths in ``realistic.core.pixel_filter``):
 
@@ -162,6 +165,7 @@ class ImagemapConventions:
     max_anisotropy: float = 8.0
     wrap: str = "repeat"
     scale: float = 1.0
+    trilinear_blend_from: int = 0  # the level the trilinear blend starts from (``ImageTexture``'s)
 
 
 @dataclass(frozen=True)
@@ -211,7 +215,7 @@ PBRT4_NAMES = ParameterNames(("tex", "scale"), (), ("levels",))
 _IMAGEMAP = {"v1": ImagemapConventions("trilinear", "ewa", "gamma exponent"),
              "v2": ImagemapConventions("trilinear", "ewa", "gamma exponent"),
              "v3": ImagemapConventions("trilinear", "ewa", "gamma sRGB"),
-             "v4": ImagemapConventions("filter", "bilinear", "encoding")}
+             "v4": ImagemapConventions("filter", "bilinear", "encoding", trilinear_blend_from=1)}
 
 
 @dataclass(frozen=True)

@@ -94,7 +94,8 @@ def imagemap_texture(params: Params, pixels: np.ndarray, stored_linear: bool, fi
         texels = _encoded(pixels, stored_linear, params, dialect, filename, where)
         return ImageTexture(texels, (mapping[0], mapping[1]), dialect.texture_v_origin, texture_filter,
                             _float(params, "maxanisotropy", conventions.max_anisotropy),
-                            params.get_string("wrap", conventions.wrap), (mapping[2], mapping[3]))
+                            params.get_string("wrap", conventions.wrap), (mapping[2], mapping[3]),
+                            conventions.trilinear_blend_from)
     except UserError as err:
         located = str(err).startswith(where.rsplit(":", 1)[0] + ":")
         raise (err if located else UserError(f"{where}: {err}")) from None
