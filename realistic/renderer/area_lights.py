@@ -16,6 +16,20 @@ from realistic.core.warp import concentric_disk
 from realistic.scene.model import AreaLight
 
 
+def light_outward_flipped(light: AreaLight) -> bool:
+    """Whether the outside of an area light's surface, which its material sees (glass: the side it
+    enters from), is opposite its tessellation's world winding (``scene.shapes.light_mesh``, wound
+    to face +z in object space): under a mirroring transform, xor ReverseOrientation. That makes it
+    the side the light emits from (``AreaLight.frame``) and the side the same shape has without the
+    light, whose mesh the pbrt importer winds the other way under ReverseOrientation: pbrt hands a
+    shape the same ``reverseOrientation`` whether or not it emits (pbrt-v3 ``pbrtShape`` in
+    ``src/core/api.cpp``; pbrt-v4 ``BasicScene::CreateLights`` and ``CreateAggregate`` in
+    ``src/pbrt/scene.cpp``), and a disk's normal flips by it (pbrt-v3 ``src/shapes/disk.cpp`` through
+    ``SurfaceInteraction``'s constructor, ``src/core/interaction.cpp``; pbrt-v4 ``Disk`` in
+    ``src/pbrt/shapes.h``, ``flipNormal``)."""
+    return bool(np.linalg.det(np.asarray(light.transform, np.float64)[:3, :3]) < 0) != light.reverse_orientation
+
+
 @dataclass(frozen=True, eq=False)
 class AreaLightTable:
     """Row j describes area light j: world frame (centre, axes a and b, unit emitting normal; float32

@@ -45,7 +45,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
-from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -56,21 +55,21 @@ from realistic.core.spectrum import rgb_basis, rgb_response, spectral_value
 from realistic.core.vectors import dot, normalise
 from realistic.core.warp import concentric_disk
 from realistic.renderer.aov import FirstHits
-from realistic.renderer.area_lights import AreaLightTable
+from realistic.renderer.area_lights import AreaLightTable, light_outward_flipped
 from realistic.renderer.backends import Backend, backend_for
-from realistic.renderer.bsdf import BSDF, ShadingFrame, bsdf_for
+from realistic.renderer.bsdf import ShadingFrame, bsdf_for
 from realistic.renderer.bsdf.lambertian import cosine_hemisphere
 from realistic.renderer.bsdf.measured import irregular_table, table_lookup
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.hit_rows import compile_row_loops, place_rows, rows_on_material
-from realistic.renderer.light_sampler import colour
+from realistic.renderer.surface_parameters import RHO_U, SurfaceParameters, directional_albedo
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.materials import Measured, SurfaceMaterial
 from realistic.scene.measured import IrregularSamples, load_measured
-from realistic.scene.model import AreaLight, ImageTexture, Material, Scene, Texture
+from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.shapes import light_mesh
-from realistic.scene.textures import Footprint, albedo, evaluate
+from realistic.scene.textures import albedo
 
 if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
     from realistic.renderer.opencl_backend import OpenCLBackend
@@ -84,78 +83,8 @@ def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     return np.take(a, index, axis=0)
 
 
-#: Samples of a first hit's albedo estimate, as pbrt-v4's ``nRhoSamples`` (cpu/integrators.cpp): the
-#: centres of a 4 x 4 grid of (u0, u1), the same at every hit so the estimate is exact for a
-#: Lambertian BSDF and noise-free across a surface (``renderer.path`` samples its BSDFs with them).
-RHO_SAMPLES = 16
-RHO_U = np.array([((k % 4 + 0.5) / 4, (k // 4 + 0.5) / 4) for k in range(RHO_SAMPLES)], np.float32)
 #: The directions of a measured material's albedo estimate (``first_hits``): ``RHO_U`` cosine-weighted.
 _RHO_DIRECTIONS = cosine_hemisphere(RHO_U)
-#: Each of the albedo estimate's BSDF samples (``RHO_U``) with its own lobe choice.
-_RHO_LOBE = np.array([((7 * k) % RHO_SAMPLES + 0.5) / RHO_SAMPLES for k in range(RHO_SAMPLES)], np.float32)
-
-
-def directional_albedo(bsdf: BSDF, wo: np.ndarray) -> np.ndarray:
-    """A BSDF's directional albedo (n, 3) at local directions ``wo`` (n, 3): rho(wo) = E[f |cos wi|
-    / pdf] over the ``RHO_SAMPLES`` fixed samples (pbrt-v4 ``BSDF::rho``, which its integrators
-    fill a ``VisibleSurface`` with); exact for a Lambertian BSDF."""
-    total = np.zeros((len(wo), 3), np.float64)
-    for k in range(RHO_SAMPLES):
-        s = bsdf.sample(wo, np.broadcast_to(RHO_U[k], (len(wo), 2)), np.full(len(wo), _RHO_LOBE[k], np.float32))
-        ok = s.valid & (s.pdf > 0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            total += np.where(ok[:, None], s.value * (np.abs(s.wi[:, 2]) / np.where(ok, s.pdf, 1.0))[:, None], 0.0)
-    return (total / RHO_SAMPLES).astype(np.float32)
-
-
-class SurfaceParameters:
-    """``HitParameters`` over ``count`` hits: constants, and textures at their uv (image textures
-    filtered over their footprints). ``uv`` and ``footprint`` are functions called on the first
-    texture lookup that needs them (``footprint`` may return None: point-sampled), so untextured
-    materials cost neither."""
-
-    def __init__(self, count: int, uv: Callable[[], np.ndarray], footprint: Callable[[], Footprint | None],
-                 basis: np.ndarray | None):
-        self.count, self.basis = count, basis
-        self._uv_of, self._footprint_of = uv, footprint
-
-    @cached_property
-    def _uv(self) -> np.ndarray:
-        return self._uv_of()
-
-    @cached_property
-    def _footprint(self) -> Footprint | None:
-        return self._footprint_of()
-
-    def colour(self, value: object) -> np.ndarray:
-        if isinstance(value, tuple | list | np.ndarray | float | int):
-            rgb = np.broadcast_to(np.asarray(value, np.float32), (self.count, 3))
-        elif isinstance(value, Texture):
-            rgb = evaluate(value, self._uv, self._footprint if isinstance(value, ImageTexture) else None)
-        else:
-            raise TypeError(f"unknown texture {value!r}")
-        return colour(rgb, self.basis)
-
-    def scalar(self, value: object) -> np.ndarray:
-        if isinstance(value, float | int):
-            return np.full(self.count, value, np.float32)
-        if not isinstance(value, Texture):
-            raise TypeError(f"unknown texture {value!r}")
-        return evaluate(value, self._uv, None).mean(axis=1).astype(np.float32)
-
-
-def light_outward_flipped(light: AreaLight) -> bool:
-    """Whether the outside of an area light's surface, which its material sees (glass: the side it
-    enters from), is opposite its tessellation's world winding (``scene.shapes.light_mesh``, wound
-    to face +z in object space): under a mirroring transform, xor ReverseOrientation. That makes it
-    the side the light emits from (``AreaLight.frame``) and the side the same shape has without the
-    light, whose mesh the pbrt importer winds the other way under ReverseOrientation: pbrt hands a
-    shape the same ``reverseOrientation`` whether or not it emits (pbrt-v3 ``pbrtShape`` in
-    ``src/core/api.cpp``; pbrt-v4 ``BasicScene::CreateLights`` and ``CreateAggregate`` in
-    ``src/pbrt/scene.cpp``), and a disk's normal flips by it (pbrt-v3 ``src/shapes/disk.cpp`` through
-    ``SurfaceInteraction``'s constructor, ``src/core/interaction.cpp``; pbrt-v4 ``Disk`` in
-    ``src/pbrt/shapes.h``, ``flipNormal``)."""
-    return bool(np.linalg.det(np.asarray(light.transform, np.float64)[:3, :3]) < 0) != light.reverse_orientation
 
 
 def _matte(material: SurfaceMaterial) -> Material:

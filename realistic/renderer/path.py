@@ -51,17 +51,12 @@ from realistic.core import rng
 from realistic.core.spectrum import rgb_basis, rgb_response
 from realistic.core.validation import MAX_LIGHT_SAMPLES
 from realistic.core.vectors import dot, normalise
+from realistic.renderer.area_lights import light_outward_flipped
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.bsdf import BSDF, BSDFSample, HitParameters, ShadingFrame, bsdf_for
-from realistic.renderer.direct_lighting import (
-    SHADOW_OFFSET,
-    DirectLighting,
-    SurfaceParameters,
-    _rows,
-    directional_albedo,
-    light_outward_flipped,
-)
+from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _rows
 from realistic.renderer.light_sampler import FAR, LightSampler
+from realistic.renderer.surface_parameters import SurfaceParameters, directional_albedo
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.lights import EmissiveInstance
