@@ -18,7 +18,8 @@
  *   - light samples (picked by the rounded-up CDF as numpy's searchsorted picks; LightSampler.sample):
  *     at depth 0 light_samples of them with the pixel's Sobol' numbers (rng.all_light_uniforms), else
  *     one with rng.uniform at dimensions base + 4 .. 6; on an area light the point on the disk or
- *     quad and the density d^2 / (cos_q A) P_j; a point or spot light's position, I / d^2 (a spot's
+ *     quad, or on an emitting instance's triangle picked by its area CDF (Emitter.points), and the
+ *     density d^2 / (cos_q A) P_j (A the whole light's area); a point or spot light's position, I / d^2 (a spot's
  *     times its quartic or smoothstep falloff) and density P_j; a distant light's direction and P_j;
  *     a constant infinite light's direction uniform on the sphere, density P_j / 4 pi, or an
  *     environment map's by its Distribution2D (map_direction), density P_j p(uv) |d(uv)/d(omega)|
@@ -255,20 +256,40 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
         float3 wi, target = (float3)(0.0f);
         float light_pdf = probability;  /* a delta light's: its pick probability */
         int far = kind == BOUNCE_KIND_DISTANT || kind == BOUNCE_KIND_INFINITE;
-        if (kind == BOUNCE_KIND_AREA) {  /* LightSampler._sample_areas: by area on the disk or quad */
-            float x, y;
-            if (light[BOUNCE_LIGHT_DISK] != 0.0f) {
-                concentric_disk(u1, u2, &x, &y);
-            } else {
-                x = 2.0f * u1 - 1.0f;
-                y = 2.0f * u2 - 1.0f;
+        if (kind == BOUNCE_KIND_AREA || kind == BOUNCE_KIND_INSTANCE) {  /* by area, density d^2 / (cos_q A) */
+            float3 normal;
+            if (kind == BOUNCE_KIND_INSTANCE) {
+                /* Emitter.points: u1 picks a triangle by the area CDF and, rescaled within its step,
+                 * with u2 places the point in it by Turk's square-root map */
+                __global const float *triangle_cdf = environment
+                                                     + (size_t)light[BOUNCE_LIGHT_TRIANGLES] * BSDF_TABLE_ALIGN;
+                int count = (int)light[BOUNCE_LIGHT_TRIANGLES + 2];
+                int tri = pick_light(triangle_cdf, count, u1);
+                float lo = tri > 0 ? triangle_cdf[tri - 1] : 0.0f;
+                float s = clamp((u1 - lo) / fmax(triangle_cdf[tri] - lo, 1e-30f), 0.0f, 1.0f);
+                float root = __builtin_sqrtf(s);
+                __global const float *triangle = environment
+                    + (size_t)light[BOUNCE_LIGHT_TRIANGLES + 1] * BSDF_TABLE_ALIGN + (size_t)tri * BOUNCE_TRIANGLE_WIDTH;
+                target = vload3(0, triangle + BOUNCE_TRIANGLE_ORIGIN)
+                         + vload3(0, triangle + BOUNCE_TRIANGLE_E1) * (1.0f - root)
+                         + vload3(0, triangle + BOUNCE_TRIANGLE_E2) * (u2 * root);
+                normal = vload3(0, triangle + BOUNCE_TRIANGLE_NORMAL);
+            } else {  /* LightSampler._sample_areas: on the disk or quad */
+                float x, y;
+                if (light[BOUNCE_LIGHT_DISK] != 0.0f) {
+                    concentric_disk(u1, u2, &x, &y);
+                } else {
+                    x = 2.0f * u1 - 1.0f;
+                    y = 2.0f * u2 - 1.0f;
+                }
+                target = vload3(0, light + BOUNCE_LIGHT_CENTRE) + vload3(0, light + BOUNCE_LIGHT_A) * x
+                         + vload3(0, light + BOUNCE_LIGHT_B) * y;
+                normal = vload3(0, light + BOUNCE_LIGHT_NORMAL);
             }
-            target = vload3(0, light + BOUNCE_LIGHT_CENTRE) + vload3(0, light + BOUNCE_LIGHT_A) * x
-                     + vload3(0, light + BOUNCE_LIGHT_B) * y;
             float3 to_light = target - point;
             float d2 = dot3(to_light, to_light);
             wi = to_light / __builtin_sqrtf(fmax(d2, 1e-30f));
-            float cos_q = -dot3(wi, vload3(0, light + BOUNCE_LIGHT_NORMAL));
+            float cos_q = -dot3(wi, normal);
             if (light[BOUNCE_LIGHT_TWO_SIDED] != 0.0f) cos_q = fabs(cos_q);
             int ok = cos_q > 0.0f && d2 > 0.0f;
             light_pdf = ok ? d2 / (cos_q * light[BOUNCE_LIGHT_AREA]) * probability : 0.0f;

@@ -20,14 +20,14 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 after specular bounces), for tests.
 
 Backends: on "opencl", where every light is an area, point, spot, distant or infinite
-light (or none emits), RGB rays at hits whose
+light or an emitting mesh (or none emits), RGB rays at hits whose
 material ``kernels/bsdf.cl`` covers with constant parameters (Lambertian and Oren-Nayar under a
 grid or checker texture too, or under an EWA- or bilinear-filtered image texture, whose albedo
 ``EwaKernel.at_hits`` filters on the device before the launch) take the whole bounce in one launch
 of ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS
 weights, shadow rays, BSDF sample, beta, roulette), with the same random numbers; the host keeps
 embree, emission and the compaction of live paths. Other hits (other textured parameters, spectral
-rays, scenes with emitting instances)
+rays, scenes with an emitting sphere)
 have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
 where it covers the material (the backend's ``bsdf_kernel``: every material but diffuse
 transmission and MERL tables), in one launch per bounce with the same random numbers; every other
