@@ -1,7 +1,8 @@
 """kernels/bounce.cl (the path integrator's fused bounce) against the numpy ``PathIntegrator._shade``
 (the reference) per hit with the same random numbers, for every material and every kind of light the
-kernel covers; which materials and lights it covers; whole paths equal to the numpy backend's; an
-area-light and a sky furnace; and a plane's closed-form radiance under point, spot and distant lights."""
+kernel covers (emitting meshes and spheres among them); which materials and lights it covers; whole
+paths equal to the numpy backend's; an area-light, a sky and an emitting-sphere furnace; and a plane's
+closed-form radiance under point, spot and distant lights and under an emitting sphere."""
 
 import math
 import re
@@ -440,7 +441,7 @@ def test_convex_object_under_a_uniform_sky_reads_its_albedo_times_the_sky(mode, 
 @pytest.mark.parametrize("lights", ["emitting mesh", "emitting mesh, two-sided", "emitting mesh, mirrored",
                                     "emitting sphere", "emitting sphere, mirrored, two-sided"])
 @pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
-def test_paths_under_emitting_meshes_carry_the_numpy_radiance(lights, mode, mis):
+def test_paths_under_emitting_instances_carry_the_numpy_radiance(lights, mode, mis):
     """Whole paths (depth 5, two light samples) lit by emitting meshes and spheres (one- and
     two-sided, under a mirroring transform, beside area lights), over glass, a rough conductor and textured
     Lambertians: each ray's radiance is the numpy backend's to float32 rounding, BSDF samples that
