@@ -18,7 +18,10 @@
  *   - light samples (picked by the rounded-up CDF as numpy's searchsorted picks; LightSampler.sample):
  *     at depth 0 light_samples of them with the pixel's Sobol' numbers (rng.all_light_uniforms), else
  *     one with rng.uniform at dimensions base + 4 .. 6; on an area light the point on the disk or
- *     quad and the density d^2 / (cos_q A) P_j; a point or spot light's position, I / d^2 (a spot's
+ *     quad, or on an emitting instance's triangle picked by its area CDF (Emitter.points), and the
+ *     density d^2 / (cos_q A) P_j (A the whole light's area); from outside an emitting sphere a
+ *     direction uniform in the cone it subtends, density P_j / (2 pi (1 - cos theta_max)), which the
+ *     host meets with the sphere's mesh (cone_light); a point or spot light's position, I / d^2 (a spot's
  *     times its quartic or smoothstep falloff) and density P_j; a distant light's direction and P_j;
  *     a constant infinite light's direction uniform on the sphere, density P_j / 4 pi, or an
  *     environment map's by its Distribution2D (map_direction), density P_j p(uv) |d(uv)/d(omega)|
@@ -31,8 +34,11 @@
  *     rule, and the next ray from the offset origin.
  * Outputs, light sample k of hit i at row k * m + i: shadow origin and vector (3 floats each), its
  * length (1 - 1e-4 in units of the vector, FAR along a direction) or -1 for a dead sample (embree
- * skips it), contribution (3 floats, 0 when dead). Per hit: the next origin, direction, beta, the point (3 floats each), the
- * sample's pdf and flags (bit 0 the path goes on, bit 1 specular, bit 2 shade its next hit).
+ * skips it), contribution (3 floats, 0 when dead), and the light of a live cone sample toward an
+ * emitting sphere, else -1 (cone_light: such a sample's vector is its direction, its length FAR, and
+ * its contribution as if the direction met the sphere's mesh from its emitting side, until the host
+ * finds where it meets it, if it does). Per hit: the next origin, direction, beta, the point (3 floats
+ * each), the sample's pdf and flags (bit 0 the path goes on, bit 1 specular, bit 2 shade its next hit).
  * Square roots and floors here are __builtin_sqrtf and __builtin_floorf (LLVM intrinsics, correctly
  * rounded as numpy's float32 ones), not the OpenCL library's calls, as in kernels/shade.cl.
  */
@@ -96,6 +102,16 @@ inline float magnitude3(float3 v) { return fmax(fmax(fabs(v.x), fabs(v.y)), fabs
 
 /* The sign of x as numpy's np.sign: -1, 0 or 1. */
 inline float sign_of(float x) { return x > 0.0f ? 1.0f : (x < 0.0f ? -1.0f : 0.0f); }
+
+/* The unit vectors s and t of the orthonormal frame (s, t, n) about unit n: renderer.bsdf.ShadingFrame
+ * (Duff et al. 2017, "Building an Orthonormal Basis, Revisited"). */
+inline void frame_of(float3 n, float3 *s, float3 *t) {
+    float sgn = n.z >= 0.0f ? 1.0f : -1.0f;
+    float a = -1.0f / (sgn + n.z);
+    float b = n.x * n.y * a;
+    *s = normalise3((float3)(1.0f + sgn * n.x * n.x * a, sgn * b, -sgn * n.x));
+    *t = normalise3((float3)(b, sgn + n.y * n.y * a, -n.y));
+}
 
 /* The cell of u among a piecewise-constant distribution's count cells (the number of CDF entries
  * <= u, less one, within 0 .. count - 1: Distribution2D.sample's searchsorted) and u's place
@@ -164,7 +180,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
                      __global const float *lights, __global const float *cdf, __global const float *environment,
                      __global const float *tables,
                      __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
-                     __global float *contribution, __global float *next_origin, __global float *next_direction,
+                     __global float *contribution, __global int *cone_light, __global float *next_origin, __global float *next_direction,
                      __global float *next_beta, __global float *next_point, __global float *next_pdf,
                      __global int *next_flags) {
     uint i = get_global_id(0);
@@ -198,12 +214,9 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
             shading = w;
         }
     }
-    /* the shading frame (ShadingFrame: Duff et al. 2017) */
-    float sgn = shading.z >= 0.0f ? 1.0f : -1.0f;
-    float fa = -1.0f / (sgn + shading.z);
-    float fb = shading.x * shading.y * fa;
-    float3 fs = normalise3((float3)(1.0f + sgn * shading.x * shading.x * fa, sgn * fb, -sgn * shading.x));
-    float3 ft = normalise3((float3)(fb, sgn + shading.y * shading.y * fa, -shading.y));
+    /* the shading frame */
+    float3 fs, ft;
+    frame_of(shading, &fs, &ft);
     float3 wo = (float3)(-dot3(d, fs), -dot3(d, ft), -dot3(d, shading));
     float eps = SHADOW_OFFSET * (magnitude3(point) + offset_base);
 
@@ -248,27 +261,65 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
             u1 = uniform_at(key, base + 5);
             u2 = uniform_at(key, base + 6);
         }
-        __global const float *light = lights + BOUNCE_LIGHT_WIDTH * pick_light(cdf, light_count, u_pick);
+        int picked = pick_light(cdf, light_count, u_pick);
+        __global const float *light = lights + BOUNCE_LIGHT_WIDTH * picked;
         int kind = (int)light[BOUNCE_LIGHT_KIND];
         float3 radiance = vload3(0, light + BOUNCE_LIGHT_RADIANCE);
         float probability = light[BOUNCE_LIGHT_PROBABILITY];
         float3 wi, target = (float3)(0.0f);
         float light_pdf = probability;  /* a delta light's: its pick probability */
-        int far = kind == BOUNCE_KIND_DISTANT || kind == BOUNCE_KIND_INFINITE;
-        if (kind == BOUNCE_KIND_AREA) {  /* LightSampler._sample_areas: by area on the disk or quad */
-            float x, y;
-            if (light[BOUNCE_LIGHT_DISK] != 0.0f) {
-                concentric_disk(u1, u2, &x, &y);
-            } else {
-                x = 2.0f * u1 - 1.0f;
-                y = 2.0f * u2 - 1.0f;
+        /* an emitting sphere seen from outside it: a direction in the cone it subtends (Emitter.cone) */
+        float radius = light[BOUNCE_LIGHT_RADIUS];
+        float3 to_centre = vload3(0, light + BOUNCE_LIGHT_CENTRE) - point;
+        float centre2 = dot3(to_centre, to_centre);
+        int cone = kind == BOUNCE_KIND_INSTANCE && radius > 0.0f && centre2 > radius * radius;
+        int far = kind == BOUNCE_KIND_DISTANT || kind == BOUNCE_KIND_INFINITE || cone;
+        if (cone) {
+            /* LightSampler._towards_sphere: 1 - cos(theta) uniform on [0, 1 - cos(theta_max)], the
+             * latter as sin^2 / (1 + cos); the host meets the direction with the mesh */
+            float sin2 = radius * radius / centre2;
+            float one_minus_cos = sin2 / (1.0f + __builtin_sqrtf(fmax(0.0f, 1.0f - sin2)));
+            float lower = u1 * one_minus_cos;
+            float sin_theta = __builtin_sqrtf(fmax(0.0f, lower * (2.0f - lower)));
+            float phi = 2.0f * M_PI_F * u2;
+            float3 axis = to_centre / __builtin_sqrtf(fmax(centre2, 1e-30f)), cs, ct;
+            frame_of(axis, &cs, &ct);
+            wi = cs * (sin_theta * cos(phi)) + ct * (sin_theta * sin(phi)) + axis * (1.0f - lower);
+            light_pdf = probability / (2.0f * M_PI_F * one_minus_cos);
+        } else if (kind == BOUNCE_KIND_AREA || kind == BOUNCE_KIND_INSTANCE) {  /* by area: d^2 / (cos_q A) */
+            float3 normal;
+            if (kind == BOUNCE_KIND_INSTANCE) {
+                /* Emitter.points: u1 picks a triangle by the area CDF and, rescaled within its step,
+                 * with u2 places the point in it by Turk's square-root map */
+                __global const float *triangle_cdf = environment
+                                                     + (size_t)light[BOUNCE_LIGHT_TRIANGLES] * BSDF_TABLE_ALIGN;
+                int count = (int)light[BOUNCE_LIGHT_TRIANGLES + 2];
+                int tri = pick_light(triangle_cdf, count, u1);
+                float lo = tri > 0 ? triangle_cdf[tri - 1] : 0.0f;
+                float s = clamp((u1 - lo) / fmax(triangle_cdf[tri] - lo, 1e-30f), 0.0f, 1.0f);
+                float root = __builtin_sqrtf(s);
+                __global const float *triangle = environment
+                    + (size_t)light[BOUNCE_LIGHT_TRIANGLES + 1] * BSDF_TABLE_ALIGN + (size_t)tri * BOUNCE_TRIANGLE_WIDTH;
+                target = vload3(0, triangle + BOUNCE_TRIANGLE_ORIGIN)
+                         + vload3(0, triangle + BOUNCE_TRIANGLE_E1) * (1.0f - root)
+                         + vload3(0, triangle + BOUNCE_TRIANGLE_E2) * (u2 * root);
+                normal = vload3(0, triangle + BOUNCE_TRIANGLE_NORMAL);
+            } else {  /* LightSampler._sample_areas: on the disk or quad */
+                float x, y;
+                if (light[BOUNCE_LIGHT_DISK] != 0.0f) {
+                    concentric_disk(u1, u2, &x, &y);
+                } else {
+                    x = 2.0f * u1 - 1.0f;
+                    y = 2.0f * u2 - 1.0f;
+                }
+                target = vload3(0, light + BOUNCE_LIGHT_CENTRE) + vload3(0, light + BOUNCE_LIGHT_A) * x
+                         + vload3(0, light + BOUNCE_LIGHT_B) * y;
+                normal = vload3(0, light + BOUNCE_LIGHT_NORMAL);
             }
-            target = vload3(0, light + BOUNCE_LIGHT_CENTRE) + vload3(0, light + BOUNCE_LIGHT_A) * x
-                     + vload3(0, light + BOUNCE_LIGHT_B) * y;
             float3 to_light = target - point;
             float d2 = dot3(to_light, to_light);
             wi = to_light / __builtin_sqrtf(fmax(d2, 1e-30f));
-            float cos_q = -dot3(wi, vload3(0, light + BOUNCE_LIGHT_NORMAL));
+            float cos_q = -dot3(wi, normal);
             if (light[BOUNCE_LIGHT_TWO_SIDED] != 0.0f) cos_q = fabs(cos_q);
             int ok = cos_q > 0.0f && d2 > 0.0f;
             light_pdf = ok ? d2 / (cos_q * light[BOUNCE_LIGHT_AREA]) * probability : 0.0f;
@@ -325,6 +376,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
         vstore3(live ? (far ? wi : target - start) : (float3)(0.0f), o, shadow_vector);
         shadow_length[o] = live ? (far ? FAR : SHADOW_LENGTH) : -1.0f;
         vstore3(live ? c : (float3)(0.0f), o, contribution);
+        cone_light[o] = live && cone ? picked : -1;
     }
 
     /* the BSDF sample and the next ray */

@@ -4,20 +4,22 @@
 the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shadow ray and contribution
 (MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps embree and the
 compaction of live paths. It covers RGB rays, scenes whose lights are area, point, spot, distant or
-infinite lights (or that have none: ``samples_every_light``), and materials ``bsdf_kernel.parameters``
-covers whose parameters are constants (measured tables, named metals' tables and mixes' second lobes in
-the BSDF kernel's ``TableStore``), ``Material`` (Lambertian or Oren-Nayar) also under a grid or checker
+infinite lights, emitting meshes or spheres, or none, and materials ``bsdf_kernel.parameters`` covers
+whose parameters are constants (measured tables, named metals' tables and mixes' second lobes in the
+BSDF kernel's ``TableStore``), ``Material`` (Lambertian or Oren-Nayar) also under a grid or checker
 texture (evaluated in the kernel) or an image texture (any filter: ``ewa_kernel.DEVICE_FILTERS``):
 before each launch ``EwaKernel.at_hits`` turns those hits' records into their albedo on the device, with
 the footprint ``PathIntegrator._shade`` gives at that depth (the camera's pixel spread at depth 0, none
 deeper: level 0 bilinear), and the kernel reads it per hit in place of the row's constant. An
-environment map's sampling tables (its ``Distribution2D``) and texels are one device buffer. The rest
-(spectral rays, scenes with an emitting instance, textured parameters other than a ``Material``'s
-texture, materials ``bsdf.cl`` lacks) stays with ``PathIntegrator._shade``, the numpy reference
-(``tests/test_bounce_kernel.py`` compares the two per hit with the same random numbers). The program is
-the BSDF kernel's source with this one after it, so both share ``bsdf.cl``'s material functions; the
-scene's tables are device buffers made once per integrator, and each thread has its own queue and kernel
-object.
+environment map's sampling tables (its ``Distribution2D``) and texels, and an emitting mesh's world
+triangles and their area CDF (``light_sampler.Emitter``'s, which the scene's mesh-space device tables
+cannot stand for: they lack the instance's transform and the CDF), share one device buffer; a light
+sample's direction toward an emitting sphere meets its mesh on the host (embree). The rest (spectral
+rays, textured parameters other than a ``Material``'s texture, materials ``bsdf.cl`` lacks) stays with
+``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares the two per hit
+with the same random numbers). The program is the BSDF kernel's source with this one after it, so both
+share ``bsdf.cl``'s material functions; the scene's tables are device buffers made once per integrator,
+and each thread has its own queue and kernel object.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer import bsdf_kernel
 from realistic.renderer.hit_rows import place_rows, rows_on_material
-from realistic.renderer.light_sampler import AREA, DISTANT, INFINITE, POINT, SPOT, LightSampler
+from realistic.renderer.light_sampler import AREA, DISTANT, INFINITE, INSTANCE, POINT, SPOT, LightSampler
 from realistic.renderer.shade_kernel import GEOM_FLOATS, GEOM_INTS, rounded_up_cdf
 from realistic.scene.ewa_kernel import DEVICE_FILTERS, EwaKernel, SurfaceTables, hit_mapping
 from realistic.scene.intersect import Hits
@@ -56,23 +58,32 @@ TEXTURES = ("none", "grid", "checker", "image")
 #: whether its falloff is pbrt-v4's smoothstep (else pbrt-v3's quartic); an infinite light's mapping
 #: (``MAPPINGS``), light-to-world rotation (``frame``) and, with a map, its width and height and the
 #: starts (in ``bsdf_kernel.TABLE_ALIGN`` floats of the kernel's ``environment`` buffer) of its
-#: ``Distribution2D``'s row CDF (H + 1), column CDFs (H, W + 1), density (H, W) and its texels (H, W, 3).
+#: ``Distribution2D``'s row CDF (H + 1), column CDFs (H, W + 1), density (H, W) and its texels (H, W, 3);
+#: an emitting instance's radiance, total area, two-sided, its triangles (``triangles``: the starts,
+#: in ``TABLE_ALIGN`` floats of ``environment``, of its area CDF (rounded up as ``rounded_up_cdf``
+#: rounds) and its ``TRIANGLES`` rows, and their count) and, for an emitting sphere, its ``centre`` and
+#: ``radius`` (0: none).
 LIGHTS = Table("BOUNCE_LIGHT", np.float32, (("kind", 1), ("centre", 3), ("a", 3), ("b", 3), ("normal", 3),
                                             ("radiance", 3), ("area", 1), ("probability", 1), ("disk", 1),
                                             ("two_sided", 1), ("frame", 9), ("cos_total", 1), ("span", 1),
                                             ("smoothstep", 1), ("mapping", 1), ("map_size", 2),
-                                            ("map_tables", 4)))
-#: The lights the kernel samples (``kind``): every kind but emitting instances.
-LIGHT_KINDS = ("area", "point", "spot", "distant", "infinite")
+                                            ("map_tables", 4), ("triangles", 3), ("radius", 1)))
+#: An emitting instance's world triangle (``light_sampler.Emitter``'s rows): its first corner, its
+#: edges to the other two and its unit normal (the world winding's side).
+TRIANGLES = Table("BOUNCE_TRIANGLE", np.float32, (("origin", 3), ("e1", 3), ("e2", 3), ("normal", 3)))
+#: The lights the kernel samples (``kind``): every kind ``LightSampler`` has.
+LIGHT_KINDS = ("area", "point", "spot", "distant", "infinite", "instance")
 #: An infinite light's map: none (constant radiance, sampled uniformly), or ``InfiniteLight.mapping``
 #: (its "-" an "_" here).
 MAPPINGS = ("none", "latlong", "equal_area")
 #: ``LightSampler``'s kind -> ``LIGHT_KINDS``' index.
-_KIND = {AREA: 0, POINT: 1, SPOT: 2, DISTANT: 3, INFINITE: 4}
+_KIND = {AREA: 0, POINT: 1, SPOT: 2, DISTANT: 3, INFINITE: 4, INSTANCE: 5}
 #: ``mode_flags`` bits: MIS on, pbrt's "direct" mode, and (direct mode) whether non-specular BSDF
 #: samples go on to find emission.
 MODE_FLAGS = ("mis", "direct", "emission_after_diffuse")
 MIS, DIRECT, EMISSION_AFTER_DIFFUSE = (1 << k for k in range(len(MODE_FLAGS)))
+#: A shadow ray's length toward a point, in units of its vector (``kernels/bounce.cl``'s SHADOW_LENGTH).
+SHADOW_LENGTH = np.float32(1 - 1e-4)
 #: ``next_flags`` bits.
 GOES_ON, SPECULAR, SHADES = 1, 2, 4
 
@@ -80,7 +91,7 @@ GOES_ON, SPECULAR, SHADES = 1, 2, 4
 def header(dimension: int, roulette_after: int) -> str:
     """The generated head of the program: ``bsdf.cl``'s defines, every table's here, the texture
     kinds, the mode flags, and the integrator's first bounce dimension and roulette depth."""
-    return (bsdf_kernel.HEADER + "".join(t.defines() for t in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS))
+    return (bsdf_kernel.HEADER + "".join(t.defines() for t in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS, TRIANGLES))
             + constant_defines("BOUNCE_TEXTURE", TEXTURES) + constant_defines("BOUNCE_KIND", LIGHT_KINDS)
             + constant_defines("BOUNCE_MAPPING", MAPPINGS)
             + "".join(f"#define BOUNCE_{name.upper()} {1 << k}\n" for k, name in enumerate(MODE_FLAGS))
@@ -135,16 +146,12 @@ def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> 
     return row[0], extra[0]
 
 
-def samples_every_light(lights: LightSampler) -> bool:
-    """Whether the kernel samples each of ``lights``: every kind but an emitting instance (``_shade``'s)."""
-    return all(kind in _KIND for kind in lights.kind)
-
-
 def light_rows(lights: LightSampler) -> tuple[np.ndarray, np.ndarray]:
-    """``LIGHTS`` rows of a sampler whose lights the kernel samples (``samples_every_light``), in
-    its order, and the float32 ``environment`` buffer they point into: each map's sampling tables (its
-    CDFs rounded up as ``rounded_up_cdf`` rounds, so the kernel's float32 searches pick numpy's cells)
-    and texels, each at a multiple of ``bsdf_kernel.TABLE_ALIGN`` floats."""
+    """``LIGHTS`` rows of a sampler's lights, in its order, and the float32 ``environment`` buffer
+    they point into: each map's sampling tables (its CDFs rounded up as ``rounded_up_cdf`` rounds, so
+    the kernel's float32 searches pick numpy's cells) and texels, and each emitting instance's area
+    CDF (rounded up likewise) and ``TRIANGLES`` rows, each at a multiple of ``bsdf_kernel.TABLE_ALIGN``
+    floats."""
     n = len(lights.lights)
     spot = [(light.cos_total_width, light.cos_falloff_start - light.cos_total_width, light.falloff_kind != "quartic")
             if isinstance(light, SpotLight) else (0.0, 0.0, False) for light in lights.lights]
@@ -152,25 +159,38 @@ def light_rows(lights: LightSampler) -> tuple[np.ndarray, np.ndarray]:
                          for i, light in enumerate(lights.lights)], np.float64).reshape(n, 3)
     frame = lights.to_light_frame.reshape(n, 9).copy()
     mapping, map_size, map_tables = np.zeros(n), np.zeros((n, 2)), np.zeros((n, 4))
+    triangles, emitter_area, two_sided, radius = np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.zeros(n)
+    centre = lights.position.copy()
     environment: list[np.ndarray] = []
-    size = 0
+
+    def append(part: np.ndarray) -> int:
+        """Put ``part`` in ``environment`` at the next multiple of ``TABLE_ALIGN`` floats: its start in those."""
+        start = sum(len(p) for p in environment) // bsdf_kernel.TABLE_ALIGN
+        flat = np.asarray(part, np.float32).ravel()
+        environment.extend((flat, np.zeros(-len(flat) % bsdf_kernel.TABLE_ALIGN, np.float32)))
+        return start
+
     for i, env in lights.environments.items():
         frame[i] = np.asarray(env.light.light_to_world, np.float64)[:3, :3].ravel()
         if env.distribution is not None:  # a map
             row_cdf, col_cdf = env.distribution.cdfs
             mapping[i] = MAPPINGS.index(env.light.mapping.replace("-", "_"))
             map_size[i] = env.distribution.width, env.distribution.height
-            for k, part in enumerate((rounded_up_cdf(row_cdf), rounded_up_cdf(col_cdf), env.distribution.density,
-                                      env.light.image)):
-                flat = np.asarray(part, np.float32).ravel()
-                map_tables[i, k] = size // bsdf_kernel.TABLE_ALIGN
-                environment += [flat, np.zeros(-len(flat) % bsdf_kernel.TABLE_ALIGN, np.float32)]
-                size += len(flat) + len(environment[-1])
-    table = LIGHTS.pack(n, kind=[_KIND[int(k)] for k in lights.kind], centre=lights.position, normal=lights.position,
+            map_tables[i] = [append(part) for part in (rounded_up_cdf(row_cdf), rounded_up_cdf(col_cdf),
+                                                       env.distribution.density, np.asarray(env.light.image))]
+    for i, emitter in lights.emitters.items():
+        radiance[i], emitter_area[i], two_sided[i] = emitter.light.radiance, emitter.area, emitter.light.two_sided
+        rows = TRIANGLES.pack(len(emitter.cdf), origin=emitter.origin, e1=emitter.e1, e2=emitter.e2,
+                              normal=emitter.normal)
+        triangles[i] = append(rounded_up_cdf(emitter.cdf)), append(rows), len(emitter.cdf)
+        if emitter.light.sphere is not None:
+            centre[i], radius[i] = emitter.light.sphere
+    table = LIGHTS.pack(n, kind=[_KIND[int(k)] for k in lights.kind], centre=centre, normal=lights.position,
                         radiance=radiance, probability=lights.probability, frame=frame,
                         cos_total=[c for c, _, _ in spot], span=[s for _, s, _ in spot],
                         smoothstep=[k for _, _, k in spot], mapping=mapping, map_size=map_size,
-                        map_tables=map_tables)
+                        map_tables=map_tables, area=emitter_area, two_sided=two_sided, triangles=triangles,
+                        radius=radius)
     area = np.flatnonzero(lights.kind == AREA)
     if len(area):
         areas, slot = lights.area_lights, lights.area_slot[area]
@@ -215,13 +235,14 @@ class BounceKernel:
                  tables: bsdf_kernel.TableStore, vertices: np.ndarray, geom_linear: np.ndarray,
                  pixel_spread_radians: float, ewa_kernel: Callable[[MipMap], EwaKernel]):
         """``dimension``: the random-number dimension of bounce 0's BSDF sample (bounce b's are 8 b
-        on); ``roulette_after``: the bounces after which roulette may end a path. ``lights``: lights the
-        kernel samples (``samples_every_light``), or none that emit (``PathIntegrator`` checks). ``tables``: the BSDF
+        on); ``roulette_after``: the bounces after which roulette may end a path. ``lights``: the scene's
+        (its emitting spheres' meshes meet the kernel's cone samples here). ``tables``: the BSDF
         kernel's ``TableStore`` (shared, so a measured table is on the device once). ``vertices``
         (float64, mesh space), ``geom_linear`` (per instance, 3 x 3), ``pixel_spread_radians`` (the
         camera's) and ``ewa_kernel`` (a MIP map's ``EwaKernel``, the backend's) serve image textures."""
         self.device = device
         self.bsdf_tables = tables
+        self._lights = lights
         rows = [material_rows(m, tables) for m in materials]
         #: per material: whether the kernel shades it
         self.covered = np.array([r is not None for r in rows] or [False], bool)
@@ -280,6 +301,7 @@ class BounceKernel:
                      beta=np.empty((m, 3), np.float32), point=np.empty((m, 3), np.float32),
                      pdf=np.empty(m, np.float32), flags=np.empty(m, np.int32))
         if m:
+            cone_light = np.empty(shadows, np.int32)
             queue, kernel = self._queue_and_kernel()
             albedo = self._albedo(rows, direction, hits, depth)
             inputs = [self.device.wrapped_buffer(a, dtype) for a, dtype in (
@@ -293,8 +315,24 @@ class BounceKernel:
                                   np.int32(max(self.light_count, 1)), *inputs, *self._tables,
                                   self.bsdf_tables.buffer),
                                  (out.shadow_origin, out.shadow_vector, out.shadow_length, out.contribution,
-                                  out.origin, out.direction, out.beta, out.point, out.pdf, out.flags))
+                                  cone_light, out.origin, out.direction, out.beta, out.point, out.pdf, out.flags))
+            self._meet_spheres(cone_light, out, m)
         return out
+
+    def _meet_spheres(self, cone_light: np.ndarray, out: Bounce, m: int) -> None:
+        """Finish the kernel's cone samples toward emitting spheres (``cone_light``: each shadow row's
+        sphere light, or -1) as ``LightSampler._towards_sphere`` does: the direction from the hit point
+        meets the sphere's mesh (``LightSampler.meets_sphere_mesh``), and the shadow ray goes to that
+        point; where it misses the mesh or meets its back the sample is dead."""
+        for light in np.unique(cone_light[cone_light >= 0]):
+            rows = np.flatnonzero(cone_light == light)
+            point, w = out.point[rows % m], out.shadow_vector[rows]
+            ok, t = self._lights.meets_sphere_mesh(self._lights.emitters[int(light)], point, w)
+            target = point + t[:, None] * w
+            out.shadow_vector[rows] = np.where(ok[:, None], target - out.shadow_origin[rows], np.float32(0))
+            out.shadow_origin[rows] = np.where(ok[:, None], out.shadow_origin[rows], np.float32(0))
+            out.shadow_length[rows] = np.where(ok, SHADOW_LENGTH, np.float32(-1))
+            out.contribution[rows] = np.where(ok[:, None], out.contribution[rows], np.float32(0))
 
     def _albedo(self, rows: np.ndarray, direction: np.ndarray, hits: Hits, depth: int) -> np.ndarray:
         """The albedo (m, 3) float32 of the hits ``rows`` on image-textured materials (zero elsewhere,

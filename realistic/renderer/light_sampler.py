@@ -349,17 +349,23 @@ class LightSampler:
         phi = 2.0 * math.pi * u2
         frame = ShadingFrame(axis.astype(np.float32))
         w = frame.to_world(np.column_stack([sin * np.cos(phi), sin * np.sin(phi), cos]).astype(np.float32))
-        to_object = emitter.to_object
-        origin = transform_points(to_object, p[rows].astype(np.float64)).astype(np.float32)
-        direction = (w.astype(np.float64) @ to_object[:3, :3].T).astype(np.float32)
-        hits = self._alone(emitter).closest(origin, direction)  # t: world units along w, as the map is affine
-        front = emitter.winding * dot(direction, hits.normal) < 0
-        ok = (hits.geom >= 0) & (front | emitter.light.two_sided)
-        t = np.where(ok, hits.t, 0.0).astype(np.float32)
+        ok, t = self.meets_sphere_mesh(emitter, p[rows], w)
         wi[rows], distance[rows] = w, t
         target[rows] = p[rows] + t[:, None] * w
         rgb[rows] = np.where(ok[:, None], np.asarray(emitter.light.radiance, np.float32), 0.0)
         pdf[rows] = np.where(ok, 1.0 / (2.0 * math.pi * one_minus_cos), 0.0)
+
+    def meets_sphere_mesh(self, emitter: Emitter, point: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Whether rays from float32 ``point`` (N, 3) along unit ``w`` (N, 3) meet emitting sphere
+        ``emitter``'s mesh on an emitting side, and where (t along w; 0 where not): a ray against that
+        mesh alone, in its object space (``_towards_sphere``'s, and the bounce kernel's cone samples')."""
+        to_object = emitter.to_object
+        origin = transform_points(to_object, point.astype(np.float64)).astype(np.float32)
+        direction = (w.astype(np.float64) @ to_object[:3, :3].T).astype(np.float32)
+        hits = self._alone(emitter).closest(origin, direction)  # t: world units along w, as the map is affine
+        front = emitter.winding * dot(direction, hits.normal) < 0
+        ok = (hits.geom >= 0) & (front | emitter.light.two_sided)
+        return ok, np.where(ok, hits.t, 0.0).astype(np.float32)
 
     def _alone(self, emitter: Emitter) -> Intersector:
         """Rays against ``emitter``'s mesh alone in its object space: one per mesh, built on first use

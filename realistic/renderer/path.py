@@ -19,16 +19,14 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 ``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
 after specular bounces), for tests.
 
-Backends: on "opencl", where every light is an area, point, spot, distant or infinite
-light (or none emits), RGB rays at hits whose
+Backends: on "opencl", RGB rays at hits whose
 material ``kernels/bsdf.cl`` covers with constant parameters (Lambertian and Oren-Nayar under a
 grid or checker texture too, or under an EWA- or bilinear-filtered image texture, whose albedo
 ``EwaKernel.at_hits`` filters on the device before the launch) take the whole bounce in one launch
 of ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS
 weights, shadow rays, BSDF sample, beta, roulette), with the same random numbers; the host keeps
 embree, emission and the compaction of live paths. Other hits (other textured parameters, spectral
-rays, scenes with emitting instances)
-have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
+rays) have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
 where it covers the material (the backend's ``bsdf_kernel``: every material but diffuse
 transmission and MERL tables), in one launch per bounce with the same random numbers; every other
 material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
@@ -238,16 +236,12 @@ class PathIntegrator(DirectLighting):
         return result, shadow_rays
 
     def _build_bounce(self, backend: Backend) -> BounceKernel | None:
-        """The fused bounce kernel on ``backend``'s device (imports pyopencl only here), for scenes
-        whose lights it samples (``bounce_kernel.samples_every_light``, or none that emit); None
-        otherwise or on the "numpy" backend."""
+        """The fused bounce kernel on ``backend``'s device (imports pyopencl only here); None on the
+        "numpy" backend."""
         if backend.name != "opencl":
             return None
         from realistic.renderer import bounce_kernel
         from realistic.renderer.opencl_backend import OpenCLBackend
-
-        if self.lights.has_lights and not bounce_kernel.samples_every_light(self.lights):
-            return None
 
         if not isinstance(backend, OpenCLBackend):
             raise TypeError(f"the bounce kernel runs on an OpenCL backend, not {backend!r}")
