@@ -9,7 +9,11 @@ from source; a render builds the shading kernel variant its rays need, and no ot
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from conftest import fresh_process_env, run_fresh
 from realistic import load_scene
@@ -157,6 +161,94 @@ def test_the_next_process_loads_every_program_a_large_render_built(built, opencl
     assert built == [first]  # the choice read back, untimed
     assert len(from_source) == (0 if repays else 2)
     opencl.build_program.cache_clear()
+
+
+#: What a choice's disk-cache entry might hold: arbitrary arrays (digest valid) under any names,
+#: among them the few that are, or nearly are, a choice.
+CHOICE_ARRAYS = st.one_of(
+    hnp.arrays(st.sampled_from([np.int64, np.int32, np.uint8, np.float64, np.bool_, np.dtype("<U3")]),
+               hnp.array_shapes(min_dims=0, max_dims=2, min_side=0, max_side=3)),
+    st.sampled_from([np.array([4]), np.array([1], np.uint8), np.array([2]), np.array([3]), np.array([4.0]),
+                     np.array(4), np.array([4, 1]), np.array([-1]), np.array([2**40])]))
+CHOICE_ENTRIES = st.dictionaries(st.sampled_from(["rays_per_item", "seen", "other"]), CHOICE_ARRAYS, max_size=3)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(arrays=CHOICE_ENTRIES, raw=st.none() | st.binary(max_size=200))
+def test_a_stored_choice_is_used_only_where_it_is_one_of_the_choices_never_a_crash(opencl_platform, cache, arrays,
+                                                                                  raw):
+    """Arbitrary arrays stored under a choice's key (digest valid: another version's entry, say), or
+    arbitrary bytes in its file: the choice read back is a single integer among the choices, and
+    anything else reads as no choice (timed again, or one ray untimed), never an error."""
+    from realistic.core import disk_cache
+
+    key, choices = disk_cache.cache_key("lens-rays-per-item", "property test"), (4, 1)
+    if raw is None:
+        disk_cache.store_arrays(key, arrays)
+    else:
+        (cache / f"{key}.npz").write_bytes(raw)
+    value = arrays.get("rays_per_item")
+    valid = raw is None and list(arrays) == ["rays_per_item"] and value is not None and value.shape == (1,) \
+        and value.dtype.kind in "iu" and int(value[0]) in choices
+    for timing, untimed in ((True, None), (False, 1)):
+        opencl_platform._chosen.pop(key, None)
+        opencl_platform.time_choices(timing)
+        assert opencl_platform._untimed_choice(key, choices) == (int(value[0]) if valid else untimed)
+    opencl_platform._chosen.pop(key, None)
+    opencl_platform.time_choices(True)
+
+
+def test_a_foreign_choice_entry_is_timed_again_and_replaced(built, opencl_platform):
+    """A camera whose choice entry holds something else (digest valid) has its choice timed and
+    stored over it."""
+    from kernel_reference import reference_camera
+    from realistic.core import disk_cache
+
+    camera = reference_camera("wide", "rear")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    key = opencl_platform._choice_key(camera, opencl.Device.for_spec())
+    disk_cache.store_arrays(key, {"rays_per_item": np.array([several + one])})
+    timed = opencl_platform.LensKernel(camera).rays_per_item
+    assert built == [several, one, timed]
+    assert int(disk_cache.load_arrays(key)["rays_per_item"][0]) == timed
+
+
+DOUBLING = "__kernel void doubling(__global float* a) { a[get_global_id(0)] *= 2.0f; }"
+PROGRAM_ARRAYS = st.dictionaries(
+    st.sampled_from(["device0", "device1", "built", "other"]),
+    hnp.arrays(st.sampled_from([np.uint8, np.int32, np.float64]),
+               hnp.array_shapes(min_dims=0, max_dims=2, min_side=0, max_side=64)),
+    max_size=2)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(arrays=PROGRAM_ARRAYS, raw=st.none() | st.binary(max_size=200))
+def test_any_program_entry_is_rebuilt_never_run_or_a_crash(opencl_platform, cache, monkeypatch, arrays, raw):
+    """Arbitrary arrays stored under a program's key (digest valid), or arbitrary bytes in its file:
+    the program is built from source (its binaries stored at exit), and it computes what its source
+    says."""
+    import pyopencl as cl
+
+    from realistic.core import disk_cache
+
+    monkeypatch.setattr(opencl, "_unstored", [])  # this example's alone
+    device = opencl.Device.for_spec()
+    key = disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), DOUBLING.encode(), ())
+    if raw is None:
+        disk_cache.store_arrays(key, arrays)
+    else:
+        (cache / f"{key}.npz").write_bytes(raw)
+    opencl.build_program.cache_clear()
+    program = device.build_program(DOUBLING, "doubling.cl")
+    opencl.build_program.cache_clear()
+    values = np.arange(256, dtype=np.float32)
+    queue = device.queue()
+    buffer = cl.Buffer(device.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=values)
+    cl.Kernel(program, "doubling")(queue, (256,), None, buffer)
+    doubled = np.empty_like(values)
+    cl.enqueue_copy(queue, doubled, buffer)
+    assert np.array_equal(doubled, 2 * values)
+    assert [stored for stored, _ in opencl._unstored] == ([key] if raw is None else [])  # a mark where unread
 
 
 def test_build_ahead_builds_what_the_lens_kernel_uses_without_the_exit_pupil(built, opencl_platform, monkeypatch):
