@@ -1,14 +1,19 @@
 """A first render's start-up (issue 35): the programs a render builds.
 
-The lens kernel's first sight of a camera uses one ray per work item untimed (the choice among
-``rays_per_item_choices`` is timed the next time, then read back); a render builds the shading
-kernel variant its rays need, and no other.
+A render that repays it times the lens kernel's choice among ``rays_per_item_choices`` at a
+camera's first sight and stores it, a smaller one uses one ray per work item untimed; the programs
+a large render builds store their binaries as its process exits, so the next process builds none
+from source; a render builds the shading kernel variant its rays need, and no other.
 """
 
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from conftest import fresh_process_env, run_fresh
 from realistic import load_scene
@@ -28,6 +33,8 @@ def built(monkeypatch, opencl_platform, tmp_path):
     monkeypatch.setenv("REALISTIC_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(opencl_platform, "_chosen", {})
     monkeypatch.setattr(opencl_platform, "_timing", [True])  # as a render that repays timing sets it
+    monkeypatch.setattr(opencl, "_keeping_first_builds", [False])  # restored after a test's build_ahead
+    monkeypatch.setattr(opencl, "_unstored", [])  # none of the binaries earlier tests left to store
     choices: list[int] = []
     original = opencl_platform.LensKernel._build
 
@@ -39,29 +46,29 @@ def built(monkeypatch, opencl_platform, tmp_path):
     return choices
 
 
-def test_a_camera_first_seen_builds_one_program_untimed_and_its_choice_is_timed_next(built, opencl_platform,
-                                                                                    monkeypatch):
+def test_a_render_that_repays_it_times_a_camera_at_first_sight_and_later_ones_read_the_choice(
+        built, opencl_platform, monkeypatch):
+    """The first sight of a camera by a render that repays timing times its choice (both programs
+    built, the faster one used) and stores it; the next process builds the chosen program alone.
+    (Timing waited for a camera's second sight before, so a large render's second process timed
+    and its third still compiled the chosen program's binaries.)"""
     from kernel_reference import reference_camera
 
     camera = reference_camera("wide", "rear")
     several, one = opencl_platform.rays_per_item_choices(camera)
-    assert opencl_platform.LensKernel(camera).rays_per_item == one
-    assert built == [one]  # the several-ray program is neither built nor timed
-    monkeypatch.setattr(opencl_platform, "_chosen", {})  # as in the next process
-    built.clear()
     timed = opencl_platform.LensKernel(camera).rays_per_item
     assert timed in (several, one)
     assert built == [several, one, timed]  # both built to be timed, then the faster one used
-    monkeypatch.setattr(opencl_platform, "_chosen", {})
+    monkeypatch.setattr(opencl_platform, "_chosen", {})  # as in the next process
     built.clear()
     assert opencl_platform.LensKernel(camera).rays_per_item == timed
     assert built == [timed]  # read back from the disk cache
 
 
 def test_only_a_render_that_repays_it_times_the_choice(built, opencl_platform, monkeypatch):
-    """A camera seen before but not timed yet has its choice timed only by a render that repays it
-    (``runner.repays_compiling``, passed on by ``Backend.build_ahead``): a small one (README's second
-    render) builds the one-ray program alone, untimed, and leaves the choice to a larger render."""
+    """A camera not timed yet has its choice timed only by a render that repays it
+    (``runner.repays_compiling``, passed on by ``Backend.build_ahead``): a small one (README's
+    renders) builds the one-ray program alone, untimed, and leaves the choice to a larger render."""
     from kernel_reference import reference_camera
     from realistic.renderer.backends import backend_for
 
@@ -86,37 +93,168 @@ def test_with_the_cache_off_every_process_times_its_choice(built, opencl_platfor
     assert built == [several, one, timed]
 
 
-def test_the_program_not_chosen_stores_no_binaries(built, opencl_platform, monkeypatch):
-    """Built a second time to be timed, the program not chosen leaves its first build's mark alone
-    at exit: its binaries would cost a compile of every kernel and never be loaded."""
-    from kernel_reference import reference_camera
+def _stored_entry(opencl_host, camera, rays_per_item: int) -> list[str]:
+    """The arrays the disk cache holds for ``camera``'s lens program (``[]``: no entry)."""
     from realistic.core import disk_cache
+
+    source, _ = opencl_host.lens_program(camera, rays_per_item)
+    device = opencl.Device.for_spec()
+    entry = disk_cache.load_arrays(disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), source.encode(), ()))
+    return [] if entry is None else sorted(entry)
+
+
+def test_the_program_not_chosen_stores_no_binaries(built, opencl_platform, monkeypatch):
+    """Built to be timed, the program not chosen leaves its build's mark alone at exit, while the
+    chosen one stores its binaries: the other's would cost a compile of every kernel and never be
+    loaded."""
+    from kernel_reference import reference_camera
 
     camera = reference_camera("telephoto", "rear")
     several, one = opencl_platform.rays_per_item_choices(camera)
-    device = opencl.Device.for_spec()
-
-    def stored(rays_per_item: int) -> list[str]:
-        source, _ = opencl_platform.lens_program(camera, rays_per_item)
-        entry = disk_cache.load_arrays(disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), source.encode(), ()))
-        return [] if entry is None else sorted(entry)
-
-    monkeypatch.setattr(opencl, "_unstored", [])  # none of the binaries earlier tests left to store
-    opencl.build_program.cache_clear()  # each sight as in a process of its own
-    opencl_platform.LensKernel(camera)
-    opencl.build_program.cache_clear()
-    monkeypatch.setattr(opencl_platform, "_chosen", {})
+    opencl.keep_first_builds(True)  # as a render that repays compiling sets it
+    opencl.build_program.cache_clear()  # as in a process of its own
     chosen = opencl_platform.LensKernel(camera).rays_per_item
     opencl.store_built_binaries()
     opencl.build_program.cache_clear()
-    assert stored(several if chosen == one else one) == ["built"]
-    assert stored(chosen) == (["device0"] if chosen == one else ["built"])  # built twice, or once
+    assert _stored_entry(opencl_platform, camera, several if chosen == one else one) == ["built"]
+    assert _stored_entry(opencl_platform, camera, chosen) == ["device0"]
+
+
+@pytest.mark.parametrize("repays", [True, False])
+def test_the_next_process_loads_every_program_a_large_render_built(built, opencl_platform, monkeypatch, repays):
+    """After a render that repays compiling (``Backend.build_ahead(camera, True)``), the programs it
+    built from source (its lens program and any other, as the shading one) store their binaries as
+    its process exits, and the next process builds none from source and times nothing; a small
+    render's programs leave a mark alone, and the next process builds them from source again (its
+    exit stores them)."""
+    from kernel_reference import reference_camera
+    from realistic.renderer.backends import backend_for
+
+    camera = reference_camera("dgauss", "rear")
+    device = opencl.Device.for_spec()
+    backend = backend_for("opencl", None)
+    from_source: list[str] = []
+    remember = opencl._remember
+
+    def recording(key: str, program, built_before: bool) -> None:
+        from_source.append(key)
+        remember(key, program, built_before)
+
+    monkeypatch.setattr(opencl, "_remember", recording)
+    other = "__kernel void next_process(__global float* out) { out[get_global_id(0)] = 2.0f; }"
+
+    def render() -> int:
+        backend.build_ahead(camera, repays)
+        rays_per_item = opencl_platform.LensKernel(camera, device).rays_per_item
+        device.build_program(other, "next_process.cl")
+        return rays_per_item
+
+    opencl.build_program.cache_clear()  # as in a process of its own
+    first = render()
+    assert len(from_source) == (3 if repays else 2)  # both lens programs where timed, and the other
+    opencl.store_built_binaries()  # the process exits
+    opencl.build_program.cache_clear()
+    monkeypatch.setattr(opencl_platform, "_chosen", {})
+    from_source.clear()
+    built.clear()
+    assert render() == first
+    assert built == [first]  # the choice read back, untimed
+    assert len(from_source) == (0 if repays else 2)
+    opencl.build_program.cache_clear()
+
+
+#: What a choice's disk-cache entry might hold: arbitrary arrays (digest valid) under any names,
+#: among them the few that are, or nearly are, a choice.
+CHOICE_ARRAYS = st.one_of(
+    hnp.arrays(st.sampled_from([np.int64, np.int32, np.uint8, np.float64, np.bool_, np.dtype("<U3")]),
+               hnp.array_shapes(min_dims=0, max_dims=2, min_side=0, max_side=3)),
+    st.sampled_from([np.array([4]), np.array([1], np.uint8), np.array([2]), np.array([3]), np.array([4.0]),
+                     np.array(4), np.array([4, 1]), np.array([-1]), np.array([2**40])]))
+CHOICE_ENTRIES = st.dictionaries(st.sampled_from(["rays_per_item", "seen", "other"]), CHOICE_ARRAYS, max_size=3)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(arrays=CHOICE_ENTRIES, raw=st.none() | st.binary(max_size=200))
+def test_a_stored_choice_is_used_only_where_it_is_one_of_the_choices_never_a_crash(opencl_platform, cache, arrays,
+                                                                                  raw):
+    """Arbitrary arrays stored under a choice's key (digest valid: another version's entry, say), or
+    arbitrary bytes in its file: the choice read back is a single integer among the choices, and
+    anything else reads as no choice (timed again, or one ray untimed), never an error."""
+    from realistic.core import disk_cache
+
+    key, choices = disk_cache.cache_key("lens-rays-per-item", "property test"), (4, 1)
+    if raw is None:
+        disk_cache.store_arrays(key, arrays)
+    else:
+        (cache / f"{key}.npz").write_bytes(raw)
+    value = arrays.get("rays_per_item")
+    valid = raw is None and list(arrays) == ["rays_per_item"] and value is not None and value.shape == (1,) \
+        and value.dtype.kind in "iu" and int(value[0]) in choices
+    for timing, untimed in ((True, None), (False, 1)):
+        opencl_platform._chosen.pop(key, None)
+        opencl_platform.time_choices(timing)
+        assert opencl_platform._untimed_choice(key, choices) == (int(value[0]) if valid else untimed)
+    opencl_platform._chosen.pop(key, None)
+    opencl_platform.time_choices(True)
+
+
+def test_a_foreign_choice_entry_is_timed_again_and_replaced(built, opencl_platform):
+    """A camera whose choice entry holds something else (digest valid) has its choice timed and
+    stored over it."""
+    from kernel_reference import reference_camera
+    from realistic.core import disk_cache
+
+    camera = reference_camera("wide", "rear")
+    several, one = opencl_platform.rays_per_item_choices(camera)
+    key = opencl_platform._choice_key(camera, opencl.Device.for_spec())
+    disk_cache.store_arrays(key, {"rays_per_item": np.array([several + one])})
+    timed = opencl_platform.LensKernel(camera).rays_per_item
+    assert built == [several, one, timed]
+    assert int(disk_cache.load_arrays(key)["rays_per_item"][0]) == timed
+
+
+DOUBLING = "__kernel void doubling(__global float* a) { a[get_global_id(0)] *= 2.0f; }"
+PROGRAM_ARRAYS = st.dictionaries(
+    st.sampled_from(["device0", "device1", "built", "other"]),
+    hnp.arrays(st.sampled_from([np.uint8, np.int32, np.float64]),
+               hnp.array_shapes(min_dims=0, max_dims=2, min_side=0, max_side=64)),
+    max_size=2)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(arrays=PROGRAM_ARRAYS, raw=st.none() | st.binary(max_size=200))
+def test_any_program_entry_is_rebuilt_never_run_or_a_crash(opencl_platform, cache, monkeypatch, arrays, raw):
+    """Arbitrary arrays stored under a program's key (digest valid), or arbitrary bytes in its file:
+    the program is built from source (its binaries stored at exit), and it computes what its source
+    says."""
+    import pyopencl as cl
+
+    from realistic.core import disk_cache
+
+    monkeypatch.setattr(opencl, "_unstored", [])  # this example's alone
+    device = opencl.Device.for_spec()
+    key = disk_cache.cache_key(opencl.CACHE_KIND, device.identity(), DOUBLING.encode(), ())
+    if raw is None:
+        disk_cache.store_arrays(key, arrays)
+    else:
+        (cache / f"{key}.npz").write_bytes(raw)
+    opencl.build_program.cache_clear()
+    program = device.build_program(DOUBLING, "doubling.cl")
+    opencl.build_program.cache_clear()
+    values = np.arange(256, dtype=np.float32)
+    queue = device.queue()
+    buffer = cl.Buffer(device.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=values)
+    cl.Kernel(program, "doubling")(queue, (256,), None, buffer)
+    doubled = np.empty_like(values)
+    cl.enqueue_copy(queue, doubled, buffer)
+    assert np.array_equal(doubled, 2 * values)
+    assert [stored for stored, _ in opencl._unstored] == ([key] if raw is None else [])  # a mark where unread
 
 
 def test_build_ahead_builds_what_the_lens_kernel_uses_without_the_exit_pupil(built, opencl_platform, monkeypatch):
     """``build_ahead`` (run while the exit-pupil table is made) builds, without that table, the
     programs the camera's ``LensKernel`` then uses: at a camera's first sight, when its choice is
-    timed and when it is read back; the kernel builds none of its own."""
+    timed, and when it is read back; the kernel builds none of its own."""
     from kernel_reference import reference_camera
     from realistic.camera.lens_camera import LensCamera
 
@@ -134,7 +272,7 @@ def test_build_ahead_builds_what_the_lens_kernel_uses_without_the_exit_pupil(bui
         assert LensCamera.pupil is pupil
         opencl_platform.LensKernel(camera, device)
         assert opencl.build_program.cache_info().misses == ahead, f"sight {sight} built a program again"
-    assert built[:3] == [one, several, one]  # first sight: one ray untimed; second: both timed
+    assert built[:2] == [several, one]  # first sight: both built and timed
 
 
 def test_a_program_asked_for_while_it_builds_is_built_once(opencl_platform):

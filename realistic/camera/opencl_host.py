@@ -342,22 +342,30 @@ def _choice_key(camera: LensCamera, device: Device) -> str:
     return disk_cache.cache_key("lens-rays-per-item", device.identity(), source)
 
 
+def _stored_choice(key: str, choices: tuple[int, int]) -> int | None:
+    """The rays per work item the disk cache holds for ``key`` (``_choice_key``), or None: no
+    entry, or one that is not a single integer among ``choices`` (a cache entry is never an error)."""
+    stored = disk_cache.load_arrays(key)
+    if stored is None or list(stored) != ["rays_per_item"]:
+        return None
+    value = stored["rays_per_item"]
+    if value.shape != (1,) or value.dtype.kind not in "iu" or int(value[0]) not in choices:
+        return None
+    return int(value[0])
+
+
 def _untimed_choice(key: str, choices: tuple[int, int]) -> int | None:
     """The rays per work item ``LensKernel`` runs without timing them for ``key`` (``_choice_key``;
-    ``choices``: several, one), decided once per process (``_chosen``) whichever of ``build_ahead``
-    and ``LensKernel`` asks first: the choice stored in the disk cache, or for a camera it has no
-    entry for (first seen) one ray, leaving a mark there; None where the choice is to be timed, or
-    one ray, untimed, where this process's renders do not repay timing it (``time_choices``)."""
+    ``choices``: several, one): the one chosen in this process (``_chosen``) or stored in the disk
+    cache; else None where the choice is to be timed now, or one ray, untimed, where this process's
+    renders do not repay timing it (``time_choices``)."""
     with _choosing:
         if key in _chosen:
             return _chosen[key]
-        stored = disk_cache.load_arrays(key)
-        if stored is not None and "rays_per_item" in stored and int(stored["rays_per_item"][0]) in choices:
-            return _chosen.setdefault(key, int(stored["rays_per_item"][0]))
-        if stored is None and disk_cache.cache_dir() is not None:
-            disk_cache.store_arrays(key, {"seen": np.zeros(1, np.uint8)})
-            return _chosen.setdefault(key, choices[1])
-        return None if _timing[0] else _chosen.setdefault(key, choices[1])
+        stored = _stored_choice(key, choices)
+        if stored is not None:
+            return _chosen.setdefault(key, stored)
+        return None if _timing[0] else choices[1]
 
 
 def build_ahead(camera: LensCamera, device: Device) -> None:
@@ -375,9 +383,9 @@ class LensKernel:
     """``lens.cl`` built for one camera; each launch writes straight into the arrays it returns.
 
     Each work item traces ``rays_per_item`` rays: given, or else the faster of
-    ``rays_per_item_choices`` as timed on this device the second time this lens, camera and kernel
-    source are built (the first uses one, untimed: ``_fastest_rays_per_item``), then kept in
-    the disk cache. Several rays per work item are what let PoCL's
+    ``rays_per_item_choices`` as timed on this device by the first render of this lens, camera and
+    kernel source that repays timing it (a smaller one uses one, untimed: ``_fastest_rays_per_item``),
+    then kept in the disk cache. Several rays per work item are what let PoCL's
     vectoriser overlap their latencies (``kernels/lens.cl``), but LLVM's SLP vectoriser, which PoCL
     3.0 runs before it, sometimes packs the rays into short vectors instead, and then the kernel
     runs at a third of the speed of one ray per work item: which happens depends on the kernel's
@@ -419,13 +427,15 @@ class LensKernel:
         ``ONE_RAY_MARGIN``): from the disk cache, or timed on launches of equal work, taken in turn
         (PoCL compiles each at its first launch, untimed).
 
-        The first time this lens, camera and kernel source are seen (no disk-cache entry) one ray
-        per work item is used untimed and a mark is left; the choice is timed the next time. Timing
-        builds and compiles both programs, most of a first render's start-up, and PoCL compiles the
-        one-ray program at its first launch in a fraction of the several-ray one's time, while the
-        choice changes only the camera rays' speed (every ray is the same either way), a small part
-        of a render. With the disk cache off every process times its choice. The program not chosen
-        leaves no binaries to store at exit (``leave_binaries_unstored``)."""
+        Only a render that repays it times the choice (``time_choices``): timing builds and
+        compiles both programs, about a second, while the choice changes only the camera rays'
+        speed (every ray is the same either way); a smaller render uses one ray per work item,
+        untimed, whose program PoCL compiles in a fraction of the several-ray one's time. The choice
+        timed is stored, keyed by the device, the lens, camera and kernel source (``_choice_key``),
+        so a later process reads it back and builds the chosen program alone (its binaries stored
+        at this one's exit: ``opencl.keep_first_builds``); with the disk cache off every process
+        that repays it times its choice. The program not chosen leaves no binaries to store at exit
+        (``leave_binaries_unstored``)."""
         key = _choice_key(self.camera, self.device)
         several, one = rays_per_item_choices(self.camera)
         untimed = _untimed_choice(key, (several, one))

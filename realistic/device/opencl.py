@@ -244,11 +244,12 @@ def build_program(device: Device, source: str, name: str, options: tuple[str, ..
     its builds too, but a hit there still runs the preprocessor over the OpenCL headers, many times
     what loading a binary costs, and a render builds three. Asking PoCL for a program's binaries
     makes it compile every kernel once more, for any work-group size, which pays only for a program
-    built again and again: so the first build leaves a
-    mark, and the second stores the binaries as the process exits (``store_built_binaries``), not
-    before its render. (pyopencl's own binary cache, which it leaves off for PoCL, is not used: it
-    fails with a KeyError on an unwritable folder and waits a minute on a lock file left by a killed
-    process.)
+    built again and again: so the first build leaves a mark, and the second stores the binaries as
+    the process exits (``store_built_binaries``), not before its render; where this process's
+    render repays compiling (``keep_first_builds``) the first build stores them at exit already, so
+    the next process loads every program that render built. (pyopencl's own binary cache, which it
+    leaves off for PoCL, is not used: it fails with a KeyError on an unwritable folder and waits a
+    minute on a lock file left by a killed process.)
     """
     key = disk_cache.cache_key(CACHE_KIND, device.identity(), source.encode(), options)
     stored = disk_cache.load_arrays(key)
@@ -266,10 +267,12 @@ def build_program(device: Device, source: str, name: str, options: tuple[str, ..
 
 def _from_binaries(device: Device, stored: dict[str, np.ndarray] | None, options: tuple[str, ...]
                    ) -> cl.Program | None:
-    """The program from a cache entry's binaries, one per device, or None: no entry, a first
-    build's mark, or binaries the driver will not load (a cache entry is never an error)."""
+    """The program from a cache entry's binaries, one per device (non-empty uint8 rows), or None:
+    no entry, a first build's mark, anything else, or binaries the driver will not load (a cache
+    entry is never an error)."""
     names = [f"device{i}" for i in range(len(device.devices))]
-    if stored is None or sorted(stored) != names:
+    if stored is None or sorted(stored) != names \
+            or any(stored[n].dtype != np.uint8 or stored[n].ndim != 1 or not stored[n].size for n in names):
         return None
     try:
         return cl.Program(device.context, device.devices,
@@ -278,15 +281,31 @@ def _from_binaries(device: Device, stored: dict[str, np.ndarray] | None, options
         return None
 
 
-#: Programs built from source for the second time, whose binaries ``store_built_binaries`` stores.
+#: Programs built from source whose binaries ``store_built_binaries`` stores: built for the second
+#: time, or for the first while ``keep_first_builds`` is on.
 _unstored: list[tuple[str, cl.Program]] = []
+#: Whether a program's first build stores its binaries at exit (``keep_first_builds``).
+_keeping_first_builds = [False]
+
+
+def keep_first_builds(wanted: bool) -> None:
+    """Whether programs built from source for the first time from now on store their binaries as
+    the process exits, or only leave a mark (the binaries wait for a second build). Set by each
+    render (``OpenCLBackend.build_ahead``): on for one that repays compiling
+    (``renderer.runner.repays_compiling``), whose process already pays seconds of compiles, so that
+    the next process loads every program it built; off for a small one, whose process exits
+    without the compile that asking PoCL for binaries costs."""
+    _keeping_first_builds[0] = wanted
 
 
 def _remember(key: str, program: cl.Program, built_before: bool) -> None:
-    """After a build from source: a mark the first time; from the second on, the binaries at exit."""
+    """After a build from source: a mark the first time; the binaries at exit from the second on,
+    or from the first where ``keep_first_builds`` is on. Nothing with the disk cache off."""
+    if disk_cache.cache_dir() is None:
+        return
     if not built_before:
         disk_cache.store_arrays(key, {"built": np.zeros(1, np.uint8)})
-    else:
+    if built_before or _keeping_first_builds[0]:
         _unstored.append((key, program))
 
 
@@ -299,7 +318,7 @@ def leave_binaries_unstored(program: cl.Program) -> None:
 
 @atexit.register  # after pyopencl's own exit handler is registered, so it runs first
 def store_built_binaries() -> None:
-    """Store the binaries of the programs ``build_program`` built from source a second time. Run as
+    """Store the binaries of the programs ``build_program`` left to store (``_remember``). Run as
     the process exits, when the image is written: asking PoCL for binaries compiles every kernel
     again. An interrupt or a driver's refusal leaves the rest unstored."""
     if cl is None:

@@ -49,8 +49,9 @@ class Backend(Protocol):
     def build_ahead(self, camera: Camera, time_choices: bool = True) -> None:
         """Build what ``ray_generator(camera, ...)`` will build, before the camera is prepared
         (its exit-pupil table made), so that a render thread can do it meanwhile. ``time_choices``:
-        whether this process's kernels time the build choices they have not timed yet (a render
-        that repays it) or take the quickest to build, untimed."""
+        whether the render repays compiling: this process's kernels then time the build choices they
+        have not timed yet and keep the binaries of every program built from now on for the next
+        process, else take the quickest to build, untimed, and leave the binaries to a second build."""
 
     def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
         """``MipMap.ewa``'s lookups (N, 3) (a ``scene.textures.EwaLookup``)."""

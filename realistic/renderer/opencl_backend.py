@@ -20,7 +20,7 @@ from realistic.camera.lens_camera import LensCamera
 from realistic.camera.opencl_host import LensKernel, build_ahead
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.camera.thin_lens_host import ThinLensKernel, thin_lens_program
-from realistic.device.opencl import Device
+from realistic.device.opencl import Device, keep_first_builds
 from realistic.optics.ghosts import GhostTracer
 from realistic.optics.lens import LensSystem
 from realistic.renderer.bounce_kernel import BounceKernel
@@ -56,8 +56,10 @@ class OpenCLBackend:
 
     def build_ahead(self, camera: Camera, time_choices: bool = True) -> None:
         """The programs ``ray_generator(camera, ...)`` will use, built now (``opencl_host.build_ahead``);
-        ``time_choices``: ``opencl_host.time_choices``, for this process's lens kernels from now on."""
+        ``time_choices``: ``opencl_host.time_choices``, for this process's lens kernels from now on,
+        and ``opencl.keep_first_builds``, for every program built from now on."""
         opencl_host.time_choices(time_choices)
+        keep_first_builds(time_choices)
         if isinstance(camera, LensCamera):
             build_ahead(camera, self.device)
         elif isinstance(camera, ThinLensCamera):
