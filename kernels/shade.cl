@@ -44,9 +44,9 @@
  * table so masked-off lanes read valid memory. FP_CONTRACT is off so that a * b + c rounds twice,
  * as numpy does: the hit point and the shadow-ray origin are then bit-identical to the numpy
  * path's (the light point differs from numpy's float64 concentric map by float32 rounding).
- * Every table read is a vector gather on the CPU and every output a scatter (see STORE_ROWS); with
- * the light-sample numbers (light_numbers) these are the kernel's main costs: the build options
- * below leave out the reads a scene does not need. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized
+ * Every table read is a vector gather on the CPU and every output a scatter (see PAIRED_STORES);
+ * with the light-sample numbers (light_numbers) these are the kernel's main costs: the build
+ * options below leave out the reads a scene does not need. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized
  * loop" for shade (tests/test_shade_kernel.py does), with POCL_KERNEL_CACHE=0 for a fresh build.
  */
 
@@ -81,46 +81,49 @@
  * bench's dragon pass (131072 samples, one PoCL thread) 36 ms scalar against 7.5 ms vectorised. */
 #define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
 #define FIELD(row, k) ((row)[(k) * unit])
-/* shadow ray row o of the work item's rows (RAY_ROWS): from the offset point (sx, sy, sz) to
- * (x, y, z), or a dead row (length -1), into the private row arrays that STORE_ROWS writes out */
-#define WRITE_SHADOW_RAY(o, live, x, y, z) do { \
-        row_origin[3 * (o)] = (live) ? sx : 0.0f; \
-        row_origin[3 * (o) + 1] = (live) ? sy : 0.0f; \
-        row_origin[3 * (o) + 2] = (live) ? sz : 0.0f; \
-        row_vector[3 * (o)] = (live) ? (x) - sx : 0.0f; \
-        row_vector[3 * (o) + 1] = (live) ? (y) - sy : 0.0f; \
-        row_vector[3 * (o) + 2] = (live) ? (z) - sz : 0.0f; \
-        row_length[o] = (live) ? SHADOW_LENGTH : -1.0f; \
-    } while (0)
-/* A work item's output rows (its light samples', and with MEASURED their BSDF samples'), adjacent
- * in every output, and the contribution's floats per row (a spectral value, or RGB). */
-#define RAY_ROWS (LAUNCH_SAMPLES * (1 + MEASURED))
+/* Paired stores: vectorised over work items, each store to an output is a scatter, whose cost is
+ * per element. Where a work item's floats in every output are even in number (an even number of
+ * light samples a launch: 6, 6, 2 and 6 or 2 pairs), they are kept in private arrays (registers:
+ * every index is a constant once the loop is unrolled) and stored at the end as 64-bit pairs
+ * (little-endian: the first float in the low half), half the elements. That outweighs the
+ * vectoriser then taking 4 work items at a time rather than 8 (measured with four light samples
+ * a launch); with MEASURED it does not (its larger body loses more to the narrower vectors, and
+ * keeping its rows to the end costs more than the stores gain), nor for odd counts, which store
+ * each float as it is made. The outputs are 8-byte aligned (numpy's allocations) and a work
+ * item's floats start at an even index. */
+#define PAIRED_STORES (!MEASURED && LAUNCH_SAMPLES % 2 == 0)
 #if SPECTRAL
 #define CHANNELS 1
 #else
 #define CHANNELS 3
 #endif
-/* The work item's `width` RAY_ROWS floats of an output, from the private array `row`: vectorised
- * over work items, each store is a scatter, whose cost is per element; where the count is even
- * they go as 64-bit pairs (little-endian: the first float in the low half), half the elements,
- * which outweighs the vectoriser then taking 4 work items at a time rather than 8 (measured with
- * four light samples a launch). The outputs are 8-byte aligned (numpy's allocations) and a work
- * item's floats then start at an even index. */
-#if !defined(__ENDIAN_LITTLE__)
+#if PAIRED_STORES && !defined(__ENDIAN_LITTLE__)
 #error "the shading kernel's paired stores assume a little-endian device"
 #endif
-#define STORE_ROWS(out, row, width) do { \
-        if ((width) * RAY_ROWS % 2 == 0) { \
-            __global ulong *pairs = (__global ulong *)(out); \
-            _Pragma("unroll") \
-            for (uint m = 0; m < (width) * RAY_ROWS / 2; ++m) \
-                pairs[(width) * RAY_ROWS / 2 * i + m * unit] = \
-                    (ulong)as_uint(row[2 * m]) | ((ulong)as_uint(row[2 * m + 1]) << 32); \
-        } else { \
-            _Pragma("unroll") \
-            for (uint m = 0; m < (width) * RAY_ROWS; ++m) \
-                (out)[(width) * RAY_ROWS * i + m * unit] = row[m]; \
-        } \
+/* Row o's value k of an output with `width` floats per row: its private array's with paired
+ * stores (o is then the work item's row), else the output's (o the launch's row). */
+#if PAIRED_STORES
+#define OUT(name, width, o, k) (row_##name[(width) * (o) + (k)])
+#else
+#define OUT(name, width, o, k) AT(name, width, o, k)
+#endif
+/* shadow ray row o: from the offset point (sx, sy, sz) to (x, y, z), or a dead row (length -1) */
+#define WRITE_SHADOW_RAY(o, live, x, y, z) do { \
+        OUT(shadow_origin, 3, o, 0) = (live) ? sx : 0.0f; \
+        OUT(shadow_origin, 3, o, 1) = (live) ? sy : 0.0f; \
+        OUT(shadow_origin, 3, o, 2) = (live) ? sz : 0.0f; \
+        OUT(shadow_vector, 3, o, 0) = (live) ? (x) - sx : 0.0f; \
+        OUT(shadow_vector, 3, o, 1) = (live) ? (y) - sy : 0.0f; \
+        OUT(shadow_vector, 3, o, 2) = (live) ? (z) - sz : 0.0f; \
+        OUT(shadow_length, 1, o, 0) = (live) ? SHADOW_LENGTH : -1.0f; \
+    } while (0)
+/* The work item's `width` LAUNCH_SAMPLES floats of an output from its private array, as pairs. */
+#define STORE_PAIRS(name, width) do { \
+        __global ulong *pairs = (__global ulong *)(name); \
+        _Pragma("unroll") \
+        for (uint m = 0; m < (width) * LAUNCH_SAMPLES / 2; ++m) \
+            pairs[(width) * LAUNCH_SAMPLES / 2 * i + m * unit] = \
+                (ulong)as_uint(row_##name[2 * m]) | ((ulong)as_uint(row_##name[2 * m + 1]) << 32); \
     } while (0)
 
 #include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source) */
@@ -459,15 +462,17 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
     float mx = shz * dy - shy * dz, my = shx * dz - shz * dx, mz = shy * dx - shx * dy;
 #endif
 
-    /* the work item's output rows, kept in registers (every index is a constant once unrolled) */
-    float row_origin[3 * RAY_ROWS], row_vector[3 * RAY_ROWS], row_length[RAY_ROWS];
-    float row_contribution[CHANNELS * RAY_ROWS];
+#if PAIRED_STORES
+    float row_shadow_origin[3 * LAUNCH_SAMPLES], row_shadow_vector[3 * LAUNCH_SAMPLES];
+    float row_shadow_length[LAUNCH_SAMPLES], row_contribution[CHANNELS * LAUNCH_SAMPLES];
+#endif
     /* the launch's light samples, unrolled */
 #pragma unroll
     for (uint q = 0; q < LAUNCH_SAMPLES; ++q) {
-        /* light sample k, the work item's row o (MEASURED: its BSDF sample's row o + 1) */
+        /* light sample k, row o (MEASURED: its BSDF sample's row o + 1; with paired stores the
+         * work item's row q) */
         uint k = first_sample + q;
-        uint o = (1 + MEASURED) * q;
+        uint o = PAIRED_STORES ? q : (1 + MEASURED) * (i * LAUNCH_SAMPLES + q);
         float u_pick, u1, u2;
         light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
         int j = pick_light(cdf, light_count, u_pick, unit);
@@ -511,11 +516,11 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
 #if SPECTRAL
         float emitted = FIELD(light, LIGHT_RADIANCE) * b_r + FIELD(light, LIGHT_RADIANCE + 1) * b_g
                         + FIELD(light, LIGHT_RADIANCE + 2) * b_b;
-        row_contribution[o] = live ? rho_s * emitted * scale : 0.0f;
+        OUT(contribution, 1, o, 0) = live ? rho_s * emitted * scale : 0.0f;
 #else
-        row_contribution[3 * o] = live ? lr * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
-        row_contribution[3 * o + 1] = live ? lg * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
-        row_contribution[3 * o + 2] = live ? lb * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
+        OUT(contribution, 3, o, 0) = live ? lr * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
+        OUT(contribution, 3, o, 1) = live ? lg * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
+        OUT(contribution, 3, o, 2) = live ? lb * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
 #endif
 #if MEASURED
         /* the BSDF sample (pbrt-v2 EstimateDirect's second half, for the light picked above): a
@@ -572,15 +577,17 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
         float scale_f = PI_F / (1.0f + ratio_f * ratio_f) * (FIELD(light, LIGHT_SCALE) * PI_F / area);
         uint of = o + 1;
         WRITE_SHADOW_RAY(of, live_f, hx, hy, hz);
-        row_contribution[3 * of] = live_f ? bf_r * FIELD(light, LIGHT_RADIANCE) * scale_f : 0.0f;
-        row_contribution[3 * of + 1] = live_f ? bf_g * FIELD(light, LIGHT_RADIANCE + 1) * scale_f : 0.0f;
-        row_contribution[3 * of + 2] = live_f ? bf_b * FIELD(light, LIGHT_RADIANCE + 2) * scale_f : 0.0f;
+        AT(contribution, 3, of, 0) = live_f ? bf_r * FIELD(light, LIGHT_RADIANCE) * scale_f : 0.0f;
+        AT(contribution, 3, of, 1) = live_f ? bf_g * FIELD(light, LIGHT_RADIANCE + 1) * scale_f : 0.0f;
+        AT(contribution, 3, of, 2) = live_f ? bf_b * FIELD(light, LIGHT_RADIANCE + 2) * scale_f : 0.0f;
 #endif
     }
-    STORE_ROWS(shadow_origin, row_origin, 3);
-    STORE_ROWS(shadow_vector, row_vector, 3);
-    STORE_ROWS(shadow_length, row_length, 1);
-    STORE_ROWS(contribution, row_contribution, CHANNELS);
+#if PAIRED_STORES
+    STORE_PAIRS(shadow_origin, 3);
+    STORE_PAIRS(shadow_vector, 3);
+    STORE_PAIRS(shadow_length, 1);
+    STORE_PAIRS(contribution, CHANNELS);
+#endif
 }
 
 /* Debug: the light-sample random numbers of each ray, rows u_pick, u1, u2 per light sample
