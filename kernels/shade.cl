@@ -89,8 +89,8 @@
  * vectoriser then taking 4 work items at a time rather than 8 (measured with four light samples
  * a launch); with MEASURED it does not (its larger body loses more to the narrower vectors, and
  * keeping its rows to the end costs more than the stores gain), nor for odd counts, which store
- * each float as it is made. The outputs are 8-byte aligned (numpy's allocations) and a work
- * item's floats start at an even index. */
+ * each float as it is made. The outputs are 8-byte aligned (the host allocates them as float64)
+ * and a work item's floats start at an even index. */
 #define PAIRED_STORES (!MEASURED && LAUNCH_SAMPLES % 2 == 0)
 #if SPECTRAL
 #define CHANNELS 1
