@@ -44,8 +44,9 @@
  * table so masked-off lanes read valid memory. FP_CONTRACT is off so that a * b + c rounds twice,
  * as numpy does: the hit point and the shadow-ray origin are then bit-identical to the numpy
  * path's (the light point differs from numpy's float64 concentric map by float32 rounding).
- * Every table read is a vector gather on the CPU, the kernel's main cost: the build options below
- * leave out the reads a scene does not need. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized
+ * Every table read is a vector gather on the CPU and every output a scatter (see PAIRED_STORES);
+ * with the light-sample numbers (light_numbers) these are the kernel's main costs: the build
+ * options below leave out the reads a scene does not need. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized
  * loop" for shade (tests/test_shade_kernel.py does), with POCL_KERNEL_CACHE=0 for a fresh build.
  */
 
@@ -80,15 +81,49 @@
  * bench's dragon pass (131072 samples, one PoCL thread) 36 ms scalar against 7.5 ms vectorised. */
 #define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
 #define FIELD(row, k) ((row)[(k) * unit])
+/* Paired stores: vectorised over work items, each store to an output is a scatter, whose cost is
+ * per element. Where a work item's floats in every output are even in number (an even number of
+ * light samples a launch: 6, 6, 2 and 6 or 2 pairs), they are kept in private arrays (registers:
+ * every index is a constant once the loop is unrolled) and stored at the end as 64-bit pairs
+ * (little-endian: the first float in the low half), half the elements. That outweighs the
+ * vectoriser then taking 4 work items at a time rather than 8 (measured with four light samples
+ * a launch); with MEASURED it does not (its larger body loses more to the narrower vectors, and
+ * keeping its rows to the end costs more than the stores gain), nor for odd counts, which store
+ * each float as it is made. The outputs are 8-byte aligned (the host allocates them as float64)
+ * and a work item's floats start at an even index. */
+#define PAIRED_STORES (!MEASURED && LAUNCH_SAMPLES % 2 == 0)
+#if SPECTRAL
+#define CHANNELS 1
+#else
+#define CHANNELS 3
+#endif
+#if PAIRED_STORES && !defined(__ENDIAN_LITTLE__)
+#error "the shading kernel's paired stores assume a little-endian device"
+#endif
+/* Row o's value k of an output with `width` floats per row: its private array's with paired
+ * stores (o is then the work item's row), else the output's (o the launch's row). */
+#if PAIRED_STORES
+#define OUT(name, width, o, k) (row_##name[(width) * (o) + (k)])
+#else
+#define OUT(name, width, o, k) AT(name, width, o, k)
+#endif
 /* shadow ray row o: from the offset point (sx, sy, sz) to (x, y, z), or a dead row (length -1) */
 #define WRITE_SHADOW_RAY(o, live, x, y, z) do { \
-        AT(shadow_origin, 3, o, 0) = (live) ? sx : 0.0f; \
-        AT(shadow_origin, 3, o, 1) = (live) ? sy : 0.0f; \
-        AT(shadow_origin, 3, o, 2) = (live) ? sz : 0.0f; \
-        AT(shadow_vector, 3, o, 0) = (live) ? (x) - sx : 0.0f; \
-        AT(shadow_vector, 3, o, 1) = (live) ? (y) - sy : 0.0f; \
-        AT(shadow_vector, 3, o, 2) = (live) ? (z) - sz : 0.0f; \
-        shadow_length[o] = (live) ? SHADOW_LENGTH : -1.0f; \
+        OUT(shadow_origin, 3, o, 0) = (live) ? sx : 0.0f; \
+        OUT(shadow_origin, 3, o, 1) = (live) ? sy : 0.0f; \
+        OUT(shadow_origin, 3, o, 2) = (live) ? sz : 0.0f; \
+        OUT(shadow_vector, 3, o, 0) = (live) ? (x) - sx : 0.0f; \
+        OUT(shadow_vector, 3, o, 1) = (live) ? (y) - sy : 0.0f; \
+        OUT(shadow_vector, 3, o, 2) = (live) ? (z) - sz : 0.0f; \
+        OUT(shadow_length, 1, o, 0) = (live) ? SHADOW_LENGTH : -1.0f; \
+    } while (0)
+/* The work item's `width` LAUNCH_SAMPLES floats of an output from its private array, as pairs. */
+#define STORE_PAIRS(name, width) do { \
+        __global ulong *pairs = (__global ulong *)(name); \
+        _Pragma("unroll") \
+        for (uint m = 0; m < (width) * LAUNCH_SAMPLES / 2; ++m) \
+            pairs[(width) * LAUNCH_SAMPLES / 2 * i + m * unit] = \
+                (ulong)as_uint(row_##name[2 * m]) | ((ulong)as_uint(row_##name[2 * m + 1]) << 32); \
     } while (0)
 
 #include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source) */
@@ -427,12 +462,17 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
     float mx = shz * dy - shy * dz, my = shx * dz - shz * dx, mz = shy * dx - shx * dy;
 #endif
 
+#if PAIRED_STORES
+    float row_shadow_origin[3 * LAUNCH_SAMPLES], row_shadow_vector[3 * LAUNCH_SAMPLES];
+    float row_shadow_length[LAUNCH_SAMPLES], row_contribution[CHANNELS * LAUNCH_SAMPLES];
+#endif
     /* the launch's light samples, unrolled */
 #pragma unroll
     for (uint q = 0; q < LAUNCH_SAMPLES; ++q) {
-        /* light sample k, row o (MEASURED: its BSDF sample's row o + 1) */
+        /* light sample k, row o (MEASURED: its BSDF sample's row o + 1; with paired stores the
+         * work item's row q) */
         uint k = first_sample + q;
-        uint o = (1 + MEASURED) * (i * LAUNCH_SAMPLES + q);
+        uint o = PAIRED_STORES ? q : (1 + MEASURED) * (i * LAUNCH_SAMPLES + q);
         float u_pick, u1, u2;
         light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
         int j = pick_light(cdf, light_count, u_pick, unit);
@@ -476,11 +516,11 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
 #if SPECTRAL
         float emitted = FIELD(light, LIGHT_RADIANCE) * b_r + FIELD(light, LIGHT_RADIANCE + 1) * b_g
                         + FIELD(light, LIGHT_RADIANCE + 2) * b_b;
-        contribution[o] = live ? rho_s * emitted * scale : 0.0f;
+        OUT(contribution, 1, o, 0) = live ? rho_s * emitted * scale : 0.0f;
 #else
-        AT(contribution, 3, o, 0) = live ? lr * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
-        AT(contribution, 3, o, 1) = live ? lg * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
-        AT(contribution, 3, o, 2) = live ? lb * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
+        OUT(contribution, 3, o, 0) = live ? lr * FIELD(light, LIGHT_RADIANCE) * scale : 0.0f;
+        OUT(contribution, 3, o, 1) = live ? lg * FIELD(light, LIGHT_RADIANCE + 1) * scale : 0.0f;
+        OUT(contribution, 3, o, 2) = live ? lb * FIELD(light, LIGHT_RADIANCE + 2) * scale : 0.0f;
 #endif
 #if MEASURED
         /* the BSDF sample (pbrt-v2 EstimateDirect's second half, for the light picked above): a
@@ -542,6 +582,12 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
         AT(contribution, 3, of, 2) = live_f ? bf_b * FIELD(light, LIGHT_RADIANCE + 2) * scale_f : 0.0f;
 #endif
     }
+#if PAIRED_STORES
+    STORE_PAIRS(shadow_origin, 3);
+    STORE_PAIRS(shadow_vector, 3);
+    STORE_PAIRS(shadow_length, 1);
+    STORE_PAIRS(contribution, CHANNELS);
+#endif
 }
 
 /* Debug: the light-sample random numbers of each ray, rows u_pick, u1, u2 per light sample

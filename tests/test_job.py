@@ -10,7 +10,7 @@ from realistic.camera.base import Camera, SampleBlock
 from realistic.errors import UserError
 from realistic.renderer.job import Checkpointing, PassExecutor, PassResult, RenderJob
 from realistic.renderer.passes import ThreadPasses, render
-from realistic.renderer.runner import PassRunner
+from realistic.renderer.runner import PassRunner, morton_order
 from realistic.renderer.timing import StageClock
 from realistic.scene.model import Scene
 
@@ -95,3 +95,30 @@ def test_a_job_is_checked_as_it_is_made(tmp_path):
     assert RenderJob(scene, [camera]).settings.light_samples == 3  # None: the scene's
     assert RenderJob(scene, [camera], light_samples=2).settings.light_samples == 2
     assert RenderJob(scene, [camera]).cameras == (camera,)
+
+
+def _element_morton_order(pixel: np.ndarray, width: int) -> np.ndarray:
+    """The reference: each ray's Morton code (x and y's 16 low bits interleaved, x in the even
+    bits), stably argsorted ray by ray."""
+    def spread(v: np.ndarray) -> np.ndarray:
+        bits = np.zeros(len(v), np.uint64)
+        for b in range(16):
+            bits |= ((v.astype(np.uint64) >> np.uint64(b)) & np.uint64(1)) << np.uint64(2 * b)
+        return bits
+    return np.argsort(spread(pixel % width) | (spread(pixel // width) << np.uint64(1)), kind="stable")
+
+
+@pytest.mark.parametrize("layout", ["runs", "shuffled", "wide"])
+def test_morton_order_is_the_stable_sort_of_every_rays_code(layout):
+    """``morton_order`` sorts runs of equal pixels by one code each: the permutation is still the
+    stable argsort of every ray's code, whether a pixel's rays are adjacent (a pass), scattered
+    (runs of one pixel apart, kept in their order), or past 16 bits (codes that collide)."""
+    rng = np.random.default_rng(7)
+    width = 37
+    pixel = np.repeat(rng.integers(0, width * 40, 300), rng.integers(1, 6, 300))
+    if layout == "runs":
+        pixel = np.sort(pixel)
+    elif layout == "wide":
+        width, pixel = 3, pixel * 70001
+    for rays in (pixel, pixel[:1], pixel[:0]):
+        assert np.array_equal(morton_order(rays, width), _element_morton_order(rays, width))

@@ -173,18 +173,37 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     """Add to ``out`` (n, channels) float32 each ray's unblocked contributions, its rows i per_ray ..
     (i + 1) per_ray - 1 of a launch (``ShadowBatch``: point-major) in order, as contribution times 1
     or 0 in float32 (``fresh``: ``out`` starts as the first product, not 0 plus it, as numpy's
-    reduction starts); the rows traced (length > 0) are returned. A numba loop (``core.jit``): one
-    pass over the launch's outputs, the GIL released, where numpy made four."""
+    reduction starts); the rows traced (length > 0) are returned. A numba loop (``core.jit``), the
+    GIL released: the rows traced counted in a pass of their own, and RGB rays summed in three
+    running totals stored once per ray (one loop doing both, storing per row and channel, took
+    about 1.5x as long)."""
     traced = 0
-    for i in range(n):
-        for k in range(per_ray):
-            r = i * per_ray + k
-            visible = np.float32(0.0) if blocked[r] else np.float32(1.0)
-            for c in range(out.shape[1]):
-                product = contribution[r, c] * visible
-                out[i, c] = product if fresh and k == 0 else out[i, c] + product
-            if length[r] > 0:
-                traced += 1
+    for r in range(n * per_ray):
+        traced += length[r] > np.float32(0.0)
+    zero, one = np.float32(0.0), np.float32(1.0)
+    if out.shape[1] == 3:
+        for i in range(n):
+            red, green, blue = out[i, 0], out[i, 1], out[i, 2]
+            for k in range(per_ray):
+                r = i * per_ray + k
+                visible = zero if blocked[r] else one
+                start = fresh and k == 0
+                product = contribution[r, 0] * visible
+                red = product if start else red + product
+                product = contribution[r, 1] * visible
+                green = product if start else green + product
+                product = contribution[r, 2] * visible
+                blue = product if start else blue + product
+            out[i, 0], out[i, 1], out[i, 2] = red, green, blue
+        return traced
+    for i in range(n):  # a spectral ray's one channel
+        for c in range(out.shape[1]):
+            total = out[i, c]
+            for k in range(per_ray):
+                r = i * per_ray + k
+                product = contribution[r, c] * (zero if blocked[r] else one)
+                total = product if fresh and k == 0 else total + product
+            out[i, c] = total
     return traced
 
 

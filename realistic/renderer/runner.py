@@ -26,14 +26,23 @@ from realistic.scene.model import Scene
 
 
 def morton_order(pixel: np.ndarray, width: int) -> np.ndarray:
-    """Permutation that visits pixels along a Z-order (Morton) curve over (x, y)."""
+    """Permutation that visits pixels along a Z-order (Morton) curve over (x, y): the stable argsort
+    of the rays' Morton codes, taken over runs of equal pixels (a pass's rays come pixel by pixel,
+    so a run per pixel, a sort of one code per pixel rather than per ray): the runs in stable order
+    of their codes, each run's rays in their order, which is the same permutation."""
     def spread(v: np.ndarray) -> np.ndarray:
         v = v.astype(np.uint64) & np.uint64(0xFFFF)
         for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333), (1, 0x55555555)):
             v = (v | (v << np.uint64(shift))) & np.uint64(mask)
         return v
-    code = spread(pixel % width) | (spread(pixel // width) << np.uint64(1))
-    return np.argsort(code, kind="stable")
+    pixel = np.asarray(pixel)
+    starts = np.flatnonzero(np.concatenate([np.ones(min(len(pixel), 1), bool), pixel[1:] != pixel[:-1]]))
+    first = pixel[starts]
+    code = spread(first % width) | (spread(first // width) << np.uint64(1))
+    order = np.argsort(code, kind="stable")
+    lengths = np.diff(np.append(starts, len(pixel)))[order]
+    # the ray at position j of run m (in order) is starts[m] + j: shift each position by its run's
+    return np.arange(len(pixel)) + np.repeat(starts[order] - (np.cumsum(lengths) - lengths), lengths)
 
 
 def _gather(points: np.ndarray, rows: np.ndarray, gathered: np.ndarray) -> bool:

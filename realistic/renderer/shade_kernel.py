@@ -185,7 +185,9 @@ class _ThreadState:
                 continue
             count += count // 8
             for name in names:
-                array = np.empty(count * (1 if name == "length" else 3), np.float32)
+                size = count * (1 if name == "length" else 3)
+                # float32 in float64's memory: 8-byte aligned, as shade.cl's paired stores need
+                array = np.empty(-(-size // 2), np.float64).view(np.float32)[:size]
                 self.arrays[name] = array
                 self.buffers[name] = device.host_buffer(array, cl.mem_flags.WRITE_ONLY)
             self.rows[kind] = count
