@@ -340,7 +340,7 @@ class DirectLighting:
         return kernel
 
     def _build_device_textures(self, backend: OpenCLBackend, host_albedo: np.ndarray) -> None:
-        """Image textures filtered over pixel footprints with EWA or pbrt-v4's bilinear filter
+        """Image textures filtered over pixel footprints with any filter the device has
         (``ewa_kernel.DEVICE_FILTERS``): their albedo is computed from the hit records on the device
         (``EwaKernel.at_hits``), the rest of the host's materials in numpy."""
         self._device_textures = []
