@@ -374,11 +374,14 @@ class PathIntegrator(DirectLighting):
         seen = self.lights.environments or depth == 0 and self.lights.background.any()
         miss = np.flatnonzero(hits.geom < 0) if seen else np.zeros(0, np.int64)
         if len(miss):
-            le = self.lights.environment(d[miss], pick(miss), camera=depth == 0)
-            pdf = self.lights.pdf_environment(d[miss]) if self.lights.environments else np.zeros(len(miss))
-            weight = self._mis(miss, specular, prev_pdf, pdf, prev_lights) if self.lights.environments else \
-                np.ones(len(miss))
-            out[path[miss]] += beta[miss] * le * weight[:, None].astype(np.float32)
+            # weights only after a non-specular bounce (camera rays and specular ones weigh 1), and the
+            # light sampler's density only where the power heuristic reads it
+            weighted = bool(self.lights.environments) and not specular[miss].all()
+            le, pdf = self.lights.escaping(_rows(d, miss), pick(miss), depth == 0, weighted and self.mis)
+            arriving = _rows(beta, miss) * le
+            if weighted:
+                arriving *= self._mis(miss, specular, prev_pdf, pdf, prev_lights)[:, None].astype(np.float32)
+            _add_rows(out, path[miss], arriving)
         lit = np.flatnonzero(hits.geom >= self.instance_count)
         if len(lit):
             slot = hits.geom[lit] - self.instance_count
