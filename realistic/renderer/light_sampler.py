@@ -14,7 +14,9 @@ the mesh that is rendered; point, spot and distant lights are deltas (``delta`` 
 pdf = P_j); an infinite light with a map is importance sampled by a ``Distribution2D`` over its
 texels' luminance (times sin(theta) for a lat-long map, whose texels shrink toward the poles),
 without one uniformly over the sphere. ``pdf_area``, ``pdf_instance``
-and ``pdf_environment`` give the same densities for directions that BSDF sampling found, for MIS.
+and ``pdf_environment`` give the same densities for directions that BSDF sampling found, for MIS;
+``escaping`` gives a ray that leaves the scene its radiance and that density from one lookup of its
+direction in each map.
 
 Colours come back as (N, C): C = 3 for RGB rays, C = 1 spectral values at each ray's wavelength
 (``basis``: the rows of ``realistic.core.spectrum.rgb_basis`` of those rays).
@@ -148,7 +150,8 @@ class _Environment:
             rgb = np.broadcast_to(self._scaled[0], (n, 3))
             return rgb, np.full(n, 1.0 / (4 * math.pi)) if density else np.zeros(n)
         d, m = np.asarray(direction, np.float64), self._to_light
-        w = d[:, :1] * m[0] + d[:, 1:2] * m[1] + d[:, 2:] * m[2]  # not BLAS: its threads stall renders
+        # elementwise, not an (N, 3) @ (3, 3) product, which wakes BLAS's threads beside the render's
+        w = d[:, :1] * m[0] + d[:, 1:2] * m[1] + d[:, 2:] * m[2]
         w /= np.maximum(np.sqrt(w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2]), 1e-300)[:, None]
         uv = equal_area_sphere_to_square(w) if self.light.mapping == "equal-area" else latlong_uv(w)
         height, width = self.distribution.height, self.distribution.width
@@ -472,13 +475,11 @@ class LightSampler:
         if not self.environments:
             rgb = np.broadcast_to(self.background if camera else np.zeros(3, np.float32), (n, 3))
             return colour(rgb, basis), np.zeros(n)
-        total, pdf = None, np.zeros(n)
+        total, pdf = np.zeros((n, 3), np.float32), np.zeros(n)
         for i, env in self.environments.items():
             rgb, env_pdf = env.look_up(direction, density)
-            total = rgb if total is None else total + rgb
-            if density:
-                pdf += self.probability[i] * env_pdf
-        assert total is not None
+            total += rgb
+            pdf += self.probability[i] * env_pdf
         return colour(total, basis), pdf
 
     def pdf_environment(self, direction: np.ndarray) -> np.ndarray:
