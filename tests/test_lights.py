@@ -151,3 +151,51 @@ def test_environment_without_a_map_reads_as_a_white_map_of_one_texel():
     white = InfiniteLight((2.0, 1.0, 0.5), np.ones((1, 1, 3), np.float32))
     assert np.array_equal(bare.texels(uv), white.texels(uv))
     assert np.array_equal(bare.texels(uv), np.ones((50, 3)))
+
+
+def _rotated(light: InfiniteLight, radiance: tuple[float, float, float]) -> InfiniteLight:
+    """``light`` turned by a rotation about an oblique axis (no signed permutation: every row of
+    the world-to-light matrix mixes all three components), with ``radiance``."""
+    axis = np.array([1.0, 2.0, 2.0]) / 3.0
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    m = np.eye(4)
+    m[:3, :3] = np.eye(3) + math.sin(0.7) * k + (1 - math.cos(0.7)) * k @ k  # Rodrigues
+    return InfiniteLight(radiance, light.image, light.mapping, m)
+
+
+@pytest.mark.parametrize("mapping", ["latlong", "equal-area", None])
+def test_escaping_rays_read_each_map_as_its_texels_and_density(mapping):
+    """``escaping`` (one map lookup for both) gives what the light's own definitions give: the nearest
+    texel at ``to_uv`` times the radiance, rounded once to float32, and the pick probability times
+    the map's ``Distribution2D.pdf`` at that uv times the mapping's Jacobian (1 / 4 pi without a map)."""
+    light = _rotated(_env(mapping or "latlong"), (0.3, 1.7, 0.9))
+    if mapping is None:
+        light = InfiniteLight(light.radiance, None, "latlong", light.light_to_world)
+    sampler = LightSampler(_sceneless([light, PointLight((5.0, 5.0, 5.0), np.array([0.0, 2.0, 0.0]))]), 1.0)
+    d = np.random.default_rng(8).normal(size=(20000, 3)).astype(np.float32)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    rgb, pdf = sampler.escaping(d, None, camera=False, density=True)
+    uv = light.to_uv(d)
+    expected = (light.texels(uv) * np.asarray(light.radiance)).astype(np.float32)
+    assert rgb.dtype == np.float32 and np.array_equal(rgb, expected)
+    if mapping is None:
+        density = np.full(len(d), 1 / (4 * math.pi))
+    else:
+        density = sampler.environments[0].distribution.pdf(uv) * sampler.environments[0].jacobian(uv)
+    np.testing.assert_allclose(pdf, sampler.probability[0] * density, rtol=1e-9)  # uv in float64, as to_uv
+    # camera rays and specular bounces read no density; the radiance is the same
+    rgb_alone, none = sampler.escaping(d, None, camera=True, density=False)
+    assert np.array_equal(rgb_alone, rgb) and not none.any()
+
+
+def test_escaping_rays_sum_every_infinite_light():
+    """Two maps under one sampler: radiances add (within float32 rounding of the float64 sum),
+    densities add weighted by each light's pick probability."""
+    lights = [_rotated(_env("latlong"), (1.0, 0.5, 0.25)), _env("equal-area")]
+    sampler = LightSampler(_sceneless(lights), 1.0)
+    d = np.random.default_rng(9).normal(size=(5000, 3))
+    rgb, pdf = sampler.escaping(d, None, camera=False, density=True)
+    expected = sum(light.texels(light.to_uv(d)) * np.asarray(light.radiance) for light in lights)
+    np.testing.assert_allclose(rgb, expected, rtol=2e-7)
+    alone = [LightSampler(_sceneless([light]), 1.0).pdf_environment(d) for light in lights]
+    np.testing.assert_allclose(pdf, sum(p * a for p, a in zip(sampler.probability, alone, strict=True)), rtol=1e-12)

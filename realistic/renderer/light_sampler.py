@@ -14,7 +14,9 @@ the mesh that is rendered; point, spot and distant lights are deltas (``delta`` 
 pdf = P_j); an infinite light with a map is importance sampled by a ``Distribution2D`` over its
 texels' luminance (times sin(theta) for a lat-long map, whose texels shrink toward the poles),
 without one uniformly over the sphere. ``pdf_area``, ``pdf_instance``
-and ``pdf_environment`` give the same densities for directions that BSDF sampling found, for MIS.
+and ``pdf_environment`` give the same densities for directions that BSDF sampling found, for MIS;
+``escaping`` gives a ray that leaves the scene its radiance and that density from one lookup of its
+direction in each map.
 
 Colours come back as (N, C): C = 3 for RGB rays, C = 1 spectral values at each ray's wavelength
 (``basis``: the rows of ``realistic.core.spectrum.rgb_basis`` of those rays).
@@ -35,7 +37,15 @@ from realistic.core.vectors import dot
 from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.bsdf.base import ShadingFrame
 from realistic.scene.intersect import Intersector
-from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, SpotLight
+from realistic.scene.lights import (
+    DistantLight,
+    EmissiveInstance,
+    InfiniteLight,
+    PointLight,
+    SpotLight,
+    equal_area_sphere_to_square,
+    latlong_uv,
+)
 from realistic.scene.model import AreaLight, Instance, Scene
 
 AREA, POINT, SPOT, DISTANT, INFINITE, INSTANCE = range(6)
@@ -108,25 +118,48 @@ def _area_loop(p: np.ndarray, slot: np.ndarray, u1: np.ndarray, u2: np.ndarray, 
 
 
 class _Environment:
-    """One infinite light's sampling tables."""
+    """One infinite light's sampling tables, and its map scaled by its radiance."""
 
     def __init__(self, light: InfiniteLight):
         self.light = light
         self.rgb = np.asarray(light.radiance, np.float64)
+        # world to light frame as rows (a direction's light-frame vector: sum_k direction_k row_k)
+        self._to_light = np.linalg.inv(np.asarray(light.light_to_world, np.float64)[:3, :3]).T
         if light.image is None:
             self.distribution = None
+            self._scaled = self.rgb.astype(np.float32)[None, :]  # one texel: pbrt's map of one
             return
-        lum = np.maximum(np.asarray(light.image, np.float64) @ LUMINANCE, 0.0)
+        image = np.asarray(light.image, np.float64)
+        lum = np.maximum(image @ LUMINANCE, 0.0)
         if light.mapping == "latlong":
             rows = lum.shape[0]
             lum = lum * np.sin((np.arange(rows) + 0.5) / rows * math.pi)[:, None]
         self.distribution = Distribution2D(lum)
+        # texel times radiance in float64, rounded to float32 once, as every lookup rounded it
+        self._scaled = (image * self.rgb).astype(np.float32).reshape(-1, 3)
+        self._density = self.distribution.density.ravel()
 
-    def radiance(self, direction: np.ndarray) -> np.ndarray:
-        """RGB radiance (N, 3) arriving from world directions (N, 3)."""
-        if self.light.image is None:
-            return np.broadcast_to(self.rgb, (len(direction), 3))
-        return self.light.texels(self.light.to_uv(direction)) * self.rgb
+    def look_up(self, direction: np.ndarray, density: bool) -> tuple[np.ndarray, np.ndarray]:
+        """RGB radiance (N, 3) float32 arriving from world directions (N, 3) and, with ``density``,
+        the solid-angle densities (N,) with which ``sample`` draws them (else zeros). Each
+        direction's map coordinates and texel (``InfiniteLight.to_uv`` and ``texels``: the
+        nearest texel, which is also the ``Distribution2D`` cell its density reads) are found once
+        for both."""
+        n = len(direction)
+        if self.distribution is None:
+            rgb = np.broadcast_to(self._scaled[0], (n, 3))
+            return rgb, np.full(n, 1.0 / (4 * math.pi)) if density else np.zeros(n)
+        d, m = np.asarray(direction, np.float64), self._to_light
+        # elementwise, not an (N, 3) @ (3, 3) product, which wakes BLAS's threads beside the render's
+        w = d[:, :1] * m[0] + d[:, 1:2] * m[1] + d[:, 2:] * m[2]
+        w /= np.maximum(np.sqrt(w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2]), 1e-300)[:, None]
+        uv = equal_area_sphere_to_square(w) if self.light.mapping == "equal-area" else latlong_uv(w)
+        height, width = self.distribution.height, self.distribution.width
+        col = np.clip((uv[:, 0] * width).astype(np.int64), 0, width - 1)
+        row = np.clip((uv[:, 1] * height).astype(np.int64), 0, height - 1)
+        texel = row * width + col
+        rgb = np.take(self._scaled, texel, axis=0)
+        return rgb, np.take(self._density, texel) * self.jacobian(uv) if density else np.zeros(n)
 
     def jacobian(self, uv: np.ndarray) -> np.ndarray:
         """d(uv) / d(solid angle) of the mapping at uv."""
@@ -145,12 +178,6 @@ class _Environment:
             return np.column_stack([r * np.cos(phi), r * np.sin(phi), z]), np.full(len(u1), 1.0 / (4 * math.pi))
         uv, density = self.distribution.sample(u1, u2)
         return self.light.to_world(uv), density * self.jacobian(uv)
-
-    def pdf(self, direction: np.ndarray) -> np.ndarray:
-        if self.distribution is None:
-            return np.full(len(direction), 1.0 / (4 * math.pi))
-        uv = self.light.to_uv(direction)
-        return self.distribution.pdf(uv) * self.jacobian(uv)
 
 
 class Emitter:
@@ -331,7 +358,7 @@ class LightSampler:
                 w, density = env.sample(u1[rows], u2[rows])
                 wi[rows], distance[rows], pdf[rows] = w, FAR, density
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    rgb[rows] = np.where(density[:, None] > 0, env.radiance(w), 0.0)
+                    rgb[rows] = np.where(density[:, None] > 0, env.look_up(w, density=False)[0], 0.0)
         pdf *= self.probability[j]
         delta = (kind == POINT) | (kind == SPOT) | (kind == DISTANT)
         valid = (pdf > 0) & np.any(rgb != 0, axis=1)
@@ -444,19 +471,23 @@ class LightSampler:
             density = np.where(outside, 1.0 / (2.0 * math.pi * one_minus_cos), density)
         return self.probability[light] * density
 
-    def environment(self, direction: np.ndarray, basis: np.ndarray | None, camera: bool) -> np.ndarray:
-        """Radiance (N, C) from the infinite lights along ``direction``; with none, the background for
-        camera rays and black for others."""
+    def escaping(self, direction: np.ndarray, basis: np.ndarray | None, camera: bool, density: bool
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """For rays leaving the scene along ``direction``: the radiance (N, C) from the infinite lights
+        (with none, the background for camera rays and black for others) and, with ``density``, the
+        density (N,) with which ``sample`` finds those directions, for MIS (else zeros), from one
+        lookup of each direction in each map."""
+        n = len(direction)
         if not self.environments:
-            rgb = np.broadcast_to(self.background if camera else np.zeros(3, np.float32), (len(direction), 3))
-            return colour(rgb, basis)
-        total = np.zeros((len(direction), 3))
-        for env in self.environments.values():
-            total += env.radiance(np.asarray(direction, np.float64))
-        return colour(total, basis)
+            rgb = np.broadcast_to(self.background if camera else np.zeros(3, np.float32), (n, 3))
+            return colour(rgb, basis), np.zeros(n)
+        total, pdf = np.zeros((n, 3), np.float32), np.zeros(n)
+        for i, env in self.environments.items():
+            rgb, env_pdf = env.look_up(direction, density)
+            total += rgb
+            pdf += self.probability[i] * env_pdf
+        return colour(total, basis), pdf
 
     def pdf_environment(self, direction: np.ndarray) -> np.ndarray:
-        total = np.zeros(len(direction))
-        for i, env in self.environments.items():
-            total += self.probability[i] * env.pdf(np.asarray(direction, np.float64))
-        return total
+        """Density with which ``sample`` finds the infinite lights' directions ``direction``."""
+        return self.escaping(direction, None, camera=False, density=True)[1]

@@ -363,32 +363,39 @@ class PathIntegrator(DirectLighting):
         seen = self.lights.environments or depth == 0 and self.lights.background.any()
         miss = np.flatnonzero(hits.geom < 0) if seen else np.zeros(0, np.int64)
         if len(miss):
-            le = self.lights.environment(d[miss], pick(miss), camera=depth == 0)
-            pdf = self.lights.pdf_environment(d[miss]) if self.lights.environments else np.zeros(len(miss))
-            weight = self._mis(miss, specular, prev_pdf, pdf, prev_lights) if self.lights.environments else \
-                np.ones(len(miss))
-            out[path[miss]] += beta[miss] * le * weight[:, None].astype(np.float32)
+            # weights only after a non-specular bounce (camera rays and specular ones weigh 1), and the
+            # light sampler's density only where the power heuristic reads it
+            weighted = bool(self.lights.environments) and not specular[miss].all()
+            le, pdf = self.lights.escaping(_rows(d, miss), pick(miss), depth == 0, weighted and self.mis)
+            arriving = _rows(beta, miss) * le
+            if weighted:
+                arriving *= self._mis(miss, specular, prev_pdf, pdf, prev_lights)[:, None].astype(np.float32)
+            _add_rows(out, path[miss], arriving)
         lit = np.flatnonzero(hits.geom >= self.instance_count)
         if len(lit):
             slot = hits.geom[lit] - self.instance_count
             d_lit = _rows(d, lit)
             point = _rows(o, lit) + hits.t[lit, None] * d_lit
-            le = self.lights.area_emission(slot, d_lit, pick(lit))
-            weight = self._mis(lit, specular, prev_pdf, self.lights.pdf_area(slot, prev_point[lit], point),
-                               prev_lights)
-            _add_rows(out, path[lit], _rows(beta, lit) * le * weight[:, None].astype(np.float32))
+            arriving = _rows(beta, lit) * self.lights.area_emission(slot, d_lit, pick(lit))
+            if not specular[lit].all():
+                arriving *= self._mis(lit, specular, prev_pdf, self.lights.pdf_area(slot, prev_point[lit], point),
+                                      prev_lights)[:, None].astype(np.float32)
+            _add_rows(out, path[lit], arriving)
         if self.lights.emitters:
             instance = (hits.geom >= 0) & (hits.geom < self.instance_count)
-            geom = np.where(instance, hits.geom, 0)
-            which = np.where(instance, self._instance_light[geom], -1)
-            for light in np.unique(which[which >= 0]):
-                rows = np.flatnonzero(which == light)
-                point = o[rows] + hits.t[rows, None] * d[rows]
+            which = self._instance_light[np.where(instance, hits.geom, 0)]
+            hit = np.flatnonzero(instance & (which >= 0))
+            # the hits grouped by light in one sort (stable: each group's rows stay ascending)
+            hit = hit[np.argsort(which[hit], kind="stable")]
+            for rows in np.split(hit, np.flatnonzero(np.diff(which[hit])) + 1) if len(hit) else ():
+                light = int(which[rows[0]])
                 normal = hits.normal[rows].astype(np.float32)
-                le = self.lights.instance_emission(light, d[rows], normal, pick(rows))
-                weight = self._mis(rows, specular, prev_pdf,
-                                   self.lights.pdf_instance(light, prev_point[rows], point, normal), prev_lights)
-                out[path[rows]] += beta[rows] * le * weight[:, None].astype(np.float32)
+                arriving = _rows(beta, rows) * self.lights.instance_emission(light, d[rows], normal, pick(rows))
+                if not specular[rows].all():
+                    point = o[rows] + hits.t[rows, None] * d[rows]
+                    density = self.lights.pdf_instance(light, prev_point[rows], point, normal)
+                    arriving *= self._mis(rows, specular, prev_pdf, density, prev_lights)[:, None].astype(np.float32)
+                _add_rows(out, path[rows], arriving)
 
     def _shade(self, hits: Hits, surface: np.ndarray, path: np.ndarray, o: np.ndarray, d: np.ndarray,
                beta: np.ndarray, basis: np.ndarray | None, pixel: np.ndarray, sample: np.ndarray, depth: int
