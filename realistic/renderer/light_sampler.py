@@ -32,7 +32,7 @@ import numpy as np
 from realistic.core.distribution import Distribution2D
 from realistic.core.jit import compiled
 from realistic.core.spectrum import spectral_value
-from realistic.core.transforms import transform_points
+from realistic.core.transforms import transform_points, transform_vectors
 from realistic.core.vectors import dot
 from realistic.renderer.area_lights import AreaLightTable
 from realistic.renderer.bsdf.base import ShadingFrame
@@ -388,7 +388,7 @@ class LightSampler:
         mesh alone, in its object space (``_towards_sphere``'s, and the bounce kernel's cone samples')."""
         to_object = emitter.to_object
         origin = transform_points(to_object, point.astype(np.float64)).astype(np.float32)
-        direction = (w.astype(np.float64) @ to_object[:3, :3].T).astype(np.float32)
+        direction = transform_vectors(to_object, w.astype(np.float64)).astype(np.float32)
         hits = self._alone(emitter).closest(origin, direction)  # t: world units along w, as the map is affine
         front = emitter.winding * dot(direction, hits.normal) < 0
         ok = (hits.geom >= 0) & (front | emitter.light.two_sided)

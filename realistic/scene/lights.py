@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from realistic.core import validation
+from realistic.core.transforms import transform_vectors
 from realistic.errors import UserError
 from realistic.scene.model import RGB, AreaLight
 
@@ -123,14 +124,14 @@ class InfiniteLight:
     def to_uv(self, direction_world: np.ndarray) -> np.ndarray:
         """Map coordinates (N, 2) in [0, 1)^2 of world directions (N, 3)."""
         linear = np.asarray(self.light_to_world, np.float64)[:3, :3]
-        w = np.asarray(direction_world, np.float64) @ np.linalg.inv(linear).T
+        w = transform_vectors(np.linalg.inv(linear), np.asarray(direction_world, np.float64))
         w /= np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300)
         return equal_area_sphere_to_square(w) if self.mapping == "equal-area" else latlong_uv(w)
 
     def to_world(self, uv: np.ndarray) -> np.ndarray:
         """Unit world directions (N, 3) of map coordinates uv (N, 2)."""
         w = equal_area_square_to_sphere(uv) if self.mapping == "equal-area" else latlong_direction(uv)
-        w = w @ np.asarray(self.light_to_world, np.float64)[:3, :3].T
+        w = transform_vectors(np.asarray(self.light_to_world, np.float64), w)
         return w / np.linalg.norm(w, axis=1, keepdims=True)
 
     def texels(self, uv: np.ndarray) -> np.ndarray:
