@@ -369,3 +369,23 @@ def test_peers_pbrt_v3_scene_keeps_the_homework_camera(tmp_path):
     assert converted.film_distance_mm == pytest.approx(homework.film_distance_mm, rel=1e-9)
     assert converted.lens.stop_diameter_mm == homework.lens.stop_diameter_mm
     assert converted.film_diagonal_mm == homework.film_diagonal_mm
+
+
+# --- light kinds ----------------------------------------------------------------------------------
+
+light_kinds = _bench_module("light_kinds")
+
+
+@pytest.mark.parametrize("name, kinds", [("point", {"PointLight"}), ("sky", {"DistantLight", "InfiniteLight"}),
+                                         ("mesh", {"EmissiveInstance"}), ("sphere", {"EmissiveInstance"})])
+@pytest.mark.parametrize("integrator", ["path", "direct"])
+def test_light_kinds_scenes_import_with_their_lights_and_integrator(tmp_path, name, kinds, integrator):
+    """Each scene of bench/light_kinds.py imports (no dragon: ../shared may be missing) with the light
+    kinds its name says, nothing else lighting it, and the integrator it asks for."""
+    import realistic
+
+    scene_file = tmp_path / "scene.pbrt"
+    scene_file.write_text(light_kinds.scene_text(light_kinds.SCENES[name], light_kinds.INTEGRATORS[integrator], None))
+    scene = realistic.load_scene(str(scene_file))
+    assert {type(light).__name__ for light in scene.lights} == kinds
+    assert scene.integrator == {"path": "path", "direct": "directlighting"}[integrator]
