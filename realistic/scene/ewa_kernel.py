@@ -54,7 +54,8 @@ MAPPING = Table("MAPPING", np.float64, (("spread", 1), ("st_scale", 2), ("st_off
                                         ("t_shift", 1), ("diffuse", 3)))
 #: The image-texture filters (``validation.TEXTURE_FILTERS``) an ``EwaKernel`` runs on the device.
 DEVICE_FILTERS = ("ewa", "bilinear", "point", "trilinear")
-#: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size.
+#: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size (an
+#: ``EwaKernel`` adds its map's ``WRAP``).
 HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 
 
@@ -101,13 +102,14 @@ class EwaKernel:
         device = device or Device.for_spec()
         self.device = device
         self.context = device.context
-        self._program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
+        wrap = f"#define WRAP {TEXTURE_WRAPS.index(mipmap.wrap)}\n"  # one program per wrap mode (ewa.cl)
+        self._program = device.build_program(HEADER + wrap + kernel_source(KERNEL_FILE), KERNEL_FILE)
         # the texels wrapped, not copied, so they are not held twice
         # the map's kernel arguments: its buffers, then its scalars
         self._map: list[cl.Buffer | np.generic] = [
             device.wrapped_buffer(mipmap.texels, np.float32),
             *(device.wrapped_buffer(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)),
-            np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
+            np.int32(mipmap.level_count),
             np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float64)]
         #: per filter, the arguments its two kernels take after their common ones
         self._own: dict[str, tuple[np.generic, ...]] = {name: () for name in DEVICE_FILTERS}
