@@ -148,18 +148,30 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
                      major.x, major.y, minor.x, minor.y) * delta;
 }
 
+/* The scalar kernels (ewa, bilinear, point, trilinear) filter the lookups their _small twin left pending:
+ * lookup rows[i] of `lookups` (rows of 6 doubles, as the _small kernels read them), its colour times
+ * (red, green, blue)_scale written into its own row of `out` (float32 products, as the _small kernels'),
+ * so the host gathers and scatters nothing. */
+inline void store(__global float *out, int r, double3 value, float red_scale, float green_scale,
+                  float blue_scale) {
+    out[3 * r] = red_scale * (float)value.x;
+    out[3 * r + 1] = green_scale * (float)value.y;
+    out[3 * r + 2] = blue_scale * (float)value.z;
+}
+
 __kernel void ewa(__global const float *texels, __global const long *base, __global const long *width,
                   __global const long *height, const int levels, const double max_anisotropy,
-                  __global const double *lut, __global const double *st, __global const double *axis0,
-                  __global const double *axis1, const int count, __global float *out) {
+                  __global const double *lut, __global const double *lookups, __global const int *rows,
+                  const float red_scale, const float green_scale, const float blue_scale, const int count,
+                  __global float *out) {
     int i = get_global_id(0);
     if (i >= count) return;
+    int r = rows[i];
+    __global const double *lookup = lookups + 6 * (long)r;
     double3 value = ewa_lookup(texels, base, width, height, levels, max_anisotropy, lut,
-                               (double2)(st[2 * i], st[2 * i + 1]), (double2)(axis0[2 * i], axis0[2 * i + 1]),
-                               (double2)(axis1[2 * i], axis1[2 * i + 1]));
-    out[3 * i] = (float)value.x;
-    out[3 * i + 1] = (float)value.y;
-    out[3 * i + 2] = (float)value.z;
+                               (double2)(lookup[0], lookup[1]), (double2)(lookup[2], lookup[3]),
+                               (double2)(lookup[4], lookup[5]));
+    store(out, r, value, red_scale, green_scale, blue_scale);
 }
 
 /* ------------------------------------------------------------------ lookups at surface hits
@@ -542,65 +554,69 @@ __kernel void point_small(__global const float *texels, __global const long *bas
     if (i < count) pending[i] = !small;
 }
 
-/* The continuous level of lookup i's filter width (MipMap._level_of). */
-inline double width_level(__global const double *axis0, __global const double *axis1, int levels, int i) {
-    double w = filter_width(axis0[2 * i], axis0[2 * i + 1], axis1[2 * i], axis1[2 * i + 1]);
+/* The continuous level of `lookup`'s filter width (MipMap._level_of). */
+inline double width_level(__global const double *lookup, int levels) {
+    double w = filter_width(lookup[2], lookup[3], lookup[4], lookup[5]);
     return (double)(levels - 1) + log2(__builtin_fmax(w, 1e-8));
-}
-
-inline void store(__global float *out, int i, double3 value) {
-    out[3 * i] = (float)value.x;
-    out[3 * i + 1] = (float)value.y;
-    out[3 * i + 2] = (float)value.z;
 }
 
 __kernel void bilinear(__global const float *texels, __global const long *base, __global const long *width,
                        __global const long *height, const int levels, const double max_anisotropy,
-                       __global const double *lut, __global const double *st, __global const double *axis0,
-                       __global const double *axis1, const int count, __global float *out) {
+                       __global const double *lut, __global const double *lookups, __global const int *rows,
+                       const float red_scale, const float green_scale, const float blue_scale, const int count,
+                       __global float *out) {
     int i = get_global_id(0);
     if (i >= count) return;
-    double level = width_level(axis0, axis1, levels, i);
-    store(out, i, level >= levels - 1 ? coarsest(texels, base, levels)
+    int r = rows[i];
+    __global const double *lookup = lookups + 6 * (long)r;
+    double level = width_level(lookup, levels);
+    store(out, r, level >= levels - 1 ? coarsest(texels, base, levels)
                   : bilinear_at(texels, base, width, height, (int)__builtin_fmax(__builtin_floor(level), 0.0),
-                                st[2 * i], st[2 * i + 1]));
+                                lookup[0], lookup[1]), red_scale, green_scale, blue_scale);
 }
 
 __kernel void point(__global const float *texels, __global const long *base, __global const long *width,
                     __global const long *height, const int levels, const double max_anisotropy,
-                    __global const double *lut, __global const double *st, __global const double *axis0,
-                    __global const double *axis1, const int count, __global float *out) {
+                    __global const double *lut, __global const double *lookups, __global const int *rows,
+                    const float red_scale, const float green_scale, const float blue_scale, const int count,
+                    __global float *out) {
     int i = get_global_id(0);
     if (i >= count) return;
-    double level = width_level(axis0, axis1, levels, i);
+    int r = rows[i];
+    __global const double *lookup = lookups + 6 * (long)r;
+    double level = width_level(lookup, levels);
     if (level >= levels - 1) {
-        store(out, i, coarsest(texels, base, levels));
+        store(out, r, coarsest(texels, base, levels), red_scale, green_scale, blue_scale);
         return;
     }
     int at = (int)__builtin_fmax(__builtin_floor(level), 0.0);
-    int x = (int)round_half_away(st[2 * i] * width[at] - 0.5);
-    int y = (int)round_half_away(st[2 * i + 1] * height[at] - 0.5);
-    store(out, i, texel(texels, base, width, height, at, x, y));
+    int x = (int)round_half_away(lookup[0] * width[at] - 0.5);
+    int y = (int)round_half_away(lookup[1] * height[at] - 0.5);
+    store(out, r, texel(texels, base, width, height, at, x, y), red_scale, green_scale, blue_scale);
 }
 
 __kernel void trilinear(__global const float *texels, __global const long *base, __global const long *width,
                         __global const long *height, const int levels, const double max_anisotropy,
-                        __global const double *lut, __global const double *st, __global const double *axis0,
-                        __global const double *axis1, const int count, __global float *out, const int blend_from) {
+                        __global const double *lut, __global const double *lookups, __global const int *rows,
+                        const float red_scale, const float green_scale, const float blue_scale, const int count,
+                        __global float *out, const int blend_from) {
     int i = get_global_id(0);
     if (i >= count) return;
-    double level = width_level(axis0, axis1, levels, i);
+    int r = rows[i];
+    __global const double *lookup = lookups + 6 * (long)r;
+    double level = width_level(lookup, levels);
     if (level >= levels - 1) {
-        store(out, i, coarsest(texels, base, levels));
+        store(out, r, coarsest(texels, base, levels), red_scale, green_scale, blue_scale);
         return;
     }
     level = __builtin_fmax(level, 0.0);
     double lower = __builtin_floor(level);
     double delta = level - lower;
     int at = (int)lower;
-    double s = st[2 * i], t = st[2 * i + 1];
+    double s = lookup[0], t = lookup[1];
     double3 below = bilinear_at(texels, base, width, height, at, s, t);
-    store(out, i, at < blend_from ? below
+    store(out, r, at < blend_from ? below
                   : below * (1 - delta)
-                    + bilinear_at(texels, base, width, height, min(at + 1, levels - 1), s, t) * delta);
+                    + bilinear_at(texels, base, width, height, min(at + 1, levels - 1), s, t) * delta,
+          red_scale, green_scale, blue_scale);
 }
