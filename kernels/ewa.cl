@@ -6,8 +6,10 @@
  * inside the ellipse and their table entries are those of the float64 reference.
  *
  * Texels: every level's RGB rows, level after level, in one float array (MipMap._texels);
- * level k has width[k] x height[k] texels starting at texel base[k]. wrap: 0 repeat, 1 black,
- * 2 clamp (validation.TEXTURE_WRAPS's order).
+ * level k has width[k] x height[k] texels starting at texel base[k]. WRAP, a #define the host prepends
+ * (one program per wrap mode): 0 repeat, 1 black, 2 clamp (validation.TEXTURE_WRAPS's order). A constant,
+ * not an argument, so that each tap computes its texel's address in its map's mode alone, the other
+ * modes' clamps and tests folded away.
  *
  * sqrt, ceil, floor, fmax and fabs are written as LLVM's builtins: PoCL's library versions of the
  * OpenCL functions are calls, and cost about a fifth of a lookup's time (same results: each is
@@ -20,14 +22,14 @@
  * (realistic/scene/ewa_kernel.py, from realistic.scene.mipmap.EWA_WEIGHTS). */
 
 inline double3 texel(__global const float *texels, __global const long *base, __global const long *width,
-                     __global const long *height, int wrap, int level, int x, int y) {
+                     __global const long *height, int level, int x, int y) {
     int w = (int)width[level], h = (int)height[level];
     double inside = 1.0;
-    if (wrap == 0) {
+    if (WRAP == 0) {
         x %= w; if (x < 0) x += w;
         y %= h; if (y < 0) y += h;
     } else {
-        if (wrap == 1 && (x < 0 || x >= w || y < 0 || y >= h)) inside = 0.0;
+        if (WRAP == 1 && (x < 0 || x >= w || y < 0 || y >= h)) inside = 0.0;
         x = clamp(x, 0, w - 1);
         y = clamp(y, 0, h - 1);
     }
@@ -37,15 +39,15 @@ inline double3 texel(__global const float *texels, __global const long *base, __
 
 /* Bilinear interpolation of texel centres at (s, t) on `level` (MipMap.bilinear). */
 inline double3 bilinear_at(__global const float *texels, __global const long *base, __global const long *width,
-                           __global const long *height, int wrap, int level, double s, double t) {
+                           __global const long *height, int level, double s, double t) {
     double x = s * width[level] - 0.5, y = t * height[level] - 0.5;
     double x0 = __builtin_floor(x), y0 = __builtin_floor(y);
     double fx = x - x0, fy = y - y0;
     int ix = (int)x0, iy = (int)y0;
-    double3 top = texel(texels, base, width, height, wrap, level, ix, iy) * (1 - fx)
-                + texel(texels, base, width, height, wrap, level, ix + 1, iy) * fx;
-    double3 bottom = texel(texels, base, width, height, wrap, level, ix, iy + 1) * (1 - fx)
-                   + texel(texels, base, width, height, wrap, level, ix + 1, iy + 1) * fx;
+    double3 top = texel(texels, base, width, height, level, ix, iy) * (1 - fx)
+                + texel(texels, base, width, height, level, ix + 1, iy) * fx;
+    double3 bottom = texel(texels, base, width, height, level, ix, iy + 1) * (1 - fx)
+                   + texel(texels, base, width, height, level, ix + 1, iy + 1) * fx;
     return top * (1 - fy) + bottom * fy;
 }
 
@@ -64,7 +66,7 @@ inline void ewa_ellipse(double a0s, double a0t, double a1s, double a1t,
 }
 
 inline double3 ewa_level(__global const float *texels, __global const long *base, __global const long *width,
-                         __global const long *height, int wrap, int levels, __global const double *lut,
+                         __global const long *height, int levels, __global const double *lut,
                          long level, double s0, double t0_, double a0s, double a0t, double a1s, double a1t) {
     if (level >= levels) {
         __global const float *p = texels + 3 * base[levels - 1];
@@ -92,8 +94,8 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
         double root = __builtin_sqrt(__builtin_fmax(bb * bb - 4 * a * (c * dt * dt - 1), 0.0));
         int x0 = (int)__builtin_ceil(s + (-bb - root) * inv_2a);
         int x1 = (int)__builtin_floor(s + (-bb + root) * inv_2a);
-        int row = wrap == 0 ? y & (ih - 1) : clamp(y, 0, ih - 1);
-        double row_inside = wrap == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
+        int row = WRAP == 0 ? y & (ih - 1) : clamp(y, 0, ih - 1);
+        double row_inside = WRAP == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
         __global const float *row_texels = level_texels + 3 * (long)row * iw;
         double cdt2 = c * dt * dt;
         for (int x = x0; x <= x1; ++x) {
@@ -102,8 +104,8 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
             if (r2 < 1) {
                 /* r2 < 1, so r2 * 128 < 128 exactly: the index is at most 127 */
                 double weight = lut[(int)(r2 * LUT_SIZE)];
-                int at = wrap == 0 ? x & (iw - 1) : clamp(x, 0, iw - 1);
-                double inside = wrap == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
+                int at = WRAP == 0 ? x & (iw - 1) : clamp(x, 0, iw - 1);
+                double inside = WRAP == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
                 __global const float *p = row_texels + 3 * at;
                 sum += (double3)(p[0], p[1], p[2]) * inside * weight;
                 weights += weight;
@@ -116,7 +118,7 @@ inline double3 ewa_level(__global const float *texels, __global const long *base
 /* The filtered colour at (s, t) over the ellipse with axes major and minor (in st units): the
  * longer axis first, the eccentricity clamped, the level from the minor axis, two levels blended. */
 inline double3 ewa_lookup(__global const float *texels, __global const long *base, __global const long *width,
-                          __global const long *height, int wrap, int levels, double max_anisotropy,
+                          __global const long *height, int levels, double max_anisotropy,
                           __global const double *lut, double2 p, double2 major, double2 minor) {
     if (dot(major, major) < dot(minor, minor)) {
         double2 swap = major; major = minor; minor = swap;
@@ -127,7 +129,7 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
         minor *= stretch;
         minor_len *= stretch;
     }
-    if (minor_len == 0) return bilinear_at(texels, base, width, height, wrap, 0, p.x, p.y);
+    if (minor_len == 0) return bilinear_at(texels, base, width, height, 0, p.x, p.y);
     /* lod is clamped to 0 where the minor axis is at most 2^(1 - levels) (a texel of the finest level
      * along its longer side): log2 is exact at powers of two and monotone, so levels - 1 + log2 of such a
      * length is at most 0, and the library call is skipped */
@@ -136,28 +138,40 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
                : __builtin_fmax(0.0, levels - 1 + log2(length));
     double lower = __builtin_floor(lod);
     double delta = lod - lower;
-    double3 value = ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower, p.x, p.y,
+    double3 value = ewa_level(texels, base, width, height, levels, lut, (long)lower, p.x, p.y,
                               major.x, major.y, minor.x, minor.y);
     /* A magnified lookup (lod clamped to 0: most of a near floor's) gives the next level no weight:
      * value * 1 + next * 0 is value, bit for bit, so the next level's sum is skipped. */
     if (delta == 0) return value;
     return value * (1 - delta)
-         + ewa_level(texels, base, width, height, wrap, levels, lut, (long)lower + 1, p.x, p.y,
+         + ewa_level(texels, base, width, height, levels, lut, (long)lower + 1, p.x, p.y,
                      major.x, major.y, minor.x, minor.y) * delta;
 }
 
+/* The scalar kernels (ewa, bilinear, point, trilinear) filter the lookups their _small twin left pending:
+ * lookup rows[i] of `lookups` (rows of 6 doubles, as the _small kernels read them), its colour times
+ * (red, green, blue)_scale written into its own row of `out` (float32 products, as the _small kernels'),
+ * so the host gathers and scatters nothing. */
+inline void store(__global float *out, int r, double3 value, float red_scale, float green_scale,
+                  float blue_scale) {
+    out[3 * r] = red_scale * (float)value.x;
+    out[3 * r + 1] = green_scale * (float)value.y;
+    out[3 * r + 2] = blue_scale * (float)value.z;
+}
+
 __kernel void ewa(__global const float *texels, __global const long *base, __global const long *width,
-                  __global const long *height, const int wrap, const int levels, const double max_anisotropy,
-                  __global const double *lut, __global const double *st, __global const double *axis0,
-                  __global const double *axis1, const int count, __global float *out) {
+                  __global const long *height, const int levels, const double max_anisotropy,
+                  __global const double *lut, __global const double *lookups, __global const int *rows,
+                  const float red_scale, const float green_scale, const float blue_scale, const int count,
+                  __global float *out) {
     int i = get_global_id(0);
     if (i >= count) return;
-    double3 value = ewa_lookup(texels, base, width, height, wrap, levels, max_anisotropy, lut,
-                               (double2)(st[2 * i], st[2 * i + 1]), (double2)(axis0[2 * i], axis0[2 * i + 1]),
-                               (double2)(axis1[2 * i], axis1[2 * i + 1]));
-    out[3 * i] = (float)value.x;
-    out[3 * i + 1] = (float)value.y;
-    out[3 * i + 2] = (float)value.z;
+    int r = rows[i];
+    __global const double *lookup = lookups + 6 * (long)r;
+    double3 value = ewa_lookup(texels, base, width, height, levels, max_anisotropy, lut,
+                               (double2)(lookup[0], lookup[1]), (double2)(lookup[2], lookup[3]),
+                               (double2)(lookup[4], lookup[5]));
+    store(out, r, value, red_scale, green_scale, blue_scale);
 }
 
 /* ------------------------------------------------------------------ lookups at surface hits
@@ -317,7 +331,7 @@ __kernel void hit_lookups(__global const int *faces, __global const double *vert
 #define SMALL_SIDE 3
 
 __kernel void ewa_small(__global const float *texels, __global const long *base, __global const long *width,
-                        __global const long *height, const int wrap, const int levels, const double max_anisotropy,
+                        __global const long *height, const int levels, const double max_anisotropy,
                         __global const double *lut, __global const double *lookups, const float red_scale, const float green_scale, const float blue_scale, const int count,
                         const int unit, __global uchar *pending, __global float *out) {
     int i = get_global_id(0);
@@ -365,8 +379,8 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
         int x0 = (int)__builtin_ceil(left), x1 = (int)__builtin_floor(right);
         int in_rows = y <= y1;
         small = small && (!in_rows || x1 - x0 < SMALL_SIDE);
-        int row = wrap == 0 ? y & (ih - 1) : (y < 0 ? 0 : (y > ih - 1 ? ih - 1 : y));
-        double row_inside = wrap == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
+        int row = WRAP == 0 ? y & (ih - 1) : (y < 0 ? 0 : (y > ih - 1 ? ih - 1 : y));
+        double row_inside = WRAP == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
         double cdt2 = c * dt * dt;
         #pragma unroll
         for (int k = 0; k < SMALL_SIDE; ++k) {
@@ -375,8 +389,8 @@ __kernel void ewa_small(__global const float *texels, __global const long *base,
             double r2 = a * ds * ds + b * ds * dt + cdt2;
             int take = in_rows && x <= x1 && r2 < 1;
             double weight = lut[(int)((take ? r2 : 0.0) * LUT_SIZE)];
-            int at = wrap == 0 ? x & (iw - 1) : (x < 0 ? 0 : (x > iw - 1 ? iw - 1 : x));
-            double inside = wrap == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
+            int at = WRAP == 0 ? x & (iw - 1) : (x < 0 ? 0 : (x > iw - 1 ? iw - 1 : x));
+            double inside = WRAP == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
             long texel_at = level_base + (long)row * iw + at;
             double red = AT(texels, 3, texel_at, 0), green = AT(texels, 3, texel_at, 1);
             double blue = AT(texels, 3, texel_at, 2);
@@ -443,7 +457,7 @@ inline double3 coarsest(__global const float *texels, __global const long *base,
 /* bilinear_small and trilinear_small: the bilinear lookup at level 0 of the lookups whose width is
  * under `limit`, scaled; the others marked pending. */
 inline void bilinear_level0(__global const float *texels, __global const long *base, __global const long *width,
-                            __global const long *height, const int wrap, const int levels,
+                            __global const long *height, const int levels,
                             __global const double *lookups, const float red_scale, const float green_scale,
                             const float blue_scale, const int count, const int unit, __global uchar *pending,
                             __global float *out, double limit) {
@@ -465,10 +479,10 @@ inline void bilinear_level0(__global const float *texels, __global const long *b
     #pragma unroll
     for (int k = 0; k < 2; ++k) {
         int xk = ix + k, yk = iy + k;
-        xs[k] = wrap == 0 ? xk & (iw - 1) : (xk < 0 ? 0 : (xk > iw - 1 ? iw - 1 : xk));
-        ys[k] = wrap == 0 ? yk & (ih - 1) : (yk < 0 ? 0 : (yk > ih - 1 ? ih - 1 : yk));
-        inside_x[k] = wrap == 1 && (xk < 0 || xk >= iw) ? 0.0 : 1.0;
-        inside_y[k] = wrap == 1 && (yk < 0 || yk >= ih) ? 0.0 : 1.0;
+        xs[k] = WRAP == 0 ? xk & (iw - 1) : (xk < 0 ? 0 : (xk > iw - 1 ? iw - 1 : xk));
+        ys[k] = WRAP == 0 ? yk & (ih - 1) : (yk < 0 ? 0 : (yk > ih - 1 ? ih - 1 : yk));
+        inside_x[k] = WRAP == 1 && (xk < 0 || xk >= iw) ? 0.0 : 1.0;
+        inside_y[k] = WRAP == 1 && (yk < 0 || yk >= ih) ? 0.0 : 1.0;
     }
     long level_base = base[0];
     double value[3];
@@ -491,26 +505,26 @@ inline void bilinear_level0(__global const float *texels, __global const long *b
 }
 
 __kernel void bilinear_small(__global const float *texels, __global const long *base, __global const long *width,
-                             __global const long *height, const int wrap, const int levels,
+                             __global const long *height, const int levels,
                              const double max_anisotropy, __global const double *lut, __global const double *lookups,
                              const float red_scale, const float green_scale, const float blue_scale, const int count,
                              const int unit, __global uchar *pending, __global float *out) {
-    bilinear_level0(texels, base, width, height, wrap, levels, lookups, red_scale, green_scale, blue_scale, count,
+    bilinear_level0(texels, base, width, height, levels, lookups, red_scale, green_scale, blue_scale, count,
                     unit, pending, out, level0_limit(levels));
 }
 
 __kernel void trilinear_small(__global const float *texels, __global const long *base, __global const long *width,
-                              __global const long *height, const int wrap, const int levels,
+                              __global const long *height, const int levels,
                               const double max_anisotropy, __global const double *lut, __global const double *lookups,
                               const float red_scale, const float green_scale, const float blue_scale, const int count,
                               const int unit, __global uchar *pending, __global float *out, const int blend_from) {
-    bilinear_level0(texels, base, width, height, wrap, levels, lookups, red_scale, green_scale, blue_scale, count,
+    bilinear_level0(texels, base, width, height, levels, lookups, red_scale, green_scale, blue_scale, count,
                     unit, pending, out,
                     blend_from ? level0_limit(levels) : 1.0 / (double)(1L << (levels - 1)) * (1 - 0x1p-40));
 }
 
 __kernel void point_small(__global const float *texels, __global const long *base, __global const long *width,
-                          __global const long *height, const int wrap, const int levels,
+                          __global const long *height, const int levels,
                           const double max_anisotropy, __global const double *lut, __global const double *lookups,
                           const float red_scale, const float green_scale, const float blue_scale, const int count,
                           const int unit, __global uchar *pending, __global float *out) {
@@ -528,9 +542,9 @@ __kernel void point_small(__global const float *texels, __global const long *bas
     int ix = (int)(wx + (__builtin_fabs(x - wx) >= 0.5 ? (x > 0 ? 1.0 : -1.0) : 0.0));
     int iy = (int)(wy + (__builtin_fabs(y - wy) * one >= 0.5 ? (y > 0 ? 1.0 : -1.0) : 0.0) * one);
     int iw = (int)width[0], ih = (int)height[0];
-    int at_x = wrap == 0 ? ix & (iw - 1) : (ix < 0 ? 0 : (ix > iw - 1 ? iw - 1 : ix));
-    int at_y = wrap == 0 ? iy & (ih - 1) : (iy < 0 ? 0 : (iy > ih - 1 ? ih - 1 : iy));
-    double inside = wrap == 1 && (ix < 0 || ix >= iw || iy < 0 || iy >= ih) ? 0.0 : 1.0;
+    int at_x = WRAP == 0 ? ix & (iw - 1) : (ix < 0 ? 0 : (ix > iw - 1 ? iw - 1 : ix));
+    int at_y = WRAP == 0 ? iy & (ih - 1) : (iy < 0 ? 0 : (iy > ih - 1 ? ih - 1 : iy));
+    double inside = WRAP == 1 && (ix < 0 || ix >= iw || iy < 0 || iy >= ih) ? 0.0 : 1.0;
     long texel_at = base[0] + (long)at_y * iw + at_x;
     if (small) {
         AT(out, 3, i, 0) = red_scale * (float)(AT(texels, 3, texel_at, 0) * inside);
@@ -540,65 +554,69 @@ __kernel void point_small(__global const float *texels, __global const long *bas
     if (i < count) pending[i] = !small;
 }
 
-/* The continuous level of lookup i's filter width (MipMap._level_of). */
-inline double width_level(__global const double *axis0, __global const double *axis1, int levels, int i) {
-    double w = filter_width(axis0[2 * i], axis0[2 * i + 1], axis1[2 * i], axis1[2 * i + 1]);
+/* The continuous level of `lookup`'s filter width (MipMap._level_of). */
+inline double width_level(__global const double *lookup, int levels) {
+    double w = filter_width(lookup[2], lookup[3], lookup[4], lookup[5]);
     return (double)(levels - 1) + log2(__builtin_fmax(w, 1e-8));
 }
 
-inline void store(__global float *out, int i, double3 value) {
-    out[3 * i] = (float)value.x;
-    out[3 * i + 1] = (float)value.y;
-    out[3 * i + 2] = (float)value.z;
-}
-
 __kernel void bilinear(__global const float *texels, __global const long *base, __global const long *width,
-                       __global const long *height, const int wrap, const int levels, const double max_anisotropy,
-                       __global const double *lut, __global const double *st, __global const double *axis0,
-                       __global const double *axis1, const int count, __global float *out) {
+                       __global const long *height, const int levels, const double max_anisotropy,
+                       __global const double *lut, __global const double *lookups, __global const int *rows,
+                       const float red_scale, const float green_scale, const float blue_scale, const int count,
+                       __global float *out) {
     int i = get_global_id(0);
     if (i >= count) return;
-    double level = width_level(axis0, axis1, levels, i);
-    store(out, i, level >= levels - 1 ? coarsest(texels, base, levels)
-                  : bilinear_at(texels, base, width, height, wrap, (int)__builtin_fmax(__builtin_floor(level), 0.0),
-                                st[2 * i], st[2 * i + 1]));
+    int r = rows[i];
+    __global const double *lookup = lookups + 6 * (long)r;
+    double level = width_level(lookup, levels);
+    store(out, r, level >= levels - 1 ? coarsest(texels, base, levels)
+                  : bilinear_at(texels, base, width, height, (int)__builtin_fmax(__builtin_floor(level), 0.0),
+                                lookup[0], lookup[1]), red_scale, green_scale, blue_scale);
 }
 
 __kernel void point(__global const float *texels, __global const long *base, __global const long *width,
-                    __global const long *height, const int wrap, const int levels, const double max_anisotropy,
-                    __global const double *lut, __global const double *st, __global const double *axis0,
-                    __global const double *axis1, const int count, __global float *out) {
+                    __global const long *height, const int levels, const double max_anisotropy,
+                    __global const double *lut, __global const double *lookups, __global const int *rows,
+                    const float red_scale, const float green_scale, const float blue_scale, const int count,
+                    __global float *out) {
     int i = get_global_id(0);
     if (i >= count) return;
-    double level = width_level(axis0, axis1, levels, i);
+    int r = rows[i];
+    __global const double *lookup = lookups + 6 * (long)r;
+    double level = width_level(lookup, levels);
     if (level >= levels - 1) {
-        store(out, i, coarsest(texels, base, levels));
+        store(out, r, coarsest(texels, base, levels), red_scale, green_scale, blue_scale);
         return;
     }
     int at = (int)__builtin_fmax(__builtin_floor(level), 0.0);
-    int x = (int)round_half_away(st[2 * i] * width[at] - 0.5);
-    int y = (int)round_half_away(st[2 * i + 1] * height[at] - 0.5);
-    store(out, i, texel(texels, base, width, height, wrap, at, x, y));
+    int x = (int)round_half_away(lookup[0] * width[at] - 0.5);
+    int y = (int)round_half_away(lookup[1] * height[at] - 0.5);
+    store(out, r, texel(texels, base, width, height, at, x, y), red_scale, green_scale, blue_scale);
 }
 
 __kernel void trilinear(__global const float *texels, __global const long *base, __global const long *width,
-                        __global const long *height, const int wrap, const int levels, const double max_anisotropy,
-                        __global const double *lut, __global const double *st, __global const double *axis0,
-                        __global const double *axis1, const int count, __global float *out, const int blend_from) {
+                        __global const long *height, const int levels, const double max_anisotropy,
+                        __global const double *lut, __global const double *lookups, __global const int *rows,
+                        const float red_scale, const float green_scale, const float blue_scale, const int count,
+                        __global float *out, const int blend_from) {
     int i = get_global_id(0);
     if (i >= count) return;
-    double level = width_level(axis0, axis1, levels, i);
+    int r = rows[i];
+    __global const double *lookup = lookups + 6 * (long)r;
+    double level = width_level(lookup, levels);
     if (level >= levels - 1) {
-        store(out, i, coarsest(texels, base, levels));
+        store(out, r, coarsest(texels, base, levels), red_scale, green_scale, blue_scale);
         return;
     }
     level = __builtin_fmax(level, 0.0);
     double lower = __builtin_floor(level);
     double delta = level - lower;
     int at = (int)lower;
-    double s = st[2 * i], t = st[2 * i + 1];
-    double3 below = bilinear_at(texels, base, width, height, wrap, at, s, t);
-    store(out, i, at < blend_from ? below
+    double s = lookup[0], t = lookup[1];
+    double3 below = bilinear_at(texels, base, width, height, at, s, t);
+    store(out, r, at < blend_from ? below
                   : below * (1 - delta)
-                    + bilinear_at(texels, base, width, height, wrap, min(at + 1, levels - 1), s, t) * delta);
+                    + bilinear_at(texels, base, width, height, min(at + 1, levels - 1), s, t) * delta,
+          red_scale, green_scale, blue_scale);
 }

@@ -54,7 +54,8 @@ MAPPING = Table("MAPPING", np.float64, (("spread", 1), ("st_scale", 2), ("st_off
                                         ("t_shift", 1), ("diffuse", 3)))
 #: The image-texture filters (``validation.TEXTURE_FILTERS``) an ``EwaKernel`` runs on the device.
 DEVICE_FILTERS = ("ewa", "bilinear", "point", "trilinear")
-#: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size.
+#: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size (an
+#: ``EwaKernel`` adds its map's ``WRAP``).
 HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 
 
@@ -101,13 +102,14 @@ class EwaKernel:
         device = device or Device.for_spec()
         self.device = device
         self.context = device.context
-        self._program = device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
+        wrap = f"#define WRAP {TEXTURE_WRAPS.index(mipmap.wrap)}\n"  # one program per wrap mode (ewa.cl)
+        self._program = device.build_program(HEADER + wrap + kernel_source(KERNEL_FILE), KERNEL_FILE)
         # the texels wrapped, not copied, so they are not held twice
         # the map's kernel arguments: its buffers, then its scalars
         self._map: list[cl.Buffer | np.generic] = [
             device.wrapped_buffer(mipmap.texels, np.float32),
             *(device.wrapped_buffer(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)),
-            np.int32(TEXTURE_WRAPS.index(mipmap.wrap)), np.int32(mipmap.level_count),
+            np.int32(mipmap.level_count),
             np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float64)]
         #: per filter, the arguments its two kernels take after their common ones
         self._own: dict[str, tuple[np.generic, ...]] = {name: () for name in DEVICE_FILTERS}
@@ -135,7 +137,8 @@ class EwaKernel:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
         lookups (s, t, axis0, axis1) (N, 6) float64: the filter's small kernel (``ewa_small``,
         ``bilinear_small``, ...) over all, then its other kernel (``ewa``, ``bilinear``, ...) over the
-        rows it leaves, each with the filter's own arguments last."""
+        rows it leaves, reading them from the same lookups and writing them into their rows of ``out``
+        (no gathered copies), each with the filter's own arguments last."""
         if texture_filter not in DEVICE_FILTERS:
             raise ValueError(f"the device filters with {' or '.join(DEVICE_FILTERS)}, not {texture_filter!r}")
         count = len(lookups)
@@ -145,23 +148,20 @@ class EwaKernel:
         inputs = [self.device.wrapped_buffer(lookups, np.float64)]
         written = [self.device.host_buffer(pending, cl.mem_flags.WRITE_ONLY),
                    self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
+        scales = [np.float32(v) for v in scale]
         kernels = self._thread()
         small, other = kernels.filters[texture_filter]
-        small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs,
-              *(np.float32(v) for v in scale), np.int32(count), np.int32(1), *written, *self._own[texture_filter])
-        # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernel
-        cl.enqueue_copy(kernels.queue, pending, written[0], is_blocking=False)
-        cl.enqueue_copy(kernels.queue, out, written[1])
+        small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs, *scales, np.int32(count),
+              np.int32(1), *written, *self._own[texture_filter])
+        # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernels
+        cl.enqueue_copy(kernels.queue, pending, written[0])
         rest = np.flatnonzero(pending)
         if len(rest):
-            left = np.take(lookups, rest, axis=0)
-            columns = [self.device.copied_buffer(left[:, k:k + 2], np.float64) for k in (0, 2, 4)]
-            result = self.device.output_buffer(len(rest) * 3 * 4)
-            values = np.empty((len(rest), 3), np.float32)
-            other(kernels.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *columns,
-                  np.int32(len(rest)), result, *self._own[texture_filter])
-            cl.enqueue_copy(kernels.queue, values, result)
-            out[rest] = values * scale
+            # kept until the blocking read below: the buffer holds the int32 rows' only reference
+            inputs.append(self.device.wrapped_buffer(rest, np.int32))
+            other(kernels.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *inputs, *scales,
+                  np.int32(len(rest)), written[1], *self._own[texture_filter])
+        cl.enqueue_copy(kernels.queue, out, written[1])
 
     def at_hits(self, surfaces: SurfaceTables, rows: np.ndarray, mapping: np.ndarray, direction: np.ndarray,
                 hits: Hits, texture_filter: str = "ewa") -> np.ndarray:
