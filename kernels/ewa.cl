@@ -148,6 +148,17 @@ inline double3 ewa_lookup(__global const float *texels, __global const long *bas
                      major.x, major.y, minor.x, minor.y) * delta;
 }
 
+/* The arguments every filter's kernels take (EwaKernel._filter passes them in this order): a _small kernel
+ * filters the lookups it can and marks the others pending; the kernel of the filter's own name filters the
+ * pending rows in place. */
+#define LOOKUP_TABLES __global const float *texels, __global const long *base, __global const long *width, \
+    __global const long *height, const int levels, const double max_anisotropy, __global const double *lut, \
+    __global const double *lookups
+#define SMALL_LOOKUP_PARAMETERS LOOKUP_TABLES, const float red_scale, const float green_scale, \
+    const float blue_scale, const int count, const int unit, __global uchar *pending, __global float *out
+#define PENDING_LOOKUP_PARAMETERS LOOKUP_TABLES, __global const int *rows, const float red_scale, \
+    const float green_scale, const float blue_scale, const int count, __global float *out
+
 /* The scalar kernels (ewa, bilinear, point, trilinear) filter the lookups their _small twin left pending:
  * lookup rows[i] of `lookups` (rows of 6 doubles, as the _small kernels read them), its colour times
  * (red, green, blue)_scale written into its own row of `out` (float32 products, as the _small kernels'),
@@ -159,11 +170,7 @@ inline void store(__global float *out, int r, double3 value, float red_scale, fl
     out[3 * r + 2] = blue_scale * (float)value.z;
 }
 
-__kernel void ewa(__global const float *texels, __global const long *base, __global const long *width,
-                  __global const long *height, const int levels, const double max_anisotropy,
-                  __global const double *lut, __global const double *lookups, __global const int *rows,
-                  const float red_scale, const float green_scale, const float blue_scale, const int count,
-                  __global float *out) {
+__kernel void ewa(PENDING_LOOKUP_PARAMETERS) {
     int i = get_global_id(0);
     if (i >= count) return;
     int r = rows[i];
@@ -330,10 +337,7 @@ __kernel void hit_lookups(__global const int *faces, __global const double *vert
 
 #define SMALL_SIDE 3
 
-__kernel void ewa_small(__global const float *texels, __global const long *base, __global const long *width,
-                        __global const long *height, const int levels, const double max_anisotropy,
-                        __global const double *lut, __global const double *lookups, const float red_scale, const float green_scale, const float blue_scale, const int count,
-                        const int unit, __global uchar *pending, __global float *out) {
+__kernel void ewa_small(SMALL_LOOKUP_PARAMETERS) {
     int i = get_global_id(0);
     int r = i < count ? i : count - 1;
     double one = (double)unit;
@@ -504,30 +508,18 @@ inline void bilinear_level0(__global const float *texels, __global const long *b
     if (i < count) pending[i] = !small;
 }
 
-__kernel void bilinear_small(__global const float *texels, __global const long *base, __global const long *width,
-                             __global const long *height, const int levels,
-                             const double max_anisotropy, __global const double *lut, __global const double *lookups,
-                             const float red_scale, const float green_scale, const float blue_scale, const int count,
-                             const int unit, __global uchar *pending, __global float *out) {
+__kernel void bilinear_small(SMALL_LOOKUP_PARAMETERS) {
     bilinear_level0(texels, base, width, height, levels, lookups, red_scale, green_scale, blue_scale, count,
                     unit, pending, out, level0_limit(levels));
 }
 
-__kernel void trilinear_small(__global const float *texels, __global const long *base, __global const long *width,
-                              __global const long *height, const int levels,
-                              const double max_anisotropy, __global const double *lut, __global const double *lookups,
-                              const float red_scale, const float green_scale, const float blue_scale, const int count,
-                              const int unit, __global uchar *pending, __global float *out, const int blend_from) {
+__kernel void trilinear_small(SMALL_LOOKUP_PARAMETERS, const int blend_from) {
     bilinear_level0(texels, base, width, height, levels, lookups, red_scale, green_scale, blue_scale, count,
                     unit, pending, out,
                     blend_from ? level0_limit(levels) : 1.0 / (double)(1L << (levels - 1)) * (1 - 0x1p-40));
 }
 
-__kernel void point_small(__global const float *texels, __global const long *base, __global const long *width,
-                          __global const long *height, const int levels,
-                          const double max_anisotropy, __global const double *lut, __global const double *lookups,
-                          const float red_scale, const float green_scale, const float blue_scale, const int count,
-                          const int unit, __global uchar *pending, __global float *out) {
+__kernel void point_small(SMALL_LOOKUP_PARAMETERS) {
     int i = get_global_id(0);
     int r = i < count ? i : count - 1;
     double one = (double)unit;
@@ -560,11 +552,7 @@ inline double width_level(__global const double *lookup, int levels) {
     return (double)(levels - 1) + log2(__builtin_fmax(w, 1e-8));
 }
 
-__kernel void bilinear(__global const float *texels, __global const long *base, __global const long *width,
-                       __global const long *height, const int levels, const double max_anisotropy,
-                       __global const double *lut, __global const double *lookups, __global const int *rows,
-                       const float red_scale, const float green_scale, const float blue_scale, const int count,
-                       __global float *out) {
+__kernel void bilinear(PENDING_LOOKUP_PARAMETERS) {
     int i = get_global_id(0);
     if (i >= count) return;
     int r = rows[i];
@@ -575,11 +563,7 @@ __kernel void bilinear(__global const float *texels, __global const long *base, 
                                 lookup[0], lookup[1]), red_scale, green_scale, blue_scale);
 }
 
-__kernel void point(__global const float *texels, __global const long *base, __global const long *width,
-                    __global const long *height, const int levels, const double max_anisotropy,
-                    __global const double *lut, __global const double *lookups, __global const int *rows,
-                    const float red_scale, const float green_scale, const float blue_scale, const int count,
-                    __global float *out) {
+__kernel void point(PENDING_LOOKUP_PARAMETERS) {
     int i = get_global_id(0);
     if (i >= count) return;
     int r = rows[i];
@@ -595,11 +579,7 @@ __kernel void point(__global const float *texels, __global const long *base, __g
     store(out, r, texel(texels, base, width, height, at, x, y), red_scale, green_scale, blue_scale);
 }
 
-__kernel void trilinear(__global const float *texels, __global const long *base, __global const long *width,
-                        __global const long *height, const int levels, const double max_anisotropy,
-                        __global const double *lut, __global const double *lookups, __global const int *rows,
-                        const float red_scale, const float green_scale, const float blue_scale, const int count,
-                        __global float *out, const int blend_from) {
+__kernel void trilinear(PENDING_LOOKUP_PARAMETERS, const int blend_from) {
     int i = get_global_id(0);
     if (i >= count) return;
     int r = rows[i];
