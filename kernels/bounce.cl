@@ -42,11 +42,12 @@
  *     each contribution is one float (the roulette's max over channels is that value).
  * Outputs, light sample k of hit i at row k * m + i: shadow origin and vector (3 floats each), its
  * length (1 - 1e-4 in units of the vector, FAR along a direction) or -1 for a dead sample (embree
- * skips it), contribution (3 floats, one when spectral, 0 when dead), and the light of a live cone sample toward an
- * emitting sphere, else -1 (cone_light: such a sample's vector is its direction, its length FAR, and
- * its contribution as if the direction met the sphere's mesh from its emitting side, until the host
- * finds where it meets it, if it does). Per hit: the next origin, direction, beta (one float when
- * spectral), the point (3 floats each), the sample's pdf and flags (bit 0 the path goes on, bit 1 specular, bit 2 shade its next hit).
+ * skips it), contribution (3 floats, one when spectral, 0 when dead), and the light of a live cone
+ * sample toward an emitting sphere, else -1 (cone_light: such a sample's vector is its direction, its
+ * length FAR, and its contribution as if the direction met the sphere's mesh from its emitting side,
+ * until the host finds where it meets it, if it does). Per hit: the next origin, direction, beta (one
+ * float when spectral), the point (3 floats each), the sample's pdf and flags (bit 0 the path goes
+ * on, bit 1 specular, bit 2 shade its next hit).
  * Square roots and floors here are __builtin_sqrtf and __builtin_floorf (LLVM intrinsics, correctly
  * rounded as numpy's float32 ones), not the OpenCL library's calls, as in kernels/shade.cl.
  */
