@@ -31,14 +31,23 @@
  *     distant and infinite lights;
  *   - one BSDF sample (bsdf_sample) with rng.uniform at base .. base + 2, the throughput, Russian
  *     roulette (path mode, depth >= ROULETTE_AFTER, rng.uniform at base + 3) or the direct mode's
- *     rule, and the next ray from the offset origin.
+ *     rule, and the next ray from the offset origin;
+ *   - BOUNCE_SPECTRAL: rays of one wavelength each (a dispersive camera's), with each camera ray's
+ *     rgb_basis row in `basis` (3 floats at path[r]); the host sends only Lambertian and Oren-Nayar
+ *     hits, whose BSDFs are linear in their albedo. The diffuse colour and the texture's colour
+ *     (an image texture's bare, from the host), and each light's radiance (after the RGB test of
+ *     whether it is 0, as LightSampler.sample tests it) become their spectral values at the ray's
+ *     wavelength (realistic.core.spectrum.spectral_value, in its order: dot3), held in every
+ *     channel of a float3 so the same code serves; beta comes and goes as one float a row and
+ *     each contribution is one float (the roulette's max over channels is that value).
  * Outputs, light sample k of hit i at row k * m + i: shadow origin and vector (3 floats each), its
  * length (1 - 1e-4 in units of the vector, FAR along a direction) or -1 for a dead sample (embree
- * skips it), contribution (3 floats, 0 when dead), and the light of a live cone sample toward an
- * emitting sphere, else -1 (cone_light: such a sample's vector is its direction, its length FAR, and
- * its contribution as if the direction met the sphere's mesh from its emitting side, until the host
- * finds where it meets it, if it does). Per hit: the next origin, direction, beta, the point (3 floats
- * each), the sample's pdf and flags (bit 0 the path goes on, bit 1 specular, bit 2 shade its next hit).
+ * skips it), contribution (3 floats, one when spectral, 0 when dead), and the light of a live cone
+ * sample toward an emitting sphere, else -1 (cone_light: such a sample's vector is its direction, its
+ * length FAR, and its contribution as if the direction met the sphere's mesh from its emitting side,
+ * until the host finds where it meets it, if it does). Per hit: the next origin, direction, beta (one
+ * float when spectral), the point (3 floats each), the sample's pdf and flags (bit 0 the path goes
+ * on, bit 1 specular, bit 2 shade its next hit).
  * Square roots and floors here are __builtin_sqrtf and __builtin_floorf (LLVM intrinsics, correctly
  * rounded as numpy's float32 ones), not the OpenCL library's calls, as in kernels/shade.cl.
  */
@@ -80,6 +89,16 @@ inline int pick_light(__global const float *cdf, int count, float u) {
 }
 
 inline float3 load3(__global const float *a, size_t row) { return vload3(row, a); }
+
+/* A ray's colour (beta, a contribution): 3 floats a row, or one (BOUNCE_SPECTRAL) held in every
+ * channel of a float3, so that the arithmetic below serves both. */
+#if BOUNCE_SPECTRAL
+#define LOAD_COLOUR(a, row) ((float3)((a)[row]))
+#define STORE_COLOUR(v, row, a) ((a)[row] = (v).x)
+#else
+#define LOAD_COLOUR(a, row) vload3(row, a)
+#define STORE_COLOUR(v, row, a) vstore3(v, row, a)
+#endif
 
 /* a^2 / (a^2 + b^2) for a, b >= 0 without overflow (0 where both are 0): path.power_heuristic. */
 inline float power_heuristic(float a, float b) {
@@ -173,7 +192,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
                      __global const uint *sample, __global const float *origin, __global const float *direction,
                      __global const float *tfar, __global const float *hit_u, __global const float *hit_v,
                      __global const int *prim, __global const int *geom, __global const float *ng_in,
-                     __global const float *beta_in, __global const float *albedo,
+                     __global const float *beta_in, __global const float *albedo, __global const float *basis,
                      __global const int *faces, __global const float *normals, __global const float *uvs,
                      __global const int *geom_ints, __global const float *geom_floats,
                      __global const float *params, __global const float *materials,
@@ -220,14 +239,16 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     float3 wo = (float3)(-dot3(d, fs), -dot3(d, ft), -dot3(d, shading));
     float eps = SHADOW_OFFSET * (magnitude3(point) + offset_base);
 
-    /* the material: its BSDF row, a Lambertian's albedo times its grid or checker texture, or its
-     * image-textured albedo (the host's, per hit) */
+    /* the material: its BSDF row, a Lambertian's albedo times its grid or checker texture's colour,
+     * or times its image texture's (the host's, per hit: the albedo itself for RGB rays, the bare
+     * texture for spectral ones) */
     int material = gi[GEOM_INT_MATERIAL];
     Params p = load_params(params + BSDF_PARAM_WIDTH * material, tables);
     __global const float *mat = materials + BOUNCE_MATERIAL_WIDTH * material;
     int texture = (int)mat[BOUNCE_MATERIAL_TEXTURE];
+    float3 texel = (float3)(1.0f);
     if (texture == BOUNCE_TEXTURE_IMAGE) {
-        p.lobe[0].scale = load3(albedo, i);
+        texel = load3(albedo, i);
     } else if (texture != BOUNCE_TEXTURE_NONE) {
         int i0 = faces[3 * face], i1 = faces[3 * face + 1], i2 = faces[3 * face + 2];
         float tu = uvs[2 * i0] * b0 + uvs[2 * i1] * b1 + uvs[2 * i2] * b2;
@@ -242,9 +263,20 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
             float parity = __builtin_floorf(cu) + __builtin_floorf(cv);
             use_b = parity - 2.0f * __builtin_floorf(parity * 0.5f) != 0.0f;
         }
-        p.lobe[0].scale *= use_b ? vload3(0, mat + BOUNCE_MATERIAL_COLOUR_B) : vload3(0, mat + BOUNCE_MATERIAL_COLOUR_A);
+        texel = use_b ? vload3(0, mat + BOUNCE_MATERIAL_COLOUR_B) : vload3(0, mat + BOUNCE_MATERIAL_COLOUR_A);
     }
-    float3 beta = load3(beta_in, r);
+#if BOUNCE_SPECTRAL
+    /* the ray's wavelength: the diffuse colour's spectral value times the texture's, each the dot
+     * with the ray's rgb_basis row (SurfaceParameters.colour turns each of them so), in every channel */
+    float3 wavelength_basis = load3(basis, path[r]);
+    float albedo_value = dot3(p.lobe[0].scale, wavelength_basis);
+    if (texture != BOUNCE_TEXTURE_NONE) albedo_value *= dot3(texel, wavelength_basis);
+    p.lobe[0].scale = (float3)(albedo_value);
+#else
+    if (texture == BOUNCE_TEXTURE_IMAGE) p.lobe[0].scale = texel;
+    else if (texture != BOUNCE_TEXTURE_NONE) p.lobe[0].scale *= texel;
+#endif
+    float3 beta = LOAD_COLOUR(beta_in, r);
     uint base = BOUNCE_DIMENSION + 8 * depth;
     uint key = hash32(hash32(hash32(seed + GOLDEN) ^ px) ^ sx);
     int mis = (mode_flags & BOUNCE_MIS) != 0;
@@ -362,6 +394,9 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
         /* no BSDF sample can hit a delta light: its light sample weighs 1 */
         int delta = kind == BOUNCE_KIND_POINT || kind == BOUNCE_KIND_SPOT || kind == BOUNCE_KIND_DISTANT;
         int valid = light_pdf > 0.0f && (radiance.x != 0.0f || radiance.y != 0.0f || radiance.z != 0.0f);
+#if BOUNCE_SPECTRAL
+        radiance = (float3)(dot3(radiance, wavelength_basis));  /* light_sampler.colour, after the RGB test */
+#endif
         float3 light_wi = (float3)(dot3(wi, fs), dot3(wi, ft), dot3(wi, shading));
         float bsdf_pdf;
         float3 f = bsdf_eval(&p, wo, light_wi, &bsdf_pdf);
@@ -375,7 +410,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
         vstore3(live ? start : (float3)(0.0f), o, shadow_origin);
         vstore3(live ? (far ? wi : target - start) : (float3)(0.0f), o, shadow_vector);
         shadow_length[o] = live ? (far ? FAR : SHADOW_LENGTH) : -1.0f;
-        vstore3(live ? c : (float3)(0.0f), o, contribution);
+        STORE_COLOUR(live ? c : (float3)(0.0f), o, contribution);
         cone_light[o] = live && cone ? picked : -1;
     }
 
@@ -406,7 +441,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     go = go && (new_beta.x != 0.0f || new_beta.y != 0.0f || new_beta.z != 0.0f);
     vstore3(point + ng * eps * sign_of(side), i, next_origin);
     vstore3(world_wi, i, next_direction);
-    vstore3(new_beta, i, next_beta);
+    STORE_COLOUR(new_beta, i, next_beta);
     vstore3(point, i, next_point);
     next_pdf[i] = pdf;
     next_flags[i] = go | (specular << 1) | (shade << 2);

@@ -2,7 +2,9 @@
 (the reference) per hit with the same random numbers, for every material and every kind of light the
 kernel covers (emitting meshes and spheres among them); which materials and lights it covers; whole
 paths equal to the numpy backend's; an area-light, a sky and an emitting-sphere furnace; and a plane's
-closed-form radiance under point, spot and distant lights and under an emitting sphere."""
+closed-form radiance under point, spot and distant lights and under an emitting sphere. The spectral
+build likewise: per hit, whole paths, a dispersive render against the numpy backend's, and the sky
+and emitting-sphere furnaces read at each ray's wavelength."""
 
 import math
 import re
@@ -11,8 +13,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from realistic import load_lens, render
+from realistic.camera.lens_camera import LensCamera
 from realistic.core.data_files import data_file
+from realistic.core.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, rgb_basis, rgb_response
 from realistic.core.transforms import rotate, scale, translate
+from realistic.optics.paraxial import film_distance_for_focus
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, SpotLight
@@ -26,7 +32,14 @@ pytest.importorskip("realistic.camera.opencl_host")
 pytestmark = pytest.mark.usefixtures("opencl_platform")
 
 from realistic.device.opencl import Device  # noqa: E402
-from realistic.renderer.bounce_kernel import GOES_ON, SHADES, SPECULAR, header, material_rows  # noqa: E402
+from realistic.renderer.bounce_kernel import (  # noqa: E402
+    GOES_ON,
+    SHADES,
+    SPECULAR,
+    BounceKernel,
+    header,
+    material_rows,
+)
 from realistic.renderer.bsdf_kernel import TableStore  # noqa: E402
 
 N = 6000
@@ -118,7 +131,7 @@ def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
     """As tests/test_tables.py checks the other kernels: the BOUNCE_ names come from the host's header."""
     code = re.sub(r"/\*.*?\*/", "", data_file("kernels/bounce.cl").read_text(encoding="utf-8"), flags=re.DOTALL)
     used = {name for name in re.findall(r"\b[A-Z][A-Z0-9_]*\b", code) if name.startswith("BOUNCE_")}
-    declared = set(re.findall(r"^#define (\w+) ", header(1, 3), re.MULTILINE))
+    declared = set(re.findall(r"^#define (\w+) ", header(1, 3, True), re.MULTILINE))
     assert used and used <= declared, used - declared
     assert not re.search(r"^#define BOUNCE_", code, re.MULTILINE)
 
@@ -199,23 +212,77 @@ def test_bounce_kernel_shades_each_hit_under_each_light_as_the_numpy_reference(l
     _shades_as_numpy(materials[name], depth, mode, mis, 60 + sorted(LIGHT_SETS).index(lights), LIGHT_SETS[lights])
 
 
-def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int, lights: list | None = None) -> None:
-    """The per-hit comparison of the kernel and ``_shade`` on ``_scene(material, lights)`` (rays from ``seed``)."""
+#: Materials the spectral build shades: ``Material``s (Lambertian or Oren-Nayar), constant or under
+#: each texture, with grids and checkers of coloured cells too (the texture's spectral value
+#: multiplies the diffuse colour's, which differs from the spectral value of their product).
+SPECTRAL = {"lambertian": COVERED["lambertian"], "oren-nayar": COVERED["oren-nayar"],
+            "coloured grid": Material((0.9, 0.8, 0.7), GridTexture(base=(0.2, 0.9, 0.4), line=(0.9, 0.1, 0.3),
+                                                                   cells=5.0, line_width=0.2)),
+            "coloured checker, oren-nayar": Material((0.6, 0.8, 0.9), CheckerTexture(
+                even=(0.9, 0.3, 0.1), odd=(0.1, 0.4, 0.9), cells=6.0), sigma=15.0),
+            **TEXTURED}
+
+
+def test_spectral_rays_are_covered_on_materials_linear_in_their_albedo():
+    """The spectral build shades ``Material``s (constant, or under a grid, checker or image texture)
+    and nothing else the RGB build covers: conductors, glass, plastic, measured tables and mixes
+    stay with ``_shade`` for spectral rays."""
+    scene = Scene()
+    materials = [*COVERED.values(), *SPECTRAL.values()]
+    for k, material in enumerate(materials):
+        scene.add(quad(1.0, 1.0), translate(2.0 * k, 0.0, 0.0), material)
+    scene.lights.append(AreaLight("quad", (1.0, 1.0), (1.0, 1.0, 1.0), translate(0.0, 0.0, 3.0)))
+    integrator = PathIntegrator(scene, Intersector(scene), backend="opencl")
+    bounce = integrator._bounce
+    index = integrator._geom_material[:len(materials)]
+    assert bounce.covered[index].all()
+    assert np.array_equal(bounce.covered_spectral[index], [isinstance(m, Material) for m in materials])
+
+
+@pytest.mark.parametrize("name", sorted(SPECTRAL))
+@pytest.mark.parametrize("depth", [0, 1, 3])
+@pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
+def test_spectral_bounce_kernel_shades_each_hit_as_the_numpy_reference(name, depth, mode, mis):
+    """Rays of one wavelength each, per hit as the RGB comparison: the albedo's and the lights'
+    spectral values at each ray's wavelength, beta and the contributions one column wide."""
+    _shades_as_numpy(SPECTRAL[name], depth, mode, mis, 80 + sorted(SPECTRAL).index(name), spectral=True)
+
+
+@pytest.mark.parametrize("lights", sorted(LIGHT_SETS))
+@pytest.mark.parametrize("depth", [0, 2])
+@pytest.mark.parametrize("mode, mis", [("path", True), ("direct", False)])
+def test_spectral_bounce_kernel_shades_each_hit_under_each_light_as_the_numpy_reference(lights, depth, mode, mis):
+    """Spectral rays under every kind of light the kernel samples (point, spot, distant, infinite
+    with and without a map, emitting meshes and spheres, area lights), per hit as above: each
+    light's radiance, and an environment map's texel, at the ray's wavelength."""
+    _shades_as_numpy(Material((0.7, 0.6, 0.5)), depth, mode, mis, 100 + sorted(LIGHT_SETS).index(lights),
+                     LIGHT_SETS[lights], spectral=True)
+
+
+def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int, lights: list | None = None,
+                     spectral: bool = False) -> None:
+    """The per-hit comparison of the kernel and ``_shade`` on ``_scene(material, lights)`` (rays from
+    ``seed``); ``spectral``: rays of one wavelength each (uniform over the visible), the kernel's
+    spectral build against ``_shade`` given their ``rgb_basis`` rows, beta one column."""
     scene = _scene(material, lights)
     numpy_one, device_one = _pair(scene, mode, mis, spread=SPREAD)
     origin, direction, hits = _rays(scene, N, seed)
     on_instance = (hits.geom >= 0) & (hits.geom < device_one.instance_count)
-    covered = device_one._bounce.covered[device_one._geom_material[np.where(on_instance, hits.geom, 0)]]
+    covers = device_one._bounce.covered_spectral if spectral else device_one._bounce.covered
+    covered = covers[device_one._geom_material[np.where(on_instance, hits.geom, 0)]]
     surface = np.flatnonzero(on_instance & covered)
     assert len(surface) > N // 4
     rng = np.random.default_rng(depth)
     path = rng.permutation(N)  # each ray its own camera ray, out of order
-    beta = rng.uniform(0.2, 1.0, (N, 3)).astype(np.float32)
+    beta = rng.uniform(0.2, 1.0, (N, 1 if spectral else 3)).astype(np.float32)
     pixel, sample = rng.integers(0, 1 << 20, N), rng.integers(0, 64, N)
-    expected = numpy_one._shade(hits, surface, path, origin, direction, beta, None, pixel, sample, depth)
+    basis = rgb_basis(rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)) if spectral else None  # per camera ray
+    expected = numpy_one._shade(hits, surface, path, origin, direction, beta, None if basis is None else basis[path],
+                                pixel, sample, depth)
     got = device_one._bounce(surface, path, pixel.astype(np.uint32), sample.astype(np.uint32), origin, direction,
                              hits, beta, depth=depth, light_samples=3 if depth == 0 else 1, seed=7,
-                             mode_flags=device_one._bounce_flags, max_depth=5)
+                             mode_flags=device_one._bounce_flags, max_depth=5, basis=basis)
+    assert got.contribution.shape[1] == got.beta.shape[1] == beta.shape[1]
     lights = 3 if depth == 0 else 1
     assert len(got.shadow_length) == lights * len(surface)
     # shadow rays: the same samples live, with the same contributions
@@ -260,14 +327,17 @@ def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int, ligh
     assert _mostly(pdf_close)
 
 
-def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegrator, seed: int) -> None:
-    """Whole paths of N rays into ``scene`` (``_rays``' seed ``seed``): each ray's radiance the numpy
-    backend's to float32 rounding (99 % of rays), the mean to 2e-3, the shadow rays to 1 %."""
+def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegrator, seed: int,
+                 spectral: bool = False) -> None:
+    """Whole paths of N rays into ``scene`` (``_rays``' seed ``seed``; ``spectral``: each of one
+    wavelength, uniform over the visible): each ray's radiance the numpy backend's to float32
+    rounding (99 % of rays), the mean to 2e-3, the shadow rays to 1 %."""
     origin, direction, _ = _rays(scene, N, seed)
     rng = np.random.default_rng(seed + 1)
     pixel, sample = rng.integers(0, 1 << 20, N), rng.integers(0, 64, N)
-    expected, expected_shadows = numpy_one.radiance(origin, direction, pixel, sample)
-    got, shadows = device_one.radiance(origin, direction, pixel, sample)
+    wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N) if spectral else None
+    expected, expected_shadows = numpy_one.radiance(origin, direction, pixel, sample, None, wavelength)
+    got, shadows = device_one.radiance(origin, direction, pixel, sample, None, wavelength)
     top = float(np.abs(expected).max())
     close = np.all(np.isclose(got, expected, rtol=1e-3, atol=1e-5 * top), axis=1)
     assert close.mean() > 0.99, close.mean()
@@ -303,6 +373,143 @@ def test_paths_over_image_textures_carry_the_numpy_radiance(mode):
     numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
     assert device_one._bounce is not None and device_one._bounce.covered.all()
     _paths_agree(scene, numpy_one, device_one, 5)
+
+
+def _spectral_launches(integrator: PathIntegrator, monkeypatch) -> list[np.ndarray]:
+    """The material of each hit ``integrator``'s bounce kernel shades for spectral rays, one array
+    per launch, as its renders launch it."""
+    kernel, launches = integrator._bounce, []
+
+    def spy(rows, path, pixel, sample, origin, direction, hits, beta, **options):
+        if options["basis"] is not None:
+            launches.append(integrator._geom_material[hits.geom[rows]])
+        return kernel(rows, path, pixel, sample, origin, direction, hits, beta, **options)
+
+    monkeypatch.setattr(integrator, "_bounce", spy)
+    return launches
+
+
+@pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
+def test_spectral_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis, monkeypatch):
+    """Whole spectral paths (depth 5, two light samples) under every kind of light, over glass, a
+    rough conductor and plastic (``_shade`` for spectral rays) and Lambertian and Oren-Nayar
+    materials under image, grid and checker textures (the kernel's spectral build): each ray's
+    radiance is the numpy backend's to float32 rounding, and the kernel shades hits on those
+    ``Material``s alone, in every bounce's launch."""
+    scene = _with_lights(textured_scene()[0], LIGHT_SETS["every kind"])
+    materials = [None, Dielectric(1.5), SPECTRAL["coloured grid"], Material((0.3, 0.6, 0.9), sigma=20.0)]
+    scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
+    scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
+    scene.add(sphere(0.3, 16), translate(-0.6, 0.3, 0.9), Conductor(roughness_u=0.2, roughness_v=0.05))
+    scene.add(sphere(0.25, 16), translate(0.7, 0.8, 0.6), SPECTRAL["coloured checker, oren-nayar"])
+    numpy_one, device_one = _pair(scene, mode, mis, light_samples=2, spread=SPREAD)
+    covered = device_one._bounce.covered_spectral
+    assert not covered[device_one._geom_material].all()
+    launches = _spectral_launches(device_one, monkeypatch)
+    _paths_agree(scene, numpy_one, device_one, 11, spectral=True)
+    assert len(launches) >= 2 and all(len(materials) for materials in launches)
+    assert covered[np.concatenate(launches)].all()
+
+
+def test_a_dispersive_path_traced_render_on_opencl_is_the_numpy_backends(monkeypatch):
+    """A path-traced render through the dgauss lens with dispersion (three wavelengths per sample) of
+    a checkered floor, an Oren-Nayar sphere and a plastic one, on the OpenCL backend (its spectral
+    bounces in the kernel, but the plastic's) and on the numpy one with the same seed: every pixel
+    agrees to float32 rounding, far inside the noise between two seeds, and so does the mean."""
+    launches = []
+    launch = BounceKernel.__call__
+
+    def counted(self, *args, **options):
+        launches.append(options["basis"] is not None)
+        return launch(self, *args, **options)
+
+    monkeypatch.setattr(BounceKernel, "__call__", counted)
+    lens = load_lens("dgauss")
+    camera = LensCamera(lens, film_distance_for_focus(lens, 1000.0), 43.27, 32, 32, 16,
+                        translate(0, 0, 1.0) @ rotate(180, (1, 0, 0)) @ scale(1e-3), spectral=True)
+    scene = Scene(integrator="path", max_depth=4)
+    scene.add(quad(4.0, 4.0), material=SPECTRAL["coloured checker, oren-nayar"])
+    scene.add(sphere(0.1, 24), translate(0.0, 0.0, 0.1), Material((0.3, 0.6, 0.9), sigma=20.0))
+    scene.add(sphere(0.06, 24), translate(0.12, 0.05, 0.06), Plastic((0.5, 0.3, 0.2), (0.2, 0.4, 0.6), 0.2))
+    scene.lights.append(AreaLight("disk", (0.4, 0.4), (20.0, 30.0, 40.0), translate(-0.3, 0.2, 1.2)
+                                  @ rotate(180, (1, 0, 0))))
+    device = render(scene, camera, "opencl", seed=1)
+    assert launches and all(launches)  # every launch spectral
+    reference, other_seed = (render(scene, camera, "numpy", seed=seed) for seed in (1, 2))
+    top = float(np.abs(reference).max())
+    assert np.all(np.isclose(device, reference, rtol=1e-3, atol=1e-5 * top))
+    assert np.abs(device - reference).max() < 0.01 * np.abs(other_seed - reference).max()
+    np.testing.assert_allclose(device.mean(axis=(0, 1)), reference.mean(axis=(0, 1)), rtol=1e-4)
+
+
+def _spectral_values(radiance: np.ndarray, wavelength: np.ndarray) -> np.ndarray:
+    """The spectral value each ray carried: ``radiance`` is it times the film's weight
+    ``rgb_response`` at the ray's wavelength (their quotient in the channel of the largest weight)."""
+    response = rgb_response(wavelength)
+    column = np.abs(response).argmax(axis=1)
+    rows = np.arange(len(radiance))
+    return radiance[rows, column].astype(np.float64) / response[rows, column]
+
+
+def _reads_per_wavelength(value: np.ndarray, expected: np.ndarray, wavelength: np.ndarray) -> None:
+    """``value`` / ``expected`` (per ray) has mean 1 within 4 standard errors in each quarter of the
+    visible."""
+    ratio = value / expected
+    for quarter in np.array_split(np.argsort(wavelength), 4):
+        mean, error = ratio[quarter].mean(), ratio[quarter].std() / np.sqrt(len(quarter))
+        assert abs(mean - 1) < 4 * error + 2e-3, (wavelength[quarter].mean(), mean, error)
+
+
+@pytest.mark.parametrize("mode", ["direct", "path"])
+@pytest.mark.parametrize("albedo, sky", [((0.7, 0.7, 0.7), (0.8, 0.8, 0.8)), ((0.8, 0.5, 0.2), (0.4, 0.7, 1.0))])
+@pytest.mark.parametrize("image, mapping", [(None, "latlong"), (np.ones((8, 16, 3), np.float32), "latlong"),
+                                            (np.ones((8, 8, 3), np.float32), "equal-area")])
+def test_spectral_rays_on_a_convex_lambertian_under_a_uniform_sky_read_albedo_times_sky(mode, albedo, sky, image,
+                                                                                       mapping):
+    """Under a uniform infinite light of radiance L (constant, or a map of ones sampled by its
+    tables) every point of a convex Lambertian of albedo a sees the whole sky once, so a ray of
+    wavelength w reads a(w) L(w), the spectral values of the RGB a and L there (the dot with the
+    ``rgb_basis`` row; grey a and L: a L at every wavelength, the RGB reading), in the kernel's
+    spectral build."""
+    scene = Scene()
+    scene.add(sphere(1.0, 48), np.eye(4), Material(albedo))
+    scene.lights.append(InfiniteLight(sky, image, mapping, rotate(40, (1, 1, 0))))
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
+    assert integrator._bounce is not None and integrator._bounce.covered_spectral.all()
+    rng = np.random.default_rng(1)
+    origin = np.tile(np.float32([[0.0, 0.0, 3.0]]), (N, 1))
+    target = rng.uniform(-0.5, 0.5, (N, 3)) * np.array([1.0, 1.0, 0.0])
+    direction = target - origin
+    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
+    basis = rgb_basis(wavelength).astype(np.float64)
+    _reads_per_wavelength(_spectral_values(radiance, wavelength), basis @ albedo * (basis @ sky), wavelength)
+
+
+@pytest.mark.parametrize("mode", ["path", "direct"])
+@pytest.mark.parametrize("albedo", [(0.6, 0.6, 0.6), (0.9, 0.5, 0.2)])
+def test_spectral_rays_inside_an_emitting_sphere_read_the_series_at_their_wavelength(mode, albedo):
+    """Inside a closed sphere of Lambertian albedo a emitting Le (as the RGB test), a ray of
+    wavelength w reads Le(w) (1 - a(w)^6) / (1 - a(w)) in "path" mode and Le(w) (1 + a(w)) in
+    "direct" mode, a(w) and Le(w) the spectral values there: the series in the albedo's spectral
+    value, bounce after bounce, not in any RGB colour's."""
+    le = np.array([2.0, 1.5, 1.0])
+    scene = Scene()
+    scene.add(sphere(1.0, 24), np.eye(4), Material(albedo))
+    scene.lights.append(EmissiveInstance(0, tuple(le), two_sided=True))
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
+    assert integrator._bounce is not None and integrator._bounce.covered_spectral.all()
+    rng = np.random.default_rng(2)
+    origin = rng.uniform(-0.3, 0.3, (N, 3)).astype(np.float32)
+    direction = rng.normal(size=(N, 3))
+    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
+    basis = rgb_basis(wavelength).astype(np.float64)
+    a, emitted = basis @ albedo, basis @ le
+    expected = emitted * (1 - a ** 6) / (1 - a) if mode == "path" else emitted * (1 + a)
+    _reads_per_wavelength(_spectral_values(radiance, wavelength), expected, wavelength)
 
 
 def _area_light_furnace(material) -> Scene:

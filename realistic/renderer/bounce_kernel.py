@@ -3,8 +3,8 @@
 ``PathIntegrator`` (``renderer/path.py``) uses it on the "opencl" backend: one launch per bounce takes
 the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shadow ray and contribution
 (MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps embree and the
-compaction of live paths. It covers RGB rays, scenes whose lights are area, point, spot, distant or
-infinite lights, emitting meshes or spheres, or none, and materials ``bsdf_kernel.parameters`` covers
+compaction of live paths. It covers scenes whose lights are area, point, spot, distant or
+infinite lights, emitting meshes or spheres, or none, and, for RGB rays, materials ``bsdf_kernel.parameters`` covers
 whose parameters are constants (measured tables, named metals' tables and mixes' second lobes in the
 BSDF kernel's ``TableStore``), ``Material`` (Lambertian or Oren-Nayar) also under a grid or checker
 texture (evaluated in the kernel) or an image texture (any filter: ``ewa_kernel.DEVICE_FILTERS``):
@@ -14,12 +14,28 @@ deeper: level 0 bilinear), and the kernel reads it per hit in place of the row's
 environment map's sampling tables (its ``Distribution2D``) and texels, and an emitting mesh's world
 triangles and their area CDF (``light_sampler.Emitter``'s, which the scene's mesh-space device tables
 cannot stand for: they lack the instance's transform and the CDF), share one device buffer; a light
-sample's direction toward an emitting sphere meets its mesh on the host (embree). The rest (spectral
-rays, textured parameters other than a ``Material``'s texture, materials ``bsdf.cl`` lacks) stays with
-``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares the two per hit
-with the same random numbers). The program is the BSDF kernel's source with this one after it, so both
-share ``bsdf.cl``'s material functions; the scene's tables are device buffers made once per integrator,
-and each thread has its own queue and kernel object.
+sample's direction toward an emitting sphere meets its mesh on the host (embree).
+
+Spectral rays (a dispersive camera's: one wavelength each, K per camera sample) take the program's
+spectral build (``BOUNCE_SPECTRAL``) at hits of a ``Material`` (Lambertian or Oren-Nayar, constant or
+under any texture the RGB build covers; ``covered_spectral``): BSDFs linear in their albedo, so the
+kernel shades the albedo's spectral value at the ray's wavelength (the diffuse colour's times the
+texture's, each the dot with the ray's ``rgb_basis`` row, as ``light_sampler.colour`` turns RGB; an
+image texture's bare RGB comes from ``EwaKernel.at_hits`` with a diffuse colour of 1), every light's
+radiance likewise, and carries beta and the contributions as one column, as the numpy bounce does.
+The host passes each camera ray's basis row, the very rows ``PathIntegrator.radiance`` colours its
+emission with (``shade.cl`` interpolates its basis from a table instead: its rays arrive as wavelengths
+alone). With spectral rays every other material stays with ``_shade`` (its BSDFs in the BSDF kernel
+where that covers them): conductors (eta and k, or a named metal's spectra, at the wavelength),
+mirrors, dielectrics, plastic, coated diffuse, substrate, measured BRDFs and mixes, whose further
+colours (tints, eta and k, the channel matrices of tables, a mix's second lobe) this build does not
+turn into spectral values.
+The rest (textured parameters other than a ``Material``'s texture, materials ``bsdf.cl`` lacks) stays
+with ``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares the two
+per hit with the same random numbers, RGB and spectral). The program is the BSDF kernel's source with
+this one after it, so both share ``bsdf.cl``'s material functions; the scene's tables are device
+buffers made once per integrator, each build is made at its first launch, and each thread has its own
+queue and kernel objects.
 """
 
 from __future__ import annotations
@@ -88,14 +104,16 @@ SHADOW_LENGTH = np.float32(1 - 1e-4)
 GOES_ON, SPECULAR, SHADES = 1, 2, 4
 
 
-def header(dimension: int, roulette_after: int) -> str:
+def header(dimension: int, roulette_after: int, spectral: bool) -> str:
     """The generated head of the program: ``bsdf.cl``'s defines, every table's here, the texture
-    kinds, the mode flags, and the integrator's first bounce dimension and roulette depth."""
+    kinds, the mode flags, the integrator's first bounce dimension and roulette depth, and whether
+    the rays are spectral (``BOUNCE_SPECTRAL``: the program's two builds)."""
     return (bsdf_kernel.HEADER + "".join(t.defines() for t in (GEOM_INTS, GEOM_FLOATS, MATERIALS, LIGHTS, TRIANGLES))
             + constant_defines("BOUNCE_TEXTURE", TEXTURES) + constant_defines("BOUNCE_KIND", LIGHT_KINDS)
             + constant_defines("BOUNCE_MAPPING", MAPPINGS)
             + "".join(f"#define BOUNCE_{name.upper()} {1 << k}\n" for k, name in enumerate(MODE_FLAGS))
-            + f"#define BOUNCE_DIMENSION {dimension}\n#define BOUNCE_ROULETTE_AFTER {roulette_after}\n")
+            + f"#define BOUNCE_DIMENSION {dimension}\n#define BOUNCE_ROULETTE_AFTER {roulette_after}\n"
+            + f"#define BOUNCE_SPECTRAL {int(spectral)}\n")
 
 
 class _Textured(Exception):
@@ -244,14 +262,21 @@ class BounceKernel:
         self.bsdf_tables = tables
         self._lights = lights
         rows = [material_rows(m, tables) for m in materials]
-        #: per material: whether the kernel shades it
+        #: per material: whether the kernel shades it for RGB rays
         self.covered = np.array([r is not None for r in rows] or [False], bool)
+        #: per material: whether the kernel shades it for spectral rays (a ``Material``: its BSDF is
+        #: linear in its albedo, whose spectral value the kernel takes)
+        self.covered_spectral = np.array([r is not None and isinstance(m, Material) for m, r in zip(materials, rows)]
+                                         or [False], bool)
         self._geom_material = np.asarray(geom_material)
         #: per image-textured material covered: its index, EWA kernel, filter and ``hit_mapping`` rows
-        #: at depth 0 (the pixel's footprint) and deeper (none: level 0 bilinear, as ``_shade``)
+        #: at depth 0 (the pixel's footprint) and deeper (none: level 0 bilinear, as ``_shade``), each
+        #: with the diffuse colour (RGB rays: the albedo) and with 1 (spectral rays: the bare texture,
+        #: whose spectral value the kernel multiplies by the diffuse colour's)
         self._images = [(k, ewa_kernel(m.texture.mipmap), m.texture.filter,
-                         hit_mapping(m.texture, m.diffuse, pixel_spread_radians),
-                         hit_mapping(m.texture, m.diffuse, 0.0))
+                         {(spectral, deeper): hit_mapping(m.texture, (1.0, 1.0, 1.0) if spectral else m.diffuse,
+                                                          0.0 if deeper else pixel_spread_radians)
+                          for spectral in (False, True) for deeper in (False, True)})
                         for k, (m, r) in enumerate(zip(materials, rows))
                         if r is not None and isinstance(m, Material) and isinstance(m.texture, ImageTexture)]
         self._surfaces = SurfaceTables(device, faces, vertices, uv, geom_face_offset,
@@ -271,44 +296,61 @@ class BounceKernel:
         table, environment = light_rows(lights) if self.light_count else (LIGHTS.pack(1), np.zeros(1, np.float32))
         cdf = rounded_up_cdf(lights.cdf) if self.light_count else np.ones(1, np.float32)
         self.offset_base = np.float32(1e-2 * extent)
-        self.program = device.build_program(header(dimension, roulette_after) + kernel_source(bsdf_kernel.KERNEL_FILE)
-                                            + kernel_source(KERNEL_FILE), KERNEL_FILE)
+        self._dimension, self._roulette_after = dimension, roulette_after
         self._tables = [device.wrapped_buffer(array, dtype) for array, dtype in (
             (faces, np.int32), (normals, np.float32), (uv, np.float32), (geom, np.int32), (matrices, np.float32),
             (params, np.float32), (textures, np.float32), (table, np.float32), (cdf, np.float32),
             (environment, np.float32))]
         self._local = threading.local()
 
-    def _queue_and_kernel(self) -> tuple[cl.CommandQueue, cl.Kernel]:
-        state = getattr(self._local, "state", None)
+    def program(self, spectral: bool) -> cl.Program:
+        """The RGB or the spectral build, built on its first launch (a render uses one of them;
+        ``Device.build_program`` builds each once per process)."""
+        return self.device.build_program(header(self._dimension, self._roulette_after, spectral)
+                                         + kernel_source(bsdf_kernel.KERNEL_FILE) + kernel_source(KERNEL_FILE),
+                                         KERNEL_FILE)
+
+    def _queue_and_kernel(self, spectral: bool) -> tuple[cl.CommandQueue, cl.Kernel]:
+        """This thread's queue and its kernel object of the RGB or the spectral build."""
+        state: tuple[cl.CommandQueue, dict[bool, cl.Kernel]] | None = getattr(self._local, "state", None)
         if state is None:
-            state = self._local.state = (self.device.queue(), cl.Kernel(self.program, "bounce"))
-        return state
+            state = self._local.state = (self.device.queue(), {})
+        queue, kernels = state
+        if spectral not in kernels:
+            kernels[spectral] = cl.Kernel(self.program(spectral), "bounce")
+        return queue, kernels[spectral]
 
     def __call__(self, rows: np.ndarray, path: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  origin: np.ndarray, direction: np.ndarray, hits: Hits, beta: np.ndarray, *, depth: int,
-                 light_samples: int, seed: int, mode_flags: int, max_depth: int) -> Bounce:
+                 light_samples: int, seed: int, mode_flags: int, max_depth: int,
+                 basis: np.ndarray | None = None) -> Bounce:
         """The bounce at the hits ``rows`` (m,) of a batch of rays (``origin``, ``direction``,
-        ``hits``, ``beta`` (B, 3), ``path`` (B,): each ray's camera ray, whose ``pixel`` and
+        ``hits``, ``beta`` (B, C), ``path`` (B,): each ray's camera ray, whose ``pixel`` and
         ``sample`` key the random numbers) at ``depth``, with ``light_samples`` light samples per
-        hit (0 without lights)."""
+        hit (0 without lights). ``basis``: for spectral rays (C = 1, the spectral build), each camera
+        ray's ``rgb_basis`` row (float32, indexed by ``path``); then only ``covered_spectral``
+        materials' hits may be among ``rows``, and beta and the contributions come out one column
+        wide; None for RGB rays (C = 3)."""
         m = len(rows)
         lights = light_samples if self.light_count else 0
         shadows = lights * m
+        spectral = basis is not None
+        channels = 1 if spectral else 3
         out = Bounce(shadow_origin=np.empty((shadows, 3), np.float32), shadow_vector=np.empty((shadows, 3), np.float32),
-                     shadow_length=np.empty(shadows, np.float32), contribution=np.empty((shadows, 3), np.float32),
+                     shadow_length=np.empty(shadows, np.float32),
+                     contribution=np.empty((shadows, channels), np.float32),
                      origin=np.empty((m, 3), np.float32), direction=np.empty((m, 3), np.float32),
-                     beta=np.empty((m, 3), np.float32), point=np.empty((m, 3), np.float32),
+                     beta=np.empty((m, channels), np.float32), point=np.empty((m, 3), np.float32),
                      pdf=np.empty(m, np.float32), flags=np.empty(m, np.int32))
         if m:
             cone_light = np.empty(shadows, np.int32)
-            queue, kernel = self._queue_and_kernel()
-            albedo = self._albedo(rows, direction, hits, depth)
+            queue, kernel = self._queue_and_kernel(spectral)
+            albedo = self._albedo(rows, direction, hits, depth, spectral)
             inputs = [self.device.wrapped_buffer(a, dtype) for a, dtype in (
                 (rows, np.int32), (path, np.int32), (pixel, np.uint32), (sample, np.uint32), (origin, np.float32),
                 (direction, np.float32), (hits.t, np.float32), (hits.u, np.float32), (hits.v, np.float32),
                 (hits.prim, np.int32), (hits.geom, np.int32), (hits.normal, np.float32), (beta, np.float32),
-                (albedo, np.float32))]
+                (albedo, np.float32), (np.zeros(0) if basis is None else basis, np.float32))]
             self.device.run_into(queue, kernel, (whole_groups(m),), (LOCAL_SIZE,),
                                  (np.uint32(m), np.uint32(lights), np.uint32(depth), np.uint32(seed & 0xFFFFFFFF),
                                   np.uint32(mode_flags), np.uint32(max_depth), self.offset_base,
@@ -334,18 +376,19 @@ class BounceKernel:
             out.shadow_length[rows] = np.where(ok, SHADOW_LENGTH, np.float32(-1))
             out.contribution[rows] = np.where(ok[:, None], out.contribution[rows], np.float32(0))
 
-    def _albedo(self, rows: np.ndarray, direction: np.ndarray, hits: Hits, depth: int) -> np.ndarray:
+    def _albedo(self, rows: np.ndarray, direction: np.ndarray, hits: Hits, depth: int, spectral: bool) -> np.ndarray:
         """The albedo (m, 3) float32 of the hits ``rows`` on image-textured materials (zero elsewhere,
-        unread): ``EwaKernel.at_hits`` with the pixel's footprint at depth 0 and none deeper, which is
-        what ``PathIntegrator._shade`` filters with."""
+        unread), or for ``spectral`` rays their texture's bare RGB: ``EwaKernel.at_hits`` with the
+        pixel's footprint at depth 0 and none deeper, which is what ``PathIntegrator._shade`` filters
+        with."""
         albedo = np.zeros((len(rows), 3), np.float32)
         if self._surfaces is None:  # no image-textured material
             return albedo
         geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
-        for index, ewa, texture_filter, first, deeper in self._images:
+        for index, ewa, texture_filter, mappings in self._images:
             picked = picks[:rows_on_material(geom, self._geom_material, index, picks)]
             if len(picked):
                 place_rows(ewa.at_hits(self._surfaces, rows[picked].astype(np.int32, copy=False),
-                                       first if depth == 0 else deeper, direction, hits, texture_filter),
+                                       mappings[spectral, depth > 0], direction, hits, texture_filter),
                            picked, albedo)
         return albedo

@@ -24,9 +24,11 @@ material ``kernels/bsdf.cl`` covers with constant parameters (Lambertian and Ore
 grid or checker texture too, or under an EWA- or bilinear-filtered image texture, whose albedo
 ``EwaKernel.at_hits`` filters on the device before the launch) take the whole bounce in one launch
 of ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS
-weights, shadow rays, BSDF sample, beta, roulette), with the same random numbers; the host keeps
-embree, emission and the compaction of live paths. Other hits (other textured parameters, spectral
-rays) have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
+weights, shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral
+rays (a dispersive camera's) at hits of a ``Material`` (Lambertian or Oren-Nayar, under those
+textures too), in the kernel's spectral build. The host keeps embree, emission and the compaction of
+live paths. Other hits (other textured parameters; spectral rays on any other material) have the
+numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
 where it covers the material (the backend's ``bsdf_kernel``: every material but diffuse
 transmission and MERL tables), in one launch per bounce with the same random numbers; every other
 material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
@@ -107,8 +109,10 @@ class PathIntegrator(DirectLighting):
         self.lights = LightSampler(scene, intersector.extent)
         self._add_light_surfaces(scene)
         self._bounce = self._build_bounce(chosen) if self._bsdf_kernel is not None else None
-        #: per geometry, whether the fused bounce shades its material (one gather per bounce, not two)
-        self._bounce_covers = None if self._bounce is None else self._bounce.covered[self._geom_material]
+        #: per geometry, whether the fused bounce shades its material for RGB rays and for spectral
+        #: ones (indexed by whether the rays are spectral; one gather per bounce, not two)
+        self._bounce_covers = None if self._bounce is None else (
+            self._bounce.covered[self._geom_material], self._bounce.covered_spectral[self._geom_material])
         self._instance_light = np.full(max(self.instance_count, 1), -1, np.int64)
         for i, light in enumerate(scene.lights):
             if isinstance(light, EmissiveInstance):
@@ -188,7 +192,7 @@ class PathIntegrator(DirectLighting):
         prev_pdf = np.zeros(n)
         prev_point = o.astype(np.float64)
         shadow_rays = 0
-        if self._bounce is not None and basis_all is None:  # the fused bounce's random-number keys
+        if self._bounce is not None:  # the fused bounce's random-number keys
             pixel_key, sample_key = pixel.astype(np.uint32), np.broadcast_to(sample, (n,)).astype(np.uint32)
         # "direct" shades the first hit whatever max_depth is (its MIS rays are traced one step more)
         last = max(self.max_depth, 1) if self.mode == "direct" else self.max_depth
@@ -208,9 +212,9 @@ class PathIntegrator(DirectLighting):
                 surface = np.flatnonzero(self._shaded[hits.geom] & shade)
                 if depth == last or len(surface) == 0:
                     break
-                if self._bounce is not None and basis is None:
-                    state = self._shade_on_device(hits, surface, path, o, d, beta, pixel, sample, pixel_key,
-                                                  sample_key, depth)
+                if self._bounce is not None:
+                    state = self._shade_on_device(hits, surface, path, o, d, beta, basis, basis_all, pixel, sample,
+                                                  pixel_key, sample_key, depth)
                 else:
                     state = self._shade(hits, surface, path, o, d, beta, basis, pixel, sample, depth)
             shadow = state["shadow"]
@@ -258,18 +262,21 @@ class PathIntegrator(DirectLighting):
                                      pixel_spread_radians=self.pixel_spread_radians, ewa_kernel=backend.ewa_kernel)
 
     def _shade_on_device(self, hits: Hits, surface: np.ndarray, path: np.ndarray, o: np.ndarray, d: np.ndarray,
-                         beta: np.ndarray, pixel: np.ndarray, sample: np.ndarray, pixel_key: np.ndarray,
-                         sample_key: np.ndarray, depth: int) -> dict:
-        """``_shade`` of RGB rays by the fused bounce kernel (``renderer.bounce_kernel``) at the hits
-        whose material it covers, and by ``_shade`` at the others; ``pixel_key`` and ``sample_key``:
-        ``pixel`` and ``sample`` as uint32, the kernel's random-number keys. The shadow rays include
-        the kernel's dead light samples (length -1, contribution 0)."""
+                         beta: np.ndarray, basis: np.ndarray | None, basis_all: np.ndarray | None, pixel: np.ndarray,
+                         sample: np.ndarray, pixel_key: np.ndarray, sample_key: np.ndarray, depth: int) -> dict:
+        """``_shade`` by the fused bounce kernel (``renderer.bounce_kernel``) at the hits whose
+        material it covers for these rays (RGB, or spectral: ``basis`` the batch's ``rgb_basis``
+        rows, ``basis_all`` the camera rays'), and by ``_shade`` at the others; ``pixel_key`` and
+        ``sample_key``: ``pixel`` and ``sample`` as uint32, the kernel's random-number keys. The
+        shadow rays include the kernel's dead light samples (length -1, contribution 0)."""
         assert self._bounce is not None and self._bounce_covers is not None
-        covered = self._bounce_covers[hits.geom[surface]]
+        covered = self._bounce_covers[basis is not None][hits.geom[surface]]
+        if not covered.any():  # nothing for the kernel (spectral rays on other materials)
+            return self._shade(hits, surface, path, o, d, beta, basis, pixel, sample, depth)
         rows = (surface if covered.all() else surface[covered]).astype(np.int32)  # the kernel's, converted once
         result = self._bounce(rows, path, pixel_key, sample_key, o, d, hits, beta, depth=depth,
                               light_samples=self.light_samples if depth == 0 else 1, seed=self.seed,
-                              mode_flags=self._bounce_flags, max_depth=self.max_depth)
+                              mode_flags=self._bounce_flags, max_depth=self.max_depth, basis=basis_all)
         ray = path[rows]
         keep, specular, shade = result.going_on()
         state = {"path": ray[keep], "origin": _rows(result.origin, keep), "direction": _rows(result.direction, keep),
@@ -282,7 +289,7 @@ class PathIntegrator(DirectLighting):
                             "contribution": result.contribution}}
         if len(rows) == len(surface):
             return state
-        rest = self._shade(hits, surface[~covered], path, o, d, beta, None, pixel, sample, depth)
+        rest = self._shade(hits, surface[~covered], path, o, d, beta, basis, pixel, sample, depth)
         joined: dict = {key: np.concatenate([state[key], rest[key]]) for key in state if key != "shadow"}
         joined["shadow"] = {key: value if rest["shadow"][key] is None else np.concatenate([value, rest["shadow"][key]])
                             for key, value in state["shadow"].items()}
