@@ -451,6 +451,21 @@ def _spectral_values(radiance: np.ndarray, wavelength: np.ndarray) -> np.ndarray
     return radiance[rows, column].astype(np.float64) / response[rows, column]
 
 
+def _down_rays(height: float, half: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """N unit rays from (0, 0, height) toward points uniform in [-half, half]^2 on the plane z = 0."""
+    origin = np.tile(np.float32([[0.0, 0.0, height]]), (N, 1))
+    target = rng.uniform(-half, half, (N, 3)) * np.array([1.0, 1.0, 0.0])
+    direction = target - origin
+    return origin, (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+
+
+def _assert_mean_reads(radiance: np.ndarray, expected: float) -> None:
+    """The rays' first channel reads ``expected`` on average, within 4 standard errors (and 2e-3)."""
+    value = radiance[:, 0].astype(np.float64)
+    error = value.std() / np.sqrt(N)
+    assert abs(value.mean() - expected) < 4 * error + 2e-3, (value.mean(), error)
+
+
 def _reads_per_wavelength(value: np.ndarray, expected: np.ndarray, wavelength: np.ndarray) -> None:
     """``value`` / ``expected`` (per ray) has mean 1 within 4 standard errors in each quarter of the
     visible."""
@@ -477,10 +492,7 @@ def test_spectral_rays_on_a_convex_lambertian_under_a_uniform_sky_read_albedo_ti
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
     assert integrator._bounce is not None and integrator._bounce.covered_spectral.all()
     rng = np.random.default_rng(1)
-    origin = np.tile(np.float32([[0.0, 0.0, 3.0]]), (N, 1))
-    target = rng.uniform(-0.5, 0.5, (N, 3)) * np.array([1.0, 1.0, 0.0])
-    direction = target - origin
-    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    origin, direction = _down_rays(3.0, 0.5, rng)
     wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
     basis = rgb_basis(wavelength).astype(np.float64)
@@ -538,14 +550,9 @@ def test_convex_object_inside_area_lights_reads_its_albedo(mode, material, albed
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
     assert integrator._bounce is not None and integrator._bounce.covered.all()
     rng = np.random.default_rng(0)
-    origin = np.tile(np.float32([[0.0, 0.0, 1.8]]), (N, 1))
-    target = rng.uniform(-0.4, 0.4, (N, 3)) * np.array([1.0, 1.0, 0.0])
-    direction = target - origin
-    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    origin, direction = _down_rays(1.8, 0.4, rng)
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
-    value = radiance[:, 0].astype(np.float64)
-    error = value.std() / np.sqrt(N)
-    assert abs(value.mean() - albedo) < 4 * error + 2e-3, (value.mean(), error)
+    _assert_mean_reads(radiance, albedo)
 
 
 def test_the_kernel_takes_scenes_without_lights_and_with_every_kind_of_light():
@@ -635,14 +642,9 @@ def test_convex_object_under_a_uniform_sky_reads_its_albedo_times_the_sky(mode, 
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
     assert integrator._bounce is not None and integrator._bounce.covered.all()
     rng = np.random.default_rng(1)
-    origin = np.tile(np.float32([[0.0, 0.0, 3.0]]), (N, 1))
-    target = rng.uniform(-0.5, 0.5, (N, 3)) * np.array([1.0, 1.0, 0.0])
-    direction = target - origin
-    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    origin, direction = _down_rays(3.0, 0.5, rng)
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
-    value = radiance[:, 0].astype(np.float64)
-    error = value.std() / np.sqrt(N)
-    assert abs(value.mean() - albedo * sky) < 4 * error + 2e-3, (value.mean(), error)
+    _assert_mean_reads(radiance, albedo * sky)
 
 
 @pytest.mark.parametrize("lights", ["emitting mesh", "emitting mesh, two-sided", "emitting mesh, mirrored",
