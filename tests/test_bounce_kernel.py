@@ -459,6 +459,13 @@ def _down_rays(height: float, half: float, rng: np.random.Generator) -> tuple[np
     return origin, (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
 
 
+def _inside_rays(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """N rays from points uniform in [-0.3, 0.3]^3 (inside the unit sphere) along uniform unit directions."""
+    origin = rng.uniform(-0.3, 0.3, (N, 3)).astype(np.float32)
+    direction = rng.normal(size=(N, 3))
+    return origin, (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+
+
 def _assert_mean_reads(radiance: np.ndarray, expected: float) -> None:
     """The rays' first channel reads ``expected`` on average, within 4 standard errors (and 2e-3)."""
     value = radiance[:, 0].astype(np.float64)
@@ -513,9 +520,7 @@ def test_spectral_rays_inside_an_emitting_sphere_read_the_series_at_their_wavele
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
     assert integrator._bounce is not None and integrator._bounce.covered_spectral.all()
     rng = np.random.default_rng(2)
-    origin = rng.uniform(-0.3, 0.3, (N, 3)).astype(np.float32)
-    direction = rng.normal(size=(N, 3))
-    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    origin, direction = _inside_rays(rng)
     wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
     basis = rgb_basis(wavelength).astype(np.float64)
@@ -682,9 +687,7 @@ def test_inside_an_emitting_sphere_of_albedo_a_reads_the_closed_form(mode, mirro
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
     assert integrator._bounce is not None and integrator._bounce.covered.all()
     rng = np.random.default_rng(2)
-    origin = rng.uniform(-0.3, 0.3, (N, 3)).astype(np.float32)
-    direction = rng.normal(size=(N, 3))
-    direction = (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
+    origin, direction = _inside_rays(rng)
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
     value = radiance[:, 0].astype(np.float64)
     expected = le * (1 - a ** 6) / (1 - a) if mode == "path" else le * (1 + a)
