@@ -26,8 +26,8 @@ grid or checker texture too, or under an EWA- or bilinear-filtered image texture
 of ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS
 weights, shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral
 rays (a dispersive camera's) at the same hits, in the kernel's spectral build. The host keeps embree,
-emission and the compaction of live paths. Other hits (other textured parameters) have the
-numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
+emission and the compaction of live paths. Other hits (other textured parameters, materials
+``bsdf.cl`` lacks) have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
 where it covers the material (the backend's ``bsdf_kernel``: every material but diffuse
 transmission and MERL tables), in one launch per bounce with the same random numbers; every other
 material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
