@@ -33,9 +33,9 @@
  *     roulette (path mode, depth >= ROULETTE_AFTER, rng.uniform at base + 3) or the direct mode's
  *     rule, and the next ray from the offset origin;
  *   - BOUNCE_SPECTRAL: rays of one wavelength each (a dispersive camera's), with each camera ray's
- *     rgb_basis row in `basis` (3 floats at path[r]); the host sends only Lambertian and Oren-Nayar
- *     hits, whose BSDFs are linear in their albedo. The diffuse colour and the texture's colour
- *     (an image texture's bare, from the host), and each light's radiance (after the RGB test of
+ *     rgb_basis row in `basis` (3 floats at path[r]), at hits of every material the RGB build
+ *     covers. Each lobe's colours (spectral_lobe: a mix's both), a Material's texture colour (an
+ *     image texture's bare, from the host), and each light's radiance (after the RGB test of
  *     whether it is 0, as LightSampler.sample tests it) become their spectral values at the ray's
  *     wavelength (realistic.core.spectrum.spectral_value, in its order: dot3), held in every
  *     channel of a float3 so the same code serves; beta comes and goes as one float a row and
@@ -186,6 +186,37 @@ inline float3 map_direction(__global const float *light, __global const float *e
                                m[6] * w.x + m[7] * w.y + m[8] * w.z));
 }
 
+#if BOUNCE_SPECTRAL
+/* A lobe's RGB colours as their spectral values at a ray's wavelength (`basis`: its rgb_basis row),
+ * each in every channel, as bsdf_for builds the lobe from SurfaceParameters' spectral colours: the
+ * albedo, scale, reflection and transmission tints, a plastic's or substrate's specular colour and a
+ * conductor's eta and k each the dot with the basis (light_sampler.colour); a named metal's and a
+ * measured table's RGB-to-channel rows each the basis row (bsdf_kernel.rgb_channels); a coated
+ * base made from its albedo's spectral value a as CoatedLambertian makes it from RGB (eta.y its
+ * internal reflectance F, eta.z pi eta^2, extra.y 1 - F): its scale a / (pi eta^2 (1 - a F)) and
+ * albedo estimate a (1 - F) / (1 - a F); the coat's tint stays 1. Indices are not dispersive. */
+inline void spectral_lobe(Lobe *p, float3 basis) {
+    if (p->kind == KIND_MEASURED) {
+        p->scale = p->tint = p->eta = basis;
+        return;
+    }
+    float a = dot3(p->scale, basis);
+    p->scale = (float3)(a);
+    if (p->kind == KIND_COATED_DIFFUSE) {
+        float rest = 1.0f - a * p->eta.y;
+        p->k = (float3)(a / (p->eta.z * rest));
+        p->extra.x = a * p->extra.y / rest;
+    } else if (p->kind == KIND_TABULATED_CONDUCTOR) {
+        p->tint = p->eta = p->k = basis;
+    } else if (p->kind == KIND_CONDUCTOR) {
+        p->eta = (float3)(dot3(p->eta, basis));
+        p->k = (float3)(dot3(p->k, basis));
+    } else {
+        p->tint = (float3)(dot3(p->tint, basis));
+    }
+}
+#endif
+
 __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mode_flags, uint max_depth,
                      float offset_base, int light_count,
                      __global const int *rows, __global const int *path, __global const uint *pixel,
@@ -266,12 +297,13 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
         texel = use_b ? vload3(0, mat + BOUNCE_MATERIAL_COLOUR_B) : vload3(0, mat + BOUNCE_MATERIAL_COLOUR_A);
     }
 #if BOUNCE_SPECTRAL
-    /* the ray's wavelength: the diffuse colour's spectral value times the texture's, each the dot
-     * with the ray's rgb_basis row (SurfaceParameters.colour turns each of them so), in every channel */
+    /* the ray's wavelength: each lobe's colours as spectral values (spectral_lobe), a Material's
+     * diffuse colour's times its texture's, each the dot with the ray's rgb_basis row
+     * (SurfaceParameters.colour turns each of them so) */
     float3 wavelength_basis = load3(basis, path[r]);
-    float albedo_value = dot3(p.lobe[0].scale, wavelength_basis);
-    if (texture != BOUNCE_TEXTURE_NONE) albedo_value *= dot3(texel, wavelength_basis);
-    p.lobe[0].scale = (float3)(albedo_value);
+    spectral_lobe(&p.lobe[0], wavelength_basis);
+    if (p.amount > 0.0f) spectral_lobe(&p.lobe[1], wavelength_basis);
+    if (texture != BOUNCE_TEXTURE_NONE) p.lobe[0].scale *= (float3)(dot3(texel, wavelength_basis));
 #else
     if (texture == BOUNCE_TEXTURE_IMAGE) p.lobe[0].scale = texel;
     else if (texture != BOUNCE_TEXTURE_NONE) p.lobe[0].scale *= texel;

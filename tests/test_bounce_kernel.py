@@ -19,10 +19,11 @@ from realistic.core.data_files import data_file
 from realistic.core.spectrum import LAMBDA_MAX_NM, LAMBDA_MIN_NM, rgb_basis, rgb_response
 from realistic.core.transforms import rotate, scale, translate
 from realistic.optics.paraxial import film_distance_for_focus
+from realistic.renderer.bsdf import fresnel
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, SpotLight
-from realistic.scene.materials import Conductor, Dielectric, DiffuseTransmission, Mix, Plastic
+from realistic.scene.materials import CoatedDiffuse, Conductor, Dielectric, DiffuseTransmission, Mirror, Mix, Plastic
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene
 from realistic.scene.shapes import quad, sphere
 from test_bsdf_kernel import COVERED, three_samples  # noqa: F401 (a fixture)
@@ -192,10 +193,12 @@ def test_bounce_kernel_shades_each_hit_as_the_numpy_reference(name, depth, mode,
 
 
 @pytest.mark.parametrize("depth", [0, 2])
-def test_bounce_kernel_shades_measured_brdfs_as_the_numpy_reference(three_samples, depth):  # noqa: F811
-    """A .brdf file's table and a mix holding it (both in the BSDF kernel's tables), per hit as above."""
+@pytest.mark.parametrize("spectral", [False, True])
+def test_bounce_kernel_shades_measured_brdfs_as_the_numpy_reference(three_samples, depth, spectral):  # noqa: F811
+    """A .brdf file's table and a mix holding it (both in the BSDF kernel's tables), per hit as above,
+    for RGB rays and for spectral ones (the table's RGB at the ray's wavelength)."""
     for seed, material in enumerate((three_samples, Mix(Plastic(), three_samples, 0.7))):
-        _shades_as_numpy(material, depth, "path", True, 40 + seed)
+        _shades_as_numpy(material, depth, "path", True, 40 + seed, spectral=spectral)
 
 
 @pytest.mark.parametrize("lights", sorted(LIGHT_SETS))
@@ -212,31 +215,20 @@ def test_bounce_kernel_shades_each_hit_under_each_light_as_the_numpy_reference(l
     _shades_as_numpy(materials[name], depth, mode, mis, 60 + sorted(LIGHT_SETS).index(lights), LIGHT_SETS[lights])
 
 
-#: Materials the spectral build shades: ``Material``s (Lambertian or Oren-Nayar), constant or under
-#: each texture, with grids and checkers of coloured cells too (the texture's spectral value
-#: multiplies the diffuse colour's, which differs from the spectral value of their product).
-SPECTRAL = {"lambertian": COVERED["lambertian"], "oren-nayar": COVERED["oren-nayar"],
+#: Materials the spectral build shades: every material the RGB build covers (each colour, a
+#: conductor's eta and k, a named metal's or measured table's RGB, a coated base and both lobes of a
+#: mix at the ray's wavelength), and ``Material``s under each texture, with grids and checkers of
+#: coloured cells too (the texture's spectral value multiplies the diffuse colour's, which differs
+#: from the spectral value of their product), and coloured eta and k.
+SPECTRAL = {**COVERED,
             "coloured grid": Material((0.9, 0.8, 0.7), GridTexture(base=(0.2, 0.9, 0.4), line=(0.9, 0.1, 0.3),
                                                                    cells=5.0, line_width=0.2)),
             "coloured checker, oren-nayar": Material((0.6, 0.8, 0.9), CheckerTexture(
                 even=(0.9, 0.3, 0.1), odd=(0.1, 0.4, 0.9), cells=6.0), sigma=15.0),
+            "coloured conductor": Conductor((0.2, 0.9, 1.6), (3.9, 2.4, 2.0), 0.2, 0.1, scale=(0.9, 0.7, 1.0)),
+            "coloured coated diffuse in a mix": Mix(Material((0.2, 0.5, 0.9)), CoatedDiffuse((0.9, 0.2, 0.4), 0.1),
+                                                    0.6),
             **TEXTURED}
-
-
-def test_spectral_rays_are_covered_on_materials_linear_in_their_albedo():
-    """The spectral build shades ``Material``s (constant, or under a grid, checker or image texture)
-    and nothing else the RGB build covers: conductors, glass, plastic, measured tables and mixes
-    stay with ``_shade`` for spectral rays."""
-    scene = Scene()
-    materials = [*COVERED.values(), *SPECTRAL.values()]
-    for k, material in enumerate(materials):
-        scene.add(quad(1.0, 1.0), translate(2.0 * k, 0.0, 0.0), material)
-    scene.lights.append(AreaLight("quad", (1.0, 1.0), (1.0, 1.0, 1.0), translate(0.0, 0.0, 3.0)))
-    integrator = PathIntegrator(scene, Intersector(scene), backend="opencl")
-    bounce = integrator._bounce
-    index = integrator._geom_material[:len(materials)]
-    assert bounce.covered[index].all()
-    assert np.array_equal(bounce.covered_spectral[index], [isinstance(m, Material) for m in materials])
 
 
 @pytest.mark.parametrize("name", sorted(SPECTRAL))
@@ -268,8 +260,7 @@ def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int, ligh
     numpy_one, device_one = _pair(scene, mode, mis, spread=SPREAD)
     origin, direction, hits = _rays(scene, N, seed)
     on_instance = (hits.geom >= 0) & (hits.geom < device_one.instance_count)
-    covers = device_one._bounce.covered_spectral if spectral else device_one._bounce.covered
-    covered = covers[device_one._geom_material[np.where(on_instance, hits.geom, 0)]]
+    covered = device_one._bounce.covered[device_one._geom_material[np.where(on_instance, hits.geom, 0)]]
     surface = np.flatnonzero(on_instance & covered)
     assert len(surface) > N // 4
     rng = np.random.default_rng(depth)
@@ -392,30 +383,34 @@ def _spectral_launches(integrator: PathIntegrator, monkeypatch) -> list[np.ndarr
 @pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
 def test_spectral_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis, monkeypatch):
     """Whole spectral paths (depth 5, two light samples) under every kind of light, over glass, a
-    rough conductor and plastic (``_shade`` for spectral rays) and Lambertian and Oren-Nayar
-    materials under image, grid and checker textures (the kernel's spectral build): each ray's
-    radiance is the numpy backend's to float32 rounding, and the kernel shades hits on those
-    ``Material``s alone, in every bounce's launch."""
+    rough conductor, a named metal, plastic, coated diffuse in a mix and Lambertian and Oren-Nayar
+    materials under image, grid and checker textures: each ray's radiance is the numpy backend's to
+    float32 rounding, and the kernel's spectral build shades every hit, on every material, in every
+    bounce's launch."""
     scene = _with_lights(textured_scene()[0], LIGHT_SETS["every kind"])
-    materials = [None, Dielectric(1.5), SPECTRAL["coloured grid"], Material((0.3, 0.6, 0.9), sigma=20.0)]
+    materials = [None, Dielectric(1.5, (0.9, 1.0, 0.8), (1.0, 0.7, 0.9)), SPECTRAL["coloured grid"],
+                 SPECTRAL["coloured coated diffuse in a mix"]]
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
     scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
-    scene.add(sphere(0.3, 16), translate(-0.6, 0.3, 0.9), Conductor(roughness_u=0.2, roughness_v=0.05))
+    scene.add(sphere(0.3, 16), translate(-0.6, 0.3, 0.9), SPECTRAL["coloured conductor"])
     scene.add(sphere(0.25, 16), translate(0.7, 0.8, 0.6), SPECTRAL["coloured checker, oren-nayar"])
+    scene.add(sphere(0.2, 16), translate(-0.1, 0.9, 0.5), COVERED["named metal"])
     numpy_one, device_one = _pair(scene, mode, mis, light_samples=2, spread=SPREAD)
-    covered = device_one._bounce.covered_spectral
-    assert not covered[device_one._geom_material].all()
+    assert device_one._bounce.covered[device_one._geom_material].all()
     launches = _spectral_launches(device_one, monkeypatch)
+    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
     _paths_agree(scene, numpy_one, device_one, 11, spectral=True)
     assert len(launches) >= 2 and all(len(materials) for materials in launches)
-    assert covered[np.concatenate(launches)].all()
+    instances = device_one._geom_material[:device_one.instance_count]
+    assert set(np.unique(np.concatenate(launches))) == set(instances)
 
 
 def test_a_dispersive_path_traced_render_on_opencl_is_the_numpy_backends(monkeypatch):
     """A path-traced render through the dgauss lens with dispersion (three wavelengths per sample) of
-    a checkered floor, an Oren-Nayar sphere and a plastic one, on the OpenCL backend (its spectral
-    bounces in the kernel, but the plastic's) and on the numpy one with the same seed: every pixel
-    agrees to float32 rounding, far inside the noise between two seeds, and so does the mean."""
+    a checkered floor, an Oren-Nayar sphere, a plastic one, a copper one and a glass one, on the
+    OpenCL backend (its spectral bounces in the kernel) and on the numpy one with the same seed:
+    every pixel agrees to float32 rounding, far inside the noise between two seeds, and so does the
+    mean."""
     launches = []
     launch = BounceKernel.__call__
 
@@ -431,6 +426,9 @@ def test_a_dispersive_path_traced_render_on_opencl_is_the_numpy_backends(monkeyp
     scene.add(quad(4.0, 4.0), material=SPECTRAL["coloured checker, oren-nayar"])
     scene.add(sphere(0.1, 24), translate(0.0, 0.0, 0.1), Material((0.3, 0.6, 0.9), sigma=20.0))
     scene.add(sphere(0.06, 24), translate(0.12, 0.05, 0.06), Plastic((0.5, 0.3, 0.2), (0.2, 0.4, 0.6), 0.2))
+    scene.add(sphere(0.05, 24), translate(-0.12, -0.04, 0.05), Conductor(roughness_u=0.1, roughness_v=0.1,
+                                                                         spectra=("Cu", "Cu")))
+    scene.add(sphere(0.05, 24), translate(0.02, -0.14, 0.05), Dielectric(1.5))
     scene.lights.append(AreaLight("disk", (0.4, 0.4), (20.0, 30.0, 40.0), translate(-0.3, 0.2, 1.2)
                                   @ rotate(180, (1, 0, 0))))
     device = render(scene, camera, "opencl", seed=1)
@@ -497,7 +495,7 @@ def test_spectral_rays_on_a_convex_lambertian_under_a_uniform_sky_read_albedo_ti
     scene.add(sphere(1.0, 48), np.eye(4), Material(albedo))
     scene.lights.append(InfiniteLight(sky, image, mapping, rotate(40, (1, 1, 0))))
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-    assert integrator._bounce is not None and integrator._bounce.covered_spectral.all()
+    assert integrator._bounce is not None and integrator._bounce.covered.all()
     rng = np.random.default_rng(1)
     origin, direction = _down_rays(3.0, 0.5, rng)
     wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
@@ -518,7 +516,7 @@ def test_spectral_rays_inside_an_emitting_sphere_read_the_series_at_their_wavele
     scene.add(sphere(1.0, 24), np.eye(4), Material(albedo))
     scene.lights.append(EmissiveInstance(0, tuple(le), two_sided=True))
     integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-    assert integrator._bounce is not None and integrator._bounce.covered_spectral.all()
+    assert integrator._bounce is not None and integrator._bounce.covered.all()
     rng = np.random.default_rng(2)
     origin, direction = _inside_rays(rng)
     wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
@@ -527,6 +525,34 @@ def test_spectral_rays_inside_an_emitting_sphere_read_the_series_at_their_wavele
     a, emitted = basis @ albedo, basis @ le
     expected = emitted * (1 - a ** 6) / (1 - a) if mode == "path" else emitted * (1 + a)
     _reads_per_wavelength(_spectral_values(radiance, wavelength), expected, wavelength)
+
+
+@pytest.mark.parametrize("mode", ["path", "direct"])
+@pytest.mark.parametrize("material", ["coloured conductor", "coloured mirror"])
+def test_spectral_rays_off_a_smooth_conductor_under_a_uniform_sky_read_its_fresnel_times_sky(mode, material):
+    """A ray of wavelength w mirrored by a smooth flat conductor of scale s and index eta + i k into
+    a uniform sky of radiance L reads s(w) F(cos; eta(w), k(w)) L(w), each the spectral value of its
+    RGB there, F the conductor Fresnel at the ray's cosine (a mirror: s(w) L(w)): per ray, to float32
+    rounding (the one path is deterministic: a smooth lobe takes no light sample)."""
+    conductor = Conductor((0.2, 0.9, 1.6), (3.9, 2.4, 2.0), 0.0, 0.0, scale=(0.9, 0.7, 1.0))
+    chosen = conductor if material == "coloured conductor" else Mirror((0.9, 0.4, 0.7))
+    sky = np.array([0.4, 0.7, 1.0])
+    scene = Scene()
+    scene.add(quad(4.0, 4.0), np.eye(4), chosen)
+    scene.lights.append(InfiniteLight(tuple(sky)))
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
+    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    rng = np.random.default_rng(3)
+    origin, direction = _down_rays(3.0, 1.5, rng)
+    wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
+    basis = rgb_basis(wavelength).astype(np.float64)
+    if chosen is conductor:
+        reflectance = basis @ conductor.scale * fresnel.conductor(
+            -direction[:, 2], (basis @ conductor.eta)[:, None], (basis @ conductor.k)[:, None])[:, 0]
+    else:
+        reflectance = basis @ chosen.reflectance
+    np.testing.assert_allclose(_spectral_values(radiance, wavelength), reflectance * (basis @ sky), rtol=2e-3)
 
 
 def _area_light_furnace(material) -> Scene:

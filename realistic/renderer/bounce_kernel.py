@@ -4,7 +4,7 @@
 the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shadow ray and contribution
 (MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps embree and the
 compaction of live paths. It covers scenes whose lights are area, point, spot, distant or
-infinite lights, emitting meshes or spheres, or none, and, for RGB rays, materials ``bsdf_kernel.parameters`` covers
+infinite lights, emitting meshes or spheres, or none, and materials ``bsdf_kernel.parameters`` covers
 whose parameters are constants (measured tables, named metals' tables and mixes' second lobes in the
 BSDF kernel's ``TableStore``), ``Material`` (Lambertian or Oren-Nayar) also under a grid or checker
 texture (evaluated in the kernel) or an image texture (any filter: ``ewa_kernel.DEVICE_FILTERS``):
@@ -17,19 +17,17 @@ cannot stand for: they lack the instance's transform and the CDF), share one dev
 sample's direction toward an emitting sphere meets its mesh on the host (embree).
 
 Spectral rays (a dispersive camera's: one wavelength each, K per camera sample) take the program's
-spectral build (``BOUNCE_SPECTRAL``) at hits of a ``Material`` (Lambertian or Oren-Nayar, constant or
-under any texture the RGB build covers; ``covered_spectral``): BSDFs linear in their albedo, so the
-kernel shades the albedo's spectral value at the ray's wavelength (the diffuse colour's times the
-texture's, each the dot with the ray's ``rgb_basis`` row, as ``light_sampler.colour`` turns RGB; an
-image texture's bare RGB comes from ``EwaKernel.at_hits`` with a diffuse colour of 1), every light's
-radiance likewise, and carries beta and the contributions as one column, as the numpy bounce does.
-The host passes each camera ray's basis row, the very rows ``PathIntegrator.radiance`` colours its
-emission with (``shade.cl`` interpolates its basis from a table instead: its rays arrive as wavelengths
-alone). With spectral rays every other material stays with ``_shade`` (its BSDFs in the BSDF kernel
-where that covers them): conductors (eta and k, or a named metal's spectra, at the wavelength),
-mirrors, dielectrics, plastic, coated diffuse, substrate, measured BRDFs and mixes, whose further
-colours (tints, eta and k, the channel matrices of tables, a mix's second lobe) this build does not
-turn into spectral values.
+spectral build (``BOUNCE_SPECTRAL``) at the same hits: the kernel turns each material's RGB colours
+into their spectral values at the ray's wavelength as ``bsdf_for`` builds its BSDF from
+``SurfaceParameters``' spectral colours (each the dot with the ray's ``rgb_basis`` row, as
+``light_sampler.colour`` turns RGB: albedos, tints, a conductor's eta and k; a named metal's and a
+measured table's RGB through the basis row; a coated base remade from its albedo's spectral value; a
+mix's both lobes), a ``Material``'s texture likewise (an image texture's bare RGB comes from
+``EwaKernel.at_hits`` with a diffuse colour of 1), every light's radiance likewise, and carries beta
+and the contributions as one column, as the numpy bounce does. Glass indices are constants (no
+material's index varies with the wavelength in ``bsdf_for``). The host passes each camera ray's basis
+row, the very rows ``PathIntegrator.radiance`` colours its emission with (``shade.cl`` interpolates
+its basis from a table instead: its rays arrive as wavelengths alone).
 The rest (textured parameters other than a ``Material``'s texture, materials ``bsdf.cl`` lacks) stays
 with ``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares the two
 per hit with the same random numbers, RGB and spectral). The program is the BSDF kernel's source with
@@ -262,12 +260,8 @@ class BounceKernel:
         self.bsdf_tables = tables
         self._lights = lights
         rows = [material_rows(m, tables) for m in materials]
-        #: per material: whether the kernel shades it for RGB rays
+        #: per material: whether the kernel shades it (RGB and spectral rays alike)
         self.covered = np.array([r is not None for r in rows] or [False], bool)
-        #: per material: whether the kernel shades it for spectral rays (a ``Material``: its BSDF is
-        #: linear in its albedo, whose spectral value the kernel takes)
-        self.covered_spectral = np.array([r is not None and isinstance(m, Material) for m, r in zip(materials, rows)]
-                                         or [False], bool)
         self._geom_material = np.asarray(geom_material)
         #: per image-textured material covered: its index, EWA kernel, filter and ``hit_mapping`` rows
         #: at depth 0 (the pixel's footprint) and deeper (none: level 0 bilinear, as ``_shade``), each
@@ -328,9 +322,8 @@ class BounceKernel:
         ``hits``, ``beta`` (B, C), ``path`` (B,): each ray's camera ray, whose ``pixel`` and
         ``sample`` key the random numbers) at ``depth``, with ``light_samples`` light samples per
         hit (0 without lights). ``basis``: for spectral rays (C = 1, the spectral build), each camera
-        ray's ``rgb_basis`` row (float32, indexed by ``path``); then only ``covered_spectral``
-        materials' hits may be among ``rows``, and beta and the contributions come out one column
-        wide; None for RGB rays (C = 3)."""
+        ray's ``rgb_basis`` row (float32, indexed by ``path``), and beta and the contributions come
+        out one column wide; None for RGB rays (C = 3)."""
         m = len(rows)
         lights = light_samples if self.light_count else 0
         shadows = lights * m

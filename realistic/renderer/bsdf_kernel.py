@@ -53,9 +53,11 @@ KERNEL_FILE = "bsdf.cl"
 #: Oren-Nayar, plastic or coated base's albedo, the conductor's or mirror's scale, the glass's
 #: reflection tint or the substrate's diffuse colour; ``tint`` the glass's transmission tint, the
 #: plastic's coat colour (1 for coated diffuse) or the substrate's specular reflectance; ``eta`` the
-#: conductor's index per channel (a dielectric's or coat's index in its first column); ``k`` the
-#: conductor's absorption or the coated base's scale (``CoatedLambertian.scale``); ``alpha`` the GGX
-#: widths along x and y; ``extra`` Oren-Nayar's A and B, the coated base's albedo estimate, or a
+#: conductor's index per channel (a dielectric's or coat's index in its first column; a coat's then
+#: ``CoatedLambertian.internal`` and pi eta^2, from which spectral rays' base is made, as ``k`` and the
+#: estimate are from the albedo); ``k`` the conductor's absorption or the coated base's scale
+#: (``CoatedLambertian.scale``); ``alpha`` the GGX widths along x and y; ``extra`` Oren-Nayar's A and
+#: B, the coated base's albedo estimate and 1 - ``internal``, or a
 #: table's start (in ``TABLE_ALIGN`` floats) and size (a measured table's nodes per axis, a named
 #: metal's reflectance rows). A measured lobe's ``scale``, ``tint`` and ``eta``, and a tabulated
 #: conductor's ``tint``, ``eta`` and ``k``, are the rows of the matrix turning RGB into the rays'
@@ -108,8 +110,9 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, tables: Ta
         base = CoatedLambertian(colour(hits, material.reflectance), material.eta)
         a = alpha(scalar(hits, material.roughness), material.rule)
         return dict(kind=KIND["coated_diffuse"], scale=base.albedo, tint=np.float32(1.0),
-                    eta=np.float32(material.eta), k=base.scale, alpha=np.column_stack([a, a]),
-                    extra=np.column_stack([base.albedo_estimate, np.zeros(count)]))
+                    eta=np.array([material.eta, base.internal, np.pi * base.eta ** 2], np.float32), k=base.scale,
+                    alpha=np.column_stack([a, a]),
+                    extra=np.column_stack([base.albedo_estimate, np.full(count, 1.0 - base.internal)]))
     if isinstance(material, Conductor):
         ax = alpha(scalar(hits, material.roughness_u), material.rule)
         ay = alpha(scalar(hits, material.roughness_v), material.rule)

@@ -25,10 +25,9 @@ grid or checker texture too, or under an EWA- or bilinear-filtered image texture
 ``EwaKernel.at_hits`` filters on the device before the launch) take the whole bounce in one launch
 of ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS
 weights, shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral
-rays (a dispersive camera's) at hits of a ``Material`` (Lambertian or Oren-Nayar, under those
-textures too), in the kernel's spectral build. The host keeps embree, emission and the compaction of
-live paths. Other hits (other textured parameters; spectral rays on any other material) have the
-numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
+rays (a dispersive camera's) at the same hits, in the kernel's spectral build. The host keeps embree,
+emission and the compaction of live paths. Other hits (other textured parameters, materials
+``bsdf.cl`` lacks) have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
 where it covers the material (the backend's ``bsdf_kernel``: every material but diffuse
 transmission and MERL tables), in one launch per bounce with the same random numbers; every other
 material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
@@ -109,10 +108,8 @@ class PathIntegrator(DirectLighting):
         self.lights = LightSampler(scene, intersector.extent)
         self._add_light_surfaces(scene)
         self._bounce = self._build_bounce(chosen) if self._bsdf_kernel is not None else None
-        #: per geometry, whether the fused bounce shades its material for RGB rays and for spectral
-        #: ones (indexed by whether the rays are spectral; one gather per bounce, not two)
-        self._bounce_covers = None if self._bounce is None else (
-            self._bounce.covered[self._geom_material], self._bounce.covered_spectral[self._geom_material])
+        #: per geometry, whether the fused bounce shades its material (RGB and spectral rays alike)
+        self._bounce_covers = None if self._bounce is None else self._bounce.covered[self._geom_material]
         self._instance_light = np.full(max(self.instance_count, 1), -1, np.int64)
         for i, light in enumerate(scene.lights):
             if isinstance(light, EmissiveInstance):
@@ -265,13 +262,13 @@ class PathIntegrator(DirectLighting):
                          beta: np.ndarray, basis: np.ndarray | None, basis_all: np.ndarray | None, pixel: np.ndarray,
                          sample: np.ndarray, pixel_key: np.ndarray, sample_key: np.ndarray, depth: int) -> dict:
         """``_shade`` by the fused bounce kernel (``renderer.bounce_kernel``) at the hits whose
-        material it covers for these rays (RGB, or spectral: ``basis`` the batch's ``rgb_basis``
-        rows, ``basis_all`` the camera rays'), and by ``_shade`` at the others; ``pixel_key`` and
+        material it covers (RGB or spectral rays: ``basis`` the batch's ``rgb_basis`` rows,
+        ``basis_all`` the camera rays'), and by ``_shade`` at the others; ``pixel_key`` and
         ``sample_key``: ``pixel`` and ``sample`` as uint32, the kernel's random-number keys. The
         shadow rays include the kernel's dead light samples (length -1, contribution 0)."""
         assert self._bounce is not None and self._bounce_covers is not None
-        covered = self._bounce_covers[basis is not None][hits.geom[surface]]
-        if not covered.any():  # nothing for the kernel (spectral rays on other materials)
+        covered = self._bounce_covers[hits.geom[surface]]
+        if not covered.any():  # nothing for the kernel
             return self._shade(hits, surface, path, o, d, beta, basis, pixel, sample, depth)
         rows = (surface if covered.all() else surface[covered]).astype(np.int32)  # the kernel's, converted once
         result = self._bounce(rows, path, pixel_key, sample_key, o, d, hits, beta, depth=depth,

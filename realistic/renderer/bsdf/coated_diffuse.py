@@ -34,7 +34,8 @@ class CoatedLambertian(CosineSampled):
     def __init__(self, albedo: np.ndarray, eta: float):
         self.albedo = np.asarray(albedo, np.float32)
         self.eta = float(eta)
-        internal = 1.0 - (1.0 - hemispherical_reflectance(self.eta)) / self.eta ** 2
+        #: F_int, the coat's internal reflectance of diffuse light
+        self.internal = internal = 1.0 - (1.0 - hemispherical_reflectance(self.eta)) / self.eta ** 2
         self.scale = (self.albedo / (np.pi * self.eta ** 2 * (1.0 - self.albedo * internal))).astype(np.float32)
         self.albedo_estimate = (self.albedo * (1 - internal) / (1 - self.albedo * internal)).mean(axis=1)
 
