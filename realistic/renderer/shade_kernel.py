@@ -330,10 +330,10 @@ class ShadeKernel:
                         state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
                         state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
         cl.enqueue_nd_range_kernel(state.queue, kernel, (stride,), (LOCAL_SIZE,))
-        # one read of the whole block into the buffer's own host pointer, after the kernel (the
-        # queue is in order): PoCL copies nothing, and a platform that kept its own memory would copy
-        cl.enqueue_copy(state.queue, block, parent, is_blocking=False)
         state.queue.finish()  # a first launch compiles here, without the GIL (``Device.run_into``)
+        # one blocking read of the whole block into the buffer's own host pointer: PoCL copies
+        # nothing (a platform that kept its own memory would copy)
+        cl.enqueue_copy(state.queue, block, parent, is_blocking=True)
         spectral = wavelength_nm is not None
         channels = 1 if spectral else 3
         arrays = {name: state.arrays[name][:size] for name, size in (
