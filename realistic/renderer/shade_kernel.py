@@ -28,8 +28,9 @@ that a spectral ray costs the host nothing an RGB ray does not (``rgb_response``
 several times an RGB ray's whole shading). PoCL builds each variant once per process and caches the
 build on disk across processes. Inputs are wrapped without copying (``USE_HOST_PTR``: PoCL on the
 CPU reads the numpy arrays in place); outputs are numpy arrays kept per thread and reused across
-passes while they are large enough. Each thread has its own queue and kernel object, so the
-renderer's worker threads launch independently; PoCL spreads each launch over every core.
+passes while they are large enough, all in one block read back by one call (``_ThreadState``).
+Each thread has its own queue and kernel object, so the renderer's worker threads launch
+independently; PoCL spreads each launch over every core.
 """
 
 from __future__ import annotations
