@@ -184,6 +184,35 @@ def test_a_launch_makes_at_most_max_launch_samples(scene_rays):
                                  pixel, sample, None, MAX_LAUNCH_SAMPLES + 1, SEED)
 
 
+def test_outputs_keep_their_values_as_a_threads_block_grows(scene_rays):
+    """A thread's outputs share one block (one read per launch): launches that outgrow it (more rays,
+    then spectral rays, whose per-ray rows had a placeholder) and a small one after them give the
+    arrays of a fresh kernel's first launch, each output in its own memory."""
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    intersector = Intersector(scene)
+    hits = intersector.closest(origin, direction)
+    wavelength = wavelengths_of(len(origin))
+
+    def launch(kernel, n: int, spectral: bool) -> list[np.ndarray]:
+        albedo = np.full((n, 3), 0.5, F32) if kernel.host_albedo.any() else None
+        batch = kernel.shade(origin[:n], direction[:n], hits.t[:n], hits.u[:n], hits.v[:n], hits.prim[:n],
+                             hits.geom[:n], hits.normal[:n], pixel[:n], sample[:n], albedo, 2, SEED,
+                             wavelength_nm=wavelength[:n] if spectral else None)
+        arrays = [batch.origin, batch.vector, batch.length, batch.contribution]
+        arrays += [batch.response, batch.basis] if spectral else []
+        assert not any(np.shares_memory(a, b) for i, a in enumerate(arrays) for b in arrays[i + 1:])
+        return [a.copy() for a in arrays]
+
+    def fresh():
+        return DirectLighting(scene, intersector, 2, SEED, spread, backend="opencl")._kernel
+
+    kernel = fresh()
+    small = 300
+    for n, spectral in ((small, False), (len(origin), False), (len(origin), True), (small, False)):
+        for got, expected in zip(launch(kernel, n, spectral), launch(fresh(), n, spectral)):
+            np.testing.assert_array_equal(got, expected)
+
+
 def test_no_rays():
     setup = default_setup()
     integrator = DirectLighting(setup.scene, Intersector(setup.scene), 2, backend="opencl")

@@ -28,8 +28,9 @@ that a spectral ray costs the host nothing an RGB ray does not (``rgb_response``
 several times an RGB ray's whole shading). PoCL builds each variant once per process and caches the
 build on disk across processes. Inputs are wrapped without copying (``USE_HOST_PTR``: PoCL on the
 CPU reads the numpy arrays in place); outputs are numpy arrays kept per thread and reused across
-passes while they are large enough. Each thread has its own queue and kernel object, so the
-renderer's worker threads launch independently; PoCL spreads each launch over every core.
+passes while they are large enough, all in one block read back by one call (``_ThreadState``).
+Each thread has its own queue and kernel object, so the renderer's worker threads launch
+independently; PoCL spreads each launch over every core.
 """
 
 from __future__ import annotations
@@ -165,32 +166,52 @@ class ShadowBatch:
     basis: np.ndarray | None = None  # spectral rays: (stride, 3) float32, each ray's ``rgb_basis`` row
 
 
+#: The kernel's outputs in the order they lie in a thread's one block: name, floats per row, and
+#: whether a row is a shadow ray's (else a camera ray's: spectral launches' ``response`` and ``basis``).
+OUTPUTS = (("origin", 3, True), ("vector", 3, True), ("length", 1, True), ("contribution", 3, True),
+           ("response", 3, False), ("basis", 3, False))
+
+
 class _ThreadState:
-    """A thread's queue, kernel object and reusable output arrays (with their buffers)."""
+    """A thread's queue, kernel object and reusable output arrays: one host block holding every
+    output, wrapped by one buffer with a sub-buffer per output, so that a launch's outputs come
+    back by one read (each read, like each wait, releases the GIL, and taking it back while the
+    other render threads run Python cost more than the reads themselves)."""
 
     def __init__(self, device: Device):
         self.queue = device.queue()
         self.shade: dict[tuple[int, bool], cl.Kernel] = {}  # (light samples per launch, spectral) -> kernel
-        self.rows = {"shadow": 0, "ray": 0}
+        self.rows = {True: 0, False: 0}  # rows the block holds: of shadow rays, of camera rays
         self.arrays: dict[str, np.ndarray] = {}
         self.buffers: dict[str, cl.Buffer] = {}
+        self.block = np.empty(0, np.float32)
+        self.parent: cl.Buffer | None = None
 
-    def outputs(self, device: Device, rows: int, rays: int) -> None:
+    def outputs(self, device: Device, rows: int, rays: int) -> tuple[np.ndarray, cl.Buffer]:
         """Output arrays of at least ``rows`` shadow-ray rows and, for spectral launches (``rays``
         not 0), ``rays`` per-ray rows (an eighth more, so passes of varying size settle on one
-        allocation; a launch of RGB rays has a one-element placeholder there)."""
-        for kind, count, names in (("shadow", rows, ("origin", "vector", "length", "contribution")),
-                                   ("ray", max(rays, 1), ("response", "basis"))):
-            if count <= self.rows[kind]:
-                continue
-            count += count // 8
-            for name in names:
-                size = count * (1 if name == "length" else 3)
-                # float32 in float64's memory: 8-byte aligned, as shade.cl's paired stores need
-                array = np.empty(-(-size // 2), np.float64).view(np.float32)[:size]
-                self.arrays[name] = array
-                self.buffers[name] = device.host_buffer(array, cl.mem_flags.WRITE_ONLY)
-            self.rows[kind] = count
+        allocation; a launch of RGB rays has a one-element placeholder there); the block that holds
+        them and its buffer, to read back."""
+        wanted = {True: rows, False: max(rays, 1)}
+        if self.parent is not None and all(wanted[kind] <= self.rows[kind] for kind in wanted):
+            return self.block, self.parent
+        for kind, count in wanted.items():
+            if count > self.rows[kind]:
+                self.rows[kind] = count + count // 8
+        # each output starts at the device's sub-buffer alignment (in floats; at least a pair's 8 bytes)
+        align = max(device.context.devices[0].mem_base_addr_align // 32, 2)
+        starts, end = [], 0
+        for _, width, shadow in OUTPUTS:
+            starts.append(end)
+            end += -(-self.rows[shadow] * width // align) * align
+        # float32 in float64's memory: 8-byte aligned, as shade.cl's paired stores need
+        self.block = np.empty(end // 2, np.float64).view(np.float32)
+        self.parent = device.host_buffer(self.block, cl.mem_flags.WRITE_ONLY)
+        for (name, width, shadow), start in zip(OUTPUTS, starts):
+            size = self.rows[shadow] * width
+            self.arrays[name] = self.block[start:start + size]
+            self.buffers[name] = self.parent.get_sub_region(4 * start, 4 * size)
+        return self.block, self.parent
 
 
 class ShadeKernel:
@@ -288,7 +309,7 @@ class ShadeKernel:
             empty = np.zeros((0, 3), np.float32)
             return ShadowBatch(empty, empty, np.zeros(0, np.float32), empty, 0)
         state = self._state()
-        state.outputs(self.device, rows, 0 if wavelength_nm is None else stride)
+        block, parent = state.outputs(self.device, rows, 0 if wavelength_nm is None else stride)
         mf = cl.mem_flags
         inputs = [np.ascontiguousarray(origin, np.float32), np.ascontiguousarray(direction, np.float32),
                   np.ascontiguousarray(t, np.float32), np.ascontiguousarray(u, np.float32),
@@ -311,19 +332,14 @@ class ShadeKernel:
                         state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
         cl.enqueue_nd_range_kernel(state.queue, kernel, (stride,), (LOCAL_SIZE,))
         state.queue.finish()  # a first launch compiles here, without the GIL (``Device.run_into``)
+        # one blocking read of the whole block into the buffer's own host pointer: PoCL copies
+        # nothing (a platform that kept its own memory would copy)
+        cl.enqueue_copy(state.queue, block, parent, is_blocking=True)
         spectral = wavelength_nm is not None
         channels = 1 if spectral else 3
-        arrays = {}
-        sizes = {"origin": rows * 3, "vector": rows * 3, "length": rows, "contribution": rows * channels}
-        if spectral:
-            sizes["response"] = sizes["basis"] = stride * 3
-        for name, size in sizes.items():
-            host = state.arrays[name][:size]
-            # a read into the buffer's own host pointer: PoCL copies nothing, and the call orders
-            # the read after the kernel (and would copy if a platform kept its own memory)
-            cl.enqueue_copy(state.queue, host, state.buffers[name], is_blocking=False)
-            arrays[name] = host
-        state.queue.finish()
+        arrays = {name: state.arrays[name][:size] for name, size in (
+            ("origin", rows * 3), ("vector", rows * 3), ("length", rows), ("contribution", rows * channels),
+            ("response", stride * 3), ("basis", stride * 3))}
         for buffer in buffers:
             buffer.release()
         return ShadowBatch(arrays["origin"].reshape(rows, 3), arrays["vector"].reshape(rows, 3), arrays["length"],
