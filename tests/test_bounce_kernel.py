@@ -378,12 +378,13 @@ def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegr
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad and
-    plastic in the kernel and the floor, plastic under its image texture, in numpy: each ray's radiance
-    is the numpy backend's to float32 rounding (a path may only part where rounding moves a sample
-    across a threshold)."""
+    plastic in the kernel and the floor, plastic whose Ks is an image texture, in numpy: each ray's
+    radiance is the numpy backend's to float32 rounding (a path may only part where rounding moves a
+    sample across a threshold)."""
     scene, _, _ = textured_scene()
     floor = scene.instances[0].material
-    scene.instances[0] = replace(scene.instances[0], material=Plastic(floor.texture, (0.3, 0.3, 0.3), 0.2))
+    specular = ScaledTexture(floor.texture, (0.3, 0.3, 0.3))
+    scene.instances[0] = replace(scene.instances[0], material=Plastic((0.5, 0.4, 0.3), specular, 0.2))
     materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05), Material((0.3, 0.6, 0.9),
                                                                                              sigma=20.0)]
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
@@ -403,6 +404,24 @@ def test_paths_over_image_textures_carry_the_numpy_radiance(mode):
     numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
     assert device_one._bounce is not None and device_one._bounce.covered.all()
     _paths_agree(scene, numpy_one, device_one, 5)
+
+
+@pytest.mark.parametrize("mode, spectral", [("path", False), ("direct", False), ("path", True)])
+def test_paths_over_textured_coated_diffuse_plastic_and_substrate_carry_the_numpy_radiance(mode, spectral,
+                                                                                           monkeypatch):
+    """Whole paths, RGB and spectral, over ``textured_scene`` with a coated diffuse floor under its
+    EWA image texture (a scaled one), a plastic sphere under a checker and a substrate cone under a
+    grid, seen with a pixel spread: every hit is the kernel's (``_shade`` is never called) and each
+    ray's radiance is the numpy backend's to float32 rounding."""
+    scene, _, _ = textured_scene()
+    floor, ball, cone = (scene.instances[k].material for k in range(3))
+    materials = [CoatedDiffuse(ScaledTexture(floor.texture, (0.9, 0.8, 0.7)), 0.1),
+                 Plastic(ball.texture, (0.3, 0.3, 0.3), 0.1), Substrate(cone.texture, (0.1, 0.1, 0.1), 0.2, 0.2)]
+    scene.instances[:3] = [replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
+    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
+    assert device_one._bounce is not None and device_one._bounce.covered.all()
+    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
+    _paths_agree(scene, numpy_one, device_one, 13, spectral=spectral)
 
 
 def _spectral_launches(integrator: PathIntegrator, monkeypatch) -> list[np.ndarray]:
