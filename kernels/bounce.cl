@@ -35,8 +35,8 @@
  *     rule, and the next ray from the offset origin;
  *   - BOUNCE_SPECTRAL: rays of one wavelength each (a dispersive camera's), with each camera ray's
  *     rgb_basis row in `basis` (3 floats at path[r]), at hits of every material the RGB build
- *     covers. Each lobe's colours (spectral_lobe: a mix's both), a Material's texture colour (an
- *     image texture's bare, from the host), and each light's radiance (after the RGB test of
+ *     covers. Each lobe's colours (spectral_lobe: a mix's both), the diffuse-like colour's texture
+ *     colour (an image texture's bare, from the host), and each light's radiance (after the RGB test of
  *     whether it is 0, as LightSampler.sample tests it) become their spectral values at the ray's
  *     wavelength (realistic.core.spectrum.spectral_value, in its order: dot3), held in every
  *     channel of a float3 so the same code serves; beta comes and goes as one float a row and
@@ -310,8 +310,8 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
         texel = use_b ? vload3(0, mat + BOUNCE_MATERIAL_COLOUR_B) : vload3(0, mat + BOUNCE_MATERIAL_COLOUR_A);
     }
 #if BOUNCE_SPECTRAL
-    /* the ray's wavelength: each lobe's colours as spectral values (spectral_lobe), a Material's
-     * diffuse colour's times its texture's, each the dot with the ray's rgb_basis row
+    /* the ray's wavelength: each lobe's colours as spectral values (spectral_lobe), the diffuse-like
+     * colour's constant factor's times its texture's, each the dot with the ray's rgb_basis row
      * (SurfaceParameters.colour turns each of them so) */
     float3 wavelength_basis = load3(basis, path[r]);
     spectral_lobe(&p.lobe[0], wavelength_basis);
