@@ -11,10 +11,11 @@
  *     is turned toward and which is the shading normal (PathIntegrator._outward_normals);
  *   - the shading frame (Duff et al. 2017, as renderer.bsdf.ShadingFrame) and wo;
  *   - the material's BSDF_PARAM row (with `tables`, the BSDF kernel's TableStore: measured and
- *     named metals' tables, mixes' second lobes), a Material's albedo times a grid or checker
- *     texture at the interpolated uv (realistic.scene.textures.evaluate) where BOUNCE_MATERIAL says so,
- *     or, for an image texture, the hit's albedo the host filtered before the launch (`albedo`, one
- *     RGB per hit: EwaKernel.at_hits);
+ *     named metals' tables, mixes' second lobes), its diffuse-like colour (a Material's, plastic's
+ *     or substrate's diffuse, a coated diffuse's reflectance) times a grid or checker texture at
+ *     the interpolated uv (realistic.scene.textures.evaluate) where BOUNCE_MATERIAL says so, or, for
+ *     an image texture, the hit's colour the host filtered before the launch (`albedo`, one RGB per
+ *     hit: EwaKernel.at_hits);
  *   - light samples (picked by the rounded-up CDF as numpy's searchsorted picks; LightSampler.sample):
  *     at depth 0 light_samples of them with the pixel's Sobol' numbers (rng.all_light_uniforms), else
  *     one with rng.uniform at dimensions base + 4 .. 6; on an area light the point on the disk or
@@ -34,8 +35,8 @@
  *     rule, and the next ray from the offset origin;
  *   - BOUNCE_SPECTRAL: rays of one wavelength each (a dispersive camera's), with each camera ray's
  *     rgb_basis row in `basis` (3 floats at path[r]), at hits of every material the RGB build
- *     covers. Each lobe's colours (spectral_lobe: a mix's both), a Material's texture colour (an
- *     image texture's bare, from the host), and each light's radiance (after the RGB test of
+ *     covers. Each lobe's colours (spectral_lobe: a mix's both), the diffuse-like colour's texture
+ *     colour (an image texture's bare, from the host), and each light's radiance (after the RGB test of
  *     whether it is 0, as LightSampler.sample tests it) become their spectral values at the ray's
  *     wavelength (realistic.core.spectrum.spectral_value, in its order: dot3), held in every
  *     channel of a float3 so the same code serves; beta comes and goes as one float a row and
@@ -186,26 +187,37 @@ inline float3 map_direction(__global const float *light, __global const float *e
                                m[6] * w.x + m[7] * w.y + m[8] * w.z));
 }
 
+/* A coated base made from its albedo a (the lobe's scale: RGB, or a spectral value in every channel)
+ * as CoatedLambertian makes it (eta.y its internal reflectance F, eta.z pi eta^2, extra.y 1 - F):
+ * its scale a / (pi eta^2 (1 - a F)) and albedo estimate, the channels' mean of a (1 - F) / (1 - a F)
+ * (a spectral ray's one channel). For an albedo that is a texture's per hit, and spectral rays'. */
+inline void coated_base(Lobe *p) {
+    float3 rest = 1.0f - p->scale * p->eta.y;
+    p->k = p->scale / (p->eta.z * rest);
+    float3 estimate = p->scale * p->extra.y / rest;
+#if BOUNCE_SPECTRAL
+    p->extra.x = estimate.x;
+#else
+    p->extra.x = (estimate.x + estimate.y + estimate.z) / 3.0f;
+#endif
+}
+
 #if BOUNCE_SPECTRAL
 /* A lobe's RGB colours as their spectral values at a ray's wavelength (`basis`: its rgb_basis row),
  * each in every channel, as bsdf_for builds the lobe from SurfaceParameters' spectral colours: the
  * albedo, scale, reflection and transmission tints, a plastic's or substrate's specular colour and a
  * conductor's eta and k each the dot with the basis (light_sampler.colour); a named metal's and a
  * measured table's RGB-to-channel rows each the basis row (bsdf_kernel.rgb_channels); a coated
- * base made from its albedo's spectral value a as CoatedLambertian makes it from RGB (eta.y its
- * internal reflectance F, eta.z pi eta^2, extra.y 1 - F): its scale a / (pi eta^2 (1 - a F)) and
- * albedo estimate a (1 - F) / (1 - a F); the coat's tint stays 1. Indices are not dispersive. */
+ * base made from its albedo's spectral value (coated_base); the coat's tint stays 1. Indices are
+ * not dispersive. */
 inline void spectral_lobe(Lobe *p, float3 basis) {
     if (p->kind == KIND_MEASURED) {
         p->scale = p->tint = p->eta = basis;
         return;
     }
-    float a = dot3(p->scale, basis);
-    p->scale = (float3)(a);
+    p->scale = (float3)(dot3(p->scale, basis));
     if (p->kind == KIND_COATED_DIFFUSE) {
-        float rest = 1.0f - a * p->eta.y;
-        p->k = (float3)(a / (p->eta.z * rest));
-        p->extra.x = a * p->extra.y / rest;
+        coated_base(p);
     } else if (p->kind == KIND_TABULATED_CONDUCTOR) {
         p->tint = p->eta = p->k = basis;
     } else if (p->kind == KIND_CONDUCTOR) {
@@ -270,9 +282,10 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     float3 wo = (float3)(-dot3(d, fs), -dot3(d, ft), -dot3(d, shading));
     float eps = SHADOW_OFFSET * (magnitude3(point) + offset_base);
 
-    /* the material: its BSDF row, a Lambertian's albedo times its grid or checker texture's colour,
-     * or times its image texture's (the host's, per hit: the albedo itself for RGB rays, the bare
-     * texture for spectral ones) */
+    /* the material: its BSDF row; its diffuse-like colour (a Material's albedo, a plastic's or
+     * substrate's Kd, a coated diffuse's reflectance: the lobe's scale) times its grid or checker
+     * texture's colour, or times its image texture's (the host's, per hit: the colour itself for RGB
+     * rays, the bare texture for spectral ones), a coated base then remade from it */
     int material = gi[GEOM_INT_MATERIAL];
     Params p = load_params(params + BSDF_PARAM_WIDTH * material, tables);
     __global const float *mat = materials + BOUNCE_MATERIAL_WIDTH * material;
@@ -297,8 +310,8 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
         texel = use_b ? vload3(0, mat + BOUNCE_MATERIAL_COLOUR_B) : vload3(0, mat + BOUNCE_MATERIAL_COLOUR_A);
     }
 #if BOUNCE_SPECTRAL
-    /* the ray's wavelength: each lobe's colours as spectral values (spectral_lobe), a Material's
-     * diffuse colour's times its texture's, each the dot with the ray's rgb_basis row
+    /* the ray's wavelength: each lobe's colours as spectral values (spectral_lobe), the diffuse-like
+     * colour's constant factor's times its texture's, each the dot with the ray's rgb_basis row
      * (SurfaceParameters.colour turns each of them so) */
     float3 wavelength_basis = load3(basis, path[r]);
     spectral_lobe(&p.lobe[0], wavelength_basis);
@@ -308,6 +321,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     if (texture == BOUNCE_TEXTURE_IMAGE) p.lobe[0].scale = texel;
     else if (texture != BOUNCE_TEXTURE_NONE) p.lobe[0].scale *= texel;
 #endif
+    if (texture != BOUNCE_TEXTURE_NONE && p.lobe[0].kind == KIND_COATED_DIFFUSE) coated_base(&p.lobe[0]);
     float3 beta = LOAD_COLOUR(beta_in, r);
     uint base = BOUNCE_DIMENSION + 8 * depth;
     uint key = hash32(hash32(hash32(seed + GOLDEN) ^ px) ^ sx);

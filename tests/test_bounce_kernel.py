@@ -23,7 +23,17 @@ from realistic.renderer.bsdf import fresnel
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.lights import DistantLight, EmissiveInstance, InfiniteLight, PointLight, SpotLight
-from realistic.scene.materials import CoatedDiffuse, Conductor, Dielectric, DiffuseTransmission, Mirror, Mix, Plastic
+from realistic.scene.materials import (
+    CoatedDiffuse,
+    Conductor,
+    Dielectric,
+    DiffuseTransmission,
+    Mirror,
+    Mix,
+    Plastic,
+    ScaledTexture,
+    Substrate,
+)
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, ImageTexture, Material, Scene
 from realistic.scene.shapes import quad, sphere
 from test_bsdf_kernel import COVERED, three_samples  # noqa: F401 (a fixture)
@@ -139,11 +149,13 @@ def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
 
 def test_covered_materials():
     """Constant parameters of the materials bsdf.cl covers (named metals and mixes with their tables
-    or second lobes in the BSDF kernel's tables), and a ``Material``'s grid or checker texture or its
-    image texture (whatever its filter); textured parameters of other kinds and materials bsdf.cl
-    lacks are not."""
+    or second lobes in the BSDF kernel's tables), and the diffuse-like colour's grid or checker
+    texture or its image texture (whatever its filter), a scaled one too: a ``Material``'s, a
+    plastic's or substrate's Kd, a coated diffuse's reflectance. Other textured parameters (roughness,
+    a specular colour, a mirror's or glass's tints, a conductor's scale, a mix's amount or textured
+    second material) and materials bsdf.cl lacks are not covered."""
     tables = TableStore(Device.for_spec())
-    for material in COVERED.values():
+    for material in (*COVERED.values(), *TEXTURED.values()):
         assert material_rows(material, tables) is not None
     for sigma in (0.0, 20.0):
         assert material_rows(Material((1.0, 1.0, 1.0), GridTexture(cells=4.0), sigma=sigma), tables) is not None
@@ -152,7 +164,14 @@ def test_covered_materials():
             image = ImageTexture(np.ones((4, 4, 3), np.float32), filter=texture_filter)
             assert material_rows(Material((1.0, 1.0, 1.0), image, sigma=sigma), tables) is not None
     image = ImageTexture(np.ones((4, 4, 3), np.float32))
-    assert material_rows(Plastic(image, (0.4, 0.4, 0.4), 0.1), tables) is None
+    for texture in (image, GridTexture(cells=4.0), CheckerTexture(cells=4.0), ScaledTexture(image, (0.5, 0.6, 0.7))):
+        for material in (Plastic(texture), CoatedDiffuse(texture), Substrate(texture)):
+            assert material_rows(material, tables) is not None
+    for uncovered in (Plastic((0.4, 0.4, 0.4), image), Plastic(image, image), Plastic(image, roughness=image),
+                      CoatedDiffuse(image, roughness=image), CoatedDiffuse((0.5, 0.5, 0.5), image),
+                      Substrate(image, image), Substrate(image, roughness_v=image), Mirror(image),
+                      Dielectric(1.5, image), Conductor(scale=image), Mix(Plastic(image), Material(), 0.5)):
+        assert material_rows(uncovered, tables) is None
     assert material_rows(Dielectric(1.5, roughness_u=image, roughness_v=0.2), tables) is None
     assert material_rows(Mix(Material(), Material(), image), tables) is None
     assert material_rows(Mix(Material(), Plastic(image), 0.5), tables) is None
@@ -174,7 +193,27 @@ TEXTURED = {"grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=
             "image, trilinear": Material((0.8, 0.7, 0.9), ImageTexture(IMAGE, scale=(2.0, 3.0), filter="trilinear",
                                                                        offset=(0.1, 0.2))),
             "oren-nayar under an image": Material((0.8, 0.8, 0.9), ImageTexture(IMAGE, scale=(4.0, 4.0), wrap="black"),
-                                                  sigma=20.0)}
+                                                  sigma=20.0),
+            # the diffuse-like colour of the other materials under each kind of texture, coloured
+            # cells and scaled textures among them (a coated base is remade from the albedo per hit)
+            "plastic under a grid": Plastic(GridTexture(base=(0.2, 0.7, 0.4), line=(0.7, 0.1, 0.3), cells=5.0,
+                                                        line_width=0.2), (0.3, 0.2, 0.3), 0.15),
+            "plastic under a checker": Plastic(ScaledTexture(CheckerTexture(even=(0.9, 0.3, 0.1), odd=(0.1, 0.4, 0.9),
+                                                                            cells=6.0), (0.8, 0.6, 0.7)),
+                                               (0.2, 0.2, 0.2), 0.0),
+            "plastic under an image": Plastic(ImageTexture(IMAGE, scale=(3.0, 2.0), max_anisotropy=4.0),
+                                              (0.25, 0.25, 0.25), 0.2),
+            "coated diffuse under a grid": CoatedDiffuse(GridTexture(base=(0.2, 0.9, 0.4), line=(0.9, 0.1, 0.3),
+                                                                     cells=5.0, line_width=0.2), 0.1),
+            "coated diffuse under a checker": CoatedDiffuse(CheckerTexture(even=(0.9, 0.5, 0.1), odd=(0.1, 0.2, 0.8),
+                                                                           cells=6.0), 0.0, eta=1.7),
+            "coated diffuse under an image": CoatedDiffuse(ScaledTexture(
+                ImageTexture(IMAGE, scale=(2.0, 5.0), filter="bilinear", wrap="clamp"), (0.9, 0.7, 1.0)), 0.2),
+            "substrate under a grid": Substrate(GridTexture(cells=5.0, line_width=0.2), (0.1, 0.05, 0.1), 0.2, 0.1),
+            "substrate under a checker": Substrate(CheckerTexture(even=(0.9, 0.3, 0.1), odd=(0.1, 0.4, 0.9), cells=6.0),
+                                                   (0.05, 0.05, 0.05), 0.3, 0.3),
+            "substrate under an image": Substrate(ImageTexture(IMAGE, scale=(3.0, 3.0), filter="trilinear",
+                                                               offset=(0.1, 0.2)), (0.08, 0.1, 0.06), 0.1, 0.25)}
 #: The pixel spread (radians) of the per-hit comparison: the image textures' footprints at depth 0.
 SPREAD = 4e-3
 
@@ -339,12 +378,13 @@ def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegr
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad and
-    plastic in the kernel and the floor, plastic under its image texture, in numpy: each ray's radiance
-    is the numpy backend's to float32 rounding (a path may only part where rounding moves a sample
-    across a threshold)."""
+    plastic in the kernel and the floor, plastic whose Ks is an image texture, in numpy: each ray's
+    radiance is the numpy backend's to float32 rounding (a path may only part where rounding moves a
+    sample across a threshold)."""
     scene, _, _ = textured_scene()
     floor = scene.instances[0].material
-    scene.instances[0] = replace(scene.instances[0], material=Plastic(floor.texture, (0.3, 0.3, 0.3), 0.2))
+    specular = ScaledTexture(floor.texture, (0.3, 0.3, 0.3))
+    scene.instances[0] = replace(scene.instances[0], material=Plastic((0.5, 0.4, 0.3), specular, 0.2))
     materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05), Material((0.3, 0.6, 0.9),
                                                                                              sigma=20.0)]
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
@@ -364,6 +404,24 @@ def test_paths_over_image_textures_carry_the_numpy_radiance(mode):
     numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
     assert device_one._bounce is not None and device_one._bounce.covered.all()
     _paths_agree(scene, numpy_one, device_one, 5)
+
+
+@pytest.mark.parametrize("mode, spectral", [("path", False), ("direct", False), ("path", True)])
+def test_paths_over_textured_coated_diffuse_plastic_and_substrate_carry_the_numpy_radiance(mode, spectral,
+                                                                                           monkeypatch):
+    """Whole paths, RGB and spectral, over ``textured_scene`` with a coated diffuse floor under its
+    EWA image texture (a scaled one), a plastic sphere under a checker and a substrate cone under a
+    grid, seen with a pixel spread: every hit is the kernel's (``_shade`` is never called) and each
+    ray's radiance is the numpy backend's to float32 rounding."""
+    scene, _, _ = textured_scene()
+    floor, ball, cone = (scene.instances[k].material for k in range(3))
+    materials = [CoatedDiffuse(ScaledTexture(floor.texture, (0.9, 0.8, 0.7)), 0.1),
+                 Plastic(ball.texture, (0.3, 0.3, 0.3), 0.1), Substrate(cone.texture, (0.1, 0.1, 0.1), 0.2, 0.2)]
+    scene.instances[:3] = [replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
+    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
+    assert device_one._bounce is not None and device_one._bounce.covered.all()
+    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
+    _paths_agree(scene, numpy_one, device_one, 13, spectral=spectral)
 
 
 def _spectral_launches(integrator: PathIntegrator, monkeypatch) -> list[np.ndarray]:

@@ -6,9 +6,11 @@ the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shad
 compaction of live paths. It covers scenes whose lights are area, point, spot, distant or
 infinite lights, emitting meshes or spheres, or none, and materials ``bsdf_kernel.parameters`` covers
 whose parameters are constants (measured tables, named metals' tables and mixes' second lobes in the
-BSDF kernel's ``TableStore``), ``Material`` (Lambertian or Oren-Nayar) also under a grid or checker
-texture (evaluated in the kernel) or an image texture (any filter: ``ewa_kernel.DEVICE_FILTERS``):
-before each launch ``EwaKernel.at_hits`` turns those hits' records into their albedo on the device, with
+BSDF kernel's ``TableStore``), the diffuse-like colour (``diffuse_texture``: a ``Material``'s albedo,
+a plastic's or substrate's Kd, a coated diffuse's reflectance, the latter three also as a ``ScaledTexture``)
+also under a grid or checker texture (evaluated in the kernel) or an image texture (any filter:
+``ewa_kernel.DEVICE_FILTERS``), a coated base remade from it per hit:
+before each launch ``EwaKernel.at_hits`` turns those hits' records into their colour on the device, with
 the footprint ``PathIntegrator._shade`` gives at that depth (the camera's pixel spread at depth 0, none
 deeper: level 0 bilinear), and the kernel reads it per hit in place of the row's constant. An
 environment map's sampling tables (its ``Distribution2D``) and texels, and an emitting mesh's world
@@ -22,13 +24,14 @@ into their spectral values at the ray's wavelength as ``bsdf_for`` builds its BS
 ``SurfaceParameters``' spectral colours (each the dot with the ray's ``rgb_basis`` row, as
 ``light_sampler.colour`` turns RGB: albedos, tints, a conductor's eta and k; a named metal's and a
 measured table's RGB through the basis row; a coated base remade from its albedo's spectral value; a
-mix's both lobes), a ``Material``'s texture likewise (an image texture's bare RGB comes from
-``EwaKernel.at_hits`` with a diffuse colour of 1), every light's radiance likewise, and carries beta
+mix's both lobes), the diffuse-like colour's texture likewise (an image texture's bare RGB comes
+from ``EwaKernel.at_hits`` with a factor of 1), every light's radiance likewise, and carries beta
 and the contributions as one column, as the numpy bounce does. Glass indices are constants (no
 material's index varies with the wavelength in ``bsdf_for``). The host passes each camera ray's basis
 row, the very rows ``PathIntegrator.radiance`` colours its emission with (``shade.cl`` interpolates
 its basis from a table instead: its rays arrive as wavelengths alone).
-The rest (textured parameters other than a ``Material``'s texture, materials ``bsdf.cl`` lacks) stays
+The rest (other textured parameters: roughness, a specular colour, a mirror's or glass's tints, a
+conductor's, a mix's amount or textured second material; materials ``bsdf.cl`` lacks) stays
 with ``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares the two
 per hit with the same random numbers, RGB and spectral). The program is the BSDF kernel's source with
 this one after it, so both share ``bsdf.cl``'s material functions; the scene's tables are device
@@ -41,6 +44,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import TypeGuard
 
 import numpy as np
 
@@ -53,17 +57,19 @@ from realistic.renderer.shade_kernel import GEOM_FLOATS, GEOM_INTS, rounded_up_c
 from realistic.scene.ewa_kernel import DEVICE_FILTERS, EwaKernel, SurfaceTables, hit_mapping
 from realistic.scene.intersect import Hits
 from realistic.scene.lights import InfiniteLight, SpotLight
-from realistic.scene.materials import SurfaceMaterial
+from realistic.scene.materials import CoatedDiffuse, Plastic, ScaledTexture, Substrate, SurfaceMaterial
 from realistic.scene.mipmap import MipMap
-from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Material
+from realistic.scene.model import RGB, CheckerTexture, GridTexture, ImageTexture, Material
 
 KERNEL_FILE = "bounce.cl"
-#: Per material, beside its ``BSDF_PARAMS`` row: a Lambertian's texture (``TEXTURES``), a grid's or
+#: Per material, beside its ``BSDF_PARAMS`` row: its diffuse-like colour's texture (``TEXTURES``), a grid's or
 #: checker's cells, line bounds (low, high: line_width / 2 and 1 - line_width / 2) and colours (a:
 #: line or even, b: base or odd); an image texture's albedo comes per hit (``BounceKernel.__call__``).
 MATERIALS = Table("BOUNCE_MATERIAL", np.float32, (("texture", 1), ("cells", 1), ("low", 1), ("high", 1),
                                                   ("colour_a", 3), ("colour_b", 3)))
 TEXTURES = ("none", "grid", "checker", "image")
+#: The textures the kernel evaluates (``diffuse_texture``).
+DeviceTexture = GridTexture | CheckerTexture | ImageTexture
 #: Per light (the sampler's order): its kind (``LIGHT_KINDS``); an area light's centre and half-axes
 #: a, b (a point is centre + a x + b y), unit emitting normal, area, disk and two-sided (0, 1); a point
 #: or spot light's position (``centre``); a distant light's unit direction toward it (``normal``);
@@ -132,16 +138,41 @@ class _Constants:
         raise _Textured
 
 
+def _device_texture(value: object) -> TypeGuard[DeviceTexture]:
+    """Whether the kernel evaluates ``value``: a grid or checker texture, or an image texture filtered
+    as ``DEVICE_FILTERS`` says."""
+    return isinstance(value, GridTexture | CheckerTexture) or (isinstance(value, ImageTexture)
+                                                              and value.filter in DEVICE_FILTERS)
+
+
+def diffuse_texture(material: SurfaceMaterial) -> tuple[SurfaceMaterial, DeviceTexture, RGB] | None:
+    """``material``'s diffuse-like colour split into a constant factor and a texture the kernel
+    evaluates: a ``Material``'s diffuse and texture, or a plastic's or substrate's Kd or a coated
+    diffuse's reflectance that is such a texture (factor 1) or a ``ScaledTexture`` of one (its scale).
+    The material with that colour the factor alone, the texture and the factor; None where there is
+    no such texture."""
+    if isinstance(material, Material):
+        texture = material.texture
+        return (replace(material, texture=None), texture, material.diffuse) if _device_texture(texture) else None
+    if not isinstance(material, Plastic | Substrate | CoatedDiffuse):
+        return None
+    value = material.reflectance if isinstance(material, CoatedDiffuse) else material.diffuse
+    inner, factor = (value.texture, value.scale) if isinstance(value, ScaledTexture) else (value, (1.0, 1.0, 1.0))
+    if not _device_texture(inner):
+        return None
+    plain = replace(material, reflectance=factor) if isinstance(material, CoatedDiffuse) \
+        else replace(material, diffuse=factor)
+    return plain, inner, factor
+
+
 def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> tuple[np.ndarray, np.ndarray] | None:
     """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not
-    cover it (a kind ``bsdf.cl`` lacks, or a textured parameter other than a ``Material``'s grid or
-    checker texture or its image texture filtered as ``DEVICE_FILTERS`` says); measured tables, named
-    metals' tables and mixes' second lobes go to ``tables``."""
-    plain, texture = material, None
-    if isinstance(material, Material) and (
-            isinstance(material.texture, GridTexture | CheckerTexture)
-            or isinstance(material.texture, ImageTexture) and material.texture.filter in DEVICE_FILTERS):
-        plain, texture = replace(material, texture=None), material.texture
+    cover it (a kind ``bsdf.cl`` lacks, or a textured parameter other than the diffuse-like colour's
+    grid, checker or image texture of ``diffuse_texture``); measured tables, named metals' tables
+    and mixes' second lobes go to ``tables``. The row holds the colour's constant factor, which the
+    kernel multiplies by the texture's colour per hit."""
+    split = diffuse_texture(material)
+    plain, texture = (material, None) if split is None else split[:2]
     try:
         row = bsdf_kernel.parameters(plain, _Constants(), 1, tables)
     except _Textured:
@@ -265,14 +296,17 @@ class BounceKernel:
         self._geom_material = np.asarray(geom_material)
         #: per image-textured material covered: its index, EWA kernel, filter and ``hit_mapping`` rows
         #: at depth 0 (the pixel's footprint) and deeper (none: level 0 bilinear, as ``_shade``), each
-        #: with the diffuse colour (RGB rays: the albedo) and with 1 (spectral rays: the bare texture,
-        #: whose spectral value the kernel multiplies by the diffuse colour's)
-        self._images = [(k, ewa_kernel(m.texture.mipmap), m.texture.filter,
-                         {(spectral, deeper): hit_mapping(m.texture, (1.0, 1.0, 1.0) if spectral else m.diffuse,
-                                                          0.0 if deeper else pixel_spread_radians)
-                          for spectral in (False, True) for deeper in (False, True)})
-                        for k, (m, r) in enumerate(zip(materials, rows))
-                        if r is not None and isinstance(m, Material) and isinstance(m.texture, ImageTexture)]
+        #: with the colour's constant factor (RGB rays: the albedo) and with 1 (spectral rays: the bare
+        #: texture, whose spectral value the kernel multiplies by the factor's)
+        self._images: list[tuple[int, EwaKernel, str, dict[tuple[bool, bool], np.ndarray]]] = []
+        for k, (m, r) in enumerate(zip(materials, rows)):
+            split = None if r is None else diffuse_texture(m)
+            if split is not None and isinstance(texture := split[1], ImageTexture):
+                factor = split[2]
+                self._images.append((k, ewa_kernel(texture.mipmap), texture.filter, {
+                    (spectral, deeper): hit_mapping(texture, (1.0, 1.0, 1.0) if spectral else factor,
+                                                    0.0 if deeper else pixel_spread_radians)
+                    for spectral in (False, True) for deeper in (False, True)}))
         self._surfaces = SurfaceTables(device, faces, vertices, uv, geom_face_offset,
                                        np.asarray(geom_linear).reshape(-1, 9)) if self._images else None
         params = np.array([r[0] if r else np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32) for r in rows]

@@ -19,14 +19,14 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 ``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
 after specular bounces), for tests.
 
-Backends: on "opencl", RGB rays at hits whose
-material ``kernels/bsdf.cl`` covers with constant parameters (Lambertian and Oren-Nayar under a
-grid or checker texture too, or under an EWA- or bilinear-filtered image texture, whose albedo
-``EwaKernel.at_hits`` filters on the device before the launch) take the whole bounce in one launch
-of ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS
-weights, shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral
-rays (a dispersive camera's) at the same hits, in the kernel's spectral build. The host keeps embree,
-emission and the compaction of live paths. Other hits (other textured parameters, materials
+Backends: on "opencl", RGB rays at hits whose material ``kernels/bsdf.cl`` covers with constant
+parameters (the diffuse-like colour of Lambertian, Oren-Nayar, plastic, coated diffuse and substrate
+under a grid or checker texture too, or under an image texture, which ``EwaKernel.at_hits`` filters
+on the device before the launch) take the whole bounce in one launch of ``kernels/bounce.cl``
+(``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights, shadow rays, BSDF
+sample, beta, roulette), with the same random numbers; so do spectral rays (a dispersive camera's)
+at the same hits, in the kernel's spectral build. The host keeps embree, emission and the compaction
+of live paths. Other hits (other textured parameters, such as roughness, Ks or Kr, and materials
 ``bsdf.cl`` lacks) have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
 where it covers the material (the backend's ``bsdf_kernel``: every material but diffuse
 transmission and MERL tables), in one launch per bounce with the same random numbers; every other
