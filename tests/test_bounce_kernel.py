@@ -522,6 +522,23 @@ def _inside_rays(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     return origin, (direction / np.linalg.norm(direction, axis=1, keepdims=True)).astype(np.float32)
 
 
+def _covering_integrator(scene: Scene, mode: str) -> PathIntegrator:
+    """The path integrator (depth 5, one light sample) on the opencl backend, its bounce kernel covering
+    every material of ``scene``."""
+    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
+    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    return integrator
+
+
+def _spectral_reading(integrator: PathIntegrator, origin: np.ndarray, direction: np.ndarray,
+                      rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The radiance of spectral rays (wavelengths uniform over the visible range), their
+    wavelengths and their ``rgb_basis`` rows (float64)."""
+    wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
+    return radiance, wavelength, rgb_basis(wavelength).astype(np.float64)
+
+
 def _assert_mean_reads(radiance: np.ndarray, expected: float) -> None:
     """The rays' first channel reads ``expected`` on average, within 4 standard errors (and 2e-3)."""
     value = radiance[:, 0].astype(np.float64)
@@ -552,13 +569,9 @@ def test_spectral_rays_on_a_convex_lambertian_under_a_uniform_sky_read_albedo_ti
     scene = Scene()
     scene.add(sphere(1.0, 48), np.eye(4), Material(albedo))
     scene.lights.append(InfiniteLight(sky, image, mapping, rotate(40, (1, 1, 0))))
-    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    integrator = _covering_integrator(scene, mode)
     rng = np.random.default_rng(1)
-    origin, direction = _down_rays(3.0, 0.5, rng)
-    wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
-    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
-    basis = rgb_basis(wavelength).astype(np.float64)
+    radiance, wavelength, basis = _spectral_reading(integrator, *_down_rays(3.0, 0.5, rng), rng)
     _reads_per_wavelength(_spectral_values(radiance, wavelength), basis @ albedo * (basis @ sky), wavelength)
 
 
@@ -573,13 +586,9 @@ def test_spectral_rays_inside_an_emitting_sphere_read_the_series_at_their_wavele
     scene = Scene()
     scene.add(sphere(1.0, 24), np.eye(4), Material(albedo))
     scene.lights.append(EmissiveInstance(0, tuple(le), two_sided=True))
-    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    integrator = _covering_integrator(scene, mode)
     rng = np.random.default_rng(2)
-    origin, direction = _inside_rays(rng)
-    wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
-    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
-    basis = rgb_basis(wavelength).astype(np.float64)
+    radiance, wavelength, basis = _spectral_reading(integrator, *_inside_rays(rng), rng)
     a, emitted = basis @ albedo, basis @ le
     expected = emitted * (1 - a ** 6) / (1 - a) if mode == "path" else emitted * (1 + a)
     _reads_per_wavelength(_spectral_values(radiance, wavelength), expected, wavelength)
@@ -598,13 +607,10 @@ def test_spectral_rays_off_a_smooth_conductor_under_a_uniform_sky_read_its_fresn
     scene = Scene()
     scene.add(quad(4.0, 4.0), np.eye(4), chosen)
     scene.lights.append(InfiniteLight(tuple(sky)))
-    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    integrator = _covering_integrator(scene, mode)
     rng = np.random.default_rng(3)
     origin, direction = _down_rays(3.0, 1.5, rng)
-    wavelength = rng.uniform(LAMBDA_MIN_NM, LAMBDA_MAX_NM, N)
-    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int), None, wavelength)
-    basis = rgb_basis(wavelength).astype(np.float64)
+    radiance, wavelength, basis = _spectral_reading(integrator, origin, direction, rng)
     if chosen is conductor:
         reflectance = basis @ conductor.scale * fresnel.conductor(
             -direction[:, 2], (basis @ conductor.eta)[:, None], (basis @ conductor.k)[:, None])[:, 0]
@@ -636,8 +642,7 @@ def test_convex_object_inside_area_lights_reads_its_albedo(mode, material, albed
     smooth perfect conductor 1, a mix of the two 0.75 a + 0.25, and rough glass of index 1 (which
     lets light straight through) 1 (light sampling and BSDF sampling weighted by MIS, on the kernel)."""
     scene = _area_light_furnace(material)
-    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    integrator = _covering_integrator(scene, mode)
     rng = np.random.default_rng(0)
     origin, direction = _down_rays(1.8, 0.4, rng)
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
@@ -705,8 +710,7 @@ def test_a_lambertian_plane_reads_the_closed_form_under_point_spot_and_distant_l
         scene = Scene()
         scene.add(quad(40.0, 40.0), rotate(-90, (1, 0, 0)), Material((a, a, a)))
         scene.lights = [light]
-        integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-        assert integrator._bounce is not None and integrator._bounce.covered.all()
+        integrator = _covering_integrator(scene, mode)
         radiance, _ = integrator.radiance(origin, direction.astype(np.float32), np.arange(len(x)),
                                           np.zeros(len(x), int))
         assert np.allclose(radiance, expected[:, None], rtol=1e-4, atol=1e-7), (light, radiance[:, 0], expected)
@@ -728,8 +732,7 @@ def test_convex_object_under_a_uniform_sky_reads_its_albedo_times_the_sky(mode, 
     scene = Scene()
     scene.add(sphere(1.0, 48), np.eye(4), material)
     scene.lights.append(InfiniteLight((sky, sky, sky), image, mapping, rotate(40, (1, 1, 0))))
-    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    integrator = _covering_integrator(scene, mode)
     rng = np.random.default_rng(1)
     origin, direction = _down_rays(3.0, 0.5, rng)
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
@@ -768,8 +771,7 @@ def test_inside_an_emitting_sphere_of_albedo_a_reads_the_closed_form(mode, mirro
     scene.add(sphere(1.0, 24), scale(-1.0, 1.0, 1.0) if mirrored else np.eye(4), Material((a, a, a)))
     scene.lights.append(EmissiveInstance(0, (le, le, le), two_sided=not mirrored,
                                          sphere=((0.0, 0.0, 0.0), 1.0) if as_sphere else None))
-    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    integrator = _covering_integrator(scene, mode)
     rng = np.random.default_rng(2)
     origin, direction = _inside_rays(rng)
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
@@ -792,8 +794,7 @@ def test_a_lambertian_plane_under_an_emitting_sphere_reads_the_closed_form(mode)
     scene.add(quad(40.0, 40.0), rotate(-90, (1, 0, 0)), Material((a, a, a)))
     scene.add(sphere(r, 64), translate(0.0, h, 0.0), Material((0.0, 0.0, 0.0)))
     scene.lights.append(EmissiveInstance(1, (le, le, le), sphere=((0.0, h, 0.0), r)))
-    integrator = PathIntegrator(scene, Intersector(scene), 1, 3, 0.0, 5, mode, backend="opencl")
-    assert integrator._bounce is not None and integrator._bounce.covered.all()
+    integrator = _covering_integrator(scene, mode)
     x = np.array([0.0, 0.7, 1.5, 3.0])
     d2 = h * h + x * x
     expected = a * le * r * r / d2 * h / np.sqrt(d2)
