@@ -1,7 +1,7 @@
 """Light-kinds benchmark: path tracing and direct lighting under each kind of light, this tree and another.
 
     .venv/bin/python bench/light_kinds.py [--against ../old] [--rounds 2] [--res 200x150] [--spp 32]
-        [--only point,sky,map,mesh,sphere]
+        [--only point,sky,map,mesh,sphere] [--dispersion]
 
 The fused bounce kernel (``kernels/bounce.cl``) first sampled area lights alone: a scene with any other
 light shaded every path vertex in numpy. This renders one small pbrt-v4 scene (a floor, a matte and a
@@ -12,7 +12,9 @@ under ``AreaLightSource``, the Cornell box's light); an emitting sphere. Each wi
 "path"`` (maxdepth 5) and ``"directlighting"``, by ``python -m realistic render`` in a fresh process
 (``bench/seed.py``'s ``render``: CPU-seconds of the process, user + system, and wall), the trees
 alternating for ``--rounds`` rounds after one untimed small render each (kernels and tables built and
-cached). Prints the median CPU-seconds and wall per scene and tree and the ratio other / this, the
+cached). ``--dispersion`` renders through the dgauss lens with dispersion on (``--lens dgauss
+--dispersion on``: each sample K rays of one wavelength each, the bounce kernel's spectral build). Prints
+the median CPU-seconds and wall per scene and tree and the ratio other / this, the
 CPU and the load average; writes bench/results/light_kinds.json.
 """
 
@@ -78,6 +80,8 @@ def main() -> None:
     parser.add_argument("--res", default="200x150", help="resolution WxH (default 200x150)")
     parser.add_argument("--spp", type=int, default=32, help="samples per pixel (default 32)")
     parser.add_argument("--only", help=f"comma-separated scenes among {', '.join(SCENES)} (default: all)")
+    parser.add_argument("--dispersion", action="store_true",
+                        help="through the dgauss lens with dispersion on (spectral rays)")
     args = parser.parse_args()
     names = args.only.split(",") if args.only else list(SCENES)
     unknown = [name for name in names if name not in SCENES]
@@ -88,6 +92,7 @@ def main() -> None:
         names.remove("map")
     trees = {"this": ROOT} if args.against is None else {"other": args.against.resolve(), "this": ROOT}
     dragon = DRAGON if DRAGON.is_file() else None
+    lens = ["--lens", "dgauss", "--dispersion", "on"] if args.dispersion else []
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as temporary:
         work = Path(temporary)
@@ -96,11 +101,11 @@ def main() -> None:
                 scene = work / f"{name}-{integrator}.pbrt"
                 scene.write_text(scene_text(SCENES[name].format(sky=SKY_MAP), line, dragon))
                 for tree_name, tree in trees.items():  # untimed: kernels built, tables cached
-                    render(tree, scene, ["--res", "16x12", "--spp", "1"], work / f"cache-{tree_name}", work)
+                    render(tree, scene, ["--res", "16x12", "--spp", "1", *lens], work / f"cache-{tree_name}", work)
                 runs: dict[str, list[tuple[float, float]]] = {tree_name: [] for tree_name in trees}
                 for _ in range(args.rounds):
                     for tree_name, tree in trees.items():
-                        runs[tree_name].append(render(tree, scene, ["--res", args.res, "--spp", str(args.spp)],
+                        runs[tree_name].append(render(tree, scene, ["--res", args.res, "--spp", str(args.spp), *lens],
                                                       work / f"cache-{tree_name}", work))
                 row: dict[str, Any] = {"scene": name, "integrator": integrator}
                 for tree_name, values in runs.items():
@@ -113,7 +118,8 @@ def main() -> None:
                 print(f"{name} {integrator}: " + ", ".join(
                     f"{t} {row[t]['median_cpu_s']:.2f} CPU-s" for t in trees), file=sys.stderr)
     load = os.getloadavg()
-    print(f"{args.res}, {args.spp} spp, median of {args.rounds} rounds" + ("" if dragon else " (no dragon)"))
+    print(f"{args.res}, {args.spp} spp, median of {args.rounds} rounds" + ("" if dragon else " (no dragon)")
+          + (", dgauss lens, dispersion on" if args.dispersion else ""))
     header = f"{'scene':8} {'integrator':10}" + "".join(f" {t + ' CPU-s':>12} {t + ' wall':>11}" for t in trees)
     print(header + (f" {'other/this':>10}" if "other" in trees else ""))
     for row in rows:
@@ -124,8 +130,8 @@ def main() -> None:
     out = ROOT / "bench" / "results" / "light_kinds.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"cpu": machine.describe(), "load_average": load, "res": args.res, "spp": args.spp,
-                               "rounds": args.rounds, "dragon": str(dragon) if dragon else None,
-                               "trees": {t: str(p) for t, p in trees.items()}, "rows": rows}, indent=1) + "\n")
+                               "rounds": args.rounds, "dispersion": args.dispersion,
+                               "dragon": str(dragon) if dragon else None, "trees": {t: str(p) for t, p in trees.items()}, "rows": rows}, indent=1) + "\n")
     print(f"wrote {out}")
 
 
