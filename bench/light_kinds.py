@@ -131,7 +131,8 @@ def main() -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"cpu": machine.describe(), "load_average": load, "res": args.res, "spp": args.spp,
                                "rounds": args.rounds, "dispersion": args.dispersion,
-                               "dragon": str(dragon) if dragon else None, "trees": {t: str(p) for t, p in trees.items()}, "rows": rows}, indent=1) + "\n")
+                               "dragon": str(dragon) if dragon else None,
+                               "trees": {t: str(p) for t, p in trees.items()}, "rows": rows}, indent=1) + "\n")
     print(f"wrote {out}")
 
 
