@@ -18,7 +18,9 @@
  * (pbrt-v4's, GGX); plastic (Lambertian kd + a GGX
  * coat of ks with the dielectric Fresnel of index eta, lobes picked in proportion to the colours'
  * means); coated diffuse (the coated base + an uncoloured coat, lobes picked by the coat's Fresnel);
- * substrate (FresnelBlend); measured (a pbrt-v2 .brdf file's table, cosine-sampled). A lobe whose
+ * substrate (FresnelBlend); measured (a pbrt-v2 .brdf file's table, cosine-sampled); diffuse
+ * transmission (Lambertian reflection of scale and transmission of tint, the side picked in
+ * proportion to their means; diffuse_transmission.py). A lobe whose
  * max(alpha_x, alpha_y) is below SMOOTH_ALPHA reflects (glass: and refracts) specularly. */
 
 #include "common.cl"
@@ -209,9 +211,10 @@ inline float3 microfacet_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
     return reflected(p, dot(wo_up, wh)) * shape;
 }
 
-/* The two-lobe kinds' chance of the diffuse lobe at wo: plastic's the colours' means, normalised;
- * coated diffuse's the base's share (1 - F(|cos_o|)) times its albedo estimate against the coat's
- * F(|cos_o|) (factory.bsdf_for's chances); a half where both are 0. */
+/* The two-lobe kinds' chance of the diffuse lobe at wo (diffuse transmission's: of reflection):
+ * plastic's and diffuse transmission's the colours' means, normalised; coated diffuse's the
+ * base's share (1 - F(|cos_o|)) times its albedo estimate against the coat's F(|cos_o|)
+ * (factory.bsdf_for's chances); a half where both are 0. */
 inline float diffuse_chance(const Lobe *p, float3 wo) {
     float m0, m1;
     if (p->kind == KIND_COATED_DIFFUSE) {
@@ -353,10 +356,22 @@ inline float3 substrate_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
     return value;
 }
 
+/* diffuse_transmission.DiffuseTransmission.evaluate and .pdf: scale / pi for a pair on one side,
+ * tint / pi for a pair on opposite sides, each side's pdf its chance (diffuse_chance: the means of
+ * scale and tint) times the cosine density; zero where wi lies in the surface. */
+inline float3 diffuse_transmission_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
+    float side = wo.z * wi.z, reflect = diffuse_chance(p, wo);
+    float chance = side > 0.0f ? reflect : (side < 0.0f ? 1.0f - reflect : 0.0f);
+    *pdf = chance * fabs(wi.z) / PI_F;
+    return side > 0.0f ? p->scale / PI_F : (side < 0.0f ? p->tint / PI_F : (float3)(0.0f));
+}
+
 /* One lobe's f(wo, wi) and the sampling pdf of wi. */
 inline float3 lobe_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
     float same = wo.z * wi.z > 0.0f ? 1.0f : 0.0f;
     switch (p->kind) {
+    case KIND_DIFFUSE_TRANSMISSION:
+        return diffuse_transmission_eval(p, wo, wi, pdf);
     case KIND_LAMBERTIAN:
     case KIND_OREN_NAYAR:
     case KIND_MEASURED:
@@ -477,6 +492,14 @@ inline float3 lobe_sample(const Lobe *p, float3 wo, float u0, float u1, float ul
     *specular = 0;
     if (p->kind == KIND_ROUGH_DIELECTRIC) return rough_dielectric_sample(p, wo, u0, u1, ul, value, pdf, valid);
     float3 wi;
+    /* diffuse transmission: the cosine on wo's side, turned through from the reflection's chance up */
+    if (p->kind == KIND_DIFFUSE_TRANSMISSION) {
+        wi = cosine_on_side(wo, u0, u1);
+        wi.z = ul < diffuse_chance(p, wo) ? wi.z : -wi.z;
+        *value = diffuse_transmission_eval(p, wo, wi, pdf);
+        *valid = *pdf > 0.0f;
+        return wi;
+    }
     if (p->kind == KIND_SUBSTRATE) {  /* half the time the cosine, else the GGX visible normals */
         wi = ul < 0.5f ? cosine_on_side(wo, u0, u1) : microfacet_direction(p, wo, u0, u1);
         *value = substrate_eval(p, wo, wi, pdf);

@@ -175,7 +175,7 @@ def test_covered_materials():
     assert material_rows(Dielectric(1.5, roughness_u=image, roughness_v=0.2), tables) is None
     assert material_rows(Mix(Material(), Material(), image), tables) is None
     assert material_rows(Mix(Material(), Plastic(image), 0.5), tables) is None
-    assert material_rows(DiffuseTransmission(), tables) is None
+    assert material_rows(DiffuseTransmission(image), tables) is None
 
 
 #: An image of 64 x 32 texels with little symmetry, for the image-textured materials.
@@ -377,10 +377,10 @@ def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegr
 
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
-    """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad and
-    plastic in the kernel and the floor, plastic whose Ks is an image texture, in numpy: each ray's
-    radiance is the numpy backend's to float32 rounding (a path may only part where rounding moves a
-    sample across a threshold)."""
+    """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad,
+    plastic and diffuse transmission in the kernel and the floor, plastic whose Ks is an image
+    texture, in numpy: each ray's radiance is the numpy backend's to float32 rounding (a path may
+    only part where rounding moves a sample across a threshold)."""
     scene, _, _ = textured_scene()
     floor = scene.instances[0].material
     specular = ScaledTexture(floor.texture, (0.3, 0.3, 0.3))
@@ -389,6 +389,7 @@ def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
                                                                                              sigma=20.0)]
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
     scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
+    scene.add(sphere(0.25, 16), translate(-0.6, 0.3, 0.9), COVERED["diffuse transmission"])
     numpy_one, device_one = _pair(scene, mode, mis, light_samples=2)
     _paths_agree(scene, numpy_one, device_one, 3)
 
@@ -441,10 +442,10 @@ def _spectral_launches(integrator: PathIntegrator, monkeypatch) -> list[np.ndarr
 @pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
 def test_spectral_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis, monkeypatch):
     """Whole spectral paths (depth 5, two light samples) under every kind of light, over glass, a
-    rough conductor, a named metal, plastic, coated diffuse in a mix and Lambertian and Oren-Nayar
-    materials under image, grid and checker textures: each ray's radiance is the numpy backend's to
-    float32 rounding, and the kernel's spectral build shades every hit, on every material, in every
-    bounce's launch."""
+    rough conductor, a named metal, plastic, diffuse transmission, coated diffuse in a mix and
+    Lambertian and Oren-Nayar materials under image, grid and checker textures: each ray's radiance
+    is the numpy backend's to float32 rounding, and the kernel's spectral build shades every hit, on
+    every material, in every bounce's launch."""
     scene = _with_lights(textured_scene()[0], LIGHT_SETS["every kind"])
     materials = [None, Dielectric(1.5, (0.9, 1.0, 0.8), (1.0, 0.7, 0.9)), SPECTRAL["coloured grid"],
                  SPECTRAL["coloured coated diffuse in a mix"]]
@@ -453,6 +454,7 @@ def test_spectral_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode,
     scene.add(sphere(0.3, 16), translate(-0.6, 0.3, 0.9), SPECTRAL["coloured conductor"])
     scene.add(sphere(0.25, 16), translate(0.7, 0.8, 0.6), SPECTRAL["coloured checker, oren-nayar"])
     scene.add(sphere(0.2, 16), translate(-0.1, 0.9, 0.5), COVERED["named metal"])
+    scene.add(sphere(0.2, 16), translate(0.5, 0.2, 1.1), COVERED["diffuse transmission"])
     numpy_one, device_one = _pair(scene, mode, mis, light_samples=2, spread=SPREAD)
     assert device_one._bounce.covered[device_one._geom_material].all()
     launches = _spectral_launches(device_one, monkeypatch)
@@ -737,6 +739,21 @@ def test_convex_object_under_a_uniform_sky_reads_its_albedo_times_the_sky(mode, 
     origin, direction = _down_rays(3.0, 0.5, rng)
     radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
     _assert_mean_reads(radiance, albedo * sky)
+
+
+@pytest.mark.parametrize("mode", ["direct", "path"])
+@pytest.mark.parametrize("reflectance", [0.0, 0.3, 1.0])
+def test_white_diffuse_transmission_under_a_uniform_sky_reads_the_sky(mode, reflectance):
+    """A plane of diffuse transmission with R + T = 1 under a uniform infinite light of radiance L:
+    both its sides see the whole sky, so the reflected R L and the transmitted T L sum to L."""
+    sky = 0.8
+    scene = Scene()
+    scene.add(quad(40.0, 40.0), np.eye(4), DiffuseTransmission((reflectance,) * 3, (1.0 - reflectance,) * 3))
+    scene.lights.append(InfiniteLight((sky, sky, sky)))
+    integrator = _covering_integrator(scene, mode)
+    origin, direction = _down_rays(3.0, 0.5, np.random.default_rng(2))
+    radiance, _ = integrator.radiance(origin, direction, np.arange(N), np.zeros(N, int))
+    _assert_mean_reads(radiance, sky)
 
 
 @pytest.mark.parametrize("lights", ["emitting mesh", "emitting mesh, two-sided", "emitting mesh, mirrored",

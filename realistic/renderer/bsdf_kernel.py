@@ -6,8 +6,8 @@ at hits whose material the kernel covers (``parameters`` returns their rows) whe
 whole bounce: Lambertian and
 Oren-Nayar (``Material``), conductors (eta and k, or a named metal's tabulated Fresnel), mirrors,
 smooth, thin and rough dielectrics, plastic, coated diffuse, substrate, measured ``.brdf`` files
-(their 128^3 table), and a mix of two of those whose second is the same at every hit; the tables
-and the mixes' second lobes live in the kernel's ``TableStore``. Diffuse transmission, MERL tables,
+(their 128^3 table), diffuse transmission, and a mix of two of those whose second is the same at
+every hit; the tables and the mixes' second lobes live in the kernel's ``TableStore``. MERL tables,
 mixes holding a mix or a textured second material (or seen by spectral rays, whose second lobe
 varies with the wavelength) stay with the numpy BSDFs of
 ``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The
@@ -37,6 +37,7 @@ from realistic.scene.materials import (
     CoatedDiffuse,
     Conductor,
     Dielectric,
+    DiffuseTransmission,
     Measured,
     Mirror,
     Mix,
@@ -51,8 +52,9 @@ from realistic.scene.model import Material
 KERNEL_FILE = "bsdf.cl"
 #: One lobe (a material that is not a mix): its kind (``KINDS``); ``scale`` the Lambertian,
 #: Oren-Nayar, plastic or coated base's albedo, the conductor's or mirror's scale, the glass's
-#: reflection tint or the substrate's diffuse colour; ``tint`` the glass's transmission tint, the
-#: plastic's coat colour (1 for coated diffuse) or the substrate's specular reflectance; ``eta`` the
+#: reflection tint, the substrate's diffuse colour or diffuse transmission's reflectance; ``tint`` the
+#: diffuse transmission's transmittance, the glass's transmission tint, the plastic's coat colour
+#: (1 for coated diffuse) or the substrate's specular reflectance; ``eta`` the
 #: conductor's index per channel (a dielectric's or coat's index in its first column; a coat's then
 #: ``CoatedLambertian.internal`` and pi eta^2, from which spectral rays' base is made, as ``k`` and the
 #: estimate are from the albedo); ``k`` the conductor's absorption or the coated base's scale
@@ -70,7 +72,7 @@ LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), 
 #: that every other row stays one lobe wide.
 BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", 1)))
 KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
-         "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor")
+         "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor", "diffuse_transmission")
 KIND = {name: index for index, name in enumerate(KINDS)}
 #: Measured tables start at multiples of this many floats in ``TableStore``'s buffer, so a row holds a
 #: start divided by it, a whole number float32 keeps exactly.
@@ -142,6 +144,9 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, tables: Ta
         ay = alpha(scalar(hits, material.roughness_v), material.rule)
         return dict(kind=KIND["substrate"], scale=colour(hits, material.diffuse),
                     tint=colour(hits, material.specular), alpha=np.column_stack([ax, ay]))
+    if isinstance(material, DiffuseTransmission):
+        return dict(kind=KIND["diffuse_transmission"], scale=colour(hits, material.reflectance),
+                    tint=colour(hits, material.transmittance))
     if isinstance(material, Measured) and tables is not None:
         data = load_measured(material.path)
         if isinstance(data, IrregularSamples):
