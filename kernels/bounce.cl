@@ -57,8 +57,7 @@
 
 #define GOLDEN 0x9E3779B9u
 #define SHADOW_OFFSET 1e-4f
-#define SHADOW_LENGTH 0.9999f
-#define FAR 1e30f
+/* FAR and SHADOW_LENGTH come with the host's header (light_sampler.SHADOW_DEFINES). */
 
 /* realistic.core.rng.uniform at dimension dim, from the sample's key hash32(hash32(hash32(seed +
  * GOLDEN) ^ pixel) ^ sample): the top 24 bits of hash32(key ^ dim). */

@@ -55,7 +55,7 @@
 #define PI_F 3.14159265358979f
 #define GOLDEN 0x9E3779B9u
 #define SHADOW_OFFSET 1e-4f
-#define SHADOW_LENGTH 0.9999f
+/* SHADOW_LENGTH comes with the host's header (light_sampler.SHADOW_DEFINES). */
 /* Build options (-D) the host sets per scene, so that the work the scene never needs costs no gathers:
  * PICK_BITS (0 .. 16, see pick_light), SMOOTH, TEXTURED, HOST_ALBEDO, MEASURED (0 or 1, see the
  * kernel); and per launch LAUNCH_SAMPLES, the light samples each work item makes (1 or more), and

@@ -52,7 +52,17 @@ from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer import bsdf_kernel
 from realistic.renderer.hit_rows import place_rows, rows_on_material
-from realistic.renderer.light_sampler import AREA, DISTANT, INFINITE, INSTANCE, POINT, SPOT, LightSampler
+from realistic.renderer.light_sampler import (
+    AREA,
+    DISTANT,
+    INFINITE,
+    INSTANCE,
+    POINT,
+    SHADOW_DEFINES,
+    SHADOW_LENGTH,
+    SPOT,
+    LightSampler,
+)
 from realistic.renderer.shade_kernel import GEOM_FLOATS, GEOM_INTS, rounded_up_cdf
 from realistic.scene.ewa_kernel import DEVICE_FILTERS, EwaKernel, SurfaceTables, hit_mapping
 from realistic.scene.intersect import Hits
@@ -102,8 +112,6 @@ _KIND = {AREA: 0, POINT: 1, SPOT: 2, DISTANT: 3, INFINITE: 4, INSTANCE: 5}
 #: samples go on to find emission.
 MODE_FLAGS = ("mis", "direct", "emission_after_diffuse")
 MIS, DIRECT, EMISSION_AFTER_DIFFUSE = (1 << k for k in range(len(MODE_FLAGS)))
-#: A shadow ray's length toward a point, in units of its vector (``kernels/bounce.cl``'s SHADOW_LENGTH).
-SHADOW_LENGTH = np.float32(1 - 1e-4)
 #: ``next_flags`` bits.
 GOES_ON, SPECULAR, SHADES = 1, 2, 4
 
@@ -117,7 +125,7 @@ def header(dimension: int, roulette_after: int, spectral: bool) -> str:
             + constant_defines("BOUNCE_MAPPING", MAPPINGS)
             + "".join(f"#define BOUNCE_{name.upper()} {1 << k}\n" for k, name in enumerate(MODE_FLAGS))
             + f"#define BOUNCE_DIMENSION {dimension}\n#define BOUNCE_ROULETTE_AFTER {roulette_after}\n"
-            + f"#define BOUNCE_SPECTRAL {int(spectral)}\n")
+            + f"#define BOUNCE_SPECTRAL {int(spectral)}\n" + SHADOW_DEFINES)
 
 
 class _Textured(Exception):

@@ -62,6 +62,7 @@ from realistic.renderer.bsdf.lambertian import cosine_hemisphere
 from realistic.renderer.bsdf.measured import irregular_table, table_lookup
 from realistic.renderer.footprint import uv_footprint
 from realistic.renderer.hit_rows import compile_row_loops, place_rows, rows_on_material
+from realistic.renderer.light_sampler import SHADOW_LENGTH
 from realistic.renderer.surface_parameters import RHO_U, SurfaceParameters, directional_albedo
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
@@ -421,7 +422,7 @@ class DirectLighting:
             """Trace the shadow rays of the rows ``live`` and add their unblocked contributions."""
             with timed("embree"):
                 blocked = self.intersector.occluded(_rows(shadow_origin, live), to_light,
-                                                    np.full(len(live), 1.0 - 1e-4, np.float32))
+                                                    np.full(len(live), SHADOW_LENGTH, np.float32))
             with timed("shading"):
                 total[live[~blocked]] += contribution[~blocked]
             return len(live)

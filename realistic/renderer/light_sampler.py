@@ -53,6 +53,11 @@ AREA, POINT, SPOT, DISTANT, INFINITE, INSTANCE = range(6)
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 #: Shadow-ray length toward distant and infinite lights (beyond any scene embree holds in float32).
 FAR = np.float32(1e30)
+#: Shadow-ray length toward a point, in units of the vector from the ray's offset start to the point:
+#: short of the point, so that the light's own surface does not block it.
+SHADOW_LENGTH = np.float32(1 - 1e-4)
+#: ``FAR`` and ``SHADOW_LENGTH`` as the kernels that write shadow rays read them (``shade.cl``, ``bounce.cl``).
+SHADOW_DEFINES = f"#define FAR {float(FAR)!r}f\n#define SHADOW_LENGTH {float(SHADOW_LENGTH)!r}f\n"
 
 
 def colour(rgb: np.ndarray, basis: np.ndarray | None) -> np.ndarray:

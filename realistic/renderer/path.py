@@ -54,7 +54,7 @@ from realistic.renderer.area_lights import light_outward_flipped
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.bsdf import BSDF, BSDFSample, HitParameters, ShadingFrame, bsdf_for
 from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _rows
-from realistic.renderer.light_sampler import FAR, LightSampler
+from realistic.renderer.light_sampler import FAR, SHADOW_LENGTH, LightSampler
 from realistic.renderer.surface_parameters import SurfaceParameters, directional_albedo
 from realistic.renderer.timing import StageClock
 from realistic.scene.intersect import Hits, Intersector
@@ -515,7 +515,7 @@ class PathIntegrator(DirectLighting):
             target = ls.target[live]
             shadow["start"].append(start)
             shadow["vector"].append(np.where(far[:, None], ls.wi[live], target - start))
-            shadow["length"].append(np.where(far, FAR, np.float32(1 - 1e-4)).astype(np.float32))
+            shadow["length"].append(np.where(far, FAR, SHADOW_LENGTH).astype(np.float32))
             shadow["rows"].append(ray[live])
             shadow["contribution"].append(contribution[live])
         # the next bounce

@@ -51,6 +51,7 @@ from realistic.core.spectrum import (
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer.bsdf.measured import TABLE_NODES
+from realistic.renderer.light_sampler import SHADOW_DEFINES
 from realistic.scene.materials import Measured
 from realistic.scene.model import CheckerTexture, GridTexture, Material
 
@@ -92,7 +93,7 @@ HEADER = "".join(table.defines() for table in (GEOM_INTS, GEOM_FLOATS, MATERIALS
     constant_defines("KIND", KINDS) + \
     (f"#define SPECTRUM_INTERVALS {SPECTRUM_INTERVALS}\n#define SPECTRUM_MIN_NM {LAMBDA_MIN_NM!r}f\n"
      f"#define SPECTRUM_PER_NM {SPECTRUM_INTERVALS / (LAMBDA_MAX_NM - LAMBDA_MIN_NM)!r}f\n"
-     f"#define TABLE_NODES {TABLE_NODES}\n")
+     f"#define TABLE_NODES {TABLE_NODES}\n") + SHADOW_DEFINES
 #: The kernel's light search is written out for at most this many lights.
 MAX_LIGHTS = 65535
 #: Shadow rays per launch (and per embree call) at most: a pass's light samples go in groups of
