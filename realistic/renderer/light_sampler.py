@@ -43,8 +43,6 @@ from realistic.scene.lights import (
     InfiniteLight,
     PointLight,
     SpotLight,
-    equal_area_sphere_to_square,
-    latlong_uv,
 )
 from realistic.scene.model import AreaLight, Instance, Scene
 
@@ -128,8 +126,6 @@ class _Environment:
     def __init__(self, light: InfiniteLight):
         self.light = light
         self.rgb = np.asarray(light.radiance, np.float64)
-        # world to light frame as rows (a direction's light-frame vector: sum_k direction_k row_k)
-        self._to_light = np.linalg.inv(np.asarray(light.light_to_world, np.float64)[:3, :3]).T
         if light.image is None:
             self.distribution = None
             self._scaled = self.rgb.astype(np.float32)[None, :]  # one texel: pbrt's map of one
@@ -154,15 +150,8 @@ class _Environment:
         if self.distribution is None:
             rgb = np.broadcast_to(self._scaled[0], (n, 3))
             return rgb, np.full(n, 1.0 / (4 * math.pi)) if density else np.zeros(n)
-        d, m = np.asarray(direction, np.float64), self._to_light
-        # elementwise, not an (N, 3) @ (3, 3) product, which wakes BLAS's threads beside the render's
-        w = d[:, :1] * m[0] + d[:, 1:2] * m[1] + d[:, 2:] * m[2]
-        w /= np.maximum(np.sqrt(w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2]), 1e-300)[:, None]
-        uv = equal_area_sphere_to_square(w) if self.light.mapping == "equal-area" else latlong_uv(w)
-        height, width = self.distribution.height, self.distribution.width
-        col = np.clip((uv[:, 0] * width).astype(np.int64), 0, width - 1)
-        row = np.clip((uv[:, 1] * height).astype(np.int64), 0, height - 1)
-        texel = row * width + col
+        uv = self.light.to_uv(direction)
+        texel = self.light.texel_index(uv)
         rgb = np.take(self._scaled, texel, axis=0)
         return rgb, np.take(self._density, texel) * self.jacobian(uv) if density else np.zeros(n)
 

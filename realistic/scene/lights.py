@@ -139,10 +139,16 @@ class InfiniteLight:
         without a map (pbrt's map of one texel)."""
         if self.image is None:
             return np.ones((len(uv), 3), np.float32)
+        return np.asarray(self.image).reshape(-1, 3)[self.texel_index(uv)]
+
+    def texel_index(self, uv: np.ndarray) -> np.ndarray:
+        """The row-major index (N,) int64 of the map's nearest texel at uv (``texels``' texel, and the
+        cell of a ``Distribution2D`` over the map); the map must exist."""
+        assert self.image is not None
         h, w = self.image.shape[:2]
         x = np.clip((np.asarray(uv[:, 0]) * w).astype(np.int64), 0, w - 1)
         y = np.clip((np.asarray(uv[:, 1]) * h).astype(np.int64), 0, h - 1)
-        return self.image[y, x]
+        return y * w + x
 
 
 @dataclass(frozen=True, eq=False)
