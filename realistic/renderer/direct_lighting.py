@@ -84,6 +84,13 @@ def _rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     return np.take(a, index, axis=0)
 
 
+def interpolated(table: np.ndarray, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """Per-vertex rows of ``table`` (normals, uv) at hits: the rows of each hit triangle's vertices
+    ``face`` (n, 3) weighted by its barycentrics ``bary`` (n, 3)."""
+    return (_rows(table, face[:, 0]) * bary[:, :1] + _rows(table, face[:, 1]) * bary[:, 1:2]
+            + _rows(table, face[:, 2]) * bary[:, 2:])
+
+
 #: The directions of a measured material's albedo estimate (``first_hits``): ``RHO_U`` cosine-weighted.
 _RHO_DIRECTIONS = cosine_hemisphere(RHO_U)
 
@@ -492,10 +499,8 @@ class DirectLighting:
             light, at = self._area_lights[j], lit[rows]
             material, mesh = light.material, light_mesh(light)
             assert material is not None and mesh.uv is not None  # ``first_hits`` picks lights with a material
-            face = mesh.faces[hits.prim[at]]
-            u, v = hits.u[at, None], hits.v[at, None]
-            uv = (mesh.uv[face[:, 0]] * (1 - u - v) + mesh.uv[face[:, 1]] * u + mesh.uv[face[:, 2]] * v).astype(
-                np.float32)
+            u, v = hits.u[at], hits.v[at]
+            uv = interpolated(mesh.uv, mesh.faces[hits.prim[at]], np.column_stack([1 - u - v, u, v])).astype(np.float32)
 
             def at_uv(uv: np.ndarray = uv) -> np.ndarray:
                 return uv
@@ -658,9 +663,7 @@ class DirectLighting:
         """The rows on smooth meshes with a usable interpolated normal, and those unit world normals
         as the mesh orients them."""
         smooth = np.flatnonzero(self._geom_smooth[geom])
-        f, b = face[smooth], bary[smooth]
-        n = (_rows(self._normals, f[:, 0]) * b[:, :1] + _rows(self._normals, f[:, 1]) * b[:, 1:2]
-             + _rows(self._normals, f[:, 2]) * b[:, 2:])
+        n = interpolated(self._normals, face[smooth], bary[smooth])
         n = normalise(np.einsum("nij,nj->ni", self._geom_normal_matrix[geom[smooth]], n))
         good = dot(n, n) > 0.5
         return smooth[good], n[good]
@@ -680,9 +683,7 @@ class DirectLighting:
             material = _matte(surface_material)
             uv = None
             if material.texture is not None:
-                f, b = face[rows], bary[rows]
-                uv = (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
-                      + _rows(self._uv, f[:, 2]) * b[:, 2:])
+                uv = interpolated(self._uv, face[rows], bary[rows])
             footprint = None
             if isinstance(material.texture, ImageTexture) and self.pixel_spread_radians > 0:
                 footprint = self._footprint(face[rows], geom[rows], direction[rows], normal[rows], distance[rows])

@@ -53,7 +53,7 @@ from realistic.core.vectors import dot, normalise
 from realistic.renderer.area_lights import light_outward_flipped
 from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.bsdf import BSDF, BSDFSample, HitParameters, ShadingFrame, bsdf_for
-from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _rows
+from realistic.renderer.direct_lighting import SHADOW_OFFSET, DirectLighting, _rows, interpolated
 from realistic.renderer.light_sampler import FAR, SHADOW_LENGTH, LightSampler
 from realistic.renderer.surface_parameters import SurfaceParameters, directional_albedo
 from realistic.renderer.timing import StageClock
@@ -308,8 +308,7 @@ class PathIntegrator(DirectLighting):
             f, b = face[rows], bary[rows]
 
             def uv(f: np.ndarray = f, b: np.ndarray = b) -> np.ndarray:
-                return (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
-                        + _rows(self._uv, f[:, 2]) * b[:, 2:])
+                return interpolated(self._uv, f, b)
 
             def footprint(rows: np.ndarray = rows) -> Footprint | None:
                 if self.pixel_spread_radians <= 0:
@@ -466,8 +465,7 @@ class PathIntegrator(DirectLighting):
             f, b = face[rows], bary[rows]
 
             def uv(f: np.ndarray = f, b: np.ndarray = b) -> np.ndarray:
-                return (_rows(self._uv, f[:, 0]) * b[:, :1] + _rows(self._uv, f[:, 1]) * b[:, 1:2]
-                        + _rows(self._uv, f[:, 2]) * b[:, 2:])
+                return interpolated(self._uv, f, b)
 
             # camera rays only: deeper bounces have no pixel footprint here
             def footprint(rows: slice | np.ndarray = rows) -> Footprint | None:
