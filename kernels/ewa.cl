@@ -552,51 +552,52 @@ inline double width_level(__global const double *lookup, int levels) {
     return (double)(levels - 1) + log2(__builtin_fmax(w, 1e-8));
 }
 
-__kernel void bilinear(PENDING_LOOKUP_PARAMETERS) {
+/* The scalar kernels of the level filters (point, bilinear, trilinear: FILTER) share one body, each
+ * kernel naming its filter, which the compiler folds: lookup rows[i] at its continuous level; at or
+ * past the coarsest level, that level's one texel. */
+#define LEVEL_POINT 0
+#define LEVEL_BILINEAR 1
+#define LEVEL_TRILINEAR 2
+#define PENDING_LOOKUP_ARGUMENTS texels, base, width, height, levels, max_anisotropy, lut, lookups, rows, \
+    red_scale, green_scale, blue_scale, count, out
+
+inline void level_filter(PENDING_LOOKUP_PARAMETERS, const int filter, const int blend_from) {
     int i = get_global_id(0);
     if (i >= count) return;
     int r = rows[i];
     __global const double *lookup = lookups + 6 * (long)r;
     double level = width_level(lookup, levels);
-    store(out, r, level >= levels - 1 ? coarsest(texels, base, levels)
-                  : bilinear_at(texels, base, width, height, (int)__builtin_fmax(__builtin_floor(level), 0.0),
-                                lookup[0], lookup[1]), red_scale, green_scale, blue_scale);
+    double s = lookup[0], t = lookup[1];
+    double3 value;
+    if (level >= levels - 1) {
+        value = coarsest(texels, base, levels);
+    } else if (filter == LEVEL_POINT) {
+        int at = (int)__builtin_fmax(__builtin_floor(level), 0.0);
+        int x = (int)round_half_away(s * width[at] - 0.5);
+        int y = (int)round_half_away(t * height[at] - 0.5);
+        value = texel(texels, base, width, height, at, x, y);
+    } else if (filter == LEVEL_BILINEAR) {
+        value = bilinear_at(texels, base, width, height, (int)__builtin_fmax(__builtin_floor(level), 0.0), s, t);
+    } else {
+        level = __builtin_fmax(level, 0.0);
+        double lower = __builtin_floor(level);
+        double delta = level - lower;
+        int at = (int)lower;
+        double3 below = bilinear_at(texels, base, width, height, at, s, t);
+        value = at < blend_from ? below
+                : below * (1 - delta) + bilinear_at(texels, base, width, height, min(at + 1, levels - 1), s, t) * delta;
+    }
+    store(out, r, value, red_scale, green_scale, blue_scale);
 }
 
 __kernel void point(PENDING_LOOKUP_PARAMETERS) {
-    int i = get_global_id(0);
-    if (i >= count) return;
-    int r = rows[i];
-    __global const double *lookup = lookups + 6 * (long)r;
-    double level = width_level(lookup, levels);
-    if (level >= levels - 1) {
-        store(out, r, coarsest(texels, base, levels), red_scale, green_scale, blue_scale);
-        return;
-    }
-    int at = (int)__builtin_fmax(__builtin_floor(level), 0.0);
-    int x = (int)round_half_away(lookup[0] * width[at] - 0.5);
-    int y = (int)round_half_away(lookup[1] * height[at] - 0.5);
-    store(out, r, texel(texels, base, width, height, at, x, y), red_scale, green_scale, blue_scale);
+    level_filter(PENDING_LOOKUP_ARGUMENTS, LEVEL_POINT, 0);
+}
+
+__kernel void bilinear(PENDING_LOOKUP_PARAMETERS) {
+    level_filter(PENDING_LOOKUP_ARGUMENTS, LEVEL_BILINEAR, 0);
 }
 
 __kernel void trilinear(PENDING_LOOKUP_PARAMETERS, const int blend_from) {
-    int i = get_global_id(0);
-    if (i >= count) return;
-    int r = rows[i];
-    __global const double *lookup = lookups + 6 * (long)r;
-    double level = width_level(lookup, levels);
-    if (level >= levels - 1) {
-        store(out, r, coarsest(texels, base, levels), red_scale, green_scale, blue_scale);
-        return;
-    }
-    level = __builtin_fmax(level, 0.0);
-    double lower = __builtin_floor(level);
-    double delta = level - lower;
-    int at = (int)lower;
-    double s = lookup[0], t = lookup[1];
-    double3 below = bilinear_at(texels, base, width, height, at, s, t);
-    store(out, r, at < blend_from ? below
-                  : below * (1 - delta)
-                    + bilinear_at(texels, base, width, height, min(at + 1, levels - 1), s, t) * delta,
-          red_scale, green_scale, blue_scale);
+    level_filter(PENDING_LOOKUP_ARGUMENTS, LEVEL_TRILINEAR, blend_from);
 }

@@ -624,7 +624,7 @@ class DirectLighting:
 
     def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits: Hits) -> np.ndarray:
         """Albedo (N, 3) of the surface hits whose material the shading kernel leaves to the host
-        (image textures): EWA- and bilinear-filtered ones on the device (``_build_device_textures``),
+        (image textures): those the device filters on the device (``_build_device_textures``),
         the others by ``_albedo``; other rows are zero, unread by the kernel."""
         albedo = np.zeros((len(origin), 3), np.float32)
         if self._device_textures:
