@@ -66,9 +66,9 @@ class Hits:
 
 
 def merl_file(folder: Path, rng: np.random.Generator) -> Path:
-    """A MERL .binary file in ``folder`` of random bins (about 0 to 1 after the reader's channel scales)."""
+    """A MERL .binary file in ``folder`` of random bins (0 to 0.2, 0.23 and 0.33 after the channel scales)."""
     path = folder / "synthetic.binary"
-    raw = rng.random(3 * int(np.prod(MERL_SHAPE))) * 1000.0
+    raw = rng.random(3 * int(np.prod(MERL_SHAPE))) * 300.0
     path.write_bytes(np.array(MERL_SHAPE, "<i4").tobytes() + raw.astype("<f8").tobytes())
     return path
 
