@@ -243,18 +243,21 @@ def test_a_merl_table_is_placed_once_per_file(index_merl, random_merl):
 
 @pytest.mark.parametrize("depth", [0, 2])
 @pytest.mark.parametrize("spectral", [False, True])
-def test_bounce_kernel_shades_merl_tables_as_the_numpy_reference(random_merl, depth, spectral):
+@pytest.mark.parametrize("mode, mis", [("path", True), ("direct", True), ("direct", False)])
+def test_bounce_kernel_shades_merl_tables_as_the_numpy_reference(random_merl, depth, spectral, mode, mis):
     """The fused bounce per hit against ``PathIntegrator._shade`` (tests/test_bounce_kernel.py's
-    comparison), a MERL material and a mix holding one, RGB and spectral rays."""
+    comparison), a MERL material and a mix holding one, RGB and spectral rays, path tracing and
+    pbrt's direct lighting (which scenes with MERL materials render with: ``make_integrator``)."""
     for seed, material in enumerate((random_merl, Mix(Plastic(), random_merl, 0.7))):
-        _shades_as_numpy(material, depth, "path", True, 140 + seed, spectral=spectral)
+        _shades_as_numpy(material, depth, mode, mis, 140 + seed, spectral=spectral)
 
 
 @pytest.mark.parametrize("spectral", [False, True])
-def test_paths_over_a_merl_table_carry_the_numpy_radiance(random_merl, spectral):
+@pytest.mark.parametrize("mode", ["path", "direct"])
+def test_paths_over_a_merl_table_carry_the_numpy_radiance(random_merl, spectral, mode):
     """Whole paths (depth 5) over MERL objects through the fused bounce: the numpy backend's radiance."""
     scene = _scene(random_merl)
-    _paths_agree(scene, *_pair(scene), 150, spectral=spectral)
+    _paths_agree(scene, *_pair(scene, mode), 150, spectral=spectral)
 
 
 def test_a_shared_merl_file_reads_as_numpy(kernel):
