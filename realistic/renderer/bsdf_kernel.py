@@ -9,12 +9,13 @@ smooth, thin and rough dielectrics, plastic, coated diffuse, substrate, measured
 (their 128^3 table), MERL half-angle tables (their 90 x 90 x 180 RGB bins as read), diffuse
 transmission, and a mix of two of those whose second is the same at every hit; the tables and the
 mixes' second lobes live in the kernel's ``TableStore``. Mixes holding a mix or a textured second
-material (or seen by spectral rays, whose second lobe varies with the wavelength) stay with the numpy
-BSDFs of ``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The
-host looks each parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and
-packs one ``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both
-draw the same directions. One launch per bounce evaluates every light sample's direction and draws
-the BSDF sample; each thread has its own queue, so the renderer's worker threads launch independently.
+material (or seen by spectral rays, whose second lobe varies with the wavelength) stay with the
+numpy BSDFs of ``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` and, for
+MERL tables, ``tests/test_merl_kernel.py`` compare the two). The host looks each parameter up at
+the hits as ``bsdf.factory.bsdf_for`` does (textures included) and packs one ``BSDF_PARAMS`` row
+per hit; the kernel takes the integrator's own uniform numbers, so both draw the same directions.
+One launch per bounce evaluates every light sample's direction and draws the BSDF sample; each
+thread has its own queue, so the renderer's worker threads launch independently.
 """
 
 from __future__ import annotations
