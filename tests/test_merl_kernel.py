@@ -5,6 +5,8 @@ degrees; its pdf and cosine samples; spectral rays; the lookup's reciprocity; th
 per file; and the fused bounce (kernels/bounce.cl) per hit and over whole paths. The tables are
 written here (``_write_merl``); a MERL file under ../shared is read too where there is one."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -25,21 +27,21 @@ COUNT = int(np.prod(MERL_SHAPE))
 N_H, N_D, N_PHI = MERL_SHAPE
 
 
-def _write_merl(path, raw: np.ndarray) -> Measured:
+def _write_merl(path: Path, raw: np.ndarray) -> Measured:
     """A MERL file at ``path`` of ``raw`` (3 * COUNT values: all red, then green, then blue)."""
     path.write_bytes(np.array(MERL_SHAPE, "<i4").tobytes() + np.asarray(raw, "<f8").tobytes())
     return Measured(str(path))
 
 
 @pytest.fixture(scope="module")
-def index_merl(tmp_path_factory) -> Measured:
+def index_merl(tmp_path_factory: pytest.TempPathFactory) -> Measured:
     """A MERL file whose raw value at flat index i is i in every channel: a hit's red f times 1500
     is the index of the bin it read."""
     return _write_merl(tmp_path_factory.mktemp("merl") / "index.binary", np.tile(np.arange(COUNT, dtype=float), 3))
 
 
 @pytest.fixture(scope="module")
-def random_merl(tmp_path_factory) -> Measured:
+def random_merl(tmp_path_factory: pytest.TempPathFactory) -> Measured:
     """A MERL file of random bins, red up to 0.2, green 0.23, blue 0.33 after the channel scales."""
     raw = np.random.default_rng(21).random(3 * COUNT) * 300.0
     return _write_merl(tmp_path_factory.mktemp("merl") / "random.binary", raw)
@@ -98,15 +100,12 @@ def _edge_pairs() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
              "theta_d": (np.full(len(k_d), 0.2 * deg), 1.1 + k_d * 0.07, k_d * deg, 0.4 + k_d * 0.03, k_d),
              "phi_d": (np.full(len(k_phi), 20 * deg), 2.0 + k_phi * 0.013, np.full(len(k_phi), 30 * deg),
                        k_phi * deg, k_phi)}
-    out = {}
-    for axis, (theta_h, phi_h, theta_d, phi_d, k) in cases.items():
-        wo, wi = _pairs(theta_h, phi_h, theta_d, phi_d)
-        out[axis] = (wo, wi, k)
-    return out
+    return {axis: (*_pairs(theta_h, phi_h, theta_d, phi_d), k)
+            for axis, (theta_h, phi_h, theta_d, phi_d, k) in cases.items()}
 
 
 def _f(kernel: BsdfKernel, material: Measured, wo: np.ndarray, wi: np.ndarray, channels: int = 3,
-       hits=None) -> tuple[np.ndarray, np.ndarray]:
+       hits: ConstantHits | SpectralHits | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The kernel's f (N, channels) and pdf (N,) of ``material`` at the pairs."""
     n = len(wo)
     rows = kernel.rows(material, hits or ConstantHits(n), n)
