@@ -9,11 +9,12 @@ random local directions; and, where the kernel covers the material, the same wor
 rows, then one launch evaluating the light direction and drawing the sample). A warm-up run, then
 ``--repeats`` rounds in which numpy and the kernel alternate per material, so both see the same
 load; the table gives medians. The measured BRDFs use the seed scene's
-../shared/scenes/pbrt/brdfs/acryl_blue.brdf (skipped when absent) and a synthetic MERL table (numpy
-only). Lambertian is the baseline a matte, direct-lit scene pays; the ratio column is each
-material's numpy evaluate + pdf + sample time over Lambertian's, and "x numpy" the numpy build +
-evaluate + pdf + sample time over the kernel's rows + launch. The machine's load is not
-controlled: compare ratios within one run. Prints a table and writes bench/results/bsdf.json.
+../shared/scenes/pbrt/brdfs/acryl_blue.brdf (skipped when absent) and a synthetic MERL table
+(random bins, written to a temporary .binary file and read once, as a scene's would be).
+Lambertian is the baseline a matte, direct-lit scene pays; the ratio column is each material's
+numpy evaluate + pdf + sample time over Lambertian's, and "x numpy" the numpy build + evaluate +
+pdf + sample time over the kernel's rows + launch. The machine's load is not controlled: compare
+ratios within one run. Prints a table and writes bench/results/bsdf.json.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import json
 import os
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -33,7 +35,6 @@ sys.path.insert(0, str(ROOT))
 
 from realistic.device.opencl import Device  # noqa: E402
 from realistic.renderer.bsdf import bsdf_for  # noqa: E402
-from realistic.renderer.bsdf.measured import MeasuredBRDF  # noqa: E402
 from realistic.renderer.bsdf_kernel import BsdfKernel  # noqa: E402
 from realistic.scene.materials import (  # noqa: E402
     CoatedDiffuse,
@@ -45,7 +46,7 @@ from realistic.scene.materials import (  # noqa: E402
     Plastic,
     Substrate,
 )
-from realistic.scene.measured import HalfangleTable  # noqa: E402
+from realistic.scene.measured import MERL_SHAPE  # noqa: E402
 from realistic.scene.model import Material  # noqa: E402
 
 BRDF = ROOT.parent / "shared" / "scenes" / "pbrt" / "brdfs" / "acryl_blue.brdf"
@@ -64,7 +65,15 @@ class Hits:
         return np.full(self.n, value, np.float32)
 
 
-def materials() -> dict[str, object]:
+def merl_file(folder: Path, rng: np.random.Generator) -> Path:
+    """A MERL .binary file in ``folder`` of random bins (0 to 0.2, 0.23 and 0.33 after the channel scales)."""
+    path = folder / "synthetic.binary"
+    raw = rng.random(3 * int(np.prod(MERL_SHAPE))) * 300.0
+    path.write_bytes(np.array(MERL_SHAPE, "<i4").tobytes() + raw.astype("<f8").tobytes())
+    return path
+
+
+def materials(folder: Path, rng: np.random.Generator) -> dict[str, object]:
     found = {"lambertian": Material((0.5,) * 3), "oren-nayar": Material((0.5,) * 3, sigma=20.0),
              "plastic": Plastic(), "coated diffuse": CoatedDiffuse(roughness=0.1),
              "conductor": Conductor(roughness_u=0.1, roughness_v=0.1), "mirror": Mirror(),
@@ -72,6 +81,7 @@ def materials() -> dict[str, object]:
              "substrate": Substrate(), "mix": Mix(Material(), Plastic(), 0.5)}
     if BRDF.is_file():
         found["measured .brdf"] = Measured(str(BRDF))
+    found["measured MERL"] = Measured(str(merl_file(folder, rng)))
     return found
 
 
@@ -89,21 +99,17 @@ def measure(hits: int, repeats: int) -> list[dict]:
     wi = rng.normal(size=(hits, 3)).astype(np.float32)
     wi /= np.linalg.norm(wi, axis=1, keepdims=True)
     u, u_lobe = rng.random((hits, 2)).astype(np.float32), rng.random(hits).astype(np.float32)
-    table = HalfangleTable(rng.random((90, 90, 180, 3)).astype(np.float32))
     kernel = BsdfKernel(Device.for_spec())
-    merl = MeasuredBRDF(table, np.tile(np.eye(3, dtype=np.float32), (hits, 1, 1)))
     runs: dict[str, dict] = {}
-    for name, material in {**materials(), "measured MERL": None}.items():
-        if material is None:
-            runs[name] = {"build": lambda: merl}
-        else:
+    with tempfile.TemporaryDirectory() as folder:
+        for name, material in materials(Path(folder), rng).items():
             runs[name] = {"build": lambda m=material: bsdf_for(m, Hits(hits))}
             if kernel.rows(material, Hits(hits), hits) is not None:
                 runs[name]["kernel"] = lambda m=material: kernel(kernel.rows(m, Hits(hits), hits), wo, wi[None], u,
                                                                  u_lobe)
-        bsdf = runs[name]["build"]()
-        runs[name]["evaluate_pdf"] = lambda b=bsdf: (b.evaluate(wo, wi), b.pdf(wo, wi))
-        runs[name]["sample"] = lambda b=bsdf: b.sample(wo, u, u_lobe)
+            bsdf = runs[name]["build"]()
+            runs[name]["evaluate_pdf"] = lambda b=bsdf: (b.evaluate(wo, wi), b.pdf(wo, wi))
+            runs[name]["sample"] = lambda b=bsdf: b.sample(wo, u, u_lobe)
     times: dict[str, dict[str, list[float]]] = {name: {part: [] for part in run} for name, run in runs.items()}
     for round_ in range(repeats + 1):  # round 0 warms up (builds, tables, caches) and is not kept
         for name, run in runs.items():
@@ -116,7 +122,7 @@ def measure(hits: int, repeats: int) -> list[dict]:
         median = {part: statistics.median(values) for part, values in parts.items()}
         numpy_s = median["build"] + median["evaluate_pdf"] + median["sample"]
         rows.append({"material": name, "hits": hits, "repeats": repeats,
-                     "build_s": 0.0 if name == "measured MERL" else median["build"],
+                     "build_s": median["build"],
                      "evaluate_pdf_s": median["evaluate_pdf"], "sample_s": median["sample"],
                      "kernel_s": median.get("kernel"),
                      "kernel_speedup": numpy_s / median["kernel"] if "kernel" in median else None,

@@ -206,11 +206,11 @@ inline void coated_base(Lobe *p) {
  * each in every channel, as bsdf_for builds the lobe from SurfaceParameters' spectral colours: the
  * albedo, scale, reflection and transmission tints, a plastic's or substrate's specular colour and a
  * conductor's eta and k each the dot with the basis (light_sampler.colour); a named metal's and a
- * measured table's RGB-to-channel rows each the basis row (bsdf_kernel.rgb_channels); a coated
+ * measured or MERL table's RGB-to-channel rows each the basis row (bsdf_kernel.rgb_channels); a coated
  * base made from its albedo's spectral value (coated_base); the coat's tint stays 1. Indices are
  * not dispersive. */
 inline void spectral_lobe(Lobe *p, float3 basis) {
-    if (p->kind == KIND_MEASURED) {
+    if (p->kind == KIND_MEASURED || p->kind == KIND_MERL) {
         p->scale = p->tint = p->eta = basis;
         return;
     }

@@ -18,20 +18,25 @@
  * (pbrt-v4's, GGX); plastic (Lambertian kd + a GGX
  * coat of ks with the dielectric Fresnel of index eta, lobes picked in proportion to the colours'
  * means); coated diffuse (the coated base + an uncoloured coat, lobes picked by the coat's Fresnel);
- * substrate (FresnelBlend); measured (a pbrt-v2 .brdf file's table, cosine-sampled); diffuse
+ * substrate (FresnelBlend); measured (a pbrt-v2 .brdf file's table, cosine-sampled); MERL (a
+ * half-angle table's bins, cosine-sampled); diffuse
  * transmission (Lambertian reflection of scale and transmission of tint, the side picked in
  * proportion to their means; diffuse_transmission.py). A lobe whose
  * max(alpha_x, alpha_y) is below SMOOTH_ALPHA reflects (glass: and refracts) specularly. */
 
 #include "common.cl"
 
+/* the MERL lobe finds its bins in double precision, as its numpy reference does (PoCL's CPU device
+ * has cl_khr_fp64, as kernels/ewa.cl uses) */
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+
 #define PI_F 3.14159265358979f
 
 /* One lobe: a material that is not a mix (the first 17 columns of a BSDF_PARAM row, or a mix's
  * second lobe in the tables). `extra`: Oren-Nayar's A and B, the coated base's albedo estimate
  * (x), or a table's start in the tables (x, in units of BSDF_TABLE_ALIGN floats) and its size (y: a measured
- * table's nodes per axis, a named metal's reflectance table's rows); `table` points at that start
- * (measured and tabulated-conductor lobes only). */
+ * table's nodes per axis, a named metal's reflectance table's rows; a MERL table's shape is MERL_*);
+ * `table` points at that start (measured, MERL and tabulated-conductor lobes only). */
 typedef struct {
     int kind;
     float3 scale, tint, eta, k;
@@ -63,7 +68,7 @@ inline Lobe load_lobe(__global const float *row, __global const float *tables) {
                && (fmax(ax, ay) < SMOOTH_ALPHA || (p.kind == KIND_ROUGH_DIELECTRIC && p.eta.x == 1.0f));
     p.ax = fmax(ax, 1e-4f);
     p.ay = fmax(ay, 1e-4f);
-    int tabulated = p.kind == KIND_MEASURED || p.kind == KIND_TABULATED_CONDUCTOR;
+    int tabulated = p.kind == KIND_MEASURED || p.kind == KIND_MERL || p.kind == KIND_TABULATED_CONDUCTOR;
     p.table = tables + (tabulated ? (size_t)p.extra.x * BSDF_TABLE_ALIGN : 0);
     return p;
 }
@@ -273,14 +278,51 @@ inline float3 measured_rgb(const Lobe *p, float3 wo, float3 wi) {
     return (c00 * (1.0f - fy) + c10 * fy) * (1.0f - fz) + (c01 * (1.0f - fy) + c11 * fy) * fz;
 }
 
+/* REMAP of pbrt-v2's RegularHalfangleBRDF::f: the bin of v in [0, top) cut into count, truncated
+ * and clamped to the table. */
+inline int merl_bin(double v, double top, int count) {
+    double at = v / top * count;
+    return at < 0.0 ? 0 : (at >= count ? count - 1 : (int)at);
+}
+
+/* A MERL table's RGB at a pair on one side (measured.halfangle_lookup, pbrt-v2's RegularHalfangleBRDF::f
+ * in src/core/reflection.cpp): the pair mirrored so that the half vector wh faces +z, wi in wh's frame
+ * giving theta_d and phi_d (folded into [0, pi)), theta_h's bin from sqrt(theta_h / (pi / 2)). In
+ * double, in numpy's order and unfused, so that both pick the same bin (float32 acos near 1 could not
+ * tell theta_h's first bins, 0.011 degrees wide, apart). */
+inline float3 merl_rgb(const Lobe *p, float3 wo_f, float3 wi_f) {
+#pragma OPENCL FP_CONTRACT OFF
+    double3 wi = convert_double3(wi_f), wh = convert_double3(wo_f) + wi;
+    if (wh.z < 0.0) {
+        wi = -wi;
+        wh = -wh;
+    }
+    double length = sqrt(wh.x * wh.x + wh.y * wh.y + wh.z * wh.z);
+    if (!(length > 0.0)) return (float3)(0.0f);
+    wh = wh / length;
+    double cos_h = clamp(wh.z, -1.0, 1.0), sin_h = sqrt(fmax(0.0, 1.0 - cos_h * cos_h));
+    double cos_phi = sin_h > 0.0 ? clamp(wh.x / sin_h, -1.0, 1.0) : 1.0;
+    double sin_phi = sin_h > 0.0 ? clamp(wh.y / sin_h, -1.0, 1.0) : 0.0;
+    double dx = wi.x * (cos_phi * cos_h) + wi.y * (sin_phi * cos_h) + wi.z * -sin_h;
+    double dy = wi.x * -sin_phi + wi.y * cos_phi;
+    double dz = wi.x * wh.x + wi.y * wh.y + wi.z * wh.z;
+    double phi_d = atan2(dy, dx);
+    phi_d = phi_d < 0.0 ? phi_d + 2.0 * M_PI : phi_d;
+    phi_d = phi_d > M_PI ? phi_d - M_PI : phi_d;
+    int i_h = merl_bin(sqrt(fmax(0.0, acos(cos_h) / (M_PI / 2.0))), 1.0, MERL_THETA_H);
+    int i_d = merl_bin(acos(clamp(dz, -1.0, 1.0)), M_PI / 2.0, MERL_THETA_D);
+    int i_phi = merl_bin(phi_d, M_PI, MERL_PHI_D);
+    return vload3(i_phi + MERL_PHI_D * (i_d + MERL_THETA_D * i_h), p->table);
+}
+
 /* The diffuse lobe of a kind that has one, for a pair on one side: Lambertian and plastic albedo /
  * pi, Oren-Nayar, coated diffuse's base (coated_diffuse.CoatedLambertian: k the host's scale,
- * times the coat's transmittance both ways), a measured table's RGB in the rays' channels (the
- * rows of the host's matrix in scale, tint and eta). */
+ * times the coat's transmittance both ways), a measured or MERL table's RGB in the rays' channels
+ * (the rows of the host's matrix in scale, tint and eta). */
 inline float3 diffuse_value(const Lobe *p, float3 wo, float3 wi) {
     if (p->kind == KIND_OREN_NAYAR) return p->scale * oren_nayar_shape(p, wo, wi);
-    if (p->kind == KIND_MEASURED) {
-        float3 rgb = measured_rgb(p, wo, wi);
+    if (p->kind == KIND_MEASURED || p->kind == KIND_MERL) {
+        float3 rgb = p->kind == KIND_MERL ? merl_rgb(p, wo, wi) : measured_rgb(p, wo, wi);
         return (float3)(dot(p->scale, rgb), dot(p->tint, rgb), dot(p->eta, rgb));
     }
     if (p->kind == KIND_COATED_DIFFUSE)
@@ -375,6 +417,7 @@ inline float3 lobe_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
     case KIND_LAMBERTIAN:
     case KIND_OREN_NAYAR:
     case KIND_MEASURED:
+    case KIND_MERL:
         *pdf = same * fabs(wi.z) / PI_F;
         return same > 0.0f ? diffuse_value(p, wo, wi) : (float3)(0.0f);
     case KIND_DIELECTRIC:
@@ -509,7 +552,7 @@ inline float3 lobe_sample(const Lobe *p, float3 wo, float u0, float u1, float ul
     /* plastic and coated diffuse: the diffuse lobe below the diffuse chance, else the coat (mix.WeightedSum) */
     int two = p->kind == KIND_PLASTIC || p->kind == KIND_COATED_DIFFUSE;
     int diffuse = p->kind == KIND_LAMBERTIAN || p->kind == KIND_OREN_NAYAR || p->kind == KIND_MEASURED
-                  || (two && ul < diffuse_chance(p, wo));
+                  || p->kind == KIND_MERL || (two && ul < diffuse_chance(p, wo));
     wi = diffuse ? cosine_on_side(wo, u0, u1) : microfacet_direction(p, wo, u0, u1);
     *specular = !diffuse && p->smooth;
     *value = lobe_eval(p, wo, wi, pdf);

@@ -6,15 +6,16 @@ at hits whose material the kernel covers (``parameters`` returns their rows) whe
 whole bounce: Lambertian and
 Oren-Nayar (``Material``), conductors (eta and k, or a named metal's tabulated Fresnel), mirrors,
 smooth, thin and rough dielectrics, plastic, coated diffuse, substrate, measured ``.brdf`` files
-(their 128^3 table), diffuse transmission, and a mix of two of those whose second is the same at
-every hit; the tables and the mixes' second lobes live in the kernel's ``TableStore``. MERL tables,
-mixes holding a mix or a textured second material (or seen by spectral rays, whose second lobe
-varies with the wavelength) stay with the numpy BSDFs of
-``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` compares the two). The
-host looks each parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included) and
-packs one ``BSDF_PARAMS`` row per hit; the kernel takes the integrator's own uniform numbers, so both
-draw the same directions. One launch per bounce evaluates every light sample's direction and draws
-the BSDF sample; each thread has its own queue, so the renderer's worker threads launch independently.
+(their 128^3 table), MERL half-angle tables (their 90 x 90 x 180 RGB bins as read), diffuse
+transmission, and a mix of two of those whose second is the same at every hit; the tables and the
+mixes' second lobes live in the kernel's ``TableStore``. Mixes holding a mix or a textured second
+material (or seen by spectral rays, whose second lobe varies with the wavelength) stay with the
+numpy BSDFs of ``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` and, for
+MERL tables, ``tests/test_merl_kernel.py`` compare the two). The host looks each parameter up at
+the hits as ``bsdf.factory.bsdf_for`` does (textures included) and packs one ``BSDF_PARAMS`` row
+per hit; the kernel takes the integrator's own uniform numbers, so both draw the same directions.
+One launch per bounce evaluates every light sample's direction and draws the BSDF sample; each
+thread has its own queue, so the renderer's worker threads launch independently.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ from realistic.scene.materials import (
     Substrate,
     SurfaceMaterial,
 )
-from realistic.scene.measured import IrregularSamples, load_measured
+from realistic.scene.measured import MERL_SHAPE, IrregularSamples, load_measured
 from realistic.scene.metals import reflectance_table
 from realistic.scene.model import Material
 
@@ -61,7 +62,8 @@ KERNEL_FILE = "bsdf.cl"
 #: (``CoatedLambertian.scale``); ``alpha`` the GGX widths along x and y; ``extra`` Oren-Nayar's A and
 #: B, the coated base's albedo estimate and 1 - ``internal``, or a
 #: table's start (in ``TABLE_ALIGN`` floats) and size (a measured table's nodes per axis, a named
-#: metal's reflectance rows). A measured lobe's ``scale``, ``tint`` and ``eta``, and a tabulated
+#: metal's reflectance rows; a MERL table's shape is ``MERL_SHAPE``, in the header). A measured or
+#: MERL lobe's ``scale``, ``tint`` and ``eta``, and a tabulated
 #: conductor's ``tint``, ``eta`` and ``k``, are the rows of the matrix turning RGB into the rays'
 #: channels (``rgb_channels``).
 LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), ("eta", 3), ("k", 3), ("alpha", 2),
@@ -72,13 +74,16 @@ LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), 
 #: that every other row stays one lobe wide.
 BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", 1)))
 KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
-         "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor", "diffuse_transmission")
+         "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor", "diffuse_transmission",
+         "merl")
 KIND = {name: index for index, name in enumerate(KINDS)}
 #: Measured tables start at multiples of this many floats in ``TableStore``'s buffer, so a row holds a
 #: start divided by it, a whole number float32 keeps exactly.
 TABLE_ALIGN = 1024
 HEADER = (BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SMOOTH_ALPHA {SMOOTH_ALPHA!r}f\n"
-          + f"#define BSDF_TABLE_ALIGN {TABLE_ALIGN}\n")
+          + f"#define BSDF_TABLE_ALIGN {TABLE_ALIGN}\n"
+          + "".join(f"#define MERL_{axis} {count}\n"
+                    for axis, count in zip(("THETA_H", "THETA_D", "PHI_D"), MERL_SHAPE)))
 #: One lobe's ``LOBE`` fields by name: constants or per-hit (count,) or (count, width) arrays.
 Columns = dict[str, ArrayLike]
 
@@ -148,11 +153,14 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, tables: Ta
         return dict(kind=KIND["diffuse_transmission"], scale=colour(hits, material.reflectance),
                     tint=colour(hits, material.transmittance))
     if isinstance(material, Measured) and tables is not None:
-        data = load_measured(material.path)
+        data, channels = load_measured(material.path), rgb_channels(hits)
         if isinstance(data, IrregularSamples):
-            table, channels = irregular_table(data), rgb_channels(hits)
-            return dict(kind=KIND["measured"], scale=channels[:, 0], tint=channels[:, 1],
-                        eta=channels[:, 2], extra=np.array([tables.place(table), table.shape[0]], np.float32))
+            table = irregular_table(data)
+            kind, extra = KIND["measured"], [tables.place(table), table.shape[0]]
+        else:  # a MERL table: its bins as read, their shape the header's MERL_*
+            kind, extra = KIND["merl"], [tables.place(data.rgb), 0]
+        return dict(kind=kind, scale=channels[:, 0], tint=channels[:, 1], eta=channels[:, 2],
+                    extra=np.array(extra, np.float32))
     return None
 
 
@@ -194,7 +202,7 @@ def _rows(count: int, lobe: Columns, width: int) -> np.ndarray:
 
 class TableStore:
     """What the kernel reads beside its rows, back to back in one read-only buffer, each at a multiple
-    of ``TABLE_ALIGN`` floats: measured tables and named metals' Fresnel tables (``place``, once per
+    of ``TABLE_ALIGN`` floats: measured and MERL tables and named metals' Fresnel tables (``place``, once per
     table), and mixes' second lobes (``place_lobe``, once per distinct lobe). Starts never move, so
     rows made before a later addition stay right."""
 

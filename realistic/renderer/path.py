@@ -28,8 +28,8 @@ sample, beta, roulette), with the same random numbers; so do spectral rays (a di
 at the same hits, in the kernel's spectral build. The host keeps embree, emission and the compaction
 of live paths. Other hits (other textured parameters, such as roughness, Ks or Kr, and materials
 ``bsdf.cl`` lacks) have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
-where it covers the material (the backend's ``bsdf_kernel``: every material but diffuse
-transmission and MERL tables), in one launch per bounce with the same random numbers; every other
+where it covers the material (the backend's ``bsdf_kernel``: ``bsdf_kernel.parameters`` says
+which), in one launch per bounce with the same random numbers; every other
 material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
 
 Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
