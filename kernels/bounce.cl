@@ -13,9 +13,10 @@
  *   - the material's BSDF_PARAM row (with `tables`, the BSDF kernel's TableStore: measured and
  *     named metals' tables, mixes' second lobes), or where BOUNCE_MATERIAL's per_hit says so the
  *     hit's own row (`hit_params`, row i: the host looked every parameter up at the hit, for
- *     spectral rays at its wavelength, as BounceKernel._hit_rows says), its diffuse-like colour (a Material's, plastic's
- *     or substrate's diffuse, a coated diffuse's reflectance) times a grid or checker texture at
- *     the interpolated uv (realistic.scene.textures.evaluate) where BOUNCE_MATERIAL says so, or, for
+ *     spectral rays at its wavelength, as BounceKernel._hit_rows says), its diffuse-like colour
+ *     (a Material's, plastic's or substrate's diffuse, a coated diffuse's reflectance) times a grid
+ *     or checker texture at the interpolated uv (realistic.scene.textures.evaluate) where
+ *     BOUNCE_MATERIAL says so, or, for
  *     an image texture, the hit's colour the host filtered before the launch (`albedo`, one RGB per
  *     hit: EwaKernel.at_hits);
  *   - light samples (picked by the rounded-up CDF as numpy's searchsorted picks; LightSampler.sample):
