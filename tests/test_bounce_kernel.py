@@ -1,6 +1,7 @@
 """kernels/bounce.cl (the path integrator's fused bounce) against the numpy ``PathIntegrator._shade``
 (the reference) per hit with the same random numbers, for every material and every kind of light the
-kernel covers (emitting meshes and spheres among them); which materials and lights it covers; whole
+kernel covers (emitting meshes and spheres among them, and textured parameters read from per-hit
+rows); which materials and lights it covers; whole
 paths equal to the numpy backend's; an area-light, a sky and an emitting-sphere furnace; and a plane's
 closed-form radiance under point, spot and distant lights and under an emitting sphere. The spectral
 build likewise: per hit, whole paths, a dispersive render against the numpy backend's, and the sky
@@ -45,8 +46,10 @@ pytestmark = pytest.mark.usefixtures("opencl_platform")
 from realistic.device.opencl import Device  # noqa: E402
 from realistic.renderer.bounce_kernel import (  # noqa: E402
     GOES_ON,
+    MATERIALS,
     SHADES,
     SPECULAR,
+    Bounce,
     BounceKernel,
     header,
     material_rows,
@@ -151,9 +154,10 @@ def test_covered_materials():
     """Constant parameters of the materials bsdf.cl covers (named metals and mixes with their tables
     or second lobes in the BSDF kernel's tables), and the diffuse-like colour's grid or checker
     texture or its image texture (whatever its filter), a scaled one too: a ``Material``'s, a
-    plastic's or substrate's Kd, a coated diffuse's reflectance. Other textured parameters (roughness,
-    a specular colour, a mirror's or glass's tints, a conductor's scale, a mix's amount or textured
-    second material) and materials bsdf.cl lacks are not covered."""
+    plastic's or substrate's Kd, a coated diffuse's reflectance, each in the material's row. Other
+    textured parameters (roughness, a specular colour, a mirror's or glass's tints, a conductor's
+    scale, a mix's amount) are covered by per-hit rows (``per_hit``); a mix whose second material is
+    textured is not covered."""
     tables = TableStore(Device.for_spec())
     for material in (*COVERED.values(), *TEXTURED.values()):
         assert material_rows(material, tables) is not None
@@ -166,16 +170,16 @@ def test_covered_materials():
     image = ImageTexture(np.ones((4, 4, 3), np.float32))
     for texture in (image, GridTexture(cells=4.0), CheckerTexture(cells=4.0), ScaledTexture(image, (0.5, 0.6, 0.7))):
         for material in (Plastic(texture), CoatedDiffuse(texture), Substrate(texture)):
-            assert material_rows(material, tables) is not None
-    for uncovered in (Plastic((0.4, 0.4, 0.4), image), Plastic(image, image), Plastic(image, roughness=image),
-                      CoatedDiffuse(image, roughness=image), CoatedDiffuse((0.5, 0.5, 0.5), image),
-                      Substrate(image, image), Substrate(image, roughness_v=image), Mirror(image),
-                      Dielectric(1.5, image), Conductor(scale=image), Mix(Plastic(image), Material(), 0.5)):
-        assert material_rows(uncovered, tables) is None
-    assert material_rows(Dielectric(1.5, roughness_u=image, roughness_v=0.2), tables) is None
-    assert material_rows(Mix(Material(), Material(), image), tables) is None
+            assert material_rows(material, tables)[1][MATERIALS.offset("per_hit")] == 0
+    for per_hit in (Plastic((0.4, 0.4, 0.4), image), Plastic(image, image), Plastic(image, roughness=image),
+                    CoatedDiffuse(image, roughness=image), CoatedDiffuse((0.5, 0.5, 0.5), image),
+                    Substrate(image, image), Substrate(image, roughness_v=image), Mirror(image),
+                    Dielectric(1.5, image), Conductor(scale=image), Mix(Plastic(image), Material(), 0.5),
+                    Dielectric(1.5, roughness_u=image, roughness_v=0.2), Mix(Material(), Material(), image),
+                    DiffuseTransmission(image), *(m for m, _ in PER_HIT.values())):
+        rows = material_rows(per_hit, tables)
+        assert rows is not None and rows[1][MATERIALS.offset("per_hit")] == 1, per_hit
     assert material_rows(Mix(Material(), Plastic(image), 0.5), tables) is None
-    assert material_rows(DiffuseTransmission(image), tables) is None
 
 
 #: An image of 64 x 32 texels with little symmetry, for the image-textured materials.
@@ -216,6 +220,70 @@ TEXTURED = {"grid": Material((0.9, 0.8, 0.7), GridTexture(cells=5.0, line_width=
                                                                offset=(0.1, 0.2)), (0.08, 0.1, 0.06), 0.1, 0.25)}
 #: The pixel spread (radians) of the per-hit comparison: the image textures' footprints at depth 0.
 SPREAD = 4e-3
+#: Roughness in [0.02, 0.5] of little symmetry (an image's channels' mean).
+ROUGH = (0.02 + 0.48 * IMAGE).astype(np.float32)
+#: Materials with textured parameters beyond the diffuse-like colour, which the kernel reads from
+#: per-hit rows (``per_hit``), each with the same material holding a constant in the texture's place
+#: (about its mean): the kernel must shade the two differently.
+PER_HIT = {
+    "plastic, image roughness": (Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), ImageTexture(ROUGH, scale=(3.0, 2.0))),
+                                 Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.26)),
+    "plastic, grid roughness, image kd": (
+        Plastic(ImageTexture(IMAGE, scale=(2.0, 2.0)), (0.3, 0.3, 0.3),
+                GridTexture(base=(0.05, 0.05, 0.05), line=(0.4, 0.5, 0.6), cells=5.0, line_width=0.3)),
+        Plastic(ImageTexture(IMAGE, scale=(2.0, 2.0)), (0.3, 0.3, 0.3), 0.2)),
+    "plastic, image ks": (Plastic((0.5, 0.3, 0.2), ScaledTexture(ImageTexture(IMAGE, scale=(3.0, 3.0)),
+                                                                (0.6, 0.5, 0.4)), 0.15),
+                          Plastic((0.5, 0.3, 0.2), (0.3, 0.25, 0.2), 0.15)),
+    "conductor, checker roughness": (
+        Conductor(roughness_u=CheckerTexture(even=(0.03, 0.03, 0.03), odd=(0.4, 0.4, 0.4), cells=6.0),
+                  roughness_v=0.2),
+        Conductor(roughness_u=0.2, roughness_v=0.2)),
+    "conductor, image eta, k and scale": (
+        Conductor(ImageTexture(0.2 + 2 * IMAGE, scale=(2.0, 3.0)), ImageTexture(1 + 3 * IMAGE[::-1]), 0.1, 0.1,
+                  scale=CheckerTexture(even=(0.9, 0.7, 0.5), odd=(0.5, 0.8, 1.0), cells=6.0)),
+        Conductor((1.2, 1.2, 1.2), (2.5, 2.5, 2.5), 0.1, 0.1, scale=(0.7, 0.75, 0.75))),
+    "rough dielectric, image roughness": (
+        Dielectric(1.5, roughness_u=ImageTexture(ROUGH, scale=(2.0, 2.0)), roughness_v=ImageTexture(ROUGH[:, ::-1])),
+        Dielectric(1.5, roughness_u=0.26, roughness_v=0.26)),
+    "dielectric, textured tints": (Dielectric(1.5, CheckerTexture(even=(1.0, 0.8, 0.6), odd=(0.5, 0.7, 1.0),
+                                                                  cells=6.0), ImageTexture(IMAGE)),
+                                   Dielectric(1.5, (0.75, 0.75, 0.8), (0.5, 0.5, 0.5))),
+    "coated diffuse, image roughness": (CoatedDiffuse((0.8, 0.3, 0.2), ImageTexture(ROUGH, scale=(3.0, 3.0))),
+                                        CoatedDiffuse((0.8, 0.3, 0.2), 0.26)),
+    "substrate, grid roughness": (
+        Substrate((0.6, 0.5, 0.3), (0.1, 0.1, 0.1), 0.1,
+                  GridTexture(base=(0.03, 0.03, 0.03), line=(0.5, 0.5, 0.5), cells=5.0, line_width=0.3)),
+        Substrate((0.6, 0.5, 0.3), (0.1, 0.1, 0.1), 0.1, 0.2)),
+    "mix, checker amount": (Mix(Material((0.7, 0.6, 0.5)), Conductor(roughness_u=0.1, roughness_v=0.1),
+                                CheckerTexture(even=(0.1, 0.1, 0.1), odd=(0.9, 0.9, 0.9), cells=6.0)),
+                            Mix(Material((0.7, 0.6, 0.5)), Conductor(roughness_u=0.1, roughness_v=0.1), 0.5)),
+    "mix, image amount, textured first": (
+        Mix(Plastic((0.2, 0.5, 0.8), (0.3, 0.3, 0.3), ImageTexture(ROUGH)), CoatedDiffuse((0.9, 0.2, 0.4), 0.1),
+            ImageTexture(IMAGE, scale=(2.0, 3.0))),
+        Mix(Plastic((0.2, 0.5, 0.8), (0.3, 0.3, 0.3), 0.26), CoatedDiffuse((0.9, 0.2, 0.4), 0.1), 0.5)),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PER_HIT))
+@pytest.mark.parametrize("depth", [0, 2])
+@pytest.mark.parametrize("mode, mis, spectral", [("path", True, False), ("direct", False, False),
+                                                 ("path", True, True), ("direct", True, True)])
+def test_bounce_kernel_shades_textured_parameters_per_hit_as_the_numpy_reference(name, depth, mode, mis,
+                                                                                spectral):
+    """Textured roughness (plastic, coated diffuse, substrate, conductor, rough glass; image, grid
+    and checker textures), a textured specular colour, a conductor's textured eta, k and scale,
+    glass's textured tints and a mix's textured amount (its first material textured too), RGB and
+    spectral: per hit as the other materials, each hit's own row looked up as ``_shade`` looks it
+    up (image textures over the pixel footprint at depth 0); and the same material with a constant
+    in the texture's place shades the hits differently, so a kernel that read the material's
+    constant would fail."""
+    textured, constant = PER_HIT[name]
+    seed = 300 + sorted(PER_HIT).index(name)
+    got = _shades_as_numpy(textured, depth, mode, mis, seed, spectral=spectral)
+    plain = _shades_as_numpy(constant, depth, mode, mis, seed, spectral=spectral)
+    apart = ~np.all(np.isclose(got.beta, plain.beta, rtol=1e-3, atol=1e-6), axis=1) | (got.flags != plain.flags)
+    assert apart.mean() > 0.05, apart.mean()
 
 
 @pytest.mark.parametrize("name", sorted(COVERED) + sorted(TEXTURED))
@@ -291,10 +359,11 @@ def test_spectral_bounce_kernel_shades_each_hit_under_each_light_as_the_numpy_re
 
 
 def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int, lights: list | None = None,
-                     spectral: bool = False) -> None:
+                     spectral: bool = False) -> Bounce:
     """The per-hit comparison of the kernel and ``_shade`` on ``_scene(material, lights)`` (rays from
     ``seed``); ``spectral``: rays of one wavelength each (uniform over the visible), the kernel's
-    spectral build against ``_shade`` given their ``rgb_basis`` rows, beta one column."""
+    spectral build against ``_shade`` given their ``rgb_basis`` rows, beta one column. The kernel's
+    result."""
     scene = _scene(material, lights)
     numpy_one, device_one = _pair(scene, mode, mis, spread=SPREAD)
     origin, direction, hits = _rays(scene, N, seed)
@@ -311,7 +380,9 @@ def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int, ligh
                                 pixel, sample, depth)
     got = device_one._bounce(surface, path, pixel.astype(np.uint32), sample.astype(np.uint32), origin, direction,
                              hits, beta, depth=depth, light_samples=3 if depth == 0 else 1, seed=7,
-                             mode_flags=device_one._bounce_flags, max_depth=5, basis=basis)
+                             mode_flags=device_one._bounce_flags, max_depth=5, basis=basis,
+                             hit_parameters=device_one._hit_parameters(hits, surface, direction,
+                                                                       None if basis is None else basis[path], depth))
     assert got.contribution.shape[1] == got.beta.shape[1] == beta.shape[1]
     lights = 3 if depth == 0 else 1
     assert len(got.shadow_length) == lights * len(surface)
@@ -355,6 +426,7 @@ def _shades_as_numpy(material, depth: int, mode: str, mis: bool, seed: int, ligh
     assert _mostly(beta_close)
     pdf_close = np.isclose(got.pdf[rows], expected["pdf"][ref], rtol=2e-3)
     assert _mostly(pdf_close)
+    return got
 
 
 def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegrator, seed: int,
@@ -378,20 +450,41 @@ def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegr
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad,
-    plastic and diffuse transmission in the kernel and the floor, plastic whose Ks is an image
-    texture, in numpy: each ray's radiance is the numpy backend's to float32 rounding (a path may
-    only part where rounding moves a sample across a threshold)."""
+    plastic and diffuse transmission in the kernel and the floor, a mix whose second material is
+    plastic whose Ks is an image texture, in numpy: each ray's radiance is the numpy backend's to
+    float32 rounding (a path may only part where rounding moves a sample across a threshold)."""
     scene, _, _ = textured_scene()
     floor = scene.instances[0].material
     specular = ScaledTexture(floor.texture, (0.3, 0.3, 0.3))
-    scene.instances[0] = replace(scene.instances[0], material=Plastic((0.5, 0.4, 0.3), specular, 0.2))
+    scene.instances[0] = replace(scene.instances[0], material=Mix(Material((0.5, 0.4, 0.3)),
+                                                                  Plastic((0.5, 0.4, 0.3), specular, 0.2), 0.5))
     materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05), Material((0.3, 0.6, 0.9),
                                                                                              sigma=20.0)]
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
     scene.add(sphere(0.3, 16), translate(0.2, 0.3, 0.8), Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), 0.2))
     scene.add(sphere(0.25, 16), translate(-0.6, 0.3, 0.9), COVERED["diffuse transmission"])
     numpy_one, device_one = _pair(scene, mode, mis, light_samples=2)
+    assert not device_one._bounce.covered[device_one._geom_material[0]]
     _paths_agree(scene, numpy_one, device_one, 3)
+
+
+@pytest.mark.parametrize("mode, spectral", [("path", False), ("direct", False), ("path", True), ("direct", True)])
+def test_paths_over_textured_parameters_carry_the_numpy_radiance(mode, spectral, monkeypatch):
+    """Whole paths, RGB and spectral, over ``textured_scene`` with a plastic floor whose Kd is its
+    EWA image and whose roughness an image, a mix of a Lambertian and a rough conductor under a
+    checkered amount, glass of image-textured roughness and a conductor of checkered roughness,
+    seen with a pixel spread: every hit is the kernel's, the textured ones from per-hit rows
+    (``_shade`` is never called), and each ray's radiance is the numpy backend's to float32 rounding."""
+    scene, _, _ = textured_scene()
+    floor = Plastic(scene.instances[0].material.texture, (0.3, 0.3, 0.3), ImageTexture(ROUGH, scale=(4.0, 4.0)))
+    materials = [floor, PER_HIT["mix, checker amount"][0], PER_HIT["rough dielectric, image roughness"][0],
+                 PER_HIT["conductor, checker roughness"][0]]
+    scene.instances[:4] = [replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
+    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
+    assert device_one._bounce is not None and device_one._bounce.covered.all()
+    assert len(device_one._bounce._per_hit) == 4
+    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
+    _paths_agree(scene, numpy_one, device_one, 17, spectral=spectral)
 
 
 @pytest.mark.parametrize("mode", ["path", "direct"])

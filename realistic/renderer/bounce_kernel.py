@@ -4,15 +4,21 @@
 the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shadow ray and contribution
 (MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps embree and the
 compaction of live paths. It covers scenes whose lights are area, point, spot, distant or
-infinite lights, emitting meshes or spheres, or none, and materials ``bsdf_kernel.parameters`` covers
-whose parameters are constants (measured tables, named metals' tables and mixes' second lobes in the
-BSDF kernel's ``TableStore``), the diffuse-like colour (``diffuse_texture``: a ``Material``'s albedo,
+infinite lights, emitting meshes or spheres, or none, and every material ``bsdf_kernel.parameters``
+covers but a mix whose second material is textured. Constant parameters come from one row per
+material (measured tables, named metals' tables and mixes' second lobes in the
+BSDF kernel's ``TableStore``), and so does the diffuse-like colour (``diffuse_texture``: a ``Material``'s albedo,
 a plastic's or substrate's Kd, a coated diffuse's reflectance, the latter three also as a ``ScaledTexture``)
 also under a grid or checker texture (evaluated in the kernel) or an image texture (any filter:
 ``ewa_kernel.DEVICE_FILTERS``), a coated base remade from it per hit:
 before each launch ``EwaKernel.at_hits`` turns those hits' records into their colour on the device, with
 the footprint ``PathIntegrator._shade`` gives at that depth (the camera's pixel spread at depth 0, none
-deeper: level 0 bilinear), and the kernel reads it per hit in place of the row's constant. An
+deeper: level 0 bilinear), and the kernel reads it per hit in place of the row's constant. Any
+other textured parameter (roughness, a specular colour, a mirror's or glass's tints, a conductor's
+scale, eta or k, a mix's amount or textured first material; ``MATERIALS``' ``per_hit``) makes each
+hit's ``BSDF_PARAMS`` row on the host before the launch (``_hit_rows``: ``bsdf_kernel.parameters``
+with ``PathIntegrator._hit_parameters``, the lookups ``_shade`` makes, footprints included), which the
+kernel reads in place of the material's row; everything else of the bounce stays in the kernel. An
 environment map's sampling tables (its ``Distribution2D``) and texels, and an emitting mesh's world
 triangles and their area CDF (``light_sampler.Emitter``'s, which the scene's mesh-space device tables
 cannot stand for: they lack the instance's transform and the CDF), share one device buffer; a light
@@ -26,17 +32,18 @@ into their spectral values at the ray's wavelength as ``bsdf_for`` builds its BS
 measured table's RGB through the basis row; a coated base remade from its albedo's spectral value; a
 mix's both lobes), the diffuse-like colour's texture likewise (an image texture's bare RGB comes
 from ``EwaKernel.at_hits`` with a factor of 1), every light's radiance likewise, and carries beta
-and the contributions as one column, as the numpy bounce does. Glass indices are constants (no
+and the contributions as one column, as the numpy bounce does; a hit's own row is looked up at its
+ray's wavelength on the host (each colour's spectral value repeated, as ``bsdf_kernel.parameters``
+says), so only a mix's second lobe, constant RGB in the tables, is turned in the kernel. Glass indices are constants (no
 material's index varies with the wavelength in ``bsdf_for``). The host passes each camera ray's basis
 row, the very rows ``PathIntegrator.radiance`` colours its emission with (``shade.cl`` interpolates
 its basis from a table instead: its rays arrive as wavelengths alone).
-The rest (other textured parameters: roughness, a specular colour, a mirror's or glass's tints, a
-conductor's, a mix's amount or textured second material; materials ``bsdf.cl`` lacks) stays
-with ``PathIntegrator._shade``, the numpy reference (``tests/test_bounce_kernel.py`` compares the two
-per hit with the same random numbers, RGB and spectral). The program is the BSDF kernel's source with
-this one after it, so both share ``bsdf.cl``'s material functions; the scene's tables are device
-buffers made once per integrator, each build is made at its first launch, and each thread has its own
-queue and kernel objects.
+The rest (a mix's textured second material, whose lobe would vary per hit in the tables; materials
+``bsdf.cl`` lacks) stays with ``PathIntegrator._shade``, the numpy reference
+(``tests/test_bounce_kernel.py`` compares the two per hit with the same random numbers, RGB and
+spectral). The program is the BSDF kernel's source with this one after it, so both share
+``bsdf.cl``'s material functions; the scene's tables are device buffers made once per integrator,
+each build is made at its first launch, and each thread has its own queue and kernel objects.
 """
 
 from __future__ import annotations
@@ -51,6 +58,7 @@ import numpy as np
 from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer import bsdf_kernel
+from realistic.renderer.bsdf.base import HitParameters
 from realistic.renderer.hit_rows import place_rows, rows_on_material
 from realistic.renderer.light_sampler import (
     AREA,
@@ -69,14 +77,16 @@ from realistic.scene.intersect import Hits
 from realistic.scene.lights import InfiniteLight, SpotLight
 from realistic.scene.materials import CoatedDiffuse, Plastic, ScaledTexture, Substrate, SurfaceMaterial
 from realistic.scene.mipmap import MipMap
-from realistic.scene.model import RGB, CheckerTexture, GridTexture, ImageTexture, Material
+from realistic.scene.model import RGB, CheckerTexture, GridTexture, ImageTexture, Material, Texture
 
 KERNEL_FILE = "bounce.cl"
 #: Per material, beside its ``BSDF_PARAMS`` row: its diffuse-like colour's texture (``TEXTURES``), a grid's or
 #: checker's cells, line bounds (low, high: line_width / 2 and 1 - line_width / 2) and colours (a:
 #: line or even, b: base or odd); an image texture's albedo comes per hit (``BounceKernel.__call__``).
+#: ``per_hit`` 1: the material's parameters vary otherwise, and each hit's ``BSDF_PARAMS`` row comes from
+#: the host (``BounceKernel._hit_rows``; the material's own row and texture are then unused).
 MATERIALS = Table("BOUNCE_MATERIAL", np.float32, (("texture", 1), ("cells", 1), ("low", 1), ("high", 1),
-                                                  ("colour_a", 3), ("colour_b", 3)))
+                                                  ("colour_a", 3), ("colour_b", 3), ("per_hit", 1)))
 TEXTURES = ("none", "grid", "checker", "image")
 #: The textures the kernel evaluates (``diffuse_texture``).
 DeviceTexture = GridTexture | CheckerTexture | ImageTexture
@@ -146,6 +156,18 @@ class _Constants:
         raise _Textured
 
 
+class _AnyTexture(_Constants):
+    """``HitParameters`` of one hit that take any texture as 1: ``material_rows``' probe of whether
+    ``bsdf_kernel.parameters`` covers a material at every hit (its kind; a mix's second material
+    constant, which ``_Constants`` checks)."""
+
+    def colour(self, value: object) -> np.ndarray:
+        return np.ones((1, 3), np.float32) if isinstance(value, Texture) else super().colour(value)
+
+    def scalar(self, value: object) -> np.ndarray:
+        return np.ones(1, np.float32) if isinstance(value, Texture) else super().scalar(value)
+
+
 def _device_texture(value: object) -> TypeGuard[DeviceTexture]:
     """Whether the kernel evaluates ``value``: a grid or checker texture, or an image texture filtered
     as ``DEVICE_FILTERS`` says."""
@@ -175,16 +197,24 @@ def diffuse_texture(material: SurfaceMaterial) -> tuple[SurfaceMaterial, DeviceT
 
 def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> tuple[np.ndarray, np.ndarray] | None:
     """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not
-    cover it (a kind ``bsdf.cl`` lacks, or a textured parameter other than the diffuse-like colour's
-    grid, checker or image texture of ``diffuse_texture``); measured tables, named metals' tables
-    and mixes' second lobes go to ``tables``. The row holds the colour's constant factor, which the
-    kernel multiplies by the texture's colour per hit."""
+    cover it (a kind ``bsdf.cl`` lacks, or a mix whose second material is textured); measured
+    tables, named metals' tables and mixes' second lobes go to ``tables``. Where the only texture
+    is the diffuse-like colour's grid, checker or image texture (``diffuse_texture``), the row holds
+    that colour's constant factor, which the kernel multiplies by the texture's colour per hit; where
+    another parameter is textured, the ``MATERIALS`` row says ``per_hit`` and the ``BSDF_PARAMS`` row
+    is zero (each hit's comes from ``BounceKernel._hit_rows``)."""
     split = diffuse_texture(material)
     plain, texture = (material, None) if split is None else split[:2]
     try:
         row = bsdf_kernel.parameters(plain, _Constants(), 1, tables)
     except _Textured:
-        return None
+        try:
+            per_hit = bsdf_kernel.parameters(material, _AnyTexture(), 1, tables, _Constants())
+        except _Textured:  # a mix's second material is textured
+            return None
+        if per_hit is None:
+            return None
+        return np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32), MATERIALS.pack(1, per_hit=1)[0]
     if row is None:
         return None
     if isinstance(texture, GridTexture):
@@ -302,13 +332,16 @@ class BounceKernel:
         #: per material: whether the kernel shades it (RGB and spectral rays alike)
         self.covered = np.array([r is not None for r in rows] or [False], bool)
         self._geom_material = np.asarray(geom_material)
+        #: the materials whose hits take their own rows (``_hit_rows``): their indices and materials
+        self._per_hit = [(k, m) for k, (m, r) in enumerate(zip(materials, rows))
+                         if r is not None and r[1][MATERIALS.offset("per_hit")]]
         #: per image-textured material covered: its index, EWA kernel, filter and ``hit_mapping`` rows
         #: at depth 0 (the pixel's footprint) and deeper (none: level 0 bilinear, as ``_shade``), each
         #: with the colour's constant factor (RGB rays: the albedo) and with 1 (spectral rays: the bare
         #: texture, whose spectral value the kernel multiplies by the factor's)
         self._images: list[tuple[int, EwaKernel, str, dict[tuple[bool, bool], np.ndarray]]] = []
         for k, (m, r) in enumerate(zip(materials, rows)):
-            split = None if r is None else diffuse_texture(m)
+            split = None if r is None or r[1][MATERIALS.offset("per_hit")] else diffuse_texture(m)
             if split is not None and isinstance(texture := split[1], ImageTexture):
                 factor = split[2]
                 self._images.append((k, ewa_kernel(texture.mipmap), texture.filter, {
@@ -358,14 +391,16 @@ class BounceKernel:
 
     def __call__(self, rows: np.ndarray, path: np.ndarray, pixel: np.ndarray, sample: np.ndarray,
                  origin: np.ndarray, direction: np.ndarray, hits: Hits, beta: np.ndarray, *, depth: int,
-                 light_samples: int, seed: int, mode_flags: int, max_depth: int,
-                 basis: np.ndarray | None = None) -> Bounce:
+                 light_samples: int, seed: int, mode_flags: int, max_depth: int, basis: np.ndarray | None = None,
+                 hit_parameters: Callable[[np.ndarray], HitParameters] | None = None) -> Bounce:
         """The bounce at the hits ``rows`` (m,) of a batch of rays (``origin``, ``direction``,
         ``hits``, ``beta`` (B, C), ``path`` (B,): each ray's camera ray, whose ``pixel`` and
         ``sample`` key the random numbers) at ``depth``, with ``light_samples`` light samples per
         hit (0 without lights). ``basis``: for spectral rays (C = 1, the spectral build), each camera
         ray's ``rgb_basis`` row (float32, indexed by ``path``), and beta and the contributions come
-        out one column wide; None for RGB rays (C = 3)."""
+        out one column wide; None for RGB rays (C = 3). ``hit_parameters``: the ``HitParameters`` at
+        the hits rows[picked] (``PathIntegrator._hit_parameters``, spectral rays' with their basis
+        rows), which the hits on ``per_hit`` materials need (``_hit_rows``)."""
         m = len(rows)
         lights = light_samples if self.light_count else 0
         shadows = lights * m
@@ -381,11 +416,13 @@ class BounceKernel:
             cone_light = np.empty(shadows, np.int32)
             queue, kernel = self._queue_and_kernel(spectral)
             albedo = self._albedo(rows, direction, hits, depth, spectral)
+            hit_rows = self._hit_rows(rows, hits, hit_parameters)
             inputs = [self.device.wrapped_buffer(a, dtype) for a, dtype in (
                 (rows, np.int32), (path, np.int32), (pixel, np.uint32), (sample, np.uint32), (origin, np.float32),
                 (direction, np.float32), (hits.t, np.float32), (hits.u, np.float32), (hits.v, np.float32),
                 (hits.prim, np.int32), (hits.geom, np.int32), (hits.normal, np.float32), (beta, np.float32),
-                (albedo, np.float32), (np.zeros(0) if basis is None else basis, np.float32))]
+                (albedo, np.float32), (np.zeros(0) if basis is None else basis, np.float32),
+                (hit_rows, np.float32))]
             self.device.run_into(queue, kernel, (whole_groups(m),), (LOCAL_SIZE,),
                                  (np.uint32(m), np.uint32(lights), np.uint32(depth), np.uint32(seed & 0xFFFFFFFF),
                                   np.uint32(mode_flags), np.uint32(max_depth), self.offset_base,
@@ -410,6 +447,28 @@ class BounceKernel:
             out.shadow_origin[rows] = np.where(ok[:, None], out.shadow_origin[rows], np.float32(0))
             out.shadow_length[rows] = np.where(ok, SHADOW_LENGTH, np.float32(-1))
             out.contribution[rows] = np.where(ok[:, None], out.contribution[rows], np.float32(0))
+
+    def _hit_rows(self, rows: np.ndarray, hits: Hits, hit_parameters: Callable[[np.ndarray], HitParameters] | None
+                  ) -> np.ndarray:
+        """The ``BSDF_PARAMS`` rows (m, width) float32 of the hits ``rows`` on ``per_hit`` materials
+        (zero elsewhere, unread; none without such hits): ``bsdf_kernel.parameters`` at
+        ``hit_parameters(picked)``, which looks every texture up as ``PathIntegrator._shade`` does, a
+        mix's second lobe constant in the tables (RGB: the kernel turns it into spectral rays' channel)."""
+        geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
+        out = np.zeros((0, bsdf_kernel.BSDF_PARAMS.width), np.float32)
+        for index, material in self._per_hit:
+            picked = picks[:rows_on_material(geom, self._geom_material, index, picks)].copy()
+            if not len(picked):
+                continue
+            if hit_parameters is None:
+                raise ValueError("hits on a material with per-hit parameters need hit_parameters")
+            if not len(out):
+                out = np.zeros((len(rows), bsdf_kernel.BSDF_PARAMS.width), np.float32)
+            table = bsdf_kernel.parameters(material, hit_parameters(picked), len(picked), self.bsdf_tables,
+                                           _Constants())
+            assert table is not None  # material_rows' probe: covered at every hit
+            out[picked] = table
+        return out
 
     def _albedo(self, rows: np.ndarray, direction: np.ndarray, hits: Hits, depth: int, spectral: bool) -> np.ndarray:
         """The albedo (m, 3) float32 of the hits ``rows`` on image-textured materials (zero elsewhere,

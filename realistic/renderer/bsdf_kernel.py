@@ -164,8 +164,8 @@ def _lobe(material: SurfaceMaterial, hits: HitParameters, count: int, tables: Ta
     return None
 
 
-def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, tables: TableStore | None = None
-               ) -> np.ndarray | None:
+def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, tables: TableStore | None = None,
+               second_hits: HitParameters | None = None) -> np.ndarray | None:
     """``count`` ``BSDF_PARAMS`` rows of ``material`` at ``hits``, or None where the kernel does not
     cover the material (the numpy BSDF then shades it); ``tables`` holds measured tables, named
     metals' Fresnel tables and mixes' second lobes (without it those stay in numpy). A mix is covered
@@ -173,15 +173,18 @@ def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, table
     amount clipped to [0, 1] as ``bsdf_for`` clips it; a row of amount 0 is its first lobe alone,
     which is what the numpy mix gives there. For spectral rays (colours of one channel) each colour
     fills all three of the kernel's channels, which then agree, and any one of them is the ray's
-    (the lobe choices use channel means, unchanged by the repetition)."""
+    (the lobe choices use channel means, unchanged by the repetition). ``second_hits``: one hit a
+    mix's second material is looked up at instead of ``hits`` (the fused bounce's RGB constants: it
+    turns that lobe into spectral rays' channels itself, so a spectral ray's mix is covered there)."""
     if not isinstance(material, Mix):
         lobe = _lobe(material, hits, count, tables)
         return None if lobe is None else _rows(count, lobe, BSDF_PARAMS.width)
-    first, second = _lobe(material.first, hits, count, tables), _lobe(material.second, hits, count, tables)
+    second_at, second_count = (hits, count) if second_hits is None else (second_hits, 1)
+    first, second = _lobe(material.first, hits, count, tables), _lobe(material.second, second_at, second_count, tables)
     if first is None or second is None or tables is None:
         return None
-    second_rows = _rows(count, second, LOBE.width)
-    if count and not np.all(second_rows == second_rows[:1]):
+    second_rows = _rows(second_count, second, LOBE.width)
+    if second_count and not np.all(second_rows == second_rows[:1]):
         return None
     rows = _rows(count, first, BSDF_PARAMS.width)
     rows[:, BSDF_PARAMS.offset("amount")] = np.clip(scalar(hits, material.amount), 0.0, 1.0)

@@ -19,17 +19,18 @@ emission they reach, specular ones continue while depth + 1 < ``max_depth`` (pbr
 ``DirectLightingIntegrator``). ``mis`` False keeps light sampling alone (BSDF-sampled emission only
 after specular bounces), for tests.
 
-Backends: on "opencl", RGB rays at hits whose material ``kernels/bsdf.cl`` covers with constant
-parameters (the diffuse-like colour of Lambertian, Oren-Nayar, plastic, coated diffuse and substrate
-under a grid or checker texture too, or under an image texture, which ``EwaKernel.at_hits`` filters
-on the device before the launch) take the whole bounce in one launch of ``kernels/bounce.cl``
-(``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights, shadow rays, BSDF
-sample, beta, roulette), with the same random numbers; so do spectral rays (a dispersive camera's)
-at the same hits, in the kernel's spectral build. The host keeps embree, emission and the compaction
-of live paths. Other hits (other textured parameters, such as roughness, Ks or Kr, and materials
-``bsdf.cl`` lacks) have the numpy bounce (``_shade``), with their BSDFs evaluated and sampled in ``kernels/bsdf.cl``
-where it covers the material (the backend's ``bsdf_kernel``: ``bsdf_kernel.parameters`` says
-which), in one launch per bounce with the same random numbers; every other
+Backends: on "opencl", RGB rays at hits whose material ``kernels/bsdf.cl`` covers (constant
+parameters, the diffuse-like colour of Lambertian, Oren-Nayar, plastic, coated diffuse and substrate
+under a grid or checker texture, or under an image texture, which ``EwaKernel.at_hits`` filters
+on the device before the launch; any other textured parameter, such as roughness, Ks or a mix's
+amount, looked up per hit on the host with ``_hit_parameters``) take the whole bounce in one launch of
+``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights,
+shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral rays (a
+dispersive camera's) at the same hits, in the kernel's spectral build. The host keeps embree,
+emission and the compaction of live paths. Other hits (a mix whose second material is textured, and
+materials ``bsdf.cl`` lacks) have the numpy bounce (``_shade``), with their BSDFs evaluated and
+sampled in ``kernels/bsdf.cl`` where it covers the material (the backend's ``bsdf_kernel``:
+``bsdf_kernel.parameters`` says which), in one launch per bounce with the same random numbers; every other
 material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
 
 Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
@@ -273,7 +274,8 @@ class PathIntegrator(DirectLighting):
         rows = (surface if covered.all() else surface[covered]).astype(np.int32)  # the kernel's, converted once
         result = self._bounce(rows, path, pixel_key, sample_key, o, d, hits, beta, depth=depth,
                               light_samples=self.light_samples if depth == 0 else 1, seed=self.seed,
-                              mode_flags=self._bounce_flags, max_depth=self.max_depth, basis=basis_all)
+                              mode_flags=self._bounce_flags, max_depth=self.max_depth, basis=basis_all,
+                              hit_parameters=self._hit_parameters(hits, rows, d, basis, depth))
         ray = path[rows]
         keep, specular, shade = result.going_on()
         state = {"path": ray[keep], "origin": _rows(result.origin, keep), "direction": _rows(result.direction, keep),
@@ -291,6 +293,36 @@ class PathIntegrator(DirectLighting):
         joined["shadow"] = {key: value if rest["shadow"][key] is None else np.concatenate([value, rest["shadow"][key]])
                             for key, value in state["shadow"].items()}
         return joined
+
+    def _parameters_at(self, face: np.ndarray, bary: np.ndarray, depth: int, footprint: Callable[[], Footprint],
+                       basis: np.ndarray | None) -> SurfaceParameters:
+        """The ``HitParameters`` of hits at ``depth`` on triangles ``face`` at barycentrics ``bary``
+        (``basis``: spectral rays' ``rgb_basis`` rows): textures at their uv, image textures filtered
+        over ``footprint()`` for camera rays with a pixel spread, deeper bounces having none here
+        (level 0). ``_shade`` and the fused bounce's per-hit rows (``_hit_parameters``) both look up with it."""
+        def uv() -> np.ndarray:
+            return interpolated(self._uv, face, bary)
+
+        def camera_footprint() -> Footprint | None:
+            return footprint() if depth == 0 and self.pixel_spread_radians > 0 else None
+
+        return SurfaceParameters(len(face), uv, camera_footprint, basis)
+
+    def _hit_parameters(self, hits: Hits, rows: np.ndarray, d: np.ndarray, basis: np.ndarray | None, depth: int
+                        ) -> Callable[[np.ndarray], SurfaceParameters]:
+        """The fused bounce's ``hit_parameters`` at its hits ``rows`` of a batch of rays (directions
+        ``d``, ``basis`` their ``rgb_basis`` rows or None) at ``depth``: the ``HitParameters`` that
+        ``_shade`` would look the hits rows[picked] up with."""
+        def at(picked: np.ndarray) -> SurfaceParameters:
+            surface = rows[picked]
+            face, bary = self._triangles(hits, surface)
+
+            def footprint() -> Footprint:
+                ng = self._outward_normals(hits, surface, face, bary)[0]
+                return self._footprint(face, hits.geom[surface], _rows(d, surface), ng, hits.t[surface])
+
+            return self._parameters_at(face, bary, depth, footprint, None if basis is None else _rows(basis, surface))
+        return at
 
     def first_albedo(self, hits: Hits, surface: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
         """Albedo (n, 3) of the camera-ray hits ``surface``: each material's BSDF's directional
@@ -462,18 +494,12 @@ class PathIntegrator(DirectLighting):
             # one material over every hit (the common case): slices, not gathers and scatters
             rows = slice(None) if len(groups) == 1 else np.flatnonzero(material_of == index)
             material = self._materials[index]
-            f, b = face[rows], bary[rows]
+            f = face[rows]
 
-            def uv(f: np.ndarray = f, b: np.ndarray = b) -> np.ndarray:
-                return interpolated(self._uv, f, b)
-
-            # camera rays only: deeper bounces have no pixel footprint here
-            def footprint(rows: slice | np.ndarray = rows) -> Footprint | None:
-                if depth > 0 or self.pixel_spread_radians <= 0:
-                    return None
+            def footprint(rows: slice | np.ndarray = rows) -> Footprint:
                 return self._footprint(face[rows], geom[rows], ds[rows], ng[rows], t[rows])
 
-            params = SurfaceParameters(len(f), uv, footprint, None if sb is None else sb[rows])
+            params = self._parameters_at(f, bary[rows], depth, footprint, None if sb is None else sb[rows])
             table = None if kernel is None else kernel.rows(material, params, len(f))
             if table is not None:
                 on_device.append((rows, table))
