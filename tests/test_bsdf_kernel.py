@@ -17,7 +17,7 @@ from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.transforms import translate
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
-from realistic.renderer.bsdf import bsdf_for, measured
+from realistic.renderer.bsdf import BSDF, bsdf_for, measured
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.materials import (
@@ -74,7 +74,7 @@ COVERED = {
     "mix, all second": Mix(Substrate(), CoatedDiffuse(roughness=0.1), 1.0),
 }
 #: Diffuse transmission (covered since issue 35), apart so that ``SEED_ORDER`` keeps the other
-#: materials' seeds: the narrow substrate's sampled value misses its 2e-3 at many other seeds.
+#: materials' seeds.
 TRANSMITTING = {
     "diffuse transmission": DiffuseTransmission((0.5, 0.3, 0.2), (0.2, 0.4, 0.7)),
     "diffuse transmission, no reflection": DiffuseTransmission((0.0, 0.0, 0.0), (0.6, 0.5, 0.4)),
@@ -186,9 +186,11 @@ def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: boo
                    table: bool = False, spectral: bool = False) -> None:
     """The kernel's f and pdf at two light directions and its sample, for ``material`` at N random
     directions and uniform numbers, equal to the numpy BSDF's (``ILL_CONDITIONED``: what rounding
-    allows). ``table``: a measured table's f, relative to each hit's brightest channel, is within
-    1e-5 at 99 % of the hits and 1e-3 at all: where a cell's nodes differ by far more than the value
-    between them, the float32 rounding of the position in the cell moves the interpolant by more.
+    allows): the sampled direction to what rounding allows, and its value and pdf the numpy BSDF's
+    at that direction (a delta lobe's: the numpy sample's). ``table``: a measured table's f,
+    relative to each hit's brightest channel, is within 1e-5 at 99 % of the hits and 1e-3 at all:
+    where a cell's nodes differ by far more than the value between them, the float32 rounding of
+    the position in the cell moves the interpolant by more.
     ``spectral``: rays of one wavelength each (400-700 nm), one channel."""
     wo, light_wi, u, u_lobe = _inputs(seed)
     hits = SpectralHits(np.random.default_rng(seed).uniform(400, 700, N)) if spectral else ConstantHits(N)
@@ -197,33 +199,47 @@ def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: boo
     assert rows is not None
     light_f, light_pdf, s = kernel(rows, wo, light_wi, u, u_lobe, 1 if spectral else 3)
     for k in range(len(light_wi)):
-        for got, function in ((light_f[k], bsdf.evaluate), (light_pdf[k], bsdf.pdf)):
-            expected = function(wo, light_wi[k])
-            if table and got.ndim == 2:
-                _close_to_brightest(got, expected)
-            else:
-                slack = 8 * _conditioning(function, wo, light_wi[k]) if ill_conditioned else 0.0
-                _close(got, expected, 1e-5 + slack)
+        _evaluates_as(light_f[k], light_pdf[k], bsdf, wo, light_wi[k], np.ones(N, bool), ill_conditioned, table)
     ref = bsdf.sample(wo, u, u_lobe)
     assert np.array_equal(s.specular, ref.specular)
     # a flag may differ only where a direction lies within rounding of a lobe's boundary
     assert np.mean(s.valid != ref.valid) < 1e-3
     both = s.valid & ref.valid
-    # 2e-5, plus what a float32 cosine sqrt(1 - x^2 - y^2) carries at grazing wi (2^-23 / (2 |cos|)
+    # 2^-18, plus what a float32 cosine sqrt(1 - x^2 - y^2) carries at grazing wi (2^-23 / (2 |cos|)
     # or so) and what float32 rounding of wo and u moves the reference's direction by (visible
-    # normals sampled at u near 1, refraction near the critical angle)
-    atol = (2e-5 + 2.0 ** -22 / np.maximum(np.abs(ref.wi[:, 2:].astype(np.float64)), 1e-30)
+    # normals sampled at u near 1, refraction near the critical angle; 2^-18 covers what the four
+    # random moves of ``_moved`` miss there: rough glass, up to 1.4e-6 past eight times them at seeds 100-159)
+    # Not 2e-5: a narrow lobe (alpha 1e-4) is only some 1e-4 wide, and its value and pdf below are
+    # taken at the kernel's direction, so the direction alone tells a sampling error there.
+    atol = (2.0 ** -18 + 2.0 ** -22 / np.maximum(np.abs(ref.wi[:, 2:].astype(np.float64)), 1e-30)
             + 8 * _moved(lambda wo, u: bsdf.sample(wo, u, u_lobe).wi, wo, u, relative=False)[:, None])
     assert np.all(np.abs(s.wi[both] - ref.wi[both]) <= atol[both])
-    # directions equal to float32 rounding; value and pdf there to what that rounding moves them:
-    # most at grazing wi, whose cosine sqrt(1 - x^2 - y^2) carries 2^-23 / (2 cos^2) relative error
-    rtol = 2e-3 + 2.0 ** -23 / (2 * ref.wi[both, 2].astype(np.float64) ** 2)
-    _close(s.pdf[both], ref.pdf[both].astype(np.float64), rtol)
-    if table:
-        _close_to_brightest(s.value[both], ref.value[both])
-    else:
-        _close(s.value[both], ref.value[both].astype(np.float64), rtol)
+    # A delta lobe's value and pdf at directions equal to float32 rounding, to what that rounding
+    # moves them: most at grazing wi, whose cosine sqrt(1 - x^2 - y^2) carries 2^-23 / (2 cos^2).
+    delta = both & s.specular
+    rtol = 2e-3 + 2.0 ** -23 / (2 * ref.wi[delta, 2].astype(np.float64) ** 2)
+    _close(s.pdf[delta], ref.pdf[delta].astype(np.float64), rtol)
+    _close(s.value[delta], ref.value[delta].astype(np.float64), rtol)
+    # Any other lobe's value and pdf are the reference's at the kernel's own direction, as for the
+    # light directions above. Not at the reference's direction: one float32 step of wi moves a GGX
+    # lobe's argument by that step over alpha |wo + wi|, so at alpha 1e-4 (narrow substrate) f and
+    # the pdf move by up to 1e-2 between two directions equal to rounding.
+    _evaluates_as(s.value, s.pdf, bsdf, wo, s.wi, both & ~s.specular, ill_conditioned, table)
     assert np.median(np.abs(s.pdf[both] / ref.pdf[both] - 1)) < 1e-5
+
+
+def _evaluates_as(f: np.ndarray, pdf: np.ndarray, bsdf: BSDF, wo: np.ndarray, wi: np.ndarray, rows: np.ndarray,
+                  ill_conditioned: bool, table: bool) -> None:
+    """The kernel's ``f`` and ``pdf`` at ``rows`` equal to ``bsdf``'s at (wo, wi): to 1e-5
+    (``ILL_CONDITIONED``: plus eight times what one float32 rounding of the directions moves the
+    reference by), a measured table's f as ``_close_to_brightest``."""
+    for got, function in ((f, bsdf.evaluate), (pdf, bsdf.pdf)):
+        expected = function(wo, wi)[rows]
+        if table and got.ndim == 2:
+            _close_to_brightest(got[rows], expected)
+        else:
+            slack = 8 * _conditioning(function, wo, wi)[rows] if ill_conditioned else 0.0
+            _close(got[rows], expected, 1e-5 + slack)
 
 
 @pytest.mark.parametrize("name", sorted(COVERED))

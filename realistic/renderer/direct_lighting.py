@@ -70,7 +70,7 @@ from realistic.scene.materials import Measured, SurfaceMaterial
 from realistic.scene.measured import IrregularSamples, load_measured
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.shapes import light_mesh
-from realistic.scene.textures import albedo
+from realistic.scene.textures import Footprint, albedo
 
 if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
     from realistic.renderer.opencl_backend import OpenCLBackend
@@ -489,8 +489,9 @@ class DirectLighting:
     def _light_albedo(self, hits: Hits, lit: np.ndarray, direction: np.ndarray, ng: np.ndarray) -> np.ndarray:
         """Albedo (n, 3) of the camera-ray hits ``lit`` on area lights that have a material: its
         BSDF's ``directional_albedo`` in the frame of the light's outside (``light_outward_flipped``),
-        its textures at the tessellation's uv, point-sampled (``ng``, the normals facing the rays,
-        are for ``PathIntegrator``'s footprints)."""
+        its textures at the tessellation's uv, image textures filtered over the rays' footprints on
+        the light's triangles (``ng``: the normals facing the rays), as ``PathIntegrator.first_albedo``
+        filters them from its per-geometry tables, which hold the lights (these hold instances only)."""
         rho = np.empty((len(lit), 3), np.float32)
         slot = hits.geom[lit] - self.instance_count
         outward = normalise(_rows(hits.normal, lit).astype(np.float32))
@@ -499,14 +500,28 @@ class DirectLighting:
             light, at = self._area_lights[j], lit[rows]
             material, mesh = light.material, light_mesh(light)
             assert material is not None and mesh.uv is not None  # ``first_hits`` picks lights with a material
-            u, v = hits.u[at], hits.v[at]
-            uv = interpolated(mesh.uv, mesh.faces[hits.prim[at]], np.column_stack([1 - u - v, u, v])).astype(np.float32)
+            face, u, v = mesh.faces[hits.prim[at]], hits.u[at], hits.v[at]
+            uv = interpolated(mesh.uv, face, np.column_stack([1 - u - v, u, v])).astype(np.float32)
 
             def at_uv(uv: np.ndarray = uv) -> np.ndarray:
                 return uv
 
+            def footprint(face: np.ndarray = face, rows: np.ndarray = rows, at: np.ndarray = at,
+                          transform: np.ndarray = light.transform, vertices: np.ndarray = mesh.vertices,
+                          uv_table: np.ndarray = mesh.uv) -> Footprint | None:
+                if self.pixel_spread_radians <= 0:
+                    return None
+                linear = np.broadcast_to(np.asarray(transform, np.float64)[:3, :3], (len(face), 3, 3))
+                corner = [_rows(vertices, face[:, k]) for k in range(3)]
+                corner_uv = [_rows(uv_table, face[:, k]).astype(np.float32).astype(np.float64) for k in range(3)]
+                return uv_footprint(direction[rows].astype(np.float64), ng[rows].astype(np.float64),
+                                    hits.t[at].astype(np.float64), self.pixel_spread_radians,
+                                    np.einsum("nij,nj->ni", linear, corner[1] - corner[0]),
+                                    np.einsum("nij,nj->ni", linear, corner[2] - corner[0]),
+                                    corner_uv[1] - corner_uv[0], corner_uv[2] - corner_uv[0])
+
             side = np.float32(-1.0 if light_outward_flipped(light) else 1.0)
-            bsdf = bsdf_for(material, SurfaceParameters(len(rows), at_uv, lambda: None, None))
+            bsdf = bsdf_for(material, SurfaceParameters(len(rows), at_uv, footprint, None))
             rho[rows] = directional_albedo(bsdf, ShadingFrame(outward[rows] * side).to_local(-direction[rows]))
         return rho
 
