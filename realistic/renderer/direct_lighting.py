@@ -60,7 +60,7 @@ from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.bsdf import ShadingFrame, bsdf_for
 from realistic.renderer.bsdf.lambertian import cosine_hemisphere
 from realistic.renderer.bsdf.measured import irregular_table, table_lookup
-from realistic.renderer.footprint import uv_footprint
+from realistic.renderer.footprint import triangle_footprint
 from realistic.renderer.hit_rows import compile_row_loops, place_rows, rows_on_material
 from realistic.renderer.light_sampler import SHADOW_LENGTH
 from realistic.renderer.surface_parameters import RHO_U, SurfaceParameters, directional_albedo
@@ -511,14 +511,8 @@ class DirectLighting:
                           uv_table: np.ndarray = mesh.uv) -> Footprint | None:
                 if self.pixel_spread_radians <= 0:
                     return None
-                linear = np.broadcast_to(np.asarray(transform, np.float64)[:3, :3], (len(face), 3, 3))
-                corner = [_rows(vertices, face[:, k]) for k in range(3)]
-                corner_uv = [_rows(uv_table, face[:, k]).astype(np.float32).astype(np.float64) for k in range(3)]
-                return uv_footprint(direction[rows].astype(np.float64), ng[rows].astype(np.float64),
-                                    hits.t[at].astype(np.float64), self.pixel_spread_radians,
-                                    np.einsum("nij,nj->ni", linear, corner[1] - corner[0]),
-                                    np.einsum("nij,nj->ni", linear, corner[2] - corner[0]),
-                                    corner_uv[1] - corner_uv[0], corner_uv[2] - corner_uv[0])
+                return triangle_footprint(vertices, uv_table, face, np.asarray(transform)[:3, :3], direction[rows],
+                                          ng[rows], hits.t[at], self.pixel_spread_radians)
 
             side = np.float32(-1.0 if light_outward_flipped(light) else 1.0)
             bsdf = bsdf_for(material, SurfaceParameters(len(rows), at_uv, footprint, None))
@@ -718,13 +712,8 @@ class DirectLighting:
     def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,
                    distance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """uv axes of the pixel footprints of hits on triangles ``face`` of instances ``geom``."""
-        corner = [_rows(self._vertices, face[:, k]) for k in range(3)]
-        linear = self._geom_linear[geom]
-        edge1 = np.einsum("nij,nj->ni", linear, corner[1] - corner[0])
-        edge2 = np.einsum("nij,nj->ni", linear, corner[2] - corner[0])
-        uv = [_rows(self._uv, face[:, k]).astype(np.float64) for k in range(3)]
-        return uv_footprint(direction.astype(np.float64), normal.astype(np.float64), distance.astype(np.float64),
-                            self.pixel_spread_radians, edge1, edge2, uv[1] - uv[0], uv[2] - uv[0])
+        return triangle_footprint(self._vertices, self._uv, face, self._geom_linear[geom], direction, normal,
+                                  distance, self.pixel_spread_radians)
 
     def _pick(self, pixel: np.ndarray, sample: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Light sample ``k``'s light (picked by power) and its point numbers u1, u2 per point."""

@@ -60,3 +60,18 @@ def uv_footprint(direction: np.ndarray, normal: np.ndarray, distance: np.ndarray
     """The two uv axes (N, 2) of each hit's pixel footprint (see the module docstring)."""
     across, along = tangent_axes(direction, normal, distance * spread_radians)
     return to_uv(across, edge1, edge2, duv1, duv2), to_uv(along, edge1, edge2, duv1, duv2)
+
+
+def triangle_footprint(vertices: np.ndarray, uv: np.ndarray, face: np.ndarray, linear: np.ndarray,
+                       direction: np.ndarray, normal: np.ndarray, distance: np.ndarray, spread_radians: float
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """``uv_footprint`` of hits on triangles ``face`` (N, 3) (rows of a mesh's ``vertices`` and
+    ``uv``, the uv as float32 as the filters read them) placed in the world by ``linear`` ((N, 3, 3)
+    or one (3, 3)): the footprint of instances' and of area lights' triangles alike."""
+    corner = [np.take(vertices, face[:, k], axis=0) for k in range(3)]
+    corner_uv = [np.take(uv, face[:, k], axis=0).astype(np.float32).astype(np.float64) for k in range(3)]
+    linear = np.broadcast_to(np.asarray(linear, np.float64), (len(face), 3, 3))
+    return uv_footprint(direction.astype(np.float64), normal.astype(np.float64), distance.astype(np.float64),
+                        spread_radians, np.einsum("nij,nj->ni", linear, corner[1] - corner[0]),
+                        np.einsum("nij,nj->ni", linear, corner[2] - corner[0]), corner_uv[1] - corner_uv[0],
+                        corner_uv[2] - corner_uv[0])
