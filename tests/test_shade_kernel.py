@@ -17,7 +17,7 @@ from conftest import vectoriser_remarks
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
-from realistic.core import rng
+from realistic.core import jit, rng
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
 from realistic.core.jit import compiled
 from realistic.core.spectrum import rgb_basis, rgb_response, wavelengths_nm
@@ -25,7 +25,7 @@ from realistic.core.transforms import look_at, rotate, scale, translate
 from realistic.core.warp import concentric_disk
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
-from realistic.renderer.direct_lighting import DirectLighting, _visible_sums
+from realistic.renderer.direct_lighting import DirectLighting, _visible_sums, visible_sums
 from realistic.renderer.job import RenderJob
 from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.intersect import Intersector
@@ -159,6 +159,8 @@ def test_visible_sums_add_each_rays_rows_in_order_to_the_bit(per_ray, channels, 
     blocked = rng_.random(stride * per_ray) < 0.4
     length = np.where(rng_.random(stride * per_ray) < 0.7, F32(1 - 1e-4), F32(-1))
     length[n * per_ray:] = -1  # padding rows are dead, as the kernel writes them
+    dead = length < 0  # as the kernel writes them (contribution 0) and embree answers them (blocked)
+    contribution[dead], blocked[dead] = 0, True
     earlier = rng_.random((n, channels)).astype(np.float32)
     sample_major = contribution.reshape(stride, per_ray, channels).transpose(1, 0, 2)[:, :n]
     visible = np.logical_not(blocked).astype(np.float32).reshape(stride, per_ray).T[:, :n, None]
@@ -171,6 +173,31 @@ def test_visible_sums_add_each_rays_rows_in_order_to_the_bit(per_ray, channels, 
     traced = compiled(_visible_sums)(contribution, blocked, length, per_ray, n, fresh, out)
     assert np.array_equal(out.view(np.uint32), expected.view(np.uint32))
     assert traced == np.count_nonzero(length > 0)
+
+
+@pytest.mark.parametrize("channels", [3, 1])
+def test_visible_sums_read_nothing_of_dead_rows(channels, monkeypatch):
+    """A dead row (length -1) adds 0 whatever its contribution and embree's answer hold: the sums
+    equal those of the rows as the kernel writes them (contribution 0, blocked), where NaN there
+    would otherwise reach the sums; both forms (compiled and numpy) agree."""
+    rng_ = np.random.default_rng(channels)
+    n, per_ray = 29, 4
+    contribution = rng_.random((n * per_ray, channels)).astype(np.float32)
+    blocked = rng_.random(n * per_ray) < 0.4
+    length = np.where(rng_.random(n * per_ray) < 0.5, F32(1 - 1e-4), F32(-1))
+    length[:per_ray] = -1  # a ray with every row dead
+    dead = length < 0
+    as_written = contribution.copy(), blocked.copy()
+    as_written[0][dead], as_written[1][dead] = 0, True
+    contribution[dead], blocked[dead] = np.nan, False
+    expected = np.empty((n, channels), np.float32)
+    assert compiled(_visible_sums)(*as_written, length, per_ray, n, True, expected) == np.count_nonzero(~dead)
+    assert np.all(np.isfinite(expected)) and np.all(expected[0] == 0)
+    for numba_loops in (True, False):
+        monkeypatch.setattr(jit, "_use_compiled", [numba_loops])
+        got = np.full((n, channels), np.nan, np.float32)
+        assert visible_sums(contribution, blocked, length, per_ray, n, True, got) == np.count_nonzero(~dead)
+        assert np.array_equal(got.view(np.uint32), expected.view(np.uint32))
 
 
 def test_a_launch_makes_at_most_max_launch_samples(scene_rays):

@@ -181,35 +181,43 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     """Add to ``out`` (n, channels) float32 each ray's unblocked contributions, its rows i per_ray ..
     (i + 1) per_ray - 1 of a launch (``ShadowBatch``: point-major) in order, as contribution times 1
     or 0 in float32 (``fresh``: ``out`` starts as the first product, not 0 plus it, as numpy's
-    reduction starts); the rows traced (length > 0) are returned. A numba loop (``core.jit``), the
-    GIL released: the rows traced counted in a pass of their own, and RGB rays summed in three
-    running totals stored once per ray (one loop doing both, storing per row and channel, took
-    about 1.5x as long)."""
+    reduction starts); the rows traced (length > 0) are returned. A dead row (length not > 0: the
+    kernel writes its contribution 0, and embree reports it blocked) adds a product of 0 without
+    reading its contribution or answer: about half a launch's rows are dead (points facing away
+    from the light, padding), and their reads were most of this loop's memory traffic. A numba
+    loop (``core.jit``), the GIL released: RGB rays summed in three running totals stored once per
+    ray (storing per row and channel took about 1.5x as long)."""
     traced = 0
-    for r in range(n * per_ray):
-        traced += length[r] > np.float32(0.0)
     zero, one = np.float32(0.0), np.float32(1.0)
     if out.shape[1] == 3:
         for i in range(n):
             red, green, blue = out[i, 0], out[i, 1], out[i, 2]
             for k in range(per_ray):
                 r = i * per_ray + k
-                visible = zero if blocked[r] else one
                 start = fresh and k == 0
-                product = contribution[r, 0] * visible
-                red = product if start else red + product
-                product = contribution[r, 1] * visible
-                green = product if start else green + product
-                product = contribution[r, 2] * visible
-                blue = product if start else blue + product
+                if length[r] > zero:
+                    traced += 1
+                    visible = zero if blocked[r] else one
+                    product = contribution[r, 0] * visible
+                    red = product if start else red + product
+                    product = contribution[r, 1] * visible
+                    green = product if start else green + product
+                    product = contribution[r, 2] * visible
+                    blue = product if start else blue + product
+                else:
+                    red = zero if start else red + zero
+                    green = zero if start else green + zero
+                    blue = zero if start else blue + zero
             out[i, 0], out[i, 1], out[i, 2] = red, green, blue
         return traced
     for i in range(n):  # a spectral ray's one channel
+        for k in range(per_ray):
+            traced += length[i * per_ray + k] > zero
         for c in range(out.shape[1]):
             total = out[i, c]
             for k in range(per_ray):
                 r = i * per_ray + k
-                product = contribution[r, c] * (zero if blocked[r] else one)
+                product = contribution[r, c] * (zero if blocked[r] else one) if length[r] > zero else zero
                 total = product if fresh and k == 0 else total + product
             out[i, c] = total
     return traced
@@ -222,14 +230,16 @@ def visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarr
     if compiled_loops():
         return int(compiled(_visible_sums)(contribution, blocked, length, per_ray, n, fresh, out))
     rows = n * per_ray
+    live = length[:rows] > 0
     visible = np.where(blocked[:rows], np.float32(0.0), np.float32(1.0))
-    products = (contribution[:rows, :out.shape[1]] * visible[:, None]).reshape(n, per_ray, out.shape[1])
+    products = np.where(live[:, None], contribution[:rows, :out.shape[1]] * visible[:, None], np.float32(0.0))
+    products = products.reshape(n, per_ray, out.shape[1])
     for k in range(per_ray):
         if fresh and k == 0:
             out[:n] = products[:, 0]
         else:
             out[:n] += products[:, k]
-    return int(np.count_nonzero(length[:rows] > 0))
+    return int(np.count_nonzero(live))
 
 
 def compile_shading_loops() -> None:

@@ -7,6 +7,8 @@ per-pixel sums (``film.pass_sums``). Both executors (``passes.ThreadPasses`` and
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from realistic.camera.base import Camera, SampleBlock
@@ -149,9 +151,13 @@ class PassRunner:
                 alive = alive[self.crop.contains(rays.pixel[alive], self.camera.width)]
             if self.morton:
                 alive = alive[morton_order(rays.pixel[alive], self.camera.width)]
-            pixel = rays.pixel[alive]
+            # every ray traced, in its order (a thin lens's pass): per-ray rows are used as they are
+            every = self.crop is None and not self.morton and len(alive) == len(rays.weight)
+            picked: Callable[[np.ndarray], np.ndarray] = (lambda values: values) if every else \
+                (lambda values: values[alive])
+            pixel = picked(rays.pixel)
             origin, direction = gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)
-            wavelength = None if rays.wavelength_nm is None else rays.wavelength_nm[alive]
+            wavelength = None if rays.wavelength_nm is None else picked(rays.wavelength_nm)
         hits, albedo, aov_values = None, None, None
         if self.aovs.aovs:  # the camera rays' hits and albedo, found once for the AOVs and the integrator
             with self.clock("embree"):
@@ -160,13 +166,13 @@ class PassRunner:
                 with_albedo = "albedo" in self.aovs.quantities
                 first = self.integrator.first_hits(origin, direction, hits, with_albedo)
                 albedo = first.albedo if with_albedo else None
-                aov_values = self.aovs.values(first, np.sign(rays.weight[alive]))
-        radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, sample[alive],
+                aov_values = self.aovs.values(first, np.sign(picked(rays.weight)))
+        radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, picked(sample),
                                                          self.clock, wavelength, hits, albedo)
         with self.clock("accumulation"):
             first_pixel, pixel_count = block.first_pixel, block.pixel_count
             # a spectral ray's radiance comes weighted by the film's response at its wavelength
-            weight = rays.weight[alive].astype(np.float32, copy=False)
+            weight = picked(rays.weight).astype(np.float32, copy=False)
             if rays_per_sample > 1:  # each of a sample's K wavelengths is 1/K of its estimate
                 weight = weight / np.float32(rays_per_sample)
             sums = pass_sums(pixel, radiance, first_pixel, pixel_count, weight)

@@ -152,8 +152,8 @@ SENTINEL = 0x5EE0F00D
 
 def probe_packet(library: Library) -> np.ndarray:
     """The probe ray traced by ``library``'s rtcIntersect16 in a (PROBE_ROWS, 16) int32 packet whose
-    rows past the ray hold SENTINEL except lane 0's hit rows, set as the closest loop sets them; lane
-    0 alone is valid."""
+    rows past the ray hold SENTINEL except lane 0's hit rows, cleared (Ng, u, v 0; ids -1); lane 0
+    alone is valid."""
     inner = EmbreeScene(library)
     inner.add_triangles(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]]), PROBE_GEOM)
     inner.commit()
