@@ -1,20 +1,24 @@
 """Textured-parameters benchmark: a pbrt-v4 scene of textured roughness and mix amount, path traced, two trees.
 
     .venv/bin/python bench/textured_params.py [--against ../old] [--rounds 3] [--res 300x200] [--spp 16]
-        [--dispersion]
+        [--dispersion] [--scene params|mixes]
 
 The fused bounce kernel (``kernels/bounce.cl``) first took a material only when every parameter but its
 diffuse-like colour was constant: a textured roughness or a textured mix amount sent every hit on that
 material to numpy's ``PathIntegrator._shade``. This renders one small pbrt-v4 scene (``scene_text``): a
 floor of pbrt-v4's plastic (``coateddiffuse``) whose roughness is a checkerboard texture, spheres of a
 mix of a matte and a rough conductor whose amount is a checkerboard, a conductor sphere of textured
-roughness and a rough glass sphere, under a distant light and a constant sky, with ``Integrator
-"path"`` (maxdepth 5), by ``python -m realistic render`` in a fresh process (``bench/seed.py``'s
-``render``: CPU-seconds of the process, user + system, and wall), the trees alternating for
-``--rounds`` rounds after one untimed small render each (kernels and tables built and cached).
-``--dispersion`` renders through the dgauss lens with dispersion on (spectral rays). Prints the
-median CPU-seconds and wall per tree and the ratio other / this, the CPU and the load average;
-writes bench/results/textured_params.json.
+roughness and a rough glass sphere, under a distant light and a constant sky, with ``Integrator "path"``
+(maxdepth 5). ``--scene mixes`` swaps the floor and spheres for mixes whose second material is textured
+(``MIXES``), which the fused bounce first sent to numpy: a floor mixing two image-textured materials,
+spheres of a matte and a conductor of checkerboard roughness under a checkerboard amount, and one of a
+conductor and an image-textured coateddiffuse (no glass). Each is rendered by ``python -m realistic
+render`` in a fresh process (``bench/seed.py``'s ``render``: CPU-seconds of the process, user + system,
+and wall), the trees alternating for ``--rounds`` rounds after one untimed small render each (kernels
+and tables built and cached). ``--dispersion`` renders through the dgauss lens with dispersion on
+(spectral rays). Prints the median CPU-seconds and wall per tree and the ratio other / this, the CPU and
+the load average; writes bench/results/textured_params.json (textured_params_mixes.json for ``--scene
+mixes``).
 """
 
 from __future__ import annotations
@@ -32,14 +36,53 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))  # first already when run as a script; not when a test loads this file
 
+import numpy as np  # noqa: E402
+
 import machine  # noqa: E402
+from realistic.core.image_files import write_exr  # noqa: E402
 from seed import render  # noqa: E402
 
+#: The image textures of the ``mixes`` scene (``write_textures``): name -> (H, W, 3) linear RGB, a
+#: tinted product of sines each, so that neither is constant over a sphere.
+TEXTURES = {name: np.clip(np.stack([0.45 + 0.35 * np.sin(np.linspace(0, 6 * np.pi, 128))[None, :]
+                                     * np.cos(np.linspace(0, k * np.pi, 64))[:, None] * c
+                                     for c in colour], axis=-1), 0.02, 0.95).astype(np.float32)
+            for name, k, colour in (("wood.exr", 3, (1.0, 0.7, 0.4)), ("tiles.exr", 5, (0.3, 0.8, 1.0)))}
+#: The ``mixes`` scene's materials and shapes: mixes whose second material is textured.
+MIXES = [
+    'Texture "wood" "spectrum" "imagemap" "string filename" "wood.exr" "float uscale" [4] "float vscale" [4]',
+    'Texture "tiles" "spectrum" "imagemap" "string filename" "tiles.exr" "float uscale" [6] "float vscale" [6]',
+    'MakeNamedMaterial "grain" "string type" "diffuse" "texture reflectance" "wood"',
+    'MakeNamedMaterial "glaze" "string type" "coateddiffuse" "texture reflectance" "tiles" '
+    '"texture roughness" "rough"',
+    'MakeNamedMaterial "matte" "string type" "diffuse" "rgb reflectance" [0.7 0.3 0.2]',
+    'MakeNamedMaterial "metal" "string type" "conductor" "texture roughness" "rough"',
+    'MakeNamedMaterial "floor" "string type" "mix" "string materials" ["grain" "glaze"] "float amount" [0.4]',
+    'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["matte" "metal"] "texture amount" "amount"',
+    'MakeNamedMaterial "glazed metal" "string type" "mix" "string materials" ["metal" "glaze"] "float amount" [0.5]',
+    'AttributeBegin', 'NamedMaterial "floor"',
+    'Shape "trianglemesh" "point3 P" [-4 0 -4  4 0 -4  4 0 4  -4 0 4] "point2 uv" [0 0  1 0  1 1  0 1] '
+    '"integer indices" [0 2 1 0 3 2]',
+    'AttributeEnd',
+    'AttributeBegin', 'Translate -0.8 0.35 0.5', 'NamedMaterial "blend"', 'Shape "sphere" "float radius" [0.35]',
+    'AttributeEnd',
+    'AttributeBegin', 'Translate 0.9 0.35 0.3', 'NamedMaterial "blend"', 'Shape "sphere" "float radius" [0.35]',
+    'AttributeEnd',
+    'AttributeBegin', 'Translate 0.05 0.3 -0.4', 'NamedMaterial "glazed metal"',
+    'Shape "sphere" "float radius" [0.3]', 'AttributeEnd']
 
-def scene_text(res: str, spp: int) -> str:
-    """The benchmark's pbrt-v4 scene at ``res`` (WxH) and ``spp`` samples per pixel."""
+
+def write_textures(folder: Path) -> None:
+    """The ``mixes`` scene's image textures (``TEXTURES``) as EXR files in ``folder``."""
+    for name, pixels in TEXTURES.items():
+        write_exr(folder / name, pixels)
+
+
+def scene_text(res: str, spp: int, scene: str = "params") -> str:
+    """The benchmark's pbrt-v4 scene (``params``, or ``mixes``: ``MIXES``, whose textures
+    ``write_textures`` writes) at ``res`` (WxH) and ``spp`` samples per pixel."""
     width, height = res.split("x")
-    return "\n".join([
+    head = [
         'LookAt 0 1.2 3.5  0 0.3 0  0 1 0', 'Camera "perspective" "float fov" [40]',
         f'Film "rgb" "integer xresolution" [{width}] "integer yresolution" [{height}] "string filename" "x.exr"',
         f'Sampler "halton" "integer pixelsamples" [{spp}]', 'Integrator "path" "integer maxdepth" [5]',
@@ -49,7 +92,10 @@ def scene_text(res: str, spp: int) -> str:
         'Texture "rough" "float" "checkerboard" "float uscale" [16] "float vscale" [16] "float tex1" [0.02] '
         '"float tex2" [0.3]',
         'Texture "amount" "float" "checkerboard" "float uscale" [8] "float vscale" [8] "float tex1" [0.15] '
-        '"float tex2" [0.85]',
+        '"float tex2" [0.85]']
+    if scene == "mixes":
+        return "\n".join(head + MIXES) + "\n"
+    return "\n".join(head + [
         'MakeNamedMaterial "matte" "string type" "diffuse" "rgb reflectance" [0.7 0.3 0.2]',
         'MakeNamedMaterial "metal" "string type" "conductor" "float roughness" [0.1]',
         'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["matte" "metal"] "texture amount" "amount"',
@@ -76,6 +122,8 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=16, help="samples per pixel (default 16)")
     parser.add_argument("--dispersion", action="store_true",
                         help="through the dgauss lens with dispersion on (spectral rays)")
+    parser.add_argument("--scene", choices=("params", "mixes"), default="params",
+                        help="params: textured roughness and amount (default); mixes: textured second materials")
     args = parser.parse_args()
     trees = {"this": ROOT} if args.against is None else {"other": args.against.resolve(), "this": ROOT}
     lens = ["--lens", "dgauss", "--dispersion", "on"] if args.dispersion else []
@@ -83,7 +131,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as temporary:
         work = Path(temporary)
         scene = work / "textured.pbrt"
-        scene.write_text(scene_text(args.res, args.spp))
+        scene.write_text(scene_text(args.res, args.spp, args.scene))
+        if args.scene == "mixes":
+            write_textures(work)
         for name, tree in trees.items():  # untimed: kernels built, tables cached
             render(tree, scene, ["--res", "16x12", "--spp", "1", *lens], work / f"cache-{name}", work)
         for _ in range(args.rounds):
@@ -96,7 +146,7 @@ def main() -> None:
     if "other" in row:
         row["other_over_this_cpu"] = row["other"]["median_cpu_s"] / row["this"]["median_cpu_s"]
     load = os.getloadavg()
-    print(f"{args.res}, {args.spp} spp, path (maxdepth 5), median of {args.rounds} rounds"
+    print(f"{args.scene} scene, {args.res}, {args.spp} spp, path (maxdepth 5), median of {args.rounds} rounds"
           + (", dgauss lens, dispersion on" if args.dispersion else ""))
     print(f"{'tree':6} {'CPU-s':>8} {'wall':>8}  runs (CPU-s)")
     for name in trees:
@@ -105,9 +155,11 @@ def main() -> None:
     if "other" in row:
         print(f"other/this CPU-s: {row['other_over_this_cpu']:.2f}")
     print(f"cpu: {machine.describe()}; load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
-    out = ROOT / "bench" / "results" / "textured_params.json"
+    out = ROOT / "bench" / "results" / ("textured_params.json" if args.scene == "params"
+                                        else f"textured_params_{args.scene}.json")
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"cpu": machine.describe(), "load_average": load, "res": args.res, "spp": args.spp,
+    out.write_text(json.dumps({"cpu": machine.describe(), "load_average": load, "scene": args.scene,
+                               "res": args.res, "spp": args.spp,
                                "rounds": args.rounds, "dispersion": args.dispersion,
                                "trees": {t: str(p) for t, p in trees.items()}, **row}, indent=1) + "\n")
     print(f"wrote {out}")

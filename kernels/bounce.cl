@@ -13,7 +13,9 @@
  *   - the material's BSDF_PARAM row (with `tables`, the BSDF kernel's TableStore: measured and
  *     named metals' tables, mixes' second lobes), or where BOUNCE_MATERIAL's per_hit says so the
  *     hit's own row (`hit_params`, row i: the host looked every parameter up at the hit, for
- *     spectral rays at its wavelength, as BounceKernel._hit_rows says), its diffuse-like colour
+ *     spectral rays at its wavelength, as BounceKernel._hit_rows says) and, where second_per_hit
+ *     says so (a mix's textured second material), the hit's own second lobe (`hit_second`, row i of
+ *     BOUNCE_LOBE_WIDTH floats, made likewise) in place of the tables' one, its diffuse-like colour
  *     (a Material's, plastic's or substrate's diffuse, a coated diffuse's reflectance) times a grid
  *     or checker texture at the interpolated uv (realistic.scene.textures.evaluate) where
  *     BOUNCE_MATERIAL says so, or, for
@@ -38,8 +40,8 @@
  *     rule, and the next ray from the offset origin;
  *   - BOUNCE_SPECTRAL: rays of one wavelength each (a dispersive camera's), with each camera ray's
  *     rgb_basis row in `basis` (3 floats at path[r]), at hits of every material the RGB build
- *     covers. Each lobe's colours (spectral_lobe: a mix's both; a hit's own row's first lobe
- *     is already the ray's), the diffuse-like colour's texture
+ *     covers. Each lobe's colours (spectral_lobe: a mix's both; a hit's own row's first lobe and
+ *     its own second lobe are already the ray's), the diffuse-like colour's texture
  *     colour (an image texture's bare, from the host), and each light's radiance (after the RGB test of
  *     whether it is 0, as LightSampler.sample tests it) become their spectral values at the ray's
  *     wavelength (realistic.core.spectrum.spectral_value, in its order: dot3), held in every
@@ -239,7 +241,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
                      __global const float *tfar, __global const float *hit_u, __global const float *hit_v,
                      __global const int *prim, __global const int *geom, __global const float *ng_in,
                      __global const float *beta_in, __global const float *albedo, __global const float *basis,
-                     __global const float *hit_params,
+                     __global const float *hit_params, __global const float *hit_second,
                      __global const int *faces, __global const float *normals, __global const float *uvs,
                      __global const int *geom_ints, __global const float *geom_floats,
                      __global const float *params, __global const float *materials,
@@ -293,8 +295,10 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     int material = gi[GEOM_INT_MATERIAL];
     __global const float *mat = materials + BOUNCE_MATERIAL_WIDTH * material;
     int per_hit = mat[BOUNCE_MATERIAL_PER_HIT] != 0.0f;
+    int second_per_hit = mat[BOUNCE_MATERIAL_SECOND_PER_HIT] != 0.0f;
     Params p = load_params(per_hit ? hit_params + (size_t)BSDF_PARAM_WIDTH * i : params + BSDF_PARAM_WIDTH * material,
                            tables);
+    if (second_per_hit && p.amount > 0.0f) p.lobe[1] = load_lobe(hit_second + (size_t)BOUNCE_LOBE_WIDTH * i, tables);
     int texture = (int)mat[BOUNCE_MATERIAL_TEXTURE];
     float3 texel = (float3)(1.0f);
     if (texture == BOUNCE_TEXTURE_IMAGE) {
@@ -320,8 +324,8 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
      * colour's constant factor's times its texture's, each the dot with the ray's rgb_basis row
      * (SurfaceParameters.colour turns each of them so) */
     float3 wavelength_basis = load3(basis, path[r]);
-    if (!per_hit) spectral_lobe(&p.lobe[0], wavelength_basis);  /* a hit's own row is at its wavelength */
-    if (p.amount > 0.0f) spectral_lobe(&p.lobe[1], wavelength_basis);
+    if (!per_hit) spectral_lobe(&p.lobe[0], wavelength_basis);  /* a hit's own rows are at its wavelength */
+    if (p.amount > 0.0f && !second_per_hit) spectral_lobe(&p.lobe[1], wavelength_basis);
     if (texture != BOUNCE_TEXTURE_NONE) p.lobe[0].scale *= (float3)(dot3(texel, wavelength_basis));
 #else
     if (texture == BOUNCE_TEXTURE_IMAGE) p.lobe[0].scale = texel;

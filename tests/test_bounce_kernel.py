@@ -156,8 +156,8 @@ def test_covered_materials():
     texture or its image texture (whatever its filter), a scaled one too: a ``Material``'s, a
     plastic's or substrate's Kd, a coated diffuse's reflectance, each in the material's row. Other
     textured parameters (roughness, a specular colour, a mirror's or glass's tints, a conductor's
-    scale, a mix's amount) are covered by per-hit rows (``per_hit``); a mix whose second material is
-    textured is not covered."""
+    scale, a mix's amount) are covered by per-hit rows (``per_hit``), a mix's textured second material
+    by per-hit second lobes too (``second_per_hit``); a mix holding a mix is not covered."""
     tables = TableStore(Device.for_spec())
     for material in (*COVERED.values(), *TEXTURED.values()):
         assert material_rows(material, tables) is not None
@@ -179,7 +179,14 @@ def test_covered_materials():
                     DiffuseTransmission(image), *(m for m, _ in PER_HIT.values())):
         rows = material_rows(per_hit, tables)
         assert rows is not None and rows[1][MATERIALS.offset("per_hit")] == 1, per_hit
-    assert material_rows(Mix(Material(), Plastic(image), 0.5), tables) is None
+        assert rows[1][MATERIALS.offset("second_per_hit")] == any(per_hit is m for m in SECOND_PER_HIT), per_hit
+    for second in (Mix(Material(), Plastic(image), 0.5), Mix(Plastic(image), Material((1.0, 1.0, 1.0), image), image)):
+        rows = material_rows(second, tables)
+        assert rows is not None and rows[1][MATERIALS.offset("second_per_hit")] == 1, second
+    for covered in (*COVERED.values(), *TEXTURED.values()):
+        assert material_rows(covered, tables)[1][MATERIALS.offset("second_per_hit")] == 0
+    assert material_rows(Mix(Material(), Mix(Material(), Plastic(image)), 0.5), tables) is None
+    assert material_rows(Mix(Mix(Material(), Plastic()), Material(), 0.5), tables) is None
 
 
 #: An image of 64 x 32 texels with little symmetry, for the image-textured materials.
@@ -262,7 +269,32 @@ PER_HIT = {
         Mix(Plastic((0.2, 0.5, 0.8), (0.3, 0.3, 0.3), ImageTexture(ROUGH)), CoatedDiffuse((0.9, 0.2, 0.4), 0.1),
             ImageTexture(IMAGE, scale=(2.0, 3.0))),
         Mix(Plastic((0.2, 0.5, 0.8), (0.3, 0.3, 0.3), 0.26), CoatedDiffuse((0.9, 0.2, 0.4), 0.1), 0.5)),
+    # a mix's textured second material: each hit's second lobe from its own row (``second_per_hit``)
+    "mix of two image-textured materials": (
+        Mix(Material((0.9, 0.8, 0.7), ImageTexture(IMAGE, scale=(3.0, 2.0))),
+            Plastic(ImageTexture(IMAGE[::-1, ::-1], scale=(2.0, 3.0)), (0.3, 0.3, 0.3), 0.1), 0.6),
+        Mix(Material((0.9, 0.8, 0.7), ImageTexture(IMAGE, scale=(3.0, 2.0))),
+            Plastic((0.5, 0.5, 0.5), (0.3, 0.3, 0.3), 0.1), 0.6)),
+    "mix, second of image roughness": (
+        Mix(Material((0.7, 0.6, 0.5)), Conductor(roughness_u=ImageTexture(ROUGH, scale=(3.0, 2.0)),
+                                                 roughness_v=ImageTexture(ROUGH[:, ::-1], scale=(2.0, 2.0))), 0.7),
+        Mix(Material((0.7, 0.6, 0.5)), Conductor(roughness_u=0.26, roughness_v=0.26), 0.7)),
+    "mix, checker amount, textured coated second": (
+        Mix(Plastic((0.2, 0.5, 0.8), (0.3, 0.3, 0.3), 0.1),
+            CoatedDiffuse(ImageTexture(IMAGE, scale=(2.0, 2.0)),
+                          GridTexture(base=(0.03, 0.03, 0.03), line=(0.4, 0.4, 0.4), cells=5.0, line_width=0.3)),
+            CheckerTexture(even=(0.2, 0.2, 0.2), odd=(0.8, 0.8, 0.8), cells=6.0)),
+        Mix(Plastic((0.2, 0.5, 0.8), (0.3, 0.3, 0.3), 0.1), CoatedDiffuse((0.5, 0.5, 0.5), 0.2), 0.5)),
+    "mix, named metal second of checker roughness": (
+        Mix(Material((0.3, 0.5, 0.7)), Conductor(roughness_u=CheckerTexture(even=(0.02, 0.02, 0.02),
+                                                                            odd=(0.4, 0.4, 0.4), cells=6.0),
+                                                 roughness_v=0.1, spectra=("Cu", "Cu")), 0.6),
+        Mix(Material((0.3, 0.5, 0.7)), Conductor(roughness_u=0.2, roughness_v=0.1, spectra=("Cu", "Cu")), 0.6)),
 }
+#: The ``PER_HIT`` mixes whose second material is textured (``second_per_hit``).
+SECOND_PER_HIT = [PER_HIT[name][0] for name in ("mix of two image-textured materials", "mix, second of image roughness",
+                                               "mix, checker amount, textured coated second",
+                                               "mix, named metal second of checker roughness")]
 
 
 @pytest.mark.parametrize("name", sorted(PER_HIT))
@@ -273,11 +305,13 @@ def test_bounce_kernel_shades_textured_parameters_per_hit_as_the_numpy_reference
                                                                                 spectral):
     """Textured roughness (plastic, coated diffuse, substrate, conductor, rough glass; image, grid
     and checker textures), a textured specular colour, a conductor's textured eta, k and scale,
-    glass's textured tints and a mix's textured amount (its first material textured too), RGB and
-    spectral: per hit as the other materials, each hit's own row looked up as ``_shade`` looks it
-    up (image textures over the pixel footprint at depth 0); and the same material with a constant
-    in the texture's place shades the hits differently, so a kernel that read the material's
-    constant would fail."""
+    glass's textured tints, a mix's textured amount (its first material textured too) and a mix's
+    textured second material (two image-textured materials; a second of image or checker
+    roughness, a named metal's among them; with a checker amount), RGB and spectral: per hit as the
+    other materials, each hit's own rows looked up as ``_shade`` looks them up (image textures over
+    the pixel footprint at depth 0); and the same material with a constant in the texture's place
+    shades the hits differently, so a kernel that read the material's constant (or any one hit's
+    row for all) would fail."""
     textured, constant = PER_HIT[name]
     seed = 300 + sorted(PER_HIT).index(name)
     got = _shades_as_numpy(textured, depth, mode, mis, seed, spectral=spectral)
@@ -450,14 +484,15 @@ def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegr
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad,
-    plastic and diffuse transmission in the kernel and the floor, a mix whose second material is
-    plastic whose Ks is an image texture, in numpy: each ray's radiance is the numpy backend's to
-    float32 rounding (a path may only part where rounding moves a sample across a threshold)."""
+    plastic and diffuse transmission in the kernel and the floor, a mix holding a mix (the one
+    material the kernel lacks) of a plastic whose Ks is an image texture, in numpy: each ray's
+    radiance is the numpy backend's to float32 rounding (a path may only part where rounding moves a
+    sample across a threshold)."""
     scene, _, _ = textured_scene()
     floor = scene.instances[0].material
     specular = ScaledTexture(floor.texture, (0.3, 0.3, 0.3))
-    scene.instances[0] = replace(scene.instances[0], material=Mix(Material((0.5, 0.4, 0.3)),
-                                                                  Plastic((0.5, 0.4, 0.3), specular, 0.2), 0.5))
+    inner = Mix(Material((0.5, 0.4, 0.3)), Plastic((0.5, 0.4, 0.3), specular, 0.2), 0.5)
+    scene.instances[0] = replace(scene.instances[0], material=Mix(Material((0.3, 0.5, 0.4)), inner, 0.8))
     materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05), Material((0.3, 0.6, 0.9),
                                                                                              sigma=20.0)]
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
@@ -485,6 +520,22 @@ def test_paths_over_textured_parameters_carry_the_numpy_radiance(mode, spectral,
     assert len(device_one._bounce._per_hit) == 4
     monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
     _paths_agree(scene, numpy_one, device_one, 17, spectral=spectral)
+
+
+@pytest.mark.parametrize("mode, spectral", [("path", False), ("direct", False), ("path", True), ("direct", True)])
+def test_paths_over_mixes_of_textured_second_materials_carry_the_numpy_radiance(mode, spectral, monkeypatch):
+    """Whole paths, RGB and spectral, over ``textured_scene`` whose floor, sphere, cone and quad are
+    mixes whose second material is textured (two image-textured materials, a second of image
+    roughness, a textured coated second under a checker amount, a named metal's second of checker
+    roughness), seen with a pixel spread: every hit is the kernel's, second lobes from per-hit rows
+    (``_shade`` is never called), and each ray's radiance is the numpy backend's to float32 rounding."""
+    scene, _, _ = textured_scene()
+    scene.instances[:4] = [replace(inst, material=m) for inst, m in zip(scene.instances, SECOND_PER_HIT)]
+    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
+    assert device_one._bounce is not None and device_one._bounce.covered.all()
+    assert len(device_one._bounce._second_per_hit) == 4
+    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
+    _paths_agree(scene, numpy_one, device_one, 19, spectral=spectral)
 
 
 @pytest.mark.parametrize("mode", ["path", "direct"])

@@ -5,7 +5,7 @@ the surface hits (embree's t, u, v, prim, geom, Ng) to every light sample's shad
 (MIS-weighted) and the BSDF sample's next ray, beta, pdf and flags; the host keeps embree and the
 compaction of live paths. It covers scenes whose lights are area, point, spot, distant or
 infinite lights, emitting meshes or spheres, or none, and every material ``bsdf_kernel.parameters``
-covers but a mix whose second material is textured. Constant parameters come from one row per
+covers, a mix whose second material is textured too. Constant parameters come from one row per
 material (measured tables, named metals' tables and mixes' second lobes in the
 BSDF kernel's ``TableStore``), and so does the diffuse-like colour (``diffuse_texture``: a ``Material``'s albedo,
 a plastic's or substrate's Kd, a coated diffuse's reflectance, the latter three also as a ``ScaledTexture``)
@@ -18,7 +18,9 @@ other textured parameter (roughness, a specular colour, a mirror's or glass's ti
 scale, eta or k, a mix's amount or textured first material; ``MATERIALS``' ``per_hit``) makes each
 hit's ``BSDF_PARAMS`` row on the host before the launch (``_hit_rows``: ``bsdf_kernel.parameters``
 with ``PathIntegrator._hit_parameters``, the lookups ``_shade`` makes, footprints included), which the
-kernel reads in place of the material's row; everything else of the bounce stays in the kernel. An
+kernel reads in place of the material's row; a mix's textured second material (``second_per_hit``)
+likewise gives each hit its own second ``LOBE`` row (``bsdf_kernel.mix_rows``), read in place of the
+tables' one. Everything else of the bounce stays in the kernel. An
 environment map's sampling tables (its ``Distribution2D``) and texels, and an emitting mesh's world
 triangles and their area CDF (``light_sampler.Emitter``'s, which the scene's mesh-space device tables
 cannot stand for: they lack the instance's transform and the CDF), share one device buffer; a light
@@ -34,12 +36,13 @@ mix's both lobes), the diffuse-like colour's texture likewise (an image texture'
 from ``EwaKernel.at_hits`` with a factor of 1), every light's radiance likewise, and carries beta
 and the contributions as one column, as the numpy bounce does; a hit's own row is looked up at its
 ray's wavelength on the host (each colour's spectral value repeated, as ``bsdf_kernel.parameters``
-says), so only a mix's second lobe, constant RGB in the tables, is turned in the kernel. Glass indices are constants (no
+says; a textured second material's row likewise), so only a mix's constant second lobe, RGB in the
+tables, is turned in the kernel. Glass indices are constants (no
 material's index varies with the wavelength in ``bsdf_for``). The host passes each camera ray's basis
 row, the very rows ``PathIntegrator.radiance`` colours its emission with (``shade.cl`` interpolates
 its basis from a table instead: its rays arrive as wavelengths alone).
-The rest (a mix's textured second material, whose lobe would vary per hit in the tables; materials
-``bsdf.cl`` lacks) stays with ``PathIntegrator._shade``, the numpy reference
+The rest (a mix holding a mix, which ``bsdf.cl``'s rows of at most two lobes lack) stays with
+``PathIntegrator._shade``, the numpy reference
 (``tests/test_bounce_kernel.py`` compares the two per hit with the same random numbers, RGB and
 spectral). The program is the BSDF kernel's source with this one after it, so both share
 ``bsdf.cl``'s material functions; the scene's tables are device buffers made once per integrator,
@@ -75,7 +78,7 @@ from realistic.renderer.shade_kernel import GEOM_FLOATS, GEOM_INTS, rounded_up_c
 from realistic.scene.ewa_kernel import DEVICE_FILTERS, EwaKernel, SurfaceTables, hit_mapping
 from realistic.scene.intersect import Hits
 from realistic.scene.lights import InfiniteLight, SpotLight
-from realistic.scene.materials import CoatedDiffuse, Plastic, ScaledTexture, Substrate, SurfaceMaterial
+from realistic.scene.materials import CoatedDiffuse, Mix, Plastic, ScaledTexture, Substrate, SurfaceMaterial
 from realistic.scene.mipmap import MipMap
 from realistic.scene.model import RGB, CheckerTexture, GridTexture, ImageTexture, Material, Texture
 
@@ -84,9 +87,12 @@ KERNEL_FILE = "bounce.cl"
 #: checker's cells, line bounds (low, high: line_width / 2 and 1 - line_width / 2) and colours (a:
 #: line or even, b: base or odd); an image texture's albedo comes per hit (``BounceKernel.__call__``).
 #: ``per_hit`` 1: the material's parameters vary otherwise, and each hit's ``BSDF_PARAMS`` row comes from
-#: the host (``BounceKernel._hit_rows``; the material's own row and texture are then unused).
+#: the host (``BounceKernel._hit_rows``; the material's own row and texture are then unused);
+#: ``second_per_hit`` 1 (a mix whose second material is textured, ``per_hit`` too): so does each hit's
+#: second lobe, a ``bsdf_kernel.LOBE`` row (``BOUNCE_LOBE_WIDTH`` floats) in place of the tables' one.
 MATERIALS = Table("BOUNCE_MATERIAL", np.float32, (("texture", 1), ("cells", 1), ("low", 1), ("high", 1),
-                                                  ("colour_a", 3), ("colour_b", 3), ("per_hit", 1)))
+                                                  ("colour_a", 3), ("colour_b", 3), ("per_hit", 1),
+                                                  ("second_per_hit", 1)))
 TEXTURES = ("none", "grid", "checker", "image")
 #: The textures the kernel evaluates (``diffuse_texture``).
 DeviceTexture = GridTexture | CheckerTexture | ImageTexture
@@ -135,7 +141,8 @@ def header(dimension: int, roulette_after: int, spectral: bool) -> str:
             + constant_defines("BOUNCE_MAPPING", MAPPINGS)
             + "".join(f"#define BOUNCE_{name.upper()} {1 << k}\n" for k, name in enumerate(MODE_FLAGS))
             + f"#define BOUNCE_DIMENSION {dimension}\n#define BOUNCE_ROULETTE_AFTER {roulette_after}\n"
-            + f"#define BOUNCE_SPECTRAL {int(spectral)}\n" + SHADOW_DEFINES)
+            + f"#define BOUNCE_SPECTRAL {int(spectral)}\n#define BOUNCE_LOBE_WIDTH {bsdf_kernel.LOBE.width}\n"
+            + SHADOW_DEFINES)
 
 
 class _Textured(Exception):
@@ -197,24 +204,27 @@ def diffuse_texture(material: SurfaceMaterial) -> tuple[SurfaceMaterial, DeviceT
 
 def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> tuple[np.ndarray, np.ndarray] | None:
     """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not
-    cover it (a kind ``bsdf.cl`` lacks, or a mix whose second material is textured); measured
-    tables, named metals' tables and mixes' second lobes go to ``tables``. Where the only texture
-    is the diffuse-like colour's grid, checker or image texture (``diffuse_texture``), the row holds
-    that colour's constant factor, which the kernel multiplies by the texture's colour per hit; where
+    cover it (a kind ``bsdf.cl`` lacks, or a mix holding a mix); measured tables, named metals'
+    tables and mixes' constant second lobes go to ``tables``. Where the only texture is the
+    diffuse-like colour's grid, checker or image texture (``diffuse_texture``), the row holds that
+    colour's constant factor, which the kernel multiplies by the texture's colour per hit; where
     another parameter is textured, the ``MATERIALS`` row says ``per_hit`` and the ``BSDF_PARAMS`` row
-    is zero (each hit's comes from ``BounceKernel._hit_rows``)."""
+    is zero (each hit's comes from ``BounceKernel._hit_rows``), and where a mix's second material is
+    textured it says ``second_per_hit`` too (each hit's second lobe comes from there as well)."""
     split = diffuse_texture(material)
     plain, texture = (material, None) if split is None else split[:2]
     try:
         row = bsdf_kernel.parameters(plain, _Constants(), 1, tables)
     except _Textured:
         try:
-            per_hit = bsdf_kernel.parameters(material, _AnyTexture(), 1, tables, _Constants())
-        except _Textured:  # a mix's second material is textured
+            covered, second = bsdf_kernel.parameters(material, _AnyTexture(), 1, tables, _Constants()) is not None, 0
+        except _Textured:  # a mix's second material is textured: its lobe comes per hit too
+            covered = isinstance(material, Mix) and bsdf_kernel.mix_rows(material, _AnyTexture(), 1, tables) is not None
+            second = 1
+        if not covered:
             return None
-        if per_hit is None:
-            return None
-        return np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32), MATERIALS.pack(1, per_hit=1)[0]
+        return (np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32),
+                MATERIALS.pack(1, per_hit=1, second_per_hit=second)[0])
     if row is None:
         return None
     if isinstance(texture, GridTexture):
@@ -335,6 +345,9 @@ class BounceKernel:
         #: the materials whose hits take their own rows (``_hit_rows``): their indices and materials
         self._per_hit = [(k, m) for k, (m, r) in enumerate(zip(materials, rows))
                          if r is not None and r[1][MATERIALS.offset("per_hit")]]
+        #: of those, the mixes whose second lobe comes per hit too (``second_per_hit``)
+        self._second_per_hit = {k for k, r in enumerate(rows)
+                                if r is not None and r[1][MATERIALS.offset("second_per_hit")]}
         #: per image-textured material covered: its index, EWA kernel, filter and ``hit_mapping`` rows
         #: at depth 0 (the pixel's footprint) and deeper (none: level 0 bilinear, as ``_shade``), each
         #: with the colour's constant factor (RGB rays: the albedo) and with 1 (spectral rays: the bare
@@ -416,13 +429,13 @@ class BounceKernel:
             cone_light = np.empty(shadows, np.int32)
             queue, kernel = self._queue_and_kernel(spectral)
             albedo = self._albedo(rows, direction, hits, depth, spectral)
-            hit_rows = self._hit_rows(rows, hits, hit_parameters)
+            hit_rows, hit_seconds = self._hit_rows(rows, hits, hit_parameters)
             inputs = [self.device.wrapped_buffer(a, dtype) for a, dtype in (
                 (rows, np.int32), (path, np.int32), (pixel, np.uint32), (sample, np.uint32), (origin, np.float32),
                 (direction, np.float32), (hits.t, np.float32), (hits.u, np.float32), (hits.v, np.float32),
                 (hits.prim, np.int32), (hits.geom, np.int32), (hits.normal, np.float32), (beta, np.float32),
                 (albedo, np.float32), (np.zeros(0) if basis is None else basis, np.float32),
-                (hit_rows, np.float32))]
+                (hit_rows, np.float32), (hit_seconds, np.float32))]
             self.device.run_into(queue, kernel, (whole_groups(m),), (LOCAL_SIZE,),
                                  (np.uint32(m), np.uint32(lights), np.uint32(depth), np.uint32(seed & 0xFFFFFFFF),
                                   np.uint32(mode_flags), np.uint32(max_depth), self.offset_base,
@@ -449,13 +462,17 @@ class BounceKernel:
             out.contribution[rows] = np.where(ok[:, None], out.contribution[rows], np.float32(0))
 
     def _hit_rows(self, rows: np.ndarray, hits: Hits, hit_parameters: Callable[[np.ndarray], HitParameters] | None
-                  ) -> np.ndarray:
+                  ) -> tuple[np.ndarray, np.ndarray]:
         """The ``BSDF_PARAMS`` rows (m, width) float32 of the hits ``rows`` on ``per_hit`` materials
-        (zero elsewhere, unread; none without such hits): ``bsdf_kernel.parameters`` at
-        ``hit_parameters(picked)``, which looks every texture up as ``PathIntegrator._shade`` does, a
-        mix's second lobe constant in the tables (RGB: the kernel turns it into spectral rays' channel)."""
+        and the ``LOBE`` rows (m, ``LOBE.width``) of the second lobes of those on ``second_per_hit``
+        mixes (zero elsewhere, unread; none without such hits): ``bsdf_kernel.parameters``, or
+        ``bsdf_kernel.mix_rows`` for the latter, at ``hit_parameters(picked)``, which looks every
+        texture up as ``PathIntegrator._shade`` does (spectral rays' at their wavelength, each
+        colour's value repeated); a constant second lobe stays in the tables, RGB (the kernel turns it
+        into spectral rays' channel)."""
         geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
         out = np.zeros((0, bsdf_kernel.BSDF_PARAMS.width), np.float32)
+        seconds = np.zeros((0, bsdf_kernel.LOBE.width), np.float32)
         for index, material in self._per_hit:
             picked = picks[:rows_on_material(geom, self._geom_material, index, picks)].copy()
             if not len(picked):
@@ -464,11 +481,18 @@ class BounceKernel:
                 raise ValueError("hits on a material with per-hit parameters need hit_parameters")
             if not len(out):
                 out = np.zeros((len(rows), bsdf_kernel.BSDF_PARAMS.width), np.float32)
-            table = bsdf_kernel.parameters(material, hit_parameters(picked), len(picked), self.bsdf_tables,
-                                           _Constants())
+            at, table = hit_parameters(picked), None
+            if isinstance(material, Mix) and index in self._second_per_hit:
+                mixed = bsdf_kernel.mix_rows(material, at, len(picked), self.bsdf_tables)
+                if mixed is not None:
+                    if not len(seconds):
+                        seconds = np.zeros((len(rows), bsdf_kernel.LOBE.width), np.float32)
+                    table, seconds[picked] = mixed
+            else:
+                table = bsdf_kernel.parameters(material, at, len(picked), self.bsdf_tables, _Constants())
             assert table is not None  # material_rows' probe: covered at every hit
             out[picked] = table
-        return out
+        return out, seconds
 
     def _albedo(self, rows: np.ndarray, direction: np.ndarray, hits: Hits, depth: int, spectral: bool) -> np.ndarray:
         """The albedo (m, 3) float32 of the hits ``rows`` on image-textured materials (zero elsewhere,

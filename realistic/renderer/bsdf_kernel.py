@@ -8,9 +8,11 @@ Oren-Nayar (``Material``), conductors (eta and k, or a named metal's tabulated F
 smooth, thin and rough dielectrics, plastic, coated diffuse, substrate, measured ``.brdf`` files
 (their 128^3 table), MERL half-angle tables (their 90 x 90 x 180 RGB bins as read), diffuse
 transmission, and a mix of two of those whose second is the same at every hit; the tables and the
-mixes' second lobes live in the kernel's ``TableStore``. Mixes holding a mix or a textured second
-material (or seen by spectral rays, whose second lobe varies with the wavelength) stay with the
-numpy BSDFs of ``renderer.bsdf``, which are the reference (``tests/test_bsdf_kernel.py`` and, for
+mixes' second lobes live in the kernel's ``TableStore``. Here, mixes holding a mix or a textured
+second material (or seen by spectral rays, whose second lobe varies with the wavelength) stay with
+the numpy BSDFs of ``renderer.bsdf``, which are the reference; the fused bounce takes the latter two
+(a textured second material's lobe from per-hit rows, ``mix_rows``), and only a mix holding a mix
+stays numpy there (``tests/test_bsdf_kernel.py`` and, for
 MERL tables, ``tests/test_merl_kernel.py`` compare the two). The host looks each parameter up at
 the hits as ``bsdf.factory.bsdf_for`` does (textures included) and packs one ``BSDF_PARAMS`` row
 per hit; the kernel takes the integrator's own uniform numbers, so both draw the same directions.
@@ -70,7 +72,8 @@ LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), 
                                         ("extra", 2)))
 #: One hit's BSDF: its first lobe, then ``amount`` (0: that lobe alone; else a mix of it, weighted
 #: 1 - amount, and a second lobe, weighted amount, the same at every hit: a ``LOBE`` row in the
-#: kernel's tables at ``second``, in ``TABLE_ALIGN`` floats). Mixes put their second lobe there so
+#: kernel's tables at ``second``, in ``TABLE_ALIGN`` floats; the fused bounce reads a textured second
+#: material's ``LOBE`` row per hit from its own buffer instead). Mixes put their second lobe there so
 #: that every other row stays one lobe wide.
 BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", 1)))
 KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
@@ -179,17 +182,30 @@ def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, table
     if not isinstance(material, Mix):
         lobe = _lobe(material, hits, count, tables)
         return None if lobe is None else _rows(count, lobe, BSDF_PARAMS.width)
+    mixed = None if tables is None else mix_rows(material, hits, count, tables, second_hits)
+    if mixed is None or tables is None:
+        return None
+    rows, second_rows = mixed
+    if len(second_rows) and not np.all(second_rows == second_rows[:1]):
+        return None
+    rows[:, BSDF_PARAMS.offset("second")] = tables.place_lobe(second_rows[0]) if count else 0
+    return rows
+
+
+def mix_rows(material: Mix, hits: HitParameters, count: int, tables: TableStore,
+             second_hits: HitParameters | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """A mix's ``count`` ``BSDF_PARAMS`` rows at ``hits`` (its first lobe and its amount, clipped to
+    [0, 1] as ``bsdf_for`` clips it; ``second`` 0) and its second material's ``LOBE`` rows at ``hits``
+    (``count`` of them) or at ``second_hits`` (one), or None where the kernel does not cover either
+    material. ``parameters`` places a second lobe that is the same at every hit in ``tables``; the
+    fused bounce passes a textured second material's rows per hit (``BounceKernel._hit_rows``)."""
     second_at, second_count = (hits, count) if second_hits is None else (second_hits, 1)
     first, second = _lobe(material.first, hits, count, tables), _lobe(material.second, second_at, second_count, tables)
-    if first is None or second is None or tables is None:
-        return None
-    second_rows = _rows(second_count, second, LOBE.width)
-    if second_count and not np.all(second_rows == second_rows[:1]):
+    if first is None or second is None:
         return None
     rows = _rows(count, first, BSDF_PARAMS.width)
     rows[:, BSDF_PARAMS.offset("amount")] = np.clip(scalar(hits, material.amount), 0.0, 1.0)
-    rows[:, BSDF_PARAMS.offset("second")] = tables.place_lobe(second_rows[0]) if count else 0
-    return rows
+    return rows, _rows(second_count, second, LOBE.width)
 
 
 def _rows(count: int, lobe: Columns, width: int) -> np.ndarray:
