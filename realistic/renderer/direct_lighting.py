@@ -706,7 +706,7 @@ class DirectLighting:
             footprint = None
             if isinstance(material.texture, ImageTexture) and self.pixel_spread_radians > 0:
                 footprint = self._footprint(face[rows], geom[rows], direction[rows], normal[rows], distance[rows])
-            rho[rows] = albedo(material, uv, len(rows), footprint, self.backend.ewa)
+            rho[rows] = albedo(material, uv, len(rows), footprint, self.backend.image_lookup)
         return rho
 
     def _measured_albedo(self, path: str, direction: np.ndarray, normal: np.ndarray) -> np.ndarray:

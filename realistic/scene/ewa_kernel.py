@@ -24,7 +24,8 @@ bit) and ``trilinear_small``/``trilinear`` (``MipMap.trilinear``, to float32 rou
 weight comes from log2) likewise, the map's ``trilinear_blend_from`` (pbrt-v3's blend or pbrt-v4's)
 their last argument. ``DEVICE_FILTERS`` names the filters done here. A lookup without a
 footprint (a ``hit_mapping`` of spread 0: the path integrator's deeper bounces) is level 0 bilinear
-whatever the filter, as ``textures.evaluate`` has it, so ``at_hits`` filters those with "bilinear".
+whatever the filter, as ``textures.evaluate`` has it, so ``at_hits`` filters those with "bilinear", as
+does ``lookup``, the ``textures.ImageLookup`` the "opencl" backend gives ``SurfaceParameters``.
 
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
 (``realistic.renderer.backends``), keyed by the map: the map itself stays plain data. Each thread
@@ -44,7 +45,7 @@ from realistic.device.tables import Table
 from realistic.scene.intersect import Hits
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
 from realistic.scene.model import ImageTexture
-from realistic.scene.textures import st_mapping
+from realistic.scene.textures import Footprint, st_mapping
 
 KERNEL_FILE = "ewa.cl"
 #: ``hit_lookups``' MAPPING row (float64), declared once for the kernel and ``hit_mapping``: the camera's
@@ -132,6 +133,14 @@ class EwaKernel:
         out = np.empty((len(st), 3), np.float32)
         self._filter(lookups, np.ones(3, np.float32), out, texture_filter)
         return out
+
+    def lookup(self, texture_filter: str, st: np.ndarray, axes: Footprint | None) -> np.ndarray:
+        """A ``textures.ImageLookup`` on this map: ``texture_filter`` over ``axes``, or without a
+        footprint (None) "bilinear" over zero axes (width 0: level 0, as ``MipMap.bilinear``)."""
+        if axes is None:
+            zero = np.zeros_like(st)
+            return self(st, zero, zero, "bilinear")
+        return self(st, axes[0], axes[1], texture_filter)
 
     def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray, texture_filter: str) -> None:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
