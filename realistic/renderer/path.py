@@ -23,7 +23,8 @@ Backends: on "opencl", RGB rays at hits whose material ``kernels/bsdf.cl`` cover
 parameters, the diffuse-like colour of Lambertian, Oren-Nayar, plastic, coated diffuse and substrate
 under a grid or checker texture, or under an image texture, which ``EwaKernel.at_hits`` filters
 on the device before the launch; any other textured parameter, such as roughness, Ks or a mix's
-amount or second material, looked up per hit with ``_hit_parameters``) take the whole bounce in one launch of
+amount or second material, looked up per hit with ``_hit_parameters``, its image textures filtered on
+the device too by the backend's ``image_lookup``) take the whole bounce in one launch of
 ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights,
 shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral rays (a
 dispersive camera's) at the same hits, in the kernel's spectral build. The host keeps embree,
