@@ -81,14 +81,30 @@ def hit_mapping(texture: ImageTexture, diffuse: np.ndarray | tuple[float, float,
 
 
 class _ThreadKernels:
-    """One thread's command queue and kernel objects over an ``EwaKernel``'s program."""
+    """One thread's command queue and kernel objects over an ``EwaKernel``'s program, each made on its
+    first use (a texture has one filter: making all nine for every thread and map cost more than the
+    lookups of a small render)."""
 
     def __init__(self, device: Device, program: cl.Program):
         self.queue = device.queue()
-        self.hits = cl.Kernel(program, "hit_lookups")
+        self._program = program
+        self._hits: cl.Kernel | None = None
         #: per filter, its kernel for the small lookups and the one for the lookups it leaves pending
-        self.filters = {name: (cl.Kernel(program, f"{name}_small"), cl.Kernel(program, name))
-                        for name in DEVICE_FILTERS}
+        self._filters: dict[str, tuple[cl.Kernel, cl.Kernel]] = {}
+
+    @property
+    def hits(self) -> cl.Kernel:
+        """``hit_lookups``."""
+        if self._hits is None:
+            self._hits = cl.Kernel(self._program, "hit_lookups")
+        return self._hits
+
+    def filter(self, name: str) -> tuple[cl.Kernel, cl.Kernel]:
+        """The filter ``name``'s two kernels (``DEVICE_FILTERS``): ``{name}_small`` and ``{name}``."""
+        kernels = self._filters.get(name)
+        if kernels is None:
+            kernels = self._filters[name] = (cl.Kernel(self._program, f"{name}_small"), cl.Kernel(self._program, name))
+        return kernels
 
 
 class EwaKernel:
@@ -159,7 +175,7 @@ class EwaKernel:
                    self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
         scales = [np.float32(v) for v in scale]
         kernels = self._thread()
-        small, other = kernels.filters[texture_filter]
+        small, other = kernels.filter(texture_filter)
         small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs, *scales, np.int32(count),
               np.int32(1), *written, *self._own[texture_filter])
         # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernels
