@@ -32,7 +32,7 @@ def test_the_kernel_equals_the_numpy_reference(opencl_platform, wrap, shape):
     mipmap = MipMap(image, wrap, max_anisotropy=8.0)
     st, axis0, axis1 = ellipses(3000, 11)
     reference = mipmap.ewa(st, axis0, axis1)
-    device = backend_for("opencl").ewa(mipmap, st, axis0, axis1)
+    device = backend_for("opencl").image_lookup(mipmap, "ewa", st, (axis0, axis1))
     assert device.dtype == np.float32 and device.shape == reference.shape
     np.testing.assert_allclose(device, reference, rtol=1e-6, atol=1e-6)
 
@@ -40,7 +40,7 @@ def test_the_kernel_equals_the_numpy_reference(opencl_platform, wrap, shape):
 def test_an_empty_batch(opencl_platform):
     mipmap = MipMap(np.ones((8, 8, 3)))
     empty = np.zeros((0, 2))
-    assert backend_for("opencl").ewa(mipmap, empty, empty, empty).shape == (0, 3)
+    assert backend_for("opencl").image_lookup(mipmap, "ewa", empty, (empty, empty)).shape == (0, 3)
 
 
 @pytest.mark.parametrize("backend", ["numpy", "opencl"])
@@ -60,8 +60,8 @@ def test_a_magnified_lookup_reads_the_finest_level_alone(opencl_platform, backen
     major = minor * (1 + 7 * rng.random(500))
     axis0 = np.column_stack([np.cos(angle), np.sin(angle)]) * major[:, None]
     axis1 = np.column_stack([-np.sin(angle), np.cos(angle)]) * minor[:, None]
-    ewa = backend_for(backend).ewa
-    clean, dirty = ewa(MipMap(image), st, axis0, axis1), ewa(poisoned, st, axis0, axis1)
+    lookup = backend_for(backend).image_lookup
+    clean, dirty = lookup(MipMap(image), "ewa", st, (axis0, axis1)), lookup(poisoned, "ewa", st, (axis0, axis1))
     assert np.array_equal(dirty[:400], clean[:400])
     assert np.isnan(dirty[400:]).all() and np.isfinite(clean).all()
 
@@ -87,7 +87,7 @@ def test_magnified_lookups_are_the_references_bit_for_bit(opencl_platform, wrap)
     ellipses reach 4 texels, past ``ewa_small``'s 3 x 3)."""
     mipmap = MipMap(np.random.default_rng(2).random((64, 64, 3)), wrap)
     st, axis0, axis1 = magnified(20000, 4, 64, 4.0)
-    device = backend_for("opencl").ewa(mipmap, st, axis0, axis1)
+    device = backend_for("opencl").image_lookup(mipmap, "ewa", st, (axis0, axis1))
     assert np.array_equal(device, mipmap.ewa(st, axis0, axis1).astype(np.float32))
 
 
@@ -158,7 +158,8 @@ def test_the_small_lookups_vectorise(tmp_path):
         "from realistic.scene.mipmap import MipMap\n"
         "mipmap = MipMap(np.random.default_rng(0).random((32, 32, 3)))\n"
         "point = np.full((300, 2), 0.3)\n"
-        "backend_for('opencl').ewa(mipmap, point, np.full((300, 2), 1e-3), np.full((300, 2), -1e-3))\n")
+        "axes = (np.full((300, 2), 1e-3), np.full((300, 2), -1e-3))\n"
+        "backend_for('opencl').image_lookup(mipmap, 'ewa', point, axes)\n")
     remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
     assert remarks.count("vectorized loop (") >= 2
 

@@ -21,7 +21,7 @@ from realistic.optics.lens import LensSystem
 from realistic.renderer.bsdf.base import BSDFSample, HitParameters
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.mipmap import MipMap
-from realistic.scene.textures import numpy_ewa
+from realistic.scene.textures import Footprint, numpy_lookup
 
 __all__ = ["BACKENDS", "Backend", "BsdfLauncher", "NumpyBackend", "backend_for"]
 
@@ -53,8 +53,10 @@ class Backend(Protocol):
         have not timed yet and keep the binaries of every program built from now on for the next
         process, else take the quickest to build, untimed, and leave the binaries to a second build."""
 
-    def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
-        """``MipMap.ewa``'s lookups (N, 3) (a ``scene.textures.EwaLookup``)."""
+    def image_lookup(self, mipmap: MipMap, texture_filter: str, st: np.ndarray, axes: Footprint | None
+                     ) -> np.ndarray:
+        """An image texture's lookups (N, 3) with any filter, with or without a footprint (a
+        ``scene.textures.ImageLookup``)."""
 
     def ghost_tracer(self, lens: LensSystem) -> GhostTracer:
         """What traces ``lens``'s ghost paths (lens flare, ``renderer.flare``)."""
@@ -64,7 +66,7 @@ class Backend(Protocol):
 
 
 class NumpyBackend:
-    """The numpy references: ``Camera.generate_rays``, ``MipMap.ewa``, the integrators' numpy shading."""
+    """The numpy references: ``Camera.generate_rays``, ``MipMap``'s filters, the integrators' numpy shading."""
 
     name = "numpy"
 
@@ -75,9 +77,10 @@ class NumpyBackend:
     def build_ahead(self, camera: Camera, time_choices: bool = True) -> None:
         """Nothing: numpy builds nothing."""
 
-    def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
-        """``MipMap.ewa``."""
-        return numpy_ewa(mipmap, st, axis0, axis1)
+    def image_lookup(self, mipmap: MipMap, texture_filter: str, st: np.ndarray, axes: Footprint | None
+                     ) -> np.ndarray:
+        """``textures.numpy_lookup``: ``MipMap``'s filters."""
+        return numpy_lookup(mipmap, texture_filter, st, axes)
 
     def ghost_tracer(self, lens: LensSystem) -> GhostTracer:
         """The float64 reference, ``optics.ghosts.trace_ghost`` (``trace_direct`` for None)."""

@@ -70,7 +70,7 @@ from realistic.scene.materials import Measured, SurfaceMaterial
 from realistic.scene.measured import IrregularSamples, load_measured
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.shapes import light_mesh
-from realistic.scene.textures import Footprint, albedo
+from realistic.scene.textures import Footprint, albedo, numpy_lookup
 
 if TYPE_CHECKING:  # pyopencl is imported only when the "opencl" backend is chosen
     from realistic.renderer.opencl_backend import OpenCLBackend
@@ -706,7 +706,9 @@ class DirectLighting:
             footprint = None
             if isinstance(material.texture, ImageTexture) and self.pixel_spread_radians > 0:
                 footprint = self._footprint(face[rows], geom[rows], direction[rows], normal[rows], distance[rows])
-            rho[rows] = albedo(material, uv, len(rows), footprint, self.backend.ewa)
+            # over a footprint on the backend's device; point-sampled (level 0) in numpy, which builds no ewa.cl
+            lookup = numpy_lookup if footprint is None else self.backend.image_lookup
+            rho[rows] = albedo(material, uv, len(rows), footprint, lookup)
         return rho
 
     def _measured_albedo(self, path: str, direction: np.ndarray, normal: np.ndarray) -> np.ndarray:

@@ -28,10 +28,11 @@ from realistic.renderer.bsdf_kernel import BsdfKernel
 from realistic.renderer.shade_kernel import ShadeKernel
 from realistic.scene.ewa_kernel import EwaKernel, SurfaceTables
 from realistic.scene.mipmap import MipMap
+from realistic.scene.textures import Footprint
 
 
 class OpenCLBackend:
-    """Kernels on ``device``: camera rays of a ``LensCamera`` or a ``ThinLensCamera``, EWA lookups,
+    """Kernels on ``device``: camera rays of a ``LensCamera`` or a ``ThinLensCamera``, image-texture lookups,
     and the shading kernel for ``DirectLighting``."""
 
     name = "opencl"
@@ -73,9 +74,11 @@ class OpenCLBackend:
                 kernel = self._ewa_kernels[mipmap] = EwaKernel(mipmap, self.device)
             return kernel
 
-    def ewa(self, mipmap: MipMap, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
-        """``MipMap.ewa``'s lookups by ``kernels/ewa.cl`` (the same to float32 rounding)."""
-        return self.ewa_kernel(mipmap)(st, axis0, axis1)
+    def image_lookup(self, mipmap: MipMap, texture_filter: str, st: np.ndarray, axes: Footprint | None
+                     ) -> np.ndarray:
+        """``textures.numpy_lookup``'s lookups by ``kernels/ewa.cl`` (the same to float32 rounding:
+        ``EwaKernel``), every filter of ``DEVICE_FILTERS`` and the lookups without a footprint."""
+        return self.ewa_kernel(mipmap).lookup(texture_filter, st, axes)
 
     def ghost_tracer(self, lens: LensSystem) -> GhostTracer:
         """``kernels/ghost.cl`` for ``lens`` on this device, float32 (its program is built once per

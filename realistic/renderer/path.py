@@ -23,7 +23,8 @@ Backends: on "opencl", RGB rays at hits whose material ``kernels/bsdf.cl`` cover
 parameters, the diffuse-like colour of Lambertian, Oren-Nayar, plastic, coated diffuse and substrate
 under a grid or checker texture, or under an image texture, which ``EwaKernel.at_hits`` filters
 on the device before the launch; any other textured parameter, such as roughness, Ks or a mix's
-amount or second material, looked up per hit with ``_hit_parameters``) take the whole bounce in one launch of
+amount or second material, looked up per hit with ``_hit_parameters``, its image textures filtered on
+the device too by the backend's ``image_lookup``) take the whole bounce in one launch of
 ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights,
 shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral rays (a
 dispersive camera's) at the same hits, in the kernel's spectral build. The host keeps embree,
@@ -105,6 +106,8 @@ class PathIntegrator(DirectLighting):
             raise ValueError("max_depth must be at least 0")
         self.max_depth, self.mode, self.mis, self.bsdf_factory = max_depth, mode, mis, bsdf_factory
         chosen = backend_for(backend) if isinstance(backend, str) else backend
+        #: filters the image textures of ``SurfaceParameters`` (``_shade``, the per-hit rows, albedo)
+        self._image_lookup = chosen.image_lookup
         self._bsdf_kernel = chosen.bsdf_kernel() if bsdf_factory is bsdf_for else None
         self.lights = LightSampler(scene, intersector.extent)
         self._add_light_surfaces(scene)
@@ -299,14 +302,15 @@ class PathIntegrator(DirectLighting):
         """The ``HitParameters`` of hits at ``depth`` on triangles ``face`` at barycentrics ``bary``
         (``basis``: spectral rays' ``rgb_basis`` rows): textures at their uv, image textures filtered
         over ``footprint()`` for camera rays with a pixel spread, deeper bounces having none here
-        (level 0). ``_shade`` and the fused bounce's per-hit rows (``_hit_parameters``) both look up with it."""
+        (level 0), with the backend's ``image_lookup`` (on the device for "opencl"). ``_shade`` and the fused
+        bounce's per-hit rows (``_hit_parameters``) both look up with it."""
         def uv() -> np.ndarray:
             return interpolated(self._uv, face, bary)
 
         def camera_footprint() -> Footprint | None:
             return footprint() if depth == 0 and self.pixel_spread_radians > 0 else None
 
-        return SurfaceParameters(len(face), uv, camera_footprint, basis)
+        return SurfaceParameters(len(face), uv, camera_footprint, basis, self._image_lookup)
 
     def _hit_parameters(self, hits: Hits, rows: np.ndarray, d: np.ndarray, basis: np.ndarray | None, depth: int
                         ) -> Callable[[np.ndarray], SurfaceParameters]:
@@ -347,7 +351,8 @@ class PathIntegrator(DirectLighting):
                     return None
                 return self._footprint(face[rows], geom[rows], direction[rows], ng[rows], t[rows])
 
-            bsdf = self.bsdf_factory(self._materials[index], SurfaceParameters(len(rows), uv, footprint, None))
+            parameters = SurfaceParameters(len(rows), uv, footprint, None, self._image_lookup)
+            bsdf = self.bsdf_factory(self._materials[index], parameters)
             rho[rows] = directional_albedo(bsdf, wo[rows])
         return rho
 

@@ -16,7 +16,7 @@ import numpy as np
 from realistic.renderer.bsdf import BSDF
 from realistic.renderer.light_sampler import colour
 from realistic.scene.model import ImageTexture, Texture
-from realistic.scene.textures import Footprint, evaluate
+from realistic.scene.textures import Footprint, ImageLookup, evaluate, numpy_lookup
 
 #: Samples of a first hit's albedo estimate, as pbrt-v4's ``nRhoSamples`` (cpu/integrators.cpp): the
 #: centres of a 4 x 4 grid of (u0, u1), the same at every hit so the estimate is exact for a
@@ -44,12 +44,13 @@ class SurfaceParameters:
     """``HitParameters`` over ``count`` hits: constants, and textures at their uv (image textures
     filtered over their footprints). ``uv`` and ``footprint`` are functions called on the first
     texture lookup that needs them (``footprint`` may return None: point-sampled), so untextured
-    materials cost neither."""
+    materials cost neither. ``lookup`` filters the image textures (``textures.ImageLookup``: the numpy
+    reference, or a render backend's ``image_lookup`` on its device)."""
 
     def __init__(self, count: int, uv: Callable[[], np.ndarray], footprint: Callable[[], Footprint | None],
-                 basis: np.ndarray | None):
+                 basis: np.ndarray | None, lookup: ImageLookup = numpy_lookup):
         self.count, self.basis = count, basis
-        self._uv_of, self._footprint_of = uv, footprint
+        self._uv_of, self._footprint_of, self._lookup = uv, footprint, lookup
 
     @cached_property
     def _uv(self) -> np.ndarray:
@@ -63,7 +64,7 @@ class SurfaceParameters:
         if isinstance(value, tuple | list | np.ndarray | float | int):
             rgb = np.broadcast_to(np.asarray(value, np.float32), (self.count, 3))
         elif isinstance(value, Texture):
-            rgb = evaluate(value, self._uv, self._footprint if isinstance(value, ImageTexture) else None)
+            rgb = evaluate(value, self._uv, self._footprint if isinstance(value, ImageTexture) else None, self._lookup)
         else:
             raise TypeError(f"unknown texture {value!r}")
         return colour(rgb, self.basis)
@@ -73,4 +74,4 @@ class SurfaceParameters:
             return np.full(self.count, value, np.float32)
         if not isinstance(value, Texture):
             raise TypeError(f"unknown texture {value!r}")
-        return evaluate(value, self._uv, None).mean(axis=1).astype(np.float32)
+        return evaluate(value, self._uv, None, self._lookup).mean(axis=1).astype(np.float32)

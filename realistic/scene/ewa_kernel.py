@@ -24,7 +24,8 @@ bit) and ``trilinear_small``/``trilinear`` (``MipMap.trilinear``, to float32 rou
 weight comes from log2) likewise, the map's ``trilinear_blend_from`` (pbrt-v3's blend or pbrt-v4's)
 their last argument. ``DEVICE_FILTERS`` names the filters done here. A lookup without a
 footprint (a ``hit_mapping`` of spread 0: the path integrator's deeper bounces) is level 0 bilinear
-whatever the filter, as ``textures.evaluate`` has it, so ``at_hits`` filters those with "bilinear".
+whatever the filter, as ``textures.evaluate`` has it, so ``at_hits`` filters those with "bilinear", as
+does ``lookup``, the ``textures.ImageLookup`` the "opencl" backend gives ``SurfaceParameters``.
 
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
 (``realistic.renderer.backends``), keyed by the map: the map itself stays plain data. Each thread
@@ -44,7 +45,7 @@ from realistic.device.tables import Table
 from realistic.scene.intersect import Hits
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
 from realistic.scene.model import ImageTexture
-from realistic.scene.textures import st_mapping
+from realistic.scene.textures import Footprint, st_mapping
 
 KERNEL_FILE = "ewa.cl"
 #: ``hit_lookups``' MAPPING row (float64), declared once for the kernel and ``hit_mapping``: the camera's
@@ -80,14 +81,30 @@ def hit_mapping(texture: ImageTexture, diffuse: np.ndarray | tuple[float, float,
 
 
 class _ThreadKernels:
-    """One thread's command queue and kernel objects over an ``EwaKernel``'s program."""
+    """One thread's command queue and kernel objects over an ``EwaKernel``'s program, each made on its
+    first use (a texture has one filter: making all nine for every thread and map cost more than the
+    lookups of a small render)."""
 
     def __init__(self, device: Device, program: cl.Program):
         self.queue = device.queue()
-        self.hits = cl.Kernel(program, "hit_lookups")
+        self._program = program
+        self._hits: cl.Kernel | None = None
         #: per filter, its kernel for the small lookups and the one for the lookups it leaves pending
-        self.filters = {name: (cl.Kernel(program, f"{name}_small"), cl.Kernel(program, name))
-                        for name in DEVICE_FILTERS}
+        self._filters: dict[str, tuple[cl.Kernel, cl.Kernel]] = {}
+
+    @property
+    def hits(self) -> cl.Kernel:
+        """``hit_lookups``."""
+        if self._hits is None:
+            self._hits = cl.Kernel(self._program, "hit_lookups")
+        return self._hits
+
+    def filter(self, name: str) -> tuple[cl.Kernel, cl.Kernel]:
+        """The filter ``name``'s two kernels (``DEVICE_FILTERS``): ``{name}_small`` and ``{name}``."""
+        kernels = self._filters.get(name)
+        if kernels is None:
+            kernels = self._filters[name] = (cl.Kernel(self._program, f"{name}_small"), cl.Kernel(self._program, name))
+        return kernels
 
 
 class EwaKernel:
@@ -133,6 +150,14 @@ class EwaKernel:
         self._filter(lookups, np.ones(3, np.float32), out, texture_filter)
         return out
 
+    def lookup(self, texture_filter: str, st: np.ndarray, axes: Footprint | None) -> np.ndarray:
+        """A ``textures.ImageLookup`` on this map: ``texture_filter`` over ``axes``, or without a
+        footprint (None) "bilinear" over zero axes (width 0: level 0, as ``MipMap.bilinear``)."""
+        if axes is None:
+            zero = np.zeros_like(st)
+            return self(st, zero, zero, "bilinear")
+        return self(st, axes[0], axes[1], texture_filter)
+
     def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray, texture_filter: str) -> None:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
         lookups (s, t, axis0, axis1) (N, 6) float64: the filter's small kernel (``ewa_small``,
@@ -150,7 +175,7 @@ class EwaKernel:
                    self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
         scales = [np.float32(v) for v in scale]
         kernels = self._thread()
-        small, other = kernels.filters[texture_filter]
+        small, other = kernels.filter(texture_filter)
         small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs, *scales, np.int32(count),
               np.int32(1), *written, *self._own[texture_filter])
         # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernels
