@@ -19,6 +19,7 @@ from realistic.core.transforms import translate
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
 from realistic.renderer.bsdf import BSDF, bsdf_for, measured
+from realistic.renderer.bsdf.mix import WeightedSum
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.materials import (
@@ -202,10 +203,14 @@ def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: boo
     for k in range(len(light_wi)):
         _evaluates_as(light_f[k], light_pdf[k], bsdf, wo, light_wi[k], np.ones(N, bool), ill_conditioned, table)
     ref = bsdf.sample(wo, u, u_lobe)
-    assert np.array_equal(s.specular, ref.specular)
+    # where u_lobe lies within rounding of a lobe threshold either lobe may be sampled: there the
+    # flags and the direction are not compared (the value and pdf are, at the kernel's direction)
+    either = _near_a_lobe_threshold(bsdf, wo, u_lobe)
+    assert np.array_equal(s.specular[~either], ref.specular[~either])
     # a flag may differ only where a direction lies within rounding of a lobe's boundary
     assert np.mean(s.valid != ref.valid) < 1e-3
     both = s.valid & ref.valid
+    same_lobe = both & ~either
     # 2^-18, plus what a float32 cosine sqrt(1 - x^2 - y^2) carries at grazing wi (2^-23 / (2 |cos|)
     # or so) and what float32 rounding of wo and u moves the reference's direction by (visible
     # normals sampled at u near 1, refraction near the critical angle; 2^-18 covers what the four
@@ -214,10 +219,10 @@ def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: boo
     # taken at the kernel's direction, so the direction alone tells a sampling error there.
     atol = (2.0 ** -18 + 2.0 ** -22 / np.maximum(np.abs(ref.wi[:, 2:].astype(np.float64)), 1e-30)
             + 8 * _moved(lambda wo, u: bsdf.sample(wo, u, u_lobe).wi, wo, u, relative=False)[:, None])
-    assert np.all(np.abs(s.wi[both] - ref.wi[both]) <= atol[both])
+    assert np.all(np.abs(s.wi[same_lobe] - ref.wi[same_lobe]) <= atol[same_lobe])
     # A delta lobe's value and pdf at directions equal to float32 rounding, to what that rounding
     # moves them: most at grazing wi, whose cosine sqrt(1 - x^2 - y^2) carries 2^-23 / (2 cos^2).
-    delta = both & s.specular
+    delta = same_lobe & s.specular
     rtol = 2e-3 + 2.0 ** -23 / (2 * ref.wi[delta, 2].astype(np.float64) ** 2)
     _close(s.pdf[delta], ref.pdf[delta].astype(np.float64), rtol)
     _close(s.value[delta], ref.value[delta].astype(np.float64), rtol)
@@ -260,6 +265,32 @@ def _zero_on_a_boundary(got: np.ndarray, expected: np.ndarray, function: Callabl
         reach = _moved(function, wo, wi, relative=False, moves=64)[zero]
         assert np.all(flat_got[zero].max(axis=1) <= 8 * reach), (np.flatnonzero(zero), reach)
     return zero
+
+
+def _lobe_thresholds(bsdf: BSDF, wo: np.ndarray) -> np.ndarray:
+    """The values of u_lobe (N, K) at which a weighted sum (plastic, coated diffuse, a mix; nested or
+    not) samples another lobe: its chances' running sums, and within each lobe's share that lobe's
+    own thresholds (the u_lobe it hands the lobe is rescaled within the share)."""
+    if not isinstance(bsdf, WeightedSum):
+        return np.zeros((len(wo), 0))
+    chances = bsdf.chances(wo).astype(np.float64)
+    start = np.cumsum(chances, axis=1) - chances
+    inner = [start[:, k:k + 1] + chances[:, k:k + 1] * _lobe_thresholds(part, wo) for k, part in enumerate(bsdf.parts)]
+    return np.concatenate([start[:, 1:], *inner], axis=1)
+
+
+def _near_a_lobe_threshold(bsdf: BSDF, wo: np.ndarray, u_lobe: np.ndarray) -> np.ndarray:
+    """Rows (N,) whose u_lobe lies within rounding of one of ``_lobe_thresholds``, where the kernel's
+    float32 chances may pick the other lobe: within eight float32 steps of 1 (2^-23; the kernel's
+    chances are float32, coated diffuse's coat chance through 1 - T with the coat's transmittance T
+    near 1, up to 4.2 steps from the float64 chance at seeds 200-209) plus eight times what one
+    float32 step of wo moves the threshold by (the coat's Fresnel factor at grazing wo)."""
+    thresholds = _lobe_thresholds(bsdf, wo)
+    if thresholds.shape[1] == 0:
+        return np.zeros(len(wo), bool)
+    moved = _moved(lambda a, _: _lobe_thresholds(bsdf, a), wo, wo, relative=False)
+    reach = 8 * (2.0 ** -23 + moved)
+    return np.any(np.abs(u_lobe[:, None].astype(np.float64) - thresholds) <= reach[:, None], axis=1)
 
 
 @pytest.mark.parametrize("name", sorted(COVERED))
