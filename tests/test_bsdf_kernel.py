@@ -3,6 +3,7 @@ uniform numbers; the kernel's own energy, reciprocity and pdf properties; and a 
 with the kernel equal to the numpy one."""
 
 import re
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -18,6 +19,7 @@ from realistic.core.transforms import translate
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import backend_for
 from realistic.renderer.bsdf import BSDF, bsdf_for, measured
+from realistic.renderer.bsdf.mix import WeightedSum
 from realistic.renderer.path import PathIntegrator
 from realistic.scene.intersect import Intersector
 from realistic.scene.materials import (
@@ -87,7 +89,7 @@ SEED_ORDER = sorted(COVERED) + sorted(TRANSMITTING)
 COVERED.update(TRANSMITTING)
 #: Materials whose reference is ill-conditioned somewhere (``_conditioning``): there f and the pdf
 #: are compared to 1e-5 plus eight times what one float32 rounding of the directions moves the
-#: reference by; everywhere else to 1e-5.
+#: reference by (``_close_to_rounding``); everywhere else to 1e-5.
 ILL_CONDITIONED = {"rough glass", "rough glass, pbrt-v3 rule", "smooth coated diffuse",
                    "mix of oren-nayar and rough glass"}
 GLOSSY = ["lambertian", "conductor", "rough conductor, pbrt-v3 rule", "white conductor", "plastic", "oren-nayar",
@@ -127,25 +129,34 @@ def _one_ulp(rng: np.random.Generator, w: np.ndarray) -> np.ndarray:
     return np.nextafter(w, np.where(rng.random(w.shape) < 0.5, -np.inf, np.inf).astype(np.float32))
 
 
-def _moved(function, a: np.ndarray, b: np.ndarray, relative: bool = True) -> np.ndarray:
+def _moved(function, a: np.ndarray, b: np.ndarray, relative: bool = True, moves: int = 4) -> np.ndarray:
     """How far (relative, or absolute, per row) ``function(a, b)`` moves when every component of its
-    float32 arguments moves by one float32 step (the most of four random moves)."""
+    float32 arguments moves by one float32 step (the most of ``moves`` random moves)."""
     rng = np.random.default_rng(9)
     base = function(a, b).astype(np.float64).reshape(len(a), -1)
     scale = np.maximum(np.abs(base), 1e-30) if relative else 1.0
     moved = np.zeros(len(a))
-    for _ in range(4):
+    for _ in range(moves):
         other = function(_one_ulp(rng, a), _one_ulp(rng, b)).astype(np.float64).reshape(len(a), -1)
         moved = np.maximum(moved, (np.abs(other - base) / scale).max(axis=1))
     return moved
 
 
+def _grazing(wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
+    """1e-3 where a cosine is below 1e-3, else 0, and at least 2^-24 / (4 c), c the lesser cosine:
+    the reference's float32 Fresnel reflectance F near 1 leaves 1 - F few digits. F is rounded by
+    up to 2^-25 and 1 - F at cosine c is at least 4 c up to c = 0.1 for any index (at grazing
+    2 c (1 + eta^2) / sqrt(eta^2 - 1), least at eta^2 = 3: 5.66 c), so each of coated diffuse's two
+    transmittances carries up to 2^-25 / (4 c) relative (beyond c = 0.1 below 1e-7 either way). At
+    seed 222 a light direction 2.3e-7 above the surface: 1 - F known to 2 %, the kernel's 1.9 % off."""
+    c = np.minimum(np.abs(wo[:, 2]), np.abs(wi[:, 2])).astype(np.float64)
+    return np.maximum(np.where(c < 1e-3, 1e-3, 0.0), 2.0 ** -24 / (4 * np.maximum(c, 1e-30)))
+
+
 def _conditioning(function, wo: np.ndarray, wi: np.ndarray) -> np.ndarray:
-    """``_moved`` for the reference f or pdf, and 1e-3 where a cosine is below 1e-3 (the reference's
-    float32 Fresnel reflectance near 1 leaves 1 - F few digits there): what float32 inputs allow a
-    float32 kernel near rough glass's critical angle and coated diffuse's grazing angles."""
-    grazing = np.minimum(np.abs(wo[:, 2]), np.abs(wi[:, 2])) < 1e-3
-    return np.maximum(_moved(function, wo, wi), np.where(grazing, 1e-3, 0.0))
+    """``_moved`` for the reference f or pdf, and ``_grazing``: what float32 inputs allow a float32
+    kernel near rough glass's critical angle and coated diffuse's grazing angles."""
+    return np.maximum(_moved(function, wo, wi), _grazing(wo, wi))
 
 
 def test_every_table_name_the_kernel_uses_is_declared_by_its_host():
@@ -201,10 +212,14 @@ def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: boo
     for k in range(len(light_wi)):
         _evaluates_as(light_f[k], light_pdf[k], bsdf, wo, light_wi[k], np.ones(N, bool), ill_conditioned, table)
     ref = bsdf.sample(wo, u, u_lobe)
-    assert np.array_equal(s.specular, ref.specular)
+    # where u_lobe lies within rounding of a lobe threshold either lobe may be sampled: there the
+    # flags and the direction are not compared (the value and pdf are, at the kernel's direction)
+    either = _near_a_lobe_threshold(bsdf, wo, u_lobe)
+    assert np.array_equal(s.specular[~either], ref.specular[~either])
     # a flag may differ only where a direction lies within rounding of a lobe's boundary
     assert np.mean(s.valid != ref.valid) < 1e-3
     both = s.valid & ref.valid
+    same_lobe = both & ~either
     # 2^-18, plus what a float32 cosine sqrt(1 - x^2 - y^2) carries at grazing wi (2^-23 / (2 |cos|)
     # or so) and what float32 rounding of wo and u moves the reference's direction by (visible
     # normals sampled at u near 1, refraction near the critical angle; 2^-18 covers what the four
@@ -213,10 +228,10 @@ def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: boo
     # taken at the kernel's direction, so the direction alone tells a sampling error there.
     atol = (2.0 ** -18 + 2.0 ** -22 / np.maximum(np.abs(ref.wi[:, 2:].astype(np.float64)), 1e-30)
             + 8 * _moved(lambda wo, u: bsdf.sample(wo, u, u_lobe).wi, wo, u, relative=False)[:, None])
-    assert np.all(np.abs(s.wi[both] - ref.wi[both]) <= atol[both])
+    assert np.all(np.abs(s.wi[same_lobe] - ref.wi[same_lobe]) <= atol[same_lobe])
     # A delta lobe's value and pdf at directions equal to float32 rounding, to what that rounding
     # moves them: most at grazing wi, whose cosine sqrt(1 - x^2 - y^2) carries 2^-23 / (2 cos^2).
-    delta = both & s.specular
+    delta = same_lobe & s.specular
     rtol = 2e-3 + 2.0 ** -23 / (2 * ref.wi[delta, 2].astype(np.float64) ** 2)
     _close(s.pdf[delta], ref.pdf[delta].astype(np.float64), rtol)
     _close(s.value[delta], ref.value[delta].astype(np.float64), rtol)
@@ -231,15 +246,63 @@ def _matches_numpy(kernel: BsdfKernel, material, seed: int, ill_conditioned: boo
 def _evaluates_as(f: np.ndarray, pdf: np.ndarray, bsdf: BSDF, wo: np.ndarray, wi: np.ndarray, rows: np.ndarray,
                   ill_conditioned: bool, table: bool) -> None:
     """The kernel's ``f`` and ``pdf`` at ``rows`` equal to ``bsdf``'s at (wo, wi): to 1e-5
-    (``ILL_CONDITIONED``: plus eight times what one float32 rounding of the directions moves the
-    reference by), a measured table's f as ``_close_to_brightest``."""
+    (``ILL_CONDITIONED``: as ``_close_to_rounding``), a measured table's f as ``_close_to_brightest``."""
     for got, function in ((f, bsdf.evaluate), (pdf, bsdf.pdf)):
-        expected = function(wo, wi)[rows]
+        expected = function(wo, wi)
         if table and got.ndim == 2:
-            _close_to_brightest(got[rows], expected)
+            _close_to_brightest(got[rows], expected[rows])
+        elif ill_conditioned:
+            _close_to_rounding(got, expected, function, wo, wi, rows)
         else:
-            slack = 8 * _conditioning(function, wo, wi)[rows] if ill_conditioned else 0.0
-            _close(got[rows], expected, 1e-5 + slack)
+            _close(got[rows], expected[rows], 1e-5)
+
+
+def _close_to_rounding(got: np.ndarray, expected: np.ndarray, function: Callable[[np.ndarray, np.ndarray],
+                       np.ndarray], wo: np.ndarray, wi: np.ndarray, rows: np.ndarray) -> None:
+    """``got`` equal at ``rows`` to the reference ``expected`` = ``function(wo, wi)`` to 1e-5 plus eight
+    times ``_conditioning`` (four random one-step moves of wo and wi). Four moves can all miss what
+    moves the reference most: a boundary a float32 step away, or rough glass's critical angle a few
+    steps away, where 1 - F grows as the square root of the distance (seed 288's mix: one of 16 moves
+    moved f 19 times more than the first four). A row that bound does not clear is held to eight
+    times the most of 64 moves (their first four the same), absolute, which bounds the kernel's value
+    also where the reference is 0: the float64 reference reflects totally a pair whose microfacet
+    cosine lies a fraction of a step inside the critical angle, the kernel's float32 one may not."""
+    slack = 1e-5 + 8 * _conditioning(function, wo, wi)
+    g, e = (x.astype(np.float64).reshape(len(x), -1) for x in (got, expected))
+    big = np.abs(e) > 1e-20
+    clear = np.all(np.where(big, np.abs(g - e) < slack[:, None] * np.abs(e), np.abs(g) <= 1e-20), axis=1)
+    unclear = rows & ~clear
+    if unclear.any():
+        reach = _moved(function, wo, wi, relative=False, moves=64)
+        bound = (1e-5 + 8 * _grazing(wo, wi)) * np.abs(e).max(axis=1) + 8 * reach
+        error = np.abs(g - e).max(axis=1)
+        assert np.all(error[unclear] <= bound[unclear]), np.flatnonzero(unclear & (error > bound))
+
+
+def _lobe_thresholds(bsdf: BSDF, wo: np.ndarray) -> np.ndarray:
+    """The values of u_lobe (N, K) at which a weighted sum (plastic, coated diffuse, a mix; nested or
+    not) samples another lobe: its chances' running sums, and within each lobe's share that lobe's
+    own thresholds (the u_lobe it hands the lobe is rescaled within the share)."""
+    if not isinstance(bsdf, WeightedSum):
+        return np.zeros((len(wo), 0))
+    chances = bsdf.chances(wo).astype(np.float64)
+    start = np.cumsum(chances, axis=1) - chances
+    inner = [start[:, k:k + 1] + chances[:, k:k + 1] * _lobe_thresholds(part, wo) for k, part in enumerate(bsdf.parts)]
+    return np.concatenate([start[:, 1:], *inner], axis=1)
+
+
+def _near_a_lobe_threshold(bsdf: BSDF, wo: np.ndarray, u_lobe: np.ndarray) -> np.ndarray:
+    """Rows (N,) whose u_lobe lies within rounding of one of ``_lobe_thresholds``, where the kernel's
+    float32 chances may pick the other lobe: within eight float32 steps of 1 (2^-23; the kernel's
+    chances are float32, coated diffuse's coat chance through 1 - T with the coat's transmittance T
+    near 1, up to 4.2 steps from the float64 chance at seeds 200-209) plus eight times what one
+    float32 step of wo moves the threshold by (the coat's Fresnel factor at grazing wo)."""
+    thresholds = _lobe_thresholds(bsdf, wo)
+    if thresholds.shape[1] == 0:
+        return np.zeros(len(wo), bool)
+    moved = _moved(lambda a, _: _lobe_thresholds(bsdf, a), wo, wo, relative=False)
+    reach = 8 * (2.0 ** -23 + moved)
+    return np.any(np.abs(u_lobe[:, None].astype(np.float64) - thresholds) <= reach[:, None], axis=1)
 
 
 @pytest.mark.parametrize("name", sorted(COVERED))
