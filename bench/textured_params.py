@@ -48,7 +48,7 @@ TEXTURES = {name: np.clip(np.stack([0.45 + 0.35 * np.sin(np.linspace(0, 6 * np.p
                                      * np.cos(np.linspace(0, k * np.pi, 64))[:, None] * c
                                      for c in colour], axis=-1), 0.02, 0.95).astype(np.float32)
             for name, k, colour in (("wood.exr", 3, (1.0, 0.7, 0.4)), ("tiles.exr", 5, (0.3, 0.8, 1.0)))}
-#: The ``mixes`` scene's materials and shapes: mixes whose second material is textured.
+#: The ``mixes`` scene's textures and materials (its shapes: ``objects``): mixes whose second material is textured.
 MIXES = [
     'Texture "wood" "spectrum" "imagemap" "string filename" "wood.exr" "float uscale" [4] "float vscale" [4]',
     'Texture "tiles" "spectrum" "imagemap" "string filename" "tiles.exr" "float uscale" [6] "float vscale" [6]',
@@ -59,17 +59,22 @@ MIXES = [
     'MakeNamedMaterial "metal" "string type" "conductor" "texture roughness" "rough"',
     'MakeNamedMaterial "floor" "string type" "mix" "string materials" ["grain" "glaze"] "float amount" [0.4]',
     'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["matte" "metal"] "texture amount" "amount"',
-    'MakeNamedMaterial "glazed metal" "string type" "mix" "string materials" ["metal" "glaze"] "float amount" [0.5]',
-    'AttributeBegin', 'NamedMaterial "floor"',
-    'Shape "trianglemesh" "point3 P" [-4 0 -4  4 0 -4  4 0 4  -4 0 4] "point2 uv" [0 0  1 0  1 1  0 1] '
-    '"integer indices" [0 2 1 0 3 2]',
-    'AttributeEnd',
-    'AttributeBegin', 'Translate -0.8 0.35 0.5', 'NamedMaterial "blend"', 'Shape "sphere" "float radius" [0.35]',
-    'AttributeEnd',
-    'AttributeBegin', 'Translate 0.9 0.35 0.3', 'NamedMaterial "blend"', 'Shape "sphere" "float radius" [0.35]',
-    'AttributeEnd',
-    'AttributeBegin', 'Translate 0.05 0.3 -0.4', 'NamedMaterial "glazed metal"',
-    'Shape "sphere" "float radius" [0.3]', 'AttributeEnd']
+    'MakeNamedMaterial "glazed metal" "string type" "mix" "string materials" ["metal" "glaze"] "float amount" [0.5]']
+
+
+def objects(floor: str, small: str) -> list[str]:
+    """Both scenes' shapes: a floor under the material statement ``floor``, two spheres of the
+    ``blend`` mix, and a small sphere under ``small``."""
+    return [
+        'AttributeBegin', floor,
+        'Shape "trianglemesh" "point3 P" [-4 0 -4  4 0 -4  4 0 4  -4 0 4] "point2 uv" [0 0  1 0  1 1  0 1] '
+        '"integer indices" [0 2 1 0 3 2]',
+        'AttributeEnd',
+        'AttributeBegin', 'Translate -0.8 0.35 0.5', 'NamedMaterial "blend"', 'Shape "sphere" "float radius" [0.35]',
+        'AttributeEnd',
+        'AttributeBegin', 'Translate 0.9 0.35 0.3', 'NamedMaterial "blend"', 'Shape "sphere" "float radius" [0.35]',
+        'AttributeEnd',
+        'AttributeBegin', 'Translate 0.05 0.3 -0.4', small, 'Shape "sphere" "float radius" [0.3]', 'AttributeEnd']
 
 
 def write_textures(folder: Path) -> None:
@@ -94,22 +99,13 @@ def scene_text(res: str, spp: int, scene: str = "params") -> str:
         'Texture "amount" "float" "checkerboard" "float uscale" [8] "float vscale" [8] "float tex1" [0.15] '
         '"float tex2" [0.85]']
     if scene == "mixes":
-        return "\n".join(head + MIXES) + "\n"
+        return "\n".join(head + MIXES + objects('NamedMaterial "floor"', 'NamedMaterial "glazed metal"')) + "\n"
     return "\n".join(head + [
         'MakeNamedMaterial "matte" "string type" "diffuse" "rgb reflectance" [0.7 0.3 0.2]',
         'MakeNamedMaterial "metal" "string type" "conductor" "float roughness" [0.1]',
         'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["matte" "metal"] "texture amount" "amount"',
-        'AttributeBegin',
-        'Material "coateddiffuse" "rgb reflectance" [0.5 0.55 0.6] "texture roughness" "rough"',
-        'Shape "trianglemesh" "point3 P" [-4 0 -4  4 0 -4  4 0 4  -4 0 4] "point2 uv" [0 0  1 0  1 1  0 1] '
-        '"integer indices" [0 2 1 0 3 2]',
-        'AttributeEnd',
-        'AttributeBegin', 'Translate -0.8 0.35 0.5', 'NamedMaterial "blend"', 'Shape "sphere" "float radius" [0.35]',
-        'AttributeEnd',
-        'AttributeBegin', 'Translate 0.9 0.35 0.3', 'NamedMaterial "blend"', 'Shape "sphere" "float radius" [0.35]',
-        'AttributeEnd',
-        'AttributeBegin', 'Translate 0.05 0.3 -0.4', 'Material "conductor" "texture roughness" "rough"',
-        'Shape "sphere" "float radius" [0.3]', 'AttributeEnd',
+        *objects('Material "coateddiffuse" "rgb reflectance" [0.5 0.55 0.6] "texture roughness" "rough"',
+                 'Material "conductor" "texture roughness" "rough"'),
         'AttributeBegin', 'Translate 0.1 0.25 0.9', 'Material "dielectric" "float roughness" [0.2]',
         'Shape "sphere" "float radius" [0.25]', 'AttributeEnd']) + "\n"
 
