@@ -341,17 +341,11 @@ class PathIntegrator(DirectLighting):
         material_of = self._geom_material[geom]
         for index in np.unique(material_of):
             rows = np.flatnonzero(material_of == index)
-            f, b = face[rows], bary[rows]
 
-            def uv(f: np.ndarray = f, b: np.ndarray = b) -> np.ndarray:
-                return interpolated(self._uv, f, b)
-
-            def footprint(rows: np.ndarray = rows) -> Footprint | None:
-                if self.pixel_spread_radians <= 0:
-                    return None
+            def footprint(rows: np.ndarray = rows) -> Footprint:
                 return self._footprint(face[rows], geom[rows], direction[rows], ng[rows], t[rows])
 
-            parameters = SurfaceParameters(len(rows), uv, footprint, None, self._image_lookup)
+            parameters = self._parameters_at(face[rows], bary[rows], 0, footprint, None)
             bsdf = self.bsdf_factory(self._materials[index], parameters)
             rho[rows] = directional_albedo(bsdf, wo[rows])
         return rho
