@@ -481,16 +481,17 @@ class BounceKernel:
                 raise ValueError("hits on a material with per-hit parameters need hit_parameters")
             if not len(out):
                 out = np.zeros((len(rows), bsdf_kernel.BSDF_PARAMS.width), np.float32)
-            at, table = hit_parameters(picked), None
+            at = hit_parameters(picked)
+            table: np.ndarray | None
             if isinstance(material, Mix) and index in self._second_per_hit:
                 mixed = bsdf_kernel.mix_rows(material, at, len(picked), self.bsdf_tables)
-                if mixed is not None:
-                    if not len(seconds):
-                        seconds = np.zeros((len(rows), bsdf_kernel.LOBE.width), np.float32)
-                    table, seconds[picked] = mixed
+                assert mixed is not None  # material_rows' probe: covered at every hit
+                if not len(seconds):
+                    seconds = np.zeros((len(rows), bsdf_kernel.LOBE.width), np.float32)
+                table, seconds[picked] = mixed
             else:
                 table = bsdf_kernel.parameters(material, at, len(picked), self.bsdf_tables, _Constants())
-            assert table is not None  # material_rows' probe: covered at every hit
+                assert table is not None  # material_rows' probe: covered at every hit
             out[picked] = table
         return out, seconds
 
