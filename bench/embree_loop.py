@@ -82,8 +82,8 @@ def trace(rays: Path, res: str, spp: int, threads: int) -> dict:
               for s in range(0, len(so), CHUNK)]
     ours.closest(po[:16], pd[:16])  # the loops compiled or loaded before timing
     ours.occluded(so[:16], sd[:16], st[:16])
-    seconds = min(traced_on_threads(primary, threads) for _ in range(3)) + min(
-        traced_on_threads(shadow, threads) for _ in range(3))
+    seconds = min(traced_on_threads(primary, threads).wall for _ in range(3)) + min(
+        traced_on_threads(shadow, threads).wall for _ in range(3))
     return {"seconds": seconds, "samples_per_s": int(saved["samples"]) / seconds}
 
 

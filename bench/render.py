@@ -15,7 +15,9 @@ counts the launch's wall time), rays per second, and the ceiling: every primary 
 the raster render, made again and traced by embree alone on as many threads, through the
 renderer's binding (``scene/intersect``) and through embreex's own (``EmbreeScene.run`` on a
 world-space copy of the scene), the issue's original measure; and embree's thread-seconds inside
-the render against alone, which says what sharing the cores costs it.
+the render against alone, which says what sharing the cores costs it, in wall time (a render thread
+waiting for a core or the GIL counts) and in CPU time (``StageClock.cpu_seconds``: traversal alone,
+which the wall figure must not be mistaken for).
 
 The ceiling is traced once per repeat, right after that repeat's renders, so that a render and the
 ceiling it is divided by see the same load: the fraction of the ceiling and embree's speed inside
@@ -35,6 +37,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from embreex import rtcore_scene
@@ -111,16 +114,31 @@ class RecordingIntersector(Intersector):
         return super().occluded(origin, direction, distance)
 
 
-def traced_on_threads(jobs: list, threads: int) -> float:
-    """Seconds to run the jobs (callables) on ``threads`` threads, dealt out in turn."""
+class Traced(NamedTuple):
+    """A batch of jobs run on threads: its wall seconds and the threads' CPU seconds, summed."""
+    wall: float
+    cpu: float
+
+
+def traced_on_threads(jobs: list, threads: int) -> Traced:
+    """The jobs (callables) run on ``threads`` threads, dealt out in turn: the wall seconds, and the
+    CPU seconds each thread ran (``time.thread_time``), summed."""
     shares = [jobs[i::threads] for i in range(threads)]
-    workers = [threading.Thread(target=lambda share=share: [job() for job in share]) for share in shares]
+    cpu = [0.0] * threads
+
+    def work(k: int) -> None:
+        start = time.thread_time()
+        for job in shares[k]:
+            job()
+        cpu[k] = time.thread_time() - start
+
+    workers = [threading.Thread(target=work, args=(k,)) for k in range(threads)]
     start = time.perf_counter()
     for worker in workers:
         worker.start()
     for worker in workers:
         worker.join()
-    return time.perf_counter() - start
+    return Traced(time.perf_counter() - start, sum(cpu))
 
 
 def recorded_rays(setup, camera, backend: str, pass_samples: int = DEFAULT_PASS_SAMPLES) -> RecordingIntersector:
@@ -164,12 +182,12 @@ def trace_ceiling(jobs: dict, counts: dict, threads: int) -> dict:
     threads; rays and samples per second."""
     result = {}
     for prefix, (primary_jobs, shadow_jobs) in jobs.items():
-        t_primary = traced_on_threads(primary_jobs, threads)
-        t_shadow = traced_on_threads(shadow_jobs, threads)
-        result |= {f"{prefix}primary_rays_per_s": counts["primary_rays"] / t_primary,
-                   f"{prefix}shadow_rays_per_s": counts["shadow_rays"] / t_shadow,
-                   f"{prefix}samples_per_s": counts["samples"] / (t_primary + t_shadow),
-                   f"{prefix}seconds": t_primary + t_shadow}
+        primary, shadow = traced_on_threads(primary_jobs, threads), traced_on_threads(shadow_jobs, threads)
+        result |= {f"{prefix}primary_rays_per_s": counts["primary_rays"] / primary.wall,
+                   f"{prefix}shadow_rays_per_s": counts["shadow_rays"] / shadow.wall,
+                   f"{prefix}samples_per_s": counts["samples"] / (primary.wall + shadow.wall),
+                   f"{prefix}seconds": primary.wall + shadow.wall,
+                   f"{prefix}cpu_seconds": primary.cpu + shadow.cpu}
     return result
 
 
@@ -209,7 +227,8 @@ def run(setup, camera, backend: str, morton: bool, threads: int | None = None,
             "samples": result.samples_done,
             "primary_rays": result.primary_rays, "shadow_rays": result.shadow_rays,
             "samples_per_s": result.samples_done / result.seconds, "rays_per_s": rays / result.seconds,
-            "stage_thread_seconds": {s: result.stage_seconds.get(s, 0.0) for s in STAGES}}
+            "stage_thread_seconds": {s: result.stage_seconds.get(s, 0.0) for s in STAGES},
+            "embree_cpu_seconds": result.stage_cpu_seconds.get("embree", 0.0)}
 
 
 def pass_sizes(text: str) -> list[int]:
@@ -290,13 +309,18 @@ def main() -> None:
         # alone, every thread traces until the last chunk: thread-seconds = threads x wall
         alone = [args.threads * c["seconds"] / max(t["stage_thread_seconds"]["embree"], 1e-12)
                  for t, c in zip(config_tries, ceilings)]
+        # the same rays' CPU seconds: what traversal costs, whatever the threads waited for
+        alone_cpu = [c["cpu_seconds"] / max(t["embree_cpu_seconds"], 1e-12) for t, c in zip(config_tries, ceilings)]
         r["fraction_of_ceiling"], r["fraction_of_ceiling_spread"] = statistics.median(fraction), spread(fraction)
         r["fraction_of_embreex_ceiling"] = statistics.median(embreex)
         r["fraction_of_embreex_ceiling_spread"] = spread(embreex)
         r["embree_alone_over_inside"], r["embree_alone_over_inside_spread"] = statistics.median(alone), spread(alone)
+        r["embree_cpu_alone_over_inside"] = statistics.median(alone_cpu)
+        r["embree_cpu_alone_over_inside_spread"] = spread(alone_cpu)
         print(f"{r['label']}: end to end / ceiling {cell(r['fraction_of_ceiling_spread'], 100)} % "
               f"(/ embreex's {cell(r['fraction_of_embreex_ceiling_spread'], 100)} %); embree inside the render runs "
-              f"at {cell(r['embree_alone_over_inside_spread'], 100)} % of its speed alone (median [min-max] of "
+              f"at {cell(r['embree_alone_over_inside_spread'], 100)} % of its speed alone in thread wall time, "
+              f"{cell(r['embree_cpu_alone_over_inside_spread'], 100)} % in CPU time (median [min-max] of "
               f"{args.repeats} repeats, each against its own ceiling)")
     report = {"machine": machine.describe(), "load_average": [load_before, load_after],
               "scene": source, "triangles": triangles, "resolution": [width, height], "spp": args.spp,

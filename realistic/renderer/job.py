@@ -146,6 +146,7 @@ class RenderResult:
     seconds: float
     interrupted: bool
     stage_seconds: dict[str, float] = field(default_factory=dict)
+    stage_cpu_seconds: dict[str, float] = field(default_factory=dict)  # the stages' threads' own CPU time
     passes_done: int = 0
     passes_total: int = 0
     job: RenderJob | None = None

@@ -419,6 +419,7 @@ def _finish(frame: _Frame, start: float, clock: StageClock, keep_images: bool) -
         result.image = np.zeros((bounds.height, bounds.width, 3), np.float32)
     result.seconds = time.perf_counter() - start
     result.stage_seconds = dict(clock.seconds)
+    result.stage_cpu_seconds = dict(clock.cpu_seconds)
     return result
 
 
