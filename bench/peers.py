@@ -145,10 +145,13 @@ DRAGONS = [(BLUE, -10.0) if i % 2 == 0 else (RED, -17.0) for i in range(11)]
 PROBE = ("import mitsuba as mi; mi.set_variant('llvm_ad_rgb'); "
          "mi.render(mi.load_dict(mi.cornell_box()), spp=1).numpy()")
 #: One peer's render: () -> (image (H, W, 3), render wall seconds, CPU-seconds, samples, camera rays traced,
-#: thread-seconds per stage of ours (``renderer/timing``), empty for Mitsuba).
+#: thread-seconds per stage of ours (``renderer/timing``) and embree's CPU-s (``EMBREE_CPU``), empty for Mitsuba).
 Render = Callable[[], tuple[np.ndarray, float, float, int, int, dict[str, float]]]
 #: Our stages timed per render (the set-up ones are excluded from the timings, as above).
 STAGES = ("ray generation", "embree", "shading", "accumulation")
+#: The embree stage's CPU seconds on the render threads (``StageClock.cpu_seconds``): its thread-seconds
+#: less the time those threads waited for a core or the GIL.
+EMBREE_CPU = "embree CPU"
 
 
 def thin_lens_scene(folder: Path) -> Path:
@@ -199,6 +202,7 @@ def our_render(inputs: RenderInputs) -> Render:
         cpu = time.process_time() - cpu
         before_rays = result.stage_seconds.get("setup", 0.0) + result.stage_seconds.get("exit pupil", 0.0)
         stages = {stage: result.stage_seconds.get(stage, 0.0) for stage in STAGES}
+        stages[EMBREE_CPU] = result.stage_cpu_seconds.get("embree", 0.0)
         return result.image, result.seconds - before_rays, cpu, result.samples_done, result.primary_rays, stages
 
     return run
@@ -534,7 +538,8 @@ def main() -> None:
     for name in ("thin lens", "thin bilinear", "lens"):
         seconds = {stage: summary[name][f"{stage} thread_s"]["median"] for stage in STAGES}
         print(f"{name} stages, median thread-s (share): " + ", ".join(
-            f"{stage} {value:.2f} ({100 * value / sum(seconds.values()):.0f} %)" for stage, value in seconds.items()))
+            f"{stage} {value:.2f} ({100 * value / sum(seconds.values()):.0f} %)" for stage, value in seconds.items())
+            + f"; embree's CPU-s on the render threads {summary[name][f'{EMBREE_CPU} thread_s']['median']:.2f}")
     out = ROOT / "bench" / "results" / "peers.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"machine": machine.describe(), "resolution": list(args.res), "spp": args.spp,
