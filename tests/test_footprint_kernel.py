@@ -16,14 +16,28 @@ down the normal, whose direction is the rounding residue of the float32 ray and 
 bit-equal zeros where the reference has them.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from realistic.renderer import footprint
-from realistic.renderer.backends import backend_for
+from realistic.camera.thin_lens import ThinLensCamera
+from realistic.core.transforms import look_at
+from realistic.renderer import backends, footprint
+from realistic.renderer.backends import NumpyBackend, backend_for
+from realistic.renderer.direct_lighting import DirectLighting
+from realistic.renderer.job import RenderJob
+from realistic.renderer.passes import ThreadPasses, render
+from realistic.scene.intersect import Intersector
+from realistic.scene.materials import Plastic
+from realistic.scene.model import ImageTexture
 from realistic.scene.textures import Footprint
+from test_hit_image_lookups import _scene as mixes_scene
+from test_light_albedo_filter import _rays as light_rays
+from test_light_albedo_filter import _scene as light_scene
 
-# pyopencl's module: the tests skip without it
+# pyopencl's modules: the tests skip without it
+OpenCLBackend = pytest.importorskip("realistic.renderer.opencl_backend").OpenCLBackend
 FootprintKernel = pytest.importorskip("realistic.scene.ewa_kernel").FootprintKernel
 pytestmark = pytest.mark.usefixtures("opencl_platform")
 
@@ -125,6 +139,80 @@ def test_no_hits_make_no_launch():
     case = {key: value if key in ("vertices", "uv", "linear") else value[:0] for key, value in case.items()}
     axes = _device_footprint(case)
     assert [a.shape for a in axes] == [(0, 2), (0, 2)]
+
+
+def _spied(monkeypatch: pytest.MonkeyPatch) -> tuple[list[int], list[int]]:
+    """Counters of ``triangle_footprint`` calls (host footprints, through any module's name for it)
+    and of ``FootprintKernel`` launches, counting hits."""
+    host: list[int] = []
+    device: list[int] = []
+    reference = footprint.triangle_footprint
+    kernel = FootprintKernel.__call__
+
+    def counted(*args, **kwargs):
+        host.append(len(args[2]))
+        return reference(*args, **kwargs)
+
+    def launched(self, *args, **kwargs):
+        device.append(len(args[3]))
+        return kernel(self, *args, **kwargs)
+
+    for module in (footprint, backends):
+        monkeypatch.setattr(module, "triangle_footprint", counted)
+    monkeypatch.setattr(FootprintKernel, "__call__", launched)
+    return host, device
+
+
+def _render(scene, backend: str) -> np.ndarray:
+    """``scene`` path traced through a thin lens (pixel footprints), 48 x 32, 3 spp."""
+    eye, target = np.array([0.0, 1.0, 4.0]), np.array([0.0, 0.4, 0.0])
+    camera = ThinLensCamera(40.0, 0.02, float(np.linalg.norm(target - eye)), 48, 32, 3, look_at(eye, target))
+    job = RenderJob(replace(scene, integrator="path"), (camera,), backend, 3, light_samples=2, pass_samples=1500)
+    return render(job, ThreadPasses(threads=2))[0].image
+
+
+def test_an_opencl_render_of_textured_mixes_takes_its_footprints_from_the_device(monkeypatch):
+    """A path-traced render of image-textured roughness, ``Ks`` and mixes (a textured second material,
+    a mix holding a mix: ``_hit_parameters`` and ``_shade`` at depth 0) on the OpenCL backend calls
+    ``triangle_footprint`` never and the kernel instead; its image is the one the same render gets
+    with the host's footprints (the module's tolerance, through the filters' float32 colours: equal
+    but where a texel's weight or a path's threshold flips), and the numpy backend's within float32
+    rounding of the paths (as ``test_hit_image_lookups``)."""
+    scene = mixes_scene("ewa")
+    host, device = _spied(monkeypatch)
+    got = _render(scene, "opencl")
+    assert host == [] and sum(device) > 300
+    with monkeypatch.context() as numpy_footprints:
+        numpy_footprints.setattr(OpenCLBackend, "triangle_footprint", NumpyBackend.triangle_footprint)
+        with_host = _render(scene, "opencl")
+    assert sum(host) == sum(device)  # the same camera hits
+    assert got.max() > 0
+    close = np.all(np.isclose(got, with_host, rtol=1e-5, atol=1e-6 * with_host.max()), axis=-1)
+    assert close.mean() > 0.999, close.mean()
+    assert abs(float(got.mean()) / float(with_host.mean()) - 1) < 1e-4
+    host.clear()
+    expected = _render(scene, "numpy")
+    assert sum(host) > 300  # the numpy backend keeps the reference
+    close = np.all(np.isclose(got, expected, rtol=1e-3, atol=1e-4 * expected.max()), axis=-1)
+    assert close.mean() > 0.99, close.mean()
+    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 2e-3
+
+
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_an_image_textured_lights_albedo_takes_its_footprints_from_the_device(monkeypatch, mirrored):
+    """``DirectLighting._light_albedo`` (a plastic light whose Kd is an image, footprints of a few
+    texels) on the OpenCL backend: no host footprint, and the numpy backend's albedo to float32
+    rounding."""
+    pixels = np.random.default_rng(7).random((64, 64, 3)).astype(np.float32)
+    scene = light_scene(Plastic(ImageTexture(pixels, scale=(2.0, 3.0)), (0.3, 0.3, 0.3), 0.2), mirrored)
+    origin, direction = light_rays(2)
+    hits = Intersector(scene).closest(origin, direction)
+    expected = DirectLighting(scene, Intersector(scene), 1, 0, 0.01).first_hits(origin, direction, hits).albedo
+    host, device = _spied(monkeypatch)
+    got = DirectLighting(scene, Intersector(scene), 1, 0, 0.01, backend="opencl").first_hits(origin, direction,
+                                                                                             hits).albedo
+    assert host == [] and sum(device) == len(origin)
+    np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-7)
 
 
 def test_the_footprint_kernel_vectorises(tmp_path):
