@@ -211,6 +211,77 @@ inline double dot3s(double ax, double ay, double az, double bx, double by, doubl
     return ax * bx + ay * by + az * bz;
 }
 
+/* The footprint code of hit_lookups and triangle_footprints: one definition of footprint.py's
+ * triangle_footprint (its numpy reference) in the same float64 operations and order. world_edges: a
+ * triangle's world edges, the linear map m (3 x 3, row-major: an instance's) times its mesh-space edges
+ * p1 - p0 and p2 - p0 (corners c0, c1, c2: rows of the float64 `vertices`), each component summed
+ * left to right as numpy's einsum does. footprint_axes: the uv axes of the pixel cone of width w cut
+ * by the plane of unit normal (nrx, nry, nrz) along unit (ddx, ddy, ddz) (tangent_axes: across the ray,
+ * (a0u, a0v), and along its projection stretched by 1 / max(|cos|, MIN_COSINE), (a1u, a1v)), carried
+ * into uv by the world edges and the uv edges (g1s, g1t), (g2s, g2t) (to_uv: zero on a triangle
+ * whose world edges are degenerate). `unit` and `one` (1 and 1.0) are the callers' own, for the
+ * vectoriser (see hit_lookups), which widens a kernel only without calls: always inlined (LLVM's
+ * inliner found footprint_axes just over its cost threshold in triangle_footprints). */
+inline __attribute__((always_inline)) void world_edges(__global const double *vertices, __global const double *m,
+                                                       int c0, int c1, int c2, const int unit, double one,
+                                                       double *e1x, double *e1y, double *e1z, double *e2x,
+                                                       double *e2y, double *e2z) {
+    double px = AT(vertices, 3, c0, 0), py = AT(vertices, 3, c0, 1), pz = AT(vertices, 3, c0, 2);
+    double q1x = AT(vertices, 3, c1, 0) - px, q1y = AT(vertices, 3, c1, 1) - py, q1z = AT(vertices, 3, c1, 2) - pz;
+    double q2x = (AT(vertices, 3, c2, 0) - px) * one, q2y = (AT(vertices, 3, c2, 1) - py) * one;
+    double q2z = (AT(vertices, 3, c2, 2) - pz) * one;
+    *e1x = AT(m, 3, 0, 0) * q1x + AT(m, 3, 0, 1) * q1y + AT(m, 3, 0, 2) * q1z;
+    *e1y = AT(m, 3, 1, 0) * q1x + AT(m, 3, 1, 1) * q1y + AT(m, 3, 1, 2) * q1z;
+    *e1z = AT(m, 3, 2, 0) * q1x + AT(m, 3, 2, 1) * q1y + AT(m, 3, 2, 2) * q1z;
+    *e2x = AT(m, 3, 0, 0) * q2x + AT(m, 3, 0, 1) * q2y + AT(m, 3, 0, 2) * q2z;
+    *e2y = AT(m, 3, 1, 0) * q2x + AT(m, 3, 1, 1) * q2y + AT(m, 3, 1, 2) * q2z;
+    *e2z = AT(m, 3, 2, 0) * q2x + AT(m, 3, 2, 1) * q2y + AT(m, 3, 2, 2) * q2z;
+}
+
+inline __attribute__((always_inline)) void footprint_axes(double w, double ddx, double ddy, double ddz,
+                                                          double nrx, double nry, double nrz, double e1x, double e1y,
+                                                          double e1z, double e2x, double e2y, double e2z, double g1s,
+                                                          double g1t, double g2s, double g2t, double one,
+                                                          double *a0u, double *a0v, double *a1u, double *a1v) {
+    /* the tangent axes (footprint.tangent_axes) */
+    double cosine = dot3s(ddx, ddy, ddz, nrx, nry, nrz);
+    double ox = ddx - cosine * nrx, oy = ddy - cosine * nry, oz = ddz - cosine * nrz;
+    double olen = __builtin_sqrt(dot3s(ox, oy, oz, ox, oy, oz));
+    ox = olen > 0 ? ox / olen : 0.0;
+    oy = olen > 0 ? oy / olen : 0.0;
+    oz = olen > 0 ? oz / olen : 0.0;
+    /* a ray along the normal: the normal crossed with x, or with y near the x axis */
+    int near_x = !(__builtin_fabs(nrx) < 0.9);
+    double tx = near_x ? 0.0 : 1.0, ty = near_x ? 1.0 : 0.0;
+    double kx = nry * 0.0 - nrz * ty, ky = nrz * tx - nrx * 0.0, kz = nrx * ty - nry * tx;
+    double klen = __builtin_sqrt(dot3s(kx, ky, kz, kx, ky, kz));
+    int turned = !(dot3s(ox, oy, oz, ox, oy, oz) > 0.5);
+    double ax_ = turned ? (klen > 0 ? kx / klen : 0.0) : ox;
+    double ay_ = turned ? (klen > 0 ? ky / klen : 0.0) : oy;
+    double az_ = turned ? (klen > 0 ? kz / klen : 0.0) : oz;
+    double cx = nry * az_ - nrz * ay_, cy = nrz * ax_ - nrx * az_, cz = nrx * ay_ - nry * ax_;
+    double stretch = 1.0 / __builtin_fmax(__builtin_fabs(cosine), MIN_COSINE);
+    double wa = w * stretch;
+
+    /* their uv offsets (to_uv) */
+    double g11 = dot3s(e1x, e1y, e1z, e1x, e1y, e1z), g12 = dot3s(e1x, e1y, e1z, e2x, e2y, e2z);
+    double g22 = dot3s(e2x, e2y, e2z, e2x, e2y, e2z) * one;
+    double det_uv = g11 * g22 - g12 * g12;
+    double inv_uv = det_uv > 1e-12 * g11 * g22 ? 1.0 / det_uv : 0.0;
+    double wx = cx * w, wy = cy * w, wz = cz * w;
+    double r1 = dot3s(e1x, e1y, e1z, wx, wy, wz), r2_ = dot3s(e2x, e2y, e2z, wx, wy, wz) * one;
+    double alpha = (g22 * r1 - g12 * r2_) * inv_uv, beta = (g11 * r2_ - g12 * r1) * inv_uv;
+    *a0u = alpha * g1s + beta * g2s;
+    *a0v = (alpha * g1t + beta * g2t) * one;
+    wx = ax_ * wa; wy = ay_ * wa; wz = az_ * wa;
+    r1 = dot3s(e1x, e1y, e1z, wx, wy, wz);
+    r2_ = dot3s(e2x, e2y, e2z, wx, wy, wz) * one;
+    alpha = (g22 * r1 - g12 * r2_) * inv_uv;
+    beta = (g11 * r2_ - g12 * r1) * inv_uv;
+    *a1u = (alpha * g1s + beta * g2s) * one;
+    *a1v = alpha * g1t + beta * g2t;
+}
+
 __kernel void hit_lookups(__global const int *faces, __global const double *vertices,
                           __global const float *uvs, __global const int *geom_face_offset,
                           __global const double *geom_linear, __global const double *mapping,
@@ -246,54 +317,13 @@ __kernel void hit_lookups(__global const int *faces, __global const double *vert
     float vs = v0 * b0 + v1 * u + v2 * v;
     double g1s = (double)u1 - (double)u0, g1t = (double)v1 - (double)v0;
     double g2s = (double)u2 - (double)u0, g2t = (double)v2 - (double)v0;
-    double px = AT(vertices, 3, c0, 0), py = AT(vertices, 3, c0, 1), pz = AT(vertices, 3, c0, 2);
-    double q1x = AT(vertices, 3, c1, 0) - px, q1y = AT(vertices, 3, c1, 1) - py, q1z = AT(vertices, 3, c1, 2) - pz;
-    double q2x = (AT(vertices, 3, c2, 0) - px) * one, q2y = (AT(vertices, 3, c2, 1) - py) * one;
-    double q2z = (AT(vertices, 3, c2, 2) - pz) * one;
-    __global const double *m = geom_linear + 9 * g;
-    double e1x = AT(m, 3, 0, 0) * q1x + AT(m, 3, 0, 1) * q1y + AT(m, 3, 0, 2) * q1z;
-    double e1y = AT(m, 3, 1, 0) * q1x + AT(m, 3, 1, 1) * q1y + AT(m, 3, 1, 2) * q1z;
-    double e1z = AT(m, 3, 2, 0) * q1x + AT(m, 3, 2, 1) * q1y + AT(m, 3, 2, 2) * q1z;
-    double e2x = AT(m, 3, 0, 0) * q2x + AT(m, 3, 0, 1) * q2y + AT(m, 3, 0, 2) * q2z;
-    double e2y = AT(m, 3, 1, 0) * q2x + AT(m, 3, 1, 1) * q2y + AT(m, 3, 1, 2) * q2z;
-    double e2z = AT(m, 3, 2, 0) * q2x + AT(m, 3, 2, 1) * q2y + AT(m, 3, 2, 2) * q2z;
+    double e1x, e1y, e1z, e2x, e2y, e2z;
+    world_edges(vertices, geom_linear + 9 * g, c0, c1, c2, unit, one, &e1x, &e1y, &e1z, &e2x, &e2y, &e2z);
 
-    /* the footprint's tangent axes (footprint.tangent_axes) */
-    double w = (double)tfar[r] * AT(mapping, 1, MAPPING_SPREAD, 0);
-    double cosine = dot3s(ddx, ddy, ddz, nrx, nry, nrz);
-    double ox = ddx - cosine * nrx, oy = ddy - cosine * nry, oz = ddz - cosine * nrz;
-    double olen = __builtin_sqrt(dot3s(ox, oy, oz, ox, oy, oz));
-    ox = olen > 0 ? ox / olen : 0.0;
-    oy = olen > 0 ? oy / olen : 0.0;
-    oz = olen > 0 ? oz / olen : 0.0;
-    /* a ray along the normal: the normal crossed with x, or with y near the x axis */
-    int near_x = !(__builtin_fabs(nrx) < 0.9);
-    double tx = near_x ? 0.0 : 1.0, ty = near_x ? 1.0 : 0.0;
-    double kx = nry * 0.0 - nrz * ty, ky = nrz * tx - nrx * 0.0, kz = nrx * ty - nry * tx;
-    double klen = __builtin_sqrt(dot3s(kx, ky, kz, kx, ky, kz));
-    int turned = !(dot3s(ox, oy, oz, ox, oy, oz) > 0.5);
-    double ax_ = turned ? (klen > 0 ? kx / klen : 0.0) : ox;
-    double ay_ = turned ? (klen > 0 ? ky / klen : 0.0) : oy;
-    double az_ = turned ? (klen > 0 ? kz / klen : 0.0) : oz;
-    double cx = nry * az_ - nrz * ay_, cy = nrz * ax_ - nrx * az_, cz = nrx * ay_ - nry * ax_;
-    double stretch = 1.0 / __builtin_fmax(__builtin_fabs(cosine), MIN_COSINE);
-    double wa = w * stretch;
-
-    /* their uv offsets (to_uv) */
-    double g11 = dot3s(e1x, e1y, e1z, e1x, e1y, e1z), g12 = dot3s(e1x, e1y, e1z, e2x, e2y, e2z);
-    double g22 = dot3s(e2x, e2y, e2z, e2x, e2y, e2z) * one;
-    double det_uv = g11 * g22 - g12 * g12;
-    double inv_uv = det_uv > 1e-12 * g11 * g22 ? 1.0 / det_uv : 0.0;
-    double wx = cx * w, wy = cy * w, wz = cz * w;
-    double r1 = dot3s(e1x, e1y, e1z, wx, wy, wz), r2_ = dot3s(e2x, e2y, e2z, wx, wy, wz) * one;
-    double alpha = (g22 * r1 - g12 * r2_) * inv_uv, beta = (g11 * r2_ - g12 * r1) * inv_uv;
-    double a0u = alpha * g1s + beta * g2s, a0v = (alpha * g1t + beta * g2t) * one;
-    wx = ax_ * wa; wy = ay_ * wa; wz = az_ * wa;
-    r1 = dot3s(e1x, e1y, e1z, wx, wy, wz);
-    r2_ = dot3s(e2x, e2y, e2z, wx, wy, wz) * one;
-    alpha = (g22 * r1 - g12 * r2_) * inv_uv;
-    beta = (g11 * r2_ - g12 * r1) * inv_uv;
-    double a1u = (alpha * g1s + beta * g2s) * one, a1v = alpha * g1t + beta * g2t;
+    /* the footprint (footprint.uv_footprint) */
+    double a0u, a0v, a1u, a1v;
+    footprint_axes((double)tfar[r] * AT(mapping, 1, MAPPING_SPREAD, 0), ddx, ddy, ddz, nrx, nry, nrz,
+                   e1x, e1y, e1z, e2x, e2y, e2z, g1s, g1t, g2s, g2t, one, &a0u, &a0v, &a1u, &a1v);
 
     /* into the image's st (textures._image) */
     double scale_s = AT(mapping, 1, MAPPING_ST_SCALE, 0), scale_t = AT(mapping, 1, MAPPING_ST_SCALE, 1);
@@ -311,6 +341,44 @@ __kernel void hit_lookups(__global const int *faces, __global const double *vert
         AT(lookups, 6, i, 3) = majt;
         AT(lookups, 6, i, 4) = mins;
         AT(lookups, 6, i, 5) = mint;
+    }
+}
+
+/* ------------------------------------------------------------------ footprints of hits
+ * triangle_footprints is footprint.triangle_footprint (its numpy reference) on the device, for the
+ * image textures the host's SurfaceParameters look up (realistic/scene/ewa_kernel.py,
+ * FootprintKernel): hit i on the triangle faces[i] (three rows of `vertices` and of the float32
+ * `uvs`) of instance geom[i] (its linear map linear[geom[i]], 3 x 3 row-major), with unit
+ * direction[i], unit normal[i] (as given: the reference neither normalises nor turns it) and hit
+ * distance[i], all float64 as the reference reads them. It writes the footprint's axes, axis0[i]
+ * across the ray and axis1[i] along it (2 doubles each), by world_edges and footprint_axes as
+ * hit_lookups does, and is written for the vectoriser as hit_lookups is (work items past `count`
+ * read row count - 1 and write nothing). */
+__kernel void triangle_footprints(__global const int *faces, __global const double *vertices,
+                                  __global const float *uvs, __global const double *linear,
+                                  __global const int *geom, __global const double *direction,
+                                  __global const double *normal, __global const double *distance,
+                                  const double spread, const int count, const int unit,
+                                  __global double *axis0, __global double *axis1) {
+    int i = get_global_id(0);
+    double one = (double)unit;
+    int r = i < count ? i : count - 1;
+    int c0 = AT(faces, 3, r, 0), c1 = AT(faces, 3, r, 1), c2 = AT(faces, 3, r, 2);
+    float u0 = AT(uvs, 2, c0, 0), v0 = AT(uvs, 2, c0, 1), u1 = AT(uvs, 2, c1, 0), v1 = AT(uvs, 2, c1, 1);
+    float u2 = AT(uvs, 2, c2, 0), v2 = AT(uvs, 2, c2, 1);
+    double g1s = (double)u1 - (double)u0, g1t = (double)v1 - (double)v0;
+    double g2s = (double)u2 - (double)u0, g2t = (double)v2 - (double)v0;
+    double e1x, e1y, e1z, e2x, e2y, e2z;
+    world_edges(vertices, linear + 9 * geom[r], c0, c1, c2, unit, one, &e1x, &e1y, &e1z, &e2x, &e2y, &e2z);
+    double a0u, a0v, a1u, a1v;
+    footprint_axes(distance[r] * spread, AT(direction, 3, r, 0), AT(direction, 3, r, 1), AT(direction, 3, r, 2),
+                   AT(normal, 3, r, 0), AT(normal, 3, r, 1), AT(normal, 3, r, 2), e1x, e1y, e1z, e2x, e2y, e2z,
+                   g1s, g1t, g2s, g2t, one, &a0u, &a0v, &a1u, &a1v);
+    if (i < count) {
+        AT(axis0, 2, i, 0) = a0u;
+        AT(axis0, 2, i, 1) = a0v;
+        AT(axis1, 2, i, 0) = a1u;
+        AT(axis1, 2, i, 1) = a1v;
     }
 }
 

@@ -19,6 +19,7 @@ from realistic.camera.base import BACKENDS, Camera, RayGenerator, check_backend
 from realistic.optics.ghosts import GhostPath, GhostTrace, GhostTracer, trace_direct, trace_ghost
 from realistic.optics.lens import LensSystem
 from realistic.renderer.bsdf.base import BSDFSample, HitParameters
+from realistic.renderer.footprint import triangle_footprint
 from realistic.scene.materials import SurfaceMaterial
 from realistic.scene.mipmap import MipMap
 from realistic.scene.textures import Footprint, numpy_lookup
@@ -58,6 +59,12 @@ class Backend(Protocol):
         """An image texture's lookups (N, 3) with any filter, with or without a footprint (a
         ``scene.textures.ImageLookup``)."""
 
+    def triangle_footprint(self, vertices: np.ndarray, uv: np.ndarray, linear: np.ndarray, face: np.ndarray,
+                           geom: np.ndarray, direction: np.ndarray, normal: np.ndarray, distance: np.ndarray,
+                           spread_radians: float) -> Footprint:
+        """The uv axes of the pixel footprints of hits on triangles ``face`` of a mesh's ``vertices``
+        and ``uv`` placed by ``linear[geom]``: ``footprint.triangle_footprint``'s."""
+
     def ghost_tracer(self, lens: LensSystem) -> GhostTracer:
         """What traces ``lens``'s ghost paths (lens flare, ``renderer.flare``)."""
 
@@ -81,6 +88,12 @@ class NumpyBackend:
                      ) -> np.ndarray:
         """``textures.numpy_lookup``: ``MipMap``'s filters."""
         return numpy_lookup(mipmap, texture_filter, st, axes)
+
+    def triangle_footprint(self, vertices: np.ndarray, uv: np.ndarray, linear: np.ndarray, face: np.ndarray,
+                           geom: np.ndarray, direction: np.ndarray, normal: np.ndarray, distance: np.ndarray,
+                           spread_radians: float) -> Footprint:
+        """``footprint.triangle_footprint``, the reference, over ``linear[geom]``."""
+        return triangle_footprint(vertices, uv, face, linear[geom], direction, normal, distance, spread_radians)
 
     def ghost_tracer(self, lens: LensSystem) -> GhostTracer:
         """The float64 reference, ``optics.ghosts.trace_ghost`` (``trace_direct`` for None)."""

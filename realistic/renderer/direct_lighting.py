@@ -60,7 +60,6 @@ from realistic.renderer.backends import Backend, backend_for
 from realistic.renderer.bsdf import ShadingFrame, bsdf_for
 from realistic.renderer.bsdf.lambertian import cosine_hemisphere
 from realistic.renderer.bsdf.measured import irregular_table, table_lookup
-from realistic.renderer.footprint import triangle_footprint
 from realistic.renderer.hit_rows import compile_row_loops, place_rows, rows_on_material
 from realistic.renderer.light_sampler import SHADOW_LENGTH
 from realistic.renderer.surface_parameters import RHO_U, SurfaceParameters, directional_albedo
@@ -521,8 +520,9 @@ class DirectLighting:
                           uv_table: np.ndarray = mesh.uv) -> Footprint | None:
                 if self.pixel_spread_radians <= 0:
                     return None
-                return triangle_footprint(vertices, uv_table, face, np.asarray(transform)[:3, :3], direction[rows],
-                                          ng[rows], hits.t[at], self.pixel_spread_radians)
+                return self.backend.triangle_footprint(vertices, uv_table, np.asarray(transform)[None, :3, :3], face,
+                                                       np.zeros(len(face), np.int32), direction[rows], ng[rows],
+                                                       hits.t[at], self.pixel_spread_radians)
 
             side = np.float32(-1.0 if light_outward_flipped(light) else 1.0)
             bsdf = bsdf_for(material, SurfaceParameters(len(rows), at_uv, footprint, None))
@@ -723,9 +723,10 @@ class DirectLighting:
 
     def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,
                    distance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """uv axes of the pixel footprints of hits on triangles ``face`` of instances ``geom``."""
-        return triangle_footprint(self._vertices, self._uv, face, self._geom_linear[geom], direction, normal,
-                                  distance, self.pixel_spread_radians)
+        """uv axes of the pixel footprints of hits on triangles ``face`` of instances ``geom``, by the
+        backend (``footprint.triangle_footprint`` in numpy, ``kernels/ewa.cl`` on "opencl")."""
+        return self.backend.triangle_footprint(self._vertices, self._uv, self._geom_linear, face, geom, direction,
+                                               normal, distance, self.pixel_spread_radians)
 
     def _pick(self, pixel: np.ndarray, sample: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Light sample ``k``'s light (picked by power) and its point numbers u1, u2 per point."""

@@ -26,7 +26,7 @@ from realistic.optics.lens import LensSystem
 from realistic.renderer.bounce_kernel import BounceKernel
 from realistic.renderer.bsdf_kernel import BsdfKernel
 from realistic.renderer.shade_kernel import ShadeKernel
-from realistic.scene.ewa_kernel import EwaKernel, SurfaceTables
+from realistic.scene.ewa_kernel import EwaKernel, FootprintKernel, SurfaceTables
 from realistic.scene.mipmap import MipMap
 from realistic.scene.textures import Footprint
 
@@ -42,6 +42,7 @@ class OpenCLBackend:
         self._ewa_kernels: weakref.WeakKeyDictionary[MipMap, EwaKernel] = weakref.WeakKeyDictionary()
         self._lock = threading.Lock()
         self._bsdf_kernel: BsdfKernel | None = None
+        self._footprint_kernel: FootprintKernel | None = None
 
     def ray_generator(self, camera: Camera, seed: int) -> RayGenerator:
         """``lens.cl``'s rays (float32) for a ``LensCamera``, ``thin_lens.cl``'s for a
@@ -79,6 +80,16 @@ class OpenCLBackend:
         """``textures.numpy_lookup``'s lookups by ``kernels/ewa.cl`` (the same to float32 rounding:
         ``EwaKernel``), every filter of ``DEVICE_FILTERS`` and the lookups without a footprint."""
         return self.ewa_kernel(mipmap).lookup(texture_filter, st, axes)
+
+    def triangle_footprint(self, vertices: np.ndarray, uv: np.ndarray, linear: np.ndarray, face: np.ndarray,
+                           geom: np.ndarray, direction: np.ndarray, normal: np.ndarray, distance: np.ndarray,
+                           spread_radians: float) -> Footprint:
+        """``footprint.triangle_footprint`` over ``linear[geom]`` by ``kernels/ewa.cl`` (``FootprintKernel``,
+        made on first use; the reference's to float64 rounding)."""
+        with self._lock:
+            if self._footprint_kernel is None:
+                self._footprint_kernel = FootprintKernel(self.device)
+        return self._footprint_kernel(vertices, uv, linear, face, geom, direction, normal, distance, spread_radians)
 
     def ghost_tracer(self, lens: LensSystem) -> GhostTracer:
         """``kernels/ghost.cl`` for ``lens`` on this device, float32 (its program is built once per

@@ -108,6 +108,8 @@ class PathIntegrator(DirectLighting):
         chosen = backend_for(backend) if isinstance(backend, str) else backend
         #: filters the image textures of ``SurfaceParameters`` (``_shade``, the per-hit rows, albedo)
         self._image_lookup = chosen.image_lookup
+        #: the camera hits' footprints (``_footprint``): ``kernels/ewa.cl``'s on "opencl"
+        self._triangle_footprint = chosen.triangle_footprint
         self._bsdf_kernel = chosen.bsdf_kernel() if bsdf_factory is bsdf_for else None
         self.lights = LightSampler(scene, intersector.extent)
         self._add_light_surfaces(scene)
@@ -296,6 +298,13 @@ class PathIntegrator(DirectLighting):
         joined["shadow"] = {key: value if rest["shadow"][key] is None else np.concatenate([value, rest["shadow"][key]])
                             for key, value in state["shadow"].items()}
         return joined
+
+    def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,
+                   distance: np.ndarray) -> Footprint:
+        """``DirectLighting._footprint`` by this integrator's backend (``self.backend``, the
+        ``DirectLighting`` part's, is numpy's), over the per-geometry tables, lights included."""
+        return self._triangle_footprint(self._vertices, self._uv, self._geom_linear, face, geom, direction, normal,
+                                        distance, self.pixel_spread_radians)
 
     def _parameters_at(self, face: np.ndarray, bary: np.ndarray, depth: int, footprint: Callable[[], Footprint],
                        basis: np.ndarray | None) -> SurfaceParameters:

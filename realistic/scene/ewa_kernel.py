@@ -27,6 +27,12 @@ footprint (a ``hit_mapping`` of spread 0: the path integrator's deeper bounces) 
 whatever the filter, as ``textures.evaluate`` has it, so ``at_hits`` filters those with "bilinear", as
 does ``lookup``, the ``textures.ImageLookup`` the "opencl" backend gives ``SurfaceParameters``.
 
+``FootprintKernel`` (``triangle_footprints``) computes ``renderer.footprint.triangle_footprint``,
+its numpy reference, on the device with ``hit_lookups``' own footprint code (one definition in
+``ewa.cl``), for the image textures of ``SurfaceParameters`` (the path integrator's per-hit parameters
+and albedo), which the host looks up over the footprints of camera-ray hits: to float64 rounding of
+the reference (``tests/test_footprint_kernel.py``).
+
 An ``EwaKernel`` is made for a MIP map on a ``Device`` and kept by the render backend that made it
 (``realistic.renderer.backends``), keyed by the map: the map itself stays plain data. Each thread
 launches on its own queue with its own kernel objects (``_ThreadKernels``: a kernel object's
@@ -58,6 +64,13 @@ DEVICE_FILTERS = ("ewa", "bilinear", "point", "trilinear")
 #: The generated head of ``ewa.cl``'s source: MAPPING's offsets and the weights table's size (an
 #: ``EwaKernel`` adds its map's ``WRAP``).
 HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
+
+
+def build_ewa_program(device: Device, wrap: str) -> cl.Program:
+    """``ewa.cl`` built on ``device`` for the wrap mode ``wrap`` (``validation.TEXTURE_WRAPS``): one
+    program per mode, built once per process (``Device.build_program``)."""
+    source = HEADER + f"#define WRAP {TEXTURE_WRAPS.index(wrap)}\n" + kernel_source(KERNEL_FILE)
+    return device.build_program(source, KERNEL_FILE)
 
 
 class SurfaceTables:
@@ -119,8 +132,7 @@ class EwaKernel:
         device = device or Device.for_spec()
         self.device = device
         self.context = device.context
-        wrap = f"#define WRAP {TEXTURE_WRAPS.index(mipmap.wrap)}\n"  # one program per wrap mode (ewa.cl)
-        self._program = device.build_program(HEADER + wrap + kernel_source(KERNEL_FILE), KERNEL_FILE)
+        self._program = build_ewa_program(device, mipmap.wrap)
         # the texels wrapped, not copied, so they are not held twice
         # the map's kernel arguments: its buffers, then its scalars
         self._map: list[cl.Buffer | np.generic] = [
@@ -216,3 +228,42 @@ class EwaKernel:
         self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo,
                      texture_filter if footprint else "bilinear")
         return albedo
+
+
+class FootprintKernel:
+    """``renderer.footprint.triangle_footprint`` on a device (``ewa.cl``'s ``triangle_footprints``,
+    from the program a repeat-wrapped map's ``EwaKernel`` uses: no build of its own where a scene has
+    one), thread-safe as ``EwaKernel`` is (a queue and kernel object per calling thread)."""
+
+    def __init__(self, device: Device):
+        self.device = device
+        self._program = build_ewa_program(device, "repeat")
+        self._local = threading.local()
+
+    def _thread(self) -> tuple[cl.CommandQueue, cl.Kernel]:
+        """The calling thread's queue and kernel, made on its first call."""
+        made: tuple[cl.CommandQueue, cl.Kernel] | None = getattr(self._local, "made", None)
+        if made is None:
+            made = self._local.made = (self.device.queue(), cl.Kernel(self._program, "triangle_footprints"))
+        return made
+
+    def __call__(self, vertices: np.ndarray, uv: np.ndarray, linear: np.ndarray, face: np.ndarray,
+                 geom: np.ndarray, direction: np.ndarray, normal: np.ndarray, distance: np.ndarray,
+                 spread_radians: float) -> Footprint:
+        """The uv axes (N, 2) float64 of the pixel footprints of hits on triangles ``face`` (N, 3)
+        (rows of a mesh's ``vertices`` (V, 3) and ``uv`` (V, 2), read as float64 and float32 as the
+        reference reads them) placed in the world by ``linear[geom]`` (``linear`` (G, 3, 3), ``geom``
+        (N,)), with unit ``direction`` and ``normal`` (N, 3) and hit ``distance`` (N,):
+        ``triangle_footprint(vertices, uv, face, linear[geom], direction, normal, distance,
+        spread_radians)`` to float64 rounding."""
+        count = len(face)
+        axes = np.empty((count, 2), np.float64), np.empty((count, 2), np.float64)
+        if count == 0:
+            return axes
+        arguments = [self.device.wrapped_buffer(a, dtype) for a, dtype in
+                     ((face, np.int32), (vertices, np.float64), (uv, np.float32), (linear, np.float64),
+                      (geom, np.int32), (direction, np.float64), (normal, np.float64), (distance, np.float64))]
+        queue, kernel = self._thread()
+        self.device.run_into(queue, kernel, (whole_groups(count),), (LOCAL_SIZE,),
+                             (*arguments, np.float64(spread_radians), np.int32(count), np.int32(1)), axes)
+        return axes
