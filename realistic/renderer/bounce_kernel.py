@@ -207,16 +207,16 @@ def diffuse_texture(material: SurfaceMaterial) -> tuple[SurfaceMaterial, DeviceT
 
 
 def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> tuple[np.ndarray, np.ndarray] | None:
-    """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not
-    cover it (a kind ``bsdf.cl`` lacks, or a mix tree of more than ``bsdf_kernel.MAX_LOBES`` lobes);
-    measured tables, named metals' tables and mixes' constant second lobes go to ``tables``. Where the only texture is the
-    diffuse-like colour's grid, checker or image texture (``diffuse_texture``), the row holds that
-    colour's constant factor, which the kernel multiplies by the texture's colour per hit; where
-    another parameter is textured, the ``MATERIALS`` row says ``per_hit`` and the ``BSDF_PARAMS`` row
-    is zero (each hit's comes from ``BounceKernel._hit_rows``), and where a mix's second material is
+    """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not cover
+    it (a kind ``bsdf.cl`` lacks, or a mix tree of more than ``bsdf_kernel.MAX_LOBES`` lobes); measured
+    tables, named metals' tables and mixes' constant second lobes go to ``tables``. Where the only
+    texture is the diffuse-like colour's grid, checker or image texture (``diffuse_texture``), the row
+    holds that colour's constant factor, which the kernel multiplies by the texture's colour per hit;
+    where another parameter is textured, the ``MATERIALS`` row says ``per_hit`` and the ``BSDF_PARAMS``
+    row is zero (each hit's comes from ``BounceKernel._hit_rows``), and where a mix's second material is
     textured it says ``second_per_hit`` too (each hit's second lobe comes from there as well). A mix
-    holding a mix (of at most ``bsdf_kernel.MAX_LOBES`` covered lobes) says ``tree``, its row zero:
-    each hit's ``TREE`` row comes from ``BounceKernel._hit_trees``, textured or not."""
+    holding a mix (of at most ``bsdf_kernel.MAX_LOBES`` covered lobes) says ``tree``, its row zero: each
+    hit's ``TREE`` row comes from ``BounceKernel._hit_trees``, textured or not."""
     if bsdf_kernel.holds_mix(material):
         if bsdf_kernel.tree_rows(material, _AnyTexture(), 1, tables) is None:
             return None
