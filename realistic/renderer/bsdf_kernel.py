@@ -234,7 +234,7 @@ def _leaf_count(material: SurfaceMaterial) -> int:
 
 def tree_rows(material: Mix, hits: HitParameters, count: int, tables: TableStore) -> np.ndarray | None:
     """``count`` ``TREE`` rows of a mix holding a mix at ``hits`` (the fused bounce reads one per hit:
-    ``BounceKernel._hit_rows``), or None where it has more than ``MAX_LOBES`` leaves or the kernel
+    ``BounceKernel._hit_trees``), or None where it has more than ``MAX_LOBES`` leaves or the kernel
     does not cover one of them. Each leaf's lobe is looked up at ``hits`` as ``parameters`` looks a
     material up (spectral rays' colours repeated); each mix's amount is clipped as ``bsdf_for`` clips
     it. The kernel then evaluates and samples the tree as ``bsdf_for``'s nested ``WeightedSum``s do."""
