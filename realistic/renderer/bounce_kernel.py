@@ -361,6 +361,8 @@ class BounceKernel:
         #: the mixes holding a mix, whose hits take their own ``TREE`` rows (``_hit_trees``)
         self._trees = [(k, m) for k, (m, r) in enumerate(zip(materials, rows))
                        if r is not None and bsdf_kernel.holds_mix(m)]
+        #: the floats of each hit's ``TREE`` row: as many lobes as the largest tree's
+        self._tree_width = bsdf_kernel.tree_width(max((bsdf_kernel.leaf_count(m) for _, m in self._trees), default=0))
         #: per image-textured material covered: its index, EWA kernel, filter and ``hit_mapping`` rows
         #: at depth 0 (the pixel's footprint) and deeper (none: level 0 bilinear, as ``_shade``), each
         #: with the colour's constant factor (RGB rays: the albedo) and with 1 (spectral rays: the bare
@@ -453,8 +455,8 @@ class BounceKernel:
             self.device.run_into(queue, kernel, (whole_groups(m),), (LOCAL_SIZE,),
                                  (np.uint32(m), np.uint32(lights), np.uint32(depth), np.uint32(seed & 0xFFFFFFFF),
                                   np.uint32(mode_flags), np.uint32(max_depth), self.offset_base,
-                                  np.int32(max(self.light_count, 1)), *inputs, *self._tables,
-                                  self.bsdf_tables.buffer),
+                                  np.int32(max(self.light_count, 1)), *inputs, np.uint32(self._tree_width),
+                                  *self._tables, self.bsdf_tables.buffer),
                                  (out.shadow_origin, out.shadow_vector, out.shadow_length, out.contribution,
                                   cone_light, out.origin, out.direction, out.beta, out.point, out.pdf, out.flags))
             self._meet_spheres(cone_light, out, m)
@@ -511,22 +513,24 @@ class BounceKernel:
 
     def _hit_trees(self, rows: np.ndarray, hits: Hits, hit_parameters: Callable[[np.ndarray], HitParameters] | None
                    ) -> np.ndarray:
-        """The ``TREE`` rows (m, ``TREE.width``) float32 of the hits ``rows`` on mixes holding a mix
+        """The ``TREE`` rows (m, ``_tree_width``) float32 of the hits ``rows`` on mixes holding a mix
         (zero elsewhere, unread; none without such hits): ``bsdf_kernel.tree_rows`` at
         ``hit_parameters(picked)``, the lookups ``_shade`` makes (spectral rays' at their wavelength)."""
         geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
-        out = np.zeros((0, bsdf_kernel.TREE.width), np.float32)
+        out = np.zeros((0, self._tree_width), np.float32)
         for index, material in self._trees:
             picked = picks[:rows_on_material(geom, self._geom_material, index, picks)].copy()
             if not len(picked):
                 continue
             if hit_parameters is None:
                 raise ValueError("hits on a mix holding a mix need hit_parameters")
-            if not len(out):
-                out = np.zeros((len(rows), bsdf_kernel.TREE.width), np.float32)
             table = bsdf_kernel.tree_rows(material, hit_parameters(picked), len(picked), self.bsdf_tables)
             assert table is not None  # material_rows' probe: covered at every hit
-            out[picked] = table
+            if len(picked) == len(rows) and table.shape[1] == self._tree_width:  # every hit, in order
+                return table
+            if not len(out):
+                out = np.zeros((len(rows), self._tree_width), np.float32)
+            out[picked, :table.shape[1]] = table
         return out
 
     def _albedo(self, rows: np.ndarray, direction: np.ndarray, hits: Hits, depth: int, spectral: bool) -> np.ndarray:

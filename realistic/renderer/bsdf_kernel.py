@@ -85,9 +85,10 @@ MAX_LOBES = 8
 #: One hit's mix holding a mix (the fused bounce's, ``tree_rows``): ``nodes`` mixes, root first and
 #: each mix before the mixes it holds (pre-order), each with its ``amount`` (clipped to [0, 1] as
 #: ``bsdf_for`` clips it) and its ``first`` and ``second`` material: a mix's index, or -1 - k for
-#: leaf k, whose ``LOBE`` row is the k-th of ``lobes`` (``MAX_LOBES`` rows; unused ones zero).
+#: leaf k, whose ``LOBE`` row is the k-th of the tail's ``lobes`` (one per leaf, at most
+#: ``MAX_LOBES``; a row is ``TREE.width`` + leaves x ``LOBE.width`` floats, ``tree_width``).
 TREE = Table("BSDF_TREE", np.float32, (("nodes", 1), ("amount", MAX_LOBES - 1), ("first", MAX_LOBES - 1),
-                                       ("second", MAX_LOBES - 1), ("lobes", MAX_LOBES * LOBE.width)))
+                                       ("second", MAX_LOBES - 1)), tail="lobes")
 KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
          "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor", "diffuse_transmission",
          "merl")
@@ -227,20 +228,27 @@ def holds_mix(material: SurfaceMaterial) -> TypeGuard[Mix]:
     return isinstance(material, Mix) and (isinstance(material.first, Mix) or isinstance(material.second, Mix))
 
 
-def _leaf_count(material: SurfaceMaterial) -> int:
+def leaf_count(material: SurfaceMaterial) -> int:
     """The materials that are not mixes in ``material``'s mix tree (1 for a material not a mix)."""
-    return _leaf_count(material.first) + _leaf_count(material.second) if isinstance(material, Mix) else 1
+    return leaf_count(material.first) + leaf_count(material.second) if isinstance(material, Mix) else 1
+
+
+def tree_width(leaves: int) -> int:
+    """Floats in a ``TREE`` row of ``leaves`` lobes."""
+    return TREE.width + leaves * LOBE.width
 
 
 def tree_rows(material: Mix, hits: HitParameters, count: int, tables: TableStore) -> np.ndarray | None:
-    """``count`` ``TREE`` rows of a mix holding a mix at ``hits`` (the fused bounce reads one per hit:
-    ``BounceKernel._hit_trees``), or None where it has more than ``MAX_LOBES`` leaves or the kernel
-    does not cover one of them. Each leaf's lobe is looked up at ``hits`` as ``parameters`` looks a
-    material up (spectral rays' colours repeated); each mix's amount is clipped as ``bsdf_for`` clips
-    it. The kernel then evaluates and samples the tree as ``bsdf_for``'s nested ``WeightedSum``s do."""
-    if _leaf_count(material) > MAX_LOBES:
+    """``count`` ``TREE`` rows (``tree_width`` of its leaves wide) of a mix holding a mix at ``hits``
+    (the fused bounce reads one per hit: ``BounceKernel._hit_trees``), or None where it has more than
+    ``MAX_LOBES`` leaves or the kernel does not cover one of them. Each leaf's lobe is looked up at
+    ``hits`` as ``parameters`` looks a material up (spectral rays' colours repeated); each mix's amount
+    is clipped as ``bsdf_for`` clips it. The kernel then evaluates and samples the tree as
+    ``bsdf_for``'s nested ``WeightedSum``s do."""
+    leaves = leaf_count(material)
+    if leaves > MAX_LOBES:
         return None
-    rows = np.zeros((count, TREE.width), np.float32)
+    rows = np.zeros((count, tree_width(leaves)), np.float32)
     lobes: list[Columns] = []
     mixes: list[Mix] = []
 
@@ -265,9 +273,8 @@ def tree_rows(material: Mix, hits: HitParameters, count: int, tables: TableStore
     if place(material) is None:
         return None
     rows[:, TREE.offset("nodes")] = len(mixes)
-    start = TREE.offset("lobes")
     for k, lobe in enumerate(lobes):
-        rows[:, start + k * LOBE.width:start + (k + 1) * LOBE.width] = _rows(count, lobe, LOBE.width)
+        rows[:, tree_width(k):tree_width(k + 1)] = _rows(count, lobe, LOBE.width)
     return rows
 
 
