@@ -1,7 +1,7 @@
 """Textured-parameters benchmark: a pbrt-v4 scene of textured roughness and mix amount, path traced, two trees.
 
     .venv/bin/python bench/textured_params.py [--against ../old] [--rounds 3] [--res 300x200] [--spp 16]
-        [--dispersion] [--scene params|mixes]
+        [--dispersion] [--scene params|mixes|nested] [--images]
 
 The fused bounce kernel (``kernels/bounce.cl``) first took a material only when every parameter but its
 diffuse-like colour was constant: a textured roughness or a textured mix amount sent every hit on that
@@ -12,13 +12,19 @@ roughness and a rough glass sphere, under a distant light and a constant sky, wi
 (maxdepth 5). ``--scene mixes`` swaps the floor and spheres for mixes whose second material is textured
 (``MIXES``), which the fused bounce first sent to numpy: a floor mixing two image-textured materials,
 spheres of a matte and a conductor of checkerboard roughness under a checkerboard amount, and one of a
-conductor and an image-textured coateddiffuse (no glass). Each is rendered by ``python -m realistic
+conductor and an image-textured coateddiffuse (no glass). ``--scene nested`` makes them pbrt-v4 mixes
+holding mixes (``NESTED``), which the fused bounce first sent to numpy: a floor mixing (a mix of a matte
+and a rough conductor under a checkerboard amount) and an image-textured coateddiffuse under a constant
+amount, spheres three levels deep, and one of (a mix of a matte and a conductor) and glass. ``--images``
+also renders the scene once more per tree and once with ``--backend numpy`` (this tree, the reference
+shading), all at the same seed, and prints each image's mean and max absolute difference from the
+numpy one. Each is rendered by ``python -m realistic
 render`` in a fresh process (``bench/seed.py``'s ``render``: CPU-seconds of the process, user + system,
 and wall), the trees alternating for ``--rounds`` rounds after one untimed small render each (kernels
 and tables built and cached). ``--dispersion`` renders through the dgauss lens with dispersion on
 (spectral rays). Prints the median CPU-seconds and wall per tree and the ratio other / this, the CPU and
-the load average; writes bench/results/textured_params.json (textured_params_mixes.json for ``--scene
-mixes``).
+the load average; writes bench/results/textured_params.json (textured_params_<scene>.json for the
+other scenes).
 """
 
 from __future__ import annotations
@@ -39,7 +45,7 @@ sys.path.insert(0, str(ROOT / "bench"))  # first already when run as a script; n
 import numpy as np  # noqa: E402
 
 import machine  # noqa: E402
-from realistic.core.image_files import write_exr  # noqa: E402
+from realistic.core.image_files import read_exr, write_exr  # noqa: E402
 from seed import render  # noqa: E402
 
 #: The image textures of the ``mixes`` scene (``write_textures``): name -> (H, W, 3) linear RGB, a
@@ -60,6 +66,23 @@ MIXES = [
     'MakeNamedMaterial "floor" "string type" "mix" "string materials" ["grain" "glaze"] "float amount" [0.4]',
     'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["matte" "metal"] "texture amount" "amount"',
     'MakeNamedMaterial "glazed metal" "string type" "mix" "string materials" ["metal" "glaze"] "float amount" [0.5]']
+
+#: The ``nested`` scene's materials (its textures: ``MIXES``' two images and the head's checkerboards):
+#: pbrt-v4 mixes holding mixes, textured amounts and lobes at both levels.
+NESTED = [
+    *MIXES[:2],
+    'MakeNamedMaterial "matte" "string type" "diffuse" "rgb reflectance" [0.7 0.3 0.2]',
+    'MakeNamedMaterial "metal" "string type" "conductor" "texture roughness" "rough"',
+    'MakeNamedMaterial "glaze" "string type" "coateddiffuse" "texture reflectance" "tiles" "float roughness" [0.1]',
+    'MakeNamedMaterial "grain" "string type" "diffuse" "texture reflectance" "wood"',
+    'MakeNamedMaterial "glass" "string type" "dielectric"',
+    'MakeNamedMaterial "worn" "string type" "mix" "string materials" ["matte" "metal"] "texture amount" "amount"',
+    'MakeNamedMaterial "floor" "string type" "mix" "string materials" ["worn" "glaze"] "float amount" [0.4]',
+    'MakeNamedMaterial "grained" "string type" "mix" "string materials" ["worn" "grain"] "float amount" [0.3]',
+    'MakeNamedMaterial "glazed" "string type" "mix" "string materials" ["glaze" "metal"] "float amount" [0.5]',
+    'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["grained" "glazed"] "texture amount" "amount"',
+    'MakeNamedMaterial "scuffed" "string type" "mix" "string materials" ["matte" "metal"] "float amount" [0.5]',
+    'MakeNamedMaterial "glassy" "string type" "mix" "string materials" ["scuffed" "glass"] "float amount" [0.5]']
 
 
 def objects(floor: str, small: str) -> list[str]:
@@ -100,6 +123,8 @@ def scene_text(res: str, spp: int, scene: str = "params") -> str:
         '"float tex2" [0.85]']
     if scene == "mixes":
         return "\n".join(head + MIXES + objects('NamedMaterial "floor"', 'NamedMaterial "glazed metal"')) + "\n"
+    if scene == "nested":
+        return "\n".join(head + NESTED + objects('NamedMaterial "floor"', 'NamedMaterial "glassy"')) + "\n"
     return "\n".join(head + [
         'MakeNamedMaterial "matte" "string type" "diffuse" "rgb reflectance" [0.7 0.3 0.2]',
         'MakeNamedMaterial "metal" "string type" "conductor" "float roughness" [0.1]',
@@ -110,6 +135,24 @@ def scene_text(res: str, spp: int, scene: str = "params") -> str:
         'Shape "sphere" "float radius" [0.25]', 'AttributeEnd']) + "\n"
 
 
+def compare_images(trees: dict[str, Path], scene: Path, lens: list[str], work: Path
+                   ) -> dict[str, tuple[float, float, float]]:
+    """Per tree: the mean and max absolute difference of its render of ``scene`` from this tree's
+    ``--backend numpy`` render (the same seed), and that image's mean."""
+    reference = None
+    images = {}
+    for name, tree in {"numpy": trees["this"], **trees}.items():
+        render(tree, scene, [*lens, "--seed", "1"] + (["--backend", "numpy"] if name == "numpy" else []),
+               work / f"cache-{'this' if name == 'numpy' else name}", work)
+        image = read_exr(work / "out.exr")[0].astype(np.float64)
+        if reference is None:
+            reference = image
+        else:
+            difference = np.abs(image - reference)
+            images[name] = float(difference.mean()), float(difference.max()), float(reference.mean())
+    return images
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--against", type=Path, help="the other tree (a checkout of this project)")
@@ -118,8 +161,11 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=16, help="samples per pixel (default 16)")
     parser.add_argument("--dispersion", action="store_true",
                         help="through the dgauss lens with dispersion on (spectral rays)")
-    parser.add_argument("--scene", choices=("params", "mixes"), default="params",
-                        help="params: textured roughness and amount (default); mixes: textured second materials")
+    parser.add_argument("--scene", choices=("params", "mixes", "nested"), default="params",
+                        help="params: textured roughness and amount (default); mixes: textured second materials; "
+                             "nested: mixes holding mixes")
+    parser.add_argument("--images", action="store_true",
+                        help="also each tree's image against the numpy backend's (mean, max abs difference)")
     args = parser.parse_args()
     trees = {"this": ROOT} if args.against is None else {"other": args.against.resolve(), "this": ROOT}
     lens = ["--lens", "dgauss", "--dispersion", "on"] if args.dispersion else []
@@ -128,13 +174,14 @@ def main() -> None:
         work = Path(temporary)
         scene = work / "textured.pbrt"
         scene.write_text(scene_text(args.res, args.spp, args.scene))
-        if args.scene == "mixes":
+        if args.scene != "params":
             write_textures(work)
         for name, tree in trees.items():  # untimed: kernels built, tables cached
             render(tree, scene, ["--res", "16x12", "--spp", "1", *lens], work / f"cache-{name}", work)
         for _ in range(args.rounds):
             for name, tree in trees.items():
                 runs[name].append(render(tree, scene, lens, work / f"cache-{name}", work))
+        images = compare_images(trees, scene, lens, work) if args.images else {}
     row: dict[str, Any] = {name: {"cpu_s": [v[0] for v in values], "wall_s": [v[1] for v in values],
                                   "median_cpu_s": statistics.median(v[0] for v in values),
                                   "median_wall_s": statistics.median(v[1] for v in values)}
@@ -150,6 +197,8 @@ def main() -> None:
               + " ".join(f"{v:.2f}" for v in row[name]["cpu_s"]))
     if "other" in row:
         print(f"other/this CPU-s: {row['other_over_this_cpu']:.2f}")
+    for name, (mean, top, reference) in images.items():
+        print(f"{name} against numpy: mean abs difference {mean:.3g}, max {top:.3g} (numpy image mean {reference:.4g})")
     print(f"cpu: {machine.describe()}; load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
     out = ROOT / "bench" / "results" / ("textured_params.json" if args.scene == "params"
                                         else f"textured_params_{args.scene}.json")
@@ -157,7 +206,10 @@ def main() -> None:
     out.write_text(json.dumps({"cpu": machine.describe(), "load_average": load, "scene": args.scene,
                                "res": args.res, "spp": args.spp,
                                "rounds": args.rounds, "dispersion": args.dispersion,
-                               "trees": {t: str(p) for t, p in trees.items()}, **row}, indent=1) + "\n")
+                               "trees": {t: str(p) for t, p in trees.items()}, **row,
+                               "against_numpy": {name: {"mean_abs": mean, "max_abs": top, "numpy_mean": reference}
+                                                 for name, (mean, top, reference) in images.items()}},
+                              indent=1) + "\n")
     print(f"wrote {out}")
 
 

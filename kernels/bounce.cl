@@ -15,7 +15,11 @@
  *     hit's own row (`hit_params`, row i: the host looked every parameter up at the hit, for
  *     spectral rays at its wavelength, as BounceKernel._hit_rows says) and, where second_per_hit
  *     says so (a mix's textured second material), the hit's own second lobe (`hit_second`, row i of
- *     BOUNCE_LOBE_WIDTH floats, made likewise) in place of the tables' one, its diffuse-like colour
+ *     BOUNCE_LOBE_WIDTH floats, made likewise) in place of the tables' one, or where its `tree` says
+ *     so (a mix holding a mix) the hit's own BSDF_TREE row (`hit_tree`, row i of tree_width floats,
+ *     as many lobes as the scene's largest tree has, made likewise: its lobes at the hit, spectral
+ *     rays' at their wavelength), which is then the hit's BSDF (bsdf.cl's tree_eval and
+ *     tree_sample), its diffuse-like colour
  *     (a Material's, plastic's or substrate's diffuse, a coated diffuse's reflectance) times a grid
  *     or checker texture at the interpolated uv (realistic.scene.textures.evaluate) where
  *     BOUNCE_MATERIAL says so, or, for
@@ -241,7 +245,8 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
                      __global const float *tfar, __global const float *hit_u, __global const float *hit_v,
                      __global const int *prim, __global const int *geom, __global const float *ng_in,
                      __global const float *beta_in, __global const float *albedo, __global const float *basis,
-                     __global const float *hit_params, __global const float *hit_second,
+                     __global const float *hit_params, __global const float *hit_second, __global const float *hit_tree,
+                     uint tree_width,
                      __global const int *faces, __global const float *normals, __global const float *uvs,
                      __global const int *geom_ints, __global const float *geom_floats,
                      __global const float *params, __global const float *materials,
@@ -299,6 +304,7 @@ __kernel void bounce(uint m, uint light_samples, uint depth, uint seed, uint mod
     Params p = load_params(per_hit ? hit_params + (size_t)BSDF_PARAM_WIDTH * i : params + BSDF_PARAM_WIDTH * material,
                            tables);
     if (second_per_hit && p.amount > 0.0f) p.lobe[1] = load_lobe(hit_second + (size_t)BOUNCE_LOBE_WIDTH * i, tables);
+    if (mat[BOUNCE_MATERIAL_TREE] != 0.0f) p.tree = hit_tree + (size_t)tree_width * i;
     int texture = (int)mat[BOUNCE_MATERIAL_TEXTURE];
     float3 texel = (float3)(1.0f);
     if (texture == BOUNCE_TEXTURE_IMAGE) {

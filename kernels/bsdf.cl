@@ -47,10 +47,14 @@ typedef struct {
 } Lobe;
 
 /* A hit's BSDF: its first lobe alone where amount is 0, else (1 - amount) first + amount second
- * (mix.WeightedSum with lobe chances 1 - amount and amount); lobe[1] is lobe[0] where amount is 0. */
+ * (mix.WeightedSum with lobe chances 1 - amount and amount); lobe[1] is lobe[0] where amount is 0.
+ * Where `tree` is not 0 (a mix holding a mix: kernels/bounce.cl sets it), the BSDF is that BSDF_TREE
+ * row instead (tree_eval, tree_sample), its lobes' tables in `tables`. */
 typedef struct {
     Lobe lobe[2];
     float amount;
+    __global const float *tree;
+    __global const float *tables;
 } Params;
 
 inline Lobe load_lobe(__global const float *row, __global const float *tables) {
@@ -80,6 +84,8 @@ inline Params load_params(__global const float *row, __global const float *table
     p.amount = row[BSDF_PARAM_AMOUNT];
     p.lobe[1] = p.amount > 0.0f ? load_lobe(tables + (size_t)row[BSDF_PARAM_SECOND] * BSDF_TABLE_ALIGN, tables)
                                 : p.lobe[0];
+    p.tree = 0;
+    p.tables = tables;
     return p;
 }
 
@@ -443,14 +449,54 @@ inline float3 lobe_eval(const Lobe *p, float3 wo, float3 wi, float *pdf) {
 }
 
 /* A mix's lobe chances (mix.WeightedSum.chances): 1 - amount and amount, normalised. */
-inline float2 mix_chances(const Params *p) {
-    float2 c = (float2)(1.0f - p->amount, p->amount);
+inline float2 amount_chances(float amount) {
+    float2 c = (float2)(1.0f - amount, amount);
     float total = c.x + c.y;
     return total > 0.0f ? c / total : (float2)(0.5f);
 }
 
+inline float2 mix_chances(const Params *p) { return amount_chances(p->amount); }
+
+/* Leaf k of a BSDF_TREE row. */
+inline Lobe tree_lobe(__global const float *tree, int k, __global const float *tables) {
+    return load_lobe(tree + BSDF_TREE_LOBES + (size_t)k * BSDF_LOBE_WIDTH, tables);
+}
+
+/* f(wo, wi) and the sampling pdf of wi of a mix holding a mix (a BSDF_TREE row), as bsdf_for's nested
+ * mix.WeightedSum gives them: each mix (1 - amount) f_first + amount f_second and chances c_first
+ * pdf_first + c_second pdf_second (amount_chances), its materials' first, the last mix first (each
+ * mix's materials come after it); node_pdf[n]: mix n's pdf, which tree_sample's validity reads. */
+inline float3 tree_eval(__global const float *tree, __global const float *tables, float3 wo, float3 wi, float *pdf,
+                        float *node_pdf) {
+    float3 node_f[BSDF_MAX_LOBES - 1];
+    for (int n = (int)tree[BSDF_TREE_NODES] - 1; n >= 0; n--) {
+        float3 f[2];
+        float part_pdf[2];
+        for (int side = 0; side < 2; side++) {
+            int code = (int)tree[(side ? BSDF_TREE_SECOND : BSDF_TREE_FIRST) + n];
+            if (code >= 0) {
+                f[side] = node_f[code];
+                part_pdf[side] = node_pdf[code];
+            } else {
+                Lobe lobe = tree_lobe(tree, -1 - code, tables);
+                f[side] = lobe_eval(&lobe, wo, wi, &part_pdf[side]);
+            }
+        }
+        float amount = tree[BSDF_TREE_AMOUNT + n];
+        float2 c = amount_chances(amount);
+        node_pdf[n] = c.x * part_pdf[0] + c.y * part_pdf[1];
+        node_f[n] = (1.0f - amount) * f[0] + amount * f[1];
+    }
+    *pdf = node_pdf[0];
+    return node_f[0];
+}
+
 /* f(wo, wi) and the sampling pdf of wi. */
 inline float3 bsdf_eval(const Params *p, float3 wo, float3 wi, float *pdf) {
+    if (p->tree) {
+        float node_pdf[BSDF_MAX_LOBES - 1];
+        return tree_eval(p->tree, p->tables, wo, wi, pdf, node_pdf);
+    }
     if (!(p->amount > 0.0f)) return lobe_eval(&p->lobe[0], wo, wi, pdf);
     float pdf0, pdf1;
     float2 c = mix_chances(p);
@@ -570,12 +616,55 @@ inline float3 lobe_sample(const Lobe *p, float3 wo, float u0, float u1, float ul
     return wi;
 }
 
+/* A mix holding a mix's BSDF sample (a BSDF_TREE row), as bsdf_for's nested mix.WeightedSum.sample
+ * draws it: from the root down, each mix picks its first or second material with u_lobe and hands it
+ * u_lobe rescaled within its share, down to a lobe, which samples with what is left of it; the value
+ * and pdf are then the whole tree's (tree_eval), or for a specular sample the lobe's times each mix's
+ * weight and chance on the way, the innermost first; valid where the lobe's sample is and each mix's
+ * pdf on the way (of the sampled direction, or for a specular sample its product so far) is positive,
+ * as each WeightedSum.sample checks its own. */
+inline float3 tree_sample(const Params *p, float3 wo, float u0, float u1, float ul, float3 *value, float *pdf,
+                          int *flags) {
+    __global const float *tree = p->tree;
+    int on_the_way[BSDF_MAX_LOBES - 1];
+    float weight[BSDF_MAX_LOBES - 1], chance_of[BSDF_MAX_LOBES - 1];
+    int levels = 0, code = 0;
+    while (code >= 0 && levels < BSDF_MAX_LOBES - 1) {
+        float amount = tree[BSDF_TREE_AMOUNT + code];
+        float2 c = amount_chances(amount);
+        int second = ul >= c.x;
+        float chance = second ? c.y : c.x, start = second ? (c.x + c.y) - c.y : 0.0f;  /* numpy's cumsum - chance */
+        ul = clamp((ul - start) / fmax(chance, 1e-12f), 0.0f, 1.0f - 1e-7f);
+        on_the_way[levels] = code;
+        weight[levels] = second ? amount : 1.0f - amount;
+        chance_of[levels++] = chance;
+        code = (int)tree[(second ? BSDF_TREE_SECOND : BSDF_TREE_FIRST) + code];
+    }
+    Lobe lobe = tree_lobe(tree, -1 - code, p->tables);
+    int specular, valid;
+    float3 wi = lobe_sample(&lobe, wo, u0, u1, ul, value, pdf, &specular, &valid);
+    if (specular) {
+        for (int k = levels - 1; k >= 0; k--) {
+            *value = weight[k] * *value;
+            *pdf = chance_of[k] * *pdf;
+            valid = valid && *pdf > 0.0f;
+        }
+    } else {
+        float node_pdf[BSDF_MAX_LOBES - 1];
+        *value = tree_eval(tree, p->tables, wo, wi, pdf, node_pdf);
+        for (int k = 0; k < levels; k++) valid = valid && node_pdf[on_the_way[k]] > 0.0f;
+    }
+    *flags = specular | (valid << 1);
+    return wi;
+}
+
 /* The BSDF sample: a mix picks its lobe with u_lobe and hands the lobe u_lobe rescaled within its
  * share (mix.WeightedSum.sample); the value and pdf are then the whole mix's, or for a specular
  * sample the lobe's times its weight and chance. flags: bit 0 specular, bit 1 valid. The bsdf kernel
  * below and kernels/bounce.cl (the path integrator's fused bounce) both draw through it. */
 inline float3 bsdf_sample(const Params *p, float3 wo, float u0, float u1, float ul, float3 *value, float *pdf,
                           int *flags) {
+    if (p->tree) return tree_sample(p, wo, u0, u1, ul, value, pdf, flags);
     int specular, valid;
     float3 wi;
     if (!(p->amount > 0.0f)) {

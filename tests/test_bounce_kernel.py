@@ -54,7 +54,7 @@ from realistic.renderer.bounce_kernel import (  # noqa: E402
     header,
     material_rows,
 )
-from realistic.renderer.bsdf_kernel import TableStore  # noqa: E402
+from realistic.renderer.bsdf_kernel import MAX_LOBES, TableStore  # noqa: E402
 
 N = 6000
 
@@ -157,7 +157,8 @@ def test_covered_materials():
     plastic's or substrate's Kd, a coated diffuse's reflectance, each in the material's row. Other
     textured parameters (roughness, a specular colour, a mirror's or glass's tints, a conductor's
     scale, a mix's amount) are covered by per-hit rows (``per_hit``), a mix's textured second material
-    by per-hit second lobes too (``second_per_hit``); a mix holding a mix is not covered."""
+    by per-hit second lobes too (``second_per_hit``); a mix holding a mix by per-hit trees (``tree``,
+    ``tests/test_mix_trees.py``) up to ``MAX_LOBES`` lobes, not beyond."""
     tables = TableStore(Device.for_spec())
     for material in (*COVERED.values(), *TEXTURED.values()):
         assert material_rows(material, tables) is not None
@@ -185,8 +186,18 @@ def test_covered_materials():
         assert rows is not None and rows[1][MATERIALS.offset("second_per_hit")] == 1, second
     for covered in (*COVERED.values(), *TEXTURED.values()):
         assert material_rows(covered, tables)[1][MATERIALS.offset("second_per_hit")] == 0
-    assert material_rows(Mix(Material(), Mix(Material(), Plastic(image)), 0.5), tables) is None
-    assert material_rows(Mix(Mix(Material(), Plastic()), Material(), 0.5), tables) is None
+    for nested in (Mix(Material(), Mix(Material(), Plastic(image)), 0.5),
+                   Mix(Mix(Material(), Plastic()), Material(), 0.5)):
+        assert material_rows(nested, tables)[1][MATERIALS.offset("tree")] == 1
+    assert material_rows(_beyond_max_lobes(Plastic(image)), tables) is None
+
+
+def _beyond_max_lobes(material) -> Mix:
+    """A mix tree of ``MAX_LOBES`` + 1 lobes, ``material`` the deepest: more than the kernel takes."""
+    tree = material
+    for k in range(MAX_LOBES):
+        tree = Mix(Material((0.3 + 0.05 * k, 0.5, 0.4)), tree, 0.8)
+    return tree
 
 
 #: An image of 64 x 32 texels with little symmetry, for the image-textured materials.
@@ -484,15 +495,15 @@ def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegr
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad,
-    plastic and diffuse transmission in the kernel and the floor, a mix holding a mix (the one
-    material the kernel lacks) of a plastic whose Ks is an image texture, in numpy: each ray's
-    radiance is the numpy backend's to float32 rounding (a path may only part where rounding moves a
-    sample across a threshold)."""
+    plastic and diffuse transmission in the kernel and the floor, a mix tree of more lobes than
+    ``MAX_LOBES`` (the one material the kernel lacks) holding a plastic whose Ks is an image texture,
+    in numpy: each ray's radiance is the numpy backend's to float32 rounding (a path may only part
+    where rounding moves a sample across a threshold)."""
     scene, _, _ = textured_scene()
     floor = scene.instances[0].material
     specular = ScaledTexture(floor.texture, (0.3, 0.3, 0.3))
-    inner = Mix(Material((0.5, 0.4, 0.3)), Plastic((0.5, 0.4, 0.3), specular, 0.2), 0.5)
-    scene.instances[0] = replace(scene.instances[0], material=Mix(Material((0.3, 0.5, 0.4)), inner, 0.8))
+    scene.instances[0] = replace(scene.instances[0],
+                                 material=_beyond_max_lobes(Plastic((0.5, 0.4, 0.3), specular, 0.2)))
     materials = [None, Dielectric(1.5), Conductor(roughness_u=0.2, roughness_v=0.05), Material((0.3, 0.6, 0.9),
                                                                                              sigma=20.0)]
     scene.instances = [inst if m is None else replace(inst, material=m) for inst, m in zip(scene.instances, materials)]

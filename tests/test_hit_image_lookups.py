@@ -30,6 +30,8 @@ from test_shading_reference import textured_scene
 pytest.importorskip("realistic.camera.opencl_host")
 pytestmark = pytest.mark.usefixtures("opencl_platform")
 
+from realistic.renderer.bsdf_kernel import MAX_LOBES  # noqa: E402
+
 FILTERS = ("ewa", "bilinear", "point", "trilinear")
 #: An image and a roughness image of little symmetry (roughness in [0.02, 0.5]).
 IMAGE = np.random.default_rng(21).random((32, 64, 3)).astype(np.float32)
@@ -74,15 +76,23 @@ def test_device_lookups_are_the_numpy_references(texture_filter, wrap, with_foot
 def _materials(texture_filter: str) -> list:
     """Per-hit materials with image textures under ``texture_filter``: a plastic of image roughness,
     one of image ``Ks`` (scaled), a mix of a Lambertian and a conductor of image roughness (a textured
-    second material) and a mix holding a mix with an image-textured plastic (``_shade``'s numpy bounce)."""
+    second material) and a mix tree of more lobes than the fused bounce takes (``MAX_LOBES``) holding
+    an image-textured plastic (``_shade``'s numpy bounce)."""
     rough = ImageTexture(ROUGH, scale=(3.0, 2.0), filter=texture_filter, max_anisotropy=4.0)
     image = ImageTexture(IMAGE, scale=(2.0, 3.0), v_origin="top", filter=texture_filter)
     conductor = Conductor(roughness_u=rough, roughness_v=replace(rough, scale=(2.0, 2.0)))
     inner = Mix(Material((0.5, 0.4, 0.3)), Plastic((0.5, 0.4, 0.3), ScaledTexture(image, (0.3, 0.3, 0.3)), rough), 0.5)
     return [Plastic((0.5, 0.3, 0.2), (0.4, 0.4, 0.4), rough),
             Plastic((0.5, 0.3, 0.2), ScaledTexture(image, (0.4, 0.4, 0.4)), 0.2),
-            Mix(Material((0.7, 0.6, 0.5)), conductor, 0.7),
-            Mix(Material((0.3, 0.5, 0.4)), inner, 0.8)]
+            Mix(Material((0.7, 0.6, 0.5)), conductor, 0.7), _beyond_max_lobes(inner)]
+
+
+def _beyond_max_lobes(inner: Mix) -> Mix:
+    """``inner`` (two lobes) held by ``MAX_LOBES`` - 1 mixes, each with a Lambertian: ``MAX_LOBES`` + 1 lobes."""
+    tree = inner
+    for k in range(MAX_LOBES - 1):
+        tree = Mix(Material((0.3, 0.5, 0.4 + 0.05 * k)), tree, 0.8)
+    return tree
 
 
 def _scene(texture_filter: str) -> Scene:

@@ -20,7 +20,9 @@ hit's ``BSDF_PARAMS`` row on the host before the launch (``_hit_rows``: ``bsdf_k
 with ``PathIntegrator._hit_parameters``, the lookups ``_shade`` makes, footprints included), which the
 kernel reads in place of the material's row; a mix's textured second material (``second_per_hit``)
 likewise gives each hit its own second ``LOBE`` row (``bsdf_kernel.mix_rows``), read in place of the
-tables' one. Everything else of the bounce stays in the kernel. An
+tables' one; a mix holding a mix (``tree``) gives each hit its whole BSDF as a ``bsdf_kernel.TREE``
+row, its lobes and amounts looked up likewise (``_hit_trees``). Everything else of the bounce stays
+in the kernel. An
 environment map's sampling tables (its ``Distribution2D``) and texels, and an emitting mesh's world
 triangles and their area CDF (``light_sampler.Emitter``'s, which the scene's mesh-space device tables
 cannot stand for: they lack the instance's transform and the CDF), share one device buffer; a light
@@ -41,7 +43,7 @@ tables, is turned in the kernel. Glass indices are constants (no
 material's index varies with the wavelength in ``bsdf_for``). The host passes each camera ray's basis
 row, the very rows ``PathIntegrator.radiance`` colours its emission with (``shade.cl`` interpolates
 its basis from a table instead: its rays arrive as wavelengths alone).
-The rest (a mix holding a mix, which ``bsdf.cl``'s rows of at most two lobes lack) stays with
+The rest (a mix tree of more than ``bsdf_kernel.MAX_LOBES`` lobes) stays with
 ``PathIntegrator._shade``, the numpy reference
 (``tests/test_bounce_kernel.py`` compares the two per hit with the same random numbers, RGB and
 spectral). The program is the BSDF kernel's source with this one after it, so both share
@@ -90,9 +92,11 @@ KERNEL_FILE = "bounce.cl"
 #: the host (``BounceKernel._hit_rows``; the material's own row and texture are then unused);
 #: ``second_per_hit`` 1 (a mix whose second material is textured, ``per_hit`` too): so does each hit's
 #: second lobe, a ``bsdf_kernel.LOBE`` row (``BOUNCE_LOBE_WIDTH`` floats) in place of the tables' one.
+#: ``tree`` 1 (a mix holding a mix): each hit's BSDF is its own ``bsdf_kernel.TREE`` row from the host
+#: (``BounceKernel._hit_trees``); the material's ``BSDF_PARAMS`` row (zero) and texture are unused.
 MATERIALS = Table("BOUNCE_MATERIAL", np.float32, (("texture", 1), ("cells", 1), ("low", 1), ("high", 1),
                                                   ("colour_a", 3), ("colour_b", 3), ("per_hit", 1),
-                                                  ("second_per_hit", 1)))
+                                                  ("second_per_hit", 1), ("tree", 1)))
 TEXTURES = ("none", "grid", "checker", "image")
 #: The textures the kernel evaluates (``diffuse_texture``).
 DeviceTexture = GridTexture | CheckerTexture | ImageTexture
@@ -203,14 +207,20 @@ def diffuse_texture(material: SurfaceMaterial) -> tuple[SurfaceMaterial, DeviceT
 
 
 def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> tuple[np.ndarray, np.ndarray] | None:
-    """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not
-    cover it (a kind ``bsdf.cl`` lacks, or a mix holding a mix); measured tables, named metals'
-    tables and mixes' constant second lobes go to ``tables``. Where the only texture is the
-    diffuse-like colour's grid, checker or image texture (``diffuse_texture``), the row holds that
-    colour's constant factor, which the kernel multiplies by the texture's colour per hit; where
-    another parameter is textured, the ``MATERIALS`` row says ``per_hit`` and the ``BSDF_PARAMS`` row
-    is zero (each hit's comes from ``BounceKernel._hit_rows``), and where a mix's second material is
-    textured it says ``second_per_hit`` too (each hit's second lobe comes from there as well)."""
+    """``material``'s ``BSDF_PARAMS`` row and ``MATERIALS`` row, or None where the kernel does not cover
+    it (a kind ``bsdf.cl`` lacks, or a mix tree of more than ``bsdf_kernel.MAX_LOBES`` lobes); measured
+    tables, named metals' tables and mixes' constant second lobes go to ``tables``. Where the only
+    texture is the diffuse-like colour's grid, checker or image texture (``diffuse_texture``), the row
+    holds that colour's constant factor, which the kernel multiplies by the texture's colour per hit;
+    where another parameter is textured, the ``MATERIALS`` row says ``per_hit`` and the ``BSDF_PARAMS``
+    row is zero (each hit's comes from ``BounceKernel._hit_rows``), and where a mix's second material is
+    textured it says ``second_per_hit`` too (each hit's second lobe comes from there as well). A mix
+    holding a mix (of at most ``bsdf_kernel.MAX_LOBES`` covered lobes) says ``tree``, its row zero: each
+    hit's ``TREE`` row comes from ``BounceKernel._hit_trees``, textured or not."""
+    if bsdf_kernel.holds_mix(material):
+        if bsdf_kernel.tree_rows(material, _AnyTexture(), 1, tables) is None:
+            return None
+        return np.zeros(bsdf_kernel.BSDF_PARAMS.width, np.float32), MATERIALS.pack(1, tree=1)[0]
     split = diffuse_texture(material)
     plain, texture = (material, None) if split is None else split[:2]
     try:
@@ -348,6 +358,11 @@ class BounceKernel:
         #: of those, the mixes whose second lobe comes per hit too (``second_per_hit``)
         self._second_per_hit = {k for k, r in enumerate(rows)
                                 if r is not None and r[1][MATERIALS.offset("second_per_hit")]}
+        #: the mixes holding a mix, whose hits take their own ``TREE`` rows (``_hit_trees``)
+        self._trees = [(k, m) for k, (m, r) in enumerate(zip(materials, rows))
+                       if r is not None and bsdf_kernel.holds_mix(m)]
+        #: the floats of each hit's ``TREE`` row: as many lobes as the largest tree's
+        self._tree_width = bsdf_kernel.tree_width(max((bsdf_kernel.leaf_count(m) for _, m in self._trees), default=0))
         #: per image-textured material covered: its index, EWA kernel, filter and ``hit_mapping`` rows
         #: at depth 0 (the pixel's footprint) and deeper (none: level 0 bilinear, as ``_shade``), each
         #: with the colour's constant factor (RGB rays: the albedo) and with 1 (spectral rays: the bare
@@ -430,17 +445,18 @@ class BounceKernel:
             queue, kernel = self._queue_and_kernel(spectral)
             albedo = self._albedo(rows, direction, hits, depth, spectral)
             hit_rows, hit_seconds = self._hit_rows(rows, hits, hit_parameters)
+            hit_trees = self._hit_trees(rows, hits, hit_parameters)
             inputs = [self.device.wrapped_buffer(a, dtype) for a, dtype in (
                 (rows, np.int32), (path, np.int32), (pixel, np.uint32), (sample, np.uint32), (origin, np.float32),
                 (direction, np.float32), (hits.t, np.float32), (hits.u, np.float32), (hits.v, np.float32),
                 (hits.prim, np.int32), (hits.geom, np.int32), (hits.normal, np.float32), (beta, np.float32),
                 (albedo, np.float32), (np.zeros(0) if basis is None else basis, np.float32),
-                (hit_rows, np.float32), (hit_seconds, np.float32))]
+                (hit_rows, np.float32), (hit_seconds, np.float32), (hit_trees, np.float32))]
             self.device.run_into(queue, kernel, (whole_groups(m),), (LOCAL_SIZE,),
                                  (np.uint32(m), np.uint32(lights), np.uint32(depth), np.uint32(seed & 0xFFFFFFFF),
                                   np.uint32(mode_flags), np.uint32(max_depth), self.offset_base,
-                                  np.int32(max(self.light_count, 1)), *inputs, *self._tables,
-                                  self.bsdf_tables.buffer),
+                                  np.int32(max(self.light_count, 1)), *inputs, np.uint32(self._tree_width),
+                                  *self._tables, self.bsdf_tables.buffer),
                                  (out.shadow_origin, out.shadow_vector, out.shadow_length, out.contribution,
                                   cone_light, out.origin, out.direction, out.beta, out.point, out.pdf, out.flags))
             self._meet_spheres(cone_light, out, m)
@@ -494,6 +510,28 @@ class BounceKernel:
                 assert table is not None  # material_rows' probe: covered at every hit
             out[picked] = table
         return out, seconds
+
+    def _hit_trees(self, rows: np.ndarray, hits: Hits, hit_parameters: Callable[[np.ndarray], HitParameters] | None
+                   ) -> np.ndarray:
+        """The ``TREE`` rows (m, ``_tree_width``) float32 of the hits ``rows`` on mixes holding a mix
+        (zero elsewhere, unread; none without such hits): ``bsdf_kernel.tree_rows`` at
+        ``hit_parameters(picked)``, the lookups ``_shade`` makes (spectral rays' at their wavelength)."""
+        geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
+        out = np.zeros((0, self._tree_width), np.float32)
+        for index, material in self._trees:
+            picked = picks[:rows_on_material(geom, self._geom_material, index, picks)].copy()
+            if not len(picked):
+                continue
+            if hit_parameters is None:
+                raise ValueError("hits on a mix holding a mix need hit_parameters")
+            table = bsdf_kernel.tree_rows(material, hit_parameters(picked), len(picked), self.bsdf_tables)
+            assert table is not None  # material_rows' probe: covered at every hit
+            if len(picked) == len(rows) and table.shape[1] == self._tree_width:  # every hit, in order
+                return table
+            if not len(out):
+                out = np.zeros((len(rows), self._tree_width), np.float32)
+            out[picked, :table.shape[1]] = table
+        return out
 
     def _albedo(self, rows: np.ndarray, direction: np.ndarray, hits: Hits, depth: int, spectral: bool) -> np.ndarray:
         """The albedo (m, 3) float32 of the hits ``rows`` on image-textured materials (zero elsewhere,

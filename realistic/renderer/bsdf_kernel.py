@@ -11,8 +11,10 @@ transmission, and a mix of two of those whose second is the same at every hit; t
 mixes' second lobes live in the kernel's ``TableStore``. Here, mixes holding a mix or a textured
 second material (or seen by spectral rays, whose second lobe varies with the wavelength) stay with
 the numpy BSDFs of ``renderer.bsdf``, which are the reference; the fused bounce takes the latter two
-(a textured second material's lobe from per-hit rows, ``mix_rows``), and only a mix holding a mix
-stays numpy there (``tests/test_bsdf_kernel.py`` and, for
+(a textured second material's lobe from per-hit rows, ``mix_rows``) and mixes holding a mix of up to
+``MAX_LOBES`` lobes (a ``TREE`` row per hit, ``tree_rows``, which ``bsdf.cl``'s ``tree_eval`` and
+``tree_sample`` read as ``bsdf_for``'s nested ``WeightedSum``s are evaluated and sampled); only a
+larger tree stays numpy there (``tests/test_bsdf_kernel.py``, ``tests/test_mix_trees.py`` and, for
 MERL tables, ``tests/test_merl_kernel.py`` compare the two). The host looks each parameter up at
 the hits as ``bsdf.factory.bsdf_for`` does (textures included) and packs one ``BSDF_PARAMS`` row
 per hit; the kernel takes the integrator's own uniform numbers, so both draw the same directions.
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import threading
 from functools import cached_property
+from typing import TypeGuard
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -76,6 +79,16 @@ LOBE = Table("BSDF_PARAM", np.float32, (("kind", 1), ("scale", 3), ("tint", 3), 
 #: material's ``LOBE`` row per hit from its own buffer instead). Mixes put their second lobe there so
 #: that every other row stays one lobe wide.
 BSDF_PARAMS = Table("BSDF_PARAM", np.float32, (*LOBE.fields, ("amount", 1), ("second", 1)))
+#: The most lobes (leaves) of a mix holding a mix that the fused bounce takes (``TREE``); a larger one
+#: stays with the numpy BSDFs.
+MAX_LOBES = 8
+#: One hit's mix holding a mix (the fused bounce's, ``tree_rows``): ``nodes`` mixes, root first and
+#: each mix before the mixes it holds (pre-order), each with its ``amount`` (clipped to [0, 1] as
+#: ``bsdf_for`` clips it) and its ``first`` and ``second`` material: a mix's index, or -1 - k for
+#: leaf k, whose ``LOBE`` row is the k-th of the tail's ``lobes`` (one per leaf, at most
+#: ``MAX_LOBES``; a row is ``TREE.width`` + leaves x ``LOBE.width`` floats, ``tree_width``).
+TREE = Table("BSDF_TREE", np.float32, (("nodes", 1), ("amount", MAX_LOBES - 1), ("first", MAX_LOBES - 1),
+                                       ("second", MAX_LOBES - 1)), tail="lobes")
 KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
          "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor", "diffuse_transmission",
          "merl")
@@ -83,7 +96,9 @@ KIND = {name: index for index, name in enumerate(KINDS)}
 #: Measured tables start at multiples of this many floats in ``TableStore``'s buffer, so a row holds a
 #: start divided by it, a whole number float32 keeps exactly.
 TABLE_ALIGN = 1024
-HEADER = (BSDF_PARAMS.defines() + constant_defines("KIND", KINDS) + f"#define SMOOTH_ALPHA {SMOOTH_ALPHA!r}f\n"
+HEADER = (BSDF_PARAMS.defines() + TREE.defines() + f"#define BSDF_LOBE_WIDTH {LOBE.width}\n"
+          + f"#define BSDF_MAX_LOBES {MAX_LOBES}\n" + constant_defines("KIND", KINDS)
+          + f"#define SMOOTH_ALPHA {SMOOTH_ALPHA!r}f\n"
           + f"#define BSDF_TABLE_ALIGN {TABLE_ALIGN}\n"
           + "".join(f"#define MERL_{axis} {count}\n"
                     for axis, count in zip(("THETA_H", "THETA_D", "PHI_D"), MERL_SHAPE)))
@@ -206,6 +221,61 @@ def mix_rows(material: Mix, hits: HitParameters, count: int, tables: TableStore,
     rows = _rows(count, first, BSDF_PARAMS.width)
     rows[:, BSDF_PARAMS.offset("amount")] = np.clip(scalar(hits, material.amount), 0.0, 1.0)
     return rows, _rows(second_count, second, LOBE.width)
+
+
+def holds_mix(material: SurfaceMaterial) -> TypeGuard[Mix]:
+    """Whether ``material`` is a mix one of whose materials is a mix (``tree_rows``' kind)."""
+    return isinstance(material, Mix) and (isinstance(material.first, Mix) or isinstance(material.second, Mix))
+
+
+def leaf_count(material: SurfaceMaterial) -> int:
+    """The materials that are not mixes in ``material``'s mix tree (1 for a material not a mix)."""
+    return leaf_count(material.first) + leaf_count(material.second) if isinstance(material, Mix) else 1
+
+
+def tree_width(leaves: int) -> int:
+    """Floats in a ``TREE`` row of ``leaves`` lobes."""
+    return TREE.width + leaves * LOBE.width
+
+
+def tree_rows(material: Mix, hits: HitParameters, count: int, tables: TableStore) -> np.ndarray | None:
+    """``count`` ``TREE`` rows (``tree_width`` of its leaves wide) of a mix holding a mix at ``hits``
+    (the fused bounce reads one per hit: ``BounceKernel._hit_trees``), or None where it has more than
+    ``MAX_LOBES`` leaves or the kernel does not cover one of them. Each leaf's lobe is looked up at
+    ``hits`` as ``parameters`` looks a material up (spectral rays' colours repeated); each mix's amount
+    is clipped as ``bsdf_for`` clips it. The kernel then evaluates and samples the tree as
+    ``bsdf_for``'s nested ``WeightedSum``s do."""
+    leaves = leaf_count(material)
+    if leaves > MAX_LOBES:
+        return None
+    rows = np.zeros((count, tree_width(leaves)), np.float32)
+    lobes: list[Columns] = []
+    mixes: list[Mix] = []
+
+    def place(part: SurfaceMaterial) -> int | None:
+        """``part``'s code (a mix's index, or -1 - k for leaf k), its columns filled in; None where not covered."""
+        if not isinstance(part, Mix):
+            lobe = _lobe(part, hits, count, tables)
+            if lobe is None:
+                return None
+            lobes.append(lobe)
+            return -len(lobes)
+        index = len(mixes)
+        mixes.append(part)
+        first, second = place(part.first), place(part.second)
+        if first is None or second is None:
+            return None
+        rows[:, TREE.offset("amount") + index] = np.clip(scalar(hits, part.amount), 0.0, 1.0)
+        rows[:, TREE.offset("first") + index] = first
+        rows[:, TREE.offset("second") + index] = second
+        return index
+
+    if place(material) is None:
+        return None
+    rows[:, TREE.offset("nodes")] = len(mixes)
+    for k, lobe in enumerate(lobes):
+        rows[:, tree_width(k):tree_width(k + 1)] = _rows(count, lobe, LOBE.width)
+    return rows
 
 
 def _rows(count: int, lobe: Columns, width: int) -> np.ndarray:

@@ -24,12 +24,13 @@ parameters, the diffuse-like colour of Lambertian, Oren-Nayar, plastic, coated d
 under a grid or checker texture, or under an image texture, which ``EwaKernel.at_hits`` filters
 on the device before the launch; any other textured parameter, such as roughness, Ks or a mix's
 amount or second material, looked up per hit with ``_hit_parameters``, its image textures filtered on
-the device too by the backend's ``image_lookup``) take the whole bounce in one launch of
+the device too by the backend's ``image_lookup``; a mix holding a mix, its whole tree looked up per hit
+likewise) take the whole bounce in one launch of
 ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights,
 shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral rays (a
 dispersive camera's) at the same hits, in the kernel's spectral build. The host keeps embree,
-emission and the compaction of live paths. Other hits (a mix holding a mix, which ``bsdf.cl``
-lacks) have the numpy bounce (``_shade``), with their BSDFs evaluated and
+emission and the compaction of live paths. Other hits (a mix tree of more than
+``bsdf_kernel.MAX_LOBES`` lobes) have the numpy bounce (``_shade``), with their BSDFs evaluated and
 sampled in ``kernels/bsdf.cl`` where it covers the material (the backend's ``bsdf_kernel``:
 ``bsdf_kernel.parameters`` says which), in one launch per bounce with the same random numbers; every other
 material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.

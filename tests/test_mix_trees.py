@@ -1,0 +1,134 @@
+"""Mixes holding mixes on the device: the fused bounce (``kernels/bounce.cl`` with ``bsdf.cl``'s
+``tree_eval`` and ``tree_sample``) against the numpy ``PathIntegrator._shade``, whose nested
+``WeightedSum``s (``bsdf_for``) are the reference: per hit with the same random numbers and whole
+paths that never reach ``_shade``, RGB and spectral, path and direct modes; constant and textured
+amounts and lobes at both levels, three levels deep. Each tree also shades apart from the same tree
+with its innermost mix's second lobe dropped, so a kernel that dropped a nested lobe (or weighed it
+wrongly) fails the comparison. A tree of more lobes than ``MAX_LOBES`` stays numpy, and a mix made of
+itself is a one-line ``UserError`` naming the material when the scene is read."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import realistic
+from realistic.errors import UserError
+from realistic.scene.materials import (
+    CoatedDiffuse,
+    Conductor,
+    Dielectric,
+    DiffuseTransmission,
+    Mirror,
+    Mix,
+    Plastic,
+    Substrate,
+)
+from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Material
+from test_bounce_kernel import IMAGE, ROUGH, SPREAD, _pair, _paths_agree, _shades_as_numpy
+from test_shading_reference import textured_scene
+
+pytest.importorskip("realistic.camera.opencl_host")
+pytestmark = pytest.mark.usefixtures("opencl_platform")
+
+from realistic.device.opencl import Device  # noqa: E402
+from realistic.renderer.bounce_kernel import MATERIALS, material_rows  # noqa: E402
+from realistic.renderer.bsdf_kernel import MAX_LOBES, TableStore  # noqa: E402
+
+#: A checkerboard amount (pbrt's "float" checkerboard: its channels' mean).
+CHECKER_AMOUNT = CheckerTexture(even=(0.15, 0.15, 0.15), odd=(0.85, 0.85, 0.85), cells=6.0)
+
+
+def _trees(inner_second: bool) -> dict[str, Mix]:
+    """The mixes holding mixes the tests shade; ``inner_second`` False: each with its innermost mix's
+    second material dropped (that mix replaced by its first), which must shade differently."""
+
+    def inner(first, second, amount) -> object:
+        return Mix(first, second, amount) if inner_second else first
+
+    return {
+        # pbrt-v4's nesting: a mix of (a mix of diffuse and a rough conductor) and glass
+        "mix of (diffuse + conductor) and glass": Mix(
+            inner(Material((0.7, 0.5, 0.3)), Conductor(roughness_u=0.1, roughness_v=0.2), 0.3), Dielectric(1.5), 0.4),
+        "textured amounts at both levels": Mix(
+            inner(Plastic((0.2, 0.5, 0.8), (0.3, 0.3, 0.3), 0.1), Conductor(roughness_u=0.05, roughness_v=0.05),
+                  CHECKER_AMOUNT),
+            CoatedDiffuse((0.9, 0.2, 0.4), 0.1), ImageTexture(IMAGE, scale=(2.0, 3.0))),
+        # the mix second, its lobes textured, under an image-textured Lambertian
+        "textured lobes in a second mix": Mix(
+            Material((0.9, 0.8, 0.7), ImageTexture(IMAGE, scale=(3.0, 2.0))),
+            inner(Conductor(roughness_u=ImageTexture(ROUGH, scale=(3.0, 2.0)), roughness_v=0.1),
+                  Dielectric(1.5, roughness_u=0.2, roughness_v=0.2), 0.5), 0.6),
+        # three levels: ((diffuse + substrate) + named metal) + (diffuse transmission + mirror), a grid amount
+        "three levels deep": Mix(
+            Mix(inner(Material((0.8, 0.3, 0.2)), Substrate((0.3, 0.5, 0.6), (0.1, 0.1, 0.1), 0.1, 0.2),
+                      GridTexture(base=(0.8, 0.8, 0.8), line=(0.2, 0.2, 0.2), cells=5.0, line_width=0.3)),
+                Conductor(roughness_u=0.2, roughness_v=0.2, spectra=("Cu", "Cu")), 0.35),
+            Mix(DiffuseTransmission((0.4, 0.5, 0.3), (0.3, 0.2, 0.4)), Mirror((0.8, 0.8, 0.9)), 0.3), 0.55)}
+
+
+TREES = _trees(True)
+DROPPED = _trees(False)
+
+
+def _chain(leaves: int) -> Mix:
+    """A mix of ``leaves`` Lambertian lobes, each mix holding the next."""
+    tree: object = Material((0.5, 0.5, 0.5))
+    for k in range(leaves - 1):
+        tree = Mix(Material((0.2 + 0.1 * (k % 7), 0.5, 0.4)), tree, 0.6)
+    assert isinstance(tree, Mix)
+    return tree
+
+
+def test_mixes_holding_mixes_are_the_kernels_with_per_hit_trees():
+    """Every tree above is the fused bounce's, each hit's tree from the host (``tree``, no other
+    per-hit row); so is a chain of ``MAX_LOBES`` lobes, while one more lobe stays numpy."""
+    tables = TableStore(Device.for_spec())
+    for tree in (*TREES.values(), _chain(MAX_LOBES)):
+        rows = material_rows(tree, tables)
+        assert rows is not None
+        assert rows[1][MATERIALS.offset("tree")] == 1
+        assert rows[1][MATERIALS.offset("per_hit")] == rows[1][MATERIALS.offset("second_per_hit")] == 0
+    assert material_rows(_chain(MAX_LOBES + 1), tables) is None
+    for plain in (Mix(Material(), Plastic(), 0.5), Plastic(), Mix(Material(), Plastic(), CHECKER_AMOUNT)):
+        assert material_rows(plain, tables)[1][MATERIALS.offset("tree")] == 0
+
+
+@pytest.mark.parametrize("name", sorted(TREES))
+@pytest.mark.parametrize("depth", [0, 2])
+@pytest.mark.parametrize("mode, mis, spectral", [("path", True, False), ("direct", False, False),
+                                                 ("path", True, True), ("direct", True, True)])
+def test_mix_trees_shade_each_hit_as_the_numpy_reference(name, depth, mode, mis, spectral):
+    """Per hit, with the same random numbers, RGB and spectral: light samples, next rays, beta, pdf
+    and flags as ``_shade``'s (``test_bounce_kernel._shades_as_numpy``); and the same tree with its
+    innermost mix's second lobe dropped shades the hits differently."""
+    seed = 500 + sorted(TREES).index(name)
+    got = _shades_as_numpy(TREES[name], depth, mode, mis, seed, spectral=spectral)
+    dropped = _shades_as_numpy(DROPPED[name], depth, mode, mis, seed, spectral=spectral)
+    apart = ~np.all(np.isclose(got.beta, dropped.beta, rtol=1e-3, atol=1e-6), axis=1) | (got.flags != dropped.flags)
+    assert apart.mean() > 0.05, apart.mean()
+
+
+@pytest.mark.parametrize("mode, spectral", [("path", False), ("direct", False), ("path", True), ("direct", True)])
+def test_paths_over_mix_trees_never_reach_numpy_and_carry_its_radiance(mode, spectral, monkeypatch):
+    """Whole paths (depth 5, two light samples), RGB and spectral, over ``textured_scene`` whose floor,
+    sphere, cone and quad are the four trees, seen with a pixel spread: every hit is the kernel's
+    (``_shade`` is never called) and each ray's radiance is the numpy backend's to float32 rounding."""
+    scene, _, _ = textured_scene()
+    scene.instances[:4] = [replace(inst, material=m) for inst, m in zip(scene.instances, TREES.values())]
+    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
+    assert device_one._bounce is not None and device_one._bounce.covered.all()
+    assert len(device_one._bounce._trees) == 4
+    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
+    _paths_agree(scene, numpy_one, device_one, 23, spectral=spectral)
+
+
+def test_a_mix_made_of_itself_is_one_line_naming_it():
+    """A mix naming itself never reaches the renderer: reading the scene says which material."""
+    description = {"shapes": [{"type": "sphere", "radius": 1.0, "material": "loop"}],
+                   "materials": {"loop": {"type": "mix", "materials": ["loop", "grey"]},
+                                 "grey": {"type": "diffuse"}}}
+    with pytest.raises(UserError) as error:
+        realistic.load_dict(description)
+    message = str(error.value)
+    assert "\n" not in message and message.startswith("materials.loop:") and "made of itself" in message
