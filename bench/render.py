@@ -110,6 +110,13 @@ class RecordingIntersector(Intersector):
         self.shadow.append((origin.copy(), direction.copy(), np.array(distance)))
         return super().occluded(origin, direction, distance)
 
+    def occluded_lanes(self, origin, vector, length):
+        """The shading kernel's rays in lanes kept as point-major rows (copies): the same rays, in the
+        order embree traces them."""
+        self.shadow.append((origin.transpose(0, 3, 1, 2).reshape(-1, 3), vector.transpose(0, 3, 1, 2).reshape(-1, 3),
+                            length.transpose(0, 2, 1).reshape(-1)))
+        return super().occluded_lanes(origin, vector, length)
+
 
 def traced_on_threads(jobs: list, threads: int) -> float:
     """Seconds to run the jobs (callables) on ``threads`` threads, dealt out in turn."""
