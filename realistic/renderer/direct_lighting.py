@@ -192,11 +192,11 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     traced = 0
     zero, one = np.float32(0.0), np.float32(1.0)
     per = length.shape[1]
-    rgb = out.shape[1] == 3
-    for group in range(-(-n // PACKET)):
-        for j in range(min(PACKET, n - group * PACKET)):
-            i = group * PACKET + j
-            if rgb:
+    groups = -(-n // PACKET)
+    if out.shape[1] == 3:
+        for group in range(groups):
+            for j in range(min(PACKET, n - group * PACKET)):
+                i = group * PACKET + j
                 red, green, blue = out[i, 0], out[i, 1], out[i, 2]
                 for k in range(per):
                     start = fresh and k == 0
@@ -214,8 +214,11 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
                         green = zero if start else green + zero
                         blue = zero if start else blue + zero
                 out[i, 0], out[i, 1], out[i, 2] = red, green, blue
-                continue
-            for k in range(per):  # a spectral ray's one channel
+        return traced
+    for group in range(groups):  # a spectral ray's one channel
+        for j in range(min(PACKET, n - group * PACKET)):
+            i = group * PACKET + j
+            for k in range(per):
                 traced += length[group, k, j] > zero
             for c in range(out.shape[1]):
                 total = out[i, c]
