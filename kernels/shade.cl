@@ -87,7 +87,9 @@
 /* Value c of the work item's shadow ray o of an output with `width` values per ray, of PER a work
  * item: adjacent across work items, so that the vectoriser stores a vector of them at once (rows of
  * `width` adjacent values were scatters, and the vectoriser took 4 work items at a time rather
- * than 8). */
+ * than 8). A work group is a group of lanes (the kernel requires LANES work items a group), so
+ * the address is the group id's plus the local id: the global id's i / 16 and i % 16 hid that
+ * from the vectoriser, which then scattered. */
 #define PER ((1 + MEASURED) * LAUNCH_SAMPLES)
 #define OUT(name, width, o, c) LANE_AT(name, PER, width, o, c, group, lane)
 /* shadow ray o: from the offset point (sx, sy, sz) to (x, y, z), or a dead row (length -1) */
