@@ -188,25 +188,26 @@ def _occluded_lanes(function: Callable[..., None], scene: int, packet: np.ndarra
         packet[VALID, lane] = -1
     for group in range(len(length) // (per * PACKET)):
         for hit in range(PACKET):
-            first = group * per * PACKET + hit
-            for k in range(per):
-                at = first + k * PACKET
+            at = group * per * PACKET + hit  # the hit's k-th ray's length, (group per + k) 16 + hit
+            ray = 3 * group * per * PACKET + hit  # its origin's and vector's x, ((group per + k) 3 + axis) 16 + hit
+            for _ in range(per):
                 distance = length[at]
-                if not distance >= 0:
+                if distance >= 0:
+                    for axis in range(3):
+                        floats[axis, lanes] = origin[ray + axis * PACKET]
+                        floats[4 + axis, lanes] = vector[ray + axis * PACKET]
+                    floats[TFAR, lanes] = distance
+                    rows[lanes] = at
+                    lanes += 1
+                    if lanes == PACKET:
+                        function(valid, scene, rayhit, 0)
+                        for lane in range(PACKET):
+                            blocked[rows[lane]] = floats[TFAR, lane] < 0
+                        lanes = 0
+                else:
                     blocked[at] = distance < 0
-                    continue
-                ray = 3 * (first + k * PACKET) - 2 * hit  # ((group per + k) 3 + axis) 16 + hit at axis 0
-                for axis in range(3):
-                    floats[axis, lanes] = origin[ray + axis * PACKET]
-                    floats[4 + axis, lanes] = vector[ray + axis * PACKET]
-                floats[TFAR, lanes] = distance
-                rows[lanes] = at
-                lanes += 1
-                if lanes == PACKET:
-                    function(valid, scene, rayhit, 0)
-                    for lane in range(PACKET):
-                        blocked[rows[lane]] = floats[TFAR, lane] < 0
-                    lanes = 0
+                at += PACKET
+                ray += 3 * PACKET
     if lanes:
         for lane in range(PACKET):
             packet[VALID, lane] = -1 if lane < lanes else 0
