@@ -331,7 +331,8 @@ from realistic.renderer.timing import StageClock
 from realistic.scene import intersect, packet_loop
 from realistic.scene.embree import compile_trace_loops
 
-loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), compiled(runner._gather, runner.GATHER_SIGNATURE),
+loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), packet_loop.occluded_lanes_loop(),
+         compiled(runner._gather, runner.GATHER_SIGNATURE),
          compiled(film._add_rows), compiled(direct_lighting._visible_sums),
          compiled(hit_rows._rows_on_material), compiled(hit_rows._place_rows),
          compiled(intersect._instances_to_world))
@@ -342,7 +343,7 @@ scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=
 PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())(0, SampleBlock(0, 240, 2))
 print([len(loop.signatures) for loop in loops])
 """)
-    assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1, 1, 1, 1]"]
+    assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1, 1, 1, 1, 1]"]
 
 
 def test_other_threads_run_while_a_kernel_first_launch_compiles(tmp_path):
