@@ -113,6 +113,14 @@ class RecordingIntersector(Intersector):
         self.shadow.append((origin.copy(), direction.copy(), np.array(distance)))
         return super().occluded(origin, direction, distance)
 
+    def occluded_lanes(self, origin, vector, length):
+        """The shading kernel's rays in lanes kept as point-major rows (copies): the same rays, in the
+        order embree traces them."""
+        rows = (origin.transpose(0, 3, 1, 2).reshape(-1, 3), vector.transpose(0, 3, 1, 2).reshape(-1, 3),
+                length.transpose(0, 2, 1).reshape(-1))  # views where one ray per hit allows: of reused outputs
+        self.shadow.append(tuple(np.array(a) for a in rows))
+        return super().occluded_lanes(origin, vector, length)
+
 
 class Traced(NamedTuple):
     """A batch of jobs run on threads: its wall seconds and the threads' CPU seconds, summed."""

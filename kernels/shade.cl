@@ -2,7 +2,8 @@
  *
  * OpenCL 1.2 C, float32. The numpy reference is realistic.renderer.integrator.DirectLighting (its
  * numpy path); the host is realistic/renderer/shade_kernel.py. One work item per camera ray i
- * (the n rays padded to the work-group size): the per-hit work (hit point, normals, albedo) once,
+ * (the n rays padded to whole groups), in work groups of LANES (16: a group of the outputs' lanes,
+ * see OUT): the per-hit work (hit point, normals, albedo) once,
  * then light samples first_sample .. first_sample + LAUNCH_SAMPLES - 1 (a build option, so the
  * loop is unrolled and the body stays loop-free for the vectoriser).
  *
@@ -22,16 +23,18 @@
  *   - for spectral rays (SPECTRAL), rho and L as spectra at the ray's wavelength
  *     (realistic.core.spectrum.spectral_value, in its order, with the rgb_basis row): the
  *     contribution is one spectral value, and the ray's film weight rgb_response and its basis row
- *     are written once per ray (`response`, `basis`: 3 floats each), for the host to weight the
- *     ray's sum as numpy does and to colour what the ray sees directly. Both come
+ *     are written once per ray (`response`, `basis`: 3 values each, in lanes as one shadow ray's),
+ *     for the host to weight the ray's sum as numpy does and to colour what the ray sees directly. Both come
  *     from the host's SPECTRUM table, rgb_basis and rgb_response's factors cie_rgb and
  *     wavelength_pdf at SPECTRUM_INTERVALS + 1 equally spaced wavelengths (the wavelength
  *     density's nodes among them), interpolated linearly: within 5e-6 of numpy's largest values.
  *   - with MEASURED, at hits of a measured material: f(wo, wi) from its table in rho / pi's place,
  *     and a BSDF sample paired with each light sample (see measured_f and the loop);
- * Outputs, point-major (a ray's rows adjacent, so embree traces each hit point's shadow rays
- * together), row o = i LAUNCH_SAMPLES + k - first_sample (MEASURED: 2 (i LAUNCH_SAMPLES + k -
- * first_sample), and the BSDF sample's row o + 1, dead where the material is not measured): shadow-ray
+ * Outputs in lanes (LANE_AT, from realistic.scene.packet_loop's LANE_DEFINES: in groups of 16 work
+ * items, value c of each one's k-th shadow ray side by side, so that neighbouring work items'
+ * values are adjacent and each store is a vector store, not a scatter; the host traces each hit
+ * point's shadow rays together all the same), k = q, the launch's q-th light sample (MEASURED: k =
+ * 2 q, and the BSDF sample's k = 2 q + 1, dead where the material is not measured): shadow-ray
  * origin and vector (to the light point or, for a BSDF sample, the point it meets on the light)
  * (3 floats each), its length 1 - 1e-4 in units of that vector, or -1 for a dead sample (a
  * miss, an emitter, a light facing away, padding) so embree skips it, and the contribution (3
@@ -44,8 +47,8 @@
  * table so masked-off lanes read valid memory. FP_CONTRACT is off so that a * b + c rounds twice,
  * as numpy does: the hit point and the shadow-ray origin are then bit-identical to the numpy
  * path's (the light point differs from numpy's float64 concentric map by float32 rounding).
- * Every table read is a vector gather on the CPU and every output a scatter (see PAIRED_STORES);
- * with the light-sample numbers (light_numbers) these are the kernel's main costs: the build
+ * Every table read is a vector gather on the CPU (the outputs' lanes make every store a vector
+ * store); with the light-sample numbers (light_numbers) these are the kernel's main costs: the build
  * options below leave out the reads a scene does not need. Check: POCL_VECTORIZER_REMARKS=1 prints "vectorized
  * loop" for shade (tests/test_shade_kernel.py does), with POCL_KERNEL_CACHE=0 for a fresh build.
  */
@@ -81,33 +84,15 @@
  * bench's dragon pass (131072 samples, one PoCL thread) 36 ms scalar against 7.5 ms vectorised. */
 #define AT(a, w, i, c) ((a)[(w) * (i) + (c) * unit])
 #define FIELD(row, k) ((row)[(k) * unit])
-/* Paired stores: vectorised over work items, each store to an output is a scatter, whose cost is
- * per element. Where a work item's floats in every output are even in number (an even number of
- * light samples a launch: 6, 6, 2 and 6 or 2 pairs), they are kept in private arrays (registers:
- * every index is a constant once the loop is unrolled) and stored at the end as 64-bit pairs
- * (little-endian: the first float in the low half), half the elements. That outweighs the
- * vectoriser then taking 4 work items at a time rather than 8 (measured with four light samples
- * a launch); with MEASURED it does not (its larger body loses more to the narrower vectors, and
- * keeping its rows to the end costs more than the stores gain), nor for odd counts, which store
- * each float as it is made. The outputs are 8-byte aligned (the host allocates them as float64)
- * and a work item's floats start at an even index. */
-#define PAIRED_STORES (!MEASURED && LAUNCH_SAMPLES % 2 == 0)
-#if SPECTRAL
-#define CHANNELS 1
-#else
-#define CHANNELS 3
-#endif
-#if PAIRED_STORES && !defined(__ENDIAN_LITTLE__)
-#error "the shading kernel's paired stores assume a little-endian device"
-#endif
-/* Row o's value k of an output with `width` floats per row: its private array's with paired
- * stores (o is then the work item's row), else the output's (o the launch's row). */
-#if PAIRED_STORES
-#define OUT(name, width, o, k) (row_##name[(width) * (o) + (k)])
-#else
-#define OUT(name, width, o, k) AT(name, width, o, k)
-#endif
-/* shadow ray row o: from the offset point (sx, sy, sz) to (x, y, z), or a dead row (length -1) */
+/* Value c of the work item's shadow ray o of an output with `width` values per ray, of PER a work
+ * item: adjacent across work items, so that the vectoriser stores a vector of them at once (rows of
+ * `width` adjacent values were scatters, and the vectoriser took 4 work items at a time rather
+ * than 8). A work group is a group of lanes (the kernel requires LANES work items a group), so
+ * the address is the group id's plus the local id: the global id's i / 16 and i % 16 hid that
+ * from the vectoriser, which then scattered. */
+#define PER ((1 + MEASURED) * LAUNCH_SAMPLES)
+#define OUT(name, width, o, c) LANE_AT(name, PER, width, o, c, group, lane)
+/* shadow ray o: from the offset point (sx, sy, sz) to (x, y, z), or a dead row (length -1) */
 #define WRITE_SHADOW_RAY(o, live, x, y, z) do { \
         OUT(shadow_origin, 3, o, 0) = (live) ? sx : 0.0f; \
         OUT(shadow_origin, 3, o, 1) = (live) ? sy : 0.0f; \
@@ -116,14 +101,6 @@
         OUT(shadow_vector, 3, o, 1) = (live) ? (y) - sy : 0.0f; \
         OUT(shadow_vector, 3, o, 2) = (live) ? (z) - sz : 0.0f; \
         OUT(shadow_length, 1, o, 0) = (live) ? SHADOW_LENGTH : -1.0f; \
-    } while (0)
-/* The work item's `width` LAUNCH_SAMPLES floats of an output from its private array, as pairs. */
-#define STORE_PAIRS(name, width) do { \
-        __global ulong *pairs = (__global ulong *)(name); \
-        _Pragma("unroll") \
-        for (uint m = 0; m < (width) * LAUNCH_SAMPLES / 2; ++m) \
-            pairs[(width) * LAUNCH_SAMPLES / 2 * i + m * unit] = \
-                (ulong)as_uint(row_##name[2 * m]) | ((ulong)as_uint(row_##name[2 * m + 1]) << 32); \
     } while (0)
 
 #include "common.cl"  /* expanded by the host (realistic.device.opencl.kernel_source) */
@@ -317,7 +294,7 @@ inline __attribute__((always_inline)) void bsdf_numbers(uint pixel, uint sample,
 
 /* ------------------------------------------------------------------ kernels */
 
-__kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, uint unit, int instance_count, float offset_base, int light_count,
+__kernel __attribute__((reqd_work_group_size(LANES, 1, 1))) void shade(uint n, uint first_sample, uint light_samples, uint seed, uint unit, int instance_count, float offset_base, int light_count,
                     __global const float *origin, __global const float *direction, __global const float *tfar,
                     __global const float *hit_u, __global const float *hit_v, __global const int *prim,
                     __global const int *geom, __global const float *ng_in, __global const uint *pixel,
@@ -330,6 +307,7 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
                     __global float *shadow_origin, __global float *shadow_vector, __global float *shadow_length,
                     __global float *contribution, __global float *response, __global float *basis) {
     uint i = get_global_id(0);
+    uint group = get_group_id(0), lane = get_local_id(0);
     uint r = i < n ? i : n - 1;
     int g = geom[r];
     int surface = (i < n) & (g >= 0) & (g < instance_count);
@@ -446,12 +424,12 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
     float rho_s = rho_r * b_r + rho_g * b_g + rho_b * b_b;
     /* the film weight, once per ray: weighting each light sample's value by it in the loop below
      * gives LLVM's SLP vectoriser a pattern it packs, and PoCL's then gives up on the kernel */
-    AT(response, 3, i, 0) = f_r;
-    AT(response, 3, i, 1) = f_g;
-    AT(response, 3, i, 2) = f_b;
-    AT(basis, 3, i, 0) = b_r;
-    AT(basis, 3, i, 1) = b_g;
-    AT(basis, 3, i, 2) = b_b;
+    LANE_AT(response, 1, 3, 0, 0, group, lane) = f_r;
+    LANE_AT(response, 1, 3, 0, 1, group, lane) = f_g;
+    LANE_AT(response, 1, 3, 0, 2, group, lane) = f_b;
+    LANE_AT(basis, 1, 3, 0, 0, group, lane) = b_r;
+    LANE_AT(basis, 1, 3, 0, 1, group, lane) = b_g;
+    LANE_AT(basis, 1, 3, 0, 2, group, lane) = b_b;
 #endif
 
 #if MEASURED
@@ -462,17 +440,12 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
     float mx = shz * dy - shy * dz, my = shx * dz - shz * dx, mz = shy * dx - shx * dy;
 #endif
 
-#if PAIRED_STORES
-    float row_shadow_origin[3 * LAUNCH_SAMPLES], row_shadow_vector[3 * LAUNCH_SAMPLES];
-    float row_shadow_length[LAUNCH_SAMPLES], row_contribution[CHANNELS * LAUNCH_SAMPLES];
-#endif
     /* the launch's light samples, unrolled */
 #pragma unroll
     for (uint q = 0; q < LAUNCH_SAMPLES; ++q) {
-        /* light sample k, row o (MEASURED: its BSDF sample's row o + 1; with paired stores the
-         * work item's row q) */
+        /* light sample k, the work item's shadow ray o (MEASURED: its BSDF sample's o + 1) */
         uint k = first_sample + q;
-        uint o = PAIRED_STORES ? q : (1 + MEASURED) * (i * LAUNCH_SAMPLES + q);
+        uint o = (1 + MEASURED) * q;
         float u_pick, u1, u2;
         light_numbers(pixel[r], sample[r], k, light_samples, seed, unit, &u_pick, &u1, &u2);
         int j = pick_light(cdf, light_count, u_pick, unit);
@@ -577,17 +550,11 @@ __kernel void shade(uint n, uint first_sample, uint light_samples, uint seed, ui
         float scale_f = PI_F / (1.0f + ratio_f * ratio_f) * (FIELD(light, LIGHT_SCALE) * PI_F / area);
         uint of = o + 1;
         WRITE_SHADOW_RAY(of, live_f, hx, hy, hz);
-        AT(contribution, 3, of, 0) = live_f ? bf_r * FIELD(light, LIGHT_RADIANCE) * scale_f : 0.0f;
-        AT(contribution, 3, of, 1) = live_f ? bf_g * FIELD(light, LIGHT_RADIANCE + 1) * scale_f : 0.0f;
-        AT(contribution, 3, of, 2) = live_f ? bf_b * FIELD(light, LIGHT_RADIANCE + 2) * scale_f : 0.0f;
+        OUT(contribution, 3, of, 0) = live_f ? bf_r * FIELD(light, LIGHT_RADIANCE) * scale_f : 0.0f;
+        OUT(contribution, 3, of, 1) = live_f ? bf_g * FIELD(light, LIGHT_RADIANCE + 1) * scale_f : 0.0f;
+        OUT(contribution, 3, of, 2) = live_f ? bf_b * FIELD(light, LIGHT_RADIANCE + 2) * scale_f : 0.0f;
 #endif
     }
-#if PAIRED_STORES
-    STORE_PAIRS(shadow_origin, 3);
-    STORE_PAIRS(shadow_vector, 3);
-    STORE_PAIRS(shadow_length, 1);
-    STORE_PAIRS(contribution, CHANNELS);
-#endif
 }
 
 /* Debug: the light-sample random numbers of each ray, rows u_pick, u1, u2 per light sample

@@ -331,7 +331,8 @@ from realistic.renderer.timing import StageClock
 from realistic.scene import intersect, packet_loop
 from realistic.scene.embree import compile_trace_loops
 
-loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), compiled(runner._gather, runner.GATHER_SIGNATURE),
+loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), packet_loop.occluded_lanes_loop(),
+         compiled(runner._gather, runner.GATHER_SIGNATURE),
          compiled(film._add_rows), compiled(direct_lighting._visible_sums),
          compiled(hit_rows._rows_on_material), compiled(hit_rows._place_rows),
          compiled(intersect._instances_to_world))
@@ -342,7 +343,7 @@ scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=
 PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())(0, SampleBlock(0, 240, 2))
 print([len(loop.signatures) for loop in loops])
 """)
-    assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1, 1, 1, 1]"]
+    assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1, 1, 1, 1, 1]"]
 
 
 def test_other_threads_run_while_a_kernel_first_launch_compiles(tmp_path):
@@ -505,6 +506,30 @@ def test_packets_called_from_python_answer_as_the_compiled_loops(count, monkeypa
         assert compiled.dtype == python.dtype and np.array_equal(compiled, python)
 
 
+@pytest.mark.parametrize("groups, per", [(0, 1), (1, 1), (3, 4), (40, 8)])
+def test_lanes_called_from_python_answer_as_the_compiled_loop(groups, per, monkeypatch):
+    """Shadow rays in lanes (``occluded_lanes``) traced as point-major rows by numpy's packets
+    called from Python get the compiled loop's answers, bit for bit (NaN and negative lengths
+    included)."""
+    import numpy as np
+
+    from realistic.core import jit
+    from realistic.scene.packet_loop import PACKET
+
+    scene = _random_instances()
+    rng = np.random.default_rng(groups)
+    origin = (rng.random((groups, per, 3, PACKET)) * 2 - 0.5).astype(np.float32)
+    vector = (rng.random((groups, per, 3, PACKET)) - 0.5).astype(np.float32)
+    length = (rng.random((groups, per, PACKET)) * 2 - 0.3).astype(np.float32)
+    length[:, :, ::7] = np.nan
+    answers = []
+    for compiled in (True, False):
+        monkeypatch.setattr(jit, "_use_compiled", [compiled])
+        answers.append(scene.occluded_lanes(origin, vector, length))
+    assert groups < 40 or 0 < np.count_nonzero(answers[0] & (length >= 0)) < np.count_nonzero(length >= 0)
+    assert answers[0].shape == length.shape and np.array_equal(*answers)
+
+
 def test_the_numpy_forms_of_the_pass_loops_give_the_same_bits(numpy_loops, monkeypatch):
     import numpy as np
 
@@ -512,17 +537,18 @@ def test_the_numpy_forms_of_the_pass_loops_give_the_same_bits(numpy_loops, monke
     from realistic.renderer import direct_lighting, film, runner
 
     rng = np.random.default_rng(5)
-    n, per_ray = 3000, 3
+    n, per_ray, groups = 3000, 3, 188  # 3008 hits in lanes (``packet_loop.LANE_DEFINES``)
     output = rng.random((7, n + 37)).astype(np.float32)
     rows = np.sort(rng.choice(n, n - 400, replace=False))
     pixel = np.sort(rng.integers(100, 900, n))
     value, weight = rng.random((n, 3)).astype(np.float32), (rng.random(n) - 0.2).astype(np.float32)
-    contribution = rng.random((n * per_ray + 5, 3)).astype(np.float32)
-    blocked, length = rng.random(n * per_ray + 5) < 0.4, (rng.random(n * per_ray + 5) - 0.3).astype(np.float32)
+    contribution = rng.random((groups, per_ray, 3, 16)).astype(np.float32)
+    blocked = rng.random((groups, per_ray, 16)) < 0.4
+    length = (rng.random((groups, per_ray, 16)) - 0.3).astype(np.float32)
 
     def run() -> list:
         out = [np.full((n, 3), 7.0, np.float32) for _ in range(2)]
-        counts = [direct_lighting.visible_sums(contribution, blocked, length, per_ray, n, fresh, o)
+        counts = [direct_lighting.visible_sums(contribution, blocked, length, n, fresh, o)
                   for fresh, o in zip((True, False), out)]
         return [runner.gather_rows(output[0:3, :n].T, rows), runner.gather_rows(output[3:6].T, rows),
                 runner.gather_rows(output[0:3, :n].T.astype(np.float64), rows),

@@ -238,6 +238,44 @@ def test_rays_not_traced_between_traced_ones_change_no_answer() -> None:
     assert np.array_equal(blocked[traced], (np.arange(count) % 2 == 0)[traced])
 
 
+def in_lanes(rows: np.ndarray, per: int) -> np.ndarray:
+    """Point-major rows (hits per, width) or (hits per,), hits a multiple of 16, in lanes
+    (``packet_loop.LANE_DEFINES``: (hits / 16, per, width, 16), or (hits / 16, per, 16))."""
+    width = rows.shape[1] if rows.ndim == 2 else 1
+    lanes = np.ascontiguousarray(rows.reshape(-1, PACKET, per, width).transpose(0, 2, 3, 1))
+    return lanes if rows.ndim == 2 else lanes[:, :, 0]
+
+
+@pytest.mark.parametrize("per", [1, 3, 8])
+def test_rays_in_lanes_answer_as_their_rows(per: int) -> None:
+    """``occluded_lanes`` gives each ray in lanes the answer ``occluded`` gives it in point-major rows
+    (hit i's k-th ray in row i per + k), skipped ones too (negative, -inf and NaN lengths), in the
+    lanes' shape."""
+    scene, world = instanced_scene(11)
+    count = 7 * PACKET * per
+    origin, direction = random_rays(world, count, seed=12)
+    t_all, _, _, closest, _ = moller_trumbore(world, origin, direction, 1e37)
+    t = np.where(closest >= 0, t_all[np.arange(count), np.maximum(closest, 0)], 1.0).astype(np.float32)
+    rng = np.random.default_rng(per)
+    distance = (t * rng.choice([0.999, 1.001], count)).astype(np.float32)
+    skipped = rng.random(count) < 0.3
+    distance[skipped] = np.array([-1, -np.inf, np.nan], np.float32)[np.arange(count) % 3][skipped]
+    expected = scene.occluded(origin, direction, distance)
+    assert 0 < np.count_nonzero(expected[~skipped]) < np.count_nonzero(~skipped)
+    blocked = scene.occluded_lanes(in_lanes(origin, per), in_lanes(direction, per), in_lanes(distance, per))
+    assert blocked.shape == (count // (PACKET * per), per, PACKET)
+    assert np.array_equal(blocked, in_lanes(expected, per))
+
+
+def test_rays_in_lanes_of_another_shape_are_refused() -> None:
+    scene, _ = instanced_scene(13)
+    rays, length = np.zeros((2, 3, 3, PACKET), np.float32), np.ones((2, 3, PACKET), np.float32)
+    for origin, vector, lengths in ((rays, rays[:, :2], length), (rays, rays, length[:1]),
+                                    (rays[..., :8], rays[..., :8], length[..., :8])):
+        with pytest.raises(ValueError, match="shadow rays in lanes"):
+            scene.occluded_lanes(origin, vector, lengths)
+
+
 def test_several_threads_tracing_at_once_get_the_answers_of_one() -> None:
     scene, world = instanced_scene(8)
     batches = [random_rays(world, 5000, seed) for seed in range(8)]

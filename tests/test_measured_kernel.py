@@ -9,6 +9,7 @@ own noise. The measured files are written here (pbrt-v2's ``.brdf`` format), so 
 """
 
 import dataclasses
+import re
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +30,9 @@ from realistic.scene.intersect import Intersector
 from realistic.scene.materials import Measured
 from realistic.scene.measured import load_measured
 from realistic.scene.model import AreaLight, Material, Scene
+from realistic.scene.packet_loop import PACKET
 from realistic.scene.shapes import quad, sphere
-from test_shade_kernel import SEED, busy_scene, rays_of
+from test_shade_kernel import SEED, busy_scene, point_major, rays_of
 
 pytest.importorskip("realistic.camera.opencl_host")
 pytestmark = pytest.mark.usefixtures("opencl_platform")
@@ -101,7 +103,9 @@ def test_per_row_samples_match_the_numpy_path(measured_rays, light_samples):
     albedo = kernel_path._host_albedo(origin, direction, hits)
     batch = kernel_path._measured_kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                                hits.normal, pixel, sample, albedo, light_samples, SEED)
-    assert batch.length.shape == (2 * light_samples * batch.stride,)
+    assert batch.length.shape == (batch.stride // PACKET, 2 * light_samples, PACKET)
+    length, origin_rows, vector_rows, contribution_rows = (
+        point_major(a) for a in (batch.length, batch.origin, batch.vector, batch.contribution))
     live_rows, bsdf_live = [], 0
     for k in range(light_samples):
         light = numpy_path._light_sample(point, shadow_origin, shading, ng, rho, pixel[surface], sample[surface], k,
@@ -111,13 +115,13 @@ def test_per_row_samples_match_the_numpy_path(measured_rays, light_samples):
         for row, (contribution, vector, live) in ((2 * k, light), (2 * k + 1, paired)):
             rows = surface[live] * (2 * light_samples) + row  # point-major: a ray's rows adjacent
             live_rows.append(rows)
-            assert np.all(batch.length[rows] == F32(1.0 - 1e-4))
-            np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])
-            np.testing.assert_allclose(batch.vector[rows], vector, rtol=1e-4, atol=1e-5 * np.abs(vector).max())
-            np.testing.assert_allclose(batch.contribution[rows], contribution, rtol=2e-4,
+            assert np.all(length[rows] == F32(1.0 - 1e-4))
+            np.testing.assert_array_equal(origin_rows[rows], shadow_origin[live])
+            np.testing.assert_allclose(vector_rows[rows], vector, rtol=1e-4, atol=1e-5 * np.abs(vector).max())
+            np.testing.assert_allclose(contribution_rows[rows], contribution, rtol=2e-4,
                                        atol=2e-5 * np.abs(contribution).max())
-    dead = np.setdiff1d(np.arange(len(batch.length)), np.concatenate(live_rows))
-    assert np.all(batch.length[dead] == -1.0) and np.all(batch.contribution[dead] == 0.0)
+    dead = np.setdiff1d(np.arange(len(length)), np.concatenate(live_rows))
+    assert np.all(length[dead] == -1.0) and np.all(contribution_rows[dead] == 0.0)
     assert bsdf_live >= 5  # BSDF samples that meet a light (the lights are small)
 
 
@@ -201,7 +205,8 @@ def test_a_measured_materials_albedo_aov_is_its_directional_albedo(flat):
 
 
 def test_the_measured_variant_vectorises(tmp_path, glossy):
-    """PoCL's work-group vectoriser widens the MEASURED variant of ``shade`` (no SLP-packed pairs)."""
+    """PoCL's work-group vectoriser widens the MEASURED variant of ``shade`` (no SLP-packed pairs), 8
+    work items at a time (its outputs in lanes: vector stores)."""
     script = (
         "import sys, dataclasses\n"
         "import numpy as np\n"
@@ -218,6 +223,8 @@ def test_the_measured_variant_vectorises(tmp_path, glossy):
         "integrator.radiance(ray, direction, np.zeros(1, np.int32), np.zeros(1, np.int64))\n")
     remarks = vectoriser_remarks(script, glossy.path, pocl_cache=tmp_path)
     assert "loop not vectorized" not in remarks and "vectorized loop" in remarks
+    widths = re.findall(r"vectorized loop \(vectorization width: (\d+)", remarks)  # 4 with (N, 3) rows
+    assert widths and min(int(w) for w in widths) >= 8, widths
 
 
 def _measured_scene(glossy: Measured) -> tuple[Scene, np.ndarray, np.ndarray]:

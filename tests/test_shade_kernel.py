@@ -9,6 +9,7 @@ through its "opencl" cases. Skips only when no OpenCL platform exists.
 """
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -30,6 +31,7 @@ from realistic.renderer.job import RenderJob
 from realistic.renderer.passes import ThreadPasses, render
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, CheckerTexture, GridTexture, Material, Scene
+from realistic.scene.packet_loop import PACKET
 from realistic.scene.shapes import cone, sphere
 from realistic.scene.staging import default_setup
 from test_shading_reference import textured_scene
@@ -80,6 +82,26 @@ def scene_rays(request):
     return scene, rays_of(scene, eye, target)
 
 
+def point_major(lanes: np.ndarray) -> np.ndarray:
+    """A launch's output in lanes (``packet_loop.LANE_DEFINES``: (hits / 16, per, width, 16), or a
+    length's (hits / 16, per, 16)) as point-major rows, hit i's k-th shadow ray at row i per + k:
+    (rows, width), or (rows,)."""
+    if lanes.ndim == 3:
+        return lanes.transpose(0, 2, 1).reshape(-1)
+    return lanes.transpose(0, 3, 1, 2).reshape(-1, lanes.shape[2])
+
+
+def in_lanes(rows: np.ndarray, per: int) -> np.ndarray:
+    """Point-major rows ((hits per, width) or (hits per,)) in lanes, the hits padded with zero rows
+    to a multiple of 16: ``point_major``'s inverse."""
+    width = rows.shape[1] if rows.ndim == 2 else 1
+    hits = len(rows) // per
+    padded = np.zeros((-(-hits // PACKET) * PACKET, per, width), rows.dtype)
+    padded[:hits] = rows.reshape(hits, per, width)
+    lanes = np.ascontiguousarray(padded.reshape(-1, PACKET, per, width).transpose(0, 2, 3, 1))
+    return lanes if rows.ndim == 2 else lanes[:, :, 0]
+
+
 @pytest.mark.parametrize("light_samples", [1, 3])
 def test_per_hit_samples_match_the_numpy_path(scene_rays, light_samples):
     scene, (origin, direction, pixel, sample, spread) = scene_rays
@@ -92,20 +114,23 @@ def test_per_hit_samples_match_the_numpy_path(scene_rays, light_samples):
     albedo = kernel_path._host_albedo(origin, direction, hits) if kernel_path._kernel.host_albedo.any() else None
     batch = kernel_path._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal,
                                       pixel, sample, albedo, light_samples, SEED)
-    assert batch.length.shape == (light_samples * batch.stride,)
+    assert batch.length.shape == (batch.stride // PACKET, light_samples, PACKET)
+    assert batch.origin.shape == batch.vector.shape == batch.contribution.shape == batch.length.shape[:2] + (3, PACKET)
+    length, origin, vector, contribution_rows = (point_major(a) for a in (batch.length, batch.origin, batch.vector,
+                                                                         batch.contribution))
     live_rows = []
     for k in range(light_samples):
         contribution, to_light, live = numpy_path._light_sample(point, shadow_origin, shading, ng, rho,
                                                                 pixel[surface], sample[surface], k, None)
         rows = surface[live] * light_samples + k  # point-major: a ray's light samples adjacent
         live_rows.append(rows)
-        assert np.all(batch.length[rows] == F32(1.0 - 1e-4))
-        np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])  # exactly: embree's geometry
-        np.testing.assert_allclose(batch.vector[rows], to_light, rtol=1e-5, atol=1e-6 * np.abs(to_light).max())
-        np.testing.assert_allclose(batch.contribution[rows], contribution, rtol=1e-5,
+        assert np.all(length[rows] == F32(1.0 - 1e-4))
+        np.testing.assert_array_equal(origin[rows], shadow_origin[live])  # exactly: embree's geometry
+        np.testing.assert_allclose(vector[rows], to_light, rtol=1e-5, atol=1e-6 * np.abs(to_light).max())
+        np.testing.assert_allclose(contribution_rows[rows], contribution, rtol=1e-5,
                                    atol=1e-6 * np.abs(contribution).max())
-    dead = np.setdiff1d(np.arange(len(batch.length)), np.concatenate(live_rows))
-    assert len(dead) and np.all(batch.length[dead] == -1.0) and np.all(batch.contribution[dead] == 0.0)
+    dead = np.setdiff1d(np.arange(len(length)), np.concatenate(live_rows))
+    assert len(dead) and np.all(length[dead] == -1.0) and np.all(contribution_rows[dead] == 0.0)
     if scene.lights[0].shape == "disk" and len(scene.lights) > 2:  # the busy scene: every light is picked
         picked = set()
         for k in range(light_samples):
@@ -125,6 +150,37 @@ def test_radiance_matches_the_numpy_path(scene_rays, light_samples):
         origin, direction, pixel, sample)
     assert got.dtype == np.float32 and shadow_rays == expected_rays > 0
     np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("spectral", [False, True])
+def test_radiance_sums_the_point_major_rows_to_the_bit(scene_rays, spectral):
+    """The kernel path's surface radiance is, bit for bit, a launch's shadow rays as point-major rows
+    (hit i's k-th at row i per + k) traced by ``occluded`` and each ray's unblocked contributions
+    added in k's order in float32, over the light samples: the lanes, their packet loop and
+    ``visible_sums`` change no bit of it."""
+    scene, (origin, direction, pixel, sample, spread) = scene_rays
+    intersector = Intersector(scene)
+    light_samples = 3  # one launch
+    integrator = DirectLighting(scene, intersector, light_samples, SEED, spread, backend="opencl")
+    wavelength = wavelengths_of(len(origin)) if spectral else None
+    got, shadow_rays = integrator.radiance(origin, direction, pixel, sample, wavelength_nm=wavelength)
+    hits = intersector.closest(origin, direction)
+    albedo = integrator._host_albedo(origin, direction, hits) if integrator._kernel.host_albedo.any() else None
+    batch = integrator._kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal,
+                                     pixel, sample, albedo, light_samples, SEED, wavelength_nm=wavelength)
+    length, contribution = point_major(batch.length), point_major(batch.contribution)
+    blocked = intersector.occluded(point_major(batch.origin), point_major(batch.vector), length)
+    products = np.where(((length > 0) & ~blocked)[:, None], contribution, F32(0)).reshape(-1, light_samples,
+                                                                                         contribution.shape[1])
+    expected = products[:, 0].copy()
+    for k in range(1, light_samples):
+        expected += products[:, k]
+    expected = expected[:len(origin)] / F32(light_samples)
+    if spectral:
+        expected = expected * batch.response[:len(origin)]
+    surface = (hits.geom >= 0) & (hits.geom < len(scene.instances))
+    assert shadow_rays == np.count_nonzero(length > 0) and np.any(expected[surface] > 0)
+    assert np.array_equal(got[surface].view(np.uint32), expected[surface].view(np.uint32))
 
 
 @pytest.mark.parametrize("light_samples, budget", [(3, 1), (6, None)])
@@ -170,7 +226,8 @@ def test_visible_sums_add_each_rays_rows_in_order_to_the_bit(per_ray, channels, 
         for row in products:
             expected += row
     out = np.full((n, channels), np.nan, np.float32) if fresh else earlier.copy()
-    traced = compiled(_visible_sums)(contribution, blocked, length, per_ray, n, fresh, out)
+    traced = compiled(_visible_sums)(in_lanes(contribution, per_ray), in_lanes(blocked, per_ray),
+                                     in_lanes(length, per_ray), n, fresh, out)
     assert np.array_equal(out.view(np.uint32), expected.view(np.uint32))
     assert traced == np.count_nonzero(length > 0)
 
@@ -191,12 +248,14 @@ def test_visible_sums_read_nothing_of_dead_rows(channels, monkeypatch):
     as_written[0][dead], as_written[1][dead] = 0, True
     contribution[dead], blocked[dead] = np.nan, False
     expected = np.empty((n, channels), np.float32)
-    assert compiled(_visible_sums)(*as_written, length, per_ray, n, True, expected) == np.count_nonzero(~dead)
+    assert compiled(_visible_sums)(in_lanes(as_written[0], per_ray), in_lanes(as_written[1], per_ray),
+                                   in_lanes(length, per_ray), n, True, expected) == np.count_nonzero(~dead)
     assert np.all(np.isfinite(expected)) and np.all(expected[0] == 0)
     for numba_loops in (True, False):
         monkeypatch.setattr(jit, "_use_compiled", [numba_loops])
         got = np.full((n, channels), np.nan, np.float32)
-        assert visible_sums(contribution, blocked, length, per_ray, n, True, got) == np.count_nonzero(~dead)
+        assert visible_sums(in_lanes(contribution, per_ray), in_lanes(blocked, per_ray), in_lanes(length, per_ray), n,
+                            True, got) == np.count_nonzero(~dead)
         assert np.array_equal(got.view(np.uint32), expected.view(np.uint32))
 
 
@@ -277,10 +336,10 @@ def test_spectral_per_hit_samples_match_the_numpy_path(scene_rays, light_samples
         contribution, to_light, live = numpy_path._light_sample(point, shadow_origin, shading, ng, rho,
                                                                 pixel[surface], sample[surface], k, basis[surface])
         rows = surface[live] * light_samples + k  # point-major: a ray's light samples adjacent
-        assert np.all(batch.length[rows] == F32(1.0 - 1e-4))
-        np.testing.assert_array_equal(batch.origin[rows], shadow_origin[live])
-        assert contribution.shape == batch.contribution[rows].shape == (len(live), 1)
-        np.testing.assert_allclose(batch.contribution[rows], contribution, rtol=1e-5,
+        assert np.all(point_major(batch.length)[rows] == F32(1.0 - 1e-4))
+        np.testing.assert_array_equal(point_major(batch.origin)[rows], shadow_origin[live])
+        assert contribution.shape == point_major(batch.contribution)[rows].shape == (len(live), 1)
+        np.testing.assert_allclose(point_major(batch.contribution)[rows], contribution, rtol=1e-5,
                                    atol=1e-6 * np.abs(contribution).max())
     expected = rgb_response(wavelength)
     # within the table's interpolation error (5e-6 of the largest weight) and float32 rounding
@@ -386,3 +445,7 @@ def test_the_kernel_vectorises(tmp_path):
         "                        wavelength_nm=wavelength)\n")
     remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
     assert "loop not vectorized" not in remarks and "vectorized loop" in remarks
+    # 8 work items at a time: its outputs in lanes make every store a vector store, where rows of
+    # (N, 3) made them scatters and it took 4
+    widths = re.findall(r"vectorized loop \(vectorization width: (\d+)", remarks)
+    assert widths and min(int(w) for w in widths) >= 8, widths

@@ -32,7 +32,7 @@ the spectral radiance weighted by the film's ``rgb_response`` at that wavelength
 Backends: the numpy code here is the reference and shades with backend "numpy". With backend
 "opencl" RGB rays are shaded by ``kernels/shade.cl`` (``renderer.shade_kernel``): one launch per pass
 computes every surface hit's normals and albedo and every light sample's shadow ray and
-contribution, embree traces all the shadow rays in one ``occluded`` call, and a loop (``_visible_sums``) sums the
+contribution, embree traces all the shadow rays in one ``occluded_lanes`` call, and a loop (``_visible_sums``) sums the
 unblocked contributions; camera rays that miss or see an emitter keep the numpy code. The albedo of
 EWA-filtered image textures comes from ``kernels/ewa.cl`` (``EwaKernel.at_hits``: hit records to albedo, bit
 for bit the numpy ``_albedo`` here: ``tests/test_ewa_hits.py``), other image textures' from ``_albedo``. Spectral rays
@@ -68,6 +68,7 @@ from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.materials import Measured, SurfaceMaterial
 from realistic.scene.measured import IrregularSamples, load_measured
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
+from realistic.scene.packet_loop import PACKET
 from realistic.scene.shapes import light_mesh
 from realistic.scene.textures import Footprint, albedo, numpy_lookup
 
@@ -175,65 +176,73 @@ def _facing(normal: np.ndarray, direction: np.ndarray) -> np.ndarray:
     return ng
 
 
-def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarray, per_ray: int, n: int,
-                  fresh: bool, out: np.ndarray) -> int:
-    """Add to ``out`` (n, channels) float32 each ray's unblocked contributions, its rows i per_ray ..
-    (i + 1) per_ray - 1 of a launch (``ShadowBatch``: point-major) in order, as contribution times 1
-    or 0 in float32 (``fresh``: ``out`` starts as the first product, not 0 plus it, as numpy's
-    reduction starts); the rows traced (length > 0) are returned. A dead row (length not > 0: the
-    kernel writes its contribution 0, and embree reports it blocked) adds a product of 0 without
-    reading its contribution or answer: about half a launch's rows are dead (points facing away
-    from the light, padding), and their reads were most of this loop's memory traffic. A numba
-    loop (``core.jit``), the GIL released: RGB rays summed in three running totals stored once per
-    ray (storing per row and channel took about 1.5x as long)."""
+def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarray, n: int, fresh: bool,
+                  out: np.ndarray) -> int:
+    """Add to ``out`` (n, channels) float32 each ray's unblocked contributions: of a launch's lanes
+    (``ShadowBatch``: contribution (hits / 16, per, channels, 16), length and ``blocked`` (hits / 16,
+    per, 16), the latter from ``occluded_lanes``), ray i's shadow rays k = 0 .. per - 1 in order, as
+    contribution times 1 or 0 in float32 (``fresh``: ``out`` starts as the first product, not 0
+    plus it, as numpy's reduction starts); the shadow rays traced (length > 0) are returned. A dead
+    one (length not > 0: the kernel writes its contribution 0, and embree reports it blocked) adds
+    a product of 0 without reading its contribution or answer: about half a launch's are dead
+    (points facing away from the light, padding), and their reads were most of this loop's memory
+    traffic. A numba loop (``core.jit``), the GIL released: RGB rays summed in three running totals
+    stored once per ray (storing per shadow ray and channel took about 1.5x as long)."""
     traced = 0
     zero, one = np.float32(0.0), np.float32(1.0)
+    per = length.shape[1]
+    groups = -(-n // PACKET)
     if out.shape[1] == 3:
-        for i in range(n):
-            red, green, blue = out[i, 0], out[i, 1], out[i, 2]
-            for k in range(per_ray):
-                r = i * per_ray + k
-                start = fresh and k == 0
-                if length[r] > zero:
-                    traced += 1
-                    visible = zero if blocked[r] else one
-                    product = contribution[r, 0] * visible
-                    red = product if start else red + product
-                    product = contribution[r, 1] * visible
-                    green = product if start else green + product
-                    product = contribution[r, 2] * visible
-                    blue = product if start else blue + product
-                else:
-                    red = zero if start else red + zero
-                    green = zero if start else green + zero
-                    blue = zero if start else blue + zero
-            out[i, 0], out[i, 1], out[i, 2] = red, green, blue
+        for group in range(groups):
+            for j in range(min(PACKET, n - group * PACKET)):
+                i = group * PACKET + j
+                red, green, blue = out[i, 0], out[i, 1], out[i, 2]
+                for k in range(per):
+                    start = fresh and k == 0
+                    if length[group, k, j] > zero:
+                        traced += 1
+                        visible = zero if blocked[group, k, j] else one
+                        product = contribution[group, k, 0, j] * visible
+                        red = product if start else red + product
+                        product = contribution[group, k, 1, j] * visible
+                        green = product if start else green + product
+                        product = contribution[group, k, 2, j] * visible
+                        blue = product if start else blue + product
+                    else:
+                        red = zero if start else red + zero
+                        green = zero if start else green + zero
+                        blue = zero if start else blue + zero
+                out[i, 0], out[i, 1], out[i, 2] = red, green, blue
         return traced
-    for i in range(n):  # a spectral ray's one channel
-        for k in range(per_ray):
-            traced += length[i * per_ray + k] > zero
-        for c in range(out.shape[1]):
-            total = out[i, c]
-            for k in range(per_ray):
-                r = i * per_ray + k
-                product = contribution[r, c] * (zero if blocked[r] else one) if length[r] > zero else zero
-                total = product if fresh and k == 0 else total + product
-            out[i, c] = total
+    for group in range(groups):  # a spectral ray's one channel
+        for j in range(min(PACKET, n - group * PACKET)):
+            i = group * PACKET + j
+            for k in range(per):
+                traced += length[group, k, j] > zero
+            for c in range(out.shape[1]):
+                total = out[i, c]
+                for k in range(per):
+                    live = length[group, k, j] > zero
+                    product = contribution[group, k, c, j] * (zero if blocked[group, k, j] else one) if live else zero
+                    total = product if fresh and k == 0 else total + product
+                out[i, c] = total
     return traced
 
 
-def visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarray, per_ray: int, n: int,
-                 fresh: bool, out: np.ndarray) -> int:
+def visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarray, n: int, fresh: bool,
+                 out: np.ndarray) -> int:
     """``_visible_sums``, compiled, or in numpy where the loops do not run compiled
     (``core.jit.use_compiled_loops``): the same products, added in the same order."""
     if compiled_loops():
-        return int(compiled(_visible_sums)(contribution, blocked, length, per_ray, n, fresh, out))
-    rows = n * per_ray
-    live = length[:rows] > 0
-    visible = np.where(blocked[:rows], np.float32(0.0), np.float32(1.0))
-    products = np.where(live[:, None], contribution[:rows, :out.shape[1]] * visible[:, None], np.float32(0.0))
-    products = products.reshape(n, per_ray, out.shape[1])
-    for k in range(per_ray):
+        return int(compiled(_visible_sums)(contribution, blocked, length, n, fresh, out))
+    per, channels = length.shape[1], out.shape[1]
+    # (hits, per) and (hits, per, channels), ray i's rows at [i]
+    length, blocked = (a.transpose(0, 2, 1).reshape(-1, per)[:n] for a in (length, blocked))
+    contribution = contribution[:, :, :channels].transpose(0, 3, 1, 2).reshape(-1, per, channels)[:n]
+    live = length > 0
+    visible = np.where(blocked, np.float32(0.0), np.float32(1.0))
+    products = np.where(live[:, :, None], contribution * visible[:, :, None], np.float32(0.0))
+    for k in range(per):
         if fresh and k == 0:
             out[:n] = products[:, 0]
         else:
@@ -245,8 +254,8 @@ def compile_shading_loops() -> None:
     """Compile (or load from numba's cache) ``_visible_sums`` and the device textures' row loops
     (``hit_rows``) for the argument types every launch passes, on no rows: a render does this on a
     render thread as it starts (``runner.compile_pass_loops``)."""
-    rows = np.empty((0, 3), np.float32)
-    compiled(_visible_sums)(rows, np.empty(0, np.bool_), np.empty(0, np.float32), 1, 0, True, rows)
+    compiled(_visible_sums)(np.empty((0, 1, 3, PACKET), np.float32), np.empty((0, 1, PACKET), np.bool_),
+                            np.empty((0, 1, PACKET), np.float32), 0, True, np.empty((0, 3), np.float32))
     compile_row_loops()
 
 
@@ -605,16 +614,15 @@ class DirectLighting:
             basis: np.ndarray | None = None  # launch writes
         for first in range(0, self.light_samples, group):
             count = min(group, self.light_samples - first)
-            rows = count * rows_per_sample
             with timed("shading"):
                 batch = kernel.shade(origin, direction, hits.t, hits.u, hits.v, hits.prim, hits.geom,
                                            hits.normal, pixel, sample, albedo, count, self.seed, first,
                                            self.light_samples, wavelength_nm)
                 response, basis = batch.response, batch.basis
             with timed("embree"):
-                blocked = self.intersector.occluded(batch.origin, batch.vector, batch.length)
+                blocked = self.intersector.occluded_lanes(batch.origin, batch.vector, batch.length)
             with timed("shading"):
-                shadow_rays += visible_sums(batch.contribution, blocked, batch.length, rows, n, first == 0, out)
+                shadow_rays += visible_sums(batch.contribution, blocked, batch.length, n, first == 0, out)
         with timed("shading"):
             if self.light_samples > 1:
                 out /= np.float32(self.light_samples)

@@ -5,15 +5,15 @@
 the two per hit (``tests/test_shade_kernel.py``). For each camera ray of a pass the kernel computes
 the hit point, the geometric and shading normals, the albedo (constant, grid and checker materials;
 image-textured rows come from the host: ``DirectLighting._host_albedo``) and, for every light
-sample, the light point, the shadow ray and its contribution. It writes them into flat arrays
-ordered by ray then light sample (row i * light_samples + k: point-major, so embree traces each hit
-point's shadow rays one after another, coherent, and the host sums each ray's adjacent rows), so
-embree traces all of a pass's shadow rays in one ``occluded`` call; dead samples have length -1,
-which embree skips. Measured materials
+sample, the light point, the shadow ray and its contribution. It writes them in lanes, 16 rays' of
+each light sample and component side by side (``packet_loop.LANE_DEFINES``: neighbouring work
+items' values adjacent, so that each store is a vector store), and embree traces all of a launch's
+shadow rays in one ``occluded_lanes`` call, each hit point's one after another (coherent); dead
+samples have length -1, which embree skips. Measured materials
 (pbrt-v2's irregular ``.brdf`` files, their tables from ``renderer.bsdf.measured.irregular_table``
 one after another in one buffer) build the ``MEASURED`` variant: each light sample is paired with a
 cosine-weighted BSDF sample, both weighted by the power heuristic as pbrt-v2's ``directlighting``
-does (``EstimateDirect``), in rows 2 (i * light_samples + k) and the next.
+does (``EstimateDirect``), the k-th light sample a ray's shadow ray 2 k and its BSDF sample 2 k + 1.
 
 The program source does not depend on the scene: the scene's tables (faces, vertex normals, uvs,
 per-instance normal matrices and materials, lights and their CDF) are device buffers made once per
@@ -54,6 +54,7 @@ from realistic.renderer.bsdf.measured import TABLE_NODES
 from realistic.renderer.light_sampler import SHADOW_DEFINES
 from realistic.scene.materials import Measured
 from realistic.scene.model import CheckerTexture, GridTexture, Material
+from realistic.scene.packet_loop import LANE_DEFINES, PACKET, shadow_lanes
 
 KERNEL_FILE = "shade.cl"
 #: The tables ``kernels/shade.cl`` reads, declared once: their ``#define``s head the kernel source.
@@ -93,7 +94,7 @@ HEADER = "".join(table.defines() for table in (GEOM_INTS, GEOM_FLOATS, MATERIALS
     constant_defines("KIND", KINDS) + \
     (f"#define SPECTRUM_INTERVALS {SPECTRUM_INTERVALS}\n#define SPECTRUM_MIN_NM {LAMBDA_MIN_NM!r}f\n"
      f"#define SPECTRUM_PER_NM {SPECTRUM_INTERVALS / (LAMBDA_MAX_NM - LAMBDA_MIN_NM)!r}f\n"
-     f"#define TABLE_NODES {TABLE_NODES}\n") + SHADOW_DEFINES
+     f"#define TABLE_NODES {TABLE_NODES}\n") + SHADOW_DEFINES + LANE_DEFINES
 #: The kernel's light search is written out for at most this many lights.
 MAX_LIGHTS = 65535
 #: Shadow rays per launch (and per embree call) at most: a pass's light samples go in groups of
@@ -153,15 +154,15 @@ def material_row(material: Material | Measured, table: int = 0) -> np.ndarray:
 
 @dataclass
 class ShadowBatch:
-    """One launch's outputs: ``stride`` x ``light_samples`` rows, point-major (row i * light_samples
-    + k for ray i and the launch's k-th light sample), twice as many with measured materials (rows
-    2 (i * light_samples + k), and the paired BSDF sample's the next); rows of rays i >= n (padding)
-    are dead."""
+    """One launch's outputs in lanes (``packet_loop.LANE_DEFINES``): ``per`` shadow rays for each of
+    ``stride`` rays, [i // 16, k, c, i % 16] value c of ray i's k-th: the launch's k-th light sample,
+    or with measured materials its k / 2-th's (even k) and the paired BSDF sample's (odd k); those of
+    rays i >= n (padding) are dead."""
 
-    origin: np.ndarray  # (rows, 3) float32
-    vector: np.ndarray  # (rows, 3) float32: to the light point
-    length: np.ndarray  # (rows,) float32: 1 - 1e-4 (in units of vector), -1 for a dead sample
-    contribution: np.ndarray  # (rows, 3) float32 (spectral rays: (rows, 1)), 0 for a dead sample
+    origin: np.ndarray  # (stride / 16, per, 3, 16) float32
+    vector: np.ndarray  # (stride / 16, per, 3, 16) float32: to the light point
+    length: np.ndarray  # (stride / 16, per, 16) float32: 1 - 1e-4 (in units of vector), -1 for a dead sample
+    contribution: np.ndarray  # (stride / 16, per, 3, 16) float32 (spectral rays: channels 1), 0 for a dead sample
     stride: int
     response: np.ndarray | None = None  # spectral rays: (stride, 3) float32, each ray's ``rgb_response``
     basis: np.ndarray | None = None  # spectral rays: (stride, 3) float32, each ray's ``rgb_basis`` row
@@ -199,14 +200,13 @@ class _ThreadState:
         for kind, count in wanted.items():
             if count > self.rows[kind]:
                 self.rows[kind] = count + count // 8
-        # each output starts at the device's sub-buffer alignment (in floats; at least a pair's 8 bytes)
-        align = max(device.context.devices[0].mem_base_addr_align // 32, 2)
+        # each output starts at the device's sub-buffer alignment (in floats)
+        align = max(device.context.devices[0].mem_base_addr_align // 32, 1)
         starts, end = [], 0
         for _, width, shadow in OUTPUTS:
             starts.append(end)
             end += -(-self.rows[shadow] * width // align) * align
-        # float32 in float64's memory: 8-byte aligned, as shade.cl's paired stores need
-        self.block = np.empty(end // 2, np.float64).view(np.float32)
+        self.block = np.empty(end, np.float32)
         self.parent = device.host_buffer(self.block, cl.mem_flags.WRITE_ONLY)
         for (name, width, shadow), start in zip(OUTPUTS, starts):
             size = self.rows[shadow] * width
@@ -305,10 +305,11 @@ class ShadeKernel:
         total = first_sample + light_samples if total_samples is None else total_samples
         n = len(origin)
         stride = whole_groups(n)
-        rows = stride * light_samples * self.rows_per_sample
+        per = light_samples * self.rows_per_sample  # shadow rays per ray
+        rows = stride * per
         if n == 0:
-            empty = np.zeros((0, 3), np.float32)
-            return ShadowBatch(empty, empty, np.zeros(0, np.float32), empty, 0)
+            empty = np.zeros((0, per, 3, PACKET), np.float32)
+            return ShadowBatch(empty, empty, np.zeros((0, per, PACKET), np.float32), empty, 0)
         state = self._state()
         block, parent = state.outputs(self.device, rows, 0 if wavelength_nm is None else stride)
         mf = cl.mem_flags
@@ -331,22 +332,23 @@ class ShadeKernel:
                         self.offset_base, np.int32(self.light_count), *buffers, self._spectrum, *self._tables,
                         state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
                         state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
-        cl.enqueue_nd_range_kernel(state.queue, kernel, (stride,), (LOCAL_SIZE,))
+        # work groups of PACKET: shade.cl's work group is a group of lanes (``LANE_DEFINES``)
+        cl.enqueue_nd_range_kernel(state.queue, kernel, (stride,), (PACKET,))
         state.queue.finish()  # a first launch compiles here, without the GIL (``Device.run_into``)
         # one blocking read of the whole block into the buffer's own host pointer: PoCL copies
         # nothing (a platform that kept its own memory would copy)
         cl.enqueue_copy(state.queue, block, parent, is_blocking=True)
         spectral = wavelength_nm is not None
         channels = 1 if spectral else 3
-        arrays = {name: state.arrays[name][:size] for name, size in (
-            ("origin", rows * 3), ("vector", rows * 3), ("length", rows), ("contribution", rows * channels),
-            ("response", stride * 3), ("basis", stride * 3))}
         for buffer in buffers:
             buffer.release()
-        return ShadowBatch(arrays["origin"].reshape(rows, 3), arrays["vector"].reshape(rows, 3), arrays["length"],
-                           arrays["contribution"].reshape(rows, channels), stride,
-                           arrays["response"].reshape(stride, 3) if spectral else None,
-                           arrays["basis"].reshape(stride, 3) if spectral else None)
+        arrays = state.arrays
+        return ShadowBatch(shadow_lanes(arrays["origin"], per, 3, stride),
+                           shadow_lanes(arrays["vector"], per, 3, stride),
+                           shadow_lanes(arrays["length"], per, 1, stride)[:, :, 0],
+                           shadow_lanes(arrays["contribution"], per, channels, stride), stride,
+                           _per_ray(arrays["response"], stride) if spectral else None,
+                           _per_ray(arrays["basis"], stride) if spectral else None)
 
     def light_uniforms(self, pixel: np.ndarray, sample: np.ndarray, light_samples: int, seed: int) -> np.ndarray:
         """The kernel's light-sample random numbers (3 * light_samples, N): u_pick, u1, u2 per light
@@ -376,6 +378,12 @@ class ShadeKernel:
         cl.enqueue_copy(state.queue, x, bx)
         cl.enqueue_copy(state.queue, y, by)
         return x, y
+
+
+def _per_ray(values: np.ndarray, stride: int) -> np.ndarray:
+    """A per-ray output of three values (``response``, ``basis``: in lanes as one shadow ray per ray)
+    as (stride, 3) rows."""
+    return shadow_lanes(values, 1, 3, stride)[:, 0].transpose(0, 2, 1).reshape(stride, 3)
 
 
 def _as_uint32(a: np.ndarray) -> np.ndarray:

@@ -318,6 +318,24 @@ class EmbreeScene:
             packet_loop.trace_occluded(self._embree.occluded16, self._handle, origin, direction, distance, blocked)
         return blocked
 
+    def occluded_lanes(self, origin: np.ndarray, vector: np.ndarray, length: np.ndarray) -> np.ndarray:
+        """``occluded`` for shadow rays in lanes (``packet_loop.LANE_DEFINES``): origin and vector
+        (hits / 16, per, 3, 16) float32, length (hits / 16, per, 16) float32, traced hit by hit;
+        the answers in length's shape."""
+        groups, per, lanes = length.shape
+        if origin.shape != (groups, per, 3, lanes) or vector.shape != origin.shape or lanes != packet_loop.PACKET:
+            raise ValueError(f"shadow rays in lanes {origin.shape}, {vector.shape} for lengths {length.shape}")
+        self._require_committed()
+        blocked = np.empty(length.shape, np.bool_)
+        origin, vector, length = (np.ascontiguousarray(a, np.float32) for a in (origin, vector, length))
+        if compiled_loops():
+            packet_loop.occluded_lanes_loop()(self._embree.occluded16, self._handle, *packet_loop.packet_arguments(),
+                                              np.empty(packet_loop.PACKET, np.int64), origin.reshape(-1),
+                                              vector.reshape(-1), length.reshape(-1), per, blocked.reshape(-1))
+        else:
+            packet_loop.trace_occluded_lanes(self._embree.occluded16, self._handle, origin, vector, length, blocked)
+        return blocked
+
     def _require_committed(self) -> None:
         if not self.committed:
             raise RuntimeError("commit the embree scene before tracing it")
@@ -343,3 +361,5 @@ def compile_trace_loops() -> None:
     none = np.empty((0, 3), np.float32)
     scene.intersect(none, none)
     scene.occluded(none, none, np.empty(0, np.float32))
+    lanes = np.empty((0, 1, 3, packet_loop.PACKET), np.float32)
+    scene.occluded_lanes(lanes, lanes, np.empty((0, 1, packet_loop.PACKET), np.float32))

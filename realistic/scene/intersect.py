@@ -177,6 +177,11 @@ class Intersector:
             dists = np.full(len(origin), dists[0], np.float32)
         return self._embree.occluded(origin, direction, dists)
 
+    def occluded_lanes(self, origin: np.ndarray, vector: np.ndarray, length: np.ndarray) -> np.ndarray:
+        """``occluded`` for the shading kernel's shadow rays, in lanes (``EmbreeScene.occluded_lanes``):
+        the answers in ``length``'s shape, each hit's rays traced together."""
+        return self._embree.occluded_lanes(origin, vector, length)
+
     def hit_distance(self, origin: np.ndarray, direction: np.ndarray) -> float | None:
         """Distance along one ray (origin and direction (3,)) to its closest hit; None for a miss."""
         hits = self.closest(np.reshape(origin, (1, 3)), np.reshape(direction, (1, 3)))

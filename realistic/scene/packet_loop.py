@@ -50,8 +50,26 @@ INST_PRIM = INST + INSTANCE_LEVELS
 VALID = ROWS  # the packet buffer's row after RTCRayHit16: the valid mask (-1 traced, 0 not)
 ALIGNMENT = 64  # bytes: RTCRayHit16 is RTC_ALIGN(64), and embree loads the valid mask as one vector
 
+#: Shadow rays in lanes, as ``kernels/shade.cl`` writes them (these defines head its source) and
+#: ``_occluded_lanes`` reads them: hits in groups of ``PACKET`` (``LANES``, the kernel's work-group
+#: size), and in a group, for each of the ``per`` rays per hit and each of an output's ``width``
+#: values, the group's hits side by side: value c of hit i's k-th ray at ((i / 16 per + k) width +
+#: c) 16 + i % 16, numpy's (hits / 16, per, width, 16) array ``[i // 16, k, c, i % 16]``
+#: (``shadow_lanes``). Neighbouring work items' values are adjacent, so the kernel stores a vector of
+#: them at once, where (N, width) rows made each store a scatter; a group's rays lie together, so
+#: the packet loop reads each output as one stream (planes of one value across all hits, per k and
+#: c, cost it more: 28 streams).
+LANE_DEFINES = (f"#define LANES {PACKET}\n#define LANE_AT(a, per, width, k, c, group, lane) "
+                "((a)[(((group) * (per) + (k)) * (width) + (c)) * LANES + (lane)])\n")
+
 #: rtcIntersect16 and rtcOccluded16: (const int* valid, RTCScene, RTCRayHit16* or RTCRay16*, arguments*)
 PacketFunction = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)
+
+
+def shadow_lanes(values: np.ndarray, per: int, width: int, hits: int) -> np.ndarray:
+    """The first hits per width of flat ``values`` (``hits`` a multiple of ``PACKET``) as
+    (hits / 16, per, width, 16) lanes (``LANE_DEFINES``)."""
+    return values[:hits * per * width].reshape(hits // PACKET, per, width, PACKET)
 
 
 def _aligned_packets(count: int, rows: int) -> np.ndarray:
@@ -157,6 +175,47 @@ def _occluded(function: Callable[..., None], scene: int, packet: np.ndarray, flo
         lanes = 0
 
 
+def _occluded_lanes(function: Callable[..., None], scene: int, packet: np.ndarray, floats: np.ndarray, valid: int,
+                    rayhit: int, rows: np.ndarray, origin: np.ndarray, vector: np.ndarray, length: np.ndarray,
+                    per: int, blocked: np.ndarray) -> None:
+    """``_occluded`` for shadow rays in lanes (``LANE_DEFINES``), ``per`` per hit, each output flat:
+    origin and vector of (hits / 16, per, 3, 16), length and ``blocked`` of (hits / 16, per, 16).
+    Each hit's rays fill the packets' lanes one after another, hit by hit (as ``_occluded`` traces
+    point-major rows), so embree traces a hit's shadow rays together; ``rows`` (``PACKET`` int64)
+    holds the lanes' places in ``length``."""
+    lanes = 0
+    for lane in range(PACKET):
+        packet[VALID, lane] = -1
+    for group in range(len(length) // (per * PACKET)):
+        for hit in range(PACKET):
+            at = group * per * PACKET + hit  # the hit's k-th ray's length, (group per + k) 16 + hit
+            ray = 3 * group * per * PACKET + hit  # its origin's and vector's x, ((group per + k) 3 + axis) 16 + hit
+            for _ in range(per):
+                distance = length[at]
+                if distance >= 0:
+                    for axis in range(3):
+                        floats[axis, lanes] = origin[ray + axis * PACKET]
+                        floats[4 + axis, lanes] = vector[ray + axis * PACKET]
+                    floats[TFAR, lanes] = distance
+                    rows[lanes] = at
+                    lanes += 1
+                    if lanes == PACKET:
+                        function(valid, scene, rayhit, 0)
+                        for lane in range(PACKET):
+                            blocked[rows[lane]] = floats[TFAR, lane] < 0
+                        lanes = 0
+                else:
+                    blocked[at] = distance < 0
+                at += PACKET
+                ray += 3 * PACKET
+    if lanes:
+        for lane in range(PACKET):
+            packet[VALID, lane] = -1 if lane < lanes else 0
+        function(valid, scene, rayhit, 0)
+        for lane in range(lanes):
+            blocked[rows[lane]] = floats[TFAR, lane] < 0
+
+
 def closest_loop() -> Callable[..., None]:
     """``_closest`` compiled (``realistic.core.jit``): (function, scene, *``packet_arguments()``,
     origin, direction, tfar, t, u, v, prim, geom, instance, normal); it runs with the GIL released."""
@@ -167,6 +226,12 @@ def occluded_loop() -> Callable[..., None]:
     """``_occluded`` compiled: (function, scene, *``packet_arguments()``, rows, origin, direction,
     distance, blocked), ``rows`` an empty (``PACKET``,) int64 array."""
     return compiled(_occluded)
+
+
+def occluded_lanes_loop() -> Callable[..., None]:
+    """``_occluded_lanes`` compiled: (function, scene, *``packet_arguments()``, rows, origin, vector,
+    length, per, blocked), ``rows`` an empty (``PACKET``,) int64 array."""
+    return compiled(_occluded_lanes)
 
 
 def _packets(count: int) -> np.ndarray:
@@ -231,3 +296,15 @@ def trace_occluded(function: Callable[..., None], scene: int, origin: np.ndarray
     _set_lanes(floats[:, TFAR:TFAR + 1], distance[traced, None])
     _call_each(function, scene, block)
     blocked[traced] = floats[:, TFAR].reshape(-1)[:len(traced)] < 0
+
+
+def trace_occluded_lanes(function: Callable[..., None], scene: int, origin: np.ndarray, vector: np.ndarray,
+                         length: np.ndarray, blocked: np.ndarray) -> None:
+    """``_occluded_lanes`` without numba, on the (hits / 16, per, ...) lanes: the rays as point-major
+    rows (hit i's k-th at i per + k), traced by ``trace_occluded``, whose lanes take them in that
+    order, as there."""
+    groups, per = length.shape[:2]
+    rows = np.empty(groups * PACKET * per, np.bool_)
+    trace_occluded(function, scene, origin.transpose(0, 3, 1, 2).reshape(-1, 3),
+                   vector.transpose(0, 3, 1, 2).reshape(-1, 3), length.transpose(0, 2, 1).reshape(-1), rows)
+    blocked[:] = rows.reshape(groups, PACKET, per).transpose(0, 2, 1)
