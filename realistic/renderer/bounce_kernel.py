@@ -54,9 +54,9 @@ each build is made at its first launch, and each thread has its own queue and ke
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
-from typing import TypeGuard
+from typing import TypeGuard, TypeVar
 
 import numpy as np
 
@@ -132,6 +132,7 @@ _KIND = {AREA: 0, POINT: 1, SPOT: 2, DISTANT: 3, INFINITE: 4, INSTANCE: 5}
 #: samples go on to find emission.
 MODE_FLAGS = ("mis", "direct", "emission_after_diffuse")
 MIS, DIRECT, EMISSION_AFTER_DIFFUSE = (1 << k for k in range(len(MODE_FLAGS)))
+_M = TypeVar("_M", bound=SurfaceMaterial)  # a material kind, kept through ``BounceKernel._picks``
 #: ``next_flags`` bits.
 GOES_ON, SPECULAR, SHADES = 1, 2, 4
 
@@ -486,18 +487,11 @@ class BounceKernel:
         texture up as ``PathIntegrator._shade`` does (spectral rays' at their wavelength, each
         colour's value repeated); a constant second lobe stays in the tables, RGB (the kernel turns it
         into spectral rays' channel)."""
-        geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
         out = np.zeros((0, bsdf_kernel.BSDF_PARAMS.width), np.float32)
         seconds = np.zeros((0, bsdf_kernel.LOBE.width), np.float32)
-        for index, material in self._per_hit:
-            picked = picks[:rows_on_material(geom, self._geom_material, index, picks)].copy()
-            if not len(picked):
-                continue
-            if hit_parameters is None:
-                raise ValueError("hits on a material with per-hit parameters need hit_parameters")
+        for index, material, picked, at in self._picks(self._per_hit, rows, hits, hit_parameters):
             if not len(out):
                 out = np.zeros((len(rows), bsdf_kernel.BSDF_PARAMS.width), np.float32)
-            at = hit_parameters(picked)
             table: np.ndarray | None
             if isinstance(material, Mix) and index in self._second_per_hit:
                 mixed = bsdf_kernel.mix_rows(material, at, len(picked), self.bsdf_tables)
@@ -511,20 +505,29 @@ class BounceKernel:
             out[picked] = table
         return out, seconds
 
+    def _picks(self, materials: list[tuple[int, _M]], rows: np.ndarray, hits: Hits,
+               hit_parameters: Callable[[np.ndarray], HitParameters] | None
+               ) -> Iterator[tuple[int, _M, np.ndarray, HitParameters]]:
+        """Each of ``materials`` (material index, material) that some of the hits ``rows`` are on,
+        with the positions in ``rows`` of those hits and ``hit_parameters`` there, which such hits
+        need (their rows are made per hit)."""
+        geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
+        for index, material in materials:
+            picked = picks[:rows_on_material(geom, self._geom_material, index, picks)].copy()
+            if not len(picked):
+                continue
+            if hit_parameters is None:
+                raise ValueError(f"hits on material {index}, whose rows are made per hit, need hit_parameters")
+            yield index, material, picked, hit_parameters(picked)
+
     def _hit_trees(self, rows: np.ndarray, hits: Hits, hit_parameters: Callable[[np.ndarray], HitParameters] | None
                    ) -> np.ndarray:
         """The ``TREE`` rows (m, ``_tree_width``) float32 of the hits ``rows`` on mixes holding a mix
         (zero elsewhere, unread; none without such hits): ``bsdf_kernel.tree_rows`` at
         ``hit_parameters(picked)``, the lookups ``_shade`` makes (spectral rays' at their wavelength)."""
-        geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
         out = np.zeros((0, self._tree_width), np.float32)
-        for index, material in self._trees:
-            picked = picks[:rows_on_material(geom, self._geom_material, index, picks)].copy()
-            if not len(picked):
-                continue
-            if hit_parameters is None:
-                raise ValueError("hits on a mix holding a mix need hit_parameters")
-            table = bsdf_kernel.tree_rows(material, hit_parameters(picked), len(picked), self.bsdf_tables)
+        for _, material, picked, at in self._picks(self._trees, rows, hits, hit_parameters):
+            table = bsdf_kernel.tree_rows(material, at, len(picked), self.bsdf_tables)
             assert table is not None  # material_rows' probe: covered at every hit
             if len(picked) == len(rows) and table.shape[1] == self._tree_width:  # every hit, in order
                 return table
