@@ -79,14 +79,37 @@ def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return gathered
 
 
+def _copy(points: np.ndarray, copied: np.ndarray) -> None:
+    """copied[j] = points[j] (a numba loop, ``core.jit``), whatever ``points``' layout."""
+    for j in range(points.shape[0]):
+        for column in range(copied.shape[1]):
+            copied[j, column] = points[j, column]
+
+
+#: ``_copy``'s one signature, as ``GATHER_SIGNATURE``.
+COPY_SIGNATURE = "void(float32[:, :], float32[:, ::1])"
+
+
+def contiguous_rows(points: np.ndarray) -> np.ndarray:
+    """``gather_rows`` of every row in order: the kernel's float32 rays, transposed views of its
+    (columns, n) output, copied to a contiguous (n, columns) array without reading a row number per
+    row (numpy's copy of such a view is slower than the loop's)."""
+    if not compiled_loops():
+        return np.ascontiguousarray(points, np.float32)
+    copied = np.empty(points.shape, np.float32)
+    compiled(_copy, COPY_SIGNATURE)(np.asarray(points, np.float32), copied)
+    return copied
+
+
 def compile_pass_loops() -> None:
-    """Compile (or load from numba's cache) a pass's own numba loops, the gathers of the kernel's rays
-    (for its one signature), the closest hits' instance normals, the film's sums and the shading
+    """Compile (or load from numba's cache) a pass's own numba loops, the gathers and copies of the
+    kernel's rays (for their one signature each), the closest hits' instance normals, the film's sums and the shading
     sums, for the argument types a pass passes, on no rows: a render does this on a render thread as
     it starts (``ThreadPasses.open``), beside its OpenCL builds, not in its first pass."""
     compiled(_gather, GATHER_SIGNATURE)
+    compiled(_copy, COPY_SIGNATURE)
     compile_intersect_loops()
-    pass_sums(np.empty(0, np.int64), np.empty((0, 3), np.float32), 0, 0, np.empty(0, np.float32))
+    pass_sums(np.empty(0, np.int32), np.empty((0, 3), np.float32), 0, 0, np.empty(0, np.float32))
     compile_shading_loops()
 
 
@@ -146,17 +169,21 @@ class PassRunner:
             sample = block.sample_ids()
             if rays_per_sample > 1:  # the K rays share the sample id, so the integrator's light samples
                 sample = np.repeat(sample, rays_per_sample)
-            alive = np.flatnonzero(rays.weight != 0)  # a negative filter lobe gives negative weights
+            live = rays.weight != 0  # a negative filter lobe gives negative weights
+            # every ray traced, in its order (a thin lens's pass): per-ray rows are used as they are,
+            # and the rays copied without a row number per ray
+            every = self.crop is None and not self.morton and bool(live.all())
+            alive = np.flatnonzero(live) if not every else np.arange(0)
             if self.crop is not None:  # a crop's pixels only: the pass's other rays are made, not traced
                 alive = alive[self.crop.contains(rays.pixel[alive], self.camera.width)]
             if self.morton:
                 alive = alive[morton_order(rays.pixel[alive], self.camera.width)]
-            # every ray traced, in its order (a thin lens's pass): per-ray rows are used as they are
-            every = self.crop is None and not self.morton and len(alive) == len(rays.weight)
+            traced = len(live) if every else len(alive)
             picked: Callable[[np.ndarray], np.ndarray] = (lambda values: values) if every else \
                 (lambda values: values[alive])
             pixel = picked(rays.pixel)
-            origin, direction = gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)
+            origin, direction = ((contiguous_rows(rays.origin), contiguous_rows(rays.direction)) if every else
+                                 (gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)))
             wavelength = None if rays.wavelength_nm is None else picked(rays.wavelength_nm)
         hits, albedo, aov_values = None, None, None
         if self.aovs.aovs:  # the camera rays' hits and albedo, found once for the AOVs and the integrator
@@ -183,4 +210,4 @@ class PassRunner:
             with self.clock("flare"):
                 flare = self.flare.splats(block)
         count = block.count if self.crop is None else self.crop.samples_in(block, self.camera.width)
-        return PassResult(index, first_pixel, sums, count, len(alive), shadow_rays, flare)
+        return PassResult(index, first_pixel, sums, count, traced, shadow_rays, flare)
