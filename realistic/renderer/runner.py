@@ -48,14 +48,16 @@ def morton_order(pixel: np.ndarray, width: int) -> np.ndarray:
 
 
 def _gather(points: np.ndarray, rows: np.ndarray, gathered: np.ndarray) -> bool:
-    """gathered[j] = points[rows[j]] (a numba loop, ``core.jit``: one pass writing the result's
-    rows in order, whatever ``points``' layout); False, with the rest unwritten, at a row out of range."""
+    """gathered[j] = points[rows[j]] of (n, 3) points (a numba loop, ``core.jit``: one pass writing
+    the result's rows in order, whatever ``points``' layout, its three columns spelt out, which the
+    compiler keeps apart where a loop over the columns cost half as much again); False, with
+    nothing written, at a row out of range."""
+    for j in range(rows.shape[0]):
+        if rows[j] < 0 or rows[j] >= points.shape[0]:
+            return False
     for j in range(rows.shape[0]):
         r = rows[j]
-        if r < 0 or r >= points.shape[0]:
-            return False
-        for column in range(gathered.shape[1]):
-            gathered[j, column] = points[r, column]
+        gathered[j, 0], gathered[j, 1], gathered[j, 2] = points[r, 0], points[r, 1], points[r, 2]
     return True
 
 
@@ -65,25 +67,27 @@ GATHER_SIGNATURE = "boolean(float32[:, :], int64[:], float32[:, ::1])"
 
 
 def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """points[rows] (non-negative ``rows``) as a contiguous (len(rows), columns) float32 array. The
-    kernel's rays are transposed views of its (columns, n) output, which the loop reads in place;
-    other points (the numpy references' float64) are rounded to float32 first."""
+    """points[rows] of (n, 3) points (non-negative ``rows``) as a contiguous (len(rows), 3) float32
+    array. The kernel's rays are transposed views of its (columns, n) output, which the loop reads
+    in place; other points (the numpy references' float64) are rounded to float32 first."""
     points, rows = np.asarray(points, np.float32), np.asarray(rows, np.int64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"gather_rows: points of shape {points.shape}, not (n, 3)")
     if not compiled_loops():  # numpy's form (``core.jit.use_compiled_loops``)
         if len(rows) and (rows.min() < 0 or rows.max() >= len(points)):
             raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
         return np.ascontiguousarray(points[rows])
-    gathered = np.empty((len(rows), points.shape[1]), np.float32)
+    gathered = np.empty((len(rows), 3), np.float32)
     if not compiled(_gather, GATHER_SIGNATURE)(points, rows, gathered):
         raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
     return gathered
 
 
 def _copy(points: np.ndarray, copied: np.ndarray) -> None:
-    """copied[j] = points[j] (a numba loop, ``core.jit``), whatever ``points``' layout."""
+    """copied[j] = points[j] of (n, 3) points (a numba loop, ``core.jit``), whatever ``points``'
+    layout, its columns spelt out as ``_gather``'s."""
     for j in range(points.shape[0]):
-        for column in range(copied.shape[1]):
-            copied[j, column] = points[j, column]
+        copied[j, 0], copied[j, 1], copied[j, 2] = points[j, 0], points[j, 1], points[j, 2]
 
 
 #: ``_copy``'s one signature, as ``GATHER_SIGNATURE``.
@@ -92,12 +96,15 @@ COPY_SIGNATURE = "void(float32[:, :], float32[:, ::1])"
 
 def contiguous_rows(points: np.ndarray) -> np.ndarray:
     """``gather_rows`` of every row in order: the kernel's float32 rays, transposed views of its
-    (columns, n) output, copied to a contiguous (n, columns) array without reading a row number per
-    row (numpy's copy of such a view is slower than the loop's)."""
+    (3, n) output, copied to a contiguous (n, 3) array without reading a row number per row
+    (numpy's copy of such a view is slower than the loop's)."""
+    points = np.asarray(points, np.float32)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"contiguous_rows: points of shape {points.shape}, not (n, 3)")
     if not compiled_loops():
-        return np.ascontiguousarray(points, np.float32)
+        return np.ascontiguousarray(points)
     copied = np.empty(points.shape, np.float32)
-    compiled(_copy, COPY_SIGNATURE)(np.asarray(points, np.float32), copied)
+    compiled(_copy, COPY_SIGNATURE)(points, copied)
     return copied
 
 
