@@ -316,7 +316,7 @@ def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dis
 
 
 def test_the_loops_compiled_ahead_are_those_a_pass_runs():
-    """A render compiles embree's packet loops and the pass's own loops (ray gathers, film sums,
+    """A render compiles embree's packet loops and the pass's own loops (ray gathers and copies, film sums,
     shading sums) on render threads as it starts (``ThreadPasses.open`` runs ``compile_trace_loops``
     and ``compile_pass_loops``), for exactly the argument types its passes then use: a pass compiles
     nothing more (checked in a process of its own, whose loops nothing compiled)."""
@@ -332,7 +332,7 @@ from realistic.scene import intersect, packet_loop
 from realistic.scene.embree import compile_trace_loops
 
 loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), packet_loop.occluded_lanes_loop(),
-         compiled(runner._gather, runner.GATHER_SIGNATURE),
+         compiled(runner._gather, runner.GATHER_SIGNATURE), compiled(runner._copy, runner.COPY_SIGNATURE),
          compiled(film._add_rows), compiled(direct_lighting._visible_sums),
          compiled(hit_rows._rows_on_material), compiled(hit_rows._place_rows),
          compiled(intersect._instances_to_world))
@@ -343,7 +343,7 @@ scene = load_scene(resolution=(12, 10), spp=2, lens_sampling="rear", dispersion=
 PassRunner(scene, scene.camera, PassSettings("opencl"), StageClock())(0, SampleBlock(0, 240, 2))
 print([len(loop.signatures) for loop in loops])
 """)
-    assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1, 1, 1, 1, 1]"]
+    assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1, 1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1, 1, 1, 1, 1, 1]"]
 
 
 def test_other_threads_run_while_a_kernel_first_launch_compiles(tmp_path):

@@ -14,7 +14,7 @@ from realistic.renderer.film import Film, PassFilm
 from realistic.renderer.job import RenderJob, RenderObserver
 from realistic.renderer.pass_plan import PASS_RAYS, default_pass_samples, plan_passes, progressive_order, slice_bounds
 from realistic.renderer.passes import ThreadPasses, render
-from realistic.renderer.runner import gather_rows
+from realistic.renderer.runner import contiguous_rows, gather_rows
 from realistic.scene.staging import default_setup
 
 
@@ -199,6 +199,16 @@ def test_gather_rows_is_row_indexing_as_contiguous_float32(count, seed, dtype, t
     gathered = gather_rows(points, rows)
     assert gathered.dtype == np.float32 and gathered.flags.c_contiguous and gathered.shape == (len(rows), 3)
     assert np.array_equal(gathered, points[rows].astype(np.float32))
+
+
+@given(st.integers(0, 300), st.integers(0, 2**32 - 1), st.sampled_from([np.float32, np.float64]), st.booleans())
+def test_contiguous_rows_are_every_row_in_order_as_contiguous_float32(count, seed, dtype, transposed):
+    """A thin lens's pass copies every ray: the same rows as gathering each by its number."""
+    rng = np.random.default_rng(seed)
+    points = rng.random((3, count)).astype(dtype).T if transposed else rng.random((count, 3)).astype(dtype)
+    copied = contiguous_rows(points)
+    assert copied.dtype == np.float32 and copied.flags.c_contiguous and copied.shape == (count, 3)
+    assert np.array_equal(copied, gather_rows(points, np.arange(count)))
 
 
 def test_gather_rows_refuses_a_row_outside_the_points():

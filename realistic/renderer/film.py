@@ -44,17 +44,24 @@ class Splats:
         return cls(np.zeros(0, np.int64), np.zeros((0, 3)))
 
 
-def _add_rows(local: np.ndarray, value: np.ndarray, weight: np.ndarray, sums: np.ndarray) -> bool:
-    """Add value[i] * weight[i] (in value's precision) to sums[local[i]] (float64), row by row in
-    order; False, with nothing more added, at the first pixel outside ``sums`` (a numba loop,
-    ``core.jit``: one pass over the rows, where a ``np.bincount`` per column read them once each)."""
-    for i in range(local.shape[0]):
-        p = local[i]
+def _add_rows(pixel: np.ndarray, first_pixel: int, value: np.ndarray, weight: np.ndarray, sums: np.ndarray) -> bool:
+    """Add value[i] * weight[i] (in value's precision) to sums[pixel[i] - first_pixel] (float64),
+    row by row in order; False, with nothing more added, at the first pixel outside ``sums`` (a
+    numba loop, ``core.jit``: one pass over the rows, where a ``np.bincount`` per column read them
+    once each; the pixels are read as the camera made them, int32, not cast and shifted first).
+    Three columns (radiance) are spelt out: a loop over them cost a third more."""
+    for i in range(pixel.shape[0]):
+        p = pixel[i] - first_pixel
         if p < 0 or p >= sums.shape[0]:
             return False
         w = weight[i]
-        for c in range(value.shape[1]):
-            sums[p, c] += np.float64(value[i, c] * w)
+        if value.shape[1] == 3:
+            sums[p, 0] += np.float64(value[i, 0] * w)
+            sums[p, 1] += np.float64(value[i, 1] * w)
+            sums[p, 2] += np.float64(value[i, 2] * w)
+        else:
+            for c in range(value.shape[1]):
+                sums[p, c] += np.float64(value[i, c] * w)
     return True
 
 
@@ -68,16 +75,19 @@ def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_coun
     if value.dtype != np.float32:
         value = value.astype(np.float64, copy=False)
     weight = np.ones(len(value), value.dtype) if weight is None else np.asarray(weight, value.dtype)
-    local = np.asarray(pixel, np.int64) - first_pixel
+    pixel = np.asarray(pixel)
+    if pixel.dtype != np.int32:  # the cameras' pixels are int32, read as they are
+        pixel = pixel.astype(np.int64, copy=False)
     outside = ValueError(f"pass_sums: a pixel outside {first_pixel} .. {first_pixel + pixel_count - 1}")
     if not compiled_loops():  # numpy's form (``core.jit.use_compiled_loops``): np.bincount adds each
+        local = pixel - np.int64(first_pixel)
         if len(local) and (local.min() < 0 or local.max() >= pixel_count):  # weight in turn, in float64
             raise outside
         products = (value * weight[:, None]).astype(np.float64)
         return np.stack([np.bincount(local, products[:, c], pixel_count) for c in range(value.shape[1])], axis=1) \
             if value.shape[1] else np.zeros((pixel_count, 0))
     sums = np.zeros((pixel_count, value.shape[1]), np.float64)
-    if not compiled(_add_rows)(local, value, weight, sums):
+    if not compiled(_add_rows)(pixel, np.int64(first_pixel), value, weight, sums):
         raise outside
     return sums
 

@@ -48,14 +48,16 @@ def morton_order(pixel: np.ndarray, width: int) -> np.ndarray:
 
 
 def _gather(points: np.ndarray, rows: np.ndarray, gathered: np.ndarray) -> bool:
-    """gathered[j] = points[rows[j]] (a numba loop, ``core.jit``: one pass writing the result's
-    rows in order, whatever ``points``' layout); False, with the rest unwritten, at a row out of range."""
+    """gathered[j] = points[rows[j]] of (n, 3) points (a numba loop, ``core.jit``: one pass writing
+    the result's rows in order, whatever ``points``' layout, its three columns spelt out, which the
+    compiler keeps apart where a loop over the columns cost half as much again); False, with
+    nothing written, at a row out of range."""
+    for j in range(rows.shape[0]):
+        if rows[j] < 0 or rows[j] >= points.shape[0]:
+            return False
     for j in range(rows.shape[0]):
         r = rows[j]
-        if r < 0 or r >= points.shape[0]:
-            return False
-        for column in range(gathered.shape[1]):
-            gathered[j, column] = points[r, column]
+        gathered[j, 0], gathered[j, 1], gathered[j, 2] = points[r, 0], points[r, 1], points[r, 2]
     return True
 
 
@@ -65,28 +67,56 @@ GATHER_SIGNATURE = "boolean(float32[:, :], int64[:], float32[:, ::1])"
 
 
 def gather_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """points[rows] (non-negative ``rows``) as a contiguous (len(rows), columns) float32 array. The
-    kernel's rays are transposed views of its (columns, n) output, which the loop reads in place;
-    other points (the numpy references' float64) are rounded to float32 first."""
+    """points[rows] of (n, 3) points (non-negative ``rows``) as a contiguous (len(rows), 3) float32
+    array. The kernel's rays are transposed views of its (columns, n) output, which the loop reads
+    in place; other points (the numpy references' float64) are rounded to float32 first."""
     points, rows = np.asarray(points, np.float32), np.asarray(rows, np.int64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"gather_rows: points of shape {points.shape}, not (n, 3)")
     if not compiled_loops():  # numpy's form (``core.jit.use_compiled_loops``)
         if len(rows) and (rows.min() < 0 or rows.max() >= len(points)):
             raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
         return np.ascontiguousarray(points[rows])
-    gathered = np.empty((len(rows), points.shape[1]), np.float32)
+    gathered = np.empty((len(rows), 3), np.float32)
     if not compiled(_gather, GATHER_SIGNATURE)(points, rows, gathered):
         raise IndexError(f"gather_rows: a row outside 0 .. {len(points) - 1}")
     return gathered
 
 
+def _copy(points: np.ndarray, copied: np.ndarray) -> None:
+    """copied[j] = points[j] of (n, 3) points (a numba loop, ``core.jit``), whatever ``points``'
+    layout, its columns spelt out as ``_gather``'s."""
+    for j in range(points.shape[0]):
+        copied[j, 0], copied[j, 1], copied[j, 2] = points[j, 0], points[j, 1], points[j, 2]
+
+
+#: ``_copy``'s one signature, as ``GATHER_SIGNATURE``.
+COPY_SIGNATURE = "void(float32[:, :], float32[:, ::1])"
+
+
+def contiguous_rows(points: np.ndarray) -> np.ndarray:
+    """``gather_rows`` of every row in order: the kernel's float32 rays, transposed views of its
+    (3, n) output, copied to a contiguous (n, 3) array without reading a row number per row
+    (numpy's copy of such a view is slower than the loop's)."""
+    points = np.asarray(points, np.float32)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"contiguous_rows: points of shape {points.shape}, not (n, 3)")
+    if not compiled_loops():
+        return np.ascontiguousarray(points)
+    copied = np.empty(points.shape, np.float32)
+    compiled(_copy, COPY_SIGNATURE)(points, copied)
+    return copied
+
+
 def compile_pass_loops() -> None:
-    """Compile (or load from numba's cache) a pass's own numba loops, the gathers of the kernel's rays
-    (for its one signature), the closest hits' instance normals, the film's sums and the shading
+    """Compile (or load from numba's cache) a pass's own numba loops, the gathers and copies of the
+    kernel's rays (for their one signature each), the closest hits' instance normals, the film's sums and the shading
     sums, for the argument types a pass passes, on no rows: a render does this on a render thread as
     it starts (``ThreadPasses.open``), beside its OpenCL builds, not in its first pass."""
     compiled(_gather, GATHER_SIGNATURE)
+    compiled(_copy, COPY_SIGNATURE)
     compile_intersect_loops()
-    pass_sums(np.empty(0, np.int64), np.empty((0, 3), np.float32), 0, 0, np.empty(0, np.float32))
+    pass_sums(np.empty(0, np.int32), np.empty((0, 3), np.float32), 0, 0, np.empty(0, np.float32))
     compile_shading_loops()
 
 
@@ -146,17 +176,21 @@ class PassRunner:
             sample = block.sample_ids()
             if rays_per_sample > 1:  # the K rays share the sample id, so the integrator's light samples
                 sample = np.repeat(sample, rays_per_sample)
-            alive = np.flatnonzero(rays.weight != 0)  # a negative filter lobe gives negative weights
+            live = rays.weight != 0  # a negative filter lobe gives negative weights
+            # every ray traced, in its order (a thin lens's pass): per-ray rows are used as they are,
+            # and the rays copied without a row number per ray
+            every = self.crop is None and not self.morton and bool(live.all())
+            alive = np.flatnonzero(live) if not every else np.arange(0)
             if self.crop is not None:  # a crop's pixels only: the pass's other rays are made, not traced
                 alive = alive[self.crop.contains(rays.pixel[alive], self.camera.width)]
             if self.morton:
                 alive = alive[morton_order(rays.pixel[alive], self.camera.width)]
-            # every ray traced, in its order (a thin lens's pass): per-ray rows are used as they are
-            every = self.crop is None and not self.morton and len(alive) == len(rays.weight)
+            traced = len(live) if every else len(alive)
             picked: Callable[[np.ndarray], np.ndarray] = (lambda values: values) if every else \
                 (lambda values: values[alive])
             pixel = picked(rays.pixel)
-            origin, direction = gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)
+            origin, direction = ((contiguous_rows(rays.origin), contiguous_rows(rays.direction)) if every else
+                                 (gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)))
             wavelength = None if rays.wavelength_nm is None else picked(rays.wavelength_nm)
         hits, albedo, aov_values = None, None, None
         if self.aovs.aovs:  # the camera rays' hits and albedo, found once for the AOVs and the integrator
@@ -183,4 +217,4 @@ class PassRunner:
             with self.clock("flare"):
                 flare = self.flare.splats(block)
         count = block.count if self.crop is None else self.crop.samples_in(block, self.camera.width)
-        return PassResult(index, first_pixel, sums, count, len(alive), shadow_rays, flare)
+        return PassResult(index, first_pixel, sums, count, traced, shadow_rays, flare)
