@@ -6,9 +6,12 @@ for a while on the cores the render's own threads need (commit 83a4100 replaced 
 A process of its own imports numpy and scipy first, waits until their pools' start-up spin is
 over (the threads present then are OpenBLAS's), and counts those threads' CPU time over renders
 whose passes carry a few hundred thousand escaping rays through an environment map's rotation.
+``python -m realistic render`` then asks OpenBLAS for one thread, so that no pool starts at all.
 """
 
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -71,3 +74,38 @@ def test_a_render_wakes_no_openblas_thread() -> None:
     if int(pool) == 0:
         pytest.skip("OpenBLAS started no pool threads here (one core, or its thread count set to 1)")
     assert all(int(entry.split("=")[1]) <= 1 for entry in woken), woken
+
+
+POOLS = r"""
+import os, sys
+
+from realistic.__main__ import one_blas_thread
+
+one_blas_thread(sys.argv[1:])
+import numpy  # noqa: F401
+import scipy.linalg  # noqa: F401
+
+print(len(os.listdir("/proc/self/task")) - 1, os.environ.get("OPENBLAS_NUM_THREADS"))
+"""
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="needs Linux's /proc to count threads")
+@pytest.mark.parametrize(("argv", "env", "one"), [
+    (["render", "scene.pbrt"], {}, True),
+    (["render", "scene.pbrt"], {"OPENBLAS_NUM_THREADS": "2"}, False),  # the user's choice stands
+    (["lens", "info", "dgauss"], {}, False),
+])
+def test_the_render_command_starts_no_openblas_pool(argv: list[str], env: dict[str, str], one: bool) -> None:
+    """``python -m realistic render`` asks OpenBLAS for one thread before numpy loads: numpy and
+    scipy then start no pool threads; a value the user set, and the other commands, are left alone."""
+    base = {key: value for key, value in os.environ.items() if key != "OPENBLAS_NUM_THREADS"}
+    run = subprocess.run([sys.executable, "-c", POOLS, *argv], capture_output=True, text=True, timeout=120,
+                         env={**base, **env})
+    assert run.returncode == 0, run.stderr[-2000:]
+    threads, value = run.stdout.split()
+    if one:
+        assert (threads, value) == ("0", "1")
+    else:
+        assert value == env.get("OPENBLAS_NUM_THREADS", "None")
+        if (os.cpu_count() or 1) > 1:
+            assert int(threads) > 0
