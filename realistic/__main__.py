@@ -3,8 +3,12 @@
 A render on the OpenCL backend starts loading the driver's compiler on a thread before anything
 else is imported (``load_compiler``): the driver does it without the GIL, on a core that the
 imports and the scene's reading leave idle, and the render's first program build no longer waits
-for it."""
+for it.
 
+A render's process asks OpenBLAS for one thread (``one_blas_thread``) before numpy is imported.
+"""
+
+import os
 import sys
 import threading
 
@@ -28,6 +32,15 @@ def device_spec(argv: list[str]) -> str | None:
     return spec
 
 
+def one_blas_thread(argv: list[str]) -> None:
+    """For the render command, ``OPENBLAS_NUM_THREADS=1`` unless the user set it: numpy's and scipy's
+    OpenBLAS each read it as they load and otherwise start a pool whose threads spin a while on the
+    cores the render needs, and no render calls a product large enough to
+    use them (tests/test_blas_threads.py). Child processes inherit it."""
+    if argv[:1] == ["render"]:
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
 def load_compiler(spec: str | None) -> None:
     """Load the OpenCL driver's compiler on the device the render will use (``Device.load_compiler``:
     ``spec``, else ``PYOPENCL_CTX``, else the default). A device that cannot be had is left to the
@@ -42,6 +55,7 @@ def load_compiler(spec: str | None) -> None:
 
 
 if __name__ == "__main__":
+    one_blas_thread(sys.argv[1:])
     if renders_on_opencl(sys.argv[1:]):
         threading.Thread(target=load_compiler, args=(device_spec(sys.argv[1:]),), name="load-compiler").start()
     try:
