@@ -62,6 +62,7 @@ from realistic.renderer.timing import STAGES, StageClock  # noqa: E402
 from realistic.scene.intersect import Intersector  # noqa: E402
 from realistic.scene.meshes import MeshObject, load_mesh_file  # noqa: E402
 from realistic.scene.model import Mesh  # noqa: E402
+from realistic.scene.packet_loop import lane_rows  # noqa: E402
 from realistic.scene.shapes import light_mesh, sphere  # noqa: E402
 from realistic.scene.staging import auto_eye, mesh_setup  # noqa: E402
 
@@ -116,9 +117,8 @@ class RecordingIntersector(Intersector):
     def occluded_lanes(self, origin, vector, length):
         """The shading kernel's rays in lanes kept as point-major rows (copies): the same rays, in the
         order embree traces them."""
-        rows = (origin.transpose(0, 3, 1, 2).reshape(-1, 3), vector.transpose(0, 3, 1, 2).reshape(-1, 3),
-                length.transpose(0, 2, 1).reshape(-1))  # views where one ray per hit allows: of reused outputs
-        self.shadow.append(tuple(np.array(a) for a in rows))
+        rows = (lane_rows(origin).reshape(-1, 3), lane_rows(vector).reshape(-1, 3), lane_rows(length).reshape(-1))
+        self.shadow.append(rows)
         return super().occluded_lanes(origin, vector, length)
 
 

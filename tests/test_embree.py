@@ -24,10 +24,11 @@ import numpy as np
 import pytest
 
 from conftest import run_fresh
+from lane_helpers import in_lanes
 from realistic.errors import UserError
 from realistic.scene import embree, packet_loop
 from realistic.scene.embree import EmbreeScene
-from realistic.scene.packet_loop import INST_PRIM, PACKET, ROWS
+from realistic.scene.packet_loop import INST_PRIM, PACKET, ROWS, lane_rows, shadow_lanes
 
 BATCHES = [0, 1, PACKET - 1, PACKET, PACKET + 1, 1000]
 EDGE = 1e-4  # barycentric and relative-t margins of the rays left out as float32-ambiguous
@@ -238,12 +239,21 @@ def test_rays_not_traced_between_traced_ones_change_no_answer() -> None:
     assert np.array_equal(blocked[traced], (np.arange(count) % 2 == 0)[traced])
 
 
-def in_lanes(rows: np.ndarray, per: int) -> np.ndarray:
-    """Point-major rows (hits per, width) or (hits per,), hits a multiple of 16, in lanes
-    (``packet_loop.LANE_DEFINES``: (hits / 16, per, width, 16), or (hits / 16, per, 16))."""
-    width = rows.shape[1] if rows.ndim == 2 else 1
-    lanes = np.ascontiguousarray(rows.reshape(-1, PACKET, per, width).transpose(0, 2, 3, 1))
-    return lanes if rows.ndim == 2 else lanes[:, :, 0]
+@pytest.mark.parametrize("per, width", [(1, 1), (1, 3), (3, 2), (4, 3)])
+def test_lanes_hold_each_value_where_the_kernel_puts_it(per: int, width: int) -> None:
+    """``shadow_lanes`` reads value c of hit i's k-th ray where shade.cl's ``LANE_AT`` stores it, at
+    ((i / 16 per + k) width + c) 16 + i % 16 of the flat output, and ``lane_rows`` gives it at
+    [i, k, c] as a copy, so a row outlives the kernel's next launch into the same output."""
+    hits = 2 * PACKET
+    flat = np.arange(hits * per * width + 7, dtype=np.float32)
+    rows = lane_rows(shadow_lanes(flat, per, width, hits))
+    i, k, c = np.meshgrid(np.arange(hits), np.arange(per), np.arange(width), indexing="ij")
+    assert np.array_equal(rows, flat[((i // PACKET * per + k) * width + c) * PACKET + i % PACKET])
+    assert not np.shares_memory(rows, flat)
+    # a length's lanes, (hits / 16, per, 16)
+    i, k = np.meshgrid(np.arange(hits), np.arange(per), indexing="ij")
+    length = lane_rows(shadow_lanes(flat, per, 1, hits)[:, :, 0])
+    assert np.array_equal(length, flat[(i // PACKET * per + k) * PACKET + i % PACKET])
 
 
 @pytest.mark.parametrize("per", [1, 3, 8])

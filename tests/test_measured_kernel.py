@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import vectoriser_remarks
+from lane_helpers import point_major
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core import rng
 from realistic.core.transforms import look_at, rotate, translate
@@ -32,7 +33,7 @@ from realistic.scene.measured import load_measured
 from realistic.scene.model import AreaLight, Material, Scene
 from realistic.scene.packet_loop import PACKET
 from realistic.scene.shapes import quad, sphere
-from test_shade_kernel import SEED, busy_scene, point_major, rays_of
+from test_shade_kernel import SEED, busy_scene, rays_of
 
 pytest.importorskip("realistic.camera.opencl_host")
 pytestmark = pytest.mark.usefixtures("opencl_platform")

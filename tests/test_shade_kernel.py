@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from conftest import vectoriser_remarks
+from lane_helpers import in_lanes, point_major
 from realistic.camera.base import SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
@@ -80,26 +81,6 @@ def scene_rays(request):
         return setup.scene, rays_of(setup.scene, setup.eye, setup.target)
     scene, eye, target = busy_scene()
     return scene, rays_of(scene, eye, target)
-
-
-def point_major(lanes: np.ndarray) -> np.ndarray:
-    """A launch's output in lanes (``packet_loop.LANE_DEFINES``: (hits / 16, per, width, 16), or a
-    length's (hits / 16, per, 16)) as point-major rows, hit i's k-th shadow ray at row i per + k:
-    (rows, width), or (rows,)."""
-    if lanes.ndim == 3:
-        return lanes.transpose(0, 2, 1).reshape(-1)
-    return lanes.transpose(0, 3, 1, 2).reshape(-1, lanes.shape[2])
-
-
-def in_lanes(rows: np.ndarray, per: int) -> np.ndarray:
-    """Point-major rows ((hits per, width) or (hits per,)) in lanes, the hits padded with zero rows
-    to a multiple of 16: ``point_major``'s inverse."""
-    width = rows.shape[1] if rows.ndim == 2 else 1
-    hits = len(rows) // per
-    padded = np.zeros((-(-hits // PACKET) * PACKET, per, width), rows.dtype)
-    padded[:hits] = rows.reshape(hits, per, width)
-    lanes = np.ascontiguousarray(padded.reshape(-1, PACKET, per, width).transpose(0, 2, 3, 1))
-    return lanes if rows.ndim == 2 else lanes[:, :, 0]
 
 
 @pytest.mark.parametrize("light_samples", [1, 3])

@@ -68,7 +68,7 @@ from realistic.scene.intersect import Hits, Intersector
 from realistic.scene.materials import Measured, SurfaceMaterial
 from realistic.scene.measured import IrregularSamples, load_measured
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
-from realistic.scene.packet_loop import PACKET
+from realistic.scene.packet_loop import PACKET, lane_rows
 from realistic.scene.shapes import light_mesh
 from realistic.scene.textures import Footprint, albedo, numpy_lookup
 
@@ -237,8 +237,8 @@ def visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndarr
         return int(compiled(_visible_sums)(contribution, blocked, length, n, fresh, out))
     per, channels = length.shape[1], out.shape[1]
     # (hits, per) and (hits, per, channels), ray i's rows at [i]
-    length, blocked = (a.transpose(0, 2, 1).reshape(-1, per)[:n] for a in (length, blocked))
-    contribution = contribution[:, :, :channels].transpose(0, 3, 1, 2).reshape(-1, per, channels)[:n]
+    length, blocked = (lane_rows(a)[:n] for a in (length, blocked))
+    contribution = lane_rows(contribution[:, :, :channels])[:n]
     live = length > 0
     visible = np.where(blocked, np.float32(0.0), np.float32(1.0))
     products = np.where(live[:, :, None], contribution * visible[:, :, None], np.float32(0.0))

@@ -54,7 +54,7 @@ from realistic.renderer.bsdf.measured import TABLE_NODES
 from realistic.renderer.light_sampler import SHADOW_DEFINES
 from realistic.scene.materials import Measured
 from realistic.scene.model import CheckerTexture, GridTexture, Material
-from realistic.scene.packet_loop import LANE_DEFINES, PACKET, shadow_lanes
+from realistic.scene.packet_loop import LANE_DEFINES, PACKET, lane_rows, shadow_lanes
 
 KERNEL_FILE = "shade.cl"
 #: The tables ``kernels/shade.cl`` reads, declared once: their ``#define``s head the kernel source.
@@ -383,7 +383,7 @@ class ShadeKernel:
 def _per_ray(values: np.ndarray, stride: int) -> np.ndarray:
     """A per-ray output of three values (``response``, ``basis``: in lanes as one shadow ray per ray)
     as (stride, 3) rows."""
-    return shadow_lanes(values, 1, 3, stride)[:, 0].transpose(0, 2, 1).reshape(stride, 3)
+    return lane_rows(shadow_lanes(values, 1, 3, stride))[:, 0]
 
 
 def _as_uint32(a: np.ndarray) -> np.ndarray:

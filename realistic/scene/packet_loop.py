@@ -72,6 +72,13 @@ def shadow_lanes(values: np.ndarray, per: int, width: int, hits: int) -> np.ndar
     return values[:hits * per * width].reshape(hits // PACKET, per, width, PACKET)
 
 
+def lane_rows(lanes: np.ndarray) -> np.ndarray:
+    """Lanes ((hits / 16, per, width, 16), or a length's (hits / 16, per, 16)) as rows per hit:
+    (hits, per, width), or (hits, per), hit i's k-th ray at [i, k] (``shadow_lanes``' inverse): a
+    copy, never a view of the lanes (the shading kernel's outputs are reused by its next launch)."""
+    return np.array(np.moveaxis(lanes, -1, 1)).reshape(-1, *lanes.shape[1:-1])
+
+
 def _aligned_packets(count: int, rows: int) -> np.ndarray:
     """(count, rows, 16) int32 packets in one 64-byte aligned block (a row is 64 bytes, so each
     packet is aligned), zero but for every mask bit: the ray rows that no trace changes (tnear,
@@ -305,6 +312,6 @@ def trace_occluded_lanes(function: Callable[..., None], scene: int, origin: np.n
     order, as there."""
     groups, per = length.shape[:2]
     rows = np.empty(groups * PACKET * per, np.bool_)
-    trace_occluded(function, scene, origin.transpose(0, 3, 1, 2).reshape(-1, 3),
-                   vector.transpose(0, 3, 1, 2).reshape(-1, 3), length.transpose(0, 2, 1).reshape(-1), rows)
+    trace_occluded(function, scene, lane_rows(origin).reshape(-1, 3), lane_rows(vector).reshape(-1, 3),
+                   lane_rows(length).reshape(-1), rows)
     blocked[:] = rows.reshape(groups, PACKET, per).transpose(0, 2, 1)
