@@ -107,10 +107,10 @@ class PathIntegrator(DirectLighting):
             raise ValueError("max_depth must be at least 0")
         self.max_depth, self.mode, self.mis, self.bsdf_factory = max_depth, mode, mis, bsdf_factory
         chosen = backend_for(backend) if isinstance(backend, str) else backend
-        #: filters the image textures of ``SurfaceParameters`` (``_shade``, the per-hit rows, albedo)
-        self._image_lookup = chosen.image_lookup
-        #: the camera hits' footprints (``_footprint``): ``kernels/ewa.cl``'s on "opencl"
-        self._triangle_footprint = chosen.triangle_footprint
+        # the camera hits' footprints (``_footprint``) and the image textures of ``SurfaceParameters``
+        # (``_shade``, the per-hit rows, albedo) on this integrator's backend, where the
+        # ``DirectLighting`` part's own (``self.backend``) is numpy's
+        self._surface_backend = chosen
         self._bsdf_kernel = chosen.bsdf_kernel() if bsdf_factory is bsdf_for else None
         self.lights = LightSampler(scene, intersector.extent)
         self._add_light_surfaces(scene)
@@ -300,13 +300,6 @@ class PathIntegrator(DirectLighting):
                             for key, value in state["shadow"].items()}
         return joined
 
-    def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,
-                   distance: np.ndarray) -> Footprint:
-        """``DirectLighting._footprint`` by this integrator's backend (``self.backend``, the
-        ``DirectLighting`` part's, is numpy's), over the per-geometry tables, lights included."""
-        return self._triangle_footprint(self._vertices, self._uv, self._geom_linear, face, geom, direction, normal,
-                                        distance, self.pixel_spread_radians)
-
     def _parameters_at(self, face: np.ndarray, bary: np.ndarray, depth: int, footprint: Callable[[], Footprint],
                        basis: np.ndarray | None) -> SurfaceParameters:
         """The ``HitParameters`` of hits at ``depth`` on triangles ``face`` at barycentrics ``bary``
@@ -320,7 +313,7 @@ class PathIntegrator(DirectLighting):
         def camera_footprint() -> Footprint | None:
             return footprint() if depth == 0 and self.pixel_spread_radians > 0 else None
 
-        return SurfaceParameters(len(face), uv, camera_footprint, basis, self._image_lookup)
+        return SurfaceParameters(len(face), uv, camera_footprint, basis, self._surface_backend.image_lookup)
 
     def _hit_parameters(self, hits: Hits, rows: np.ndarray, d: np.ndarray, basis: np.ndarray | None, depth: int
                         ) -> Callable[[np.ndarray], SurfaceParameters]:
