@@ -492,6 +492,17 @@ def _paths_agree(scene: Scene, numpy_one: PathIntegrator, device_one: PathIntegr
     assert abs(shadows - expected_shadows) <= 0.01 * expected_shadows
 
 
+def _kernel_paths_agree(scene: Scene, mode: str, seed: int, spectral: bool, monkeypatch) -> BounceKernel:
+    """``_paths_agree`` on whole paths (two light samples, a pixel spread) over ``scene``, every one of
+    whose materials the fused bounce covers, with ``_shade`` never called (every hit is the kernel's);
+    the device integrator's bounce kernel, for the caller's own checks of how it covered them."""
+    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
+    assert device_one._bounce is not None and device_one._bounce.covered.all()
+    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
+    _paths_agree(scene, numpy_one, device_one, seed, spectral=spectral)
+    return device_one._bounce
+
+
 @pytest.mark.parametrize("mode, mis", [("path", True), ("path", False), ("direct", True), ("direct", False)])
 def test_paths_through_the_bounce_kernel_carry_the_numpy_radiance(mode, mis):
     """Whole paths (depth 5, two light samples), glass, a rough conductor, an Oren-Nayar quad,
@@ -526,11 +537,7 @@ def test_paths_over_textured_parameters_carry_the_numpy_radiance(mode, spectral,
     materials = [floor, PER_HIT["mix, checker amount"][0], PER_HIT["rough dielectric, image roughness"][0],
                  PER_HIT["conductor, checker roughness"][0]]
     scene.instances[:4] = [replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
-    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
-    assert device_one._bounce is not None and device_one._bounce.covered.all()
-    assert len(device_one._bounce._per_hit) == 4
-    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
-    _paths_agree(scene, numpy_one, device_one, 17, spectral=spectral)
+    assert len(_kernel_paths_agree(scene, mode, 17, spectral, monkeypatch)._per_hit) == 4
 
 
 @pytest.mark.parametrize("mode, spectral", [("path", False), ("direct", False), ("path", True), ("direct", True)])
@@ -542,11 +549,7 @@ def test_paths_over_mixes_of_textured_second_materials_carry_the_numpy_radiance(
     (``_shade`` is never called), and each ray's radiance is the numpy backend's to float32 rounding."""
     scene, _, _ = textured_scene()
     scene.instances[:4] = [replace(inst, material=m) for inst, m in zip(scene.instances, SECOND_PER_HIT)]
-    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
-    assert device_one._bounce is not None and device_one._bounce.covered.all()
-    assert len(device_one._bounce._second_per_hit) == 4
-    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
-    _paths_agree(scene, numpy_one, device_one, 19, spectral=spectral)
+    assert len(_kernel_paths_agree(scene, mode, 19, spectral, monkeypatch)._second_per_hit) == 4
 
 
 @pytest.mark.parametrize("mode", ["path", "direct"])
@@ -574,10 +577,7 @@ def test_paths_over_textured_coated_diffuse_plastic_and_substrate_carry_the_nump
     materials = [CoatedDiffuse(ScaledTexture(floor.texture, (0.9, 0.8, 0.7)), 0.1),
                  Plastic(ball.texture, (0.3, 0.3, 0.3), 0.1), Substrate(cone.texture, (0.1, 0.1, 0.1), 0.2, 0.2)]
     scene.instances[:3] = [replace(inst, material=m) for inst, m in zip(scene.instances, materials)]
-    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
-    assert device_one._bounce is not None and device_one._bounce.covered.all()
-    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
-    _paths_agree(scene, numpy_one, device_one, 13, spectral=spectral)
+    _kernel_paths_agree(scene, mode, 13, spectral, monkeypatch)
 
 
 def _spectral_launches(integrator: PathIntegrator, monkeypatch) -> list[np.ndarray]:

@@ -25,7 +25,7 @@ from realistic.scene.materials import (
     Substrate,
 )
 from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Material
-from test_bounce_kernel import IMAGE, ROUGH, SPREAD, _pair, _paths_agree, _shades_as_numpy
+from test_bounce_kernel import IMAGE, ROUGH, _kernel_paths_agree, _shades_as_numpy
 from test_shading_reference import textured_scene
 
 pytest.importorskip("realistic.camera.opencl_host")
@@ -116,11 +116,7 @@ def test_paths_over_mix_trees_never_reach_numpy_and_carry_its_radiance(mode, spe
     (``_shade`` is never called) and each ray's radiance is the numpy backend's to float32 rounding."""
     scene, _, _ = textured_scene()
     scene.instances[:4] = [replace(inst, material=m) for inst, m in zip(scene.instances, TREES.values())]
-    numpy_one, device_one = _pair(scene, mode, light_samples=2, spread=SPREAD)
-    assert device_one._bounce is not None and device_one._bounce.covered.all()
-    assert len(device_one._bounce._trees) == 4
-    monkeypatch.setattr(device_one, "_shade", None)  # never called: every hit is the kernel's
-    _paths_agree(scene, numpy_one, device_one, 23, spectral=spectral)
+    assert len(_kernel_paths_agree(scene, mode, 23, spectral, monkeypatch)._trees) == 4
 
 
 def test_a_mix_made_of_itself_is_one_line_naming_it():

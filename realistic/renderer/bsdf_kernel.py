@@ -197,8 +197,10 @@ def parameters(material: SurfaceMaterial, hits: HitParameters, count: int, table
     if not isinstance(material, Mix):
         lobe = _lobe(material, hits, count, tables)
         return None if lobe is None else _rows(count, lobe, BSDF_PARAMS.width)
-    mixed = None if tables is None else mix_rows(material, hits, count, tables, second_hits)
-    if mixed is None or tables is None:
+    if tables is None:
+        return None
+    mixed = mix_rows(material, hits, count, tables, second_hits)
+    if mixed is None:
         return None
     rows, second_rows = mixed
     if len(second_rows) and not np.all(second_rows == second_rows[:1]):
