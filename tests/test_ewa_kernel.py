@@ -217,8 +217,9 @@ _MAPS: dict[tuple[str, float], MipMap] = {}
        wrap=st.sampled_from(["repeat", "black", "clamp"]), max_anisotropy=st.sampled_from([1.0, 8.0, 1024.0]))
 def test_any_footprint_is_filtered_alike_on_both_paths(opencl_platform, lookups, wrap, max_anisotropy):
     """Footprints of every size from 1e-44 to 1e30, zero, parallel and eccentric past the clamp: the
-    kernel's colours are the reference's (to the rounding of the level's log2, as the test above), finite,
-    and averages of the map's texels (black's outside texels are 0)."""
+    kernel's colours are the reference's (to the rounding of the level's log2, the tolerance of
+    test_the_kernel_equals_the_numpy_reference), finite, and averages of the map's texels (black's
+    outside texels are 0)."""
     mipmap = _MAPS.get((wrap, max_anisotropy))
     if mipmap is None:
         mipmap = _MAPS[wrap, max_anisotropy] = MipMap(np.random.default_rng(9).random((16, 16, 3)), wrap,
