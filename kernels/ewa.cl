@@ -2,8 +2,13 @@
  * realistic/scene/mipmap.py (MipMap.ewa, its numpy reference), after pbrt-v3 src/core/mipmap.h
  * (MIPMap::EWA): eccentricity clamped to max_anisotropy, level from the minor axis, two levels
  * blended, each a sum over the texels inside the ellipse weighted by a 128-entry table of
- * exp(-2 r^2) - exp(-2). Double precision (PoCL's CPU device has cl_khr_fp64) so the taps
- * inside the ellipse and their table entries are those of the float64 reference.
+ * exp(-2 r^2) - exp(-2). In single precision, as pbrt-v3's Float (lookups are float32 rows): the
+ * same float32 operations in the same order as the reference, so the same taps, weights and sums,
+ * with twice the vector lanes of float64. The ellipse is pbrt's, arranged so that no step cancels
+ * (see ewa_ellipse). The axes' lengths, the eccentricity clamp and the level are float64 from the
+ * float32 axes (ewa_axes), as before; the level's log2 is the library's, as numpy's, to float64
+ * rounding. Float32 division is correctly rounded, as numpy's (ewa_kernel builds with
+ * -cl-fp32-correctly-rounded-divide-sqrt).
  *
  * Texels: every level's RGB rows, level after level, in one float array (MipMap._texels);
  * level k has width[k] x height[k] texels starting at texel base[k]. WRAP, a #define the host prepends
@@ -18,7 +23,7 @@
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #pragma OPENCL FP_CONTRACT OFF  /* a * b + c rounds twice, as in numpy */
 
-/* LUT_SIZE, the entries of the weights table `lut`, is a #define the host prepends
+/* LUT_SIZE, the entries of the float32 weights table `lut`, is a #define the host prepends
  * (realistic/scene/ewa_kernel.py, from realistic.scene.mipmap.EWA_WEIGHTS). */
 
 inline double3 texel(__global const float *texels, __global const long *base, __global const long *width,
@@ -51,136 +56,168 @@ inline double3 bilinear_at(__global const float *texels, __global const long *ba
     return top * (1 - fy) + bottom * fy;
 }
 
-/* The EWA ellipse a s^2 + b s t + c t^2 <= 1 of the axes (a0s, a0t), (a1s, a1t) in texels, widened by a
- * texel (pbrt-v3 MIPMap::EWA), and its half-height in t. */
-inline void ewa_ellipse(double a0s, double a0t, double a1s, double a1t,
-                        double *a_out, double *b_out, double *c_out, double *half_t_out) {
-    double a = a0t * a0t + a1t * a1t + 1;
-    double b = -2 * (a0s * a0t + a1s * a1t);
-    double c = a0s * a0s + a1s * a1s + 1;
-    double inv_f = 1 / (a * c - b * b * 0.25);
-    a *= inv_f; b *= inv_f; c *= inv_f;
-    double det = 4 * a * c - b * b;
-    double half_t = 2 * __builtin_sqrt(a * det) / det;
-    *a_out = a; *b_out = b; *c_out = c; *half_t_out = half_t;
+/* The smallest normal float32, the floor of the weights' sum (0 where no texel is inside). */
+#define EWA_TINY 0x1p-126f
+
+/* The footprint's float32 axes as EWA filters over them (MipMap._ewa_axes): the longer first, and the
+ * minor one stretched so that the eccentricity is at most max_anisotropy (pbrt-v3 MIPMap::Lookup), in
+ * float64 from the float32 axes (no square of a float32 overflows or underflows a float64, so no
+ * footprint's length is lost) and rounded back; returns the minor axis's length. `one` (1.0) is the
+ * callers' own, for the vectoriser (see ewa_small). */
+inline __attribute__((always_inline)) double ewa_axes(float *majs_out, float *majt_out, float *mins_out,
+                                                      float *mint_out, double max_anisotropy, double one) {
+    double majs = *majs_out, majt = *majt_out, mins = *mins_out, mint = *mint_out;
+    int swap = majs * majs + majt * majt < (mins * mins + mint * mint) * one;
+    double hs = swap ? mins : majs, ht = swap ? mint : majt;
+    mins = swap ? majs : mins;
+    mint = swap ? majt : mint;
+    double major_len = __builtin_sqrt(hs * hs + ht * ht);
+    double minor_len = __builtin_sqrt(mins * mins + mint * mint) * one;
+    int clamped = minor_len * max_anisotropy < major_len && minor_len > 0;
+    double stretch = major_len / __builtin_fmax(minor_len * max_anisotropy, 1e-300);
+    *majs_out = (float)hs;
+    *majt_out = (float)ht;
+    *mins_out = (float)(clamped ? mins * stretch : mins);
+    *mint_out = (float)(clamped ? mint * stretch : mint);
+    return clamped ? minor_len * stretch : minor_len;
 }
 
-inline double3 ewa_level(__global const float *texels, __global const long *base, __global const long *width,
-                         __global const long *height, int levels, __global const double *lut,
-                         long level, double s0, double t0_, double a0s, double a0t, double a1s, double a1t) {
+/* The EWA ellipse of the axes (a0s, a0t), (a1s, a1t) in texels, widened by a texel (pbrt-v3
+ * MIPMap::EWA: A s^2 + B s t + C t^2 < F, A = a0t^2 + a1t^2 + 1, B = -2 (a0s a0t + a1s a1t),
+ * C = a0s^2 + a1s^2 + 1, F = A C - B^2 / 4, r^2 the left side over F), arranged so that no step
+ * cancels: F summed from its positive terms, (a0s a1t - a0t a1s)^2 + A + C - 1 (at least 1), and
+ * r^2 = a (s - mid)^2 + t^2 / A with a = A / F, a row's centre mid = s - t B / (2 A) and its
+ * half-width sqrt((1 - t^2 / A) / a), the ellipse's half-height sqrt(A). pbrt's a c - b^2 / 4 and
+ * b^2 - 4 a c of a row's crossings cancel to nothing in float32 at eccentricities max_anisotropy
+ * allows (1024). Writes a, 1 / a, B / (2 A), 1 / A and the half-height. */
+inline __attribute__((always_inline)) void ewa_ellipse(float a0s, float a0t, float a1s, float a1t, float *a_out,
+                                                       float *inv_a_out, float *shift_out, float *inv_big_a_out,
+                                                       float *half_t_out) {
+    float big_a = a0t * a0t + a1t * a1t + 1;
+    float big_b = -2 * (a0s * a0t + a1s * a1t);
+    float big_c = a0s * a0s + a1s * a1s + 1;
+    float cross = a0s * a1t - a0t * a1s;
+    float f = cross * cross + (big_a + big_c - 1);
+    float inv_big_a = 1 / big_a;
+    *a_out = big_a / f;
+    *inv_a_out = f * inv_big_a;
+    *shift_out = 0.5f * big_b * inv_big_a;
+    *inv_big_a_out = inv_big_a;
+    *half_t_out = __builtin_sqrtf(big_a);
+}
+
+inline float3 ewa_level(__global const float *texels, __global const long *base, __global const long *width,
+                        __global const long *height, int levels, __global const float *lut,
+                        long level, float s0, float t0_, float a0s, float a0t, float a1s, float a1t) {
     if (level >= levels) {
         __global const float *p = texels + 3 * base[levels - 1];
-        return (double3)(p[0], p[1], p[2]);
+        return (float3)(p[0], p[1], p[2]);
     }
-    double w = (double)width[level], h = (double)height[level];
-    double s = s0 * w - 0.5, t = t0_ * h - 0.5;
+    float w = (float)width[level], h = (float)height[level];
+    float s = s0 * w - 0.5f, t = t0_ * h - 0.5f;
     a0s *= w; a0t *= h; a1s *= w; a1t *= h;
-    double a, b, c, half_t;
-    ewa_ellipse(a0s, a0t, a1s, a1t, &a, &b, &c, &half_t);
-    int y0 = (int)__builtin_ceil(t - half_t), y1 = (int)__builtin_floor(t + half_t);
+    float a, inv_a, shift, inv_big_a, half_t;
+    ewa_ellipse(a0s, a0t, a1s, a1t, &a, &inv_a, &shift, &inv_big_a, &half_t);
+    int y0 = (int)__builtin_ceilf(t - half_t), y1 = (int)__builtin_floorf(t + half_t);
     /* texel() per tap, with the wrap done once per row and the column stepped. Every level's sides are
      * powers of two (MipMap), so repeat's x mod w is x & (w - 1), also for negative x. */
     int iw = (int)width[level], ih = (int)height[level];
     __global const float *level_texels = texels + 3 * base[level];
-    /* Each row's span runs between the ellipse's two crossings of it. Multiplying by 1 / (2a) instead of
-     * dividing can move a crossing by an ulp, and so add or drop a texel only where r2 rounds to 1 or
-     * to within 1e-12 of it: its weight, EWA_WEIGHTS[127], is exactly 0, so the sums are the same. */
-    double inv_2a = 1 / (2 * a);
-    double3 sum = (double3)(0.0);
-    double weights = 0.0;
+    float3 sum = (float3)(0.0f);
+    float weights = 0.0f;
     for (int y = y0; y <= y1; ++y) {
-        double dt = y - t;
-        double bb = b * dt;
-        double root = __builtin_sqrt(__builtin_fmax(bb * bb - 4 * a * (c * dt * dt - 1), 0.0));
-        int x0 = (int)__builtin_ceil(s + (-bb - root) * inv_2a);
-        int x1 = (int)__builtin_floor(s + (-bb + root) * inv_2a);
+        float dt = (float)y - t;
+        float row_r2 = dt * dt * inv_big_a;
+        float mid = s - shift * dt;
+        float half_w = __builtin_sqrtf(__builtin_fmaxf(1 - row_r2, 0.0f) * inv_a);
+        int x0 = (int)__builtin_ceilf(mid - half_w), x1 = (int)__builtin_floorf(mid + half_w);
         int row = WRAP == 0 ? y & (ih - 1) : clamp(y, 0, ih - 1);
-        double row_inside = WRAP == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
+        float row_inside = WRAP == 1 && (y < 0 || y >= ih) ? 0.0f : 1.0f;
         __global const float *row_texels = level_texels + 3 * (long)row * iw;
-        double cdt2 = c * dt * dt;
         for (int x = x0; x <= x1; ++x) {
-            double ds = x - s;
-            double r2 = a * ds * ds + b * ds * dt + cdt2;
+            float u = (float)x - mid;
+            float r2 = a * u * u + row_r2;
             if (r2 < 1) {
                 /* r2 < 1, so r2 * 128 < 128 exactly: the index is at most 127 */
-                double weight = lut[(int)(r2 * LUT_SIZE)];
+                float weight = lut[(int)(r2 * LUT_SIZE)];
                 int at = WRAP == 0 ? x & (iw - 1) : clamp(x, 0, iw - 1);
-                double inside = WRAP == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
+                float inside = WRAP == 1 && (x < 0 || x >= iw) ? 0.0f : row_inside;
                 __global const float *p = row_texels + 3 * at;
-                sum += (double3)(p[0], p[1], p[2]) * inside * weight;
+                sum += (float3)(p[0], p[1], p[2]) * inside * weight;
                 weights += weight;
             }
         }
     }
-    return sum / __builtin_fmax(weights, 1e-300);
+    return sum / __builtin_fmaxf(weights, EWA_TINY);
 }
 
-/* The filtered colour at (s, t) over the ellipse with axes major and minor (in st units): the
- * longer axis first, the eccentricity clamped, the level from the minor axis, two levels blended. */
-inline double3 ewa_lookup(__global const float *texels, __global const long *base, __global const long *width,
-                          __global const long *height, int levels, double max_anisotropy,
-                          __global const double *lut, double2 p, double2 major, double2 minor) {
-    if (dot(major, major) < dot(minor, minor)) {
-        double2 swap = major; major = minor; minor = swap;
-    }
-    double major_len = __builtin_sqrt(dot(major, major)), minor_len = __builtin_sqrt(dot(minor, minor));
-    if (minor_len * max_anisotropy < major_len && minor_len > 0) {
-        double stretch = major_len / __builtin_fmax(minor_len * max_anisotropy, 1e-300);
-        minor *= stretch;
-        minor_len *= stretch;
-    }
-    if (minor_len == 0) return bilinear_at(texels, base, width, height, 0, p.x, p.y);
-    /* lod is clamped to 0 where the minor axis is at most 2^(1 - levels) (a texel of the finest level
-     * along its longer side): log2 is exact at powers of two and monotone, so levels - 1 + log2 of such a
+/* The filtered colour of a lookup (s, t, axes as ewa_small reads them): none (0) where a value is not
+ * finite in float32; level 0 bilinear where the minor axis is 0; else the two levels around the level
+ * of the minor axis (clamped to 0) blended. */
+inline float3 ewa_lookup(__global const float *texels, __global const long *base, __global const long *width,
+                         __global const long *height, int levels, double max_anisotropy,
+                         __global const float *lut, __global const float *lookup) {
+    float s = lookup[0], t = lookup[1];
+    float majs = lookup[2], majt = lookup[3], mins = lookup[4], mint = lookup[5];
+    if (!(__builtin_isfinite(s) && __builtin_isfinite(t) && __builtin_isfinite(majs) && __builtin_isfinite(majt)
+          && __builtin_isfinite(mins) && __builtin_isfinite(mint))) return (float3)(0.0f);
+    double minor_len = ewa_axes(&majs, &majt, &mins, &mint, max_anisotropy, 1.0);
+    if (minor_len == 0)
+        return convert_float3(bilinear_at(texels, base, width, height, 0, s, t));
+    /* lod is 0 where the minor axis is at most 2^(1 - levels) (a texel of the finest level along its
+     * longer side): log2 is exact at powers of two and monotone, so levels - 1 + log2 of such a
      * length is at most 0, and the library call is skipped */
     double length = __builtin_fmax(minor_len, 1e-8);
     double lod = length <= 1.0 / (double)(1L << (levels - 1)) ? 0.0
                : __builtin_fmax(0.0, levels - 1 + log2(length));
     double lower = __builtin_floor(lod);
-    double delta = lod - lower;
-    double3 value = ewa_level(texels, base, width, height, levels, lut, (long)lower, p.x, p.y,
-                              major.x, major.y, minor.x, minor.y);
+    float delta = (float)(lod - lower);
+    float3 value = ewa_level(texels, base, width, height, levels, lut, (long)lower, s, t, majs, majt, mins, mint);
     /* A magnified lookup (lod clamped to 0: most of a near floor's) gives the next level no weight:
      * value * 1 + next * 0 is value, bit for bit, so the next level's sum is skipped. */
     if (delta == 0) return value;
     return value * (1 - delta)
-         + ewa_level(texels, base, width, height, levels, lut, (long)lower + 1, p.x, p.y,
-                     major.x, major.y, minor.x, minor.y) * delta;
+         + ewa_level(texels, base, width, height, levels, lut, (long)lower + 1, s, t, majs, majt, mins, mint) * delta;
 }
 
 /* The arguments every filter's kernels take (EwaKernel._filter passes them in this order): a _small kernel
  * filters the lookups it can and marks the others pending; the kernel of the filter's own name filters the
  * pending rows in place. */
-#define LOOKUP_TABLES __global const float *texels, __global const long *base, __global const long *width, \
-    __global const long *height, const int levels, const double max_anisotropy, __global const double *lut, \
-    __global const double *lookups
+#define MAP_TABLES __global const float *texels, __global const long *base, __global const long *width, \
+    __global const long *height, const int levels, const double max_anisotropy, __global const float *lut
+#define LOOKUP_TABLES MAP_TABLES, __global const double *lookups
 #define SMALL_LOOKUP_PARAMETERS LOOKUP_TABLES, const float red_scale, const float green_scale, \
     const float blue_scale, const int count, const int unit, __global uchar *pending, __global float *out
 #define PENDING_LOOKUP_PARAMETERS LOOKUP_TABLES, __global const int *rows, const float red_scale, \
     const float green_scale, const float blue_scale, const int count, __global float *out
+/* EWA's kernels read float32 lookups (EWA_LOOKUP_TABLES) and write through restrict pointers: no
+ * 64-bit load is left in ewa_small's work-item loop (the level-0 sides are hoisted out of it once
+ * the stores cannot alias them), so the vectoriser widens it to float32's lanes. */
+#define EWA_LOOKUP_TABLES MAP_TABLES, __global const float *lookups
+#define EWA_SMALL_PARAMETERS EWA_LOOKUP_TABLES, const float red_scale, const float green_scale, \
+    const float blue_scale, const int count, const int unit, __global uchar *restrict pending, \
+    __global float *restrict out
+#define EWA_PENDING_PARAMETERS EWA_LOOKUP_TABLES, __global const int *rows, const float red_scale, \
+    const float green_scale, const float blue_scale, const int count, __global float *restrict out
 
 /* The scalar kernels (ewa, bilinear, point, trilinear) filter the lookups their _small twin left pending:
- * lookup rows[i] of `lookups` (rows of 6 doubles, as the _small kernels read them), its colour times
+ * lookup rows[i] of `lookups` (rows of 6 doubles, EWA's of 6 floats, as the _small kernels read them), its colour times
  * (red, green, blue)_scale written into its own row of `out` (float32 products, as the _small kernels'),
  * so the host gathers and scatters nothing. */
-inline void store(__global float *out, int r, double3 value, float red_scale, float green_scale,
+inline void store(__global float *out, int r, float3 value, float red_scale, float green_scale,
                   float blue_scale) {
-    out[3 * r] = red_scale * (float)value.x;
-    out[3 * r + 1] = green_scale * (float)value.y;
-    out[3 * r + 2] = blue_scale * (float)value.z;
+    out[3 * r] = red_scale * value.x;
+    out[3 * r + 1] = green_scale * value.y;
+    out[3 * r + 2] = blue_scale * value.z;
 }
 
-__kernel void ewa(PENDING_LOOKUP_PARAMETERS) {
+__kernel void ewa(EWA_PENDING_PARAMETERS) {
     int i = get_global_id(0);
     if (i >= count) return;
     int r = rows[i];
-    __global const double *lookup = lookups + 6 * (long)r;
-    double3 value = ewa_lookup(texels, base, width, height, levels, max_anisotropy, lut,
-                               (double2)(lookup[0], lookup[1]), (double2)(lookup[2], lookup[3]),
-                               (double2)(lookup[4], lookup[5]));
+    float3 value = ewa_lookup(texels, base, width, height, levels, max_anisotropy, lut, lookups + 6 * (long)r);
     store(out, r, value, red_scale, green_scale, blue_scale);
 }
-
 /* ------------------------------------------------------------------ lookups at surface hits
  * The EWA lookups of camera-ray hits on one image-textured material, from embree's hit records: what
  * realistic.renderer.integrator.DirectLighting._albedo computes in numpy (its reference) before its
@@ -193,7 +230,8 @@ __kernel void ewa(PENDING_LOOKUP_PARAMETERS) {
  *     linear map times the mesh's float64 edges) and uv edges;
  *   - st = uv * scale + offset with t flipped for a bottom-origin image, the axes scaled alike
  *     (realistic/scene/textures.py).
- * hit_lookups writes lookup i (s, t, axis0, axis1: 6 doubles, ewa_small's input) for the hit in
+ * hit_lookups writes lookup i (s, t, axis0, axis1: 6 doubles; hit_lookups_single, ewa_small's input,
+ * the same rounded to 6 floats) for the hit in
  * row rows[i], which the host picks among the hits on instances of the texture's material;
  * ewa_small, then ewa, filter them, times the material's diffuse colour. It is written for PoCL's
  * work-group vectoriser as ewa_small is (see there): scalars, no branches, every read inside its
@@ -282,14 +320,17 @@ inline __attribute__((always_inline)) void footprint_axes(double w, double ddx, 
     *a1v = alpha * g1t + beta * g2t;
 }
 
-__kernel void hit_lookups(__global const int *faces, __global const double *vertices,
-                          __global const float *uvs, __global const int *geom_face_offset,
-                          __global const double *geom_linear, __global const double *mapping,
-                          __global const float *direction, __global const float *tfar, __global const float *hit_u,
-                          __global const float *hit_v, __global const int *prim, __global const int *geom,
-                          __global const float *ng_in, __global const int *rows, const int count, const int unit,
-                          __global double *lookups) {
-    int i = get_global_id(0);
+#define HIT_LOOKUP_PARAMETERS __global const int *faces, __global const double *vertices, \
+    __global const float *uvs, __global const int *geom_face_offset, __global const double *geom_linear, \
+    __global const double *mapping, __global const float *direction, __global const float *tfar, \
+    __global const float *hit_u, __global const float *hit_v, __global const int *prim, __global const int *geom, \
+    __global const float *ng_in, __global const int *rows, const int count, const int unit
+#define HIT_LOOKUP_ARGUMENTS faces, vertices, uvs, geom_face_offset, geom_linear, mapping, direction, tfar, hit_u, \
+    hit_v, prim, geom, ng_in, rows, count, unit
+
+/* Work item i's lookup (s, t, axis0, axis1) into `lookup`: hit_lookups' body, which stores it as
+ * doubles, hit_lookups_single's (EWA's lookups), as floats. */
+inline __attribute__((always_inline)) void hit_lookup(HIT_LOOKUP_PARAMETERS, int i, double *lookup) {
     double one = (double)unit;
     float onef = (float)unit;
     int r = rows[i < count ? i : count - 1];
@@ -334,13 +375,31 @@ __kernel void hit_lookups(__global const int *faces, __global const double *vert
     double majs = a0u * scale_s * 1.0, majt = a0v * scale_t * flip_t;
     double mins = a1u * scale_s * 1.0, mint = a1v * scale_t * flip_t;
 
+    lookup[0] = s0;
+    lookup[1] = t0;
+    lookup[2] = majs;
+    lookup[3] = majt;
+    lookup[4] = mins;
+    lookup[5] = mint;
+}
+
+__kernel void hit_lookups(HIT_LOOKUP_PARAMETERS, __global double *restrict lookups) {
+    int i = get_global_id(0);
+    double lookup[6];
+    hit_lookup(HIT_LOOKUP_ARGUMENTS, i, lookup);
     if (i < count) {
-        AT(lookups, 6, i, 0) = s0;
-        AT(lookups, 6, i, 1) = t0;
-        AT(lookups, 6, i, 2) = majs;
-        AT(lookups, 6, i, 3) = majt;
-        AT(lookups, 6, i, 4) = mins;
-        AT(lookups, 6, i, 5) = mint;
+        #pragma unroll
+        for (int k = 0; k < 6; ++k) AT(lookups, 6, i, k) = lookup[k];
+    }
+}
+
+__kernel void hit_lookups_single(HIT_LOOKUP_PARAMETERS, __global float *restrict lookups) {
+    int i = get_global_id(0);
+    double lookup[6];
+    hit_lookup(HIT_LOOKUP_ARGUMENTS, i, lookup);
+    if (i < count) {
+        #pragma unroll
+        for (int k = 0; k < 6; ++k) AT(lookups, 6, i, k) = (float)lookup[k];
     }
 }
 
@@ -388,7 +447,7 @@ __kernel void triangle_footprints(__global const int *faces, __global const doub
  * at most SMALL_SIDE rows of at most SMALL_SIDE texels each, and writes their colours times
  * (red, green, blue)_scale (float32 products: a material's diffuse colour, or 1); it writes
  * pending[i] = 1 for every other lookup, which the host gives to ewa. Lookups are rows of 6
- * doubles: s, t, axis0, axis1. Same operations in the same order as ewa_lookup and ewa_level, so
+ * floats: s, t, axis0, axis1. Same operations in the same order as ewa_lookup and ewa_level, so
  * the same bits: each row of the ellipse is walked from its first crossing over SMALL_SIDE columns,
  * and a column past the span or outside the ellipse adds +0.0 (the sum unchanged, but for the sign
  * of a zero sum) where ewa_level adds nothing.
@@ -399,84 +458,73 @@ __kernel void triangle_footprints(__global const int *faces, __global const doub
  * `count` read row count - 1; values bound for an int are zeroed where the lookup is left to ewa),
  * and the reads offset through `unit` (always 1). LLVM's SLP vectoriser packs pairs of alike
  * expressions into 2-wide vectors before PoCL's vectoriser runs, which then gives up on the kernel:
- * `one` ((double)unit, 1.0) multiplies one of each pair it took (minor axis against major, t against
- * s), which changes no bit (x * 1.0 is x) and leaves no two alike. POCL_VECTORIZER_REMARKS=1 prints
+ * `one` (unit as a double or a float, 1.0) multiplies one of each pair it took (minor axis against
+ * major, t against s), which changes no bit (x * 1.0 is x) and leaves no two alike. POCL_VECTORIZER_REMARKS=1 prints
  * "vectorized loop" for ewa_small and hit_lookups (tests/test_ewa_kernel.py, test_ewa_hits.py check). */
 
 #define SMALL_SIDE 3
 
-__kernel void ewa_small(SMALL_LOOKUP_PARAMETERS) {
+__kernel void ewa_small(EWA_SMALL_PARAMETERS) {
     int i = get_global_id(0);
     int r = i < count ? i : count - 1;
-    double one = (double)unit;
-    double s0 = AT(lookups, 6, r, 0), t0 = AT(lookups, 6, r, 1);
-    double majs = AT(lookups, 6, r, 2), majt = AT(lookups, 6, r, 3);
-    double mins = AT(lookups, 6, r, 4), mint = AT(lookups, 6, r, 5);
-    int swap = majs * majs + majt * majt < (mins * mins + mint * mint) * one;
-    double hs = swap ? mins : majs, ht = swap ? mint : majt;
-    mins = swap ? majs : mins;
-    mint = swap ? majt : mint;
-    majs = hs;
-    majt = ht;
-    double major_len = __builtin_sqrt(majs * majs + majt * majt);
-    double minor_len = __builtin_sqrt(mins * mins + mint * mint) * one;
-    int clamped = minor_len * max_anisotropy < major_len && minor_len > 0;
-    double stretch = major_len / __builtin_fmax(minor_len * max_anisotropy, 1e-300);
-    mins = clamped ? mins * stretch : mins;
-    mint = clamped ? mint * stretch : mint;
-    minor_len = clamped ? minor_len * stretch : minor_len;
+    float one = (float)unit;
+    float s0 = AT(lookups, 6, r, 0), t0 = AT(lookups, 6, r, 1);
+    float majs = AT(lookups, 6, r, 2), majt = AT(lookups, 6, r, 3);
+    float mins = AT(lookups, 6, r, 4), mint = AT(lookups, 6, r, 5);
+    double minor_len = ewa_axes(&majs, &majt, &mins, &mint, max_anisotropy, (double)unit);
     double length = __builtin_fmax(minor_len, 1e-8);
     int magnified = minor_len != 0 && length <= 1.0 / (double)(1L << (levels - 1));
-    double lw = (double)width[0], lh = (double)height[0];
-    double s = s0 * lw - 0.5, t = (t0 * lh - 0.5) * one;
-    double a0s = majs * lw, a0t = majt * lh, a1s = mins * lw, a1t = mint * lh;
-    double a, b, c, half_t;
-    ewa_ellipse(a0s, a0t, a1s, a1t, &a, &b, &c, &half_t);
-    int small = i < count && magnified && __builtin_fabs(s) < 1e9 && __builtin_fabs(t) < 1e9
+    float lw = (float)width[0], lh = (float)height[0];
+    float s = s0 * lw - 0.5f, t = (t0 * lh - 0.5f) * one;
+    float a0s = majs * lw, a0t = majt * lh, a1s = mins * lw, a1t = mint * lh;
+    float a, inv_a, shift, inv_big_a, half_t;
+    ewa_ellipse(a0s, a0t, a1s, a1t, &a, &inv_a, &shift, &inv_big_a, &half_t);
+    /* a non-finite s, t or axis fails one of these (NaN compares false; an infinite axis makes
+     * half_t infinite): ewa gives those 0 */
+    int small = i < count && magnified && __builtin_fabsf(s) < 1e9f && __builtin_fabsf(t) < 1e9f
                 && half_t < SMALL_SIDE;
-    double ts = small ? t : 0.0, hts = small ? half_t : 0.0, ss = small ? s : 0.0;
-    int y0 = (int)__builtin_ceil(ts - hts), y1 = (int)__builtin_floor(ts + hts);
+    float ts = small ? t : 0.0f, hts = small ? half_t : 0.0f, ss = small ? s : 0.0f;
+    int y0 = (int)__builtin_ceilf(ts - hts), y1 = (int)__builtin_floorf(ts + hts);
     small = small && y1 - y0 < SMALL_SIDE;
     int iw = (int)width[0], ih = (int)height[0];
     long level_base = base[0];
-    double inv_2a = 1 / (2 * a);
-    double sum_r = 0.0, sum_g = 0.0, sum_b = 0.0, weights = 0.0;
+    float sum_r = 0.0f, sum_g = 0.0f, sum_b = 0.0f, weights = 0.0f;
     #pragma unroll
     for (int j = 0; j < SMALL_SIDE; ++j) {
         int y = y0 + j;
-        double dt = y - ts;
-        double bb = b * dt;
-        double root = __builtin_sqrt(__builtin_fmax(bb * bb - 4 * a * (c * dt * dt - 1), 0.0));
-        double left = small ? ss + (-bb - root) * inv_2a : 0.0, right = small ? ss + (-bb + root) * inv_2a : 0.0;
-        int x0 = (int)__builtin_ceil(left), x1 = (int)__builtin_floor(right);
+        float dt = (float)y - ts;
+        float row_r2 = dt * dt * inv_big_a;
+        float mid = ss - shift * dt;
+        float half_w = __builtin_sqrtf(__builtin_fmaxf(1 - row_r2, 0.0f) * inv_a);
+        float left = small ? mid - half_w : 0.0f, right = small ? mid + half_w : 0.0f;
+        int x0 = (int)__builtin_ceilf(left), x1 = (int)__builtin_floorf(right);
         int in_rows = y <= y1;
         small = small && (!in_rows || x1 - x0 < SMALL_SIDE);
         int row = WRAP == 0 ? y & (ih - 1) : (y < 0 ? 0 : (y > ih - 1 ? ih - 1 : y));
-        double row_inside = WRAP == 1 && (y < 0 || y >= ih) ? 0.0 : 1.0;
-        double cdt2 = c * dt * dt;
+        float row_inside = WRAP == 1 && (y < 0 || y >= ih) ? 0.0f : 1.0f;
         #pragma unroll
         for (int k = 0; k < SMALL_SIDE; ++k) {
             int x = x0 + k;
-            double ds = x - ss;
-            double r2 = a * ds * ds + b * ds * dt + cdt2;
+            float u = (float)x - mid;
+            float r2 = a * u * u + row_r2;
             int take = in_rows && x <= x1 && r2 < 1;
-            double weight = lut[(int)((take ? r2 : 0.0) * LUT_SIZE)];
+            float weight = lut[(int)((take ? r2 : 0.0f) * LUT_SIZE)];
             int at = WRAP == 0 ? x & (iw - 1) : (x < 0 ? 0 : (x > iw - 1 ? iw - 1 : x));
-            double inside = WRAP == 1 && (x < 0 || x >= iw) ? 0.0 : row_inside;
+            float inside = WRAP == 1 && (x < 0 || x >= iw) ? 0.0f : row_inside;
             long texel_at = level_base + (long)row * iw + at;
-            double red = AT(texels, 3, texel_at, 0), green = AT(texels, 3, texel_at, 1);
-            double blue = AT(texels, 3, texel_at, 2);
-            sum_r += take ? red * inside * weight : 0.0;
-            sum_g += take ? green * inside * weight : 0.0;
-            sum_b += take ? blue * inside * weight : 0.0;
-            weights += take ? weight : 0.0;
+            float red = AT(texels, 3, texel_at, 0), green = AT(texels, 3, texel_at, 1);
+            float blue = AT(texels, 3, texel_at, 2);
+            sum_r += take ? red * inside * weight : 0.0f;
+            sum_g += take ? green * inside * weight : 0.0f;
+            sum_b += take ? blue * inside * weight : 0.0f;
+            weights += take ? weight : 0.0f;
         }
     }
-    double norm = __builtin_fmax(weights, 1e-300);
+    float norm = __builtin_fmaxf(weights, EWA_TINY);
     if (small) {
-        AT(out, 3, i, 0) = red_scale * (float)(sum_r / norm);
-        AT(out, 3, i, 1) = green_scale * (float)(sum_g / norm);
-        AT(out, 3, i, 2) = blue_scale * (float)(sum_b / norm);
+        AT(out, 3, i, 0) = red_scale * (sum_r / norm);
+        AT(out, 3, i, 1) = green_scale * (sum_g / norm);
+        AT(out, 3, i, 2) = blue_scale * (sum_b / norm);
     }
     if (i < count) pending[i] = !small;
 }
@@ -655,7 +703,7 @@ inline void level_filter(PENDING_LOOKUP_PARAMETERS, const int filter, const int 
         value = at < blend_from ? below
                 : below * (1 - delta) + bilinear_at(texels, base, width, height, min(at + 1, levels - 1), s, t) * delta;
     }
-    store(out, r, value, red_scale, green_scale, blue_scale);
+    store(out, r, convert_float3(value), red_scale, green_scale, blue_scale);
 }
 
 __kernel void point(PENDING_LOOKUP_PARAMETERS) {

@@ -6,6 +6,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from conftest import vectoriser_remarks
 from realistic.renderer.backends import backend_for
@@ -55,7 +57,9 @@ def test_a_magnified_lookup_reads_the_finest_level_alone(opencl_platform, backen
     rng = np.random.default_rng(5)
     st = rng.random((500, 2))
     angle = rng.random(500) * 2 * np.pi
-    # in texels of level 0: under one and exactly one (lod 0, the kernel skips log2), then lod in (0, 1)
+    # in texels of level 0: under one and exactly one (lod 0, the kernel skips log2), then lod in (0, 1);
+    # the filters round the axes to float32, where a length is exactly one texel along the texel axes
+    angle[300:400] = rng.integers(0, 4, 100) * (np.pi / 2)
     minor = np.select([np.arange(500) < 300, np.arange(500) < 400], [0.9, 1.0], 1.5) / 32
     major = minor * (1 + 7 * rng.random(500))
     axis0 = np.column_stack([np.cos(angle), np.sin(angle)]) * major[:, None]
@@ -82,9 +86,9 @@ def magnified(count: int, seed: int, side: int, longest: float) -> tuple[np.ndar
 @pytest.mark.parametrize("wrap", ["repeat", "black", "clamp"])
 def test_magnified_lookups_are_the_references_bit_for_bit(opencl_platform, wrap):
     """``ewa_small`` (vectorised) filters the magnified lookups over small ellipses and leaves the
-    longer ones to ``ewa``: in the same operations and order as the float64 reference, so each
-    colour is the reference's rounded to float32, exactly, on both sides of the split (the
-    ellipses reach 4 texels, past ``ewa_small``'s 3 x 3)."""
+    longer ones to ``ewa``: in the same float32 operations and order as the reference, so each
+    colour is the reference's, exactly, on both sides of the split (the ellipses reach 4 texels,
+    past ``ewa_small``'s 3 x 3)."""
     mipmap = MipMap(np.random.default_rng(2).random((64, 64, 3)), wrap)
     st, axis0, axis1 = magnified(20000, 4, 64, 4.0)
     device = backend_for("opencl").image_lookup(mipmap, "ewa", st, (axis0, axis1))
@@ -125,6 +129,108 @@ def test_point_bilinear_and_trilinear_lookups_are_the_references(opencl_platform
         assert alone.any() and np.array_equal(device[alone], reference[alone])
     else:
         assert np.array_equal(device, reference)
+
+
+def pbrt_level0(image: np.ndarray, st_: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
+    """pbrt-v3's MIPMap::EWA (src/core/mipmap.h) on the repeating ``image`` (level 0), in float64 and
+    in pbrt's own formulas (F = A C - B^2 / 4, r^2 = A s^2 + B s t + C t^2 over F) over the ellipse's
+    whole bounding box, at one lookup rounded to float32 as the filters take it."""
+    st_, axis0, axis1 = (np.asarray(v, np.float32).astype(np.float64) for v in (st_, axis0, axis1))
+    h, w = image.shape[:2]
+    s, t = st_[0] * w - 0.5, st_[1] * h - 0.5
+    d0, d1 = axis0 * (w, h), axis1 * (w, h)
+    a, b, c = d0[1] ** 2 + d1[1] ** 2 + 1, -2 * (d0[0] * d0[1] + d1[0] * d1[1]), d0[0] ** 2 + d1[0] ** 2 + 1
+    f = a * c - b * b / 4
+    a, b, c = a / f, b / f, c / f
+    det = 4 * a * c - b * b
+    half_s, half_t = 2 * np.sqrt(det * c) / det, 2 * np.sqrt(a * det) / det
+    x, y = np.meshgrid(np.arange(np.ceil(s - half_s), np.floor(s + half_s) + 1),
+                       np.arange(np.ceil(t - half_t), np.floor(t + half_t) + 1))
+    r2 = a * (x - s) ** 2 + b * (x - s) * (y - t) + c * (y - t) ** 2
+    inside = r2 < 1
+    weight = (np.exp(-2.0 * np.arange(128) / 127) - np.exp(-2.0))[np.minimum((r2[inside] * 128).astype(int), 127)]
+    texels = image[y[inside].astype(int) % h, x[inside].astype(int) % w].astype(np.float64)
+    return (texels * weight[:, None]).sum(axis=0) / weight.sum()
+
+
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_eccentric_and_degenerate_footprints_are_pbrts_ellipses(opencl_platform, backend):
+    """The filters compute EWA in float32, with pbrt-v3's ellipse arranged so that no step cancels: at
+    the eccentricities maxanisotropy allows (up to 1024:1, up to 500 texels long, under a texel wide:
+    level 0 alone), and over parallel axes (a singular footprint, which the texel of widening keeps an
+    ellipse), they are pbrt's arithmetic in float64 within float32 rounding of sums over up to a
+    thousand texels (pbrt's own formulas in float32 are 1.5e-4 off here: A C - B^2 / 4 cancels)."""
+    rng = np.random.default_rng(0)
+    image = rng.random((256, 256, 3)).astype(np.float32)
+    mipmap = MipMap(image, "repeat", max_anisotropy=1024.0)
+    count = 40
+    angle = rng.random(count) * 2 * np.pi
+    major = (100 + 400 * rng.random(count)) / 256
+    minor = major / 1024 * (1 + rng.random(count))
+    axis0 = np.column_stack([np.cos(angle), np.sin(angle)]) * major[:, None]
+    axis1 = np.column_stack([-np.sin(angle), np.cos(angle)]) * minor[:, None]
+    axis1[-10:] = axis0[-10:] * (0.3 / 256 / major[-10:, None])  # parallel to the major axis, under a texel long
+    st_ = rng.random((count, 2))
+    got = backend_for(backend).image_lookup(mipmap, "ewa", st_, (axis0, axis1))
+    expected = np.array([pbrt_level0(image, st_[i], axis0[i], axis1[i]) for i in range(count)])
+    np.testing.assert_allclose(got, expected, rtol=0, atol=5e-5)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_footprints_past_float32s_squares_keep_their_answers(opencl_platform, backend):
+    """The axes are float32 but their lengths, the eccentricity clamp and the level float64 (a float32
+    square overflows past 1.8e19 and underflows under 1e-19): a minor axis of 1e-30 is still stretched
+    to the major one over max_anisotropy (not taken for 0: bilinear), axes of 1e-30 are the texel-wide
+    ellipse that axes of 1e-12 are, and axes of 1e30 read the coarsest level's one texel."""
+    mipmap = MipMap(np.random.default_rng(1).random((64, 64, 3)), "repeat", max_anisotropy=8.0)
+    lookup = backend_for(backend).image_lookup
+    st_ = np.random.default_rng(2).random((50, 2))
+    ones = np.ones((50, 1))
+    major, across = ones * [[0.05, 0.0]], ones * [[0.0, 1.0]]
+    np.testing.assert_allclose(lookup(mipmap, "ewa", st_, (major, across * 1e-30)),
+                               lookup(mipmap, "ewa", st_, (major, across * (0.05 / 8))), rtol=0, atol=1e-6)
+    tiny = lookup(mipmap, "ewa", st_, (ones * [[1e-30, 0.0]], across * 1e-30))
+    assert np.array_equal(tiny, lookup(mipmap, "ewa", st_, (ones * [[1e-12, 0.0]], across * 1e-12)))
+    assert not np.allclose(tiny, mipmap.bilinear(st_.astype(np.float32).astype(np.float64)), rtol=0, atol=1e-3)
+    huge = lookup(mipmap, "ewa", st_, (ones * [[1e30, 0.0]], across * 1e29))
+    np.testing.assert_allclose(huge, np.broadcast_to(mipmap.texels[-1], huge.shape), rtol=1e-6)  # two levels' blend
+
+
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_lookups_that_are_not_finite_filter_to_zero(opencl_platform, backend):
+    """A NaN or infinite s, t or axis component (or one past float32's range) gives 0 on both paths,
+    whatever the other values (the float64 reference used to index out of its levels with some)."""
+    mipmap = MipMap(np.random.default_rng(3).random((32, 32, 3)) + 0.5)
+    st_, axis0, axis1 = (np.tile(value, (18, 1)) for value in ([0.3, 0.4], [0.02, 0.0], [0.0, 0.01]))
+    for row, bad in enumerate(np.repeat([np.nan, np.inf, -1e39], 6)):
+        [st_, axis0, axis1][row % 6 // 2][row, row % 2] = bad
+    got = backend_for(backend).image_lookup(mipmap, "ewa", st_, (axis0, axis1))
+    assert np.array_equal(got, np.zeros((18, 3)))
+
+
+_COMPONENT = st.one_of(st.just(0.0), st.builds(lambda mantissa, exponent: mantissa * 10.0 ** exponent,
+                                               st.floats(-1, 1), st.integers(-44, 30)))
+_MAPS: dict[tuple[str, float], MipMap] = {}
+
+
+@given(lookups=st.lists(st.tuples(st.floats(-3, 3), st.floats(-3, 3), *[_COMPONENT] * 4), min_size=1, max_size=8),
+       wrap=st.sampled_from(["repeat", "black", "clamp"]), max_anisotropy=st.sampled_from([1.0, 8.0, 1024.0]))
+def test_any_footprint_is_filtered_alike_on_both_paths(opencl_platform, lookups, wrap, max_anisotropy):
+    """Footprints of every size from 1e-44 to 1e30, zero, parallel and eccentric past the clamp: the
+    kernel's colours are the reference's (to the rounding of the level's log2, the tolerance of
+    test_the_kernel_equals_the_numpy_reference), finite, and averages of the map's texels (black's
+    outside texels are 0)."""
+    mipmap = _MAPS.get((wrap, max_anisotropy))
+    if mipmap is None:
+        mipmap = _MAPS[wrap, max_anisotropy] = MipMap(np.random.default_rng(9).random((16, 16, 3)), wrap,
+                                                      max_anisotropy=max_anisotropy)
+    rows = np.array(lookups)
+    st_, axis0, axis1 = rows[:, :2], rows[:, 2:4], rows[:, 4:]
+    reference = mipmap.ewa(st_, axis0, axis1)
+    device = backend_for("opencl").image_lookup(mipmap, "ewa", st_, (axis0, axis1))
+    np.testing.assert_allclose(device, reference, rtol=1e-6, atol=1e-6)
+    low = min(0.0, float(mipmap.texels.min())) if wrap == "black" else float(mipmap.texels.min())
+    assert np.isfinite(device).all() and (device >= low - 1e-6).all() and (device <= mipmap.texels.max() + 1e-6).all()
 
 
 def test_two_threads_lookups_equal_one_threads(opencl_platform):

@@ -3,8 +3,9 @@
 
 The numpy ``MipMap.ewa`` expands every (lookup, texel) tap into flat arrays: about 0.07 M lookups/s,
 the largest cost of a homework render's floor. The kernel runs the same mathematics per lookup in
-double precision (one work-item loops over its ellipse), so it agrees with the reference to float32
-rounding; ``tests/test_ewa_kernel.py`` checks that.
+single precision, as pbrt-v3's ``Float`` and the reference do (one work-item loops over its ellipse),
+so it agrees with the reference to the rounding of the level's log2; ``tests/test_ewa_kernel.py``
+checks that. EWA's lookups are float32 rows (``lookup_dtype``), the other filters' float64.
 
 Most of a render's lookups are magnified (the minor axis under a texel, so level 0 alone) over a
 few texels: ``ewa_small`` does those vectorised over work items (``ewa``, a work item's loops over
@@ -12,7 +13,8 @@ its ellipse, runs scalar) and marks the others, which ``ewa`` does; the same bit
 
 ``SurfaceTables`` and ``EwaKernel.at_hits`` go one step further for the renderer: from embree's hit
 records to the albedo, with the uv, the pixel footprint and the st mapping computed on the device
-too (``hit_lookups``, vectorised like ``ewa_small``, on the rows of the texture's material that the
+too (``hit_lookups``, or ``hit_lookups_single`` for EWA's float32 rows, vectorised like
+``ewa_small``, on the rows of the texture's material that the
 renderer picks; numpy spent three times as long on those as on the lookups). Its reference is
 ``DirectLighting._albedo`` (``tests/test_ewa_hits.py``).
 
@@ -66,11 +68,18 @@ DEVICE_FILTERS = ("ewa", "bilinear", "point", "trilinear")
 HEADER = MAPPING.defines() + f"#define LUT_SIZE {len(EWA_WEIGHTS)}\n"
 
 
+def lookup_dtype(texture_filter: str) -> type[np.floating]:
+    """The type of a filter's lookup rows: float32 for EWA (``MipMap.ewa`` rounds its input to
+    float32, as pbrt-v3's ``Float``), float64 for the others (their references read float64)."""
+    return np.float32 if texture_filter == "ewa" else np.float64
+
+
 def build_ewa_program(device: Device, wrap: str) -> cl.Program:
     """``ewa.cl`` built on ``device`` for the wrap mode ``wrap`` (``validation.TEXTURE_WRAPS``): one
     program per mode, built once per process (``Device.build_program``)."""
     source = HEADER + f"#define WRAP {TEXTURE_WRAPS.index(wrap)}\n" + kernel_source(KERNEL_FILE)
-    return device.build_program(source, KERNEL_FILE)
+    # EWA's float32 divisions correctly rounded, as numpy's (OpenCL allows 2.5 ulps without it)
+    return device.build_program(source, KERNEL_FILE, ("-cl-fp32-correctly-rounded-divide-sqrt",))
 
 
 class SurfaceTables:
@@ -101,16 +110,17 @@ class _ThreadKernels:
     def __init__(self, device: Device, program: cl.Program):
         self.queue = device.queue()
         self._program = program
-        self._hits: cl.Kernel | None = None
+        #: hit_lookups and hit_lookups_single (EWA's float32 lookups), each made on its first use
+        self._hits: dict[bool, cl.Kernel] = {}
         #: per filter, its kernel for the small lookups and the one for the lookups it leaves pending
         self._filters: dict[str, tuple[cl.Kernel, cl.Kernel]] = {}
 
-    @property
-    def hits(self) -> cl.Kernel:
-        """``hit_lookups``."""
-        if self._hits is None:
-            self._hits = cl.Kernel(self._program, "hit_lookups")
-        return self._hits
+    def hits(self, single: bool) -> cl.Kernel:
+        """``hit_lookups``, or ``hit_lookups_single`` (float32 lookups, EWA's) where ``single``."""
+        kernel = self._hits.get(single)
+        if kernel is None:
+            kernel = self._hits[single] = cl.Kernel(self._program, "hit_lookups_single" if single else "hit_lookups")
+        return kernel
 
     def filter(self, name: str) -> tuple[cl.Kernel, cl.Kernel]:
         """The filter ``name``'s two kernels (``DEVICE_FILTERS``): ``{name}_small`` and ``{name}``."""
@@ -139,7 +149,7 @@ class EwaKernel:
             device.wrapped_buffer(mipmap.texels, np.float32),
             *(device.wrapped_buffer(a, np.int64) for a in (mipmap.level_base, mipmap.level_width, mipmap.level_height)),
             np.int32(mipmap.level_count),
-            np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float64)]
+            np.float64(mipmap.max_anisotropy), device.wrapped_buffer(EWA_WEIGHTS, np.float32)]
         #: per filter, the arguments its two kernels take after their common ones
         self._own: dict[str, tuple[np.generic, ...]] = {name: () for name in DEVICE_FILTERS}
         self._own["trilinear"] = (np.int32(mipmap.trilinear_blend_from),)
@@ -155,9 +165,10 @@ class EwaKernel:
     def __call__(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray, texture_filter: str = "ewa") -> np.ndarray:
         """Colours (N, 3) float32 at (s, t) (N, 2) filtered (``DEVICE_FILTERS``) over footprints with
         axes (N, 2) each."""
-        lookups = np.empty((len(st), 6), np.float64)
-        for column, values in enumerate((st, axis0, axis1)):
-            lookups[:, 2 * column:2 * column + 2] = values
+        lookups = np.empty((len(st), 6), lookup_dtype(texture_filter))
+        with np.errstate(over="ignore"):  # past float32's range: infinite, which EWA filters to 0
+            for column, values in enumerate((st, axis0, axis1)):
+                lookups[:, 2 * column:2 * column + 2] = values
         out = np.empty((len(st), 3), np.float32)
         self._filter(lookups, np.ones(3, np.float32), out, texture_filter)
         return out
@@ -172,7 +183,7 @@ class EwaKernel:
 
     def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray, texture_filter: str) -> None:
         """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
-        lookups (s, t, axis0, axis1) (N, 6) float64: the filter's small kernel (``ewa_small``,
+        lookups (s, t, axis0, axis1) (N, 6) of the filter's ``lookup_dtype``: the filter's small kernel (``ewa_small``,
         ``bilinear_small``, ...) over all, then its other kernel (``ewa``, ``bilinear``, ...) over the
         rows it leaves, reading them from the same lookups and writing them into their rows of ``out``
         (no gathered copies), each with the filter's own arguments last."""
@@ -182,7 +193,7 @@ class EwaKernel:
         if count == 0:
             return
         pending = np.empty(count, np.uint8)
-        inputs = [self.device.wrapped_buffer(lookups, np.float64)]
+        inputs = [self.device.wrapped_buffer(lookups, lookup_dtype(texture_filter))]
         written = [self.device.host_buffer(pending, cl.mem_flags.WRITE_ONLY),
                    self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
         scales = [np.float32(v) for v in scale]
@@ -217,16 +228,16 @@ class EwaKernel:
                   for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
                                    (hits.geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
-        lookups = np.empty((len(rows), 6), np.float64)
+        footprint = mapping[MAPPING.offset("spread")] > 0
+        texture_filter = texture_filter if footprint else "bilinear"
+        lookups = np.empty((len(rows), 6), lookup_dtype(texture_filter))
         written = self.device.host_buffer(lookups, cl.mem_flags.WRITE_ONLY)
         kernels = self._thread()
-        kernels.hits(kernels.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,), *surfaces.buffers, *inputs,
-                     np.int32(len(rows)), np.int32(1), written)
+        kernels.hits(lookups.dtype == np.float32)(kernels.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,),
+                                                  *surfaces.buffers, *inputs, np.int32(len(rows)), np.int32(1), written)
         cl.enqueue_copy(kernels.queue, lookups, written)
         diffuse = MAPPING.offset("diffuse")
-        footprint = mapping[MAPPING.offset("spread")] > 0
-        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo,
-                     texture_filter if footprint else "bilinear")
+        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo, texture_filter)
         return albedo
 
 

@@ -22,10 +22,12 @@ second level's weight is 0 and its sum is skipped. ``point`` and ``bilinear`` fo
 the point filter's texel index rounded half away from zero (``std::round``). Where L - 1 + log2(width)
 reaches the coarsest level, point, bilinear and trilinear return its one texel as it is, unwrapped
 (both versions: ``Texel(Levels() - 1, 0, 0)``). All lookups are numpy over the points; EWA's varying
-number of texels per point is expanded into one flat array of (point, texel) taps and summed with
-``np.bincount``; they are the references of ``realistic.scene.ewa_kernel`` (``kernels/ewa.cl``), their
-versions on the device for the "opencl" backend. A map is plain data (it pickles): a backend keeps its
-texels on a device.
+number of texels per point is expanded into one flat array of (point, texel) taps, each point's
+summed in its taps' order. EWA computes in float32 as pbrt-v3's ``Float`` does (the axes' lengths,
+clamp and level in float64: ``_ewa_axes``; the ellipse arranged so that no step cancels:
+``_ewa_ellipse``), in the same operations and order as the kernel. They are the references of
+``realistic.scene.ewa_kernel`` (``kernels/ewa.cl``), their versions on the device for the "opencl"
+backend. A map is plain data (it pickles): a backend keeps its texels on a device.
 """
 
 from __future__ import annotations
@@ -35,8 +37,11 @@ import math
 import numpy as np
 
 _LUT_SIZE = 128
-#: pbrt's EWA weights: a Gaussian exp(-alpha r^2) with alpha = 2, shifted to be 0 at r = 1.
-EWA_WEIGHTS = np.exp(-2.0 * np.arange(_LUT_SIZE) / (_LUT_SIZE - 1)) - np.exp(-2.0)
+#: pbrt's EWA weights: a Gaussian exp(-alpha r^2) with alpha = 2, shifted to be 0 at r = 1 (float32,
+#: as pbrt-v3's ``Float`` table; the last entry is exactly 0).
+EWA_WEIGHTS = (np.exp(-2.0 * np.arange(_LUT_SIZE) / (_LUT_SIZE - 1)) - np.exp(-2.0)).astype(np.float32)
+#: The smallest normal float32: the floor of EWA's weights' sum (0 where no texel is inside).
+_TINY = np.finfo(np.float32).tiny
 #: Most (point, texel) EWA taps expanded at once, to bound memory.
 _TAPS_PER_CHUNK = 1 << 21
 
@@ -59,6 +64,42 @@ def _round_half_away(x: np.ndarray) -> np.ndarray:
     rounds them to even), exactly: x - trunc(x) is exact."""
     whole = np.trunc(x)
     return (whole + np.where(np.abs(x - whole) >= 0.5, np.sign(x), 0.0)).astype(np.int64)
+
+
+def _ewa_axes(axis0: np.ndarray, axis1: np.ndarray, max_anisotropy: float
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The (major, minor) float32 axes (N, 2) EWA filters over and the minor one's length (N,)
+    (float64): the longer of the float32 ``axis0``, ``axis1`` first, the minor one stretched so that
+    the eccentricity is at most ``max_anisotropy`` (pbrt-v3 ``MIPMap::Lookup``), in float64 (no square
+    of a float32 overflows or underflows a float64, so no footprint's length is lost) and rounded back."""
+    axis0, axis1 = axis0.astype(np.float64), axis1.astype(np.float64)
+    swap = axis0[:, 0] * axis0[:, 0] + axis0[:, 1] * axis0[:, 1] < axis1[:, 0] * axis1[:, 0] + axis1[:, 1] * axis1[:, 1]
+    major = np.where(swap[:, None], axis1, axis0)
+    minor = np.where(swap[:, None], axis0, axis1)
+    major_len = np.sqrt(major[:, 0] * major[:, 0] + major[:, 1] * major[:, 1])
+    minor_len = np.sqrt(minor[:, 0] * minor[:, 0] + minor[:, 1] * minor[:, 1])
+    clamp = (minor_len * max_anisotropy < major_len) & (minor_len > 0)
+    stretch = major_len / np.maximum(minor_len * max_anisotropy, 1e-300)
+    return (major.astype(np.float32), np.where(clamp[:, None], minor * stretch[:, None], minor).astype(np.float32),
+            np.where(clamp, minor_len * stretch, minor_len))
+
+
+def _ewa_ellipse(a0s: np.ndarray, a0t: np.ndarray, a1s: np.ndarray, a1t: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """pbrt-v3's EWA ellipse of the float32 axes (a0s, a0t), (a1s, a1t) in texels, widened by a texel
+    (``MIPMap::EWA``: A s^2 + B s t + C t^2 < F, A = a0t^2 + a1t^2 + 1, B = -2 (a0s a0t + a1s a1t),
+    C = a0s^2 + a1s^2 + 1, F = A C - B^2 / 4), arranged so that no step cancels in float32: F summed
+    from its positive terms, (a0s a1t - a0t a1s)^2 + A + C - 1 (at least 1), and r^2, the left side
+    over F, as a (s - mid)^2 + t^2 / A with a = A / F and a row's centre mid = s - t B / (2 A)
+    (pbrt's products cancel to nothing at the eccentricities ``max_anisotropy`` allows). Returns a,
+    1 / a, B / (2 A), 1 / A and the half-height sqrt(A), as ``kernels/ewa.cl``'s ``ewa_ellipse``."""
+    big_a = a0t * a0t + a1t * a1t + 1
+    big_b = -2 * (a0s * a0t + a1s * a1t)
+    big_c = a0s * a0s + a1s * a1s + 1
+    cross = a0s * a1t - a0t * a1s
+    f = cross * cross + (big_a + big_c - 1)
+    inv_big_a = 1 / big_a
+    return big_a / f, f * inv_big_a, np.float32(0.5) * big_b * inv_big_a, inv_big_a, np.sqrt(big_a)
 
 
 def _halve(level: np.ndarray) -> np.ndarray:
@@ -196,23 +237,27 @@ class MipMap:
         return self._coarsest_where_wide(continuous, np.where(alone, below, blend))
 
     def ewa(self, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
-        """Elliptically weighted average (N, 3) over the ellipse with axes ``axis0``, ``axis1`` (N, 2)
-        (``scene.ewa_kernel.EwaKernel`` computes the same on the device, to float32 rounding)."""
-        swap = (axis0 * axis0).sum(axis=1) < (axis1 * axis1).sum(axis=1)
-        major = np.where(swap[:, None], axis1, axis0).astype(np.float64)
-        minor = np.where(swap[:, None], axis0, axis1).astype(np.float64)
-        major_len, minor_len = np.linalg.norm(major, axis=1), np.linalg.norm(minor, axis=1)
-        clamp = (minor_len * self.max_anisotropy < major_len) & (minor_len > 0)
-        stretch = np.where(clamp, major_len / np.maximum(minor_len * self.max_anisotropy, 1e-300), 1.0)
-        minor, minor_len = minor * stretch[:, None], minor_len * stretch
-        out = np.empty((len(st), 3))
-        flat = minor_len == 0
-        out[flat] = self.bilinear(st[flat], 0)
-        rows = np.flatnonzero(~flat)
-        lod = np.maximum(0.0, self._level_of(minor_len[rows]))
+        """Elliptically weighted average (N, 3) float32 over the ellipse with axes ``axis0``, ``axis1``
+        (N, 2) around ``st`` (N, 2), all rounded to float32 (``scene.ewa_kernel.EwaKernel`` computes the
+        same on the device, in the same float32 operations): none (0) where one of them is not finite
+        in float32, level 0 bilinear (in float64) where the minor axis is 0."""
+        out = np.zeros((len(st), 3), np.float32)
+        with np.errstate(over="ignore", invalid="ignore"):  # non-finite lookups give 0, as the kernel's
+            st32, axis0, axis1 = (np.asarray(v).astype(np.float32) for v in (st, axis0, axis1))
+            finite = np.isfinite(st32).all(axis=1) & np.isfinite(axis0).all(axis=1) & np.isfinite(axis1).all(axis=1)
+            major, minor, minor_len = _ewa_axes(axis0, axis1, self.max_anisotropy)
+        flat = np.flatnonzero(finite & (minor_len == 0))
+        out[flat] = self.bilinear(st32[flat].astype(np.float64), 0)
+        rows = np.flatnonzero(finite & (minor_len != 0))
+        length = np.maximum(minor_len[rows], 1e-8)
+        # lod is 0 where the minor axis is at most a texel of the finest level along its longer side: log2
+        # is skipped there, as the kernel skips it
+        magnified = length <= 1.0 / (1 << (self.level_count - 1))
+        lod = np.zeros(len(rows))
+        lod[~magnified] = np.maximum(0.0, self._level_of(length[~magnified]))
         lower = np.floor(lod).astype(np.int64)
-        delta = (lod - lower)[:, None]
-        args = st[rows], major[rows], minor[rows]
+        delta = (lod - lower).astype(np.float32)[:, None]
+        args = st32[rows], major[rows], minor[rows]
         out[rows] = self._ewa_level(lower, *args)
         # where lod is clamped to 0 (a magnified lookup) the next level has weight 0: skipped, as the kernel does
         blend = np.flatnonzero(delta[:, 0] > 0)
@@ -221,62 +266,66 @@ class MipMap:
         return out
 
     def _ewa_level(self, level: np.ndarray, st: np.ndarray, axis0: np.ndarray, axis1: np.ndarray) -> np.ndarray:
-        """Gaussian-weighted texel sum at per-point ``level`` (the coarsest level's texel beyond it)."""
-        out = np.empty((len(st), 3))
+        """Gaussian-weighted texel average (N, 3) float32 at per-point ``level`` of float32 ``st`` and
+        axes (the coarsest level's texel beyond it)."""
+        out = np.empty((len(st), 3), np.float32)
         beyond = level >= self.level_count
         out[beyond] = self._texels[-1]
         rows = np.flatnonzero(~beyond)
         level = level[rows]
-        w, h = self._width[level].astype(np.float64), self._height[level].astype(np.float64)
-        s, t = st[rows, 0] * w - 0.5, st[rows, 1] * h - 0.5
-        a0s, a0t, a1s, a1t = axis0[rows, 0] * w, axis0[rows, 1] * h, axis1[rows, 0] * w, axis1[rows, 1] * h
-        a = a0t * a0t + a1t * a1t + 1
-        b = -2 * (a0s * a0t + a1s * a1t)
-        c = a0s * a0s + a1s * a1s + 1
-        inv_f = 1 / (a * c - b * b * 0.25)
-        a, b, c = a * inv_f, b * inv_f, c * inv_f
-        det = 4 * a * c - b * b
-        half_s, half_t = 2 * np.sqrt(det * c) / det, 2 * np.sqrt(a * det) / det
+        w, h = self._width[level].astype(np.float32), self._height[level].astype(np.float32)
+        s, t = st[rows, 0] * w - np.float32(0.5), st[rows, 1] * h - np.float32(0.5)
+        ellipse = _ewa_ellipse(axis0[rows, 0] * w, axis0[rows, 1] * h, axis1[rows, 0] * w, axis1[rows, 1] * h)
+        half_t, inv_a = ellipse[4], ellipse[1]
         t0, t1 = np.ceil(t - half_t).astype(np.int64), np.floor(t + half_t).astype(np.int64)
         nt = np.maximum(t1 - t0 + 1, 0)
-        taps = nt * np.floor(2 * half_s + 1).astype(np.int64)  # the box's texels: a bound on the ellipse's
-        sums, weights = np.zeros((len(rows), 3)), np.zeros(len(rows))
+        taps = nt * np.floor(2 * np.sqrt(inv_a) + 2).astype(np.int64)  # a bound on the ellipse's texels
+        sums = np.zeros((len(rows), 4), np.float32)  # red, green, blue, weight
         ends = np.cumsum(taps)
         start = 0
         while start < len(rows):
             stop = max(start + 1, int(np.searchsorted(ends, ends[start] - taps[start] + _TAPS_PER_CHUNK, "right")))
-            self._ewa_taps(np.arange(start, stop), nt, t0, s, t, a, b, c, level, sums, weights)
+            self._ewa_taps(np.arange(start, stop), nt, t0, s, ellipse, t, level, sums)
             start = stop
-        out[rows] = sums / np.maximum(weights, 1e-300)[:, None]
+        out[rows] = sums[:, :3] / np.maximum(sums[:, 3:], _TINY)
         return out
 
-    def _ewa_taps(self, points: np.ndarray, nt: np.ndarray, t0: np.ndarray, s: np.ndarray, t: np.ndarray,
-                  a: np.ndarray, b: np.ndarray, c: np.ndarray, level: np.ndarray, sums: np.ndarray,
-                  weights: np.ndarray) -> None:
-        """Add the weighted texels inside ``points``' ellipses into ``sums`` and ``weights``.
+    def _ewa_taps(self, points: np.ndarray, nt: np.ndarray, t0: np.ndarray, s: np.ndarray,
+                  ellipse: tuple[np.ndarray, ...], t: np.ndarray, level: np.ndarray, sums: np.ndarray) -> None:
+        """Add the weighted texels inside ``points``' ellipses (``_ewa_ellipse``) and their weights into
+        ``sums`` (red, green, blue, weight), each point's in the kernel's order (rows up, then texels to
+        the right), in float32.
 
         Row by row of each ellipse's box, only the texels between the ellipse's two crossings of
         the row are visited (pbrt visits the whole box and rejects those outside).
         """
+        a, inv_a, shift, inv_big_a, _ = ellipse
         rows_per_point = nt[points]
         owner = np.repeat(points, rows_per_point)
         y = t0[owner] + np.arange(int(rows_per_point.sum())) - np.repeat(np.cumsum(rows_per_point) - rows_per_point,
                                                                           rows_per_point)
-        dt = y - t[owner]
-        aa, bb = a[owner], b[owner] * dt
-        root = np.sqrt(np.maximum(bb * bb - 4 * aa * (c[owner] * dt * dt - 1), 0.0))
-        x0 = np.ceil(s[owner] + (-bb - root) / (2 * aa)).astype(np.int64)
-        count = np.maximum(np.floor(s[owner] + (-bb + root) / (2 * aa)).astype(np.int64) - x0 + 1, 0)
+        dt = y.astype(np.float32) - t[owner]
+        row_r2 = dt * dt * inv_big_a[owner]
+        mid = s[owner] - shift[owner] * dt
+        half_w = np.sqrt(np.maximum(1 - row_r2, np.float32(0)) * inv_a[owner])
+        x0 = np.ceil(mid - half_w).astype(np.int64)
+        count = np.maximum(np.floor(mid + half_w).astype(np.int64) - x0 + 1, 0)
         row = np.repeat(np.arange(len(owner)), count)
         x = x0[row] + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-        owner, y = owner[row], y[row]
-        ds, dt = x - s[owner], y - t[owner]
-        r2 = a[owner] * ds * ds + b[owner] * ds * dt + c[owner] * dt * dt
+        u = x.astype(np.float32) - mid[row]
+        r2 = a[owner[row]] * u * u + row_r2[row]
         keep = r2 < 1
-        owner, x, y = owner[keep], x[keep], y[keep]
-        weight = EWA_WEIGHTS[np.minimum((r2[keep] * _LUT_SIZE).astype(np.int64), _LUT_SIZE - 1)]
-        texels = self.texel(level[owner], x, y) * weight[:, None]
-        n = len(sums)
-        for channel in range(3):
-            sums[:, channel] += np.bincount(owner, texels[:, channel], minlength=n)
-        weights += np.bincount(owner, weight, minlength=n)
+        owner, x, y = owner[row][keep], x[keep], y[row][keep]
+        weight = EWA_WEIGHTS[(r2[keep] * _LUT_SIZE).astype(np.int64)]  # r2 < 1: r2 * 128 < 128 exactly
+        values = np.empty((len(owner), 4), np.float32)
+        values[:, :3] = self.texel(level[owner], x, y) * weight[:, None]
+        values[:, 3] = weight
+        # each point's taps are consecutive: summed in float32 in that order, as the kernel sums them, by
+        # adding every point's k-th tap at once (no point twice in one addition), k = 0, 1, ...
+        starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+        rank = np.arange(len(owner)) - np.repeat(starts, np.diff(np.r_[starts, len(owner)]))
+        order = np.argsort(rank, kind="stable")
+        owner, values = owner[order], values[order]
+        bounds = np.r_[0, np.cumsum(np.bincount(rank))]
+        for first, last in zip(bounds[:-1], bounds[1:]):
+            sums[owner[first:last]] += values[first:last]
