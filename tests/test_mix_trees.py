@@ -32,8 +32,10 @@ pytest.importorskip("realistic.camera.opencl_host")
 pytestmark = pytest.mark.usefixtures("opencl_platform")
 
 from realistic.device.opencl import Device  # noqa: E402
-from realistic.renderer.bounce_kernel import MATERIALS, material_rows  # noqa: E402
+from realistic.renderer import bsdf_kernel  # noqa: E402
+from realistic.renderer.bounce_kernel import MATERIALS, constant_tree, material_rows  # noqa: E402
 from realistic.renderer.bsdf_kernel import MAX_LOBES, TableStore  # noqa: E402
+from realistic.renderer.surface_parameters import SurfaceParameters  # noqa: E402
 
 #: A checkerboard amount (pbrt's "float" checkerboard: its channels' mean).
 CHECKER_AMOUNT = CheckerTexture(even=(0.15, 0.15, 0.15), odd=(0.85, 0.85, 0.85), cells=6.0)
@@ -117,6 +119,53 @@ def test_paths_over_mix_trees_never_reach_numpy_and_carry_its_radiance(mode, spe
     scene, _, _ = textured_scene()
     scene.instances[:4] = [replace(inst, material=m) for inst, m in zip(scene.instances, TREES.values())]
     assert len(_kernel_paths_agree(scene, mode, 23, spectral, monkeypatch)._trees) == 4
+
+
+#: Trees nothing in which is textured (``constant_tree``): two of ``TREES``' trees as they are or
+#: with a constant amount in place of the grid, a mix of two mixes, and a chain of ``MAX_LOBES`` lobes.
+CONSTANT_TREES = [TREES["mix of (diffuse + conductor) and glass"],
+                  Mix(Mix(Plastic((0.2, 0.5, 0.8), (0.3, 0.3, 0.3), 0.1), CoatedDiffuse((0.9, 0.2, 0.4), 0.1), 0.3),
+                      Mix(Mirror((0.8, 0.8, 0.9)), DiffuseTransmission((0.4, 0.5, 0.3), (0.3, 0.2, 0.4)), 0.7), 0.45),
+                  replace(TREES["three levels deep"], first=replace(TREES["three levels deep"].first,
+                                                                  first=replace(TREES["three levels deep"].first.first,
+                                                                                amount=0.6))),
+                  _chain(MAX_LOBES)]
+
+
+def test_constant_trees_have_one_row_each_hits_row():
+    """A tree nothing in which is textured has one ``TREE`` row, bit for bit the row ``tree_rows``
+    makes at each of its RGB hits; a textured tree has none (its rows are made per hit)."""
+    tables = TableStore(Device.for_spec())
+    count = 7
+    at_hits = SurfaceParameters(count, lambda: np.zeros((count, 2), np.float32), lambda: None, None)
+    for tree in CONSTANT_TREES:
+        row = constant_tree(tree, tables)
+        assert row is not None and row.shape == (1, bsdf_kernel.tree_width(bsdf_kernel.leaf_count(tree)))
+        np.testing.assert_array_equal(bsdf_kernel.tree_rows(tree, at_hits, count, tables),
+                                      np.repeat(row, count, axis=0), strict=True)
+    for name in ("textured amounts at both levels", "textured lobes in a second mix", "three levels deep"):
+        assert constant_tree(TREES[name], tables) is None
+
+
+@pytest.mark.parametrize("mode, spectral", [("path", False), ("direct", False), ("path", True)])
+def test_paths_over_constant_trees_make_no_row_per_hit_for_rgb_rays(mode, spectral, monkeypatch):
+    """Whole paths over ``textured_scene`` whose floor, sphere, cone and quad are ``CONSTANT_TREES``
+    carry the numpy backend's radiance; RGB rays' bounces ask ``tree_rows`` for no hit's row (the
+    trees' one rows are made with the kernel), spectral rays' for each hit's (their colours vary
+    with each hit's wavelength)."""
+    counts: list[int] = []
+    made = bsdf_kernel.tree_rows
+
+    def counted(material, hits, count, tables):
+        counts.append(count)
+        return made(material, hits, count, tables)
+
+    monkeypatch.setattr(bsdf_kernel, "tree_rows", counted)
+    scene, _, _ = textured_scene()
+    scene.instances[:4] = [replace(inst, material=m) for inst, m in zip(scene.instances, CONSTANT_TREES)]
+    bounce = _kernel_paths_agree(scene, mode, 29, spectral, monkeypatch)
+    assert len(bounce._trees) == len(bounce._constant_trees) == 4
+    assert (max(counts) > 1) == spectral
 
 
 def test_a_mix_made_of_itself_is_one_line_naming_it():
