@@ -21,7 +21,8 @@ with ``PathIntegrator._hit_parameters``, the lookups ``_shade`` makes, footprint
 kernel reads in place of the material's row; a mix's textured second material (``second_per_hit``)
 likewise gives each hit its own second ``LOBE`` row (``bsdf_kernel.mix_rows``), read in place of the
 tables' one; a mix holding a mix (``tree``) gives each hit its whole BSDF as a ``bsdf_kernel.TREE``
-row, its lobes and amounts looked up likewise (``_hit_trees``). Everything else of the bounce stays
+row, its lobes and amounts looked up likewise (``_hit_trees``; RGB rays' hits on a tree nothing in
+which is textured take its one row, made with the kernel: ``constant_tree``). Everything else of the bounce stays
 in the kernel. An
 environment map's sampling tables (its ``Distribution2D``) and texels, and an emitting mesh's world
 triangles and their area CDF (``light_sampler.Emitter``'s, which the scene's mesh-space device tables
