@@ -13,7 +13,11 @@ import numpy as np
 import pytest
 
 import realistic
+from bsdf_helpers import ConstantHits
 from realistic.errors import UserError
+from realistic.renderer.bsdf import bsdf_for
+from realistic.renderer.path import PathIntegrator
+from realistic.scene.intersect import Intersector
 from realistic.scene.materials import (
     CoatedDiffuse,
     Conductor,
@@ -26,6 +30,7 @@ from realistic.scene.materials import (
 )
 from realistic.scene.model import CheckerTexture, GridTexture, ImageTexture, Material
 from test_bounce_kernel import IMAGE, ROUGH, _kernel_paths_agree, _shades_as_numpy
+from test_bsdf_kernel import _matches_numpy
 from test_shading_reference import textured_scene
 
 pytest.importorskip("realistic.camera.opencl_host")
@@ -34,7 +39,7 @@ pytestmark = pytest.mark.usefixtures("opencl_platform")
 from realistic.device.opencl import Device  # noqa: E402
 from realistic.renderer import bsdf_kernel  # noqa: E402
 from realistic.renderer.bounce_kernel import MATERIALS, constant_tree, material_rows  # noqa: E402
-from realistic.renderer.bsdf_kernel import MAX_LOBES, TableStore  # noqa: E402
+from realistic.renderer.bsdf_kernel import MAX_LOBES, BsdfKernel, TableStore  # noqa: E402
 from realistic.renderer.surface_parameters import SurfaceParameters  # noqa: E402
 
 #: A checkerboard amount (pbrt's "float" checkerboard: its channels' mean).
@@ -166,6 +171,50 @@ def test_paths_over_constant_trees_make_no_row_per_hit_for_rgb_rays(mode, spectr
     bounce = _kernel_paths_agree(scene, mode, 29, spectral, monkeypatch)
     assert len(bounce._trees) == len(bounce._constant_trees) == 4
     assert (max(counts) > 1) == spectral
+
+
+@pytest.mark.parametrize("spectral", [False, True])
+@pytest.mark.parametrize("index", range(len(CONSTANT_TREES)))
+def test_the_bsdf_kernel_evaluates_and_samples_trees_as_the_numpy_bsdf(index, spectral):
+    """The standalone BSDF kernel (``_shade``'s) given a tree's rows (``BsdfKernel.rows``: a "tree"
+    row and its ``TREE`` row) evaluates and samples it as ``bsdf_for``'s nested ``WeightedSum``s,
+    RGB and spectral (``test_bsdf_kernel._matches_numpy``); a tree of more than ``MAX_LOBES`` lobes
+    has no rows."""
+    kernel = BsdfKernel(Device.for_spec())
+    _matches_numpy(kernel, CONSTANT_TREES[index], 700 + index, spectral=spectral)
+    assert kernel.rows(_chain(MAX_LOBES + 1), ConstantHits(3), 3) is None
+
+
+@pytest.mark.parametrize("spectral", [False, True])
+def test_paths_through_the_bsdf_kernel_over_mix_trees_carry_the_numpy_radiance(spectral, monkeypatch):
+    """Whole paths (depth 5, two light samples) over ``textured_scene`` whose sphere, cone and quad
+    are trees of three to five lobes, textured and not, with the fused bounce off: ``_shade`` launches
+    every hit's BSDF on the standalone kernel (the floor's rows and the trees' wider ones padded to
+    one width), none in numpy, and each ray's radiance is the numpy backend's to float32 rounding."""
+    scene, eye, target = textured_scene()
+    trees = [TREES["textured lobes in a second mix"], TREES["three levels deep"], CONSTANT_TREES[1]]
+    scene.instances[1:4] = [replace(inst, material=m) for inst, m in zip(scene.instances[1:4], trees)]
+    rng = np.random.default_rng(31)
+    n = 4000
+    origin = np.tile(np.asarray(eye, np.float32), (n, 1))
+    aim = np.asarray(target, np.float32) + rng.uniform(-1.2, 1.2, (n, 3)).astype(np.float32)
+    direction = ((aim - origin) / np.linalg.norm(aim - origin, axis=1, keepdims=True)).astype(np.float32)
+    args = (origin, direction, np.arange(n), np.zeros(n, np.int64), None,
+            rng.uniform(400, 700, n) if spectral else None)
+    images, numpy_bsdfs = [], []
+    for backend in ("numpy", "opencl"):
+        integrator = PathIntegrator(scene, Intersector(scene), 2, 3, 1e-3, 5, "path", backend=backend)
+        if backend == "opencl":
+            integrator._bounce = integrator._bounce_covers = None  # every hit through ``_shade``
+            monkeypatch.setattr(integrator, "bsdf_factory",
+                                lambda material, hits: numpy_bsdfs.append(material) or bsdf_for(material, hits))
+        images.append(integrator.radiance(*args)[0])
+    assert numpy_bsdfs == []
+    expected, got = images
+    scale = float(np.abs(expected).max())
+    close = np.all(np.isclose(got, expected, rtol=1e-4, atol=1e-5 * scale), axis=1)
+    assert close.mean() > 0.99, close.mean()
+    assert abs(float(got.mean()) / float(expected.mean()) - 1) < 1e-3
 
 
 def test_a_mix_made_of_itself_is_one_line_naming_it():

@@ -25,14 +25,14 @@ under a grid or checker texture, or under an image texture, which ``EwaKernel.at
 on the device before the launch; any other textured parameter, such as roughness, Ks or a mix's
 amount or second material, looked up per hit with ``_hit_parameters``, its image textures filtered on
 the device too by the backend's ``image_lookup``; a mix holding a mix, its whole tree looked up per hit
-likewise) take the whole bounce in one launch of
+likewise, or once where nothing in it is textured, for RGB rays) take the whole bounce in one launch of
 ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights,
 shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral rays (a
 dispersive camera's) at the same hits, in the kernel's spectral build. The host keeps embree,
 emission and the compaction of live paths. Other hits (a mix tree of more than
 ``bsdf_kernel.MAX_LOBES`` lobes) have the numpy bounce (``_shade``), with their BSDFs evaluated and
 sampled in ``kernels/bsdf.cl`` where it covers the material (the backend's ``bsdf_kernel``:
-``bsdf_kernel.parameters`` says which), in one launch per bounce with the same random numbers; every other
+its ``rows`` say which), in one launch per bounce with the same random numbers; every other
 material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
 
 Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
@@ -515,7 +515,8 @@ class PathIntegrator(DirectLighting):
                 hit_rows, table = on_device[0]
             else:
                 hit_rows = np.concatenate([np.arange(m)[r] for r, _ in on_device])
-                table = np.concatenate([t for _, t in on_device])
+                width = max(t.shape[1] for _, t in on_device)  # a mix tree's rows are wider (``BsdfKernel.rows``)
+                table = np.concatenate([np.pad(t, ((0, 0), (0, width - t.shape[1]))) for _, t in on_device])
             hit_wo = wo[hit_rows]
             light_wi = np.stack([local[hit_rows] for _, local in samples]) if samples else \
                 np.zeros((0, len(hit_wo), 3), np.float32)
