@@ -100,17 +100,15 @@ class PathIntegrator(DirectLighting):
                  backend: Backend | str = "numpy"):
         """An "opencl" ``backend`` evaluates and samples the BSDFs it covers in ``kernels/bsdf.cl``
         (with ``bsdf_for``, whose materials it mirrors); the rest of the integrator is numpy."""
-        super().__init__(scene, intersector, light_samples, seed, pixel_spread_radians)
+        chosen = backend_for(backend) if isinstance(backend, str) else backend
+        # the camera hits' footprints (``_footprint``) and the image textures of ``SurfaceParameters``
+        # (``_shade``, the per-hit rows, albedo) on the backend, the ``DirectLighting`` part's
+        super().__init__(scene, intersector, light_samples, seed, pixel_spread_radians, backend=chosen)
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
         if max_depth < 0:
             raise ValueError("max_depth must be at least 0")
         self.max_depth, self.mode, self.mis, self.bsdf_factory = max_depth, mode, mis, bsdf_factory
-        chosen = backend_for(backend) if isinstance(backend, str) else backend
-        # the camera hits' footprints (``_footprint``) and the image textures of ``SurfaceParameters``
-        # (``_shade``, the per-hit rows, albedo) on this integrator's backend, where the
-        # ``DirectLighting`` part's own (``self.backend``) is numpy's
-        self._surface_backend = chosen
         self._bsdf_kernel = chosen.bsdf_kernel() if bsdf_factory is bsdf_for else None
         self.lights = LightSampler(scene, intersector.extent)
         self._add_light_surfaces(scene)
@@ -243,6 +241,12 @@ class PathIntegrator(DirectLighting):
             result *= rgb_response(wavelength_nm)
         return result, shadow_rays
 
+    def _build_kernel(self) -> None:
+        """No shading kernel (``DirectLighting``'s, ``kernels/shade.cl``): paths are shaded by the
+        bounce (``_build_bounce``) and ``_shade``, with the BSDFs of every material, where the
+        shading kernel takes matte and measured ones alone."""
+        return None
+
     def _build_bounce(self, backend: Backend) -> BounceKernel | None:
         """The fused bounce kernel on ``backend``'s device (imports pyopencl only here); None on the
         "numpy" backend."""
@@ -313,7 +317,7 @@ class PathIntegrator(DirectLighting):
         def camera_footprint() -> Footprint | None:
             return footprint() if depth == 0 and self.pixel_spread_radians > 0 else None
 
-        return SurfaceParameters(len(face), uv, camera_footprint, basis, self._surface_backend.image_lookup)
+        return SurfaceParameters(len(face), uv, camera_footprint, basis, self.backend.image_lookup)
 
     def _hit_parameters(self, hits: Hits, rows: np.ndarray, d: np.ndarray, basis: np.ndarray | None, depth: int
                         ) -> Callable[[np.ndarray], SurfaceParameters]:
