@@ -520,7 +520,8 @@ class PathIntegrator(DirectLighting):
             else:
                 hit_rows = np.concatenate([np.arange(m)[r] for r, _ in on_device])
                 width = max(t.shape[1] for _, t in on_device)  # a mix tree's rows are wider (``BsdfKernel.rows``)
-                table = np.concatenate([np.pad(t, ((0, 0), (0, width - t.shape[1]))) for _, t in on_device])
+                table = np.concatenate([t if t.shape[1] == width else np.pad(t, ((0, 0), (0, width - t.shape[1])))
+                                        for _, t in on_device])
             hit_wo = wo[hit_rows]
             light_wi = np.stack([local[hit_rows] for _, local in samples]) if samples else \
                 np.zeros((0, len(hit_wo), 3), np.float32)
