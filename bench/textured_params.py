@@ -1,7 +1,7 @@
 """Textured-parameters benchmark: a pbrt-v4 scene of textured roughness and mix amount, path traced, two trees.
 
     .venv/bin/python bench/textured_params.py [--against ../old] [--rounds 3] [--res 300x200] [--spp 16]
-        [--dispersion] [--scene params|mixes|nested] [--images]
+        [--dispersion] [--scene params|mixes|nested|nested-constant] [--images]
 
 The fused bounce kernel (``kernels/bounce.cl``) first took a material only when every parameter but its
 diffuse-like colour was constant: a textured roughness or a textured mix amount sent every hit on that
@@ -15,7 +15,9 @@ spheres of a matte and a conductor of checkerboard roughness under a checkerboar
 conductor and an image-textured coateddiffuse (no glass). ``--scene nested`` makes them pbrt-v4 mixes
 holding mixes (``NESTED``), which the fused bounce first sent to numpy: a floor mixing (a mix of a matte
 and a rough conductor under a checkerboard amount) and an image-textured coateddiffuse under a constant
-amount, spheres three levels deep, and one of (a mix of a matte and a conductor) and glass. ``--images``
+amount, spheres three levels deep, and one of (a mix of a matte and a conductor) and glass;
+``--scene nested-constant`` the same trees with nothing textured (``NESTED_CONSTANT``), whose rows the
+fused bounce makes once per material for RGB rays rather than per hit. ``--images``
 also renders the scene once more per tree and once with ``--backend numpy`` (this tree, the reference
 shading), all at the same seed, and prints each image's mean and max absolute difference from the
 numpy one. Each is rendered by ``python -m realistic
@@ -84,6 +86,21 @@ NESTED = [
     'MakeNamedMaterial "scuffed" "string type" "mix" "string materials" ["matte" "metal"] "float amount" [0.5]',
     'MakeNamedMaterial "glassy" "string type" "mix" "string materials" ["scuffed" "glass"] "float amount" [0.5]']
 
+#: The ``nested-constant`` scene's materials: ``NESTED``'s trees with constant amounts and lobes.
+NESTED_CONSTANT = [
+    'MakeNamedMaterial "matte" "string type" "diffuse" "rgb reflectance" [0.7 0.3 0.2]',
+    'MakeNamedMaterial "metal" "string type" "conductor" "float roughness" [0.1]',
+    'MakeNamedMaterial "glaze" "string type" "coateddiffuse" "rgb reflectance" [0.3 0.5 0.6] "float roughness" [0.1]',
+    'MakeNamedMaterial "grain" "string type" "diffuse" "rgb reflectance" [0.6 0.45 0.3]',
+    'MakeNamedMaterial "glass" "string type" "dielectric"',
+    'MakeNamedMaterial "worn" "string type" "mix" "string materials" ["matte" "metal"] "float amount" [0.35]',
+    'MakeNamedMaterial "floor" "string type" "mix" "string materials" ["worn" "glaze"] "float amount" [0.4]',
+    'MakeNamedMaterial "grained" "string type" "mix" "string materials" ["worn" "grain"] "float amount" [0.3]',
+    'MakeNamedMaterial "glazed" "string type" "mix" "string materials" ["glaze" "metal"] "float amount" [0.5]',
+    'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["grained" "glazed"] "float amount" [0.6]',
+    'MakeNamedMaterial "scuffed" "string type" "mix" "string materials" ["matte" "metal"] "float amount" [0.5]',
+    'MakeNamedMaterial "glassy" "string type" "mix" "string materials" ["scuffed" "glass"] "float amount" [0.5]']
+
 
 def objects(floor: str, small: str) -> list[str]:
     """Both scenes' shapes: a floor under the material statement ``floor``, two spheres of the
@@ -108,7 +125,8 @@ def write_textures(folder: Path) -> None:
 
 def scene_text(res: str, spp: int, scene: str = "params") -> str:
     """The benchmark's pbrt-v4 scene (``params``, or ``mixes``: ``MIXES``, whose textures
-    ``write_textures`` writes) at ``res`` (WxH) and ``spp`` samples per pixel."""
+    ``write_textures`` writes, ``nested``: ``NESTED``, or ``nested-constant``: ``NESTED_CONSTANT``) at
+    ``res`` (WxH) and ``spp`` samples per pixel."""
     width, height = res.split("x")
     head = [
         'LookAt 0 1.2 3.5  0 0.3 0  0 1 0', 'Camera "perspective" "float fov" [40]',
@@ -123,8 +141,9 @@ def scene_text(res: str, spp: int, scene: str = "params") -> str:
         '"float tex2" [0.85]']
     if scene == "mixes":
         return "\n".join(head + MIXES + objects('NamedMaterial "floor"', 'NamedMaterial "glazed metal"')) + "\n"
-    if scene == "nested":
-        return "\n".join(head + NESTED + objects('NamedMaterial "floor"', 'NamedMaterial "glassy"')) + "\n"
+    if scene in ("nested", "nested-constant"):
+        materials = NESTED if scene == "nested" else NESTED_CONSTANT
+        return "\n".join(head + materials + objects('NamedMaterial "floor"', 'NamedMaterial "glassy"')) + "\n"
     return "\n".join(head + [
         'MakeNamedMaterial "matte" "string type" "diffuse" "rgb reflectance" [0.7 0.3 0.2]',
         'MakeNamedMaterial "metal" "string type" "conductor" "float roughness" [0.1]',
@@ -161,9 +180,9 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=16, help="samples per pixel (default 16)")
     parser.add_argument("--dispersion", action="store_true",
                         help="through the dgauss lens with dispersion on (spectral rays)")
-    parser.add_argument("--scene", choices=("params", "mixes", "nested"), default="params",
+    parser.add_argument("--scene", choices=("params", "mixes", "nested", "nested-constant"), default="params",
                         help="params: textured roughness and amount (default); mixes: textured second materials; "
-                             "nested: mixes holding mixes")
+                             "nested: mixes holding mixes; nested-constant: the same, nothing textured")
     parser.add_argument("--images", action="store_true",
                         help="also each tree's image against the numpy backend's (mean, max abs difference)")
     args = parser.parse_args()

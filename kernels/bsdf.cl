@@ -48,8 +48,8 @@ typedef struct {
 
 /* A hit's BSDF: its first lobe alone where amount is 0, else (1 - amount) first + amount second
  * (mix.WeightedSum with lobe chances 1 - amount and amount); lobe[1] is lobe[0] where amount is 0.
- * Where `tree` is not 0 (a mix holding a mix: kernels/bounce.cl sets it), the BSDF is that BSDF_TREE
- * row instead (tree_eval, tree_sample), its lobes' tables in `tables`. */
+ * Where `tree` is not 0 (a mix holding a mix: kernels/bounce.cl and the bsdf kernel below set it),
+ * the BSDF is that BSDF_TREE row instead (tree_eval, tree_sample), its lobes' tables in `tables`. */
 typedef struct {
     Lobe lobe[2];
     float amount;
@@ -689,14 +689,18 @@ inline float3 bsdf_sample(const Params *p, float3 wo, float u0, float u1, float 
     return wi;
 }
 
-__kernel void bsdf(uint n, uint lights, __global const float *params, __global const float *tables,
+/* Row i of `params` (row_width floats each) is hit i's BSDF_PARAM row, followed where its kind is
+ * KIND_TREE (a mix holding a mix) by the hit's BSDF_TREE row, which is then its BSDF. */
+__kernel void bsdf(uint n, uint lights, __global const float *params, uint row_width, __global const float *tables,
                    __global const float *wo_in,
                    __global const float *light_wi, __global const float *u, __global const float *u_lobe,
                    __global float *light_f, __global float *light_pdf, __global float *wi_out,
                    __global float *value_out, __global float *pdf_out, __global int *flags_out) {
     uint i = get_global_id(0);
     if (i >= n) return;
-    Params p = load_params(params + (size_t)i * BSDF_PARAM_WIDTH, tables);
+    __global const float *row = params + (size_t)i * row_width;
+    Params p = load_params(row, tables);
+    if ((int)row[BSDF_PARAM_KIND] == KIND_TREE) p.tree = row + BSDF_PARAM_WIDTH;
     float3 wo = vload3(i, wo_in);
     for (uint k = 0; k < lights; k++) {
         size_t row = (size_t)k * n + i;

@@ -172,3 +172,24 @@ def test_the_opencl_path_integrator_filters_every_image_on_the_device(texture_fi
     close = np.all(np.isclose(got, expected, rtol=1e-3, atol=1e-5 * top), axis=1)
     assert close.mean() > 0.99, close.mean()
     assert abs(float(got.mean()) / float(expected.mean()) - 1) < 2e-3
+
+
+def test_the_opencl_path_integrator_has_one_backend_and_no_shading_kernel(monkeypatch):
+    """The path integrator hands its backend to its ``DirectLighting`` part, whose footprints and
+    image lookups then run on it (one backend, no second attribute), and builds no shading kernel
+    (``shade.cl`` takes matte and measured materials alone and never shades a path): over
+    ``_scene("ewa")`` (plastic, a mix, a mix holding a mix) it builds on "opencl", and its camera
+    rays' first-hit albedo (the albedo AOV) filters through the device, never ``MipMap``'s numpy
+    filters, and is the numpy backend's to float32 rounding."""
+    scene = _scene("ewa")
+    numpy_one, device_one = _pair(scene)
+    assert (numpy_one.backend.name, device_one.backend.name) == ("numpy", "opencl")
+    assert device_one._kernel is None and not hasattr(device_one, "_surface_backend")
+    origin, direction = _rays(scene, 3000, 12)
+    hits = Intersector(scene).closest(origin, direction)
+    expected = numpy_one.first_hits(origin, direction, hits).albedo
+    for name in NUMPY_FILTERS:
+        monkeypatch.setattr(MipMap, name, lambda *_, name=name: pytest.fail(f"MipMap.{name} called"))
+    got = device_one.first_hits(origin, direction, hits).albedo
+    assert np.count_nonzero(hits.geom == 0) > 100  # the image-textured floor
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-7)

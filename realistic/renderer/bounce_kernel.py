@@ -21,7 +21,8 @@ with ``PathIntegrator._hit_parameters``, the lookups ``_shade`` makes, footprint
 kernel reads in place of the material's row; a mix's textured second material (``second_per_hit``)
 likewise gives each hit its own second ``LOBE`` row (``bsdf_kernel.mix_rows``), read in place of the
 tables' one; a mix holding a mix (``tree``) gives each hit its whole BSDF as a ``bsdf_kernel.TREE``
-row, its lobes and amounts looked up likewise (``_hit_trees``). Everything else of the bounce stays
+row, its lobes and amounts looked up likewise (``_hit_trees``; RGB rays' hits on a tree nothing in
+which is textured take its one row, made with the kernel: ``constant_tree``). Everything else of the bounce stays
 in the kernel. An
 environment map's sampling tables (its ``Distribution2D``) and texels, and an emitting mesh's world
 triangles and their area CDF (``light_sampler.Emitter``'s, which the scene's mesh-space device tables
@@ -252,6 +253,16 @@ def material_rows(material: SurfaceMaterial, tables: bsdf_kernel.TableStore) -> 
     return row[0], extra[0]
 
 
+def constant_tree(material: Mix, tables: bsdf_kernel.TableStore) -> np.ndarray | None:
+    """The one ``TREE`` row (1, width) of a mix holding a mix (covered) where none of its lobes and
+    amounts is textured: ``bsdf_kernel.tree_rows`` at any hit of RGB rays, made once per material
+    rather than per hit; None where something in it is textured (its rows are made per hit)."""
+    try:
+        return bsdf_kernel.tree_rows(material, _Constants(), 1, tables)
+    except _Textured:
+        return None
+
+
 def light_rows(lights: LightSampler) -> tuple[np.ndarray, np.ndarray]:
     """``LIGHTS`` rows of a sampler's lights, in its order, and the float32 ``environment`` buffer
     they point into: each map's sampling tables (its CDFs rounded up as ``rounded_up_cdf`` rounds, so
@@ -362,6 +373,9 @@ class BounceKernel:
         #: the mixes holding a mix, whose hits take their own ``TREE`` rows (``_hit_trees``)
         self._trees = [(k, m) for k, (m, r) in enumerate(zip(materials, rows))
                        if r is not None and bsdf_kernel.holds_mix(m)]
+        #: of those, the trees nothing in which is textured: their one ``TREE`` row (1, width), the
+        #: row of every hit of RGB rays (spectral rays' colours vary with each hit's wavelength)
+        self._constant_trees = {k: row for k, m in self._trees if (row := constant_tree(m, tables)) is not None}
         #: the floats of each hit's ``TREE`` row: as many lobes as the largest tree's
         self._tree_width = bsdf_kernel.tree_width(max((bsdf_kernel.leaf_count(m) for _, m in self._trees), default=0))
         #: per image-textured material covered: its index, EWA kernel, filter and ``hit_mapping`` rows
@@ -446,7 +460,7 @@ class BounceKernel:
             queue, kernel = self._queue_and_kernel(spectral)
             albedo = self._albedo(rows, direction, hits, depth, spectral)
             hit_rows, hit_seconds = self._hit_rows(rows, hits, hit_parameters)
-            hit_trees = self._hit_trees(rows, hits, hit_parameters)
+            hit_trees = self._hit_trees(rows, hits, hit_parameters, spectral)
             inputs = [self.device.wrapped_buffer(a, dtype) for a, dtype in (
                 (rows, np.int32), (path, np.int32), (pixel, np.uint32), (sample, np.uint32), (origin, np.float32),
                 (direction, np.float32), (hits.t, np.float32), (hits.u, np.float32), (hits.v, np.float32),
@@ -489,7 +503,8 @@ class BounceKernel:
         into spectral rays' channel)."""
         out = np.zeros((0, bsdf_kernel.BSDF_PARAMS.width), np.float32)
         seconds = np.zeros((0, bsdf_kernel.LOBE.width), np.float32)
-        for index, material, picked, at in self._picks(self._per_hit, rows, hits, hit_parameters):
+        for index, material, picked in self._picks(self._per_hit, rows, hits):
+            at = self._parameters(hit_parameters, index, picked)
             if not len(out):
                 out = np.zeros((len(rows), bsdf_kernel.BSDF_PARAMS.width), np.float32)
             table: np.ndarray | None
@@ -505,32 +520,41 @@ class BounceKernel:
             out[picked] = table
         return out, seconds
 
-    def _picks(self, materials: list[tuple[int, _M]], rows: np.ndarray, hits: Hits,
-               hit_parameters: Callable[[np.ndarray], HitParameters] | None
-               ) -> Iterator[tuple[int, _M, np.ndarray, HitParameters]]:
+    def _picks(self, materials: list[tuple[int, _M]], rows: np.ndarray, hits: Hits
+                ) -> Iterator[tuple[int, _M, np.ndarray]]:
         """Each of ``materials`` (material index, material) that some of the hits ``rows`` are on,
-        with the positions in ``rows`` of those hits and ``hit_parameters`` there, which such hits
-        need (their rows are made per hit)."""
+        with the positions in ``rows`` of those hits."""
         geom, picks = hits.geom[rows], np.empty(len(rows), np.int32)
         for index, material in materials:
             picked = picks[:rows_on_material(geom, self._geom_material, index, picks)].copy()
-            if not len(picked):
-                continue
-            if hit_parameters is None:
-                raise ValueError(f"hits on material {index}, whose rows are made per hit, need hit_parameters")
-            yield index, material, picked, hit_parameters(picked)
+            if len(picked):
+                yield index, material, picked
 
-    def _hit_trees(self, rows: np.ndarray, hits: Hits, hit_parameters: Callable[[np.ndarray], HitParameters] | None
-                   ) -> np.ndarray:
+    @staticmethod
+    def _parameters(hit_parameters: Callable[[np.ndarray], HitParameters] | None, index: int, picked: np.ndarray
+                    ) -> HitParameters:
+        """``hit_parameters(picked)``, which hits on material ``index``, whose rows are made per hit, need."""
+        if hit_parameters is None:
+            raise ValueError(f"hits on material {index}, whose rows are made per hit, need hit_parameters")
+        return hit_parameters(picked)
+
+    def _hit_trees(self, rows: np.ndarray, hits: Hits, hit_parameters: Callable[[np.ndarray], HitParameters] | None,
+                   spectral: bool = False) -> np.ndarray:
         """The ``TREE`` rows (m, ``_tree_width``) float32 of the hits ``rows`` on mixes holding a mix
-        (zero elsewhere, unread; none without such hits): ``bsdf_kernel.tree_rows`` at
-        ``hit_parameters(picked)``, the lookups ``_shade`` makes (spectral rays' at their wavelength)."""
+        (zero elsewhere, unread; none without such hits): a constant tree's one row
+        (``constant_tree``) for RGB rays, else ``bsdf_kernel.tree_rows`` at ``hit_parameters(picked)``,
+        the lookups ``_shade`` makes (spectral rays' at their wavelength)."""
         out = np.zeros((0, self._tree_width), np.float32)
-        for _, material, picked, at in self._picks(self._trees, rows, hits, hit_parameters):
-            table = bsdf_kernel.tree_rows(material, at, len(picked), self.bsdf_tables)
-            assert table is not None  # material_rows' probe: covered at every hit
-            if len(picked) == len(rows) and table.shape[1] == self._tree_width:  # every hit, in order
-                return table
+        for index, material, picked in self._picks(self._trees, rows, hits):
+            constant = None if spectral else self._constant_trees.get(index)
+            if constant is None:
+                table = bsdf_kernel.tree_rows(material, self._parameters(hit_parameters, index, picked), len(picked),
+                                              self.bsdf_tables)
+                assert table is not None  # material_rows' probe: covered at every hit
+                if len(picked) == len(rows) and table.shape[1] == self._tree_width:  # every hit, in order
+                    return table
+            else:
+                table = constant
             if not len(out):
                 out = np.zeros((len(rows), self._tree_width), np.float32)
             out[picked, :table.shape[1]] = table

@@ -7,17 +7,18 @@ whole bounce: Lambertian and
 Oren-Nayar (``Material``), conductors (eta and k, or a named metal's tabulated Fresnel), mirrors,
 smooth, thin and rough dielectrics, plastic, coated diffuse, substrate, measured ``.brdf`` files
 (their 128^3 table), MERL half-angle tables (their 90 x 90 x 180 RGB bins as read), diffuse
-transmission, and a mix of two of those whose second is the same at every hit; the tables and the
-mixes' second lobes live in the kernel's ``TableStore``. Here, mixes holding a mix or a textured
-second material (or seen by spectral rays, whose second lobe varies with the wavelength) stay with
-the numpy BSDFs of ``renderer.bsdf``, which are the reference; the fused bounce takes the latter two
-(a textured second material's lobe from per-hit rows, ``mix_rows``) and mixes holding a mix of up to
-``MAX_LOBES`` lobes (a ``TREE`` row per hit, ``tree_rows``, which ``bsdf.cl``'s ``tree_eval`` and
-``tree_sample`` read as ``bsdf_for``'s nested ``WeightedSum``s are evaluated and sampled); only a
-larger tree stays numpy there (``tests/test_bsdf_kernel.py``, ``tests/test_mix_trees.py`` and, for
-MERL tables, ``tests/test_merl_kernel.py`` compare the two). The host looks each parameter up at
-the hits as ``bsdf.factory.bsdf_for`` does (textures included) and packs one ``BSDF_PARAMS`` row
-per hit; the kernel takes the integrator's own uniform numbers, so both draw the same directions.
+transmission, a mix of two of those whose second is the same at every hit, and a mix holding a mix
+of up to ``MAX_LOBES`` of those lobes (a ``TREE`` row per hit, ``tree_rows``, which ``bsdf.cl``'s
+``tree_eval`` and ``tree_sample`` read as ``bsdf_for``'s nested ``WeightedSum``s are evaluated and
+sampled; here each hit's row is a ``BSDF_PARAMS`` row of kind "tree" followed by its ``TREE`` row:
+``BsdfKernel.rows``); the tables and the mixes' second lobes live in the kernel's ``TableStore``.
+Here, mixes of a textured second material (or seen by spectral rays, whose second lobe varies with
+the wavelength) stay with the numpy BSDFs of ``renderer.bsdf``, which are the reference; the fused
+bounce takes them (a textured second material's lobe from per-hit rows, ``mix_rows``) and trees as
+this kernel does. Only a larger tree stays numpy (``tests/test_bsdf_kernel.py``,
+``tests/test_mix_trees.py`` and, for MERL tables, ``tests/test_merl_kernel.py`` compare the two).
+The host looks each parameter up at the hits as ``bsdf.factory.bsdf_for`` does (textures included)
+and packs one row per hit; the kernel takes the integrator's own uniform numbers, so both draw the same directions.
 One launch per bounce evaluates every light sample's direction and draws the BSDF sample; each
 thread has its own queue, so the renderer's worker threads launch independently.
 """
@@ -89,9 +90,10 @@ MAX_LOBES = 8
 #: ``MAX_LOBES``; a row is ``TREE.width`` + leaves x ``LOBE.width`` floats, ``tree_width``).
 TREE = Table("BSDF_TREE", np.float32, (("nodes", 1), ("amount", MAX_LOBES - 1), ("first", MAX_LOBES - 1),
                                        ("second", MAX_LOBES - 1)), tail="lobes")
+#: Lobe kinds; "tree" is no lobe: the ``BsdfKernel`` row of a mix holding a mix (``BsdfKernel.rows``).
 KINDS = ("lambertian", "conductor", "mirror", "dielectric", "thin_dielectric", "plastic", "oren_nayar",
          "rough_dielectric", "substrate", "coated_diffuse", "measured", "tabulated_conductor", "diffuse_transmission",
-         "merl")
+         "merl", "tree")
 KIND = {name: index for index, name in enumerate(KINDS)}
 #: Measured tables start at multiples of this many floats in ``TableStore``'s buffer, so a row holds a
 #: start divided by it, a whole number float32 keeps exactly.
@@ -347,8 +349,19 @@ class BsdfKernel:
         return self.device.build_program(HEADER + kernel_source(KERNEL_FILE), KERNEL_FILE)
 
     def rows(self, material: SurfaceMaterial, hits: HitParameters, count: int) -> np.ndarray | None:
-        """``parameters`` with this kernel's tables (the ``BsdfLauncher`` method)."""
-        return parameters(material, hits, count, self.tables)
+        """``parameters`` with this kernel's tables (the ``BsdfLauncher`` method); for a mix holding a
+        mix, a ``BSDF_PARAMS`` row of kind "tree" followed by its ``tree_rows`` row (``tree_width`` of
+        its leaves wider), or None where ``tree_rows`` does not cover it. Rows of several materials
+        launched together are padded with zeros to the widest (``PathIntegrator._shade``)."""
+        if not holds_mix(material):
+            return parameters(material, hits, count, self.tables)
+        tree = tree_rows(material, hits, count, self.tables)
+        if tree is None:
+            return None
+        rows = np.zeros((count, BSDF_PARAMS.width + tree.shape[1]), np.float32)
+        rows[:, BSDF_PARAMS.offset("kind")] = KIND["tree"]
+        rows[:, BSDF_PARAMS.width:] = tree
+        return rows
 
     def _queue_and_kernel(self) -> tuple[cl.CommandQueue, cl.Kernel]:
         state = getattr(self._local, "state", None)
@@ -358,7 +371,7 @@ class BsdfKernel:
 
     def __call__(self, params: np.ndarray, wo: np.ndarray, light_wi: np.ndarray, u: np.ndarray, u_lobe: np.ndarray,
                  channels: int = 3) -> tuple[np.ndarray, np.ndarray, BSDFSample]:
-        """For N hits with ``params`` (N, ``BSDF_PARAMS.width``, from ``rows``) and local outgoing
+        """For N hits with ``params`` (N, W: ``rows``' rows, W at least ``BSDF_PARAMS.width``) and local outgoing
         directions ``wo`` (N, 3): f (L, N, C) and pdf (L, N) at the L light directions ``light_wi``
         (L, N, 3), and the BSDF sample drawn with ``u`` (N, 2) and ``u_lobe`` (N,), as the numpy
         BSDF's ``evaluate``, ``pdf`` and ``sample`` give them (float32); C = ``channels``, 3 for RGB
@@ -373,7 +386,8 @@ class BsdfKernel:
             rows = self.device.wrapped_buffer(params, np.float32)
             inputs = [self.device.wrapped_buffer(a, np.float32) for a in (wo, light_wi, u, u_lobe)]
             self.device.run_into(queue, kernel, (whole_groups(n),), (LOCAL_SIZE,),
-                                 (np.uint32(n), np.uint32(lights), rows, self.tables.buffer, *inputs),
+                                 (np.uint32(n), np.uint32(lights), rows, np.uint32(params.shape[1]),
+                                  self.tables.buffer, *inputs),
                                  (light_f, light_pdf, wi, value, pdf, flags))
         specular = (flags & 1).astype(bool)
         return light_f[:, :, :channels], light_pdf, BSDFSample(wi, value[:, :channels], pdf, specular,

@@ -273,10 +273,8 @@ class DirectLighting:
             raise ValueError("light_samples must be at least 1")
         self.intersector, self.light_samples, self.seed = intersector, light_samples, seed
         self.pixel_spread_radians, self.spectral = pixel_spread_radians, spectral
-        # also runs EWA texture lookups (``scene.ewa_kernel``)
+        # also runs EWA texture lookups (``scene.ewa_kernel``) and the camera hits' footprints (``_footprint``)
         self.backend = backend_for(backend) if isinstance(backend, str) else backend
-        #: the backend of the camera hits' footprints (``_footprint``); a path integrator's is its own
-        self._surface_backend: Backend = self.backend
         self.background = np.asarray(scene.background, dtype=np.float32)
         self.instance_count = len(scene.instances)
         self._area_lights: list[AreaLight] = scene.area_lights
@@ -734,9 +732,9 @@ class DirectLighting:
     def _footprint(self, face: np.ndarray, geom: np.ndarray, direction: np.ndarray, normal: np.ndarray,
                    distance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """uv axes of the pixel footprints of hits on triangles ``face`` of instances ``geom``, by the
-        surface backend (``footprint.triangle_footprint`` in numpy, ``kernels/ewa.cl`` on "opencl")."""
-        return self._surface_backend.triangle_footprint(self._vertices, self._uv, self._geom_linear, face, geom,
-                                                        direction, normal, distance, self.pixel_spread_radians)
+        backend (``footprint.triangle_footprint`` in numpy, ``kernels/ewa.cl`` on "opencl")."""
+        return self.backend.triangle_footprint(self._vertices, self._uv, self._geom_linear, face, geom,
+                                               direction, normal, distance, self.pixel_spread_radians)
 
     def _pick(self, pixel: np.ndarray, sample: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Light sample ``k``'s light (picked by power) and its point numbers u1, u2 per point."""

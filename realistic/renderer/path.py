@@ -25,14 +25,14 @@ under a grid or checker texture, or under an image texture, which ``EwaKernel.at
 on the device before the launch; any other textured parameter, such as roughness, Ks or a mix's
 amount or second material, looked up per hit with ``_hit_parameters``, its image textures filtered on
 the device too by the backend's ``image_lookup``; a mix holding a mix, its whole tree looked up per hit
-likewise) take the whole bounce in one launch of
+likewise, or once where nothing in it is textured, for RGB rays) take the whole bounce in one launch of
 ``kernels/bounce.cl`` (``renderer.bounce_kernel``: surface point, normals, light samples, MIS weights,
 shadow rays, BSDF sample, beta, roulette), with the same random numbers; so do spectral rays (a
 dispersive camera's) at the same hits, in the kernel's spectral build. The host keeps embree,
 emission and the compaction of live paths. Other hits (a mix tree of more than
 ``bsdf_kernel.MAX_LOBES`` lobes) have the numpy bounce (``_shade``), with their BSDFs evaluated and
 sampled in ``kernels/bsdf.cl`` where it covers the material (the backend's ``bsdf_kernel``:
-``bsdf_kernel.parameters`` says which), in one launch per bounce with the same random numbers; every other
+its ``rows`` say which), in one launch per bounce with the same random numbers; every other
 material and the "numpy" backend use the numpy BSDFs of ``bsdf_factory``, the reference.
 
 Random numbers: the first vertex's light sample k uses ``rng.light_uniforms`` (the pixel's
@@ -100,17 +100,15 @@ class PathIntegrator(DirectLighting):
                  backend: Backend | str = "numpy"):
         """An "opencl" ``backend`` evaluates and samples the BSDFs it covers in ``kernels/bsdf.cl``
         (with ``bsdf_for``, whose materials it mirrors); the rest of the integrator is numpy."""
-        super().__init__(scene, intersector, light_samples, seed, pixel_spread_radians)
+        chosen = backend_for(backend) if isinstance(backend, str) else backend
+        # the camera hits' footprints (``_footprint``) and the image textures of ``SurfaceParameters``
+        # (``_shade``, the per-hit rows, albedo) on the backend, the ``DirectLighting`` part's
+        super().__init__(scene, intersector, light_samples, seed, pixel_spread_radians, backend=chosen)
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
         if max_depth < 0:
             raise ValueError("max_depth must be at least 0")
         self.max_depth, self.mode, self.mis, self.bsdf_factory = max_depth, mode, mis, bsdf_factory
-        chosen = backend_for(backend) if isinstance(backend, str) else backend
-        # the camera hits' footprints (``_footprint``) and the image textures of ``SurfaceParameters``
-        # (``_shade``, the per-hit rows, albedo) on this integrator's backend, where the
-        # ``DirectLighting`` part's own (``self.backend``) is numpy's
-        self._surface_backend = chosen
         self._bsdf_kernel = chosen.bsdf_kernel() if bsdf_factory is bsdf_for else None
         self.lights = LightSampler(scene, intersector.extent)
         self._add_light_surfaces(scene)
@@ -243,6 +241,12 @@ class PathIntegrator(DirectLighting):
             result *= rgb_response(wavelength_nm)
         return result, shadow_rays
 
+    def _build_kernel(self) -> None:
+        """No shading kernel (``DirectLighting``'s, ``kernels/shade.cl``): paths are shaded by the
+        bounce (``_build_bounce``) and ``_shade``, with the BSDFs of every material, where the
+        shading kernel takes matte and measured ones alone."""
+        return None
+
     def _build_bounce(self, backend: Backend) -> BounceKernel | None:
         """The fused bounce kernel on ``backend``'s device (imports pyopencl only here); None on the
         "numpy" backend."""
@@ -313,7 +317,7 @@ class PathIntegrator(DirectLighting):
         def camera_footprint() -> Footprint | None:
             return footprint() if depth == 0 and self.pixel_spread_radians > 0 else None
 
-        return SurfaceParameters(len(face), uv, camera_footprint, basis, self._surface_backend.image_lookup)
+        return SurfaceParameters(len(face), uv, camera_footprint, basis, self.backend.image_lookup)
 
     def _hit_parameters(self, hits: Hits, rows: np.ndarray, d: np.ndarray, basis: np.ndarray | None, depth: int
                         ) -> Callable[[np.ndarray], SurfaceParameters]:
@@ -515,7 +519,9 @@ class PathIntegrator(DirectLighting):
                 hit_rows, table = on_device[0]
             else:
                 hit_rows = np.concatenate([np.arange(m)[r] for r, _ in on_device])
-                table = np.concatenate([t for _, t in on_device])
+                width = max(t.shape[1] for _, t in on_device)  # a mix tree's rows are wider (``BsdfKernel.rows``)
+                table = np.concatenate([t if t.shape[1] == width else np.pad(t, ((0, 0), (0, width - t.shape[1])))
+                                        for _, t in on_device])
             hit_wo = wo[hit_rows]
             light_wi = np.stack([local[hit_rows] for _, local in samples]) if samples else \
                 np.zeros((0, len(hit_wo), 3), np.float32)
