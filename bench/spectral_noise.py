@@ -24,7 +24,8 @@ process, PoCL's included, so a stage's kernel launches count in it; other work o
 disturbs CPU time far less than wall time) per camera sample in microseconds ("ray generation" is
 the lens kernel; "embree" the closest hits and the shadow rays; "shading" the shading kernel, the
 host's sums and the pass's ray gathers), with the camera rays and shadow rays per sample, and each
-spectral mode's stage costs over the RGB mode's.
+spectral mode's stage costs over the RGB mode's, per sample ("x") and per camera ray traced ("x per
+ray": that ratio over the ratio of camera rays).
 First it prints, for the wavelength densities considered and for K stratified wavelengths of the
 density used, the per-sample variance of each channel's estimator for a flat white spectrum
 (``realistic.core.spectrum.estimator_variance``, ``stratified_response_variance``; it multiplies
@@ -207,7 +208,8 @@ def density_table(spps: list[int], wavelength_counts: list[int], pixels: int = 4
 
 
 def print_stages(stages: list[dict]) -> None:
-    """The stage table: microseconds per camera sample, and each spectral mode's over RGB's."""
+    """The stage table: microseconds per camera sample, and each spectral mode's over RGB's, per
+    sample and per camera ray traced."""
     names = (*PASS_STAGES, "total")
     print(f"{'scene':28s} {'spp':>4s} {'mode':>13s} " + " ".join(f"{n[:10]:>10s}" for n in names)
           + f" {'cam rays':>8s} {'shadow':>7s}   (CPU us per sample; x: over RGB)")
@@ -217,10 +219,13 @@ def print_stages(stages: list[dict]) -> None:
               + f" {s['camera_rays']:8.2f} {s['shadow_rays']:7.2f}")
         base = rgb.get((s["scene"], s["spp"]))
         if s["mode"] != "rgb" and base is not None:
+            rays = s["camera_rays"] / base["camera_rays"]
             print(f"{'':28s} {'':4s} {'x':>13s} "
                   + " ".join(f"{s[n] / base[n]:10.2f}" if base[n] > 0 else f"{'-':>10s}" for n in names)
-                  + f" {s['camera_rays'] / base['camera_rays']:8.2f} "
+                  + f" {rays:8.2f} "
                   + (f"{s['shadow_rays'] / base['shadow_rays']:7.2f}" if base["shadow_rays"] else f"{'-':>7s}"))
+            print(f"{'':28s} {'':4s} {'x per ray':>13s} "
+                  + " ".join(f"{s[n] / base[n] / rays:10.2f}" if base[n] > 0 else f"{'-':>10s}" for n in names))
 
 
 def parse_counts(text: str) -> list[int]:

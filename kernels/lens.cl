@@ -37,8 +37,11 @@
  *                                 when 2, FILTER_BINS and tables FILTER_CDF_X/Y[FILTER_BINS + 1]
  *                                 (CDF of |f| per axis) and FILTER_WEIGHT_X/Y[FILTER_BINS]
  *                                 (sign(f) * integral|f| / integral f of each bin)
- *   RAYS_PER_ITEM                 rays each work item traces side by side (1, 2 or 4; see
+ *   RAYS_PER_ITEM                 rays each work item traces side by side (1 to 4; see
  *                                 "several rays per work item")
+ *   SAMPLE_RAYS                   1: each work item traces one SPECTRAL sample's K rays
+ *                                 (RAYS_PER_ITEM = K), which share its film and lens point; 0: rays
+ *                                 i, i + n, ... of the launch
  *   SURFACE_k(r, il2)             surface k, rear first (k = 0), as a call to sphere()/plane()/
  *                                 asphere()/paraxial()/stop() with literal constants; when SPECTRAL, its
  *                                 index ratio is computed from each dispersive glass's index
@@ -400,10 +403,19 @@ inline void sample_plane(__constant float *settings, float fx, float fy, float u
  * surface with all of them (EACH_RAY) before the next: that many independent chains in flight.
  * Work item i of n traces rays i, i + n, i + 2n, ...: their outputs are not adjacent, so LLVM's
  * SLP vectoriser finds no consecutive stores to pack the twin chains into short vectors from
- * (which would stop the loop vectoriser, see concentric_disk). Each ray's arithmetic is unchanged. */
+ * (which would stop the loop vectoriser, see concentric_disk). Each ray's arithmetic is unchanged.
+ * A SPECTRAL sample's K rays share its film and lens point (all but the wavelength), so with
+ * SAMPLE_RAYS a work item traces one sample's K = RAYS_PER_ITEM rays, the sample's part (its
+ * hashes, address division, pixel filter and lens point: start_sample) made once instead of K
+ * times. Their outputs are consecutive, which LLVM's SLP vectoriser may pack (it does for K = 4, so
+ * the host uses this layout for K = 2 and 3 only: realistic.camera.opencl_host.MAX_SAMPLE_RAYS), and
+ * the host times it against one ray per work item as it times several rays (rays_per_item_choices). */
 #if RAYS_PER_ITEM == 4
 #define EACH_RAY(STEP) STEP(0) STEP(1) STEP(2) STEP(3)
 #define EACH_RAY_SURFACE(SURFACE) SURFACE(&r0, il2_0) SURFACE(&r1, il2_1) SURFACE(&r2, il2_2) SURFACE(&r3, il2_3)
+#elif RAYS_PER_ITEM == 3
+#define EACH_RAY(STEP) STEP(0) STEP(1) STEP(2)
+#define EACH_RAY_SURFACE(SURFACE) SURFACE(&r0, il2_0) SURFACE(&r1, il2_1) SURFACE(&r2, il2_2)
 #elif RAYS_PER_ITEM == 2
 #define EACH_RAY(STEP) STEP(0) STEP(1)
 #define EACH_RAY_SURFACE(SURFACE) SURFACE(&r0, il2_0) SURFACE(&r1, il2_1)
@@ -412,19 +424,19 @@ inline void sample_plane(__constant float *settings, float fx, float fy, float u
 #define EACH_RAY_SURFACE(SURFACE) SURFACE(&r0, il2_0)
 #endif
 
-/* Ray gid of the launch up to the lens: its pixel, weight, wavelength (when SPECTRAL) and 1 /
- * lambda^2 in um^-2 (il2, 0 when not SPECTRAL: the indices are literals), and the ray leaving the
- * film toward the rear surface. */
-inline __attribute__((always_inline)) void start_ray(uint gid, uint first_pixel, uint offset, uint slice_start,
-                                                    uint slice_width, uint seed, __constant float *settings,
-                                                    uint width, double pixel_rows, float inv_width,
-                                                    float inv_height, float film_w_mm, float film_h_mm, Ray *r,
-                                                    uint *pixel, float *weight, float *lambda, float *il2) {
-    uint sample, sample_gid, stratum;
-    ray_of_sample(gid, &sample_gid, &stratum);
+/* Sample sample_gid of the launch up to the lens: its pixel, weight, the ray leaving the film
+ * toward the rear surface, and R5's fifth value (the wavelength's, when SPECTRAL) in *b4: what every
+ * ray of the sample shares. */
+inline __attribute__((always_inline)) void start_sample(uint sample_gid, uint first_pixel, uint offset,
+                                                       uint slice_start, uint slice_width, uint seed,
+                                                       __constant float *settings, uint width, double pixel_rows,
+                                                       float inv_width, float inv_height, float film_w_mm,
+                                                       float film_h_mm, Ray *r, uint *pixel, float *weight,
+                                                       uint *b4) {
+    uint sample;
     sample_address(first_pixel, offset, slice_start, slice_width, sample_gid, pixel, &sample);
-    uint b0, b1, b2, b3, b4;
-    stratified(*pixel, sample, seed, &b0, &b1, &b2, &b3, &b4);
+    uint b0, b1, b2, b3;
+    stratified(*pixel, sample, seed, &b0, &b1, &b2, &b3, b4);
 
     /* pixel / width without an integer division (no vector form: PoCL scalarised it, -10% rays/s):
      * pixel_rows = 1 / width in double; (pixel + 0.5) / width is at least 0.5 / width from an
@@ -454,6 +466,12 @@ inline __attribute__((always_inline)) void start_ray(uint gid, uint first_pixel,
     r->dz = settings[SET_PLANE_Z] * inv_len;
     r->alive = 1;
     r->T = 1.0f;
+}
+
+/* The wavelength (when SPECTRAL; 0 otherwise) of a sample's ray in wavelength stratum `stratum`,
+ * from the sample's b4 (start_sample), and 1 / lambda^2 in um^-2 (il2, 0 when not SPECTRAL: the
+ * indices are literals). */
+inline __attribute__((always_inline)) void ray_wavelength(uint b4, uint stratum, float *lambda, float *il2) {
 #if SPECTRAL
     *lambda = wavelength_nm(to_unit(b4 / WAVELENGTHS_PER_SAMPLE + stratum * LAMBDA_STRATUM_STEP));
     *il2 = 1.0e6f / (*lambda * *lambda);
@@ -461,6 +479,19 @@ inline __attribute__((always_inline)) void start_ray(uint gid, uint first_pixel,
     *lambda = 0.0f;
     *il2 = 0.0f;
 #endif
+}
+
+/* Ray gid of the launch up to the lens: its sample's part (start_sample) and its wavelength's. */
+inline __attribute__((always_inline)) void start_ray(uint gid, uint first_pixel, uint offset, uint slice_start,
+                                                    uint slice_width, uint seed, __constant float *settings,
+                                                    uint width, double pixel_rows, float inv_width,
+                                                    float inv_height, float film_w_mm, float film_h_mm, Ray *r,
+                                                    uint *pixel, float *weight, float *lambda, float *il2) {
+    uint sample_gid, stratum, b4;
+    ray_of_sample(gid, &sample_gid, &stratum);
+    start_sample(sample_gid, first_pixel, offset, slice_start, slice_width, seed, settings, width, pixel_rows,
+                 inv_width, inv_height, film_w_mm, film_h_mm, r, pixel, weight, &b4);
+    ray_wavelength(b4, stratum, lambda, il2);
 }
 
 /* Ray gid's outputs, from the ray leaving the front surface (see generate_rays). */
@@ -495,14 +526,29 @@ inline __attribute__((always_inline)) void finish_ray(uint gid, const Ray *r, ui
 
 /* Rays of the sample block the host lays out (sample_address): one per sample, or when SPECTRAL
  * WAVELENGTHS_PER_SAMPLE consecutive ones per sample (ray_of_sample), RAYS_PER_ITEM per work item
- * (stride = RAYS_PER_ITEM x the launch's work items). out holds 7 rows of `stride` floats: origin
+ * (stride = RAYS_PER_ITEM x the launch's work items; with SAMPLE_RAYS work item i traces sample i's,
+ * rays i K .. i K + K - 1). out holds 7 rows of `stride` floats: origin
  * x, y, z, direction x, y, z, weight
  * (world space; a blocked ray has weight 0 and zero origin and direction), and when SPECTRAL an
  * eighth: the wavelength in nm. world is the camera-to-world matrix, rows of (m0 m1 m2 t). */
 __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uint slice_width, uint seed, __constant float *world,
                             __constant float *settings, uint width, double pixel_rows, float inv_width, float inv_height, float film_w_mm, float film_h_mm,
                             uint stride, __global float *out, __global int *pixel_out) {
-    uint item = get_global_id(0), items = stride / RAYS_PER_ITEM;
+    uint item = get_global_id(0);
+#if SAMPLE_RAYS
+    Ray first;
+    uint pixel, b4;
+    float weight;
+    start_sample(item, first_pixel, offset, slice_start, slice_width, seed, settings, width, pixel_rows, inv_width,
+                 inv_height, film_w_mm, film_h_mm, &first, &pixel, &weight, &b4);
+#define START_RAY(j) \
+    Ray r##j = first; \
+    float lambda_##j, il2_##j; \
+    ray_wavelength(b4, j, &lambda_##j, &il2_##j);
+#define FINISH_RAY(j) \
+    finish_ray(item * RAYS_PER_ITEM + j, &r##j, pixel, weight, lambda_##j, world, settings, stride, out, pixel_out);
+#else
+    uint items = stride / RAYS_PER_ITEM;
 #define START_RAY(j) \
     Ray r##j; \
     uint pixel_##j; \
@@ -511,6 +557,7 @@ __kernel void generate_rays(uint first_pixel, uint offset, uint slice_start, uin
               inv_width, inv_height, film_w_mm, film_h_mm, &r##j, &pixel_##j, &weight_##j, &lambda_##j, &il2_##j);
 #define FINISH_RAY(j) \
     finish_ray(item + j * items, &r##j, pixel_##j, weight_##j, lambda_##j, world, settings, stride, out, pixel_out);
+#endif
     EACH_RAY(START_RAY)
     TRACE_SURFACES(EACH_RAY_SURFACE)
     EACH_RAY(FINISH_RAY)

@@ -23,7 +23,8 @@
  *   - for spectral rays (SPECTRAL), rho and L as spectra at the ray's wavelength
  *     (realistic.core.spectrum.spectral_value, in its order, with the rgb_basis row): the
  *     contribution is one spectral value, and the ray's film weight rgb_response and its basis row
- *     are written once per ray (`response`, `basis`: 3 values each, in lanes as one shadow ray's),
+ *     are written once per ray (`response`, `basis`: 3 rows of the launch's rays each, value c of
+ *     ray i at c * get_global_size(0) + i, which the host reads in place as (rays, 3)),
  *     for the host to weight the ray's sum as numpy does and to colour what the ray sees directly. Both come
  *     from the host's SPECTRUM table, rgb_basis and rgb_response's factors cie_rgb and
  *     wavelength_pdf at SPECTRUM_INTERVALS + 1 equally spaced wavelengths (the wavelength
@@ -424,12 +425,13 @@ __kernel __attribute__((reqd_work_group_size(LANES, 1, 1))) void shade(uint n, u
     float rho_s = rho_r * b_r + rho_g * b_g + rho_b * b_b;
     /* the film weight, once per ray: weighting each light sample's value by it in the loop below
      * gives LLVM's SLP vectoriser a pattern it packs, and PoCL's then gives up on the kernel */
-    LANE_AT(response, 1, 3, 0, 0, group, lane) = f_r;
-    LANE_AT(response, 1, 3, 0, 1, group, lane) = f_g;
-    LANE_AT(response, 1, 3, 0, 2, group, lane) = f_b;
-    LANE_AT(basis, 1, 3, 0, 0, group, lane) = b_r;
-    LANE_AT(basis, 1, 3, 0, 1, group, lane) = b_g;
-    LANE_AT(basis, 1, 3, 0, 2, group, lane) = b_b;
+    uint rays = get_global_size(0);
+    response[i] = f_r;
+    response[rays + i] = f_g;
+    response[2 * rays + i] = f_b;
+    basis[i] = b_r;
+    basis[rays + i] = b_g;
+    basis[2 * rays + i] = b_b;
 #endif
 
 #if MEASURED

@@ -189,13 +189,14 @@ def test_spectral_kernel_is_batch_size_independent(opencl_platform):
 
 
 @pytest.mark.skipif(shutil.which("objdump") is None, reason="needs objdump")
-@pytest.mark.parametrize("wavelengths", [3, 4])  # a work item per wavelength: K = 3 divides by 3
-def test_spectral_kernel_still_vectorises(opencl_platform, tmp_path, wavelengths):
+@pytest.mark.parametrize(("wavelengths", "per_item"), [(3, 1), (4, 1), (2, 2), (3, 3)])
+def test_spectral_kernel_still_vectorises(opencl_platform, tmp_path, wavelengths, per_item):
+    """A work item per wavelength (K = 3 divides by 3), or per sample (its K rays side by side)."""
     script = ("from realistic import load_lens\nfrom realistic.camera.lens_camera import LensCamera\n"
               "from realistic.camera.base import SampleBlock\nfrom realistic.camera.opencl_host import LensKernel\n"
               "camera = LensCamera(load_lens('dgauss100'), 75.0, 43.27, 64, 48, spp=4, spectral=True, "
               f"wavelengths_per_sample={wavelengths})\n"
-              "LensKernel(camera, rays_per_item=1).generate(SampleBlock(0, 4096, camera.spp), 0)\n")
+              f"LensKernel(camera, rays_per_item={per_item}).generate(SampleBlock(0, 4096, camera.spp), 0)\n")
     # PoCL compiles from source into tmp_path, not a binary from realistic's disk cache
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path), "REALISTIC_CACHE_DIR": "off"}
     subprocess.run([sys.executable, "-c", script], check=True, env=env, cwd=REPO, timeout=120)

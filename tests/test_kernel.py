@@ -367,6 +367,25 @@ def test_rays_per_work_item_leave_every_ray_bit_identical(name, sampling, spectr
         assert np.array_equal(several.wavelength_nm, one.wavelength_nm) if spectral else several.wavelength_nm is None
 
 
+@pytest.mark.parametrize(("name", "sampling", "wavelengths"), [("dgauss100", "rear", 2), ("dgauss100", "pupil", 3),
+                                                                ("wide", "rear", 3), ("phone-us10101561", "pupil", 2)])
+def test_a_work_item_per_spectral_sample_leaves_every_ray_bit_identical(name, sampling, wavelengths):
+    """A work item tracing one spectral sample's K rays, whose film and lens point it makes once
+    (``shares_samples``), computes each ray as one ray per work item does, in the same order; the
+    layout is what a spectral camera of K = 2 or 3 chooses between, and K = 4 is left to the launch's
+    rays i, i + n, ... (SLP packs four consecutive rays)."""
+    camera = dataclasses.replace(reference_camera(name, sampling, spectral=True), wavelengths_per_sample=wavelengths)
+    assert opencl_host.rays_per_item_choices(camera) == (wavelengths, 1)
+    assert opencl_host.shares_samples(camera, wavelengths) and not opencl_host.shares_samples(camera, 1)
+    block = SampleBlock(777, 50_000, camera.spp)
+    one = opencl_host.LensKernel(camera, rays_per_item=1).generate(block, seed=4)
+    shared = opencl_host.LensKernel(camera, rays_per_item=wavelengths).generate(block, seed=4)
+    _assert_same_rays(shared, one)
+    assert np.array_equal(shared.wavelength_nm, one.wavelength_nm)
+    four = dataclasses.replace(camera, wavelengths_per_sample=4)
+    assert not opencl_host.shares_samples(four, opencl_host.rays_per_item_choices(four)[0])
+
+
 def test_rays_per_work_item_are_chosen_among_the_choices_and_kept():
     camera = reference_camera("telephoto", "rear")
     first = opencl_host.LensKernel(camera)

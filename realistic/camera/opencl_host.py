@@ -181,11 +181,29 @@ def filter_lines(pixel_filter: PixelFilter) -> list[str]:
 #: times as long); the other choice is 1 (``LensKernel``).
 RAYS_PER_ITEM = 4
 ASPHERIC_RAYS_PER_ITEM = 2
+#: The most wavelengths per sample whose rays one work item traces together (``shares_samples``): a
+#: work item's four consecutive stores of four rays' values LLVM's SLP vectoriser packs into vectors,
+#: and PoCL's work-group vectoriser then leaves the kernel scalar (K = 4 on the dgauss lens).
+MAX_SAMPLE_RAYS = 3
 
 
 def rays_per_item_choices(camera: LensCamera) -> tuple[int, int]:
-    """The rays per work item ``LensKernel`` chooses between for ``camera``: several, or one."""
-    return (ASPHERIC_RAYS_PER_ITEM if camera.lens.asphere_count else RAYS_PER_ITEM), 1
+    """The rays per work item ``LensKernel`` chooses between for ``camera``: several, or one. A
+    spectral camera's several are its K wavelengths per sample where 2 <= K <= ``MAX_SAMPLE_RAYS``
+    and the several an RGB camera of its lens would trace: each work item then traces one sample's
+    rays (``shares_samples``)."""
+    several = ASPHERIC_RAYS_PER_ITEM if camera.lens.asphere_count else RAYS_PER_ITEM
+    if camera.spectral and 2 <= camera.rays_per_sample <= min(several, MAX_SAMPLE_RAYS):
+        return camera.rays_per_sample, 1
+    return several, 1
+
+
+def shares_samples(camera: LensCamera, rays_per_item: int) -> bool:
+    """Whether the lens kernel tracing ``rays_per_item`` rays per work item for ``camera`` traces
+    one spectral sample's K rays per work item (``kernels/lens.cl``'s SAMPLE_RAYS), which share the
+    sample's film and lens point, rather than rays i, i + n, ... of the launch: where K is
+    ``rays_per_item``, 2 to ``MAX_SAMPLE_RAYS``."""
+    return camera.spectral and rays_per_item == camera.rays_per_sample and 2 <= rays_per_item <= MAX_SAMPLE_RAYS
 
 
 def camera_header(camera: LensCamera) -> str:
@@ -297,8 +315,8 @@ def launch_layout(block: SampleBlock, rays_per_sample: int = 1, per_item: int = 
 def lens_program(camera: LensCamera, rays_per_item: int) -> tuple[str, str]:
     """``Device.build_program``'s source and name for the camera's lens kernel, tracing
     ``rays_per_item`` rays per work item."""
-    return (f"#define RAYS_PER_ITEM {rays_per_item}\n" + camera_header(camera) + kernel_source(KERNEL_FILE),
-            KERNEL_FILE)
+    return (f"#define RAYS_PER_ITEM {rays_per_item}\n#define SAMPLE_RAYS {int(shares_samples(camera, rays_per_item))}\n"
+            + camera_header(camera) + kernel_source(KERNEL_FILE), KERNEL_FILE)
 
 
 #: Rounds of timed launches, one per choice of rays per work item each, taken in turn (the fastest
@@ -389,7 +407,8 @@ class LensKernel:
     vectoriser overlap their latencies (``kernels/lens.cl``), but LLVM's SLP vectoriser, which PoCL
     3.0 runs before it, sometimes packs the rays into short vectors instead, and then the kernel
     runs at a third of the speed of one ray per work item: which happens depends on the kernel's
-    variant and on the processor. Every ray is computed the same either way.
+    variant and on the processor. Every ray is computed the same either way, and so are a spectral
+    sample's K rays traced by one work item (``shares_samples``).
 
     Safe to call from several threads: launches are serialised on one lock (the kernel object's
     arguments are shared; PoCL spreads one launch over every core anyway).

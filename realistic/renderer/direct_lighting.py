@@ -644,10 +644,13 @@ class DirectLighting:
         """Radiance ``rgb`` (n, 3) seen directly by the camera rays ``rows``: as it is (RGB rays), or
         for spectral rays its spectral value at each ray's wavelength (``basis``: every ray's
         ``rgb_basis`` row) times the ray's film weight (``response``), as ``radiance`` makes it on the
-        numpy path."""
+        numpy path. The kernel's ``basis`` and ``response`` are (stride, 3) views of three rows
+        (``ShadeKernel.shade``), gathered along those rows: a row gather across them cost three times
+        as much."""
         if response is None or basis is None:
             return rgb
-        return spectral_value(rgb, _rows(basis, rows))[:, None] * _rows(response, rows)
+        return (spectral_value(rgb, np.take(basis.T, rows, axis=1).T)[:, None]
+                * np.take(response.T, rows, axis=1).T)
 
     def _host_albedo(self, origin: np.ndarray, direction: np.ndarray, hits: Hits) -> np.ndarray:
         """Albedo (N, 3) of the surface hits whose material the shading kernel leaves to the host

@@ -54,7 +54,7 @@ from realistic.renderer.bsdf.measured import TABLE_NODES
 from realistic.renderer.light_sampler import SHADOW_DEFINES
 from realistic.scene.materials import Measured
 from realistic.scene.model import CheckerTexture, GridTexture, Material
-from realistic.scene.packet_loop import LANE_DEFINES, PACKET, lane_rows, shadow_lanes
+from realistic.scene.packet_loop import LANE_DEFINES, PACKET, shadow_lanes
 
 KERNEL_FILE = "shade.cl"
 #: The tables ``kernels/shade.cl`` reads, declared once: their ``#define``s head the kernel source.
@@ -164,8 +164,8 @@ class ShadowBatch:
     length: np.ndarray  # (stride / 16, per, 16) float32: 1 - 1e-4 (in units of vector), -1 for a dead sample
     contribution: np.ndarray  # (stride / 16, per, 3, 16) float32 (spectral rays: channels 1), 0 for a dead sample
     stride: int
-    response: np.ndarray | None = None  # spectral rays: (stride, 3) float32, each ray's ``rgb_response``
-    basis: np.ndarray | None = None  # spectral rays: (stride, 3) float32, each ray's ``rgb_basis`` row
+    response: np.ndarray | None = None  # spectral rays: (stride, 3) float32 view, each ray's ``rgb_response``
+    basis: np.ndarray | None = None  # spectral rays: (stride, 3) float32 view, each ray's ``rgb_basis`` row
 
 
 #: The kernel's outputs in the order they lie in a thread's one block: name, floats per row, and
@@ -381,9 +381,10 @@ class ShadeKernel:
 
 
 def _per_ray(values: np.ndarray, stride: int) -> np.ndarray:
-    """A per-ray output of three values (``response``, ``basis``: in lanes as one shadow ray per ray)
-    as (stride, 3) rows."""
-    return lane_rows(shadow_lanes(values, 1, 3, stride))[:, 0]
+    """A per-ray output of three values (``response``, ``basis``: three rows of ``stride`` rays) as
+    (stride, 3) rows, a view: a copy out of lanes, for two outputs per launch, cost a spectral pass
+    more than the products that read them."""
+    return values[:3 * stride].reshape(3, stride).T
 
 
 def _as_uint32(a: np.ndarray) -> np.ndarray:
