@@ -10,6 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from conftest import vectoriser_remarks
+from ewa_helpers import pbrt_ellipse
 from realistic.renderer.backends import backend_for
 from realistic.scene.mipmap import MipMap
 
@@ -137,11 +138,7 @@ def pbrt_level0(image: np.ndarray, st_: np.ndarray, axis0: np.ndarray, axis1: np
     whole bounding box, at one lookup rounded to float32 as the filters take it."""
     st_, axis0, axis1 = (np.asarray(v, np.float32).astype(np.float64) for v in (st_, axis0, axis1))
     h, w = image.shape[:2]
-    s, t = st_[0] * w - 0.5, st_[1] * h - 0.5
-    d0, d1 = axis0 * (w, h), axis1 * (w, h)
-    a, b, c = d0[1] ** 2 + d1[1] ** 2 + 1, -2 * (d0[0] * d0[1] + d1[0] * d1[1]), d0[0] ** 2 + d1[0] ** 2 + 1
-    f = a * c - b * b / 4
-    a, b, c = a / f, b / f, c / f
+    s, t, a, b, c = pbrt_ellipse(image.shape, st_, axis0, axis1)
     det = 4 * a * c - b * b
     half_s, half_t = 2 * np.sqrt(det * c) / det, 2 * np.sqrt(a * det) / det
     x, y = np.meshgrid(np.arange(np.ceil(s - half_s), np.floor(s + half_s) + 1),

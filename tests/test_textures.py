@@ -14,6 +14,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from ewa_helpers import pbrt_ellipse
 from realistic.camera.lens_camera import LensCamera
 from realistic.camera.thin_lens import ThinLensCamera
 from realistic.core.image_files import write_exr
@@ -164,11 +165,7 @@ def _ewa_reference(levels: list[np.ndarray], st_: np.ndarray, axis0: np.ndarray,
             return levels[-1][0, 0]
         image = levels[level]
         h, w = image.shape[:2]
-        s, t = st_[0] * w - 0.5, st_[1] * h - 0.5
-        d0, d1 = axis0 * (w, h), axis1 * (w, h)
-        a, b, c = d0[1] ** 2 + d1[1] ** 2 + 1, -2 * (d0[0] * d0[1] + d1[0] * d1[1]), d0[0] ** 2 + d1[0] ** 2 + 1
-        f = a * c - b * b / 4
-        a, b, c = a / f, b / f, c / f
+        s, t, a, b, c = pbrt_ellipse(image.shape, st_, axis0, axis1)
         total, weights = np.zeros(3), 0.0
         for y in range(math.floor(t - 40), math.ceil(t + 40) + 1):
             for x in range(math.floor(s - 40), math.ceil(s + 40) + 1):
