@@ -383,25 +383,19 @@ inline __attribute__((always_inline)) void hit_lookup(HIT_LOOKUP_PARAMETERS, int
     lookup[5] = mint;
 }
 
-__kernel void hit_lookups(HIT_LOOKUP_PARAMETERS, __global double *restrict lookups) {
-    int i = get_global_id(0);
-    double lookup[6];
-    hit_lookup(HIT_LOOKUP_ARGUMENTS, i, lookup);
-    if (i < count) {
-        #pragma unroll
-        for (int k = 0; k < 6; ++k) AT(lookups, 6, i, k) = lookup[k];
-    }
+/* hit_lookups writes the float64 rows of the point, bilinear and trilinear filters; hit_lookups_single
+ * the same rows rounded to float32, EWA's. One body, two output types. */
+#define HIT_LOOKUPS_KERNEL(name, type)                                                  \
+__kernel void name(HIT_LOOKUP_PARAMETERS, __global type *restrict lookups) {            \
+    int i = get_global_id(0);                                                           \
+    double lookup[6];                                                                   \
+    hit_lookup(HIT_LOOKUP_ARGUMENTS, i, lookup);                                        \
+    if (i < count) {                                                                    \
+        for (int k = 0; k < 6; ++k) AT(lookups, 6, i, k) = (type)lookup[k];             \
+    }                                                                                   \
 }
-
-__kernel void hit_lookups_single(HIT_LOOKUP_PARAMETERS, __global float *restrict lookups) {
-    int i = get_global_id(0);
-    double lookup[6];
-    hit_lookup(HIT_LOOKUP_ARGUMENTS, i, lookup);
-    if (i < count) {
-        #pragma unroll
-        for (int k = 0; k < 6; ++k) AT(lookups, 6, i, k) = (float)lookup[k];
-    }
-}
+HIT_LOOKUPS_KERNEL(hit_lookups, double)
+HIT_LOOKUPS_KERNEL(hit_lookups_single, float)
 
 /* ------------------------------------------------------------------ footprints of hits
  * triangle_footprints is footprint.triangle_footprint (its numpy reference) on the device, for the
