@@ -69,6 +69,18 @@ MIXES = [
     'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["matte" "metal"] "texture amount" "amount"',
     'MakeNamedMaterial "glazed metal" "string type" "mix" "string materials" ["metal" "glaze"] "float amount" [0.5]']
 
+def nested_mixes(worn_amount: str, blend_amount: str) -> list[str]:
+    """The mixes holding mixes of both nested scenes, over the leaves ``matte``, ``metal``, ``glaze``,
+    ``grain`` and ``glass`` they define: ``worn`` and ``blend`` under the pbrt amount parameters given
+    (textured or constant), the rest under constant amounts, each defined before the mixes that hold it."""
+    trees = [("worn", "matte", "metal", worn_amount), ("floor", "worn", "glaze", '"float amount" [0.4]'),
+             ("grained", "worn", "grain", '"float amount" [0.3]'), ("glazed", "glaze", "metal", '"float amount" [0.5]'),
+             ("blend", "grained", "glazed", blend_amount), ("scuffed", "matte", "metal", '"float amount" [0.5]'),
+             ("glassy", "scuffed", "glass", '"float amount" [0.5]')]
+    return [f'MakeNamedMaterial "{name}" "string type" "mix" "string materials" ["{first}" "{second}"] {amount}'
+            for name, first, second, amount in trees]
+
+
 #: The ``nested`` scene's materials (its textures: ``MIXES``' two images and the head's checkerboards):
 #: pbrt-v4 mixes holding mixes, textured amounts and lobes at both levels.
 NESTED = [
@@ -78,13 +90,7 @@ NESTED = [
     'MakeNamedMaterial "glaze" "string type" "coateddiffuse" "texture reflectance" "tiles" "float roughness" [0.1]',
     'MakeNamedMaterial "grain" "string type" "diffuse" "texture reflectance" "wood"',
     'MakeNamedMaterial "glass" "string type" "dielectric"',
-    'MakeNamedMaterial "worn" "string type" "mix" "string materials" ["matte" "metal"] "texture amount" "amount"',
-    'MakeNamedMaterial "floor" "string type" "mix" "string materials" ["worn" "glaze"] "float amount" [0.4]',
-    'MakeNamedMaterial "grained" "string type" "mix" "string materials" ["worn" "grain"] "float amount" [0.3]',
-    'MakeNamedMaterial "glazed" "string type" "mix" "string materials" ["glaze" "metal"] "float amount" [0.5]',
-    'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["grained" "glazed"] "texture amount" "amount"',
-    'MakeNamedMaterial "scuffed" "string type" "mix" "string materials" ["matte" "metal"] "float amount" [0.5]',
-    'MakeNamedMaterial "glassy" "string type" "mix" "string materials" ["scuffed" "glass"] "float amount" [0.5]']
+    *nested_mixes('"texture amount" "amount"', '"texture amount" "amount"')]
 
 #: The ``nested-constant`` scene's materials: ``NESTED``'s trees with constant amounts and lobes.
 NESTED_CONSTANT = [
@@ -93,14 +99,7 @@ NESTED_CONSTANT = [
     'MakeNamedMaterial "glaze" "string type" "coateddiffuse" "rgb reflectance" [0.3 0.5 0.6] "float roughness" [0.1]',
     'MakeNamedMaterial "grain" "string type" "diffuse" "rgb reflectance" [0.6 0.45 0.3]',
     'MakeNamedMaterial "glass" "string type" "dielectric"',
-    'MakeNamedMaterial "worn" "string type" "mix" "string materials" ["matte" "metal"] "float amount" [0.35]',
-    'MakeNamedMaterial "floor" "string type" "mix" "string materials" ["worn" "glaze"] "float amount" [0.4]',
-    'MakeNamedMaterial "grained" "string type" "mix" "string materials" ["worn" "grain"] "float amount" [0.3]',
-    'MakeNamedMaterial "glazed" "string type" "mix" "string materials" ["glaze" "metal"] "float amount" [0.5]',
-    'MakeNamedMaterial "blend" "string type" "mix" "string materials" ["grained" "glazed"] "float amount" [0.6]',
-    'MakeNamedMaterial "scuffed" "string type" "mix" "string materials" ["matte" "metal"] "float amount" [0.5]',
-    'MakeNamedMaterial "glassy" "string type" "mix" "string materials" ["scuffed" "glass"] "float amount" [0.5]']
-
+    *nested_mixes('"float amount" [0.35]', '"float amount" [0.6]')]
 
 def objects(floor: str, small: str) -> list[str]:
     """Both scenes' shapes: a floor under the material statement ``floor``, two spheres of the
