@@ -384,13 +384,16 @@ inline __attribute__((always_inline)) void hit_lookup(HIT_LOOKUP_PARAMETERS, int
 }
 
 /* hit_lookups writes the float64 rows of the point, bilinear and trilinear filters; hit_lookups_single
- * the same rows rounded to float32, EWA's. One body, two output types. */
+ * the same rows rounded to float32, EWA's. One body, two output types. The store loop is unrolled
+ * (_Pragma: a #pragma cannot stand in a macro): a loop left in the body keeps PoCL's work-item loop
+ * from being innermost, and the vectoriser widens innermost loops alone. */
 #define HIT_LOOKUPS_KERNEL(name, type)                                                  \
 __kernel void name(HIT_LOOKUP_PARAMETERS, __global type *restrict lookups) {            \
     int i = get_global_id(0);                                                           \
     double lookup[6];                                                                   \
     hit_lookup(HIT_LOOKUP_ARGUMENTS, i, lookup);                                        \
     if (i < count) {                                                                    \
+        _Pragma("unroll")                                                               \
         for (int k = 0; k < 6; ++k) AT(lookups, 6, i, k) = (type)lookup[k];             \
     }                                                                                   \
 }

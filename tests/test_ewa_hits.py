@@ -167,17 +167,27 @@ def test_each_textures_rows_are_the_hits_on_its_material():
 
 
 def test_the_hit_lookups_vectorise(tmp_path):
-    """PoCL's work-group vectoriser widens ``hit_lookups`` and ``ewa_small`` (both of the work-group
-    functions PoCL makes of each); only ``ewa``, left the few lookups ``ewa_small`` does not take,
-    runs scalar. Its remarks need a fresh build, so this runs in a process of its own."""
+    """PoCL's work-group vectoriser widens ``hit_lookups`` and ``hit_lookups_single`` (both of the
+    work-group functions PoCL makes of each): a process that launches those two kernels alone, on one
+    EWA texture and the trilinear one, prints four "vectorized loop" remarks (a loop left in their
+    body, as their store loop was without its unroll pragma, keeps the work-item loop scalar: none).
+    ``ewa_small`` vectorises too (``test_ewa_kernel``). Its remarks need a fresh build, so this runs in
+    a process of its own."""
     from conftest import vectoriser_remarks
 
     script = (
+        "import numpy as np\n"
         "from realistic.renderer.direct_lighting import DirectLighting\n"
         "from test_ewa_hits import hits_of, instanced_scene\n"
         "scene, eye, target = instanced_scene()\n"
         "intersector, origin, direction, hits, spread = hits_of(scene, eye, target, 32, 24)\n"
-        "DirectLighting(scene, intersector, 1, 5, spread, backend='opencl')._host_albedo(origin, direction, hits)\n")
+        "lighting = DirectLighting(scene, intersector, 1, 5, spread, backend='opencl')\n"
+        "material = lighting._geom_material[np.where(hits.geom >= 0, hits.geom, 0)]\n"
+        "picked = {f: t for t in lighting._device_textures for f in [t[3]]}\n"
+        "for index, ewa, mapping, texture_filter in (picked['ewa'], picked['trilinear']):\n"
+        "    rows = np.flatnonzero((hits.geom >= 0) & (material == index)).astype(np.int32)\n"
+        "    assert len(rows) and ewa.hit_lookups(lighting._surface_tables, rows, mapping, direction, hits,\n"
+        "                                         texture_filter)[1] == texture_filter\n")
     remarks = vectoriser_remarks(script, pocl_cache=tmp_path)
     assert remarks.count("vectorized loop (") >= 4
 

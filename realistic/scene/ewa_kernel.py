@@ -220,25 +220,33 @@ class EwaKernel:
         ``hit_lookups`` makes their lookups and ``_filter`` filters them, times the diffuse colour.
         The caller picks the rows and places the colours (one pass each)."""
         albedo = np.empty((len(rows), 3), np.float32)
-        if len(rows) == 0:
-            return albedo
+        lookups, texture_filter = self.hit_lookups(surfaces, rows, mapping, direction, hits, texture_filter)
+        diffuse = MAPPING.offset("diffuse")
+        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo, texture_filter)
+        return albedo
+
+    def hit_lookups(self, surfaces: SurfaceTables, rows: np.ndarray, mapping: np.ndarray, direction: np.ndarray,
+                    hits: Hits, texture_filter: str = "ewa") -> tuple[np.ndarray, str]:
+        """``at_hits``' lookups (len(rows), 6) (s, t, axis0, axis1) of the filter's ``lookup_dtype``, made
+        by the kernel ``hit_lookups`` (float64) or ``hit_lookups_single`` (float32, EWA's), and the
+        filter they are for (``texture_filter``, or "bilinear" where ``mapping``'s spread is 0)."""
         if rows.dtype != np.int32:
             raise ValueError(f"at_hits reads int32 rows, not {rows.dtype}")
+        footprint = mapping[MAPPING.offset("spread")] > 0
+        texture_filter = texture_filter if footprint else "bilinear"
+        lookups = np.empty((len(rows), 6), lookup_dtype(texture_filter))
+        if len(rows) == 0:
+            return lookups, texture_filter
         inputs = [self.device.wrapped_buffer(a, dtype)
                   for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
                                    (hits.geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
-        footprint = mapping[MAPPING.offset("spread")] > 0
-        texture_filter = texture_filter if footprint else "bilinear"
-        lookups = np.empty((len(rows), 6), lookup_dtype(texture_filter))
         written = self.device.host_buffer(lookups, cl.mem_flags.WRITE_ONLY)
         kernels = self._thread()
         kernels.hits(lookups.dtype == np.float32)(kernels.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,),
                                                   *surfaces.buffers, *inputs, np.int32(len(rows)), np.int32(1), written)
         cl.enqueue_copy(kernels.queue, lookups, written)
-        diffuse = MAPPING.offset("diffuse")
-        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo, texture_filter)
-        return albedo
+        return lookups, texture_filter
 
 
 class FootprintKernel:
