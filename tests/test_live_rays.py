@@ -13,6 +13,8 @@ from hypothesis import strategies as st
 
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.core import jit
+from realistic.core.jit import compiled
+from realistic.renderer import runner
 from realistic.renderer.runner import LiveRays, live_rays
 
 #: How the rays' weights are drawn: some zero (vignetted), some negative (a filter's negative lobe).
@@ -111,3 +113,14 @@ def test_rays_of_unequal_lengths_are_refused() -> None:
     rays = kernel_rays(np.random.default_rng(5), 30, False, "mixed", 0)
     with mock.patch.object(jit, "_use_compiled", [True]), pytest.raises(ValueError, match="unequal lengths"):
         live_rays(rays, SampleBlock(0, 20, 2), 1)
+
+
+def test_the_loop_stops_at_the_end_of_its_rows() -> None:
+    """Given rows for fewer live rays than there are (less the spare row), the loop writes nothing
+    past its arrays and says so."""
+    rays = kernel_rays(np.random.default_rng(6), 50, False, "all live", 0)
+    rows = 40
+    out = (np.empty((rows, 3), np.float32), np.empty((rows, 3), np.float32), np.empty(rows, np.int32),
+           np.empty(rows, np.float32), np.empty(0, np.float32), np.empty(rows, np.int64))
+    loop = compiled(runner._pick_live, runner.PICK_SIGNATURE)
+    assert loop(rays.origin, rays.direction, rays.weight, rays.pixel, np.empty(0, np.float32), 0, 5, 0, 1, *out) == -1

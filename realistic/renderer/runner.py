@@ -115,12 +115,16 @@ def _pick_live(origin: np.ndarray, direction: np.ndarray, weight: np.ndarray, pi
     """The live rays (weight != 0) of a ``SampleBlock(first, ., samples, first_sample)``'s kernel
     rays, ``rays_per_sample`` a sample, written in order to the ``out_`` arrays' first rows, their
     number returned (a numba loop, ``core.jit``: one pass over the rays where numpy's picks made
-    one per array). A ray's sample id is derived, not read: ray r is of the block's pair r //
-    rays_per_sample, sample ``first_sample + (first + r // rays_per_sample) % samples``
-    (``SampleBlock.sample_ids``), counted up here. An empty ``wavelength``: none written."""
+    one per array). The arrays have a row more than the live rays, which each dead ray after the
+    last live one is written to; -1, with the rows written so far, where there are more live rays.
+    A ray's sample id is derived, not read: ray r is of the block's pair r // rays_per_sample,
+    sample ``first_sample + (first + r // rays_per_sample) % samples`` (``SampleBlock.sample_ids``),
+    counted up here. An empty ``wavelength``: none written."""
     spectral = wavelength.shape[0] > 0
     slot, ray_of_sample, count = first % samples, 0, 0
     for r in range(weight.shape[0]):
+        if count == out_weight.shape[0]:
+            return -1
         # every ray written at the next free row, which only a live one keeps: no branch per ray to
         # mispredict where a lens vignettes a third of its rays at random
         out_origin[count, 0], out_origin[count, 1], out_origin[count, 2] = origin[r, 0], origin[r, 1], origin[r, 2]
@@ -176,7 +180,9 @@ def live_rays(rays: RayBatch, block: SampleBlock, rays_per_sample: int) -> LiveR
     kernel_types = (rays.weight.dtype == np.float32 and rays.pixel.dtype == np.int32
                     and rays.origin.dtype == rays.direction.dtype == np.float32
                     and (wavelength is None or wavelength.dtype == np.float32))
-    every = bool(rays.weight.all())
+    n, is_live = len(rays.weight), rays.weight != 0
+    live = int(np.count_nonzero(is_live))
+    every = live == n
     if every or not (compiled_loops() and kernel_types):
         sample = block.sample_ids()
         if rays_per_sample > 1:
@@ -185,25 +191,29 @@ def live_rays(rays: RayBatch, block: SampleBlock, rays_per_sample: int) -> LiveR
             return LiveRays(contiguous_rows(rays.origin), contiguous_rows(rays.direction), rays.pixel, rays.weight,
                             sample, wavelength)
         return LiveRays(rays.origin, rays.direction, rays.pixel, rays.weight, sample, wavelength).rows(
-            np.flatnonzero(rays.weight != 0))
-    n = len(rays.weight)
+            np.flatnonzero(is_live))
     if rays.origin.shape != (n, 3) or rays.direction.shape != (n, 3) or len(rays.pixel) != n \
             or (wavelength is not None and len(wavelength) != n) or n != block.count * rays_per_sample:
         raise ValueError(f"live_rays: rays of unequal lengths for {block.count} samples of {rays_per_sample} rays")
-    origin, direction = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
-    pixel, weight, sample = np.empty(n, np.int32), np.empty(n, np.float32), np.empty(n, np.int64)
+    # sized to the live rays (and the loop's spare row), not to every ray: arrays a third larger
+    # than used grew the heap each pass, whose fresh (huge) pages the kernel then zeroed
+    rows = live + 1
+    origin, direction = np.empty((rows, 3), np.float32), np.empty((rows, 3), np.float32)
+    pixel, weight, sample = np.empty(rows, np.int32), np.empty(rows, np.float32), np.empty(rows, np.int64)
     wavelengths, picked_wavelength = (np.empty(0, np.float32),) * 2 if wavelength is None else \
-        (wavelength, np.empty(n, np.float32))
+        (wavelength, np.empty(rows, np.float32))
     count = compiled(_pick_live, PICK_SIGNATURE)(
         rays.origin, rays.direction, rays.weight, rays.pixel, wavelengths, block.first, block.samples,
         block.first_sample, rays_per_sample, origin, direction, pixel, weight, picked_wavelength, sample)
-    return LiveRays(origin[:count], direction[:count], pixel[:count], weight[:count], sample[:count],
-                    None if wavelength is None else picked_wavelength[:count])
+    if count != live:
+        raise RuntimeError(f"live_rays: the loop found {count} live rays of {n}, numpy {live}")
+    return LiveRays(origin[:live], direction[:live], pixel[:live], weight[:live], sample[:live],
+                    None if wavelength is None else picked_wavelength[:live])
 
 
 def compile_pass_loops() -> None:
     """Compile (or load from numba's cache) a pass's own numba loops, the pick of the kernel's live
-    rays and the gather of rows (for their one signature each), the closest hits' instance normals,
+    rays, the gather and copy of rows (for their one signature each), the closest hits' instance normals,
     the film's sums and the shading sums, for the argument types a pass passes, on no rows: a render
     does this on a render thread as it starts (``ThreadPasses.open``), beside its OpenCL builds, not
     in its first pass."""
