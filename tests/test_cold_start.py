@@ -316,7 +316,7 @@ def test_a_render_builds_only_the_shading_variant_its_rays_need(monkeypatch, dis
 
 
 def test_the_loops_compiled_ahead_are_those_a_pass_runs():
-    """A render compiles embree's packet loops and the pass's own loops (ray gathers and copies, film sums,
+    """A render compiles embree's packet loops and the pass's own loops (the live rays' pick, ray gathers, film sums,
     shading sums) on render threads as it starts (``ThreadPasses.open`` runs ``compile_trace_loops``
     and ``compile_pass_loops``), for exactly the argument types its passes then use: a pass compiles
     nothing more (checked in a process of its own, whose loops nothing compiled)."""
@@ -332,7 +332,7 @@ from realistic.scene import intersect, packet_loop
 from realistic.scene.embree import compile_trace_loops
 
 loops = (packet_loop.closest_loop(), packet_loop.occluded_loop(), packet_loop.occluded_lanes_loop(),
-         compiled(runner._gather, runner.GATHER_SIGNATURE), compiled(runner._copy, runner.COPY_SIGNATURE),
+         compiled(runner._gather, runner.GATHER_SIGNATURE), compiled(runner._pick_live, runner.PICK_SIGNATURE),
          compiled(film._add_rows), compiled(direct_lighting._visible_sums),
          compiled(hit_rows._rows_on_material), compiled(hit_rows._place_rows),
          compiled(intersect._instances_to_world))

@@ -7,11 +7,11 @@ per-pixel sums (``film.pass_sums``). Both executors (``passes.ThreadPasses`` and
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
-from realistic.camera.base import Camera, SampleBlock
+from realistic.camera.base import Camera, RayBatch, SampleBlock
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.jit import compiled, compiled_loops, use_compiled_loops
 from realistic.renderer.aov import AovLayout
@@ -108,13 +108,118 @@ def contiguous_rows(points: np.ndarray) -> np.ndarray:
     return copied
 
 
+def _pick_live(origin: np.ndarray, direction: np.ndarray, weight: np.ndarray, pixel: np.ndarray,
+               wavelength: np.ndarray, first: int, samples: int, first_sample: int, rays_per_sample: int,
+               out_origin: np.ndarray, out_direction: np.ndarray, out_pixel: np.ndarray, out_weight: np.ndarray,
+               out_wavelength: np.ndarray, out_sample: np.ndarray) -> int:
+    """The live rays (weight != 0) of a ``SampleBlock(first, ., samples, first_sample)``'s kernel
+    rays, ``rays_per_sample`` a sample, written in order to the ``out_`` arrays' first rows, their
+    number returned (a numba loop, ``core.jit``: one pass over the rays where numpy's picks made
+    one per array). The arrays have a row more than the live rays, which each dead ray after the
+    last live one is written to; -1, with the rows written so far, where there are more live rays.
+    A ray's sample id is derived, not read: ray r is of the block's pair r // rays_per_sample,
+    sample ``first_sample + (first + r // rays_per_sample) % samples`` (``SampleBlock.sample_ids``),
+    counted up here. An empty ``wavelength``: none written."""
+    spectral = wavelength.shape[0] > 0
+    slot, ray_of_sample, count = first % samples, 0, 0
+    for r in range(weight.shape[0]):
+        if count == out_weight.shape[0]:
+            return -1
+        # every ray written at the next free row, which only a live one keeps: no branch per ray to
+        # mispredict where a lens vignettes a third of its rays at random
+        out_origin[count, 0], out_origin[count, 1], out_origin[count, 2] = origin[r, 0], origin[r, 1], origin[r, 2]
+        out_direction[count, 0], out_direction[count, 1], out_direction[count, 2] = \
+            direction[r, 0], direction[r, 1], direction[r, 2]
+        out_pixel[count], out_weight[count], out_sample[count] = pixel[r], weight[r], first_sample + slot
+        if spectral:
+            out_wavelength[count] = wavelength[r]
+        count += weight[r] != 0
+        ray_of_sample += 1
+        if ray_of_sample == rays_per_sample:
+            ray_of_sample, slot = 0, slot + 1
+            if slot == samples:
+                slot = 0
+    return count
+
+
+#: ``_pick_live``'s one signature: the kernel's rays in any layout (views of its output), as
+#: ``GATHER_SIGNATURE``.
+PICK_SIGNATURE = ("int64(float32[:, :], float32[:, :], float32[:], int32[:], float32[:], int64, int64, int64, int64, "
+                  "float32[:, ::1], float32[:, ::1], int32[::1], float32[::1], float32[::1], int64[::1])")
+
+
+@dataclass(frozen=True)
+class LiveRays:
+    """A pass's camera rays that are traced, in tracing order: origin and direction contiguous
+    (m, 3) float32 (what embree and the integrator read), each ray's pixel, weight, sample id and,
+    for a spectral camera, wavelength."""
+
+    origin: np.ndarray
+    direction: np.ndarray
+    pixel: np.ndarray
+    weight: np.ndarray
+    sample: np.ndarray
+    wavelength: np.ndarray | None
+
+    def rows(self, rows: np.ndarray) -> LiveRays:
+        """These rays' ``rows`` (non-negative indices), in that order."""
+        wavelength = None if self.wavelength is None else self.wavelength[rows]
+        return LiveRays(gather_rows(self.origin, rows), gather_rows(self.direction, rows), self.pixel[rows],
+                        self.weight[rows], self.sample[rows], wavelength)
+
+
+def live_rays(rays: RayBatch, block: SampleBlock, rays_per_sample: int) -> LiveRays:
+    """``rays``' live ones (weight != 0: a vignetted ray has weight 0, a negative filter lobe a
+    negative weight), in order, of ``block``'s samples, ``rays_per_sample`` consecutive rays a sample
+    (a spectral camera's wavelengths, which share the sample id, so the integrator's light samples):
+    the kernel's rays in one compiled loop (``_pick_live``); every ray where all are live (a thin
+    lens's), copied without a row number per ray, the per-ray arrays as they are; other rays (the
+    numpy references') and the numpy form (``core.jit.use_compiled_loops``) by numpy's picks, the
+    same bits."""
+    wavelength = rays.wavelength_nm
+    kernel_types = (rays.weight.dtype == np.float32 and rays.pixel.dtype == np.int32
+                    and rays.origin.dtype == rays.direction.dtype == np.float32
+                    and (wavelength is None or wavelength.dtype == np.float32))
+    n, is_live = len(rays.weight), rays.weight != 0
+    live = int(np.count_nonzero(is_live))
+    every = live == n
+    if every or not (compiled_loops() and kernel_types):
+        sample = block.sample_ids()
+        if rays_per_sample > 1:
+            sample = np.repeat(sample, rays_per_sample)
+        if every:
+            return LiveRays(contiguous_rows(rays.origin), contiguous_rows(rays.direction), rays.pixel, rays.weight,
+                            sample, wavelength)
+        return LiveRays(rays.origin, rays.direction, rays.pixel, rays.weight, sample, wavelength).rows(
+            np.flatnonzero(is_live))
+    if rays.origin.shape != (n, 3) or rays.direction.shape != (n, 3) or len(rays.pixel) != n \
+            or (wavelength is not None and len(wavelength) != n) or n != block.count * rays_per_sample:
+        raise ValueError(f"live_rays: rays of unequal lengths for {block.count} samples of {rays_per_sample} rays")
+    # sized to the live rays (and the loop's spare row), not to every ray: arrays a third larger
+    # than used grew the heap each pass, whose fresh (huge) pages the kernel then zeroed
+    rows = live + 1
+    origin, direction = np.empty((rows, 3), np.float32), np.empty((rows, 3), np.float32)
+    pixel, weight, sample = np.empty(rows, np.int32), np.empty(rows, np.float32), np.empty(rows, np.int64)
+    wavelengths, picked_wavelength = (np.empty(0, np.float32),) * 2 if wavelength is None else \
+        (wavelength, np.empty(rows, np.float32))
+    count = compiled(_pick_live, PICK_SIGNATURE)(
+        rays.origin, rays.direction, rays.weight, rays.pixel, wavelengths, block.first, block.samples,
+        block.first_sample, rays_per_sample, origin, direction, pixel, weight, picked_wavelength, sample)
+    if count != live:
+        raise RuntimeError(f"live_rays: the loop found {count} live rays of {n}, numpy {live}")
+    return LiveRays(origin[:live], direction[:live], pixel[:live], weight[:live], sample[:live],
+                    None if wavelength is None else picked_wavelength[:live])
+
+
 def compile_pass_loops() -> None:
-    """Compile (or load from numba's cache) a pass's own numba loops, the gathers and copies of the
-    kernel's rays (for their one signature each), the closest hits' instance normals, the film's sums and the shading
-    sums, for the argument types a pass passes, on no rows: a render does this on a render thread as
-    it starts (``ThreadPasses.open``), beside its OpenCL builds, not in its first pass."""
+    """Compile (or load from numba's cache) a pass's own numba loops, the pick of the kernel's live
+    rays, the gather and copy of rows (for their one signature each), the closest hits' instance normals,
+    the film's sums and the shading sums, for the argument types a pass passes, on no rows: a render
+    does this on a render thread as it starts (``ThreadPasses.open``), beside its OpenCL builds, not
+    in its first pass."""
     compiled(_gather, GATHER_SIGNATURE)
     compiled(_copy, COPY_SIGNATURE)
+    compiled(_pick_live, PICK_SIGNATURE)
     compile_intersect_loops()
     pass_sums(np.empty(0, np.int32), np.empty((0, 3), np.float32), 0, 0, np.empty(0, np.float32))
     compile_shading_loops()
@@ -173,25 +278,12 @@ class PassRunner:
             rays_per_sample, rest = divmod(len(rays.weight), block.count)
             if rest or not rays_per_sample:
                 raise RuntimeError(f"{len(rays.weight)} camera rays for {block.count} samples")
-            sample = block.sample_ids()
-            if rays_per_sample > 1:  # the K rays share the sample id, so the integrator's light samples
-                sample = np.repeat(sample, rays_per_sample)
-            live = rays.weight != 0  # a negative filter lobe gives negative weights
-            # every ray traced, in its order (a thin lens's pass): per-ray rows are used as they are,
-            # and the rays copied without a row number per ray
-            every = self.crop is None and not self.morton and bool(live.all())
-            alive = np.flatnonzero(live) if not every else np.arange(0)
+            live = live_rays(rays, block, rays_per_sample)
             if self.crop is not None:  # a crop's pixels only: the pass's other rays are made, not traced
-                alive = alive[self.crop.contains(rays.pixel[alive], self.camera.width)]
+                live = live.rows(np.flatnonzero(self.crop.contains(live.pixel, self.camera.width)))
             if self.morton:
-                alive = alive[morton_order(rays.pixel[alive], self.camera.width)]
-            traced = len(live) if every else len(alive)
-            picked: Callable[[np.ndarray], np.ndarray] = (lambda values: values) if every else \
-                (lambda values: values[alive])
-            pixel = picked(rays.pixel)
-            origin, direction = ((contiguous_rows(rays.origin), contiguous_rows(rays.direction)) if every else
-                                 (gather_rows(rays.origin, alive), gather_rows(rays.direction, alive)))
-            wavelength = None if rays.wavelength_nm is None else picked(rays.wavelength_nm)
+                live = live.rows(morton_order(live.pixel, self.camera.width))
+            origin, direction, pixel = live.origin, live.direction, live.pixel
         hits, albedo, aov_values = None, None, None
         if self.aovs.aovs:  # the camera rays' hits and albedo, found once for the AOVs and the integrator
             with self.clock("embree"):
@@ -200,13 +292,13 @@ class PassRunner:
                 with_albedo = "albedo" in self.aovs.quantities
                 first = self.integrator.first_hits(origin, direction, hits, with_albedo)
                 albedo = first.albedo if with_albedo else None
-                aov_values = self.aovs.values(first, np.sign(picked(rays.weight)))
-        radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, picked(sample),
-                                                         self.clock, wavelength, hits, albedo)
+                aov_values = self.aovs.values(first, np.sign(live.weight))
+        radiance, shadow_rays = self.integrator.radiance(origin, direction, pixel, live.sample, self.clock,
+                                                         live.wavelength, hits, albedo)
         with self.clock("accumulation"):
             first_pixel, pixel_count = block.first_pixel, block.pixel_count
             # a spectral ray's radiance comes weighted by the film's response at its wavelength
-            weight = picked(rays.weight).astype(np.float32, copy=False)
+            weight = live.weight.astype(np.float32, copy=False)
             if rays_per_sample > 1:  # each of a sample's K wavelengths is 1/K of its estimate
                 weight = weight / np.float32(rays_per_sample)
             sums = pass_sums(pixel, radiance, first_pixel, pixel_count, weight)
@@ -217,4 +309,4 @@ class PassRunner:
             with self.clock("flare"):
                 flare = self.flare.splats(block)
         count = block.count if self.crop is None else self.crop.samples_in(block, self.camera.width)
-        return PassResult(index, first_pixel, sums, count, traced, shadow_rays, flare)
+        return PassResult(index, first_pixel, sums, count, len(pixel), shadow_rays, flare)
