@@ -192,8 +192,9 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     loop ran), and stored to ``out`` once per group. A pair of rows with no live lane below n adds
     +0 once, without reading its contributions (about half a launch's rays are dead: points facing
     away from the light, padding): after x + 0 a sum is never -0, so a second +0 would change
-    nothing. A fresh total starts at -0, and an odd ``per``'s last pass adds -0 for its missing
-    second row: x + -0 == x for every float32 x, so neither changes a sum."""
+    nothing. A fresh sum starts at -0 (the first pass reads -0, not the totals: setting them first
+    cost a sixth of the loop with one shadow ray per hit), and an odd ``per``'s last pass adds -0 for
+    its missing second row: x + -0 == x for every float32 x, so neither changes a sum."""
     traced = 0
     zero, one, none = np.float32(0.0), np.float32(1.0), np.float32(-0.0)
     channels, per, width = out.shape[1], length.shape[1], length.shape[2]
@@ -201,12 +202,14 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     for group in range(-(-n // width)):
         base = group * width
         lanes = min(width, n - base)
-        for c in range(channels):
-            for j in range(lanes):
-                total[c, j] = none if fresh else out[base + j, c]
+        if not fresh:
+            for c in range(channels):
+                for j in range(lanes):
+                    total[c, j] = out[base + j, c]
         for k in range(0, per, 2):
             after = min(k + 1, per - 1)
             pair = after > k
+            start = fresh and k == 0  # the totals are -0, not what they hold
             live = 0
             for j in range(lanes):
                 live += (length[group, k, j] > zero) + (pair and length[group, after, j] > zero)
@@ -214,13 +217,13 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
             if live == 0:
                 for c in range(channels):
                     for j in range(width):
-                        total[c, j] += zero
+                        total[c, j] = (none if start else total[c, j]) + zero
                 continue
             for c in range(channels):
                 for j in range(width):
                     first = contribution[group, k, c, j] * (zero if blocked[group, k, j] else one)
                     second = contribution[group, after, c, j] * (zero if blocked[group, after, j] else one)
-                    total[c, j] = ((total[c, j] + (first if length[group, k, j] > zero else zero))
+                    total[c, j] = (((none if start else total[c, j]) + (first if length[group, k, j] > zero else zero))
                                    + (none if not pair else second if length[group, after, j] > zero else zero))
         if channels == 3:  # a lane's three stores, which LLVM interleaves (a loop over channels scattered)
             for j in range(lanes):
