@@ -13,6 +13,8 @@ import re
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from conftest import vectoriser_remarks
 from lane_helpers import in_lanes, point_major
@@ -238,6 +240,65 @@ def test_visible_sums_read_nothing_of_dead_rows(channels, monkeypatch):
         assert visible_sums(in_lanes(contribution, per_ray), in_lanes(blocked, per_ray), in_lanes(length, per_ray), n,
                             True, got) == np.count_nonzero(~dead)
         assert np.array_equal(got.view(np.uint32), expected.view(np.uint32))
+
+
+#: Contributions drawn from these (signed zeros, negatives, a tiny and a huge value): ``_visible_sums``
+#: must keep each product's sign of zero and the order of its additions for the bits to agree.
+CONTRIBUTIONS = np.array([0.0, -0.0, 1.0, -1.0, 0.1, -2.5, 3e-39, 1e30, 7.25, 0.3], np.float32)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 2**32 - 1), groups=st.integers(1, 4), per=st.integers(1, 8),
+       channels=st.sampled_from([1, 3]), fresh=st.booleans(), live=st.sampled_from(["some", "none", "all"]),
+       shadowed=st.sampled_from(["some", "none", "all"]), short=st.integers(0, PACKET - 1))
+def test_visible_sums_compiled_equal_numpys_to_the_bit(seed, groups, per, channels, fresh, live, shadowed, short,
+                                                       monkeypatch):
+    """The compiled loop (vectorised over lanes) gives numpy's form's sums and count bit for bit over
+    drawn launches: dead rays (length -1, 0 or NaN, their contribution and answer anything: NaN
+    here), every ray or none dead or blocked, n not a multiple of 16 (the padding lanes' lengths
+    live or NaN, their contributions NaN), 1 to 8 rays per hit, RGB and one channel, fresh sums and
+    sums added to earlier ones (signed zeros among them)."""
+    rng_ = np.random.default_rng(seed)
+    n = max(1, groups * PACKET - short)
+    lanes = (groups, per, PACKET)
+    length = np.where(rng_.random(lanes) < 0.5, F32(1 - 1e-4), F32(-1)) if live == "some" else np.full(
+        lanes, F32(1 - 1e-4) if live == "all" else F32(-1))
+    dead = length < 0
+    length[dead] = rng_.choice(np.array([-1, 0, np.nan], np.float32), np.count_nonzero(dead))
+    blocked = rng_.random(lanes) < 0.5 if shadowed == "some" else np.full(lanes, shadowed == "all")
+    contribution = rng_.choice(CONTRIBUTIONS, (groups, per, channels, PACKET))
+    contribution[np.broadcast_to(dead[:, :, None], contribution.shape)] = np.nan
+    padding = np.zeros(groups * PACKET, bool)
+    padding[n:] = True
+    padding = padding.reshape(groups, 1, PACKET)
+    length[np.broadcast_to(padding, lanes)] = np.where(rng_.random(lanes) < 0.5, F32(1 - 1e-4), F32(np.nan))[
+        np.broadcast_to(padding, lanes)]
+    contribution[np.broadcast_to(padding[:, :, None], contribution.shape)] = np.nan
+    earlier = rng_.choice(CONTRIBUTIONS, (n, channels))
+    sums = []
+    for numba_loops in (True, False):
+        monkeypatch.setattr(jit, "_use_compiled", [numba_loops])
+        out = np.full((n, channels), np.nan, np.float32) if fresh else earlier.copy()
+        sums.append((visible_sums(contribution, blocked, length, n, fresh, out), out))
+    (traced, got), (expected_traced, expected) = sums
+    assert traced == expected_traced == np.count_nonzero(length.transpose(0, 2, 1).reshape(-1, per)[:n] > 0)
+    assert np.array_equal(got.view(np.uint32), expected.view(np.uint32))
+
+
+def test_visible_sums_vectorise():
+    """The loop, compiled for the types a launch passes it (``compile_shading_loops``'s), adds and
+    multiplies packed rows of lanes (AVX's ymm or zmm registers), not one float at a time. Compiled
+    here uncached: numba shows no assembly of a loop loaded from its cache."""
+    numba = pytest.importorskip("numba")
+    llvmlite = pytest.importorskip("llvmlite.binding")
+    if not llvmlite.get_host_cpu_features().get("avx", False):
+        pytest.skip("this CPU has no AVX")
+    loop = numba.njit(nogil=True)(_visible_sums)
+    loop(np.empty((0, 1, 3, PACKET), np.float32), np.empty((0, 1, PACKET), np.bool_),
+         np.empty((0, 1, PACKET), np.float32), 0, True, np.empty((0, 3), np.float32))
+    assembly = loop.inspect_asm(loop.signatures[0])
+    for operation in ("vmulps", "vaddps"):
+        assert re.search(rf"\b{operation}\b[^\n]*%[yz]mm", assembly), operation
 
 
 def test_a_launch_makes_at_most_max_launch_samples(scene_rays):

@@ -184,48 +184,54 @@ def _visible_sums(contribution: np.ndarray, blocked: np.ndarray, length: np.ndar
     contribution times 1 or 0 in float32 (``fresh``: ``out`` starts as the first product, not 0
     plus it, as numpy's reduction starts); the shadow rays traced (length > 0) are returned. A dead
     one (length not > 0: the kernel writes its contribution 0, and embree reports it blocked) adds
-    a product of 0 without reading its contribution or answer: about half a launch's are dead
-    (points facing away from the light, padding), and their reads were most of this loop's memory
-    traffic. A numba loop (``core.jit``), the GIL released: RGB rays summed in three running totals
-    stored once per ray (storing per shadow ray and channel took about 1.5x as long)."""
+    +0, whatever its contribution and answer hold.
+
+    A numba loop (``core.jit``), the GIL released, that LLVM vectorises across a group's 16 lanes:
+    each channel's running totals are a row of 16, summed two shadow rays (rows k, k + 1) per pass
+    over it (with one row a pass, LLVM's 8-wide loop wanted 32 iterations and its 4-wide remainder
+    loop ran), and stored to ``out`` once per group. A pair of rows with no live lane below n adds
+    +0 once, without reading its contributions (about half a launch's rays are dead: points facing
+    away from the light, padding): after x + 0 a sum is never -0, so a second +0 would change
+    nothing. A fresh sum starts at -0 (the first pass reads -0, not the totals: setting them first
+    cost a sixth of the loop with one shadow ray per hit), and an odd ``per``'s last pass adds -0 for
+    its missing second row: x + -0 == x for every float32 x, so neither changes a sum."""
     traced = 0
-    zero, one = np.float32(0.0), np.float32(1.0)
-    per = length.shape[1]
-    groups = -(-n // PACKET)
-    if out.shape[1] == 3:
-        for group in range(groups):
-            for j in range(min(PACKET, n - group * PACKET)):
-                i = group * PACKET + j
-                red, green, blue = out[i, 0], out[i, 1], out[i, 2]
-                for k in range(per):
-                    start = fresh and k == 0
-                    if length[group, k, j] > zero:
-                        traced += 1
-                        visible = zero if blocked[group, k, j] else one
-                        product = contribution[group, k, 0, j] * visible
-                        red = product if start else red + product
-                        product = contribution[group, k, 1, j] * visible
-                        green = product if start else green + product
-                        product = contribution[group, k, 2, j] * visible
-                        blue = product if start else blue + product
-                    else:
-                        red = zero if start else red + zero
-                        green = zero if start else green + zero
-                        blue = zero if start else blue + zero
-                out[i, 0], out[i, 1], out[i, 2] = red, green, blue
-        return traced
-    for group in range(groups):  # a spectral ray's one channel
-        for j in range(min(PACKET, n - group * PACKET)):
-            i = group * PACKET + j
-            for k in range(per):
-                traced += length[group, k, j] > zero
-            for c in range(out.shape[1]):
-                total = out[i, c]
-                for k in range(per):
-                    live = length[group, k, j] > zero
-                    product = contribution[group, k, c, j] * (zero if blocked[group, k, j] else one) if live else zero
-                    total = product if fresh and k == 0 else total + product
-                out[i, c] = total
+    zero, one, none = np.float32(0.0), np.float32(1.0), np.float32(-0.0)
+    channels, per, width = out.shape[1], length.shape[1], length.shape[2]
+    total = np.zeros((channels, width), np.float32)  # lanes past n (padding) are summed, never stored
+    for group in range(-(-n // width)):
+        base = group * width
+        lanes = min(width, n - base)
+        if not fresh:
+            for c in range(channels):
+                for j in range(lanes):
+                    total[c, j] = out[base + j, c]
+        for k in range(0, per, 2):
+            after = min(k + 1, per - 1)
+            pair = after > k
+            start = fresh and k == 0  # the totals are -0, not what they hold
+            live = 0
+            for j in range(lanes):
+                live += (length[group, k, j] > zero) + (pair and length[group, after, j] > zero)
+            traced += live
+            if live == 0:
+                for c in range(channels):
+                    for j in range(width):
+                        total[c, j] = (none if start else total[c, j]) + zero
+                continue
+            for c in range(channels):
+                for j in range(width):
+                    first = contribution[group, k, c, j] * (zero if blocked[group, k, j] else one)
+                    second = contribution[group, after, c, j] * (zero if blocked[group, after, j] else one)
+                    total[c, j] = (((none if start else total[c, j]) + (first if length[group, k, j] > zero else zero))
+                                   + (none if not pair else second if length[group, after, j] > zero else zero))
+        if channels == 3:  # a lane's three stores, which LLVM interleaves (a loop over channels scattered)
+            for j in range(lanes):
+                out[base + j, 0], out[base + j, 1], out[base + j, 2] = total[0, j], total[1, j], total[2, j]
+        else:
+            for c in range(channels):
+                for j in range(lanes):
+                    out[base + j, c] = total[c, j]
     return traced
 
 
