@@ -7,6 +7,7 @@ per-pixel sums (``film.pass_sums``). Both executors (``passes.ThreadPasses`` and
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -152,7 +153,8 @@ PICK_SIGNATURE = ("int64(float32[:, :], float32[:, :], float32[:], int32[:], flo
 class LiveRays:
     """A pass's camera rays that are traced, in tracing order: origin and direction contiguous
     (m, 3) float32 (what embree and the integrator read), each ray's pixel, weight, sample id and,
-    for a spectral camera, wavelength."""
+    for a spectral camera, wavelength. (``every_ray``'s are the kernel's views, contiguous once
+    picked by ``rows``.)"""
 
     origin: np.ndarray
     direction: np.ndarray
@@ -166,6 +168,16 @@ class LiveRays:
         wavelength = None if self.wavelength is None else self.wavelength[rows]
         return LiveRays(gather_rows(self.origin, rows), gather_rows(self.direction, rows), self.pixel[rows],
                         self.weight[rows], self.sample[rows], wavelength)
+
+
+def every_ray(rays: RayBatch, block: SampleBlock, rays_per_sample: int) -> LiveRays:
+    """All of ``rays``, as the kernel gave them (not copied), with their sample ids: ``block``'s,
+    ``rays_per_sample`` consecutive rays a sample (a spectral camera's wavelengths, which share the
+    sample id, so the integrator's light samples). Pick the traced ones with ``rows``."""
+    sample = block.sample_ids()
+    if rays_per_sample > 1:
+        sample = np.repeat(sample, rays_per_sample)
+    return LiveRays(rays.origin, rays.direction, rays.pixel, rays.weight, sample, rays.wavelength_nm)
 
 
 def live_rays(rays: RayBatch, block: SampleBlock, rays_per_sample: int) -> LiveRays:
@@ -184,14 +196,11 @@ def live_rays(rays: RayBatch, block: SampleBlock, rays_per_sample: int) -> LiveR
     live = int(np.count_nonzero(is_live))
     every = live == n
     if every or not (compiled_loops() and kernel_types):
-        sample = block.sample_ids()
-        if rays_per_sample > 1:
-            sample = np.repeat(sample, rays_per_sample)
+        rays_as_given = every_ray(rays, block, rays_per_sample)
         if every:
-            return LiveRays(contiguous_rows(rays.origin), contiguous_rows(rays.direction), rays.pixel, rays.weight,
-                            sample, wavelength)
-        return LiveRays(rays.origin, rays.direction, rays.pixel, rays.weight, sample, wavelength).rows(
-            np.flatnonzero(is_live))
+            return dataclasses.replace(rays_as_given, origin=contiguous_rows(rays.origin),
+                                       direction=contiguous_rows(rays.direction))
+        return rays_as_given.rows(np.flatnonzero(is_live))
     if rays.origin.shape != (n, 3) or rays.direction.shape != (n, 3) or len(rays.pixel) != n \
             or (wavelength is not None and len(wavelength) != n) or n != block.count * rays_per_sample:
         raise ValueError(f"live_rays: rays of unequal lengths for {block.count} samples of {rays_per_sample} rays")
@@ -278,11 +287,16 @@ class PassRunner:
             rays_per_sample, rest = divmod(len(rays.weight), block.count)
             if rest or not rays_per_sample:
                 raise RuntimeError(f"{len(rays.weight)} camera rays for {block.count} samples")
-            live = live_rays(rays, block, rays_per_sample)
-            if self.crop is not None:  # a crop's pixels only: the pass's other rays are made, not traced
-                live = live.rows(np.flatnonzero(self.crop.contains(live.pixel, self.camera.width)))
-            if self.morton:
-                live = live.rows(morton_order(live.pixel, self.camera.width))
+            if self.crop is None and not self.morton:
+                live = live_rays(rays, block, rays_per_sample)
+            else:  # the traced rows chosen first, so that only they are copied, once
+                every = every_ray(rays, block, rays_per_sample)
+                rows = np.flatnonzero(every.weight != 0)
+                if self.crop is not None:  # a crop's pixels only: the pass's other rays are made, not traced
+                    rows = rows[self.crop.contains(every.pixel[rows], self.camera.width)]
+                if self.morton:
+                    rows = rows[morton_order(every.pixel[rows], self.camera.width)]
+                live = every.rows(rows)
             origin, direction, pixel = live.origin, live.direction, live.pixel
         hits, albedo, aov_values = None, None, None
         if self.aovs.aovs:  # the camera rays' hits and albedo, found once for the AOVs and the integrator
