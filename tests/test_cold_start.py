@@ -481,11 +481,12 @@ def _random_instances():
     return scene
 
 
+@pytest.mark.parametrize("coherent", [False, True])
 @pytest.mark.parametrize("count", [0, 1, 15, 16, 17, 5000])
-def test_packets_called_from_python_answer_as_the_compiled_loops(count, monkeypatch):
+def test_packets_called_from_python_answer_as_the_compiled_loops(count, coherent, monkeypatch):
     """embree's packets made by numpy and called from Python (a small render's) hold the compiled
-    loops' rays lane for lane: the same hits and occlusions, bit for bit (NaN and negative
-    distances included)."""
+    loops' rays lane for lane, with the same query arguments: the same hits and occlusions, bit for
+    bit (NaN and negative distances included), coherent camera-ray queries too."""
     import numpy as np
 
     from realistic.core import jit
@@ -499,7 +500,7 @@ def test_packets_called_from_python_answer_as_the_compiled_loops(count, monkeypa
     answers = []
     for compiled in (True, False):
         monkeypatch.setattr(jit, "_use_compiled", [compiled])
-        hits = scene.intersect(origin, direction)
+        hits = scene.intersect(origin, direction, coherent=coherent)
         answers.append((*vars(hits).values(), scene.occluded(origin, direction, distance)))
     assert count < 100 or answers[0][4].max() >= 0  # some rays hit
     for compiled, python in zip(*answers):

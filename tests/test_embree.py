@@ -125,9 +125,10 @@ def random_rays(world: World, count: int, seed: int) -> tuple[np.ndarray, np.nda
     return origin.astype(np.float32), direction.astype(np.float32)
 
 
-def assert_closest_hits(scene: EmbreeScene, world: World, count: int, seed: int, tfar: float = 1e37) -> None:
+def assert_closest_hits(scene: EmbreeScene, world: World, count: int, seed: int, tfar: float = 1e37,
+                        coherent: bool = False) -> None:
     origin, direction = random_rays(world, count, seed)
-    hits = scene.intersect(origin, direction, tfar)
+    hits = scene.intersect(origin, direction, tfar, coherent)
     t_all, u_all, v_all, closest, ambiguous = moller_trumbore(world, origin, direction, tfar)
     clear = ~ambiguous
     hit = clear & (closest >= 0)
@@ -175,21 +176,45 @@ def instanced_scene(seed: int) -> tuple[EmbreeScene, World]:
     return top, world.add(vertices * 2, faces, 3, -1, np.eye(4))
 
 
+# ``coherent``: embree's traversal for coherent rays (camera rays) must find the same closest hits,
+# whether or not a packet's rays are in fact coherent (these are scattered)
+@pytest.mark.parametrize("coherent", [False, True])
 @pytest.mark.parametrize("count", BATCHES)
-def test_closest_hits_are_the_closed_form_ones_in_batches_of_any_size(count: int) -> None:
+def test_closest_hits_are_the_closed_form_ones_in_batches_of_any_size(count: int, coherent: bool) -> None:
     scene, world = flat_scene(1)
-    assert_closest_hits(scene, world, count, seed=count)
+    assert_closest_hits(scene, world, count, seed=count, coherent=coherent)
 
 
+@pytest.mark.parametrize("coherent", [False, True])
 @pytest.mark.parametrize("count", BATCHES)
-def test_instances_are_hit_where_their_transforms_put_their_meshes(count: int) -> None:
+def test_instances_are_hit_where_their_transforms_put_their_meshes(count: int, coherent: bool) -> None:
     scene, world = instanced_scene(2)
-    assert_closest_hits(scene, world, count, seed=100 + count)
+    assert_closest_hits(scene, world, count, seed=100 + count, coherent=coherent)
 
 
-def test_a_ray_ends_at_tfar() -> None:
+@pytest.mark.parametrize("coherent", [False, True])
+def test_a_ray_ends_at_tfar(coherent: bool) -> None:
     scene, world = instanced_scene(3)
-    assert_closest_hits(scene, world, 1000, seed=4, tfar=0.7)
+    assert_closest_hits(scene, world, 1000, seed=4, tfar=0.7, coherent=coherent)
+
+
+def test_coherent_camera_rays_find_the_closed_form_hits() -> None:
+    """A pinhole's rays through a grid of pixels, 16 neighbours a packet as the renderer traces
+    them, with embree's coherent traversal: the closed-form closest hits."""
+    scene, world = instanced_scene(7)
+    side = 48
+    grid = (np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2) + 0.5) / side
+    direction = np.column_stack([grid * 8 - 4, np.full(side * side, -10.0)]).astype(np.float32)
+    origin = np.broadcast_to(np.float32([0, 0, 8]), direction.shape).copy()
+    hits = scene.intersect(origin, direction, 1e37, coherent=True)
+    t_all, _, _, closest, ambiguous = moller_trumbore(world, origin, direction, 1e37)
+    rows = np.flatnonzero(~ambiguous & (closest >= 0))
+    assert len(rows) > side * side / 10 and np.count_nonzero(~ambiguous) > 0.9 * side * side
+    np.testing.assert_array_equal(hits.geom[rows], world.geom[closest[rows]])
+    np.testing.assert_array_equal(hits.prim[rows], world.prim[closest[rows]])
+    np.testing.assert_allclose(hits.t[rows], t_all[rows, closest[rows]], rtol=2e-5)
+    missed = np.flatnonzero(~ambiguous & (closest < 0))
+    assert np.all(hits.geom[missed] == -1)
 
 
 def test_a_batch_answers_as_its_rays_one_at_a_time() -> None:

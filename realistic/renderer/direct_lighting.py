@@ -407,7 +407,7 @@ class DirectLighting:
         timed = clock or (lambda _stage: nullcontext())
         if hits is None:
             with timed("embree"):
-                hits = self.intersector.closest(origin, direction)
+                hits = self.intersector.closest(origin, direction, coherent=True)
         if self._kernel is not None:
             return self._radiance_kernel(self._kernel, origin, direction, pixel, sample, hits, timed, albedo,
                                          wavelength_nm)

@@ -205,7 +205,7 @@ class PathIntegrator(DirectLighting):
                 hits = camera_hits
             else:
                 with timed("embree"):
-                    hits = self.intersector.closest(o, d)
+                    hits = self.intersector.closest(o, d, coherent=depth == 0)  # camera rays at 0
             with timed("shading"):
                 basis = None if basis_all is None else basis_all[path]
                 prev_lights = self.light_samples if depth == 1 else 1

@@ -301,7 +301,7 @@ class PassRunner:
         hits, albedo, aov_values = None, None, None
         if self.aovs.aovs:  # the camera rays' hits and albedo, found once for the AOVs and the integrator
             with self.clock("embree"):
-                hits = self.integrator.intersector.closest(origin, direction)
+                hits = self.integrator.intersector.closest(origin, direction, coherent=True)
             with self.clock("first hits"):
                 with_albedo = "albedo" in self.aovs.quantities
                 first = self.integrator.first_hits(origin, direction, hits, with_albedo)

@@ -44,6 +44,24 @@ _OUT_OF_MEMORY, _UNSUPPORTED_CPU = 4, 5  # RTCError
 
 _VERSION, _VERSION_MAJOR, _VERSION_MINOR, _VERSION_PATCH = 0, 1, 2, 3  # RTCDeviceProperty
 _BACKFACE_CULLING_ENABLED, _TRIANGLE_GEOMETRY_SUPPORTED = 65, 96
+_RAY_QUERY_FLAG_COHERENT, _FEATURE_FLAG_ALL = 1 << 16, 0xFFFFFFFF  # RTCRayQueryFlags, RTCFeatureFlags
+
+
+class _IntersectArguments(ctypes.Structure):
+    """RTCIntersectArguments (``embree4/rtcore_scene.h``): what ``rtcInitIntersectArguments``, an
+    inline function of the header and so not in the library, sets, with the caller's flags. The last
+    field is there only in an embree built with ``RTC_MIN_WIDTH``; it is 0 (the default) either way."""
+
+    _fields_ = [("flags", ctypes.c_uint), ("feature_mask", ctypes.c_uint), ("context", ctypes.c_void_p),
+                ("filter", ctypes.c_void_p), ("intersect", ctypes.c_void_p),
+                ("min_width_distance_factor", ctypes.c_float)]
+
+
+#: Closest-hit queries for coherent rays (camera rays, neighbours in a packet start together and
+#: point nearly alike): embree's traversal for them, RTC_RAY_QUERY_FLAG_COHERENT, which the
+#: documentation of rtcInitIntersectArguments recommends for primary rays (scattered rays, and
+#: shadow rays as the packet loops pack them, trace slower with it: ``bench/embree_loop.py``)
+_COHERENT = _IntersectArguments(_RAY_QUERY_FLAG_COHERENT, _FEATURE_FLAG_ALL, None, None, None, 0.0)
 #: RTC_DEVICE_PROPERTY_VERSION (major * 10000 + minor * 100 + patch) of the embree releases the loops
 #: are tested with: 4.4.x, as embreex 4.4 ships
 TESTED_VERSIONS = range(40400, 40500)
@@ -285,8 +303,10 @@ class EmbreeScene:
         _check(self._embree, "building the scene")
         self.committed = True
 
-    def intersect(self, origin: np.ndarray, direction: np.ndarray, tfar: float = 1e37) -> RayHits:
-        """Closest hit of each ray (float32 (N, 3) origins and directions, t in [0, tfar])."""
+    def intersect(self, origin: np.ndarray, direction: np.ndarray, tfar: float = 1e37,
+                  coherent: bool = False) -> RayHits:
+        """Closest hit of each ray (float32 (N, 3) origins and directions, t in [0, tfar]);
+        ``coherent`` rays (camera rays) take embree's traversal for them (``_COHERENT``)."""
         origin, direction = _rays(origin, direction)
         self._require_committed()
         n = len(origin)
@@ -294,12 +314,13 @@ class EmbreeScene:
                        prim=np.empty(n, np.int32), geom=np.empty(n, np.int32), instance=np.empty(n, np.int32),
                        normal=np.empty((n, 3), np.float32))
         arrays = (hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.instance, hits.normal)
+        arguments = ctypes.addressof(_COHERENT) if coherent else 0
         if compiled_loops():
             packet_loop.closest_loop()(self._embree.intersect16, self._handle, *packet_loop.packet_arguments(),
-                                       origin, direction, np.float32(tfar), *arrays)
+                                       arguments, origin, direction, np.float32(tfar), *arrays)
         else:
-            packet_loop.trace_closest(self._embree.intersect16, self._handle, origin, direction, np.float32(tfar),
-                                      *arrays)
+            packet_loop.trace_closest(self._embree.intersect16, self._handle, arguments, origin, direction,
+                                      np.float32(tfar), *arrays)
         return hits
 
     def occluded(self, origin: np.ndarray, direction: np.ndarray, distance: np.ndarray) -> np.ndarray:

@@ -163,9 +163,10 @@ class Intersector:
     def _add(self, vertices: np.ndarray, faces: np.ndarray, what: str, geom: int) -> None:
         self._embree.add_triangles(_finite_f32(vertices, what), faces, geom)
 
-    def closest(self, origin: np.ndarray, direction: np.ndarray) -> Hits:
-        """Nearest hit along each ray (direction need not be unit; t is in its units)."""
-        hits = self._embree.intersect(origin, direction, float(_MISS_T))
+    def closest(self, origin: np.ndarray, direction: np.ndarray, coherent: bool = False) -> Hits:
+        """Nearest hit along each ray (direction need not be unit; t is in its units). Camera rays
+        are ``coherent``: embree traces them with its traversal for such rays (``EmbreeScene.intersect``)."""
+        hits = self._embree.intersect(origin, direction, float(_MISS_T), coherent)
         instances_to_world(hits.instance, self._normal_to_world_t, hits.geom, hits.normal)
         return Hits(hits.t, hits.u, hits.v, hits.prim, hits.geom, hits.normal)
 

@@ -107,14 +107,15 @@ def packet_arguments() -> tuple[np.ndarray, np.ndarray, int, int]:
 
 
 def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, floats: np.ndarray, valid: int,
-             rayhit: int, origin: np.ndarray, direction: np.ndarray, tfar: np.float32, t: np.ndarray, u: np.ndarray,
+             rayhit: int, arguments: int, origin: np.ndarray, direction: np.ndarray, tfar: np.float32, t: np.ndarray, u: np.ndarray,
              v: np.ndarray, prim: np.ndarray, geom: np.ndarray, instance: np.ndarray, normal: np.ndarray) -> None:
     """Closest hits of ``origin``/``direction`` ((N, 3) float32) within [0, tfar], copied to t, u,
     v, prim, geom, instance ((N,) arrays) and normal ((N, 3)). Each lane's geomID and instID are
     set invalid (-1) before the call, as embree asks; a hit writes every hit row, so a miss (geomID
     still -1) is copied as Ng, u, v 0 and primID -1, without clearing those rows per lane (a
     quarter of the loop's own time); it keeps tfar as t. The packet, its float32 view and the
-    addresses embree takes come from ``packet_arguments``."""
+    addresses embree takes come from ``packet_arguments``; ``arguments`` is the address of the
+    calls' RTCIntersectArguments, or 0 for embree's defaults."""
     count = origin.shape[0]
     for base in range(0, count, PACKET):
         lanes = count - base if count - base < PACKET else PACKET
@@ -128,7 +129,7 @@ def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, floa
             floats[TFAR, lane] = tfar
             packet[GEOM, lane] = -1
             packet[INST, lane] = -1
-        function(valid, scene, rayhit, 0)
+        function(valid, scene, rayhit, arguments)
         for lane in range(lanes):
             i = base + lane
             t[i] = floats[TFAR, lane]
@@ -225,7 +226,7 @@ def _occluded_lanes(function: Callable[..., None], scene: int, packet: np.ndarra
 
 def closest_loop() -> Callable[..., None]:
     """``_closest`` compiled (``realistic.core.jit``): (function, scene, *``packet_arguments()``,
-    origin, direction, tfar, t, u, v, prim, geom, instance, normal); it runs with the GIL released."""
+    arguments, origin, direction, tfar, t, u, v, prim, geom, instance, normal); it runs with the GIL released."""
     return compiled(_closest)
 
 
@@ -261,16 +262,17 @@ def _set_lanes(lanes: np.ndarray, values: np.ndarray) -> None:
         spread[full, :rest] = values[full * PACKET:]
 
 
-def _call_each(function: Callable[..., None], scene: int, block: np.ndarray) -> None:
-    """``function`` (rtcIntersect16 or rtcOccluded16) on each packet of ``block`` in turn."""
+def _call_each(function: Callable[..., None], scene: int, block: np.ndarray, arguments: int = 0) -> None:
+    """``function`` (rtcIntersect16 or rtcOccluded16) on each packet of ``block`` in turn, with the
+    arguments struct at address ``arguments`` (0: none, embree's defaults)."""
     stride, valid = block.strides[0], VALID * block.strides[1]
     for address in range(block.ctypes.data, block.ctypes.data + len(block) * stride, stride):
-        function(address + valid, scene, address, None)
+        function(address + valid, scene, address, arguments or None)
 
 
-def trace_closest(function: Callable[..., None], scene: int, origin: np.ndarray, direction: np.ndarray,
-                  tfar: np.float32, t: np.ndarray, u: np.ndarray, v: np.ndarray, prim: np.ndarray, geom: np.ndarray,
-                  instance: np.ndarray, normal: np.ndarray) -> None:
+def trace_closest(function: Callable[..., None], scene: int, arguments: int, origin: np.ndarray,
+                  direction: np.ndarray, tfar: np.float32, t: np.ndarray, u: np.ndarray, v: np.ndarray,
+                  prim: np.ndarray, geom: np.ndarray, instance: np.ndarray, normal: np.ndarray) -> None:
     """``_closest`` without numba: every packet made by numpy at once, then one call from Python
     per packet (a render too small to repay compiling the loop, ``core.jit.compiled_loops``). The
     packets are ``_closest``'s, lane for lane, so the hits are the same."""
@@ -280,7 +282,7 @@ def trace_closest(function: Callable[..., None], scene: int, origin: np.ndarray,
     _set_lanes(floats[:, 0:3], origin)
     _set_lanes(floats[:, 4:7], direction)
     floats[:, TFAR] = tfar
-    _call_each(function, scene, block)
+    _call_each(function, scene, block, arguments)
     t[:] = floats[:, TFAR].reshape(-1)[:count]
     u[:] = floats[:, U].reshape(-1)[:count]
     v[:] = floats[:, V].reshape(-1)[:count]
