@@ -17,6 +17,7 @@ with the one the cold run filled ("warm"), and the whole process's wall time; me
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import statistics
@@ -54,8 +55,8 @@ def record(path: Path, res: str, spp: int) -> dict:
     width, height = (int(v) for v in res.split("x"))
     setup, camera, _, _ = staged_subject("dgauss", width, height, spp)
     recorder = recorded_rays(setup, camera, "numpy")
-    arrays: dict[str, Any] = {"primary_origin": np.concatenate([o for o, _ in recorder.primary]),
-              "primary_direction": np.concatenate([d for _, d in recorder.primary]),
+    arrays: dict[str, Any] = {"primary_origin": np.concatenate([o for o, _, _ in recorder.primary]),
+              "primary_direction": np.concatenate([d for _, d, _ in recorder.primary]),
               "shadow_origin": np.concatenate([o for o, _, _ in recorder.shadow]),
               "shadow_direction": np.concatenate([d for _, d, _ in recorder.shadow]),
               "shadow_distance": np.concatenate([np.broadcast_to(np.reshape(t, -1), len(o))
@@ -77,7 +78,10 @@ def trace(rays: Path, res: str, spp: int, threads: int) -> dict:
     ours = Intersector(setup.scene)
     po, pd = saved["primary_origin"], saved["primary_direction"]
     so, sd, st = saved["shadow_origin"], saved["shadow_direction"], saved["shadow_distance"]
-    primary = [lambda s=s: ours.closest(po[s:s + CHUNK], pd[s:s + CHUNK]) for s in range(0, len(po), CHUNK)]
+    # camera rays, traced as the render traces them (coherent, ``EmbreeScene.intersect``, in a tree that has it)
+    camera = {"coherent": True} if "coherent" in inspect.signature(Intersector.closest).parameters else {}
+    primary = [lambda s=s: ours.closest(po[s:s + CHUNK], pd[s:s + CHUNK], **camera)
+               for s in range(0, len(po), CHUNK)]
     shadow = [lambda s=s: ours.occluded(so[s:s + CHUNK], sd[s:s + CHUNK], st[s:s + CHUNK])
               for s in range(0, len(so), CHUNK)]
     ours.closest(po[:16], pd[:16])  # the loops compiled or loaded before timing

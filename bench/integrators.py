@@ -74,10 +74,10 @@ class RayCount:
     def __init__(self) -> None:
         self.rays, self._lock, self._closest = 0, threading.Lock(), Intersector.closest
 
-        def closest(intersector, origin, direction):
+        def closest(intersector, origin, direction, coherent=False):
             with self._lock:
                 self.rays += len(origin)
-            return self._closest(intersector, origin, direction)
+            return self._closest(intersector, origin, direction, coherent)
 
         Intersector.closest = closest
 

@@ -106,9 +106,9 @@ class RecordingIntersector(Intersector):
         super().__init__(scene)
         self.primary, self.shadow = [], []
 
-    def closest(self, origin, direction):
-        self.primary.append((origin.copy(), direction.copy()))
-        return super().closest(origin, direction)
+    def closest(self, origin, direction, coherent=False):
+        self.primary.append((origin.copy(), direction.copy(), coherent))
+        return super().closest(origin, direction, coherent)
 
     def occluded(self, origin, direction, distance):
         self.shadow.append((origin.copy(), direction.copy(), np.array(distance)))
@@ -170,16 +170,17 @@ def ceiling_jobs(setup, camera, backend: str) -> tuple[dict, dict, tuple]:
     the ceiling."""
     recorder = recorded_rays(setup, camera, backend)
     chunk = 1 << 16
-    primary = [(o[s:s + chunk], d[s:s + chunk]) for o, d in recorder.primary for s in range(0, len(o), chunk)]
+    primary = [(o[s:s + chunk], d[s:s + chunk], coherent) for o, d, coherent in recorder.primary
+               for s in range(0, len(o), chunk)]
     shadow = [(o[s:s + chunk], d[s:s + chunk], t[s:s + chunk]) for o, d, t in recorder.shadow
               for s in range(0, len(o), chunk)]
     # shadow rows of dead light samples (length -1; embree skips them) are traced but not counted, as in the render
-    counts = {"samples": camera.sample_count, "primary_rays": sum(len(o) for o, _ in primary),
+    counts = {"samples": camera.sample_count, "primary_rays": sum(len(o) for o, *_ in primary),
               "shadow_rays": sum(int(np.count_nonzero(t > 0)) for _, _, t in shadow)}
     ours = Intersector(setup.scene)
     theirs, buffers = embreex_scene(setup.scene)
     tracers = {"": (ours.closest, ours.occluded),
-               "embreex_": (lambda o, d: theirs.run(o, d, output=1),
+               "embreex_": (lambda o, d, _coherent: theirs.run(o, d, output=1),
                             lambda o, d, t: theirs.run(o, d, query="OCCLUDED", dists=t.copy()))}
     jobs = {prefix: ([lambda rays=rays, f=closest: f(*rays) for rays in primary],
                      [lambda rays=rays, f=occluded: f(*rays) for rays in shadow])

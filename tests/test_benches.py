@@ -282,7 +282,8 @@ def test_the_ceiling_traces_every_ray_the_render_traced(backend):
     rendered = render(RenderJob(setup.scene, (camera,), backend, seed=0, pass_samples=512))[0]
     recorder = render_bench.recorded_rays(setup, camera, backend, pass_samples=512)
     assert len(recorder.primary) == len(recorder.shadow) > 1  # one closest and one occluded call per pass
-    assert sum(len(o) for o, _ in recorder.primary) == rendered.primary_rays > 0
+    assert sum(len(o) for o, _, _ in recorder.primary) == rendered.primary_rays > 0
+    assert all(coherent for _, _, coherent in recorder.primary)  # camera rays, traced as such (and so in the ceiling)
     assert sum(int(np.count_nonzero(t > 0)) for _, _, t in recorder.shadow) == rendered.shadow_rays > 0
 
 

@@ -59,8 +59,8 @@ class _IntersectArguments(ctypes.Structure):
 
 #: Closest-hit queries for coherent rays (camera rays, neighbours in a packet start together and
 #: point nearly alike): embree's traversal for them, RTC_RAY_QUERY_FLAG_COHERENT, which the
-#: documentation of rtcInitIntersectArguments recommends for primary rays (scattered rays, and
-#: shadow rays as the packet loops pack them, trace slower with it: ``bench/embree_loop.py``)
+#: documentation of rtcInitIntersectArguments recommends for primary rays (scattered rays, and the
+#: shadow rays as the packet loops pack them, trace slower with it, so they keep the default)
 _COHERENT = _IntersectArguments(_RAY_QUERY_FLAG_COHERENT, _FEATURE_FLAG_ALL, None, None, None, 0.0)
 #: RTC_DEVICE_PROPERTY_VERSION (major * 10000 + minor * 100 + patch) of the embree releases the loops
 #: are tested with: 4.4.x, as embreex 4.4 ships

@@ -107,8 +107,9 @@ def packet_arguments() -> tuple[np.ndarray, np.ndarray, int, int]:
 
 
 def _closest(function: Callable[..., None], scene: int, packet: np.ndarray, floats: np.ndarray, valid: int,
-             rayhit: int, arguments: int, origin: np.ndarray, direction: np.ndarray, tfar: np.float32, t: np.ndarray, u: np.ndarray,
-             v: np.ndarray, prim: np.ndarray, geom: np.ndarray, instance: np.ndarray, normal: np.ndarray) -> None:
+             rayhit: int, arguments: int, origin: np.ndarray, direction: np.ndarray, tfar: np.float32, t: np.ndarray,
+             u: np.ndarray, v: np.ndarray, prim: np.ndarray, geom: np.ndarray, instance: np.ndarray,
+             normal: np.ndarray) -> None:
     """Closest hits of ``origin``/``direction`` ((N, 3) float32) within [0, tfar], copied to t, u,
     v, prim, geom, instance ((N,) arrays) and normal ((N, 3)). Each lane's geomID and instID are
     set invalid (-1) before the call, as embree asks; a hit writes every hit row, so a miss (geomID
