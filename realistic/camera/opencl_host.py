@@ -20,7 +20,15 @@ from realistic.core import disk_cache
 from realistic.core.pixel_filter import TABLE_BINS, PixelFilter
 from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, leave_binaries_unstored, whole_groups
+from realistic.device.opencl import (
+    LOCAL_SIZE,
+    Device,
+    TypedKernel,
+    cl,
+    kernel_source,
+    leave_binaries_unstored,
+    whole_groups,
+)
 from realistic.device.tables import Table
 from realistic.optics.coating import BARE, DESIGN_WAVELENGTH_NM, LAYER, MGF2, MGF2_INDEX, mgf2_index
 from realistic.optics.dispersion import D_LINE_NM, GlassFormula, cauchy_coefficients
@@ -351,7 +359,7 @@ def _seconds(run: Callable[[], object]) -> float:
 
 #: A lens program as ``LensKernel._build`` makes it: its rays per work item, the program, and its
 #: ``generate_rays`` and ``sample_bits`` kernels.
-_Built = tuple[int, "cl.Program", "cl.Kernel", "cl.Kernel"]
+_Built = tuple[int, "cl.Program", TypedKernel, TypedKernel]
 
 
 def _choice_key(camera: LensCamera, device: Device) -> str:
@@ -435,7 +443,7 @@ class LensKernel:
         """The program tracing ``rays_per_item`` rays per work item (built, or from the caches) and
         its two kernels."""
         program = self.device.build_program(*lens_program(self.camera, rays_per_item))
-        return rays_per_item, program, cl.Kernel(program, "generate_rays"), cl.Kernel(program, "sample_bits")
+        return rays_per_item, program, TypedKernel(program, "generate_rays"), TypedKernel(program, "sample_bits")
 
     def _use(self, built: _Built) -> None:
         """Launch the program ``_build`` made from now on."""

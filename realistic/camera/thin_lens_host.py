@@ -19,7 +19,7 @@ import numpy as np
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.opencl_host import ROWS, filter_lines, launch_layout
 from realistic.camera.thin_lens import ThinLensCamera
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source
+from realistic.device.opencl import LOCAL_SIZE, Device, TypedKernel, kernel_source
 
 KERNEL_FILE = "thin_lens.cl"
 
@@ -55,7 +55,7 @@ class ThinLensKernel:
         self._world = device.copied_buffer(camera.world_from_camera[:3, :4], np.float32)
         self._constants = kernel_constants(camera)
         program = device.build_program(*thin_lens_program(camera))
-        self._generate = cl.Kernel(program, "generate_rays")
+        self._generate = TypedKernel(program, "generate_rays")
 
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
         """Rays of the block's samples, as ``ThinLensCamera.generate_rays`` makes them (float32)."""

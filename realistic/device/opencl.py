@@ -107,6 +107,26 @@ def _match(spec: str, found: list[tuple[int, int, cl.Platform, cl.Device]], orig
     return hits[0][3]
 
 
+class TypedKernel:
+    """A kernel object launched as ``cl.Kernel`` is (``kernel(queue, global_size, local_size, *args)``),
+    whose scalar arguments' types pyopencl is told at its first launch (``Kernel.set_scalar_arg_dtypes``:
+    each numpy scalar's dtype, None for anything else, a buffer), so that it packs them directly. Untold,
+    pyopencl tries every scalar argument of every launch as a buffer, an SVM pointer, local memory, a
+    sampler and a command queue before packing it, each refusal a C++ exception thrown and unwound.
+    Every launch passes the types of the first (the kernel's signature)."""
+
+    def __init__(self, program: cl.Program, name: str):
+        self.kernel = cl.Kernel(program, name)
+        self._typed = False
+
+    def __call__(self, queue: cl.CommandQueue, global_size: tuple[int, ...], local_size: tuple[int, ...] | None,
+                 *args: Any) -> cl.Event:
+        if not self._typed:
+            self.kernel.set_scalar_arg_dtypes([arg.dtype if isinstance(arg, np.generic) else None for arg in args])
+            self._typed = True
+        return self.kernel(queue, global_size, local_size, *args)
+
+
 class Device:
     """One OpenCL device of this process: its context and the programs built for it.
 
@@ -188,7 +208,7 @@ class Device:
         """A write-only device buffer of ``nbytes``."""
         return cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, nbytes)
 
-    def run_into(self, queue: cl.CommandQueue, kernel: cl.Kernel, global_size: tuple[int, ...],
+    def run_into(self, queue: cl.CommandQueue, kernel: cl.Kernel | TypedKernel, global_size: tuple[int, ...],
                  local_size: tuple[int, ...], args: tuple[Any, ...], outputs: tuple[np.ndarray, ...]) -> None:
         """Launch ``kernel`` with ``args`` followed by one write-only buffer over each of ``outputs``'
         own memory (USE_HOST_PTR), and wait until the results are in those arrays: the reads copy

@@ -48,7 +48,7 @@ import threading
 import numpy as np
 
 from realistic.core.validation import TEXTURE_WRAPS
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.opencl import LOCAL_SIZE, Device, TypedKernel, cl, kernel_source, whole_groups
 from realistic.device.tables import Table
 from realistic.scene.intersect import Hits
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
@@ -111,22 +111,23 @@ class _ThreadKernels:
         self.queue = device.queue()
         self._program = program
         #: hit_lookups and hit_lookups_single (EWA's float32 lookups), each made on its first use
-        self._hits: dict[bool, cl.Kernel] = {}
+        self._hits: dict[bool, TypedKernel] = {}
         #: per filter, its kernel for the small lookups and the one for the lookups it leaves pending
-        self._filters: dict[str, tuple[cl.Kernel, cl.Kernel]] = {}
+        self._filters: dict[str, tuple[TypedKernel, TypedKernel]] = {}
 
-    def hits(self, single: bool) -> cl.Kernel:
+    def hits(self, single: bool) -> TypedKernel:
         """``hit_lookups``, or ``hit_lookups_single`` (float32 lookups, EWA's) where ``single``."""
         kernel = self._hits.get(single)
         if kernel is None:
-            kernel = self._hits[single] = cl.Kernel(self._program, "hit_lookups_single" if single else "hit_lookups")
+            kernel = self._hits[single] = TypedKernel(self._program, "hit_lookups_single" if single else "hit_lookups")
         return kernel
 
-    def filter(self, name: str) -> tuple[cl.Kernel, cl.Kernel]:
+    def filter(self, name: str) -> tuple[TypedKernel, TypedKernel]:
         """The filter ``name``'s two kernels (``DEVICE_FILTERS``): ``{name}_small`` and ``{name}``."""
         kernels = self._filters.get(name)
         if kernels is None:
-            kernels = self._filters[name] = (cl.Kernel(self._program, f"{name}_small"), cl.Kernel(self._program, name))
+            kernels = self._filters[name] = (TypedKernel(self._program, f"{name}_small"),
+                                             TypedKernel(self._program, name))
         return kernels
 
 
@@ -259,11 +260,11 @@ class FootprintKernel:
         self._program = build_ewa_program(device, "repeat")
         self._local = threading.local()
 
-    def _thread(self) -> tuple[cl.CommandQueue, cl.Kernel]:
+    def _thread(self) -> tuple[cl.CommandQueue, TypedKernel]:
         """The calling thread's queue and kernel, made on its first call."""
-        made: tuple[cl.CommandQueue, cl.Kernel] | None = getattr(self._local, "made", None)
+        made: tuple[cl.CommandQueue, TypedKernel] | None = getattr(self._local, "made", None)
         if made is None:
-            made = self._local.made = (self.device.queue(), cl.Kernel(self._program, "triangle_footprints"))
+            made = self._local.made = (self.device.queue(), TypedKernel(self._program, "triangle_footprints"))
         return made
 
     def __call__(self, vertices: np.ndarray, uv: np.ndarray, linear: np.ndarray, face: np.ndarray,
