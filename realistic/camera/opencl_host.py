@@ -23,6 +23,7 @@ from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENG
 from realistic.device.opencl import (
     LOCAL_SIZE,
     Device,
+    OutputBlock,
     TypedKernel,
     cl,
     kernel_source,
@@ -489,12 +490,12 @@ class LensKernel:
         per_item = self.rays_per_item
         address, padded = launch_layout(block, self.camera.rays_per_sample, per_item)
         count = block.count * self.camera.rays_per_sample
-        out = np.empty((self._rows, padded), dtype=np.float32)
-        pixels = np.empty(padded, dtype=np.int32)
-        with self._lock:  # the kernel writes into the result's own arrays (Device.run_into)
+        outputs = OutputBlock(self.device, (((self._rows, padded), np.float32), ((padded,), np.int32)))
+        out, pixels = outputs.arrays
+        with self._lock:  # the kernel writes into the result's own arrays, read back at once (Device.run_into)
             self.device.run_into(self.queue, self._generate, (padded // per_item,), (LOCAL_SIZE,),
                                  (*address, np.uint32(seed & 0xFFFFFFFF), self._world, self._settings, *self._film,
-                                  np.uint32(padded)), (out, pixels))
+                                  np.uint32(padded)), outputs)
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count], wavelength_nm=out[7, :count] if self.camera.spectral else None)
 

@@ -19,7 +19,7 @@ import numpy as np
 from realistic.camera.base import RayBatch, SampleBlock
 from realistic.camera.opencl_host import ROWS, filter_lines, launch_layout
 from realistic.camera.thin_lens import ThinLensCamera
-from realistic.device.opencl import LOCAL_SIZE, Device, TypedKernel, kernel_source
+from realistic.device.opencl import LOCAL_SIZE, Device, OutputBlock, TypedKernel, kernel_source
 
 KERNEL_FILE = "thin_lens.cl"
 
@@ -61,11 +61,11 @@ class ThinLensKernel:
         """Rays of the block's samples, as ``ThinLensCamera.generate_rays`` makes them (float32)."""
         address, padded = launch_layout(block)
         count = block.count
-        out = np.empty((ROWS, padded), dtype=np.float32)
-        pixels = np.empty(padded, dtype=np.int32)
-        with self._lock:  # written in place (Device.run_into), as LensKernel.generate does
+        outputs = OutputBlock(self.device, (((ROWS, padded), np.float32), ((padded,), np.int32)))
+        out, pixels = outputs.arrays
+        with self._lock:  # written in place, read back at once (Device.run_into), as LensKernel.generate does
             self.device.run_into(self.queue, self._generate, (padded,), (LOCAL_SIZE,),
                                  (*address, np.uint32(seed & 0xFFFFFFFF), self._world, *self._constants,
-                                  np.uint32(padded)), (out, pixels))
+                                  np.uint32(padded)), outputs)
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count])
