@@ -106,9 +106,9 @@ class RecordingIntersector(Intersector):
         super().__init__(scene)
         self.primary, self.shadow = [], []
 
-    def closest(self, origin, direction):
+    def closest(self, origin, direction, coherent=False):
         self.primary.append((origin.copy(), direction.copy()))
-        return super().closest(origin, direction)
+        return super().closest(origin, direction, coherent=coherent)
 
     def occluded(self, origin, direction, distance):
         self.shadow.append((origin.copy(), direction.copy(), np.array(distance)))
