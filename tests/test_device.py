@@ -9,6 +9,7 @@ import pytest
 
 from realistic.camera.lens_camera import LensCamera
 from realistic.core.film_geometry import FULL_FRAME_DIAGONAL_MM
+from realistic.device.opencl import LOCAL_SIZE, Device, OutputBlock, TypedKernel, cl
 from realistic.optics.formats import load_lens
 from realistic.renderer.backends import NumpyBackend, backend_for
 from realistic.renderer.farm import DaskPasses
@@ -81,3 +82,50 @@ def test_the_cl_device_reaches_the_ewa_kernel(monkeypatch):
     assert {id(m) for m, _ in made} == {id(m) for m in maps}
     assert all(device is Device.for_spec(spec) for _, device in made)
     assert Device.for_spec(spec) is not Device.for_spec()
+
+
+SCALARS = """__kernel void scalars(uint a, int b, float c, double d, __global double* values, __global int* ids) {
+    size_t i = get_global_id(0);
+    if (i == 0) { values[0] = a; values[1] = b; values[2] = c; values[3] = d; }
+    ids[i] = (int) i;
+}"""
+
+
+def test_a_typed_kernel_passes_each_scalar_type_exactly_at_its_first_launch_and_after():
+    """``TypedKernel`` tells pyopencl its scalar arguments' types at its first launch, from the numpy
+    scalars passed, and packs them as those types from then on: uint32, int32, float32 and float64
+    values reach the kernel exactly (a float64 value that float32 cannot hold included), launch after
+    launch, through ``Device.run_into`` and its ``OutputBlock``."""
+    device = Device.for_spec()
+    kernel = TypedKernel(cl.Program(device.context, SCALARS).build(), "scalars")
+    queue = device.queue()
+    for a, b, c, d in ((2**32 - 1, -7, np.float32(1 / 3), 0.1), (0, 2**31 - 1, np.float32(-0.0), 1e300),
+                       (12345, -(2**31), np.float32(3e-45), -2.5e-310)):
+        outputs = OutputBlock(device, (((4,), np.float64), ((LOCAL_SIZE,), np.int32)))
+        values, ids = outputs.arrays
+        device.run_into(queue, kernel, (LOCAL_SIZE,), (LOCAL_SIZE,),
+                        (np.uint32(a), np.int32(b), np.float32(c), np.float64(d)), outputs)
+        expected = np.array([a, b, float(c), d], np.float64)
+        assert values.tobytes() == expected.tobytes()
+        assert np.array_equal(ids, np.arange(LOCAL_SIZE))
+
+
+def test_an_output_block_lays_its_outputs_out_at_the_sub_buffer_alignment():
+    """``OutputBlock``: one host array holding each output (of its shape and dtype, an empty one
+    too) from an offset that is a multiple of the device's sub-buffer alignment, one buffer over it and
+    a sub-buffer per output, each of the output's size (one element for an empty output)."""
+    device = Device.for_spec()
+    align = device.devices[0].mem_base_addr_align // 8
+    shapes = (((7, 300), np.float32), ((0,), np.uint8), ((301,), np.int32), ((5, 3), np.float64))
+    block = OutputBlock(device, shapes)
+    try:
+        assert len(block.arrays) == len(block.parts) == len(shapes)
+        base = block.block.ctypes.data
+        for array, part, (shape, dtype) in zip(block.arrays, block.parts, shapes):
+            assert array.shape == shape and array.dtype == dtype and array.flags.c_contiguous
+            if array.size:
+                assert (array.ctypes.data - base) % align == 0
+                assert np.shares_memory(array, block.block)
+            assert part.size == max(array.nbytes, np.dtype(dtype).itemsize)
+    finally:
+        block.release()

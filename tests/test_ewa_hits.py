@@ -21,6 +21,7 @@ from realistic.renderer.direct_lighting import DirectLighting, _facing
 from realistic.renderer.hit_rows import _place_rows, _rows_on_material
 from realistic.renderer.job import RenderJob
 from realistic.renderer.passes import ThreadPasses, render
+from realistic.scene.ewa_kernel import MAPPING
 from realistic.scene.intersect import Intersector
 from realistic.scene.model import AreaLight, ImageTexture, Material, Scene
 from realistic.scene.shapes import cone, quad, sphere
@@ -164,6 +165,27 @@ def test_each_textures_rows_are_the_hits_on_its_material():
         assert np.array_equal(out[mine], colours) and np.all(np.delete(out, mine, axis=0) == -7.0)
     with pytest.raises(ValueError, match="int32"):
         ewa.at_hits(device._surface_tables, mine, mapping, direction, hits)
+
+
+def test_at_hits_filters_the_lookups_on_the_device_as_read_back_lookups_are_filtered():
+    """``at_hits`` passes ``hit_lookups``' buffer to the filters without reading the lookups back: the
+    colours equal the filter's over the lookups ``hit_lookups`` reads back, bit for bit, for every
+    material's texture and filter (EWA's large footprints, left by its small kernel, among them)."""
+    scene, eye, target = instanced_scene()
+    intersector, origin, direction, hits, spread = hits_of(scene, eye, target, 32, 24)
+    device = DirectLighting(scene, intersector, 1, 5, spread, backend="opencl")
+    surface = (hits.geom >= 0) & (hits.geom < device.instance_count)
+    material = device._geom_material[np.where(surface, hits.geom, 0)]
+    diffuse = MAPPING.offset("diffuse")
+    for index, ewa, mapping, texture_filter in device._device_textures:
+        rows = np.flatnonzero(surface & (material == index)).astype(np.int32)
+        assert len(rows)
+        colours = ewa.at_hits(device._surface_tables, rows, mapping, direction, hits, texture_filter)
+        lookups, used = ewa.hit_lookups(device._surface_tables, rows, mapping, direction, hits, texture_filter)
+        read_back = ewa._filter(lookups, mapping[diffuse:diffuse + 3].astype(F32), used)
+        assert colours.shape == (len(rows), 3) and colours.dtype == F32
+        assert colours.tobytes() == read_back.tobytes()
+    assert ewa.at_hits(device._surface_tables, rows[:0], mapping, direction, hits, texture_filter).shape == (0, 3)
 
 
 def test_the_hit_lookups_vectorise(tmp_path):

@@ -65,6 +65,18 @@ def test_pass_sums_weight_each_row_in_its_precision_first():
     np.testing.assert_array_equal(sums, sequential_sums(pixel - 7, value * weight[:, None], 40))
 
 
+@pytest.mark.parametrize("compiled_loops", [True, False], ids=["compiled", "numpy"])
+def test_pass_sums_of_a_pass_with_no_rows_are_float64_zeros(compiled_loops, monkeypatch):
+    """A pass that traces no ray (every one vignetted, or outside a crop) sums to float64 zeros in
+    both forms: numpy's np.bincount of no rows gives int64, which the film refuses."""
+    from realistic.core import jit
+
+    monkeypatch.setattr(jit, "_use_compiled", [compiled_loops])
+    for value in (np.zeros((0, 3), np.float32), np.zeros((0, 3))):
+        sums = pass_sums(np.zeros(0, np.int32), value, 4, 5, np.zeros(0, value.dtype))
+        assert sums.dtype == np.float64 and sums.shape == (5, 3) and not sums.any()
+
+
 @pytest.mark.parametrize("pixel", [[3, 4, 2], [3, 9, 4]])
 def test_pass_sums_refuse_a_pixel_outside_the_pass(pixel):
     with pytest.raises(ValueError, match="a pixel outside 3 .. 8"):

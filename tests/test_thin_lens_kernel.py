@@ -102,3 +102,31 @@ def test_opencl_backend_makes_thin_lens_rays_with_the_kernel():
     reference = backend_for("numpy").ray_generator(subject, 11)(block)
     assert rays.direction.dtype == np.float32 and reference.direction.dtype == np.float64
     np.testing.assert_allclose(rays.direction, reference.direction, rtol=0, atol=DIRECTION_TOLERANCE)
+
+
+def test_launches_keep_to_the_grid_variant_of_the_first_and_make_the_same_rays():
+    """``opencl_host.LaunchSizes``: after a first launch of at least ``SMALL_GRID_LIMIT`` work items,
+    smaller launches are padded up to it (one PoCL variant); after a smaller first launch nothing is
+    padded beyond whole work groups, a larger launch included; per work item rays scale both. A
+    block's rays are the same bits from a padded launch as from an unpadded one."""
+    from realistic.camera.opencl_host import SMALL_GRID_LIMIT, LaunchSizes
+    from realistic.device.opencl import LOCAL_SIZE
+
+    small, large = SampleBlock(5, 3000, 33), SampleBlock(0, SMALL_GRID_LIMIT + 1, 33)
+    padded = LaunchSizes()
+    assert padded.layout(large)[1] == SMALL_GRID_LIMIT + LOCAL_SIZE
+    assert padded.layout(small)[1] == SMALL_GRID_LIMIT
+    unpadded = LaunchSizes()
+    assert unpadded.layout(small)[1] == 3072
+    assert unpadded.layout(large)[1] == SMALL_GRID_LIMIT + LOCAL_SIZE
+    four = LaunchSizes()  # the lens kernel's four rays a work item: 2^18 - 1024 rays are a small grid
+    assert four.layout(SampleBlock(0, 4 * SMALL_GRID_LIMIT - 1024, 33), per_item=4)[1] == 4 * SMALL_GRID_LIMIT - 1024
+    assert four.layout(small, per_item=4)[1] == 3072
+    assert LaunchSizes().layout(SampleBlock(0, 4 * SMALL_GRID_LIMIT - 1, 33), per_item=4)[1] == 4 * SMALL_GRID_LIMIT
+    subject = camera(3.0)
+    first_large, first_small = thin_lens_host.ThinLensKernel(subject), thin_lens_host.ThinLensKernel(subject)
+    first_large.generate(SampleBlock(0, SMALL_GRID_LIMIT, 33), 7)
+    first_small.generate(small, 7)
+    a, b = first_large.generate(small, 7), first_small.generate(small, 7)
+    for field in ("origin", "direction", "weight", "pixel"):
+        assert getattr(a, field).tobytes() == getattr(b, field).tobytes()

@@ -20,7 +20,16 @@ from realistic.core import disk_cache
 from realistic.core.pixel_filter import TABLE_BINS, PixelFilter
 from realistic.core.rng import wavelength_step
 from realistic.core.spectrum import WAVELENGTH_CDF, WAVELENGTH_DENSITY, WAVELENGTH_INTERVALS, WAVELENGTH_NODES_NM
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, leave_binaries_unstored, whole_groups
+from realistic.device.opencl import (
+    LOCAL_SIZE,
+    Device,
+    OutputBlock,
+    TypedKernel,
+    cl,
+    kernel_source,
+    leave_binaries_unstored,
+    whole_groups,
+)
 from realistic.device.tables import Table
 from realistic.optics.coating import BARE, DESIGN_WAVELENGTH_NM, LAYER, MGF2, MGF2_INDEX, mgf2_index
 from realistic.optics.dispersion import D_LINE_NM, GlassFormula, cauchy_coefficients
@@ -283,33 +292,54 @@ def setting_values(camera: LensCamera) -> np.ndarray:
 
 
 #: PoCL 3.0 compiles a kernel apart for launches of fewer work items than this (its "smallgrid"
-#: variant) and for the others (32768 work items take the first, 65536 the second). Every launch of
-#: the lens kernel has at least this many work items (``launch_size``), so it is compiled once, not
-#: twice, at the cost of the padding rays in a small launch, which compute as much as real ones. The
-#: shading and EWA kernels are not padded: a pass's hits can number far fewer, and their padding
-#: would cost more than a second compile saves.
+#: variant) and for the others (32768 work items take the first, 65536 the second), each at its
+#: first launch. A camera kernel object's launches keep to the variant of its first launch
+#: (``LaunchSizes``): after a first launch of at least this many work items, smaller ones are padded
+#: up to it (the padding rays compute as much as real ones); after a smaller first launch none is
+#: padded beyond whole work groups. So a render compiles one variant, and one whose passes are
+#: small (the lens kernel's, four rays a work item: fewer than 2^18 rays a pass) pays for no
+#: padding rays. The shading and EWA kernels are not padded: a pass's hits can number far fewer,
+#: and their padding would cost more than a second compile saves.
 SMALL_GRID_LIMIT = 65536
 
 
-def launch_size(rays: int, per_item: int = 1) -> int:
+def launch_size(rays: int, per_item: int = 1, pad: bool = True) -> int:
     """Rays to launch the lens kernel for ``rays``, ``per_item`` rays per work item: whole groups
-    of work items, at least ``SMALL_GRID_LIMIT`` of them."""
-    return per_item * max(SMALL_GRID_LIMIT, whole_groups(-(-rays // per_item)))
+    of work items, at least ``SMALL_GRID_LIMIT`` of them where ``pad``."""
+    items = whole_groups(-(-rays // per_item))
+    return per_item * (max(SMALL_GRID_LIMIT, items) if pad else items)
 
 
-def launch_layout(block: SampleBlock, rays_per_sample: int = 1, per_item: int = 1
+def launch_layout(block: SampleBlock, rays_per_sample: int = 1, per_item: int = 1, pad: bool = True
                   ) -> tuple[tuple[np.uint32, ...], int]:
     """A camera kernel's (first pixel, offset, slice start, slice width) arguments for ``block`` and
-    the padded launch's rays (``rays_per_sample`` per sample, ``per_item`` per work item), checking
-    the uint32 limits for the rays up to the last work group's end (those padded beyond it compute
-    rays nobody reads)."""
+    the launch's rays (``rays_per_sample`` per sample, ``per_item`` per work item, padded as
+    ``launch_size`` pads), checking the uint32 limits for the rays up to the last work group's end
+    (those padded beyond it compute rays nobody reads)."""
     used = whole_groups(block.count * rays_per_sample)
     first_pixel, offset = divmod(block.first, block.samples)
     if offset + used >= 2**32 or first_pixel + (offset + used) // block.samples >= 2**31 \
             or block.first_sample + block.samples >= 2**32:
         raise ValueError(f"sample block {block} exceeds the kernel's 32-bit indices")
     return tuple(np.uint32(v) for v in (first_pixel, offset, block.first_sample, block.samples)), \
-        launch_size(used, per_item)
+        launch_size(used, per_item, pad)
+
+
+class LaunchSizes:
+    """The launch sizes of one camera kernel object's program (``SMALL_GRID_LIMIT``): its first
+    launch decides whether later ones are padded up to the limit (it had at least that many work
+    items: PoCL compiled the large-grid variant) or not. Callers serialise ``layout`` with their
+    launches (the kernel's lock)."""
+
+    def __init__(self) -> None:
+        self.pad: bool | None = None
+
+    def layout(self, block: SampleBlock, rays_per_sample: int = 1, per_item: int = 1
+               ) -> tuple[tuple[np.uint32, ...], int]:
+        """``launch_layout`` of ``block``, padded as this kernel's first launch decided."""
+        if self.pad is None:
+            self.pad = whole_groups(-(-whole_groups(block.count * rays_per_sample) // per_item)) >= SMALL_GRID_LIMIT
+        return launch_layout(block, rays_per_sample, per_item, self.pad)
 
 
 def lens_program(camera: LensCamera, rays_per_item: int) -> tuple[str, str]:
@@ -351,7 +381,7 @@ def _seconds(run: Callable[[], object]) -> float:
 
 #: A lens program as ``LensKernel._build`` makes it: its rays per work item, the program, and its
 #: ``generate_rays`` and ``sample_bits`` kernels.
-_Built = tuple[int, "cl.Program", "cl.Kernel", "cl.Kernel"]
+_Built = tuple[int, "cl.Program", TypedKernel, TypedKernel]
 
 
 def _choice_key(camera: LensCamera, device: Device) -> str:
@@ -435,11 +465,12 @@ class LensKernel:
         """The program tracing ``rays_per_item`` rays per work item (built, or from the caches) and
         its two kernels."""
         program = self.device.build_program(*lens_program(self.camera, rays_per_item))
-        return rays_per_item, program, cl.Kernel(program, "generate_rays"), cl.Kernel(program, "sample_bits")
+        return rays_per_item, program, TypedKernel(program, "generate_rays"), TypedKernel(program, "sample_bits")
 
     def _use(self, built: _Built) -> None:
-        """Launch the program ``_build`` made from now on."""
+        """Launch the program ``_build`` made from now on, its launch sizes decided by its next launch."""
         self.rays_per_item, self.program, self._generate, self._bits = built
+        self._sizes = LaunchSizes()
 
     def _fastest_rays_per_item(self) -> int:
         """The faster of ``rays_per_item_choices`` for this camera on this device (see
@@ -479,14 +510,14 @@ class LensKernel:
         """Rays of the block's samples, as ``LensCamera.generate_rays`` makes them (float32): a
         spectral camera's ``rays_per_sample`` rays of each sample consecutively."""
         per_item = self.rays_per_item
-        address, padded = launch_layout(block, self.camera.rays_per_sample, per_item)
         count = block.count * self.camera.rays_per_sample
-        out = np.empty((self._rows, padded), dtype=np.float32)
-        pixels = np.empty(padded, dtype=np.int32)
-        with self._lock:  # the kernel writes into the result's own arrays (Device.run_into)
+        with self._lock:  # the kernel writes into the result's own arrays, read back at once (Device.run_into)
+            address, padded = self._sizes.layout(block, self.camera.rays_per_sample, per_item)
+            outputs = OutputBlock(self.device, (((self._rows, padded), np.float32), ((padded,), np.int32)))
+            out, pixels = outputs.arrays
             self.device.run_into(self.queue, self._generate, (padded // per_item,), (LOCAL_SIZE,),
                                  (*address, np.uint32(seed & 0xFFFFFFFF), self._world, self._settings, *self._film,
-                                  np.uint32(padded)), (out, pixels))
+                                  np.uint32(padded)), outputs)
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count], wavelength_nm=out[7, :count] if self.camera.spectral else None)
 

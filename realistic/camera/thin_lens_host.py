@@ -5,7 +5,7 @@ the scene, so the OpenCL backend makes these rays on the device as it does a rea
 (``opencl_host.LensKernel``), from the same random numbers, sample addresses and pixel filter. Only
 the pixel filter is compiled in (``opencl_host.filter_lines``); the field of view, resolution,
 focus and lens radius are kernel arguments, so one build serves every perspective camera with that
-filter. Launches are padded as the lens kernel's are (``opencl_host.launch_layout``) and write
+filter. Launches are padded as the lens kernel's are (``opencl_host.LaunchSizes``) and write
 straight into the arrays returned.
 """
 
@@ -17,9 +17,9 @@ import threading
 import numpy as np
 
 from realistic.camera.base import RayBatch, SampleBlock
-from realistic.camera.opencl_host import ROWS, filter_lines, launch_layout
+from realistic.camera.opencl_host import ROWS, LaunchSizes, filter_lines
 from realistic.camera.thin_lens import ThinLensCamera
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source
+from realistic.device.opencl import LOCAL_SIZE, Device, OutputBlock, TypedKernel, kernel_source
 
 KERNEL_FILE = "thin_lens.cl"
 
@@ -55,17 +55,18 @@ class ThinLensKernel:
         self._world = device.copied_buffer(camera.world_from_camera[:3, :4], np.float32)
         self._constants = kernel_constants(camera)
         program = device.build_program(*thin_lens_program(camera))
-        self._generate = cl.Kernel(program, "generate_rays")
+        self._generate = TypedKernel(program, "generate_rays")
+        self._sizes = LaunchSizes()  # padded as the first launch decides (``opencl_host.SMALL_GRID_LIMIT``)
 
     def generate(self, block: SampleBlock, seed: int = 0) -> RayBatch:
         """Rays of the block's samples, as ``ThinLensCamera.generate_rays`` makes them (float32)."""
-        address, padded = launch_layout(block)
         count = block.count
-        out = np.empty((ROWS, padded), dtype=np.float32)
-        pixels = np.empty(padded, dtype=np.int32)
-        with self._lock:  # written in place (Device.run_into), as LensKernel.generate does
+        with self._lock:  # written in place, read back at once (Device.run_into), as LensKernel.generate does
+            address, padded = self._sizes.layout(block)
+            outputs = OutputBlock(self.device, (((ROWS, padded), np.float32), ((padded,), np.int32)))
+            out, pixels = outputs.arrays
             self.device.run_into(self.queue, self._generate, (padded,), (LOCAL_SIZE,),
                                  (*address, np.uint32(seed & 0xFFFFFFFF), self._world, *self._constants,
-                                  np.uint32(padded)), (out, pixels))
+                                  np.uint32(padded)), outputs)
         return RayBatch(origin=out[0:3, :count].T, direction=out[3:6, :count].T, weight=out[6, :count],
                         pixel=pixels[:count])

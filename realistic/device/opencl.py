@@ -14,8 +14,10 @@ PoCL device, otherwise the first device found.
 from __future__ import annotations
 
 import atexit
+import math
 import os
 import threading
+from collections.abc import Sequence
 from functools import lru_cache
 from typing import Any
 
@@ -107,6 +109,60 @@ def _match(spec: str, found: list[tuple[int, int, cl.Platform, cl.Device]], orig
     return hits[0][3]
 
 
+class TypedKernel:
+    """A kernel object launched as ``cl.Kernel`` is (``kernel(queue, global_size, local_size, *args)``),
+    whose scalar arguments' types pyopencl is told at its first launch (``Kernel.set_scalar_arg_dtypes``:
+    each numpy scalar's dtype, None for anything else, a buffer), so that it packs them directly. Untold,
+    pyopencl tries every scalar argument of every launch as a buffer, an SVM pointer, local memory, a
+    sampler and a command queue before packing it, each refusal a C++ exception thrown and unwound.
+    Every launch passes the types of the first (the kernel's signature)."""
+
+    def __init__(self, program: cl.Program, name: str):
+        self.kernel = cl.Kernel(program, name)
+        self._typed = False
+
+    def __call__(self, queue: cl.CommandQueue, global_size: tuple[int, ...], local_size: tuple[int, ...] | None,
+                 *args: Any) -> cl.Event:
+        if not self._typed:
+            self.kernel.set_scalar_arg_dtypes([arg.dtype if isinstance(arg, np.generic) else None for arg in args])
+            self._typed = True
+        return self.kernel(queue, global_size, local_size, *args)
+
+
+class OutputBlock:
+    """Kernel outputs of the given (shape, dtype)s laid out in one host array (``block``), each starting
+    at the device's sub-buffer alignment, under one buffer over its memory (USE_HOST_PTR, ``flags``
+    besides): a launch writes each output through its sub-buffer (``parts``) and one read of ``block``
+    (``read``) brings them all back. A read is a command of the queue, which wakes the driver's worker
+    threads as a launch does; the reads copy nothing on PoCL's CPU device. An empty output gets one
+    element's room (OpenCL has no empty buffers). ``release`` the buffers after the last read."""
+
+    def __init__(self, device: Device, outputs: Sequence[tuple[tuple[int, ...], type[np.generic]]],
+                 flags: int | None = None):
+        align = max(1, device.devices[0].mem_base_addr_align // 8)  # bits to bytes
+        spans = []
+        end = 0
+        for shape, dtype in outputs:
+            nbytes = math.prod(shape) * np.dtype(dtype).itemsize
+            spans.append((end, nbytes))
+            end += -(-max(nbytes, np.dtype(dtype).itemsize) // align) * align
+        self.block = np.empty(end, np.uint8)
+        self.arrays = [self.block[start:start + nbytes].view(dtype).reshape(shape)
+                       for (start, nbytes), (shape, dtype) in zip(spans, outputs)]
+        self.buffer = device.host_buffer(self.block, cl.mem_flags.WRITE_ONLY if flags is None else flags)
+        self.parts = [self.buffer.get_sub_region(start, max(nbytes, np.dtype(dtype).itemsize))
+                      for (start, nbytes), (_, dtype) in zip(spans, outputs)]
+
+    def read(self, queue: cl.CommandQueue) -> None:
+        """Wait until every output is in ``arrays`` (one blocking read, after what is queued)."""
+        cl.enqueue_copy(queue, self.block, self.buffer, is_blocking=True)
+
+    def release(self) -> None:
+        """Release the sub-buffers and the buffer (the arrays stay)."""
+        for buffer in (*self.parts, self.buffer):
+            buffer.release()
+
+
 class Device:
     """One OpenCL device of this process: its context and the programs built for it.
 
@@ -188,19 +244,30 @@ class Device:
         """A write-only device buffer of ``nbytes``."""
         return cl.Buffer(self.context, cl.mem_flags.WRITE_ONLY, nbytes)
 
-    def run_into(self, queue: cl.CommandQueue, kernel: cl.Kernel, global_size: tuple[int, ...],
-                 local_size: tuple[int, ...], args: tuple[Any, ...], outputs: tuple[np.ndarray, ...]) -> None:
+    def run_into(self, queue: cl.CommandQueue, kernel: cl.Kernel | TypedKernel, global_size: tuple[int, ...],
+                 local_size: tuple[int, ...], args: tuple[Any, ...], outputs: tuple[np.ndarray, ...] | OutputBlock
+                 ) -> None:
         """Launch ``kernel`` with ``args`` followed by one write-only buffer over each of ``outputs``'
         own memory (USE_HOST_PTR), and wait until the results are in those arrays: the reads copy
         nothing on PoCL's CPU device, where a copy out of a buffer of its own cost a fifth of a
-        camera launch. An empty output (OpenCL has no empty buffers) gets a scratch buffer the kernel
-        does not write. Callers serialise launches on one queue themselves, or give each thread its
-        own queue and kernel.
+        camera launch. ``outputs``: arrays, each read back by a command of its own (an empty one
+        gets a scratch buffer the kernel does not write, as OpenCL has no empty buffers), or an
+        ``OutputBlock``, whose parts are passed and read back with one command (and released).
+        Callers serialise launches on one queue themselves, or give each thread its own queue and
+        kernel.
 
         The launch is waited for before the reads are queued: PoCL compiles a kernel for its
         work-group size when its first launch is submitted, which a non-blocking ``enqueue_copy``
         queued behind it does inside that call, holding the GIL (every other thread of the render
         stood still for the lens kernel's compile); ``CommandQueue.finish`` waits without it."""
+        if isinstance(outputs, OutputBlock):
+            try:
+                kernel(queue, global_size, local_size, *args, *outputs.parts)
+                queue.finish()  # a first launch compiles the kernel here, without the GIL (see above)
+                outputs.read(queue)
+            finally:
+                outputs.release()
+            return
         flags = cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR
         buffers = [cl.Buffer(self.context, flags, hostbuf=array) if array.nbytes else self.output_buffer(4)
                    for array in outputs]

@@ -84,8 +84,9 @@ def pass_sums(pixel: np.ndarray, value: np.ndarray, first_pixel: int, pixel_coun
         if len(local) and (local.min() < 0 or local.max() >= pixel_count):  # weight in turn, in float64
             raise outside
         products = (value * weight[:, None]).astype(np.float64)
-        return np.stack([np.bincount(local, products[:, c], pixel_count) for c in range(value.shape[1])], axis=1) \
-            if value.shape[1] else np.zeros((pixel_count, 0))
+        # float64 whatever the rows: np.bincount of no rows gives int64 zeros, weights or not
+        return np.stack([np.bincount(local, products[:, c], pixel_count) for c in range(value.shape[1])],
+                        axis=1).astype(np.float64, copy=False) if value.shape[1] else np.zeros((pixel_count, 0))
     sums = np.zeros((pixel_count, value.shape[1]), np.float64)
     if not compiled(_add_rows)(pixel, np.int64(first_pixel), value, weight, sums):
         raise outside

@@ -48,7 +48,7 @@ import threading
 import numpy as np
 
 from realistic.core.validation import TEXTURE_WRAPS
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.opencl import LOCAL_SIZE, Device, OutputBlock, TypedKernel, cl, kernel_source, whole_groups
 from realistic.device.tables import Table
 from realistic.scene.intersect import Hits
 from realistic.scene.mipmap import EWA_WEIGHTS, MipMap
@@ -111,22 +111,23 @@ class _ThreadKernels:
         self.queue = device.queue()
         self._program = program
         #: hit_lookups and hit_lookups_single (EWA's float32 lookups), each made on its first use
-        self._hits: dict[bool, cl.Kernel] = {}
+        self._hits: dict[bool, TypedKernel] = {}
         #: per filter, its kernel for the small lookups and the one for the lookups it leaves pending
-        self._filters: dict[str, tuple[cl.Kernel, cl.Kernel]] = {}
+        self._filters: dict[str, tuple[TypedKernel, TypedKernel]] = {}
 
-    def hits(self, single: bool) -> cl.Kernel:
+    def hits(self, single: bool) -> TypedKernel:
         """``hit_lookups``, or ``hit_lookups_single`` (float32 lookups, EWA's) where ``single``."""
         kernel = self._hits.get(single)
         if kernel is None:
-            kernel = self._hits[single] = cl.Kernel(self._program, "hit_lookups_single" if single else "hit_lookups")
+            kernel = self._hits[single] = TypedKernel(self._program, "hit_lookups_single" if single else "hit_lookups")
         return kernel
 
-    def filter(self, name: str) -> tuple[cl.Kernel, cl.Kernel]:
+    def filter(self, name: str) -> tuple[TypedKernel, TypedKernel]:
         """The filter ``name``'s two kernels (``DEVICE_FILTERS``): ``{name}_small`` and ``{name}``."""
         kernels = self._filters.get(name)
         if kernels is None:
-            kernels = self._filters[name] = (cl.Kernel(self._program, f"{name}_small"), cl.Kernel(self._program, name))
+            kernels = self._filters[name] = (TypedKernel(self._program, f"{name}_small"),
+                                             TypedKernel(self._program, name))
         return kernels
 
 
@@ -169,9 +170,7 @@ class EwaKernel:
         with np.errstate(over="ignore"):  # past float32's range: infinite, which EWA filters to 0
             for column, values in enumerate((st, axis0, axis1)):
                 lookups[:, 2 * column:2 * column + 2] = values
-        out = np.empty((len(st), 3), np.float32)
-        self._filter(lookups, np.ones(3, np.float32), out, texture_filter)
-        return out
+        return self._filter(lookups, np.ones(3, np.float32), texture_filter)
 
     def lookup(self, texture_filter: str, st: np.ndarray, axes: Footprint | None) -> np.ndarray:
         """A ``textures.ImageLookup`` on this map: ``texture_filter`` over ``axes``, or without a
@@ -181,35 +180,43 @@ class EwaKernel:
             return self(st, zero, zero, "bilinear")
         return self(st, axes[0], axes[1], texture_filter)
 
-    def _filter(self, lookups: np.ndarray, scale: np.ndarray, out: np.ndarray, texture_filter: str) -> None:
-        """Write into ``out`` (N, 3) float32 the filtered colours times ``scale`` (3,) float32 of the
-        lookups (s, t, axis0, axis1) (N, 6) of the filter's ``lookup_dtype``: the filter's small kernel (``ewa_small``,
-        ``bilinear_small``, ...) over all, then its other kernel (``ewa``, ``bilinear``, ...) over the
-        rows it leaves, reading them from the same lookups and writing them into their rows of ``out``
-        (no gathered copies), each with the filter's own arguments last."""
+    def _filter(self, lookups: np.ndarray, scale: np.ndarray, texture_filter: str,
+                lookup_buffer: cl.Buffer | None = None) -> np.ndarray:
+        """The filtered colours (N, 3) float32 times ``scale`` (3,) float32 of the lookups (s, t, axis0,
+        axis1) (N, 6) of the filter's ``lookup_dtype`` (``lookup_buffer``: the buffer over them that a
+        kernel queued before this writes; None: wrapped here): the filter's small kernel
+        (``ewa_small``, ``bilinear_small``, ...) over all, then its other kernel (``ewa``,
+        ``bilinear``, ...) over the rows it leaves, reading them from the same lookups and writing them
+        into their rows of the colours (no gathered copies), each with the filter's own arguments
+        last. The colours and the small kernel's marks of the rows it leaves are one ``OutputBlock``:
+        one read brings both, and where no row is left nothing more is queued."""
         if texture_filter not in DEVICE_FILTERS:
             raise ValueError(f"the device filters with {' or '.join(DEVICE_FILTERS)}, not {texture_filter!r}")
         count = len(lookups)
         if count == 0:
-            return
-        pending = np.empty(count, np.uint8)
-        inputs = [self.device.wrapped_buffer(lookups, lookup_dtype(texture_filter))]
-        written = [self.device.host_buffer(pending, cl.mem_flags.WRITE_ONLY),
-                   self.device.host_buffer(out, cl.mem_flags.READ_WRITE)]
+            return np.empty((0, 3), np.float32)
+        outputs = OutputBlock(self.device, (((count, 3), np.float32), ((count,), np.uint8)), cl.mem_flags.READ_WRITE)
+        out, pending = outputs.arrays
+        colours, marks = outputs.parts
+        inputs = [self.device.wrapped_buffer(lookups, lookup_dtype(texture_filter)) if lookup_buffer is None
+                  else lookup_buffer]
         scales = [np.float32(v) for v in scale]
         kernels = self._thread()
         small, other = kernels.filter(texture_filter)
-        small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs, *scales, np.int32(count),
-              np.int32(1), *written, *self._own[texture_filter])
-        # reads into the buffers' own host pointers: PoCL copies nothing; they order the reads after the kernels
-        cl.enqueue_copy(kernels.queue, pending, written[0])
-        rest = np.flatnonzero(pending)
-        if len(rest):
-            # kept until the blocking read below: the buffer holds the int32 rows' only reference
-            inputs.append(self.device.wrapped_buffer(rest, np.int32))
-            other(kernels.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *inputs, *scales,
-                  np.int32(len(rest)), written[1], *self._own[texture_filter])
-        cl.enqueue_copy(kernels.queue, out, written[1])
+        try:
+            small(kernels.queue, (whole_groups(count),), (LOCAL_SIZE,), *self._map, *inputs, *scales, np.int32(count),
+                  np.int32(1), marks, colours, *self._own[texture_filter])
+            outputs.read(kernels.queue)
+            rest = np.flatnonzero(pending)
+            if len(rest):
+                # kept until the blocking read below: the buffer holds the int32 rows' only reference
+                inputs.append(self.device.wrapped_buffer(rest, np.int32))
+                other(kernels.queue, (whole_groups(len(rest)),), (LOCAL_SIZE,), *self._map, *inputs, *scales,
+                      np.int32(len(rest)), colours, *self._own[texture_filter])
+                outputs.read(kernels.queue)
+        finally:
+            outputs.release()
+        return out
 
     def at_hits(self, surfaces: SurfaceTables, rows: np.ndarray, mapping: np.ndarray, direction: np.ndarray,
                 hits: Hits, texture_filter: str = "ewa") -> np.ndarray:
@@ -217,36 +224,55 @@ class EwaKernel:
         ``direction`` (N, 3), whose closest hits (``scene.intersect.Hits``) are on instances of a
         material whose image texture this map is (``hit_mapping``), filtered with ``texture_filter``
         (``DEVICE_FILTERS``; with "bilinear" where ``mapping``'s spread is 0: no footprint, level 0):
-        ``hit_lookups`` makes their lookups and ``_filter`` filters them, times the diffuse colour.
-        The caller picks the rows and places the colours (one pass each)."""
-        albedo = np.empty((len(rows), 3), np.float32)
-        lookups, texture_filter = self.hit_lookups(surfaces, rows, mapping, direction, hits, texture_filter)
+        ``hit_lookups``' kernel makes their lookups and ``_filter`` filters them, times the diffuse
+        colour, from the lookups' buffer: they are not read back between the two (the queue orders
+        them). The caller picks the rows and places the colours (one pass each)."""
+        launched = self._launch_hit_lookups(surfaces, rows, mapping, direction, hits, texture_filter)
+        lookups, written, texture_filter, _inputs = launched  # the inputs held until the filter's reads
         diffuse = MAPPING.offset("diffuse")
-        self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), albedo, texture_filter)
-        return albedo
+        try:
+            return self._filter(lookups, mapping[diffuse:diffuse + 3].astype(np.float32), texture_filter, written)
+        finally:
+            if written is not None:
+                # waits for nothing after the filter's reads; for the kernel where the filter raised before them
+                self._thread().queue.finish()
+                written.release()
 
     def hit_lookups(self, surfaces: SurfaceTables, rows: np.ndarray, mapping: np.ndarray, direction: np.ndarray,
                     hits: Hits, texture_filter: str = "ewa") -> tuple[np.ndarray, str]:
         """``at_hits``' lookups (len(rows), 6) (s, t, axis0, axis1) of the filter's ``lookup_dtype``, made
         by the kernel ``hit_lookups`` (float64) or ``hit_lookups_single`` (float32, EWA's), and the
         filter they are for (``texture_filter``, or "bilinear" where ``mapping``'s spread is 0)."""
+        lookups, written, texture_filter, _inputs = self._launch_hit_lookups(surfaces, rows, mapping, direction, hits,
+                                                                             texture_filter)
+        if written is not None:
+            # a read into the buffer's own host pointer: PoCL copies nothing; it orders the read after the kernel
+            cl.enqueue_copy(self._thread().queue, lookups, written)
+            written.release()
+        return lookups, texture_filter
+
+    def _launch_hit_lookups(self, surfaces: SurfaceTables, rows: np.ndarray, mapping: np.ndarray,
+                            direction: np.ndarray, hits: Hits, texture_filter: str
+                            ) -> tuple[np.ndarray, cl.Buffer | None, str, list[cl.Buffer]]:
+        """``hit_lookups``' kernel queued on this thread's queue, not waited for: the lookups' array,
+        the buffer over it that the kernel writes (None for no rows: no launch), the filter, and the
+        input buffers, which the caller holds until a blocking read or wait after the kernel."""
         if rows.dtype != np.int32:
             raise ValueError(f"at_hits reads int32 rows, not {rows.dtype}")
         footprint = mapping[MAPPING.offset("spread")] > 0
         texture_filter = texture_filter if footprint else "bilinear"
         lookups = np.empty((len(rows), 6), lookup_dtype(texture_filter))
         if len(rows) == 0:
-            return lookups, texture_filter
+            return lookups, None, texture_filter, []
         inputs = [self.device.wrapped_buffer(a, dtype)
                   for a, dtype in ((mapping, np.float64), (direction, np.float32), (hits.t, np.float32),
                                    (hits.u, np.float32), (hits.v, np.float32), (hits.prim, np.int32),
                                    (hits.geom, np.int32), (hits.normal, np.float32), (rows, np.int32))]
-        written = self.device.host_buffer(lookups, cl.mem_flags.WRITE_ONLY)
+        written = self.device.host_buffer(lookups, cl.mem_flags.READ_WRITE)
         kernels = self._thread()
         kernels.hits(lookups.dtype == np.float32)(kernels.queue, (whole_groups(len(rows)),), (LOCAL_SIZE,),
                                                   *surfaces.buffers, *inputs, np.int32(len(rows)), np.int32(1), written)
-        cl.enqueue_copy(kernels.queue, lookups, written)
-        return lookups, texture_filter
+        return lookups, written, texture_filter, inputs
 
 
 class FootprintKernel:
@@ -259,11 +285,11 @@ class FootprintKernel:
         self._program = build_ewa_program(device, "repeat")
         self._local = threading.local()
 
-    def _thread(self) -> tuple[cl.CommandQueue, cl.Kernel]:
+    def _thread(self) -> tuple[cl.CommandQueue, TypedKernel]:
         """The calling thread's queue and kernel, made on its first call."""
-        made: tuple[cl.CommandQueue, cl.Kernel] | None = getattr(self._local, "made", None)
+        made: tuple[cl.CommandQueue, TypedKernel] | None = getattr(self._local, "made", None)
         if made is None:
-            made = self._local.made = (self.device.queue(), cl.Kernel(self._program, "triangle_footprints"))
+            made = self._local.made = (self.device.queue(), TypedKernel(self._program, "triangle_footprints"))
         return made
 
     def __call__(self, vertices: np.ndarray, uv: np.ndarray, linear: np.ndarray, face: np.ndarray,
