@@ -61,7 +61,7 @@ from typing import TypeGuard, TypeVar
 
 import numpy as np
 
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.opencl import LOCAL_SIZE, Device, TypedKernel, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer import bsdf_kernel
 from realistic.renderer.bsdf.base import HitParameters
@@ -422,14 +422,14 @@ class BounceKernel:
                                          + kernel_source(bsdf_kernel.KERNEL_FILE) + kernel_source(KERNEL_FILE),
                                          KERNEL_FILE)
 
-    def _queue_and_kernel(self, spectral: bool) -> tuple[cl.CommandQueue, cl.Kernel]:
+    def _queue_and_kernel(self, spectral: bool) -> tuple[cl.CommandQueue, TypedKernel]:
         """This thread's queue and its kernel object of the RGB or the spectral build."""
-        state: tuple[cl.CommandQueue, dict[bool, cl.Kernel]] | None = getattr(self._local, "state", None)
+        state: tuple[cl.CommandQueue, dict[bool, TypedKernel]] | None = getattr(self._local, "state", None)
         if state is None:
             state = self._local.state = (self.device.queue(), {})
         queue, kernels = state
         if spectral not in kernels:
-            kernels[spectral] = cl.Kernel(self.program(spectral), "bounce")
+            kernels[spectral] = TypedKernel(self.program(spectral), "bounce")
         return queue, kernels[spectral]
 
     def __call__(self, rows: np.ndarray, path: np.ndarray, pixel: np.ndarray, sample: np.ndarray,

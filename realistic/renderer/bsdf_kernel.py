@@ -32,7 +32,7 @@ from typing import TypeGuard
 import numpy as np
 from numpy.typing import ArrayLike
 
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.opencl import LOCAL_SIZE, Device, TypedKernel, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer.bsdf.base import BSDFSample, HitParameters
 from realistic.renderer.bsdf.coated_diffuse import CoatedLambertian
@@ -363,10 +363,10 @@ class BsdfKernel:
         rows[:, BSDF_PARAMS.width:] = tree
         return rows
 
-    def _queue_and_kernel(self) -> tuple[cl.CommandQueue, cl.Kernel]:
+    def _queue_and_kernel(self) -> tuple[cl.CommandQueue, TypedKernel]:
         state = getattr(self._local, "state", None)
         if state is None:
-            state = self._local.state = (self.device.queue(), cl.Kernel(self.program, "bsdf"))
+            state = self._local.state = (self.device.queue(), TypedKernel(self.program, "bsdf"))
         return state
 
     def __call__(self, params: np.ndarray, wo: np.ndarray, light_wi: np.ndarray, u: np.ndarray, u_lobe: np.ndarray,

@@ -48,7 +48,7 @@ from realistic.core.spectrum import (
     rgb_basis,
     wavelength_pdf,
 )
-from realistic.device.opencl import LOCAL_SIZE, Device, cl, kernel_source, whole_groups
+from realistic.device.opencl import LOCAL_SIZE, Device, TypedKernel, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer.bsdf.measured import TABLE_NODES
 from realistic.renderer.light_sampler import SHADOW_DEFINES
@@ -182,7 +182,7 @@ class _ThreadState:
 
     def __init__(self, device: Device):
         self.queue = device.queue()
-        self.shade: dict[tuple[int, bool], cl.Kernel] = {}  # (light samples per launch, spectral) -> kernel
+        self.shade: dict[tuple[int, bool], TypedKernel] = {}  # (light samples per launch, spectral) -> kernel
         self.rows = {True: 0, False: 0}  # rows the block holds: of shadow rays, of camera rays
         self.arrays: dict[str, np.ndarray] = {}
         self.buffers: dict[str, cl.Buffer] = {}
@@ -324,16 +324,13 @@ class ShadeKernel:
         variant = (light_samples, wavelength_nm is not None)
         kernel = state.shade.get(variant)
         if kernel is None:
-            kernel = state.shade[variant] = cl.Kernel(self._program(*variant), "shade")
-        kernel.set_args(np.uint32(n), np.uint32(first_sample), np.uint32(total),
-                        np.uint32(seed & 0xFFFFFFFF),
-                        np.uint32(1),
-                        np.int32(self.instance_count),
-                        self.offset_base, np.int32(self.light_count), *buffers, self._spectrum, *self._tables,
-                        state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
-                        state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
+            kernel = state.shade[variant] = TypedKernel(self._program(*variant), "shade")
         # work groups of PACKET: shade.cl's work group is a group of lanes (``LANE_DEFINES``)
-        cl.enqueue_nd_range_kernel(state.queue, kernel, (stride,), (PACKET,))
+        kernel(state.queue, (stride,), (PACKET,), np.uint32(n), np.uint32(first_sample), np.uint32(total),
+               np.uint32(seed & 0xFFFFFFFF), np.uint32(1), np.int32(self.instance_count), self.offset_base,
+               np.int32(self.light_count), *buffers, self._spectrum, *self._tables,
+               state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
+               state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
         state.queue.finish()  # a first launch compiles here, without the GIL (``Device.run_into``)
         # one blocking read of the whole block into the buffer's own host pointer: PoCL copies
         # nothing (a platform that kept its own memory would copy)
