@@ -346,15 +346,17 @@ print([len(loop.signatures) for loop in loops])
     assert run.stdout.split("\n")[:2] == ["[1, 1, 1, 1, 1, 1, 1, 1, 1, 1]", "[1, 1, 1, 1, 1, 1, 1, 1, 1, 1]"]
 
 
-def test_other_threads_run_while_a_kernel_first_launch_compiles(tmp_path):
-    """PoCL compiles a kernel at its first launch; ``Device.run_into`` waits for that in
-    ``CommandQueue.finish``, which lets other Python threads run (a non-blocking read queued behind
-    the launch made the compile happen inside ``enqueue_copy``, the GIL held: the render's other
-    threads stood still). A thread sleeping a millisecond at a time counts its wake-ups meanwhile."""
+@pytest.mark.parametrize("outputs", ["arrays", "block"])
+def test_other_threads_run_while_a_kernel_first_launch_compiles(tmp_path, outputs):
+    """PoCL compiles a kernel at its first launch; ``Device.run_into`` waits for that without the
+    GIL, so other Python threads run: in ``CommandQueue.finish`` before the arrays' non-blocking
+    reads (one queued behind the launch made the compile happen inside ``enqueue_copy``, the GIL
+    held: the render's other threads stood still), or in an ``OutputBlock``'s one blocking read.
+    A thread sleeping a millisecond at a time counts its wake-ups meanwhile."""
     run = run_fresh("""
-import threading, time
+import sys, threading, time
 import numpy as np
-from realistic.device.opencl import LOCAL_SIZE, Device
+from realistic.device.opencl import LOCAL_SIZE, Device, OutputBlock
 
 device = Device.for_spec()
 source = '''__kernel void f(uint n, __global float* out) {
@@ -373,11 +375,12 @@ def count() -> None:
 threading.Thread(target=count).start()
 time.sleep(0.05)
 before, start = ticks[0], time.perf_counter()
-device.run_into(device.queue(), kernel, (LOCAL_SIZE,), (LOCAL_SIZE,), (np.uint32(LOCAL_SIZE),),
-                (np.empty(LOCAL_SIZE, np.float32),))
+outputs = ((np.empty(LOCAL_SIZE, np.float32),) if sys.argv[1] == "arrays"
+           else OutputBlock(device, (((LOCAL_SIZE,), np.float32),)))
+device.run_into(device.queue(), kernel, (LOCAL_SIZE,), (LOCAL_SIZE,), (np.uint32(LOCAL_SIZE),), outputs)
 print(time.perf_counter() - start, ticks[0] - before)
 done.set()
-""", POCL_CACHE_DIR=str(tmp_path), REALISTIC_CACHE_DIR="off")
+""", outputs, POCL_CACHE_DIR=str(tmp_path), REALISTIC_CACHE_DIR="off")
     seconds, ticks = run.stdout.split()
     if float(seconds) < 0.05:
         pytest.skip(f"the first launch took {float(seconds):.3f} s: nothing compiled at it")

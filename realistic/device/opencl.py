@@ -256,14 +256,16 @@ class Device:
         Callers serialise launches on one queue themselves, or give each thread its own queue and
         kernel.
 
-        The launch is waited for before the reads are queued: PoCL compiles a kernel for its
-        work-group size when its first launch is submitted, which a non-blocking ``enqueue_copy``
-        queued behind it does inside that call, holding the GIL (every other thread of the render
-        stood still for the lens kernel's compile); ``CommandQueue.finish`` waits without it."""
+        PoCL compiles a kernel for its work-group size when its first launch is submitted, which a
+        non-blocking ``enqueue_copy`` queued behind it does inside that call, holding the GIL (every
+        other thread of the render stood still for the lens kernel's compile). So the arrays' reads
+        are queued after ``CommandQueue.finish``, which waits without the GIL; an ``OutputBlock``'s
+        one blocking read is queued at once: pyopencl releases the GIL for a blocking read, and the
+        in-order queue runs the launch (its compile too) before it, so a second wait would only add
+        a round trip to the driver's threads."""
         if isinstance(outputs, OutputBlock):
             try:
                 kernel(queue, global_size, local_size, *args, *outputs.parts)
-                queue.finish()  # a first launch compiles the kernel here, without the GIL (see above)
                 outputs.read(queue)
             finally:
                 outputs.release()

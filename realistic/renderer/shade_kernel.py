@@ -331,8 +331,8 @@ class ShadeKernel:
                np.int32(self.light_count), *buffers, self._spectrum, *self._tables,
                state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
                state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
-        state.queue.finish()  # a first launch compiles here, without the GIL (``Device.run_into``)
-        # one blocking read of the whole block into the buffer's own host pointer: PoCL copies
+        # one blocking read of the whole block into the buffer's own host pointer, after the launch
+        # (and a first launch's compile), without the GIL (``Device.run_into``): PoCL copies
         # nothing (a platform that kept its own memory would copy)
         cl.enqueue_copy(state.queue, block, parent, is_blocking=True)
         spectral = wavelength_nm is not None
