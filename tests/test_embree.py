@@ -311,17 +311,19 @@ def test_rays_in_lanes_of_another_shape_are_refused() -> None:
             scene.occluded_lanes(origin, vector, lengths)
 
 
-def test_several_threads_tracing_at_once_get_the_answers_of_one() -> None:
+@pytest.mark.parametrize("coherent", [False, True])  # True: every thread passes embree the one shared arguments
+def test_several_threads_tracing_at_once_get_the_answers_of_one(coherent: bool) -> None:
     scene, world = instanced_scene(8)
     batches = [random_rays(world, 5000, seed) for seed in range(8)]
-    alone = [(scene.intersect(o, d), scene.occluded(o, d, np.full(len(o), 4, np.float32))) for o, d in batches]
+    alone = [(scene.intersect(o, d, coherent=coherent), scene.occluded(o, d, np.full(len(o), 4, np.float32)))
+             for o, d in batches]
     together: list = [None] * len(batches)
     start = threading.Barrier(len(batches))
 
     def trace(i: int) -> None:
         o, d = batches[i]
         start.wait()
-        together[i] = scene.intersect(o, d), scene.occluded(o, d, np.full(len(o), 4, np.float32))
+        together[i] = scene.intersect(o, d, coherent=coherent), scene.occluded(o, d, np.full(len(o), 4, np.float32))
 
     workers = [threading.Thread(target=trace, args=(i,)) for i in range(len(batches))]
     for worker in workers:

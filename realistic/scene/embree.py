@@ -62,6 +62,7 @@ class _IntersectArguments(ctypes.Structure):
 #: documentation of rtcInitIntersectArguments recommends for primary rays (scattered rays, and the
 #: shadow rays as the packet loops pack them, trace slower with it, so they keep the default)
 _COHERENT = _IntersectArguments(_RAY_QUERY_FLAG_COHERENT, _FEATURE_FLAG_ALL, None, None, None, 0.0)
+
 #: RTC_DEVICE_PROPERTY_VERSION (major * 10000 + minor * 100 + patch) of the embree releases the loops
 #: are tested with: 4.4.x, as embreex 4.4 ships
 TESTED_VERSIONS = range(40400, 40500)
