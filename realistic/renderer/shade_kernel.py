@@ -48,7 +48,7 @@ from realistic.core.spectrum import (
     rgb_basis,
     wavelength_pdf,
 )
-from realistic.device.opencl import LOCAL_SIZE, Device, TypedKernel, cl, kernel_source, whole_groups
+from realistic.device.opencl import LOCAL_SIZE, Device, OutputBlock, TypedKernel, cl, kernel_source, whole_groups
 from realistic.device.tables import Table, constant_defines
 from realistic.renderer.bsdf.measured import TABLE_NODES
 from realistic.renderer.light_sampler import SHADOW_DEFINES
@@ -175,7 +175,7 @@ OUTPUTS = (("origin", 3, True), ("vector", 3, True), ("length", 1, True), ("cont
 
 
 class _ThreadState:
-    """A thread's queue, kernel object and reusable output arrays: one host block holding every
+    """A thread's queue, kernel object and reusable output arrays: one ``OutputBlock`` holding every
     output, wrapped by one buffer with a sub-buffer per output, so that a launch's outputs come
     back by one read (each read, like each wait, releases the GIL, and taking it back while the
     other render threads run Python cost more than the reads themselves)."""
@@ -184,19 +184,21 @@ class _ThreadState:
         self.queue = device.queue()
         self.shade: dict[tuple[int, bool], TypedKernel] = {}  # (light samples per launch, spectral) -> kernel
         self.rows = {True: 0, False: 0}  # rows the block holds: of shadow rays, of camera rays
-        self.arrays: dict[str, np.ndarray] = {}
-        self.buffers: dict[str, cl.Buffer] = {}
-        self.block = np.empty(0, np.float32)
-        self.parent: cl.Buffer | None = None
+        self.block: OutputBlock | None = None
 
-    def outputs(self, device: Device, rows: int, rays: int) -> tuple[np.ndarray, cl.Buffer]:
-        """Output arrays of at least ``rows`` shadow-ray rows and, for spectral launches (``rays``
-        not 0), ``rays`` per-ray rows (an eighth more, so passes of varying size settle on one
-        allocation; a launch of RGB rays has a one-element placeholder there); the block that holds
-        them and its buffer, to read back."""
+    def outputs(self, device: Device, rows: int, rays: int) -> OutputBlock:
+        """The block of output arrays (``OUTPUTS``, in order), of at least ``rows`` shadow-ray rows
+        and, for spectral launches (``rays`` not 0), ``rays`` per-ray rows (an eighth more, so passes
+        of varying size settle on one allocation; a launch of RGB rays has a one-element placeholder
+        there), kept for the thread's later launches."""
         wanted = {True: rows, False: max(rays, 1)}
-        if self.parent is not None and all(wanted[kind] <= self.rows[kind] for kind in wanted):
-            return self.block, self.parent
+        if self.block is not None and all(wanted[kind] <= self.rows[kind] for kind in wanted):
+            return self.block
+        for kind, count in wanted.items():
+            if count > self.rows[kind]:
+                self.rows[kind] = count + count // 8
+        self.block = OutputBlock(device, [((self.rows[shadow] * width,), np.float32) for _, width, shadow in OUTPUTS])
+        return self.block
         for kind, count in wanted.items():
             if count > self.rows[kind]:
                 self.rows[kind] = count + count // 8
@@ -311,7 +313,7 @@ class ShadeKernel:
             empty = np.zeros((0, per, 3, PACKET), np.float32)
             return ShadowBatch(empty, empty, np.zeros((0, per, PACKET), np.float32), empty, 0)
         state = self._state()
-        block, parent = state.outputs(self.device, rows, 0 if wavelength_nm is None else stride)
+        outputs = state.outputs(self.device, rows, 0 if wavelength_nm is None else stride)
         mf = cl.mem_flags
         inputs = [np.ascontiguousarray(origin, np.float32), np.ascontiguousarray(direction, np.float32),
                   np.ascontiguousarray(t, np.float32), np.ascontiguousarray(u, np.float32),
@@ -328,18 +330,16 @@ class ShadeKernel:
         # work groups of PACKET: shade.cl's work group is a group of lanes (``LANE_DEFINES``)
         kernel(state.queue, (stride,), (PACKET,), np.uint32(n), np.uint32(first_sample), np.uint32(total),
                np.uint32(seed & 0xFFFFFFFF), np.uint32(1), np.int32(self.instance_count), self.offset_base,
-               np.int32(self.light_count), *buffers, self._spectrum, *self._tables,
-               state.buffers["origin"], state.buffers["vector"], state.buffers["length"],
-               state.buffers["contribution"], state.buffers["response"], state.buffers["basis"])
-        # one blocking read of the whole block into the buffer's own host pointer, after the launch
-        # (and a first launch's compile), without the GIL (``Device.run_into``): PoCL copies
-        # nothing (a platform that kept its own memory would copy)
-        cl.enqueue_copy(state.queue, block, parent, is_blocking=True)
+               np.int32(self.light_count), *buffers, self._spectrum, *self._tables, *outputs.parts)
+        # one blocking read of the whole block, after the launch (and a first launch's compile),
+        # without the GIL (``Device.run_into``): PoCL copies nothing (a platform that kept its own
+        # memory would copy)
+        outputs.read(state.queue)
         spectral = wavelength_nm is not None
         channels = 1 if spectral else 3
         for buffer in buffers:
             buffer.release()
-        arrays = state.arrays
+        arrays = dict(zip((name for name, _, _ in OUTPUTS), outputs.arrays))
         return ShadowBatch(shadow_lanes(arrays["origin"], per, 3, stride),
                            shadow_lanes(arrays["vector"], per, 3, stride),
                            shadow_lanes(arrays["length"], per, 1, stride)[:, :, 0],
