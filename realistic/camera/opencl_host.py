@@ -337,9 +337,10 @@ class LaunchSizes:
     def layout(self, block: SampleBlock, rays_per_sample: int = 1, per_item: int = 1
                ) -> tuple[tuple[np.uint32, ...], int]:
         """``launch_layout`` of ``block``, padded as this kernel's first launch decided."""
+        address, unpadded = launch_layout(block, rays_per_sample, per_item, pad=False)
         if self.pad is None:
-            self.pad = whole_groups(-(-whole_groups(block.count * rays_per_sample) // per_item)) >= SMALL_GRID_LIMIT
-        return launch_layout(block, rays_per_sample, per_item, self.pad)
+            self.pad = unpadded // per_item >= SMALL_GRID_LIMIT
+        return address, launch_size(unpadded, per_item, self.pad)
 
 
 def lens_program(camera: LensCamera, rays_per_item: int) -> tuple[str, str]:
